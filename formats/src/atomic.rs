@@ -1,0 +1,88 @@
+//! Atomic output files: written under a temporary name in the destination folder, then
+//! renamed over the destination, so a killed process never leaves a half-written file
+//! under the final name.
+
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use crate::error::{FileError, io_in_file};
+
+/// A file being written; it appears under its final name only on [`AtomicFile::commit`].
+pub struct AtomicFile {
+    tmp: tempfile::NamedTempFile,
+    dest: PathBuf,
+}
+
+impl AtomicFile {
+    /// Starts writing `dest` (its folder must exist).
+    pub fn create(dest: &Path) -> Result<Self, FileError> {
+        let dir = dest
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let file_name = dest
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let tmp = tempfile::Builder::new()
+            .prefix(&format!(".{file_name}."))
+            .suffix(".tmp")
+            .tempfile_in(dir)
+            .map_err(|e| io_in_file(dest, e))?;
+        Ok(Self {
+            tmp,
+            dest: dest.to_path_buf(),
+        })
+    }
+
+    /// The open temporary file.
+    pub fn file(&mut self) -> &mut std::fs::File {
+        self.tmp.as_file_mut()
+    }
+
+    /// A clone of the temporary file's handle (for writers that take ownership).
+    pub fn file_handle(&self) -> Result<std::fs::File, FileError> {
+        self.tmp
+            .as_file()
+            .try_clone()
+            .map_err(|e| io_in_file(&self.dest, e))
+    }
+
+    /// The destination path.
+    pub fn dest(&self) -> &Path {
+        &self.dest
+    }
+
+    /// Flushes to disk and renames the file to its destination.
+    pub fn commit(self) -> Result<(), FileError> {
+        self.tmp
+            .as_file()
+            .sync_all()
+            .map_err(|e| io_in_file(&self.dest, e))?;
+        let dest = self.dest;
+        self.tmp
+            .persist(&dest)
+            .map_err(|e| io_in_file(&dest, e.error))?;
+        Ok(())
+    }
+}
+
+/// Writes `bytes` to `dest` atomically.
+pub fn write_atomic(dest: &Path, bytes: &[u8]) -> Result<(), FileError> {
+    let mut f = AtomicFile::create(dest)?;
+    {
+        let mut w = BufWriter::new(f.file());
+        w.write_all(bytes)
+            .and_then(|()| w.flush())
+            .map_err(|e| io_in_file(dest, e))?;
+    }
+    f.commit()
+}
+
+/// Serialises `value` as pretty JSON (with a final newline) to `dest` atomically.
+pub fn write_json_atomic(dest: &Path, value: &impl serde::Serialize) -> Result<(), FileError> {
+    let mut bytes = serde_json::to_vec_pretty(value)
+        .map_err(|e| crate::error::FormatError::Invalid(e.to_string()).in_file(dest))?;
+    bytes.push(b'\n');
+    write_atomic(dest, &bytes)
+}

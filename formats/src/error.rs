@@ -1,0 +1,68 @@
+//! Typed errors of the formats crate. Messages name the file last.
+
+use std::path::PathBuf;
+
+/// An error decoding one piece of input (no file attached yet).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum FormatError {
+    /// The raw log's header is unusable.
+    #[error("bad UNZ header: {reason}")]
+    Header {
+        /// What is wrong.
+        reason: String,
+    },
+    /// Reading failed at a byte offset.
+    #[error("read failed at byte offset {offset}: {source}")]
+    Io {
+        /// Byte offset in the file.
+        offset: u64,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// A text log line could not be used.
+    #[error("line {line}: {reason}")]
+    Line {
+        /// 1-based line number.
+        line: u64,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A run manifest is invalid.
+    #[error("line {line}: {reason}")]
+    Manifest {
+        /// 1-based line number (0 when the whole manifest is concerned).
+        line: usize,
+        /// What is wrong.
+        reason: String,
+    },
+    /// Anything else, said in words.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// A [`FormatError`] with the file it concerns.
+#[derive(Debug, thiserror::Error)]
+#[error("{source} (in {path})")]
+pub struct FileError {
+    /// The file.
+    pub path: PathBuf,
+    /// What went wrong.
+    #[source]
+    pub source: FormatError,
+}
+
+impl FormatError {
+    /// Attaches the file this error concerns.
+    pub fn in_file(self, path: impl Into<PathBuf>) -> FileError {
+        FileError {
+            path: path.into(),
+            source: self,
+        }
+    }
+}
+
+/// Attaches a path to an I/O error that happened opening or writing a file.
+pub fn io_in_file(path: impl Into<PathBuf>, source: std::io::Error) -> FileError {
+    FormatError::Io { offset: 0, source }.in_file(path)
+}

@@ -1,0 +1,402 @@
+//! KF-GINS IMU text logs and separate odometer files (§3 of the raw-format spec).
+//!
+//! IMU lines: `t_s dtheta_x dtheta_y dtheta_z dvel_x dvel_y dvel_z [speed_mps]` —
+//! seconds at the end of each interval, rad and m/s increments, body FRD. The file's
+//! columns count is fixed by its first record line; blank lines and lines starting with
+//! `#` or `%` are skipped. A line that is not a record is counted
+//! (`rejected.malformed_line`) and reported with its number; the rest is kept.
+
+use std::io::BufRead;
+
+use crate::error::FormatError;
+use crate::manifest::OdometerKind;
+use crate::report::IngestReport;
+
+/// Longest line accepted; longer lines are malformed (and never buffered whole).
+pub const MAX_LINE_BYTES: usize = 4096;
+/// Number of leading samples whose median interval is the nominal sample period.
+const PERIOD_WINDOW: usize = 101;
+
+/// One IMU record of a text log.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TextSample {
+    /// 1-based line number in the file.
+    pub line: u64,
+    /// Time tag, s (end of the interval).
+    pub t_s: f64,
+    /// Angle increments, rad, body FRD.
+    pub dtheta_rad: [f64; 3],
+    /// Velocity increments, m/s, body FRD.
+    pub dvel_mps: [f64; 3],
+    /// Optional 8th column: odometer speed, m/s.
+    pub speed_mps: Option<f64>,
+}
+
+/// A line that could not be used.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct LineFault {
+    /// 1-based line number.
+    pub line: u64,
+    /// Why it was rejected.
+    pub reason: String,
+}
+
+/// Streaming reader of a KF-GINS IMU text log with accounting.
+pub struct KfGinsReader<R: BufRead> {
+    src: R,
+    line_no: u64,
+    columns: Option<usize>,
+    buf: Vec<u8>,
+    report: IngestReport,
+    faults: Vec<LineFault>,
+    faults_total: u64,
+    /// Samples read ahead to estimate the sample period.
+    ahead: std::collections::VecDeque<TextSample>,
+    period_s: Option<f64>,
+    prev: Option<TextSample>,
+    eof: bool,
+}
+
+impl<R: BufRead> KfGinsReader<R> {
+    /// Wraps a buffered source.
+    pub fn new(src: R) -> Self {
+        Self {
+            src,
+            line_no: 0,
+            columns: None,
+            buf: Vec::with_capacity(256),
+            report: IngestReport {
+                rejected: crate::report::Rejected {
+                    malformed_line: Some(0),
+                    ..Default::default()
+                },
+                ..Default::default()
+            },
+            faults: Vec::new(),
+            faults_total: 0,
+            ahead: std::collections::VecDeque::new(),
+            period_s: None,
+            prev: None,
+            eof: false,
+        }
+    }
+
+    /// The accounting so far (final after the last sample).
+    pub fn report(&self) -> &IngestReport {
+        &self.report
+    }
+
+    /// The first 1000 line faults and their total count.
+    pub fn faults(&self) -> (&[LineFault], u64) {
+        (&self.faults, self.faults_total)
+    }
+
+    /// Number of columns of this file (7 or 8), once known.
+    pub fn columns(&self) -> Option<usize> {
+        self.columns
+    }
+
+    /// Nominal sample period (median interval of the first samples), once known.
+    pub fn period_s(&mut self) -> Result<Option<f64>, FormatError> {
+        self.prime()?;
+        Ok(self.period_s)
+    }
+
+    fn fault(&mut self, reason: String) {
+        self.report.records_read += 1;
+        *self.report.rejected.malformed_line.get_or_insert(0) += 1;
+        self.faults_total += 1;
+        if self.faults.len() < 1000 {
+            self.faults.push(LineFault {
+                line: self.line_no,
+                reason,
+            });
+        }
+    }
+
+    /// Reads the next line into `buf`; `Ok(false)` at the end. Overlong lines are cut.
+    fn read_line(&mut self) -> Result<Option<bool>, FormatError> {
+        self.buf.clear();
+        let mut overlong = false;
+        loop {
+            let chunk = self
+                .src
+                .fill_buf()
+                .map_err(|source| FormatError::Io { offset: 0, source })?;
+            if chunk.is_empty() {
+                return Ok(if self.buf.is_empty() && !overlong {
+                    None
+                } else {
+                    Some(overlong)
+                });
+            }
+            let (take, done) = match chunk.iter().position(|&b| b == b'\n') {
+                Some(k) => (k + 1, true),
+                None => (chunk.len(), false),
+            };
+            let room = MAX_LINE_BYTES.saturating_sub(self.buf.len());
+            self.buf.extend_from_slice(&chunk[..take.min(room)]);
+            overlong |= take > room;
+            self.src.consume(take);
+            if done {
+                return Ok(Some(overlong));
+            }
+        }
+    }
+
+    /// Parses lines until one record is found.
+    fn next_raw(&mut self) -> Result<Option<TextSample>, FormatError> {
+        while let Some(overlong) = self.read_line()? {
+            self.line_no += 1;
+            if overlong {
+                self.fault(format!("line longer than {MAX_LINE_BYTES} bytes"));
+                continue;
+            }
+            let Ok(text) = std::str::from_utf8(&self.buf) else {
+                self.fault("not UTF-8 text".into());
+                continue;
+            };
+            let text = text.trim();
+            if text.is_empty() || text.starts_with('#') || text.starts_with('%') {
+                continue;
+            }
+            let mut values = [0f64; 8];
+            let mut n = 0;
+            let mut bad = None;
+            for field in text
+                .split(|c: char| c.is_whitespace() || c == ',')
+                .filter(|f| !f.is_empty())
+            {
+                if n == 8 {
+                    n += 1;
+                    break;
+                }
+                match field.parse::<f64>() {
+                    Ok(v) if v.is_finite() => values[n] = v,
+                    _ => {
+                        bad = Some(format!(
+                            "column {} is not a finite number: {field:?}",
+                            n + 1
+                        ));
+                        break;
+                    }
+                }
+                n += 1;
+            }
+            if let Some(reason) = bad {
+                self.fault(reason);
+                continue;
+            }
+            let expected = *self.columns.get_or_insert(n);
+            if !(7..=8).contains(&n) || n != expected {
+                let want = if (7..=8).contains(&expected) {
+                    expected.to_string()
+                } else {
+                    "7 or 8".into()
+                };
+                if !(7..=8).contains(&expected) {
+                    self.columns = None;
+                }
+                self.fault(format!("{n} columns, expected {want}"));
+                continue;
+            }
+            return Ok(Some(TextSample {
+                line: self.line_no,
+                t_s: values[0],
+                dtheta_rad: [values[1], values[2], values[3]],
+                dvel_mps: [values[4], values[5], values[6]],
+                speed_mps: (n == 8).then_some(values[7]),
+            }));
+        }
+        self.eof = true;
+        Ok(None)
+    }
+
+    /// Reads ahead to estimate the sample period.
+    fn prime(&mut self) -> Result<(), FormatError> {
+        if self.period_s.is_some() || self.eof {
+            return Ok(());
+        }
+        while self.ahead.len() < PERIOD_WINDOW {
+            match self.next_raw()? {
+                Some(s) => self.ahead.push_back(s),
+                None => break,
+            }
+        }
+        let mut dts: Vec<f64> = self
+            .ahead
+            .iter()
+            .zip(self.ahead.iter().skip(1))
+            .map(|(a, b)| b.t_s - a.t_s)
+            .filter(|dt| *dt > 0.0)
+            .collect();
+        dts.sort_by(f64::total_cmp);
+        self.period_s = dts.get(dts.len() / 2).copied();
+        Ok(())
+    }
+
+    /// Returns the next accepted sample, or `None` at the end.
+    pub fn next_sample(&mut self) -> Result<Option<TextSample>, FormatError> {
+        self.prime()?;
+        loop {
+            let s = match self.ahead.pop_front() {
+                Some(s) => s,
+                None => match self.next_raw()? {
+                    Some(s) => s,
+                    None => return Ok(None),
+                },
+            };
+            self.report.records_read += 1;
+            if let Some(prev) = self.prev {
+                if s.t_s == prev.t_s
+                    && s.dtheta_rad == prev.dtheta_rad
+                    && s.dvel_mps == prev.dvel_mps
+                {
+                    self.report.rejected.duplicate_seq += 1;
+                    continue;
+                }
+                let dt = s.t_s - prev.t_s;
+                if dt <= 0.0 {
+                    self.report.t_non_increasing += 1;
+                } else if let Some(p) = self.period_s {
+                    let steps = (dt / p).round();
+                    if steps >= 2.0 && dt > 1.5 * p {
+                        self.report.seq_gaps += 1;
+                        self.report.lost_samples += steps as u64 - 1;
+                        self.report.lost_duration_s = self.report.lost_samples as f64 * p;
+                    }
+                }
+            }
+            self.prev = Some(s);
+            self.report.records_accepted += 1;
+            self.report.imu_accepted += 1;
+            return Ok(Some(s));
+        }
+    }
+}
+
+/// One odometer sample of a separate file, converted to cumulative distance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometerSample {
+    /// Time, s, in the IMU log's time base.
+    pub t_s: f64,
+    /// Cumulative distance from the first sample, m.
+    pub distance_m: f64,
+}
+
+/// Reads a two-column odometer file (`t_s value`) into cumulative distance.
+///
+/// Speed is integrated with the trapezoidal rule. Lines that are not two finite numbers
+/// or go back in time are returned as faults; the rest is kept.
+pub fn read_odometer_file(
+    src: impl BufRead,
+    kind: OdometerKind,
+) -> Result<(Vec<OdometerSample>, Vec<LineFault>), FormatError> {
+    let mut out: Vec<OdometerSample> = Vec::new();
+    let mut faults = Vec::new();
+    let mut prev: Option<(f64, f64)> = None; // (t, value)
+    for (i, line) in src.split(b'\n').enumerate() {
+        let line_no = i as u64 + 1;
+        let bytes = line.map_err(|source| FormatError::Io { offset: 0, source })?;
+        let Ok(text) = std::str::from_utf8(&bytes) else {
+            faults.push(LineFault {
+                line: line_no,
+                reason: "not UTF-8 text".into(),
+            });
+            continue;
+        };
+        let text = text.trim();
+        if text.is_empty() || text.starts_with('#') || text.starts_with('%') {
+            continue;
+        }
+        let fields: Vec<&str> = text
+            .split(|c: char| c.is_whitespace() || c == ',')
+            .filter(|f| !f.is_empty())
+            .take(3)
+            .collect();
+        let parsed: Option<Vec<f64>> = fields
+            .iter()
+            .map(|f| f.parse::<f64>().ok().filter(|v| v.is_finite()))
+            .collect();
+        let (t, v) = match parsed.as_deref() {
+            Some([t, v]) => (*t, *v),
+            _ => {
+                faults.push(LineFault {
+                    line: line_no,
+                    reason: format!("expected two numbers `t_s value`, got {text:?}"),
+                });
+                continue;
+            }
+        };
+        if let Some((pt, _)) = prev
+            && t <= pt
+        {
+            faults.push(LineFault {
+                line: line_no,
+                reason: format!("time {t} is not after {pt}"),
+            });
+            continue;
+        }
+        let distance_m = match (kind, prev, out.last()) {
+            (OdometerKind::DistanceM, _, _) => v,
+            (OdometerKind::SpeedMps, Some((pt, pv)), Some(last)) => {
+                last.distance_m + 0.5 * (pv + v) * (t - pt)
+            }
+            (OdometerKind::SpeedMps, _, _) => 0.0,
+        };
+        prev = Some((t, v));
+        out.push(OdometerSample { t_s: t, distance_m });
+    }
+    Ok((out, faults))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read_all(text: &str) -> (Vec<TextSample>, IngestReport, Vec<LineFault>) {
+        let mut r = KfGinsReader::new(text.as_bytes());
+        let mut v = Vec::new();
+        while let Some(s) = r.next_sample().unwrap() {
+            v.push(s);
+        }
+        (v, r.report().clone(), r.faults().0.to_vec())
+    }
+
+    #[test]
+    fn reads_seven_columns_and_counts_faults() {
+        let text = "# header\n0.01 1 2 3 4 5 6\n0.02 1 2 3 4 5 6\n0.03 x 2 3 4 5 6\n0.03 1 2 3\n\n0.03 1 2 3 4 5 6\n0.05 1 2 3 4 5 6\n";
+        let (v, rep, faults) = read_all(text);
+        assert_eq!(v.len(), 4);
+        assert_eq!(rep.rejected.malformed_line, Some(2));
+        assert_eq!(rep.lost_samples, 1);
+        assert_eq!(
+            faults.iter().map(|f| f.line).collect::<Vec<_>>(),
+            vec![4, 5]
+        );
+        assert!(rep.is_consistent(), "{rep:?}");
+    }
+
+    #[test]
+    fn overlong_line_is_cut_and_counted() {
+        let long = "9".repeat(10 * MAX_LINE_BYTES);
+        let text = format!("0.01 1 2 3 4 5 6\n{long}\n0.02 1 2 3 4 5 6\n");
+        let (v, rep, _) = read_all(&text);
+        assert_eq!(v.len(), 2);
+        assert_eq!(rep.rejected.malformed_line, Some(1));
+    }
+
+    #[test]
+    fn speed_integrates_to_distance() {
+        let (v, faults) = read_odometer_file(
+            "0 0\n1 2\n2 2\n2 5\n3 0\n".as_bytes(),
+            OdometerKind::SpeedMps,
+        )
+        .unwrap();
+        assert_eq!(faults.len(), 1);
+        assert_eq!(
+            v.iter().map(|s| s.distance_m).collect::<Vec<_>>(),
+            vec![0.0, 1.0, 3.0, 4.0]
+        );
+    }
+}

@@ -1,0 +1,28 @@
+//! File formats of the unz pipeline: the binary UNZ raw log, run manifests, KF-GINS text
+//! logs, canonical Arrow schemas, and Parquet / MCAP I/O.
+//!
+//! Everything here treats its input as untrusted: no panic on any byte sequence, no
+//! allocation sized by a length field, every fault counted and located (file, byte offset
+//! or line), and paths named by a manifest kept inside its folder.
+//!
+//! ```
+//! use unz_formats::manifest::RunManifest;
+//! let text = "name = \"r1\"\nraw = \"r1.unz\"\nformat = \"unz-binary\"\n\
+//!             [site]\nlatitude_deg = 52.0\nlongitude_deg = 21.0\nheight_m = 100.0\n";
+//! let m = RunManifest::parse(text, std::path::Path::new("runs/r1/run.toml")).unwrap();
+//! assert_eq!(m.raw, std::path::Path::new("runs/r1/r1.unz"));
+//! ```
+
+pub mod atomic;
+pub mod error;
+pub mod kfgins;
+pub mod manifest;
+pub mod mcap_io;
+pub mod parquet_io;
+pub mod raw;
+pub mod report;
+pub mod schema;
+pub mod tables;
+
+pub use error::{FileError, FormatError};
+pub use report::IngestReport;

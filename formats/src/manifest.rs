@@ -1,0 +1,499 @@
+//! The run manifest, `run.toml` (§2 and §3 of the raw-format spec).
+//!
+//! Parsing is strict: unknown keys, missing fields and bad values are errors naming the
+//! line. Every path a manifest names is resolved inside the manifest's folder; a path
+//! that would leave it (absolute, `..`, or a symlink pointing out) is an error.
+
+use std::path::{Component, Path, PathBuf};
+
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::error::{FileError, FormatError};
+
+/// Longest run name accepted.
+pub const MAX_NAME_LEN: usize = 128;
+/// Largest manifest read (a manifest is a few hundred bytes; this bounds allocation).
+pub const MAX_MANIFEST_BYTES: u64 = 1 << 20;
+
+/// Format of the raw log.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+pub enum LogFormat {
+    /// The binary UNZ log (§1).
+    #[serde(rename = "unz-binary")]
+    UnzBinary,
+    /// The KF-GINS IMU text format (§3).
+    #[serde(rename = "kf-gins")]
+    KfGins,
+}
+
+/// What the separate odometer file holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OdometerKind {
+    /// Speed, m/s.
+    SpeedMps,
+    /// Cumulative travelled distance, m.
+    DistanceM,
+}
+
+/// A geodetic position on WGS-84.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Geodetic {
+    /// Latitude, degrees.
+    pub latitude_deg: f64,
+    /// Longitude, degrees.
+    pub longitude_deg: f64,
+    /// Ellipsoidal height, m.
+    pub height_m: f64,
+}
+
+/// Initial settings given by the manifest.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct Initial {
+    /// azpocz: heading from the pre-run alignment, degrees clockwise from true north.
+    pub azimuth_deg: Option<f64>,
+    /// Initial pitch, degrees (default: levelled).
+    pub pitch_deg: Option<f64>,
+    /// Initial roll, degrees (default: levelled).
+    pub roll_deg: Option<f64>,
+    /// Length of the initial stationary period, s.
+    pub static_s: Option<f64>,
+    /// Initial gyro drift guess (x, y, z body), rad/s.
+    pub drift_rad_s: Option<[f64; 3]>,
+}
+
+/// The odometer section.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct Odometer {
+    /// Metres per pulse, overriding the raw header's `odo_lsb_m`.
+    pub scale_m_per_pulse: Option<f64>,
+    /// Separate odometer file (text logs), resolved inside the run folder.
+    pub file: Option<PathBuf>,
+    /// What the odometer file holds.
+    pub kind: Option<OdometerKind>,
+}
+
+/// A surveyed control point visited at a stop.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ControlPoint {
+    /// Matched to control-point mark records.
+    pub id: u32,
+    /// Surveyed position.
+    pub position: Geodetic,
+    /// Time of the stop in the log's time base, s (for logs without a mark).
+    pub t_s: Option<f64>,
+}
+
+/// A validated run manifest with its paths resolved.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct RunManifest {
+    /// The manifest file.
+    pub path: PathBuf,
+    /// Run name: the run's output folder.
+    pub name: String,
+    /// Raw log, resolved inside the run folder.
+    pub raw: PathBuf,
+    /// Raw log format.
+    pub format: LogFormat,
+    /// Position at the start of the run.
+    pub site: Geodetic,
+    /// Initial settings.
+    pub initial: Initial,
+    /// Odometer settings.
+    pub odometer: Odometer,
+    /// Control points, in manifest order.
+    pub control_points: Vec<ControlPoint>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawManifest {
+    name: Spanned<String>,
+    raw: Spanned<String>,
+    format: LogFormat,
+    site: RawSite,
+    #[serde(default)]
+    initial: RawInitial,
+    #[serde(default)]
+    odometer: RawOdometer,
+    #[serde(default)]
+    control_point: Vec<RawControlPoint>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSite {
+    latitude_deg: Spanned<f64>,
+    longitude_deg: Spanned<f64>,
+    height_m: Spanned<f64>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawInitial {
+    azimuth_deg: Option<Spanned<f64>>,
+    pitch_deg: Option<Spanned<f64>>,
+    roll_deg: Option<Spanned<f64>>,
+    static_s: Option<Spanned<f64>>,
+    drift_rad_s: Option<Spanned<[f64; 3]>>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawOdometer {
+    scale_m_per_pulse: Option<Spanned<f64>>,
+    file: Option<Spanned<String>>,
+    kind: Option<OdometerKind>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawControlPoint {
+    id: Spanned<u32>,
+    latitude_deg: Spanned<f64>,
+    longitude_deg: Spanned<f64>,
+    height_m: Spanned<f64>,
+    t_s: Option<Spanned<f64>>,
+}
+
+/// 1-based line of a byte offset.
+fn line_of(text: &str, offset: usize) -> usize {
+    text.as_bytes()[..offset.min(text.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
+}
+
+struct Checker<'a> {
+    text: &'a str,
+}
+
+impl Checker<'_> {
+    fn err<T>(&self, span: std::ops::Range<usize>, reason: String) -> Result<T, FormatError> {
+        Err(FormatError::Manifest {
+            line: line_of(self.text, span.start),
+            reason,
+        })
+    }
+
+    fn in_range(&self, v: &Spanned<f64>, key: &str, lo: f64, hi: f64) -> Result<f64, FormatError> {
+        let x = *v.get_ref();
+        if x.is_finite() && (lo..=hi).contains(&x) {
+            Ok(x)
+        } else {
+            self.err(v.span(), format!("{key} = {x} is outside [{lo}, {hi}]"))
+        }
+    }
+
+    fn positive(&self, v: &Spanned<f64>, key: &str) -> Result<f64, FormatError> {
+        let x = *v.get_ref();
+        if x.is_finite() && x > 0.0 {
+            Ok(x)
+        } else {
+            self.err(v.span(), format!("{key} = {x} must be a positive number"))
+        }
+    }
+
+    fn geodetic(
+        &self,
+        lat: &Spanned<f64>,
+        lon: &Spanned<f64>,
+        h: &Spanned<f64>,
+    ) -> Result<Geodetic, FormatError> {
+        Ok(Geodetic {
+            latitude_deg: self.in_range(lat, "latitude_deg", -90.0, 90.0)?,
+            longitude_deg: self.in_range(lon, "longitude_deg", -180.0, 180.0)?,
+            height_m: self.in_range(h, "height_m", -1000.0, 10_000.0)?,
+        })
+    }
+}
+
+/// Whether `name` is a plain run name: letters, digits, `-`, `_`, `.`; not `.` or `..`.
+pub fn is_plain_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= MAX_NAME_LEN
+        && name != "."
+        && name != ".."
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+}
+
+/// Resolves `rel` inside `dir`, refusing anything that could leave it.
+pub fn resolve_inside(dir: &Path, rel: &str) -> Result<PathBuf, String> {
+    let p = Path::new(rel);
+    if rel.is_empty() {
+        return Err("the path is empty".into());
+    }
+    for c in p.components() {
+        match c {
+            Component::Normal(_) | Component::CurDir => {}
+            Component::ParentDir => return Err(format!("path {rel:?} may not contain '..'")),
+            Component::RootDir | Component::Prefix(_) => {
+                return Err(format!(
+                    "path {rel:?} must be relative to the manifest's folder"
+                ));
+            }
+        }
+    }
+    let joined = dir.join(p);
+    // A symlink may still point out of the folder: compare canonical forms when it exists.
+    if let (Ok(real), Ok(real_dir)) = (joined.canonicalize(), dir.canonicalize())
+        && !real.starts_with(&real_dir)
+    {
+        return Err(format!(
+            "path {rel:?} resolves outside the manifest's folder"
+        ));
+    }
+    Ok(joined)
+}
+
+impl RunManifest {
+    /// Reads and validates a manifest file.
+    pub fn load(path: &Path) -> Result<Self, FileError> {
+        let text = read_bounded(path, MAX_MANIFEST_BYTES).map_err(|e| e.in_file(path))?;
+        Self::parse(&text, path).map_err(|e| e.in_file(path))
+    }
+
+    /// Parses manifest text; `path` is where it came from (paths resolve beside it).
+    pub fn parse(text: &str, path: &Path) -> Result<Self, FormatError> {
+        let raw: RawManifest = toml::from_str(text).map_err(|e| FormatError::Manifest {
+            line: e.span().map_or(0, |s| line_of(text, s.start)),
+            reason: e.message().trim().to_owned(),
+        })?;
+        let c = Checker { text };
+        let dir = path.parent().unwrap_or(Path::new("."));
+
+        let name = raw.name.get_ref().clone();
+        if !is_plain_name(&name) {
+            return c.err(
+                raw.name.span(),
+                format!(
+                    "name {name:?} is not a plain run name (letters, digits, '-', '_', '.'; \
+                     at most {MAX_NAME_LEN} characters; not '.' or '..')"
+                ),
+            );
+        }
+        let raw_path = match resolve_inside(dir, raw.raw.get_ref()) {
+            Ok(p) => p,
+            Err(reason) => return c.err(raw.raw.span(), format!("raw: {reason}")),
+        };
+        let site = c.geodetic(
+            &raw.site.latitude_deg,
+            &raw.site.longitude_deg,
+            &raw.site.height_m,
+        )?;
+
+        let i = &raw.initial;
+        let initial = Initial {
+            azimuth_deg: i
+                .azimuth_deg
+                .as_ref()
+                .map(|v| c.in_range(v, "azimuth_deg", -360.0, 360.0))
+                .transpose()?,
+            pitch_deg: i
+                .pitch_deg
+                .as_ref()
+                .map(|v| c.in_range(v, "pitch_deg", -90.0, 90.0))
+                .transpose()?,
+            roll_deg: i
+                .roll_deg
+                .as_ref()
+                .map(|v| c.in_range(v, "roll_deg", -180.0, 180.0))
+                .transpose()?,
+            static_s: i
+                .static_s
+                .as_ref()
+                .map(|v| c.positive(v, "static_s"))
+                .transpose()?,
+            drift_rad_s: match &i.drift_rad_s {
+                Some(v) if v.get_ref().iter().all(|d| d.is_finite() && d.abs() < 1e-2) => {
+                    Some(*v.get_ref())
+                }
+                Some(v) => {
+                    return c.err(
+                        v.span(),
+                        format!(
+                            "drift_rad_s = {:?} must be finite and below 1e-2 rad/s",
+                            v.get_ref()
+                        ),
+                    );
+                }
+                None => None,
+            },
+        };
+
+        let o = &raw.odometer;
+        let odometer = Odometer {
+            scale_m_per_pulse: o
+                .scale_m_per_pulse
+                .as_ref()
+                .map(|v| c.positive(v, "scale_m_per_pulse"))
+                .transpose()?,
+            file: match &o.file {
+                Some(f) => match resolve_inside(dir, f.get_ref()) {
+                    Ok(p) => Some(p),
+                    Err(reason) => return c.err(f.span(), format!("odometer.file: {reason}")),
+                },
+                None => None,
+            },
+            kind: o.kind,
+        };
+        if let (Some(f), None) = (&o.file, o.kind) {
+            return c.err(
+                f.span(),
+                "odometer.file needs odometer.kind (\"speed_mps\" or \"distance_m\")".into(),
+            );
+        }
+
+        let mut control_points: Vec<ControlPoint> = Vec::with_capacity(raw.control_point.len());
+        for cp in &raw.control_point {
+            let id = *cp.id.get_ref();
+            if control_points.iter().any(|p| p.id == id) {
+                return c.err(cp.id.span(), format!("control point id {id} appears twice"));
+            }
+            control_points.push(ControlPoint {
+                id,
+                position: c.geodetic(&cp.latitude_deg, &cp.longitude_deg, &cp.height_m)?,
+                t_s: match &cp.t_s {
+                    Some(v) if v.get_ref().is_finite() => Some(*v.get_ref()),
+                    Some(v) => return c.err(v.span(), "t_s must be a finite number".into()),
+                    None => None,
+                },
+            });
+        }
+
+        Ok(Self {
+            path: path.to_path_buf(),
+            name,
+            raw: raw_path,
+            format: raw.format,
+            site,
+            initial,
+            odometer,
+            control_points,
+        })
+    }
+
+    /// The run folder (the manifest's parent).
+    pub fn dir(&self) -> &Path {
+        self.path.parent().unwrap_or(Path::new("."))
+    }
+}
+
+/// Reads a whole text file, refusing files larger than `max_bytes`.
+pub fn read_bounded(path: &Path, max_bytes: u64) -> Result<String, FormatError> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|source| FormatError::Io { offset: 0, source })?;
+    let mut text = String::new();
+    file.take(max_bytes + 1)
+        .read_to_string(&mut text)
+        .map_err(|source| FormatError::Io { offset: 0, source })?;
+    if text.len() as u64 > max_bytes {
+        return Err(FormatError::Invalid(format!(
+            "file is larger than {max_bytes} bytes"
+        )));
+    }
+    Ok(text)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+name = "route-03"
+raw = "route-03.unz"
+format = "unz-binary"
+
+[site]
+latitude_deg = 52.2297
+longitude_deg = 21.0122
+height_m = 110.0
+
+[initial]
+azimuth_deg = 109.503
+
+[[control_point]]
+id = 1
+latitude_deg = 52.2311
+longitude_deg = 21.1620
+height_m = 112.0
+t_s = 2415.3
+"#;
+
+    fn parse(text: &str) -> Result<RunManifest, FormatError> {
+        RunManifest::parse(text, Path::new("/campaign/route-03/run.toml"))
+    }
+
+    fn err_line(text: &str) -> (usize, String) {
+        match parse(text) {
+            Err(FormatError::Manifest { line, reason }) => (line, reason),
+            other => panic!("expected a manifest error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn the_spec_example_parses() {
+        let m = parse(GOOD).unwrap();
+        assert_eq!(m.name, "route-03");
+        assert_eq!(m.raw, Path::new("/campaign/route-03/route-03.unz"));
+        assert_eq!(m.initial.azimuth_deg, Some(109.503));
+        assert_eq!(m.control_points[0].t_s, Some(2415.3));
+    }
+
+    #[test]
+    fn unknown_key_names_its_line() {
+        let text = GOOD.replace(
+            "azimuth_deg = 109.503",
+            "azimuth_deg = 109.503\nazimuth = 3",
+        );
+        let (line, reason) = err_line(&text);
+        assert_eq!(line, 13);
+        assert!(reason.contains("azimuth"), "{reason}");
+    }
+
+    #[test]
+    fn missing_field_is_an_error() {
+        let text = GOOD.replace("height_m = 110.0\n", "");
+        let (_, reason) = err_line(&text);
+        assert!(reason.contains("height_m"), "{reason}");
+    }
+
+    #[test]
+    fn bad_value_names_its_line() {
+        let text = GOOD.replace("latitude_deg = 52.2297", "latitude_deg = 152.2297");
+        let (line, reason) = err_line(&text);
+        assert_eq!(line, 7);
+        assert!(reason.contains("latitude_deg"), "{reason}");
+    }
+
+    #[test]
+    fn paths_may_not_escape() {
+        for bad in ["../other/x.unz", "/etc/passwd", "a/../../x"] {
+            let text = GOOD.replace("\"route-03.unz\"", &format!("{bad:?}"));
+            let (line, reason) = err_line(&text);
+            assert_eq!(line, 3, "{bad}");
+            assert!(reason.starts_with("raw:"), "{reason}");
+        }
+    }
+
+    #[test]
+    fn names_must_be_plain() {
+        for bad in ["..", ".", "a/b", "", "x y"] {
+            let text = GOOD.replace("\"route-03\"", &format!("{bad:?}"));
+            let (line, _) = err_line(&text);
+            assert_eq!(line, 2, "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn duplicate_control_point_ids_are_refused() {
+        let cp = "\n[[control_point]]\nid = 1\nlatitude_deg = 1.0\nlongitude_deg = 2.0\nheight_m = 3.0\n";
+        let (line, reason) = err_line(&format!("{GOOD}{cp}"));
+        assert_eq!(line, 22);
+        assert!(reason.contains("twice"));
+    }
+}

@@ -1,0 +1,88 @@
+//! Parquet output (zstd, atomic) and input of whole tables.
+
+use std::path::Path;
+
+use arrow::array::RecordBatch;
+use arrow::datatypes::SchemaRef;
+use parquet::arrow::ArrowWriter;
+use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
+use parquet::basic::{Compression, ZstdLevel};
+use parquet::file::properties::WriterProperties;
+
+use crate::atomic::AtomicFile;
+use crate::error::{FileError, FormatError, io_in_file};
+
+/// A Parquet file being written; it appears under its name only on [`ParquetSink::finish`].
+pub struct ParquetSink {
+    writer: ArrowWriter<std::fs::File>,
+    file: AtomicFile,
+    rows: usize,
+}
+
+fn parquet_err(path: &Path, e: impl std::fmt::Display) -> FileError {
+    FormatError::Invalid(format!("parquet: {e}")).in_file(path)
+}
+
+impl ParquetSink {
+    /// Starts a zstd-compressed Parquet file at `dest`.
+    pub fn create(dest: &Path, schema: SchemaRef) -> Result<Self, FileError> {
+        let file = AtomicFile::create(dest)?;
+        let props = WriterProperties::builder()
+            .set_compression(Compression::ZSTD(
+                ZstdLevel::try_new(1).map_err(|e| parquet_err(dest, e))?,
+            ))
+            .set_max_row_group_row_count(Some(1 << 20))
+            .build();
+        let handle = file.file_handle()?;
+        let writer =
+            ArrowWriter::try_new(handle, schema, Some(props)).map_err(|e| parquet_err(dest, e))?;
+        Ok(Self {
+            writer,
+            file,
+            rows: 0,
+        })
+    }
+
+    /// Writes one batch.
+    pub fn write(&mut self, batch: &RecordBatch) -> Result<(), FileError> {
+        self.rows += batch.num_rows();
+        self.writer
+            .write(batch)
+            .map_err(|e| parquet_err(self.file.dest(), e))
+    }
+
+    /// Rows written so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Closes the Parquet file and renames it into place.
+    pub fn finish(self) -> Result<(), FileError> {
+        let dest = self.file.dest().to_path_buf();
+        self.writer.close().map_err(|e| parquet_err(&dest, e))?;
+        self.file.commit()
+    }
+}
+
+/// Writes one batch as a whole Parquet file, atomically.
+pub fn write_batch(dest: &Path, batch: &RecordBatch) -> Result<(), FileError> {
+    let mut sink = ParquetSink::create(dest, batch.schema())?;
+    sink.write(batch)?;
+    sink.finish()
+}
+
+/// Reads a whole Parquet file: its schema and batches.
+pub fn read_batches(path: &Path) -> Result<(SchemaRef, Vec<RecordBatch>), FileError> {
+    let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
+    let builder =
+        ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| parquet_err(path, e))?;
+    let schema = builder.schema().clone();
+    let reader = builder
+        .with_batch_size(1 << 16)
+        .build()
+        .map_err(|e| parquet_err(path, e))?;
+    let batches = reader
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| parquet_err(path, e))?;
+    Ok((schema, batches))
+}

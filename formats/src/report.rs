@@ -1,0 +1,67 @@
+//! The ingest report: the exact accounting of §1.4 of the raw-format spec.
+
+use serde::{Deserialize, Serialize};
+
+/// Records read but not kept, by reason.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Rejected {
+    /// Framed records whose CRC did not match.
+    pub bad_crc: u64,
+    /// IMU records repeating the `seq` of the record before (retransmissions).
+    pub duplicate_seq: u64,
+    /// Records of a reserved type, or of a known type with a wrong length.
+    pub unknown_type: u64,
+    /// The final record, cut short by the end of the file (0 or 1).
+    pub truncated: u64,
+    /// Text logs only: lines that are not a record (bad number, wrong column count).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub malformed_line: Option<u64>,
+}
+
+/// Accounting of one raw log (`ingest.json`).
+///
+/// Invariant: `records_read == records_accepted + Σ rejected` and
+/// `records_accepted == imu_accepted + marks_accepted`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IngestReport {
+    /// Framed records the reader classified, the truncated final one included.
+    pub records_read: u64,
+    /// IMU plus mark records kept.
+    pub records_accepted: u64,
+    /// IMU records kept.
+    pub imu_accepted: u64,
+    /// Control-point marks kept.
+    pub marks_accepted: u64,
+    /// Records read but not kept, by reason.
+    pub rejected: Rejected,
+    /// Bytes discarded while resynchronising: whole bad-CRC records and garbage.
+    pub bytes_skipped: u64,
+    /// Bytes of the truncated final record.
+    pub truncated_bytes: u64,
+    /// Times the reader lost framing and found it again.
+    pub resync_events: u64,
+    /// Jumps in `seq` between consecutive accepted IMU records.
+    pub seq_gaps: u64,
+    /// Samples missing in those jumps.
+    pub lost_samples: u64,
+    /// `lost_samples` × the nominal sample period, s.
+    pub lost_duration_s: f64,
+    /// Accepted IMU records whose `t_us` is not after the previous one's.
+    pub t_non_increasing: u64,
+}
+
+impl IngestReport {
+    /// Σ of the rejected counts.
+    pub fn rejected_total(&self) -> u64 {
+        let r = &self.rejected;
+        r.bad_crc + r.duplicate_seq + r.unknown_type + r.truncated + r.malformed_line.unwrap_or(0)
+    }
+
+    /// Whether the identities of §1.4 hold.
+    pub fn is_consistent(&self) -> bool {
+        self.records_read == self.records_accepted + self.rejected_total()
+            && self.records_accepted == self.imu_accepted + self.marks_accepted
+    }
+}

@@ -1,0 +1,228 @@
+//! In-memory column tables of the canonical schemas, and their Arrow conversions.
+
+use std::sync::Arc;
+
+use arrow::array::{
+    Array, ArrayRef, AsArray, FixedSizeListArray, Float64Array, Int64Array, RecordBatch,
+    UInt16Array, UInt32Array, UInt64Array,
+};
+use arrow::buffer::ScalarBuffer;
+use arrow::datatypes::{Float64Type, Int64Type, SchemaRef, UInt16Type, UInt32Type, UInt64Type};
+
+use crate::error::FormatError;
+use crate::schema;
+
+/// IMU samples (schema [`schema::imu`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ImuTable {
+    /// Time at the end of each interval, ns.
+    pub t_ns: Vec<i64>,
+    /// Unwrapped sample counter.
+    pub seq: Vec<u64>,
+    /// Angle increments, rad, body FRD.
+    pub dtheta_rad: Vec<[f64; 3]>,
+    /// Velocity increments, m/s, body FRD.
+    pub dvel_mps: Vec<[f64; 3]>,
+    /// Status bits.
+    pub status: Vec<u16>,
+}
+
+/// Odometer samples (schema [`schema::odometer`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct OdometerTable {
+    /// Time, ns.
+    pub t_ns: Vec<i64>,
+    /// Cumulative distance, m.
+    pub distance_m: Vec<f64>,
+    /// Cumulative pulses, when counted.
+    pub pulses: Vec<Option<i64>>,
+}
+
+/// Control-point marks (schema [`schema::marks`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MarksTable {
+    /// Time, ns.
+    pub t_ns: Vec<i64>,
+    /// Control-point id.
+    pub point_id: Vec<u32>,
+}
+
+fn vec3_array(v: &[[f64; 3]]) -> ArrayRef {
+    let flat: Vec<f64> = v.iter().flatten().copied().collect();
+    let values = Arc::new(Float64Array::new(ScalarBuffer::from(flat), None));
+    let item = Arc::new(arrow::datatypes::Field::new(
+        "item",
+        arrow::datatypes::DataType::Float64,
+        false,
+    ));
+    Arc::new(FixedSizeListArray::new(item, 3, values, None))
+}
+
+fn batch(schema: SchemaRef, columns: Vec<ArrayRef>) -> Result<RecordBatch, FormatError> {
+    RecordBatch::try_new(schema, columns).map_err(|e| FormatError::Invalid(e.to_string()))
+}
+
+fn column<'a>(b: &'a RecordBatch, name: &str) -> Result<&'a ArrayRef, FormatError> {
+    b.column_by_name(name)
+        .ok_or_else(|| FormatError::Invalid(format!("column {name:?} is missing")))
+}
+
+fn prim<'a, T: arrow::datatypes::ArrowPrimitiveType>(
+    b: &'a RecordBatch,
+    name: &str,
+) -> Result<&'a arrow::array::PrimitiveArray<T>, FormatError> {
+    column(b, name)?.as_primitive_opt::<T>().ok_or_else(|| {
+        FormatError::Invalid(format!(
+            "column {name:?} has type {}",
+            column(b, name)
+                .map(|c| c.data_type().to_string())
+                .unwrap_or_default()
+        ))
+    })
+}
+
+fn vec3_values(b: &RecordBatch, name: &str) -> Result<Vec<[f64; 3]>, FormatError> {
+    let list = column(b, name)?
+        .as_fixed_size_list_opt()
+        .filter(|l| l.value_length() == 3)
+        .ok_or_else(|| FormatError::Invalid(format!("column {name:?} is not a 3-vector")))?;
+    let values = list
+        .values()
+        .as_primitive_opt::<Float64Type>()
+        .ok_or_else(|| FormatError::Invalid(format!("column {name:?} is not Float64")))?;
+    let start = list.offset() * 3;
+    let v = &values.values()[start..start + list.len() * 3];
+    Ok(v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+}
+
+impl ImuTable {
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.t_ns.len()
+    }
+
+    /// Whether there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.t_ns.is_empty()
+    }
+
+    /// Empties the table, keeping its capacity.
+    pub fn clear(&mut self) {
+        self.t_ns.clear();
+        self.seq.clear();
+        self.dtheta_rad.clear();
+        self.dvel_mps.clear();
+        self.status.clear();
+    }
+
+    /// Converts to a record batch of `schema` (from [`schema::imu`]).
+    pub fn to_batch(&self, schema: SchemaRef) -> Result<RecordBatch, FormatError> {
+        batch(
+            schema,
+            vec![
+                Arc::new(Int64Array::from(self.t_ns.clone())),
+                Arc::new(UInt64Array::from(self.seq.clone())),
+                vec3_array(&self.dtheta_rad),
+                vec3_array(&self.dvel_mps),
+                Arc::new(UInt16Array::from(self.status.clone())),
+            ],
+        )
+    }
+
+    /// Appends the rows of a batch.
+    pub fn extend_from_batch(&mut self, b: &RecordBatch) -> Result<(), FormatError> {
+        self.t_ns
+            .extend(prim::<Int64Type>(b, schema::T_NS)?.values().iter());
+        self.seq
+            .extend(prim::<UInt64Type>(b, schema::SEQ)?.values().iter());
+        self.dtheta_rad.extend(vec3_values(b, schema::DTHETA_RAD)?);
+        self.dvel_mps.extend(vec3_values(b, schema::DVEL_MPS)?);
+        self.status
+            .extend(prim::<UInt16Type>(b, schema::STATUS)?.values().iter());
+        Ok(())
+    }
+}
+
+impl OdometerTable {
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.t_ns.len()
+    }
+
+    /// Whether there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.t_ns.is_empty()
+    }
+
+    /// Empties the table, keeping its capacity.
+    pub fn clear(&mut self) {
+        self.t_ns.clear();
+        self.distance_m.clear();
+        self.pulses.clear();
+    }
+
+    /// Converts to a record batch of `schema` (from [`schema::odometer`]).
+    pub fn to_batch(&self, schema: SchemaRef) -> Result<RecordBatch, FormatError> {
+        batch(
+            schema,
+            vec![
+                Arc::new(Int64Array::from(self.t_ns.clone())),
+                Arc::new(Float64Array::from(self.distance_m.clone())),
+                Arc::new(Int64Array::from(self.pulses.clone())),
+            ],
+        )
+    }
+
+    /// Appends the rows of a batch.
+    pub fn extend_from_batch(&mut self, b: &RecordBatch) -> Result<(), FormatError> {
+        self.t_ns
+            .extend(prim::<Int64Type>(b, schema::T_NS)?.values().iter());
+        self.distance_m
+            .extend(prim::<Float64Type>(b, schema::DISTANCE_M)?.values().iter());
+        self.pulses
+            .extend(prim::<Int64Type>(b, schema::PULSES)?.iter());
+        Ok(())
+    }
+}
+
+impl MarksTable {
+    /// Converts to a record batch of `schema` (from [`schema::marks`]).
+    pub fn to_batch(&self, schema: SchemaRef) -> Result<RecordBatch, FormatError> {
+        batch(
+            schema,
+            vec![
+                Arc::new(Int64Array::from(self.t_ns.clone())),
+                Arc::new(UInt32Array::from(self.point_id.clone())),
+            ],
+        )
+    }
+
+    /// Appends the rows of a batch.
+    pub fn extend_from_batch(&mut self, b: &RecordBatch) -> Result<(), FormatError> {
+        self.t_ns
+            .extend(prim::<Int64Type>(b, schema::T_NS)?.values().iter());
+        self.point_id
+            .extend(prim::<UInt32Type>(b, schema::POINT_ID)?.values().iter());
+        Ok(())
+    }
+}
+
+/// Reads a `Float64` column of a batch.
+pub fn f64_column(b: &RecordBatch, name: &str) -> Result<Vec<f64>, FormatError> {
+    Ok(prim::<Float64Type>(b, name)?.values().to_vec())
+}
+
+/// Reads an `Int64` column of a batch.
+pub fn i64_column(b: &RecordBatch, name: &str) -> Result<Vec<i64>, FormatError> {
+    Ok(prim::<Int64Type>(b, name)?.values().to_vec())
+}
+
+/// Reads a 3-vector column of a batch.
+pub fn vec3_column(b: &RecordBatch, name: &str) -> Result<Vec<[f64; 3]>, FormatError> {
+    vec3_values(b, name)
+}
+
+/// Builds a 3-vector array (for tables defined by the stages).
+pub fn vec3_to_array(v: &[[f64; 3]]) -> ArrayRef {
+    vec3_array(v)
+}

@@ -1,0 +1,329 @@
+//! Reader behaviour on clean, damaged and hostile inputs.
+
+use proptest::prelude::*;
+use unz_formats::raw::{
+    Accepted, FileHeader, HEADER_LEN, ImuRecord, MarkRecord, RawReader, RawWriter, TYPE_IMU,
+};
+use unz_formats::report::IngestReport;
+
+fn imu(seq: u32, t_us: u64, odo: u32) -> ImuRecord {
+    let s = seq as i32;
+    ImuRecord {
+        seq,
+        t_us,
+        dtheta: [
+            s.wrapping_mul(7),
+            s.wrapping_neg(),
+            i32::MAX.wrapping_sub(s),
+        ],
+        dvel: [i32::MIN.wrapping_add(s), s.wrapping_mul(3), 42],
+        odo_count: odo,
+        status: (seq % 8) as u16,
+    }
+}
+
+fn log(records: &[ImuRecord]) -> Vec<u8> {
+    let mut w =
+        RawWriter::new(Vec::new(), &FileHeader::unz50(1_700_000_000_000_000, "SN")).unwrap();
+    for r in records {
+        w.write_imu(r).unwrap();
+    }
+    w.finish().unwrap()
+}
+
+fn read(bytes: &[u8]) -> (Vec<Accepted>, IngestReport) {
+    let mut r = RawReader::new(bytes).unwrap();
+    let mut out = Vec::new();
+    while let Some(rec) = r.next_record().unwrap() {
+        out.push(rec);
+    }
+    let report = r.report().clone();
+    assert!(report.is_consistent(), "{report:?}");
+    (out, report)
+}
+
+fn imus(v: &[Accepted]) -> Vec<ImuRecord> {
+    v.iter()
+        .filter_map(|a| match a {
+            Accepted::Imu(s) => Some(s.raw),
+            Accepted::Mark(_) => None,
+        })
+        .collect()
+}
+
+#[test]
+fn round_trip_is_bit_exact() {
+    let records: Vec<_> = (0..5000)
+        .map(|i| imu(i, 10_000 * u64::from(i + 1), i * 3))
+        .collect();
+    let header = FileHeader::unz50(-5, "SERIAL-0123456789");
+    let mut w = RawWriter::new(Vec::new(), &header).unwrap();
+    for (i, r) in records.iter().enumerate() {
+        w.write_imu(r).unwrap();
+        if i == 2500 {
+            w.write_mark(&MarkRecord {
+                t_us: r.t_us,
+                point_id: 9,
+            })
+            .unwrap();
+        }
+    }
+    let bytes = w.finish().unwrap();
+    let mut reader = RawReader::new(bytes.as_slice()).unwrap();
+    // 16-byte serial is cut to its field.
+    assert_eq!(reader.header().device_serial, "SERIAL-012345678");
+    assert_eq!(reader.header().dtheta_lsb_rad, header.dtheta_lsb_rad);
+    let mut got = Vec::new();
+    while let Some(a) = reader.next_record().unwrap() {
+        got.push(a);
+    }
+    assert_eq!(imus(&got), records);
+    assert!(got.contains(&Accepted::Mark(MarkRecord {
+        t_us: records[2500].t_us,
+        point_id: 9
+    })));
+    // Re-encoding what was read gives the same bytes.
+    let mut w = RawWriter::new(Vec::new(), &header).unwrap();
+    for a in &got {
+        match a {
+            Accepted::Imu(s) => w.write_imu(&s.raw).unwrap(),
+            Accepted::Mark(m) => w.write_mark(m).unwrap(),
+        }
+    }
+    let mut header_fixed = bytes.clone();
+    header_fixed[48..64].copy_from_slice(&header.encode()[48..64]);
+    assert_eq!(w.finish().unwrap(), header_fixed);
+    let rep = reader.report();
+    assert_eq!(
+        (rep.records_read, rep.imu_accepted, rep.marks_accepted),
+        (5001, 5000, 1)
+    );
+}
+
+#[test]
+fn seq_and_odo_count_wrap_around_unwrap() {
+    let start = u32::MAX - 2;
+    let records: Vec<_> = (0..6u32)
+        .map(|i| {
+            imu(
+                start.wrapping_add(i),
+                10_000 * u64::from(i + 1),
+                (u32::MAX - 1).wrapping_add(2 * i),
+            )
+        })
+        .collect();
+    let (got, rep) = read(&log(&records));
+    let seqs: Vec<u64> = got
+        .iter()
+        .filter_map(|a| {
+            if let Accepted::Imu(s) = a {
+                Some(s.seq)
+            } else {
+                None
+            }
+        })
+        .collect();
+    let odo: Vec<i64> = got
+        .iter()
+        .filter_map(|a| {
+            if let Accepted::Imu(s) = a {
+                Some(s.odo_pulses)
+            } else {
+                None
+            }
+        })
+        .collect();
+    let s0 = u64::from(start);
+    assert_eq!(seqs, (0..6).map(|i| s0 + i).collect::<Vec<_>>());
+    let o0 = i64::from(u32::MAX - 1);
+    assert_eq!(odo, (0..6).map(|i| o0 + 2 * i).collect::<Vec<_>>());
+    assert_eq!(rep.seq_gaps, 0);
+}
+
+#[test]
+fn each_fault_is_counted_exactly() {
+    let records: Vec<_> = (0..100)
+        .map(|i| imu(i, 10_000 * u64::from(i + 1), i))
+        .collect();
+    let mut w = RawWriter::new(Vec::new(), &FileHeader::unz50(0, "SN")).unwrap();
+    let mut frame = Vec::new();
+    for (i, r) in records.iter().enumerate() {
+        match i {
+            10 => {
+                // Bad CRC: flip a payload bit.
+                frame.clear();
+                let mut rw = RawWriter::new(Vec::new(), &FileHeader::unz50(0, "")).unwrap();
+                rw.write_imu(r).unwrap();
+                frame = rw.finish().unwrap()[HEADER_LEN..].to_vec();
+                frame[10] ^= 0x10;
+                w.write_raw(&frame).unwrap();
+            }
+            20 => {
+                w.write_imu(r).unwrap();
+                w.write_imu(r).unwrap(); // duplicate
+            }
+            30 => {
+                w.write_raw(&[0x00, 0x13, 0x37, 0xA5, 0x00, 0x5A, 0xFF])
+                    .unwrap(); // garbage
+                w.write_imu(r).unwrap();
+            }
+            40..=42 => {} // lost samples
+            50 => {
+                w.write_frame(0x7F, &[1, 2, 3]).unwrap(); // reserved type
+                w.write_imu(r).unwrap();
+            }
+            60 => {
+                let mut back = *r;
+                back.t_us = records[58].t_us; // time goes back
+                w.write_imu(&back).unwrap();
+            }
+            _ => w.write_imu(r).unwrap(),
+        }
+    }
+    let mut bytes = w.finish().unwrap();
+    // Truncated final record: half an IMU record.
+    let mut rw = RawWriter::new(Vec::new(), &FileHeader::unz50(0, "")).unwrap();
+    rw.write_imu(&imu(100, 1_010_000, 100)).unwrap();
+    bytes.extend_from_slice(&rw.finish().unwrap()[HEADER_LEN..HEADER_LEN + 20]);
+
+    let (got, rep) = read(&bytes);
+    assert_eq!(imus(&got).len(), 100 - 1 - 3);
+    assert_eq!(rep.rejected.bad_crc, 1);
+    assert_eq!(rep.rejected.duplicate_seq, 1);
+    assert_eq!(rep.rejected.unknown_type, 1);
+    assert_eq!(rep.rejected.truncated, 1);
+    assert_eq!(rep.truncated_bytes, 20);
+    assert_eq!(rep.bytes_skipped, 48 + 7);
+    assert_eq!(rep.resync_events, 2);
+    assert_eq!(rep.seq_gaps, 2);
+    assert_eq!(rep.lost_samples, 4);
+    assert!((rep.lost_duration_s - 0.04).abs() < 1e-12);
+    assert_eq!(rep.t_non_increasing, 1);
+    assert_eq!(rep.records_read, 96 + 1 + 1 + 1 + 1);
+}
+
+#[test]
+fn empty_garbage_and_truncated_files_do_not_panic() {
+    assert!(RawReader::new(&[][..]).is_err());
+    assert!(RawReader::new(&[0xA5u8; 64][..]).is_err());
+    // A header and garbage only.
+    let mut bytes = FileHeader::unz50(0, "").encode().to_vec();
+    bytes.extend((0..10_000u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8));
+    let (got, rep) = read(&bytes);
+    assert!(got.is_empty());
+    assert_eq!(rep.bytes_skipped + rep.truncated_bytes, 10_000);
+    // A header only.
+    let (got, rep) = read(&FileHeader::unz50(0, "").encode());
+    assert!(got.is_empty());
+    assert_eq!(rep, IngestReport::default());
+    // Every truncation of a short log.
+    let full = log(&(0..5)
+        .map(|i| imu(i, 10_000 * u64::from(i + 1), i))
+        .collect::<Vec<_>>());
+    for cut in HEADER_LEN..full.len() {
+        let (got, rep) = read(&full[..cut]);
+        let whole = (cut - HEADER_LEN) / 48;
+        assert_eq!(got.len(), whole, "cut at {cut}");
+        assert_eq!(
+            rep.truncated_bytes as usize,
+            (cut - HEADER_LEN) % 48,
+            "cut at {cut}"
+        );
+    }
+}
+
+#[test]
+fn a_large_log_streams_in_bounded_memory() {
+    // 2 M records (96 MB) from a generator: the reader never holds more than its buffer.
+    struct Gen {
+        frame: Vec<u8>,
+        n: u32,
+        pos: usize,
+        header: Option<Vec<u8>>,
+    }
+    impl std::io::Read for Gen {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            if let Some(h) = self.header.take() {
+                buf[..h.len()].copy_from_slice(&h);
+                return Ok(h.len());
+            }
+            if self.pos == self.frame.len() {
+                if self.n == 2_000_000 {
+                    return Ok(0);
+                }
+                let mut w = RawWriter::new(Vec::new(), &FileHeader::unz50(0, "")).unwrap();
+                w.write_imu(&imu(self.n, u64::from(self.n + 1) * 10_000, self.n))
+                    .unwrap();
+                self.frame = w.finish().unwrap()[HEADER_LEN..].to_vec();
+                self.n += 1;
+                self.pos = 0;
+            }
+            let k = (self.frame.len() - self.pos).min(buf.len());
+            buf[..k].copy_from_slice(&self.frame[self.pos..self.pos + k]);
+            self.pos += k;
+            Ok(k)
+        }
+    }
+    let g = Gen {
+        frame: Vec::new(),
+        n: 0,
+        pos: 0,
+        header: Some(FileHeader::unz50(0, "").encode().to_vec()),
+    };
+    let mut r = RawReader::new(g).unwrap();
+    let mut n = 0u64;
+    while r.next_record().unwrap().is_some() {
+        n += 1;
+    }
+    assert_eq!(n, 2_000_000);
+    assert_eq!(r.report().rejected_total(), 0);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    /// Random damage never panics, the accounting identities hold, every byte is
+    /// accounted for, and the records that survive are records that were written.
+    #[test]
+    fn random_damage_is_accounted(
+        flips in proptest::collection::vec((0usize..20_000, any::<u8>()), 0..40),
+        cut in 0usize..200,
+        inserts in proptest::collection::vec((0usize..20_000, proptest::collection::vec(any::<u8>(), 1..30)), 0..5),
+    ) {
+        let records: Vec<_> = (0..400).map(|i| imu(i, 10_000 * u64::from(i + 1), i)).collect();
+        let mut bytes = log(&records);
+        for (at, junk) in inserts {
+            let at = HEADER_LEN + at % (bytes.len() - HEADER_LEN);
+            bytes.splice(at..at, junk);
+        }
+        for (at, x) in flips {
+            let at = HEADER_LEN + at % (bytes.len() - HEADER_LEN);
+            bytes[at] ^= x.max(1);
+        }
+        bytes.truncate(bytes.len() - cut.min(bytes.len() - HEADER_LEN));
+        let (got, rep) = read(&bytes);
+        let accepted_bytes = 48 * rep.imu_accepted + 18 * rep.marks_accepted;
+        let classified_bytes: u64 = rep.records_read; // at least one byte per record
+        prop_assert!(classified_bytes <= bytes.len() as u64);
+        prop_assert!(accepted_bytes + rep.bytes_skipped + rep.truncated_bytes <= (bytes.len() - HEADER_LEN) as u64);
+        for a in got {
+            if let Accepted::Imu(s) = a {
+                // Byte-local damage is a burst of <= 16 bits: CRC-16 always detects it, so
+                // every record that survives is intact.
+                prop_assert!(records.contains(&s.raw));
+                prop_assert_eq!(s.raw.dtheta[1], (s.raw.seq as i32).wrapping_neg());
+            }
+        }
+    }
+}
+
+#[test]
+fn imu_with_wrong_length_counts_as_unknown() {
+    let mut w = RawWriter::new(Vec::new(), &FileHeader::unz50(0, "")).unwrap();
+    w.write_imu(&imu(0, 10_000, 0)).unwrap();
+    w.write_frame(TYPE_IMU, &[0u8; 40]).unwrap();
+    w.write_imu(&imu(1, 20_000, 0)).unwrap();
+    let (got, rep) = read(&w.finish().unwrap());
+    assert_eq!(got.len(), 2);
+    assert_eq!(rep.rejected.unknown_type, 1);
+}
