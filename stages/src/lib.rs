@@ -1,1 +1,19 @@
-//! placeholder
+//! Pure kernels of the unz pipeline: the campaign simulator, the Earth model, attitude
+//! conventions and the strapdown / odometer navigation (the UNZ algorithm).
+//!
+//! Conventions (`shared/spec/method.md`): body FRD, navigation NED, heading clockwise
+//! from true north, Euler 3-2-1; a gyro drift is subtracted from the measured rate.
+//!
+//! ```
+//! use unz_stages::simulate::{SimConfig, SensorErrors, simulate};
+//! let mut config = SimConfig::new("demo", 7);
+//! config.duration_s = 120.0;
+//! config.errors = SensorErrors::NONE;
+//! let run = simulate(&config);
+//! assert_eq!(run.records.len(), 12_000);
+//! ```
+
+pub mod attitude;
+pub mod earth;
+pub mod simulate;
+pub mod strapdown;

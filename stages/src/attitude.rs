@@ -1,0 +1,157 @@
+//! Attitude conventions: body FRD relative to NED, Euler order yaw-pitch-roll (3-2-1),
+//! heading clockwise from true north, pitch nose up, roll right wing down.
+//! `C_b^n` (body to navigation) is a `Rotation3`; quaternions are `UnitQuaternion`.
+
+use nalgebra::{Quaternion, Rotation3, UnitQuaternion, Vector3};
+
+/// Euler angles (3-2-1), rad.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Euler {
+    /// Roll Φ, rad.
+    pub roll_rad: f64,
+    /// Pitch Θ, rad.
+    pub pitch_rad: f64,
+    /// Heading ψ, rad.
+    pub heading_rad: f64,
+}
+
+impl Euler {
+    /// `C_b^n` of these angles.
+    pub fn to_quat_b_to_n(self) -> UnitQuaternion<f64> {
+        UnitQuaternion::from_euler_angles(self.roll_rad, self.pitch_rad, self.heading_rad)
+    }
+
+    /// The angles of `q` (= `C_b^n`), heading in [0, 2π).
+    pub fn from_quat_b_to_n(q: &UnitQuaternion<f64>) -> Self {
+        let (roll_rad, pitch_rad, heading_rad) = q.euler_angles();
+        Self {
+            roll_rad,
+            pitch_rad,
+            heading_rad: heading_rad.rem_euclid(std::f64::consts::TAU),
+        }
+    }
+
+    /// Body angular rate relative to NED, in body axes, from the Euler angle rates.
+    pub fn body_rate_from_euler_rates(
+        self,
+        roll_rate: f64,
+        pitch_rate: f64,
+        heading_rate: f64,
+    ) -> Vector3<f64> {
+        let (sp, cp) = self.roll_rad.sin_cos();
+        let (st, ct) = self.pitch_rad.sin_cos();
+        Vector3::new(
+            roll_rate - heading_rate * st,
+            pitch_rate * cp + heading_rate * sp * ct,
+            -pitch_rate * sp + heading_rate * cp * ct,
+        )
+    }
+}
+
+/// Rotation of a rotation vector `phi` (rad) as a unit quaternion, accurate to machine
+/// precision for small angles.
+#[inline]
+pub fn quat_from_rotation_vector(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
+    let a2 = phi.norm_squared();
+    // sin(a/2)/a and cos(a/2) by series below 1e-3 rad², exact beyond.
+    let (s, c) = if a2 < 1e-6 {
+        (
+            0.5 - a2 / 48.0 + a2 * a2 / 3840.0,
+            1.0 - a2 / 8.0 + a2 * a2 / 384.0,
+        )
+    } else {
+        let a = a2.sqrt();
+        ((0.5 * a).sin() / a, (0.5 * a).cos())
+    };
+    UnitQuaternion::new_unchecked(Quaternion::new(c, s * phi.x, s * phi.y, s * phi.z))
+}
+
+/// Smallest signed difference of two angles, rad, in (−π, π].
+pub fn wrap_pi(a: f64) -> f64 {
+    let w = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+    if w == -std::f64::consts::PI {
+        std::f64::consts::PI
+    } else {
+        w
+    }
+}
+
+/// Rotation matrix of `q`.
+pub fn dcm(q: &UnitQuaternion<f64>) -> Rotation3<f64> {
+    q.to_rotation_matrix()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn euler_round_trip_and_conventions() {
+        let e = Euler {
+            roll_rad: 0.1,
+            pitch_rad: -0.2,
+            heading_rad: 4.0,
+        };
+        let q = e.to_quat_b_to_n();
+        let back = Euler::from_quat_b_to_n(&q);
+        assert!((back.roll_rad - 0.1).abs() < 1e-12 && (back.pitch_rad + 0.2).abs() < 1e-12);
+        assert!((back.heading_rad - 4.0).abs() < 1e-12);
+        // Heading 90° points body x east; pitch up points it up (negative down).
+        let east = Euler {
+            heading_rad: std::f64::consts::FRAC_PI_2,
+            ..Default::default()
+        }
+        .to_quat_b_to_n();
+        let x = east * Vector3::x();
+        assert!((x - Vector3::y()).norm() < 1e-12);
+        let up = Euler {
+            pitch_rad: 0.3,
+            ..Default::default()
+        }
+        .to_quat_b_to_n()
+            * Vector3::x();
+        assert!(up.z < 0.0);
+        // Roll right wing down: body y points down.
+        let rolled = Euler {
+            roll_rad: 0.3,
+            ..Default::default()
+        }
+        .to_quat_b_to_n()
+            * Vector3::y();
+        assert!(rolled.z > 0.0);
+    }
+
+    #[test]
+    fn euler_rates_match_numerical_differentiation() {
+        let e0 = Euler {
+            roll_rad: 0.05,
+            pitch_rad: 0.1,
+            heading_rad: 1.0,
+        };
+        let rates = (0.01, -0.02, 0.3);
+        let dt = 1e-6;
+        let e1 = Euler {
+            roll_rad: e0.roll_rad + rates.0 * dt,
+            pitch_rad: e0.pitch_rad + rates.1 * dt,
+            heading_rad: e0.heading_rad + rates.2 * dt,
+        };
+        // C(t+dt) = C(t) exp([w dt ×]): w = body rate relative to NED.
+        let dq = e0.to_quat_b_to_n().inverse() * e1.to_quat_b_to_n();
+        let w = dq.scaled_axis() / dt;
+        let w_formula = e0.body_rate_from_euler_rates(rates.0, rates.1, rates.2);
+        assert!((w - w_formula).norm() < 1e-6, "{w} vs {w_formula}");
+    }
+
+    #[test]
+    fn rotation_vector_matches_nalgebra() {
+        for phi in [
+            Vector3::new(1e-5, -2e-5, 3e-6),
+            Vector3::new(0.3, -0.2, 0.1),
+            Vector3::zeros(),
+        ] {
+            let a = quat_from_rotation_vector(&phi);
+            let b = UnitQuaternion::from_scaled_axis(phi);
+            assert!(a.angle_to(&b) < 1e-15);
+        }
+    }
+}

@@ -1,0 +1,405 @@
+//! Campaign simulator: field runs like the paper's, with exact truth.
+//!
+//! Motion is analytic ([`route`]); the kinematics (WGS-84 position, Earth rate, transport
+//! rate, normal gravity, Coriolis) are integrated on a grid ten times finer than the IMU
+//! with two-point Gauss–Legendre quadrature, so the increments are the exact integrals
+//! of body rate and specific force to far below the sensor LSB. LN-200-class errors are
+//! then added: constant gyro drifts, angle random walk, accelerometer biases, velocity
+//! random walk, quantisation with the residue carried forward, odometer scale error and
+//! pulse quantisation.
+
+pub mod faults;
+pub mod plan;
+pub mod route;
+
+use nalgebra::Vector3;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use unz_formats::raw::{FileHeader, ImuRecord, MarkRecord};
+
+use crate::attitude::Euler;
+use crate::earth;
+
+/// Degrees per hour in rad/s.
+pub const DEG_PER_H: f64 = std::f64::consts::PI / 180.0 / 3600.0;
+/// LN-200 angle random walk, rad/√s (0.07 °/√h).
+pub const LN200_ARW_RAD_SQRT_S: f64 = 0.07 * std::f64::consts::PI / 180.0 / 60.0;
+/// LN-200-class velocity random walk, (m/s)/√s (0.03 m/s/√h).
+pub const LN200_VRW_MPS_SQRT_S: f64 = 0.03 / 60.0;
+/// One milli-g, m/s².
+pub const MILLI_G: f64 = 9.806_65e-3;
+
+/// What errors the simulated sensors have.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SensorErrors {
+    /// Random noise: angle and velocity random walk.
+    pub noise: bool,
+    /// Constant gyro drifts of 0.1–1 °/h per axis.
+    pub gyro_drift: bool,
+    /// Accelerometer biases of 0.1–0.5 mg per axis.
+    pub accel_bias: bool,
+    /// Odometer scale error of ±0.2–0.8 %.
+    pub odo_scale_error: bool,
+}
+
+impl SensorErrors {
+    /// All errors on.
+    pub const ALL: Self = Self {
+        noise: true,
+        gyro_drift: true,
+        accel_bias: true,
+        odo_scale_error: true,
+    };
+    /// Perfect sensors (quantisation only).
+    pub const NONE: Self = Self {
+        noise: false,
+        gyro_drift: false,
+        accel_bias: false,
+        odo_scale_error: false,
+    };
+}
+
+/// Simulation parameters of one run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimConfig {
+    /// Run name.
+    pub name: String,
+    /// Random seed: same seed, same run, on every platform.
+    pub seed: u64,
+    /// Run length, s.
+    pub duration_s: f64,
+    /// Static start, s (≥ 60).
+    pub static_s: f64,
+    /// Sensor errors.
+    pub errors: SensorErrors,
+    /// Error of the manifest's azimuth, degrees; `None`: random, 4–8° either way.
+    pub azimuth_error_deg: Option<f64>,
+    /// Fine-grid steps per IMU sample.
+    pub substeps: usize,
+}
+
+impl SimConfig {
+    /// A 40-minute run with every error on.
+    pub fn new(name: &str, seed: u64) -> Self {
+        Self {
+            name: name.to_owned(),
+            seed,
+            duration_s: 2400.0,
+            static_s: 90.0,
+            errors: SensorErrors::ALL,
+            azimuth_error_deg: None,
+            substeps: 10,
+        }
+    }
+}
+
+/// The true settings and sensor errors of a simulated run.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TrueSettings {
+    /// True initial heading, degrees.
+    pub azimuth_deg: f64,
+    /// Heading written to the manifest (azpocz), degrees.
+    pub manifest_azimuth_deg: f64,
+    /// True initial pitch, degrees.
+    pub pitch_deg: f64,
+    /// True initial roll, degrees.
+    pub roll_deg: f64,
+    /// True gyro drifts (x, y, z), rad/s (measured = true + drift).
+    pub drift_rad_s: [f64; 3],
+    /// True accelerometer biases (x, y, z), m/s².
+    pub accel_bias_mps2: [f64; 3],
+    /// True metres per odometer pulse.
+    pub odo_scale_m_per_pulse: f64,
+    /// Nominal metres per pulse (the header's `odo_lsb_m`).
+    pub nominal_odo_m_per_pulse: f64,
+    /// Angle random walk, rad/√s.
+    pub arw_rad_sqrt_s: f64,
+    /// Velocity random walk, (m/s)/√s.
+    pub vrw_mps_sqrt_s: f64,
+    /// Sensor errors switched on.
+    pub errors: SensorErrors,
+    /// Seed.
+    pub seed: u64,
+}
+
+/// True state at the end of every IMU interval.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Truth {
+    /// Time since the log's origin, ns.
+    pub t_ns: Vec<i64>,
+    /// Latitude, rad.
+    pub lat_rad: Vec<f64>,
+    /// Longitude, rad.
+    pub lon_rad: Vec<f64>,
+    /// Height, m.
+    pub h_m: Vec<f64>,
+    /// Velocity, NED, m/s.
+    pub vel_ned_mps: Vec<[f64; 3]>,
+    /// Attitude.
+    pub euler: Vec<Euler>,
+    /// Path length travelled, m.
+    pub distance_m: Vec<f64>,
+}
+
+/// A control point of the manifest.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimControlPoint {
+    /// Id (also in the mark record).
+    pub id: u32,
+    /// Surveyed latitude, degrees.
+    pub latitude_deg: f64,
+    /// Surveyed longitude, degrees.
+    pub longitude_deg: f64,
+    /// Surveyed height, m.
+    pub height_m: f64,
+    /// Time of the mark, s since the log's origin.
+    pub t_s: f64,
+}
+
+/// A complete simulated run, ready to be written.
+#[derive(Debug, Clone)]
+pub struct SimRun {
+    /// Configuration it came from.
+    pub config: SimConfig,
+    /// Raw-log header.
+    pub header: FileHeader,
+    /// IMU records in order.
+    pub records: Vec<ImuRecord>,
+    /// Marks, each with the index of the IMU record it follows.
+    pub marks: Vec<(usize, MarkRecord)>,
+    /// Start position (lat, lon degrees; height m).
+    pub site: [f64; 3],
+    /// Control points.
+    pub control_points: Vec<SimControlPoint>,
+    /// Truth.
+    pub truth: Truth,
+    /// True settings.
+    pub settings: TrueSettings,
+    /// Static start given in the manifest, s (a margin below the true one).
+    pub manifest_static_s: f64,
+    /// Rest intervals (start, end), s.
+    pub rests: Vec<(f64, f64)>,
+}
+
+/// Gauss–Legendre two-point nodes on [0, 1].
+const GL2: [f64; 2] = [0.5 - 0.288_675_134_594_812_9, 0.5 + 0.288_675_134_594_812_9];
+
+/// Body rate (inertial) and specific force, body axes, at time `t` and position `(lat, h)`.
+fn body_rate_and_force(
+    motion: &route::Motion,
+    t: f64,
+    lat: f64,
+    h: f64,
+) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
+    let k = motion.at(t);
+    let q = k.euler.to_quat_b_to_n();
+    let w_nb_b =
+        k.euler
+            .body_rate_from_euler_rates(k.euler_rates[0], k.euler_rates[1], k.euler_rates[2]);
+    let v_b = Vector3::new(k.speed_mps, 0.0, 0.0);
+    let v_n = q * v_b;
+    let dv_n = q * (Vector3::new(k.accel_mps2, 0.0, 0.0) + w_nb_b.cross(&v_b));
+    let w_ie_n = earth::earth_rate_ned(lat);
+    let w_en_n = earth::transport_rate_ned(lat, h, &v_n);
+    let g_n = Vector3::new(0.0, 0.0, earth::normal_gravity_mps2(lat, h));
+    let f_n = dv_n + (2.0 * w_ie_n + w_en_n).cross(&v_n) - g_n;
+    let qi = q.inverse();
+    (w_nb_b + qi * (w_ie_n + w_en_n), qi * f_n, v_n)
+}
+
+/// Simulates one run.
+pub fn simulate(config: &SimConfig) -> SimRun {
+    let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+    let lat0_deg: f64 = rng.random_range(49.0..54.5);
+    let lon0_deg: f64 = rng.random_range(14.5..24.0);
+    let h0: f64 = rng.random_range(80.0..300.0);
+    let heading0 = rng.random_range(0.0..std::f64::consts::TAU);
+    let mut plan = plan::plan_route(&mut rng, config.duration_s, config.static_s, heading0);
+    // The vehicle stands and drives slightly tilted (parking slope, road camber).
+    plan.motion.pitch0_rad = rng.random_range(-0.6f64..0.6).to_radians();
+    plan.motion.roll0_rad = rng.random_range(-0.6f64..0.6).to_radians();
+    let e = config.errors;
+    let mut uniform_signed =
+        |lo: f64, hi: f64| rng.random_range(lo..hi) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+    let drift: [f64; 3] = std::array::from_fn(|_| uniform_signed(0.1, 1.0) * DEG_PER_H);
+    let bias: [f64; 3] = std::array::from_fn(|_| uniform_signed(0.1, 0.5) * MILLI_G);
+    let odo_err = uniform_signed(0.002, 0.008);
+    let az_err = uniform_signed(4.0, 8.0);
+    let drift = if e.gyro_drift { drift } else { [0.0; 3] };
+    let bias = if e.accel_bias { bias } else { [0.0; 3] };
+    let header = FileHeader::unz50(
+        1_780_000_000_000_000 + (config.seed % 1000) as i64 * 86_400_000_000,
+        "LN200-SIM",
+    );
+    let true_m_per_pulse = header.odo_lsb_m
+        * if e.odo_scale_error {
+            1.0 + odo_err
+        } else {
+            1.0
+        };
+    let az_err = config.azimuth_error_deg.unwrap_or(az_err);
+
+    let dt = header.sample_period_s();
+    let n = (config.duration_s / dt).round() as usize;
+    let sub = config.substeps.max(1);
+    let h_f = dt / sub as f64;
+    let (mut lat, mut lon, mut h) = (lat0_deg.to_radians(), lon0_deg.to_radians(), h0);
+    let mut distance = 0.0;
+    let mut cum_theta = Vector3::<f64>::zeros();
+    let mut cum_vel = Vector3::<f64>::zeros();
+    let mut counts_theta = [0i64; 3];
+    let mut counts_vel = [0i64; 3];
+    let arw = Normal::new(0.0, LN200_ARW_RAD_SQRT_S * dt.sqrt()).unwrap_or_else(|_| unreachable!());
+    let vrw = Normal::new(0.0, LN200_VRW_MPS_SQRT_S * dt.sqrt()).unwrap_or_else(|_| unreachable!());
+    let mut records = Vec::with_capacity(n);
+    let mut truth = Truth::default();
+    let motion = &plan.motion;
+    for k in 0..n {
+        let t_start = k as f64 * dt;
+        let mut dtheta = Vector3::zeros();
+        let mut dvel = Vector3::zeros();
+        for j in 0..sub {
+            let a = t_start + j as f64 * h_f;
+            let mut dpos = Vector3::zeros();
+            for node in GL2 {
+                let t = a + node * h_f;
+                let (w, f, v_n) = body_rate_and_force(motion, t, lat, h);
+                dtheta += w * (0.5 * h_f);
+                dvel += f * (0.5 * h_f);
+                dpos += v_n * (0.5 * h_f);
+                distance += motion.accel.integral(t) * 0.5 * h_f;
+            }
+            let lat_mid = lat + 0.5 * dpos.x / (earth::meridian_radius_m(lat) + h);
+            let h_mid = h - 0.5 * dpos.z;
+            let (rm, rn) = earth::radii_m(lat_mid);
+            lat += dpos.x / (rm + h_mid);
+            lon += dpos.y / ((rn + h_mid) * lat_mid.cos());
+            h -= dpos.z;
+        }
+        // Sensor errors, then quantisation with the residue carried forward.
+        dtheta += Vector3::from(drift) * dt;
+        dvel += Vector3::from(bias) * dt;
+        if e.noise {
+            for i in 0..3 {
+                dtheta[i] += arw.sample(&mut rng);
+                dvel[i] += vrw.sample(&mut rng);
+            }
+        }
+        cum_theta += dtheta;
+        cum_vel += dvel;
+        let mut rec_theta = [0i32; 3];
+        let mut rec_vel = [0i32; 3];
+        for i in 0..3 {
+            let ct = (cum_theta[i] / header.dtheta_lsb_rad).round() as i64;
+            let cv = (cum_vel[i] / header.dvel_lsb_mps).round() as i64;
+            rec_theta[i] = (ct - counts_theta[i]) as i32;
+            rec_vel[i] = (cv - counts_vel[i]) as i32;
+            counts_theta[i] = ct;
+            counts_vel[i] = cv;
+        }
+        let t_end = (k + 1) as f64 * dt;
+        let t_us = (k as u64 + 1) * u64::from(header.sample_period_us);
+        records.push(ImuRecord {
+            seq: k as u32,
+            t_us,
+            dtheta: rec_theta,
+            dvel: rec_vel,
+            odo_count: (distance / true_m_per_pulse).floor() as u64 as u32,
+            status: 0,
+        });
+        let kin = motion.at(t_end);
+        truth.t_ns.push(t_us as i64 * 1000);
+        truth.lat_rad.push(lat);
+        truth.lon_rad.push(lon);
+        truth.h_m.push(h);
+        let v_n = kin.euler.to_quat_b_to_n() * Vector3::new(kin.speed_mps, 0.0, 0.0);
+        truth.vel_ned_mps.push([v_n.x, v_n.y, v_n.z]);
+        truth.euler.push(Euler {
+            heading_rad: kin.euler.heading_rad.rem_euclid(std::f64::consts::TAU),
+            ..kin.euler
+        });
+        truth.distance_m.push(distance);
+    }
+
+    // Control points at the planned stops, marked 5 s into the stop.
+    let mut marks = Vec::new();
+    let mut control_points = Vec::new();
+    for stop in &plan.stops {
+        let t_mark = (stop.start_s + 5.0).min(config.duration_s - dt);
+        let k = ((t_mark / dt).round() as usize).clamp(1, n) - 1;
+        marks.push((
+            k,
+            MarkRecord {
+                t_us: records[k].t_us,
+                point_id: stop.id,
+            },
+        ));
+        control_points.push(SimControlPoint {
+            id: stop.id,
+            latitude_deg: truth.lat_rad[k].to_degrees(),
+            longitude_deg: truth.lon_rad[k].to_degrees(),
+            height_m: truth.h_m[k],
+            t_s: records[k].t_us as f64 * 1e-6,
+        });
+    }
+    let e0 = motion.at(0.0).euler;
+    let azimuth_deg = e0.heading_rad.to_degrees().rem_euclid(360.0);
+    SimRun {
+        config: config.clone(),
+        header,
+        records,
+        marks,
+        site: [lat0_deg, lon0_deg, h0],
+        control_points,
+        truth,
+        settings: TrueSettings {
+            azimuth_deg,
+            manifest_azimuth_deg: (azimuth_deg + az_err).rem_euclid(360.0),
+            pitch_deg: e0.pitch_rad.to_degrees(),
+            roll_deg: e0.roll_rad.to_degrees(),
+            drift_rad_s: drift,
+            accel_bias_mps2: bias,
+            odo_scale_m_per_pulse: true_m_per_pulse,
+            nominal_odo_m_per_pulse: 0.0125,
+            arw_rad_sqrt_s: if e.noise { LN200_ARW_RAD_SQRT_S } else { 0.0 },
+            vrw_mps_sqrt_s: if e.noise { LN200_VRW_MPS_SQRT_S } else { 0.0 },
+            errors: e,
+            seed: config.seed,
+        },
+        manifest_static_s: config.static_s - 5.0,
+        rests: plan.rests,
+    }
+}
+
+impl SimRun {
+    /// The run manifest (`run.toml`) text for a raw log named `raw_file`.
+    pub fn manifest_toml(&self, name: &str, raw_file: &str) -> String {
+        let mut s = format!(
+            "# Simulated by unz (seed {seed}). The azimuth below is the alignment's, off by\n\
+             # several degrees; the true settings are in truth.parquet's metadata.\n\
+             name = \"{name}\"\nraw = \"{raw_file}\"\nformat = \"unz-binary\"\n\n\
+             [site]\nlatitude_deg = {lat:.9}\nlongitude_deg = {lon:.9}\nheight_m = {h:.3}\n\n\
+             [initial]\nazimuth_deg = {az:.6}\nstatic_s = {st:.1}\n",
+            seed = self.config.seed,
+            lat = self.site[0],
+            lon = self.site[1],
+            h = self.site[2],
+            az = self.settings.manifest_azimuth_deg,
+            st = self.manifest_static_s,
+        );
+        for cp in &self.control_points {
+            s += &format!(
+                "\n[[control_point]]\nid = {}\nlatitude_deg = {:.9}\nlongitude_deg = {:.9}\nheight_m = {:.3}\n",
+                cp.id, cp.latitude_deg, cp.longitude_deg, cp.height_m
+            );
+        }
+        s
+    }
+
+    /// Index of the truth sample nearest to `t_s`.
+    pub fn truth_index(&self, t_s: f64) -> usize {
+        let dt = self.header.sample_period_s();
+        ((t_s / dt).round() as usize).clamp(1, self.truth.t_ns.len()) - 1
+    }
+}

@@ -1,0 +1,172 @@
+//! Random but realistic routes: a static start, drives of 5–15 m/s with turns, hills and
+//! side slopes, intermediate stops, a mid-route and a final stop on control points.
+
+use rand::Rng;
+
+use super::route::{Motion, Profile, Pulse};
+
+/// Peak lateral acceleration allowed in turns, m/s².
+const MAX_LATERAL_MPS2: f64 = 2.0;
+
+/// A stop on a surveyed control point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlannedStop {
+    /// Control-point id.
+    pub id: u32,
+    /// Time the vehicle is at rest, s.
+    pub start_s: f64,
+    /// Time it moves again (or the end of the run), s.
+    pub end_s: f64,
+}
+
+/// A planned route: the motion and its control-point stops.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RoutePlan {
+    /// The motion profiles.
+    pub motion: Motion,
+    /// Control-point stops, in time order (the last is the final stop).
+    pub stops: Vec<PlannedStop>,
+    /// Intervals where the vehicle is at rest (start, end), s.
+    pub rests: Vec<(f64, f64)>,
+}
+
+/// Plans a route of `duration_s` with a static start of `static_s`.
+pub fn plan_route(
+    rng: &mut impl Rng,
+    duration_s: f64,
+    static_s: f64,
+    heading0_rad: f64,
+) -> RoutePlan {
+    let final_stop_s = 60.0_f64.min(0.1 * duration_s).max(20.0);
+    let end_drive = duration_s - final_stop_s;
+    let mid_target = static_s + 0.5 * (end_drive - static_s);
+    let (mut accel, mut yaw, mut pitch, mut roll) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut stops = Vec::new();
+    let mut rests = vec![(0.0, static_s)];
+    let mut t = static_s;
+    let mut v = 0.0;
+    let mut mid_done = duration_s < 600.0; // short runs have the final control point only
+    while t < end_drive {
+        let target: f64 = rng.random_range(4.0..12.0);
+        let a_peak: f64 = rng.random_range(0.8..1.8);
+        let t_acc = 2.0 * (target - v).abs() / a_peak;
+        let t_dec = 2.0 * target / 1.2;
+        if t + t_acc + 10.0 + t_dec > end_drive {
+            if v > 0.0 {
+                accel.push(Pulse {
+                    t0_s: t,
+                    dur_s: 2.0 * v / 1.2,
+                    amp: -1.2,
+                });
+                t += 2.0 * v / 1.2;
+            }
+            break;
+        }
+        accel.push(Pulse {
+            t0_s: t,
+            dur_s: t_acc,
+            amp: (target - v).signum() * a_peak,
+        });
+        t += t_acc;
+        v = target;
+        let cruise = rng.random_range(30.0..150.0_f64).min(end_drive - t - t_dec);
+        cruise_events(rng, t, t + cruise, v, &mut yaw, &mut pitch, &mut roll);
+        t += cruise;
+        let stop_here = rng.random_bool(0.6) || (!mid_done && t > mid_target);
+        if stop_here {
+            let dec_peak: f64 = rng.random_range(0.8..1.5);
+            let t_dec = 2.0 * v / dec_peak;
+            accel.push(Pulse {
+                t0_s: t,
+                dur_s: t_dec,
+                amp: -dec_peak,
+            });
+            t += t_dec;
+            v = 0.0;
+            let rest = if !mid_done && t > mid_target {
+                mid_done = true;
+                stops.push(PlannedStop {
+                    id: 1,
+                    start_s: t,
+                    end_s: t + 40.0,
+                });
+                40.0
+            } else {
+                rng.random_range(15.0..70.0)
+            };
+            rests.push((t, t + rest));
+            t += rest;
+        }
+    }
+    // Whatever remains is the final stop.
+    let last_rest = t;
+    stops.push(PlannedStop {
+        id: stops.len() as u32 + 1,
+        start_s: last_rest,
+        end_s: duration_s,
+    });
+    rests.push((last_rest, duration_s));
+    RoutePlan {
+        motion: Motion {
+            heading0_rad,
+            accel: Profile::new(accel),
+            yaw_rate: Profile::new(yaw),
+            pitch: Profile::new(pitch),
+            roll: Profile::new(roll),
+            pitch0_rad: 0.0,
+            roll0_rad: 0.0,
+        },
+        stops,
+        rests,
+    }
+}
+
+/// Turns, hills and side slopes inside a cruise at constant speed `v` over `[c0, c1]`.
+fn cruise_events(
+    rng: &mut impl Rng,
+    c0: f64,
+    c1: f64,
+    v: f64,
+    yaw: &mut Vec<Pulse>,
+    pitch: &mut Vec<Pulse>,
+    roll: &mut Vec<Pulse>,
+) {
+    let mut ts = c0 + rng.random_range(2.0..10.0);
+    loop {
+        let dpsi: f64 = rng.random_range(15f64.to_radians()..100f64.to_radians()) * sign(rng);
+        let dur = (2.0 * dpsi.abs() * v / MAX_LATERAL_MPS2).max(3.0);
+        if ts + dur > c1 {
+            break;
+        }
+        yaw.push(Pulse {
+            t0_s: ts,
+            dur_s: dur,
+            amp: 2.0 * dpsi / dur,
+        });
+        ts += dur + rng.random_range(5.0..40.0);
+    }
+    for (channel, lo_deg, hi_deg, dur_lo, dur_hi) in
+        [(pitch, 1.0, 5.0, 8.0, 30.0), (roll, 0.5, 3.0, 5.0, 20.0)]
+    {
+        let mut ts = c0 + rng.random_range(1.0..15.0);
+        loop {
+            let dur = rng.random_range(dur_lo..dur_hi);
+            if ts + dur > c1 {
+                break;
+            }
+            let amp =
+                rng.random_range(f64::to_radians(lo_deg)..f64::to_radians(hi_deg)) * sign(rng);
+            channel.push(Pulse {
+                t0_s: ts,
+                dur_s: dur,
+                amp,
+            });
+            ts += dur + rng.random_range(3.0..30.0);
+        }
+    }
+}
+
+fn sign(rng: &mut impl Rng) -> f64 {
+    if rng.random_bool(0.5) { 1.0 } else { -1.0 }
+}

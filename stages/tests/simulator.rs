@@ -1,0 +1,170 @@
+//! The simulator against itself: integrating its own increments with the true settings
+//! must reproduce its truth, which validates the kinematics, the quadrature and the
+//! navigator's attitude and position updates together.
+
+use unz_stages::attitude::{Euler, wrap_pi};
+use unz_stages::earth;
+use unz_stages::simulate::{SensorErrors, SimConfig, SimRun, faults, simulate};
+use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
+
+struct Inputs {
+    dt: Vec<f64>,
+    dtheta: Vec<[f64; 3]>,
+    dist: Vec<f64>,
+}
+
+fn inputs(run: &SimRun) -> Inputs {
+    let lsb = run.header.dtheta_lsb_rad;
+    let m_per_pulse = run.settings.odo_scale_m_per_pulse;
+    let mut prev_odo = 0i64;
+    let mut out = Inputs {
+        dt: Vec::new(),
+        dtheta: Vec::new(),
+        dist: Vec::new(),
+    };
+    for r in &run.records {
+        out.dt.push(run.header.sample_period_s());
+        out.dtheta.push(r.dtheta.map(|c| f64::from(c) * lsb));
+        let odo = i64::from(r.odo_count);
+        out.dist.push((odo - prev_odo) as f64 * m_per_pulse);
+        prev_odo = odo;
+    }
+    out
+}
+
+fn true_settings(run: &SimRun) -> NavSettings {
+    NavSettings {
+        initial: Euler {
+            roll_rad: run.settings.roll_deg.to_radians(),
+            pitch_rad: run.settings.pitch_deg.to_radians(),
+            heading_rad: run.settings.azimuth_deg.to_radians(),
+        },
+        drift_rad_s: run.settings.drift_rad_s,
+        odo_scale: 1.0,
+        odo_yaw_rad: 0.0,
+        lat0_rad: run.site[0].to_radians(),
+        lon0_rad: run.site[1].to_radians(),
+        h0_m: run.site[2],
+    }
+}
+
+fn max_attitude_error_deg(run: &SimRun, track: &NavTrack) -> [f64; 3] {
+    let mut worst = [0f64; 3];
+    for (k, e) in run.truth.euler.iter().enumerate() {
+        let d = [
+            wrap_pi(track.roll_rad[k] - e.roll_rad),
+            wrap_pi(track.pitch_rad[k] - e.pitch_rad),
+            wrap_pi(track.heading_rad[k] - e.heading_rad),
+        ];
+        for i in 0..3 {
+            worst[i] = worst[i].max(d[i].abs().to_degrees());
+        }
+    }
+    worst
+}
+
+#[test]
+fn own_increments_with_true_settings_reproduce_truth_over_40_minutes() {
+    let mut config = SimConfig::new("sim-check", 11);
+    config.errors = SensorErrors {
+        noise: false,
+        ..SensorErrors::ALL
+    };
+    let run = simulate(&config);
+    let total = *run.truth.distance_m.last().unwrap();
+    let inp = inputs(&run);
+    let mut track = NavTrack::default();
+    navigate(
+        &NavInputs {
+            dt_s: &inp.dt,
+            dtheta_rad: &inp.dtheta,
+            odo_dist_m: &inp.dist,
+        },
+        &true_settings(&run),
+        &mut track,
+    );
+    let worst = max_attitude_error_deg(&run, &track);
+    eprintln!("max attitude error over 40 min (roll, pitch, heading): {worst:?} deg");
+    assert!(worst.iter().all(|&w| w < 0.001), "{worst:?}");
+    let n = track.len() - 1;
+    let (dn, de) = earth::local_offset_m(
+        track.lat_rad[n],
+        track.lon_rad[n],
+        run.truth.lat_rad[n],
+        run.truth.lon_rad[n],
+        run.truth.h_m[n],
+    );
+    eprintln!("final position error: north {dn:.3} m, east {de:.3} m after {total:.0} m");
+    // Odometer pulses of 12.5 mm and mid-interval direction: centimetres at most.
+    assert!(dn.hypot(de) < 0.5, "{dn} {de}");
+    assert!(
+        (9_000.0..14_000.0).contains(&total),
+        "route length {total} m for 40 min"
+    );
+}
+
+#[test]
+fn a_wrong_azimuth_really_moves_the_stop() {
+    let mut config = SimConfig::new("sim-az", 12);
+    config.duration_s = 900.0;
+    config.errors = SensorErrors::NONE;
+    config.azimuth_error_deg = Some(7.0);
+    let run = simulate(&config);
+    let inp = inputs(&run);
+    let mut settings = true_settings(&run);
+    settings.initial.heading_rad = run.settings.manifest_azimuth_deg.to_radians();
+    let mut track = NavTrack::default();
+    navigate(
+        &NavInputs {
+            dt_s: &inp.dt,
+            dtheta_rad: &inp.dtheta,
+            odo_dist_m: &inp.dist,
+        },
+        &settings,
+        &mut track,
+    );
+    let n = track.len() - 1;
+    let (dn, de) = earth::local_offset_m(
+        track.lat_rad[n],
+        track.lon_rad[n],
+        run.truth.lat_rad[n],
+        run.truth.lon_rad[n],
+        run.truth.h_m[n],
+    );
+    // A 7° heading error rotates the whole displacement: |error| = 2 sin(3.5°)·|displacement|.
+    let (nn, ee) = earth::local_offset_m(
+        run.truth.lat_rad[n],
+        run.truth.lon_rad[n],
+        run.site[0].to_radians(),
+        run.site[1].to_radians(),
+        run.site[2],
+    );
+    let expected = 2.0 * (3.5f64).to_radians().sin() * nn.hypot(ee);
+    let got = dn.hypot(de);
+    assert!(
+        (got - expected).abs() < 0.02 * expected + 1.0,
+        "error {got} m, expected {expected} m"
+    );
+}
+
+#[test]
+fn simulation_is_deterministic_and_seed_dependent() {
+    let mut config = SimConfig::new("det", 5);
+    config.duration_s = 200.0;
+    let a = simulate(&config);
+    let b = simulate(&config);
+    assert_eq!(a.records, b.records);
+    config.seed = 6;
+    assert_ne!(simulate(&config).records, a.records);
+}
+
+#[test]
+fn damaged_copy_comes_with_consistent_expectations() {
+    let mut config = SimConfig::new("faulty", 21);
+    config.duration_s = 300.0;
+    let run = simulate(&config);
+    let d = faults::damage(&run, 21);
+    assert!(d.expected.is_consistent(), "{:?}", d.expected);
+    assert_eq!(d.expected.rejected.bad_crc, 6);
+    assert_eq!(d.expected.rejected.truncated, 1);
+}
