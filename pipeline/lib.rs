@@ -1,1 +1,11 @@
-//! unz
+//! `unz`: post-processing of archived UNZ-50 land-navigation logs with the DISUPT
+//! initial-settings correction.
+//!
+//! The binary's commands live in [`commands`], one file each; the stage functions they
+//! call (ingest, …) are in this crate's modules and take validated plans, not raw flags.
+
+pub mod cli;
+pub mod commands;
+pub mod ingest;
+pub mod runs;
+pub mod simulate_io;

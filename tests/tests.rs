@@ -1,1 +1,5 @@
+//! End-to-end tests of the `unz` binary. One module per area.
 
+mod cli;
+mod ingest;
+mod util;

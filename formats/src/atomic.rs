@@ -27,6 +27,7 @@ impl AtomicFile {
         let tmp = tempfile::Builder::new()
             .prefix(&format!(".{file_name}."))
             .suffix(".tmp")
+            .permissions(readable_by_all())
             .tempfile_in(dir)
             .map_err(|e| io_in_file(dest, e))?;
         Ok(Self {
@@ -64,6 +65,21 @@ impl AtomicFile {
             .persist(&dest)
             .map_err(|e| io_in_file(&dest, e.error))?;
         Ok(())
+    }
+}
+
+/// Outputs are ordinary files (0644 on Unix), not the private 0600 of temporary files.
+fn readable_by_all() -> std::fs::Permissions {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::Permissions::from_mode(0o644)
+    }
+    #[cfg(not(unix))]
+    {
+        std::fs::metadata(".")
+            .map(|m| m.permissions())
+            .unwrap_or_else(|_| unreachable!())
     }
 }
 

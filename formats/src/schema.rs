@@ -104,3 +104,32 @@ pub fn marks(time_origin_utc_ns: Option<i64>) -> SchemaRef {
         time_origin_utc_ns,
     )
 }
+
+/// Schema metadata key of `truth`: the true settings as JSON.
+pub const META_TRUE_SETTINGS: &str = "unz.true_settings";
+
+/// `truth`: the simulator's true state at every IMU sample.
+pub fn truth(time_origin_utc_ns: Option<i64>, true_settings_json: &str) -> SchemaRef {
+    let deg = |n: &str| scalar(n, DataType::Float64, false, "deg");
+    let m = |n: &str| scalar(n, DataType::Float64, false, "m");
+    let schema = with_meta(
+        vec![
+            time_field(),
+            deg("lat_deg"),
+            deg("lon_deg"),
+            m("h_m"),
+            vec3("vel_ned_mps", "m/s", FRAME_NED),
+            deg("roll_deg"),
+            deg("pitch_deg"),
+            deg("heading_deg"),
+            m(DISTANCE_M),
+            m("north_m"),
+            m("east_m"),
+        ],
+        "truth",
+        time_origin_utc_ns,
+    );
+    let mut meta = schema.metadata().clone();
+    meta.insert(META_TRUE_SETTINGS.to_owned(), true_settings_json.to_owned());
+    Arc::new(Schema::new_with_metadata(schema.fields().clone(), meta))
+}

@@ -1,0 +1,20 @@
+//! One file per subcommand, each with `run(args)`.
+
+pub mod bench;
+pub mod demo;
+pub mod ingest;
+pub mod simulate;
+
+use std::process::ExitCode;
+
+use crate::cli::{Cli, Command};
+
+/// Runs a parsed command line; the exit code says whether everything succeeded.
+pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+    match cli.command {
+        Command::Simulate(a) => simulate::run(&a),
+        Command::Ingest(a) => ingest::run(&a),
+        Command::Demo(a) => demo::run(&a),
+        Command::Bench(a) => bench::run(&a),
+    }
+}

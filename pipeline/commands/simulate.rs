@@ -1,0 +1,65 @@
+//! `unz simulate`: write simulated field runs.
+
+use std::process::ExitCode;
+
+use anyhow::bail;
+use rayon::prelude::*;
+use unz_stages::simulate::{SensorErrors, SimConfig, simulate};
+
+use crate::cli::SimulateArgs;
+use crate::simulate_io::{write_faulty_copy, write_run};
+
+/// The configurations `args` asks for.
+pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
+    if args.static_s < 60.0 {
+        bail!(
+            "--static-s {} is shorter than the 60 s a static start needs",
+            args.static_s
+        );
+    }
+    if !(args.duration_s >= args.static_s + 60.0 && args.duration_s <= 4.0 * 3600.0) {
+        bail!(
+            "--duration-s {} must be between static-s + 60 s and 4 h",
+            args.duration_s
+        );
+    }
+    Ok((0..args.runs)
+        .map(|i| {
+            let seed = args.seed + u64::from(i);
+            let mut c = SimConfig::new(&format!("sim-{seed:04}"), seed);
+            c.duration_s = args.duration_s;
+            c.static_s = args.static_s;
+            c.azimuth_error_deg = args.azimuth_error_deg;
+            c.errors = SensorErrors {
+                noise: !args.no_noise,
+                gyro_drift: !args.no_gyro_drift,
+                accel_bias: !args.no_accel_bias,
+                odo_scale_error: !args.no_odo_scale_error,
+            };
+            c
+        })
+        .collect())
+}
+
+/// Runs the command.
+pub fn run(args: &SimulateArgs) -> anyhow::Result<ExitCode> {
+    let configs = configs(args)?;
+    std::fs::create_dir_all(&args.out)?;
+    let written: Vec<anyhow::Result<Vec<std::path::PathBuf>>> = configs
+        .par_iter()
+        .map(|c| {
+            let run = simulate(c);
+            let mut dirs = vec![write_run(&run, &args.out)?];
+            if args.faults {
+                dirs.push(write_faulty_copy(&run, &args.out)?);
+            }
+            Ok(dirs)
+        })
+        .collect();
+    for w in written {
+        for d in w? {
+            println!("{}", d.display());
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

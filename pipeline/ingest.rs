@@ -1,0 +1,420 @@
+//! Stage 1, ingest: a run's raw log → `imu.parquet`, `odometer.parquet`, `marks.parquet`
+//! (zstd), `raw.mcap` (JSON channels for Foxglove) and `ingest.json` (the accounting of
+//! §1.4 of the raw-format spec), plus `ingest_events.json` locating the first faults.
+//!
+//! The log is streamed: memory is bounded by the reader's buffer and one batch of rows,
+//! whatever the file size. Bad records never stop the stage; an unreadable file does,
+//! with an error naming it.
+
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use serde::Serialize;
+use unz_formats::atomic::write_json_atomic;
+use unz_formats::kfgins::{KfGinsReader, LineFault, read_odometer_file};
+use unz_formats::manifest::{LogFormat, RunManifest};
+use unz_formats::mcap_io::{Channel, JsonMcap, numeric_object_schema};
+use unz_formats::parquet_io::ParquetSink;
+use unz_formats::raw::{Accepted, FaultEvent, RawReader};
+use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
+use unz_formats::{IngestReport, schema};
+
+/// Rows per Parquet batch.
+const BATCH_ROWS: usize = 1 << 16;
+
+/// Output files of the ingest stage.
+pub const OUTPUTS: [&str; 6] = [
+    "imu.parquet",
+    "odometer.parquet",
+    "marks.parquet",
+    "raw.mcap",
+    "ingest.json",
+    "ingest_events.json",
+];
+
+/// What the stage did.
+#[derive(Debug, Clone)]
+pub struct IngestOutcome {
+    /// Output folder.
+    pub dir: PathBuf,
+    /// The accounting.
+    pub report: IngestReport,
+    /// Odometer rows written.
+    pub odometer_rows: usize,
+}
+
+/// Options of the ingest stage.
+#[derive(Debug, Clone, Copy)]
+pub struct IngestOptions {
+    /// Write `raw.mcap` too.
+    pub mcap: bool,
+}
+
+impl Default for IngestOptions {
+    fn default() -> Self {
+        Self { mcap: true }
+    }
+}
+
+#[derive(Serialize)]
+struct EventsFile<'a> {
+    raw: &'a Path,
+    events_total: u64,
+    events: &'a [FaultEvent],
+    line_faults: &'a [LineFault],
+    odometer_file_faults: &'a [LineFault],
+}
+
+#[derive(Serialize)]
+struct ImuMessage {
+    seq: u64,
+    dtheta_rad: [f64; 3],
+    dvel_mps: [f64; 3],
+    rate_rad_s: [f64; 3],
+    accel_mps2: [f64; 3],
+    status: u16,
+}
+
+#[derive(Serialize)]
+struct OdoMessage {
+    distance_m: f64,
+    speed_mps: f64,
+}
+
+#[derive(Serialize)]
+struct MarkMessage {
+    point_id: u32,
+}
+
+/// The raw-data MCAP: `/imu`, `/odometer`, `/marks`.
+struct RawMcap {
+    mcap: JsonMcap,
+    imu: Channel,
+    odo: Channel,
+    marks: Channel,
+    origin_ns: i64,
+    last_odo: Option<(i64, f64)>,
+}
+
+impl RawMcap {
+    fn create(path: &Path, origin_ns: i64) -> anyhow::Result<Self> {
+        let mut mcap = JsonMcap::create(path)?;
+        let imu = mcap.add_channel(
+            "/imu",
+            "unz.ImuIncrement",
+            &numeric_object_schema(
+                "IMU increments (body FRD)",
+                &["seq", "status"],
+                &["dtheta_rad", "dvel_mps", "rate_rad_s", "accel_mps2"],
+            ),
+        )?;
+        let odo = mcap.add_channel(
+            "/odometer",
+            "unz.Odometer",
+            &numeric_object_schema("Odometer", &["distance_m", "speed_mps"], &[]),
+        )?;
+        let marks = mcap.add_channel(
+            "/marks",
+            "unz.ControlPointMark",
+            &numeric_object_schema("Control-point mark", &["point_id"], &[]),
+        )?;
+        Ok(Self {
+            mcap,
+            imu,
+            odo,
+            marks,
+            origin_ns,
+            last_odo: None,
+        })
+    }
+
+    fn log_time(&self, t_ns: i64) -> u64 {
+        u64::try_from(self.origin_ns.saturating_add(t_ns)).unwrap_or(0)
+    }
+
+    fn imu(
+        &mut self,
+        t_ns: i64,
+        dt_s: f64,
+        seq: u64,
+        dtheta: [f64; 3],
+        dvel: [f64; 3],
+        status: u16,
+    ) -> anyhow::Result<()> {
+        let inv = if dt_s > 0.0 { 1.0 / dt_s } else { 0.0 };
+        let msg = ImuMessage {
+            seq,
+            dtheta_rad: dtheta,
+            dvel_mps: dvel,
+            rate_rad_s: dtheta.map(|v| v * inv),
+            accel_mps2: dvel.map(|v| v * inv),
+            status,
+        };
+        let lt = self.log_time(t_ns);
+        Ok(self.mcap.write(&mut self.imu, lt, &msg)?)
+    }
+
+    fn odometer(&mut self, t_ns: i64, distance_m: f64) -> anyhow::Result<()> {
+        let speed_mps = match self.last_odo {
+            Some((t0, d0)) if t_ns > t0 => (distance_m - d0) / ((t_ns - t0) as f64 * 1e-9),
+            _ => 0.0,
+        };
+        self.last_odo = Some((t_ns, distance_m));
+        let lt = self.log_time(t_ns);
+        Ok(self.mcap.write(
+            &mut self.odo,
+            lt,
+            &OdoMessage {
+                distance_m,
+                speed_mps,
+            },
+        )?)
+    }
+
+    fn mark(&mut self, t_ns: i64, point_id: u32) -> anyhow::Result<()> {
+        let lt = self.log_time(t_ns);
+        Ok(self
+            .mcap
+            .write(&mut self.marks, lt, &MarkMessage { point_id })?)
+    }
+}
+
+/// Table sinks of one ingest.
+struct Sinks {
+    imu: ParquetSink,
+    odo: ParquetSink,
+    imu_rows: ImuTable,
+    odo_rows: OdometerTable,
+    marks: MarksTable,
+    imu_schema: arrow::datatypes::SchemaRef,
+    odo_schema: arrow::datatypes::SchemaRef,
+    marks_schema: arrow::datatypes::SchemaRef,
+    mcap: Option<RawMcap>,
+}
+
+impl Sinks {
+    fn create(dir: &Path, origin_ns: Option<i64>, mcap: bool) -> anyhow::Result<Self> {
+        let imu_schema = schema::imu(origin_ns);
+        let odo_schema = schema::odometer(origin_ns);
+        Ok(Self {
+            imu: ParquetSink::create(&dir.join("imu.parquet"), imu_schema.clone())?,
+            odo: ParquetSink::create(&dir.join("odometer.parquet"), odo_schema.clone())?,
+            imu_rows: ImuTable::default(),
+            odo_rows: OdometerTable::default(),
+            marks: MarksTable::default(),
+            imu_schema,
+            odo_schema,
+            marks_schema: schema::marks(origin_ns),
+            mcap: if mcap {
+                Some(RawMcap::create(
+                    &dir.join("raw.mcap"),
+                    origin_ns.unwrap_or(0),
+                )?)
+            } else {
+                None
+            },
+        })
+    }
+
+    fn flush(&mut self, force: bool) -> anyhow::Result<()> {
+        if !self.imu_rows.is_empty() && (force || self.imu_rows.len() >= BATCH_ROWS) {
+            self.imu
+                .write(&self.imu_rows.to_batch(self.imu_schema.clone())?)?;
+            self.imu_rows.clear();
+        }
+        if !self.odo_rows.is_empty() && (force || self.odo_rows.len() >= BATCH_ROWS) {
+            self.odo
+                .write(&self.odo_rows.to_batch(self.odo_schema.clone())?)?;
+            self.odo_rows.clear();
+        }
+        Ok(())
+    }
+
+    fn push_odometer(
+        &mut self,
+        t_ns: i64,
+        distance_m: f64,
+        pulses: Option<i64>,
+    ) -> anyhow::Result<()> {
+        self.odo_rows.t_ns.push(t_ns);
+        self.odo_rows.distance_m.push(distance_m);
+        self.odo_rows.pulses.push(pulses);
+        if let Some(m) = &mut self.mcap {
+            m.odometer(t_ns, distance_m)?;
+        }
+        Ok(())
+    }
+
+    /// Writes the marks and closes every file (renaming them into place).
+    fn finish(mut self, dir: &Path) -> anyhow::Result<usize> {
+        self.flush(true)?;
+        let odo_rows = self.odo.rows();
+        self.imu.finish()?;
+        self.odo.finish()?;
+        unz_formats::parquet_io::write_batch(
+            &dir.join("marks.parquet"),
+            &self.marks.to_batch(self.marks_schema.clone())?,
+        )?;
+        if let Some(m) = self.mcap {
+            m.mcap.finish()?;
+        }
+        Ok(odo_rows)
+    }
+}
+
+/// Ingests the run described by `manifest` into `dir`.
+pub fn ingest(
+    manifest: &RunManifest,
+    dir: &Path,
+    options: IngestOptions,
+) -> anyhow::Result<IngestOutcome> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let (report, odometer_rows) = match manifest.format {
+        LogFormat::UnzBinary => ingest_binary(manifest, dir, options)?,
+        LogFormat::KfGins => ingest_text(manifest, dir, options)?,
+    };
+    write_json_atomic(&dir.join("ingest.json"), &report)?;
+    Ok(IngestOutcome {
+        dir: dir.to_path_buf(),
+        report,
+        odometer_rows,
+    })
+}
+
+fn open(path: &Path) -> anyhow::Result<std::fs::File> {
+    std::fs::File::open(path).map_err(|e| unz_formats::error::io_in_file(path, e).into())
+}
+
+fn ingest_binary(
+    manifest: &RunManifest,
+    dir: &Path,
+    options: IngestOptions,
+) -> anyhow::Result<(IngestReport, usize)> {
+    let path = &manifest.raw;
+    let mut reader = RawReader::new(open(path)?).map_err(|e| e.in_file(path))?;
+    let header = reader.header().clone();
+    let origin_ns = header.start_time_us.checked_mul(1000);
+    let scale = manifest
+        .odometer
+        .scale_m_per_pulse
+        .unwrap_or(header.odo_lsb_m);
+    let nominal_dt_s = header.sample_period_s();
+    let mut sinks = Sinks::create(dir, origin_ns, options.mcap)?;
+    let mut first_pulses = None;
+    while let Some(rec) = reader.next_record().map_err(|e| e.in_file(path))? {
+        match rec {
+            Accepted::Imu(s) => {
+                let t_ns = i64::try_from(s.raw.t_us)
+                    .unwrap_or(i64::MAX / 1000)
+                    .saturating_mul(1000);
+                let dtheta = s.raw.dtheta.map(|c| f64::from(c) * header.dtheta_lsb_rad);
+                let dvel = s.raw.dvel.map(|c| f64::from(c) * header.dvel_lsb_mps);
+                let p0 = *first_pulses.get_or_insert(s.odo_pulses);
+                let rows = &mut sinks.imu_rows;
+                rows.t_ns.push(t_ns);
+                rows.seq.push(s.seq);
+                rows.dtheta_rad.push(dtheta);
+                rows.dvel_mps.push(dvel);
+                rows.status.push(s.raw.status);
+                if let Some(m) = &mut sinks.mcap {
+                    m.imu(t_ns, nominal_dt_s, s.seq, dtheta, dvel, s.raw.status)?;
+                }
+                sinks.push_odometer(
+                    t_ns,
+                    (s.odo_pulses - p0) as f64 * scale,
+                    Some(s.odo_pulses),
+                )?;
+                sinks.flush(false)?;
+            }
+            Accepted::Mark(m) => {
+                let t_ns = i64::try_from(m.t_us)
+                    .unwrap_or(i64::MAX / 1000)
+                    .saturating_mul(1000);
+                sinks.marks.t_ns.push(t_ns);
+                sinks.marks.point_id.push(m.point_id);
+                if let Some(mc) = &mut sinks.mcap {
+                    mc.mark(t_ns, m.point_id)?;
+                }
+            }
+        }
+    }
+    let odo_rows = sinks.finish(dir)?;
+    let (report, events, events_total) = reader.into_report();
+    write_json_atomic(
+        &dir.join("ingest_events.json"),
+        &EventsFile {
+            raw: path,
+            events_total,
+            events: &events,
+            line_faults: &[],
+            odometer_file_faults: &[],
+        },
+    )?;
+    Ok((report, odo_rows))
+}
+
+fn ingest_text(
+    manifest: &RunManifest,
+    dir: &Path,
+    options: IngestOptions,
+) -> anyhow::Result<(IngestReport, usize)> {
+    let path = &manifest.raw;
+    let mut reader = KfGinsReader::new(BufReader::with_capacity(1 << 16, open(path)?));
+    let period = reader
+        .period_s()
+        .map_err(|e| e.in_file(path))?
+        .unwrap_or(0.0);
+    let mut sinks = Sinks::create(dir, None, options.mcap)?;
+    let mut seq = 0u64;
+    let mut prev: Option<(f64, f64, f64)> = None; // (t, speed, distance) for the 8th column
+    while let Some(s) = reader.next_sample().map_err(|e| e.in_file(path))? {
+        let t_ns = (s.t_s * 1e9).round() as i64;
+        let rows = &mut sinks.imu_rows;
+        rows.t_ns.push(t_ns);
+        rows.seq.push(seq);
+        rows.dtheta_rad.push(s.dtheta_rad);
+        rows.dvel_mps.push(s.dvel_mps);
+        rows.status.push(0);
+        if let Some(m) = &mut sinks.mcap {
+            m.imu(t_ns, period, seq, s.dtheta_rad, s.dvel_mps, 0)?;
+        }
+        if let Some(v) = s.speed_mps {
+            let d = match prev {
+                Some((t0, v0, d0)) if s.t_s > t0 => d0 + 0.5 * (v0 + v) * (s.t_s - t0),
+                Some((_, _, d0)) => d0,
+                None => 0.0,
+            };
+            prev = Some((s.t_s, v, d));
+            sinks.push_odometer(t_ns, d, None)?;
+        }
+        seq += 1;
+        sinks.flush(false)?;
+    }
+    let mut odometer_faults = Vec::new();
+    // The 8th column, when present, is the odometer; otherwise the manifest's file.
+    if reader.columns() != Some(8)
+        && let (Some(file), Some(kind)) = (&manifest.odometer.file, manifest.odometer.kind)
+    {
+        let (samples, faults) =
+            read_odometer_file(BufReader::new(open(file)?), kind).map_err(|e| e.in_file(file))?;
+        for o in samples {
+            sinks.push_odometer((o.t_s * 1e9).round() as i64, o.distance_m, None)?;
+        }
+        odometer_faults = faults;
+    }
+    let odo_rows = sinks.finish(dir)?;
+    let report = reader.report().clone();
+    let (faults, total) = reader.faults();
+    write_json_atomic(
+        &dir.join("ingest_events.json"),
+        &EventsFile {
+            raw: path,
+            events_total: total,
+            events: &[],
+            line_faults: faults,
+            odometer_file_faults: &odometer_faults,
+        },
+    )?;
+    Ok((report, odo_rows))
+}

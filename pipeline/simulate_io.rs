@@ -1,0 +1,117 @@
+//! Writing simulated runs: `run.toml`, `<name>.unz`, `truth.parquet` (with the true
+//! settings in its metadata and in `truth.json`), and with faults a damaged copy.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::Context;
+use arrow::array::{Float64Array, Int64Array, RecordBatch};
+use unz_formats::atomic::{write_atomic, write_json_atomic};
+use unz_formats::parquet_io::write_batch;
+use unz_formats::raw::RawWriter;
+use unz_formats::{schema, tables};
+use unz_stages::earth;
+use unz_stages::simulate::{SimRun, faults};
+
+/// Writes one simulated run into `dir/<name>/`; returns the run folder.
+pub fn write_run(run: &SimRun, dir: &Path) -> anyhow::Result<PathBuf> {
+    let name = &run.config.name;
+    let run_dir = dir.join(name);
+    std::fs::create_dir_all(&run_dir)
+        .with_context(|| format!("cannot create {}", run_dir.display()))?;
+    let raw_name = format!("{name}.unz");
+    write_atomic(&run_dir.join(&raw_name), &encode(run)?)?;
+    write_truth(run, &run_dir)?;
+    write_atomic(
+        &run_dir.join("run.toml"),
+        run.manifest_toml(name, &raw_name).as_bytes(),
+    )?;
+    Ok(run_dir)
+}
+
+/// Writes the damaged copy `dir/<name>-faulty/` with `expected_ingest.json`.
+pub fn write_faulty_copy(run: &SimRun, dir: &Path) -> anyhow::Result<PathBuf> {
+    let name = format!("{}-faulty", run.config.name);
+    let run_dir = dir.join(&name);
+    std::fs::create_dir_all(&run_dir)
+        .with_context(|| format!("cannot create {}", run_dir.display()))?;
+    let damaged = faults::damage(run, run.config.seed);
+    let raw_name = format!("{name}.unz");
+    write_atomic(&run_dir.join(&raw_name), &damaged.bytes)?;
+    write_json_atomic(&run_dir.join("expected_ingest.json"), &damaged.expected)?;
+    write_truth(run, &run_dir)?;
+    write_atomic(
+        &run_dir.join("run.toml"),
+        run.manifest_toml(&name, &raw_name).as_bytes(),
+    )?;
+    Ok(run_dir)
+}
+
+/// The clean raw log.
+pub fn encode(run: &SimRun) -> anyhow::Result<Vec<u8>> {
+    let mut w = RawWriter::new(
+        Vec::with_capacity(run.records.len() * 48 + 256),
+        &run.header,
+    )?;
+    let mut marks = run.marks.iter().peekable();
+    for (k, r) in run.records.iter().enumerate() {
+        w.write_imu(r)?;
+        while let Some((_, m)) = marks.next_if(|(mk, _)| *mk == k) {
+            w.write_mark(m)?;
+        }
+    }
+    Ok(w.finish()?)
+}
+
+fn write_truth(run: &SimRun, run_dir: &Path) -> anyhow::Result<()> {
+    let settings_json = serde_json::to_string(&run.settings)?;
+    let t = &run.truth;
+    let origin = run.header.start_time_us.checked_mul(1000);
+    let sch = schema::truth(origin, &settings_json);
+    let deg = |v: &[f64]| {
+        Arc::new(Float64Array::from(
+            v.iter().map(|x| x.to_degrees()).collect::<Vec<_>>(),
+        ))
+    };
+    let (lat0, lon0) = (run.site[0].to_radians(), run.site[1].to_radians());
+    let (north, east): (Vec<f64>, Vec<f64>) = t
+        .lat_rad
+        .iter()
+        .zip(&t.lon_rad)
+        .map(|(&la, &lo)| earth::local_offset_m(la, lo, lat0, lon0, run.site[2]))
+        .unzip();
+    let batch = RecordBatch::try_new(
+        sch,
+        vec![
+            Arc::new(Int64Array::from(t.t_ns.clone())),
+            deg(&t.lat_rad),
+            deg(&t.lon_rad),
+            Arc::new(Float64Array::from(t.h_m.clone())),
+            tables::vec3_to_array(&t.vel_ned_mps),
+            Arc::new(Float64Array::from(
+                t.euler
+                    .iter()
+                    .map(|e| e.roll_rad.to_degrees())
+                    .collect::<Vec<_>>(),
+            )),
+            Arc::new(Float64Array::from(
+                t.euler
+                    .iter()
+                    .map(|e| e.pitch_rad.to_degrees())
+                    .collect::<Vec<_>>(),
+            )),
+            Arc::new(Float64Array::from(
+                t.euler
+                    .iter()
+                    .map(|e| e.heading_rad.to_degrees())
+                    .collect::<Vec<_>>(),
+            )),
+            Arc::new(Float64Array::from(t.distance_m.clone())),
+            Arc::new(Float64Array::from(north)),
+            Arc::new(Float64Array::from(east)),
+        ],
+    )?;
+    write_batch(&run_dir.join("truth.parquet"), &batch)?;
+    write_json_atomic(&run_dir.join("truth.json"), &run.settings)?;
+    Ok(())
+}

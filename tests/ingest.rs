@@ -1,0 +1,156 @@
+//! Ingest end to end: simulated clean and damaged runs, the Kingston text log, and
+//! third-party readers on the outputs.
+
+use std::path::Path;
+
+use serde_json::Value;
+use unz_formats::IngestReport;
+
+use crate::util::{python, python_json, shared_data, unz_ok};
+
+fn report(path: &Path) -> IngestReport {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+#[test]
+fn simulated_runs_ingest_and_faults_are_accounted_exactly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let campaign = tmp.path().join("campaign");
+    let out = tmp.path().join("out");
+    unz_ok(&[
+        "simulate",
+        "--out",
+        campaign.to_str().unwrap(),
+        "--seed",
+        "40",
+        "--duration-s",
+        "600",
+        "--faults",
+    ]);
+    for run in ["sim-0040", "sim-0040-faulty"] {
+        unz_ok(&[
+            "ingest",
+            campaign.join(run).to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+    }
+    let clean = report(&out.join("sim-0040/ingest/ingest.json"));
+    assert_eq!(clean.imu_accepted, 60_000);
+    assert_eq!(clean.rejected_total(), 0);
+    assert_eq!(
+        clean.marks_accepted, 2,
+        "a mid-route and a final control point"
+    );
+
+    // Key by key, as JSON objects, so a key added or missing on either side fails too.
+    let got: Value = serde_json::from_slice(
+        &std::fs::read(out.join("sim-0040-faulty/ingest/ingest.json")).unwrap(),
+    )
+    .unwrap();
+    let want: Value = serde_json::from_slice(
+        &std::fs::read(campaign.join("sim-0040-faulty/expected_ingest.json")).unwrap(),
+    )
+    .unwrap();
+    let (got, want) = (got.as_object().unwrap(), want.as_object().unwrap());
+    assert_eq!(
+        got.keys().collect::<Vec<_>>(),
+        want.keys().collect::<Vec<_>>()
+    );
+    for (k, v) in want {
+        assert_eq!(&got[k], v, "key {k}");
+    }
+    let spec_keys = [
+        "records_read",
+        "records_accepted",
+        "imu_accepted",
+        "marks_accepted",
+        "rejected",
+        "bytes_skipped",
+        "truncated_bytes",
+        "resync_events",
+        "seq_gaps",
+        "lost_samples",
+        "lost_duration_s",
+        "t_non_increasing",
+    ];
+    assert_eq!(got.len(), spec_keys.len());
+    assert!(spec_keys.iter().all(|k| got.contains_key(*k)));
+    assert_eq!(got["rejected"].as_object().unwrap().len(), 4);
+
+    if let Some(py) = python() {
+        let info = python_json(
+            &py,
+            "check_ingest.py",
+            &[&out.join("sim-0040-faulty/ingest")],
+        );
+        let imu_rows = info["imu"]["rows"].as_u64().unwrap();
+        assert_eq!(imu_rows, want["imu_accepted"].as_u64().unwrap());
+        assert_eq!(info["odometer"]["rows"].as_u64().unwrap(), imu_rows);
+        assert_eq!(info["marks"]["rows"].as_u64().unwrap(), 2);
+        assert_eq!(
+            info["imu"]["columns"],
+            serde_json::json!(["t_ns", "seq", "dtheta_rad", "dvel_mps", "status"])
+        );
+        assert_eq!(info["imu"]["fields"]["dtheta_rad"]["unit"], "rad");
+        assert_eq!(info["imu"]["fields"]["dtheta_rad"]["frame"], "body_frd");
+        assert_eq!(info["imu"]["fields"]["dvel_mps"]["unit"], "m/s");
+        assert_eq!(info["imu"]["fields"]["t_ns"]["unit"], "ns");
+        assert_eq!(info["odometer"]["fields"]["distance_m"]["unit"], "m");
+        let ch = &info["mcap"]["channels"];
+        assert_eq!(ch["/imu"]["count"].as_u64().unwrap(), imu_rows);
+        assert_eq!(ch["/odometer"]["count"].as_u64().unwrap(), imu_rows);
+        assert_eq!(ch["/marks"]["count"].as_u64().unwrap(), 2);
+        assert_eq!(ch["/imu"]["message_encoding"], "json");
+        assert_eq!(ch["/imu"]["schema_encoding"], "jsonschema");
+        // The damaged log has 3 records whose time goes back: MCAP keeps them in file order.
+        assert_eq!(info["mcap"]["monotonic"], false);
+        let clean_info = python_json(&py, "check_ingest.py", &[&out.join("sim-0040/ingest")]);
+        assert_eq!(clean_info["mcap"]["monotonic"], true);
+    }
+}
+
+#[test]
+fn kingston_text_log_ingests_with_aligned_odometer() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = shared_data("kingston2008-seg1");
+    unz_ok(&[
+        "ingest",
+        run.to_str().unwrap(),
+        "--out",
+        tmp.path().to_str().unwrap(),
+    ]);
+    let dir = tmp.path().join("kingston2008-segment1/ingest");
+    let rep = report(&dir.join("ingest.json"));
+    assert_eq!(rep.imu_accepted, 8_760);
+    assert_eq!(rep.rejected_total(), 0);
+    let (_, batches) = unz_formats::parquet_io::read_batches(&dir.join("imu.parquet")).unwrap();
+    let mut imu = unz_formats::tables::ImuTable::default();
+    batches
+        .iter()
+        .for_each(|b| imu.extend_from_batch(b).unwrap());
+    let (_, batches) =
+        unz_formats::parquet_io::read_batches(&dir.join("odometer.parquet")).unwrap();
+    let mut odo = unz_formats::tables::OdometerTable::default();
+    batches
+        .iter()
+        .for_each(|b| odo.extend_from_batch(b).unwrap());
+    assert_eq!(imu.len(), 8_760);
+    assert_eq!(odo.len(), 877);
+    // Both in the log's time base (GPS seconds of week): the odometer spans the IMU.
+    let (i0, i1) = (imu.t_ns[0], *imu.t_ns.last().unwrap());
+    let (o0, o1) = (odo.t_ns[0], *odo.t_ns.last().unwrap());
+    assert!(
+        (o0 - i0).abs() < 1_000_000_000 && (o1 - i1).abs() < 1_000_000_000,
+        "imu {i0}..{i1}, odo {o0}..{o1}"
+    );
+    // ~2.4 km of driving, with OBD-II speed 1.3 % low.
+    let d = *odo.distance_m.last().unwrap();
+    assert!((2_000.0..3_000.0).contains(&d), "{d}");
+    if let Some(py) = python() {
+        let info = python_json(&py, "check_ingest.py", &[&dir]);
+        assert_eq!(info["imu"]["rows"], 8_760);
+        assert_eq!(info["mcap"]["channels"]["/imu"]["count"], 8_760);
+        assert_eq!(info["mcap"]["channels"]["/odometer"]["count"], 877);
+    }
+}

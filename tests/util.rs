@@ -1,0 +1,73 @@
+//! Helpers shared by the end-to-end tests.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The `unz` binary under test.
+pub fn unz() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_unz"))
+}
+
+/// Runs `unz` with `args`, asserting success; returns stdout.
+pub fn unz_ok(args: &[&str]) -> String {
+    let out = unz().args(args).output().expect("unz runs");
+    assert!(
+        out.status.success(),
+        "unz {args:?} failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Runs `unz` with `args`, returning the whole output.
+pub fn unz_output(args: &[&str]) -> Output {
+    unz().args(args).output().expect("unz runs")
+}
+
+/// The shared data folder (`../shared/data`).
+pub fn shared_data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join("shared")
+        .join("data")
+        .join(name)
+}
+
+/// Python with pyarrow and mcap: `UNZ_PYTHON` (set by scripts/test.sh) or `python3`.
+/// Missing readers fail the test with instructions, unless `UNZ_SKIP_PYTHON=1`.
+pub fn python() -> Option<String> {
+    if std::env::var("UNZ_SKIP_PYTHON").as_deref() == Ok("1") {
+        eprintln!("UNZ_SKIP_PYTHON=1: third-party cross-checks skipped");
+        return None;
+    }
+    let py = std::env::var("UNZ_PYTHON").unwrap_or_else(|_| "python3".into());
+    let ok = Command::new(&py)
+        .args(["-c", "import pyarrow, mcap"])
+        .status()
+        .is_ok_and(|s| s.success());
+    assert!(
+        ok,
+        "{py} lacks pyarrow/mcap: run the tests through scripts/test.sh (it installs them), or set UNZ_SKIP_PYTHON=1"
+    );
+    Some(py)
+}
+
+/// Runs a Python script from tests/python and parses its JSON output.
+pub fn python_json(py: &str, script: &str, args: &[&Path]) -> serde_json::Value {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests")
+        .join("python")
+        .join(script);
+    let out = Command::new(py)
+        .arg(path)
+        .args(args)
+        .output()
+        .expect("python runs");
+    assert!(
+        out.status.success(),
+        "{script} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("script prints JSON")
+}
