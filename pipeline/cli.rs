@@ -20,6 +20,12 @@ pub enum Command {
     Simulate(SimulateArgs),
     /// Ingest a run's raw log into Parquet and MCAP with an exact account of its records.
     Ingest(StageArgs),
+    /// Derive odometer terms and accelerometer pitch/roll (runs ingest first if needed).
+    Derive(StageArgs),
+    /// Navigate the run (odometer-aided strapdown dead reckoning).
+    Navigate(NavArgs),
+    /// Compute the criteria Kryt1 and Kryt2 of a navigation.
+    Criteria(NavArgs),
     /// Simulate a small example and push it through every stage.
     Demo(DemoArgs),
     /// Measure throughput (not part of the tests).
@@ -72,6 +78,51 @@ pub struct StageArgs {
     /// Output folder: results go to OUT/<run name>/<stage>/.
     #[arg(long)]
     pub out: PathBuf,
+}
+
+/// Arguments of the navigation stages: every initial setting can be overridden.
+#[derive(Debug, Args)]
+pub struct NavArgs {
+    /// Run folder and output folder.
+    #[command(flatten)]
+    pub stage: StageArgs,
+    /// Initial azimuth (azpocz), degrees clockwise from true north.
+    #[arg(long, allow_hyphen_values = true)]
+    pub azimuth_deg: Option<f64>,
+    /// Gyro drifts x,y,z in rad/s (subtracted from the measured rates).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub drift_rad_s: Option<Vec<f64>>,
+    /// Metres per odometer pulse (text logs: a multiplier on the odometer distance).
+    #[arg(long)]
+    pub odo_scale_m_per_pulse: Option<f64>,
+}
+
+impl NavArgs {
+    /// The overrides these flags ask for.
+    pub fn overrides(&self) -> anyhow::Result<crate::flow::Overrides> {
+        let drift_rad_s = match self.drift_rad_s.as_deref() {
+            None => None,
+            Some([x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => Some([*x, *y, *z]),
+            Some(other) => {
+                anyhow::bail!("--drift-rad-s needs three finite numbers x,y,z, got {other:?}")
+            }
+        };
+        if let Some(s) = self.odo_scale_m_per_pulse
+            && !(s.is_finite() && s > 0.0)
+        {
+            anyhow::bail!("--odo-scale-m-per-pulse must be positive, got {s}");
+        }
+        if let Some(a) = self.azimuth_deg
+            && !a.is_finite()
+        {
+            anyhow::bail!("--azimuth-deg must be finite");
+        }
+        Ok(crate::flow::Overrides {
+            azimuth_deg: self.azimuth_deg,
+            drift_rad_s,
+            odo_scale_m_per_pulse: self.odo_scale_m_per_pulse,
+        })
+    }
 }
 
 /// Arguments of `unz demo`.
@@ -127,5 +178,29 @@ mod tests {
             matches!(cli.command, Command::Simulate(a) if a.azimuth_error_deg == Some(-7.0) && a.faults)
         );
         assert!(Cli::try_parse_from(["unz", "ingest", "runs/r1"]).is_err());
+        let cli = Cli::try_parse_from([
+            "unz",
+            "navigate",
+            "r",
+            "--out",
+            "o",
+            "--drift-rad-s",
+            "-1e-6,2e-6,0",
+            "--azimuth-deg",
+            "-3",
+        ])
+        .unwrap();
+        let Command::Navigate(a) = cli.command else {
+            panic!()
+        };
+        let o = a.overrides().unwrap();
+        assert_eq!(o.drift_rad_s, Some([-1e-6, 2e-6, 0.0]));
+        assert_eq!(o.azimuth_deg, Some(-3.0));
+        let cli = Cli::try_parse_from(["unz", "navigate", "r", "--out", "o", "--drift-rad-s=1,2"])
+            .unwrap();
+        let Command::Navigate(a) = cli.command else {
+            panic!()
+        };
+        assert!(a.overrides().is_err());
     }
 }

@@ -194,9 +194,22 @@ struct Sinks {
 }
 
 impl Sinks {
-    fn create(dir: &Path, origin_ns: Option<i64>, mcap: bool) -> anyhow::Result<Self> {
+    fn create(
+        dir: &Path,
+        origin_ns: Option<i64>,
+        odo_m_per_pulse: Option<f64>,
+        mcap: bool,
+    ) -> anyhow::Result<Self> {
         let imu_schema = schema::imu(origin_ns);
-        let odo_schema = schema::odometer(origin_ns);
+        let mut odo_schema = schema::odometer(origin_ns);
+        if let Some(s) = odo_m_per_pulse {
+            let mut meta = odo_schema.metadata().clone();
+            meta.insert(crate::flow::META_ODO_M_PER_PULSE.to_owned(), s.to_string());
+            odo_schema = std::sync::Arc::new(arrow::datatypes::Schema::new_with_metadata(
+                odo_schema.fields().clone(),
+                meta,
+            ));
+        }
         Ok(Self {
             imu: ParquetSink::create(&dir.join("imu.parquet"), imu_schema.clone())?,
             odo: ParquetSink::create(&dir.join("odometer.parquet"), odo_schema.clone())?,
@@ -300,7 +313,7 @@ fn ingest_binary(
         .scale_m_per_pulse
         .unwrap_or(header.odo_lsb_m);
     let nominal_dt_s = header.sample_period_s();
-    let mut sinks = Sinks::create(dir, origin_ns, options.mcap)?;
+    let mut sinks = Sinks::create(dir, origin_ns, Some(scale), options.mcap)?;
     let mut first_pulses = None;
     while let Some(rec) = reader.next_record().map_err(|e| e.in_file(path))? {
         match rec {
@@ -365,7 +378,7 @@ fn ingest_text(
         .period_s()
         .map_err(|e| e.in_file(path))?
         .unwrap_or(0.0);
-    let mut sinks = Sinks::create(dir, None, options.mcap)?;
+    let mut sinks = Sinks::create(dir, None, None, options.mcap)?;
     let mut seq = 0u64;
     let mut prev: Option<(f64, f64, f64)> = None; // (t, speed, distance) for the 8th column
     while let Some(s) = reader.next_sample().map_err(|e| e.in_file(path))? {

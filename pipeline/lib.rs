@@ -6,6 +6,9 @@
 
 pub mod cli;
 pub mod commands;
+pub mod derive_io;
+pub mod flow;
 pub mod ingest;
 pub mod runs;
 pub mod simulate_io;
+pub mod stage;

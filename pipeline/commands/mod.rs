@@ -1,8 +1,11 @@
 //! One file per subcommand, each with `run(args)`.
 
 pub mod bench;
+pub mod criteria;
 pub mod demo;
+pub mod derive;
 pub mod ingest;
+pub mod navigate;
 pub mod simulate;
 
 use std::process::ExitCode;
@@ -14,6 +17,9 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Simulate(a) => simulate::run(&a),
         Command::Ingest(a) => ingest::run(&a),
+        Command::Derive(a) => derive::run(&a),
+        Command::Navigate(a) => navigate::run(&a),
+        Command::Criteria(a) => criteria::run(&a),
         Command::Demo(a) => demo::run(&a),
         Command::Bench(a) => bench::run(&a),
     }

@@ -13,7 +13,12 @@
 //! assert_eq!(run.records.len(), 12_000);
 //! ```
 
+pub mod align;
 pub mod attitude;
+pub mod criteria;
+pub mod derive;
 pub mod earth;
+pub mod filter;
+pub mod initial;
 pub mod simulate;
 pub mod strapdown;

@@ -1,0 +1,19 @@
+//! `unz derive RUN --out OUT`.
+
+use std::process::ExitCode;
+
+use crate::cli::StageArgs;
+use crate::flow::{Params, RunCtx, ensure_derive};
+use crate::runs::load_run;
+
+/// Runs the command.
+pub fn run(args: &StageArgs) -> anyhow::Result<ExitCode> {
+    let ctx = RunCtx {
+        manifest: load_run(&args.run)?,
+        out: args.out.clone(),
+        verbose: true,
+    };
+    let dir = ensure_derive(&ctx, &Params::default())?;
+    println!("{}", dir.display());
+    Ok(ExitCode::SUCCESS)
+}

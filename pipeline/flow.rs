@@ -1,0 +1,546 @@
+//! The chain of stages for one run: each `ensure_*` brings the stages before it up to
+//! date (through their stage records), then skips or runs its own.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::{Context, bail};
+use arrow::array::{BooleanArray, Float64Array, Int64Array, RecordBatch};
+use arrow::datatypes::{DataType, Field, Schema};
+use serde::{Deserialize, Serialize};
+use unz_formats::atomic::write_json_atomic;
+use unz_formats::manifest::RunManifest;
+use unz_formats::parquet_io::{read_batches, write_batch};
+use unz_formats::schema::scalar;
+use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f64_column, i64_column};
+use unz_stages::criteria::{self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt1Series, Kryt2};
+use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive};
+use unz_stages::earth;
+use unz_stages::filter::LowPass;
+use unz_stages::initial::{AlignParams, InitialReport, InitialRequest, Source, initial_settings};
+use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
+
+use crate::derive_io::{load_derived, write_derived};
+use crate::ingest::{IngestOptions, OUTPUTS as INGEST_OUTPUTS, ingest};
+use crate::runs::stage_dir;
+use crate::stage::{Stage, params_hash};
+
+/// Metadata key of `odometer.parquet`: metres per pulse used for `distance_m`.
+pub const META_ODO_M_PER_PULSE: &str = "unz.odo_m_per_pulse";
+
+/// Parameters of every stage (defaults built in).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Params {
+    /// derive.
+    pub derive: DeriveParams,
+    /// Alignment.
+    pub align: AlignParams,
+    /// Kalman filter of the criteria.
+    pub kalman: KalmanParams,
+}
+
+/// Initial settings forced on the command line.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Overrides {
+    /// Initial azimuth, degrees.
+    pub azimuth_deg: Option<f64>,
+    /// Gyro drifts, rad/s.
+    pub drift_rad_s: Option<[f64; 3]>,
+    /// Metres per odometer pulse.
+    pub odo_scale_m_per_pulse: Option<f64>,
+}
+
+/// One run being processed.
+pub struct RunCtx {
+    /// Its manifest.
+    pub manifest: RunManifest,
+    /// Output root.
+    pub out: PathBuf,
+    /// Say on stderr which stages ran and which were skipped.
+    pub verbose: bool,
+}
+
+impl RunCtx {
+    fn say(&self, stage: &str, what: &str) {
+        if self.verbose {
+            eprintln!("{}: {stage}: {what}", self.manifest.name);
+        }
+    }
+
+    /// Runs `body` unless `stage` is up to date; then records it.
+    fn run_stage(
+        &self,
+        stage: &Stage<'_>,
+        body: impl FnOnce() -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
+        if stage.is_up_to_date()? {
+            self.say(stage.name, "up to date, skipped");
+            return Ok(());
+        }
+        stage.invalidate()?;
+        let t0 = std::time::Instant::now();
+        body().with_context(|| format!("{}: stage {} failed", self.manifest.name, stage.name))?;
+        stage.commit()?;
+        self.say(
+            stage.name,
+            &format!("done in {:.2} s", t0.elapsed().as_secs_f64()),
+        );
+        Ok(())
+    }
+}
+
+/// Stage 1.
+pub fn ensure_ingest(ctx: &RunCtx) -> anyhow::Result<PathBuf> {
+    let m = &ctx.manifest;
+    let dir = stage_dir(&ctx.out, &m.name, "ingest")?;
+    let mut inputs = vec![m.path.clone(), m.raw.clone()];
+    inputs.extend(m.odometer.file.clone());
+    let stage = Stage {
+        dir: dir.clone(),
+        name: "ingest",
+        version: 1,
+        params_hash: params_hash(&m.odometer.scale_m_per_pulse)?,
+        inputs,
+        outputs: &INGEST_OUTPUTS,
+    };
+    ctx.run_stage(&stage, || {
+        ingest(m, &dir, IngestOptions::default()).map(|_| ())
+    })?;
+    Ok(dir)
+}
+
+fn load_table<T: Default>(
+    path: &Path,
+    extend: impl Fn(&mut T, &RecordBatch) -> Result<(), unz_formats::FormatError>,
+) -> anyhow::Result<(T, arrow::datatypes::SchemaRef)> {
+    let (schema, batches) = read_batches(path)?;
+    let mut t = T::default();
+    for b in &batches {
+        extend(&mut t, b).map_err(|e| e.in_file(path))?;
+    }
+    Ok((t, schema))
+}
+
+/// Stage 2.
+pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
+    let ingest_dir = ensure_ingest(ctx)?;
+    let m = &ctx.manifest;
+    let dir = stage_dir(&ctx.out, &m.name, "derive")?;
+    let inputs = vec![
+        ingest_dir.join("imu.parquet"),
+        ingest_dir.join("odometer.parquet"),
+    ];
+    let stage = Stage {
+        dir: dir.clone(),
+        name: "derive",
+        version: 1,
+        params_hash: params_hash(&params.derive)?,
+        inputs,
+        outputs: &["derived.parquet", "epochs.parquet"],
+    };
+    ctx.run_stage(&stage, || {
+        let (imu, _) =
+            load_table::<ImuTable>(&ingest_dir.join("imu.parquet"), ImuTable::extend_from_batch)?;
+        let (odo, _) = load_table::<OdometerTable>(
+            &ingest_dir.join("odometer.parquet"),
+            OdometerTable::extend_from_batch,
+        )?;
+        if imu.is_empty() {
+            bail!("the raw log has no IMU record");
+        }
+        if odo.is_empty() {
+            bail!("the run has no odometer data (no 8th column and no odometer file)");
+        }
+        let raw = RawSeries {
+            imu_t_ns: &imu.t_ns,
+            dtheta_rad: &imu.dtheta_rad,
+            dvel_mps: &imu.dvel_mps,
+            odo_t_ns: &odo.t_ns,
+            odo_distance_m: &odo.distance_m,
+        };
+        let g = earth::normal_gravity_mps2(m.site.latitude_deg.to_radians(), m.site.height_m);
+        write_derived(&derive(&raw, &params.derive, g), &dir)
+    })?;
+    Ok(dir)
+}
+
+/// Everything a navigation pass needs, loaded once.
+pub struct NavCase {
+    /// Derived series.
+    pub derived: Derived,
+    /// Control points matched to samples.
+    pub fixes: Vec<ControlPointFix>,
+    /// Settings of the pass.
+    pub settings: NavSettings,
+    /// How they were found.
+    pub initial: InitialReport,
+}
+
+impl NavCase {
+    /// The navigation inputs.
+    pub fn inputs(&self) -> NavInputs<'_> {
+        NavInputs {
+            dt_s: &self.derived.dt_s,
+            dtheta_rad: &self.derived.dtheta_rad,
+            odo_dist_m: &self.derived.odo_dist_m,
+        }
+    }
+
+    /// Runs the navigation into `track`.
+    pub fn navigate(&self, track: &mut NavTrack) {
+        navigate(&self.inputs(), &self.settings, track);
+    }
+}
+
+/// Matches the manifest's control points: by their mark record, else by `t_s`.
+pub fn match_control_points(
+    m: &RunManifest,
+    marks: &MarksTable,
+    d: &Derived,
+) -> anyhow::Result<Vec<ControlPointFix>> {
+    let log_t_s = |t_ns: i64| t_ns as f64 * 1e-9;
+    m.control_points
+        .iter()
+        .map(|cp| {
+            let t_s = marks
+                .point_id
+                .iter()
+                .position(|&id| id == cp.id)
+                .map(|i| log_t_s(marks.t_ns[i]))
+                .or(cp.t_s)
+                .with_context(|| {
+                    format!(
+                        "control point {} matches no mark record and has no t_s",
+                        cp.id
+                    )
+                })?;
+            let rel = t_s - log_t_s(d.t0_ns);
+            let Some(last) = d.t_s.last() else {
+                bail!("no samples")
+            };
+            if rel < 0.0 || rel > last + d.nominal_dt_s {
+                bail!("control point {} at t_s = {t_s} is outside the log", cp.id);
+            }
+            let sample = d.t_s.partition_point(|&t| t < rel).min(d.t_s.len() - 1);
+            Ok(ControlPointFix {
+                id: cp.id,
+                sample,
+                t_s,
+                lat_rad: cp.position.latitude_deg.to_radians(),
+                lon_rad: cp.position.longitude_deg.to_radians(),
+                h_m: cp.position.height_m,
+            })
+        })
+        .collect()
+}
+
+/// Loads a navigation case of the run with `overrides` (derive must be up to date).
+pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow::Result<NavCase> {
+    let derive_dir = ensure_derive(ctx, params)?;
+    let m = &ctx.manifest;
+    let ingest_dir = ctx.out.join(&m.name).join("ingest");
+    let derived = load_derived(&derive_dir)?;
+    let (marks, _) = load_table::<MarksTable>(
+        &ingest_dir.join("marks.parquet"),
+        MarksTable::extend_from_batch,
+    )?;
+    let (odo_schema, _) = read_batches(&ingest_dir.join("odometer.parquet"))?;
+    let fixes = match_control_points(m, &marks, &derived)
+        .with_context(|| format!("in {}", m.path.display()))?;
+    let ingest_scale: Option<f64> = odo_schema
+        .metadata()
+        .get(META_ODO_M_PER_PULSE)
+        .and_then(|s| s.parse().ok());
+    let odo_scale = match (overrides.odo_scale_m_per_pulse, ingest_scale) {
+        (Some(s), Some(used)) => s / used,
+        (Some(s), None) => s,
+        (None, _) => 1.0,
+    };
+    let i = &m.initial;
+    let req = InitialRequest {
+        azimuth_deg: overrides
+            .azimuth_deg
+            .map(|v| (v, Source::Override))
+            .or(i.azimuth_deg.map(|v| (v, Source::Manifest))),
+        pitch_deg: i.pitch_deg.map(|v| (v, Source::Manifest)),
+        roll_deg: i.roll_deg.map(|v| (v, Source::Manifest)),
+        drift_rad_s: overrides
+            .drift_rad_s
+            .map(|v| (v, Source::Override))
+            .or(i.drift_rad_s.map(|v| (v, Source::Manifest))),
+        static_s: i.static_s,
+        odo_scale,
+    };
+    let site = (
+        m.site.latitude_deg.to_radians(),
+        m.site.longitude_deg.to_radians(),
+        m.site.height_m,
+    );
+    let (settings, initial) = initial_settings(&derived, &req, &params.align, site);
+    Ok(NavCase {
+        derived,
+        fixes,
+        settings,
+        initial,
+    })
+}
+
+/// Summary of a navigation pass (`navigate.json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct NavigateSummary {
+    /// Initial settings and alignment.
+    pub initial: InitialReport,
+    /// Samples navigated.
+    pub samples: usize,
+    /// Duration, s.
+    pub duration_s: f64,
+    /// Distance travelled, m.
+    pub distance_m: f64,
+    /// Position errors at the control points.
+    pub control_points: Vec<Kryt2>,
+    /// Repaired time tags and filled gaps of the input.
+    pub repaired_times: usize,
+}
+
+/// Writes `nav.parquet`.
+pub fn write_nav(
+    path: &Path,
+    d: &Derived,
+    t: &NavTrack,
+    site: (f64, f64, f64),
+) -> anyhow::Result<()> {
+    let f = |n: &str, unit: &str| scalar(n, DataType::Float64, false, unit);
+    let schema = Arc::new(Schema::new(vec![
+        scalar("t_ns", DataType::Int64, false, "ns"),
+        f("lat_deg", "deg"),
+        f("lon_deg", "deg"),
+        f("h_m", "m"),
+        f("north_m", "m"),
+        f("east_m", "m"),
+        f("roll_deg", "deg"),
+        f("pitch_deg", "deg"),
+        f("heading_deg", "deg"),
+        f("distance_m", "m"),
+    ]));
+    let deg = |v: &[f64]| {
+        Arc::new(Float64Array::from(
+            v.iter().map(|x| x.to_degrees()).collect::<Vec<_>>(),
+        ))
+    };
+    let (ne_n, ne_e): (Vec<f64>, Vec<f64>) = t
+        .lat_rad
+        .iter()
+        .zip(&t.lon_rad)
+        .map(|(&la, &lo)| earth::local_offset_m(la, lo, site.0, site.1, site.2))
+        .unzip();
+    let batch = RecordBatch::try_new(
+        schema,
+        vec![
+            Arc::new(Int64Array::from(
+                d.t_s
+                    .iter()
+                    .map(|s| d.t0_ns + (s * 1e9).round() as i64)
+                    .collect::<Vec<_>>(),
+            )),
+            deg(&t.lat_rad),
+            deg(&t.lon_rad),
+            Arc::new(Float64Array::from(t.h_m.clone())),
+            Arc::new(Float64Array::from(ne_n)),
+            Arc::new(Float64Array::from(ne_e)),
+            deg(&t.roll_rad),
+            deg(&t.pitch_rad),
+            deg(&t.heading_rad),
+            Arc::new(Float64Array::from(t.distance_m.clone())),
+        ],
+    )?;
+    write_batch(path, &batch)?;
+    Ok(())
+}
+
+/// Stage 3a: navigation.
+pub fn ensure_navigate(
+    ctx: &RunCtx,
+    params: &Params,
+    overrides: &Overrides,
+) -> anyhow::Result<PathBuf> {
+    let derive_dir = ensure_derive(ctx, params)?;
+    let m = &ctx.manifest;
+    let dir = stage_dir(&ctx.out, &m.name, "navigate")?;
+    let ingest_dir = ctx.out.join(&m.name).join("ingest");
+    let inputs = vec![
+        m.path.clone(),
+        derive_dir.join("derived.parquet"),
+        ingest_dir.join("marks.parquet"),
+        ingest_dir.join("odometer.parquet"),
+    ];
+    let stage = Stage {
+        dir: dir.clone(),
+        name: "navigate",
+        version: 1,
+        params_hash: params_hash(&(params.align, overrides))?,
+        inputs,
+        outputs: &["nav.parquet", "navigate.json"],
+    };
+    ctx.run_stage(&stage, || {
+        let case = load_case(ctx, params, overrides)?;
+        let mut track = NavTrack::default();
+        case.navigate(&mut track);
+        let site = (
+            case.settings.lat0_rad,
+            case.settings.lon0_rad,
+            case.settings.h0_m,
+        );
+        write_nav(&dir.join("nav.parquet"), &case.derived, &track, site)?;
+        let summary = NavigateSummary {
+            initial: case.initial,
+            samples: track.len(),
+            duration_s: case.derived.t_s.last().copied().unwrap_or(0.0),
+            distance_m: track.distance_m.last().copied().unwrap_or(0.0),
+            control_points: criteria::kryt2(&track, &case.fixes),
+            repaired_times: case.derived.repaired_times,
+        };
+        write_json_atomic(&dir.join("navigate.json"), &summary)?;
+        Ok(())
+    })?;
+    Ok(dir)
+}
+
+/// `criteria.json`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CriteriaSummary {
+    /// Kryt1, rad.
+    pub kryt1_rad: f64,
+    /// Epochs.
+    pub epochs: usize,
+    /// Epochs used (not gated).
+    pub valid_epochs: usize,
+    /// Kryt2 at every control point.
+    pub control_points: Vec<Kryt2>,
+    /// Kryt2 at the last control point, m.
+    pub kryt2_m: Option<f64>,
+}
+
+/// Loads `nav.parquet` back into a track (radians).
+pub fn load_nav(path: &Path) -> anyhow::Result<NavTrack> {
+    let (schema, batches) = read_batches(path)?;
+    let b = arrow::compute::concat_batches(&schema, &batches)?;
+    let rad = |n: &str| -> anyhow::Result<Vec<f64>> {
+        Ok(f64_column(&b, n)?
+            .into_iter()
+            .map(f64::to_radians)
+            .collect())
+    };
+    let _ = i64_column(&b, "t_ns")?;
+    Ok(NavTrack {
+        lat_rad: rad("lat_deg")?,
+        lon_rad: rad("lon_deg")?,
+        h_m: f64_column(&b, "h_m")?,
+        roll_rad: rad("roll_deg")?,
+        pitch_rad: rad("pitch_deg")?,
+        heading_rad: rad("heading_deg")?,
+        distance_m: f64_column(&b, "distance_m")?,
+    })
+}
+
+/// Stage 3b: the criteria of the navigated track.
+pub fn ensure_criteria(
+    ctx: &RunCtx,
+    params: &Params,
+    overrides: &Overrides,
+) -> anyhow::Result<(PathBuf, CriteriaSummary)> {
+    let nav_dir = ensure_navigate(ctx, params, overrides)?;
+    let m = &ctx.manifest;
+    let derive_dir = ctx.out.join(&m.name).join("derive");
+    let ingest_dir = ctx.out.join(&m.name).join("ingest");
+    let dir = stage_dir(&ctx.out, &m.name, "criteria")?;
+    let inputs = vec![
+        m.path.clone(),
+        nav_dir.join("nav.parquet"),
+        derive_dir.join("derived.parquet"),
+        derive_dir.join("epochs.parquet"),
+        ingest_dir.join("marks.parquet"),
+    ];
+    let stage = Stage {
+        dir: dir.clone(),
+        name: "criteria",
+        version: 1,
+        params_hash: params_hash(&(params.kalman, params.derive.filter))?,
+        inputs,
+        outputs: &["criteria.parquet", "criteria.json"],
+    };
+    ctx.run_stage(&stage, || {
+        let d = load_derived(&derive_dir)?;
+        let track = load_nav(&nav_dir.join("nav.parquet"))?;
+        let (marks, _) = load_table::<MarksTable>(
+            &ingest_dir.join("marks.parquet"),
+            MarksTable::extend_from_batch,
+        )?;
+        let fixes = match_control_points(m, &marks, &d)
+            .with_context(|| format!("in {}", m.path.display()))?;
+        let lp = LowPass::new(&params.derive.filter, d.nominal_dt_s);
+        let mut series = Kryt1Series::default();
+        let k1 = criteria::kryt1(
+            &d.epochs,
+            &lp,
+            &track,
+            &params.kalman,
+            &mut Kryt1Scratch::default(),
+            Some(&mut series),
+        );
+        write_criteria_parquet(&dir.join("criteria.parquet"), &d, &series)?;
+        let cps = criteria::kryt2(&track, &fixes);
+        let summary = CriteriaSummary {
+            kryt1_rad: k1,
+            epochs: d.epochs.t_s.len(),
+            valid_epochs: d.epochs.valid.iter().filter(|v| **v).count(),
+            kryt2_m: cps.last().map(|c| c.kryt2_m),
+            control_points: cps,
+        };
+        write_json_atomic(&dir.join("criteria.json"), &summary)?;
+        Ok(())
+    })?;
+    let summary = serde_json::from_slice(&std::fs::read(dir.join("criteria.json"))?)?;
+    Ok((dir, summary))
+}
+
+fn write_criteria_parquet(path: &Path, d: &Derived, s: &Kryt1Series) -> anyhow::Result<()> {
+    let f = |n: &str| scalar(n, DataType::Float64, false, "rad");
+    let e = &d.epochs;
+    let schema = Arc::new(Schema::new(vec![
+        scalar("t_ns", DataType::Int64, false, "ns"),
+        f("theta_n_rad"),
+        f("phi_n_rad"),
+        f("theta_p_rad"),
+        f("phi_p_rad"),
+        f("d_theta_rad"),
+        f("d_phi_rad"),
+        f("kf_d_theta_rad"),
+        f("kf_d_phi_rad"),
+        f("kryt1_cum"),
+        Field::new("valid", DataType::Boolean, false),
+    ]));
+    let c = |v: &[f64]| Arc::new(Float64Array::from(v.to_vec()));
+    let batch = RecordBatch::try_new(
+        schema,
+        vec![
+            Arc::new(Int64Array::from(
+                e.t_s
+                    .iter()
+                    .map(|t| d.t0_ns + (t * 1e9).round() as i64)
+                    .collect::<Vec<_>>(),
+            )),
+            c(&s.theta_n_rad),
+            c(&s.phi_n_rad),
+            c(&e.theta_p_rad),
+            c(&e.phi_p_rad),
+            c(&s.d_theta_rad),
+            c(&s.d_phi_rad),
+            c(&s.kf_theta_rad),
+            c(&s.kf_phi_rad),
+            c(&s.kryt1_cum),
+            Arc::new(BooleanArray::from(e.valid.clone())),
+        ],
+    )?;
+    write_batch(path, &batch)?;
+    Ok(())
+}

@@ -1,0 +1,136 @@
+//! Stage records: each stage folder holds `stage.json` — stage name and version, a hash
+//! of its parameters, and the content hashes of its inputs and outputs. It is written
+//! last, after every output was renamed into place, so a stage killed at any moment is
+//! never taken as done. A stage whose record matches is skipped.
+
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use serde::{Deserialize, Serialize};
+use unz_formats::atomic::write_json_atomic;
+
+/// Name of the record in every stage folder.
+pub const RECORD: &str = "stage.json";
+
+/// The record of one stage run.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StageRecord {
+    /// Stage name.
+    pub stage: String,
+    /// Version of the stage's code: a change of meaning bumps it.
+    pub version: u32,
+    /// blake3 of the canonical JSON of the parameters.
+    pub params_hash: String,
+    /// Input files (as given) and their blake3.
+    pub inputs: BTreeMap<String, String>,
+    /// Output files (names in the stage folder) and their blake3.
+    pub outputs: BTreeMap<String, String>,
+}
+
+/// blake3 of a file's content, streamed.
+pub fn file_hash(path: &Path) -> anyhow::Result<String> {
+    let mut f =
+        std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut h = blake3::Hasher::new();
+    let mut buf = vec![0u8; 1 << 16];
+    loop {
+        let n = f
+            .read(&mut buf)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        if n == 0 {
+            break;
+        }
+        h.update(&buf[..n]);
+    }
+    Ok(h.finalize().to_hex().to_string())
+}
+
+/// blake3 of the JSON of `params`.
+pub fn params_hash(params: &impl Serialize) -> anyhow::Result<String> {
+    Ok(blake3::hash(&serde_json::to_vec(params)?)
+        .to_hex()
+        .to_string())
+}
+
+/// A stage about to run or be skipped.
+pub struct Stage<'a> {
+    /// Stage folder.
+    pub dir: PathBuf,
+    /// Name.
+    pub name: &'a str,
+    /// Version.
+    pub version: u32,
+    /// Parameter hash.
+    pub params_hash: String,
+    /// Input files.
+    pub inputs: Vec<PathBuf>,
+    /// Output file names.
+    pub outputs: &'a [&'a str],
+}
+
+impl Stage<'_> {
+    fn input_hashes(&self) -> anyhow::Result<BTreeMap<String, String>> {
+        self.inputs
+            .iter()
+            .map(|p| Ok((p.display().to_string(), file_hash(p)?)))
+            .collect()
+    }
+
+    /// Whether the folder holds this stage's outputs for these parameters and inputs.
+    pub fn is_up_to_date(&self) -> anyhow::Result<bool> {
+        let Ok(bytes) = std::fs::read(self.dir.join(RECORD)) else {
+            return Ok(false);
+        };
+        let Ok(rec) = serde_json::from_slice::<StageRecord>(&bytes) else {
+            return Ok(false);
+        };
+        if rec.stage != self.name
+            || rec.version != self.version
+            || rec.params_hash != self.params_hash
+        {
+            return Ok(false);
+        }
+        if rec.inputs != self.input_hashes()? {
+            return Ok(false);
+        }
+        for name in self.outputs {
+            match rec.outputs.get(*name) {
+                Some(h)
+                    if self.dir.join(name).is_file() && file_hash(&self.dir.join(name))? == *h => {}
+                _ => return Ok(false),
+            }
+        }
+        Ok(true)
+    }
+
+    /// Writes the record (after the outputs are in place).
+    pub fn commit(&self) -> anyhow::Result<()> {
+        let outputs = self
+            .outputs
+            .iter()
+            .map(|n| Ok(((*n).to_owned(), file_hash(&self.dir.join(n))?)))
+            .collect::<anyhow::Result<_>>()?;
+        let rec = StageRecord {
+            stage: self.name.to_owned(),
+            version: self.version,
+            params_hash: self.params_hash.clone(),
+            inputs: self.input_hashes()?,
+            outputs,
+        };
+        write_json_atomic(&self.dir.join(RECORD), &rec)?;
+        Ok(())
+    }
+
+    /// Removes the record, so a stage that starts over is never taken as done.
+    pub fn invalidate(&self) -> anyhow::Result<()> {
+        match std::fs::remove_file(self.dir.join(RECORD)) {
+            Ok(()) => Ok(()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+            Err(e) => {
+                Err(e).with_context(|| format!("cannot remove {}", self.dir.join(RECORD).display()))
+            }
+        }
+    }
+}

@@ -1,0 +1,217 @@
+//! The criteria (paper eqs 1–4).
+//!
+//! Kryt1: at every epoch, ΔΘ = F(Θ_N) − Θ_p and ΔΦ = F(Φ_N) − Φ_p (F the filter the
+//! accelerometer terms went through), smoothed per axis by a Kalman filter whose state is
+//! the error and its rate; Kryt1 = Σ √(ΔΘ̂² + ΔΦ̂²) over the valid epochs, in rad.
+//! Kryt2: horizontal distance between the navigated and the surveyed position at a
+//! control point's stop, with ΔX north and ΔY east (navigated minus known), m.
+
+use crate::derive::Epochs;
+use crate::earth;
+use crate::filter::LowPass;
+use crate::strapdown::NavTrack;
+
+/// Kalman filter of the pitch/roll errors (per axis; state: error, rate).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct KalmanParams {
+    /// Measurement noise, rad (1σ of one epoch's ΔΘ).
+    pub r_rad: f64,
+    /// Rate random walk driving the error's rate, rad/s/√s.
+    pub rate_walk_rad_s_sqrt_s: f64,
+}
+
+impl Default for KalmanParams {
+    fn default() -> Self {
+        Self {
+            r_rad: 1e-3,
+            rate_walk_rad_s_sqrt_s: 1e-6,
+        }
+    }
+}
+
+/// Per-epoch criteria series (for `criteria.parquet` and the review).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Kryt1Series {
+    /// Filtered gyro pitch Θ_N, rad.
+    pub theta_n_rad: Vec<f64>,
+    /// Filtered gyro roll Φ_N, rad.
+    pub phi_n_rad: Vec<f64>,
+    /// ΔΘ, rad.
+    pub d_theta_rad: Vec<f64>,
+    /// ΔΦ, rad.
+    pub d_phi_rad: Vec<f64>,
+    /// Kalman estimate of ΔΘ, rad.
+    pub kf_theta_rad: Vec<f64>,
+    /// Kalman estimate of ΔΦ, rad.
+    pub kf_phi_rad: Vec<f64>,
+    /// Cumulative Kryt1, rad.
+    pub kryt1_cum: Vec<f64>,
+}
+
+/// Reusable buffers of [`kryt1`], so repeated evaluations allocate nothing.
+#[derive(Debug, Clone, Default)]
+pub struct Kryt1Scratch {
+    theta_blocks: Vec<f64>,
+    phi_blocks: Vec<f64>,
+}
+
+/// One axis's Kalman filter.
+#[derive(Debug, Clone, Copy)]
+struct Kf2 {
+    x: [f64; 2],
+    p: [[f64; 2]; 2],
+    started: bool,
+}
+
+impl Kf2 {
+    fn new() -> Self {
+        Self {
+            x: [0.0; 2],
+            p: [[0.0; 2]; 2],
+            started: false,
+        }
+    }
+
+    /// Predicts over `dt` and, when `z` is given, updates; returns the error estimate.
+    fn step(&mut self, dt: f64, z: Option<f64>, kp: &KalmanParams) -> f64 {
+        let r2 = kp.r_rad * kp.r_rad;
+        if !self.started {
+            if let Some(z) = z {
+                self.x = [z, 0.0];
+                self.p = [[r2, 0.0], [0.0, 1e-8]];
+                self.started = true;
+            }
+            return self.x[0];
+        }
+        let q = kp.rate_walk_rad_s_sqrt_s * kp.rate_walk_rad_s_sqrt_s;
+        let [x0, x1] = self.x;
+        self.x = [x0 + dt * x1, x1];
+        let [[p00, p01], [p10, p11]] = self.p;
+        let p00n = p00 + dt * (p01 + p10) + dt * dt * p11 + q * dt * dt * dt / 3.0;
+        let p01n = p01 + dt * p11 + q * dt * dt / 2.0;
+        let p11n = p11 + q * dt;
+        self.p = [[p00n, p01n], [p01n, p11n]];
+        let _ = p10;
+        if let Some(z) = z {
+            let s = self.p[0][0] + r2;
+            let k = [self.p[0][0] / s, self.p[1][0] / s];
+            let innov = z - self.x[0];
+            self.x = [self.x[0] + k[0] * innov, self.x[1] + k[1] * innov];
+            let [[a, b], [_, d]] = self.p;
+            self.p = [
+                [(1.0 - k[0]) * a, (1.0 - k[0]) * b],
+                [(1.0 - k[0]) * b, d - k[1] * b],
+            ];
+        }
+        self.x[0]
+    }
+}
+
+/// Kryt1 of a navigated track; fills `series` when given.
+pub fn kryt1(
+    epochs: &Epochs,
+    lp: &LowPass,
+    track: &NavTrack,
+    kp: &KalmanParams,
+    scratch: &mut Kryt1Scratch,
+    mut series: Option<&mut Kryt1Series>,
+) -> f64 {
+    block_means(&track.pitch_rad, lp.block, &mut scratch.theta_blocks);
+    block_means(&track.roll_rad, lp.block, &mut scratch.phi_blocks);
+    lp.filter_blocks(&mut scratch.theta_blocks);
+    lp.filter_blocks(&mut scratch.phi_blocks);
+    if let Some(s) = series.as_deref_mut() {
+        *s = Kryt1Series::default();
+    }
+    let (mut kf_t, mut kf_p) = (Kf2::new(), Kf2::new());
+    let mut sum = 0.0;
+    let mut prev_t = epochs.t_s.first().copied().unwrap_or(0.0);
+    for e in 0..epochs.block.len() {
+        let j = epochs.block[e];
+        let (th, ph) = (scratch.theta_blocks[j], scratch.phi_blocks[j]);
+        let d_th = th - epochs.theta_p_rad[e];
+        let d_ph = crate::attitude::wrap_pi(ph - epochs.phi_p_rad[e]);
+        let dt = epochs.t_s[e] - prev_t;
+        prev_t = epochs.t_s[e];
+        let valid = epochs.valid[e];
+        let est_t = kf_t.step(dt, valid.then_some(d_th), kp);
+        let est_p = kf_p.step(dt, valid.then_some(d_ph), kp);
+        if valid && kf_t.started {
+            sum += est_t.hypot(est_p);
+        }
+        if let Some(s) = series.as_deref_mut() {
+            s.theta_n_rad.push(th);
+            s.phi_n_rad.push(ph);
+            s.d_theta_rad.push(d_th);
+            s.d_phi_rad.push(d_ph);
+            s.kf_theta_rad.push(est_t);
+            s.kf_phi_rad.push(est_p);
+            s.kryt1_cum.push(sum);
+        }
+    }
+    sum
+}
+
+fn block_means(x: &[f64], block: usize, out: &mut Vec<f64>) {
+    out.clear();
+    out.extend(
+        x.chunks(block.max(1))
+            .map(|c| c.iter().sum::<f64>() / c.len() as f64),
+    );
+}
+
+/// A control point matched to a sample of the run.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ControlPointFix {
+    /// Id.
+    pub id: u32,
+    /// Index of the sample at the stop.
+    pub sample: usize,
+    /// Time of the stop, s in the log's time base.
+    pub t_s: f64,
+    /// Surveyed latitude, rad.
+    pub lat_rad: f64,
+    /// Surveyed longitude, rad.
+    pub lon_rad: f64,
+    /// Surveyed height, m.
+    pub h_m: f64,
+}
+
+/// Kryt2 at one control point.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Kryt2 {
+    /// Control-point id.
+    pub id: u32,
+    /// Time of the stop, s in the log's time base.
+    pub t_s: f64,
+    /// ΔX: navigated minus known, north, m.
+    pub dx_m: f64,
+    /// ΔY: navigated minus known, east, m.
+    pub dy_m: f64,
+    /// Horizontal distance, m.
+    pub kryt2_m: f64,
+}
+
+/// Kryt2 at every control point.
+pub fn kryt2(track: &NavTrack, fixes: &[ControlPointFix]) -> Vec<Kryt2> {
+    fixes
+        .iter()
+        .filter(|f| f.sample < track.len())
+        .map(|f| {
+            let (dx, dy) = earth::local_offset_m(
+                track.lat_rad[f.sample],
+                track.lon_rad[f.sample],
+                f.lat_rad,
+                f.lon_rad,
+                f.h_m,
+            );
+            Kryt2 {
+                id: f.id,
+                t_s: f.t_s,
+                dx_m: dx,
+                dy_m: dy,
+                kryt2_m: dx.hypot(dy),
+            }
+        })
+        .collect()
+}

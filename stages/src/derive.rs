@@ -1,0 +1,267 @@
+//! Stage 2, derive: odometer terms and accelerometer pitch/roll (paper eqs 6–11).
+//!
+//! Input: the IMU (time, angle and velocity increments) and the odometer's cumulative
+//! distance at its own rate. Output, per IMU sample: the repaired interval `dt`, the
+//! increments (a lost stretch is filled by holding the rate), the odometer distance over
+//! the interval, `u` (eq 9), `u̇` (eq 10), yaw rate `r`, `ru` (eq 11); per block of F
+//! ([`crate::filter`]): the filtered `a_x`, `a_y`, `u̇`, `ru`; per epoch (ΔTg = 1 s):
+//! accelerometer pitch Θ_p and roll Φ_p (eqs 7–8) and whether the simplified model (6)
+//! holds well enough to use the epoch (hard braking and hard turns are gated out).
+//!
+//! Not guaranteed: sideslip, lever arms and the Earth-rate part of the yaw rate are not
+//! modelled (eq 6's simplifications; each below 0.01° on a land vehicle).
+
+use crate::filter::{FilterParams, LowPass};
+
+/// Parameters of the derive stage.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DeriveParams {
+    /// The low-pass filter F.
+    pub filter: FilterParams,
+    /// Epoch spacing ΔTg, s (100·ΔT = 1 s at 100 Hz).
+    pub epoch_s: f64,
+    /// Time added to the odometer's time tags to align them with the IMU, s.
+    pub odo_time_offset_s: f64,
+    /// Epochs with |filtered u̇| above this are gated out, m/s².
+    pub gate_long_mps2: f64,
+    /// Epochs with |filtered ru| above this are gated out, m/s².
+    pub gate_lat_mps2: f64,
+}
+
+impl Default for DeriveParams {
+    fn default() -> Self {
+        Self {
+            filter: FilterParams::default(),
+            epoch_s: 1.0,
+            odo_time_offset_s: 0.0,
+            gate_long_mps2: 1.5,
+            gate_lat_mps2: 1.5,
+        }
+    }
+}
+
+/// Raw IMU and odometer columns, as ingested.
+#[derive(Debug, Clone, Copy)]
+pub struct RawSeries<'a> {
+    /// IMU time, ns.
+    pub imu_t_ns: &'a [i64],
+    /// Angle increments, rad, body FRD.
+    pub dtheta_rad: &'a [[f64; 3]],
+    /// Velocity increments, m/s, body FRD.
+    pub dvel_mps: &'a [[f64; 3]],
+    /// Odometer time, ns (own rate).
+    pub odo_t_ns: &'a [i64],
+    /// Odometer cumulative distance, m.
+    pub odo_distance_m: &'a [f64],
+}
+
+/// Everything the stage derives.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Derived {
+    /// IMU time of the first sample, ns (times below count from it).
+    pub t0_ns: i64,
+    /// Nominal sample period (median interval), s.
+    pub nominal_dt_s: f64,
+    /// Per sample: time since `t0_ns`, s (repaired to increase).
+    pub t_s: Vec<f64>,
+    /// Per sample: interval, s.
+    pub dt_s: Vec<f64>,
+    /// Per sample: angle increments, rad (lost stretches filled by holding the rate).
+    pub dtheta_rad: Vec<[f64; 3]>,
+    /// Per sample: velocity increments, m/s (likewise).
+    pub dvel_mps: Vec<[f64; 3]>,
+    /// Per sample: odometer distance over the interval, m.
+    pub odo_dist_m: Vec<f64>,
+    /// Per sample: u, m/s (eq 9).
+    pub u_mps: Vec<f64>,
+    /// Per sample: u̇, m/s² (eq 10).
+    pub u_dot_mps2: Vec<f64>,
+    /// Per sample: yaw rate r, rad/s (body z gyro).
+    pub r_rad_s: Vec<f64>,
+    /// Per sample: ru, m/s² (eq 11).
+    pub ru_mps2: Vec<f64>,
+    /// Per block: filtered a_x, m/s².
+    pub ax_f: Vec<f64>,
+    /// Per block: filtered a_y, m/s².
+    pub ay_f: Vec<f64>,
+    /// Per block: filtered u̇, m/s².
+    pub u_dot_f: Vec<f64>,
+    /// Per block: filtered ru, m/s².
+    pub ru_f: Vec<f64>,
+    /// Samples per block of F.
+    pub block: usize,
+    /// The epochs.
+    pub epochs: Epochs,
+    /// Samples whose time tag was repaired (not after the previous one).
+    pub repaired_times: usize,
+    /// Samples that closed a gap and were scaled to it.
+    pub filled_gaps: usize,
+}
+
+/// Epochs at ΔTg: one every `epoch_blocks` blocks.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Epochs {
+    /// Block index of each epoch.
+    pub block: Vec<usize>,
+    /// Time of each epoch (middle of its block), s since `t0_ns`.
+    pub t_s: Vec<f64>,
+    /// Accelerometer pitch Θ_p, rad (eq 7).
+    pub theta_p_rad: Vec<f64>,
+    /// Accelerometer roll Φ_p, rad (eq 8).
+    pub phi_p_rad: Vec<f64>,
+    /// Whether the epoch is used by the criteria.
+    pub valid: Vec<bool>,
+}
+
+/// Cumulative odometer distance at time `t` (linear interpolation, clamped).
+struct OdoInterp<'a> {
+    t: Vec<f64>,
+    d: &'a [f64],
+    keep: Vec<usize>,
+    i: usize,
+}
+
+impl<'a> OdoInterp<'a> {
+    fn new(t_ns: &[i64], d: &'a [f64], t0_ns: i64, offset_s: f64) -> Self {
+        // Keep strictly increasing time tags only.
+        let mut keep = Vec::with_capacity(t_ns.len());
+        let mut t = Vec::with_capacity(t_ns.len());
+        for (i, &ti) in t_ns.iter().enumerate() {
+            let ts = (ti - t0_ns) as f64 * 1e-9 + offset_s;
+            if t.last().is_none_or(|&last| ts > last) && d[i].is_finite() {
+                t.push(ts);
+                keep.push(i);
+            }
+        }
+        Self { t, d, keep, i: 0 }
+    }
+
+    /// Distance at `ts`; calls must come with non-decreasing `ts`.
+    fn at(&mut self, ts: f64) -> f64 {
+        let n = self.t.len();
+        if n == 0 {
+            return 0.0;
+        }
+        while self.i + 1 < n && self.t[self.i + 1] <= ts {
+            self.i += 1;
+        }
+        let (i, d) = (self.i, |j: usize| self.d[self.keep[j]]);
+        if ts <= self.t[0] {
+            return d(0);
+        }
+        if i + 1 >= n {
+            return d(n - 1);
+        }
+        let w = (ts - self.t[i]) / (self.t[i + 1] - self.t[i]);
+        d(i) + w * (d(i + 1) - d(i))
+    }
+}
+
+/// Runs the stage. `g_mps2` is the normal gravity at the site.
+pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derived {
+    let n = raw.imu_t_ns.len();
+    let mut out = Derived::default();
+    if n == 0 {
+        return out;
+    }
+    let t0 = raw.imu_t_ns[0];
+    let mut dts: Vec<f64> = raw
+        .imu_t_ns
+        .windows(2)
+        .map(|w| (w[1] - w[0]) as f64 * 1e-9)
+        .filter(|d| *d > 0.0)
+        .collect();
+    dts.sort_by(f64::total_cmp);
+    let nominal = dts.get(dts.len() / 2).copied().unwrap_or(0.01);
+    out.t0_ns = t0;
+    out.nominal_dt_s = nominal;
+
+    // Time base, repaired; lost stretches filled by holding the rate.
+    let mut odo = OdoInterp::new(
+        raw.odo_t_ns,
+        raw.odo_distance_m,
+        t0,
+        params.odo_time_offset_s,
+    );
+    let mut prev_t = -nominal;
+    let mut prev_d = odo.at(-nominal);
+    let mut prev_u = 0.0;
+    for k in 0..n {
+        let mut t = (raw.imu_t_ns[k] - t0) as f64 * 1e-9;
+        if k > 0 && t <= prev_t {
+            t = prev_t + nominal;
+            out.repaired_times += 1;
+        }
+        let dt = t - prev_t;
+        let scale = if dt > 1.5 * nominal {
+            out.filled_gaps += 1;
+            dt / nominal
+        } else {
+            1.0
+        };
+        let dth = raw.dtheta_rad[k].map(|v| v * scale);
+        let dv = raw.dvel_mps[k].map(|v| v * scale);
+        let d = odo.at(t);
+        let dd = d - prev_d;
+        let u = dd / dt;
+        let u_dot = if k == 0 { 0.0 } else { (u - prev_u) / dt };
+        let r = dth[2] / dt;
+        out.t_s.push(t);
+        out.dt_s.push(dt);
+        out.dtheta_rad.push(dth);
+        out.dvel_mps.push(dv);
+        out.odo_dist_m.push(dd);
+        out.u_mps.push(u);
+        out.u_dot_mps2.push(u_dot);
+        out.r_rad_s.push(r);
+        out.ru_mps2.push(r * u);
+        prev_t = t;
+        prev_d = d;
+        prev_u = u;
+    }
+
+    // The filter F, then eqs 7–8 at the epochs.
+    let lp = LowPass::new(&params.filter, nominal);
+    out.block = lp.block;
+    let ax: Vec<f64> = out
+        .dvel_mps
+        .iter()
+        .zip(&out.dt_s)
+        .map(|(v, dt)| v[0] / dt)
+        .collect();
+    let ay: Vec<f64> = out
+        .dvel_mps
+        .iter()
+        .zip(&out.dt_s)
+        .map(|(v, dt)| v[1] / dt)
+        .collect();
+    lp.apply(&ax, &mut out.ax_f);
+    lp.apply(&ay, &mut out.ay_f);
+    lp.apply(&out.u_dot_mps2, &mut out.u_dot_f);
+    lp.apply(&out.ru_mps2, &mut out.ru_f);
+    let block_s = lp.block as f64 * nominal;
+    let epoch_blocks = ((params.epoch_s / block_s).round() as usize).max(1);
+    let blocks = out.ax_f.len();
+    let e = &mut out.epochs;
+    let mut j = epoch_blocks - 1;
+    while j < blocks {
+        let first = j * lp.block;
+        let last = ((j + 1) * lp.block).min(n) - 1;
+        let theta = ((out.ax_f[j] - out.u_dot_f[j]) / g_mps2)
+            .clamp(-1.0, 1.0)
+            .asin();
+        let phi = -((out.ay_f[j] - out.ru_f[j]) / (g_mps2 * theta.cos()))
+            .clamp(-1.0, 1.0)
+            .asin();
+        e.block.push(j);
+        e.t_s.push(0.5 * (out.t_s[first] + out.t_s[last]));
+        e.theta_p_rad.push(theta);
+        e.phi_p_rad.push(phi);
+        e.valid.push(
+            out.u_dot_f[j].abs() <= params.gate_long_mps2
+                && out.ru_f[j].abs() <= params.gate_lat_mps2,
+        );
+        j += epoch_blocks;
+    }
+    out
+}

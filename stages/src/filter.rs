@@ -1,0 +1,143 @@
+//! The low-pass filter F shared by the accelerometer terms and the gyro pitch/roll they
+//! are compared with (method.md: one and the same filter, so both carry the same delay).
+//!
+//! F = block means over `block` samples (0.1 s at 100 Hz; 1 sample at 10 Hz), then a
+//! zero-phase (forward–backward) second-order Butterworth low-pass at `cutoff_hz` on the
+//! block series. Zero phase means no delay at all: this is post-processing. Being linear,
+//! F commutes with differencing, so `F(u̇)` equals the derivative of the filtered speed
+//! and odometer pulse quantisation is suppressed as (2πf)² allows.
+
+/// Second-order Butterworth low-pass biquad coefficients (bilinear transform).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Biquad {
+    b: [f64; 3],
+    a: [f64; 2],
+}
+
+impl Biquad {
+    /// Low-pass at `cutoff_hz` for a series sampled at `rate_hz`.
+    pub fn butterworth_lowpass(cutoff_hz: f64, rate_hz: f64) -> Self {
+        let k = (std::f64::consts::PI * (cutoff_hz / rate_hz).min(0.49)).tan();
+        let q = std::f64::consts::FRAC_1_SQRT_2;
+        let norm = 1.0 / (1.0 + k / q + k * k);
+        let b0 = k * k * norm;
+        Self {
+            b: [b0, 2.0 * b0, b0],
+            a: [2.0 * (k * k - 1.0) * norm, (1.0 - k / q + k * k) * norm],
+        }
+    }
+
+    /// Filters `x` in place, forward then backward, starting from steady state on the
+    /// first (resp. last) value so the ends do not ring.
+    pub fn filtfilt(&self, x: &mut [f64]) {
+        if x.is_empty() {
+            return;
+        }
+        self.pass(x.iter_mut());
+        self.pass(x.iter_mut().rev());
+    }
+
+    fn pass<'a>(&self, xs: impl Iterator<Item = &'a mut f64>) {
+        let mut state: Option<(f64, f64, f64, f64)> = None; // x1, x2, y1, y2
+        for x in xs {
+            let (x1, x2, y1, y2) = *state.get_or_insert((*x, *x, *x, *x));
+            let y =
+                self.b[0] * *x + self.b[1] * x1 + self.b[2] * x2 - self.a[0] * y1 - self.a[1] * y2;
+            state = Some((*x, x1, y, y1));
+            *x = y;
+        }
+    }
+}
+
+/// Parameters of F.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FilterParams {
+    /// Length of the block means, s (0.1 s).
+    pub block_s: f64,
+    /// Butterworth cut-off, Hz (0.3 Hz).
+    pub cutoff_hz: f64,
+}
+
+impl Default for FilterParams {
+    fn default() -> Self {
+        Self {
+            block_s: 0.1,
+            cutoff_hz: 0.3,
+        }
+    }
+}
+
+/// F, ready for a series of a given sample period.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LowPass {
+    /// Samples per block.
+    pub block: usize,
+    biquad: Biquad,
+}
+
+impl LowPass {
+    /// F for samples `dt_s` apart.
+    pub fn new(params: &FilterParams, dt_s: f64) -> Self {
+        let block = ((params.block_s / dt_s).round() as usize).max(1);
+        let block_rate_hz = 1.0 / (block as f64 * dt_s);
+        Self {
+            block,
+            biquad: Biquad::butterworth_lowpass(params.cutoff_hz, block_rate_hz),
+        }
+    }
+
+    /// Number of blocks of a series of `n` samples (the last partial block included).
+    pub fn blocks(&self, n: usize) -> usize {
+        n.div_ceil(self.block)
+    }
+
+    /// Block means of `x` into `out` (resized), then filtered.
+    pub fn apply(&self, x: &[f64], out: &mut Vec<f64>) {
+        out.clear();
+        out.extend(
+            x.chunks(self.block)
+                .map(|c| c.iter().sum::<f64>() / c.len() as f64),
+        );
+        self.biquad.filtfilt(out);
+    }
+
+    /// Filters a series already reduced to block means.
+    pub fn filter_blocks(&self, blocks: &mut [f64]) {
+        self.biquad.filtfilt(blocks);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn passes_dc_and_low_frequencies_without_delay() {
+        let lp = LowPass::new(&FilterParams::default(), 0.01);
+        assert_eq!(lp.block, 10);
+        let x: Vec<f64> = (0..20_000)
+            .map(|k| 3.0 + (k as f64 * 0.01 * 0.02 * std::f64::consts::TAU).sin())
+            .collect();
+        let mut y = Vec::new();
+        lp.apply(&x, &mut y);
+        // A 0.02 Hz sine passes with gain ≈ 1 and no phase shift (zero-phase filter).
+        for (j, v) in y.iter().enumerate().skip(100).take(1800) {
+            let t_mid = (j as f64 * 10.0 + 4.5) * 0.01;
+            let want = 3.0 + (t_mid * 0.02 * std::f64::consts::TAU).sin();
+            assert!((v - want).abs() < 2e-3, "block {j}: {v} vs {want}");
+        }
+    }
+
+    #[test]
+    fn suppresses_high_frequencies() {
+        let lp = LowPass::new(&FilterParams::default(), 0.01);
+        let x: Vec<f64> = (0..20_000)
+            .map(|k| (k as f64 * 0.01 * 3.0 * std::f64::consts::TAU).sin())
+            .collect();
+        let mut y = Vec::new();
+        lp.apply(&x, &mut y);
+        let peak = y[200..1800].iter().fold(0f64, |m, v| m.max(v.abs()));
+        // Fourth-order effective roll-off: (0.3/3)^4 ≈ 1e-4, and the block mean helps too.
+        assert!(peak < 1e-3, "{peak}");
+    }
+}

@@ -1,0 +1,188 @@
+//! The initial settings of a navigation pass: attitude from the static start (levelled,
+//! heading given or gyrocompassed), drifts given or measured at rest, odometer scale.
+
+use serde::Serialize;
+
+use crate::align;
+use crate::attitude::Euler;
+use crate::derive::Derived;
+use crate::strapdown::NavSettings;
+
+/// Where a setting came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Source {
+    /// The run manifest.
+    Manifest,
+    /// A command-line override or the optimiser.
+    Override,
+    /// Computed from the static start.
+    Static,
+    /// Default value.
+    Default,
+}
+
+/// What the caller asks for; `None` means "manifest, else from the static start".
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct InitialRequest {
+    /// Initial azimuth, degrees.
+    pub azimuth_deg: Option<(f64, Source)>,
+    /// Initial pitch, degrees.
+    pub pitch_deg: Option<(f64, Source)>,
+    /// Initial roll, degrees.
+    pub roll_deg: Option<(f64, Source)>,
+    /// Gyro drifts, rad/s.
+    pub drift_rad_s: Option<([f64; 3], Source)>,
+    /// Static start, s.
+    pub static_s: Option<f64>,
+    /// Multiplier on the odometer distance.
+    pub odo_scale: f64,
+}
+
+/// Parameters of the alignment.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct AlignParams {
+    /// Assumed 1σ of the horizontal gyro drifts left after the drift guess, rad/s.
+    pub drift_sigma_rad_s: f64,
+    /// Angle random walk of the gyros, rad/√s.
+    pub arw_rad_sqrt_s: f64,
+    /// Without given drifts, take the vertical drift measured at rest.
+    pub drift_z_from_static: bool,
+}
+
+impl Default for AlignParams {
+    fn default() -> Self {
+        Self {
+            drift_sigma_rad_s: 1.0 * std::f64::consts::PI / 180.0 / 3600.0,
+            arw_rad_sqrt_s: 0.07 * std::f64::consts::PI / 180.0 / 60.0,
+            drift_z_from_static: true,
+        }
+    }
+}
+
+/// What the alignment found and used.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct InitialReport {
+    /// Static period averaged, s.
+    pub static_s: f64,
+    /// Initial roll, degrees.
+    pub roll_deg: f64,
+    /// Its source.
+    pub roll_source: Source,
+    /// Initial pitch, degrees.
+    pub pitch_deg: f64,
+    /// Its source.
+    pub pitch_source: Source,
+    /// Initial heading (azpocz), degrees.
+    pub azimuth_deg: f64,
+    /// Its source.
+    pub azimuth_source: Source,
+    /// Gyrocompass heading, degrees (computed whenever there is a static start).
+    pub gyrocompass_deg: Option<f64>,
+    /// Expected 1σ accuracy of the gyrocompass heading, degrees.
+    pub gyrocompass_sigma_deg: Option<f64>,
+    /// Drifts used, rad/s.
+    pub drift_rad_s: [f64; 3],
+    /// Their source.
+    pub drift_source: Source,
+    /// Vertical drift measured at rest, rad/s.
+    pub drift_z_at_rest_rad_s: Option<f64>,
+    /// Odometer multiplier.
+    pub odo_scale: f64,
+}
+
+/// Length of the static start: from the odometer, the time before it first moves 5 cm,
+/// less 1 s.
+pub fn detect_static_s(d: &Derived) -> f64 {
+    let mut dist = 0.0;
+    for k in 0..d.t_s.len() {
+        dist += d.odo_dist_m[k].abs();
+        if dist > 0.05 {
+            return (d.t_s[k] - 1.0).max(0.0);
+        }
+    }
+    d.t_s.last().copied().unwrap_or(0.0)
+}
+
+/// Resolves the initial settings of a pass at the site (`lat0`, `lon0` rad, `h0` m).
+pub fn initial_settings(
+    d: &Derived,
+    req: &InitialRequest,
+    p: &AlignParams,
+    site: (f64, f64, f64),
+) -> (NavSettings, InitialReport) {
+    let (lat0, lon0, h0) = site;
+    let static_s = req
+        .static_s
+        .unwrap_or_else(|| detect_static_s(d))
+        .min(d.t_s.last().copied().unwrap_or(0.0));
+    let means = align::static_means(&d.dt_s, &d.dtheta_rad, &d.dvel_mps, static_s);
+    let has_static = means.duration_s >= 5.0;
+    let (lev_roll, lev_pitch) = align::level(&means.f_b_mps2);
+    let (roll, roll_source) = match req.roll_deg {
+        Some((v, s)) => (v.to_radians(), s),
+        None if has_static => (lev_roll, Source::Static),
+        None => (0.0, Source::Default),
+    };
+    let (pitch, pitch_source) = match req.pitch_deg {
+        Some((v, s)) => (v.to_radians(), s),
+        None if has_static => (lev_pitch, Source::Static),
+        None => (0.0, Source::Default),
+    };
+    let guess = req.drift_rad_s.map_or([0.0; 3], |(v, _)| v);
+    let (gc, gc_sigma) = if has_static {
+        let w = means.w_b_rad_s - nalgebra::Vector3::from(guess);
+        (
+            Some(align::gyrocompass(&w, roll, pitch)),
+            Some(align::gyrocompass_sigma_rad(
+                lat0,
+                p.drift_sigma_rad_s,
+                p.arw_rad_sqrt_s,
+                means.duration_s,
+            )),
+        )
+    } else {
+        (None, None)
+    };
+    let (heading, azimuth_source) = match (req.azimuth_deg, gc) {
+        (Some((v, s)), _) => (v.to_radians(), s),
+        (None, Some(h)) => (h, Source::Static),
+        (None, None) => (0.0, Source::Default),
+    };
+    let attitude = Euler {
+        roll_rad: roll,
+        pitch_rad: pitch,
+        heading_rad: heading,
+    };
+    let dz = has_static.then(|| align::drift_z_at_rest(&means.w_b_rad_s, attitude, lat0));
+    let (drift, drift_source) = match (req.drift_rad_s, dz) {
+        (Some((v, s)), _) => (v, s),
+        (None, Some(z)) if p.drift_z_from_static => ([0.0, 0.0, z], Source::Static),
+        _ => ([0.0; 3], Source::Default),
+    };
+    let settings = NavSettings {
+        initial: attitude,
+        drift_rad_s: drift,
+        odo_scale: req.odo_scale,
+        odo_yaw_rad: 0.0,
+        lat0_rad: lat0,
+        lon0_rad: lon0,
+        h0_m: h0,
+    };
+    let report = InitialReport {
+        static_s: means.duration_s,
+        roll_deg: roll.to_degrees(),
+        roll_source,
+        pitch_deg: pitch.to_degrees(),
+        pitch_source,
+        azimuth_deg: heading.to_degrees().rem_euclid(360.0),
+        azimuth_source,
+        gyrocompass_deg: gc.map(f64::to_degrees),
+        gyrocompass_sigma_deg: gc_sigma.map(f64::to_degrees),
+        drift_rad_s: drift,
+        drift_source,
+        drift_z_at_rest_rad_s: dz,
+        odo_scale: req.odo_scale,
+    };
+    (settings, report)
+}
