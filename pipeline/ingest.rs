@@ -69,8 +69,6 @@ struct EventsFile<'a> {
 #[derive(Serialize)]
 struct ImuMessage {
     seq: u64,
-    dtheta_rad: [f64; 3],
-    dvel_mps: [f64; 3],
     rate_rad_s: [f64; 3],
     accel_mps2: [f64; 3],
     status: u16,
@@ -145,8 +143,6 @@ impl RawMcap {
         let inv = if dt_s > 0.0 { 1.0 / dt_s } else { 0.0 };
         let msg = ImuMessage {
             seq,
-            dtheta_rad: dtheta,
-            dvel_mps: dvel,
             rate_rad_s: dtheta.map(|v| v * inv),
             accel_mps2: dvel.map(|v| v * inv),
             status,

@@ -33,6 +33,8 @@ impl JsonMcap {
         let handle = BufWriter::with_capacity(1 << 20, file.file_handle()?);
         let writer = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
+            .compression_level(1)
+            .compression_threads(0)
             .profile("")
             .library(concat!("unz ", env!("CARGO_PKG_VERSION")))
             .create(handle)

@@ -1,0 +1,160 @@
+//! Real data: the Kingston 2008 segment (HG1700 IMU at 10 Hz, OBD-II speed at 1 Hz,
+//! NovAtel SPAN reference). See ../shared/data/kingston2008-seg1/README.md.
+
+use unz::flow::{Overrides, Params, RunCtx, load_case};
+use unz::runs::load_run;
+use unz_stages::attitude::wrap_pi;
+use unz_stages::criteria;
+use unz_stages::strapdown::NavTrack;
+
+use crate::util::shared_data;
+
+/// The reference at 1 Hz: t_s, roll, pitch, azimuth (degrees), speed (m/s).
+struct Reference {
+    t_s: Vec<f64>,
+    roll: Vec<f64>,
+    pitch: Vec<f64>,
+    azimuth: Vec<f64>,
+    speed: Vec<f64>,
+}
+
+fn reference() -> Reference {
+    let text = std::fs::read_to_string(shared_data("kingston2008-seg1").join("truth.csv")).unwrap();
+    let mut r = Reference {
+        t_s: vec![],
+        roll: vec![],
+        pitch: vec![],
+        azimuth: vec![],
+        speed: vec![],
+    };
+    for line in text.lines().skip(1) {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        r.t_s.push(v[0]);
+        r.speed.push(v[4].hypot(v[5]));
+        r.roll.push(v[7]);
+        r.pitch.push(v[8]);
+        r.azimuth.push(v[9]);
+    }
+    r
+}
+
+/// Navigation interpolated to the reference's epochs: (roll, pitch, heading) in degrees.
+fn at_reference(track: &NavTrack, t0_s: f64, t_s: &[f64], r: &Reference) -> Vec<(usize, [f64; 3])> {
+    let lerp = |a: f64, b: f64, w: f64| a + w * wrap_pi(b - a);
+    r.t_s
+        .iter()
+        .enumerate()
+        .filter_map(|(i, &t)| {
+            let k = t_s.partition_point(|&x| x + t0_s < t);
+            if k == 0 || k >= t_s.len() {
+                return None;
+            }
+            let w = (t - t0_s - t_s[k - 1]) / (t_s[k] - t_s[k - 1]);
+            let v = |c: &[f64]| lerp(c[k - 1], c[k], w).to_degrees();
+            Some((
+                i,
+                [
+                    v(&track.roll_rad),
+                    v(&track.pitch_rad),
+                    v(&track.heading_rad),
+                ],
+            ))
+        })
+        .collect()
+}
+
+#[test]
+fn kingston_gyrocompass_heading_changes_attitude_and_control_points() {
+    let out = tempfile::tempdir().unwrap();
+    let ctx = RunCtx {
+        manifest: load_run(&shared_data("kingston2008-seg1")).unwrap(),
+        out: out.path().to_path_buf(),
+        verbose: false,
+    };
+    let case = load_case(&ctx, &Params::default(), &Overrides::default()).unwrap();
+    let mut track = NavTrack::default();
+    case.navigate(&mut track);
+    let r = reference();
+    let t0_s = case.derived.t0_ns as f64 * 1e-9;
+    let pairs = at_reference(&track, t0_s, &case.derived.t_s, &r);
+    assert!(
+        pairs.len() > 850,
+        "{} reference epochs matched",
+        pairs.len()
+    );
+
+    // The car starts moving when the reference speed first exceeds 1 m/s; the reference
+    // heading has settled 60 s later (data README).
+    let i_move = r.speed.iter().position(|&v| v > 1.0).unwrap();
+    let settle = i_move + 60;
+    let yaw_rate_ref = |i: usize| -> f64 {
+        let (a, b) = (i.saturating_sub(1), (i + 1).min(r.t_s.len() - 1));
+        wrap_pi((r.azimuth[b] - r.azimuth[a]).to_radians())
+            .to_degrees()
+            .abs()
+            / (r.t_s[b] - r.t_s[a])
+    };
+    // e = navigated − reference heading over the settled part. Its median is the initial
+    // heading error (the gyrocompass's error against the settled reference); e − median
+    // is how far the heading *changes* stray from the reference's.
+    let errs: Vec<(usize, f64)> = pairs
+        .iter()
+        .filter(|(i, _)| *i >= settle)
+        .map(|&(i, nav)| {
+            (
+                i,
+                wrap_pi((nav[2] - r.azimuth[i]).to_radians()).to_degrees(),
+            )
+        })
+        .collect();
+    let mut sorted: Vec<f64> = errs.iter().map(|e| e.1).collect();
+    sorted.sort_by(f64::total_cmp);
+    let gc_err = sorted[sorted.len() / 2];
+    // A 1 Hz reference cannot time a 20°/s turn better than a few tens of ms (0.4° per
+    // 20 ms): headings are compared where the reference turns slower than 10°/s, and
+    // everywhere within 1°.
+    let steady = |i: usize| yaw_rate_ref(i) < 10.0;
+    let worst_change = errs
+        .iter()
+        .filter(|(i, _)| steady(*i))
+        .map(|(_, e)| (e - gc_err).abs())
+        .fold(0.0, f64::max);
+    let worst_change_all = errs
+        .iter()
+        .map(|(_, e)| (e - gc_err).abs())
+        .fold(0.0, f64::max);
+    let worst_roll = pairs
+        .iter()
+        .map(|&(i, nav)| (nav[0] - r.roll[i]).abs())
+        .fold(0.0, f64::max);
+    let worst_pitch = pairs
+        .iter()
+        .map(|&(i, nav)| (nav[1] - r.pitch[i]).abs())
+        .fold(0.0, f64::max);
+    let cps = criteria::kryt2(&track, &case.fixes);
+    eprintln!(
+        "Kingston: gyrocompass {:.2}° (σ {:.1}°), error against the settled reference {gc_err:.2}°; \
+         max heading-change error {worst_change:.3}° ({worst_change_all:.3}° in fast turns too); max roll error {worst_roll:.3}°, pitch {worst_pitch:.3}°",
+        case.initial.azimuth_deg,
+        case.initial.gyrocompass_sigma_deg.unwrap()
+    );
+    for cp in &cps {
+        eprintln!(
+            "Kingston control point {}: ΔX {:.1} m, ΔY {:.1} m, Kryt2 {:.1} m",
+            cp.id, cp.dx_m, cp.dy_m, cp.kryt2_m
+        );
+    }
+    assert!(gc_err.abs() < 3.0, "gyrocompass off by {gc_err}°");
+    assert!(worst_change < 0.5, "heading changes off by {worst_change}°");
+    assert!(
+        worst_change_all < 1.0,
+        "heading changes off by {worst_change_all}° in a turn"
+    );
+    assert!(
+        worst_roll < 0.3 && worst_pitch < 0.3,
+        "roll {worst_roll}°, pitch {worst_pitch}°"
+    );
+    assert_eq!(cps.len(), 2);
+    // Town driving of 2.4 km with a heading error of a few degrees: tens of metres at most.
+    assert!(cps.iter().all(|c| c.kryt2_m < 100.0), "{cps:?}");
+}
