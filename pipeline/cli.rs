@@ -152,6 +152,8 @@ pub struct BenchArgs {
 pub enum BenchTarget {
     /// Raw UNZ log → Parquet (and the full ingest with MCAP).
     Ingest,
+    /// Navigation kernel and criteria evaluation (derive done once).
+    Navigate,
 }
 
 #[cfg(test)]

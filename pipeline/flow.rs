@@ -327,6 +327,7 @@ pub fn write_nav(
             v.iter().map(|x| x.to_degrees()).collect::<Vec<_>>(),
         ))
     };
+    let (roll, pitch, heading) = t.euler_columns();
     let (ne_n, ne_e): (Vec<f64>, Vec<f64>) = t
         .lat_rad
         .iter()
@@ -347,9 +348,9 @@ pub fn write_nav(
             Arc::new(Float64Array::from(t.h_m.clone())),
             Arc::new(Float64Array::from(ne_n)),
             Arc::new(Float64Array::from(ne_e)),
-            deg(&t.roll_rad),
-            deg(&t.pitch_rad),
-            deg(&t.heading_rad),
+            deg(&roll),
+            deg(&pitch),
+            deg(&heading),
             Arc::new(Float64Array::from(t.distance_m.clone())),
         ],
     )?;
@@ -431,13 +432,23 @@ pub fn load_nav(path: &Path) -> anyhow::Result<NavTrack> {
             .collect())
     };
     let _ = i64_column(&b, "t_ns")?;
+    let (roll, pitch, heading) = (rad("roll_deg")?, rad("pitch_deg")?, rad("heading_deg")?);
+    let q_b_to_n = (0..roll.len())
+        .map(|k| {
+            let q = unz_stages::attitude::Euler {
+                roll_rad: roll[k],
+                pitch_rad: pitch[k],
+                heading_rad: heading[k],
+            }
+            .to_quat_b_to_n();
+            [q.w, q.i, q.j, q.k]
+        })
+        .collect();
     Ok(NavTrack {
         lat_rad: rad("lat_deg")?,
         lon_rad: rad("lon_deg")?,
         h_m: f64_column(&b, "h_m")?,
-        roll_rad: rad("roll_deg")?,
-        pitch_rad: rad("pitch_deg")?,
-        heading_rad: rad("heading_deg")?,
+        q_b_to_n,
         distance_m: f64_column(&b, "distance_m")?,
     })
 }

@@ -40,6 +40,7 @@ fn reference() -> Reference {
 
 /// Navigation interpolated to the reference's epochs: (roll, pitch, heading) in degrees.
 fn at_reference(track: &NavTrack, t0_s: f64, t_s: &[f64], r: &Reference) -> Vec<(usize, [f64; 3])> {
+    let (roll, pitch, heading) = track.euler_columns();
     let lerp = |a: f64, b: f64, w: f64| a + w * wrap_pi(b - a);
     r.t_s
         .iter()
@@ -51,14 +52,7 @@ fn at_reference(track: &NavTrack, t0_s: f64, t_s: &[f64], r: &Reference) -> Vec<
             }
             let w = (t - t0_s - t_s[k - 1]) / (t_s[k] - t_s[k - 1]);
             let v = |c: &[f64]| lerp(c[k - 1], c[k], w).to_degrees();
-            Some((
-                i,
-                [
-                    v(&track.roll_rad),
-                    v(&track.pitch_rad),
-                    v(&track.heading_rad),
-                ],
-            ))
+            Some((i, [v(&roll), v(&pitch), v(&heading)]))
         })
         .collect()
 }

@@ -13,6 +13,7 @@ use crate::ingest::{IngestOptions, ingest};
 pub fn run(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     match args.what {
         BenchTarget::Ingest => bench_ingest(args),
+        BenchTarget::Navigate => bench_navigate(args),
     }
 }
 
@@ -44,5 +45,66 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
             run.records.len() as f64 / best / 1e6
         );
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Best wall time of `repeat` calls of `f`, s.
+fn best_of(repeat: u32, mut f: impl FnMut()) -> f64 {
+    (0..repeat.max(1))
+        .map(|_| {
+            let t0 = Instant::now();
+            f();
+            t0.elapsed().as_secs_f64()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn bench_navigate(args: &BenchArgs) -> anyhow::Result<ExitCode> {
+    use unz_stages::criteria::{self, KalmanParams, Kryt1Scratch};
+    use unz_stages::filter::LowPass;
+    use unz_stages::strapdown::NavTrack;
+
+    use crate::flow::{Overrides, Params, RunCtx, load_case};
+
+    let tmp = tempfile::tempdir()?;
+    let mut config = SimConfig::new("bench", 1);
+    config.duration_s = args.duration_s;
+    let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path())?;
+    let ctx = RunCtx {
+        manifest: crate::runs::load_run(&run_dir)?,
+        out: tmp.path().join("out"),
+        verbose: false,
+    };
+    let params = Params::default();
+    let case = load_case(&ctx, &params, &Overrides::default())?;
+    let n = case.derived.dt_s.len();
+    let mut track = NavTrack::default();
+    case.navigate(&mut track);
+    let nav_s = best_of(args.repeat * 4, || case.navigate(&mut track));
+    let lp = LowPass::new(&params.derive.filter, case.derived.nominal_dt_s);
+    let mut scratch = Kryt1Scratch::default();
+    let kalman = KalmanParams::default();
+    let crit_s = best_of(args.repeat * 4, || {
+        case.navigate(&mut track);
+        let k1 = criteria::kryt1(
+            &case.derived.epochs,
+            &lp,
+            &track,
+            &kalman,
+            &mut scratch,
+            None,
+        );
+        let k2 = criteria::kryt2(&track, &case.fixes);
+        std::hint::black_box((k1, k2));
+    });
+    println!(
+        "navigate kernel: {n} samples in {:.2} ms = {:.1} M samples/s (one core)",
+        nav_s * 1e3,
+        n as f64 / nav_s / 1e6
+    );
+    println!(
+        "criteria evaluation (navigation + Kryt1 + Kryt2): {:.2} ms per run",
+        crit_s * 1e3
+    );
     Ok(ExitCode::SUCCESS)
 }

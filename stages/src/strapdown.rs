@@ -64,6 +64,8 @@ pub struct NavSettings {
 }
 
 /// The navigated track, one entry per sample (the state at the end of its interval).
+/// Attitude is kept as the quaternion `C_b^n`; Euler angles are derived on demand, so
+/// the kernel spends no transcendental functions on outputs nobody reads.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct NavTrack {
     /// Latitude, rad.
@@ -72,14 +74,28 @@ pub struct NavTrack {
     pub lon_rad: Vec<f64>,
     /// Height, m.
     pub h_m: Vec<f64>,
-    /// Roll Φ_N, rad.
-    pub roll_rad: Vec<f64>,
-    /// Pitch Θ_N, rad.
-    pub pitch_rad: Vec<f64>,
-    /// Heading, rad in [0, 2π).
-    pub heading_rad: Vec<f64>,
+    /// Attitude quaternion `C_b^n` as (w, x, y, z).
+    pub q_b_to_n: Vec<[f64; 4]>,
     /// Travelled distance (scaled odometer), m.
     pub distance_m: Vec<f64>,
+}
+
+/// Roll (atan2(C32, C33)) and pitch (−asin C31) from the third row of `C_b^n`, given up
+/// to a positive scale (a sum of rows works as well as their mean).
+#[inline]
+pub fn roll_pitch_from_row3(c31: f64, c32: f64, c33: f64) -> (f64, f64) {
+    (c32.atan2(c33), (-c31).atan2(c32.hypot(c33)))
+}
+
+/// The third row of `C_b^n` of a quaternion (w, x, y, z).
+#[inline]
+pub fn dcm_row3(q: &[f64; 4]) -> [f64; 3] {
+    let [w, x, y, z] = *q;
+    [
+        2.0 * (x * z - w * y),
+        2.0 * (y * z + w * x),
+        w * w - x * x - y * y + z * z,
+    ]
 }
 
 impl NavTrack {
@@ -89,13 +105,11 @@ impl NavTrack {
             &mut self.lat_rad,
             &mut self.lon_rad,
             &mut self.h_m,
-            &mut self.roll_rad,
-            &mut self.pitch_rad,
-            &mut self.heading_rad,
             &mut self.distance_m,
         ] {
             v.resize(n, 0.0);
         }
+        self.q_b_to_n.resize(n, [1.0, 0.0, 0.0, 0.0]);
     }
 
     /// Number of samples.
@@ -107,6 +121,59 @@ impl NavTrack {
     pub fn is_empty(&self) -> bool {
         self.lat_rad.is_empty()
     }
+
+    /// Euler angles of sample `k`.
+    pub fn euler(&self, k: usize) -> Euler {
+        let [w, x, y, z] = self.q_b_to_n[k];
+        Euler::from_quat_b_to_n(&UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(
+            w, x, y, z,
+        )))
+    }
+
+    /// Euler angles of every sample: (roll, pitch, heading) columns, rad.
+    pub fn euler_columns(&self) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let mut out = (
+            Vec::with_capacity(self.len()),
+            Vec::with_capacity(self.len()),
+            Vec::with_capacity(self.len()),
+        );
+        for k in 0..self.len() {
+            let e = self.euler(k);
+            out.0.push(e.roll_rad);
+            out.1.push(e.pitch_rad);
+            out.2.push(e.heading_rad);
+        }
+        out
+    }
+}
+
+/// Latitude-dependent terms, refreshed when the latitude moves by more than
+/// [`LAT_REFRESH_RAD`] (6 m): their change below that is under 1e-8 relative.
+#[derive(Clone, Copy)]
+struct LatTerms {
+    lat: f64,
+    rm: f64,
+    rn: f64,
+    cos: f64,
+    tan: f64,
+    w_ie_n: Vector3<f64>,
+}
+
+/// Latitude change that refreshes [`LatTerms`], rad.
+const LAT_REFRESH_RAD: f64 = 1e-6;
+
+impl LatTerms {
+    fn at(lat: f64) -> Self {
+        let (rm, rn) = earth::radii_m(lat);
+        Self {
+            lat,
+            rm,
+            rn,
+            cos: lat.cos(),
+            tan: lat.tan(),
+            w_ie_n: earth::earth_rate_ned(lat),
+        }
+    }
 }
 
 /// Runs the navigation over all samples, writing `track` (resized to the input length).
@@ -114,11 +181,29 @@ pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
     let n = inputs.len();
     track.resize(n);
     let drift = Vector3::from(s.drift_rad_s);
-    let odo_dir_b = Vector3::new(s.odo_yaw_rad.cos(), s.odo_yaw_rad.sin(), 0.0);
+    let (odo_sin, odo_cos) = s.odo_yaw_rad.sin_cos();
+    // Direction of the odometer axis (body x turned by the boresight) in NED: the first
+    // two columns of C_b^n, without a full vector rotation.
+    let odo_dir_n = |q: &UnitQuaternion<f64>| {
+        let (w, x, y, z) = (q.w, q.i, q.j, q.k);
+        let c1 = Vector3::new(
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y + w * z),
+            2.0 * (x * z - w * y),
+        );
+        let c2 = Vector3::new(
+            2.0 * (x * y - w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z + w * x),
+        );
+        c1 * odo_cos + c2 * odo_sin
+    };
     let mut q: UnitQuaternion<f64> = s.initial.to_quat_b_to_n();
     let (mut lat, mut lon, mut h) = (s.lat0_rad, s.lon0_rad, s.h0_m);
+    let mut terms = LatTerms::at(lat);
     let mut distance = 0.0;
     let mut prev = Vector3::zeros();
+    let mut dir_start = odo_dir_n(&q);
     for k in 0..n {
         let dt = inputs.dt_s[k];
         let dth = Vector3::from(inputs.dtheta_rad[k]) - drift * dt;
@@ -128,33 +213,56 @@ pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
 
         // Odometer dead reckoning along the mid-interval direction of travel.
         let ds = s.odo_scale * inputs.odo_dist_m[k];
-        let dir_n = (q * odo_dir_b + q_body * odo_dir_b) * 0.5;
-        let dp_n = dir_n * ds;
-        let lat_mid = lat + 0.5 * dp_n.x / (earth::meridian_radius_m(lat) + h);
-        let h_mid = h - 0.5 * dp_n.z;
-        let (rm, rn) = earth::radii_m(lat_mid);
-        lat += dp_n.x / (rm + h_mid);
-        lon += dp_n.y / ((rn + h_mid) * lat_mid.cos());
+        let dir_end = odo_dir_n(&q_body);
+        let dir_mid = (dir_start + dir_end) * 0.5;
+        let dp_n = dir_mid * ds;
+        if (lat - terms.lat).abs() > LAT_REFRESH_RAD {
+            terms = LatTerms::at(lat);
+        }
+        let (rm_h, rn_h) = (terms.rm + h - 0.5 * dp_n.z, terms.rn + h - 0.5 * dp_n.z);
+        lat += dp_n.x / rm_h;
+        lon += dp_n.y / (rn_h * terms.cos);
         h -= dp_n.z;
         distance += ds;
 
-        // Navigation-frame rotation over the interval, at the mid-interval state.
-        let zeta = if dt > 0.0 {
-            let v_n = dp_n / dt;
-            (earth::earth_rate_ned(lat_mid) + earth::transport_rate_ned(lat_mid, h_mid, &v_n)) * dt
-        } else {
-            Vector3::zeros()
-        };
+        // Navigation-frame rotation over the interval: Earth rate plus transport rate.
+        let zeta = Vector3::new(
+            terms.w_ie_n.x * dt + dp_n.y / rn_h,
+            -dp_n.x / rm_h,
+            terms.w_ie_n.z * dt - dp_n.y * terms.tan / rn_h,
+        );
         q = quat_from_rotation_vector(&(-zeta)) * q_body;
         q.renormalize_fast();
+        // The navigation frame turned by ζ (~1e-6 rad): the next start direction is the
+        // end direction seen from the new frame, exact to ζ² ~ 1e-12.
+        dir_start = dir_end - zeta.cross(&dir_end);
 
-        let e = Euler::from_quat_b_to_n(&q);
         track.lat_rad[k] = lat;
         track.lon_rad[k] = lon;
         track.h_m[k] = h;
-        track.roll_rad[k] = e.roll_rad;
-        track.pitch_rad[k] = e.pitch_rad;
-        track.heading_rad[k] = e.heading_rad;
+        track.q_b_to_n[k] = [q.w, q.i, q.j, q.k];
         track.distance_m[k] = distance;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Regression: block means summed the third rows and took asin of the sum.
+    #[test]
+    fn roll_pitch_from_a_sum_of_rows_equals_the_mean_angles() {
+        let e = Euler {
+            roll_rad: 0.03,
+            pitch_rad: -0.02,
+            heading_rad: 2.0,
+        };
+        let q = e.to_quat_b_to_n();
+        let r = dcm_row3(&[q.w, q.i, q.j, q.k]);
+        let (roll, pitch) = roll_pitch_from_row3(10.0 * r[0], 10.0 * r[1], 10.0 * r[2]);
+        assert!(
+            (roll - 0.03).abs() < 1e-14 && (pitch + 0.02).abs() < 1e-14,
+            "{roll} {pitch}"
+        );
     }
 }

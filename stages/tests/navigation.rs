@@ -121,10 +121,11 @@ impl Case {
     fn attitude_errors_deg(&self, t: &NavTrack) -> [f64; 3] {
         let mut worst = [0f64; 3];
         for (k, e) in self.run.truth.euler.iter().enumerate() {
+            let n = t.euler(k);
             let d = [
-                t.roll_rad[k] - e.roll_rad,
-                t.pitch_rad[k] - e.pitch_rad,
-                t.heading_rad[k] - e.heading_rad,
+                n.roll_rad - e.roll_rad,
+                n.pitch_rad - e.pitch_rad,
+                n.heading_rad - e.heading_rad,
             ];
             for i in 0..3 {
                 worst[i] = worst[i].max(wrap_pi(d[i]).abs().to_degrees());

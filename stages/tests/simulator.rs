@@ -51,10 +51,11 @@ fn true_settings(run: &SimRun) -> NavSettings {
 fn max_attitude_error_deg(run: &SimRun, track: &NavTrack) -> [f64; 3] {
     let mut worst = [0f64; 3];
     for (k, e) in run.truth.euler.iter().enumerate() {
+        let t = track.euler(k);
         let d = [
-            wrap_pi(track.roll_rad[k] - e.roll_rad),
-            wrap_pi(track.pitch_rad[k] - e.pitch_rad),
-            wrap_pi(track.heading_rad[k] - e.heading_rad),
+            wrap_pi(t.roll_rad - e.roll_rad),
+            wrap_pi(t.pitch_rad - e.pitch_rad),
+            wrap_pi(t.heading_rad - e.heading_rad),
         ];
         for i in 0..3 {
             worst[i] = worst[i].max(d[i].abs().to_degrees());
