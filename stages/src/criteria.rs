@@ -156,6 +156,35 @@ pub fn kryt1(
     sum
 }
 
+/// The raw pitch and roll residuals ΔΘ, ΔΦ of the valid epochs, interleaved, into `out`
+/// (the joint estimator's attitude residuals; no Kalman smoothing).
+pub fn attitude_residuals(
+    epochs: &Epochs,
+    lp: &LowPass,
+    track: &NavTrack,
+    scratch: &mut Kryt1Scratch,
+    out: &mut Vec<f64>,
+) {
+    block_roll_pitch(
+        &track.q_b_to_n,
+        lp.block,
+        &mut scratch.phi_blocks,
+        &mut scratch.theta_blocks,
+    );
+    lp.filter_blocks(&mut scratch.theta_blocks);
+    lp.filter_blocks(&mut scratch.phi_blocks);
+    out.clear();
+    for e in 0..epochs.block.len() {
+        if epochs.valid[e] {
+            let j = epochs.block[e];
+            out.push(scratch.theta_blocks[j] - epochs.theta_p_rad[e]);
+            out.push(crate::attitude::wrap_pi(
+                scratch.phi_blocks[j] - epochs.phi_p_rad[e],
+            ));
+        }
+    }
+}
+
 /// Block means of roll and pitch. Within a block (0.1 s) the attitude moves by far less
 /// than a degree, so the angles of the mean third row of `C_b^n` equal the mean angles to
 /// second order (< 1e-8 rad), at one asin and one atan2 per block instead of per sample.

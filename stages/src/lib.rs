@@ -17,6 +17,7 @@ pub mod align;
 pub mod attitude;
 pub mod criteria;
 pub mod derive;
+pub mod disupt;
 pub mod earth;
 pub mod filter;
 pub mod initial;

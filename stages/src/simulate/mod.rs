@@ -39,7 +39,7 @@ pub struct SensorErrors {
     pub gyro_drift: bool,
     /// Accelerometer biases of 0.1–0.5 mg per axis.
     pub accel_bias: bool,
-    /// Odometer scale error of ±0.2–0.8 %.
+    /// Odometer scale error of ±0.05–0.3 % (a calibrated vehicle odometer).
     pub odo_scale_error: bool,
 }
 
@@ -224,7 +224,7 @@ pub fn simulate(config: &SimConfig) -> SimRun {
         |lo: f64, hi: f64| rng.random_range(lo..hi) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
     let drift: [f64; 3] = std::array::from_fn(|_| uniform_signed(0.1, 1.0) * DEG_PER_H);
     let bias: [f64; 3] = std::array::from_fn(|_| uniform_signed(0.1, 0.5) * MILLI_G);
-    let odo_err = uniform_signed(0.002, 0.008);
+    let odo_err = uniform_signed(0.0005, 0.003);
     let az_err = uniform_signed(4.0, 8.0);
     let drift = if e.gyro_drift { drift } else { [0.0; 3] };
     let bias = if e.accel_bias { bias } else { [0.0; 3] };

@@ -1,0 +1,134 @@
+//! DISUPT against simulated truth (issue 4's accuracy cases).
+
+mod common;
+
+use common::case_with;
+use unz_stages::attitude::wrap_pi;
+use unz_stages::criteria::KalmanParams;
+use unz_stages::disupt::{DisuptParams, Problem, joint, oepi, owpi};
+use unz_stages::simulate::{DEG_PER_H, SensorErrors};
+
+#[test]
+fn methods_recover_the_settings_of_paper_like_runs() {
+    for seed in [41, 42, 43] {
+        let c = case_with(seed, SensorErrors::ALL, Some(7.0));
+        let base = c.manifest_settings();
+        let problem = Problem::new(
+            c.inputs(),
+            base,
+            &c.derived.epochs,
+            c.lowpass(),
+            KalmanParams::default(),
+            &c.fixes,
+        );
+        let p = DisuptParams::default();
+        let truth = &c.run.settings;
+        let distance = c.run.truth.distance_m[c.fixes.last().unwrap().sample];
+        let before = problem.evaluate(&problem.x0());
+        let az_err = |az: f64| wrap_pi((az - truth.azimuth_deg).to_radians()).to_degrees();
+        eprintln!(
+            "seed {seed}: {distance:.0} m; before: ΔX {:.1} ΔY {:.1}; true drifts {:?} °/h, odo scale error {:.0} ppm",
+            before.last_error().0,
+            before.last_error().1,
+            truth
+                .drift_rad_s
+                .map(|d| (d / DEG_PER_H * 1000.0).round() / 1000.0),
+            (truth.odo_scale_m_per_pulse / truth.nominal_odo_m_per_pulse - 1.0) * 1e6
+        );
+        let mut results = Vec::new();
+        for (name, r) in [
+            ("oepi", oepi(&problem, &p)),
+            ("owpi", owpi(&problem, &p)),
+            ("joint", joint(&problem, &p)),
+        ] {
+            let r = r.unwrap();
+            results.push(r.clone());
+            eprintln!(
+                "  {name}: az err {:.3}°, drifts {:?} °/h, ppm {:.0}, ΔX {:.1} ΔY {:.1} ({:.3} %), {} passes, {:.2} s, sigma {:?}",
+                az_err(r.x.azimuth_deg),
+                r.x.drift_deg_h.map(|d| (d * 1000.0).round() / 1000.0),
+                r.x.odo_ppm,
+                r.dx_m,
+                r.dy_m,
+                100.0 * r.dx_m.hypot(r.dy_m) / distance,
+                r.evaluations,
+                r.wall_s,
+                r.sigma
+            );
+        }
+        let [oe, ow, jo] = [&results[0], &results[1], &results[2]];
+        // OEPI: the paper's method with a stop on a surveyed point (paper: 0.21 %).
+        assert!(
+            az_err(oe.x.azimuth_deg).abs() < 0.5,
+            "seed {seed}: OEPI azimuth"
+        );
+        assert!(
+            oe.dx_m.hypot(oe.dy_m) < 0.002 * distance,
+            "seed {seed}: OEPI stop error"
+        );
+        // OWPI: Kryt1 alone sees the azimuth only through Ω·cos(lat)·sin(δψ).
+        assert!(
+            az_err(ow.x.azimuth_deg).abs() < 3.0,
+            "seed {seed}: OWPI azimuth"
+        );
+        // Joint: the truth inside 3σ of every estimate, and the targets (0.1°, 0.5 °/h,
+        // 150 ppm) wherever the covariance says the run makes the component observable.
+        let sigma = jo.sigma.unwrap();
+        let true_ppm = (truth.odo_scale_m_per_pulse / truth.nominal_odo_m_per_pulse - 1.0) * 1e6;
+        let checks = [
+            (
+                "azimuth °",
+                az_err(jo.x.azimuth_deg),
+                sigma.azimuth_deg,
+                0.1_f64,
+            ),
+            (
+                "driftz °/h",
+                jo.x.drift_deg_h[2] - truth.drift_rad_s[2] / DEG_PER_H,
+                sigma.drift_deg_h[2],
+                0.5,
+            ),
+            (
+                "odometer ppm",
+                jo.x.odo_ppm - true_ppm,
+                sigma.odo_ppm,
+                150.0,
+            ),
+        ];
+        for (what, err, sd, target) in checks {
+            assert!(
+                err.abs() < 3.0 * sd,
+                "seed {seed}: joint {what} error {err} outside 3σ = {}",
+                3.0 * sd
+            );
+            assert!(
+                err.abs() < target.max(3.0 * sd),
+                "seed {seed}: joint {what} error {err}, target {target}, σ {sd}"
+            );
+        }
+        // Out of sample: the joint fit nulls its own control points, so judge it along the
+        // whole route against truth.
+        let track = c.nav(&problem.settings(&jo.x));
+        let worst = (0..track.len())
+            .step_by(100)
+            .map(|k| {
+                let (dn, de) = unz_stages::earth::local_offset_m(
+                    track.lat_rad[k],
+                    track.lon_rad[k],
+                    c.run.truth.lat_rad[k],
+                    c.run.truth.lon_rad[k],
+                    c.run.truth.h_m[k],
+                );
+                dn.hypot(de)
+            })
+            .fold(0.0, f64::max);
+        eprintln!(
+            "  joint: worst error along the route {worst:.1} m ({:.3} % of {distance:.0} m)",
+            100.0 * worst / distance
+        );
+        assert!(
+            worst < 0.002 * distance,
+            "seed {seed}: joint route error {worst} m"
+        );
+    }
+}
