@@ -26,6 +26,8 @@ pub enum Command {
     Navigate(NavArgs),
     /// Compute the criteria Kryt1 and Kryt2 of a navigation.
     Criteria(NavArgs),
+    /// Correct the initial settings with DISUPT (OEPI, OWPI, joint).
+    Disupt(DisuptArgs),
     /// Simulate a small example and push it through every stage.
     Demo(DemoArgs),
     /// Measure throughput (not part of the tests).
@@ -123,6 +125,17 @@ impl NavArgs {
             odo_scale_m_per_pulse: self.odo_scale_m_per_pulse,
         })
     }
+}
+
+/// Arguments of `unz disupt`.
+#[derive(Debug, Args)]
+pub struct DisuptArgs {
+    /// Run folder and output folder.
+    #[command(flatten)]
+    pub stage: StageArgs,
+    /// Which method(s).
+    #[arg(long, value_enum, default_value = "all")]
+    pub method: crate::disupt_stage::Method,
 }
 
 /// Arguments of `unz demo`.

@@ -68,7 +68,7 @@ impl RunCtx {
     }
 
     /// Runs `body` unless `stage` is up to date; then records it.
-    fn run_stage(
+    pub fn run_stage(
         &self,
         stage: &Stage<'_>,
         body: impl FnOnce() -> anyhow::Result<()>,

@@ -7,6 +7,7 @@
 pub mod cli;
 pub mod commands;
 pub mod derive_io;
+pub mod disupt_stage;
 pub mod flow;
 pub mod ingest;
 pub mod runs;

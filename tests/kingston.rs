@@ -152,3 +152,66 @@ fn kingston_gyrocompass_heading_changes_attitude_and_control_points() {
     // Town driving of 2.4 km with a heading error of a few degrees: tens of metres at most.
     assert!(cps.iter().all(|c| c.kryt2_m < 100.0), "{cps:?}");
 }
+
+/// Median |navigated − reference| heading over the settled moving part, degrees.
+fn median_heading_error(track: &NavTrack, t0_s: f64, t_s: &[f64], r: &Reference) -> f64 {
+    let settle = r.speed.iter().position(|&v| v > 1.0).unwrap() + 60;
+    let mut e: Vec<f64> = at_reference(track, t0_s, t_s, r)
+        .into_iter()
+        .filter(|(i, _)| *i >= settle && r.speed[*i] > 1.0)
+        .map(|(i, nav)| {
+            wrap_pi((nav[2] - r.azimuth[i]).to_radians())
+                .to_degrees()
+                .abs()
+        })
+        .collect();
+    e.sort_by(f64::total_cmp);
+    e[e.len() / 2]
+}
+
+#[test]
+fn kingston_disupt_corrects_the_gyrocompass_heading() {
+    use unz::disupt_stage::problem_of;
+    use unz_stages::disupt::{DisuptParams, joint, oepi};
+
+    let out = tempfile::tempdir().unwrap();
+    let ctx = RunCtx {
+        manifest: load_run(&shared_data("kingston2008-seg1")).unwrap(),
+        out: out.path().to_path_buf(),
+        verbose: false,
+    };
+    let params = Params::default();
+    let case = load_case(&ctx, &params, &Overrides::default()).unwrap();
+    let problem = problem_of(&case, &params);
+    let r = reference();
+    let t0_s = case.derived.t0_ns as f64 * 1e-9;
+    let mut track = NavTrack::default();
+    let mut judge = |x: unz_stages::disupt::X| {
+        unz_stages::strapdown::navigate(&case.inputs(), &problem.settings(&x), &mut track);
+        (
+            median_heading_error(&track, t0_s, &case.derived.t_s, &r),
+            criteria::kryt2(&track, &case.fixes),
+        )
+    };
+    let (before, cps_before) = judge(problem.x0());
+    let dp = DisuptParams::default();
+    let o = oepi(&problem, &dp).unwrap();
+    let j = joint(&problem, &dp).unwrap();
+    let (after_oepi, cps_oepi) = judge(o.x);
+    let (after_joint, cps_joint) = judge(j.x);
+    eprintln!(
+        "Kingston median heading error over the moving part: gyrocompass {before:.2}°, OEPI {after_oepi:.2}° (az {:.3}°), joint {after_joint:.2}° (az {:.3}° ± {:.3}°)",
+        o.x.azimuth_deg,
+        j.x.azimuth_deg,
+        j.sigma.unwrap().azimuth_deg
+    );
+    eprintln!(
+        "Kingston control point 2: before {:.1} m, OEPI {:.1} m, joint {:.1} m",
+        cps_before[1].kryt2_m, cps_oepi[1].kryt2_m, cps_joint[1].kryt2_m
+    );
+    assert!(after_oepi < 0.6, "OEPI {after_oepi}°");
+    assert!(after_joint < 0.5, "joint {after_joint}°");
+    assert!(
+        cps_oepi[1].kryt2_m < cps_before[1].kryt2_m && cps_joint[1].kryt2_m < cps_before[1].kryt2_m
+    );
+}

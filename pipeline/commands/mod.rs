@@ -4,6 +4,7 @@ pub mod bench;
 pub mod criteria;
 pub mod demo;
 pub mod derive;
+pub mod disupt;
 pub mod ingest;
 pub mod navigate;
 pub mod simulate;
@@ -20,6 +21,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Derive(a) => derive::run(&a),
         Command::Navigate(a) => navigate::run(&a),
         Command::Criteria(a) => criteria::run(&a),
+        Command::Disupt(a) => disupt::run(&a),
         Command::Demo(a) => demo::run(&a),
         Command::Bench(a) => bench::run(&a),
     }

@@ -89,6 +89,8 @@ pub struct Problem<'a> {
     pub kalman: KalmanParams,
     /// Control points.
     pub fixes: &'a [ControlPointFix],
+    /// Prior on the vertical drift from the static start: (value, 1σ), °/h.
+    pub drift_z_prior_deg_h: Option<(f64, f64)>,
     passes: AtomicUsize,
 }
 
@@ -142,6 +144,7 @@ impl<'a> Problem<'a> {
             lp,
             kalman,
             fixes,
+            drift_z_prior_deg_h: None,
             passes: AtomicUsize::new(0),
         }
     }
@@ -207,6 +210,10 @@ impl<'a> Problem<'a> {
                 r.push(k.dx_m / p.position_sigma_m);
                 r.push(k.dy_m / p.position_sigma_m);
             }
+            // At rest the vertical gyro measures driftz directly (method.md): a prior.
+            if let Some((dz, sd)) = self.drift_z_prior_deg_h {
+                r.push((x.drift_deg_h[2] - dz) / sd);
+            }
             r
         })
     }
@@ -219,6 +226,8 @@ pub enum Criterion {
     Kryt1,
     /// Kryt2 (RMS over the control points).
     Kryt2,
+    /// Both at once, as weighted least squares (joint).
+    LeastSquares,
 }
 
 /// Which component(s) a step moves.
@@ -235,6 +244,8 @@ pub enum Component {
     DriftZ,
     /// (azpocz, driftx, drifty) together.
     AzimuthDriftXy,
+    /// Every estimated setting at once (joint).
+    All,
 }
 
 /// One row of the paper's tables.
@@ -292,13 +303,13 @@ fn set(x: &mut X, c: Component, v: f64) {
         Component::DriftX => x.drift_deg_h[0] = v,
         Component::DriftY => x.drift_deg_h[1] = v,
         Component::DriftZ => x.drift_deg_h[2] = v,
-        Component::AzimuthDriftXy => {}
+        Component::AzimuthDriftXy | Component::All => {}
     }
 }
 
 fn get(x: &X, c: Component) -> f64 {
     match c {
-        Component::Azimuth | Component::AzimuthDriftXy => x.azimuth_deg,
+        Component::Azimuth | Component::AzimuthDriftXy | Component::All => x.azimuth_deg,
         Component::DriftX => x.drift_deg_h[0],
         Component::DriftY => x.drift_deg_h[1],
         Component::DriftZ => x.drift_deg_h[2],
@@ -309,7 +320,7 @@ fn cost(problem: &Problem<'_>, x: &X, criterion: Criterion) -> f64 {
     let e = problem.evaluate(x);
     match criterion {
         Criterion::Kryt1 => e.kryt1,
-        Criterion::Kryt2 => e.kryt2_rms(),
+        Criterion::Kryt2 | Criterion::LeastSquares => e.kryt2_rms(),
     }
 }
 
@@ -485,7 +496,6 @@ struct Joint<'p, 'a> {
     problem: &'p Problem<'a>,
     params: &'p DisuptParams,
     p: DVector<f64>,
-    with_scale: bool,
     cache: RefCell<Option<(DVector<f64>, Vec<f64>)>>,
 }
 
@@ -594,7 +604,6 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
         problem,
         params: p,
         p: DVector::from_vec(start),
-        with_scale,
         cache: RefCell::new(None),
     };
     let (solved, report) = LevenbergMarquardt::new().with_patience(20).minimize(target);
@@ -622,8 +631,8 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
     let evaluations = problem.passes() - passes0;
     let step = Step {
         step: 1,
-        component: Component::AzimuthDriftXy,
-        criterion: Criterion::Kryt1,
+        component: Component::All,
+        criterion: Criterion::LeastSquares,
         input: x0,
         output: x,
         dx_m,

@@ -8,12 +8,18 @@ use unz_stages::criteria::KalmanParams;
 use unz_stages::disupt::{DisuptParams, Problem, joint, oepi, owpi};
 use unz_stages::simulate::{DEG_PER_H, SensorErrors};
 
+fn truth_arw(c: &common::Case) -> f64 {
+    unz_stages::initial::AlignParams::default()
+        .arw_rad_sqrt_s
+        .max(c.run.settings.arw_rad_sqrt_s)
+}
+
 #[test]
 fn methods_recover_the_settings_of_paper_like_runs() {
     for seed in [41, 42, 43] {
         let c = case_with(seed, SensorErrors::ALL, Some(7.0));
         let base = c.manifest_settings();
-        let problem = Problem::new(
+        let mut problem = Problem::new(
             c.inputs(),
             base,
             &c.derived.epochs,
@@ -21,6 +27,12 @@ fn methods_recover_the_settings_of_paper_like_runs() {
             KalmanParams::default(),
             &c.fixes,
         );
+        // The static start's vertical drift as a prior (ARW over the static start).
+        let arw = unz_stages::initial::AlignParams::default().arw_rad_sqrt_s;
+        problem.drift_z_prior_deg_h = Some((
+            base.drift_rad_s[2] / DEG_PER_H,
+            arw / c.run.manifest_static_s.sqrt() / DEG_PER_H,
+        ));
         let p = DisuptParams::default();
         let truth = &c.run.settings;
         let distance = c.run.truth.distance_m[c.fixes.last().unwrap().sample];

@@ -1,0 +1,21 @@
+//! `unz disupt RUN --out OUT [--method oepi|owpi|joint|all]`.
+
+use std::process::ExitCode;
+
+use crate::cli::DisuptArgs;
+use crate::disupt_stage::ensure_disupt;
+use crate::flow::{Params, RunCtx};
+use crate::runs::load_run;
+
+/// Runs the command.
+pub fn run(args: &DisuptArgs) -> anyhow::Result<ExitCode> {
+    let ctx = RunCtx {
+        manifest: load_run(&args.stage.run)?,
+        out: args.stage.out.clone(),
+        verbose: true,
+    };
+    let dir = ensure_disupt(&ctx, &Params::default(), args.method)?;
+    print!("{}", std::fs::read_to_string(dir.join("disupt.md"))?);
+    println!("{}", dir.display());
+    Ok(ExitCode::SUCCESS)
+}
