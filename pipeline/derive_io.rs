@@ -43,11 +43,7 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
         ],
         meta,
     ));
-    let t_ns: Vec<i64> = d
-        .t_s
-        .iter()
-        .map(|t| d.t0_ns + (t * 1e9).round() as i64)
-        .collect();
+    let t_ns: Vec<i64> = d.t_ns();
     let batch = RecordBatch::try_new(
         schema,
         vec![
@@ -83,12 +79,7 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
     let batch = RecordBatch::try_new(
         schema,
         vec![
-            Arc::new(Int64Array::from(
-                e.t_s
-                    .iter()
-                    .map(|t| d.t0_ns + (t * 1e9).round() as i64)
-                    .collect::<Vec<_>>(),
-            )),
+            Arc::new(Int64Array::from(d.epoch_t_ns())),
             Arc::new(UInt64Array::from(
                 e.block.iter().map(|&b| b as u64).collect::<Vec<_>>(),
             )),

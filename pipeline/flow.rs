@@ -337,12 +337,7 @@ pub fn write_nav(
     let batch = RecordBatch::try_new(
         schema,
         vec![
-            Arc::new(Int64Array::from(
-                d.t_s
-                    .iter()
-                    .map(|s| d.t0_ns + (s * 1e9).round() as i64)
-                    .collect::<Vec<_>>(),
-            )),
+            Arc::new(Int64Array::from(d.t_ns())),
             deg(&t.lat_rad),
             deg(&t.lon_rad),
             Arc::new(Float64Array::from(t.h_m.clone())),
@@ -534,12 +529,7 @@ fn write_criteria_parquet(path: &Path, d: &Derived, s: &Kryt1Series) -> anyhow::
     let batch = RecordBatch::try_new(
         schema,
         vec![
-            Arc::new(Int64Array::from(
-                e.t_s
-                    .iter()
-                    .map(|t| d.t0_ns + (t * 1e9).round() as i64)
-                    .collect::<Vec<_>>(),
-            )),
+            Arc::new(Int64Array::from(d.epoch_t_ns())),
             c(&s.theta_n_rad),
             c(&s.phi_n_rad),
             c(&e.theta_p_rad),

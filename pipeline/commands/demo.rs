@@ -19,15 +19,25 @@ struct Line {
     disupt: serde_json::Value,
 }
 
-fn process(dir: &PathBuf, results: &std::path::Path) -> anyhow::Result<Line> {
-    let ctx = RunCtx { manifest: load_run(dir)?, out: results.to_path_buf(), verbose: false };
+fn process(dir: &std::path::Path, results: &std::path::Path) -> anyhow::Result<Line> {
+    let ctx = RunCtx {
+        manifest: load_run(dir)?,
+        out: results.to_path_buf(),
+        verbose: false,
+    };
     let params = Params::default();
     ensure_criteria(&ctx, &params, &Overrides::default())?;
     let disupt_dir = ensure_disupt(&ctx, &params, Method::All)?;
     let name = ctx.manifest.name.clone();
-    let report = serde_json::from_slice(&std::fs::read(results.join(&name).join("ingest/ingest.json"))?)?;
+    let report = serde_json::from_slice(&std::fs::read(
+        results.join(&name).join("ingest/ingest.json"),
+    )?)?;
     let disupt = serde_json::from_slice(&std::fs::read(disupt_dir.join("disupt.json"))?)?;
-    Ok(Line { name, report, disupt })
+    Ok(Line {
+        name,
+        report,
+        disupt,
+    })
 }
 
 /// Runs the command.
@@ -52,20 +62,40 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         .map(|c| {
             let run = unz_stages::simulate::simulate(c);
             // The second run is archived damaged: bad CRCs, garbage, lost records…
-            if c.seed == 2 { crate::simulate_io::write_faulty_copy(&run, &campaign) } else { crate::simulate_io::write_run(&run, &campaign) }
+            if c.seed == 2 {
+                crate::simulate_io::write_faulty_copy(&run, &campaign)
+            } else {
+                crate::simulate_io::write_run(&run, &campaign)
+            }
         })
         .collect::<anyhow::Result<_>>()?;
-    let lines: Vec<(PathBuf, anyhow::Result<Line>)> = dirs.par_iter().map(|d| (d.clone(), process(d, &results))).collect();
+    let lines: Vec<(PathBuf, anyhow::Result<Line>)> = dirs
+        .par_iter()
+        .map(|d| (d.clone(), process(d, &results)))
+        .collect();
 
     println!(
         "{:<16} {:>7} {:>8} {:>9} {:>10} {:>10} {:>10} {:>10} {:>12}",
-        "run", "imu", "rejected", "dist [m]", "before [m]", "OEPI [m]", "OWPI [m]", "joint [m]", "joint az σ°"
+        "run",
+        "imu",
+        "rejected",
+        "dist [m]",
+        "before [m]",
+        "OEPI [m]",
+        "OWPI [m]",
+        "joint [m]",
+        "joint az σ°"
     );
     let mut failed = 0;
     for (dir, line) in lines {
         match line {
             Ok(l) => {
-                let err = |v: &serde_json::Value| v["dx_m"].as_f64().unwrap_or(f64::NAN).hypot(v["dy_m"].as_f64().unwrap_or(f64::NAN));
+                let err = |v: &serde_json::Value| {
+                    v["dx_m"]
+                        .as_f64()
+                        .unwrap_or(f64::NAN)
+                        .hypot(v["dy_m"].as_f64().unwrap_or(f64::NAN))
+                };
                 let m = &l.disupt["methods"];
                 println!(
                     "{:<16} {:>7} {:>8} {:>9.0} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>12.3}",
@@ -77,7 +107,9 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
                     err(&m["oepi"]),
                     err(&m["owpi"]),
                     err(&m["joint"]),
-                    m["joint"]["x"]["sigma"]["azimuth_deg"].as_f64().unwrap_or(f64::NAN),
+                    m["joint"]["x"]["sigma"]["azimuth_deg"]
+                        .as_f64()
+                        .unwrap_or(f64::NAN),
                 );
             }
             Err(e) => {
@@ -87,6 +119,14 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         }
     }
     println!("errors are horizontal distances at the last control point");
-    println!("campaign: {}\nresults:  {} (per run: ingest/ derive/ navigate/ criteria/ disupt/)", campaign.display(), results.display());
-    Ok(if failed == 0 { ExitCode::SUCCESS } else { ExitCode::from(1) })
+    println!(
+        "campaign: {}\nresults:  {} (per run: ingest/ derive/ navigate/ criteria/ disupt/)",
+        campaign.display(),
+        results.display()
+    );
+    Ok(if failed == 0 {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
 }

@@ -2,26 +2,30 @@
 
 use std::process::ExitCode;
 
+use unz_formats::IngestReport;
+
 use crate::cli::StageArgs;
-use crate::ingest::{IngestOptions, ingest};
-use crate::runs::{load_run, stage_dir};
+use crate::flow::{RunCtx, ensure_ingest};
+use crate::runs::load_run;
 
 /// Runs the command.
 pub fn run(args: &StageArgs) -> anyhow::Result<ExitCode> {
-    let manifest = load_run(&args.run)?;
-    let dir = stage_dir(&args.out, &manifest.name, "ingest")?;
-    let outcome = ingest(&manifest, &dir, IngestOptions::default())?;
-    let r = &outcome.report;
+    let ctx = RunCtx {
+        manifest: load_run(&args.run)?,
+        out: args.out.clone(),
+        verbose: true,
+    };
+    let dir = ensure_ingest(&ctx)?;
+    let r: IngestReport = serde_json::from_slice(&std::fs::read(dir.join("ingest.json"))?)?;
     println!(
-        "{}: {} IMU records, {} marks, {} odometer rows; {} rejected, {} bytes skipped, {} samples lost → {}",
-        manifest.name,
+        "{}: {} IMU records, {} marks; {} rejected, {} bytes skipped, {} samples lost → {}",
+        ctx.manifest.name,
         r.imu_accepted,
         r.marks_accepted,
-        outcome.odometer_rows,
         r.rejected_total(),
         r.bytes_skipped,
         r.lost_samples,
-        outcome.dir.display()
+        dir.display()
     );
     Ok(ExitCode::SUCCESS)
 }

@@ -116,14 +116,7 @@ pub fn kryt1(
     scratch: &mut Kryt1Scratch,
     mut series: Option<&mut Kryt1Series>,
 ) -> f64 {
-    block_roll_pitch(
-        &track.q_b_to_n,
-        lp.block,
-        &mut scratch.phi_blocks,
-        &mut scratch.theta_blocks,
-    );
-    lp.filter_blocks(&mut scratch.theta_blocks);
-    lp.filter_blocks(&mut scratch.phi_blocks);
+    filtered_roll_pitch(lp, track, scratch);
     if let Some(s) = series.as_deref_mut() {
         *s = Kryt1Series::default();
     }
@@ -165,14 +158,7 @@ pub fn attitude_residuals(
     scratch: &mut Kryt1Scratch,
     out: &mut Vec<f64>,
 ) {
-    block_roll_pitch(
-        &track.q_b_to_n,
-        lp.block,
-        &mut scratch.phi_blocks,
-        &mut scratch.theta_blocks,
-    );
-    lp.filter_blocks(&mut scratch.theta_blocks);
-    lp.filter_blocks(&mut scratch.phi_blocks);
+    filtered_roll_pitch(lp, track, scratch);
     out.clear();
     for e in 0..epochs.block.len() {
         if epochs.valid[e] {
@@ -183,6 +169,18 @@ pub fn attitude_residuals(
             ));
         }
     }
+}
+
+/// F(Φ_N) and F(Θ_N) per block into the scratch buffers.
+fn filtered_roll_pitch(lp: &LowPass, track: &NavTrack, scratch: &mut Kryt1Scratch) {
+    block_roll_pitch(
+        &track.q_b_to_n,
+        lp.block,
+        &mut scratch.phi_blocks,
+        &mut scratch.theta_blocks,
+    );
+    lp.filter_blocks(&mut scratch.theta_blocks);
+    lp.filter_blocks(&mut scratch.phi_blocks);
 }
 
 /// Block means of roll and pitch. Within a block (0.1 s) the attitude moves by far less

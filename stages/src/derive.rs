@@ -98,6 +98,23 @@ pub struct Derived {
     pub filled_gaps: usize,
 }
 
+impl Derived {
+    /// Absolute time (ns, the log's time base) of a time `t_s` since `t0_ns`.
+    pub fn ns_of(&self, t_s: f64) -> i64 {
+        self.t0_ns + (t_s * 1e9).round() as i64
+    }
+
+    /// Per-sample times, ns.
+    pub fn t_ns(&self) -> Vec<i64> {
+        self.t_s.iter().map(|&t| self.ns_of(t)).collect()
+    }
+
+    /// Epoch times, ns.
+    pub fn epoch_t_ns(&self) -> Vec<i64> {
+        self.epochs.t_s.iter().map(|&t| self.ns_of(t)).collect()
+    }
+}
+
 /// Epochs at ΔTg: one every `epoch_blocks` blocks.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Epochs {

@@ -8,12 +8,6 @@ use unz_stages::criteria::KalmanParams;
 use unz_stages::disupt::{DisuptParams, Problem, joint, oepi, owpi};
 use unz_stages::simulate::{DEG_PER_H, SensorErrors};
 
-fn truth_arw(c: &common::Case) -> f64 {
-    unz_stages::initial::AlignParams::default()
-        .arw_rad_sqrt_s
-        .max(c.run.settings.arw_rad_sqrt_s)
-}
-
 #[test]
 fn methods_recover_the_settings_of_paper_like_runs() {
     for seed in [41, 42, 43] {
