@@ -16,7 +16,7 @@
 //! Splitting the update into a body factor and a navigation-frame factor is exact
 //! (`Ċ = C[ω_ib×] − [ω_in×]C` has the solution `L·C₀·R`), so no commutation error builds up.
 
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 use crate::attitude::{Euler, quat_from_rotation_vector};
 use crate::earth;
@@ -154,7 +154,7 @@ struct LatTerms {
     lat: f64,
     rm: f64,
     rn: f64,
-    cos: f64,
+    inv_cos: f64,
     tan: f64,
     w_ie_n: Vector3<f64>,
 }
@@ -169,7 +169,7 @@ impl LatTerms {
             lat,
             rm,
             rn,
-            cos: lat.cos(),
+            inv_cos: 1.0 / lat.cos(),
             tan: lat.tan(),
             w_ie_n: earth::earth_rate_ned(lat),
         }
@@ -184,7 +184,7 @@ pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
     let (odo_sin, odo_cos) = s.odo_yaw_rad.sin_cos();
     // Direction of the odometer axis (body x turned by the boresight) in NED: the first
     // two columns of C_b^n, without a full vector rotation.
-    let odo_dir_n = |q: &UnitQuaternion<f64>| {
+    let odo_dir_n = |q: &Quaternion<f64>| {
         let (w, x, y, z) = (q.w, q.i, q.j, q.k);
         let c1 = Vector3::new(
             1.0 - 2.0 * (y * y + z * z),
@@ -198,50 +198,66 @@ pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
         );
         c1 * odo_cos + c2 * odo_sin
     };
-    let mut q: UnitQuaternion<f64> = s.initial.to_quat_b_to_n();
+    let mut q: Quaternion<f64> = s.initial.to_quat_b_to_n().into_inner();
     let (mut lat, mut lon, mut h) = (s.lat0_rad, s.lon0_rad, s.h0_m);
     let mut terms = LatTerms::at(lat);
     let mut distance = 0.0;
     let mut prev = Vector3::zeros();
     let mut dir_start = odo_dir_n(&q);
-    for k in 0..n {
-        let dt = inputs.dt_s[k];
-        let dth = Vector3::from(inputs.dtheta_rad[k]) - drift * dt;
+    let samples = inputs
+        .dt_s
+        .iter()
+        .zip(inputs.dtheta_rad)
+        .zip(inputs.odo_dist_m);
+    let outputs = track
+        .lat_rad
+        .iter_mut()
+        .zip(track.lon_rad.iter_mut())
+        .zip(track.h_m.iter_mut())
+        .zip(track.q_b_to_n.iter_mut())
+        .zip(track.distance_m.iter_mut());
+    for (k, (((&dt, dtheta), &odo), ((((lat_out, lon_out), h_out), q_out), dist_out))) in
+        samples.zip(outputs).enumerate()
+    {
+        let dth = Vector3::from(*dtheta) - drift * dt;
         let phi = dth + prev.cross(&dth) / 12.0;
         prev = dth;
-        let q_body = q * quat_from_rotation_vector(&phi);
+        let q_body = q * quat_from_rotation_vector(&phi).into_inner();
 
         // Odometer dead reckoning along the mid-interval direction of travel.
-        let ds = s.odo_scale * inputs.odo_dist_m[k];
+        let ds = s.odo_scale * odo;
         let dir_end = odo_dir_n(&q_body);
-        let dir_mid = (dir_start + dir_end) * 0.5;
-        let dp_n = dir_mid * ds;
+        let dp_n = (dir_start + dir_end) * (0.5 * ds);
         if (lat - terms.lat).abs() > LAT_REFRESH_RAD {
             terms = LatTerms::at(lat);
         }
-        let (rm_h, rn_h) = (terms.rm + h - 0.5 * dp_n.z, terms.rn + h - 0.5 * dp_n.z);
-        lat += dp_n.x / rm_h;
-        lon += dp_n.y / (rn_h * terms.cos);
+        let inv_rm_h = 1.0 / (terms.rm + h - 0.5 * dp_n.z);
+        let inv_rn_h = 1.0 / (terms.rn + h - 0.5 * dp_n.z);
+        lat += dp_n.x * inv_rm_h;
+        lon += dp_n.y * inv_rn_h * terms.inv_cos;
         h -= dp_n.z;
         distance += ds;
 
-        // Navigation-frame rotation over the interval: Earth rate plus transport rate.
+        // Navigation-frame rotation over the interval (Earth rate plus transport rate),
+        // ζ ~ 1e-6 rad: its quaternion (1, −ζ/2) is exact to ζ²/8 ~ 1e-13.
         let zeta = Vector3::new(
-            terms.w_ie_n.x * dt + dp_n.y / rn_h,
-            -dp_n.x / rm_h,
-            terms.w_ie_n.z * dt - dp_n.y * terms.tan / rn_h,
+            terms.w_ie_n.x * dt + dp_n.y * inv_rn_h,
+            -dp_n.x * inv_rm_h,
+            terms.w_ie_n.z * dt - dp_n.y * terms.tan * inv_rn_h,
         );
-        q = quat_from_rotation_vector(&(-zeta)) * q_body;
-        q.renormalize_fast();
-        // The navigation frame turned by ζ (~1e-6 rad): the next start direction is the
-        // end direction seen from the new frame, exact to ζ² ~ 1e-12.
+        q = Quaternion::new(1.0, -0.5 * zeta.x, -0.5 * zeta.y, -0.5 * zeta.z) * q_body;
+        if k % 64 == 63 {
+            q /= q.norm();
+        }
+        // The navigation frame turned by ζ: the next start direction is the end direction
+        // seen from the new frame, exact to ζ² ~ 1e-12.
         dir_start = dir_end - zeta.cross(&dir_end);
 
-        track.lat_rad[k] = lat;
-        track.lon_rad[k] = lon;
-        track.h_m[k] = h;
-        track.q_b_to_n[k] = [q.w, q.i, q.j, q.k];
-        track.distance_m[k] = distance;
+        *lat_out = lat;
+        *lon_out = lon;
+        *h_out = h;
+        *q_out = [q.w, q.i, q.j, q.k];
+        *dist_out = distance;
     }
 }
 
