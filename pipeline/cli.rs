@@ -28,6 +28,8 @@ pub enum Command {
     Criteria(NavArgs),
     /// Correct the initial settings with DISUPT (OEPI, OWPI, joint).
     Disupt(DisuptArgs),
+    /// Sensitivity map: Kryt1 and Kryt2 over a grid of one or two settings.
+    Sweep(SweepArgs),
     /// Simulate a small example and push it through every stage.
     Demo(DemoArgs),
     /// Measure throughput (not part of the tests).
@@ -136,6 +138,18 @@ pub struct DisuptArgs {
     /// Which method(s).
     #[arg(long, value_enum, default_value = "all")]
     pub method: crate::disupt_stage::Method,
+}
+
+/// Arguments of `unz sweep`.
+#[derive(Debug, Args)]
+pub struct SweepArgs {
+    /// Run folder and output folder.
+    #[command(flatten)]
+    pub stage: StageArgs,
+    /// Grid: `name=from:to:count[,name=from:to:count]`, names among azimuth_deg,
+    /// drift_x_rad_s, drift_y_rad_s, drift_z_rad_s, odo_scale (absolute values).
+    #[arg(long, allow_hyphen_values = true)]
+    pub over: String,
 }
 
 /// Arguments of `unz demo`.

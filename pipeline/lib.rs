@@ -13,3 +13,4 @@ pub mod ingest;
 pub mod runs;
 pub mod simulate_io;
 pub mod stage;
+pub mod sweep;

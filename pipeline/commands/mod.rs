@@ -8,6 +8,7 @@ pub mod disupt;
 pub mod ingest;
 pub mod navigate;
 pub mod simulate;
+pub mod sweep;
 
 use std::process::ExitCode;
 
@@ -22,6 +23,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Navigate(a) => navigate::run(&a),
         Command::Criteria(a) => criteria::run(&a),
         Command::Disupt(a) => disupt::run(&a),
+        Command::Sweep(a) => sweep::run(&a),
         Command::Demo(a) => demo::run(&a),
         Command::Bench(a) => bench::run(&a),
     }

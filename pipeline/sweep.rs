@@ -1,0 +1,227 @@
+//! Sensitivity maps (the paper's Figs 2–6): Kryt1 and Kryt2 over a grid of one or two
+//! components of the initial settings, evaluated in parallel → `sweep.parquet`.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use anyhow::{Context, bail};
+use arrow::array::{Float64Array, RecordBatch};
+use arrow::datatypes::{DataType, Schema};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use unz_formats::atomic::write_json_atomic;
+use unz_formats::parquet_io::write_batch;
+use unz_formats::schema::scalar;
+use unz_stages::disupt::X;
+use unz_stages::simulate::DEG_PER_H;
+
+use crate::disupt_stage::problem_of;
+use crate::flow::{Overrides, Params, RunCtx, ensure_derive, load_case};
+use crate::runs::stage_dir;
+use crate::stage::{Stage, params_hash};
+
+/// Largest grid evaluated (points).
+pub const MAX_POINTS: usize = 250_000;
+
+/// One swept component: `name=from:to:count`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Axis {
+    /// `azimuth_deg`, `drift_x_rad_s`, `drift_y_rad_s`, `drift_z_rad_s` or `odo_scale`.
+    pub name: String,
+    /// First value.
+    pub from: f64,
+    /// Last value.
+    pub to: f64,
+    /// Number of values (≥ 1).
+    pub count: usize,
+}
+
+const NAMES: [&str; 5] = [
+    "azimuth_deg",
+    "drift_x_rad_s",
+    "drift_y_rad_s",
+    "drift_z_rad_s",
+    "odo_scale",
+];
+
+impl Axis {
+    fn values(&self) -> Vec<f64> {
+        if self.count == 1 {
+            return vec![self.from];
+        }
+        (0..self.count)
+            .map(|i| self.from + (self.to - self.from) * i as f64 / (self.count - 1) as f64)
+            .collect()
+    }
+
+    fn apply(&self, x: &mut X, v: f64) {
+        match self.name.as_str() {
+            "azimuth_deg" => x.azimuth_deg = v,
+            "drift_x_rad_s" => x.drift_deg_h[0] = v / DEG_PER_H,
+            "drift_y_rad_s" => x.drift_deg_h[1] = v / DEG_PER_H,
+            "drift_z_rad_s" => x.drift_deg_h[2] = v / DEG_PER_H,
+            _ => x.odo_ppm = (v - 1.0) * 1e6,
+        }
+    }
+}
+
+/// Parses `--over`: one or two `name=from:to:count`, comma-separated.
+pub fn parse_over(spec: &str) -> anyhow::Result<Vec<Axis>> {
+    let axes = spec
+        .split(',')
+        .map(|part| {
+            let (name, range) = part
+                .split_once('=')
+                .with_context(|| format!("{part:?}: expected name=from:to:count"))?;
+            if !NAMES.contains(&name) {
+                bail!("{name:?} is not a setting; one of {}", NAMES.join(", "));
+            }
+            let f: Vec<&str> = range.split(':').collect();
+            let [from, to, count] = f[..] else {
+                bail!("{part:?}: expected name=from:to:count")
+            };
+            let (from, to): (f64, f64) = (from.parse()?, to.parse()?);
+            let count: usize = count.parse()?;
+            if !(from.is_finite() && to.is_finite()) || count == 0 {
+                bail!("{part:?}: finite bounds and at least one value");
+            }
+            Ok(Axis {
+                name: name.to_owned(),
+                from,
+                to,
+                count,
+            })
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    if axes.is_empty() || axes.len() > 2 || (axes.len() == 2 && axes[0].name == axes[1].name) {
+        bail!("--over takes one or two different settings");
+    }
+    if axes.iter().map(|a| a.count).product::<usize>() > MAX_POINTS {
+        bail!("the grid has more than {MAX_POINTS} points");
+    }
+    Ok(axes)
+}
+
+/// `sweep.json`.
+#[derive(Debug, Serialize)]
+struct SweepSummary<'a> {
+    axes: &'a [Axis],
+    points: usize,
+    passes: usize,
+    wall_s: f64,
+    min_kryt1: Option<Vec<f64>>,
+    min_kryt2: Option<Vec<f64>>,
+}
+
+/// Runs the sweep (cached like a stage).
+pub fn ensure_sweep(ctx: &RunCtx, params: &Params, axes: &[Axis]) -> anyhow::Result<PathBuf> {
+    let derive_dir = ensure_derive(ctx, params)?;
+    let m = &ctx.manifest;
+    let dir = stage_dir(&ctx.out, &m.name, "sweep")?;
+    let ingest_dir = ctx.out.join(&m.name).join("ingest");
+    let inputs = vec![
+        m.path.clone(),
+        derive_dir.join("derived.parquet"),
+        derive_dir.join("epochs.parquet"),
+        ingest_dir.join("marks.parquet"),
+    ];
+    let stage = Stage {
+        dir: dir.clone(),
+        name: "sweep",
+        version: 1,
+        params_hash: params_hash(&(params, axes))?,
+        inputs,
+        outputs: &["sweep.parquet", "sweep.json"],
+    };
+    ctx.run_stage(&stage, || {
+        let t0 = std::time::Instant::now();
+        let case = load_case(ctx, params, &Overrides::default())?;
+        let problem = problem_of(&case, params);
+        let x0 = problem.x0();
+        let a = axes[0].values();
+        let b = axes.get(1).map_or(vec![f64::NAN], Axis::values);
+        let grid: Vec<(f64, f64)> = a
+            .iter()
+            .flat_map(|&u| b.iter().map(move |&v| (u, v)))
+            .collect();
+        let values: Vec<(f64, f64)> = grid
+            .par_iter()
+            .map(|&(u, v)| {
+                let mut x = x0;
+                axes[0].apply(&mut x, u);
+                if let Some(ax) = axes.get(1) {
+                    ax.apply(&mut x, v);
+                }
+                let e = problem.evaluate(&x);
+                (e.kryt1, e.kryt2_rms())
+            })
+            .collect();
+        let mut fields = vec![scalar(&axes[0].name, DataType::Float64, false, "")];
+        let mut columns: Vec<Arc<dyn arrow::array::Array>> = vec![Arc::new(Float64Array::from(
+            grid.iter().map(|g| g.0).collect::<Vec<_>>(),
+        ))];
+        if let Some(ax) = axes.get(1) {
+            fields.push(scalar(&ax.name, DataType::Float64, false, ""));
+            columns.push(Arc::new(Float64Array::from(
+                grid.iter().map(|g| g.1).collect::<Vec<_>>(),
+            )));
+        }
+        fields.push(scalar("kryt1_rad", DataType::Float64, false, "rad"));
+        fields.push(scalar("kryt2_m", DataType::Float64, false, "m"));
+        columns.push(Arc::new(Float64Array::from(
+            values.iter().map(|v| v.0).collect::<Vec<_>>(),
+        )));
+        columns.push(Arc::new(Float64Array::from(
+            values.iter().map(|v| v.1).collect::<Vec<_>>(),
+        )));
+        let batch = RecordBatch::try_new(Arc::new(Schema::new(fields)), columns)?;
+        write_batch(&dir.join("sweep.parquet"), &batch)?;
+        let argmin = |f: fn(&(f64, f64)) -> f64| {
+            values
+                .iter()
+                .enumerate()
+                .filter(|(_, v)| f(v).is_finite())
+                .min_by(|x, y| f(x.1).total_cmp(&f(y.1)))
+                .map(|(i, _)| {
+                    [grid[i].0, grid[i].1]
+                        .into_iter()
+                        .take(axes.len())
+                        .collect()
+                })
+        };
+        write_json_atomic(
+            &dir.join("sweep.json"),
+            &SweepSummary {
+                axes,
+                points: grid.len(),
+                passes: problem.passes(),
+                wall_s: t0.elapsed().as_secs_f64(),
+                min_kryt1: argmin(|v| v.0),
+                min_kryt2: argmin(|v| v.1),
+            },
+        )?;
+        Ok(())
+    })?;
+    Ok(dir)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn over_specs_parse_and_bad_ones_are_refused() {
+        let a = parse_over("azimuth_deg=100:120:41,drift_z_rad_s=-5e-6:5e-6:41").unwrap();
+        assert_eq!(a.len(), 2);
+        assert_eq!(a[1].values()[20], 0.0);
+        for bad in [
+            "azimuth=1:2:3",
+            "azimuth_deg=1:2",
+            "azimuth_deg=1:2:0",
+            "azimuth_deg=1:2:3,azimuth_deg=1:2:3",
+            "azimuth_deg=1:2:1000,drift_z_rad_s=0:1:1000",
+        ] {
+            assert!(parse_over(bad).is_err(), "{bad}");
+        }
+    }
+}

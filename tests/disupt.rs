@@ -1,0 +1,95 @@
+//! DISUPT and sweeps end to end through the binary on a short simulated run.
+
+use serde_json::Value;
+
+use crate::util::unz_ok;
+
+#[test]
+fn disupt_and_sweep_through_the_binary() {
+    let tmp = tempfile::tempdir().unwrap();
+    let campaign = tmp.path().join("c");
+    let out = tmp.path().join("o");
+    unz_ok(&[
+        "simulate",
+        "--out",
+        campaign.to_str().unwrap(),
+        "--seed",
+        "77",
+        "--duration-s",
+        "900",
+        "--azimuth-error-deg",
+        "6",
+    ]);
+    let run = campaign.join("sim-0077");
+    let truth: Value =
+        serde_json::from_slice(&std::fs::read(run.join("truth.json")).unwrap()).unwrap();
+    let true_az = truth["azimuth_deg"].as_f64().unwrap();
+    unz_ok(&[
+        "disupt",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let d: Value =
+        serde_json::from_slice(&std::fs::read(out.join("sim-0077/disupt/disupt.json")).unwrap())
+            .unwrap();
+    for key in ["distance_m", "before", "methods"] {
+        assert!(d.get(key).is_some(), "disupt.json lacks {key}");
+    }
+    let before = d["before"]["dx_m"]
+        .as_f64()
+        .unwrap()
+        .hypot(d["before"]["dy_m"].as_f64().unwrap());
+    for m in ["oepi", "owpi", "joint"] {
+        let r = &d["methods"][m];
+        for key in ["x", "dx_m", "dy_m", "steps", "evaluations", "wall_s"] {
+            assert!(r.get(key).is_some(), "{m} lacks {key}");
+        }
+        assert_eq!(r["x"]["drift_rad_s"].as_array().unwrap().len(), 3);
+    }
+    assert!(
+        d["methods"]["joint"]["x"]["sigma"]["azimuth_deg"]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
+    let oepi = &d["methods"]["oepi"];
+    let err = oepi["x"]["azimuth_deg"].as_f64().unwrap() - true_az;
+    let after = oepi["dx_m"]
+        .as_f64()
+        .unwrap()
+        .hypot(oepi["dy_m"].as_f64().unwrap());
+    assert!(err.abs() < 0.5, "OEPI azimuth off by {err}°");
+    assert!(
+        after < 0.2 * before,
+        "OEPI: {after} m after, {before} m before"
+    );
+    assert_eq!(oepi["steps"].as_array().unwrap().len(), 4);
+    let md = std::fs::read_to_string(out.join("sim-0077/disupt/disupt.md")).unwrap();
+    assert!(md.contains("## OEPI") && md.contains("## OWPI") && md.contains("ΔX"));
+    assert!(out.join("sim-0077/disupt/corrected_nav.parquet").is_file());
+
+    // Kryt2 over the azimuth: the minimum lies at the true azimuth (grid step 0.5°).
+    let az0 = true_az.round();
+    let over = format!("azimuth_deg={}:{}:21", az0 - 5.0, az0 + 5.0);
+    unz_ok(&[
+        "sweep",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--over",
+        &over,
+    ]);
+    let (_, batches) =
+        unz_formats::parquet_io::read_batches(&out.join("sim-0077/sweep/sweep.parquet")).unwrap();
+    let b = &batches[0];
+    assert_eq!(b.num_rows(), 21);
+    let az = unz_formats::tables::f64_column(b, "azimuth_deg").unwrap();
+    let k2 = unz_formats::tables::f64_column(b, "kryt2_m").unwrap();
+    let best = (0..21).min_by(|&i, &j| k2[i].total_cmp(&k2[j])).unwrap();
+    assert!(
+        (az[best] - true_az).abs() <= 0.5,
+        "Kryt2 smallest at {}°, truth {true_az}°",
+        az[best]
+    );
+}
