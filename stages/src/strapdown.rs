@@ -191,6 +191,9 @@ pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
             2.0 * (x * y + w * z),
             2.0 * (x * z - w * y),
         );
+        if odo_sin == 0.0 {
+            return c1;
+        }
         let c2 = Vector3::new(
             2.0 * (x * y - w * z),
             1.0 - 2.0 * (x * x + z * z),
