@@ -30,6 +30,8 @@ pub enum Command {
     Disupt(DisuptArgs),
     /// Sensitivity map: Kryt1 and Kryt2 over a grid of one or two settings.
     Sweep(SweepArgs),
+    /// Run the stages over a run or a whole campaign folder, in parallel, with a summary.
+    Run(RunArgs),
     /// Simulate a small example and push it through every stage.
     Demo(DemoArgs),
     /// Measure throughput (not part of the tests).
@@ -150,6 +152,28 @@ pub struct SweepArgs {
     /// drift_x_rad_s, drift_y_rad_s, drift_z_rad_s, odo_scale (absolute values).
     #[arg(long, allow_hyphen_values = true)]
     pub over: String,
+}
+
+/// Arguments of `unz run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// A run folder, a run.toml, or a campaign folder (every run.toml below it).
+    pub path: PathBuf,
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Force this stage and every later one (ingest, derive, navigate, criteria, disupt).
+    #[arg(long)]
+    pub from: Option<String>,
+    /// Last stage to run (default: disupt).
+    #[arg(long)]
+    pub until: Option<String>,
+    /// Runs processed at once (default: all cores).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// Process a deterministic 1/N of the runs: I/N with 0 <= I < N.
+    #[arg(long)]
+    pub shard: Option<String>,
 }
 
 /// Arguments of `unz demo`.

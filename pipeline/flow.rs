@@ -58,6 +58,26 @@ pub struct RunCtx {
     pub out: PathBuf,
     /// Say on stderr which stages ran and which were skipped.
     pub verbose: bool,
+    /// What each stage did: (stage, computed (not cached), wall s), in order.
+    pub log: std::sync::Mutex<Vec<(String, bool, f64)>>,
+}
+
+impl RunCtx {
+    /// A context for the run described by `manifest`, writing under `out`.
+    pub fn new(manifest: RunManifest, out: PathBuf, verbose: bool) -> Self {
+        Self {
+            manifest,
+            out,
+            verbose,
+            log: std::sync::Mutex::new(Vec::new()),
+        }
+    }
+
+    fn record(&self, stage: &str, computed: bool, wall_s: f64) {
+        if let Ok(mut log) = self.log.lock() {
+            log.push((stage.to_owned(), computed, wall_s));
+        }
+    }
 }
 
 impl RunCtx {
@@ -73,18 +93,18 @@ impl RunCtx {
         stage: &Stage<'_>,
         body: impl FnOnce() -> anyhow::Result<()>,
     ) -> anyhow::Result<()> {
+        let t0 = std::time::Instant::now();
         if stage.is_up_to_date()? {
             self.say(stage.name, "up to date, skipped");
+            self.record(stage.name, false, t0.elapsed().as_secs_f64());
             return Ok(());
         }
         stage.invalidate()?;
-        let t0 = std::time::Instant::now();
         body().with_context(|| format!("{}: stage {} failed", self.manifest.name, stage.name))?;
         stage.commit()?;
-        self.say(
-            stage.name,
-            &format!("done in {:.2} s", t0.elapsed().as_secs_f64()),
-        );
+        let wall_s = t0.elapsed().as_secs_f64();
+        self.say(stage.name, &format!("done in {wall_s:.2} s"));
+        self.record(stage.name, true, wall_s);
         Ok(())
     }
 }

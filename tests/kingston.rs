@@ -60,11 +60,11 @@ fn at_reference(track: &NavTrack, t0_s: f64, t_s: &[f64], r: &Reference) -> Vec<
 #[test]
 fn kingston_gyrocompass_heading_changes_attitude_and_control_points() {
     let out = tempfile::tempdir().unwrap();
-    let ctx = RunCtx {
-        manifest: load_run(&shared_data("kingston2008-seg1")).unwrap(),
-        out: out.path().to_path_buf(),
-        verbose: false,
-    };
+    let ctx = RunCtx::new(
+        load_run(&shared_data("kingston2008-seg1")).unwrap(),
+        out.path().to_path_buf(),
+        false,
+    );
     let case = load_case(&ctx, &Params::default(), &Overrides::default()).unwrap();
     let mut track = NavTrack::default();
     case.navigate(&mut track);
@@ -175,11 +175,11 @@ fn kingston_disupt_corrects_the_gyrocompass_heading() {
     use unz_stages::disupt::{DisuptParams, joint, oepi};
 
     let out = tempfile::tempdir().unwrap();
-    let ctx = RunCtx {
-        manifest: load_run(&shared_data("kingston2008-seg1")).unwrap(),
-        out: out.path().to_path_buf(),
-        verbose: false,
-    };
+    let ctx = RunCtx::new(
+        load_run(&shared_data("kingston2008-seg1")).unwrap(),
+        out.path().to_path_buf(),
+        false,
+    );
     let params = Params::default();
     let case = load_case(&ctx, &params, &Overrides::default()).unwrap();
     let problem = problem_of(&case, &params);

@@ -1,5 +1,6 @@
 //! End-to-end tests of the `unz` binary. One module per area.
 
+mod campaign;
 mod cli;
 mod disupt;
 mod ingest;

@@ -41,15 +41,15 @@ pub enum FormatError {
     Invalid(String),
 }
 
-/// A [`FormatError`] with the file it concerns.
+/// A [`FormatError`] with the file it concerns. Its message says both, so the error is
+/// not chained again (a chain would repeat the cause).
 #[derive(Debug, thiserror::Error)]
-#[error("{source} (in {path})")]
+#[error("{error} (in {path})")]
 pub struct FileError {
     /// The file.
     pub path: PathBuf,
     /// What went wrong.
-    #[source]
-    pub source: FormatError,
+    pub error: FormatError,
 }
 
 impl FormatError {
@@ -57,7 +57,7 @@ impl FormatError {
     pub fn in_file(self, path: impl Into<PathBuf>) -> FileError {
         FileError {
             path: path.into(),
-            source: self,
+            error: self,
         }
     }
 }

@@ -70,11 +70,11 @@ fn bench_navigate(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     let mut config = SimConfig::new("bench", 1);
     config.duration_s = args.duration_s;
     let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path())?;
-    let ctx = RunCtx {
-        manifest: crate::runs::load_run(&run_dir)?,
-        out: tmp.path().join("out"),
-        verbose: false,
-    };
+    let ctx = RunCtx::new(
+        crate::runs::load_run(&run_dir)?,
+        tmp.path().join("out"),
+        false,
+    );
     let params = Params::default();
     let case = load_case(&ctx, &params, &Overrides::default())?;
     let n = case.derived.dt_s.len();

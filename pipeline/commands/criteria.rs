@@ -8,11 +8,7 @@ use crate::runs::load_run;
 
 /// Runs the command.
 pub fn run(args: &NavArgs) -> anyhow::Result<ExitCode> {
-    let ctx = RunCtx {
-        manifest: load_run(&args.stage.run)?,
-        out: args.stage.out.clone(),
-        verbose: true,
-    };
+    let ctx = RunCtx::new(load_run(&args.stage.run)?, args.stage.out.clone(), true);
     let (dir, s) = ensure_criteria(&ctx, &Params::default(), &args.overrides()?)?;
     println!(
         "{}: Kryt1 {:.4} rad over {} of {} epochs",

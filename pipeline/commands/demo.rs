@@ -20,11 +20,7 @@ struct Line {
 }
 
 fn process(dir: &std::path::Path, results: &std::path::Path) -> anyhow::Result<Line> {
-    let ctx = RunCtx {
-        manifest: load_run(dir)?,
-        out: results.to_path_buf(),
-        verbose: false,
-    };
+    let ctx = RunCtx::new(load_run(dir)?, results.to_path_buf(), false);
     let params = Params::default();
     ensure_criteria(&ctx, &params, &Overrides::default())?;
     let disupt_dir = ensure_disupt(&ctx, &params, Method::All)?;

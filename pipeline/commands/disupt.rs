@@ -9,11 +9,7 @@ use crate::runs::load_run;
 
 /// Runs the command.
 pub fn run(args: &DisuptArgs) -> anyhow::Result<ExitCode> {
-    let ctx = RunCtx {
-        manifest: load_run(&args.stage.run)?,
-        out: args.stage.out.clone(),
-        verbose: true,
-    };
+    let ctx = RunCtx::new(load_run(&args.stage.run)?, args.stage.out.clone(), true);
     let dir = ensure_disupt(&ctx, &Params::default(), args.method)?;
     print!("{}", std::fs::read_to_string(dir.join("disupt.md"))?);
     println!("{}", dir.display());

@@ -10,11 +10,7 @@ use crate::runs::load_run;
 
 /// Runs the command.
 pub fn run(args: &StageArgs) -> anyhow::Result<ExitCode> {
-    let ctx = RunCtx {
-        manifest: load_run(&args.run)?,
-        out: args.out.clone(),
-        verbose: true,
-    };
+    let ctx = RunCtx::new(load_run(&args.run)?, args.out.clone(), true);
     let dir = ensure_ingest(&ctx)?;
     let r: IngestReport = serde_json::from_slice(&std::fs::read(dir.join("ingest.json"))?)?;
     println!(

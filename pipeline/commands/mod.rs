@@ -7,6 +7,7 @@ pub mod derive;
 pub mod disupt;
 pub mod ingest;
 pub mod navigate;
+pub mod run;
 pub mod simulate;
 pub mod sweep;
 
@@ -24,6 +25,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Criteria(a) => criteria::run(&a),
         Command::Disupt(a) => disupt::run(&a),
         Command::Sweep(a) => sweep::run(&a),
+        Command::Run(a) => run::run(&a),
         Command::Demo(a) => demo::run(&a),
         Command::Bench(a) => bench::run(&a),
     }

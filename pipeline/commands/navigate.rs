@@ -8,11 +8,7 @@ use crate::runs::load_run;
 
 /// Runs the command.
 pub fn run(args: &NavArgs) -> anyhow::Result<ExitCode> {
-    let ctx = RunCtx {
-        manifest: load_run(&args.stage.run)?,
-        out: args.stage.out.clone(),
-        verbose: true,
-    };
+    let ctx = RunCtx::new(load_run(&args.stage.run)?, args.stage.out.clone(), true);
     let dir = ensure_navigate(&ctx, &Params::default(), &args.overrides()?)?;
     let summary: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("navigate.json"))?)?;

@@ -10,11 +10,7 @@ use crate::sweep::{ensure_sweep, parse_over};
 /// Runs the command.
 pub fn run(args: &SweepArgs) -> anyhow::Result<ExitCode> {
     let axes = parse_over(&args.over)?;
-    let ctx = RunCtx {
-        manifest: load_run(&args.stage.run)?,
-        out: args.stage.out.clone(),
-        verbose: true,
-    };
+    let ctx = RunCtx::new(load_run(&args.stage.run)?, args.stage.out.clone(), true);
     let dir = ensure_sweep(&ctx, &Params::default(), &axes)?;
     print!("{}", std::fs::read_to_string(dir.join("sweep.json"))?);
     println!("{}", dir.join("sweep.parquet").display());

@@ -1,0 +1,365 @@
+//! Whole campaigns: every run under a folder, processed in parallel, each run's stages in
+//! order; a failing run is recorded with its error and never stops the others; one
+//! summary row per run in `OUT/campaign.parquet` and `OUT/campaign.md`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use arrow::array::{BooleanArray, Float64Array, RecordBatch, StringArray, UInt64Array};
+use arrow::datatypes::{DataType, Field, Schema};
+use rayon::prelude::*;
+use serde_json::Value;
+use unz_formats::atomic::write_atomic;
+use unz_formats::manifest::RunManifest;
+use unz_formats::parquet_io::write_batch;
+
+use crate::disupt_stage::{Method, ensure_disupt};
+use crate::flow::{
+    Overrides, Params, RunCtx, ensure_criteria, ensure_derive, ensure_ingest, ensure_navigate,
+};
+
+/// The stages of `unz run`, in order.
+pub const STAGES: [&str; 5] = ["ingest", "derive", "navigate", "criteria", "disupt"];
+/// Deepest folder searched for run manifests.
+const MAX_DEPTH: usize = 8;
+
+/// Every `run.toml` under `path` (or `path` itself), sorted; `out` is never searched and
+/// symlinks are not followed.
+pub fn find_runs(path: &Path, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    if path.is_file() {
+        return Ok(vec![path.to_path_buf()]);
+    }
+    if path.join("run.toml").is_file() {
+        return Ok(vec![path.join("run.toml")]);
+    }
+    let out_real = out.canonicalize().ok();
+    let mut found = Vec::new();
+    let mut stack = vec![(path.to_path_buf(), 0usize)];
+    while let Some((dir, depth)) = stack.pop() {
+        let entries =
+            std::fs::read_dir(&dir).with_context(|| format!("cannot list {}", dir.display()))?;
+        for e in entries {
+            let e = e?;
+            let p = e.path();
+            let meta = std::fs::symlink_metadata(&p)?;
+            let hidden = e.file_name().to_string_lossy().starts_with('.');
+            if meta.is_dir()
+                && !hidden
+                && depth < MAX_DEPTH
+                && out_real.as_deref() != p.canonicalize().ok().as_deref()
+            {
+                stack.push((p, depth + 1));
+            } else if meta.is_file() && e.file_name() == "run.toml" {
+                found.push(p);
+            }
+        }
+    }
+    found.sort();
+    Ok(found)
+}
+
+/// Whether the run named `name` belongs to shard `i` of `n` (stable under adding runs).
+pub fn in_shard(name: &str, i: u64, n: u64) -> bool {
+    let h = blake3::hash(name.as_bytes());
+    let v = u64::from_le_bytes(h.as_bytes()[..8].try_into().unwrap_or_default());
+    v % n == i
+}
+
+/// What `unz run` asks for.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// Output root.
+    pub out: PathBuf,
+    /// Force this stage and its descendants.
+    pub from: Option<usize>,
+    /// Last stage.
+    pub until: usize,
+    /// Parameters.
+    pub params: Params,
+    /// Shard `(i, n)`.
+    pub shard: Option<(u64, u64)>,
+    /// Say what each stage did.
+    pub verbose: bool,
+}
+
+/// One run's outcome.
+#[derive(Debug, Clone)]
+pub struct RunOutcome {
+    /// Run name (the folder name when the manifest is unreadable).
+    pub name: String,
+    /// Manifest path.
+    pub manifest: PathBuf,
+    /// The error, if it failed.
+    pub error: Option<String>,
+    /// Stage log: (stage, computed, wall s).
+    pub stages: Vec<(String, bool, f64)>,
+    /// Wall time, s.
+    pub wall_s: f64,
+}
+
+fn process(manifest: &RunManifest, plan: &Plan) -> (anyhow::Result<()>, Vec<(String, bool, f64)>) {
+    let ctx = RunCtx::new(manifest.clone(), plan.out.clone(), plan.verbose);
+    let result = (|| -> anyhow::Result<()> {
+        if let Some(from) = plan.from {
+            for stage in &STAGES[from..] {
+                let record = plan
+                    .out
+                    .join(&manifest.name)
+                    .join(stage)
+                    .join(crate::stage::RECORD);
+                match std::fs::remove_file(&record) {
+                    Ok(()) => {}
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                    Err(e) => {
+                        return Err(e)
+                            .with_context(|| format!("cannot remove {}", record.display()));
+                    }
+                }
+            }
+        }
+        let p = &plan.params;
+        let none = Overrides::default();
+        for stage in &STAGES[..=plan.until] {
+            match *stage {
+                "ingest" => drop(ensure_ingest(&ctx)?),
+                "derive" => drop(ensure_derive(&ctx, p)?),
+                "navigate" => drop(ensure_navigate(&ctx, p, &none)?),
+                "criteria" => drop(ensure_criteria(&ctx, p, &none)?),
+                _ => drop(ensure_disupt(&ctx, p, Method::All)?),
+            }
+        }
+        Ok(())
+    })();
+    let log = ctx.log.lock().map(|l| l.clone()).unwrap_or_default();
+    (result, log)
+}
+
+/// Runs a campaign; returns one outcome per run, in manifest order.
+pub fn run_campaign(manifests: &[PathBuf], plan: &Plan) -> Vec<RunOutcome> {
+    // Load every manifest first: names must be unique within the campaign.
+    let loaded: Vec<(PathBuf, anyhow::Result<RunManifest>)> = manifests
+        .iter()
+        .map(|p| (p.clone(), RunManifest::load(p).map_err(anyhow::Error::from)))
+        .collect();
+    let mut seen = std::collections::HashMap::new();
+    let checked: Vec<(PathBuf, String, anyhow::Result<RunManifest>)> = loaded
+        .into_iter()
+        .map(|(path, m)| {
+            let fallback = path.parent().and_then(|d| d.file_name()).map_or_else(
+                || path.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            );
+            match m {
+                Ok(m) => match seen.insert(m.name.clone(), path.clone()) {
+                    Some(first) => {
+                        let e = anyhow::anyhow!(
+                            "run name {:?} is already used by {}",
+                            m.name,
+                            first.display()
+                        );
+                        (path, fallback, Err(e))
+                    }
+                    None => (path, m.name.clone(), Ok(m)),
+                },
+                Err(e) => (path, fallback, Err(e)),
+            }
+        })
+        .filter(|(_, name, _)| plan.shard.is_none_or(|(i, n)| in_shard(name, i, n)))
+        .collect();
+    checked
+        .into_par_iter()
+        .map(|(path, name, m)| {
+            let t0 = Instant::now();
+            let (result, stages) = match m {
+                Ok(m) => process(&m, plan),
+                Err(e) => (Err(e), Vec::new()),
+            };
+            let error = result.err().map(|e| format!("{e:#}"));
+            if plan.verbose {
+                match &error {
+                    None => eprintln!("{name}: done in {:.2} s", t0.elapsed().as_secs_f64()),
+                    Some(e) => eprintln!("{name}: FAILED: {e}"),
+                }
+            }
+            RunOutcome {
+                name,
+                manifest: path,
+                error,
+                stages,
+                wall_s: t0.elapsed().as_secs_f64(),
+            }
+        })
+        .collect()
+}
+
+fn read_json(path: &Path) -> Value {
+    std::fs::read(path)
+        .ok()
+        .and_then(|b| serde_json::from_slice(&b).ok())
+        .unwrap_or(Value::Null)
+}
+
+/// Writes `campaign.parquet` and `campaign.md` into `out`.
+pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> {
+    let f = |v: &Value| v.as_f64();
+    let mut cols: Vec<(&str, Vec<Option<f64>>)> = [
+        "distance_m",
+        "imu_accepted",
+        "rejected",
+        "lost_samples",
+        "before_dx_m",
+        "before_dy_m",
+        "oepi_dx_m",
+        "oepi_dy_m",
+        "owpi_dx_m",
+        "owpi_dy_m",
+        "joint_dx_m",
+        "joint_dy_m",
+        "joint_azimuth_deg",
+        "joint_azimuth_sigma_deg",
+        "joint_drift_z_rad_s",
+        "joint_drift_z_sigma_rad_s",
+        "joint_odo_scale",
+        "joint_odo_scale_sigma",
+        "wall_s",
+    ]
+    .into_iter()
+    .map(|n| (n, Vec::new()))
+    .collect();
+    let mut md = String::from(
+        "| run | status | distance [m] | rejected | before [m] | OEPI [m] | OWPI [m] | joint [m] | joint az σ [°] | wall [s] | computed | error |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for o in outcomes {
+        let dir = out.join(&o.name);
+        let ing = read_json(&dir.join("ingest/ingest.json"));
+        let d = read_json(&dir.join("disupt/disupt.json"));
+        let m = &d["methods"];
+        let rejected = ing["records_read"]
+            .as_f64()
+            .zip(ing["records_accepted"].as_f64())
+            .map(|(a, b)| a - b);
+        let values = [
+            f(&d["distance_m"]),
+            f(&ing["imu_accepted"]),
+            rejected,
+            f(&ing["lost_samples"]),
+            f(&d["before"]["dx_m"]),
+            f(&d["before"]["dy_m"]),
+            f(&m["oepi"]["dx_m"]),
+            f(&m["oepi"]["dy_m"]),
+            f(&m["owpi"]["dx_m"]),
+            f(&m["owpi"]["dy_m"]),
+            f(&m["joint"]["dx_m"]),
+            f(&m["joint"]["dy_m"]),
+            f(&m["joint"]["x"]["azimuth_deg"]),
+            f(&m["joint"]["x"]["sigma"]["azimuth_deg"]),
+            f(&m["joint"]["x"]["drift_rad_s"][2]),
+            f(&m["joint"]["x"]["sigma"]["drift_rad_s"][2]),
+            f(&m["joint"]["x"]["odo_scale"]),
+            f(&m["joint"]["x"]["sigma"]["odo_scale"]),
+            Some(o.wall_s),
+        ];
+        for (c, v) in cols.iter_mut().zip(values) {
+            c.1.push(v);
+        }
+        let h = |a: Option<f64>, b: Option<f64>| {
+            a.zip(b)
+                .map_or("–".into(), |(x, y)| format!("{:.1}", x.hypot(y)))
+        };
+        let computed: Vec<&str> = o
+            .stages
+            .iter()
+            .filter(|s| s.1)
+            .map(|s| s.0.as_str())
+            .collect();
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2} | {} | {} |",
+            o.name,
+            if o.error.is_none() { "ok" } else { "failed" },
+            values[0].map_or("–".into(), |v| format!("{v:.0}")),
+            values[2].map_or("–".into(), |v| format!("{v:.0}")),
+            h(values[4], values[5]),
+            h(values[6], values[7]),
+            h(values[8], values[9]),
+            h(values[10], values[11]),
+            values[13].map_or("–".into(), |v| format!("{v:.3}")),
+            o.wall_s,
+            match (computed.is_empty(), o.stages.is_empty()) {
+                (_, true) => "–".to_owned(),
+                (true, false) => "cached".to_owned(),
+                (false, false) => computed.join(", "),
+            },
+            o.error
+                .as_deref()
+                .unwrap_or("")
+                .replace('|', "/")
+                .replace('\n', " "),
+        );
+    }
+    let mut fields = vec![
+        Field::new("run", DataType::Utf8, false),
+        Field::new("manifest", DataType::Utf8, false),
+        Field::new("ok", DataType::Boolean, false),
+        Field::new("error", DataType::Utf8, true),
+        Field::new("stages_computed", DataType::UInt64, false),
+    ];
+    let mut arrays: Vec<Arc<dyn arrow::array::Array>> = vec![
+        Arc::new(StringArray::from(
+            outcomes.iter().map(|o| o.name.clone()).collect::<Vec<_>>(),
+        )),
+        Arc::new(StringArray::from(
+            outcomes
+                .iter()
+                .map(|o| o.manifest.display().to_string())
+                .collect::<Vec<_>>(),
+        )),
+        Arc::new(BooleanArray::from(
+            outcomes
+                .iter()
+                .map(|o| o.error.is_none())
+                .collect::<Vec<_>>(),
+        )),
+        Arc::new(StringArray::from(
+            outcomes.iter().map(|o| o.error.clone()).collect::<Vec<_>>(),
+        )),
+        Arc::new(UInt64Array::from(
+            outcomes
+                .iter()
+                .map(|o| o.stages.iter().filter(|s| s.1).count() as u64)
+                .collect::<Vec<_>>(),
+        )),
+    ];
+    for stage in STAGES {
+        fields.push(Field::new(format!("{stage}_s"), DataType::Float64, true));
+        arrays.push(Arc::new(Float64Array::from(
+            outcomes
+                .iter()
+                .map(|o| o.stages.iter().find(|s| s.0 == stage).map(|s| s.2))
+                .collect::<Vec<_>>(),
+        )));
+    }
+    for (name, v) in cols {
+        fields.push(Field::new(name, DataType::Float64, true));
+        arrays.push(Arc::new(Float64Array::from(v)));
+    }
+    write_batch(
+        &out.join("campaign.parquet"),
+        &RecordBatch::try_new(Arc::new(Schema::new(fields)), arrays)?,
+    )?;
+    write_atomic(&out.join("campaign.md"), md.as_bytes())?;
+    Ok(())
+}
+
+/// Parses `I/N`.
+pub fn parse_shard(s: &str) -> anyhow::Result<(u64, u64)> {
+    let (i, n) = s.split_once('/').context("--shard takes I/N")?;
+    let (i, n): (u64, u64) = (i.parse()?, n.parse()?);
+    if n == 0 || i >= n {
+        bail!("--shard {s}: need 0 <= I < N");
+    }
+    Ok((i, n))
+}

@@ -1,0 +1,150 @@
+//! Campaigns: bad runs never stop the others; re-runs are cached; shards partition runs.
+
+use std::collections::BTreeSet;
+
+use crate::util::unz_output;
+
+fn names(md: &str) -> BTreeSet<String> {
+    md.lines()
+        .skip(2)
+        .filter_map(|l| l.split('|').nth(1))
+        .map(|s| s.trim().to_owned())
+        .collect()
+}
+
+#[test]
+fn a_campaign_survives_a_corrupt_log_and_a_broken_manifest() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = tmp.path().join("campaign");
+    let out = tmp.path().join("out");
+    let ok = unz_output(&[
+        "simulate",
+        "--out",
+        camp.to_str().unwrap(),
+        "--seed",
+        "60",
+        "--runs",
+        "3",
+        "--duration-s",
+        "300",
+    ]);
+    assert!(ok.status.success());
+    // A log that is garbage from its first byte, and a manifest with an unknown key.
+    std::fs::write(
+        camp.join("sim-0061/sim-0061.unz"),
+        b"this is not a UNZ log at all",
+    )
+    .unwrap();
+    std::fs::create_dir_all(camp.join("broken")).unwrap();
+    std::fs::write(
+        camp.join("broken/run.toml"),
+        "name = \"broken\"\nraw = \"b.unz\"\nformat = \"unz-binary\"\nbogus = 1\n",
+    )
+    .unwrap();
+    let run = unz_output(&[
+        "run",
+        camp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--until",
+        "criteria",
+    ]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert_eq!(run.status.code(), Some(1), "{stdout}");
+    assert!(stdout.contains("4 runs: 2 ok"), "{stdout}");
+    assert!(
+        stdout.contains("FAILED sim-0061")
+            && stdout.contains("sim-0061.unz")
+            && stdout.contains("header"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("FAILED broken") && stdout.contains("line 4") && stdout.contains("bogus"),
+        "{stdout}"
+    );
+    for good in ["sim-0060", "sim-0062"] {
+        assert!(out.join(good).join("criteria/criteria.json").is_file());
+    }
+    let md = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert_eq!(
+        names(&md),
+        ["broken", "sim-0060", "sim-0061", "sim-0062"]
+            .map(String::from)
+            .into()
+    );
+    // A second run recomputes nothing.
+    let again = unz_output(&[
+        "run",
+        camp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--until",
+        "criteria",
+    ]);
+    assert!(String::from_utf8_lossy(&again.stdout).contains("2 ok (2 fully cached)"));
+    // --from forces that stage and those after it, nothing before.
+    let forced = unz_output(&[
+        "run",
+        camp.join("sim-0060").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--from",
+        "navigate",
+        "--until",
+        "criteria",
+    ]);
+    let log = String::from_utf8_lossy(&forced.stderr);
+    assert!(
+        log.contains("sim-0060: ingest: up to date")
+            && log.contains("sim-0060: derive: up to date"),
+        "{log}"
+    );
+    assert!(
+        log.contains("sim-0060: navigate: done") && log.contains("sim-0060: criteria: done"),
+        "{log}"
+    );
+}
+
+#[test]
+fn shards_partition_the_campaign() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = tmp.path().join("campaign");
+    assert!(
+        unz_output(&[
+            "simulate",
+            "--out",
+            camp.to_str().unwrap(),
+            "--seed",
+            "70",
+            "--runs",
+            "7",
+            "--duration-s",
+            "200"
+        ])
+        .status
+        .success()
+    );
+    let mut union = BTreeSet::new();
+    let mut total = 0;
+    for i in 0..3 {
+        let out = tmp.path().join(format!("out{i}"));
+        let r = unz_output(&[
+            "run",
+            camp.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--until",
+            "ingest",
+            "--shard",
+            &format!("{i}/3"),
+        ]);
+        assert!(r.status.success() || !out.join("campaign.md").exists());
+        if let Ok(md) = std::fs::read_to_string(out.join("campaign.md")) {
+            let n = names(&md);
+            total += n.len();
+            union.extend(n);
+        }
+    }
+    assert_eq!(total, 7, "no run twice");
+    assert_eq!(union.len(), 7, "every run once");
+}
