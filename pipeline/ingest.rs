@@ -229,13 +229,11 @@ impl Sinks {
     fn flush(&mut self, force: bool) -> anyhow::Result<()> {
         if !self.imu_rows.is_empty() && (force || self.imu_rows.len() >= BATCH_ROWS) {
             self.imu
-                .write(&self.imu_rows.to_batch(self.imu_schema.clone())?)?;
-            self.imu_rows.clear();
+                .write(&self.imu_rows.take_batch(self.imu_schema.clone())?)?;
         }
         if !self.odo_rows.is_empty() && (force || self.odo_rows.len() >= BATCH_ROWS) {
             self.odo
-                .write(&self.odo_rows.to_batch(self.odo_schema.clone())?)?;
-            self.odo_rows.clear();
+                .write(&self.odo_rows.take_batch(self.odo_schema.clone())?)?;
         }
         Ok(())
     }

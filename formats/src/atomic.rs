@@ -1,6 +1,11 @@
 //! Atomic output files: written under a temporary name in the destination folder, then
 //! renamed over the destination, so a killed process never leaves a half-written file
 //! under the final name.
+//!
+//! No fsync: a process killed at any moment cannot expose a partial file (the rename is
+//! atomic), and after a power loss an output whose data did not reach the disk fails the
+//! content hash that its stage record checks on every re-run, so it is recomputed rather
+//! than trusted. Syncing every output would cost more than the stage itself.
 
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -54,12 +59,8 @@ impl AtomicFile {
         &self.dest
     }
 
-    /// Flushes to disk and renames the file to its destination.
+    /// Renames the file to its destination (no fsync: see the module documentation).
     pub fn commit(self) -> Result<(), FileError> {
-        self.tmp
-            .as_file()
-            .sync_all()
-            .map_err(|e| io_in_file(&self.dest, e))?;
         let dest = self.dest;
         self.tmp
             .persist(&dest)

@@ -96,6 +96,30 @@ fn vec3_values(b: &RecordBatch, name: &str) -> Result<Vec<[f64; 3]>, FormatError
 }
 
 impl ImuTable {
+    /// Converts to a record batch, moving the columns out (the table is left empty).
+    pub fn take_batch(&mut self, schema: SchemaRef) -> Result<RecordBatch, FormatError> {
+        let flat = |v: Vec<[f64; 3]>| -> ArrayRef {
+            let flat: Vec<f64> = v.into_iter().flatten().collect();
+            let values = Arc::new(Float64Array::new(ScalarBuffer::from(flat), None));
+            let item = Arc::new(arrow::datatypes::Field::new(
+                "item",
+                arrow::datatypes::DataType::Float64,
+                false,
+            ));
+            Arc::new(FixedSizeListArray::new(item, 3, values, None))
+        };
+        batch(
+            schema,
+            vec![
+                Arc::new(Int64Array::from(std::mem::take(&mut self.t_ns))),
+                Arc::new(UInt64Array::from(std::mem::take(&mut self.seq))),
+                flat(std::mem::take(&mut self.dtheta_rad)),
+                flat(std::mem::take(&mut self.dvel_mps)),
+                Arc::new(UInt16Array::from(std::mem::take(&mut self.status))),
+            ],
+        )
+    }
+
     /// Number of rows.
     pub fn len(&self) -> usize {
         self.t_ns.len()
@@ -144,6 +168,18 @@ impl ImuTable {
 }
 
 impl OdometerTable {
+    /// Converts to a record batch, moving the columns out (the table is left empty).
+    pub fn take_batch(&mut self, schema: SchemaRef) -> Result<RecordBatch, FormatError> {
+        batch(
+            schema,
+            vec![
+                Arc::new(Int64Array::from(std::mem::take(&mut self.t_ns))),
+                Arc::new(Float64Array::from(std::mem::take(&mut self.distance_m))),
+                Arc::new(Int64Array::from(std::mem::take(&mut self.pulses))),
+            ],
+        )
+    }
+
     /// Number of rows.
     pub fn len(&self) -> usize {
         self.t_ns.len()
