@@ -169,18 +169,24 @@ pub fn problem_of<'a>(case: &'a NavCase, params: &Params) -> Problem<'a> {
     problem
 }
 
-/// Stage 4.
-pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::Result<PathBuf> {
+/// Brings derive up to date and returns the files a whole-run optimisation reads: the
+/// manifest, the derived series and epochs, and the control-point marks.
+pub fn case_inputs(ctx: &RunCtx, params: &Params) -> anyhow::Result<Vec<PathBuf>> {
     let derive_dir = ensure_derive(ctx, params)?;
-    let m = &ctx.manifest;
-    let dir = stage_dir(&ctx.out, &m.name, "disupt")?;
-    let ingest_dir = ctx.out.join(&m.name).join("ingest");
-    let inputs = vec![
-        m.path.clone(),
+    let ingest_dir = ctx.out.join(&ctx.manifest.name).join("ingest");
+    Ok(vec![
+        ctx.manifest.path.clone(),
         derive_dir.join("derived.parquet"),
         derive_dir.join("epochs.parquet"),
         ingest_dir.join("marks.parquet"),
-    ];
+    ])
+}
+
+/// Stage 4.
+pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::Result<PathBuf> {
+    let inputs = case_inputs(ctx, params)?;
+    let m = &ctx.manifest;
+    let dir = stage_dir(&ctx.out, &m.name, "disupt")?;
     let dparams = DisuptParams::default();
     let stage = Stage {
         dir: dir.clone(),

@@ -15,8 +15,8 @@ use unz_formats::schema::scalar;
 use unz_stages::disupt::X;
 use unz_stages::simulate::DEG_PER_H;
 
-use crate::disupt_stage::problem_of;
-use crate::flow::{Overrides, Params, RunCtx, ensure_derive, load_case};
+use crate::disupt_stage::{case_inputs, problem_of};
+use crate::flow::{Overrides, Params, RunCtx, load_case};
 use crate::runs::stage_dir;
 use crate::stage::{Stage, params_hash};
 
@@ -115,16 +115,9 @@ struct SweepSummary<'a> {
 
 /// Runs the sweep (cached like a stage).
 pub fn ensure_sweep(ctx: &RunCtx, params: &Params, axes: &[Axis]) -> anyhow::Result<PathBuf> {
-    let derive_dir = ensure_derive(ctx, params)?;
+    let inputs = case_inputs(ctx, params)?;
     let m = &ctx.manifest;
     let dir = stage_dir(&ctx.out, &m.name, "sweep")?;
-    let ingest_dir = ctx.out.join(&m.name).join("ingest");
-    let inputs = vec![
-        m.path.clone(),
-        derive_dir.join("derived.parquet"),
-        derive_dir.join("epochs.parquet"),
-        ingest_dir.join("marks.parquet"),
-    ];
     let stage = Stage {
         dir: dir.clone(),
         name: "sweep",

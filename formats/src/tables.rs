@@ -48,7 +48,11 @@ pub struct MarksTable {
 }
 
 fn vec3_array(v: &[[f64; 3]]) -> ArrayRef {
-    let flat: Vec<f64> = v.iter().flatten().copied().collect();
+    vec3_array_of(v.iter().flatten().copied().collect())
+}
+
+/// A `FixedSizeList<Float64, 3>` of flat x, y, z values.
+fn vec3_array_of(flat: Vec<f64>) -> ArrayRef {
     let values = Arc::new(Float64Array::new(ScalarBuffer::from(flat), None));
     let item = Arc::new(arrow::datatypes::Field::new(
         "item",
@@ -98,16 +102,7 @@ fn vec3_values(b: &RecordBatch, name: &str) -> Result<Vec<[f64; 3]>, FormatError
 impl ImuTable {
     /// Converts to a record batch, moving the columns out (the table is left empty).
     pub fn take_batch(&mut self, schema: SchemaRef) -> Result<RecordBatch, FormatError> {
-        let flat = |v: Vec<[f64; 3]>| -> ArrayRef {
-            let flat: Vec<f64> = v.into_iter().flatten().collect();
-            let values = Arc::new(Float64Array::new(ScalarBuffer::from(flat), None));
-            let item = Arc::new(arrow::datatypes::Field::new(
-                "item",
-                arrow::datatypes::DataType::Float64,
-                false,
-            ));
-            Arc::new(FixedSizeListArray::new(item, 3, values, None))
-        };
+        let flat = |v: Vec<[f64; 3]>| vec3_array_of(v.into_iter().flatten().collect());
         batch(
             schema,
             vec![
