@@ -56,8 +56,8 @@ pub fn quat_from_rotation_vector(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
     // sin(a/2)/a and cos(a/2) by series below 1e-3 rad², exact beyond.
     let (s, c) = if a2 < 1e-6 {
         (
-            0.5 - a2 / 48.0 + a2 * a2 / 3840.0,
-            1.0 - a2 / 8.0 + a2 * a2 / 384.0,
+            0.5 - a2 * (1.0 / 48.0) + a2 * a2 * (1.0 / 3840.0),
+            1.0 - a2 * 0.125 + a2 * a2 * (1.0 / 384.0),
         )
     } else {
         let a = a2.sqrt();

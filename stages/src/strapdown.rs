@@ -223,7 +223,7 @@ pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
         samples.zip(outputs).enumerate()
     {
         let dth = Vector3::from(*dtheta) - drift * dt;
-        let phi = dth + prev.cross(&dth) / 12.0;
+        let phi = dth + prev.cross(&dth) * (1.0 / 12.0);
         prev = dth;
         let q_body = q * quat_from_rotation_vector(&phi).into_inner();
 
@@ -248,7 +248,12 @@ pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
             -dp_n.x * inv_rm_h,
             terms.w_ie_n.z * dt - dp_n.y * terms.tan * inv_rn_h,
         );
-        q = Quaternion::new(1.0, -0.5 * zeta.x, -0.5 * zeta.y, -0.5 * zeta.z) * q_body;
+        // (1, v) ⊗ (w, u) = (w − v·u, u + w·v + v × u) with v = −ζ/2.
+        let v = zeta * -0.5;
+        let u = q_body.imag();
+        let w = q_body.w;
+        let qv = u + v * w + v.cross(&u);
+        q = Quaternion::new(w - v.dot(&u), qv.x, qv.y, qv.z);
         if k % 64 == 63 {
             q /= q.norm();
         }
