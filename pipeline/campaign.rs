@@ -363,3 +363,46 @@ pub fn parse_shard(s: &str) -> anyhow::Result<(u64, u64)> {
     }
     Ok((i, n))
 }
+
+/// Merges the `campaign.parquet` of several output folders (shards) into `dest`, refusing
+/// a run that appears in two of them.
+pub fn merge_summaries(outs: &[PathBuf], dest: &Path) -> anyhow::Result<usize> {
+    let mut batches = Vec::new();
+    let mut schema = None;
+    let mut seen = std::collections::HashMap::new();
+    for out in outs {
+        let path = out.join("campaign.parquet");
+        let (s, bs) = unz_formats::parquet_io::read_batches(&path)?;
+        if schema
+            .as_ref()
+            .is_some_and(|first: &arrow::datatypes::SchemaRef| first.fields() != s.fields())
+        {
+            bail!(
+                "{} has another summary schema than {}",
+                path.display(),
+                outs[0].display()
+            );
+        }
+        for b in &bs {
+            let runs = b
+                .column_by_name("run")
+                .and_then(|c| c.as_any().downcast_ref::<StringArray>())
+                .with_context(|| format!("{}: no run column", path.display()))?;
+            for r in runs.iter().flatten() {
+                if let Some(other) = seen.insert(r.to_owned(), path.clone()) {
+                    bail!(
+                        "run {r:?} is in both {} and {}",
+                        other.display(),
+                        path.display()
+                    );
+                }
+            }
+        }
+        schema.get_or_insert(s);
+        batches.extend(bs);
+    }
+    let schema = schema.context("nothing to merge")?;
+    let merged = arrow::compute::concat_batches(&schema, &batches)?;
+    write_batch(dest, &merged)?;
+    Ok(merged.num_rows())
+}

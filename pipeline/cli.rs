@@ -32,6 +32,8 @@ pub enum Command {
     Sweep(SweepArgs),
     /// Run the stages over a run or a whole campaign folder, in parallel, with a summary.
     Run(RunArgs),
+    /// Work on campaign summaries.
+    Campaign(CampaignArgs),
     /// Simulate a small example and push it through every stage.
     Demo(DemoArgs),
     /// Measure throughput (not part of the tests).
@@ -174,6 +176,28 @@ pub struct RunArgs {
     /// Process a deterministic 1/N of the runs: I/N with 0 <= I < N.
     #[arg(long)]
     pub shard: Option<String>,
+}
+
+/// Arguments of `unz campaign`.
+#[derive(Debug, Args)]
+pub struct CampaignArgs {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: CampaignCommand,
+}
+
+/// `unz campaign` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum CampaignCommand {
+    /// Merge the campaign.parquet of shard output folders into one file.
+    Merge {
+        /// Output folders of the shards.
+        #[arg(required = true)]
+        outs: Vec<PathBuf>,
+        /// Merged summary to write.
+        #[arg(long)]
+        into: PathBuf,
+    },
 }
 
 /// Arguments of `unz demo`.

@@ -147,4 +147,29 @@ fn shards_partition_the_campaign() {
     }
     assert_eq!(total, 7, "no run twice");
     assert_eq!(union.len(), 7, "every run once");
+    // The shard summaries merge into one with every run.
+    let outs: Vec<String> = (0..3)
+        .map(|i| tmp.path().join(format!("out{i}")))
+        .filter(|p| p.join("campaign.parquet").exists())
+        .map(|p| p.display().to_string())
+        .collect();
+    let merged = tmp.path().join("all.parquet");
+    let mut args = vec!["campaign", "merge"];
+    args.extend(outs.iter().map(String::as_str));
+    args.extend(["--into", merged.to_str().unwrap()]);
+    let m = unz_output(&args);
+    assert!(m.status.success(), "{}", String::from_utf8_lossy(&m.stderr));
+    let (_, batches) = unz_formats::parquet_io::read_batches(&merged).unwrap();
+    assert_eq!(batches.iter().map(|b| b.num_rows()).sum::<usize>(), 7);
+    // Merging a shard twice is refused.
+    let mut twice = vec![
+        "campaign",
+        "merge",
+        outs[0].as_str(),
+        outs[0].as_str(),
+        "--into",
+    ];
+    let other = tmp.path().join("twice.parquet");
+    twice.push(other.to_str().unwrap());
+    assert!(!unz_output(&twice).status.success());
 }

@@ -1,6 +1,7 @@
 //! One file per subcommand, each with `run(args)`.
 
 pub mod bench;
+pub mod campaign;
 pub mod criteria;
 pub mod demo;
 pub mod derive;
@@ -26,6 +27,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Disupt(a) => disupt::run(&a),
         Command::Sweep(a) => sweep::run(&a),
         Command::Run(a) => run::run(&a),
+        Command::Campaign(a) => campaign::run(&a),
         Command::Demo(a) => demo::run(&a),
         Command::Bench(a) => bench::run(&a),
     }
