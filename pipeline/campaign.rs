@@ -18,7 +18,7 @@ use unz_formats::parquet_io::write_batch;
 
 use crate::disupt_stage::{Method, ensure_disupt};
 use crate::flow::{
-    Overrides, Params, RunCtx, ensure_criteria, ensure_derive, ensure_ingest, ensure_navigate,
+    Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest, ensure_navigate,
 };
 
 /// The stages of `unz run`, in order.
@@ -77,8 +77,8 @@ pub struct Plan {
     pub from: Option<usize>,
     /// Last stage.
     pub until: usize,
-    /// Parameters.
-    pub params: Params,
+    /// The config file's table (defaults for keys it lacks; runs' `[params]` override it).
+    pub config: toml::Table,
     /// Shard `(i, n)`.
     pub shard: Option<(u64, u64)>,
     /// Say what each stage did.
@@ -120,7 +120,8 @@ fn process(manifest: &RunManifest, plan: &Plan) -> (anyhow::Result<()>, Vec<(Str
                 }
             }
         }
-        let p = &plan.params;
+        let params = crate::config::for_run(&plan.config, manifest)?;
+        let p = &params;
         let none = Overrides::default();
         for stage in &STAGES[..=plan.until] {
             match *stage {

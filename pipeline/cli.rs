@@ -32,6 +32,8 @@ pub enum Command {
     Sweep(SweepArgs),
     /// Run the stages over a run or a whole campaign folder, in parallel, with a summary.
     Run(RunArgs),
+    /// Show the effective parameters (defaults, --config file, a run's [params]).
+    Config(ConfigArgs),
     /// Work on campaign summaries.
     Campaign(CampaignArgs),
     /// Simulate a small example and push it through every stage.
@@ -176,6 +178,22 @@ pub struct RunArgs {
     /// Process a deterministic 1/N of the runs: I/N with 0 <= I < N.
     #[arg(long)]
     pub shard: Option<String>,
+    /// Parameter file (TOML); a run's `[params]` in run.toml overrides it.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+}
+
+/// Arguments of `unz config`.
+#[derive(Debug, Args)]
+pub struct ConfigArgs {
+    /// Print the effective parameters as TOML.
+    #[arg(long)]
+    pub show: bool,
+    /// Parameter file (TOML) over the built-in defaults.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// A run (folder or run.toml) whose `[params]` apply on top.
+    pub run: Option<PathBuf>,
 }
 
 /// Arguments of `unz campaign`.

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use serde::Serialize;
 use unz_formats::atomic::{write_atomic, write_json_atomic};
-use unz_stages::disupt::{self, DisuptParams, MethodResult, Problem, X};
+use unz_stages::disupt::{self, MethodResult, Problem, X};
 use unz_stages::filter::LowPass;
 use unz_stages::simulate::DEG_PER_H;
 use unz_stages::strapdown::NavTrack;
@@ -187,7 +187,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
     let inputs = case_inputs(ctx, params)?;
     let m = &ctx.manifest;
     let dir = stage_dir(&ctx.out, &m.name, "disupt")?;
-    let dparams = DisuptParams::default();
+    let dparams = params.disupt;
     let stage = Stage {
         dir: dir.clone(),
         name: "disupt",

@@ -30,6 +30,7 @@ pub const META_ODO_M_PER_PULSE: &str = "unz.odo_m_per_pulse";
 
 /// Parameters of every stage (defaults built in).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Params {
     /// derive.
     pub derive: DeriveParams,
@@ -37,6 +38,8 @@ pub struct Params {
     pub align: AlignParams,
     /// Kalman filter of the criteria.
     pub kalman: KalmanParams,
+    /// DISUPT methods.
+    pub disupt: unz_stages::disupt::DisuptParams,
 }
 
 /// Initial settings forced on the command line.

@@ -7,6 +7,7 @@
 pub mod campaign;
 pub mod cli;
 pub mod commands;
+pub mod config;
 pub mod derive_io;
 pub mod disupt_stage;
 pub mod flow;

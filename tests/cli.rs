@@ -62,3 +62,21 @@ fn an_unreadable_raw_log_is_named() {
         .unwrap_or_default();
     assert!(finals.is_empty(), "{finals:?}");
 }
+
+#[test]
+fn config_show_prints_the_effective_parameters() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("unz.toml");
+    std::fs::write(&cfg, "[derive.filter]\ncutoff_hz = 0.25\n").unwrap();
+    let shown = unz_ok(&["config", "--show", "--config", cfg.to_str().unwrap()]);
+    let t: toml::Table = toml::from_str(&shown).unwrap();
+    assert_eq!(t["derive"]["filter"]["cutoff_hz"].as_float(), Some(0.25));
+    assert!(
+        t["kalman"]["r_rad"].as_float().is_some(),
+        "defaults are filled in: {shown}"
+    );
+    std::fs::write(&cfg, "[derive]\nsurprise = 1\n").unwrap();
+    let out = unz_output(&["config", "--show", "--config", cfg.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("surprise"));
+}

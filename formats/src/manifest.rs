@@ -104,6 +104,8 @@ pub struct RunManifest {
     pub odometer: Odometer,
     /// Control points, in manifest order.
     pub control_points: Vec<ControlPoint>,
+    /// Per-run parameter overrides (`[params]`), checked by the pipeline.
+    pub params: Option<toml::Table>,
 }
 
 #[derive(Deserialize)]
@@ -119,6 +121,7 @@ struct RawManifest {
     odometer: RawOdometer,
     #[serde(default)]
     control_point: Vec<RawControlPoint>,
+    params: Option<toml::Table>,
 }
 
 #[derive(Deserialize)]
@@ -374,6 +377,7 @@ impl RunManifest {
             initial,
             odometer,
             control_points,
+            params: raw.params,
         })
     }
 

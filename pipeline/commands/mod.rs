@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod campaign;
+pub mod config;
 pub mod criteria;
 pub mod demo;
 pub mod derive;
@@ -28,6 +29,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Sweep(a) => sweep::run(&a),
         Command::Run(a) => run::run(&a),
         Command::Campaign(a) => campaign::run(&a),
+        Command::Config(a) => config::run(&a),
         Command::Demo(a) => demo::run(&a),
         Command::Bench(a) => bench::run(&a),
     }

@@ -3,13 +3,17 @@
 use std::process::ExitCode;
 
 use crate::cli::NavArgs;
-use crate::flow::{Params, RunCtx, ensure_navigate};
+use crate::flow::{RunCtx, ensure_navigate};
 use crate::runs::load_run;
 
 /// Runs the command.
 pub fn run(args: &NavArgs) -> anyhow::Result<ExitCode> {
     let ctx = RunCtx::new(load_run(&args.stage.run)?, args.stage.out.clone(), true);
-    let dir = ensure_navigate(&ctx, &Params::default(), &args.overrides()?)?;
+    let dir = ensure_navigate(
+        &ctx,
+        &crate::config::for_run(&toml::Table::new(), &ctx.manifest)?,
+        &args.overrides()?,
+    )?;
     let summary: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("navigate.json"))?)?;
     let i = &summary["initial"];

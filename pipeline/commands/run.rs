@@ -6,7 +6,6 @@ use anyhow::bail;
 
 use crate::campaign::{Plan, STAGES, find_runs, parse_shard, run_campaign, write_summary};
 use crate::cli::RunArgs;
-use crate::flow::Params;
 
 fn stage_index(name: &str) -> anyhow::Result<usize> {
     match STAGES.iter().position(|s| *s == name) {
@@ -26,7 +25,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<ExitCode> {
         out: args.out.clone(),
         from,
         until,
-        params: Params::default(),
+        config: crate::config::load(args.config.as_deref())?,
         shard: args.shard.as_deref().map(parse_shard).transpose()?,
         verbose: true,
     };

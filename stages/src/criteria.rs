@@ -13,6 +13,7 @@ use crate::strapdown::{NavTrack, dcm_row3, roll_pitch_from_row3};
 
 /// Kalman filter of the pitch/roll errors (per axis; state: error, rate).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct KalmanParams {
     /// Measurement noise, rad (1σ of one epoch's ΔΘ).
     pub r_rad: f64,

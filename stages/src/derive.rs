@@ -15,6 +15,7 @@ use crate::filter::{FilterParams, LowPass};
 
 /// Parameters of the derive stage.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct DeriveParams {
     /// The low-pass filter F.
     pub filter: FilterParams,

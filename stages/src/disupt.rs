@@ -49,6 +49,7 @@ pub struct X {
 
 /// Bounds and switches of the methods.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct DisuptParams {
     /// Half-width of the azimuth search around its start, degrees.
     pub azimuth_bound_deg: f64,

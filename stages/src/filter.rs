@@ -51,6 +51,7 @@ impl Biquad {
 
 /// Parameters of F.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct FilterParams {
     /// Length of the block means, s (0.1 s).
     pub block_s: f64,

@@ -41,6 +41,7 @@ pub struct InitialRequest {
 
 /// Parameters of the alignment.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct AlignParams {
     /// Assumed 1σ of the horizontal gyro drifts left after the drift guess, rad/s.
     pub drift_sigma_rad_s: f64,
