@@ -71,10 +71,16 @@ pub struct Stage<'a> {
 }
 
 impl Stage<'_> {
+    /// Inputs by name — relative to the output root (`OUT`, two levels above the stage
+    /// folder) when they lie under it, so a moved output tree stays valid — and hash.
     fn input_hashes(&self) -> anyhow::Result<BTreeMap<String, String>> {
+        let root = self.dir.parent().and_then(Path::parent);
         self.inputs
             .iter()
-            .map(|p| Ok((p.display().to_string(), file_hash(p)?)))
+            .map(|p| {
+                let key = root.and_then(|r| p.strip_prefix(r).ok()).unwrap_or(p);
+                Ok((key.display().to_string(), file_hash(p)?))
+            })
             .collect()
     }
 
@@ -123,8 +129,17 @@ impl Stage<'_> {
         Ok(())
     }
 
-    /// Removes the record, so a stage that starts over is never taken as done.
+    /// Removes the record, so a stage that starts over is never taken as done, and the
+    /// temporary files (`.<name>.<random>.tmp`) a killed run may have left.
     pub fn invalidate(&self) -> anyhow::Result<()> {
+        if let Ok(entries) = std::fs::read_dir(&self.dir) {
+            for e in entries.flatten() {
+                let name = e.file_name().to_string_lossy().into_owned();
+                if name.starts_with('.') && name.ends_with(".tmp") {
+                    let _ = std::fs::remove_file(e.path());
+                }
+            }
+        }
         match std::fs::remove_file(self.dir.join(RECORD)) {
             Ok(()) => Ok(()),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),

@@ -4,5 +4,6 @@ mod campaign;
 mod cli;
 mod disupt;
 mod ingest;
+mod kill;
 mod kingston;
 mod util;

@@ -1,0 +1,155 @@
+//! A campaign killed with SIGKILL at several points, then re-run, ends with the same files
+//! as an uninterrupted run (wall times aside), and no temporary file left over.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use crate::util::{unz, unz_ok};
+
+fn files(root: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.push(p.strip_prefix(root).unwrap().to_path_buf());
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// File content with the wall times (which differ run to run) removed.
+fn comparable(path: &Path) -> Vec<u8> {
+    let bytes = std::fs::read(path).unwrap();
+    if path.file_name().is_some_and(|n| n == "disupt.json") {
+        let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+        fn strip(v: &mut serde_json::Value) {
+            match v {
+                serde_json::Value::Object(m) => {
+                    m.remove("wall_s");
+                    m.values_mut().for_each(strip);
+                }
+                serde_json::Value::Array(a) => a.iter_mut().for_each(strip),
+                _ => {}
+            }
+        }
+        strip(&mut v);
+        return serde_json::to_vec(&v).unwrap();
+    }
+    if path.extension().is_some_and(|e| e == "mcap") {
+        // mcap 0.25 writes the summary's schemas and channels in HashMap order, which
+        // varies from process to process: compare the messages themselves.
+        let mut out = Vec::new();
+        for m in mcap::MessageStream::new(&bytes).unwrap() {
+            let m = m.unwrap();
+            out.extend_from_slice(m.channel.topic.as_bytes());
+            out.extend_from_slice(&m.log_time.to_le_bytes());
+            out.extend_from_slice(&m.data);
+        }
+        return out;
+    }
+    if path.ends_with("ingest/stage.json") {
+        // It hashes raw.mcap (see above).
+        let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+        if let Some(o) = v["outputs"].as_object_mut() {
+            o.remove("raw.mcap");
+        }
+        return serde_json::to_vec(&v).unwrap();
+    }
+    if path.ends_with("disupt/stage.json") {
+        // It hashes disupt.json and disupt.md, which carry wall times.
+        let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+        if let Some(o) = v["outputs"].as_object_mut() {
+            o.remove("disupt.json");
+            o.remove("disupt.md");
+        }
+        return serde_json::to_vec(&v).unwrap();
+    }
+    if path.file_name().is_some_and(|n| n == "disupt.md") {
+        let text = String::from_utf8(bytes).unwrap();
+        return text
+            .lines()
+            .filter(|l| !l.contains(" passes in "))
+            .collect::<Vec<_>>()
+            .join("\n")
+            .into_bytes();
+    }
+    bytes
+}
+
+#[test]
+fn kill_9_then_rerun_gives_the_same_outputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = tmp.path().join("campaign");
+    unz_ok(&[
+        "simulate",
+        "--out",
+        camp.to_str().unwrap(),
+        "--seed",
+        "90",
+        "--runs",
+        "3",
+        "--duration-s",
+        "400",
+    ]);
+    let reference = tmp.path().join("reference");
+    unz_ok(&[
+        "run",
+        camp.to_str().unwrap(),
+        "--out",
+        reference.to_str().unwrap(),
+        "--jobs",
+        "1",
+    ]);
+
+    let out = tmp.path().join("killed");
+    for delay_ms in [150, 400, 900, 1600] {
+        let mut child = unz()
+            .args([
+                "run",
+                camp.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--jobs",
+                "1",
+            ])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(delay_ms));
+        child.kill().unwrap(); // SIGKILL
+        child.wait().unwrap();
+    }
+    unz_ok(&[
+        "run",
+        camp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--jobs",
+        "1",
+    ]);
+
+    let (a, b) = (files(&reference), files(&out));
+    let leftovers: Vec<_> = b
+        .iter()
+        .filter(|p| p.to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+    assert_eq!(a, b, "the same files");
+    for f in a
+        .iter()
+        .filter(|f| !f.starts_with("campaign.parquet") && !f.starts_with("campaign.md"))
+    {
+        assert!(
+            comparable(&reference.join(f)) == comparable(&out.join(f)),
+            "{} differs",
+            f.display()
+        );
+    }
+}
