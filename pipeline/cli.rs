@@ -238,6 +238,9 @@ pub struct BenchArgs {
     /// Repetitions (the best is reported).
     #[arg(long, default_value_t = 5)]
     pub repeat: u32,
+    /// Runs of the campaign benchmark.
+    #[arg(long, default_value_t = 20)]
+    pub runs: u32,
 }
 
 /// Benchmarks.
@@ -247,6 +250,8 @@ pub enum BenchTarget {
     Ingest,
     /// Navigation kernel and criteria evaluation (derive done once).
     Navigate,
+    /// A campaign of simulated runs end to end, cold then cached (--runs, --duration-s).
+    Campaign,
 }
 
 #[cfg(test)]

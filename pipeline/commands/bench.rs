@@ -14,6 +14,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     match args.what {
         BenchTarget::Ingest => bench_ingest(args),
         BenchTarget::Navigate => bench_navigate(args),
+        BenchTarget::Campaign => bench_campaign(args),
     }
 }
 
@@ -106,5 +107,62 @@ fn bench_navigate(args: &BenchArgs) -> anyhow::Result<ExitCode> {
         "criteria evaluation (navigation + Kryt1 + Kryt2): {:.2} ms per run",
         crit_s * 1e3
     );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn bench_campaign(args: &BenchArgs) -> anyhow::Result<ExitCode> {
+    use rayon::prelude::*;
+
+    use crate::campaign::{Plan, STAGES, find_runs, run_campaign};
+
+    let tmp = tempfile::tempdir()?;
+    let camp = tmp.path().join("campaign");
+    let t0 = Instant::now();
+    (0..args.runs).into_par_iter().try_for_each(|i| {
+        let mut c = SimConfig::new(&format!("run-{i:03}"), 1000 + u64::from(i));
+        c.duration_s = args.duration_s;
+        crate::simulate_io::write_run(&simulate(&c), &camp).map(|_| ())
+    })?;
+    println!(
+        "simulated {} runs of {:.0} s in {:.1} s",
+        args.runs,
+        args.duration_s,
+        t0.elapsed().as_secs_f64()
+    );
+    let out = tmp.path().join("out");
+    std::fs::create_dir_all(&out)?;
+    let manifests = find_runs(&camp, &out)?;
+    let plan = Plan {
+        out: out.clone(),
+        from: None,
+        until: STAGES.len() - 1,
+        config: toml::Table::new(),
+        shard: None,
+        verbose: false,
+    };
+    for label in ["cold", "cached"] {
+        let t = Instant::now();
+        let outcomes = run_campaign(&manifests, &plan);
+        let wall = t.elapsed().as_secs_f64();
+        let failed = outcomes.iter().filter(|o| o.error.is_some()).count();
+        let mut per_stage = std::collections::BTreeMap::<&str, f64>::new();
+        for o in &outcomes {
+            for (stage, _, s) in &o.stages {
+                if let Some(k) = STAGES.iter().find(|x| *x == stage) {
+                    *per_stage.entry(k).or_default() += s;
+                }
+            }
+        }
+        let stages: Vec<String> = STAGES
+            .iter()
+            .map(|s| format!("{s} {:.1}", per_stage.get(s).copied().unwrap_or(0.0)))
+            .collect();
+        println!(
+            "{label}: {} runs ({failed} failed) in {wall:.2} s on {} threads; summed stage times (s): {}",
+            outcomes.len(),
+            rayon::current_num_threads(),
+            stages.join(", ")
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }
