@@ -81,8 +81,10 @@ pub struct Plan {
     pub config: toml::Table,
     /// Shard `(i, n)`.
     pub shard: Option<(u64, u64)>,
-    /// Say what each stage did.
+    /// Say what each stage did (plain log lines).
     pub verbose: bool,
+    /// Show progress bars (on a terminal).
+    pub progress: bool,
 }
 
 /// One run's outcome.
@@ -100,8 +102,13 @@ pub struct RunOutcome {
     pub wall_s: f64,
 }
 
-fn process(manifest: &RunManifest, plan: &Plan) -> (anyhow::Result<()>, Vec<(String, bool, f64)>) {
-    let ctx = RunCtx::new(manifest.clone(), plan.out.clone(), plan.verbose);
+fn process(
+    manifest: &RunManifest,
+    plan: &Plan,
+    bar: Option<indicatif::ProgressBar>,
+) -> (anyhow::Result<()>, Vec<(String, bool, f64)>) {
+    let mut ctx = RunCtx::new(manifest.clone(), plan.out.clone(), plan.verbose);
+    ctx.progress = bar;
     let result = (|| -> anyhow::Result<()> {
         if let Some(from) = plan.from {
             for stage in &STAGES[from..] {
@@ -170,15 +177,42 @@ pub fn run_campaign(manifests: &[PathBuf], plan: &Plan) -> Vec<RunOutcome> {
         })
         .filter(|(_, name, _)| plan.shard.is_none_or(|(i, n)| in_shard(name, i, n)))
         .collect();
-    checked
+    let bars = plan.progress.then(|| {
+        let multi = indicatif::MultiProgress::new();
+        let total = multi.add(indicatif::ProgressBar::new(checked.len() as u64));
+        total.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:30} {pos}/{len} runs  {msg}  [{elapsed_precise}]",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        (multi, total)
+    });
+    let counts = std::sync::Mutex::new((0usize, 0usize)); // failed, cached
+    let outcomes = checked
         .into_par_iter()
         .map(|(path, name, m)| {
             let t0 = Instant::now();
+            let bar = bars.as_ref().map(|(multi, _)| {
+                let b = multi.add(indicatif::ProgressBar::new_spinner());
+                b.enable_steady_tick(std::time::Duration::from_millis(200));
+                b.set_message(name.clone());
+                b
+            });
             let (result, stages) = match m {
-                Ok(m) => process(&m, plan),
+                Ok(m) => process(&m, plan, bar.clone()),
                 Err(e) => (Err(e), Vec::new()),
             };
+            if let Some(b) = bar {
+                b.finish_and_clear();
+            }
             let error = result.err().map(|e| format!("{e:#}"));
+            if let (Some((_, total)), Ok(mut c)) = (&bars, counts.lock()) {
+                c.0 += usize::from(error.is_some());
+                c.1 += usize::from(error.is_none() && stages.iter().all(|s| !s.1));
+                total.inc(1);
+                total.set_message(format!("{} failed, {} cached", c.0, c.1));
+            }
             if plan.verbose {
                 match &error {
                     None => eprintln!("{name}: done in {:.2} s", t0.elapsed().as_secs_f64()),
@@ -193,7 +227,11 @@ pub fn run_campaign(manifests: &[PathBuf], plan: &Plan) -> Vec<RunOutcome> {
                 wall_s: t0.elapsed().as_secs_f64(),
             }
         })
-        .collect()
+        .collect();
+    if let Some((_, total)) = bars {
+        total.finish_and_clear();
+    }
+    outcomes
 }
 
 fn read_json(path: &Path) -> Value {

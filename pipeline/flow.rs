@@ -63,6 +63,8 @@ pub struct RunCtx {
     pub verbose: bool,
     /// What each stage did: (stage, computed (not cached), wall s), in order.
     pub log: std::sync::Mutex<Vec<(String, bool, f64)>>,
+    /// A progress line showing the stage being worked on (campaigns on a terminal).
+    pub progress: Option<indicatif::ProgressBar>,
 }
 
 impl RunCtx {
@@ -73,6 +75,7 @@ impl RunCtx {
             out,
             verbose,
             log: std::sync::Mutex::new(Vec::new()),
+            progress: None,
         }
     }
 
@@ -97,6 +100,9 @@ impl RunCtx {
         body: impl FnOnce() -> anyhow::Result<()>,
     ) -> anyhow::Result<()> {
         let t0 = std::time::Instant::now();
+        if let Some(p) = &self.progress {
+            p.set_message(format!("{}: {}", self.manifest.name, stage.name));
+        }
         if stage.is_up_to_date()? {
             self.say(stage.name, "up to date, skipped");
             self.record(stage.name, false, t0.elapsed().as_secs_f64());

@@ -139,6 +139,7 @@ fn bench_campaign(args: &BenchArgs) -> anyhow::Result<ExitCode> {
         config: toml::Table::new(),
         shard: None,
         verbose: false,
+        progress: false,
     };
     for label in ["cold", "cached"] {
         let t = Instant::now();

@@ -27,7 +27,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<ExitCode> {
         until,
         config: crate::config::load(args.config.as_deref())?,
         shard: args.shard.as_deref().map(parse_shard).transpose()?,
-        verbose: true,
+        // A terminal gets progress bars; a log file gets one line per stage.
+        verbose: !std::io::IsTerminal::is_terminal(&std::io::stderr()),
+        progress: std::io::IsTerminal::is_terminal(&std::io::stderr()),
     };
     std::fs::create_dir_all(&args.out)?;
     let manifests = find_runs(&args.path, &args.out)?;
