@@ -22,7 +22,9 @@ use crate::flow::{
 };
 
 /// The stages of `unz run`, in order.
-pub const STAGES: [&str; 5] = ["ingest", "derive", "navigate", "criteria", "disupt"];
+pub const STAGES: [&str; 6] = [
+    "ingest", "derive", "navigate", "criteria", "disupt", "export",
+];
 /// Deepest folder searched for run manifests.
 const MAX_DEPTH: usize = 8;
 
@@ -136,7 +138,8 @@ fn process(
                 "derive" => drop(ensure_derive(&ctx, p)?),
                 "navigate" => drop(ensure_navigate(&ctx, p, &none)?),
                 "criteria" => drop(ensure_criteria(&ctx, p, &none)?),
-                _ => drop(ensure_disupt(&ctx, p, Method::All)?),
+                "disupt" => drop(ensure_disupt(&ctx, p, Method::All)?),
+                _ => drop(crate::export::ensure_export(&ctx, p)?),
             }
         }
         Ok(())

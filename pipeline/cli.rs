@@ -166,10 +166,10 @@ pub struct RunArgs {
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
-    /// Force this stage and every later one (ingest, derive, navigate, criteria, disupt).
+    /// Force this stage and every later one (ingest, derive, navigate, criteria, disupt, export).
     #[arg(long)]
     pub from: Option<String>,
-    /// Last stage to run (default: disupt).
+    /// Last stage to run (default: export).
     #[arg(long)]
     pub until: Option<String>,
     /// Runs processed at once (default: all cores).

@@ -10,6 +10,7 @@ pub mod commands;
 pub mod config;
 pub mod derive_io;
 pub mod disupt_stage;
+pub mod export;
 pub mod flow;
 pub mod ingest;
 pub mod runs;

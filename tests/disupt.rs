@@ -2,7 +2,7 @@
 
 use serde_json::Value;
 
-use crate::util::unz_ok;
+use crate::util::{python, python_json, unz_ok};
 
 #[test]
 fn disupt_and_sweep_through_the_binary() {
@@ -92,4 +92,39 @@ fn disupt_and_sweep_through_the_binary() {
         "Kryt2 smallest at {}°, truth {true_az}°",
         az[best]
     );
+}
+
+#[test]
+fn export_writes_foxglove_channels() {
+    let tmp = tempfile::tempdir().unwrap();
+    let campaign = tmp.path().join("c");
+    let out = tmp.path().join("o");
+    unz_ok(&[
+        "simulate",
+        "--out",
+        campaign.to_str().unwrap(),
+        "--seed",
+        "78",
+        "--duration-s",
+        "300",
+    ]);
+    unz_ok(&[
+        "run",
+        campaign.join("sim-0078").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let dir = out.join("sim-0078/export");
+    assert!(dir.join("corrected_nav.parquet").is_file());
+    let Some(py) = python() else { return };
+    let info = python_json(&py, "check_mcap.py", &[&dir.join("corrected.mcap")]);
+    let ch = &info["channels"];
+    assert_eq!(ch["/corrected/fix"]["schema_name"], "foxglove.LocationFix");
+    assert_eq!(ch["/corrected/pose"]["schema_name"], "foxglove.PoseInFrame");
+    assert_eq!(ch["/corrected/fix"]["schema_encoding"], "jsonschema");
+    // 300 s at 10 Hz, and the criteria at 1 s epochs.
+    assert_eq!(ch["/corrected/fix"]["count"], 3000);
+    assert_eq!(ch["/corrected/pose"]["count"], 3000);
+    assert_eq!(ch["/criteria"]["count"], 300);
+    assert_eq!(info["monotonic"], true);
 }

@@ -1,0 +1,129 @@
+//! Stage 5, export: the corrected navigation as `corrected_nav.parquet` and
+//! `corrected.mcap` for Foxglove — `foxglove.LocationFix` (map panel) and
+//! `foxglove.PoseInFrame` (3D panel, local east-north-up frame, body forward-left-up) at
+//! 10 Hz, attitude at 10 Hz and the criteria at 1 Hz, as JSON with JSON Schema.
+
+use std::path::PathBuf;
+
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
+use serde_json::json;
+use unz_formats::mcap_io::{JsonMcap, numeric_object_schema};
+use unz_formats::parquet_io::read_batches;
+use unz_formats::tables::{f64_column, i64_column};
+use unz_stages::attitude::Euler;
+
+use crate::disupt_stage::{Method, ensure_disupt};
+use crate::flow::{Overrides, Params, RunCtx, ensure_criteria};
+use crate::runs::stage_dir;
+use crate::stage::{Stage, params_hash};
+
+/// Output rate of the navigation channels, Hz.
+const NAV_RATE_HZ: f64 = 10.0;
+
+const LOCATION_FIX_SCHEMA: &str = r#"{"title":"foxglove.LocationFix","type":"object","properties":{
+"timestamp":{"type":"object","properties":{"sec":{"type":"integer"},"nsec":{"type":"integer"}}},
+"frame_id":{"type":"string"},"latitude":{"type":"number"},"longitude":{"type":"number"},"altitude":{"type":"number"},
+"position_covariance":{"type":"array","items":{"type":"number"},"minItems":9,"maxItems":9},
+"position_covariance_type":{"type":"integer"}}}"#;
+
+const POSE_IN_FRAME_SCHEMA: &str = r#"{"title":"foxglove.PoseInFrame","type":"object","properties":{
+"timestamp":{"type":"object","properties":{"sec":{"type":"integer"},"nsec":{"type":"integer"}}},
+"frame_id":{"type":"string"},
+"pose":{"type":"object","properties":{
+"position":{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}}},
+"orientation":{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"w":{"type":"number"}}}}}}}"#;
+
+/// Body FRD relative to NED → body FLU relative to ENU (what Foxglove's 3D panel expects).
+fn enu_flu(e: Euler) -> UnitQuaternion<f64> {
+    let ned_to_enu = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0);
+    let flu_to_frd = Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
+    let c = ned_to_enu * e.to_quat_b_to_n().to_rotation_matrix().into_inner() * flu_to_frd;
+    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(c))
+}
+
+/// Stage 5.
+pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
+    let disupt_dir = ensure_disupt(ctx, params, Method::All)?;
+    let (criteria_dir, _) = ensure_criteria(ctx, params, &Overrides::default())?;
+    let m = &ctx.manifest;
+    let dir = stage_dir(&ctx.out, &m.name, "export")?;
+    let nav_path = disupt_dir.join("corrected_nav.parquet");
+    let crit_path = criteria_dir.join("criteria.parquet");
+    let stage = Stage {
+        dir: dir.clone(),
+        name: "export",
+        version: 1,
+        params_hash: params_hash(&NAV_RATE_HZ)?,
+        inputs: vec![nav_path.clone(), crit_path.clone()],
+        outputs: &["corrected_nav.parquet", "corrected.mcap"],
+    };
+    ctx.run_stage(&stage, || {
+        unz_formats::atomic::write_atomic(&dir.join("corrected_nav.parquet"), &std::fs::read(&nav_path)?)?;
+        let (schema, batches) = read_batches(&nav_path)?;
+        let b = arrow::compute::concat_batches(&schema, &batches)?;
+        let t = i64_column(&b, "t_ns")?;
+        let col = |n: &str| f64_column(&b, n);
+        let (lat, lon, h, north, east) = (col("lat_deg")?, col("lon_deg")?, col("h_m")?, col("north_m")?, col("east_m")?);
+        let (roll, pitch, heading) = (col("roll_deg")?, col("pitch_deg")?, col("heading_deg")?);
+        let mut mcap = JsonMcap::create(&dir.join("corrected.mcap"))?;
+        let mut fix = mcap.add_channel("/corrected/fix", "foxglove.LocationFix", LOCATION_FIX_SCHEMA)?;
+        let mut pose = mcap.add_channel("/corrected/pose", "foxglove.PoseInFrame", POSE_IN_FRAME_SCHEMA)?;
+        let mut att = mcap.add_channel("/corrected/attitude", "unz.Attitude", &numeric_object_schema("Attitude, degrees", &["roll_deg", "pitch_deg", "heading_deg"], &[]))?;
+        let step_ns = (1e9 / NAV_RATE_HZ) as i64;
+        let mut next = t.first().copied().unwrap_or(0);
+        for k in 0..t.len() {
+            if t[k] < next {
+                continue;
+            }
+            next = t[k] + step_ns;
+            let log_time = u64::try_from(t[k]).unwrap_or(0);
+            let stamp = json!({ "sec": t[k].div_euclid(1_000_000_000), "nsec": t[k].rem_euclid(1_000_000_000) });
+            mcap.write(&mut fix, log_time, &json!({
+                "timestamp": stamp, "frame_id": "wgs84", "latitude": lat[k], "longitude": lon[k], "altitude": h[k],
+                "position_covariance": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], "position_covariance_type": 0,
+            }))?;
+            let q = enu_flu(Euler { roll_rad: roll[k].to_radians(), pitch_rad: pitch[k].to_radians(), heading_rad: heading[k].to_radians() });
+            mcap.write(&mut pose, log_time, &json!({
+                "timestamp": stamp, "frame_id": "local_enu",
+                "pose": { "position": { "x": east[k], "y": north[k], "z": h[k] - h[0] },
+                          "orientation": { "x": q.i, "y": q.j, "z": q.k, "w": q.w } },
+            }))?;
+            mcap.write(&mut att, log_time, &json!({ "roll_deg": roll[k], "pitch_deg": pitch[k], "heading_deg": heading[k] }))?;
+        }
+        let (cs, cb) = read_batches(&crit_path)?;
+        let c = arrow::compute::concat_batches(&cs, &cb)?;
+        let names = ["theta_n_rad", "phi_n_rad", "theta_p_rad", "phi_p_rad", "d_theta_rad", "d_phi_rad", "kf_d_theta_rad", "kf_d_phi_rad", "kryt1_cum"];
+        let mut crit = mcap.add_channel("/criteria", "unz.Criteria", &numeric_object_schema("Criteria at 1 s epochs (initial settings)", &names, &[]))?;
+        let cols: Vec<Vec<f64>> = names.iter().map(|n| f64_column(&c, n)).collect::<Result<_, _>>()?;
+        for (k, tk) in i64_column(&c, "t_ns")?.into_iter().enumerate() {
+            let msg: serde_json::Map<String, serde_json::Value> = names.iter().zip(&cols).map(|(n, v)| ((*n).to_owned(), json!(v[k]))).collect();
+            mcap.write(&mut crit, u64::try_from(tk).unwrap_or(0), &msg)?;
+        }
+        mcap.finish()?;
+        Ok(())
+    })?;
+    Ok(dir)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn level_vehicle_heading_east_faces_enu_x() {
+        let q = enu_flu(Euler {
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            heading_rad: std::f64::consts::FRAC_PI_2,
+        });
+        let fwd = q * nalgebra::Vector3::x();
+        assert!((fwd - nalgebra::Vector3::x()).norm() < 1e-12, "{fwd}");
+        let q = enu_flu(Euler {
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            heading_rad: 0.0,
+        });
+        assert!((q * nalgebra::Vector3::x() - nalgebra::Vector3::y()).norm() < 1e-12);
+        assert!((q * nalgebra::Vector3::z() - nalgebra::Vector3::z()).norm() < 1e-12);
+    }
+}
