@@ -7,34 +7,8 @@ use std::process::ExitCode;
 use rayon::prelude::*;
 use unz_formats::IngestReport;
 
+use crate::campaign::{Plan, STAGES, run_campaign, write_summary};
 use crate::cli::{DemoArgs, SimulateArgs};
-use crate::disupt_stage::{Method, ensure_disupt};
-use crate::flow::{Overrides, Params, RunCtx, ensure_criteria};
-use crate::runs::load_run;
-
-/// One run's line of the summary.
-struct Line {
-    name: String,
-    report: IngestReport,
-    disupt: serde_json::Value,
-}
-
-fn process(dir: &std::path::Path, results: &std::path::Path) -> anyhow::Result<Line> {
-    let ctx = RunCtx::new(load_run(dir)?, results.to_path_buf(), false);
-    let params = Params::default();
-    ensure_criteria(&ctx, &params, &Overrides::default())?;
-    let disupt_dir = ensure_disupt(&ctx, &params, Method::All)?;
-    let name = ctx.manifest.name.clone();
-    let report = serde_json::from_slice(&std::fs::read(
-        results.join(&name).join("ingest/ingest.json"),
-    )?)?;
-    let disupt = serde_json::from_slice(&std::fs::read(disupt_dir.join("disupt.json"))?)?;
-    Ok(Line {
-        name,
-        report,
-        disupt,
-    })
-}
 
 /// Runs the command.
 pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
@@ -65,10 +39,19 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
             }
         })
         .collect::<anyhow::Result<_>>()?;
-    let lines: Vec<(PathBuf, anyhow::Result<Line>)> = dirs
-        .par_iter()
-        .map(|d| (d.clone(), process(d, &results)))
-        .collect();
+    // Every stage, through the same campaign runner as `unz run`.
+    let manifests: Vec<PathBuf> = dirs.iter().map(|d| d.join("run.toml")).collect();
+    let plan = Plan {
+        out: results.clone(),
+        from: None,
+        until: STAGES.len() - 1,
+        config: toml::Table::new(),
+        shard: None,
+        verbose: false,
+        progress: false,
+    };
+    let outcomes = run_campaign(&manifests, &plan);
+    write_summary(&results, &outcomes)?;
 
     println!(
         "{:<16} {:>7} {:>8} {:>9} {:>10} {:>10} {:>10} {:>10} {:>12}",
@@ -83,40 +66,47 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         "joint az σ°"
     );
     let mut failed = 0;
-    for (dir, line) in lines {
-        match line {
-            Ok(l) => {
-                let err = |v: &serde_json::Value| {
-                    v["dx_m"]
-                        .as_f64()
-                        .unwrap_or(f64::NAN)
-                        .hypot(v["dy_m"].as_f64().unwrap_or(f64::NAN))
-                };
-                let m = &l.disupt["methods"];
-                println!(
-                    "{:<16} {:>7} {:>8} {:>9.0} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>12.3}",
-                    l.name,
-                    l.report.imu_accepted,
-                    l.report.rejected_total(),
-                    l.disupt["distance_m"].as_f64().unwrap_or(f64::NAN),
-                    err(&l.disupt["before"]),
-                    err(&m["oepi"]),
-                    err(&m["owpi"]),
-                    err(&m["joint"]),
-                    m["joint"]["x"]["sigma"]["azimuth_deg"]
-                        .as_f64()
-                        .unwrap_or(f64::NAN),
-                );
-            }
-            Err(e) => {
-                failed += 1;
-                println!("{:<16} failed: {e:#}", dir.display());
-            }
+    for o in &outcomes {
+        if let Some(e) = &o.error {
+            failed += 1;
+            println!("{:<16} failed: {e}", o.name);
+            continue;
         }
+        let read = |p: std::path::PathBuf| -> serde_json::Value {
+            std::fs::read(p)
+                .ok()
+                .and_then(|b| serde_json::from_slice(&b).ok())
+                .unwrap_or_default()
+        };
+        let report: IngestReport =
+            serde_json::from_value(read(results.join(&o.name).join("ingest/ingest.json")))
+                .unwrap_or_default();
+        let d = read(results.join(&o.name).join("disupt/disupt.json"));
+        let err = |v: &serde_json::Value| {
+            v["dx_m"]
+                .as_f64()
+                .unwrap_or(f64::NAN)
+                .hypot(v["dy_m"].as_f64().unwrap_or(f64::NAN))
+        };
+        let m = &d["methods"];
+        println!(
+            "{:<16} {:>7} {:>8} {:>9.0} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>12.3}",
+            o.name,
+            report.imu_accepted,
+            report.rejected_total(),
+            d["distance_m"].as_f64().unwrap_or(f64::NAN),
+            err(&d["before"]),
+            err(&m["oepi"]),
+            err(&m["owpi"]),
+            err(&m["joint"]),
+            m["joint"]["x"]["sigma"]["azimuth_deg"]
+                .as_f64()
+                .unwrap_or(f64::NAN),
+        );
     }
     println!("errors are horizontal distances at the last control point");
     println!(
-        "campaign: {}\nresults:  {} (per run: ingest/ derive/ navigate/ criteria/ disupt/)",
+        "campaign: {}\nresults:  {} (per run: ingest/ derive/ navigate/ criteria/ disupt/ export/; summary campaign.md)",
         campaign.display(),
         results.display()
     );
