@@ -89,6 +89,21 @@ pub struct Plan {
     pub progress: bool,
 }
 
+impl Plan {
+    /// Every stage into `out`, default parameters, quiet (the demo and the benchmark).
+    pub fn every_stage(out: PathBuf) -> Self {
+        Self {
+            out,
+            from: None,
+            until: STAGES.len() - 1,
+            config: toml::Table::new(),
+            shard: None,
+            verbose: false,
+            progress: false,
+        }
+    }
+}
+
 /// One run's outcome.
 #[derive(Debug, Clone)]
 pub struct RunOutcome {

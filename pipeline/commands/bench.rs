@@ -132,15 +132,7 @@ fn bench_campaign(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     let out = tmp.path().join("out");
     std::fs::create_dir_all(&out)?;
     let manifests = find_runs(&camp, &out)?;
-    let plan = Plan {
-        out: out.clone(),
-        from: None,
-        until: STAGES.len() - 1,
-        config: toml::Table::new(),
-        shard: None,
-        verbose: false,
-        progress: false,
-    };
+    let plan = Plan::every_stage(out.clone());
     for label in ["cold", "cached"] {
         let t = Instant::now();
         let outcomes = run_campaign(&manifests, &plan);

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use rayon::prelude::*;
 use unz_formats::IngestReport;
 
-use crate::campaign::{Plan, STAGES, run_campaign, write_summary};
+use crate::campaign::{Plan, run_campaign, write_summary};
 use crate::cli::{DemoArgs, SimulateArgs};
 
 /// Runs the command.
@@ -41,15 +41,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         .collect::<anyhow::Result<_>>()?;
     // Every stage, through the same campaign runner as `unz run`.
     let manifests: Vec<PathBuf> = dirs.iter().map(|d| d.join("run.toml")).collect();
-    let plan = Plan {
-        out: results.clone(),
-        from: None,
-        until: STAGES.len() - 1,
-        config: toml::Table::new(),
-        shard: None,
-        verbose: false,
-        progress: false,
-    };
+    let plan = Plan::every_stage(results.clone());
     let outcomes = run_campaign(&manifests, &plan);
     write_summary(&results, &outcomes)?;
 
