@@ -7,7 +7,7 @@ use std::sync::Arc;
 use anyhow::{Context, bail};
 use arrow::array::{AsArray, BooleanArray, Float64Array, Int64Array, RecordBatch, UInt64Array};
 use arrow::datatypes::{DataType, Field, Schema, UInt64Type};
-use unz_formats::parquet_io::{read_batches, write_batch};
+use unz_formats::parquet_io::{read_table, write_batch};
 use unz_formats::schema::{FRAME_BODY, scalar, vec3};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, Epochs};
@@ -96,17 +96,10 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn concat(path: &Path) -> anyhow::Result<(arrow::datatypes::SchemaRef, RecordBatch)> {
-    let (schema, batches) = read_batches(path)?;
-    let batch = arrow::compute::concat_batches(&schema, &batches)
-        .with_context(|| format!("cannot read {}", path.display()))?;
-    Ok((schema, batch))
-}
-
 /// Loads what [`write_derived`] wrote (the per-block filtered series are not kept).
 pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
     let path = dir.join("derived.parquet");
-    let (schema, b) = concat(&path)?;
+    let (schema, b) = read_table(&path)?;
     let meta = |k: &str| -> anyhow::Result<String> {
         schema
             .metadata()
@@ -132,7 +125,7 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
         ..Derived::default()
     };
     let epath = dir.join("epochs.parquet");
-    let (_, e) = concat(&epath)?;
+    let (_, e) = read_table(&epath)?;
     let blocks = e
         .column_by_name("block")
         .and_then(|c| c.as_primitive_opt::<UInt64Type>())

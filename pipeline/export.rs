@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 use serde_json::json;
 use unz_formats::mcap_io::{JsonMcap, numeric_object_schema};
-use unz_formats::parquet_io::read_batches;
+use unz_formats::parquet_io::read_table;
 use unz_formats::tables::{f64_column, i64_column};
 use unz_stages::attitude::Euler;
 
@@ -59,8 +59,7 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     };
     ctx.run_stage(&stage, || {
         unz_formats::atomic::write_atomic(&dir.join("corrected_nav.parquet"), &std::fs::read(&nav_path)?)?;
-        let (schema, batches) = read_batches(&nav_path)?;
-        let b = arrow::compute::concat_batches(&schema, &batches)?;
+        let (_, b) = read_table(&nav_path)?;
         let t = i64_column(&b, "t_ns")?;
         let col = |n: &str| f64_column(&b, n);
         let (lat, lon, h, north, east) = (col("lat_deg")?, col("lon_deg")?, col("h_m")?, col("north_m")?, col("east_m")?);
@@ -90,8 +89,7 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             }))?;
             mcap.write(&mut att, log_time, &json!({ "roll_deg": roll[k], "pitch_deg": pitch[k], "heading_deg": heading[k] }))?;
         }
-        let (cs, cb) = read_batches(&crit_path)?;
-        let c = arrow::compute::concat_batches(&cs, &cb)?;
+        let (_, c) = read_table(&crit_path)?;
         let names = ["theta_n_rad", "phi_n_rad", "theta_p_rad", "phi_p_rad", "d_theta_rad", "d_phi_rad", "kf_d_theta_rad", "kf_d_phi_rad", "kryt1_cum"];
         let mut crit = mcap.add_channel("/criteria", "unz.Criteria", &numeric_object_schema("Criteria at 1 s epochs (initial settings)", &names, &[]))?;
         let cols: Vec<Vec<f64>> = names.iter().map(|n| f64_column(&c, n)).collect::<Result<_, _>>()?;

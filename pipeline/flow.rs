@@ -447,8 +447,7 @@ pub struct CriteriaSummary {
 
 /// Loads `nav.parquet` back into a track (radians).
 pub fn load_nav(path: &Path) -> anyhow::Result<NavTrack> {
-    let (schema, batches) = read_batches(path)?;
-    let b = arrow::compute::concat_batches(&schema, &batches)?;
+    let (_, b) = unz_formats::parquet_io::read_table(path)?;
     let rad = |n: &str| -> anyhow::Result<Vec<f64>> {
         Ok(f64_column(&b, n)?
             .into_iter()

@@ -108,3 +108,11 @@ pub fn read_batches(path: &Path) -> Result<(SchemaRef, Vec<RecordBatch>), FileEr
         .map_err(|e| parquet_err(path, e))?;
     Ok((schema, batches))
 }
+
+/// Reads a whole Parquet file as one batch (tables here are one run: tens of MB at most).
+pub fn read_table(path: &Path) -> Result<(SchemaRef, RecordBatch), FileError> {
+    let (schema, batches) = read_batches(path)?;
+    let batch =
+        arrow::compute::concat_batches(&schema, &batches).map_err(|e| parquet_err(path, e))?;
+    Ok((schema, batch))
+}

@@ -83,12 +83,7 @@ impl Case {
             odo_scale: s.odo_scale_m_per_pulse / s.nominal_odo_m_per_pulse,
             ..InitialRequest::default()
         };
-        let site = (
-            self.run.site[0].to_radians(),
-            self.run.site[1].to_radians(),
-            self.run.site[2],
-        );
-        initial_settings(&self.derived, &req, &AlignParams::default(), site).0
+        self.settings_for(&req)
     }
 
     pub fn nav(&self, s: &NavSettings) -> NavTrack {
@@ -150,12 +145,17 @@ impl Case {
             odo_scale: 1.0,
             ..InitialRequest::default()
         };
+        self.settings_for(&req)
+    }
+
+    /// Initial settings for `req` at the run's site, levelled over the static start.
+    pub fn settings_for(&self, req: &InitialRequest) -> NavSettings {
         let site = (
             self.run.site[0].to_radians(),
             self.run.site[1].to_radians(),
             self.run.site[2],
         );
-        initial_settings(&self.derived, &req, &AlignParams::default(), site).0
+        initial_settings(&self.derived, req, &AlignParams::default(), site).0
     }
 
     pub fn inputs(&self) -> NavInputs<'_> {
