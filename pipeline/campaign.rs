@@ -1,6 +1,7 @@
 //! Whole campaigns: every run under a folder, processed in parallel, each run's stages in
 //! order; a failing run is recorded with its error and never stops the others; one
-//! summary row per run in `OUT/campaign.parquet` and `OUT/campaign.md`.
+//! summary row per run in `OUT/campaign.parquet` and `OUT/campaign.md`, and the report
+//! `OUT/campaign.html` with its plots.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -15,6 +16,7 @@ use serde_json::Value;
 use unz_formats::atomic::write_atomic;
 use unz_formats::manifest::RunManifest;
 use unz_formats::parquet_io::write_batch;
+use unz_viz::report::{JointEstimate, ReportRow};
 
 use crate::disupt_stage::{Method, ensure_disupt};
 use crate::flow::{
@@ -22,8 +24,8 @@ use crate::flow::{
 };
 
 /// The stages of `unz run`, in order.
-pub const STAGES: [&str; 6] = [
-    "ingest", "derive", "navigate", "criteria", "disupt", "export",
+pub const STAGES: [&str; 7] = [
+    "ingest", "derive", "navigate", "criteria", "disupt", "export", "review",
 ];
 /// Deepest folder searched for run manifests.
 const MAX_DEPTH: usize = 8;
@@ -154,7 +156,8 @@ fn process(
                 "navigate" => drop(ensure_navigate(&ctx, p, &none)?),
                 "criteria" => drop(ensure_criteria(&ctx, p, &none)?),
                 "disupt" => drop(ensure_disupt(&ctx, p, Method::All)?),
-                _ => drop(crate::export::ensure_export(&ctx, p)?),
+                "export" => drop(crate::export::ensure_export(&ctx, p)?),
+                _ => drop(crate::review::ensure_review(&ctx, p)?),
             }
         }
         Ok(())
@@ -408,7 +411,65 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         &RecordBatch::try_new(Arc::new(Schema::new(fields)), arrays)?,
     )?;
     write_atomic(&out.join("campaign.md"), md.as_bytes())?;
+    let rows: Vec<ReportRow> = outcomes.iter().map(|o| report_row(out, o)).collect();
+    let html = unz_viz::report::campaign_html(&format!("Campaign {}", out.display()), &rows);
+    write_atomic(&out.join("campaign.html"), html.as_bytes())?;
     Ok(())
+}
+
+/// A run's row of `campaign.html`, from its `disupt.json`.
+fn report_row(out: &Path, o: &RunOutcome) -> ReportRow {
+    let d = read_json(&out.join(&o.name).join("disupt/disupt.json"));
+    let settings = [
+        ("initial", &d["before"]),
+        ("oepi", &d["methods"]["oepi"]),
+        ("owpi", &d["methods"]["owpi"]),
+        ("joint", &d["methods"]["joint"]),
+    ];
+    let mut last_cp_error_m = Vec::new();
+    let mut cp_errors_m = Vec::new();
+    for (label, v) in settings {
+        if let (Some(dx), Some(dy)) = (v["dx_m"].as_f64(), v["dy_m"].as_f64()) {
+            last_cp_error_m.push((label.to_owned(), dx.hypot(dy)));
+        }
+        for cp in v["control_points"].as_array().into_iter().flatten() {
+            if let (Some(id), Some(k)) = (cp["id"].as_u64(), cp["kryt2_m"].as_f64()) {
+                cp_errors_m.push((u32::try_from(id).unwrap_or(u32::MAX), label.to_owned(), k));
+            }
+        }
+    }
+    let (b, j) = (&d["before"]["x"], &d["methods"]["joint"]["x"]);
+    let joint = (|| {
+        let per_h = 1.0 / unz_stages::simulate::DEG_PER_H;
+        let base_scale = b["odo_scale"].as_f64()?;
+        Some(JointEstimate {
+            azimuth_change_deg: (j["azimuth_deg"].as_f64()? - b["azimuth_deg"].as_f64()? + 180.0)
+                .rem_euclid(360.0)
+                - 180.0,
+            azimuth_sigma_deg: j["sigma"]["azimuth_deg"].as_f64()?,
+            drift_z_deg_h: j["drift_rad_s"][2].as_f64()? * per_h,
+            drift_z_sigma_deg_h: j["sigma"]["drift_rad_s"][2].as_f64()? * per_h,
+            odo_ppm: (j["odo_scale"].as_f64()? / base_scale - 1.0) * 1e6,
+            odo_sigma_ppm: j["sigma"]["odo_scale"].as_f64()? / base_scale * 1e6,
+        })
+    })();
+    let rrd = format!("{0}/review/{0}.rrd", o.name);
+    ReportRow {
+        name: o.name.clone(),
+        error: o.error.clone(),
+        distance_m: d["distance_m"].as_f64(),
+        last_cp_error_m,
+        cp_errors_m,
+        joint,
+        recording: out.join(&rrd).is_file().then_some(rrd),
+        wall_s: o.wall_s,
+        computed: o
+            .stages
+            .iter()
+            .filter(|s| s.1)
+            .map(|s| s.0.clone())
+            .collect(),
+    }
 }
 
 /// Parses `I/N`.

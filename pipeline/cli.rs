@@ -30,6 +30,10 @@ pub enum Command {
     Disupt(DisuptArgs),
     /// Sensitivity map: Kryt1 and Kryt2 over a grid of one or two settings.
     Sweep(SweepArgs),
+    /// Export the corrected navigation: corrected_nav.parquet and corrected.mcap (Foxglove).
+    Export(StageArgs),
+    /// Write the run's Rerun recording for review (OUT/<name>/review/<name>.rrd).
+    Review(StageArgs),
     /// Run the stages over a run or a whole campaign folder, in parallel, with a summary.
     Run(RunArgs),
     /// Show the effective parameters (defaults, --config file, a run's [params]).

@@ -6,12 +6,17 @@ use std::path::PathBuf;
 
 use serde::Serialize;
 use unz_formats::atomic::{write_atomic, write_json_atomic};
+use unz_stages::criteria::{self, Kryt1Scratch, Kryt1Series, Kryt2};
 use unz_stages::disupt::{self, MethodResult, Problem, X};
 use unz_stages::filter::LowPass;
 use unz_stages::simulate::DEG_PER_H;
 use unz_stages::strapdown::NavTrack;
 
 use crate::flow::{NavCase, Overrides, Params, RunCtx, ensure_derive, load_case, write_nav};
+use crate::method_tables::{
+    KRYT1_SERIES, MethodKryt1, MethodTrack, TRACKS, method_kryt1, method_track, write_kryt1_series,
+    write_tracks,
+};
 use crate::runs::stage_dir;
 use crate::stage::{Stage, params_hash};
 
@@ -65,6 +70,8 @@ pub struct MethodOut {
     pub dy_m: f64,
     /// Kryt1, rad.
     pub kryt1_rad: f64,
+    /// Errors at every control point.
+    pub control_points: Vec<Kryt2>,
     /// Table rows.
     pub steps: Vec<disupt::Step>,
     /// Navigation passes.
@@ -99,6 +106,8 @@ pub struct Before {
     pub dy_m: f64,
     /// Kryt1, rad.
     pub kryt1_rad: f64,
+    /// Errors at every control point.
+    pub control_points: Vec<Kryt2>,
 }
 
 fn settings_out(x: &X, base_scale: f64, sigma: Option<&X>) -> SettingsOut {
@@ -191,10 +200,16 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
     let stage = Stage {
         dir: dir.clone(),
         name: "disupt",
-        version: 2,
+        version: 3,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
-        outputs: &["disupt.json", "disupt.md", "corrected_nav.parquet"],
+        outputs: &[
+            "disupt.json",
+            "disupt.md",
+            "corrected_nav.parquet",
+            TRACKS,
+            KRYT1_SERIES,
+        ],
     };
     ctx.run_stage(&stage, || {
         let case = load_case(ctx, params, &Overrides::default())?;
@@ -211,6 +226,22 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             Method::Joint => &[Method::Joint],
         };
         let mut best: Option<(String, X)> = None;
+        let site = (case.settings.lat0_rad, case.settings.lon0_rad, case.settings.h0_m);
+        // One exact pass per method's settings: its trajectory, Kryt1 series and control
+        // point errors, for review.
+        let mut track = NavTrack::default();
+        let mut scratch = Kryt1Scratch::default();
+        let mut series = Kryt1Series::default();
+        let mut tracks: Vec<MethodTrack> = Vec::new();
+        let mut kryt1s: Vec<MethodKryt1> = Vec::new();
+        let mut review_pass = |name: &str, x: &X, track: &mut NavTrack| -> Vec<Kryt2> {
+            unz_stages::strapdown::navigate(&case.inputs(), &problem.settings(x), track);
+            criteria::kryt1(&case.derived.epochs, &problem.lp, track, &problem.kalman, &mut scratch, Some(&mut series));
+            tracks.push(method_track(name, &case.derived, track, site));
+            kryt1s.push(method_kryt1(name, &case.derived, &series));
+            criteria::kryt2(track, &case.fixes)
+        };
+        let before_cps = review_pass("initial", &problem.x0(), &mut track);
         for &w in wanted {
             let (name, result) = match w {
                 Method::Oepi => ("oepi", disupt::oepi(&problem, &dparams)),
@@ -232,6 +263,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                             dx_m: r.dx_m,
                             dy_m: r.dy_m,
                             kryt1_rad: r.kryt1,
+                            control_points: review_pass(name, &r.x, &mut track),
                             steps: r.steps,
                             evaluations: r.evaluations,
                             wall_s: r.wall_s,
@@ -244,14 +276,19 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 }
             }
         }
-        let mut track = NavTrack::default();
         let x_best = best.as_ref().map_or(problem.x0(), |b| b.1);
         unz_stages::strapdown::navigate(&case.inputs(), &problem.settings(&x_best), &mut track);
         let distance_m = case.fixes.last().map_or_else(|| track.distance_m.last().copied().unwrap_or(0.0), |f| track.distance_m[f.sample]);
         let (dx, dy) = before_eval.last_error();
         let out = DisuptOut {
             distance_m,
-            before: Before { x: settings_out(&problem.x0(), base_scale, None), dx_m: dx, dy_m: dy, kryt1_rad: before_eval.kryt1 },
+            before: Before {
+                x: settings_out(&problem.x0(), base_scale, None),
+                dx_m: dx,
+                dy_m: dy,
+                kryt1_rad: before_eval.kryt1,
+                control_points: before_cps,
+            },
             methods,
             skipped,
             corrected_by: best.map(|b| b.0),
@@ -259,7 +296,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         md = format!(
             "{md}Before DISUPT: ΔX = {dx:.1} m, ΔY = {dy:.1} m at the last control point, after {distance_m:.0} m.\n"
         );
-        let site = (case.settings.lat0_rad, case.settings.lon0_rad, case.settings.h0_m);
+        write_tracks(&dir.join(TRACKS), &tracks)?;
+        write_kryt1_series(&dir.join(KRYT1_SERIES), &kryt1s)?;
         write_nav(&dir.join("corrected_nav.parquet"), &case.derived, &track, site)?;
         write_atomic(&dir.join("disupt.md"), md.as_bytes())?;
         write_json_atomic(&dir.join("disupt.json"), &out)?;

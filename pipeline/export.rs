@@ -5,12 +5,11 @@
 
 use std::path::PathBuf;
 
-use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
 use serde_json::json;
 use unz_formats::mcap_io::{JsonMcap, numeric_object_schema};
 use unz_formats::parquet_io::read_table;
 use unz_formats::tables::{f64_column, i64_column};
-use unz_stages::attitude::Euler;
+use unz_viz::frames::enu_flu;
 
 use crate::disupt_stage::{Method, ensure_disupt};
 use crate::flow::{Overrides, Params, RunCtx, ensure_criteria};
@@ -32,14 +31,6 @@ const POSE_IN_FRAME_SCHEMA: &str = r#"{"title":"foxglove.PoseInFrame","type":"ob
 "pose":{"type":"object","properties":{
 "position":{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}}},
 "orientation":{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"w":{"type":"number"}}}}}}}"#;
-
-/// Body FRD relative to NED → body FLU relative to ENU (what Foxglove's 3D panel expects).
-fn enu_flu(e: Euler) -> UnitQuaternion<f64> {
-    let ned_to_enu = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0);
-    let flu_to_frd = Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
-    let c = ned_to_enu * e.to_quat_b_to_n().to_rotation_matrix().into_inner() * flu_to_frd;
-    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(c))
-}
 
 /// Stage 5.
 pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
@@ -81,7 +72,8 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                 "timestamp": stamp, "frame_id": "wgs84", "latitude": lat[k], "longitude": lon[k], "altitude": h[k],
                 "position_covariance": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], "position_covariance_type": 0,
             }))?;
-            let q = enu_flu(Euler { roll_rad: roll[k].to_radians(), pitch_rad: pitch[k].to_radians(), heading_rad: heading[k].to_radians() });
+            // Body forward-left-up in local east-north-up, as Foxglove's 3D panel expects.
+            let q = enu_flu(roll[k].to_radians(), pitch[k].to_radians(), heading[k].to_radians());
             mcap.write(&mut pose, log_time, &json!({
                 "timestamp": stamp, "frame_id": "local_enu",
                 "pose": { "position": { "x": east[k], "y": north[k], "z": h[k] - h[0] },
@@ -101,27 +93,4 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         Ok(())
     })?;
     Ok(dir)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn level_vehicle_heading_east_faces_enu_x() {
-        let q = enu_flu(Euler {
-            roll_rad: 0.0,
-            pitch_rad: 0.0,
-            heading_rad: std::f64::consts::FRAC_PI_2,
-        });
-        let fwd = q * nalgebra::Vector3::x();
-        assert!((fwd - nalgebra::Vector3::x()).norm() < 1e-12, "{fwd}");
-        let q = enu_flu(Euler {
-            roll_rad: 0.0,
-            pitch_rad: 0.0,
-            heading_rad: 0.0,
-        });
-        assert!((q * nalgebra::Vector3::x() - nalgebra::Vector3::y()).norm() < 1e-12);
-        assert!((q * nalgebra::Vector3::z() - nalgebra::Vector3::z()).norm() < 1e-12);
-    }
 }

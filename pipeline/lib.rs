@@ -13,6 +13,8 @@ pub mod disupt_stage;
 pub mod export;
 pub mod flow;
 pub mod ingest;
+pub mod method_tables;
+pub mod review;
 pub mod runs;
 pub mod simulate_io;
 pub mod stage;

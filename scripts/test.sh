@@ -1,13 +1,24 @@
 #!/usr/bin/env bash
-# The test suite, as CI runs it. Installs what the third-party cross-checks need
-# (a Python venv with pyarrow and mcap) and runs every Rust test, optimised.
+# The test suite, as CI runs it. Installs what the third-party cross-checks need — a
+# Python venv with pyarrow, mcap and rerun-sdk (pinned to the crate's rerun), and
+# Debian's Chromium for the report's browser check — and runs every Rust test, optimised.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-if ! .venv/bin/python -c "import pyarrow, mcap" 2>/dev/null; then
+if ! .venv/bin/python -c "import pyarrow, mcap, rerun" 2>/dev/null; then
   python3 -m venv .venv
   .venv/bin/pip install --quiet --disable-pip-version-check -r tests/python/requirements.txt
 fi
 export UNZ_PYTHON="$PWD/.venv/bin/python"
+# rerun-sdk asks once whether it may send analytics; it may not.
+RERUN_ANALYTICS=0 .venv/bin/rerun analytics disable >/dev/null 2>&1 || true
+
+if ! command -v chromium >/dev/null; then
+  SUDO=""
+  if [ "$(id -u)" != 0 ]; then SUDO=sudo; fi
+  $SUDO apt-get install -y --no-install-recommends chromium >/dev/null \
+    || { $SUDO apt-get update >/dev/null && $SUDO apt-get install -y --no-install-recommends chromium >/dev/null; }
+fi
+export UNZ_CHROMIUM="$(command -v chromium)"
 
 cargo test --release --workspace

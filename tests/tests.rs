@@ -6,4 +6,5 @@ mod disupt;
 mod ingest;
 mod kill;
 mod kingston;
+mod review;
 mod util;

@@ -34,7 +34,7 @@ pub fn shared_data(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// Python with pyarrow and mcap: `UNZ_PYTHON` (set by scripts/test.sh) or `python3`.
+/// Python with pyarrow, mcap and rerun-sdk: `UNZ_PYTHON` (set by scripts/test.sh) or `python3`.
 /// Missing readers fail the test with instructions, unless `UNZ_SKIP_PYTHON=1`.
 pub fn python() -> Option<String> {
     if std::env::var("UNZ_SKIP_PYTHON").as_deref() == Ok("1") {
@@ -43,12 +43,12 @@ pub fn python() -> Option<String> {
     }
     let py = std::env::var("UNZ_PYTHON").unwrap_or_else(|_| "python3".into());
     let ok = Command::new(&py)
-        .args(["-c", "import pyarrow, mcap"])
+        .args(["-c", "import pyarrow, mcap, rerun"])
         .status()
         .is_ok_and(|s| s.success());
     assert!(
         ok,
-        "{py} lacks pyarrow/mcap: run the tests through scripts/test.sh (it installs them), or set UNZ_SKIP_PYTHON=1"
+        "{py} lacks pyarrow/mcap/rerun-sdk: run the tests through scripts/test.sh (it installs them), or set UNZ_SKIP_PYTHON=1"
     );
     Some(py)
 }

@@ -98,10 +98,21 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
     }
     println!("errors are horizontal distances at the last control point");
     println!(
-        "campaign: {}\nresults:  {} (per run: ingest/ derive/ navigate/ criteria/ disupt/ export/; summary campaign.md)",
+        "campaign: {}\nresults:  {} (per run: ingest/ derive/ navigate/ criteria/ disupt/ export/ review/)\nreport:   {}\nrecordings (open with `rerun FILE`):",
         campaign.display(),
-        results.display()
+        results.display(),
+        results.join("campaign.html").display()
     );
+    for o in outcomes.iter().filter(|o| o.error.is_none()) {
+        println!(
+            "  {}",
+            results
+                .join(&o.name)
+                .join("review")
+                .join(crate::review::rrd_name(&o.name))
+                .display()
+        );
+    }
     Ok(if failed == 0 {
         ExitCode::SUCCESS
     } else {

@@ -7,8 +7,10 @@ pub mod criteria;
 pub mod demo;
 pub mod derive;
 pub mod disupt;
+pub mod export;
 pub mod ingest;
 pub mod navigate;
+pub mod review;
 pub mod run;
 pub mod simulate;
 pub mod sweep;
@@ -27,6 +29,8 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Criteria(a) => criteria::run(&a),
         Command::Disupt(a) => disupt::run(&a),
         Command::Sweep(a) => sweep::run(&a),
+        Command::Export(a) => export::run(&a),
+        Command::Review(a) => review::run(&a),
         Command::Run(a) => run::run(&a),
         Command::Campaign(a) => campaign::run(&a),
         Command::Config(a) => config::run(&a),

@@ -1,5 +1,22 @@
-//! Rerun review recordings of the pipeline's runs (issue 6: not written yet).
+//! Review material built from the pipeline's cached tables; nothing here navigates.
 //!
-//! This crate is where the `.rrd` recordings will be built from the cached tables; it
-//! links rerun 0.36.3 today so that the workspace pins one arrow version (rerun's) and
-//! `cargo tree -i arrow-array` shows a single version.
+//! - [`recording`]: one Rerun recording (`.rrd`) per run, from a [`review::Review`]: a
+//!   map, a 3D view in local east-north-up metres, the criteria and sensor series and
+//!   the DISUPT tables, with a [`blueprint`] that lays them out. Entity paths are in
+//!   [`paths`].
+//! - [`report`]: the campaign's static HTML report with SVG plots.
+//!
+//! ```no_run
+//! use unz_viz::review::Review;
+//! let review = Review { name: "run-1".into(), ..Review::default() };
+//! let stats = unz_viz::recording::write_rrd(&review, std::path::Path::new("run-1.rrd"))?;
+//! println!("{} rows", stats.rows);
+//! # Ok::<(), unz_viz::recording::RecordingError>(())
+//! ```
+
+pub mod blueprint;
+pub mod frames;
+pub mod paths;
+pub mod recording;
+pub mod report;
+pub mod review;

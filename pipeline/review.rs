@@ -1,0 +1,317 @@
+//! Stage 6, review: one Rerun recording per run, `OUT/<name>/review/<name>.rrd`, built
+//! from the cached tables of the stages before it (derive, criteria, disupt, and the
+//! sweep when one exists). It never navigates: the trajectories of every method come
+//! from the disupt stage's `tracks.parquet`.
+//!
+//! A simulated run's `truth.parquet` beside its `run.toml` is shown as the truth track.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use serde_json::Value;
+use unz_formats::parquet_io::read_table;
+use unz_formats::tables::{f64_column, i64_column};
+use unz_stages::earth;
+use unz_viz::review::{ControlPointView, EpochSeries, ImuSeries, Kryt1Curve, Review, Sweep, Track};
+
+use crate::derive_io::load_derived;
+use crate::disupt_stage::{Method, ensure_disupt};
+use crate::flow::{Overrides, Params, RunCtx, ensure_criteria};
+use crate::method_tables::{
+    KRYT1_SERIES, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_indices, read_kryt1_series,
+    read_tracks,
+};
+use crate::runs::stage_dir;
+use crate::stage::{Stage, params_hash};
+
+/// What the review stage wrote.
+#[derive(Debug, Clone)]
+pub struct ReviewOutput {
+    /// The recording.
+    pub rrd: PathBuf,
+    /// Its size, bytes.
+    pub bytes: u64,
+}
+
+/// The file name of a run's recording.
+pub fn rrd_name(run: &str) -> String {
+    format!("{run}.rrd")
+}
+
+/// A simulated run's truth, when its folder has one (a regular file, not a link).
+fn truth_path(ctx: &RunCtx) -> Option<PathBuf> {
+    let p = ctx.manifest.path.parent()?.join("truth.parquet");
+    std::fs::symlink_metadata(&p)
+        .ok()
+        .filter(std::fs::Metadata::is_file)
+        .map(|_| p)
+}
+
+/// The sweep's table, when `unz sweep` ran for this run.
+fn sweep_path(ctx: &RunCtx) -> Option<PathBuf> {
+    let p = ctx
+        .out
+        .join(&ctx.manifest.name)
+        .join("sweep")
+        .join("sweep.parquet");
+    p.is_file().then_some(p)
+}
+
+/// Stage 6.
+pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutput> {
+    let disupt_dir = ensure_disupt(ctx, params, Method::All)?;
+    let (criteria_dir, _) = ensure_criteria(ctx, params, &Overrides::default())?;
+    let m = &ctx.manifest;
+    let derive_dir = ctx.out.join(&m.name).join("derive");
+    let dir = stage_dir(&ctx.out, &m.name, "review")?;
+    let truth = truth_path(ctx);
+    let sweep = sweep_path(ctx);
+    let mut inputs = vec![
+        m.path.clone(),
+        derive_dir.join("derived.parquet"),
+        derive_dir.join("epochs.parquet"),
+        criteria_dir.join("criteria.parquet"),
+        disupt_dir.join("disupt.json"),
+        disupt_dir.join("disupt.md"),
+        disupt_dir.join(TRACKS),
+        disupt_dir.join(KRYT1_SERIES),
+    ];
+    inputs.extend(truth.iter().cloned());
+    inputs.extend(sweep.iter().cloned());
+    let name = rrd_name(&m.name);
+    let outputs = [name.as_str()];
+    let stage = Stage {
+        dir: dir.clone(),
+        name: "review",
+        version: 1,
+        params_hash: params_hash(&(
+            unz_viz::recording::SERIES_RATE_HZ,
+            unz_viz::recording::POSE_RATE_HZ,
+        ))?,
+        inputs,
+        outputs: &outputs,
+    };
+    ctx.run_stage(&stage, || {
+        let review = build_review(
+            ctx,
+            &derive_dir,
+            &criteria_dir,
+            &disupt_dir,
+            truth.as_deref(),
+            sweep.as_deref(),
+        )?;
+        unz_viz::recording::write_rrd(&review, &dir.join(&name))?;
+        Ok(())
+    })?;
+    let rrd = dir.join(&name);
+    let bytes = std::fs::metadata(&rrd)
+        .with_context(|| format!("cannot read {}", rrd.display()))?
+        .len();
+    Ok(ReviewOutput { rrd, bytes })
+}
+
+/// Reads the cached tables into a [`Review`].
+pub fn build_review(
+    ctx: &RunCtx,
+    derive_dir: &Path,
+    criteria_dir: &Path,
+    disupt_dir: &Path,
+    truth: Option<&Path>,
+    sweep: Option<&Path>,
+) -> anyhow::Result<Review> {
+    let m = &ctx.manifest;
+    let d = load_derived(derive_dir)?;
+    let rel =
+        |t_ns: &[i64]| -> Vec<f64> { t_ns.iter().map(|&t| (t - d.t0_ns) as f64 * 1e-9).collect() };
+    let site = (
+        m.site.latitude_deg.to_radians(),
+        m.site.longitude_deg.to_radians(),
+        m.site.height_m,
+    );
+
+    let crit_path = criteria_dir.join("criteria.parquet");
+    let (_, c) = read_table(&crit_path)?;
+    let col = |n: &str| f64_column(&c, n);
+    // The filtered acceleration terms at the same epochs (derive's epochs.parquet).
+    let (_, e) = read_table(&derive_dir.join("epochs.parquet"))?;
+    let ecol = |n: &str| f64_column(&e, n);
+    let epochs = EpochSeries {
+        t_s: rel(&i64_column(&c, "t_ns")?),
+        theta_gyro_rad: col("theta_n_rad")?,
+        phi_gyro_rad: col("phi_n_rad")?,
+        theta_acc_rad: col("theta_p_rad")?,
+        phi_acc_rad: col("phi_p_rad")?,
+        d_theta_rad: col("d_theta_rad")?,
+        d_phi_rad: col("d_phi_rad")?,
+        kf_d_theta_rad: col("kf_d_theta_rad")?,
+        kf_d_phi_rad: col("kf_d_phi_rad")?,
+        ax_f_mps2: ecol("ax_f_mps2")?,
+        ay_f_mps2: ecol("ay_f_mps2")?,
+        u_dot_f_mps2: ecol("u_dot_f_mps2")?,
+        ru_f_mps2: ecol("ru_f_mps2")?,
+    };
+
+    let mut tracks: Vec<Track> = read_tracks(&disupt_dir.join(TRACKS))?
+        .into_iter()
+        .map(|t| track_view(t, &rel, site.2))
+        .collect();
+    if let Some(p) = truth {
+        tracks.push(truth_track(p, &rel, site, d.nominal_dt_s)?);
+    }
+    let kryt1 = read_kryt1_series(&disupt_dir.join(KRYT1_SERIES))?
+        .into_iter()
+        .map(|k| Kryt1Curve {
+            label: k.method,
+            t_s: rel(&k.t_ns),
+            kryt1_cum_rad: k.kryt1_cum,
+        })
+        .collect();
+
+    let json_path = disupt_dir.join("disupt.json");
+    let dj: Value = serde_json::from_slice(
+        &std::fs::read(&json_path)
+            .with_context(|| format!("cannot read {}", json_path.display()))?,
+    )
+    .with_context(|| format!("not JSON: {}", json_path.display()))?;
+    let control_points = m
+        .control_points
+        .iter()
+        .map(|cp| {
+            let (lat, lon) = (cp.position.latitude_deg, cp.position.longitude_deg);
+            let (north_m, east_m) =
+                earth::local_offset_m(lat.to_radians(), lon.to_radians(), site.0, site.1, site.2);
+            let mut errors = Vec::new();
+            let mut push = |label: &str, v: &Value| {
+                let entry = v["control_points"].as_array().and_then(|a| {
+                    a.iter()
+                        .find(|e| e["id"].as_u64() == Some(u64::from(cp.id)))
+                });
+                if let Some(e) = entry
+                    && let (Some(dx), Some(dy)) = (e["dx_m"].as_f64(), e["dy_m"].as_f64())
+                {
+                    errors.push((label.to_owned(), dx, dy));
+                }
+            };
+            push("initial", &dj["before"]);
+            for method in ["oepi", "owpi", "joint"] {
+                push(method, &dj["methods"][method]);
+            }
+            ControlPointView {
+                id: cp.id,
+                lat_deg: lat,
+                lon_deg: lon,
+                north_m,
+                east_m,
+                up_m: cp.position.height_m - site.2,
+                errors,
+            }
+        })
+        .collect();
+    let tables_markdown = std::fs::read_to_string(disupt_dir.join("disupt.md"))
+        .with_context(|| format!("cannot read {}", disupt_dir.join("disupt.md").display()))?;
+    let summary_markdown = format!(
+        "Raw log `{}`; {:.0} s, {} IMU samples at {:.0} Hz; {:.0} m to the last control point.",
+        m.raw.file_name().unwrap_or_default().to_string_lossy(),
+        d.t_s.last().copied().unwrap_or(0.0),
+        d.t_s.len(),
+        1.0 / d.nominal_dt_s.max(1e-9),
+        dj["distance_m"].as_f64().unwrap_or(f64::NAN),
+    );
+    Ok(Review {
+        name: m.name.clone(),
+        sample_dt_s: d.nominal_dt_s,
+        imu: ImuSeries {
+            t_s: d.t_s.clone(),
+            dt_s: d.dt_s.clone(),
+            dtheta_rad: d.dtheta_rad.clone(),
+            dvel_mps: d.dvel_mps.clone(),
+            u_mps: d.u_mps.clone(),
+            u_dot_mps2: d.u_dot_mps2.clone(),
+            ru_mps2: d.ru_mps2.clone(),
+        },
+        epochs,
+        kryt1,
+        tracks,
+        vehicle_track: dj["corrected_by"].as_str().map(str::to_owned),
+        control_points,
+        sweep: sweep.map(read_sweep).transpose()?,
+        tables_markdown,
+        summary_markdown,
+    })
+}
+
+fn track_view(t: MethodTrack, rel: &impl Fn(&[i64]) -> Vec<f64>, h0_m: f64) -> Track {
+    Track {
+        t_s: rel(&t.t_ns),
+        up_m: t.h_m.iter().map(|h| h - h0_m).collect(),
+        label: t.method,
+        lat_deg: t.lat_deg,
+        lon_deg: t.lon_deg,
+        north_m: t.north_m,
+        east_m: t.east_m,
+        roll_deg: t.roll_deg,
+        pitch_deg: t.pitch_deg,
+        heading_deg: t.heading_deg,
+    }
+}
+
+/// The simulator's truth, decimated like the methods' tracks.
+fn truth_track(
+    path: &Path,
+    rel: &impl Fn(&[i64]) -> Vec<f64>,
+    site: (f64, f64, f64),
+    nominal_dt_s: f64,
+) -> anyhow::Result<Track> {
+    let (_, b) = read_table(path)?;
+    let t = i64_column(&b, "t_ns")?;
+    let idx = decimation_indices(t.len(), nominal_dt_s, TRACK_RATE_HZ);
+    let pick = |n: &str| -> anyhow::Result<Vec<f64>> {
+        let v = f64_column(&b, n)?;
+        Ok(idx.iter().map(|&k| v[k]).collect())
+    };
+    let (lat, lon) = (pick("lat_deg")?, pick("lon_deg")?);
+    let (north_m, east_m) = lat
+        .iter()
+        .zip(&lon)
+        .map(|(la, lo)| {
+            earth::local_offset_m(la.to_radians(), lo.to_radians(), site.0, site.1, site.2)
+        })
+        .unzip();
+    Ok(Track {
+        label: "truth".into(),
+        t_s: rel(&idx.iter().map(|&k| t[k]).collect::<Vec<_>>()),
+        up_m: pick("h_m")?.iter().map(|h| h - site.2).collect(),
+        lat_deg: lat,
+        lon_deg: lon,
+        north_m,
+        east_m,
+        roll_deg: pick("roll_deg")?,
+        pitch_deg: pick("pitch_deg")?,
+        heading_deg: pick("heading_deg")?,
+    })
+}
+
+/// `sweep.parquet`: axis columns first (the first varies slowest), then `kryt1_rad`,
+/// `kryt2_m`.
+fn read_sweep(path: &Path) -> anyhow::Result<Sweep> {
+    let (schema, b) = read_table(path)?;
+    let mut axes = Vec::new();
+    for f in schema.fields() {
+        let name = f.name();
+        if name == "kryt1_rad" || name == "kryt2_m" {
+            continue;
+        }
+        let mut values: Vec<f64> = Vec::new();
+        for v in f64_column(&b, name)? {
+            if !values.iter().any(|u| u.to_bits() == v.to_bits()) {
+                values.push(v);
+            }
+        }
+        axes.push((name.clone(), values));
+    }
+    Ok(Sweep {
+        axes,
+        kryt1_rad: f64_column(&b, "kryt1_rad")?,
+        kryt2_m: f64_column(&b, "kryt2_m")?,
+    })
+}

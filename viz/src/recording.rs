@@ -1,0 +1,587 @@
+//! Writing one run's review as a Rerun recording (`.rrd`).
+//!
+//! Series go out with `send_columns` (one chunk per series, never one log call per
+//! sample). Raw-rate series are decimated to [`SERIES_RATE_HZ`] block means and the
+//! vehicle pose to [`POSE_RATE_HZ`]; trajectories arrive already decimated by the
+//! disupt stage. The file is written under a temporary name and renamed when complete.
+
+use std::path::{Path, PathBuf};
+
+use rerun::{RecordingStream, TimeColumn};
+
+use crate::blueprint::review_blueprint;
+use crate::frames::enu_flu_xyzw;
+use crate::paths::*;
+use crate::review::{Review, Track, block_means, color_of, display_name};
+
+/// Rate of the raw-rate series in the recording, Hz.
+pub const SERIES_RATE_HZ: f64 = 10.0;
+/// Rate of the vehicle's pose and map position, Hz.
+pub const POSE_RATE_HZ: f64 = 2.0;
+
+/// A recording that could not be written.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RecordingError {
+    /// The Rerun SDK refused the data or the file.
+    #[error("rerun: {source} (writing {path})")]
+    Rerun {
+        /// What the SDK said.
+        source: rerun::RecordingStreamError,
+        /// The recording.
+        path: PathBuf,
+    },
+    /// The recording could not be flushed to disk.
+    #[error("cannot flush the recording: {message} (writing {path})")]
+    Flush {
+        /// What the SDK said.
+        message: String,
+        /// The recording.
+        path: PathBuf,
+    },
+    /// A file operation failed.
+    #[error("{source} (in {path})")]
+    Io {
+        /// The I/O error.
+        source: std::io::Error,
+        /// The file.
+        path: PathBuf,
+    },
+}
+
+/// What was written.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RrdStats {
+    /// Rows sent over all entities (one per time point and entity).
+    pub rows: usize,
+    /// Entities with data.
+    pub entities: usize,
+    /// Size of the file, bytes.
+    pub bytes: u64,
+}
+
+/// Writes `review` to `path` atomically and returns what it wrote.
+pub fn write_rrd(review: &Review, path: &Path) -> Result<RrdStats, RecordingError> {
+    let tmp = tmp_name(path);
+    let rerun_err = |source| RecordingError::Rerun {
+        source,
+        path: path.to_path_buf(),
+    };
+    let rec = rerun::RecordingStreamBuilder::new("unz-review")
+        .recording_id(review.name.as_str())
+        .save(&tmp)
+        .map_err(rerun_err)?;
+    let mut w = Writer {
+        rec: &rec,
+        stats: RrdStats::default(),
+    };
+    let result = w.write(review).map_err(rerun_err).and_then(|()| {
+        review_blueprint(review)
+            .send(&rec, rerun::blueprint::BlueprintActivation::default())
+            .map_err(rerun_err)
+    });
+    let mut stats = w.stats;
+    let flushed = rec.flush_blocking().map_err(|e| RecordingError::Flush {
+        message: e.to_string(),
+        path: path.to_path_buf(),
+    });
+    drop(rec);
+    if let Err(e) = result.and(flushed) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e);
+    }
+    let io = |source| RecordingError::Io {
+        source,
+        path: path.to_path_buf(),
+    };
+    stats.bytes = std::fs::metadata(&tmp).map_err(io)?.len();
+    std::fs::rename(&tmp, path).map_err(io)?;
+    Ok(stats)
+}
+
+fn tmp_name(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".{}.tmp", std::process::id()));
+    path.with_file_name(name)
+}
+
+type SdkResult<T> = Result<T, rerun::RecordingStreamError>;
+
+struct Writer<'a> {
+    rec: &'a RecordingStream,
+    stats: RrdStats,
+}
+
+impl Writer<'_> {
+    fn write(&mut self, r: &Review) -> SdkResult<()> {
+        self.rec
+            .log_static(README, &rerun::TextDocument::from_markdown(readme(r)))?;
+        self.rec.log_static(
+            DISUPT_TABLES,
+            &rerun::TextDocument::from_markdown(r.tables_markdown.as_str()),
+        )?;
+        self.stats.entities += 2;
+        self.trajectories(r)?;
+        self.control_points(r)?;
+        self.vehicle(r)?;
+        self.criteria(r)?;
+        self.sensors(r)?;
+        self.sweep(r)?;
+        Ok(())
+    }
+
+    /// One scalar series on `path` with its display name and colour.
+    fn series(
+        &mut self,
+        path: &str,
+        name: &str,
+        color: [u8; 4],
+        t_s: &[f64],
+        sample: Option<&[i64]>,
+        values: &[f64],
+    ) -> SdkResult<()> {
+        let n = t_s.len().min(values.len());
+        if n == 0 {
+            return Ok(());
+        }
+        self.rec.log_static(
+            path,
+            &rerun::SeriesLines::new()
+                .with_names([name])
+                .with_colors([color])
+                .with_widths([1.5]),
+        )?;
+        let mut index = vec![TimeColumn::new_duration_secs(
+            TIME,
+            t_s[..n].iter().copied(),
+        )];
+        if let Some(s) = sample {
+            index.push(TimeColumn::new_sequence(SAMPLE, s[..n].iter().copied()));
+        }
+        self.rec.send_columns(
+            path,
+            index,
+            rerun::Scalars::new(values[..n].iter().copied()).columns_of_unit_batches()?,
+        )?;
+        self.stats.rows += n;
+        self.stats.entities += 1;
+        Ok(())
+    }
+
+    fn trajectories(&mut self, r: &Review) -> SdkResult<()> {
+        for t in &r.tracks {
+            let color = color_of(&t.label);
+            let label = display_name(&t.label);
+            let geo: Vec<[f64; 2]> = t
+                .lat_deg
+                .iter()
+                .zip(&t.lon_deg)
+                .map(|(&a, &o)| [a, o])
+                .collect();
+            self.rec.log_static(
+                format!("{MAP_TRAJECTORY}/{}", t.label),
+                &rerun::GeoLineStrings::from_lat_lon([geo])
+                    .with_colors([color])
+                    .with_radii([rerun::Radius::new_ui_points(if t.label == "truth" {
+                        1.5
+                    } else {
+                        2.0
+                    })]),
+            )?;
+            let local: Vec<[f32; 3]> = (0..t.north_m.len())
+                .map(|k| [t.east_m[k] as f32, t.north_m[k] as f32, t.up_m[k] as f32])
+                .collect();
+            self.rec.log_static(
+                format!("{WORLD_TRAJECTORY}/{}", t.label),
+                &rerun::LineStrips3D::new([local])
+                    .with_colors([color])
+                    .with_radii([rerun::Radius::new_ui_points(1.5)])
+                    .with_labels([label]),
+            )?;
+            self.stats.rows += 2;
+            self.stats.entities += 2;
+        }
+        Ok(())
+    }
+
+    fn control_points(&mut self, r: &Review) -> SdkResult<()> {
+        if r.control_points.is_empty() {
+            return Ok(());
+        }
+        let cps = &r.control_points;
+        self.rec.log_static(
+            MAP_CONTROL_POINTS,
+            &rerun::GeoPoints::from_lat_lon(cps.iter().map(|c| [c.lat_deg, c.lon_deg]))
+                .with_colors([[31, 119, 180, 255]])
+                .with_radii([rerun::Radius::new_ui_points(6.0)]),
+        )?;
+        let labels: Vec<String> = cps
+            .iter()
+            .map(|c| {
+                let errs: Vec<String> = c
+                    .errors
+                    .iter()
+                    .map(|(l, dx, dy)| format!("{}: ΔX {dx:.1} m ΔY {dy:.1} m", display_name(l)))
+                    .collect();
+                format!("CP {}\n{}", c.id, errs.join("\n"))
+            })
+            .collect();
+        self.rec.log_static(
+            WORLD_CONTROL_POINTS,
+            &rerun::Points3D::new(
+                cps.iter()
+                    .map(|c| [c.east_m as f32, c.north_m as f32, c.up_m as f32]),
+            )
+            .with_colors([[31, 119, 180, 255]])
+            .with_radii([rerun::Radius::new_ui_points(6.0)])
+            .with_labels(labels),
+        )?;
+        self.stats.rows += 2;
+        self.stats.entities += 2;
+        Ok(())
+    }
+
+    fn vehicle(&mut self, r: &Review) -> SdkResult<()> {
+        self.rec
+            .log_static(WORLD, &rerun::ViewCoordinates::RIGHT_HAND_Z_UP())?;
+        let Some(t) = vehicle_track(r) else {
+            return Ok(());
+        };
+        let idx = pose_indices(t);
+        let times = TimeColumn::new_duration_secs(TIME, idx.iter().map(|&k| t.t_s[k]));
+        let translations = idx
+            .iter()
+            .map(|&k| [t.east_m[k] as f32, t.north_m[k] as f32, t.up_m[k] as f32]);
+        let quats = idx.iter().map(|&k| {
+            rerun::Quaternion::from_xyzw(enu_flu_xyzw(
+                t.roll_deg[k].to_radians(),
+                t.pitch_deg[k].to_radians(),
+                t.heading_deg[k].to_radians(),
+            ))
+        });
+        self.rec.send_columns(
+            WORLD_VEHICLE,
+            [times.clone()],
+            rerun::Transform3D::update_fields()
+                .with_many_translation(translations)
+                .with_many_quaternion(quats)
+                .columns_of_unit_batches()?,
+        )?;
+        // The body in its own forward-left-up frame: a car-sized box and a forward arrow.
+        self.rec.log_static(
+            WORLD_VEHICLE_BODY,
+            &rerun::Boxes3D::from_centers_and_half_sizes([[0.0, 0.0, 0.8]], [[2.3, 0.9, 0.8]])
+                .with_colors([color_of(&t.label)]),
+        )?;
+        self.rec.send_columns(
+            MAP_VEHICLE,
+            [times],
+            rerun::GeoPoints::update_fields()
+                .with_positions(idx.iter().map(|&k| [t.lat_deg[k], t.lon_deg[k]]))
+                .columns_of_unit_batches()?,
+        )?;
+        self.rec.log_static(
+            MAP_VEHICLE,
+            &rerun::GeoPoints::update_fields()
+                .with_colors([color_of(&t.label)])
+                .with_radii([rerun::Radius::new_ui_points(8.0)]),
+        )?;
+        self.stats.rows += 2 * idx.len() + 1;
+        self.stats.entities += 3;
+        Ok(())
+    }
+
+    fn criteria(&mut self, r: &Review) -> SdkResult<()> {
+        let e = &r.epochs;
+        let deg = |v: &[f64]| v.iter().map(|x| x.to_degrees()).collect::<Vec<_>>();
+        let gyro = [44, 160, 44, 255];
+        let acc = [31, 119, 180, 255];
+        self.series(
+            &format!("{PLOT_PITCH}/gyro"),
+            "pitch Θn (gyro) [°]",
+            gyro,
+            &e.t_s,
+            None,
+            &deg(&e.theta_gyro_rad),
+        )?;
+        self.series(
+            &format!("{PLOT_PITCH}/accel"),
+            "pitch Θp (accelerometer) [°]",
+            acc,
+            &e.t_s,
+            None,
+            &deg(&e.theta_acc_rad),
+        )?;
+        self.series(
+            &format!("{PLOT_ROLL}/gyro"),
+            "roll Φn (gyro) [°]",
+            gyro,
+            &e.t_s,
+            None,
+            &deg(&e.phi_gyro_rad),
+        )?;
+        self.series(
+            &format!("{PLOT_ROLL}/accel"),
+            "roll Φp (accelerometer) [°]",
+            acc,
+            &e.t_s,
+            None,
+            &deg(&e.phi_acc_rad),
+        )?;
+        self.series(
+            &format!("{PLOT_RESIDUALS}/d_theta"),
+            "ΔΘ [°]",
+            [174, 199, 232, 255],
+            &e.t_s,
+            None,
+            &deg(&e.d_theta_rad),
+        )?;
+        self.series(
+            &format!("{PLOT_RESIDUALS}/d_phi"),
+            "ΔΦ [°]",
+            [255, 187, 120, 255],
+            &e.t_s,
+            None,
+            &deg(&e.d_phi_rad),
+        )?;
+        self.series(
+            &format!("{PLOT_RESIDUALS}/kf_d_theta"),
+            "ΔΘ Kalman [°]",
+            [31, 119, 180, 255],
+            &e.t_s,
+            None,
+            &deg(&e.kf_d_theta_rad),
+        )?;
+        self.series(
+            &format!("{PLOT_RESIDUALS}/kf_d_phi"),
+            "ΔΦ Kalman [°]",
+            [255, 127, 14, 255],
+            &e.t_s,
+            None,
+            &deg(&e.kf_d_phi_rad),
+        )?;
+        for k in &r.kryt1 {
+            self.series(
+                &format!("{PLOT_KRYT1}/{}", k.label),
+                &format!("Kryt1, {} [rad]", display_name(&k.label)),
+                color_of(&k.label),
+                &k.t_s,
+                None,
+                &k.kryt1_cum_rad,
+            )?;
+        }
+        Ok(())
+    }
+
+    fn sensors(&mut self, r: &Review) -> SdkResult<()> {
+        let imu = &r.imu;
+        let step = ((1.0 / (SERIES_RATE_HZ * r.sample_dt_s.max(1e-6))).round() as usize).max(1);
+        let n = imu.t_s.len();
+        let starts: Vec<usize> = (0..n).step_by(step).collect();
+        let t_s: Vec<f64> = starts.iter().map(|&k| imu.t_s[k]).collect();
+        let sample: Vec<i64> = starts.iter().map(|&k| k as i64).collect();
+        let mean = |v: &[f64]| block_means(v, step).map(|(_, m)| m).collect::<Vec<_>>();
+        self.series(
+            &format!("{PLOT_SPEED}/u"),
+            "odometer speed u [m/s]",
+            [31, 119, 180, 255],
+            &t_s,
+            Some(&sample),
+            &mean(&imu.u_mps),
+        )?;
+        let dim = [174, 199, 232, 255];
+        self.series(
+            &format!("{PLOT_ACCEL_TERMS}/u_dot"),
+            "u̇ [m/s²]",
+            dim,
+            &t_s,
+            Some(&sample),
+            &mean(&imu.u_dot_mps2),
+        )?;
+        self.series(
+            &format!("{PLOT_ACCEL_TERMS}/ru"),
+            "ru [m/s²]",
+            [255, 187, 120, 255],
+            &t_s,
+            Some(&sample),
+            &mean(&imu.ru_mps2),
+        )?;
+        let b = &r.epochs;
+        self.series(
+            &format!("{PLOT_ACCEL_TERMS}/u_dot_f"),
+            "u̇ filtered [m/s²]",
+            [31, 119, 180, 255],
+            &b.t_s,
+            None,
+            &b.u_dot_f_mps2,
+        )?;
+        self.series(
+            &format!("{PLOT_ACCEL_TERMS}/ru_f"),
+            "ru filtered [m/s²]",
+            [255, 127, 14, 255],
+            &b.t_s,
+            None,
+            &b.ru_f_mps2,
+        )?;
+        self.series(
+            &format!("{PLOT_ACCEL_TERMS}/ax_f"),
+            "aₓ filtered [m/s²]",
+            [44, 160, 44, 255],
+            &b.t_s,
+            None,
+            &b.ax_f_mps2,
+        )?;
+        self.series(
+            &format!("{PLOT_ACCEL_TERMS}/ay_f"),
+            "a_y filtered [m/s²]",
+            [214, 39, 40, 255],
+            &b.t_s,
+            None,
+            &b.ay_f_mps2,
+        )?;
+        // Rates from the raw increments: block sums over block durations.
+        let dt_sum: Vec<f64> = block_means(&imu.dt_s, step)
+            .map(|(_, m)| m * step as f64)
+            .collect();
+        let axes = ["x", "y", "z"];
+        let colors = [[214, 39, 40, 255], [44, 160, 44, 255], [31, 119, 180, 255]];
+        for a in 0..3 {
+            let rate = |inc: &[[f64; 3]], scale: f64| -> Vec<f64> {
+                inc.chunks(step)
+                    .zip(&dt_sum)
+                    .map(|(c, &dt)| c.iter().map(|v| v[a]).sum::<f64>() * scale / dt.max(1e-9))
+                    .collect()
+            };
+            let gyro = rate(&imu.dtheta_rad, 180.0 / std::f64::consts::PI);
+            let accel = rate(&imu.dvel_mps, 1.0);
+            self.series(
+                &format!("{PLOT_IMU_GYRO}/{}", axes[a]),
+                &format!("ω{} body [°/s]", axes[a]),
+                colors[a],
+                &t_s,
+                Some(&sample),
+                &gyro,
+            )?;
+            self.series(
+                &format!("{PLOT_IMU_ACCEL}/{}", axes[a]),
+                &format!("f{} body [m/s²]", axes[a]),
+                colors[a],
+                &t_s,
+                Some(&sample),
+                &accel,
+            )?;
+        }
+        Ok(())
+    }
+
+    fn sweep(&mut self, r: &Review) -> SdkResult<()> {
+        let Some(s) = &r.sweep else { return Ok(()) };
+        match s.axes.as_slice() {
+            [(name, values)] => {
+                for (crit, v, color) in [
+                    ("kryt1", &s.kryt1_rad, [31, 119, 180, 255]),
+                    ("kryt2", &s.kryt2_m, [214, 39, 40, 255]),
+                ] {
+                    let strip: Vec<[f32; 2]> = values
+                        .iter()
+                        .zip(v)
+                        .map(|(&x, &y)| [x as f32, y as f32])
+                        .collect();
+                    self.rec.log_static(
+                        format!("{SENSITIVITY}/{crit}"),
+                        &rerun::LineStrips2D::new([strip])
+                            .with_colors([color])
+                            .with_labels([format!("{crit} over {name}")]),
+                    )?;
+                    self.stats.rows += 1;
+                    self.stats.entities += 1;
+                }
+            }
+            [(a, va), (b, vb)] => {
+                for (crit, v) in [("kryt1", &s.kryt1_rad), ("kryt2", &s.kryt2_m)] {
+                    if v.len() != va.len() * vb.len() {
+                        continue;
+                    }
+                    let data = rerun::datatypes::TensorData::new(
+                        vec![va.len() as u64, vb.len() as u64],
+                        rerun::datatypes::TensorBuffer::F64(v.clone().into()),
+                    );
+                    self.rec.log_static(
+                        format!("{SENSITIVITY}/{crit}"),
+                        &rerun::Tensor::new(data).with_dim_names([a.as_str(), b.as_str()]),
+                    )?;
+                    self.stats.rows += 1;
+                    self.stats.entities += 1;
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
+/// The track that drives the vehicle: the corrected one, else the initial one.
+fn vehicle_track(r: &Review) -> Option<&Track> {
+    let want = r.vehicle_track.as_deref().unwrap_or("initial");
+    r.tracks
+        .iter()
+        .find(|t| t.label == want)
+        .or_else(|| r.tracks.iter().find(|t| t.label == "initial"))
+        .filter(|t| !t.t_s.is_empty())
+}
+
+/// Indices of a track kept at [`POSE_RATE_HZ`] (always the first and the last).
+fn pose_indices(t: &Track) -> Vec<usize> {
+    let mut idx = Vec::new();
+    let mut next = f64::NEG_INFINITY;
+    for (k, &ts) in t.t_s.iter().enumerate() {
+        if ts >= next {
+            idx.push(k);
+            next = ts + 1.0 / POSE_RATE_HZ - 1e-9;
+        }
+    }
+    if let Some(last) = t.t_s.len().checked_sub(1)
+        && idx.last() != Some(&last)
+    {
+        idx.push(last);
+    }
+    idx
+}
+
+fn readme(r: &Review) -> String {
+    format!(
+        "# {name}\n\n{summary}\n\n\
+## What is shown\n\
+- **Map** and **Local ENU** (3D, metres east, north, up of the start): the trajectory with the \
+initial settings (red), after OEPI (orange), OWPI (purple), joint (green) and the truth when \
+it is known (dark grey); control points in blue, labelled with ΔX/ΔY (north/east, navigated \
+minus surveyed) of each settings. The vehicle follows the corrected navigation ({vehicle}); \
+its box is forward-left-up.\n\
+- **Pitch / roll**: gyro (navigated, green) against accelerometer (blue) values at the ΔTg \
+epochs with the initial settings; **residuals** ΔΘ, ΔΦ and their Kalman estimates; \
+**Kryt1** cumulative for every settings (the paper's Fig. 1).\n\
+- **Sensors**: odometer speed u, the acceleration terms u̇ and ru with the filtered aₓ, a_y \
+that Kryt1 compares, and the IMU's rates from its raw increments ({rate} Hz block means).\n\
+- **DISUPT**: the tables of each method, and the sensitivity maps when `unz sweep` ran.\n\n\
+Timelines: `time` (s since the first IMU sample) and `sample` (raw IMU sample index, on \
+raw-rate series).\n",
+        name = r.name,
+        summary = r.summary_markdown,
+        vehicle = r.vehicle_track.as_deref().unwrap_or("initial"),
+        rate = SERIES_RATE_HZ,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pose_indices_keep_the_rate_and_both_ends() {
+        let t = Track {
+            t_s: (0..25).map(|k| f64::from(k) * 0.1).collect(),
+            ..Track::default()
+        };
+        assert_eq!(pose_indices(&t), vec![0, 5, 10, 15, 20, 24]);
+    }
+}
