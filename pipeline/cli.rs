@@ -256,6 +256,8 @@ pub enum BenchTarget {
     Navigate,
     /// A campaign of simulated runs end to end, cold then cached (--runs, --duration-s).
     Campaign,
+    /// Writing one run's Rerun recording from its cached tables, and its size.
+    Review,
 }
 
 #[cfg(test)]

@@ -15,6 +15,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<ExitCode> {
         BenchTarget::Ingest => bench_ingest(args),
         BenchTarget::Navigate => bench_navigate(args),
         BenchTarget::Campaign => bench_campaign(args),
+        BenchTarget::Review => bench_review(args),
     }
 }
 
@@ -106,6 +107,35 @@ fn bench_navigate(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     println!(
         "criteria evaluation (navigation + Kryt1 + Kryt2): {:.2} ms per run",
         crit_s * 1e3
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn bench_review(args: &BenchArgs) -> anyhow::Result<ExitCode> {
+    use crate::flow::{Params, RunCtx};
+    use crate::review::ensure_review;
+
+    let tmp = tempfile::tempdir()?;
+    let mut config = SimConfig::new("bench", 1);
+    config.duration_s = args.duration_s;
+    let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path())?;
+    let ctx = RunCtx::new(crate::runs::load_run(&run_dir)?, tmp.path().join("out"), false);
+    let params = Params::default();
+    // Every stage before it once; then only the review, from the cached tables.
+    let first = ensure_review(&ctx, &params)?;
+    let record = first.rrd.with_file_name(crate::stage::RECORD);
+    let wall_s = best_of(args.repeat, || {
+        let _ = std::fs::remove_file(&record);
+        if let Err(e) = ensure_review(&ctx, &params) {
+            eprintln!("review failed: {e:#}");
+        }
+    });
+    println!(
+        "review: {:.0} s run → {:.1} MB recording in {:.3} s (best of {})",
+        args.duration_s,
+        first.bytes as f64 / 1e6,
+        wall_s,
+        args.repeat.max(1)
     );
     Ok(ExitCode::SUCCESS)
 }
