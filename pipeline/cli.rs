@@ -258,6 +258,8 @@ pub enum BenchTarget {
     Campaign,
     /// Writing one run's Rerun recording from its cached tables, and its size.
     Review,
+    /// OEPI, OWPI and joint on one run (derive done once), with passes per method.
+    Disupt,
 }
 
 #[cfg(test)]

@@ -4,6 +4,7 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
+use rayon::prelude::*;
 use serde::Serialize;
 use unz_formats::atomic::{write_atomic, write_json_atomic};
 use unz_stages::criteria::{self, Kryt1Scratch, Kryt1Series, Kryt2};
@@ -93,6 +94,11 @@ pub struct DisuptOut {
     pub skipped: std::collections::BTreeMap<String, String>,
     /// The method whose settings made `corrected_nav.parquet`.
     pub corrected_by: Option<String>,
+    /// Passes of the first linearisation, shared by the methods (not in their own
+    /// `evaluations`).
+    pub shared_passes: usize,
+    /// Wall time of the three methods together (they run concurrently), s.
+    pub wall_s: f64,
 }
 
 /// Errors before DISUPT.
@@ -214,7 +220,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
     ctx.run_stage(&stage, || {
         let case = load_case(ctx, params, &Overrides::default())?;
         let problem = problem_of(&case, params);
-        let before_eval = problem.evaluate(&problem.x0());
         let base_scale = case.settings.odo_scale;
         let mut methods = std::collections::BTreeMap::new();
         let mut skipped = std::collections::BTreeMap::new();
@@ -234,28 +239,41 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let mut series = Kryt1Series::default();
         let mut tracks: Vec<MethodTrack> = Vec::new();
         let mut kryt1s: Vec<MethodKryt1> = Vec::new();
-        let mut review_pass = |name: &str, x: &X, track: &mut NavTrack| -> Vec<Kryt2> {
+        let mut review_pass = |name: &str, x: &X, track: &mut NavTrack| -> (f64, Vec<Kryt2>) {
             unz_stages::strapdown::navigate(&case.inputs(), &problem.settings(x), track);
-            criteria::kryt1(&case.derived.epochs, &problem.lp, track, &problem.kalman, &mut scratch, Some(&mut series));
+            let k1 = criteria::kryt1(&case.derived.epochs, &problem.lp, track, &problem.kalman, &mut scratch, Some(&mut series));
             tracks.push(method_track(name, &case.derived, track, site));
             kryt1s.push(method_kryt1(name, &case.derived, &series));
-            criteria::kryt2(track, &case.fixes)
+            (k1, criteria::kryt2(track, &case.fixes))
         };
-        let before_cps = review_pass("initial", &problem.x0(), &mut track);
-        for &w in wanted {
-            let (name, result) = match w {
+        let (before_kryt1, before_cps) = review_pass("initial", &problem.x0(), &mut track);
+        // The methods run concurrently (they share the problem's first linearisation).
+        let t_methods = std::time::Instant::now();
+        let results: Vec<_> = wanted
+            .par_iter()
+            .map(|&w| match w {
                 Method::Oepi => ("oepi", disupt::oepi(&problem, &dparams)),
                 Method::Owpi => ("owpi", disupt::owpi(&problem, &dparams)),
                 _ => ("joint", disupt::joint(&problem, &dparams)),
-            };
+            })
+            .collect();
+        let methods_wall_s = t_methods.elapsed().as_secs_f64();
+        // The review passes in order of preference for the corrected navigation (joint,
+        // then OEPI, then OWPI), so that the last one leaves the corrected track.
+        let rank = |n: &str| ["owpi", "oepi", "joint"].iter().position(|x| *x == n);
+        let mut order: Vec<usize> = (0..results.len()).collect();
+        order.sort_by_key(|&i| rank(results[i].0));
+        let mut cps_of: Vec<Vec<Kryt2>> = vec![Vec::new(); results.len()];
+        for i in order {
+            if let (name, Ok(r)) = &results[i] {
+                cps_of[i] = review_pass(name, &r.x, &mut track).1;
+                best = Some(((*name).to_owned(), r.x));
+            }
+        }
+        for ((name, result), cps) in results.into_iter().zip(cps_of) {
             match result {
                 Ok(r) => {
                     md += &table(&name.to_uppercase(), &r);
-                    // Preference for the corrected navigation: joint, then OEPI, then OWPI.
-                    let rank = |n: &str| ["owpi", "oepi", "joint"].iter().position(|x| *x == n);
-                    if best.as_ref().is_none_or(|(b, _)| rank(name) > rank(b)) {
-                        best = Some((name.to_owned(), r.x));
-                    }
                     methods.insert(
                         name.to_owned(),
                         MethodOut {
@@ -263,7 +281,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                             dx_m: r.dx_m,
                             dy_m: r.dy_m,
                             kryt1_rad: r.kryt1,
-                            control_points: review_pass(name, &r.x, &mut track),
+                            control_points: cps,
                             steps: r.steps,
                             evaluations: r.evaluations,
                             wall_s: r.wall_s,
@@ -276,22 +294,23 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 }
             }
         }
-        let x_best = best.as_ref().map_or(problem.x0(), |b| b.1);
-        unz_stages::strapdown::navigate(&case.inputs(), &problem.settings(&x_best), &mut track);
+        // `track` holds the last review pass: the best method's, else the initial one.
         let distance_m = case.fixes.last().map_or_else(|| track.distance_m.last().copied().unwrap_or(0.0), |f| track.distance_m[f.sample]);
-        let (dx, dy) = before_eval.last_error();
+        let (dx, dy) = before_cps.last().map_or((f64::NAN, f64::NAN), |k| (k.dx_m, k.dy_m));
         let out = DisuptOut {
             distance_m,
             before: Before {
                 x: settings_out(&problem.x0(), base_scale, None),
                 dx_m: dx,
                 dy_m: dy,
-                kryt1_rad: before_eval.kryt1,
+                kryt1_rad: before_kryt1,
                 control_points: before_cps,
             },
             methods,
             skipped,
             corrected_by: best.map(|b| b.0),
+            shared_passes: problem.base_passes(),
+            wall_s: methods_wall_s,
         };
         md = format!(
             "{md}Before DISUPT: ΔX = {dx:.1} m, ΔY = {dy:.1} m at the last control point, after {distance_m:.0} m.\n"

@@ -5,6 +5,8 @@
 
 use std::path::PathBuf;
 
+use anyhow::Context;
+use serde::Serialize;
 use serde_json::json;
 use unz_formats::mcap_io::{JsonMcap, numeric_object_schema};
 use unz_formats::parquet_io::read_table;
@@ -32,6 +34,70 @@ const POSE_IN_FRAME_SCHEMA: &str = r#"{"title":"foxglove.PoseInFrame","type":"ob
 "position":{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}}},
 "orientation":{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"w":{"type":"number"}}}}}}}"#;
 
+#[derive(Clone, Copy, Serialize)]
+struct Stamp {
+    sec: i64,
+    nsec: i64,
+}
+
+#[derive(Serialize)]
+struct LocationFix {
+    timestamp: Stamp,
+    frame_id: &'static str,
+    latitude: f64,
+    longitude: f64,
+    altitude: f64,
+    position_covariance: [f64; 9],
+    position_covariance_type: u8,
+}
+
+#[derive(Serialize)]
+struct Xyz {
+    x: f64,
+    y: f64,
+    z: f64,
+}
+
+#[derive(Serialize)]
+struct Xyzw {
+    x: f64,
+    y: f64,
+    z: f64,
+    w: f64,
+}
+
+#[derive(Serialize)]
+struct Pose {
+    position: Xyz,
+    orientation: Xyzw,
+}
+
+#[derive(Serialize)]
+struct PoseInFrame {
+    timestamp: Stamp,
+    frame_id: &'static str,
+    pose: Pose,
+}
+
+#[derive(Serialize)]
+struct Attitude {
+    roll_deg: f64,
+    pitch_deg: f64,
+    heading_deg: f64,
+}
+
+/// Copies `src` to `dest` under a temporary name, then renames it into place.
+fn copy_atomic(src: &std::path::Path, dest: &std::path::Path) -> anyhow::Result<()> {
+    let mut tmp = dest.as_os_str().to_owned();
+    tmp.push(format!(".{}.tmp", std::process::id()));
+    let tmp = PathBuf::from(tmp);
+    std::fs::copy(src, &tmp)
+        .with_context(|| format!("cannot copy {} to {}", src.display(), tmp.display()))?;
+    std::fs::rename(&tmp, dest)
+        .with_context(|| format!("cannot rename {} to {}", tmp.display(), dest.display()))?;
+    Ok(())
+}
+
 /// Stage 5.
 pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let disupt_dir = ensure_disupt(ctx, params, Method::All)?;
@@ -49,16 +115,38 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         outputs: &["corrected_nav.parquet", "corrected.mcap"],
     };
     ctx.run_stage(&stage, || {
-        unz_formats::atomic::write_atomic(&dir.join("corrected_nav.parquet"), &std::fs::read(&nav_path)?)?;
+        copy_atomic(&nav_path, &dir.join("corrected_nav.parquet"))?;
         let (_, b) = read_table(&nav_path)?;
         let t = i64_column(&b, "t_ns")?;
         let col = |n: &str| f64_column(&b, n);
-        let (lat, lon, h, north, east) = (col("lat_deg")?, col("lon_deg")?, col("h_m")?, col("north_m")?, col("east_m")?);
+        let (lat, lon, h, north, east) = (
+            col("lat_deg")?,
+            col("lon_deg")?,
+            col("h_m")?,
+            col("north_m")?,
+            col("east_m")?,
+        );
         let (roll, pitch, heading) = (col("roll_deg")?, col("pitch_deg")?, col("heading_deg")?);
         let mut mcap = JsonMcap::create(&dir.join("corrected.mcap"))?;
-        let mut fix = mcap.add_channel("/corrected/fix", "foxglove.LocationFix", LOCATION_FIX_SCHEMA)?;
-        let mut pose = mcap.add_channel("/corrected/pose", "foxglove.PoseInFrame", POSE_IN_FRAME_SCHEMA)?;
-        let mut att = mcap.add_channel("/corrected/attitude", "unz.Attitude", &numeric_object_schema("Attitude, degrees", &["roll_deg", "pitch_deg", "heading_deg"], &[]))?;
+        let mut fix = mcap.add_channel(
+            "/corrected/fix",
+            "foxglove.LocationFix",
+            LOCATION_FIX_SCHEMA,
+        )?;
+        let mut pose = mcap.add_channel(
+            "/corrected/pose",
+            "foxglove.PoseInFrame",
+            POSE_IN_FRAME_SCHEMA,
+        )?;
+        let mut att = mcap.add_channel(
+            "/corrected/attitude",
+            "unz.Attitude",
+            &numeric_object_schema(
+                "Attitude, degrees",
+                &["roll_deg", "pitch_deg", "heading_deg"],
+                &[],
+            ),
+        )?;
         let step_ns = (1e9 / NAV_RATE_HZ) as i64;
         let mut next = t.first().copied().unwrap_or(0);
         for k in 0..t.len() {
@@ -67,26 +155,81 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             }
             next = t[k] + step_ns;
             let log_time = u64::try_from(t[k]).unwrap_or(0);
-            let stamp = json!({ "sec": t[k].div_euclid(1_000_000_000), "nsec": t[k].rem_euclid(1_000_000_000) });
-            mcap.write(&mut fix, log_time, &json!({
-                "timestamp": stamp, "frame_id": "wgs84", "latitude": lat[k], "longitude": lon[k], "altitude": h[k],
-                "position_covariance": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], "position_covariance_type": 0,
-            }))?;
+            let timestamp = Stamp {
+                sec: t[k].div_euclid(1_000_000_000),
+                nsec: t[k].rem_euclid(1_000_000_000),
+            };
+            let fix_msg = LocationFix {
+                timestamp,
+                frame_id: "wgs84",
+                latitude: lat[k],
+                longitude: lon[k],
+                altitude: h[k],
+                position_covariance: [0.0; 9],
+                position_covariance_type: 0,
+            };
+            mcap.write(&mut fix, log_time, &fix_msg)?;
             // Body forward-left-up in local east-north-up, as Foxglove's 3D panel expects.
-            let q = enu_flu(roll[k].to_radians(), pitch[k].to_radians(), heading[k].to_radians());
-            mcap.write(&mut pose, log_time, &json!({
-                "timestamp": stamp, "frame_id": "local_enu",
-                "pose": { "position": { "x": east[k], "y": north[k], "z": h[k] - h[0] },
-                          "orientation": { "x": q.i, "y": q.j, "z": q.k, "w": q.w } },
-            }))?;
-            mcap.write(&mut att, log_time, &json!({ "roll_deg": roll[k], "pitch_deg": pitch[k], "heading_deg": heading[k] }))?;
+            let q = enu_flu(
+                roll[k].to_radians(),
+                pitch[k].to_radians(),
+                heading[k].to_radians(),
+            );
+            let pose_msg = PoseInFrame {
+                timestamp,
+                frame_id: "local_enu",
+                pose: Pose {
+                    position: Xyz {
+                        x: east[k],
+                        y: north[k],
+                        z: h[k] - h[0],
+                    },
+                    orientation: Xyzw {
+                        x: q.i,
+                        y: q.j,
+                        z: q.k,
+                        w: q.w,
+                    },
+                },
+            };
+            mcap.write(&mut pose, log_time, &pose_msg)?;
+            mcap.write(
+                &mut att,
+                log_time,
+                &Attitude {
+                    roll_deg: roll[k],
+                    pitch_deg: pitch[k],
+                    heading_deg: heading[k],
+                },
+            )?;
         }
         let (_, c) = read_table(&crit_path)?;
-        let names = ["theta_n_rad", "phi_n_rad", "theta_p_rad", "phi_p_rad", "d_theta_rad", "d_phi_rad", "kf_d_theta_rad", "kf_d_phi_rad", "kryt1_cum"];
-        let mut crit = mcap.add_channel("/criteria", "unz.Criteria", &numeric_object_schema("Criteria at 1 s epochs (initial settings)", &names, &[]))?;
-        let cols: Vec<Vec<f64>> = names.iter().map(|n| f64_column(&c, n)).collect::<Result<_, _>>()?;
+        let names = [
+            "theta_n_rad",
+            "phi_n_rad",
+            "theta_p_rad",
+            "phi_p_rad",
+            "d_theta_rad",
+            "d_phi_rad",
+            "kf_d_theta_rad",
+            "kf_d_phi_rad",
+            "kryt1_cum",
+        ];
+        let mut crit = mcap.add_channel(
+            "/criteria",
+            "unz.Criteria",
+            &numeric_object_schema("Criteria at 1 s epochs (initial settings)", &names, &[]),
+        )?;
+        let cols: Vec<Vec<f64>> = names
+            .iter()
+            .map(|n| f64_column(&c, n))
+            .collect::<Result<_, _>>()?;
         for (k, tk) in i64_column(&c, "t_ns")?.into_iter().enumerate() {
-            let msg: serde_json::Map<String, serde_json::Value> = names.iter().zip(&cols).map(|(n, v)| ((*n).to_owned(), json!(v[k]))).collect();
+            let msg: serde_json::Map<String, serde_json::Value> = names
+                .iter()
+                .zip(&cols)
+                .map(|(n, v)| ((*n).to_owned(), json!(v[k])))
+                .collect();
             mcap.write(&mut crit, u64::try_from(tk).unwrap_or(0), &msg)?;
         }
         mcap.finish()?;

@@ -16,6 +16,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<ExitCode> {
         BenchTarget::Navigate => bench_navigate(args),
         BenchTarget::Campaign => bench_campaign(args),
         BenchTarget::Review => bench_review(args),
+        BenchTarget::Disupt => bench_disupt(args),
     }
 }
 
@@ -111,6 +112,60 @@ fn bench_navigate(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+fn bench_disupt(args: &BenchArgs) -> anyhow::Result<ExitCode> {
+    use rayon::prelude::*;
+    use unz_stages::disupt::{self, DisuptParams};
+
+    use crate::disupt_stage::problem_of;
+    use crate::flow::{Overrides, Params, RunCtx, load_case};
+
+    let tmp = tempfile::tempdir()?;
+    let mut config = SimConfig::new("bench", 41);
+    config.duration_s = args.duration_s;
+    let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path())?;
+    let ctx = RunCtx::new(
+        crate::runs::load_run(&run_dir)?,
+        tmp.path().join("out"),
+        false,
+    );
+    let params = Params::default();
+    let case = load_case(&ctx, &params, &Overrides::default())?;
+    let p = DisuptParams::default();
+    let mut best = f64::INFINITY;
+    let mut report = String::new();
+    for _ in 0..args.repeat.max(1) {
+        // A fresh problem each time: nothing is reused between repetitions.
+        let problem = problem_of(&case, &params);
+        let t0 = Instant::now();
+        let results: Vec<_> = [0, 1, 2]
+            .par_iter()
+            .map(|&m| match m {
+                0 => ("OEPI", disupt::oepi(&problem, &p)),
+                1 => ("OWPI", disupt::owpi(&problem, &p)),
+                _ => ("joint", disupt::joint(&problem, &p)),
+            })
+            .collect();
+        let wall = t0.elapsed().as_secs_f64();
+        if wall < best {
+            best = wall;
+            report = results
+                .iter()
+                .map(|(n, r)| match r {
+                    Ok(r) => format!("{n} {} passes {:.3} s", r.evaluations, r.wall_s),
+                    Err(e) => format!("{n} failed: {e}"),
+                })
+                .collect::<Vec<_>>()
+                .join(", ");
+        }
+    }
+    println!(
+        "disupt: OEPI + OWPI + joint on a {:.0} s run in {best:.3} s on {} threads ({report}; plus the shared first linearisation, 8 passes)",
+        args.duration_s,
+        rayon::current_num_threads()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
 fn bench_review(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     use crate::flow::{Params, RunCtx};
     use crate::review::ensure_review;
@@ -119,7 +174,11 @@ fn bench_review(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     let mut config = SimConfig::new("bench", 1);
     config.duration_s = args.duration_s;
     let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path())?;
-    let ctx = RunCtx::new(crate::runs::load_run(&run_dir)?, tmp.path().join("out"), false);
+    let ctx = RunCtx::new(
+        crate::runs::load_run(&run_dir)?,
+        tmp.path().join("out"),
+        false,
+    );
     let params = Params::default();
     // Every stage before it once; then only the review, from the cached tables.
     let first = ensure_review(&ctx, &params)?;
@@ -164,6 +223,7 @@ fn bench_campaign(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     let manifests = find_runs(&camp, &out)?;
     let plan = Plan::every_stage(out.clone());
     for label in ["cold", "cached"] {
+        crate::stage::forget_hashes();
         let t = Instant::now();
         let outcomes = run_campaign(&manifests, &plan);
         let wall = t.elapsed().as_secs_f64();

@@ -115,9 +115,73 @@ pub fn kryt1(
     track: &NavTrack,
     kp: &KalmanParams,
     scratch: &mut Kryt1Scratch,
-    mut series: Option<&mut Kryt1Series>,
+    series: Option<&mut Kryt1Series>,
 ) -> f64 {
     filtered_roll_pitch(lp, track, scratch);
+    let (th, ph) = (&scratch.theta_blocks, &scratch.phi_blocks);
+    kryt1_of(
+        epochs,
+        kp,
+        |e| (th[epochs.block[e]], ph[epochs.block[e]]),
+        series,
+    )
+}
+
+/// The filtered gyro pitch Θ_N and roll Φ_N at every epoch, into `theta` and `phi`:
+/// everything Kryt1 and the attitude residuals read from a pass.
+pub fn epoch_attitude(
+    epochs: &Epochs,
+    lp: &LowPass,
+    track: &NavTrack,
+    scratch: &mut Kryt1Scratch,
+    theta: &mut Vec<f64>,
+    phi: &mut Vec<f64>,
+) {
+    filtered_roll_pitch(lp, track, scratch);
+    theta.clear();
+    phi.clear();
+    for &j in &epochs.block {
+        theta.push(scratch.theta_blocks[j]);
+        phi.push(scratch.phi_blocks[j]);
+    }
+}
+
+/// [`epoch_attitude`] from the per-block sums of `C_b^n`'s third row that a
+/// [`crate::strapdown::CriteriaSink`] collected (blocks of `lp.block` samples) — the
+/// same numbers, without the stored track.
+pub fn epoch_attitude_from_sums(
+    epochs: &Epochs,
+    lp: &LowPass,
+    row3_sums: &[[f64; 3]],
+    scratch: &mut Kryt1Scratch,
+    theta: &mut Vec<f64>,
+    phi: &mut Vec<f64>,
+) {
+    scratch.phi_blocks.clear();
+    scratch.theta_blocks.clear();
+    for m in row3_sums {
+        let (r, p) = roll_pitch_from_row3(m[0], m[1], m[2]);
+        scratch.phi_blocks.push(r);
+        scratch.theta_blocks.push(p);
+    }
+    lp.filter_blocks(&mut scratch.theta_blocks);
+    lp.filter_blocks(&mut scratch.phi_blocks);
+    theta.clear();
+    phi.clear();
+    for &j in &epochs.block {
+        theta.push(scratch.theta_blocks[j]);
+        phi.push(scratch.phi_blocks[j]);
+    }
+}
+
+/// Kryt1 from the filtered gyro (pitch, roll) of each epoch, given by `attitude(e)`;
+/// fills `series` when given.
+pub fn kryt1_of(
+    epochs: &Epochs,
+    kp: &KalmanParams,
+    mut attitude: impl FnMut(usize) -> (f64, f64),
+    mut series: Option<&mut Kryt1Series>,
+) -> f64 {
     if let Some(s) = series.as_deref_mut() {
         *s = Kryt1Series::default();
     }
@@ -125,8 +189,7 @@ pub fn kryt1(
     let mut sum = 0.0;
     let mut prev_t = epochs.t_s.first().copied().unwrap_or(0.0);
     for e in 0..epochs.block.len() {
-        let j = epochs.block[e];
-        let (th, ph) = (scratch.theta_blocks[j], scratch.phi_blocks[j]);
+        let (th, ph) = attitude(e);
         let d_th = th - epochs.theta_p_rad[e];
         let d_ph = crate::attitude::wrap_pi(ph - epochs.phi_p_rad[e]);
         let dt = epochs.t_s[e] - prev_t;

@@ -5,14 +5,18 @@
 //!   Kryt1 — bounded one-dimensional Brent searches in sequence.
 //! - OWPI (paper Table 2): azpocz by Kryt1, driftz by Kryt1, then (azpocz, driftx,
 //!   drifty) by Kryt1 with Nelder–Mead.
-//! - joint: Levenberg–Marquardt over x (and the odometer scale when control points make it
-//!   observable), fed with the raw pitch/roll residual series and every control point at
-//!   once; forward-difference Jacobians whose passes run in parallel; the covariance
-//!   `s²(JᵀJ)⁻¹` gives each estimate a 1σ.
+//! - joint: Gauss–Newton over x, two levelling corrections and the odometer scale (when
+//!   control points make it observable), fed with the raw pitch/roll residual series and
+//!   every control point at once; each linearised step is solved by Levenberg–Marquardt;
+//!   the covariance `s²(JᵀJ)⁻¹` gives each estimate a 1σ.
 //!
-//! Kryt2 of a set of control points is their RMS horizontal error. Every evaluation is an
-//! exact navigation pass; the optimisers work in scaled units (degrees, °/h, ppm) so that
-//! their tolerances mean something.
+//! Every search runs on the [`Linearization`] of the criteria's inputs around the current
+//! settings (one exact pass plus one forward-difference pass per moved setting, in
+//! parallel); an exact pass confirms each optimum, and where it disagrees with the model
+//! the model is rebuilt there and the search repeated. A step that does not settle that
+//! way falls back to searching with exact passes. Kryt2 of a set of control points is
+//! their RMS horizontal error. The optimisers work in scaled units (degrees, °/h, ppm) so
+//! that their tolerances mean something.
 
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -28,9 +32,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::criteria::{self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt2};
 use crate::derive::Epochs;
+use crate::earth;
 use crate::filter::LowPass;
+use crate::linearized::{FD_STEP, Linearization, N_PARAMS, Observation};
 use crate::simulate::DEG_PER_H;
-use crate::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
+use crate::strapdown::{self, CriteriaSink, NavInputs, NavSettings};
 
 /// Settings in the optimisers' units.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -93,6 +99,7 @@ pub struct Problem<'a> {
     /// Prior on the vertical drift from the static start: (value, 1σ), °/h.
     pub drift_z_prior_deg_h: Option<(f64, f64)>,
     passes: AtomicUsize,
+    base_lin: std::sync::OnceLock<Linearization>,
 }
 
 /// Criteria of one pass.
@@ -125,7 +132,7 @@ impl Evaluation {
 }
 
 thread_local! {
-    static SCRATCH: RefCell<(NavTrack, Kryt1Scratch, Vec<f64>)> = RefCell::new(Default::default());
+    static OBSERVE_SCRATCH: RefCell<(CriteriaSink, Kryt1Scratch)> = RefCell::new(Default::default());
 }
 
 impl<'a> Problem<'a> {
@@ -147,6 +154,7 @@ impl<'a> Problem<'a> {
             fixes,
             drift_z_prior_deg_h: None,
             passes: AtomicUsize::new(0),
+            base_lin: std::sync::OnceLock::new(),
         }
     }
 
@@ -176,47 +184,133 @@ impl<'a> Problem<'a> {
         s
     }
 
-    fn with_track<T>(
-        &self,
-        x: &X,
-        f: impl FnOnce(&NavTrack, &mut Kryt1Scratch, &mut Vec<f64>) -> T,
-    ) -> T {
-        self.passes.fetch_add(1, Ordering::Relaxed);
-        SCRATCH.with(|cell| {
-            let (track, scratch, buf) = &mut *cell.borrow_mut();
-            navigate(&self.inputs, &self.settings(x), track);
-            f(track, scratch, buf)
-        })
-    }
-
     /// Kryt1 and Kryt2 of `x` (one exact pass).
     pub fn evaluate(&self, x: &X) -> Evaluation {
-        self.with_track(x, |track, scratch, _| Evaluation {
-            kryt1: criteria::kryt1(self.epochs, &self.lp, track, &self.kalman, scratch, None),
-            kryt2: criteria::kryt2(track, self.fixes),
+        self.evaluation_of(&self.observe(x))
+    }
+
+    /// What the criteria read from the pass of `x` (one exact pass).
+    pub fn observe(&self, x: &X) -> Observation {
+        self.observe_by(x, &AtomicUsize::new(0))
+    }
+
+    /// [`Self::observe`], counted in `tally` too (a method's own passes). The pass keeps
+    /// no track: it sums what the criteria need as it goes ([`CriteriaSink`]).
+    pub fn observe_by(&self, x: &X, tally: &AtomicUsize) -> Observation {
+        tally.fetch_add(1, Ordering::Relaxed);
+        self.passes.fetch_add(1, Ordering::Relaxed);
+        OBSERVE_SCRATCH.with(|cell| {
+            let (sink, scratch) = &mut *cell.borrow_mut();
+            let n = self.inputs.len();
+            sink.reset(
+                self.lp.block,
+                self.fixes.iter().map(|f| f.sample).filter(|&k| k < n),
+            );
+            strapdown::run(&self.inputs, &self.settings(x), sink);
+            sink.finish();
+            let mut y = Observation::default();
+            criteria::epoch_attitude_from_sums(
+                self.epochs,
+                &self.lp,
+                &sink.row3_sums,
+                scratch,
+                &mut y.theta_rad,
+                &mut y.phi_rad,
+            );
+            y.cp_m = self
+                .fixes
+                .iter()
+                .filter_map(|f| {
+                    let (lat, lon) = sink.position_at(f.sample)?;
+                    Some(earth::local_offset_m(lat, lon, f.lat_rad, f.lon_rad, f.h_m))
+                })
+                .map(|(dx, dy)| [dx, dy])
+                .collect();
+            y
         })
     }
 
-    /// The joint fit's weighted residuals of `x`.
-    fn residuals(&self, x: &X, p: &DisuptParams) -> Vec<f64> {
-        self.with_track(x, |track, scratch, buf| {
-            criteria::attitude_residuals(self.epochs, &self.lp, track, scratch, buf);
-            let c = [x.tilt_mrad[0] * 1e-3, x.tilt_mrad[1] * 1e-3];
-            let mut r: Vec<f64> = buf
-                .iter()
-                .enumerate()
-                .map(|(i, v)| (v + c[i % 2]) / p.attitude_sigma_rad)
-                .collect();
-            for k in criteria::kryt2(track, self.fixes) {
-                r.push(k.dx_m / p.position_sigma_m);
-                r.push(k.dy_m / p.position_sigma_m);
-            }
-            // At rest the vertical gyro measures driftz directly (method.md): a prior.
-            if let Some((dz, sd)) = self.drift_z_prior_deg_h {
-                r.push((x.drift_deg_h[2] - dz) / sd);
-            }
-            r
+    /// The criteria of an observation.
+    pub fn evaluation_of(&self, y: &Observation) -> Evaluation {
+        Evaluation {
+            kryt1: y.kryt1(self.epochs, &self.kalman),
+            kryt2: y.kryt2(self.fixes),
+        }
+    }
+
+    /// The linearisation around `x` (whose exact observation is `y`) in the parameters
+    /// `which`: one forward-difference pass each, in parallel.
+    pub fn linearize(&self, x: &X, y: Observation, which: &[usize]) -> Linearization {
+        self.linearize_by(x, y, which, &AtomicUsize::new(0))
+    }
+
+    /// [`Self::linearize`], its passes counted in `tally` too.
+    pub fn linearize_by(
+        &self,
+        x: &X,
+        y: Observation,
+        which: &[usize],
+        tally: &AtomicUsize,
+    ) -> Linearization {
+        let p = params_of(x);
+        let found: Vec<(usize, Observation)> = which
+            .par_iter()
+            .map(|&j| {
+                let mut pj = p;
+                pj[j] += FD_STEP[j];
+                (j, self.observe_by(&x_of(&pj), tally).slope(&y, FD_STEP[j]))
+            })
+            .collect();
+        let mut slopes: [Option<Observation>; N_PARAMS] = Default::default();
+        for (j, s) in found {
+            slopes[j] = Some(s);
+        }
+        Linearization {
+            p_ref: p,
+            y_ref: y,
+            slopes,
+        }
+    }
+
+    /// Passes of the shared first linearisation (0 before it is built).
+    pub fn base_passes(&self) -> usize {
+        self.base_lin
+            .get()
+            .map_or(0, |l| 1 + l.slopes.iter().flatten().count())
+    }
+
+    /// The linearisation around `x0` in every parameter, built once and shared by the
+    /// methods (each starts there; its passes are counted in [`Self::base_passes`]).
+    pub fn base_linearization(&self) -> &Linearization {
+        self.base_lin.get_or_init(|| {
+            let x0 = self.x0();
+            let y0 = self.observe(&x0);
+            self.linearize(&x0, y0, &[0, 1, 2, 3, 4, 5, 6])
         })
+    }
+}
+
+/// `X` as the linearisation's parameter vector `[az, dx, dy, dz, tilt_pitch, tilt_roll,
+/// ppm]`.
+pub fn params_of(x: &X) -> [f64; N_PARAMS] {
+    [
+        x.azimuth_deg,
+        x.drift_deg_h[0],
+        x.drift_deg_h[1],
+        x.drift_deg_h[2],
+        x.tilt_mrad[0],
+        x.tilt_mrad[1],
+        x.odo_ppm,
+    ]
+}
+
+/// The inverse of [`params_of`].
+pub fn x_of(p: &[f64; N_PARAMS]) -> X {
+    X {
+        azimuth_deg: p[0],
+        drift_deg_h: [p[1], p[2], p[3]],
+        tilt_mrad: [p[4], p[5]],
+        odo_ppm: p[6],
     }
 }
 
@@ -285,17 +379,11 @@ pub struct MethodResult {
     pub kryt1: f64,
     /// The table rows.
     pub steps: Vec<Step>,
-    /// Navigation passes.
+    /// The method's own navigation passes (the shared first linearisation, see
+    /// [`Problem::base_passes`], aside).
     pub evaluations: usize,
     /// Wall time, s.
     pub wall_s: f64,
-}
-
-struct Line<'p, 'a> {
-    problem: &'p Problem<'a>,
-    x: X,
-    component: Component,
-    criterion: Criterion,
 }
 
 fn set(x: &mut X, c: Component, v: f64) {
@@ -317,40 +405,15 @@ fn get(x: &X, c: Component) -> f64 {
     }
 }
 
-fn cost(problem: &Problem<'_>, x: &X, criterion: Criterion) -> f64 {
-    let e = problem.evaluate(x);
-    match criterion {
-        Criterion::Kryt1 => e.kryt1,
-        Criterion::Kryt2 | Criterion::LeastSquares => e.kryt2_rms(),
-    }
-}
-
-impl CostFunction for Line<'_, '_> {
-    type Param = f64;
-    type Output = f64;
-
-    fn cost(&self, v: &f64) -> Result<f64, ArgminError> {
-        let mut x = self.x;
-        set(&mut x, self.component, *v);
-        Ok(cost(self.problem, &x, self.criterion))
-    }
-}
-
-struct Plane<'p, 'a> {
-    problem: &'p Problem<'a>,
-    x: X,
-}
-
-impl CostFunction for Plane<'_, '_> {
-    type Param = Vec<f64>;
-    type Output = f64;
-
-    fn cost(&self, v: &Vec<f64>) -> Result<f64, ArgminError> {
-        let mut x = self.x;
-        x.azimuth_deg = v[0];
-        x.drift_deg_h[0] = v[1];
-        x.drift_deg_h[1] = v[2];
-        Ok(cost(self.problem, &x, Criterion::Kryt1))
+/// The linearisation parameters a step moves.
+fn free_params(c: Component) -> &'static [usize] {
+    match c {
+        Component::Azimuth => &[0],
+        Component::DriftX => &[1],
+        Component::DriftY => &[2],
+        Component::DriftZ => &[3],
+        Component::AzimuthDriftXy => &[0, 1, 2],
+        Component::All => &[0, 1, 2, 3, 4, 5, 6],
     }
 }
 
@@ -366,28 +429,127 @@ pub enum DisuptError {
     Optimiser(String),
 }
 
-fn brent(
+fn optimiser_error(e: impl std::fmt::Display) -> DisuptError {
+    DisuptError::Optimiser(e.to_string())
+}
+
+/// Relinearisations of one search before it falls back to exact passes.
+const MAX_RELINEARISATIONS: usize = 6;
+
+/// A criterion over the free parameters of `p`, evaluated exactly (a pass each) or on a
+/// linearisation (no pass).
+struct Objective<'p, 'a> {
+    problem: &'p Problem<'a>,
+    lin: Option<&'p Linearization>,
+    p: [f64; N_PARAMS],
+    free: &'static [usize],
+    criterion: Criterion,
+    buf: RefCell<Observation>,
+    tally: &'p AtomicUsize,
+}
+
+impl Objective<'_, '_> {
+    fn at(&self, values: &[f64]) -> f64 {
+        let mut p = self.p;
+        for (&j, &v) in self.free.iter().zip(values) {
+            p[j] = v;
+        }
+        let value = |y: &Observation| match self.criterion {
+            Criterion::Kryt1 => y.kryt1(self.problem.epochs, &self.problem.kalman),
+            Criterion::Kryt2 | Criterion::LeastSquares => y.kryt2_rms(),
+        };
+        match self.lin {
+            Some(lin) => {
+                let mut y = self.buf.borrow_mut();
+                lin.predict_into(&p, &mut y);
+                value(&y)
+            }
+            None => value(&self.problem.observe_by(&x_of(&p), self.tally)),
+        }
+    }
+}
+
+/// One component (Brent).
+struct Along<'o, 'p, 'a>(&'o Objective<'p, 'a>);
+
+impl CostFunction for Along<'_, '_, '_> {
+    type Param = f64;
+    type Output = f64;
+
+    fn cost(&self, v: &f64) -> Result<f64, ArgminError> {
+        Ok(self.0.at(&[*v]))
+    }
+}
+
+/// Several components (Nelder–Mead).
+struct Within<'o, 'p, 'a>(&'o Objective<'p, 'a>);
+
+impl CostFunction for Within<'_, '_, '_> {
+    type Param = Vec<f64>;
+    type Output = f64;
+
+    fn cost(&self, v: &Vec<f64>) -> Result<f64, ArgminError> {
+        Ok(self.0.at(v))
+    }
+}
+
+/// Minimises `criterion` over `component`, starting from `x`, on `lin` (or exactly).
+fn minimise(
     problem: &Problem<'_>,
+    lin: Option<&Linearization>,
     x: X,
     component: Component,
     criterion: Criterion,
-    half: f64,
+    p: &DisuptParams,
+    tally: &AtomicUsize,
 ) -> Result<X, DisuptError> {
-    let c = get(&x, component);
-    let solver = BrentOpt::new(c - half, c + half).set_tolerance(1e-8, 1e-4);
-    let res = Executor::new(
-        Line {
-            problem,
-            x,
-            component,
-            criterion,
-        },
-        solver,
-    )
-    .configure(|s| s.max_iters(100))
-    .run()
-    .map_err(|e| DisuptError::Optimiser(e.to_string()))?;
+    let objective = Objective {
+        problem,
+        lin,
+        p: params_of(&x),
+        free: free_params(component),
+        criterion,
+        buf: RefCell::new(Observation::default()),
+        tally,
+    };
     let mut out = x;
+    if component == Component::AzimuthDriftXy {
+        let start = vec![x.azimuth_deg, x.drift_deg_h[0], x.drift_deg_h[1]];
+        let simplex = vec![
+            start.clone(),
+            vec![start[0] + 1.0, start[1], start[2]],
+            vec![start[0], start[1] + 1.0, start[2]],
+            vec![start[0], start[1], start[2] + 1.0],
+        ];
+        let solver = NelderMead::new(simplex)
+            .with_sd_tolerance(1e-9)
+            .map_err(optimiser_error)?;
+        let res = Executor::new(Within(&objective), solver)
+            .configure(|s| s.max_iters(if lin.is_some() { 2000 } else { 400 }))
+            .run()
+            .map_err(optimiser_error)?;
+        let best = res.state().get_best_param().cloned().unwrap_or(start);
+        out.azimuth_deg = best[0];
+        out.drift_deg_h[0] = best[1];
+        out.drift_deg_h[1] = best[2];
+        return Ok(out);
+    }
+    let half = if component == Component::Azimuth {
+        p.azimuth_bound_deg
+    } else {
+        p.drift_bound_deg_h
+    };
+    let c = get(&x, component);
+    let (rel, abs) = if lin.is_some() {
+        (1e-10, 1e-6)
+    } else {
+        (1e-8, 1e-4)
+    };
+    let solver = BrentOpt::new(c - half, c + half).set_tolerance(rel, abs);
+    let res = Executor::new(Along(&objective), solver)
+        .configure(|s| s.max_iters(200))
+        .run()
+        .map_err(optimiser_error)?;
     set(
         &mut out,
         component,
@@ -396,47 +558,61 @@ fn brent(
     Ok(out)
 }
 
+/// One step of OEPI/OWPI from `x` (whose exact observation is `y`): search the
+/// linearisation, confirm with an exact pass, relinearise where they disagree. Returns
+/// the optimum and its exact observation.
+fn search(
+    problem: &Problem<'_>,
+    x: X,
+    y: &Observation,
+    component: Component,
+    criterion: Criterion,
+    p: &DisuptParams,
+    tally: &AtomicUsize,
+) -> Result<(X, Observation), DisuptError> {
+    let free = free_params(component);
+    let base = problem.base_linearization();
+    let mut owned;
+    let mut lin = if base.p_ref == params_of(&x) && base.covers(free) {
+        base
+    } else {
+        owned = problem.linearize_by(&x, y.clone(), free, tally);
+        &owned
+    };
+    for _ in 0..MAX_RELINEARISATIONS {
+        let x_new = minimise(problem, Some(lin), x, component, criterion, p, tally)?;
+        let y_new = problem.observe_by(&x_new, tally);
+        if lin.predict(&params_of(&x_new)).agrees_with(&y_new) {
+            return Ok((x_new, y_new));
+        }
+        owned = problem.linearize_by(&x_new, y_new, free, tally);
+        lin = &owned;
+    }
+    let x_new = minimise(problem, None, x, component, criterion, p, tally)?;
+    let y_new = problem.observe_by(&x_new, tally);
+    Ok((x_new, y_new))
+}
+
+fn last_cp(y: &Observation) -> (f64, f64) {
+    y.cp_m.last().map_or((f64::NAN, f64::NAN), |c| (c[0], c[1]))
+}
+
 fn run_steps(
     problem: &Problem<'_>,
     plan: &[(Component, Criterion)],
     p: &DisuptParams,
 ) -> Result<MethodResult, DisuptError> {
     let t0 = Instant::now();
-    let passes0 = problem.passes();
+    let tally = AtomicUsize::new(0);
+    let passes = || tally.load(Ordering::Relaxed);
     let mut x = problem.x0();
+    let mut y = problem.base_linearization().y_ref.clone();
     let mut steps = Vec::new();
     for (i, &(component, criterion)) in plan.iter().enumerate() {
-        let before = problem.passes();
+        let before = passes();
         let input = x;
-        x = match component {
-            Component::AzimuthDriftXy => {
-                let start = vec![x.azimuth_deg, x.drift_deg_h[0], x.drift_deg_h[1]];
-                let simplex = vec![
-                    start.clone(),
-                    vec![start[0] + 1.0, start[1], start[2]],
-                    vec![start[0], start[1] + 1.0, start[2]],
-                    vec![start[0], start[1], start[2] + 1.0],
-                ];
-                let solver = NelderMead::new(simplex)
-                    .with_sd_tolerance(1e-7)
-                    .map_err(|e| DisuptError::Optimiser(e.to_string()))?;
-                let res = Executor::new(Plane { problem, x }, solver)
-                    .configure(|s| s.max_iters(400))
-                    .run()
-                    .map_err(|e| DisuptError::Optimiser(e.to_string()))?;
-                let best = res.state().get_best_param().cloned().unwrap_or(start);
-                X {
-                    azimuth_deg: best[0],
-                    drift_deg_h: [best[1], best[2], x.drift_deg_h[2]],
-                    ..x
-                }
-            }
-            Component::Azimuth => brent(problem, x, component, criterion, p.azimuth_bound_deg)?,
-            _ => brent(problem, x, component, criterion, p.drift_bound_deg_h)?,
-        };
-        // Every reported optimum is confirmed by an exact pass.
-        let e = problem.evaluate(&x);
-        let (dx_m, dy_m) = e.last_error();
+        (x, y) = search(problem, x, &y, component, criterion, p, &tally)?;
+        let (dx_m, dy_m) = last_cp(&y);
         steps.push(Step {
             step: i + 1,
             component,
@@ -445,19 +621,18 @@ fn run_steps(
             output: x,
             dx_m,
             dy_m,
-            evaluations: problem.passes() - before,
+            evaluations: passes() - before,
         });
     }
-    let e = problem.evaluate(&x);
-    let (dx_m, dy_m) = e.last_error();
+    let (dx_m, dy_m) = last_cp(&y);
     Ok(MethodResult {
         x,
         sigma: None,
         dx_m,
         dy_m,
-        kryt1: e.kryt1,
+        kryt1: y.kryt1(problem.epochs, &problem.kalman),
         steps,
-        evaluations: problem.passes() - passes0,
+        evaluations: passes(),
         wall_s: t0.elapsed().as_secs_f64(),
     })
 }
@@ -492,144 +667,189 @@ pub fn owpi(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Dis
     )
 }
 
-/// The joint least-squares problem in the form the LM crate wants.
-struct Joint<'p, 'a> {
-    problem: &'p Problem<'a>,
-    params: &'p DisuptParams,
-    p: DVector<f64>,
-    cache: RefCell<Option<(DVector<f64>, Vec<f64>)>>,
+/// The joint fit's weighted residuals and their Jacobian in the free parameters, from a
+/// linearisation: `r(p) ≈ r0 + A (p − p_ref)`.
+struct JointModel {
+    r0: DVector<f64>,
+    a: DMatrix<f64>,
 }
 
-/// Forward-difference steps: 0.01°, 0.01 °/h (×3), 0.01 mrad (×2), 10 ppm.
-const FD_STEP: [f64; 7] = [1e-2, 1e-2, 1e-2, 1e-2, 1e-2, 1e-2, 10.0];
-
-/// The joint parameter vector `[az, dx, dy, dz, tilt_pitch, tilt_roll, (ppm)]` as `X`.
-fn joint_x(p: &DVector<f64>) -> X {
-    X {
-        azimuth_deg: p[0],
-        drift_deg_h: [p[1], p[2], p[3]],
-        tilt_mrad: [p[4], p[5]],
-        odo_ppm: if p.len() > 6 { p[6] } else { 0.0 },
-    }
-}
-
-impl Joint<'_, '_> {
-    fn x_of(&self, p: &DVector<f64>) -> X {
-        joint_x(p)
-    }
-
-    fn residuals_at(&self, p: &DVector<f64>) -> Vec<f64> {
-        if let Some((cp, r)) = &*self.cache.borrow()
-            && cp == p
-        {
-            return r.clone();
+/// Weighted residuals of an observation at parameters `p`: every valid epoch's ΔΘ, ΔΦ
+/// (plus the levelling corrections), every control point's ΔX, ΔY, and the static
+/// driftz prior.
+fn joint_residuals(
+    problem: &Problem<'_>,
+    y: &Observation,
+    p: &[f64; N_PARAMS],
+    params: &DisuptParams,
+) -> Vec<f64> {
+    let e = problem.epochs;
+    let s = params.attitude_sigma_rad;
+    let mut r = Vec::with_capacity(2 * e.block.len() + 2 * y.cp_m.len() + 1);
+    for k in 0..e.block.len() {
+        if e.valid[k] {
+            r.push((y.theta_rad[k] - e.theta_p_rad[k] + p[4] * 1e-3) / s);
+            r.push((crate::attitude::wrap_pi(y.phi_rad[k] - e.phi_p_rad[k]) + p[5] * 1e-3) / s);
         }
-        let r = self.problem.residuals(&self.x_of(p), self.params);
-        *self.cache.borrow_mut() = Some((p.clone(), r.clone()));
-        r
+    }
+    for c in &y.cp_m {
+        r.push(c[0] / params.position_sigma_m);
+        r.push(c[1] / params.position_sigma_m);
+    }
+    // At rest the vertical gyro measures driftz directly (method.md): a prior.
+    if let Some((dz, sd)) = problem.drift_z_prior_deg_h {
+        r.push((p[3] - dz) / sd);
+    }
+    r
+}
+
+fn ssr(r: &[f64]) -> f64 {
+    r.iter().map(|v| v * v).sum()
+}
+
+impl JointModel {
+    fn new(
+        problem: &Problem<'_>,
+        lin: &Linearization,
+        free: &[usize],
+        params: &DisuptParams,
+    ) -> Self {
+        let r0 = joint_residuals(problem, &lin.y_ref, &lin.p_ref, params);
+        let mut a = DMatrix::zeros(r0.len(), free.len());
+        for (col, &j) in free.iter().enumerate() {
+            let Some(slope) = &lin.slopes[j] else {
+                continue;
+            };
+            // The residuals' slope: the observation's slope through the residual map,
+            // whose only other dependence on p is the levelling offsets and the prior.
+            let mut p1 = lin.p_ref;
+            p1[j] += 1.0;
+            let mut y1 = lin.y_ref.clone();
+            for (v, d) in y1.theta_rad.iter_mut().zip(&slope.theta_rad) {
+                *v += d;
+            }
+            for (v, d) in y1.phi_rad.iter_mut().zip(&slope.phi_rad) {
+                *v += d;
+            }
+            for (v, d) in y1.cp_m.iter_mut().zip(&slope.cp_m) {
+                v[0] += d[0];
+                v[1] += d[1];
+            }
+            let r1 = joint_residuals(problem, &y1, &p1, params);
+            for (i, (b, c)) in r1.iter().zip(&r0).enumerate() {
+                a[(i, col)] = b - c;
+            }
+        }
+        Self {
+            r0: DVector::from_vec(r0),
+            a,
+        }
     }
 }
 
-impl LeastSquaresProblem<f64, Dyn, Dyn> for Joint<'_, '_> {
+/// The linearised least-squares step in the form the LM crate wants (`δ` from `p_ref`).
+struct LinearStep<'m> {
+    model: &'m JointModel,
+    delta: DVector<f64>,
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for LinearStep<'_> {
     type ResidualStorage = Owned<f64, Dyn>;
     type JacobianStorage = Owned<f64, Dyn, Dyn>;
     type ParameterStorage = Owned<f64, Dyn>;
 
-    fn set_params(&mut self, p: &DVector<f64>) {
-        self.p.copy_from(p);
+    fn set_params(&mut self, d: &DVector<f64>) {
+        self.delta.copy_from(d);
     }
 
     fn params(&self) -> DVector<f64> {
-        self.p.clone()
+        self.delta.clone()
     }
 
     fn residuals(&self) -> Option<DVector<f64>> {
-        let r = self.residuals_at(&self.p);
-        r.iter()
-            .all(|v| v.is_finite())
-            .then(|| DVector::from_vec(r))
+        Some(&self.model.r0 + &self.model.a * &self.delta)
     }
 
     fn jacobian(&self) -> Option<DMatrix<f64>> {
-        let r0 = self.residuals_at(&self.p);
-        let n = self.p.len();
-        let (problem, params, p0) = (self.problem, self.params, &self.p);
-        let x_of = joint_x;
-        let columns: Vec<Vec<f64>> = (0..n)
-            .into_par_iter()
-            .map(|j| {
-                let mut pj = p0.clone();
-                pj[j] += FD_STEP[j];
-                let rj = problem.residuals(&x_of(&pj), params);
-                rj.iter()
-                    .zip(&r0)
-                    .map(|(a, b)| (a - b) / FD_STEP[j])
-                    .collect()
-            })
-            .collect();
-        let m = r0.len();
-        Some(DMatrix::from_fn(m, n, |i, j| columns[j][i]))
+        Some(self.model.a.clone())
     }
 }
+
+/// Gauss–Newton iterations of the joint fit before it stops.
+const MAX_GAUSS_NEWTON: usize = 10;
 
 /// The joint estimator.
 pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, DisuptError> {
     let t0 = Instant::now();
-    let passes0 = problem.passes();
+    let tally = AtomicUsize::new(0);
     let x0 = problem.x0();
     let with_scale = p.joint_odo_scale && !problem.fixes.is_empty();
-    let mut start = vec![
-        x0.azimuth_deg,
-        x0.drift_deg_h[0],
-        x0.drift_deg_h[1],
-        x0.drift_deg_h[2],
-        0.0,
-        0.0,
-    ];
-    if with_scale {
-        start.push(0.0);
-    }
-    // Position residuals are nonlinear in a large azimuth error: start from the azimuth
-    // that best fits the control points (a cheap 1-D search) when there are some.
-    if !problem.fixes.is_empty() {
-        start[0] = brent(
-            problem,
-            x0,
-            Component::Azimuth,
-            Criterion::Kryt2,
-            p.azimuth_bound_deg,
-        )?
-        .azimuth_deg;
-    }
-    let target = Joint {
-        problem,
-        params: p,
-        p: DVector::from_vec(start),
-        cache: RefCell::new(None),
+    let free: &[usize] = if with_scale {
+        &[0, 1, 2, 3, 4, 5, 6]
+    } else {
+        &[0, 1, 2, 3, 4, 5]
     };
-    let (solved, report) = LevenbergMarquardt::new().with_patience(20).minimize(target);
-    if !report.termination.was_successful() {
-        return Err(DisuptError::Optimiser(format!("{:?}", report.termination)));
-    }
-    let x = solved.x_of(&solved.p);
-    // Covariance s²(JᵀJ)⁻¹ at the solution.
-    let sigma = solved.jacobian().and_then(|j| {
-        let r = solved.residuals_at(&solved.p);
-        let dof = (r.len() as f64 - solved.p.len() as f64).max(1.0);
-        let s2 = r.iter().map(|v| v * v).sum::<f64>() / dof;
-        (j.transpose() * &j).try_inverse().map(|c| {
-            let sd = |i: usize| (c[(i, i)] * s2).max(0.0).sqrt();
-            X {
-                azimuth_deg: sd(0),
-                drift_deg_h: [sd(1), sd(2), sd(3)],
-                tilt_mrad: [sd(4), sd(5)],
-                odo_ppm: if with_scale { sd(6) } else { 0.0 },
+    let base = problem.base_linearization();
+    let mut owned;
+    let mut lin = base;
+    let mut pr = lin.p_ref;
+    let mut y = lin.y_ref.clone();
+    let mut cost = ssr(&joint_residuals(problem, &y, &pr, p));
+    let mut model = JointModel::new(problem, lin, free, p);
+    for _ in 0..MAX_GAUSS_NEWTON {
+        let (solved, report) = LevenbergMarquardt::new().minimize(LinearStep {
+            model: &model,
+            delta: DVector::zeros(free.len()),
+        });
+        if !report.termination.was_successful() {
+            return Err(DisuptError::Optimiser(format!("{:?}", report.termination)));
+        }
+        // The exact pass at the model's optimum; halve the step while it does worse.
+        let mut step = solved.delta;
+        let (mut p_new, mut y_new, mut cost_new);
+        let mut halvings = 0;
+        loop {
+            p_new = pr;
+            for (k, &j) in free.iter().enumerate() {
+                p_new[j] += step[k];
             }
-        })
+            y_new = problem.observe_by(&x_of(&p_new), &tally);
+            cost_new = ssr(&joint_residuals(problem, &y_new, &p_new, p));
+            if cost_new <= cost || halvings == 5 {
+                break;
+            }
+            step /= 2.0;
+            halvings += 1;
+        }
+        let agrees = halvings == 0 && lin.predict(&p_new).agrees_with(&y_new);
+        (pr, y, cost) = (p_new, y_new, cost_new);
+        if agrees {
+            break;
+        }
+        owned = problem.linearize_by(&x_of(&pr), y.clone(), free, &tally);
+        lin = &owned;
+        model = JointModel::new(problem, lin, free, p);
+    }
+    let x = x_of(&pr);
+    // Covariance s²(AᵀA)⁻¹ with the last linearisation (which agreed with the exact pass
+    // at the solution, so its slopes hold there).
+    let dof = (model.r0.len() as f64 - free.len() as f64).max(1.0);
+    let s2 = cost / dof;
+    let sigma = (model.a.transpose() * &model.a).try_inverse().map(|c| {
+        let sd = |i: usize| {
+            free.iter()
+                .position(|&j| j == i)
+                .map_or(0.0, |k| (c[(k, k)] * s2).max(0.0).sqrt())
+        };
+        X {
+            azimuth_deg: sd(0),
+            drift_deg_h: [sd(1), sd(2), sd(3)],
+            tilt_mrad: [sd(4), sd(5)],
+            odo_ppm: sd(6),
+        }
     });
-    let e = problem.evaluate(&x);
-    let (dx_m, dy_m) = e.last_error();
-    let evaluations = problem.passes() - passes0;
+    let (dx_m, dy_m) = last_cp(&y);
+    let evaluations = tally.load(Ordering::Relaxed);
     let step = Step {
         step: 1,
         component: Component::All,
@@ -645,7 +865,7 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
         sigma,
         dx_m,
         dy_m,
-        kryt1: e.kryt1,
+        kryt1: y.kryt1(problem.epochs, &problem.kalman),
         steps: vec![step],
         evaluations,
         wall_s: t0.elapsed().as_secs_f64(),

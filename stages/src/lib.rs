@@ -21,5 +21,6 @@ pub mod disupt;
 pub mod earth;
 pub mod filter;
 pub mod initial;
+pub mod linearized;
 pub mod simulate;
 pub mod strapdown;

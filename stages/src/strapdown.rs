@@ -176,10 +176,99 @@ impl LatTerms {
     }
 }
 
+/// What a pass does with each sample's state.
+pub trait PassSink {
+    /// Sample `k`: position (rad, rad, m), attitude quaternion `[w, x, y, z]` of `C_b^n`
+    /// and odometer distance so far (m).
+    fn sample(&mut self, k: usize, lat: f64, lon: f64, h: f64, q: &[f64; 4], distance_m: f64);
+}
+
+impl PassSink for NavTrack {
+    #[inline(always)]
+    fn sample(&mut self, k: usize, lat: f64, lon: f64, h: f64, q: &[f64; 4], distance_m: f64) {
+        self.lat_rad[k] = lat;
+        self.lon_rad[k] = lon;
+        self.h_m[k] = h;
+        self.q_b_to_n[k] = *q;
+        self.distance_m[k] = distance_m;
+    }
+}
+
 /// Runs the navigation over all samples, writing `track` (resized to the input length).
 pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
-    let n = inputs.len();
-    track.resize(n);
+    track.resize(inputs.len());
+    run(inputs, s, track);
+}
+
+/// Sums of the third row of `C_b^n` per block of `block` samples, and the positions at
+/// chosen samples: all that the criteria read from a pass, without storing the track.
+#[derive(Debug, Clone, Default)]
+pub struct CriteriaSink {
+    /// Samples per block.
+    pub block: usize,
+    /// Per block: the sum of the samples' third rows of `C_b^n`.
+    pub row3_sums: Vec<[f64; 3]>,
+    /// (sample, latitude rad, longitude rad) at the requested samples, in sample order.
+    pub positions: Vec<(usize, f64, f64)>,
+    wanted: Vec<usize>,
+    acc: [f64; 3],
+    in_block: usize,
+}
+
+impl CriteriaSink {
+    /// Clears the sink for a pass with blocks of `block` samples, recording the positions
+    /// at `samples`.
+    pub fn reset(&mut self, block: usize, samples: impl IntoIterator<Item = usize>) {
+        self.block = block.max(1);
+        self.row3_sums.clear();
+        self.positions.clear();
+        self.wanted.clear();
+        self.wanted.extend(samples);
+        self.wanted.sort_unstable();
+        self.wanted.dedup();
+        self.wanted.reverse(); // popped from the end, in sample order
+        self.acc = [0.0; 3];
+        self.in_block = 0;
+    }
+
+    /// Closes the last, partial block.
+    pub fn finish(&mut self) {
+        if self.in_block > 0 {
+            self.row3_sums.push(self.acc);
+            self.acc = [0.0; 3];
+            self.in_block = 0;
+        }
+    }
+
+    /// Latitude and longitude recorded at `sample`.
+    pub fn position_at(&self, sample: usize) -> Option<(f64, f64)> {
+        self.positions
+            .binary_search_by_key(&sample, |p| p.0)
+            .ok()
+            .map(|i| (self.positions[i].1, self.positions[i].2))
+    }
+}
+
+impl PassSink for CriteriaSink {
+    #[inline(always)]
+    fn sample(&mut self, k: usize, lat: f64, lon: f64, _h: f64, q: &[f64; 4], _d: f64) {
+        let r = dcm_row3(q);
+        self.acc = [self.acc[0] + r[0], self.acc[1] + r[1], self.acc[2] + r[2]];
+        self.in_block += 1;
+        if self.in_block == self.block {
+            self.row3_sums.push(self.acc);
+            self.acc = [0.0; 3];
+            self.in_block = 0;
+        }
+        if self.wanted.last() == Some(&k) {
+            self.wanted.pop();
+            self.positions.push((k, lat, lon));
+        }
+    }
+}
+
+/// Runs the navigation over all samples into `sink`.
+pub fn run(inputs: &NavInputs<'_>, s: &NavSettings, sink: &mut impl PassSink) {
     let drift = Vector3::from(s.drift_rad_s);
     let (odo_sin, odo_cos) = s.odo_yaw_rad.sin_cos();
     // Direction of the odometer axis (body x turned by the boresight) in NED: the first
@@ -212,16 +301,7 @@ pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
         .iter()
         .zip(inputs.dtheta_rad)
         .zip(inputs.odo_dist_m);
-    let outputs = track
-        .lat_rad
-        .iter_mut()
-        .zip(track.lon_rad.iter_mut())
-        .zip(track.h_m.iter_mut())
-        .zip(track.q_b_to_n.iter_mut())
-        .zip(track.distance_m.iter_mut());
-    for (k, (((&dt, dtheta), &odo), ((((lat_out, lon_out), h_out), q_out), dist_out))) in
-        samples.zip(outputs).enumerate()
-    {
+    for (k, ((&dt, dtheta), &odo)) in samples.enumerate() {
         let dth = Vector3::from(*dtheta) - drift * dt;
         let phi = dth + prev.cross(&dth) * (1.0 / 12.0);
         prev = dth;
@@ -261,11 +341,7 @@ pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
         // seen from the new frame, exact to ζ² ~ 1e-12.
         dir_start = dir_end - zeta.cross(&dir_end);
 
-        *lat_out = lat;
-        *lon_out = lon;
-        *h_out = h;
-        *q_out = [q.w, q.i, q.j, q.k];
-        *dist_out = distance;
+        sink.sample(k, lat, lon, h, &[q.w, q.i, q.j, q.k], distance);
     }
 }
 

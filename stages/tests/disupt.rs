@@ -138,3 +138,38 @@ fn methods_recover_the_settings_of_paper_like_runs() {
         );
     }
 }
+
+/// The optimisers' passes keep no track (they sum what the criteria need as they go):
+/// their criteria must equal those of a stored track, bit for bit.
+#[test]
+fn track_free_passes_give_the_criteria_of_a_stored_track() {
+    use unz_stages::criteria::{self, Kryt1Scratch};
+
+    let c = case_with(44, SensorErrors::ALL, Some(5.0));
+    let base = c.manifest_settings();
+    let problem = Problem::new(
+        c.inputs(),
+        base,
+        &c.derived.epochs,
+        c.lowpass(),
+        KalmanParams::default(),
+        &c.fixes,
+    );
+    let mut x = problem.x0();
+    x.drift_deg_h = [0.3, -0.2, 0.5];
+    x.odo_ppm = 500.0;
+    let y = problem.observe(&x);
+    let e = problem.evaluation_of(&y);
+    let track = c.nav(&problem.settings(&x));
+    let k1 = criteria::kryt1(
+        &c.derived.epochs,
+        &problem.lp,
+        &track,
+        &problem.kalman,
+        &mut Kryt1Scratch::default(),
+        None,
+    );
+    assert_eq!(e.kryt1.to_bits(), k1.to_bits(), "{} vs {k1}", e.kryt1);
+    assert_eq!(e.kryt2, criteria::kryt2(&track, &c.fixes));
+    assert!(!e.kryt2.is_empty());
+}

@@ -1,0 +1,201 @@
+//! The criteria's view of a navigation pass, and its linearisation in the settings.
+//!
+//! Kryt1, Kryt2 and the joint fit's residuals read only two things from a pass: the
+//! filtered gyro pitch Θ_N and roll Φ_N at every epoch and the horizontal errors at the
+//! control points — an [`Observation`]. Around settings `x_ref`, one exact pass and one
+//! forward-difference pass per setting give `y(x) ≈ y(x_ref) + J (x − x_ref)`
+//! ([`Linearization`]). The optimisers search this affine model (microseconds per
+//! evaluation instead of a navigation pass), an exact pass checks the optimum it finds,
+//! and where the two disagree the model is rebuilt there, until an exact pass agrees.
+
+use crate::criteria::{ControlPointFix, KalmanParams, Kryt2, kryt1_of};
+use crate::derive::Epochs;
+
+/// Number of settings a linearisation can move: azimuth, drifts x/y/z, the two levelling
+/// corrections and the odometer scale (in that order, the joint fit's).
+pub const N_PARAMS: usize = 7;
+
+/// Forward-difference steps, in the optimisers' units: 0.01°, 0.01 °/h (×3), 0.01 mrad
+/// (×2), 10 ppm. Small enough that curvature does not bias the slope (a 0.01° azimuth
+/// change moves a 10 km route by 1.7 m), large enough to stay far above rounding.
+pub const FD_STEP: [f64; N_PARAMS] = [1e-2, 1e-2, 1e-2, 1e-2, 1e-2, 1e-2, 10.0];
+
+/// Largest pitch/roll difference between a prediction and an exact pass that counts as
+/// agreement, rad (2″: a hundredth of one epoch's 1 mrad residual noise).
+pub const AGREE_ATTITUDE_RAD: f64 = 1e-5;
+/// Largest control-point difference that counts as agreement, m (a tenth of the
+/// control points' 1 m uncertainty).
+pub const AGREE_POSITION_M: f64 = 0.1;
+
+/// What the criteria read from one navigation pass.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Observation {
+    /// Filtered gyro pitch Θ_N at every epoch, rad.
+    pub theta_rad: Vec<f64>,
+    /// Filtered gyro roll Φ_N at every epoch, rad.
+    pub phi_rad: Vec<f64>,
+    /// (ΔX north, ΔY east) at every control point, m.
+    pub cp_m: Vec<[f64; 2]>,
+}
+
+impl Observation {
+    /// Largest differences from `other`: (attitude rad, position m).
+    pub fn max_diff(&self, other: &Self) -> (f64, f64) {
+        let att = self
+            .theta_rad
+            .iter()
+            .zip(&other.theta_rad)
+            .chain(self.phi_rad.iter().zip(&other.phi_rad))
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        let pos = self
+            .cp_m
+            .iter()
+            .zip(&other.cp_m)
+            .map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]))
+            .fold(0.0, f64::max);
+        (att, pos)
+    }
+
+    /// Whether `self` (a prediction) agrees with `exact`.
+    pub fn agrees_with(&self, exact: &Self) -> bool {
+        let (att, pos) = self.max_diff(exact);
+        att <= AGREE_ATTITUDE_RAD && pos <= AGREE_POSITION_M
+    }
+
+    /// Kryt1 of these series.
+    pub fn kryt1(&self, epochs: &Epochs, kp: &KalmanParams) -> f64 {
+        kryt1_of(epochs, kp, |e| (self.theta_rad[e], self.phi_rad[e]), None)
+    }
+
+    /// Kryt2 at every control point.
+    pub fn kryt2(&self, fixes: &[ControlPointFix]) -> Vec<Kryt2> {
+        fixes
+            .iter()
+            .zip(&self.cp_m)
+            .map(|(f, c)| Kryt2 {
+                id: f.id,
+                t_s: f.t_s,
+                dx_m: c[0],
+                dy_m: c[1],
+                kryt2_m: c[0].hypot(c[1]),
+            })
+            .collect()
+    }
+
+    /// RMS horizontal error over the control points, m (NaN without any).
+    pub fn kryt2_rms(&self) -> f64 {
+        (self
+            .cp_m
+            .iter()
+            .map(|c| c[0] * c[0] + c[1] * c[1])
+            .sum::<f64>()
+            / self.cp_m.len() as f64)
+            .sqrt()
+    }
+
+    fn axpy(&mut self, a: f64, d: &Self) {
+        for (y, v) in self.theta_rad.iter_mut().zip(&d.theta_rad) {
+            *y += a * v;
+        }
+        for (y, v) in self.phi_rad.iter_mut().zip(&d.phi_rad) {
+            *y += a * v;
+        }
+        for (y, v) in self.cp_m.iter_mut().zip(&d.cp_m) {
+            y[0] += a * v[0];
+            y[1] += a * v[1];
+        }
+    }
+
+    /// `(self − base) / h`.
+    pub fn slope(&self, base: &Self, h: f64) -> Self {
+        let d = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| (x - y) / h).collect();
+        Self {
+            theta_rad: d(&self.theta_rad, &base.theta_rad),
+            phi_rad: d(&self.phi_rad, &base.phi_rad),
+            cp_m: self
+                .cp_m
+                .iter()
+                .zip(&base.cp_m)
+                .map(|(a, b)| [(a[0] - b[0]) / h, (a[1] - b[1]) / h])
+                .collect(),
+        }
+    }
+}
+
+/// `y(x) ≈ y_ref + Σ_j slope_j (p_j − p_ref,j)` over the settings that have a slope; the
+/// others must stay at their reference values.
+#[derive(Debug, Clone)]
+pub struct Linearization {
+    /// Parameters of the reference point.
+    pub p_ref: [f64; N_PARAMS],
+    /// The exact observation there.
+    pub y_ref: Observation,
+    /// Slopes per parameter (per unit of the optimisers' units).
+    pub slopes: [Option<Observation>; N_PARAMS],
+}
+
+impl Linearization {
+    /// Whether the model has a slope for every parameter in `which`.
+    pub fn covers(&self, which: &[usize]) -> bool {
+        which.iter().all(|&j| self.slopes[j].is_some())
+    }
+
+    /// The predicted observation at `p`, into `out` (reusing its buffers).
+    pub fn predict_into(&self, p: &[f64; N_PARAMS], out: &mut Observation) {
+        out.clone_from(&self.y_ref);
+        for (j, s) in self.slopes.iter().enumerate() {
+            if let Some(s) = s {
+                let d = p[j] - self.p_ref[j];
+                if d != 0.0 {
+                    out.axpy(d, s);
+                }
+            }
+        }
+    }
+
+    /// The predicted observation at `p`.
+    pub fn predict(&self, p: &[f64; N_PARAMS]) -> Observation {
+        let mut out = Observation::default();
+        self.predict_into(p, &mut out);
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn obs(a: f64) -> Observation {
+        Observation {
+            theta_rad: vec![a, 2.0 * a],
+            phi_rad: vec![-a, 0.5],
+            cp_m: vec![[a, 3.0 * a]],
+        }
+    }
+
+    #[test]
+    fn an_affine_model_predicts_itself() {
+        let mut slopes: [Option<Observation>; N_PARAMS] = Default::default();
+        slopes[2] = Some(obs(1.0));
+        let lin = Linearization {
+            p_ref: [0.0; N_PARAMS],
+            y_ref: obs(0.0),
+            slopes,
+        };
+        let mut p = [0.0; N_PARAMS];
+        p[2] = 0.25;
+        let y = lin.predict(&p);
+        assert_eq!(y.theta_rad, vec![0.25, 0.5]);
+        assert_eq!(y.phi_rad, vec![-0.25, 0.625]);
+        assert_eq!(y.cp_m, vec![[0.25, 0.75]]);
+        assert!(lin.covers(&[2]) && !lin.covers(&[0, 2]));
+        let s = obs(1.0).slope(&obs(0.0), 0.5);
+        assert_eq!(
+            (s.theta_rad, s.phi_rad, s.cp_m),
+            (vec![2.0, 4.0], vec![-2.0, 0.0], vec![[2.0, 6.0]])
+        );
+        assert!(y.agrees_with(&y));
+        assert!(!y.agrees_with(&obs(0.0)));
+    }
+}
