@@ -51,6 +51,24 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// One simulated run of `--duration-s` (seed `seed`) in a temporary folder, and its
+/// context writing under it (the folder lives as long as the returned guard).
+fn simulated_run(
+    args: &BenchArgs,
+    seed: u64,
+) -> anyhow::Result<(tempfile::TempDir, crate::flow::RunCtx)> {
+    let tmp = tempfile::tempdir()?;
+    let mut config = SimConfig::new("bench", seed);
+    config.duration_s = args.duration_s;
+    let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path())?;
+    let ctx = crate::flow::RunCtx::new(
+        crate::runs::load_run(&run_dir)?,
+        tmp.path().join("out"),
+        false,
+    );
+    Ok((tmp, ctx))
+}
+
 /// Best wall time of `repeat` calls of `f`, s.
 fn best_of(repeat: u32, mut f: impl FnMut()) -> f64 {
     (0..repeat.max(1))
@@ -67,17 +85,9 @@ fn bench_navigate(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     use unz_stages::filter::LowPass;
     use unz_stages::strapdown::NavTrack;
 
-    use crate::flow::{Overrides, Params, RunCtx, load_case};
+    use crate::flow::{Overrides, Params, load_case};
 
-    let tmp = tempfile::tempdir()?;
-    let mut config = SimConfig::new("bench", 1);
-    config.duration_s = args.duration_s;
-    let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path())?;
-    let ctx = RunCtx::new(
-        crate::runs::load_run(&run_dir)?,
-        tmp.path().join("out"),
-        false,
-    );
+    let (_tmp, ctx) = simulated_run(args, 1)?;
     let params = Params::default();
     let case = load_case(&ctx, &params, &Overrides::default())?;
     let n = case.derived.dt_s.len();
@@ -117,17 +127,9 @@ fn bench_disupt(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     use unz_stages::disupt::{self, DisuptParams};
 
     use crate::disupt_stage::problem_of;
-    use crate::flow::{Overrides, Params, RunCtx, load_case};
+    use crate::flow::{Overrides, Params, load_case};
 
-    let tmp = tempfile::tempdir()?;
-    let mut config = SimConfig::new("bench", 41);
-    config.duration_s = args.duration_s;
-    let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path())?;
-    let ctx = RunCtx::new(
-        crate::runs::load_run(&run_dir)?,
-        tmp.path().join("out"),
-        false,
-    );
+    let (_tmp, ctx) = simulated_run(args, 41)?;
     let params = Params::default();
     let case = load_case(&ctx, &params, &Overrides::default())?;
     let p = DisuptParams::default();
@@ -167,18 +169,10 @@ fn bench_disupt(args: &BenchArgs) -> anyhow::Result<ExitCode> {
 }
 
 fn bench_review(args: &BenchArgs) -> anyhow::Result<ExitCode> {
-    use crate::flow::{Params, RunCtx};
+    use crate::flow::Params;
     use crate::review::ensure_review;
 
-    let tmp = tempfile::tempdir()?;
-    let mut config = SimConfig::new("bench", 1);
-    config.duration_s = args.duration_s;
-    let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path())?;
-    let ctx = RunCtx::new(
-        crate::runs::load_run(&run_dir)?,
-        tmp.path().join("out"),
-        false,
-    );
+    let (_tmp, ctx) = simulated_run(args, 1)?;
     let params = Params::default();
     // Every stage before it once; then only the review, from the cached tables.
     let first = ensure_review(&ctx, &params)?;
