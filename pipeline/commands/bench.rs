@@ -110,6 +110,18 @@ fn bench_navigate(args: &BenchArgs) -> anyhow::Result<ExitCode> {
         let k2 = criteria::kryt2(&track, &case.fixes);
         std::hint::black_box((k1, k2));
     });
+    // A track-free pass (what the optimisers and sweeps run).
+    {
+        use unz_stages::strapdown::{CriteriaSink, run};
+        let inputs = case.inputs();
+        let one = best_of(args.repeat * 4, || {
+            let mut sink = CriteriaSink::default();
+            sink.reset(lp.block, [n / 2]);
+            run(&inputs, &case.settings, &mut sink);
+            std::hint::black_box(&sink);
+        });
+        println!("track-free pass: {:.2} ms", one * 1e3);
+    }
     println!(
         "navigate kernel: {n} samples in {:.2} ms = {:.1} M samples/s (one core)",
         nav_s * 1e3,

@@ -267,20 +267,55 @@ impl PassSink for CriteriaSink {
     }
 }
 
-/// Runs the navigation over all samples into `sink`.
-pub fn run(inputs: &NavInputs<'_>, s: &NavSettings, sink: &mut impl PassSink) {
-    let drift = Vector3::from(s.drift_rad_s);
-    let (odo_sin, odo_cos) = s.odo_yaw_rad.sin_cos();
-    // Direction of the odometer axis (body x turned by the boresight) in NED: the first
-    // two columns of C_b^n, without a full vector rotation.
-    let odo_dir_n = |q: &Quaternion<f64>| {
+/// The state of one pass between samples.
+#[derive(Clone, Copy)]
+struct Lane {
+    drift: Vector3<f64>,
+    odo_scale: f64,
+    odo_sin: f64,
+    odo_cos: f64,
+    q: Quaternion<f64>,
+    lat: f64,
+    lon: f64,
+    h: f64,
+    terms: LatTerms,
+    distance: f64,
+    prev: Vector3<f64>,
+    dir_start: Vector3<f64>,
+}
+
+impl Lane {
+    fn new(s: &NavSettings) -> Self {
+        let (odo_sin, odo_cos) = s.odo_yaw_rad.sin_cos();
+        let mut lane = Self {
+            drift: Vector3::from(s.drift_rad_s),
+            odo_scale: s.odo_scale,
+            odo_sin,
+            odo_cos,
+            q: s.initial.to_quat_b_to_n().into_inner(),
+            lat: s.lat0_rad,
+            lon: s.lon0_rad,
+            h: s.h0_m,
+            terms: LatTerms::at(s.lat0_rad),
+            distance: 0.0,
+            prev: Vector3::zeros(),
+            dir_start: Vector3::zeros(),
+        };
+        lane.dir_start = lane.odo_dir_n(&lane.q);
+        lane
+    }
+
+    /// Direction of the odometer axis (body x turned by the boresight) in NED: the first
+    /// two columns of C_b^n, without a full vector rotation.
+    #[inline(always)]
+    fn odo_dir_n(&self, q: &Quaternion<f64>) -> Vector3<f64> {
         let (w, x, y, z) = (q.w, q.i, q.j, q.k);
         let c1 = Vector3::new(
             1.0 - 2.0 * (y * y + z * z),
             2.0 * (x * y + w * z),
             2.0 * (x * z - w * y),
         );
-        if odo_sin == 0.0 {
+        if self.odo_sin == 0.0 {
             return c1;
         }
         let c2 = Vector3::new(
@@ -288,38 +323,31 @@ pub fn run(inputs: &NavInputs<'_>, s: &NavSettings, sink: &mut impl PassSink) {
             1.0 - 2.0 * (x * x + z * z),
             2.0 * (y * z + w * x),
         );
-        c1 * odo_cos + c2 * odo_sin
-    };
-    let mut q: Quaternion<f64> = s.initial.to_quat_b_to_n().into_inner();
-    let (mut lat, mut lon, mut h) = (s.lat0_rad, s.lon0_rad, s.h0_m);
-    let mut terms = LatTerms::at(lat);
-    let mut distance = 0.0;
-    let mut prev = Vector3::zeros();
-    let mut dir_start = odo_dir_n(&q);
-    let samples = inputs
-        .dt_s
-        .iter()
-        .zip(inputs.dtheta_rad)
-        .zip(inputs.odo_dist_m);
-    for (k, ((&dt, dtheta), &odo)) in samples.enumerate() {
-        let dth = Vector3::from(*dtheta) - drift * dt;
-        let phi = dth + prev.cross(&dth) * (1.0 / 12.0);
-        prev = dth;
-        let q_body = q * quat_from_rotation_vector(&phi).into_inner();
+        c1 * self.odo_cos + c2 * self.odo_sin
+    }
+
+    /// Advances over sample `k` (interval `dt`, angle increments, odometer distance).
+    #[inline(always)]
+    fn step(&mut self, k: usize, dt: f64, dtheta: &[f64; 3], odo: f64) {
+        let dth = Vector3::from(*dtheta) - self.drift * dt;
+        let phi = dth + self.prev.cross(&dth) * (1.0 / 12.0);
+        self.prev = dth;
+        let q_body = self.q * quat_from_rotation_vector(&phi).into_inner();
 
         // Odometer dead reckoning along the mid-interval direction of travel.
-        let ds = s.odo_scale * odo;
-        let dir_end = odo_dir_n(&q_body);
-        let dp_n = (dir_start + dir_end) * (0.5 * ds);
-        if (lat - terms.lat).abs() > LAT_REFRESH_RAD {
-            terms = LatTerms::at(lat);
+        let ds = self.odo_scale * odo;
+        let dir_end = self.odo_dir_n(&q_body);
+        let dp_n = (self.dir_start + dir_end) * (0.5 * ds);
+        if (self.lat - self.terms.lat).abs() > LAT_REFRESH_RAD {
+            self.terms = LatTerms::at(self.lat);
         }
-        let inv_rm_h = 1.0 / (terms.rm + h - 0.5 * dp_n.z);
-        let inv_rn_h = 1.0 / (terms.rn + h - 0.5 * dp_n.z);
-        lat += dp_n.x * inv_rm_h;
-        lon += dp_n.y * inv_rn_h * terms.inv_cos;
-        h -= dp_n.z;
-        distance += ds;
+        let terms = &self.terms;
+        let inv_rm_h = 1.0 / (terms.rm + self.h - 0.5 * dp_n.z);
+        let inv_rn_h = 1.0 / (terms.rn + self.h - 0.5 * dp_n.z);
+        self.lat += dp_n.x * inv_rm_h;
+        self.lon += dp_n.y * inv_rn_h * terms.inv_cos;
+        self.h -= dp_n.z;
+        self.distance += ds;
 
         // Navigation-frame rotation over the interval (Earth rate plus transport rate),
         // ζ ~ 1e-6 rad: its quaternion (1, −ζ/2) is exact to ζ²/8 ~ 1e-13.
@@ -333,15 +361,40 @@ pub fn run(inputs: &NavInputs<'_>, s: &NavSettings, sink: &mut impl PassSink) {
         let u = q_body.imag();
         let w = q_body.w;
         let qv = u + v * w + v.cross(&u);
-        q = Quaternion::new(w - v.dot(&u), qv.x, qv.y, qv.z);
+        self.q = Quaternion::new(w - v.dot(&u), qv.x, qv.y, qv.z);
         if k % 64 == 63 {
-            q /= q.norm();
+            self.q /= self.q.norm();
         }
         // The navigation frame turned by ζ: the next start direction is the end direction
         // seen from the new frame, exact to ζ² ~ 1e-12.
-        dir_start = dir_end - zeta.cross(&dir_end);
+        self.dir_start = dir_end - zeta.cross(&dir_end);
+    }
 
-        sink.sample(k, lat, lon, h, &[q.w, q.i, q.j, q.k], distance);
+    #[inline(always)]
+    fn emit(&self, k: usize, sink: &mut impl PassSink) {
+        let q = &self.q;
+        sink.sample(
+            k,
+            self.lat,
+            self.lon,
+            self.h,
+            &[q.w, q.i, q.j, q.k],
+            self.distance,
+        );
+    }
+}
+
+/// Runs the navigation over all samples into `sink`.
+pub fn run(inputs: &NavInputs<'_>, s: &NavSettings, sink: &mut impl PassSink) {
+    let mut lane = Lane::new(s);
+    let samples = inputs
+        .dt_s
+        .iter()
+        .zip(inputs.dtheta_rad)
+        .zip(inputs.odo_dist_m);
+    for (k, ((&dt, dtheta), &odo)) in samples.enumerate() {
+        lane.step(k, dt, dtheta, odo);
+        lane.emit(k, sink);
     }
 }
 
