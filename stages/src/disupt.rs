@@ -7,8 +7,10 @@
 //!   drifty) by Kryt1 with Nelder–Mead.
 //! - joint: Gauss–Newton over x, two levelling corrections and the odometer scale (when
 //!   control points make it observable), fed with the raw pitch/roll residual series and
-//!   every control point at once; each linearised step is solved by Levenberg–Marquardt;
-//!   the covariance `s²(JᵀJ)⁻¹` gives each estimate a 1σ.
+//!   every control point at once; each linearised step is solved by Levenberg–Marquardt.
+//!   A second round re-weights the epochs by their residuals' RMS (variance components:
+//!   the epochs' misfit is several mrad, not the assumed 2), so that the control points
+//!   weigh what their 1 m says; the covariance `s²(JᵀJ)⁻¹` gives each estimate a 1σ.
 //!
 //! Every search runs on the [`Linearization`] of the criteria's inputs around the current
 //! settings (one exact pass plus one forward-difference pass per moved setting, in
@@ -61,7 +63,8 @@ pub struct DisuptParams {
     pub azimuth_bound_deg: f64,
     /// Half-width of each drift search around its start, °/h.
     pub drift_bound_deg_h: f64,
-    /// 1σ of one epoch's pitch/roll residual in the joint fit, rad.
+    /// 1σ of one epoch's pitch/roll residual in the joint fit's first round, rad; the
+    /// second round uses the residuals' RMS at the first solution when it is larger.
     pub attitude_sigma_rad: f64,
     /// 1σ of a control point's coordinates in the joint fit, m.
     pub position_sigma_m: f64,
@@ -703,6 +706,19 @@ fn joint_residuals(
     r
 }
 
+/// RMS of the attitude residuals (ΔΘ, ΔΦ with the levelling corrections) of the valid
+/// epochs, rad.
+fn attitude_rms_rad(
+    problem: &Problem<'_>,
+    y: &Observation,
+    p: &[f64; N_PARAMS],
+    params: &DisuptParams,
+) -> f64 {
+    let n = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
+    let r = joint_residuals(problem, y, p, params);
+    (ssr(&r[..n.min(r.len())]) / n.max(1) as f64).sqrt() * params.attitude_sigma_rad
+}
+
 fn ssr(r: &[f64]) -> f64 {
     r.iter().map(|v| v * v).sum()
 }
@@ -794,41 +810,58 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
     let mut lin = base;
     let mut pr = lin.p_ref;
     let mut y = lin.y_ref.clone();
-    let mut cost = ssr(&joint_residuals(problem, &y, &pr, p));
-    let mut model = JointModel::new(problem, lin, free, p);
-    for _ in 0..MAX_GAUSS_NEWTON {
-        let (solved, report) = LevenbergMarquardt::new().minimize(LinearStep {
-            model: &model,
-            delta: DVector::zeros(free.len()),
-        });
-        if !report.termination.was_successful() {
-            return Err(DisuptError::Optimiser(format!("{:?}", report.termination)));
-        }
-        // The exact pass at the model's optimum; halve the step while it does worse.
-        let mut step = solved.delta;
-        let (mut p_new, mut y_new, mut cost_new);
-        let mut halvings = 0;
-        loop {
-            p_new = pr;
-            for (k, &j) in free.iter().enumerate() {
-                p_new[j] += step[k];
+    // Two rounds: the first with the configured attitude σ, the second with the σ the
+    // attitude residuals show at that solution (variance-component re-weighting), so
+    // that the control points get their due weight against the epochs.
+    let mut w = *p;
+    let mut cost = ssr(&joint_residuals(problem, &y, &pr, &w));
+    let mut model = JointModel::new(problem, lin, free, &w);
+    for round in 0..2 {
+        for _ in 0..MAX_GAUSS_NEWTON {
+            let (solved, report) = LevenbergMarquardt::new().minimize(LinearStep {
+                model: &model,
+                delta: DVector::zeros(free.len()),
+            });
+            if !report.termination.was_successful() {
+                return Err(DisuptError::Optimiser(format!("{:?}", report.termination)));
             }
-            y_new = problem.observe_by(&x_of(&p_new), &tally);
-            cost_new = ssr(&joint_residuals(problem, &y_new, &p_new, p));
-            if cost_new <= cost || halvings == 5 {
+            // The exact pass at the model's optimum; halve the step while it does worse.
+            let mut step = solved.delta;
+            let (mut p_new, mut y_new, mut cost_new);
+            let mut halvings = 0;
+            loop {
+                p_new = pr;
+                for (k, &j) in free.iter().enumerate() {
+                    p_new[j] += step[k];
+                }
+                y_new = problem.observe_by(&x_of(&p_new), &tally);
+                cost_new = ssr(&joint_residuals(problem, &y_new, &p_new, &w));
+                if cost_new <= cost || halvings == 5 {
+                    break;
+                }
+                step /= 2.0;
+                halvings += 1;
+            }
+            let agrees = halvings == 0 && lin.predict(&p_new).agrees_with(&y_new);
+            (pr, y, cost) = (p_new, y_new, cost_new);
+            if agrees {
                 break;
             }
-            step /= 2.0;
-            halvings += 1;
+            owned = problem.linearize_by(&x_of(&pr), y.clone(), free, &tally);
+            lin = &owned;
+            model = JointModel::new(problem, lin, free, &w);
         }
-        let agrees = halvings == 0 && lin.predict(&p_new).agrees_with(&y_new);
-        (pr, y, cost) = (p_new, y_new, cost_new);
-        if agrees {
-            break;
+        if round == 0 {
+            let rms = attitude_rms_rad(problem, &y, &pr, &w);
+            if rms <= w.attitude_sigma_rad {
+                break;
+            }
+            w.attitude_sigma_rad = rms;
+            cost = ssr(&joint_residuals(problem, &y, &pr, &w));
+            // The linearisation still holds at `pr` (it agreed there): only the weights
+            // change.
+            model = JointModel::new(problem, lin, free, &w);
         }
-        owned = problem.linearize_by(&x_of(&pr), y.clone(), free, &tally);
-        lin = &owned;
-        model = JointModel::new(problem, lin, free, p);
     }
     let x = x_of(&pr);
     // Covariance s²(AᵀA)⁻¹ with the last linearisation (which agreed with the exact pass
