@@ -810,10 +810,12 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
     let mut lin = base;
     let mut pr = lin.p_ref;
     let mut y = lin.y_ref.clone();
-    // Two rounds: the first with the configured attitude σ, the second with the σ the
-    // attitude residuals show at that solution (variance-component re-weighting), so
-    // that the control points get their due weight against the epochs.
+    // The epochs are weighted by the σ their residuals show (variance components: the
+    // misfit the filter leaves is several mrad, more than the configured floor), so that
+    // the control points get their due weight. The first round takes it at the start; a
+    // second round follows if the solution's residuals say otherwise by more than 50 %.
     let mut w = *p;
+    w.attitude_sigma_rad = attitude_rms_rad(problem, &y, &pr, p).max(p.attitude_sigma_rad);
     let mut cost = ssr(&joint_residuals(problem, &y, &pr, &w));
     let mut model = JointModel::new(problem, lin, free, &w);
     for round in 0..2 {
@@ -852,8 +854,8 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
             model = JointModel::new(problem, lin, free, &w);
         }
         if round == 0 {
-            let rms = attitude_rms_rad(problem, &y, &pr, &w);
-            if rms <= w.attitude_sigma_rad {
+            let rms = attitude_rms_rad(problem, &y, &pr, &w).max(p.attitude_sigma_rad);
+            if (rms / w.attitude_sigma_rad - 1.0).abs() <= 0.5 {
                 break;
             }
             w.attitude_sigma_rad = rms;
