@@ -86,11 +86,13 @@ struct Attitude {
     heading_deg: f64,
 }
 
-/// Copies `src` to `dest` under a temporary name, then renames it into place.
+/// Copies `src` to `dest` under a temporary name (`.<name>.<pid>.tmp`, which the stage
+/// records clear if a killed run left it), then renames it into place.
 fn copy_atomic(src: &std::path::Path, dest: &std::path::Path) -> anyhow::Result<()> {
-    let mut tmp = dest.as_os_str().to_owned();
-    tmp.push(format!(".{}.tmp", std::process::id()));
-    let tmp = PathBuf::from(tmp);
+    let mut name = std::ffi::OsString::from(".");
+    name.push(dest.file_name().unwrap_or_default());
+    name.push(format!(".{}.tmp", std::process::id()));
+    let tmp = dest.with_file_name(name);
     std::fs::copy(src, &tmp)
         .with_context(|| format!("cannot copy {} to {}", src.display(), tmp.display()))?;
     std::fs::rename(&tmp, dest)

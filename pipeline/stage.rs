@@ -195,3 +195,47 @@ impl Stage<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_replaced_by_rename_is_hashed_again() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.bin");
+        std::fs::write(&p, b"first").unwrap();
+        let h1 = file_hash(&p).unwrap();
+        assert_eq!(file_hash(&p).unwrap(), h1, "remembered");
+        // Same size, written the way every output is: a new file renamed into place.
+        let tmp = dir.path().join(".a.bin.tmp");
+        std::fs::write(&tmp, b"other").unwrap();
+        std::fs::rename(&tmp, &p).unwrap();
+        let h2 = file_hash(&p).unwrap();
+        assert_ne!(h1, h2);
+        assert_eq!(h2, blake3::hash(b"other").to_hex().to_string());
+    }
+
+    #[test]
+    fn invalidate_clears_what_a_killed_stage_left() {
+        let dir = tempfile::tempdir().unwrap();
+        for leftover in [".nav.parquet.123.tmp", ".run.rrd.77.tmp", RECORD] {
+            std::fs::write(dir.path().join(leftover), b"x").unwrap();
+        }
+        std::fs::write(dir.path().join("nav.parquet"), b"kept").unwrap();
+        let stage = Stage {
+            dir: dir.path().to_path_buf(),
+            name: "t",
+            version: 1,
+            params_hash: String::new(),
+            inputs: vec![],
+            outputs: &[],
+        };
+        stage.invalidate().unwrap();
+        let left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(left, vec!["nav.parquet".to_owned()]);
+    }
+}

@@ -99,8 +99,11 @@ pub fn write_rrd(review: &Review, path: &Path) -> Result<RrdStats, RecordingErro
     Ok(stats)
 }
 
+/// `.<name>.<pid>.tmp` beside `path`: the pattern the stage records clear when a killed
+/// run left one.
 fn tmp_name(path: &Path) -> PathBuf {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    let mut name = std::ffi::OsString::from(".");
+    name.push(path.file_name().unwrap_or_default());
     name.push(format!(".{}.tmp", std::process::id()));
     path.with_file_name(name)
 }
