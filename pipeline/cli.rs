@@ -170,10 +170,11 @@ pub struct RunArgs {
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
-    /// Force this stage and every later one (ingest, derive, navigate, criteria, disupt, export).
+    /// Force this stage and every later one (ingest, derive, navigate, criteria, disupt,
+    /// export, review).
     #[arg(long)]
     pub from: Option<String>,
-    /// Last stage to run (default: export).
+    /// Last stage to run (default: review, the last).
     #[arg(long)]
     pub until: Option<String>,
     /// Runs processed at once (default: all cores).

@@ -17,7 +17,10 @@ fn stage_index(name: &str) -> anyhow::Result<usize> {
 /// Runs the command.
 pub fn run(args: &RunArgs) -> anyhow::Result<ExitCode> {
     let from = args.from.as_deref().map(stage_index).transpose()?;
-    let until = stage_index(args.until.as_deref().unwrap_or("export"))?;
+    let until = match args.until.as_deref() {
+        Some(name) => stage_index(name)?,
+        None => STAGES.len() - 1,
+    };
     if from.is_some_and(|f| f > until) {
         bail!("--from comes after --until");
     }

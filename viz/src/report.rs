@@ -274,6 +274,8 @@ tr.failed{{background:#fde8e8}}figure{{display:inline-block;margin:0 1em 1em 0}}
         n = rows.len(),
         failed = rows.len() - ok,
     );
+    // Runs that failed have no results: the plots by name leave them out, the plots by
+    // run number (the table's #) leave their number empty.
     let good: Vec<ReportRow> = rows.iter().filter(|r| r.error.is_none()).cloned().collect();
     h += &figure("last control point", |s| plot_last_cp(&good, s));
     h += "<p>";
@@ -291,7 +293,7 @@ tr.failed{{background:#fde8e8}}figure{{display:inline-block;margin:0 1em 1em 0}}
     h += "</p>";
     h += &figure("azimuth", |s| {
         plot_estimates(
-            &good,
+            rows,
             "Joint: azimuth correction ±1σ",
             "[°]",
             |j| (j.azimuth_change_deg, j.azimuth_sigma_deg),
@@ -300,7 +302,7 @@ tr.failed{{background:#fde8e8}}figure{{display:inline-block;margin:0 1em 1em 0}}
     });
     h += &figure("drift z", |s| {
         plot_estimates(
-            &good,
+            rows,
             "Joint: vertical gyro drift ±1σ",
             "[°/h]",
             |j| (j.drift_z_deg_h, j.drift_z_sigma_deg_h),
@@ -309,7 +311,7 @@ tr.failed{{background:#fde8e8}}figure{{display:inline-block;margin:0 1em 1em 0}}
     });
     h += &figure("odometer", |s| {
         plot_estimates(
-            &good,
+            rows,
             "Joint: odometer scale ±1σ",
             "[ppm]",
             |j| (j.odo_ppm, j.odo_sigma_ppm),
@@ -357,10 +359,10 @@ tr.failed{{background:#fde8e8}}figure{{display:inline-block;margin:0 1em 1em 0}}
                 v.map_or("–".into(), |(v, d)| format!("{v:.d$}"))
             );
         }
-        let computed = if r.computed.is_empty() {
-            "cached".to_owned()
-        } else {
-            r.computed.join(", ")
+        let computed = match (&r.error, r.computed.is_empty()) {
+            (Some(_), true) => "–".to_owned(),
+            (None, true) => "cached".to_owned(),
+            (_, false) => r.computed.join(", "),
         };
         let last = match (&r.error, &r.recording) {
             (Some(e), _) => format!("<span class=\"err\">{}</span>", escape(e)),
