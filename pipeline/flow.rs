@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::manifest::RunManifest;
 use unz_formats::parquet_io::{read_batches, write_batch};
-use unz_formats::schema::scalar;
+use unz_formats::schema::{nav_state_fields, scalar};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f64_column, i64_column};
 use unz_stages::criteria::{self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt1Series, Kryt2};
 use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive};
@@ -338,19 +338,10 @@ pub fn write_nav(
     t: &NavTrack,
     site: (f64, f64, f64),
 ) -> anyhow::Result<()> {
-    let f = |n: &str, unit: &str| scalar(n, DataType::Float64, false, unit);
-    let schema = Arc::new(Schema::new(vec![
-        scalar("t_ns", DataType::Int64, false, "ns"),
-        f("lat_deg", "deg"),
-        f("lon_deg", "deg"),
-        f("h_m", "m"),
-        f("north_m", "m"),
-        f("east_m", "m"),
-        f("roll_deg", "deg"),
-        f("pitch_deg", "deg"),
-        f("heading_deg", "deg"),
-        f("distance_m", "m"),
-    ]));
+    let mut fields = vec![scalar("t_ns", DataType::Int64, false, "ns")];
+    fields.extend(nav_state_fields());
+    fields.push(scalar("distance_m", DataType::Float64, false, "m"));
+    let schema = Arc::new(Schema::new(fields));
     let deg = |v: &[f64]| {
         Arc::new(Float64Array::from(
             v.iter().map(|x| x.to_degrees()).collect::<Vec<_>>(),

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use arrow::array::{Float64Array, Int64Array, RecordBatch, StringArray};
 use arrow::datatypes::{DataType, Field, Schema};
 use unz_formats::parquet_io::{read_table, write_batch};
-use unz_formats::schema::scalar;
+use unz_formats::schema::{nav_state_fields, scalar};
 use unz_formats::tables::{f64_column, i64_column};
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
@@ -130,19 +130,12 @@ fn cat<T: Copy>(parts: impl Iterator<Item = Vec<T>>) -> Vec<T> {
 
 /// Writes `tracks.parquet`.
 pub fn write_tracks(path: &Path, tracks: &[MethodTrack]) -> anyhow::Result<()> {
-    let f = |n: &str, unit: &str| scalar(n, DataType::Float64, false, unit);
-    let schema = Arc::new(Schema::new(vec![
+    let mut fields = vec![
         Field::new("method", DataType::Utf8, false),
         scalar("t_ns", DataType::Int64, false, "ns"),
-        f("lat_deg", "deg"),
-        f("lon_deg", "deg"),
-        f("h_m", "m"),
-        f("north_m", "m"),
-        f("east_m", "m"),
-        f("roll_deg", "deg"),
-        f("pitch_deg", "deg"),
-        f("heading_deg", "deg"),
-    ]));
+    ];
+    fields.extend(nav_state_fields());
+    let schema = Arc::new(Schema::new(fields));
     let col = |get: fn(&MethodTrack) -> &Vec<f64>| {
         Arc::new(Float64Array::from(cat(tracks
             .iter()

@@ -105,6 +105,23 @@ pub fn marks(time_origin_utc_ns: Option<i64>) -> SchemaRef {
     )
 }
 
+/// The navigation state columns shared by `nav.parquet`, `corrected_nav.parquet` and
+/// `tracks.parquet`: position (degrees, m), local north/east of the start (m) and
+/// attitude (degrees).
+pub fn nav_state_fields() -> Vec<Field> {
+    let f = |n: &str, unit: &str| scalar(n, DataType::Float64, false, unit);
+    vec![
+        f("lat_deg", "deg"),
+        f("lon_deg", "deg"),
+        f("h_m", "m"),
+        f("north_m", "m"),
+        f("east_m", "m"),
+        f("roll_deg", "deg"),
+        f("pitch_deg", "deg"),
+        f("heading_deg", "deg"),
+    ]
+}
+
 /// Schema metadata key of `truth`: the true settings as JSON.
 pub const META_TRUE_SETTINGS: &str = "unz.true_settings";
 

@@ -8,19 +8,24 @@ use unz_stages::criteria::KalmanParams;
 use unz_stages::disupt::{DisuptParams, Problem, joint, oepi, owpi};
 use unz_stages::simulate::{DEG_PER_H, SensorErrors};
 
+/// The DISUPT problem of a simulated case, from its manifest's settings.
+fn problem_of(c: &common::Case) -> Problem<'_> {
+    Problem::new(
+        c.inputs(),
+        c.manifest_settings(),
+        &c.derived.epochs,
+        c.lowpass(),
+        KalmanParams::default(),
+        &c.fixes,
+    )
+}
+
 #[test]
 fn methods_recover_the_settings_of_paper_like_runs() {
     for seed in [41, 42, 43] {
         let c = case_with(seed, SensorErrors::ALL, Some(7.0));
         let base = c.manifest_settings();
-        let mut problem = Problem::new(
-            c.inputs(),
-            base,
-            &c.derived.epochs,
-            c.lowpass(),
-            KalmanParams::default(),
-            &c.fixes,
-        );
+        let mut problem = problem_of(&c);
         // The static start's vertical drift as a prior (ARW over the static start).
         let arw = unz_stages::initial::AlignParams::default().arw_rad_sqrt_s;
         problem.drift_z_prior_deg_h = Some((
@@ -147,15 +152,7 @@ fn track_free_passes_give_the_criteria_of_a_stored_track() {
     use unz_stages::criteria::{self, Kryt1Scratch};
 
     let c = case_with(44, SensorErrors::ALL, Some(5.0));
-    let base = c.manifest_settings();
-    let problem = Problem::new(
-        c.inputs(),
-        base,
-        &c.derived.epochs,
-        c.lowpass(),
-        KalmanParams::default(),
-        &c.fixes,
-    );
+    let problem = problem_of(&c);
     let mut x = problem.x0();
     x.drift_deg_h = [0.3, -0.2, 0.5];
     x.odo_ppm = 500.0;
