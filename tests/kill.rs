@@ -109,27 +109,31 @@ fn kill_9_then_rerun_gives_the_same_outputs() {
         "--duration-s",
         "400",
     ]);
+    // `unz run CAMPAIGN --out OUT --jobs 1`.
+    let run_args = |out: &Path| -> Vec<String> {
+        [
+            "run",
+            camp.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--jobs",
+            "1",
+        ]
+        .map(str::to_owned)
+        .to_vec()
+    };
     let reference = tmp.path().join("reference");
-    unz_ok(&[
-        "run",
-        camp.to_str().unwrap(),
-        "--out",
-        reference.to_str().unwrap(),
-        "--jobs",
-        "1",
-    ]);
+    unz_ok(
+        &run_args(&reference)
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
 
     let out = tmp.path().join("killed");
     for delay_ms in [150, 400, 900, 1600] {
         let mut child = unz()
-            .args([
-                "run",
-                camp.to_str().unwrap(),
-                "--out",
-                out.to_str().unwrap(),
-                "--jobs",
-                "1",
-            ])
+            .args(run_args(&out))
             .stdout(std::process::Stdio::null())
             .stderr(std::process::Stdio::null())
             .spawn()
@@ -138,14 +142,12 @@ fn kill_9_then_rerun_gives_the_same_outputs() {
         child.kill().unwrap(); // SIGKILL
         child.wait().unwrap();
     }
-    unz_ok(&[
-        "run",
-        camp.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--jobs",
-        "1",
-    ]);
+    unz_ok(
+        &run_args(&out)
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
 
     let (a, b) = (files(&reference), files(&out));
     let leftovers: Vec<_> = b

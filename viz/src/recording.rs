@@ -296,73 +296,62 @@ impl Writer<'_> {
 
     fn criteria(&mut self, r: &Review) -> SdkResult<()> {
         let e = &r.epochs;
-        let deg = |v: &[f64]| v.iter().map(|x| x.to_degrees()).collect::<Vec<_>>();
-        let gyro = [44, 160, 44, 255];
-        let acc = [31, 119, 180, 255];
-        self.series(
-            &format!("{PLOT_PITCH}/gyro"),
-            "pitch Θn (gyro) [°]",
-            gyro,
-            &e.t_s,
-            None,
-            &deg(&e.theta_gyro_rad),
-        )?;
-        self.series(
-            &format!("{PLOT_PITCH}/accel"),
-            "pitch Θp (accelerometer) [°]",
-            acc,
-            &e.t_s,
-            None,
-            &deg(&e.theta_acc_rad),
-        )?;
-        self.series(
-            &format!("{PLOT_ROLL}/gyro"),
-            "roll Φn (gyro) [°]",
-            gyro,
-            &e.t_s,
-            None,
-            &deg(&e.phi_gyro_rad),
-        )?;
-        self.series(
-            &format!("{PLOT_ROLL}/accel"),
-            "roll Φp (accelerometer) [°]",
-            acc,
-            &e.t_s,
-            None,
-            &deg(&e.phi_acc_rad),
-        )?;
-        self.series(
-            &format!("{PLOT_RESIDUALS}/d_theta"),
-            "ΔΘ [°]",
-            [174, 199, 232, 255],
-            &e.t_s,
-            None,
-            &deg(&e.d_theta_rad),
-        )?;
-        self.series(
-            &format!("{PLOT_RESIDUALS}/d_phi"),
-            "ΔΦ [°]",
-            [255, 187, 120, 255],
-            &e.t_s,
-            None,
-            &deg(&e.d_phi_rad),
-        )?;
-        self.series(
-            &format!("{PLOT_RESIDUALS}/kf_d_theta"),
-            "ΔΘ Kalman [°]",
-            [31, 119, 180, 255],
-            &e.t_s,
-            None,
-            &deg(&e.kf_d_theta_rad),
-        )?;
-        self.series(
-            &format!("{PLOT_RESIDUALS}/kf_d_phi"),
-            "ΔΦ Kalman [°]",
-            [255, 127, 14, 255],
-            &e.t_s,
-            None,
-            &deg(&e.kf_d_phi_rad),
-        )?;
+        let (gyro, acc) = ([44, 160, 44, 255], [31, 119, 180, 255]);
+        // (entity, display name, colour, series in rad): shown in degrees.
+        let angles: [(String, &str, [u8; 4], &[f64]); 8] = [
+            (
+                format!("{PLOT_PITCH}/gyro"),
+                "pitch Θn (gyro) [°]",
+                gyro,
+                &e.theta_gyro_rad,
+            ),
+            (
+                format!("{PLOT_PITCH}/accel"),
+                "pitch Θp (accelerometer) [°]",
+                acc,
+                &e.theta_acc_rad,
+            ),
+            (
+                format!("{PLOT_ROLL}/gyro"),
+                "roll Φn (gyro) [°]",
+                gyro,
+                &e.phi_gyro_rad,
+            ),
+            (
+                format!("{PLOT_ROLL}/accel"),
+                "roll Φp (accelerometer) [°]",
+                acc,
+                &e.phi_acc_rad,
+            ),
+            (
+                format!("{PLOT_RESIDUALS}/d_theta"),
+                "ΔΘ [°]",
+                [174, 199, 232, 255],
+                &e.d_theta_rad,
+            ),
+            (
+                format!("{PLOT_RESIDUALS}/d_phi"),
+                "ΔΦ [°]",
+                [255, 187, 120, 255],
+                &e.d_phi_rad,
+            ),
+            (
+                format!("{PLOT_RESIDUALS}/kf_d_theta"),
+                "ΔΘ Kalman [°]",
+                [31, 119, 180, 255],
+                &e.kf_d_theta_rad,
+            ),
+            (
+                format!("{PLOT_RESIDUALS}/kf_d_phi"),
+                "ΔΦ Kalman [°]",
+                [255, 127, 14, 255],
+                &e.kf_d_phi_rad,
+            ),
+        ];
+        for (path, name, color, rad) in angles {
+            let deg: Vec<f64> = rad.iter().map(|x| x.to_degrees()).collect();
+            self.series(&path, name, color, &e.t_s, None, &deg)?;
+        }
         for k in &r.kryt1 {
             self.series(
                 &format!("{PLOT_KRYT1}/{}", k.label),
@@ -384,64 +373,66 @@ impl Writer<'_> {
         let t_s: Vec<f64> = starts.iter().map(|&k| imu.t_s[k]).collect();
         let sample: Vec<i64> = starts.iter().map(|&k| k as i64).collect();
         let mean = |v: &[f64]| block_means(v, step).map(|(_, m)| m).collect::<Vec<_>>();
-        self.series(
-            &format!("{PLOT_SPEED}/u"),
-            "odometer speed u [m/s]",
-            [31, 119, 180, 255],
-            &t_s,
-            Some(&sample),
-            &mean(&imu.u_mps),
-        )?;
-        let dim = [174, 199, 232, 255];
-        self.series(
-            &format!("{PLOT_ACCEL_TERMS}/u_dot"),
-            "u̇ [m/s²]",
-            dim,
-            &t_s,
-            Some(&sample),
-            &mean(&imu.u_dot_mps2),
-        )?;
-        self.series(
-            &format!("{PLOT_ACCEL_TERMS}/ru"),
-            "ru [m/s²]",
-            [255, 187, 120, 255],
-            &t_s,
-            Some(&sample),
-            &mean(&imu.ru_mps2),
-        )?;
+        let raw: [(String, &str, [u8; 4], &[f64]); 3] = [
+            (
+                format!("{PLOT_SPEED}/u"),
+                "odometer speed u [m/s]",
+                [31, 119, 180, 255],
+                &imu.u_mps,
+            ),
+            (
+                format!("{PLOT_ACCEL_TERMS}/u_dot"),
+                "u̇ [m/s²]",
+                [174, 199, 232, 255],
+                &imu.u_dot_mps2,
+            ),
+            (
+                format!("{PLOT_ACCEL_TERMS}/ru"),
+                "ru [m/s²]",
+                [255, 187, 120, 255],
+                &imu.ru_mps2,
+            ),
+        ];
+        for (path, name, color, v) in raw {
+            self.series(&path, name, color, &t_s, Some(&sample), &mean(v))?;
+        }
         let b = &r.epochs;
-        self.series(
-            &format!("{PLOT_ACCEL_TERMS}/u_dot_f"),
-            "u̇ filtered [m/s²]",
-            [31, 119, 180, 255],
-            &b.t_s,
-            None,
-            &b.u_dot_f_mps2,
-        )?;
-        self.series(
-            &format!("{PLOT_ACCEL_TERMS}/ru_f"),
-            "ru filtered [m/s²]",
-            [255, 127, 14, 255],
-            &b.t_s,
-            None,
-            &b.ru_f_mps2,
-        )?;
-        self.series(
-            &format!("{PLOT_ACCEL_TERMS}/ax_f"),
-            "aₓ filtered [m/s²]",
-            [44, 160, 44, 255],
-            &b.t_s,
-            None,
-            &b.ax_f_mps2,
-        )?;
-        self.series(
-            &format!("{PLOT_ACCEL_TERMS}/ay_f"),
-            "a_y filtered [m/s²]",
-            [214, 39, 40, 255],
-            &b.t_s,
-            None,
-            &b.ay_f_mps2,
-        )?;
+        let filtered: [(&str, &str, [u8; 4], &[f64]); 4] = [
+            (
+                "u_dot_f",
+                "u̇ filtered [m/s²]",
+                [31, 119, 180, 255],
+                &b.u_dot_f_mps2,
+            ),
+            (
+                "ru_f",
+                "ru filtered [m/s²]",
+                [255, 127, 14, 255],
+                &b.ru_f_mps2,
+            ),
+            (
+                "ax_f",
+                "aₓ filtered [m/s²]",
+                [44, 160, 44, 255],
+                &b.ax_f_mps2,
+            ),
+            (
+                "ay_f",
+                "a_y filtered [m/s²]",
+                [214, 39, 40, 255],
+                &b.ay_f_mps2,
+            ),
+        ];
+        for (leaf, name, color, v) in filtered {
+            self.series(
+                &format!("{PLOT_ACCEL_TERMS}/{leaf}"),
+                name,
+                color,
+                &b.t_s,
+                None,
+                v,
+            )?;
+        }
         // Rates from the raw increments: block sums over block durations.
         let dt_sum: Vec<f64> = block_means(&imu.dt_s, step)
             .map(|(_, m)| m * step as f64)
