@@ -261,6 +261,8 @@ pub enum BenchTarget {
     Review,
     /// OEPI, OWPI and joint on one run (derive done once), with passes per method.
     Disupt,
+    /// A 41 × 41 sweep (azimuth × driftz) on one run (derive done once).
+    Sweep,
 }
 
 #[cfg(test)]

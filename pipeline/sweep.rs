@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::sync::atomic::AtomicUsize;
 
 use anyhow::{Context, bail};
 use arrow::array::{Float64Array, RecordBatch};
@@ -12,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::parquet_io::write_batch;
 use unz_formats::schema::scalar;
-use unz_stages::disupt::X;
+use unz_stages::disupt::{Problem, X};
 use unz_stages::simulate::DEG_PER_H;
 
 use crate::disupt_stage::{case_inputs, problem_of};
@@ -113,6 +114,54 @@ struct SweepSummary<'a> {
     min_kryt2: Option<Vec<f64>>,
 }
 
+/// One point of a sweep.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GridPoint {
+    /// Values of the first and second axis (NaN without a second axis).
+    pub at: (f64, f64),
+    /// Kryt1, rad.
+    pub kryt1_rad: f64,
+    /// RMS Kryt2 over the control points, m.
+    pub kryt2_m: f64,
+}
+
+/// The grid of `axes` around the problem's base settings (the first axis varying
+/// slowest) with the criteria at each point: exact passes, many side by side in vector
+/// lanes, in parallel.
+pub fn evaluate_grid(problem: &Problem<'_>, axes: &[Axis]) -> Vec<GridPoint> {
+    let x0 = problem.x0();
+    let a = axes[0].values();
+    let b = axes.get(1).map_or(vec![f64::NAN], Axis::values);
+    let grid: Vec<(f64, f64)> = a
+        .iter()
+        .flat_map(|&u| b.iter().map(move |&v| (u, v)))
+        .collect();
+    let xs: Vec<X> = grid
+        .iter()
+        .map(|&(u, v)| {
+            let mut x = x0;
+            axes[0].apply(&mut x, u);
+            if let Some(ax) = axes.get(1) {
+                ax.apply(&mut x, v);
+            }
+            x
+        })
+        .collect();
+    problem
+        .observe_many_by(&xs, &AtomicUsize::new(0))
+        .par_iter()
+        .zip(grid)
+        .map(|(y, at)| {
+            let e = problem.evaluation_of(y);
+            GridPoint {
+                at,
+                kryt1_rad: e.kryt1,
+                kryt2_m: e.kryt2_rms(),
+            }
+        })
+        .collect()
+}
+
 /// Runs the sweep (cached like a stage).
 pub fn ensure_sweep(ctx: &RunCtx, params: &Params, axes: &[Axis]) -> anyhow::Result<PathBuf> {
     let inputs = case_inputs(ctx, params)?;
@@ -130,57 +179,27 @@ pub fn ensure_sweep(ctx: &RunCtx, params: &Params, axes: &[Axis]) -> anyhow::Res
         let t0 = std::time::Instant::now();
         let case = load_case(ctx, params, &Overrides::default())?;
         let problem = problem_of(&case, params);
-        let x0 = problem.x0();
-        let a = axes[0].values();
-        let b = axes.get(1).map_or(vec![f64::NAN], Axis::values);
-        let grid: Vec<(f64, f64)> = a
-            .iter()
-            .flat_map(|&u| b.iter().map(move |&v| (u, v)))
-            .collect();
-        let values: Vec<(f64, f64)> = grid
-            .par_iter()
-            .map(|&(u, v)| {
-                let mut x = x0;
-                axes[0].apply(&mut x, u);
-                if let Some(ax) = axes.get(1) {
-                    ax.apply(&mut x, v);
-                }
-                let e = problem.evaluate(&x);
-                (e.kryt1, e.kryt2_rms())
-            })
-            .collect();
+        let grid = evaluate_grid(&problem, axes);
+        let column = |f: fn(&GridPoint) -> f64| -> Arc<dyn arrow::array::Array> {
+            Arc::new(Float64Array::from(grid.iter().map(f).collect::<Vec<_>>()))
+        };
         let mut fields = vec![scalar(&axes[0].name, DataType::Float64, false, "")];
-        let mut columns: Vec<Arc<dyn arrow::array::Array>> = vec![Arc::new(Float64Array::from(
-            grid.iter().map(|g| g.0).collect::<Vec<_>>(),
-        ))];
+        let mut columns = vec![column(|g| g.at.0)];
         if let Some(ax) = axes.get(1) {
             fields.push(scalar(&ax.name, DataType::Float64, false, ""));
-            columns.push(Arc::new(Float64Array::from(
-                grid.iter().map(|g| g.1).collect::<Vec<_>>(),
-            )));
+            columns.push(column(|g| g.at.1));
         }
         fields.push(scalar("kryt1_rad", DataType::Float64, false, "rad"));
         fields.push(scalar("kryt2_m", DataType::Float64, false, "m"));
-        columns.push(Arc::new(Float64Array::from(
-            values.iter().map(|v| v.0).collect::<Vec<_>>(),
-        )));
-        columns.push(Arc::new(Float64Array::from(
-            values.iter().map(|v| v.1).collect::<Vec<_>>(),
-        )));
+        columns.push(column(|g| g.kryt1_rad));
+        columns.push(column(|g| g.kryt2_m));
         let batch = RecordBatch::try_new(Arc::new(Schema::new(fields)), columns)?;
         write_batch(&dir.join("sweep.parquet"), &batch)?;
-        let argmin = |f: fn(&(f64, f64)) -> f64| {
-            values
-                .iter()
-                .enumerate()
-                .filter(|(_, v)| f(v).is_finite())
-                .min_by(|x, y| f(x.1).total_cmp(&f(y.1)))
-                .map(|(i, _)| {
-                    [grid[i].0, grid[i].1]
-                        .into_iter()
-                        .take(axes.len())
-                        .collect()
-                })
+        let argmin = |f: fn(&GridPoint) -> f64| {
+            grid.iter()
+                .filter(|g| f(g).is_finite())
+                .min_by(|x, y| f(x).total_cmp(&f(y)))
+                .map(|g| [g.at.0, g.at.1].into_iter().take(axes.len()).collect())
         };
         write_json_atomic(
             &dir.join("sweep.json"),
@@ -189,8 +208,8 @@ pub fn ensure_sweep(ctx: &RunCtx, params: &Params, axes: &[Axis]) -> anyhow::Res
                 points: grid.len(),
                 passes: problem.passes(),
                 wall_s: t0.elapsed().as_secs_f64(),
-                min_kryt1: argmin(|v| v.0),
-                min_kryt2: argmin(|v| v.1),
+                min_kryt1: argmin(|g| g.kryt1_rad),
+                min_kryt2: argmin(|g| g.kryt2_m),
             },
         )?;
         Ok(())

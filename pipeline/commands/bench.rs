@@ -17,7 +17,37 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<ExitCode> {
         BenchTarget::Campaign => bench_campaign(args),
         BenchTarget::Review => bench_review(args),
         BenchTarget::Disupt => bench_disupt(args),
+        BenchTarget::Sweep => bench_sweep(args),
     }
+}
+
+fn bench_sweep(args: &BenchArgs) -> anyhow::Result<ExitCode> {
+    use crate::disupt_stage::problem_of;
+    use crate::flow::{Overrides, Params, load_case};
+    use crate::sweep::{evaluate_grid, parse_over};
+
+    let (_tmp, ctx) = simulated_run(args, 41)?;
+    let params = Params::default();
+    let case = load_case(&ctx, &params, &Overrides::default())?;
+    let az0 = case.settings.initial.heading_rad.to_degrees();
+    let axes = parse_over(&format!(
+        "azimuth_deg={}:{}:41,drift_z_rad_s=-5e-6:5e-6:41",
+        az0 - 15.0,
+        az0 + 15.0
+    ))?;
+    let mut points = 0;
+    let wall_s = best_of(args.repeat, || {
+        // A fresh problem each time: nothing is reused between repetitions.
+        let problem = problem_of(&case, &params);
+        points = std::hint::black_box(evaluate_grid(&problem, &axes)).len();
+    });
+    println!(
+        "sweep: {points} exact passes (41 × 41, azimuth ±15° × driftz ±5e-6 rad/s) on a {:.0} s run in {wall_s:.2} s on {} threads = {:.2} ms per pass per thread",
+        args.duration_s,
+        rayon::current_num_threads(),
+        wall_s * 1e3 * rayon::current_num_threads() as f64 / points as f64
+    );
+    Ok(ExitCode::SUCCESS)
 }
 
 fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
@@ -112,15 +142,41 @@ fn bench_navigate(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     });
     // A track-free pass (what the optimisers and sweeps run).
     {
-        use unz_stages::strapdown::{CriteriaSink, run};
+        use unz_stages::strapdown::{CriteriaSink, run_criteria};
         let inputs = case.inputs();
+        let mut sinks: [CriteriaSink; 4] = Default::default();
         let one = best_of(args.repeat * 4, || {
-            let mut sink = CriteriaSink::default();
-            sink.reset(lp.block, [n / 2]);
-            run(&inputs, &case.settings, &mut sink);
-            std::hint::black_box(&sink);
+            let [sink, ..] = &mut sinks;
+            run_criteria(
+                &inputs,
+                &[case.settings],
+                lp.block,
+                &[n / 2],
+                std::array::from_mut(sink),
+            );
+            std::hint::black_box(&sinks);
         });
-        println!("track-free pass: {:.2} ms", one * 1e3);
+        let four = best_of(args.repeat * 4, || {
+            run_criteria(&inputs, &[case.settings; 4], lp.block, &[n / 2], &mut sinks);
+            std::hint::black_box(&sinks);
+        });
+        let mut sinks8: [CriteriaSink; 8] = Default::default();
+        let eight = best_of(args.repeat * 4, || {
+            run_criteria(
+                &inputs,
+                &[case.settings; 8],
+                lp.block,
+                &[n / 2],
+                &mut sinks8,
+            );
+            std::hint::black_box(&sinks8);
+        });
+        println!(
+            "track-free pass (one core): {:.2} ms alone; per pass {:.2} ms four side by side, {:.2} ms eight side by side",
+            one * 1e3,
+            four * 1e3 / 4.0,
+            eight * 1e3 / 8.0
+        );
     }
     println!(
         "navigate kernel: {n} samples in {:.2} ms = {:.1} M samples/s (one core)",

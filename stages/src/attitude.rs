@@ -53,11 +53,16 @@ impl Euler {
 #[inline]
 pub fn quat_from_rotation_vector(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
     let a2 = phi.norm_squared();
-    // sin(a/2)/a and cos(a/2) by series below 1e-3 rad², exact beyond.
-    let (s, c) = if a2 < 1e-6 {
+    // sin(a/2)/a and cos(a/2) by their series below a = 0.1 rad (10 rad/s at 100 Hz),
+    // where the first term left out is below 3e-20; exact beyond.
+    let (s, c) = if a2 < 1e-2 {
         (
-            0.5 - a2 * (1.0 / 48.0) + a2 * a2 * (1.0 / 3840.0),
-            1.0 - a2 * 0.125 + a2 * a2 * (1.0 / 384.0),
+            0.5 + a2
+                * (-1.0 / 48.0
+                    + a2 * (1.0 / 3840.0 + a2 * (-1.0 / 645_120.0 + a2 * (1.0 / 185_794_560.0)))),
+            1.0 + a2
+                * (-0.125
+                    + a2 * (1.0 / 384.0 + a2 * (-1.0 / 46_080.0 + a2 * (1.0 / 10_321_920.0)))),
         )
     } else {
         let a = a2.sqrt();

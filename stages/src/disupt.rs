@@ -134,8 +134,12 @@ impl Evaluation {
     }
 }
 
+/// Most passes stepped side by side in vector lanes by [`Problem::observe_many_by`].
+pub const LANES: usize = 8;
+
 thread_local! {
-    static OBSERVE_SCRATCH: RefCell<(CriteriaSink, Kryt1Scratch)> = RefCell::new(Default::default());
+    static OBSERVE_SCRATCH: RefCell<([CriteriaSink; LANES], Kryt1Scratch)> =
+        RefCell::new(Default::default());
 }
 
 impl<'a> Problem<'a> {
@@ -200,37 +204,90 @@ impl<'a> Problem<'a> {
     /// [`Self::observe`], counted in `tally` too (a method's own passes). The pass keeps
     /// no track: it sums what the criteria need as it goes ([`CriteriaSink`]).
     pub fn observe_by(&self, x: &X, tally: &AtomicUsize) -> Observation {
-        tally.fetch_add(1, Ordering::Relaxed);
-        self.passes.fetch_add(1, Ordering::Relaxed);
+        let [y] = self.observe_lanes::<1>(&[*x], 1, tally);
+        y
+    }
+
+    /// The observations of several settings (in their order), each what
+    /// [`Self::observe`] gives, bit for bit; counted in `tally` too. Up to [`LANES`]
+    /// passes run side by side in vector lanes, and the batches in parallel: the points
+    /// are shared evenly between rayon's threads first, so that a few points still use
+    /// every core.
+    pub fn observe_many_by(&self, xs: &[X], tally: &AtomicUsize) -> Vec<Observation> {
+        let threads = rayon::current_num_threads().max(1);
+        let chunk = xs.len().div_ceil(threads).clamp(1, LANES);
+        xs.par_chunks(chunk)
+            .flat_map_iter(|chunk| {
+                // Lanes come in 1, 2, 4 or 8; a partial batch repeats its last point.
+                let padded = |l: usize| chunk[l.min(chunk.len() - 1)];
+                let n = chunk.len();
+                let ys: Vec<Observation> = match n {
+                    1 => self.observe_lanes::<1>(&[chunk[0]], n, tally).into(),
+                    2 => self
+                        .observe_lanes::<2>(&std::array::from_fn(padded), n, tally)
+                        .into(),
+                    3 | 4 => self
+                        .observe_lanes::<4>(&std::array::from_fn(padded), n, tally)
+                        .into(),
+                    _ => self
+                        .observe_lanes::<8>(&std::array::from_fn(padded), n, tally)
+                        .into(),
+                };
+                ys.into_iter().take(chunk.len())
+            })
+            .collect()
+    }
+
+    /// `N` ≤ [`LANES`] exact passes side by side.
+    /// Only the first `points` lanes count as passes (the rest repeat a point to fill
+    /// the batch).
+    fn observe_lanes<const N: usize>(
+        &self,
+        xs: &[X; N],
+        points: usize,
+        tally: &AtomicUsize,
+    ) -> [Observation; N] {
+        tally.fetch_add(points, Ordering::Relaxed);
+        self.passes.fetch_add(points, Ordering::Relaxed);
+        let settings = xs.map(|x| self.settings(&x));
+        let n = self.inputs.len();
+        let at: Vec<usize> = self
+            .fixes
+            .iter()
+            .map(|f| f.sample)
+            .filter(|&k| k < n)
+            .collect();
         OBSERVE_SCRATCH.with(|cell| {
-            let (sink, scratch) = &mut *cell.borrow_mut();
-            let n = self.inputs.len();
-            sink.reset(
-                self.lp.block,
-                self.fixes.iter().map(|f| f.sample).filter(|&k| k < n),
-            );
-            strapdown::run(&self.inputs, &self.settings(x), sink);
-            sink.finish();
-            let mut y = Observation::default();
-            criteria::epoch_attitude_from_sums(
-                self.epochs,
-                &self.lp,
-                &sink.row3_sums,
-                scratch,
-                &mut y.theta_rad,
-                &mut y.phi_rad,
-            );
-            y.cp_m = self
-                .fixes
-                .iter()
-                .filter_map(|f| {
-                    let (lat, lon) = sink.position_at(f.sample)?;
-                    Some(earth::local_offset_m(lat, lon, f.lat_rad, f.lon_rad, f.h_m))
-                })
-                .map(|(dx, dy)| [dx, dy])
-                .collect();
-            y
+            let (sinks, scratch) = &mut *cell.borrow_mut();
+            let sinks: &mut [CriteriaSink; N] = (&mut sinks[..N])
+                .try_into()
+                .expect("at most LANES passes side by side");
+            strapdown::run_criteria(&self.inputs, &settings, self.lp.block, &at, sinks);
+            std::array::from_fn(|l| self.observation_of_sink(&sinks[l], scratch))
         })
+    }
+
+    /// What the criteria read from a pass's sink.
+    fn observation_of_sink(&self, sink: &CriteriaSink, scratch: &mut Kryt1Scratch) -> Observation {
+        let mut y = Observation::default();
+        criteria::epoch_attitude_from_sums(
+            self.epochs,
+            &self.lp,
+            &sink.row3_sums,
+            scratch,
+            &mut y.theta_rad,
+            &mut y.phi_rad,
+        );
+        y.cp_m = self
+            .fixes
+            .iter()
+            .filter_map(|f| {
+                let (lat, lon) = sink.position_at(f.sample)?;
+                Some(earth::local_offset_m(lat, lon, f.lat_rad, f.lon_rad, f.h_m))
+            })
+            .map(|(dx, dy)| [dx, dy])
+            .collect();
+        y
     }
 
     /// The criteria of an observation.
@@ -255,24 +312,8 @@ impl<'a> Problem<'a> {
         which: &[usize],
         tally: &AtomicUsize,
     ) -> Linearization {
-        let p = params_of(x);
-        let found: Vec<(usize, Observation)> = which
-            .par_iter()
-            .map(|&j| {
-                let mut pj = p;
-                pj[j] += FD_STEP[j];
-                (j, self.observe_by(&x_of(&pj), tally).slope(&y, FD_STEP[j]))
-            })
-            .collect();
-        let mut slopes: [Option<Observation>; N_PARAMS] = Default::default();
-        for (j, s) in found {
-            slopes[j] = Some(s);
-        }
-        Linearization {
-            p_ref: p,
-            y_ref: y,
-            slopes,
-        }
+        let ys = self.observe_many_by(&moved_by_steps(x, which), tally);
+        linearization_of(x, y, which, ys)
     }
 
     /// Passes of the shared first linearisation (0 before it is built).
@@ -287,9 +328,45 @@ impl<'a> Problem<'a> {
     pub fn base_linearization(&self) -> &Linearization {
         self.base_lin.get_or_init(|| {
             let x0 = self.x0();
-            let y0 = self.observe(&x0);
-            self.linearize(&x0, y0, &[0, 1, 2, 3, 4, 5, 6])
+            let which: Vec<usize> = (0..N_PARAMS).collect();
+            let mut xs = vec![x0];
+            xs.extend(moved_by_steps(&x0, &which));
+            let mut ys = self.observe_many_by(&xs, &AtomicUsize::new(0));
+            let y0 = ys.remove(0);
+            linearization_of(&x0, y0, &which, ys)
         })
+    }
+}
+
+/// `x` moved by one finite-difference step in each parameter of `which`, in turn.
+fn moved_by_steps(x: &X, which: &[usize]) -> Vec<X> {
+    let p = params_of(x);
+    which
+        .iter()
+        .map(|&j| {
+            let mut pj = p;
+            pj[j] += FD_STEP[j];
+            x_of(&pj)
+        })
+        .collect()
+}
+
+/// The linearisation around `x` (observed `y`) from the observations `moved` of
+/// [`moved_by_steps`]`(x, which)`.
+fn linearization_of(
+    x: &X,
+    y: Observation,
+    which: &[usize],
+    moved: Vec<Observation>,
+) -> Linearization {
+    let mut slopes: [Option<Observation>; N_PARAMS] = Default::default();
+    for (&j, yj) in which.iter().zip(moved) {
+        slopes[j] = Some(yj.slope(&y, FD_STEP[j]));
+    }
+    Linearization {
+        p_ref: params_of(x),
+        y_ref: y,
+        slopes,
     }
 }
 

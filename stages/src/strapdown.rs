@@ -15,11 +15,17 @@
 //!
 //! Splitting the update into a body factor and a navigation-frame factor is exact
 //! (`Ċ = C[ω_ib×] − [ω_in×]C` has the solution `L·C₀·R`), so no commutation error builds up.
+//!
+//! Optimisers and sweeps run many passes over the same inputs: [`run_criteria`] steps up
+//! to eight of them side by side in vector lanes (`lanes`), keeping only what the criteria
+//! read, and gives each exactly what it would give alone.
 
-use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+mod lanes;
 
-use crate::attitude::{Euler, quat_from_rotation_vector};
-use crate::earth;
+use nalgebra::UnitQuaternion;
+
+use crate::attitude::Euler;
+use lanes::{Emit, Lanes};
 
 /// Per-sample navigation inputs; all slices have the same length.
 #[derive(Debug, Clone, Copy)]
@@ -147,34 +153,9 @@ impl NavTrack {
     }
 }
 
-/// Latitude-dependent terms, refreshed when the latitude moves by more than
-/// [`LAT_REFRESH_RAD`] (6 m): their change below that is under 1e-8 relative.
-#[derive(Clone, Copy)]
-struct LatTerms {
-    lat: f64,
-    rm: f64,
-    rn: f64,
-    inv_cos: f64,
-    tan: f64,
-    w_ie_n: Vector3<f64>,
-}
-
-/// Latitude change that refreshes [`LatTerms`], rad.
+/// Latitude change that refreshes the latitude-dependent terms (Earth radii and rate,
+/// 1/cos, tan), rad: 6 m, over which they change by less than 1e-8 relative.
 const LAT_REFRESH_RAD: f64 = 1e-6;
-
-impl LatTerms {
-    fn at(lat: f64) -> Self {
-        let (rm, rn) = earth::radii_m(lat);
-        Self {
-            lat,
-            rm,
-            rn,
-            inv_cos: 1.0 / lat.cos(),
-            tan: lat.tan(),
-            w_ie_n: earth::earth_rate_ned(lat),
-        }
-    }
-}
 
 /// What a pass does with each sample's state.
 pub trait PassSink {
@@ -211,14 +192,12 @@ pub struct CriteriaSink {
     /// (sample, latitude rad, longitude rad) at the requested samples, in sample order.
     pub positions: Vec<(usize, f64, f64)>,
     wanted: Vec<usize>,
-    acc: [f64; 3],
-    in_block: usize,
 }
 
 impl CriteriaSink {
     /// Clears the sink for a pass with blocks of `block` samples, recording the positions
     /// at `samples`.
-    pub fn reset(&mut self, block: usize, samples: impl IntoIterator<Item = usize>) {
+    fn reset(&mut self, block: usize, samples: impl IntoIterator<Item = usize>) {
         self.block = block.max(1);
         self.row3_sums.clear();
         self.positions.clear();
@@ -227,17 +206,6 @@ impl CriteriaSink {
         self.wanted.sort_unstable();
         self.wanted.dedup();
         self.wanted.reverse(); // popped from the end, in sample order
-        self.acc = [0.0; 3];
-        self.in_block = 0;
-    }
-
-    /// Closes the last, partial block.
-    pub fn finish(&mut self) {
-        if self.in_block > 0 {
-            self.row3_sums.push(self.acc);
-            self.acc = [0.0; 3];
-            self.in_block = 0;
-        }
     }
 
     /// Latitude and longitude recorded at `sample`.
@@ -249,173 +217,95 @@ impl CriteriaSink {
     }
 }
 
-impl PassSink for CriteriaSink {
-    #[inline(always)]
-    fn sample(&mut self, k: usize, lat: f64, lon: f64, _h: f64, q: &[f64; 4], _d: f64) {
-        let r = dcm_row3(q);
-        self.acc = [self.acc[0] + r[0], self.acc[1] + r[1], self.acc[2] + r[2]];
-        self.in_block += 1;
-        if self.in_block == self.block {
-            self.row3_sums.push(self.acc);
-            self.acc = [0.0; 3];
-            self.in_block = 0;
-        }
-        if self.wanted.last() == Some(&k) {
-            self.wanted.pop();
-            self.positions.push((k, lat, lon));
-        }
-    }
-}
-
-/// The state of one pass between samples.
-#[derive(Clone, Copy)]
-struct Lane {
-    drift: Vector3<f64>,
-    odo_scale: f64,
-    odo_sin: f64,
-    odo_cos: f64,
-    q: Quaternion<f64>,
-    lat: f64,
-    lon: f64,
-    h: f64,
-    terms: LatTerms,
-    distance: f64,
-    prev: Vector3<f64>,
-    dir_start: Vector3<f64>,
-}
-
-impl Lane {
-    fn new(s: &NavSettings) -> Self {
-        let (odo_sin, odo_cos) = s.odo_yaw_rad.sin_cos();
-        let mut lane = Self {
-            drift: Vector3::from(s.drift_rad_s),
-            odo_scale: s.odo_scale,
-            odo_sin,
-            odo_cos,
-            q: s.initial.to_quat_b_to_n().into_inner(),
-            lat: s.lat0_rad,
-            lon: s.lon0_rad,
-            h: s.h0_m,
-            terms: LatTerms::at(s.lat0_rad),
-            distance: 0.0,
-            prev: Vector3::zeros(),
-            dir_start: Vector3::zeros(),
-        };
-        lane.dir_start = lane.odo_dir_n(&lane.q);
-        lane
-    }
-
-    /// Direction of the odometer axis (body x turned by the boresight) in NED: the first
-    /// two columns of C_b^n, without a full vector rotation.
-    #[inline(always)]
-    fn odo_dir_n(&self, q: &Quaternion<f64>) -> Vector3<f64> {
-        let (w, x, y, z) = (q.w, q.i, q.j, q.k);
-        let c1 = Vector3::new(
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y + w * z),
-            2.0 * (x * z - w * y),
-        );
-        if self.odo_sin == 0.0 {
-            return c1;
-        }
-        let c2 = Vector3::new(
-            2.0 * (x * y - w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z + w * x),
-        );
-        c1 * self.odo_cos + c2 * self.odo_sin
-    }
-
-    /// Advances over sample `k` (interval `dt`, angle increments, odometer distance).
-    #[inline(always)]
-    fn step(&mut self, k: usize, dt: f64, dtheta: &[f64; 3], odo: f64) {
-        let dth = Vector3::from(*dtheta) - self.drift * dt;
-        let phi = dth + self.prev.cross(&dth) * (1.0 / 12.0);
-        self.prev = dth;
-        let q_body = self.q * quat_from_rotation_vector(&phi).into_inner();
-
-        // Odometer dead reckoning along the mid-interval direction of travel.
-        let ds = self.odo_scale * odo;
-        let dir_end = self.odo_dir_n(&q_body);
-        let dp_n = (self.dir_start + dir_end) * (0.5 * ds);
-        if (self.lat - self.terms.lat).abs() > LAT_REFRESH_RAD {
-            self.terms = LatTerms::at(self.lat);
-        }
-        let terms = &self.terms;
-        let inv_rm_h = 1.0 / (terms.rm + self.h - 0.5 * dp_n.z);
-        let inv_rn_h = 1.0 / (terms.rn + self.h - 0.5 * dp_n.z);
-        self.lat += dp_n.x * inv_rm_h;
-        self.lon += dp_n.y * inv_rn_h * terms.inv_cos;
-        self.h -= dp_n.z;
-        self.distance += ds;
-
-        // Navigation-frame rotation over the interval (Earth rate plus transport rate),
-        // ζ ~ 1e-6 rad: its quaternion (1, −ζ/2) is exact to ζ²/8 ~ 1e-13.
-        let zeta = Vector3::new(
-            terms.w_ie_n.x * dt + dp_n.y * inv_rn_h,
-            -dp_n.x * inv_rm_h,
-            terms.w_ie_n.z * dt - dp_n.y * terms.tan * inv_rn_h,
-        );
-        // (1, v) ⊗ (w, u) = (w − v·u, u + w·v + v × u) with v = −ζ/2.
-        let v = zeta * -0.5;
-        let u = q_body.imag();
-        let w = q_body.w;
-        let qv = u + v * w + v.cross(&u);
-        self.q = Quaternion::new(w - v.dot(&u), qv.x, qv.y, qv.z);
-        if k % 64 == 63 {
-            self.q /= self.q.norm();
-        }
-        // The navigation frame turned by ζ: the next start direction is the end direction
-        // seen from the new frame, exact to ζ² ~ 1e-12.
-        self.dir_start = dir_end - zeta.cross(&dir_end);
-    }
-
-    #[inline(always)]
-    fn emit(&self, k: usize, sink: &mut impl PassSink) {
-        let q = &self.q;
-        sink.sample(
-            k,
-            self.lat,
-            self.lon,
-            self.h,
-            &[q.w, q.i, q.j, q.k],
-            self.distance,
-        );
-    }
-}
-
 /// Runs the navigation over all samples into `sink`.
 pub fn run(inputs: &NavInputs<'_>, s: &NavSettings, sink: &mut impl PassSink) {
-    let mut lane = Lane::new(s);
-    let samples = inputs
-        .dt_s
-        .iter()
-        .zip(inputs.dtheta_rad)
-        .zip(inputs.odo_dist_m);
-    for (k, ((&dt, dtheta), &odo)) in samples.enumerate() {
-        lane.step(k, dt, dtheta, odo);
-        lane.emit(k, sink);
+    Lanes::<1>::new(&[*s]).run(inputs, &mut ToPassSink(sink));
+}
+
+/// A [`PassSink`] fed from a single lane.
+struct ToPassSink<'a, S>(&'a mut S);
+
+impl<S: PassSink> Emit<1> for ToPassSink<'_, S> {
+    #[inline(always)]
+    fn emit(&mut self, k: usize, lane: &Lanes<1>) {
+        self.0.sample(
+            k,
+            lane.lat_rad[0],
+            lane.lon_rad[0],
+            lane.h_m[0],
+            &lane.q_of(0),
+            lane.distance_m[0],
+        );
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+/// Runs `N` passes side by side (one per settings) into `sinks`, each reset first for
+/// blocks of `block` samples and the positions at `positions_at`: what the optimisers
+/// and sweeps read, several passes per vector instruction. Each sink ends exactly as a
+/// pass alone would leave it.
+pub fn run_criteria<const N: usize>(
+    inputs: &NavInputs<'_>,
+    settings: &[NavSettings; N],
+    block: usize,
+    positions_at: &[usize],
+    sinks: &mut [CriteriaSink; N],
+) {
+    for sink in sinks.iter_mut() {
+        sink.reset(block, positions_at.iter().copied());
+    }
+    let mut lanes_sink = CriteriaLanes {
+        next_wanted: sinks.first().and_then(|s| s.wanted.last().copied()),
+        sinks,
+        block: block.max(1),
+        acc: [[0.0; N]; 3],
+        in_block: 0,
+    };
+    Lanes::<N>::new(settings).run(inputs, &mut lanes_sink);
+    lanes_sink.close_block();
+}
 
-    /// Regression: block means summed the third rows and took asin of the sum.
-    #[test]
-    fn roll_pitch_from_a_sum_of_rows_equals_the_mean_angles() {
-        let e = Euler {
-            roll_rad: 0.03,
-            pitch_rad: -0.02,
-            heading_rad: 2.0,
-        };
-        let q = e.to_quat_b_to_n();
-        let r = dcm_row3(&[q.w, q.i, q.j, q.k]);
-        let (roll, pitch) = roll_pitch_from_row3(10.0 * r[0], 10.0 * r[1], 10.0 * r[2]);
-        assert!(
-            (roll - 0.03).abs() < 1e-14 && (pitch + 0.02).abs() < 1e-14,
-            "{roll} {pitch}"
-        );
+/// `N` [`CriteriaSink`]s fed side by side: the block sums are accumulated in vector
+/// lanes and handed to each sink when a block closes.
+struct CriteriaLanes<'a, const N: usize> {
+    sinks: &'a mut [CriteriaSink; N],
+    block: usize,
+    acc: [[f64; N]; 3],
+    in_block: usize,
+    next_wanted: Option<usize>,
+}
+
+impl<const N: usize> CriteriaLanes<'_, N> {
+    fn close_block(&mut self) {
+        if self.in_block > 0 {
+            for (l, sink) in self.sinks.iter_mut().enumerate() {
+                sink.row3_sums
+                    .push([self.acc[0][l], self.acc[1][l], self.acc[2][l]]);
+            }
+            self.acc = [[0.0; N]; 3];
+            self.in_block = 0;
+        }
+    }
+}
+
+impl<const N: usize> Emit<N> for CriteriaLanes<'_, N> {
+    #[inline(always)]
+    fn emit(&mut self, k: usize, lanes: &Lanes<N>) {
+        let r = lanes.dcm_row3();
+        for (a, ri) in self.acc.iter_mut().zip(&r) {
+            for l in 0..N {
+                a[l] += ri[l];
+            }
+        }
+        self.in_block += 1;
+        if self.in_block == self.block {
+            self.close_block();
+        }
+        if self.next_wanted == Some(k) {
+            for (l, sink) in self.sinks.iter_mut().enumerate() {
+                sink.wanted.pop();
+                sink.positions.push((k, lanes.lat_rad[l], lanes.lon_rad[l]));
+            }
+            self.next_wanted = self.sinks.first().and_then(|s| s.wanted.last().copied());
+        }
     }
 }

@@ -170,4 +170,22 @@ fn track_free_passes_give_the_criteria_of_a_stored_track() {
     assert_eq!(e.kryt1.to_bits(), k1.to_bits(), "{} vs {k1}", e.kryt1);
     assert_eq!(e.kryt2, criteria::kryt2(&track, &c.fixes));
     assert!(!e.kryt2.is_empty());
+
+    // Passes side by side in vector lanes (batches of 8 and of 4 padded, here) observe
+    // what each pass alone does.
+    let xs: Vec<_> = (0..11)
+        .map(|i| {
+            let mut xi = x;
+            xi.azimuth_deg += 0.5 * i as f64;
+            xi.drift_deg_h[2] -= 0.1 * i as f64;
+            xi
+        })
+        .collect();
+    let tally = std::sync::atomic::AtomicUsize::new(0);
+    let batched = problem.observe_many_by(&xs, &tally);
+    assert_eq!(tally.into_inner(), xs.len());
+    assert_eq!(batched.len(), xs.len());
+    for (xi, yi) in xs.iter().zip(&batched) {
+        assert_eq!(*yi, problem.observe(xi), "{xi:?}");
+    }
 }

@@ -1,0 +1,455 @@
+//! The kernel's state for `N` passes stepped side by side, one lane per pass, as a
+//! structure of arrays: every per-lane loop is branch-free arithmetic over `[f64; N]`,
+//! which the compiler turns into vector instructions. A lane computes exactly what a
+//! pass alone computes (the same operations in the same order; Rust never fuses them),
+//! so a batch of passes and the passes one by one agree bit for bit.
+
+// Lane loops index several arrays by the lane: an index is clearer than zipped iterators.
+#![allow(clippy::needless_range_loop)]
+
+use super::{LAT_REFRESH_RAD, NavInputs, NavSettings};
+use crate::earth;
+
+/// Beyond this squared rotation angle (a = 0.1 rad, 10 rad/s at 100 Hz) the quaternion of
+/// a rotation vector is computed with sin/cos instead of its series.
+const SERIES_LIMIT_RAD2: f64 = 1e-2;
+
+/// Samples between renormalisations of the attitude quaternion.
+const RENORMALISE_EVERY: usize = 64;
+
+/// What a run does with the lanes' state after each sample.
+pub(super) trait Emit<const N: usize> {
+    /// After sample `k`.
+    fn emit(&mut self, k: usize, lanes: &Lanes<N>);
+}
+
+/// State of `N` passes between samples.
+#[derive(Clone, Copy)]
+pub(super) struct Lanes<const N: usize> {
+    drift_rad_s: [[f64; N]; 3],
+    odo_scale: [f64; N],
+    odo_sin: [f64; N],
+    odo_cos: [f64; N],
+    /// Whether any lane has an odometer boresight.
+    boresight: bool,
+    /// Attitude quaternion `C_b^n` (w, x, y, z).
+    pub q: [[f64; N]; 4],
+    /// Latitude, rad.
+    pub lat_rad: [f64; N],
+    /// Longitude, rad.
+    pub lon_rad: [f64; N],
+    /// Height, m.
+    pub h_m: [f64; N],
+    /// Scaled odometer distance so far, m.
+    pub distance_m: [f64; N],
+    /// Drift-corrected angle increment of the previous sample (coning term), rad.
+    prev_rad: [[f64; N]; 3],
+    /// Odometer direction in NED at the start of the next interval.
+    dir_start: [[f64; N]; 3],
+    terms: LatTerms<N>,
+}
+
+/// Latitude-dependent terms per lane, refreshed when the lane's latitude moves by more
+/// than [`LAT_REFRESH_RAD`].
+#[derive(Clone, Copy)]
+struct LatTerms<const N: usize> {
+    lat_rad: [f64; N],
+    rm_m: [f64; N],
+    rn_m: [f64; N],
+    inv_cos: [f64; N],
+    tan: [f64; N],
+    /// Earth rate, north and down components (east is zero), rad/s.
+    w_ie_north_rad_s: [f64; N],
+    w_ie_down_rad_s: [f64; N],
+}
+
+impl<const N: usize> LatTerms<N> {
+    /// Sets lane `l` at latitude `lat`. The terms are computed out of line and returned
+    /// by value, so that the state never escapes to memory in the hot loop.
+    #[inline(always)]
+    fn set(&mut self, l: usize, lat: f64) {
+        let [rm, rn, inv_cos, tan, w_north, w_down] = lat_terms(lat);
+        self.lat_rad[l] = lat;
+        self.rm_m[l] = rm;
+        self.rn_m[l] = rn;
+        self.inv_cos[l] = inv_cos;
+        self.tan[l] = tan;
+        self.w_ie_north_rad_s[l] = w_north;
+        self.w_ie_down_rad_s[l] = w_down;
+    }
+}
+
+/// (R_M, R_N, 1/cos, tan, Earth rate north, Earth rate down) at latitude `lat`.
+#[cold]
+#[inline(never)]
+fn lat_terms(lat: f64) -> [f64; 6] {
+    let (rm, rn) = earth::radii_m(lat);
+    let w_ie = earth::earth_rate_ned(lat);
+    [rm, rn, 1.0 / lat.cos(), lat.tan(), w_ie.x, w_ie.z]
+}
+
+/// Direction of the odometer axis (body x turned by the boresight, `sin`/`cos` of it) in
+/// NED: the first two columns of `C_b^n` of (w, x, y, z), without a full rotation. With
+/// no boresight in any lane (`boresight` false) the first column alone, which is what
+/// the full formula gives with sin 0 and cos 1.
+#[inline(always)]
+fn odo_dir_n(q: [f64; 4], sin: f64, cos: f64, boresight: bool) -> [f64; 3] {
+    let [w, x, y, z] = q;
+    let c1 = [
+        1.0 - 2.0 * (y * y + z * z),
+        2.0 * (x * y + w * z),
+        2.0 * (x * z - w * y),
+    ];
+    if !boresight {
+        return c1;
+    }
+    let c2 = [
+        2.0 * (x * y - w * z),
+        1.0 - 2.0 * (x * x + z * z),
+        2.0 * (y * z + w * x),
+    ];
+    [
+        c1[0] * cos + c2[0] * sin,
+        c1[1] * cos + c2[1] * sin,
+        c1[2] * cos + c2[2] * sin,
+    ]
+}
+
+/// sin(a/2)/a and cos(a/2) of a rotation beyond the series, from a²: out of line and
+/// cold, so that the hot loop keeps its registers.
+#[cold]
+#[inline(never)]
+fn half_angle_terms(a2: f64) -> (f64, f64) {
+    let a = a2.sqrt();
+    ((0.5 * a).sin() / a, (0.5 * a).cos())
+}
+
+impl<const N: usize> Lanes<N> {
+    /// The start of `N` passes.
+    pub fn new(settings: &[NavSettings; N]) -> Self {
+        let mut lanes = Self {
+            drift_rad_s: [[0.0; N]; 3],
+            odo_scale: [0.0; N],
+            odo_sin: [0.0; N],
+            odo_cos: [0.0; N],
+            boresight: settings.iter().any(|s| s.odo_yaw_rad != 0.0),
+            q: [[0.0; N]; 4],
+            lat_rad: [0.0; N],
+            lon_rad: [0.0; N],
+            h_m: [0.0; N],
+            distance_m: [0.0; N],
+            prev_rad: [[0.0; N]; 3],
+            dir_start: [[0.0; N]; 3],
+            terms: LatTerms {
+                lat_rad: [0.0; N],
+                rm_m: [0.0; N],
+                rn_m: [0.0; N],
+                inv_cos: [0.0; N],
+                tan: [0.0; N],
+                w_ie_north_rad_s: [0.0; N],
+                w_ie_down_rad_s: [0.0; N],
+            },
+        };
+        for (l, s) in settings.iter().enumerate() {
+            for i in 0..3 {
+                lanes.drift_rad_s[i][l] = s.drift_rad_s[i];
+            }
+            lanes.odo_scale[l] = s.odo_scale;
+            (lanes.odo_sin[l], lanes.odo_cos[l]) = s.odo_yaw_rad.sin_cos();
+            let q = s.initial.to_quat_b_to_n().into_inner();
+            let (w, x, y, z) = (q.w, q.i, q.j, q.k);
+            lanes.q[0][l] = w;
+            lanes.q[1][l] = x;
+            lanes.q[2][l] = y;
+            lanes.q[3][l] = z;
+            lanes.lat_rad[l] = s.lat0_rad;
+            lanes.lon_rad[l] = s.lon0_rad;
+            lanes.h_m[l] = s.h0_m;
+            lanes.terms.set(l, s.lat0_rad);
+            let dir = odo_dir_n(
+                [w, x, y, z],
+                lanes.odo_sin[l],
+                lanes.odo_cos[l],
+                lanes.boresight,
+            );
+            for i in 0..3 {
+                lanes.dir_start[i][l] = dir[i];
+            }
+        }
+        lanes
+    }
+
+    /// Steps every lane over all samples of `inputs`, calling `emit.emit(k, lanes)` after
+    /// sample `k`. On x86-64 CPUs with AVX2 the loop runs in 4-wide vector registers,
+    /// elsewhere in SSE2's 2-wide ones; the results are the same bit for bit.
+    #[inline(always)]
+    pub fn run(self, inputs: &NavInputs<'_>, emit: &mut impl Emit<N>) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            #[allow(unsafe_code)]
+            // SAFETY: `run_avx2` only needs AVX2, and this CPU has it (checked above).
+            return unsafe { self.run_avx2(inputs, emit) };
+        }
+        self.run_portable(inputs, emit)
+    }
+
+    /// [`Self::run_portable`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn run_avx2(self, inputs: &NavInputs<'_>, emit: &mut impl Emit<N>) {
+        self.run_portable(inputs, emit)
+    }
+
+    /// The sample loop, compiled once with and once without the boresight terms.
+    #[inline(always)]
+    fn run_portable(mut self, inputs: &NavInputs<'_>, emit: &mut impl Emit<N>) {
+        let samples = inputs
+            .dt_s
+            .iter()
+            .zip(inputs.dtheta_rad)
+            .zip(inputs.odo_dist_m)
+            .enumerate();
+        if self.boresight {
+            for (k, ((&dt, dtheta), &odo)) in samples {
+                self.step::<true>(k, dt, dtheta, odo);
+                emit.emit(k, &self);
+            }
+        } else {
+            for (k, ((&dt, dtheta), &odo)) in samples {
+                self.step::<false>(k, dt, dtheta, odo);
+                emit.emit(k, &self);
+            }
+        }
+    }
+
+    /// Advances every lane over sample `k` (interval `dt_s`, measured angle increments,
+    /// odometer distance at the nominal scale); `BORESIGHT` is whether any lane has one.
+    #[inline(always)]
+    fn step<const BORESIGHT: bool>(
+        &mut self,
+        k: usize,
+        dt_s: f64,
+        dtheta_rad: &[f64; 3],
+        odo_m: f64,
+    ) {
+        for l in 0..N {
+            if (self.lat_rad[l] - self.terms.lat_rad[l]).abs() > LAT_REFRESH_RAD {
+                self.terms.set(l, self.lat_rad[l]);
+            }
+        }
+
+        // 1. Body rotation vector with the coning term, and sin(a/2)/a, cos(a/2).
+        let mut phi = [[0.0; N]; 3];
+        let mut a2 = [0.0; N];
+        let mut s = [0.0; N];
+        let mut c = [0.0; N];
+        for l in 0..N {
+            let d = [
+                dtheta_rad[0] - self.drift_rad_s[0][l] * dt_s,
+                dtheta_rad[1] - self.drift_rad_s[1][l] * dt_s,
+                dtheta_rad[2] - self.drift_rad_s[2][l] * dt_s,
+            ];
+            let p = [
+                self.prev_rad[0][l],
+                self.prev_rad[1][l],
+                self.prev_rad[2][l],
+            ];
+            let coning = [
+                p[1] * d[2] - p[2] * d[1],
+                p[2] * d[0] - p[0] * d[2],
+                p[0] * d[1] - p[1] * d[0],
+            ];
+            for i in 0..3 {
+                phi[i][l] = d[i] + coning[i] * (1.0 / 12.0);
+                self.prev_rad[i][l] = d[i];
+            }
+            let r2 = phi[0][l] * phi[0][l] + phi[1][l] * phi[1][l] + phi[2][l] * phi[2][l];
+            a2[l] = r2;
+            // Series: the first term left out is below 3e-20 within the limit.
+            s[l] = 0.5
+                + r2 * (-1.0 / 48.0
+                    + r2 * (1.0 / 3840.0 + r2 * (-1.0 / 645_120.0 + r2 * (1.0 / 185_794_560.0))));
+            c[l] = 1.0
+                + r2 * (-0.125
+                    + r2 * (1.0 / 384.0 + r2 * (-1.0 / 46_080.0 + r2 * (1.0 / 10_321_920.0))));
+        }
+        for l in 0..N {
+            if a2[l] >= SERIES_LIMIT_RAD2 {
+                (s[l], c[l]) = half_angle_terms(a2[l]);
+            }
+        }
+
+        // 2. Attitude, odometer dead reckoning, navigation-frame rotation.
+        for l in 0..N {
+            let [qw, qx, qy, qz] = [self.q[0][l], self.q[1][l], self.q[2][l], self.q[3][l]];
+            let (bw, bx, by, bz) = (c[l], s[l] * phi[0][l], s[l] * phi[1][l], s[l] * phi[2][l]);
+            // q ⊗ q(φ): the body factor.
+            let w = qw * bw - qx * bx - qy * by - qz * bz;
+            let x = qw * bx + qx * bw + qy * bz - qz * by;
+            let y = qw * by - qx * bz + qy * bw + qz * bx;
+            let z = qw * bz + qx * by - qy * bx + qz * bw;
+
+            // Odometer dead reckoning along the mid-interval direction of travel.
+            let ds = self.odo_scale[l] * odo_m;
+            let dir_end = odo_dir_n([w, x, y, z], self.odo_sin[l], self.odo_cos[l], BORESIGHT);
+            let half = 0.5 * ds;
+            let dp = [
+                (self.dir_start[0][l] + dir_end[0]) * half,
+                (self.dir_start[1][l] + dir_end[1]) * half,
+                (self.dir_start[2][l] + dir_end[2]) * half,
+            ];
+            let h_mid = self.h_m[l] - 0.5 * dp[2];
+            let inv_rm_h = 1.0 / (self.terms.rm_m[l] + h_mid);
+            let inv_rn_h = 1.0 / (self.terms.rn_m[l] + h_mid);
+            self.lat_rad[l] += dp[0] * inv_rm_h;
+            self.lon_rad[l] += dp[1] * inv_rn_h * self.terms.inv_cos[l];
+            self.h_m[l] -= dp[2];
+            self.distance_m[l] += ds;
+
+            // Navigation-frame rotation over the interval (Earth rate plus transport
+            // rate), ζ ~ 1e-6 rad: its quaternion (1, −ζ/2) is exact to ζ²/8 ~ 1e-13.
+            let zeta = [
+                self.terms.w_ie_north_rad_s[l] * dt_s + dp[1] * inv_rn_h,
+                -dp[0] * inv_rm_h,
+                self.terms.w_ie_down_rad_s[l] * dt_s - dp[1] * self.terms.tan[l] * inv_rn_h,
+            ];
+            // (1, v) ⊗ (w, u) = (w − v·u, u + w·v + v × u) with v = −ζ/2.
+            let v = [-0.5 * zeta[0], -0.5 * zeta[1], -0.5 * zeta[2]];
+            self.q[0][l] = w - (v[0] * x + v[1] * y + v[2] * z);
+            self.q[1][l] = x + v[0] * w + (v[1] * z - v[2] * y);
+            self.q[2][l] = y + v[1] * w + (v[2] * x - v[0] * z);
+            self.q[3][l] = z + v[2] * w + (v[0] * y - v[1] * x);
+            // The navigation frame turned by ζ: the next start direction is the end
+            // direction seen from the new frame, exact to ζ² ~ 1e-12.
+            self.dir_start[0][l] = dir_end[0] - (zeta[1] * dir_end[2] - zeta[2] * dir_end[1]);
+            self.dir_start[1][l] = dir_end[1] - (zeta[2] * dir_end[0] - zeta[0] * dir_end[2]);
+            self.dir_start[2][l] = dir_end[2] - (zeta[0] * dir_end[1] - zeta[1] * dir_end[0]);
+        }
+        if k % RENORMALISE_EVERY == RENORMALISE_EVERY - 1 {
+            for l in 0..N {
+                let q = [self.q[0][l], self.q[1][l], self.q[2][l], self.q[3][l]];
+                let norm = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+                for (i, qi) in q.iter().enumerate() {
+                    self.q[i][l] = qi / norm;
+                }
+            }
+        }
+    }
+
+    /// The third row of `C_b^n` of every lane.
+    #[inline(always)]
+    pub fn dcm_row3(&self) -> [[f64; N]; 3] {
+        let mut r = [[0.0; N]; 3];
+        for l in 0..N {
+            let [w, x, y, z] = [self.q[0][l], self.q[1][l], self.q[2][l], self.q[3][l]];
+            r[0][l] = 2.0 * (x * z - w * y);
+            r[1][l] = 2.0 * (y * z + w * x);
+            r[2][l] = w * w - x * x - y * y + z * z;
+        }
+        r
+    }
+
+    /// Attitude quaternion (w, x, y, z) of lane `l`.
+    #[inline(always)]
+    pub fn q_of(&self, l: usize) -> [f64; 4] {
+        [self.q[0][l], self.q[1][l], self.q[2][l], self.q[3][l]]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::attitude::Euler;
+
+    /// The final state of every lane, bit for bit.
+    fn final_state<const N: usize>(lanes: &Lanes<N>) -> Vec<[u64; 8]> {
+        (0..N)
+            .map(|l| {
+                let q = lanes.q_of(l);
+                [
+                    q[0],
+                    q[1],
+                    q[2],
+                    q[3],
+                    lanes.lat_rad[l],
+                    lanes.lon_rad[l],
+                    lanes.h_m[l],
+                    lanes.distance_m[l],
+                ]
+                .map(f64::to_bits)
+            })
+            .collect()
+    }
+
+    struct Last<const N: usize>(Option<Lanes<N>>);
+
+    impl<const N: usize> Emit<N> for Last<N> {
+        fn emit(&mut self, _k: usize, lanes: &Lanes<N>) {
+            self.0 = Some(*lanes);
+        }
+    }
+
+    /// A turning, bumping drive with one violent sample (beyond the series).
+    fn inputs() -> (Vec<f64>, Vec<[f64; 3]>, Vec<f64>) {
+        let n = 5000;
+        let dtheta = (0..n)
+            .map(|k| {
+                let t = k as f64 * 0.01;
+                if k == 2500 {
+                    return [0.2, -0.1, 0.3];
+                }
+                [
+                    1e-4 * (t * 3.0).sin(),
+                    2e-4 * (t * 2.0).cos(),
+                    3e-3 * (t * 0.5).sin(),
+                ]
+            })
+            .collect();
+        (vec![0.01; n], dtheta, vec![0.2; n])
+    }
+
+    fn settings(l: usize) -> NavSettings {
+        NavSettings {
+            initial: Euler {
+                roll_rad: 0.01,
+                pitch_rad: -0.02,
+                heading_rad: 0.3 * l as f64,
+            },
+            drift_rad_s: [1e-6 * l as f64, -2e-7, 3e-6],
+            odo_scale: 1.0 + 1e-4 * l as f64,
+            // Lanes 5 and 6 have a boresight, so the 8-lane batch takes that loop.
+            odo_yaw_rad: if l == 5 || l == 6 { 0.01 } else { 0.0 },
+            lat0_rad: 0.78,
+            lon0_rad: -1.33,
+            h0_m: 90.0,
+        }
+    }
+
+    #[test]
+    fn a_batch_of_lanes_is_each_pass_alone_bit_for_bit() {
+        let (dt, dth, odo) = inputs();
+        let inputs = NavInputs {
+            dt_s: &dt,
+            dtheta_rad: &dth,
+            odo_dist_m: &odo,
+        };
+        let all: [NavSettings; 8] = std::array::from_fn(settings);
+        let mut batch = Last(None);
+        Lanes::new(&all).run(&inputs, &mut batch);
+        let batch = final_state(&batch.0.unwrap());
+        for (l, s) in all.iter().enumerate() {
+            let mut alone = Last(None);
+            Lanes::new(&[*s]).run(&inputs, &mut alone);
+            assert_eq!(final_state(&alone.0.unwrap())[0], batch[l], "lane {l}");
+        }
+        // The vector loop the CPU supports and the portable one agree too.
+        let mut portable = Last(None);
+        Lanes::new(&all).run_portable(&inputs, &mut portable);
+        assert_eq!(final_state(&portable.0.unwrap()), batch);
+        // Without a boresight anywhere, the loop without its terms gives the same.
+        let plain: [NavSettings; 4] = std::array::from_fn(settings);
+        let mut four = Last(None);
+        Lanes::new(&plain).run(&inputs, &mut four);
+        assert_eq!(final_state(&four.0.unwrap())[..], batch[..4]);
+    }
+}
