@@ -82,6 +82,10 @@ pub struct SimulateArgs {
     /// No odometer scale error.
     #[arg(long)]
     pub no_odo_scale_error: bool,
+    /// Yaw of the IMU on the vehicle, degrees: the odometer's direction of travel is the
+    /// IMU's x axis turned by it (what `[disupt] joint_odo_yaw` estimates).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub odo_boresight_deg: f64,
 }
 
 /// Arguments shared by the stage commands.

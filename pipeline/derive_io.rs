@@ -68,6 +68,8 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
             scalar("block", DataType::UInt64, false, "1"),
             f("theta_p_rad", "rad"),
             f("phi_p_rad", "rad"),
+            f("theta_p_per_yaw", "rad/rad"),
+            f("phi_p_per_yaw", "rad/rad"),
             Field::new("valid", DataType::Boolean, false),
             f("ax_f_mps2", "m/s^2"),
             f("ay_f_mps2", "m/s^2"),
@@ -85,6 +87,8 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
             )),
             f64s(&e.theta_p_rad),
             f64s(&e.phi_p_rad),
+            f64s(&e.theta_p_per_yaw),
+            f64s(&e.phi_p_per_yaw),
             Arc::new(BooleanArray::from(e.valid.clone())),
             at(&d.ax_f),
             at(&d.ay_f),
@@ -142,6 +146,8 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
             .collect(),
         theta_p_rad: f64_column(&e, "theta_p_rad")?,
         phi_p_rad: f64_column(&e, "phi_p_rad")?,
+        theta_p_per_yaw: f64_column(&e, "theta_p_per_yaw")?,
+        phi_p_per_yaw: f64_column(&e, "phi_p_per_yaw")?,
         valid: (0..valid.len()).map(|i| valid.value(i)).collect(),
     };
     let n_blocks = d.t_s.len().div_ceil(d.block.max(1));

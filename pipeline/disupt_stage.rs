@@ -11,7 +11,7 @@ use unz_stages::criteria::{self, Kryt1Scratch, Kryt1Series, Kryt2};
 use unz_stages::disupt::{self, MethodResult, Problem, X};
 use unz_stages::filter::LowPass;
 use unz_stages::simulate::DEG_PER_H;
-use unz_stages::strapdown::NavTrack;
+use unz_stages::strapdown::{NavSettings, NavTrack};
 
 use crate::flow::{NavCase, Overrides, Params, RunCtx, ensure_derive, load_case, write_nav};
 use crate::method_tables::{
@@ -44,6 +44,8 @@ pub struct SettingsOut {
     pub drift_rad_s: [f64; 3],
     /// Odometer multiplier relative to the manifest's scale.
     pub odo_scale: f64,
+    /// Odometer yaw boresight, degrees (moved by the joint fit only, when asked).
+    pub odo_yaw_deg: f64,
     /// 1σ of each (joint only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma: Option<SigmaOut>,
@@ -58,6 +60,8 @@ pub struct SigmaOut {
     pub drift_rad_s: [f64; 3],
     /// Multiplier.
     pub odo_scale: f64,
+    /// degrees (0 when not estimated).
+    pub odo_yaw_deg: f64,
 }
 
 /// One method in `disupt.json`.
@@ -116,15 +120,18 @@ pub struct Before {
     pub control_points: Vec<Kryt2>,
 }
 
-fn settings_out(x: &X, base_scale: f64, sigma: Option<&X>) -> SettingsOut {
+fn settings_out(x: &X, base: &NavSettings, sigma: Option<&X>) -> SettingsOut {
+    let base_scale = base.odo_scale;
     SettingsOut {
         azimuth_deg: x.azimuth_deg.rem_euclid(360.0),
         drift_rad_s: x.drift_deg_h.map(|d| d * DEG_PER_H),
         odo_scale: base_scale * (1.0 + x.odo_ppm * 1e-6),
+        odo_yaw_deg: base.odo_yaw_rad.to_degrees() + x.odo_yaw_deg,
         sigma: sigma.map(|s| SigmaOut {
             azimuth_deg: s.azimuth_deg,
             drift_rad_s: s.drift_deg_h.map(|d| d * DEG_PER_H),
             odo_scale: base_scale * s.odo_ppm * 1e-6,
+            odo_yaw_deg: s.odo_yaw_deg,
         }),
     }
 }
@@ -160,6 +167,13 @@ fn table(name: &str, r: &MethodResult) -> String {
             "\n1σ: azimuth {:.3}°, drifts [{:.3}, {:.3}, {:.3}] °/h, odometer {:.0} ppm",
             sd.azimuth_deg, sd.drift_deg_h[0], sd.drift_deg_h[1], sd.drift_deg_h[2], sd.odo_ppm
         );
+        if sd.odo_yaw_deg > 0.0 {
+            let _ = writeln!(
+                s,
+                "\nOdometer yaw boresight {:.3}° ± {:.3}°.",
+                r.x.odo_yaw_deg, sd.odo_yaw_deg
+            );
+        }
     }
     let _ = writeln!(s, "\n{} passes in {:.2} s.\n", r.evaluations, r.wall_s);
     s
@@ -220,7 +234,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
     ctx.run_stage(&stage, || {
         let case = load_case(ctx, params, &Overrides::default())?;
         let problem = problem_of(&case, params);
-        let base_scale = case.settings.odo_scale;
         let mut methods = std::collections::BTreeMap::new();
         let mut skipped = std::collections::BTreeMap::new();
         let mut md = format!("# DISUPT: {}\n\n", m.name);
@@ -277,7 +290,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                     methods.insert(
                         name.to_owned(),
                         MethodOut {
-                            x: settings_out(&r.x, base_scale, r.sigma.as_ref()),
+                            x: settings_out(&r.x, &case.settings, r.sigma.as_ref()),
                             dx_m: r.dx_m,
                             dy_m: r.dy_m,
                             kryt1_rad: r.kryt1,
@@ -300,7 +313,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let out = DisuptOut {
             distance_m,
             before: Before {
-                x: settings_out(&problem.x0(), base_scale, None),
+                x: settings_out(&problem.x0(), &case.settings, None),
                 dx_m: dx,
                 dy_m: dy,
                 kryt1_rad: before_kryt1,

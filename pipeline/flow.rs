@@ -162,7 +162,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let stage = Stage {
         dir: dir.clone(),
         name: "derive",
-        version: 1,
+        version: 2,
         params_hash: params_hash(&params.derive)?,
         inputs,
         outputs: &["derived.parquet", "epochs.parquet"],

@@ -94,6 +94,54 @@ fn disupt_and_sweep_through_the_binary() {
     );
 }
 
+/// `joint_odo_yaw = true` in the run's `[params.disupt]` makes the joint fit estimate the
+/// boresight the simulator put in, and `disupt.json` report it with its σ.
+#[test]
+fn joint_estimates_an_odometer_boresight_when_configured() {
+    let tmp = tempfile::tempdir().unwrap();
+    let campaign = tmp.path().join("c");
+    let out = tmp.path().join("o");
+    unz_ok(&[
+        "simulate",
+        "--out",
+        campaign.to_str().unwrap(),
+        "--seed",
+        "79",
+        "--azimuth-error-deg",
+        "6",
+        "--odo-boresight-deg",
+        "2",
+    ]);
+    let run = campaign.join("sim-0079");
+    let truth: Value =
+        serde_json::from_slice(&std::fs::read(run.join("truth.json")).unwrap()).unwrap();
+    assert_eq!(truth["odo_boresight_deg"].as_f64(), Some(2.0));
+    let manifest = run.join("run.toml");
+    let mut text = std::fs::read_to_string(&manifest).unwrap();
+    text.push_str("\n[params.disupt]\njoint_odo_yaw = true\n");
+    std::fs::write(&manifest, text).unwrap();
+    unz_ok(&[
+        "disupt",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--method",
+        "joint",
+    ]);
+    let d: Value =
+        serde_json::from_slice(&std::fs::read(out.join("sim-0079/disupt/disupt.json")).unwrap())
+            .unwrap();
+    let x = &d["methods"]["joint"]["x"];
+    let yaw = x["odo_yaw_deg"].as_f64().unwrap();
+    let sd = x["sigma"]["odo_yaw_deg"].as_f64().unwrap();
+    assert!(sd > 0.0 && sd < 0.5, "σ {sd}°");
+    assert!(
+        (yaw - 2.0).abs() < 3.0 * sd,
+        "boresight {yaw}° ± {sd}°, truth 2°"
+    );
+    assert_eq!(d["before"]["x"]["odo_yaw_deg"].as_f64(), Some(0.0));
+}
+
 #[test]
 fn export_writes_foxglove_channels() {
     let tmp = tempfile::tempdir().unwrap();

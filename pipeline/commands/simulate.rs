@@ -11,6 +11,12 @@ use crate::simulate_io::{write_faulty_copy, write_run};
 
 /// The configurations `args` asks for.
 pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
+    if args.odo_boresight_deg.is_nan() || args.odo_boresight_deg.abs() > 10.0 {
+        bail!(
+            "--odo-boresight-deg {} is not a mounting error (at most 10°)",
+            args.odo_boresight_deg
+        );
+    }
     if args.static_s < 60.0 {
         bail!(
             "--static-s {} is shorter than the 60 s a static start needs",
@@ -30,6 +36,7 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             c.duration_s = args.duration_s;
             c.static_s = args.static_s;
             c.azimuth_error_deg = args.azimuth_error_deg;
+            c.odo_boresight_deg = args.odo_boresight_deg;
             c.errors = SensorErrors {
                 noise: !args.no_noise,
                 gyro_drift: !args.no_gyro_drift,

@@ -127,6 +127,13 @@ pub struct Epochs {
     pub theta_p_rad: Vec<f64>,
     /// Accelerometer roll Φ_p, rad (eq 8).
     pub phi_p_rad: Vec<f64>,
+    /// ∂Θ_p/∂δ: change of Θ_p per radian of odometer yaw boresight δ. Eqs 7–8 remove u̇
+    /// along body x and ru along body y; with the odometer turned by δ they belong along
+    /// (cos δ, sin δ) and (−sin δ, cos δ), which moves a_x's correction by ru·δ and a_y's
+    /// by u̇·δ.
+    pub theta_p_per_yaw: Vec<f64>,
+    /// ∂Φ_p/∂δ, likewise.
+    pub phi_p_per_yaw: Vec<f64>,
     /// Whether the epoch is used by the criteria.
     pub valid: Vec<bool>,
 }
@@ -265,16 +272,22 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
     while j < blocks {
         let first = j * lp.block;
         let last = ((j + 1) * lp.block).min(n) - 1;
-        let theta = ((out.ax_f[j] - out.u_dot_f[j]) / g_mps2)
-            .clamp(-1.0, 1.0)
-            .asin();
-        let phi = -((out.ay_f[j] - out.ru_f[j]) / (g_mps2 * theta.cos()))
-            .clamp(-1.0, 1.0)
-            .asin();
+        let sin_theta = ((out.ax_f[j] - out.u_dot_f[j]) / g_mps2).clamp(-1.0, 1.0);
+        let theta = sin_theta.asin();
+        let lateral = out.ay_f[j] - out.ru_f[j];
+        let sin_phi = -(lateral / (g_mps2 * theta.cos())).clamp(-1.0, 1.0);
+        let phi = sin_phi.asin();
+        // With boresight δ: a_x − u̇ + ru·δ and a_y − ru − u̇·δ to first order.
+        let theta_per_yaw = out.ru_f[j] / g_mps2 / theta.cos();
+        let phi_per_yaw = -(-out.u_dot_f[j] / (g_mps2 * theta.cos())
+            + lateral * theta.sin() / (g_mps2 * theta.cos().powi(2)) * theta_per_yaw)
+            / phi.cos();
         e.block.push(j);
         e.t_s.push(0.5 * (out.t_s[first] + out.t_s[last]));
         e.theta_p_rad.push(theta);
         e.phi_p_rad.push(phi);
+        e.theta_p_per_yaw.push(theta_per_yaw);
+        e.phi_p_per_yaw.push(phi_per_yaw);
         e.valid.push(
             out.u_dot_f[j].abs() <= params.gate_long_mps2
                 && out.ru_f[j].abs() <= params.gate_lat_mps2,

@@ -49,6 +49,10 @@ pub struct X {
     pub drift_deg_h: [f64; 3],
     /// Odometer scale deviation from the base, ppm.
     pub odo_ppm: f64,
+    /// Joint fit only (when asked for): odometer yaw boresight added to the base's,
+    /// degrees. The odometer's direction of travel is body x turned by it.
+    #[serde(default)]
+    pub odo_yaw_deg: f64,
     /// Joint fit only: pitch and roll levelling corrections, mrad. The accelerometer
     /// biases enter the levelled initial attitude and the accelerometer pitch/roll alike;
     /// the levelling error then turns with the heading, the accelerometer one does not.
@@ -70,6 +74,11 @@ pub struct DisuptParams {
     pub position_sigma_m: f64,
     /// Estimate the odometer scale in the joint fit (needs control points).
     pub joint_odo_scale: bool,
+    /// Estimate the odometer yaw boresight in the joint fit (needs control points). It
+    /// turns the route like the initial azimuth does, so only the attitude residuals
+    /// (Kryt1's information) tell the two apart: the azimuth's σ grows to what they
+    /// give. Off by default.
+    pub joint_odo_yaw: bool,
 }
 
 impl Default for DisuptParams {
@@ -80,6 +89,7 @@ impl Default for DisuptParams {
             attitude_sigma_rad: 2e-3,
             position_sigma_m: 1.0,
             joint_odo_scale: true,
+            joint_odo_yaw: false,
         }
     }
 }
@@ -177,6 +187,7 @@ impl<'a> Problem<'a> {
             drift_deg_h: self.base.drift_rad_s.map(|d| d / DEG_PER_H),
             odo_ppm: 0.0,
             tilt_mrad: [0.0; 2],
+            odo_yaw_deg: 0.0,
         }
     }
 
@@ -186,6 +197,7 @@ impl<'a> Problem<'a> {
         s.initial.heading_rad = x.azimuth_deg.to_radians();
         s.drift_rad_s = x.drift_deg_h.map(|d| d * DEG_PER_H);
         s.odo_scale = self.base.odo_scale * (1.0 + x.odo_ppm * 1e-6);
+        s.odo_yaw_rad = self.base.odo_yaw_rad + x.odo_yaw_deg.to_radians();
         s.initial.pitch_rad -= x.tilt_mrad[0] * 1e-3;
         s.initial.roll_rad -= x.tilt_mrad[1] * 1e-3;
         s
@@ -323,18 +335,42 @@ impl<'a> Problem<'a> {
             .map_or(0, |l| 1 + l.slopes.iter().flatten().count())
     }
 
-    /// The linearisation around `x0` in every parameter, built once and shared by the
-    /// methods (each starts there; its passes are counted in [`Self::base_passes`]).
+    /// The linearisation around `x0` in every parameter but the odometer boresight,
+    /// built once and shared by the methods (each starts there; its passes are counted in
+    /// [`Self::base_passes`]).
     pub fn base_linearization(&self) -> &Linearization {
         self.base_lin.get_or_init(|| {
             let x0 = self.x0();
-            let which: Vec<usize> = (0..N_PARAMS).collect();
             let mut xs = vec![x0];
-            xs.extend(moved_by_steps(&x0, &which));
+            xs.extend(moved_by_steps(&x0, &BASE_PARAMS));
             let mut ys = self.observe_many_by(&xs, &AtomicUsize::new(0));
             let y0 = ys.remove(0);
-            linearization_of(&x0, y0, &which, ys)
+            linearization_of(&x0, y0, &BASE_PARAMS, ys)
         })
+    }
+
+    /// `lin` with the slopes it lacks among `which` added (one pass each, counted in
+    /// `tally`).
+    pub fn completed(
+        &self,
+        lin: &Linearization,
+        which: &[usize],
+        tally: &AtomicUsize,
+    ) -> Linearization {
+        let missing: Vec<usize> = which
+            .iter()
+            .copied()
+            .filter(|&j| lin.slopes[j].is_none())
+            .collect();
+        let x = x_of(&lin.p_ref);
+        let ys = self.observe_many_by(&moved_by_steps(&x, &missing), tally);
+        let mut out = linearization_of(&x, lin.y_ref.clone(), &missing, ys);
+        for (j, slope) in lin.slopes.iter().enumerate() {
+            if slope.is_some() {
+                out.slopes[j].clone_from(slope);
+            }
+        }
+        out
     }
 }
 
@@ -371,7 +407,7 @@ fn linearization_of(
 }
 
 /// `X` as the linearisation's parameter vector `[az, dx, dy, dz, tilt_pitch, tilt_roll,
-/// ppm]`.
+/// ppm, odo_yaw]`.
 pub fn params_of(x: &X) -> [f64; N_PARAMS] {
     [
         x.azimuth_deg,
@@ -381,8 +417,16 @@ pub fn params_of(x: &X) -> [f64; N_PARAMS] {
         x.tilt_mrad[0],
         x.tilt_mrad[1],
         x.odo_ppm,
+        x.odo_yaw_deg,
     ]
 }
+
+/// Parameters of the shared first linearisation: all but the odometer boresight, which
+/// only the joint fit moves, and only when asked.
+const BASE_PARAMS: [usize; 7] = [0, 1, 2, 3, 4, 5, 6];
+
+/// Index of the odometer yaw boresight in [`params_of`].
+const ODO_YAW: usize = 7;
 
 /// The inverse of [`params_of`].
 pub fn x_of(p: &[f64; N_PARAMS]) -> X {
@@ -391,6 +435,7 @@ pub fn x_of(p: &[f64; N_PARAMS]) -> X {
         drift_deg_h: [p[1], p[2], p[3]],
         tilt_mrad: [p[4], p[5]],
         odo_ppm: p[6],
+        odo_yaw_deg: p[7],
     }
 }
 
@@ -766,10 +811,15 @@ fn joint_residuals(
     let e = problem.epochs;
     let s = params.attitude_sigma_rad;
     let mut r = Vec::with_capacity(2 * e.block.len() + 2 * y.cp_m.len() + 1);
+    // The odometer boresight moves the accelerometer references (derive's u̇ and ru go
+    // along the odometer), not the gyro attitude.
+    let yaw_rad = p[ODO_YAW].to_radians();
     for k in 0..e.block.len() {
         if e.valid[k] {
-            r.push((y.theta_rad[k] - e.theta_p_rad[k] + p[4] * 1e-3) / s);
-            r.push((crate::attitude::wrap_pi(y.phi_rad[k] - e.phi_p_rad[k]) + p[5] * 1e-3) / s);
+            let theta_p = e.theta_p_rad[k] + e.theta_p_per_yaw[k] * yaw_rad;
+            let phi_p = e.phi_p_rad[k] + e.phi_p_per_yaw[k] * yaw_rad;
+            r.push((y.theta_rad[k] - theta_p + p[4] * 1e-3) / s);
+            r.push((crate::attitude::wrap_pi(y.phi_rad[k] - phi_p) + p[5] * 1e-3) / s);
         }
     }
     for c in &y.cp_m {
@@ -876,15 +926,23 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
     let t0 = Instant::now();
     let tally = AtomicUsize::new(0);
     let x0 = problem.x0();
-    let with_scale = p.joint_odo_scale && !problem.fixes.is_empty();
-    let free: &[usize] = if with_scale {
-        &[0, 1, 2, 3, 4, 5, 6]
-    } else {
-        &[0, 1, 2, 3, 4, 5]
-    };
+    let mut free = vec![0, 1, 2, 3, 4, 5];
+    if !problem.fixes.is_empty() {
+        if p.joint_odo_scale {
+            free.push(6);
+        }
+        if p.joint_odo_yaw {
+            free.push(ODO_YAW);
+        }
+    }
+    let free = &free[..];
     let base = problem.base_linearization();
     let mut owned;
     let mut lin = base;
+    if !base.covers(free) {
+        owned = problem.completed(base, free, &tally);
+        lin = &owned;
+    }
     let mut pr = lin.p_ref;
     let mut y = lin.y_ref.clone();
     // The epochs are weighted by the σ their residuals show (variance components: the
@@ -958,6 +1016,7 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
             drift_deg_h: [sd(1), sd(2), sd(3)],
             tilt_mrad: [sd(4), sd(5)],
             odo_ppm: sd(6),
+            odo_yaw_deg: sd(7),
         }
     });
     let (dx_m, dy_m) = last_cp(&y);

@@ -120,20 +120,7 @@ fn methods_recover_the_settings_of_paper_like_runs() {
         }
         // Out of sample: the joint fit nulls its own control points, so judge it along the
         // whole route against truth.
-        let track = c.nav(&problem.settings(&jo.x));
-        let worst = (0..track.len())
-            .step_by(100)
-            .map(|k| {
-                let (dn, de) = unz_stages::earth::local_offset_m(
-                    track.lat_rad[k],
-                    track.lon_rad[k],
-                    c.run.truth.lat_rad[k],
-                    c.run.truth.lon_rad[k],
-                    c.run.truth.h_m[k],
-                );
-                dn.hypot(de)
-            })
-            .fold(0.0, f64::max);
+        let worst = c.max_route_error_m(&c.nav(&problem.settings(&jo.x)));
         eprintln!(
             "  joint: worst error along the route {worst:.1} m ({:.3} % of {distance:.0} m)",
             100.0 * worst / distance
@@ -188,4 +175,75 @@ fn track_free_passes_give_the_criteria_of_a_stored_track() {
     for (xi, yi) in xs.iter().zip(&batched) {
         assert_eq!(*yi, problem.observe(xi), "{xi:?}");
     }
+}
+
+/// An IMU yawed on the vehicle turns the dead-reckoned route like an azimuth error does.
+/// Asked to, the joint fit estimates the boresight too, and tells the two apart through
+/// the attitude residuals (the Earth rate a wrong azimuth mis-compensates); left alone,
+/// the azimuth absorbs the boresight.
+#[test]
+fn joint_fit_estimates_an_odometer_boresight_when_asked() {
+    // An IMU mounted without calibration: 2°. The attitude residuals give the azimuth to
+    // a few tenths of a degree over 40 minutes, which is what separates the two.
+    let boresight_deg = 2.0;
+    let mut config = unz_stages::simulate::SimConfig::new("nav", 45);
+    config.azimuth_error_deg = Some(7.0);
+    config.odo_boresight_deg = boresight_deg;
+    let c = common::case_of(&config);
+    let problem = problem_of(&c);
+    let truth = &c.run.settings;
+    assert_eq!(truth.odo_boresight_deg, boresight_deg);
+    let az_err = |az: f64| wrap_pi((az - truth.azimuth_deg).to_radians()).to_degrees();
+    let distance = c.run.truth.distance_m[c.fixes.last().unwrap().sample];
+
+    let plain = joint(&problem, &DisuptParams::default()).unwrap();
+    let p = DisuptParams {
+        joint_odo_yaw: true,
+        ..DisuptParams::default()
+    };
+    let with_yaw = joint(&problem, &p).unwrap();
+    let sd = with_yaw.sigma.unwrap();
+    let route_error = |x| {
+        let track = c.nav(&problem.settings(x));
+        c.max_route_error_m(&track)
+    };
+    eprintln!(
+        "boresight {boresight_deg}°: joint without it: az err {:.3}°, route error {:.1} m; with it: az err {:.3}° (σ {:.3}), boresight {:.3}° (σ {:.3}), route error {:.1} m of {distance:.0} m",
+        az_err(plain.x.azimuth_deg),
+        route_error(&plain.x),
+        az_err(with_yaw.x.azimuth_deg),
+        sd.azimuth_deg,
+        with_yaw.x.odo_yaw_deg,
+        sd.odo_yaw_deg,
+        route_error(&with_yaw.x),
+    );
+    // Without the boresight in the model, the azimuth takes it: the IMU's heading is the
+    // vehicle's minus the boresight, and the fit returns the heading of travel.
+    assert!(
+        (az_err(plain.x.azimuth_deg) - boresight_deg).abs() < 0.2,
+        "{}",
+        az_err(plain.x.azimuth_deg)
+    );
+    // With it, both within 3σ of the truth and 0.5°, and the boresight resolved (σ well
+    // below it). Seeds 41, 42, 46 and 47 give errors of 1.5–2.8σ (0.24–0.34°): the σ
+    // treats the filtered epochs as independent, which makes it somewhat optimistic.
+    assert!(
+        sd.odo_yaw_deg > 0.0 && sd.odo_yaw_deg < boresight_deg / 3.0,
+        "{sd:?}"
+    );
+    assert!((with_yaw.x.odo_yaw_deg - boresight_deg).abs() < 0.5);
+    assert!(az_err(with_yaw.x.azimuth_deg).abs() < 0.5);
+    assert!(
+        (with_yaw.x.odo_yaw_deg - boresight_deg).abs() < 3.0 * sd.odo_yaw_deg,
+        "boresight {} ± {}",
+        with_yaw.x.odo_yaw_deg,
+        sd.odo_yaw_deg
+    );
+    assert!(
+        az_err(with_yaw.x.azimuth_deg).abs() < 3.0 * sd.azimuth_deg,
+        "azimuth error {} ± {}",
+        az_err(with_yaw.x.azimuth_deg),
+        sd.azimuth_deg
+    );
+    assert!(route_error(&with_yaw.x) < 0.002 * distance);
 }

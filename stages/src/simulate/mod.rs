@@ -12,7 +12,7 @@ pub mod faults;
 pub mod plan;
 pub mod route;
 
-use nalgebra::Vector3;
+use nalgebra::{UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -77,6 +77,10 @@ pub struct SimConfig {
     pub azimuth_error_deg: Option<f64>,
     /// Fine-grid steps per IMU sample.
     pub substeps: usize,
+    /// Yaw of the IMU on the vehicle, degrees: the odometer's direction of travel is the
+    /// IMU's x axis turned by it (clockwise seen from above), so the IMU's heading is the
+    /// vehicle's minus it. Zero by default.
+    pub odo_boresight_deg: f64,
 }
 
 impl SimConfig {
@@ -90,6 +94,7 @@ impl SimConfig {
             errors: SensorErrors::ALL,
             azimuth_error_deg: None,
             substeps: 10,
+            odo_boresight_deg: 0.0,
         }
     }
 }
@@ -113,6 +118,9 @@ pub struct TrueSettings {
     pub odo_scale_m_per_pulse: f64,
     /// Nominal metres per pulse (the header's `odo_lsb_m`).
     pub nominal_odo_m_per_pulse: f64,
+    /// Odometer yaw boresight, degrees (see [`SimConfig::odo_boresight_deg`]).
+    #[serde(default)]
+    pub odo_boresight_deg: f64,
     /// Angle random walk, rad/√s.
     pub arw_rad_sqrt_s: f64,
     /// Velocity random walk, (m/s)/√s.
@@ -185,12 +193,15 @@ pub struct SimRun {
 /// Gauss–Legendre two-point nodes on [0, 1].
 const GL2: [f64; 2] = [0.5 - 0.288_675_134_594_812_9, 0.5 + 0.288_675_134_594_812_9];
 
-/// Body rate (inertial) and specific force, body axes, at time `t` and position `(lat, h)`.
+/// Body rate (inertial) and specific force, body axes, at time `t` and position `(lat, h)`,
+/// and the velocity in NED. `c_v_b` turns the vehicle's axes into the IMU's (`None`: the
+/// IMU is aligned with the vehicle).
 fn body_rate_and_force(
     motion: &route::Motion,
     t: f64,
     lat: f64,
     h: f64,
+    c_v_b: Option<&UnitQuaternion<f64>>,
 ) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
     let k = motion.at(t);
     let q = k.euler.to_quat_b_to_n();
@@ -205,7 +216,19 @@ fn body_rate_and_force(
     let g_n = Vector3::new(0.0, 0.0, earth::normal_gravity_mps2(lat, h));
     let f_n = dv_n + (2.0 * w_ie_n + w_en_n).cross(&v_n) - g_n;
     let qi = q.inverse();
-    (w_nb_b + qi * (w_ie_n + w_en_n), qi * f_n, v_n)
+    let (w_ib_v, f_v) = (w_nb_b + qi * (w_ie_n + w_en_n), qi * f_n);
+    match c_v_b {
+        Some(c) => (c * w_ib_v, c * f_v, v_n),
+        None => (w_ib_v, f_v, v_n),
+    }
+}
+
+/// The IMU's attitude on a vehicle with attitude `vehicle` (see [`body_rate_and_force`]).
+fn imu_euler(vehicle: Euler, c_v_b: Option<&UnitQuaternion<f64>>) -> Euler {
+    match c_v_b {
+        Some(c) => Euler::from_quat_b_to_n(&(vehicle.to_quat_b_to_n() * c.inverse())),
+        None => vehicle,
+    }
 }
 
 /// Simulates one run.
@@ -255,6 +278,9 @@ pub fn simulate(config: &SimConfig) -> SimRun {
     let mut records = Vec::with_capacity(n);
     let mut truth = Truth::default();
     let motion = &plan.motion;
+    let c_v_b = (config.odo_boresight_deg != 0.0).then(|| {
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), config.odo_boresight_deg.to_radians())
+    });
     for k in 0..n {
         let t_start = k as f64 * dt;
         let mut dtheta = Vector3::zeros();
@@ -264,7 +290,7 @@ pub fn simulate(config: &SimConfig) -> SimRun {
             let mut dpos = Vector3::zeros();
             for node in GL2 {
                 let t = a + node * h_f;
-                let (w, f, v_n) = body_rate_and_force(motion, t, lat, h);
+                let (w, f, v_n) = body_rate_and_force(motion, t, lat, h, c_v_b.as_ref());
                 dtheta += w * (0.5 * h_f);
                 dvel += f * (0.5 * h_f);
                 dpos += v_n * (0.5 * h_f);
@@ -315,9 +341,10 @@ pub fn simulate(config: &SimConfig) -> SimRun {
         truth.h_m.push(h);
         let v_n = kin.euler.to_quat_b_to_n() * Vector3::new(kin.speed_mps, 0.0, 0.0);
         truth.vel_ned_mps.push([v_n.x, v_n.y, v_n.z]);
+        let imu = imu_euler(kin.euler, c_v_b.as_ref());
         truth.euler.push(Euler {
-            heading_rad: kin.euler.heading_rad.rem_euclid(std::f64::consts::TAU),
-            ..kin.euler
+            heading_rad: imu.heading_rad.rem_euclid(std::f64::consts::TAU),
+            ..imu
         });
         truth.distance_m.push(distance);
     }
@@ -343,7 +370,7 @@ pub fn simulate(config: &SimConfig) -> SimRun {
             t_s: records[k].t_us as f64 * 1e-6,
         });
     }
-    let e0 = motion.at(0.0).euler;
+    let e0 = imu_euler(motion.at(0.0).euler, c_v_b.as_ref());
     let azimuth_deg = e0.heading_rad.to_degrees().rem_euclid(360.0);
     SimRun {
         config: config.clone(),
@@ -362,6 +389,7 @@ pub fn simulate(config: &SimConfig) -> SimRun {
             accel_bias_mps2: bias,
             odo_scale_m_per_pulse: true_m_per_pulse,
             nominal_odo_m_per_pulse: 0.0125,
+            odo_boresight_deg: config.odo_boresight_deg,
             arw_rad_sqrt_s: if e.noise { LN200_ARW_RAD_SQRT_S } else { 0.0 },
             vrw_mps_sqrt_s: if e.noise { LN200_VRW_MPS_SQRT_S } else { 0.0 },
             errors: e,

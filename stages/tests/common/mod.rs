@@ -25,7 +25,12 @@ pub fn case_with(seed: u64, errors: SensorErrors, azimuth_error_deg: Option<f64>
     let mut config = SimConfig::new("nav", seed);
     config.errors = errors;
     config.azimuth_error_deg = azimuth_error_deg;
-    let run = simulate(&config);
+    case_of(&config)
+}
+
+/// A simulated run of `config`, derived.
+pub fn case_of(config: &SimConfig) -> Case {
+    let run = simulate(config);
     let lsb = (run.header.dtheta_lsb_rad, run.header.dvel_lsb_mps);
     let t_ns: Vec<i64> = run.records.iter().map(|r| r.t_us as i64 * 1000).collect();
     let dtheta: Vec<[f64; 3]> = run
@@ -99,6 +104,24 @@ impl Case {
             &mut t,
         );
         t
+    }
+
+    /// The largest horizontal error against truth along the whole route (every second), m.
+    pub fn max_route_error_m(&self, t: &NavTrack) -> f64 {
+        let truth = &self.run.truth;
+        (0..t.len())
+            .step_by(100)
+            .map(|k| {
+                let (dn, de) = unz_stages::earth::local_offset_m(
+                    t.lat_rad[k],
+                    t.lon_rad[k],
+                    truth.lat_rad[k],
+                    truth.lon_rad[k],
+                    truth.h_m[k],
+                );
+                dn.hypot(de)
+            })
+            .fold(0.0, f64::max)
     }
 
     pub fn final_error_m(&self, t: &NavTrack) -> f64 {
