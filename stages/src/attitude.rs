@@ -48,25 +48,41 @@ impl Euler {
     }
 }
 
+/// Below this squared rotation angle (a = 0.1 rad: 10 rad/s at 100 Hz) [`half_angle_series`]
+/// is exact to machine precision.
+pub const HALF_ANGLE_SERIES_LIMIT_RAD2: f64 = 1e-2;
+
+/// sin(a/2)/a and cos(a/2) from a² by their series; below
+/// [`HALF_ANGLE_SERIES_LIMIT_RAD2`] the first term left out is under 3e-20.
+#[inline(always)]
+pub fn half_angle_series(a2: f64) -> (f64, f64) {
+    (
+        0.5 + a2
+            * (-1.0 / 48.0
+                + a2 * (1.0 / 3840.0 + a2 * (-1.0 / 645_120.0 + a2 * (1.0 / 185_794_560.0)))),
+        1.0 + a2
+            * (-0.125 + a2 * (1.0 / 384.0 + a2 * (-1.0 / 46_080.0 + a2 * (1.0 / 10_321_920.0)))),
+    )
+}
+
+/// sin(a/2)/a and cos(a/2) from a², for angles beyond the series: out of line and cold,
+/// so that a hot loop keeps its registers.
+#[cold]
+#[inline(never)]
+pub fn half_angle_exact(a2: f64) -> (f64, f64) {
+    let a = a2.sqrt();
+    ((0.5 * a).sin() / a, (0.5 * a).cos())
+}
+
 /// Rotation of a rotation vector `phi` (rad) as a unit quaternion, accurate to machine
-/// precision for small angles.
+/// precision.
 #[inline]
 pub fn quat_from_rotation_vector(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
     let a2 = phi.norm_squared();
-    // sin(a/2)/a and cos(a/2) by their series below a = 0.1 rad (10 rad/s at 100 Hz),
-    // where the first term left out is below 3e-20; exact beyond.
-    let (s, c) = if a2 < 1e-2 {
-        (
-            0.5 + a2
-                * (-1.0 / 48.0
-                    + a2 * (1.0 / 3840.0 + a2 * (-1.0 / 645_120.0 + a2 * (1.0 / 185_794_560.0)))),
-            1.0 + a2
-                * (-0.125
-                    + a2 * (1.0 / 384.0 + a2 * (-1.0 / 46_080.0 + a2 * (1.0 / 10_321_920.0)))),
-        )
+    let (s, c) = if a2 < HALF_ANGLE_SERIES_LIMIT_RAD2 {
+        half_angle_series(a2)
     } else {
-        let a = a2.sqrt();
-        ((0.5 * a).sin() / a, (0.5 * a).cos())
+        half_angle_exact(a2)
     };
     UnitQuaternion::new_unchecked(Quaternion::new(c, s * phi.x, s * phi.y, s * phi.z))
 }

@@ -8,11 +8,8 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::{LAT_REFRESH_RAD, NavInputs, NavSettings};
+use crate::attitude::{HALF_ANGLE_SERIES_LIMIT_RAD2, half_angle_exact, half_angle_series};
 use crate::earth;
-
-/// Beyond this squared rotation angle (a = 0.1 rad, 10 rad/s at 100 Hz) the quaternion of
-/// a rotation vector is computed with sin/cos instead of its series.
-const SERIES_LIMIT_RAD2: f64 = 1e-2;
 
 /// Samples between renormalisations of the attitude quaternion.
 const RENORMALISE_EVERY: usize = 64;
@@ -113,15 +110,6 @@ fn odo_dir_n(q: [f64; 4], sin: f64, cos: f64, boresight: bool) -> [f64; 3] {
         c1[1] * cos + c2[1] * sin,
         c1[2] * cos + c2[2] * sin,
     ]
-}
-
-/// sin(a/2)/a and cos(a/2) of a rotation beyond the series, from a²: out of line and
-/// cold, so that the hot loop keeps its registers.
-#[cold]
-#[inline(never)]
-fn half_angle_terms(a2: f64) -> (f64, f64) {
-    let a = a2.sqrt();
-    ((0.5 * a).sin() / a, (0.5 * a).cos())
 }
 
 impl<const N: usize> Lanes<N> {
@@ -265,17 +253,11 @@ impl<const N: usize> Lanes<N> {
             }
             let r2 = phi[0][l] * phi[0][l] + phi[1][l] * phi[1][l] + phi[2][l] * phi[2][l];
             a2[l] = r2;
-            // Series: the first term left out is below 3e-20 within the limit.
-            s[l] = 0.5
-                + r2 * (-1.0 / 48.0
-                    + r2 * (1.0 / 3840.0 + r2 * (-1.0 / 645_120.0 + r2 * (1.0 / 185_794_560.0))));
-            c[l] = 1.0
-                + r2 * (-0.125
-                    + r2 * (1.0 / 384.0 + r2 * (-1.0 / 46_080.0 + r2 * (1.0 / 10_321_920.0))));
+            (s[l], c[l]) = half_angle_series(r2);
         }
         for l in 0..N {
-            if a2[l] >= SERIES_LIMIT_RAD2 {
-                (s[l], c[l]) = half_angle_terms(a2[l]);
+            if a2[l] >= HALF_ANGLE_SERIES_LIMIT_RAD2 {
+                (s[l], c[l]) = half_angle_exact(a2[l]);
             }
         }
 
@@ -341,10 +323,10 @@ impl<const N: usize> Lanes<N> {
     pub fn dcm_row3(&self) -> [[f64; N]; 3] {
         let mut r = [[0.0; N]; 3];
         for l in 0..N {
-            let [w, x, y, z] = [self.q[0][l], self.q[1][l], self.q[2][l], self.q[3][l]];
-            r[0][l] = 2.0 * (x * z - w * y);
-            r[1][l] = 2.0 * (y * z + w * x);
-            r[2][l] = w * w - x * x - y * y + z * z;
+            let row = super::dcm_row3(&self.q_of(l));
+            for i in 0..3 {
+                r[i][l] = row[i];
+            }
         }
         r
     }
