@@ -284,6 +284,8 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         "joint_drift_z_sigma_rad_s",
         "joint_odo_scale",
         "joint_odo_scale_sigma",
+        "joint_odo_yaw_deg",
+        "joint_odo_yaw_sigma_deg",
         "wall_s",
     ]
     .into_iter()
@@ -320,6 +322,8 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
             f(&m["joint"]["x"]["sigma"]["drift_rad_s"][2]),
             f(&m["joint"]["x"]["odo_scale"]),
             f(&m["joint"]["x"]["sigma"]["odo_scale"]),
+            f(&m["joint"]["x"]["odo_yaw_deg"]),
+            f(&m["joint"]["x"]["sigma"]["odo_yaw_deg"]),
             Some(o.wall_s),
         ];
         for (c, v) in cols.iter_mut().zip(values) {

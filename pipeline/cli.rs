@@ -161,7 +161,8 @@ pub struct SweepArgs {
     #[command(flatten)]
     pub stage: StageArgs,
     /// Grid: `name=from:to:count[,name=from:to:count]`, names among azimuth_deg,
-    /// drift_x_rad_s, drift_y_rad_s, drift_z_rad_s, odo_scale (absolute values).
+    /// drift_x_rad_s, drift_y_rad_s, drift_z_rad_s, odo_scale, odo_yaw_deg (absolute
+    /// values).
     #[arg(long, allow_hyphen_values = true)]
     pub over: String,
 }

@@ -228,14 +228,17 @@ pub fn match_control_points(
     d: &Derived,
 ) -> anyhow::Result<Vec<ControlPointFix>> {
     let log_t_s = |t_ns: i64| t_ns as f64 * 1e-9;
+    // The first mark of each point id.
+    let mut first_mark = std::collections::HashMap::new();
+    for (i, &id) in marks.point_id.iter().enumerate() {
+        first_mark.entry(id).or_insert(i);
+    }
     m.control_points
         .iter()
         .map(|cp| {
-            let t_s = marks
-                .point_id
-                .iter()
-                .position(|&id| id == cp.id)
-                .map(|i| log_t_s(marks.t_ns[i]))
+            let t_s = first_mark
+                .get(&cp.id)
+                .map(|&i| log_t_s(marks.t_ns[i]))
                 .or(cp.t_s)
                 .with_context(|| {
                     format!(

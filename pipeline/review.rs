@@ -301,12 +301,12 @@ fn read_sweep(path: &Path) -> anyhow::Result<Sweep> {
         if name == "kryt1_rad" || name == "kryt2_m" {
             continue;
         }
-        let mut values: Vec<f64> = Vec::new();
-        for v in f64_column(&b, name)? {
-            if !values.iter().any(|u| u.to_bits() == v.to_bits()) {
-                values.push(v);
-            }
-        }
+        // The axis's distinct values in order of appearance.
+        let mut seen = std::collections::HashSet::new();
+        let values: Vec<f64> = f64_column(&b, name)?
+            .into_iter()
+            .filter(|v| seen.insert(v.to_bits()))
+            .collect();
         axes.push((name.clone(), values));
     }
     Ok(Sweep {

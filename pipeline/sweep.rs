@@ -27,7 +27,8 @@ pub const MAX_POINTS: usize = 250_000;
 /// One swept component: `name=from:to:count`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Axis {
-    /// `azimuth_deg`, `drift_x_rad_s`, `drift_y_rad_s`, `drift_z_rad_s` or `odo_scale`.
+    /// `azimuth_deg`, `drift_x_rad_s`, `drift_y_rad_s`, `drift_z_rad_s`, `odo_scale` or
+    /// `odo_yaw_deg`.
     pub name: String,
     /// First value.
     pub from: f64,
@@ -37,12 +38,13 @@ pub struct Axis {
     pub count: usize,
 }
 
-const NAMES: [&str; 5] = [
+const NAMES: [&str; 6] = [
     "azimuth_deg",
     "drift_x_rad_s",
     "drift_y_rad_s",
     "drift_z_rad_s",
     "odo_scale",
+    "odo_yaw_deg",
 ];
 
 impl Axis {
@@ -61,6 +63,7 @@ impl Axis {
             "drift_x_rad_s" => x.drift_deg_h[0] = v / DEG_PER_H,
             "drift_y_rad_s" => x.drift_deg_h[1] = v / DEG_PER_H,
             "drift_z_rad_s" => x.drift_deg_h[2] = v / DEG_PER_H,
+            "odo_yaw_deg" => x.odo_yaw_deg = v,
             _ => x.odo_ppm = (v - 1.0) * 1e6,
         }
     }
@@ -226,6 +229,16 @@ mod tests {
         let a = parse_over("azimuth_deg=100:120:41,drift_z_rad_s=-5e-6:5e-6:41").unwrap();
         assert_eq!(a.len(), 2);
         assert_eq!(a[1].values()[20], 0.0);
+        let yaw = parse_over("odo_yaw_deg=-1:1:5").unwrap();
+        let mut x = X {
+            azimuth_deg: 0.0,
+            drift_deg_h: [0.0; 3],
+            odo_ppm: 0.0,
+            tilt_mrad: [0.0; 2],
+            odo_yaw_deg: 0.0,
+        };
+        yaw[0].apply(&mut x, yaw[0].values()[3]);
+        assert_eq!(x.odo_yaw_deg, 0.5);
         for bad in [
             "azimuth=1:2:3",
             "azimuth_deg=1:2",
