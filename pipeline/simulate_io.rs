@@ -13,6 +13,49 @@ use unz_formats::{schema, tables};
 use unz_stages::earth;
 use unz_stages::simulate::{SimRun, faults};
 
+/// What the simulator makes of a configuration changes when its code does: bump this with
+/// it, so that [`simulated_before`] does not trust runs of an older simulator.
+const SIMULATOR_VERSION: u32 = 2;
+
+/// The marker written last into a simulated run's folder: which configuration made it.
+const MARKER: &str = "simulated.json";
+
+/// The marker's content for `config` (written as the file's only line).
+fn marker_of(config: &unz_stages::simulate::SimConfig, faulty: bool) -> String {
+    serde_json::json!({
+        "simulator": SIMULATOR_VERSION,
+        "config": format!("{config:?}"),
+        "faulty": faulty,
+    })
+    .to_string()
+}
+
+/// The run folder `dir/<name>/` if it already holds what `config` simulates (its marker,
+/// written after every other file, says so); otherwise `None`.
+pub fn simulated_before(
+    config: &unz_stages::simulate::SimConfig,
+    faulty: bool,
+    dir: &Path,
+) -> Option<PathBuf> {
+    let name = if faulty {
+        format!("{}-faulty", config.name)
+    } else {
+        config.name.clone()
+    };
+    let run_dir = dir.join(name);
+    let marker = std::fs::read_to_string(run_dir.join(MARKER)).ok()?;
+    (marker == marker_of(config, faulty)).then_some(run_dir)
+}
+
+/// Records in `run_dir` that it holds what `config` simulates (call after every file).
+fn mark_simulated(run: &SimRun, faulty: bool, run_dir: &Path) -> anyhow::Result<()> {
+    write_atomic(
+        &run_dir.join(MARKER),
+        marker_of(&run.config, faulty).as_bytes(),
+    )?;
+    Ok(())
+}
+
 /// Writes one simulated run into `dir/<name>/`; returns the run folder.
 pub fn write_run(run: &SimRun, dir: &Path) -> anyhow::Result<PathBuf> {
     let name = &run.config.name;
@@ -26,6 +69,7 @@ pub fn write_run(run: &SimRun, dir: &Path) -> anyhow::Result<PathBuf> {
         &run_dir.join("run.toml"),
         run.manifest_toml(name, &raw_name).as_bytes(),
     )?;
+    mark_simulated(run, false, &run_dir)?;
     Ok(run_dir)
 }
 
@@ -44,6 +88,7 @@ pub fn write_faulty_copy(run: &SimRun, dir: &Path) -> anyhow::Result<PathBuf> {
         &run_dir.join("run.toml"),
         run.manifest_toml(&name, &raw_name).as_bytes(),
     )?;
+    mark_simulated(run, true, &run_dir)?;
     Ok(run_dir)
 }
 
@@ -114,4 +159,31 @@ fn write_truth(run: &SimRun, run_dir: &Path) -> anyhow::Result<()> {
     write_batch(&run_dir.join("truth.parquet"), &batch)?;
     write_json_atomic(&run_dir.join("truth.json"), &run.settings)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use unz_stages::simulate::{SimConfig, simulate};
+
+    #[test]
+    fn a_run_is_reused_only_for_the_configuration_that_made_it() {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut config = SimConfig::new("reuse", 5);
+        config.duration_s = 160.0;
+        assert_eq!(simulated_before(&config, false, tmp.path()), None);
+        let run_dir = write_run(&simulate(&config), tmp.path()).unwrap();
+        assert_eq!(
+            simulated_before(&config, false, tmp.path()),
+            Some(run_dir.clone())
+        );
+        // Another configuration, or the damaged copy, is not what is there.
+        let mut other = config.clone();
+        other.azimuth_error_deg = Some(3.0);
+        assert_eq!(simulated_before(&other, false, tmp.path()), None);
+        assert_eq!(simulated_before(&config, true, tmp.path()), None);
+        // Without the marker (a write cut short) nothing is trusted.
+        std::fs::remove_file(run_dir.join(MARKER)).unwrap();
+        assert_eq!(simulated_before(&config, false, tmp.path()), None);
+    }
 }

@@ -31,9 +31,13 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
     let dirs: Vec<PathBuf> = super::simulate::configs(&sim)?
         .par_iter()
         .map(|c| {
-            let run = unz_stages::simulate::simulate(c);
             // The second run is archived damaged: bad CRCs, garbage, lost records…
-            if c.seed == 2 {
+            let faulty = c.seed == 2;
+            if let Some(dir) = crate::simulate_io::simulated_before(c, faulty, &campaign) {
+                return Ok(dir);
+            }
+            let run = unz_stages::simulate::simulate(c);
+            if faulty {
                 crate::simulate_io::write_faulty_copy(&run, &campaign)
             } else {
                 crate::simulate_io::write_run(&run, &campaign)
