@@ -86,6 +86,10 @@ pub struct SimulateArgs {
     /// IMU's x axis turned by it (what `[disupt] joint_odo_yaw` estimates).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub odo_boresight_deg: f64,
+    /// Odometer lag, s: the count logged with IMU time t is the distance at t − lag
+    /// (derive's `odo_time_offset_s` = −lag undoes it).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub odo_lag_s: f64,
 }
 
 /// Arguments shared by the stage commands.

@@ -27,6 +27,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         no_gyro_drift: false,
         no_odo_scale_error: false,
         odo_boresight_deg: 0.0,
+        odo_lag_s: 0.0,
     };
     let dirs: Vec<PathBuf> = super::simulate::configs(&sim)?
         .par_iter()

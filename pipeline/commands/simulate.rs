@@ -17,6 +17,12 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             args.odo_boresight_deg
         );
     }
+    if args.odo_lag_s.is_nan() || args.odo_lag_s.abs() > 5.0 {
+        bail!(
+            "--odo-lag-s {} is not an odometer's lag (at most 5 s)",
+            args.odo_lag_s
+        );
+    }
     if args.static_s < 60.0 {
         bail!(
             "--static-s {} is shorter than the 60 s a static start needs",
@@ -37,6 +43,7 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             c.static_s = args.static_s;
             c.azimuth_error_deg = args.azimuth_error_deg;
             c.odo_boresight_deg = args.odo_boresight_deg;
+            c.odo_lag_s = args.odo_lag_s;
             c.errors = SensorErrors {
                 noise: !args.no_noise,
                 gyro_drift: !args.no_gyro_drift,

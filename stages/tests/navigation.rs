@@ -166,3 +166,63 @@ fn criteria_are_smallest_near_the_true_settings() {
         (dy_k1 - d[1]) / DEG_PER_H
     );
 }
+
+/// An odometer logged 0.3 s late resolves each increment with the heading of another
+/// moment (metres per turn) and shifts u̇ against the accelerometers. derive's
+/// `odo_time_offset_s` = −0.3 s undoes both: the route and the pitch residuals come back
+/// to those of an odometer on time.
+#[test]
+fn the_odometer_time_offset_undoes_a_lagging_odometer() {
+    use unz_stages::criteria::{Kryt1Scratch, epoch_attitude};
+    use unz_stages::derive::DeriveParams;
+    use unz_stages::simulate::SimConfig;
+
+    let mut config = SimConfig::new("nav", 45);
+    config.odo_lag_s = 0.3;
+    let on_time = common::case_of(&SimConfig {
+        odo_lag_s: 0.0,
+        ..config.clone()
+    });
+    let lagging = common::case_of(&config);
+    let corrected = common::case_derived_with(
+        &config,
+        &DeriveParams {
+            odo_time_offset_s: -0.3,
+            ..DeriveParams::default()
+        },
+    );
+    assert_eq!(lagging.run.settings.odo_lag_s, 0.3);
+    // Route error with the true settings, and the RMS pitch residual of the valid epochs.
+    let measure = |c: &common::Case| {
+        let track = c.nav(&c.true_settings());
+        let (mut theta, mut phi) = (Vec::new(), Vec::new());
+        let e = &c.derived.epochs;
+        epoch_attitude(
+            e,
+            &c.lowpass(),
+            &track,
+            &mut Kryt1Scratch::default(),
+            &mut theta,
+            &mut phi,
+        );
+        let r: Vec<f64> = (0..e.block.len())
+            .filter(|&k| e.valid[k])
+            .map(|k| theta[k] - e.theta_p_rad[k])
+            .collect();
+        let rms = (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt();
+        (c.max_route_error_m(&track), rms)
+    };
+    let (route_on_time, rms_on_time) = measure(&on_time);
+    let (route_lagging, rms_lagging) = measure(&lagging);
+    let (route_corrected, rms_corrected) = measure(&corrected);
+    eprintln!(
+        "route error / pitch residual RMS: on time {route_on_time:.1} m / {:.2} mrad, lagging {route_lagging:.1} m / {:.2} mrad, offset −0.3 s {route_corrected:.1} m / {:.2} mrad",
+        rms_on_time * 1e3,
+        rms_lagging * 1e3,
+        rms_corrected * 1e3
+    );
+    assert!(route_lagging > 3.0 * route_on_time.max(1.0));
+    assert!((route_corrected - route_on_time).abs() < 0.5);
+    assert!(rms_lagging > 1.1 * rms_on_time);
+    assert!((rms_corrected / rms_on_time - 1.0).abs() < 0.05);
+}

@@ -81,6 +81,9 @@ pub struct SimConfig {
     /// IMU's x axis turned by it (clockwise seen from above), so the IMU's heading is the
     /// vehicle's minus it. Zero by default.
     pub odo_boresight_deg: f64,
+    /// Odometer lag, s: the count logged with IMU time t is the distance at t − lag (so
+    /// derive's `odo_time_offset_s` should be −lag). Zero by default.
+    pub odo_lag_s: f64,
 }
 
 impl SimConfig {
@@ -95,6 +98,7 @@ impl SimConfig {
             azimuth_error_deg: None,
             substeps: 10,
             odo_boresight_deg: 0.0,
+            odo_lag_s: 0.0,
         }
     }
 }
@@ -121,6 +125,9 @@ pub struct TrueSettings {
     /// Odometer yaw boresight, degrees (see [`SimConfig::odo_boresight_deg`]).
     #[serde(default)]
     pub odo_boresight_deg: f64,
+    /// Odometer lag, s (see [`SimConfig::odo_lag_s`]).
+    #[serde(default)]
+    pub odo_lag_s: f64,
     /// Angle random walk, rad/√s.
     pub arw_rad_sqrt_s: f64,
     /// Velocity random walk, (m/s)/√s.
@@ -349,6 +356,23 @@ pub fn simulate(config: &SimConfig) -> SimRun {
         truth.distance_m.push(distance);
     }
 
+    // A lagging odometer logs, with IMU time t, the distance at t − lag.
+    if config.odo_lag_s != 0.0 {
+        let distance_at = |t: f64| {
+            let x = t / dt - 1.0; // truth.distance_m[k] is at (k + 1)·dt
+            if x < 0.0 {
+                return truth.distance_m[0] * (x + 1.0).max(0.0);
+            }
+            let k = (x.floor() as usize).min(n - 1);
+            let next = truth.distance_m[(k + 1).min(n - 1)];
+            truth.distance_m[k] + (next - truth.distance_m[k]) * (x - k as f64)
+        };
+        for (k, r) in records.iter_mut().enumerate() {
+            let t = (k + 1) as f64 * dt - config.odo_lag_s;
+            r.odo_count = (distance_at(t) / true_m_per_pulse).floor() as u64 as u32;
+        }
+    }
+
     // Control points at the planned stops, marked 5 s into the stop.
     let mut marks = Vec::new();
     let mut control_points = Vec::new();
@@ -390,6 +414,7 @@ pub fn simulate(config: &SimConfig) -> SimRun {
             odo_scale_m_per_pulse: true_m_per_pulse,
             nominal_odo_m_per_pulse: 0.0125,
             odo_boresight_deg: config.odo_boresight_deg,
+            odo_lag_s: config.odo_lag_s,
             arw_rad_sqrt_s: if e.noise { LN200_ARW_RAD_SQRT_S } else { 0.0 },
             vrw_mps_sqrt_s: if e.noise { LN200_VRW_MPS_SQRT_S } else { 0.0 },
             errors: e,

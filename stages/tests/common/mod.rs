@@ -30,6 +30,11 @@ pub fn case_with(seed: u64, errors: SensorErrors, azimuth_error_deg: Option<f64>
 
 /// A simulated run of `config`, derived.
 pub fn case_of(config: &SimConfig) -> Case {
+    case_derived_with(config, &DeriveParams::default())
+}
+
+/// A simulated run of `config`, derived with `params`.
+pub fn case_derived_with(config: &SimConfig, params: &DeriveParams) -> Case {
     let run = simulate(config);
     let lsb = (run.header.dtheta_lsb_rad, run.header.dvel_lsb_mps);
     let t_ns: Vec<i64> = run.records.iter().map(|r| r.t_us as i64 * 1000).collect();
@@ -56,7 +61,7 @@ pub fn case_of(config: &SimConfig) -> Case {
         odo_distance_m: &odo,
     };
     let g = earth::normal_gravity_mps2(run.site[0].to_radians(), run.site[2]);
-    let derived = derive(&raw, &DeriveParams::default(), g);
+    let derived = derive(&raw, params, g);
     let fixes = run
         .marks
         .iter()
