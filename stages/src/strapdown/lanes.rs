@@ -169,7 +169,8 @@ impl<const N: usize> Lanes<N> {
 
     /// Steps every lane over all samples of `inputs`, calling `emit.emit(k, lanes)` after
     /// sample `k`. On x86-64 CPUs with AVX2 the loop runs in 4-wide vector registers,
-    /// elsewhere in SSE2's 2-wide ones; the results are the same bit for bit.
+    /// elsewhere in the target's baseline ones (SSE2's 2-wide on x86-64); the results are
+    /// the same bit for bit.
     #[inline(always)]
     pub fn run(self, inputs: &NavInputs<'_>, emit: &mut impl Emit<N>) {
         #[cfg(target_arch = "x86_64")]
