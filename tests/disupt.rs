@@ -2,25 +2,17 @@
 
 use serde_json::Value;
 
-use crate::util::{python, python_json, unz_ok};
+use crate::util::{python, python_json, simulated_run, unz_ok};
 
 #[test]
 fn disupt_and_sweep_through_the_binary() {
     let tmp = tempfile::tempdir().unwrap();
-    let campaign = tmp.path().join("c");
     let out = tmp.path().join("o");
-    unz_ok(&[
-        "simulate",
-        "--out",
-        campaign.to_str().unwrap(),
-        "--seed",
-        "77",
-        "--duration-s",
-        "900",
-        "--azimuth-error-deg",
-        "6",
-    ]);
-    let run = campaign.join("sim-0077");
+    let run = simulated_run(
+        tmp.path(),
+        77,
+        &["--duration-s", "900", "--azimuth-error-deg", "6"],
+    );
     let truth: Value =
         serde_json::from_slice(&std::fs::read(run.join("truth.json")).unwrap()).unwrap();
     let true_az = truth["azimuth_deg"].as_f64().unwrap();
@@ -99,20 +91,12 @@ fn disupt_and_sweep_through_the_binary() {
 #[test]
 fn joint_estimates_an_odometer_boresight_when_configured() {
     let tmp = tempfile::tempdir().unwrap();
-    let campaign = tmp.path().join("c");
     let out = tmp.path().join("o");
-    unz_ok(&[
-        "simulate",
-        "--out",
-        campaign.to_str().unwrap(),
-        "--seed",
-        "79",
-        "--azimuth-error-deg",
-        "6",
-        "--odo-boresight-deg",
-        "2",
-    ]);
-    let run = campaign.join("sim-0079");
+    let run = simulated_run(
+        tmp.path(),
+        79,
+        &["--azimuth-error-deg", "6", "--odo-boresight-deg", "2"],
+    );
     let truth: Value =
         serde_json::from_slice(&std::fs::read(run.join("truth.json")).unwrap()).unwrap();
     assert_eq!(truth["odo_boresight_deg"].as_f64(), Some(2.0));
@@ -145,23 +129,9 @@ fn joint_estimates_an_odometer_boresight_when_configured() {
 #[test]
 fn export_writes_foxglove_channels() {
     let tmp = tempfile::tempdir().unwrap();
-    let campaign = tmp.path().join("c");
     let out = tmp.path().join("o");
-    unz_ok(&[
-        "simulate",
-        "--out",
-        campaign.to_str().unwrap(),
-        "--seed",
-        "78",
-        "--duration-s",
-        "300",
-    ]);
-    unz_ok(&[
-        "run",
-        campaign.join("sim-0078").to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let run = simulated_run(tmp.path(), 78, &["--duration-s", "300"]);
+    unz_ok(&["run", run.to_str().unwrap(), "--out", out.to_str().unwrap()]);
     let dir = out.join("sim-0078/export");
     assert!(dir.join("corrected_nav.parquet").is_file());
     let Some(py) = python() else { return };

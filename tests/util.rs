@@ -20,6 +20,23 @@ pub fn unz_ok(args: &[&str]) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
+/// Simulates the run of `seed` (with `options` for `unz simulate`) into `dir/c/`; returns
+/// its folder.
+pub fn simulated_run(dir: &Path, seed: u32, options: &[&str]) -> PathBuf {
+    let campaign = dir.join("c");
+    let seed_arg = seed.to_string();
+    let mut args = vec![
+        "simulate",
+        "--out",
+        campaign.to_str().unwrap(),
+        "--seed",
+        &seed_arg,
+    ];
+    args.extend_from_slice(options);
+    unz_ok(&args);
+    campaign.join(format!("sim-{seed:04}"))
+}
+
 /// Runs `unz` with `args`, returning the whole output.
 pub fn unz_output(args: &[&str]) -> Output {
     unz().args(args).output().expect("unz runs")
