@@ -245,14 +245,13 @@ impl<'a> Problem<'a> {
                         .observe_lanes::<8>(&std::array::from_fn(padded), n, tally)
                         .into(),
                 };
-                ys.into_iter().take(chunk.len())
+                ys.into_iter().take(n)
             })
             .collect()
     }
 
-    /// `N` ≤ [`LANES`] exact passes side by side.
-    /// Only the first `points` lanes count as passes (the rest repeat a point to fill
-    /// the batch).
+    /// `N` ≤ [`LANES`] exact passes side by side. Only the first `points` lanes count as
+    /// passes (the rest repeat a point to fill the batch).
     fn observe_lanes<const N: usize>(
         &self,
         xs: &[X; N],
