@@ -272,11 +272,11 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
     while j < blocks {
         let first = j * lp.block;
         let last = ((j + 1) * lp.block).min(n) - 1;
-        let sin_theta = ((out.ax_f[j] - out.u_dot_f[j]) / g_mps2).clamp(-1.0, 1.0);
-        let theta = sin_theta.asin();
+        let theta = ((out.ax_f[j] - out.u_dot_f[j]) / g_mps2)
+            .clamp(-1.0, 1.0)
+            .asin();
         let lateral = out.ay_f[j] - out.ru_f[j];
-        let sin_phi = -(lateral / (g_mps2 * theta.cos())).clamp(-1.0, 1.0);
-        let phi = sin_phi.asin();
+        let phi = -(lateral / (g_mps2 * theta.cos())).clamp(-1.0, 1.0).asin();
         // With boresight δ: a_x − u̇ + ru·δ and a_y − ru − u̇·δ to first order.
         let theta_per_yaw = out.ru_f[j] / g_mps2 / theta.cos();
         let phi_per_yaw = -(-out.u_dot_f[j] / (g_mps2 * theta.cos())

@@ -338,7 +338,7 @@ pub fn simulate(config: &SimConfig) -> SimRun {
             t_us,
             dtheta: rec_theta,
             dvel: rec_vel,
-            odo_count: (distance / true_m_per_pulse).floor() as u64 as u32,
+            odo_count: 0, // below, from the truth's distance (and the odometer's lag)
             status: 0,
         });
         let kin = motion.at(t_end);
@@ -356,21 +356,19 @@ pub fn simulate(config: &SimConfig) -> SimRun {
         truth.distance_m.push(distance);
     }
 
-    // A lagging odometer logs, with IMU time t, the distance at t − lag.
-    if config.odo_lag_s != 0.0 {
-        let distance_at = |t: f64| {
-            let x = t / dt - 1.0; // truth.distance_m[k] is at (k + 1)·dt
-            if x < 0.0 {
-                return truth.distance_m[0] * (x + 1.0).max(0.0);
-            }
-            let k = (x.floor() as usize).min(n - 1);
-            let next = truth.distance_m[(k + 1).min(n - 1)];
-            truth.distance_m[k] + (next - truth.distance_m[k]) * (x - k as f64)
-        };
-        for (k, r) in records.iter_mut().enumerate() {
-            let t = (k + 1) as f64 * dt - config.odo_lag_s;
-            r.odo_count = (distance_at(t) / true_m_per_pulse).floor() as u64 as u32;
+    // The odometer logs, with IMU time t, the distance at t − lag (exactly the truth's
+    // distance at t without a lag). `x` counts samples: truth.distance_m[k] is at x = k.
+    let distance_at = |x: f64| {
+        if x < 0.0 {
+            return truth.distance_m[0] * (x + 1.0).max(0.0);
         }
+        let k = (x.floor() as usize).min(n - 1);
+        let next = truth.distance_m[(k + 1).min(n - 1)];
+        truth.distance_m[k] + (next - truth.distance_m[k]) * (x - k as f64)
+    };
+    for (k, r) in records.iter_mut().enumerate() {
+        let x = k as f64 - config.odo_lag_s / dt;
+        r.odo_count = (distance_at(x) / true_m_per_pulse).floor() as u64 as u32;
     }
 
     // Control points at the planned stops, marked 5 s into the stop.
