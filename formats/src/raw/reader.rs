@@ -175,6 +175,16 @@ impl<R: Read> RawReader<R> {
         if self.eof || self.end - self.pos >= MAX_FRAME_LEN {
             return Ok(());
         }
+        self.refill()
+    }
+
+    /// Moves `buf[pos..end]` to the front and reads until the buffer is full or the file
+    /// ends, whatever is already buffered. The buffer holds far more than the two frames
+    /// a resync search keeps, so this always makes room.
+    fn refill(&mut self) -> Result<(), FormatError> {
+        if self.eof {
+            return Ok(());
+        }
         self.buf.copy_within(self.pos..self.end, 0);
         self.base += self.pos as u64;
         self.end -= self.pos;
@@ -295,7 +305,9 @@ impl<R: Read> RawReader<R> {
                     .saturating_sub(MAX_FRAME_LEN as u64)
                     .max(from_offset);
                 self.pos = (keep_from - self.base) as usize;
-                self.fill()?;
+                // Not `fill`: up to two frames are kept, which it would take as enough
+                // and never read on (the search then spun at the same place forever).
+                self.refill()?;
                 q = (q_offset - self.base) as usize;
                 continue;
             }
