@@ -6,7 +6,7 @@ use std::path::Path;
 use serde_json::Value;
 use unz_formats::IngestReport;
 
-use crate::util::{python, python_json, shared_data, unz_ok};
+use crate::util::{python, python_json, test_data, unz_ok};
 
 fn report(path: &Path) -> IngestReport {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
@@ -78,6 +78,32 @@ fn simulated_runs_ingest_and_faults_are_accounted_exactly() {
     assert!(spec_keys.iter().all(|k| got.contains_key(*k)));
     assert_eq!(got["rejected"].as_object().unwrap().len(), 4);
 
+    // Regression: derive's counts survive the stage cache. navigate reads the cached
+    // derive (a second process), and reports the time tags repaired and the gaps filled:
+    // every accepted record whose time did not increase, and every gap between accepted
+    // records (a lost stretch is closed by the next sample).
+    let faulty = campaign.join("sim-0040-faulty");
+    unz_ok(&[
+        "derive",
+        faulty.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    unz_ok(&[
+        "navigate",
+        faulty.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let nav: Value = serde_json::from_slice(
+        &std::fs::read(out.join("sim-0040-faulty/navigate/navigate.json")).unwrap(),
+    )
+    .unwrap();
+    let t_back = want["t_non_increasing"].as_u64().unwrap();
+    assert!(t_back > 0);
+    assert_eq!(nav["repaired_times"].as_u64(), Some(t_back), "{nav}");
+    assert!(nav["filled_gaps"].as_u64().unwrap() > 0, "{nav}");
+
     if let Some(py) = python() {
         let info = python_json(
             &py,
@@ -113,7 +139,7 @@ fn simulated_runs_ingest_and_faults_are_accounted_exactly() {
 #[test]
 fn kingston_text_log_ingests_with_aligned_odometer() {
     let tmp = tempfile::tempdir().unwrap();
-    let run = shared_data("kingston2008-seg1");
+    let run = test_data("kingston2008-seg1");
     unz_ok(&[
         "ingest",
         run.to_str().unwrap(),

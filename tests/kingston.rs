@@ -1,5 +1,5 @@
 //! Real data: the Kingston 2008 segment (HG1700 IMU at 10 Hz, OBD-II speed at 1 Hz,
-//! NovAtel SPAN reference). See ../shared/data/kingston2008-seg1/README.md.
+//! NovAtel SPAN reference). See tests/data/kingston2008-seg1/README.md.
 
 use unz::flow::{Overrides, Params, RunCtx, load_case};
 use unz::runs::load_run;
@@ -7,7 +7,7 @@ use unz_stages::attitude::wrap_pi;
 use unz_stages::criteria;
 use unz_stages::strapdown::NavTrack;
 
-use crate::util::shared_data;
+use crate::util::test_data;
 
 /// The reference at 1 Hz: t_s, roll, pitch, azimuth (degrees), speed (m/s).
 struct Reference {
@@ -19,7 +19,7 @@ struct Reference {
 }
 
 fn reference() -> Reference {
-    let text = std::fs::read_to_string(shared_data("kingston2008-seg1").join("truth.csv")).unwrap();
+    let text = std::fs::read_to_string(test_data("kingston2008-seg1").join("truth.csv")).unwrap();
     let mut r = Reference {
         t_s: vec![],
         roll: vec![],
@@ -61,7 +61,7 @@ fn at_reference(track: &NavTrack, t0_s: f64, t_s: &[f64], r: &Reference) -> Vec<
 fn kingston_gyrocompass_heading_changes_attitude_and_control_points() {
     let out = tempfile::tempdir().unwrap();
     let ctx = RunCtx::new(
-        load_run(&shared_data("kingston2008-seg1")).unwrap(),
+        load_run(&test_data("kingston2008-seg1")).unwrap(),
         out.path().to_path_buf(),
         false,
     );
@@ -176,7 +176,7 @@ fn kingston_disupt_corrects_the_gyrocompass_heading() {
 
     let out = tempfile::tempdir().unwrap();
     let ctx = RunCtx::new(
-        load_run(&shared_data("kingston2008-seg1")).unwrap(),
+        load_run(&test_data("kingston2008-seg1")).unwrap(),
         out.path().to_path_buf(),
         false,
     );

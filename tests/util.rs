@@ -42,11 +42,11 @@ pub fn unz_output(args: &[&str]) -> Output {
     unz().args(args).output().expect("unz runs")
 }
 
-/// The shared data folder (`../shared/data`).
-pub fn shared_data(name: &str) -> PathBuf {
+/// A real data set shipped with the tests (`tests/data/<name>`; see its README for the
+/// source and licence). No test reads outside the repository.
+pub fn test_data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("..")
-        .join("shared")
+        .join("tests")
         .join("data")
         .join(name)
 }
