@@ -90,6 +90,13 @@ pub struct SimulateArgs {
     /// (derive's `odo_time_offset_s` = −lag undoes it).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub odo_lag_s: f64,
+    /// Put a control point at every intermediate stop (default: mid-route and final only).
+    #[arg(long)]
+    pub cp_at_every_stop: bool,
+    /// Begin the log this far into the run, s, while driving: no static start
+    /// (`static_s = 0` in the manifest), the site and truth taken at that moment.
+    #[arg(long)]
+    pub log_start_s: Option<f64>,
 }
 
 /// Arguments shared by the stage commands.

@@ -16,6 +16,10 @@ use unz_stages::derive::{Derived, Epochs};
 const META_BLOCK: &str = "unz.block";
 /// Metadata key: nominal sample period, s.
 const META_NOMINAL_DT: &str = "unz.nominal_dt_s";
+/// Metadata key: samples whose time tag derive repaired.
+const META_REPAIRED_TIMES: &str = "unz.repaired_times";
+/// Metadata key: samples that closed a gap and were scaled to it.
+const META_FILLED_GAPS: &str = "unz.filled_gaps";
 
 fn f64s(v: &[f64]) -> Arc<Float64Array> {
     Arc::new(Float64Array::from(v.to_vec()))
@@ -27,6 +31,8 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
     let meta = std::collections::HashMap::from([
         (META_BLOCK.to_owned(), d.block.to_string()),
         (META_NOMINAL_DT.to_owned(), d.nominal_dt_s.to_string()),
+        (META_REPAIRED_TIMES.to_owned(), d.repaired_times.to_string()),
+        (META_FILLED_GAPS.to_owned(), d.filled_gaps.to_string()),
         ("unz.table".to_owned(), "derived".to_owned()),
     ]);
     let schema = Arc::new(Schema::new_with_metadata(
@@ -100,7 +106,8 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Loads what [`write_derived`] wrote (the per-block filtered series are not kept).
+/// Loads what [`write_derived`] wrote, counts included (the per-block filtered series
+/// are not kept).
 pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
     let path = dir.join("derived.parquet");
     let (schema, b) = read_table(&path)?;
@@ -126,6 +133,10 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
         r_rad_s: f64_column(&b, "r_rad_s")?,
         ru_mps2: f64_column(&b, "ru_mps2")?,
         block: meta(META_BLOCK)?.parse()?,
+        repaired_times: meta(META_REPAIRED_TIMES)?.parse()?,
+        filled_gaps: meta(META_FILLED_GAPS)?.parse()?,
+        // The per-block filtered series are not stored: their values at the epochs are
+        // in epochs.parquet, and nothing downstream reads the rest.
         ..Derived::default()
     };
     let epath = dir.join("epochs.parquet");

@@ -8,12 +8,21 @@ use rayon::prelude::*;
 use serde::Serialize;
 use unz_formats::atomic::{write_atomic, write_json_atomic};
 use unz_stages::criteria::{self, Kryt1Scratch, Kryt1Series, Kryt2};
-use unz_stages::disupt::{self, MethodResult, Problem, X};
+use unz_stages::derive::Derived;
+use unz_stages::disupt::{
+    self, Holdout, JointFit, JointOptions, MethodResult, Problem, ProblemSpec, X, joint_fit,
+};
 use unz_stages::filter::LowPass;
+use unz_stages::linearized::FD_STEP;
+use unz_stages::odo_lag::{Rederive, joint_with_lag};
+use unz_stages::route_sigma::{Moved, RouteSigma, route_sigma};
 use unz_stages::simulate::DEG_PER_H;
 use unz_stages::strapdown::{NavSettings, NavTrack};
 
-use crate::flow::{NavCase, Overrides, Params, RunCtx, ensure_derive, load_case, write_nav};
+use crate::flow::{
+    IngestedSeries, NavCase, Overrides, Params, RunCtx, ensure_derive, load_case,
+    site_gravity_mps2, write_nav,
+};
 use crate::method_tables::{
     KRYT1_SERIES, MethodKryt1, MethodTrack, TRACKS, method_kryt1, method_track, write_kryt1_series,
     write_tracks,
@@ -36,7 +45,7 @@ pub enum Method {
 }
 
 /// Settings as reported.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct SettingsOut {
     /// Initial azimuth, degrees.
     pub azimuth_deg: f64,
@@ -46,13 +55,16 @@ pub struct SettingsOut {
     pub odo_scale: f64,
     /// Odometer yaw boresight, degrees (moved by the joint fit only, when asked).
     pub odo_yaw_deg: f64,
+    /// Odometer lag, s (positive: the odometer reports late), beyond derive's
+    /// `odo_time_offset_s`; estimated by the joint fit only.
+    pub odo_lag_s: f64,
     /// 1σ of each (joint only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma: Option<SigmaOut>,
 }
 
 /// 1σ of the settings.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct SigmaOut {
     /// degrees.
     pub azimuth_deg: f64,
@@ -62,10 +74,12 @@ pub struct SigmaOut {
     pub odo_scale: f64,
     /// degrees (0 when not estimated).
     pub odo_yaw_deg: f64,
+    /// s (0 when not estimated).
+    pub odo_lag_s: f64,
 }
 
 /// One method in `disupt.json`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct MethodOut {
     /// Optimised settings.
     pub x: SettingsOut,
@@ -81,12 +95,16 @@ pub struct MethodOut {
     pub steps: Vec<disupt::Step>,
     /// Navigation passes.
     pub evaluations: usize,
-    /// Wall time, s.
-    pub wall_s: f64,
+    /// Joint only: the error at each control point when it was left out of the fit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout: Option<Vec<Holdout>>,
+    /// Joint only, with the lag estimated: every lag tried (s) and the fit's cost there.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lag_profile: Option<Vec<[f64; 2]>>,
 }
 
 /// `disupt.json`.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct DisuptOut {
     /// Distance travelled to the last control point, m.
     pub distance_m: f64,
@@ -98,15 +116,16 @@ pub struct DisuptOut {
     pub skipped: std::collections::BTreeMap<String, String>,
     /// The method whose settings made `corrected_nav.parquet`.
     pub corrected_by: Option<String>,
+    /// The start of the searches when a coarse search over ±180° of azimuth by the
+    /// control points found a better one than the run's initial azimuth, degrees.
+    pub coarse_azimuth_deg: Option<f64>,
     /// Passes of the first linearisation, shared by the methods (not in their own
     /// `evaluations`).
     pub shared_passes: usize,
-    /// Wall time of the three methods together (they run concurrently), s.
-    pub wall_s: f64,
 }
 
 /// Errors before DISUPT.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct Before {
     /// Settings.
     pub x: SettingsOut,
@@ -120,23 +139,32 @@ pub struct Before {
     pub control_points: Vec<Kryt2>,
 }
 
-fn settings_out(x: &X, base: &NavSettings, sigma: Option<&X>) -> SettingsOut {
+/// The odometer lag of a method and its 1σ, s.
+#[derive(Debug, Clone, Copy, Default)]
+struct Lag {
+    lag_s: f64,
+    sigma_s: f64,
+}
+
+fn settings_out(x: &X, base: &NavSettings, sigma: Option<&X>, lag: Lag) -> SettingsOut {
     let base_scale = base.odo_scale;
     SettingsOut {
         azimuth_deg: x.azimuth_deg.rem_euclid(360.0),
         drift_rad_s: x.drift_deg_h.map(|d| d * DEG_PER_H),
         odo_scale: base_scale * (1.0 + x.odo_ppm * 1e-6),
         odo_yaw_deg: base.odo_yaw_rad.to_degrees() + x.odo_yaw_deg,
+        odo_lag_s: lag.lag_s,
         sigma: sigma.map(|s| SigmaOut {
             azimuth_deg: s.azimuth_deg,
             drift_rad_s: s.drift_deg_h.map(|d| d * DEG_PER_H),
             odo_scale: base_scale * s.odo_ppm * 1e-6,
             odo_yaw_deg: s.odo_yaw_deg,
+            odo_lag_s: lag.sigma_s,
         }),
     }
 }
 
-fn table(name: &str, r: &MethodResult) -> String {
+fn table(name: &str, r: &MethodOut) -> String {
     let mut s = format!(
         "## {name}\n\n| step | moved | by | azpocz in | driftx in | drifty in | driftz in | azpopt | driftx opt | drifty opt | driftz opt | ΔX [m] | ΔY [m] | passes |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
     );
@@ -161,11 +189,16 @@ fn table(name: &str, r: &MethodResult) -> String {
             st.evaluations
         );
     }
-    if let Some(sd) = &r.sigma {
+    if let Some(sd) = &r.x.sigma {
+        let per_h = |v: f64| v / DEG_PER_H;
         let _ = writeln!(
             s,
             "\n1σ: azimuth {:.3}°, drifts [{:.3}, {:.3}, {:.3}] °/h, odometer {:.0} ppm",
-            sd.azimuth_deg, sd.drift_deg_h[0], sd.drift_deg_h[1], sd.drift_deg_h[2], sd.odo_ppm
+            sd.azimuth_deg,
+            per_h(sd.drift_rad_s[0]),
+            per_h(sd.drift_rad_s[1]),
+            per_h(sd.drift_rad_s[2]),
+            sd.odo_scale / r.x.odo_scale * 1e6
         );
         if sd.odo_yaw_deg > 0.0 {
             let _ = writeln!(
@@ -174,8 +207,24 @@ fn table(name: &str, r: &MethodResult) -> String {
                 r.x.odo_yaw_deg, sd.odo_yaw_deg
             );
         }
+        if r.lag_profile.is_some() {
+            let _ = writeln!(
+                s,
+                "\nOdometer lag {:.3} s ± {:.3} s (positive: it reports late).",
+                r.x.odo_lag_s, sd.odo_lag_s
+            );
+        }
     }
-    let _ = writeln!(s, "\n{} passes in {:.2} s.\n", r.evaluations, r.wall_s);
+    if let Some(h) = &r.holdout {
+        let _ = writeln!(
+            s,
+            "\nHold-out (each control point left out of the fit in turn):\n\n| point | ΔX [m] | ΔY [m] |\n|---|---|---|"
+        );
+        for p in h {
+            let _ = writeln!(s, "| {} | {:.2} | {:.2} |", p.id, p.dx_m, p.dy_m);
+        }
+    }
+    let _ = writeln!(s, "\n{} passes.\n", r.evaluations);
     s
 }
 
@@ -191,11 +240,52 @@ pub fn problem_of<'a>(case: &'a NavCase, params: &Params) -> Problem<'a> {
         params.kalman,
         &case.fixes,
     );
-    if let Some(dz) = case.initial.drift_z_at_rest_rad_s {
-        let sd = params.align.arw_rad_sqrt_s / case.initial.static_s.max(1.0).sqrt();
-        problem.drift_z_prior_deg_h = Some((dz / DEG_PER_H, sd / DEG_PER_H));
-    }
+    problem.drift_z_prior_deg_h = spec_of(case, case.settings, params).drift_z_prior_deg_h;
     problem
+}
+
+/// The DISUPT problem of `case` around `settings`, to be set on a derive (the case's own,
+/// or one with the odometer shifted).
+pub fn spec_of<'a>(case: &'a NavCase, settings: NavSettings, params: &Params) -> ProblemSpec<'a> {
+    let prior = case.initial.drift_z_at_rest_rad_s.map(|dz| {
+        let sd = params.align.arw_rad_sqrt_s / case.initial.static_s.max(1.0).sqrt();
+        (dz / DEG_PER_H, sd / DEG_PER_H)
+    });
+    ProblemSpec {
+        settings,
+        filter: params.derive.filter,
+        kalman: params.kalman,
+        fixes: &case.fixes,
+        drift_z_prior_deg_h: prior,
+    }
+}
+
+/// Step of the coarse azimuth search, degrees: the local searches then start within half
+/// of it of the best grid point, well inside their ±15°.
+const COARSE_AZIMUTH_STEP_DEG: f64 = 5.0;
+
+/// The azimuth with the smallest RMS error over the control points on a grid over ±180°
+/// around the problem's start, when it beats the start; `None` without control points.
+pub fn coarse_azimuth_deg(problem: &Problem<'_>) -> Option<f64> {
+    if problem.fixes.is_empty() {
+        return None;
+    }
+    let x0 = problem.x0();
+    let steps = (360.0 / COARSE_AZIMUTH_STEP_DEG) as usize;
+    let mut xs: Vec<X> = (0..steps)
+        .map(|i| X {
+            azimuth_deg: x0.azimuth_deg + i as f64 * COARSE_AZIMUTH_STEP_DEG,
+            ..x0
+        })
+        .collect();
+    xs[0] = x0;
+    let ys = problem.observe_many_by(&xs, &std::sync::atomic::AtomicUsize::new(0));
+    let rms: Vec<f64> = ys.iter().map(|y| y.kryt2_rms()).collect();
+    let best = (0..steps).min_by(|&a, &b| rms[a].total_cmp(&rms[b]))?;
+    (best != 0 && rms[best] < rms[0]).then(|| {
+        let az = xs[best].azimuth_deg - x0.azimuth_deg;
+        x0.azimuth_deg + (az + 180.0).rem_euclid(360.0) - 180.0
+    })
 }
 
 /// Brings derive up to date and returns the files a whole-run optimisation reads: the
@@ -211,6 +301,84 @@ pub fn case_inputs(ctx: &RunCtx, params: &Params) -> anyhow::Result<Vec<PathBuf>
     ])
 }
 
+/// The joint fit as the stage ran it: at the estimated odometer lag (with the derive
+/// there) or at the configured timing.
+struct JointRun {
+    fit: JointFit,
+    lag: Lag,
+    profile: Option<Vec<[f64; 2]>>,
+    derived: Option<Derived>,
+}
+
+/// A method's entry of `disupt.json`.
+fn method_out(r: &MethodResult, base: &NavSettings, lag: Lag, cps: Vec<Kryt2>) -> MethodOut {
+    MethodOut {
+        x: settings_out(&r.x, base, r.sigma.as_ref(), lag),
+        dx_m: r.dx_m,
+        dy_m: r.dy_m,
+        kryt1_rad: r.kryt1,
+        control_points: cps,
+        steps: r.steps.clone(),
+        evaluations: r.evaluations,
+        holdout: None,
+        lag_profile: None,
+    }
+}
+
+/// Step of the lag in the route's sensitivity, s.
+const LAG_STEP_S: f64 = 0.05;
+
+/// σ of the joint's corrected route (`track`, the pass at its settings): the fit's
+/// covariance through one moved pass per estimated setting, and the lag's variance
+/// through a pass on the derive at the moved lag.
+fn joint_route_sigma(
+    problem: &Problem<'_>,
+    run: &JointRun,
+    rederive: &Rederive<'_>,
+    track: &NavTrack,
+    arw_rad_sqrt_s: f64,
+) -> Option<RouteSigma> {
+    let fit = &run.fit;
+    let cov = fit.covariance.as_ref()?;
+    let p = disupt::params_of(&fit.result.x);
+    let mut moved: Vec<Moved<'_>> = fit
+        .free
+        .iter()
+        .map(|&j| {
+            let mut pj = p;
+            pj[j] += FD_STEP[j];
+            Moved {
+                inputs: problem.inputs,
+                settings: problem.settings(&disupt::x_of(&pj)),
+                step: FD_STEP[j],
+            }
+        })
+        .collect();
+    let m = moved.len();
+    let lag_derived;
+    let mut c = cov.clone();
+    if run.profile.is_some() && run.lag.sigma_s > 0.0 {
+        lag_derived = rederive.at(run.lag.lag_s + LAG_STEP_S);
+        moved.push(Moved {
+            inputs: lag_derived.nav_inputs(),
+            settings: problem.settings(&fit.result.x),
+            step: LAG_STEP_S,
+        });
+        c = c.resize(m + 1, m + 1, 0.0);
+        c[(m, m)] = run.lag.sigma_s * run.lag.sigma_s;
+    }
+    let stride = (0.1 / problem.inputs.dt_s.first().copied().unwrap_or(0.01)).round() as usize;
+    Some(route_sigma(
+        track,
+        &problem.settings(&fit.result.x),
+        &moved,
+        &c,
+        problem.inputs.dt_s,
+        arw_rad_sqrt_s,
+        stride,
+    ))
+}
+
 /// Stage 4.
 pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::Result<PathBuf> {
     let inputs = case_inputs(ctx, params)?;
@@ -220,7 +388,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
     let stage = Stage {
         dir: dir.clone(),
         name: "disupt",
-        version: 3,
+        version: 4,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[
@@ -233,17 +401,75 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
     };
     ctx.run_stage(&stage, || {
         let case = load_case(ctx, params, &Overrides::default())?;
-        let problem = problem_of(&case, params);
-        let mut methods = std::collections::BTreeMap::new();
-        let mut skipped = std::collections::BTreeMap::new();
-        let mut md = format!("# DISUPT: {}\n\n", m.name);
-        let wanted: &[Method] = match method {
-            Method::All => &[Method::Oepi, Method::Owpi, Method::Joint],
-            Method::Oepi => &[Method::Oepi],
-            Method::Owpi => &[Method::Owpi],
-            Method::Joint => &[Method::Joint],
+        let ingested = IngestedSeries::load(&ctx.out.join(&m.name).join("ingest"))?;
+        let rederive = Rederive::new(ingested.series(), params.derive, site_gravity_mps2(m));
+        // A coarse search over ±180° of azimuth by the control points first: the run's
+        // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).
+        let coarse = coarse_azimuth_deg(&problem_of(&case, params));
+        let mut start = case.settings;
+        if let Some(az) = coarse {
+            start.initial.heading_rad = az.to_radians();
+            ctx.say("disupt", &format!("coarse azimuth search: start at {az:.1}°"));
+        }
+        let spec = spec_of(&case, start, params);
+        let problem = spec.on(&case.derived);
+        let x_before = X {
+            azimuth_deg: case.settings.initial.heading_rad.to_degrees(),
+            ..problem.x0()
         };
-        let mut best: Option<(String, X)> = None;
+        let classic: Vec<Method> = [Method::Oepi, Method::Owpi]
+            .into_iter()
+            .filter(|w| method == *w || method == Method::All)
+            .collect();
+        let want_joint = matches!(method, Method::Joint | Method::All);
+        let estimate_lag = dparams.joint_odo_lag && case.fixes.len() >= 2;
+        // The methods run concurrently (they share the problem's first linearisation).
+        let t_methods = std::time::Instant::now();
+        let (classic_results, joint_result) = rayon::join(
+            || {
+                classic
+                    .par_iter()
+                    .map(|&w| match w {
+                        Method::Oepi => ("oepi", disupt::oepi(&problem, &dparams)),
+                        _ => ("owpi", disupt::owpi(&problem, &dparams)),
+                    })
+                    .collect::<Vec<_>>()
+            },
+            || {
+                want_joint.then(|| -> Result<JointRun, disupt::DisuptError> {
+                    if estimate_lag {
+                        let f = joint_with_lag(&rederive, &case.derived, &spec, &dparams)?;
+                        Ok(JointRun {
+                            lag: Lag {
+                                lag_s: f.lag_s,
+                                sigma_s: f.sigma_s.unwrap_or(0.0),
+                            },
+                            profile: Some(f.profile),
+                            derived: Some(f.derived),
+                            fit: f.fit,
+                        })
+                    } else {
+                        Ok(JointRun {
+                            fit: joint_fit(&problem, &dparams, &JointOptions::default())?,
+                            lag: Lag::default(),
+                            profile: None,
+                            derived: None,
+                        })
+                    }
+                })
+            },
+        );
+        ctx.say(
+            "disupt",
+            &format!("methods took {:.2} s", t_methods.elapsed().as_secs_f64()),
+        );
+        let joint_derived = joint_result
+            .as_ref()
+            .and_then(|r| r.as_ref().ok())
+            .and_then(|r| r.derived.as_ref())
+            .unwrap_or(&case.derived);
+        let joint_problem = spec.on(joint_derived);
+
         let site = (case.settings.lat0_rad, case.settings.lon0_rad, case.settings.h0_m);
         // One exact pass per method's settings: its trajectory, Kryt1 series and control
         // point errors, for review.
@@ -252,59 +478,61 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let mut series = Kryt1Series::default();
         let mut tracks: Vec<MethodTrack> = Vec::new();
         let mut kryt1s: Vec<MethodKryt1> = Vec::new();
-        let mut review_pass = |name: &str, x: &X, track: &mut NavTrack| -> (f64, Vec<Kryt2>) {
-            unz_stages::strapdown::navigate(&case.inputs(), &problem.settings(x), track);
-            let k1 = criteria::kryt1(&case.derived.epochs, &problem.lp, track, &problem.kalman, &mut scratch, Some(&mut series));
-            tracks.push(method_track(name, &case.derived, track, site));
-            kryt1s.push(method_kryt1(name, &case.derived, &series));
+        let mut review_pass = |name: &str, x: &X, d: &Derived, track: &mut NavTrack| -> (f64, Vec<Kryt2>) {
+            unz_stages::strapdown::navigate(&d.nav_inputs(), &problem.settings(x), track);
+            let k1 = criteria::kryt1(&d.epochs, &problem.lp, track, &problem.kalman, &mut scratch, Some(&mut series));
+            tracks.push(method_track(name, d, track, site));
+            kryt1s.push(method_kryt1(name, d, &series));
             (k1, criteria::kryt2(track, &case.fixes))
         };
-        let (before_kryt1, before_cps) = review_pass("initial", &problem.x0(), &mut track);
-        // The methods run concurrently (they share the problem's first linearisation).
-        let t_methods = std::time::Instant::now();
-        let results: Vec<_> = wanted
-            .par_iter()
-            .map(|&w| match w {
-                Method::Oepi => ("oepi", disupt::oepi(&problem, &dparams)),
-                Method::Owpi => ("owpi", disupt::owpi(&problem, &dparams)),
-                _ => ("joint", disupt::joint(&problem, &dparams)),
-            })
-            .collect();
-        let methods_wall_s = t_methods.elapsed().as_secs_f64();
-        // The review passes in order of preference for the corrected navigation (joint,
-        // then OEPI, then OWPI), so that the last one leaves the corrected track.
-        let rank = |n: &str| ["owpi", "oepi", "joint"].iter().position(|x| *x == n);
-        let mut order: Vec<usize> = (0..results.len()).collect();
-        order.sort_by_key(|&i| rank(results[i].0));
-        let mut cps_of: Vec<Vec<Kryt2>> = vec![Vec::new(); results.len()];
-        for i in order {
-            if let (name, Ok(r)) = &results[i] {
-                cps_of[i] = review_pass(name, &r.x, &mut track).1;
-                best = Some(((*name).to_owned(), r.x));
-            }
-        }
-        for ((name, result), cps) in results.into_iter().zip(cps_of) {
+        let (before_kryt1, before_cps) = review_pass("initial", &x_before, &case.derived, &mut track);
+
+        // The review passes in order of preference for the corrected navigation (OWPI,
+        // OEPI, then joint), so that the last one leaves the corrected track.
+        let mut methods = std::collections::BTreeMap::new();
+        let mut skipped = std::collections::BTreeMap::new();
+        let mut md = format!("# DISUPT: {}\n\n", m.name);
+        let mut corrected_by = None;
+        for (name, result) in classic_results.into_iter().rev() {
             match result {
                 Ok(r) => {
-                    md += &table(&name.to_uppercase(), &r);
-                    methods.insert(
-                        name.to_owned(),
-                        MethodOut {
-                            x: settings_out(&r.x, &case.settings, r.sigma.as_ref()),
-                            dx_m: r.dx_m,
-                            dy_m: r.dy_m,
-                            kryt1_rad: r.kryt1,
-                            control_points: cps,
-                            steps: r.steps,
-                            evaluations: r.evaluations,
-                            wall_s: r.wall_s,
-                        },
-                    );
+                    let cps = review_pass(name, &r.x, &case.derived, &mut track).1;
+                    corrected_by = Some(name.to_owned());
+                    methods.insert(name.to_owned(), method_out(&r, &case.settings, Lag::default(), cps));
                 }
                 Err(e) => {
-                    md += &format!("## {}\n\nnot run: {e}\n\n", name.to_uppercase());
                     skipped.insert(name.to_owned(), e.to_string());
                 }
+            }
+        }
+        let mut route_sigma = None;
+        match &joint_result {
+            Some(Ok(run)) => {
+                let r = &run.fit.result;
+                let cps = review_pass("joint", &r.x, joint_derived, &mut track).1;
+                corrected_by = Some("joint".to_owned());
+                let mut out = method_out(r, &case.settings, run.lag, cps);
+                out.holdout = Some(disupt::holdout(&joint_problem, &run.fit, &dparams)?);
+                out.lag_profile = run.profile.clone();
+                methods.insert("joint".to_owned(), out);
+                route_sigma = joint_route_sigma(
+                    &joint_problem,
+                    run,
+                    &rederive,
+                    &track,
+                    params.align.arw_rad_sqrt_s,
+                );
+            }
+            Some(Err(e)) => {
+                skipped.insert("joint".to_owned(), e.to_string());
+            }
+            None => {}
+        }
+        for (name, title) in [("oepi", "OEPI"), ("owpi", "OWPI"), ("joint", "JOINT")] {
+            if let Some(o) = methods.get(name) {
+                md += &table(title, o);
+            } else if let Some(e) = skipped.get(name) {
+                md += &format!("## {title}\n\nnot run: {e}\n\n");
             }
         }
         // `track` holds the last review pass: the best method's, else the initial one.
@@ -313,7 +541,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let out = DisuptOut {
             distance_m,
             before: Before {
-                x: settings_out(&problem.x0(), &case.settings, None),
+                x: settings_out(&x_before, &case.settings, None, Lag::default()),
                 dx_m: dx,
                 dy_m: dy,
                 kryt1_rad: before_kryt1,
@@ -321,16 +549,17 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             },
             methods,
             skipped,
-            corrected_by: best.map(|b| b.0),
+            corrected_by,
+            coarse_azimuth_deg: coarse,
             shared_passes: problem.base_passes(),
-            wall_s: methods_wall_s,
         };
         md = format!(
             "{md}Before DISUPT: ΔX = {dx:.1} m, ΔY = {dy:.1} m at the last control point, after {distance_m:.0} m.\n"
         );
         write_tracks(&dir.join(TRACKS), &tracks)?;
         write_kryt1_series(&dir.join(KRYT1_SERIES), &kryt1s)?;
-        write_nav(&dir.join("corrected_nav.parquet"), &case.derived, &track, site)?;
+        let sigma = route_sigma.map(|r| r.per_sample(track.len()));
+        write_nav(&dir.join("corrected_nav.parquet"), &case.derived, &track, site, sigma.as_ref())?;
         write_atomic(&dir.join("disupt.md"), md.as_bytes())?;
         write_json_atomic(&dir.join("disupt.json"), &out)?;
         Ok(())

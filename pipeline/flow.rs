@@ -87,7 +87,8 @@ impl RunCtx {
 }
 
 impl RunCtx {
-    fn say(&self, stage: &str, what: &str) {
+    /// Says `what` of `stage` when verbose.
+    pub fn say(&self, stage: &str, what: &str) {
         if self.verbose {
             eprintln!("{}: {stage}: {what}", self.manifest.name);
         }
@@ -162,12 +163,35 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let stage = Stage {
         dir: dir.clone(),
         name: "derive",
-        version: 2,
+        version: 3,
         params_hash: params_hash(&params.derive)?,
         inputs,
         outputs: &["derived.parquet", "epochs.parquet"],
     };
     ctx.run_stage(&stage, || {
+        let raw = IngestedSeries::load(&ingest_dir)?;
+        write_derived(
+            &derive(&raw.series(), &params.derive, site_gravity_mps2(m)),
+            &dir,
+        )
+    })?;
+    Ok(dir)
+}
+
+/// Normal gravity at the run's site, m/s² (derive's g).
+pub fn site_gravity_mps2(m: &RunManifest) -> f64 {
+    earth::normal_gravity_mps2(m.site.latitude_deg.to_radians(), m.site.height_m)
+}
+
+/// The ingested IMU and odometer tables: what derive reads.
+pub struct IngestedSeries {
+    imu: ImuTable,
+    odo: OdometerTable,
+}
+
+impl IngestedSeries {
+    /// Loads `imu.parquet` and `odometer.parquet` of an ingest folder.
+    pub fn load(ingest_dir: &Path) -> anyhow::Result<Self> {
         let (imu, _) =
             load_table::<ImuTable>(&ingest_dir.join("imu.parquet"), ImuTable::extend_from_batch)?;
         let (odo, _) = load_table::<OdometerTable>(
@@ -180,17 +204,19 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         if odo.is_empty() {
             bail!("the run has no odometer data (no 8th column and no odometer file)");
         }
-        let raw = RawSeries {
-            imu_t_ns: &imu.t_ns,
-            dtheta_rad: &imu.dtheta_rad,
-            dvel_mps: &imu.dvel_mps,
-            odo_t_ns: &odo.t_ns,
-            odo_distance_m: &odo.distance_m,
-        };
-        let g = earth::normal_gravity_mps2(m.site.latitude_deg.to_radians(), m.site.height_m);
-        write_derived(&derive(&raw, &params.derive, g), &dir)
-    })?;
-    Ok(dir)
+        Ok(Self { imu, odo })
+    }
+
+    /// The series as derive takes them.
+    pub fn series(&self) -> RawSeries<'_> {
+        RawSeries {
+            imu_t_ns: &self.imu.t_ns,
+            dtheta_rad: &self.imu.dtheta_rad,
+            dvel_mps: &self.imu.dvel_mps,
+            odo_t_ns: &self.odo.t_ns,
+            odo_distance_m: &self.odo.distance_m,
+        }
+    }
 }
 
 /// Everything a navigation pass needs, loaded once.
@@ -309,6 +335,14 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         m.site.height_m,
     );
     let (settings, initial) = initial_settings(&derived, &req, &params.align, site);
+    if initial.gyrocompass_skipped.is_some() && fixes.is_empty() {
+        bail!(
+            "the run has neither a static start nor a control point: without a static start \
+             there is no gyrocompass heading, and without a control point DISUPT cannot find \
+             the azimuth (in {})",
+            m.path.display()
+        );
+    }
     Ok(NavCase {
         derived,
         fixes,
@@ -330,20 +364,29 @@ pub struct NavigateSummary {
     pub distance_m: f64,
     /// Position errors at the control points.
     pub control_points: Vec<Kryt2>,
-    /// Repaired time tags and filled gaps of the input.
+    /// Time tags derive repaired (not after the previous one).
     pub repaired_times: usize,
+    /// Samples that closed a gap in the log and were scaled to it.
+    pub filled_gaps: usize,
 }
 
-/// Writes `nav.parquet`.
+/// Writes `nav.parquet` (or `corrected_nav.parquet`, with the route's 1σ north, east and
+/// heading per sample when given: `sigma_north_m`, `sigma_east_m`, `sigma_heading_deg`).
 pub fn write_nav(
     path: &Path,
     d: &Derived,
     t: &NavTrack,
     site: (f64, f64, f64),
+    sigma: Option<&[Vec<f64>; 3]>,
 ) -> anyhow::Result<()> {
     let mut fields = vec![scalar("t_ns", DataType::Int64, false, "ns")];
     fields.extend(nav_state_fields());
     fields.push(scalar("distance_m", DataType::Float64, false, "m"));
+    if sigma.is_some() {
+        fields.push(scalar("sigma_north_m", DataType::Float64, false, "m"));
+        fields.push(scalar("sigma_east_m", DataType::Float64, false, "m"));
+        fields.push(scalar("sigma_heading_deg", DataType::Float64, false, "deg"));
+    }
     let schema = Arc::new(Schema::new(fields));
     let deg = |v: &[f64]| {
         Arc::new(Float64Array::from(
@@ -357,21 +400,24 @@ pub fn write_nav(
         .zip(&t.lon_rad)
         .map(|(&la, &lo)| earth::local_offset_m(la, lo, site.0, site.1, site.2))
         .unzip();
-    let batch = RecordBatch::try_new(
-        schema,
-        vec![
-            Arc::new(Int64Array::from(d.t_ns())),
-            deg(&t.lat_rad),
-            deg(&t.lon_rad),
-            Arc::new(Float64Array::from(t.h_m.clone())),
-            Arc::new(Float64Array::from(ne_n)),
-            Arc::new(Float64Array::from(ne_e)),
-            deg(&roll),
-            deg(&pitch),
-            deg(&heading),
-            Arc::new(Float64Array::from(t.distance_m.clone())),
-        ],
-    )?;
+    let mut columns: Vec<arrow::array::ArrayRef> = vec![
+        Arc::new(Int64Array::from(d.t_ns())),
+        deg(&t.lat_rad),
+        deg(&t.lon_rad),
+        Arc::new(Float64Array::from(t.h_m.clone())),
+        Arc::new(Float64Array::from(ne_n)),
+        Arc::new(Float64Array::from(ne_e)),
+        deg(&roll),
+        deg(&pitch),
+        deg(&heading),
+        Arc::new(Float64Array::from(t.distance_m.clone())),
+    ];
+    if let Some([n, e, h]) = sigma {
+        columns.push(Arc::new(Float64Array::from(n.clone())));
+        columns.push(Arc::new(Float64Array::from(e.clone())));
+        columns.push(deg(h));
+    }
+    let batch = RecordBatch::try_new(schema, columns)?;
     write_batch(path, &batch)?;
     Ok(())
 }
@@ -395,7 +441,7 @@ pub fn ensure_navigate(
     let stage = Stage {
         dir: dir.clone(),
         name: "navigate",
-        version: 1,
+        version: 2,
         params_hash: params_hash(&(params.align, overrides))?,
         inputs,
         outputs: &["nav.parquet", "navigate.json"],
@@ -409,7 +455,7 @@ pub fn ensure_navigate(
             case.settings.lon0_rad,
             case.settings.h0_m,
         );
-        write_nav(&dir.join("nav.parquet"), &case.derived, &track, site)?;
+        write_nav(&dir.join("nav.parquet"), &case.derived, &track, site, None)?;
         let summary = NavigateSummary {
             initial: case.initial,
             samples: track.len(),
@@ -417,6 +463,7 @@ pub fn ensure_navigate(
             distance_m: track.distance_m.last().copied().unwrap_or(0.0),
             control_points: criteria::kryt2(&track, &case.fixes),
             repaired_times: case.derived.repaired_times,
+            filled_gaps: case.derived.filled_gaps,
         };
         write_json_atomic(&dir.join("navigate.json"), &summary)?;
         Ok(())

@@ -34,7 +34,7 @@ fn disupt_and_sweep_through_the_binary() {
         .hypot(d["before"]["dy_m"].as_f64().unwrap());
     for m in ["oepi", "owpi", "joint"] {
         let r = &d["methods"][m];
-        for key in ["x", "dx_m", "dy_m", "steps", "evaluations", "wall_s"] {
+        for key in ["x", "dx_m", "dy_m", "steps", "evaluations"] {
             assert!(r.get(key).is_some(), "{m} lacks {key}");
         }
         assert_eq!(r["x"]["drift_rad_s"].as_array().unwrap().len(), 3);

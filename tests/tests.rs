@@ -3,6 +3,7 @@
 mod campaign;
 mod cli;
 mod disupt;
+mod estimation;
 mod ingest;
 mod kill;
 mod kingston;

@@ -57,7 +57,7 @@ pub struct Initial {
     pub pitch_deg: Option<f64>,
     /// Initial roll, degrees (default: levelled).
     pub roll_deg: Option<f64>,
-    /// Length of the initial stationary period, s.
+    /// Length of the initial stationary period, s (0: none, logging began in motion).
     pub static_s: Option<f64>,
     /// Initial gyro drift guess (x, y, z body), rad/s.
     pub drift_rad_s: Option<[f64; 3]>,
@@ -309,7 +309,8 @@ impl RunManifest {
             static_s: i
                 .static_s
                 .as_ref()
-                .map(|v| c.positive(v, "static_s"))
+                // 0: no static start (logging began in motion). A day at most.
+                .map(|v| c.in_range(v, "static_s", 0.0, 86_400.0))
                 .transpose()?,
             drift_rad_s: match &i.drift_rad_s {
                 Some(v) if v.get_ref().iter().all(|d| d.is_finite() && d.abs() < 1e-2) => {

@@ -35,6 +35,14 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             args.duration_s
         );
     }
+    if let Some(s) = args.log_start_s
+        && !(s > 0.0 && s < args.duration_s - 60.0)
+    {
+        bail!(
+            "--log-start-s {s} must be after the start and at least 60 s before the end ({} s)",
+            args.duration_s
+        );
+    }
     Ok((0..args.runs)
         .map(|i| {
             let seed = args.seed + u64::from(i);
@@ -44,6 +52,8 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             c.azimuth_error_deg = args.azimuth_error_deg;
             c.odo_boresight_deg = args.odo_boresight_deg;
             c.odo_lag_s = args.odo_lag_s;
+            c.cp_at_every_stop = args.cp_at_every_stop;
+            c.log_start_s = args.log_start_s;
             c.errors = SensorErrors {
                 noise: !args.no_noise,
                 gyro_drift: !args.no_gyro_drift,

@@ -79,6 +79,11 @@ pub struct DisuptParams {
     /// (Kryt1's information) tell the two apart: the azimuth's σ grows to what they
     /// give. Off by default.
     pub joint_odo_yaw: bool,
+    /// Estimate the odometer's lag with the joint fit (needs two control points or more:
+    /// it moves the route at the stops by the lag times the velocity change from turns).
+    pub joint_odo_lag: bool,
+    /// Half-width of the lag search, s.
+    pub odo_lag_bound_s: f64,
 }
 
 impl Default for DisuptParams {
@@ -90,6 +95,8 @@ impl Default for DisuptParams {
             position_sigma_m: 1.0,
             joint_odo_scale: true,
             joint_odo_yaw: false,
+            joint_odo_lag: true,
+            odo_lag_bound_s: 1.0,
         }
     }
 }
@@ -113,6 +120,38 @@ pub struct Problem<'a> {
     pub drift_z_prior_deg_h: Option<(f64, f64)>,
     passes: AtomicUsize,
     base_lin: std::sync::OnceLock<Linearization>,
+}
+
+/// Everything of a DISUPT problem but the derive it runs on, so that the same problem
+/// can be set on another derive (the odometer-lag search re-derives).
+#[derive(Debug, Clone, Copy)]
+pub struct ProblemSpec<'a> {
+    /// Settings before DISUPT (the searches' start).
+    pub settings: NavSettings,
+    /// The filter F's parameters.
+    pub filter: crate::filter::FilterParams,
+    /// Kalman filter of Kryt1.
+    pub kalman: KalmanParams,
+    /// Control points.
+    pub fixes: &'a [ControlPointFix],
+    /// Prior on the vertical drift from the static start: (value, 1σ), °/h.
+    pub drift_z_prior_deg_h: Option<(f64, f64)>,
+}
+
+impl ProblemSpec<'_> {
+    /// The problem on the derive `d`.
+    pub fn on<'b>(&'b self, d: &'b crate::derive::Derived) -> Problem<'b> {
+        let mut p = Problem::new(
+            d.nav_inputs(),
+            self.settings,
+            &d.epochs,
+            LowPass::new(&self.filter, d.nominal_dt_s),
+            self.kalman,
+            self.fixes,
+        );
+        p.drift_z_prior_deg_h = self.drift_z_prior_deg_h;
+        p
+    }
 }
 
 /// Criteria of one pass.
@@ -439,7 +478,7 @@ pub fn x_of(p: &[f64; N_PARAMS]) -> X {
 }
 
 /// Which criterion a search minimises.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Criterion {
     /// Kryt1.
     Kryt1,
@@ -450,7 +489,7 @@ pub enum Criterion {
 }
 
 /// Which component(s) a step moves.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Component {
     /// azpocz.
@@ -468,7 +507,7 @@ pub enum Component {
 }
 
 /// One row of the paper's tables.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Step {
     /// Step number, from 1.
     pub step: usize,
@@ -489,7 +528,7 @@ pub struct Step {
 }
 
 /// The result of one method.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct MethodResult {
     /// Optimised settings.
     pub x: X,
@@ -806,6 +845,7 @@ fn joint_residuals(
     y: &Observation,
     p: &[f64; N_PARAMS],
     params: &DisuptParams,
+    skip_cp: Option<usize>,
 ) -> Vec<f64> {
     let e = problem.epochs;
     let s = params.attitude_sigma_rad;
@@ -821,9 +861,15 @@ fn joint_residuals(
             r.push((crate::attitude::wrap_pi(y.phi_rad[k] - phi_p) + p[5] * 1e-3) / s);
         }
     }
-    for c in &y.cp_m {
-        r.push(c[0] / params.position_sigma_m);
-        r.push(c[1] / params.position_sigma_m);
+    // A control point held out keeps its rows, at zero, so that row indices stay put.
+    for (i, c) in y.cp_m.iter().enumerate() {
+        let w = if skip_cp == Some(i) {
+            0.0
+        } else {
+            1.0 / params.position_sigma_m
+        };
+        r.push(c[0] * w);
+        r.push(c[1] * w);
     }
     // At rest the vertical gyro measures driftz directly (method.md): a prior.
     if let Some((dz, sd)) = problem.drift_z_prior_deg_h {
@@ -841,7 +887,7 @@ fn attitude_rms_rad(
     params: &DisuptParams,
 ) -> f64 {
     let n = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
-    let r = joint_residuals(problem, y, p, params);
+    let r = joint_residuals(problem, y, p, params, None);
     (ssr(&r[..n.min(r.len())]) / n.max(1) as f64).sqrt() * params.attitude_sigma_rad
 }
 
@@ -890,8 +936,9 @@ impl JointModel {
         lin: &Linearization,
         free: &[usize],
         params: &DisuptParams,
+        skip_cp: Option<usize>,
     ) -> Self {
-        let r0 = joint_residuals(problem, &lin.y_ref, &lin.p_ref, params);
+        let r0 = joint_residuals(problem, &lin.y_ref, &lin.p_ref, params, skip_cp);
         let mut a = DMatrix::zeros(r0.len(), free.len());
         for (col, &j) in free.iter().enumerate() {
             let Some(slope) = &lin.slopes[j] else {
@@ -912,7 +959,7 @@ impl JointModel {
                 v[0] += d[0];
                 v[1] += d[1];
             }
-            let r1 = joint_residuals(problem, &y1, &p1, params);
+            let r1 = joint_residuals(problem, &y1, &p1, params, skip_cp);
             for (i, (b, c)) in r1.iter().zip(&r0).enumerate() {
                 a[(i, col)] = b - c;
             }
@@ -955,13 +1002,59 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for LinearStep<'_> {
 /// Gauss–Newton iterations of the joint fit before it stops.
 const MAX_GAUSS_NEWTON: usize = 10;
 
+/// How [`joint_fit`] weighs and what it leaves out.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct JointOptions {
+    /// Weigh the epochs with this σ (rad) instead of their residuals' RMS (variance
+    /// components), so that the costs of several fits compare (the odometer-lag search).
+    pub attitude_sigma_rad: Option<f64>,
+    /// Leave this control point (index into the problem's fixes) out of the fit.
+    pub skip_cp: Option<usize>,
+}
+
+/// A joint fit with what its callers need beyond the result: its cost, the weights and
+/// the covariance of the free parameters, and the linearisation that holds at the
+/// solution (for cheap refits).
+#[derive(Debug, Clone)]
+pub struct JointFit {
+    /// The method's result (settings, σ, table row).
+    pub result: MethodResult,
+    /// The exact observation at the solution.
+    pub y: Observation,
+    /// Weighted sum of squared residuals at the solution.
+    pub cost: f64,
+    /// The control points' part of it.
+    pub cp_cost: f64,
+    /// Residuals less free parameters.
+    pub dof: f64,
+    /// σ the epochs were weighed with, rad.
+    pub attitude_sigma_rad: f64,
+    /// Indices (see [`params_of`]) of the estimated parameters.
+    pub free: Vec<usize>,
+    /// Their covariance, in the optimisers' units (rows and columns follow `free`).
+    pub covariance: Option<DMatrix<f64>>,
+    lin: Linearization,
+    weights: DisuptParams,
+}
+
 /// The joint estimator.
 pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, DisuptError> {
+    joint_fit(problem, p, &JointOptions::default()).map(|f| f.result)
+}
+
+/// The joint estimator, with options; see [`joint`].
+pub fn joint_fit(
+    problem: &Problem<'_>,
+    p: &DisuptParams,
+    opts: &JointOptions,
+) -> Result<JointFit, DisuptError> {
     let t0 = Instant::now();
     let tally = AtomicUsize::new(0);
     let x0 = problem.x0();
+    let skip = opts.skip_cp;
+    let used_cps = problem.fixes.len() - usize::from(skip.is_some_and(|i| i < problem.fixes.len()));
     let mut free = vec![0, 1, 2, 3, 4, 5];
-    if !problem.fixes.is_empty() {
+    if used_cps > 0 {
         if p.joint_odo_scale {
             free.push(6);
         }
@@ -984,10 +1077,18 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
     // the control points get their due weight. The first round takes it at the start; a
     // second round follows if the solution's residuals say otherwise by more than 50 %.
     let mut w = *p;
-    w.attitude_sigma_rad = attitude_rms_rad(problem, &y, &pr, p).max(p.attitude_sigma_rad);
-    let mut cost = ssr(&joint_residuals(problem, &y, &pr, &w));
-    let mut model = JointModel::new(problem, lin, free, &w);
-    for round in 0..2 {
+    w.attitude_sigma_rad = match opts.attitude_sigma_rad {
+        Some(s) => s,
+        None => attitude_rms_rad(problem, &y, &pr, p).max(p.attitude_sigma_rad),
+    };
+    let mut cost = ssr(&joint_residuals(problem, &y, &pr, &w, skip));
+    let mut model = JointModel::new(problem, lin, free, &w, skip);
+    let rounds = if opts.attitude_sigma_rad.is_some() {
+        1
+    } else {
+        2
+    };
+    for round in 0..rounds {
         for _ in 0..MAX_GAUSS_NEWTON {
             let (solved, report) = LevenbergMarquardt::new().minimize(LinearStep {
                 model: &model,
@@ -1006,7 +1107,7 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
                     p_new[j] += step[k];
                 }
                 y_new = problem.observe_by(&x_of(&p_new), &tally);
-                cost_new = ssr(&joint_residuals(problem, &y_new, &p_new, &w));
+                cost_new = ssr(&joint_residuals(problem, &y_new, &p_new, &w, skip));
                 if cost_new <= cost || halvings == 5 {
                     break;
                 }
@@ -1020,38 +1121,40 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
             }
             owned = problem.linearize_by(&x_of(&pr), y.clone(), free, &tally);
             lin = &owned;
-            model = JointModel::new(problem, lin, free, &w);
+            model = JointModel::new(problem, lin, free, &w, skip);
         }
-        if round == 0 {
+        if round == 0 && rounds == 2 {
             let rms = attitude_rms_rad(problem, &y, &pr, &w).max(p.attitude_sigma_rad);
             if (rms / w.attitude_sigma_rad - 1.0).abs() <= 0.5 {
                 break;
             }
             w.attitude_sigma_rad = rms;
-            cost = ssr(&joint_residuals(problem, &y, &pr, &w));
+            cost = ssr(&joint_residuals(problem, &y, &pr, &w, skip));
             // The linearisation still holds at `pr` (it agreed there): only the weights
             // change.
-            model = JointModel::new(problem, lin, free, &w);
+            model = JointModel::new(problem, lin, free, &w, skip);
         }
     }
     let x = x_of(&pr);
     // Covariance s²(AᵀA)⁻¹ with the last linearisation (which agreed with the exact pass
     // at the solution, so its slopes hold there), the attitude rows discounted for their
     // correlation from epoch to epoch.
-    let dof = (model.r0.len() as f64 - free.len() as f64).max(1.0);
+    let rows = model.r0.len() - if skip.is_some() { 2 } else { 0 };
+    let dof = (rows as f64 - free.len() as f64).max(1.0);
     let s2 = cost / dof;
     let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
-    let r = joint_residuals(problem, &y, &pr, &w);
+    let r = joint_residuals(problem, &y, &pr, &w, skip);
     let inflation = attitude_inflation(&r[..n_att.min(r.len())]);
     let mut a = model.a.clone();
     for i in 0..n_att.min(a.nrows()) {
         a.row_mut(i).unscale_mut(inflation[i % 2].sqrt());
     }
-    let sigma = (a.transpose() * &a).try_inverse().map(|c| {
+    let covariance = (a.transpose() * &a).try_inverse().map(|c| c * s2);
+    let sigma = covariance.as_ref().map(|c| {
         let sd = |i: usize| {
             free.iter()
                 .position(|&j| j == i)
-                .map_or(0.0, |k| (c[(k, k)] * s2).max(0.0).sqrt())
+                .map_or(0.0, |k| c[(k, k)].max(0.0).sqrt())
         };
         X {
             azimuth_deg: sd(0),
@@ -1073,7 +1176,7 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
         dy_m,
         evaluations,
     };
-    Ok(MethodResult {
+    let result = MethodResult {
         x,
         sigma,
         dx_m,
@@ -1082,5 +1185,81 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
         steps: vec![step],
         evaluations,
         wall_s: t0.elapsed().as_secs_f64(),
+    };
+    let cp_cost = ssr(&r[n_att.min(r.len())..n_att + 2 * y.cp_m.len()]);
+    Ok(JointFit {
+        result,
+        y,
+        cost,
+        cp_cost,
+        dof,
+        attitude_sigma_rad: w.attitude_sigma_rad,
+        free: free.to_vec(),
+        covariance,
+        lin: lin.clone(),
+        weights: w,
     })
+}
+
+/// The error at a control point when it was left out of the joint fit.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Holdout {
+    /// Control-point id.
+    pub id: u32,
+    /// ΔX north there, navigated minus known, m.
+    pub dx_m: f64,
+    /// ΔY east there, m.
+    pub dy_m: f64,
+}
+
+/// Hold-out errors: for every control point, the joint fit without it (same weights),
+/// and the error there of an exact pass with those settings. Each refit solves the
+/// fit's linearisation without the point's rows (no pass); the exact passes run side by
+/// side, and a refit whose exact pass disagrees with the model is redone in full.
+pub fn holdout(
+    problem: &Problem<'_>,
+    fit: &JointFit,
+    p: &DisuptParams,
+) -> Result<Vec<Holdout>, DisuptError> {
+    let n = problem.fixes.len();
+    let mut ps = Vec::with_capacity(n);
+    for i in 0..n {
+        let free: Vec<usize> = if n > 1 {
+            fit.free.clone()
+        } else {
+            fit.free.iter().copied().filter(|&j| j < 6).collect()
+        };
+        let model = JointModel::new(problem, &fit.lin, &free, &fit.weights, Some(i));
+        let delta = model
+            .a
+            .clone()
+            .svd(true, true)
+            .solve(&(-&model.r0), 1e-12)
+            .map_err(optimiser_error)?;
+        let mut pi = fit.lin.p_ref;
+        for (k, &j) in free.iter().enumerate() {
+            pi[j] += delta[k];
+        }
+        ps.push(pi);
+    }
+    let xs: Vec<X> = ps.iter().map(x_of).collect();
+    let ys = problem.observe_many_by(&xs, &AtomicUsize::new(0));
+    let mut out = Vec::with_capacity(n);
+    for (i, (pi, y)) in ps.iter().zip(ys).enumerate() {
+        let y = if fit.lin.predict(pi).agrees_with(&y) {
+            y
+        } else {
+            let opts = JointOptions {
+                attitude_sigma_rad: Some(fit.attitude_sigma_rad),
+                skip_cp: Some(i),
+            };
+            joint_fit(problem, p, &opts)?.y
+        };
+        out.push(Holdout {
+            id: problem.fixes[i].id,
+            dx_m: y.cp_m[i][0],
+            dy_m: y.cp_m[i][1],
+        });
+    }
+    Ok(out)
 }

@@ -9,7 +9,7 @@ use crate::derive::Derived;
 use crate::strapdown::NavSettings;
 
 /// Where a setting came from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Source {
     /// The run manifest.
@@ -18,6 +18,9 @@ pub enum Source {
     Override,
     /// Computed from the static start.
     Static,
+    /// Levelled in motion: the accelerometer pitch and roll references of the first
+    /// epoch (eqs 7–8, odometer acceleration and centripetal terms removed).
+    InMotion,
     /// Default value.
     Default,
 }
@@ -80,6 +83,8 @@ pub struct InitialReport {
     pub azimuth_source: Source,
     /// Gyrocompass heading, degrees (computed whenever there is a static start).
     pub gyrocompass_deg: Option<f64>,
+    /// Why there is no gyrocompass heading, when there is none.
+    pub gyrocompass_skipped: Option<&'static str>,
     /// Expected 1σ accuracy of the gyrocompass heading, degrees.
     pub gyrocompass_sigma_deg: Option<f64>,
     /// Drifts used, rad/s.
@@ -120,15 +125,21 @@ pub fn initial_settings(
     let means = align::static_means(&d.dt_s, &d.dtheta_rad, &d.dvel_mps, static_s);
     let has_static = means.duration_s >= 5.0;
     let (lev_roll, lev_pitch) = align::level(&means.f_b_mps2);
-    let (roll, roll_source) = match req.roll_deg {
-        Some((v, s)) => (v.to_radians(), s),
-        None if has_static => (lev_roll, Source::Static),
-        None => (0.0, Source::Default),
+    // Without a static start, level in motion from the accelerometer references of the
+    // first epoch (the filter's delay is zero; the joint fit's levelling corrections take
+    // what the first second's motion leaves).
+    let in_motion = d.epochs.theta_p_rad.first().zip(d.epochs.phi_p_rad.first());
+    let (roll, roll_source) = match (req.roll_deg, in_motion) {
+        (Some((v, s)), _) => (v.to_radians(), s),
+        (None, _) if has_static => (lev_roll, Source::Static),
+        (None, Some((_, &phi))) => (phi, Source::InMotion),
+        (None, None) => (0.0, Source::Default),
     };
-    let (pitch, pitch_source) = match req.pitch_deg {
-        Some((v, s)) => (v.to_radians(), s),
-        None if has_static => (lev_pitch, Source::Static),
-        None => (0.0, Source::Default),
+    let (pitch, pitch_source) = match (req.pitch_deg, in_motion) {
+        (Some((v, s)), _) => (v.to_radians(), s),
+        (None, _) if has_static => (lev_pitch, Source::Static),
+        (None, Some((&theta, _))) => (theta, Source::InMotion),
+        (None, None) => (0.0, Source::Default),
     };
     let guess = req.drift_rad_s.map_or([0.0; 3], |(v, _)| v);
     let (gc, gc_sigma) = if has_static {
@@ -179,6 +190,10 @@ pub fn initial_settings(
         azimuth_deg: heading.to_degrees().rem_euclid(360.0),
         azimuth_source,
         gyrocompass_deg: gc.map(f64::to_degrees),
+        gyrocompass_skipped: (!has_static).then_some(
+            "no static start: gyrocompassing needs one; the azimuth comes from the manifest or, \
+             without it, from DISUPT's search over the control points",
+        ),
         gyrocompass_sigma_deg: gc_sigma.map(f64::to_degrees),
         drift_rad_s: drift,
         drift_source,

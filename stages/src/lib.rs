@@ -22,5 +22,7 @@ pub mod earth;
 pub mod filter;
 pub mod initial;
 pub mod linearized;
+pub mod odo_lag;
+pub mod route_sigma;
 pub mod simulate;
 pub mod strapdown;

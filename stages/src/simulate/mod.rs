@@ -84,6 +84,13 @@ pub struct SimConfig {
     /// Odometer lag, s: the count logged with IMU time t is the distance at t − lag (so
     /// derive's `odo_time_offset_s` should be −lag). Zero by default.
     pub odo_lag_s: f64,
+    /// Every intermediate stop is on a control point too (default: a mid-route and the
+    /// final stop only).
+    pub cp_at_every_stop: bool,
+    /// The log begins this far into the simulated run, s (logging restarted while
+    /// driving): no static start, and the manifest's site, truth and settings are those
+    /// of that moment. `None`: the log begins with the static start.
+    pub log_start_s: Option<f64>,
 }
 
 impl SimConfig {
@@ -99,6 +106,8 @@ impl SimConfig {
             substeps: 10,
             odo_boresight_deg: 0.0,
             odo_lag_s: 0.0,
+            cp_at_every_stop: false,
+            log_start_s: None,
         }
     }
 }
@@ -155,6 +164,19 @@ pub struct Truth {
     pub euler: Vec<Euler>,
     /// Path length travelled, m.
     pub distance_m: Vec<f64>,
+}
+
+impl Truth {
+    /// Drops the first `k` samples.
+    fn drain_front(&mut self, k: usize) {
+        self.t_ns.drain(..k);
+        self.lat_rad.drain(..k);
+        self.lon_rad.drain(..k);
+        self.h_m.drain(..k);
+        self.vel_ned_mps.drain(..k);
+        self.euler.drain(..k);
+        self.distance_m.drain(..k);
+    }
 }
 
 /// A control point of the manifest.
@@ -245,7 +267,13 @@ pub fn simulate(config: &SimConfig) -> SimRun {
     let lon0_deg: f64 = rng.random_range(14.5..24.0);
     let h0: f64 = rng.random_range(80.0..300.0);
     let heading0 = rng.random_range(0.0..std::f64::consts::TAU);
-    let mut plan = plan::plan_route(&mut rng, config.duration_s, config.static_s, heading0);
+    let mut plan = plan::plan_route(
+        &mut rng,
+        config.duration_s,
+        config.static_s,
+        heading0,
+        config.cp_at_every_stop,
+    );
     // The vehicle stands and drives slightly tilted (parking slope, road camber).
     plan.motion.pitch0_rad = rng.random_range(-0.6f64..0.6).to_radians();
     plan.motion.roll0_rad = rng.random_range(-0.6f64..0.6).to_radians();
@@ -392,14 +420,36 @@ pub fn simulate(config: &SimConfig) -> SimRun {
             t_s: records[k].t_us as f64 * 1e-6,
         });
     }
-    let e0 = imu_euler(motion.at(0.0).euler, c_v_b.as_ref());
+    // A log that begins in motion: drop what came before; the site and the true initial
+    // settings are those at the start of the first record kept.
+    let k0 = config
+        .log_start_s
+        .map_or(0, |s| ((s / dt).round() as usize).min(n - 1));
+    let mut site = [lat0_deg, lon0_deg, h0];
+    if k0 > 0 {
+        site = [
+            truth.lat_rad[k0 - 1].to_degrees(),
+            truth.lon_rad[k0 - 1].to_degrees(),
+            truth.h_m[k0 - 1],
+        ];
+        records.drain(..k0);
+        truth.drain_front(k0);
+        let kept: Vec<bool> = marks.iter().map(|(k, _)| *k >= k0).collect();
+        marks.retain(|(k, _)| *k >= k0);
+        for (k, _) in &mut marks {
+            *k -= k0;
+        }
+        let mut keep = kept.into_iter();
+        control_points.retain(|_| keep.next().unwrap_or(false));
+    }
+    let e0 = imu_euler(motion.at(k0 as f64 * dt).euler, c_v_b.as_ref());
     let azimuth_deg = e0.heading_rad.to_degrees().rem_euclid(360.0);
     SimRun {
         config: config.clone(),
         header,
         records,
         marks,
-        site: [lat0_deg, lon0_deg, h0],
+        site,
         control_points,
         truth,
         settings: TrueSettings {
@@ -418,7 +468,7 @@ pub fn simulate(config: &SimConfig) -> SimRun {
             errors: e,
             seed: config.seed,
         },
-        manifest_static_s: config.static_s - 5.0,
+        manifest_static_s: if k0 > 0 { 0.0 } else { config.static_s - 5.0 },
         rests: plan.rests,
     }
 }

@@ -30,12 +30,15 @@ pub struct RoutePlan {
     pub rests: Vec<(f64, f64)>,
 }
 
-/// Plans a route of `duration_s` with a static start of `static_s`.
+/// Plans a route of `duration_s` with a static start of `static_s`. With
+/// `cp_at_every_stop`, every intermediate stop is on a control point too (numbered in
+/// time order); the route itself is the same.
 pub fn plan_route(
     rng: &mut impl Rng,
     duration_s: f64,
     static_s: f64,
     heading0_rad: f64,
+    cp_at_every_stop: bool,
 ) -> RoutePlan {
     let final_stop_s = 60.0_f64.min(0.1 * duration_s).max(20.0);
     let end_drive = duration_s - final_stop_s;
@@ -93,10 +96,23 @@ pub fn plan_route(
                 });
                 40.0
             } else {
-                rng.random_range(15.0..70.0)
+                let rest = rng.random_range(15.0..70.0);
+                if cp_at_every_stop {
+                    stops.push(PlannedStop {
+                        id: 0,
+                        start_s: t,
+                        end_s: t + rest,
+                    });
+                }
+                rest
             };
             rests.push((t, t + rest));
             t += rest;
+        }
+    }
+    if cp_at_every_stop {
+        for (i, stop) in stops.iter_mut().enumerate() {
+            stop.id = i as u32 + 1;
         }
     }
     // Whatever remains is the final stop.

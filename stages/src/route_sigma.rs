@@ -1,0 +1,197 @@
+//! The joint fit's uncertainty carried along the corrected route.
+//!
+//! Two parts, independent, added as variances:
+//! - **The settings.** Their covariance `C` (in the optimisers' units, over the estimated
+//!   parameters) is propagated to each epoch's north and east position and heading
+//!   through their sensitivities `g_k = ∂(north, east, heading)_k / ∂p`, one exact tracked
+//!   pass per parameter moved by its finite-difference step: `σ_k² = g_kᵀ C g_k`. The
+//!   odometer lag, estimated by its own search, adds `(∂/∂L)² σ_L²` from a pass over the
+//!   derive at the moved lag (its covariance with the others is not known and is taken as
+//!   zero).
+//! - **What the settings do not model:** the gyros' angle random walk. A heading that
+//!   walks with density `N` (rad/√s) from the start turns every later displacement, so
+//!   that at `T` the position error is `Σ_i w_i J (p_T − p_i)` (`J` a quarter turn,
+//!   `w_i` the walk's increment over sample `i`): variance `N² Σ_i dt_i (e_T − e_i)²`
+//!   north and `N² Σ_i dt_i (n_T − n_i)²` east, and `N² T` in heading. Taken from the
+//!   start and not conditioned on the control points, this part is an upper bound where
+//!   the fit has pinned the route.
+
+use crate::attitude::wrap_pi;
+use crate::earth;
+use crate::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
+
+/// σ of the corrected route at every `stride`-th sample (and the last).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RouteSigma {
+    /// Sample index of each value.
+    pub sample: Vec<usize>,
+    /// σ of the north position, m.
+    pub north_m: Vec<f64>,
+    /// σ of the east position, m.
+    pub east_m: Vec<f64>,
+    /// σ of the heading, rad.
+    pub heading_rad: Vec<f64>,
+}
+
+impl RouteSigma {
+    /// The three σ linearly interpolated to every sample of a run of `n` samples.
+    pub fn per_sample(&self, n: usize) -> [Vec<f64>; 3] {
+        let interp = |v: &[f64]| -> Vec<f64> {
+            let mut out = Vec::with_capacity(n);
+            let mut j = 0;
+            for k in 0..n {
+                while j + 1 < self.sample.len() && self.sample[j + 1] <= k {
+                    j += 1;
+                }
+                let (a, b) = (
+                    self.sample[j],
+                    self.sample[(j + 1).min(self.sample.len() - 1)],
+                );
+                let w = if b > a {
+                    ((k as f64 - a as f64) / (b - a) as f64).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                out.push(v[j] + w * (v[(j + 1).min(v.len() - 1)] - v[j]));
+            }
+            out
+        };
+        if self.sample.is_empty() {
+            return [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+        }
+        [
+            interp(&self.north_m),
+            interp(&self.east_m),
+            interp(&self.heading_rad),
+        ]
+    }
+}
+
+/// Heading of a quaternion `C_b^n` (w, x, y, z), rad.
+fn heading_of(q: &[f64; 4]) -> f64 {
+    let [w, x, y, z] = *q;
+    (2.0 * (x * y + w * z)).atan2(w * w + x * x - y * y - z * z)
+}
+
+/// (north, east, heading) of `track` at the chosen samples.
+fn states(track: &NavTrack, samples: &[usize], s: &NavSettings) -> Vec<[f64; 3]> {
+    samples
+        .iter()
+        .map(|&k| {
+            let (n, e) = earth::local_offset_m(
+                track.lat_rad[k],
+                track.lon_rad[k],
+                s.lat0_rad,
+                s.lon0_rad,
+                s.h0_m,
+            );
+            [n, e, heading_of(&track.q_b_to_n[k])]
+        })
+        .collect()
+}
+
+/// One moved parameter: the settings of the pass and the inputs it runs on, the step
+/// that moved it (in the covariance's units), and its column in the covariance.
+pub struct Moved<'a> {
+    /// Inputs of the pass (the lag's pass has its own derive).
+    pub inputs: NavInputs<'a>,
+    /// Settings of the pass.
+    pub settings: NavSettings,
+    /// The step, in the covariance's units.
+    pub step: f64,
+}
+
+/// σ along the route of `base` (the corrected pass: its inputs, settings and track).
+/// `moved[j]` is parameter j moved by its step; `covariance` is over the same parameters,
+/// in their step units.
+pub fn route_sigma(
+    base_track: &NavTrack,
+    base_settings: &NavSettings,
+    moved: &[Moved<'_>],
+    covariance: &nalgebra::DMatrix<f64>,
+    dt_s: &[f64],
+    arw_rad_sqrt_s: f64,
+    stride: usize,
+) -> RouteSigma {
+    let n = base_track.len();
+    if n == 0 || moved.is_empty() {
+        return RouteSigma::default();
+    }
+    let mut samples: Vec<usize> = (0..n).step_by(stride.max(1)).collect();
+    if samples.last() != Some(&(n - 1)) {
+        samples.push(n - 1);
+    }
+    let y0 = states(base_track, &samples, base_settings);
+    let mut track = NavTrack::default();
+    // Sensitivities per sample: m parameters × 3 quantities.
+    let m = moved.len();
+    let mut g = vec![0.0; samples.len() * m * 3];
+    for (j, mv) in moved.iter().enumerate() {
+        navigate(&mv.inputs, &mv.settings, &mut track);
+        for (i, y) in states(&track, &samples, &mv.settings).iter().enumerate() {
+            let d = [y[0] - y0[i][0], y[1] - y0[i][1], wrap_pi(y[2] - y0[i][2])];
+            for q in 0..3 {
+                g[(i * 3 + q) * m + j] = d[q] / mv.step;
+            }
+        }
+    }
+    let walk = random_walk_variances(base_track, base_settings, dt_s, arw_rad_sqrt_s, &samples);
+    let mut out = RouteSigma {
+        sample: samples.clone(),
+        ..Default::default()
+    };
+    for i in 0..samples.len() {
+        let sd = |q: usize| {
+            let gi = &g[(i * 3 + q) * m..(i * 3 + q + 1) * m];
+            let mut v = 0.0;
+            for a in 0..m {
+                for b in 0..m {
+                    v += gi[a] * covariance[(a, b)] * gi[b];
+                }
+            }
+            v.max(0.0)
+        };
+        out.north_m.push((sd(0) + walk[i][0]).sqrt());
+        out.east_m.push((sd(1) + walk[i][1]).sqrt());
+        out.heading_rad.push((sd(2) + walk[i][2]).sqrt());
+    }
+    out
+}
+
+/// Variances (north m², east m², heading rad²) of the angle random walk's share at the
+/// chosen samples; see the module documentation.
+fn random_walk_variances(
+    track: &NavTrack,
+    s: &NavSettings,
+    dt_s: &[f64],
+    arw_rad_sqrt_s: f64,
+    samples: &[usize],
+) -> Vec<[f64; 3]> {
+    let q = arw_rad_sqrt_s * arw_rad_sqrt_s;
+    // Running sums over the samples so far: Σdt, Σdt·n, Σdt·n², Σdt·e, Σdt·e².
+    let mut sums = [0.0; 5];
+    let mut out = Vec::with_capacity(samples.len());
+    let mut next = samples.iter().peekable();
+    for k in 0..track.len() {
+        let (n, e) = earth::local_offset_m(
+            track.lat_rad[k],
+            track.lon_rad[k],
+            s.lat0_rad,
+            s.lon0_rad,
+            s.h0_m,
+        );
+        let dt = dt_s.get(k).copied().unwrap_or(0.0);
+        sums[0] += dt;
+        sums[1] += dt * n;
+        sums[2] += dt * n * n;
+        sums[3] += dt * e;
+        sums[4] += dt * e * e;
+        if next.peek() == Some(&&k) {
+            next.next();
+            let north = e * e * sums[0] - 2.0 * e * sums[3] + sums[4];
+            let east = n * n * sums[0] - 2.0 * n * sums[1] + sums[2];
+            out.push([q * north.max(0.0), q * east.max(0.0), q * sums[0]]);
+        }
+    }
+    out
+}

@@ -1,0 +1,228 @@
+//! Estimation that real logs need, against simulated truth through the binary: the
+//! odometer's lag, runs without a static start, hold-out errors and the route's σ.
+
+use std::path::Path;
+
+use unz::disupt_stage::DisuptOut;
+use unz_formats::parquet_io::read_batches;
+use unz_formats::tables::f64_column;
+use unz_stages::simulate::TrueSettings;
+
+use crate::util::{simulated_run, unz_ok, unz_output};
+
+/// A column of a Parquet file, all batches.
+fn column(path: &Path, name: &str) -> Vec<f64> {
+    let (_, batches) = read_batches(path).unwrap();
+    batches
+        .iter()
+        .flat_map(|b| f64_column(b, name).unwrap())
+        .collect()
+}
+
+fn truth(run: &Path) -> TrueSettings {
+    serde_json::from_slice(&std::fs::read(run.join("truth.json")).unwrap()).unwrap()
+}
+
+fn disupt_json(out: &Path, name: &str) -> DisuptOut {
+    serde_json::from_slice(&std::fs::read(out.join(name).join("disupt/disupt.json")).unwrap())
+        .unwrap()
+}
+
+/// Horizontal errors of the corrected route against truth at every sample, m.
+fn route_errors(run: &Path, out: &Path, name: &str) -> Vec<(f64, f64)> {
+    let nav = out.join(name).join("disupt/corrected_nav.parquet");
+    let tr = run.join("truth.parquet");
+    let (n, e) = (column(&nav, "north_m"), column(&nav, "east_m"));
+    let (tn, te) = (column(&tr, "north_m"), column(&tr, "east_m"));
+    assert_eq!(n.len(), tn.len());
+    n.iter()
+        .zip(&e)
+        .zip(tn.iter().zip(&te))
+        .map(|((a, b), (c, d))| (a - c, b - d))
+        .collect()
+}
+
+fn worst_m(errors: &[(f64, f64)]) -> f64 {
+    errors.iter().map(|(n, e)| n.hypot(*e)).fold(0.0, f64::max)
+}
+
+/// Simulates the run of `seed` with `options`, runs every stage to disupt; returns the
+/// run folder and the output folder.
+fn process(dir: &Path, seed: u32, options: &[&str]) -> (std::path::PathBuf, std::path::PathBuf) {
+    let run = simulated_run(dir, seed, options);
+    let out = dir.join("o");
+    unz_ok(&[
+        "run",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--until",
+        "disupt",
+    ]);
+    (run, out)
+}
+
+/// The joint fit finds a simulated odometer lag of −0.4…+0.4 s within 0.03 s, and the
+/// corrected route is then as good as the same run's without a lag.
+#[test]
+fn joint_fit_recovers_the_odometer_lag() {
+    let name = "sim-0061";
+    let base = ["--cp-at-every-stop", "--azimuth-error-deg", "6"];
+    let tmp0 = tempfile::tempdir().unwrap();
+    let (run0, out0) = process(tmp0.path(), 61, &base);
+    let d0 = disupt_json(&out0, name);
+    let worst0 = worst_m(&route_errors(&run0, &out0, name));
+    let lag0 = d0.methods["joint"].x.odo_lag_s;
+    eprintln!("no lag: estimated {lag0:.4} s, worst route error {worst0:.2} m");
+    assert!(
+        lag0.abs() < 0.03,
+        "lag {lag0} s estimated where there is none"
+    );
+    for lag in ["-0.4", "0.25", "0.4"] {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut opts = base.to_vec();
+        opts.extend(["--odo-lag-s", lag]);
+        let (run, out) = process(tmp.path(), 61, &opts);
+        let d = disupt_json(&out, name);
+        let joint = &d.methods["joint"];
+        let true_lag = truth(&run).odo_lag_s;
+        let worst = worst_m(&route_errors(&run, &out, name));
+        let sigma = joint.x.sigma.as_ref().unwrap().odo_lag_s;
+        eprintln!(
+            "lag {true_lag} s: estimated {:.4} s ± {sigma:.4}, worst route error {worst:.2} m (no lag: {worst0:.2} m)",
+            joint.x.odo_lag_s
+        );
+        assert!(
+            (joint.x.odo_lag_s - true_lag).abs() < 0.03,
+            "lag {} s, truth {true_lag} s",
+            joint.x.odo_lag_s
+        );
+        assert!(sigma > 0.0 && sigma < 0.05, "σ {sigma} s");
+        // Back to what the run gives without a lag: the lag's residual error (< 0.03 s)
+        // moves the route by at most its share of the turns' velocity changes.
+        assert!(
+            worst < 1.25 * worst0 + 1.0,
+            "worst route error {worst} m, {worst0} m without a lag"
+        );
+    }
+}
+
+/// A log that begins while driving, with the manifest azimuth 120° off: levelled in
+/// motion, the azimuth found by the coarse search and the joint fit, and the route
+/// within 0.2 % of the distance; the hold-out errors and the route's σ are reported and
+/// honest.
+#[test]
+fn runs_without_a_static_start_are_processed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let name = "sim-0062";
+    let (run, out) = process(
+        tmp.path(),
+        62,
+        &["--log-start-s", "400", "--azimuth-error-deg", "120"],
+    );
+    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+    assert!(manifest.contains("static_s = 0.0"), "{manifest}");
+    let nav: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(out.join(name).join("navigate/navigate.json")).unwrap(),
+    )
+    .unwrap();
+    assert!(nav["initial"]["gyrocompass_skipped"].is_string(), "{nav}");
+    assert_eq!(nav["initial"]["roll_source"], "in_motion");
+    let t = truth(&run);
+    let d = disupt_json(&out, name);
+    assert!(d.coarse_azimuth_deg.is_some());
+    let joint = &d.methods["joint"];
+    let az_err = (joint.x.azimuth_deg - t.azimuth_deg + 180.0).rem_euclid(360.0) - 180.0;
+    let errors = route_errors(&run, &out, name);
+    let worst = worst_m(&errors);
+    eprintln!(
+        "no static start, manifest 120° off: joint azimuth error {az_err:.3}°, worst route error {worst:.1} m over {:.0} m",
+        d.distance_m
+    );
+    assert!(az_err.abs() < 0.2, "joint azimuth off by {az_err}°");
+    assert!(
+        worst < 0.002 * d.distance_m,
+        "worst route error {worst} m over {} m",
+        d.distance_m
+    );
+    let holdout = joint.holdout.as_ref().unwrap();
+    assert_eq!(holdout.len(), joint.control_points.len());
+    for h in holdout {
+        eprintln!(
+            "hold-out at control point {}: {:.2} m",
+            h.id,
+            h.dx_m.hypot(h.dy_m)
+        );
+        assert!(h.dx_m.is_finite() && h.dy_m.is_finite());
+    }
+}
+
+/// The corrected route's σ: at least 95 % of the epochs lie within 3σ of the truth.
+#[test]
+fn route_sigma_covers_the_truth() {
+    let tmp = tempfile::tempdir().unwrap();
+    let name = "sim-0063";
+    let (run, out) = process(tmp.path(), 63, &["--cp-at-every-stop"]);
+    let nav = out.join(name).join("disupt/corrected_nav.parquet");
+    let (sn, se) = (column(&nav, "sigma_north_m"), column(&nav, "sigma_east_m"));
+    let sh = column(&nav, "sigma_heading_deg");
+    let heading = column(&nav, "heading_deg");
+    let true_heading = column(&run.join("truth.parquet"), "heading_deg");
+    let errors = route_errors(&run, &out, name);
+    let n = errors.len();
+    // Every second (the epochs).
+    let (mut inside_n, mut inside_e, mut inside_h, mut epochs) = (0, 0, 0, 0);
+    for k in (0..n).step_by(100) {
+        epochs += 1;
+        inside_n += usize::from(errors[k].0.abs() <= 3.0 * sn[k] + 1e-3);
+        inside_e += usize::from(errors[k].1.abs() <= 3.0 * se[k] + 1e-3);
+        let dh = (heading[k] - true_heading[k] + 180.0).rem_euclid(360.0) - 180.0;
+        inside_h += usize::from(dh.abs() <= 3.0 * sh[k] + 1e-6);
+    }
+    let share = |x: usize| x as f64 / epochs as f64;
+    eprintln!(
+        "within 3σ: north {:.3}, east {:.3}, heading {:.3} of {epochs} epochs; σ at the end {:.2} m, {:.2} m, {:.4}°",
+        share(inside_n),
+        share(inside_e),
+        share(inside_h),
+        sn[n - 1],
+        se[n - 1],
+        sh[n - 1]
+    );
+    assert!(share(inside_n) >= 0.95 && share(inside_e) >= 0.95);
+    assert!(share(inside_h) >= 0.95);
+    assert!(
+        sn.iter()
+            .chain(&se)
+            .chain(&sh)
+            .all(|v| v.is_finite() && *v >= 0.0)
+    );
+}
+
+/// A run with neither a static start nor a control point is an error that says so.
+#[test]
+fn no_static_start_and_no_control_point_is_an_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = simulated_run(
+        tmp.path(),
+        64,
+        &["--duration-s", "600", "--log-start-s", "200"],
+    );
+    let manifest = run.join("run.toml");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    let cut = text.find("[[control_point]]").unwrap();
+    std::fs::write(&manifest, &text[..cut]).unwrap();
+    let out = tmp.path().join("o");
+    let o = unz_output(&[
+        "navigate",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("neither a static start nor a control point"),
+        "{err}"
+    );
+}
