@@ -76,6 +76,8 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
             f("phi_p_rad", "rad"),
             f("theta_p_per_yaw", "rad/rad"),
             f("phi_p_per_yaw", "rad/rad"),
+            f("theta_p_per_bias", "rad/(m/s)"),
+            f("phi_p_per_bias", "rad/(m/s)"),
             Field::new("valid", DataType::Boolean, false),
             f("ax_f_mps2", "m/s^2"),
             f("ay_f_mps2", "m/s^2"),
@@ -95,6 +97,8 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
             f64s(&e.phi_p_rad),
             f64s(&e.theta_p_per_yaw),
             f64s(&e.phi_p_per_yaw),
+            f64s(&e.theta_p_per_bias),
+            f64s(&e.phi_p_per_bias),
             Arc::new(BooleanArray::from(e.valid.clone())),
             at(&d.ax_f),
             at(&d.ay_f),
@@ -159,6 +163,8 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
         phi_p_rad: f64_column(&e, "phi_p_rad")?,
         theta_p_per_yaw: f64_column(&e, "theta_p_per_yaw")?,
         phi_p_per_yaw: f64_column(&e, "phi_p_per_yaw")?,
+        theta_p_per_bias: f64_column(&e, "theta_p_per_bias")?,
+        phi_p_per_bias: f64_column(&e, "phi_p_per_bias")?,
         valid: (0..valid.len()).map(|i| valid.value(i)).collect(),
     };
     let n_blocks = d.t_s.len().div_ceil(d.block.max(1));

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use rayon::prelude::*;
 use serde::Serialize;
 use unz_formats::atomic::{write_atomic, write_json_atomic};
+use unz_formats::manifest::{LogFormat, OdometerKind};
 use unz_stages::criteria::{self, Kryt1Scratch, Kryt1Series, Kryt2};
 use unz_stages::derive::Derived;
 use unz_stages::disupt::{
@@ -55,6 +56,9 @@ pub struct SettingsOut {
     pub odo_scale: f64,
     /// Odometer yaw boresight, degrees (moved by the joint fit only, when asked).
     pub odo_yaw_deg: f64,
+    /// Odometer speed bias added while it moves, m/s (moved by the joint fit only, when
+    /// asked).
+    pub odo_bias_mps: f64,
     /// Odometer lag, s (positive: the odometer reports late), beyond derive's
     /// `odo_time_offset_s`; estimated by the joint fit only.
     pub odo_lag_s: f64,
@@ -74,6 +78,8 @@ pub struct SigmaOut {
     pub odo_scale: f64,
     /// degrees (0 when not estimated).
     pub odo_yaw_deg: f64,
+    /// m/s (0 when not estimated).
+    pub odo_bias_mps: f64,
     /// s (0 when not estimated).
     pub odo_lag_s: f64,
 }
@@ -153,12 +159,14 @@ fn settings_out(x: &X, base: &NavSettings, sigma: Option<&X>, lag: Lag) -> Setti
         drift_rad_s: x.drift_deg_h.map(|d| d * DEG_PER_H),
         odo_scale: base_scale * (1.0 + x.odo_ppm * 1e-6),
         odo_yaw_deg: base.odo_yaw_rad.to_degrees() + x.odo_yaw_deg,
+        odo_bias_mps: base.odo_bias_mps + x.odo_bias_mps,
         odo_lag_s: lag.lag_s,
         sigma: sigma.map(|s| SigmaOut {
             azimuth_deg: s.azimuth_deg,
             drift_rad_s: s.drift_deg_h.map(|d| d * DEG_PER_H),
             odo_scale: base_scale * s.odo_ppm * 1e-6,
             odo_yaw_deg: s.odo_yaw_deg,
+            odo_bias_mps: s.odo_bias_mps,
             odo_lag_s: lag.sigma_s,
         }),
     }
@@ -205,6 +213,13 @@ fn table(name: &str, r: &MethodOut) -> String {
                 s,
                 "\nOdometer yaw boresight {:.3}° ± {:.3}°.",
                 r.x.odo_yaw_deg, sd.odo_yaw_deg
+            );
+        }
+        if sd.odo_bias_mps > 0.0 {
+            let _ = writeln!(
+                s,
+                "\nOdometer speed bias {:.3} m/s ± {:.3} m/s.",
+                r.x.odo_bias_mps, sd.odo_bias_mps
             );
         }
         if r.lag_profile.is_some() {
@@ -422,6 +437,11 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             .filter(|w| method == *w || method == Method::All)
             .collect();
         let want_joint = matches!(method, Method::Joint | Method::All);
+        // A speed odometer (OBD-II) has a bias worth estimating; pulses and distances not.
+        let mut dparams = dparams;
+        dparams.joint_odo_bias = Some(dparams.joint_odo_bias.unwrap_or(
+            m.format == LogFormat::KfGins && m.odometer.kind != Some(OdometerKind::DistanceM),
+        ));
         let estimate_lag = dparams.joint_odo_lag && case.fixes.len() >= 2;
         // The methods run concurrently (they share the problem's first linearisation).
         let t_methods = std::time::Instant::now();

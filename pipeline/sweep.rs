@@ -236,6 +236,7 @@ mod tests {
             odo_ppm: 0.0,
             tilt_mrad: [0.0; 2],
             odo_yaw_deg: 0.0,
+            odo_bias_mps: 0.0,
         };
         yaw[0].apply(&mut x, yaw[0].values()[3]);
         assert_eq!(x.odo_yaw_deg, 0.5);

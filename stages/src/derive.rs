@@ -89,6 +89,12 @@ pub struct Derived {
     pub u_dot_f: Vec<f64>,
     /// Per block: filtered ru, m/s².
     pub ru_f: Vec<f64>,
+    /// Per block: filtered r over the samples in which the odometer moved, rad/s (what an
+    /// odometer speed bias adds to ru, per m/s).
+    pub r_moving_f: Vec<f64>,
+    /// Per block: filtered rate of change of "the odometer moved", 1/s (what an odometer
+    /// speed bias adds to u̇, per m/s).
+    pub moving_dot_f: Vec<f64>,
     /// Samples per block of F.
     pub block: usize,
     /// The epochs.
@@ -143,6 +149,11 @@ pub struct Epochs {
     pub theta_p_per_yaw: Vec<f64>,
     /// ∂Φ_p/∂δ, likewise.
     pub phi_p_per_yaw: Vec<f64>,
+    /// ∂Θ_p/∂b: change of Θ_p per m/s of odometer speed bias b (u̇ gains b where the
+    /// odometer starts or stops moving).
+    pub theta_p_per_bias: Vec<f64>,
+    /// ∂Φ_p/∂b (ru gains r·b while the odometer moves).
+    pub phi_p_per_bias: Vec<f64>,
     /// Whether the epoch is used by the criteria.
     pub valid: Vec<bool>,
 }
@@ -281,6 +292,28 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
     lp.apply(&ay, &mut out.ay_f);
     lp.apply(&out.u_dot_mps2, &mut out.u_dot_f);
     lp.apply(&out.ru_mps2, &mut out.ru_f);
+    let moving: Vec<f64> = out
+        .odo_dist_m
+        .iter()
+        .map(|&d| f64::from(u8::from(d != 0.0)))
+        .collect();
+    let r_moving: Vec<f64> = out
+        .r_rad_s
+        .iter()
+        .zip(&moving)
+        .map(|(r, m)| r * m)
+        .collect();
+    let moving_dot: Vec<f64> = (0..n)
+        .map(|k| {
+            if k == 0 {
+                0.0
+            } else {
+                (moving[k] - moving[k - 1]) / out.dt_s[k]
+            }
+        })
+        .collect();
+    lp.apply(&r_moving, &mut out.r_moving_f);
+    lp.apply(&moving_dot, &mut out.moving_dot_f);
     out.epochs = epochs_of(&out, &lp, params, g_mps2);
     out
 }
@@ -306,12 +339,20 @@ pub fn epochs_of(d: &Derived, lp: &LowPass, params: &DeriveParams, g_mps2: f64) 
         let phi_per_yaw = -(-d.u_dot_f[j] / (g_mps2 * theta.cos())
             + lateral * theta.sin() / (g_mps2 * theta.cos().powi(2)) * theta_per_yaw)
             / phi.cos();
+        // With speed bias b: a_x − u̇ − b·moving′ and a_y − ru − b·r·moving.
+        let at = |v: &[f64]| v.get(j).copied().unwrap_or(0.0);
+        let theta_per_bias = -at(&d.moving_dot_f) / (g_mps2 * theta.cos());
+        let phi_per_bias = -(-at(&d.r_moving_f) / (g_mps2 * theta.cos())
+            + lateral * theta.sin() / (g_mps2 * theta.cos().powi(2)) * theta_per_bias)
+            / phi.cos();
         e.block.push(j);
         e.t_s.push(0.5 * (d.t_s[first] + d.t_s[last]));
         e.theta_p_rad.push(theta);
         e.phi_p_rad.push(phi);
         e.theta_p_per_yaw.push(theta_per_yaw);
         e.phi_p_per_yaw.push(phi_per_yaw);
+        e.theta_p_per_bias.push(theta_per_bias);
+        e.phi_p_per_bias.push(phi_per_bias);
         e.valid.push(
             d.u_dot_f[j].abs() <= params.gate_long_mps2 && d.ru_f[j].abs() <= params.gate_lat_mps2,
         );

@@ -53,6 +53,9 @@ pub struct X {
     /// degrees. The odometer's direction of travel is body x turned by it.
     #[serde(default)]
     pub odo_yaw_deg: f64,
+    /// Joint fit only (when asked for): odometer speed bias added to the base's, m/s.
+    #[serde(default)]
+    pub odo_bias_mps: f64,
     /// Joint fit only: pitch and roll levelling corrections, mrad. The accelerometer
     /// biases enter the levelled initial attitude and the accelerometer pitch/roll alike;
     /// the levelling error then turns with the heading, the accelerometer one does not.
@@ -79,6 +82,10 @@ pub struct DisuptParams {
     /// (Kryt1's information) tell the two apart: the azimuth's σ grows to what they
     /// give. Off by default.
     pub joint_odo_yaw: bool,
+    /// Estimate an odometer speed bias in the joint fit (needs control points): what an
+    /// OBD-II speed has, a pulse odometer has not. Absent: the stage decides by the kind
+    /// of odometer (on for speed logs, off for pulse counts and distances).
+    pub joint_odo_bias: Option<bool>,
     /// Estimate the odometer's lag with the joint fit (needs two control points or more:
     /// it moves the route at the stops by the lag times the velocity change from turns).
     pub joint_odo_lag: bool,
@@ -95,6 +102,7 @@ impl Default for DisuptParams {
             position_sigma_m: 1.0,
             joint_odo_scale: true,
             joint_odo_yaw: false,
+            joint_odo_bias: None,
             joint_odo_lag: true,
             odo_lag_bound_s: 1.0,
         }
@@ -227,6 +235,7 @@ impl<'a> Problem<'a> {
             odo_ppm: 0.0,
             tilt_mrad: [0.0; 2],
             odo_yaw_deg: 0.0,
+            odo_bias_mps: 0.0,
         }
     }
 
@@ -237,6 +246,7 @@ impl<'a> Problem<'a> {
         s.drift_rad_s = x.drift_deg_h.map(|d| d * DEG_PER_H);
         s.odo_scale = self.base.odo_scale * (1.0 + x.odo_ppm * 1e-6);
         s.odo_yaw_rad = self.base.odo_yaw_rad + x.odo_yaw_deg.to_radians();
+        s.odo_bias_mps = self.base.odo_bias_mps + x.odo_bias_mps;
         s.initial.pitch_rad -= x.tilt_mrad[0] * 1e-3;
         s.initial.roll_rad -= x.tilt_mrad[1] * 1e-3;
         s
@@ -445,7 +455,7 @@ fn linearization_of(
 }
 
 /// `X` as the linearisation's parameter vector `[az, dx, dy, dz, tilt_pitch, tilt_roll,
-/// ppm, odo_yaw]`.
+/// ppm, odo_yaw, odo_bias]`.
 pub fn params_of(x: &X) -> [f64; N_PARAMS] {
     [
         x.azimuth_deg,
@@ -456,6 +466,7 @@ pub fn params_of(x: &X) -> [f64; N_PARAMS] {
         x.tilt_mrad[1],
         x.odo_ppm,
         x.odo_yaw_deg,
+        x.odo_bias_mps,
     ]
 }
 
@@ -466,6 +477,9 @@ const BASE_PARAMS: [usize; 7] = [0, 1, 2, 3, 4, 5, 6];
 /// Index of the odometer yaw boresight in [`params_of`].
 const ODO_YAW: usize = 7;
 
+/// Index of the odometer speed bias in [`params_of`].
+const ODO_BIAS: usize = 8;
+
 /// The inverse of [`params_of`].
 pub fn x_of(p: &[f64; N_PARAMS]) -> X {
     X {
@@ -474,6 +488,7 @@ pub fn x_of(p: &[f64; N_PARAMS]) -> X {
         tilt_mrad: [p[4], p[5]],
         odo_ppm: p[6],
         odo_yaw_deg: p[7],
+        odo_bias_mps: p[8],
     }
 }
 
@@ -852,11 +867,14 @@ fn joint_residuals(
     let mut r = Vec::with_capacity(2 * e.block.len() + 2 * y.cp_m.len() + 1);
     // The odometer boresight moves the accelerometer references (derive's u̇ and ru go
     // along the odometer), not the gyro attitude.
+    // So does the odometer bias (u̇ at starts and stops, ru in turns).
     let yaw_rad = p[ODO_YAW].to_radians();
+    let bias = p[ODO_BIAS];
     for k in 0..e.block.len() {
         if e.valid[k] {
-            let theta_p = e.theta_p_rad[k] + e.theta_p_per_yaw[k] * yaw_rad;
-            let phi_p = e.phi_p_rad[k] + e.phi_p_per_yaw[k] * yaw_rad;
+            let theta_p =
+                e.theta_p_rad[k] + e.theta_p_per_yaw[k] * yaw_rad + e.theta_p_per_bias[k] * bias;
+            let phi_p = e.phi_p_rad[k] + e.phi_p_per_yaw[k] * yaw_rad + e.phi_p_per_bias[k] * bias;
             r.push((y.theta_rad[k] - theta_p + p[4] * 1e-3) / s);
             r.push((crate::attitude::wrap_pi(y.phi_rad[k] - phi_p) + p[5] * 1e-3) / s);
         }
@@ -1061,6 +1079,9 @@ pub fn joint_fit(
         if p.joint_odo_yaw {
             free.push(ODO_YAW);
         }
+        if p.joint_odo_bias == Some(true) {
+            free.push(ODO_BIAS);
+        }
     }
     let free = &free[..];
     let base = problem.base_linearization();
@@ -1162,6 +1183,7 @@ pub fn joint_fit(
             tilt_mrad: [sd(4), sd(5)],
             odo_ppm: sd(6),
             odo_yaw_deg: sd(7),
+            odo_bias_mps: sd(8),
         }
     });
     let (dx_m, dy_m) = last_cp(&y);

@@ -12,14 +12,15 @@ use crate::criteria::{ControlPointFix, KalmanParams, Kryt2, kryt1_of};
 use crate::derive::Epochs;
 
 /// Number of settings a linearisation can move: azimuth, drifts x/y/z, the two levelling
-/// corrections, the odometer scale and the odometer yaw boresight (in that order, the
-/// joint fit's).
-pub const N_PARAMS: usize = 8;
+/// corrections, the odometer scale, the odometer yaw boresight and the odometer speed
+/// bias (in that order, the joint fit's).
+pub const N_PARAMS: usize = 9;
 
 /// Forward-difference steps, in the optimisers' units: 0.01°, 0.01 °/h (×3), 0.01 mrad
-/// (×2), 10 ppm, 0.01°. Small enough that curvature does not bias the slope (a 0.01°
-/// azimuth change moves a 10 km route by 1.7 m), large enough to stay far above rounding.
-pub const FD_STEP: [f64; N_PARAMS] = [1e-2, 1e-2, 1e-2, 1e-2, 1e-2, 1e-2, 10.0, 1e-2];
+/// (×2), 10 ppm, 0.01°, 1 mm/s. Small enough that curvature does not bias the slope (a
+/// 0.01° azimuth change moves a 10 km route by 1.7 m), large enough to stay far above
+/// rounding.
+pub const FD_STEP: [f64; N_PARAMS] = [1e-2, 1e-2, 1e-2, 1e-2, 1e-2, 1e-2, 10.0, 1e-2, 1e-3];
 
 /// Largest pitch/roll difference between a prediction and an exact pass that counts as
 /// agreement, rad (2″: a hundredth of one epoch's 1 mrad residual noise).

@@ -61,6 +61,9 @@ pub struct NavSettings {
     pub odo_scale: f64,
     /// Odometer-to-body yaw boresight, rad: the odometer direction is body x turned by it.
     pub odo_yaw_rad: f64,
+    /// Odometer speed bias, m/s: added to the speed over every sample in which the
+    /// odometer moved (an OBD-II speed's offset; a stopped car still reads zero).
+    pub odo_bias_mps: f64,
     /// Start latitude, rad.
     pub lat0_rad: f64,
     /// Start longitude, rad.

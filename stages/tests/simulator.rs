@@ -42,6 +42,7 @@ fn true_settings(run: &SimRun) -> NavSettings {
         drift_rad_s: run.settings.drift_rad_s,
         odo_scale: 1.0,
         odo_yaw_rad: 0.0,
+        odo_bias_mps: 0.0,
         lat0_rad: run.site[0].to_radians(),
         lon0_rad: run.site[1].to_radians(),
         h0_m: run.site[2],

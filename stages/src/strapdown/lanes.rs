@@ -25,6 +25,7 @@ pub(super) trait Emit<const N: usize> {
 pub(super) struct Lanes<const N: usize> {
     drift_rad_s: [[f64; N]; 3],
     odo_scale: [f64; N],
+    odo_bias_mps: [f64; N],
     odo_sin: [f64; N],
     odo_cos: [f64; N],
     /// Whether any lane has an odometer boresight.
@@ -118,6 +119,7 @@ impl<const N: usize> Lanes<N> {
         let mut lanes = Self {
             drift_rad_s: [[0.0; N]; 3],
             odo_scale: [0.0; N],
+            odo_bias_mps: [0.0; N],
             odo_sin: [0.0; N],
             odo_cos: [0.0; N],
             boresight: settings.iter().any(|s| s.odo_yaw_rad != 0.0),
@@ -143,6 +145,7 @@ impl<const N: usize> Lanes<N> {
                 lanes.drift_rad_s[i][l] = s.drift_rad_s[i];
             }
             lanes.odo_scale[l] = s.odo_scale;
+            lanes.odo_bias_mps[l] = s.odo_bias_mps;
             (lanes.odo_sin[l], lanes.odo_cos[l]) = s.odo_yaw_rad.sin_cos();
             let q = s.initial.to_quat_b_to_n().into_inner();
             let (w, x, y, z) = (q.w, q.i, q.j, q.k);
@@ -263,6 +266,8 @@ impl<const N: usize> Lanes<N> {
         }
 
         // 2. Attitude, odometer dead reckoning, navigation-frame rotation.
+        // The odometer bias acts over the samples in which the odometer moved.
+        let moving_s = if odo_m != 0.0 { dt_s } else { 0.0 };
         for l in 0..N {
             let [qw, qx, qy, qz] = [self.q[0][l], self.q[1][l], self.q[2][l], self.q[3][l]];
             let (bw, bx, by, bz) = (c[l], s[l] * phi[0][l], s[l] * phi[1][l], s[l] * phi[2][l]);
@@ -273,7 +278,7 @@ impl<const N: usize> Lanes<N> {
             let z = qw * bz + qx * by - qy * bx + qz * bw;
 
             // Odometer dead reckoning along the mid-interval direction of travel.
-            let ds = self.odo_scale[l] * odo_m;
+            let ds = self.odo_scale[l] * odo_m + self.odo_bias_mps[l] * moving_s;
             let dir_end = odo_dir_n([w, x, y, z], self.odo_sin[l], self.odo_cos[l], BORESIGHT);
             let half = 0.5 * ds;
             let dp = [
@@ -402,6 +407,7 @@ mod tests {
             odo_scale: 1.0 + 1e-4 * l as f64,
             // Lanes 5 and 6 have a boresight, so the 8-lane batch takes that loop.
             odo_yaw_rad: if l == 5 || l == 6 { 0.01 } else { 0.0 },
+            odo_bias_mps: if l == 3 { -0.08 } else { 0.0 },
             lat0_rad: 0.78,
             lon0_rad: -1.33,
             h0_m: 90.0,
