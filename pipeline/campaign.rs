@@ -12,13 +12,13 @@ use anyhow::{Context, bail};
 use arrow::array::{BooleanArray, Float64Array, RecordBatch, StringArray, UInt64Array};
 use arrow::datatypes::{DataType, Field, Schema};
 use rayon::prelude::*;
-use serde_json::Value;
 use unz_formats::atomic::write_atomic;
 use unz_formats::manifest::RunManifest;
 use unz_formats::parquet_io::write_batch;
+use unz_formats::report::IngestReport;
 use unz_viz::report::{JointEstimate, ReportRow};
 
-use crate::disupt_stage::{Method, ensure_disupt};
+use crate::disupt_stage::{DisuptOut, Method, MethodOut, SettingsOut, SigmaOut, ensure_disupt};
 use crate::flow::{
     Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest, ensure_navigate,
 };
@@ -255,77 +255,102 @@ pub fn run_campaign(manifests: &[PathBuf], plan: &Plan) -> Vec<RunOutcome> {
     outcomes
 }
 
-fn read_json(path: &Path) -> Value {
-    std::fs::read(path)
-        .ok()
-        .and_then(|b| serde_json::from_slice(&b).ok())
-        .unwrap_or(Value::Null)
+/// A run's report, read through its type; `None` when the run did not get that far.
+fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
+    serde_json::from_slice(&std::fs::read(path).ok()?).ok()
+}
+
+/// Median and largest horizontal hold-out error of the joint fit, m.
+fn holdout_stats(j: &MethodOut) -> Option<(f64, f64)> {
+    unz_stages::disupt::holdout_median_max_m(j.holdout.as_ref()?)
+}
+
+/// The summary's numeric columns, in order.
+const COLUMNS: [&str; 27] = [
+    "distance_m",
+    "imu_accepted",
+    "rejected",
+    "lost_samples",
+    "before_dx_m",
+    "before_dy_m",
+    "oepi_dx_m",
+    "oepi_dy_m",
+    "owpi_dx_m",
+    "owpi_dy_m",
+    "joint_dx_m",
+    "joint_dy_m",
+    "joint_azimuth_deg",
+    "joint_azimuth_sigma_deg",
+    "joint_drift_z_rad_s",
+    "joint_drift_z_sigma_rad_s",
+    "joint_odo_scale",
+    "joint_odo_scale_sigma",
+    "joint_odo_yaw_deg",
+    "joint_odo_yaw_sigma_deg",
+    "joint_odo_lag_s",
+    "joint_odo_lag_sigma_s",
+    "joint_odo_bias_mps",
+    "joint_odo_bias_sigma_mps",
+    "joint_holdout_median_m",
+    "joint_holdout_max_m",
+    "wall_s",
+];
+
+/// A run's values of [`COLUMNS`].
+fn column_values(
+    ing: Option<&IngestReport>,
+    d: Option<&DisuptOut>,
+    wall_s: f64,
+) -> [Option<f64>; 27] {
+    let method = |name: &str| d.and_then(|d| d.methods.get(name));
+    let err = |name: &str| method(name).map(|m| (m.dx_m, m.dy_m));
+    let joint = method("joint");
+    let x = |f: fn(&SettingsOut) -> f64| joint.map(|j| f(&j.x));
+    let sd = |f: fn(&SigmaOut) -> f64| joint.and_then(|j| j.x.sigma.as_ref()).map(f);
+    let holdout = joint.and_then(holdout_stats);
+    [
+        d.map(|d| d.distance_m),
+        ing.map(|i| i.imu_accepted as f64),
+        ing.map(|i| i.rejected_total() as f64),
+        ing.map(|i| i.lost_samples as f64),
+        d.map(|d| d.before.dx_m),
+        d.map(|d| d.before.dy_m),
+        err("oepi").map(|e| e.0),
+        err("oepi").map(|e| e.1),
+        err("owpi").map(|e| e.0),
+        err("owpi").map(|e| e.1),
+        err("joint").map(|e| e.0),
+        err("joint").map(|e| e.1),
+        x(|x| x.azimuth_deg),
+        sd(|s| s.azimuth_deg),
+        x(|x| x.drift_rad_s[2]),
+        sd(|s| s.drift_rad_s[2]),
+        x(|x| x.odo_scale),
+        sd(|s| s.odo_scale),
+        x(|x| x.odo_yaw_deg),
+        sd(|s| s.odo_yaw_deg),
+        x(|x| x.odo_lag_s),
+        sd(|s| s.odo_lag_s),
+        x(|x| x.odo_bias_mps),
+        sd(|s| s.odo_bias_mps),
+        holdout.map(|h| h.0),
+        holdout.map(|h| h.1),
+        Some(wall_s),
+    ]
 }
 
 /// Writes `campaign.parquet` and `campaign.md` into `out`.
 pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> {
-    let f = |v: &Value| v.as_f64();
-    let mut cols: Vec<(&str, Vec<Option<f64>>)> = [
-        "distance_m",
-        "imu_accepted",
-        "rejected",
-        "lost_samples",
-        "before_dx_m",
-        "before_dy_m",
-        "oepi_dx_m",
-        "oepi_dy_m",
-        "owpi_dx_m",
-        "owpi_dy_m",
-        "joint_dx_m",
-        "joint_dy_m",
-        "joint_azimuth_deg",
-        "joint_azimuth_sigma_deg",
-        "joint_drift_z_rad_s",
-        "joint_drift_z_sigma_rad_s",
-        "joint_odo_scale",
-        "joint_odo_scale_sigma",
-        "joint_odo_yaw_deg",
-        "joint_odo_yaw_sigma_deg",
-        "wall_s",
-    ]
-    .into_iter()
-    .map(|n| (n, Vec::new()))
-    .collect();
+    let mut cols: Vec<(&str, Vec<Option<f64>>)> =
+        COLUMNS.iter().map(|n| (*n, Vec::new())).collect();
     let mut md = String::from(
-        "| run | status | distance [m] | rejected | before [m] | OEPI [m] | OWPI [m] | joint [m] | joint az σ [°] | wall [s] | computed | error |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| run | status | distance [m] | rejected | before [m] | OEPI [m] | OWPI [m] | joint [m] | joint az σ [°] | hold-out median / max [m] | odometer lag [s] | wall [s] | computed | error |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for o in outcomes {
         let dir = out.join(&o.name);
-        let ing = read_json(&dir.join("ingest/ingest.json"));
-        let d = read_json(&dir.join("disupt/disupt.json"));
-        let m = &d["methods"];
-        let rejected = ing["records_read"]
-            .as_f64()
-            .zip(ing["records_accepted"].as_f64())
-            .map(|(a, b)| a - b);
-        let values = [
-            f(&d["distance_m"]),
-            f(&ing["imu_accepted"]),
-            rejected,
-            f(&ing["lost_samples"]),
-            f(&d["before"]["dx_m"]),
-            f(&d["before"]["dy_m"]),
-            f(&m["oepi"]["dx_m"]),
-            f(&m["oepi"]["dy_m"]),
-            f(&m["owpi"]["dx_m"]),
-            f(&m["owpi"]["dy_m"]),
-            f(&m["joint"]["dx_m"]),
-            f(&m["joint"]["dy_m"]),
-            f(&m["joint"]["x"]["azimuth_deg"]),
-            f(&m["joint"]["x"]["sigma"]["azimuth_deg"]),
-            f(&m["joint"]["x"]["drift_rad_s"][2]),
-            f(&m["joint"]["x"]["sigma"]["drift_rad_s"][2]),
-            f(&m["joint"]["x"]["odo_scale"]),
-            f(&m["joint"]["x"]["sigma"]["odo_scale"]),
-            f(&m["joint"]["x"]["odo_yaw_deg"]),
-            f(&m["joint"]["x"]["sigma"]["odo_yaw_deg"]),
-            Some(o.wall_s),
-        ];
+        let ing: Option<IngestReport> = read_report(&dir.join("ingest/ingest.json"));
+        let d: Option<DisuptOut> = read_report(&dir.join("disupt/disupt.json"));
+        let values = column_values(ing.as_ref(), d.as_ref(), o.wall_s);
         for (c, v) in cols.iter_mut().zip(values) {
             c.1.push(v);
         }
@@ -341,7 +366,7 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
             .collect();
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2} | {} | {} |",
             o.name,
             if o.error.is_none() { "ok" } else { "failed" },
             values[0].map_or("–".into(), |v| format!("{v:.0}")),
@@ -351,6 +376,13 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
             h(values[8], values[9]),
             h(values[10], values[11]),
             values[13].map_or("–".into(), |v| format!("{v:.3}")),
+            values[24]
+                .zip(values[25])
+                .map_or("–".into(), |(a, b)| format!("{a:.1} / {b:.1}")),
+            values[20]
+                .zip(values[21])
+                .filter(|(_, s)| *s > 0.0)
+                .map_or("–".into(), |(l, s)| format!("{l:.3} ± {s:.3}")),
             o.wall_s,
             match (computed.is_empty(), o.stages.is_empty()) {
                 (_, true) => "–".to_owned(),
@@ -423,48 +455,60 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
 
 /// A run's row of `campaign.html`, from its `disupt.json`.
 fn report_row(out: &Path, o: &RunOutcome) -> ReportRow {
-    let d = read_json(&out.join(&o.name).join("disupt/disupt.json"));
-    let settings = [
-        ("initial", &d["before"]),
-        ("oepi", &d["methods"]["oepi"]),
-        ("owpi", &d["methods"]["owpi"]),
-        ("joint", &d["methods"]["joint"]),
-    ];
+    let d: Option<DisuptOut> = read_report(&out.join(&o.name).join("disupt/disupt.json"));
     let mut last_cp_error_m = Vec::new();
     let mut cp_errors_m = Vec::new();
-    for (label, v) in settings {
-        if let (Some(dx), Some(dy)) = (v["dx_m"].as_f64(), v["dy_m"].as_f64()) {
-            last_cp_error_m.push((label.to_owned(), dx.hypot(dy)));
-        }
-        for cp in v["control_points"].as_array().into_iter().flatten() {
-            if let (Some(id), Some(k)) = (cp["id"].as_u64(), cp["kryt2_m"].as_f64()) {
-                cp_errors_m.push((u32::try_from(id).unwrap_or(u32::MAX), label.to_owned(), k));
+    let mut joint = None;
+    let mut holdout_m = None;
+    if let Some(d) = &d {
+        let settings = [(
+            "initial",
+            Some((d.before.dx_m, d.before.dy_m, &d.before.control_points)),
+        )]
+        .into_iter()
+        .chain(["oepi", "owpi", "joint"].into_iter().map(|name| {
+            (
+                name,
+                d.methods
+                    .get(name)
+                    .map(|m| (m.dx_m, m.dy_m, &m.control_points)),
+            )
+        }));
+        for (label, v) in settings {
+            let Some((dx, dy, cps)) = v else { continue };
+            if dx.is_finite() && dy.is_finite() {
+                last_cp_error_m.push((label.to_owned(), dx.hypot(dy)));
+            }
+            for cp in cps {
+                cp_errors_m.push((cp.id, label.to_owned(), cp.kryt2_m));
             }
         }
+        if let Some(j) = d.methods.get("joint") {
+            let (b, x) = (&d.before.x, &j.x);
+            joint = x.sigma.as_ref().map(|s| {
+                let per_h = 1.0 / unz_stages::simulate::DEG_PER_H;
+                JointEstimate {
+                    azimuth_change_deg: (x.azimuth_deg - b.azimuth_deg + 180.0).rem_euclid(360.0)
+                        - 180.0,
+                    azimuth_sigma_deg: s.azimuth_deg,
+                    drift_z_deg_h: x.drift_rad_s[2] * per_h,
+                    drift_z_sigma_deg_h: s.drift_rad_s[2] * per_h,
+                    odo_ppm: (x.odo_scale / b.odo_scale - 1.0) * 1e6,
+                    odo_sigma_ppm: s.odo_scale / b.odo_scale * 1e6,
+                }
+            });
+            holdout_m = holdout_stats(j);
+        }
     }
-    let (b, j) = (&d["before"]["x"], &d["methods"]["joint"]["x"]);
-    let joint = (|| {
-        let per_h = 1.0 / unz_stages::simulate::DEG_PER_H;
-        let base_scale = b["odo_scale"].as_f64()?;
-        Some(JointEstimate {
-            azimuth_change_deg: (j["azimuth_deg"].as_f64()? - b["azimuth_deg"].as_f64()? + 180.0)
-                .rem_euclid(360.0)
-                - 180.0,
-            azimuth_sigma_deg: j["sigma"]["azimuth_deg"].as_f64()?,
-            drift_z_deg_h: j["drift_rad_s"][2].as_f64()? * per_h,
-            drift_z_sigma_deg_h: j["sigma"]["drift_rad_s"][2].as_f64()? * per_h,
-            odo_ppm: (j["odo_scale"].as_f64()? / base_scale - 1.0) * 1e6,
-            odo_sigma_ppm: j["sigma"]["odo_scale"].as_f64()? / base_scale * 1e6,
-        })
-    })();
     let rrd = format!("{0}/review/{0}.rrd", o.name);
     ReportRow {
         name: o.name.clone(),
         error: o.error.clone(),
-        distance_m: d["distance_m"].as_f64(),
+        distance_m: d.as_ref().map(|d| d.distance_m),
         last_cp_error_m,
         cp_errors_m,
         joint,
+        holdout_m,
         recording: out.join(&rrd).is_file().then_some(rrd),
         wall_s: o.wall_s,
         computed: o

@@ -238,6 +238,9 @@ fn table(name: &str, r: &MethodOut) -> String {
         for p in h {
             let _ = writeln!(s, "| {} | {:.2} | {:.2} |", p.id, p.dx_m, p.dy_m);
         }
+        if let Some((median, max)) = disupt::holdout_median_max_m(h) {
+            let _ = writeln!(s, "\nHold-out error: median {median:.2} m, max {max:.2} m.");
+        }
     }
     let _ = writeln!(s, "\n{} passes.\n", r.evaluations);
     s

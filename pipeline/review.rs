@@ -8,14 +8,16 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use serde_json::Value;
 use unz_formats::parquet_io::read_table;
 use unz_formats::tables::{f64_column, i64_column};
+use unz_stages::criteria::Kryt2;
 use unz_stages::earth;
-use unz_viz::review::{ControlPointView, EpochSeries, ImuSeries, Kryt1Curve, Review, Sweep, Track};
+use unz_viz::review::{
+    ControlPointView, EpochSeries, ImuSeries, Kryt1Curve, Review, RouteSigmaView, Sweep, Track,
+};
 
 use crate::derive_io::load_derived;
-use crate::disupt_stage::{Method, ensure_disupt};
+use crate::disupt_stage::{DisuptOut, Method, ensure_disupt};
 use crate::flow::{Overrides, Params, RunCtx, ensure_criteria};
 use crate::method_tables::{
     KRYT1_SERIES, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_indices, read_kryt1_series,
@@ -73,6 +75,7 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
         criteria_dir.join("criteria.parquet"),
         disupt_dir.join("disupt.json"),
         disupt_dir.join("disupt.md"),
+        disupt_dir.join("corrected_nav.parquet"),
         disupt_dir.join(TRACKS),
         disupt_dir.join(KRYT1_SERIES),
     ];
@@ -83,7 +86,7 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
     let stage = Stage {
         dir: dir.clone(),
         name: "review",
-        version: 1,
+        version: 2,
         params_hash: params_hash(&(
             unz_viz::recording::SERIES_RATE_HZ,
             unz_viz::recording::POSE_RATE_HZ,
@@ -168,11 +171,11 @@ pub fn build_review(
         .collect();
 
     let json_path = disupt_dir.join("disupt.json");
-    let dj: Value = serde_json::from_slice(
+    let dj: DisuptOut = serde_json::from_slice(
         &std::fs::read(&json_path)
             .with_context(|| format!("cannot read {}", json_path.display()))?,
     )
-    .with_context(|| format!("not JSON: {}", json_path.display()))?;
+    .with_context(|| format!("not a disupt report: {}", json_path.display()))?;
     let control_points = m
         .control_points
         .iter()
@@ -181,20 +184,16 @@ pub fn build_review(
             let (north_m, east_m) =
                 earth::local_offset_m(lat.to_radians(), lon.to_radians(), site.0, site.1, site.2);
             let mut errors = Vec::new();
-            let mut push = |label: &str, v: &Value| {
-                let entry = v["control_points"].as_array().and_then(|a| {
-                    a.iter()
-                        .find(|e| e["id"].as_u64() == Some(u64::from(cp.id)))
-                });
-                if let Some(e) = entry
-                    && let (Some(dx), Some(dy)) = (e["dx_m"].as_f64(), e["dy_m"].as_f64())
-                {
-                    errors.push((label.to_owned(), dx, dy));
+            let mut push = |label: &str, cps: &[Kryt2]| {
+                if let Some(e) = cps.iter().find(|e| e.id == cp.id) {
+                    errors.push((label.to_owned(), e.dx_m, e.dy_m));
                 }
             };
-            push("initial", &dj["before"]);
+            push("initial", &dj.before.control_points);
             for method in ["oepi", "owpi", "joint"] {
-                push(method, &dj["methods"][method]);
+                if let Some(m) = dj.methods.get(method) {
+                    push(method, &m.control_points);
+                }
             }
             ControlPointView {
                 id: cp.id,
@@ -215,8 +214,13 @@ pub fn build_review(
         d.t_s.last().copied().unwrap_or(0.0),
         d.t_s.len(),
         1.0 / d.nominal_dt_s.max(1e-9),
-        dj["distance_m"].as_f64().unwrap_or(f64::NAN),
+        dj.distance_m,
     );
+    let route_sigma = read_route_sigma(
+        &disupt_dir.join("corrected_nav.parquet"),
+        &rel,
+        d.nominal_dt_s,
+    )?;
     Ok(Review {
         name: m.name.clone(),
         sample_dt_s: d.nominal_dt_s,
@@ -232,7 +236,8 @@ pub fn build_review(
         epochs,
         kryt1,
         tracks,
-        vehicle_track: dj["corrected_by"].as_str().map(str::to_owned),
+        vehicle_track: dj.corrected_by.clone(),
+        route_sigma,
         control_points,
         sweep: sweep.map(read_sweep).transpose()?,
         tables_markdown,
@@ -314,4 +319,26 @@ fn read_sweep(path: &Path) -> anyhow::Result<Sweep> {
         kryt1_rad: f64_column(&b, "kryt1_rad")?,
         kryt2_m: f64_column(&b, "kryt2_m")?,
     })
+}
+
+/// The corrected route's 1σ columns of `corrected_nav.parquet` at the recording's series
+/// rate, when the joint fit wrote them.
+fn read_route_sigma(
+    path: &Path,
+    rel: &impl Fn(&[i64]) -> Vec<f64>,
+    dt_s: f64,
+) -> anyhow::Result<Option<RouteSigmaView>> {
+    let (schema, b) = read_table(path)?;
+    if schema.field_with_name("sigma_north_m").is_err() {
+        return Ok(None);
+    }
+    let step =
+        ((1.0 / (unz_viz::recording::SERIES_RATE_HZ * dt_s.max(1e-6))).round() as usize).max(1);
+    let every = |v: Vec<f64>| v.into_iter().step_by(step).collect::<Vec<_>>();
+    Ok(Some(RouteSigmaView {
+        t_s: every(rel(&i64_column(&b, "t_ns")?)),
+        north_m: every(f64_column(&b, "sigma_north_m")?),
+        east_m: every(f64_column(&b, "sigma_east_m")?),
+        heading_deg: every(f64_column(&b, "sigma_heading_deg")?),
+    }))
 }

@@ -35,6 +35,20 @@ fn review_recording_reads_back_with_the_pinned_rerun() {
     let run = campaign.join("sim-0079");
     let r = run.to_str().unwrap();
     unz_ok(&["run", r, "--out", o, "--until", "export"]);
+    // The campaign summary carries the joint fit's hold-out errors and odometer lag.
+    let (_, batches) =
+        unz_formats::parquet_io::read_batches(&out.join("campaign.parquet")).unwrap();
+    for col in [
+        "joint_holdout_median_m",
+        "joint_holdout_max_m",
+        "joint_odo_lag_s",
+        "joint_odo_lag_sigma_s",
+    ] {
+        let v = unz_formats::tables::f64_column(&batches[0], col).unwrap();
+        assert!(v[0].is_finite(), "{col}: {v:?}");
+    }
+    let md = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(md.contains("hold-out median / max [m]"), "{md}");
     assert!(
         !out.join("sim-0079/review").exists(),
         "--until export stops before review"
@@ -107,6 +121,14 @@ fn review_recording_reads_back_with_the_pinned_rerun() {
         "kryt1/joint",
     ] {
         assert_eq!(rows[format!("/plots/{e}")], epochs, "{e}");
+    }
+    // The joint fit's route σ at the series rate (time only: it is per sample, not raw).
+    for e in [
+        "route_sigma/north",
+        "route_sigma/east",
+        "route_sigma/heading",
+    ] {
+        assert_eq!(rows[format!("/plots/{e}")], decimated, "{e}");
     }
     // The pose at 2 Hz over the whole run, both ends included.
     for e in ["/world/vehicle", "/map/vehicle"] {

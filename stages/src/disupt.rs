@@ -1234,6 +1234,19 @@ pub struct Holdout {
     pub dy_m: f64,
 }
 
+/// Median and largest horizontal error of hold-out results, m (`None` without any).
+pub fn holdout_median_max_m(h: &[Holdout]) -> Option<(f64, f64)> {
+    let mut e: Vec<f64> = h.iter().map(|p| p.dx_m.hypot(p.dy_m)).collect();
+    e.sort_by(f64::total_cmp);
+    let n = e.len();
+    let median = match n {
+        0 => return None,
+        _ if n % 2 == 1 => e[n / 2],
+        _ => 0.5 * (e[n / 2 - 1] + e[n / 2]),
+    };
+    Some((median, e[n - 1]))
+}
+
 /// Hold-out errors: for every control point, the joint fit without it (same weights),
 /// and the error there of an exact pass with those settings. Each refit solves the
 /// fit's linearisation without the point's rows (no pass); the exact passes run side by

@@ -40,9 +40,13 @@ pub fn review_blueprint(review: &Review) -> Blueprint {
     ])
     .with_name("Sensors");
     let mut disupt_views = vec![
-        TextDocumentView::new("DISUPT tables")
-            .with_origin(DISUPT_TABLES)
-            .into(),
+        Vertical::new([
+            TextDocumentView::new("DISUPT tables")
+                .with_origin(DISUPT_TABLES)
+                .into(),
+            plot("Corrected route 1σ", PLOT_ROUTE_SIGMA).into(),
+        ])
+        .into(),
     ];
     match review.sweep.as_ref().map(|s| s.axes.len()) {
         Some(1) => disupt_views.push(

@@ -41,6 +41,9 @@ pub const PLOT_IMU_GYRO: &str = "plots/imu/gyro";
 /// Specific force from the raw increments, decimated.
 pub const PLOT_IMU_ACCEL: &str = "plots/imu/accel";
 
+/// 1σ of the corrected route: north, east (m) and heading (°).
+pub const PLOT_ROUTE_SIGMA: &str = "plots/route_sigma";
+
 /// Sensitivity maps (when a sweep exists).
 pub const SENSITIVITY: &str = "sensitivity";
 /// The DISUPT tables.

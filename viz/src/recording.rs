@@ -352,6 +352,27 @@ impl Writer<'_> {
             let deg: Vec<f64> = rad.iter().map(|x| x.to_degrees()).collect();
             self.series(&path, name, color, &e.t_s, None, &deg)?;
         }
+        if let Some(s) = &r.route_sigma {
+            for (child, name, color, v) in [
+                ("north", "σ north [m]", [31, 119, 180, 255], &s.north_m),
+                ("east", "σ east [m]", [255, 127, 14, 255], &s.east_m),
+                (
+                    "heading",
+                    "σ heading [°]",
+                    [44, 160, 44, 255],
+                    &s.heading_deg,
+                ),
+            ] {
+                self.series(
+                    &format!("{PLOT_ROUTE_SIGMA}/{child}"),
+                    name,
+                    color,
+                    &s.t_s,
+                    None,
+                    v,
+                )?;
+            }
+        }
         for k in &r.kryt1 {
             self.series(
                 &format!("{PLOT_KRYT1}/{}", k.label),

@@ -22,6 +22,8 @@ pub struct ReportRow {
     pub cp_errors_m: Vec<(u32, String, f64)>,
     /// Joint estimate with 1σ, when it ran.
     pub joint: Option<JointEstimate>,
+    /// Median and largest error of the joint fit at a control point left out of it, m.
+    pub holdout_m: Option<(f64, f64)>,
     /// Relative link to the run's review recording.
     pub recording: Option<String>,
     /// Wall time, s.
@@ -331,7 +333,7 @@ tr.failed{{background:#fde8e8}}figure{{display:inline-block;margin:0 1em 1em 0}}
             escape(&display_name(m))
         );
     }
-    h += "<th>joint Δaz [°]</th><th>σ [°]</th><th>driftz [°/h]</th><th>σ [°/h]</th><th>odo [ppm]</th><th>σ [ppm]</th><th>wall [s]</th><th class=\"l\">computed</th><th class=\"l\">recording / error</th></tr>\n";
+    h += "<th>joint Δaz [°]</th><th>σ [°]</th><th>driftz [°/h]</th><th>σ [°/h]</th><th>odo [ppm]</th><th>σ [ppm]</th><th>hold-out median [m]</th><th>hold-out max [m]</th><th>wall [s]</th><th class=\"l\">computed</th><th class=\"l\">recording / error</th></tr>\n";
     for (i, r) in rows.iter().enumerate() {
         let _ = write!(
             h,
@@ -353,6 +355,8 @@ tr.failed{{background:#fde8e8}}figure{{display:inline-block;margin:0 1em 1em 0}}
             j.map(|j| (j.drift_z_sigma_deg_h, 2)),
             j.map(|j| (j.odo_ppm, 0)),
             j.map(|j| (j.odo_sigma_ppm, 0)),
+            r.holdout_m.map(|h| (h.0, 2)),
+            r.holdout_m.map(|h| (h.1, 2)),
         ] {
             h += &format!(
                 "<td>{}</td>",

@@ -25,6 +25,8 @@ pub struct Review {
     pub control_points: Vec<ControlPointView>,
     /// Sensitivity map, when a sweep exists.
     pub sweep: Option<Sweep>,
+    /// 1σ of the corrected route, when the joint fit made it.
+    pub route_sigma: Option<RouteSigmaView>,
     /// The DISUPT tables (Markdown).
     pub tables_markdown: String,
     /// A few lines on the run (Markdown), shown in the read-me document.
@@ -190,4 +192,17 @@ mod tests {
         let m: Vec<_> = block_means(&v, 2).collect();
         assert_eq!(m, vec![(0, 2.0), (2, 6.0), (4, 9.0)]);
     }
+}
+
+/// 1σ of the corrected route over time.
+#[derive(Debug, Clone, Default)]
+pub struct RouteSigmaView {
+    /// Time since the first IMU sample, s.
+    pub t_s: Vec<f64>,
+    /// North, m.
+    pub north_m: Vec<f64>,
+    /// East, m.
+    pub east_m: Vec<f64>,
+    /// Heading, degrees.
+    pub heading_deg: Vec<f64>,
 }
