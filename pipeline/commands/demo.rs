@@ -9,6 +9,7 @@ use unz_formats::IngestReport;
 
 use crate::campaign::{Plan, run_campaign, write_summary};
 use crate::cli::{DemoArgs, SimulateArgs};
+use crate::disupt_stage::{DisuptOut, MethodOut};
 
 /// Runs the command.
 pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
@@ -56,7 +57,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
     write_summary(&results, &outcomes)?;
 
     println!(
-        "{:<16} {:>7} {:>8} {:>9} {:>10} {:>10} {:>10} {:>10} {:>12}",
+        "{:<16} {:>7} {:>8} {:>9} {:>10} {:>10} {:>10} {:>10} {:>12} {:>13} {:>12}",
         "run",
         "imu",
         "rejected",
@@ -65,7 +66,9 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         "OEPI [m]",
         "OWPI [m]",
         "joint [m]",
-        "joint az σ°"
+        "joint az σ°",
+        "odo lag [s]",
+        "hold-out [m]"
     );
     let mut failed = 0;
     for o in &outcomes {
@@ -74,39 +77,46 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
             println!("{:<16} failed: {e}", o.name);
             continue;
         }
-        let read = |p: std::path::PathBuf| -> serde_json::Value {
-            std::fs::read(p)
-                .ok()
-                .and_then(|b| serde_json::from_slice(&b).ok())
-                .unwrap_or_default()
-        };
+        fn read<T: serde::de::DeserializeOwned>(p: std::path::PathBuf) -> Option<T> {
+            serde_json::from_slice(&std::fs::read(p).ok()?).ok()
+        }
         let report: IngestReport =
-            serde_json::from_value(read(results.join(&o.name).join("ingest/ingest.json")))
-                .unwrap_or_default();
-        let d = read(results.join(&o.name).join("disupt/disupt.json"));
-        let err = |v: &serde_json::Value| {
-            v["dx_m"]
-                .as_f64()
-                .unwrap_or(f64::NAN)
-                .hypot(v["dy_m"].as_f64().unwrap_or(f64::NAN))
+            read(results.join(&o.name).join("ingest/ingest.json")).unwrap_or_default();
+        let Some(d) = read::<DisuptOut>(results.join(&o.name).join("disupt/disupt.json")) else {
+            println!("{:<16} no DISUPT report", o.name);
+            continue;
         };
-        let m = &d["methods"];
+        let method = |name: &str| d.methods.get(name);
+        let err = |m: Option<&MethodOut>| m.map_or(f64::NAN, |m| m.dx_m.hypot(m.dy_m));
+        let joint = method("joint");
+        let sigma = joint.and_then(|j| j.x.sigma.as_ref());
+        let holdout_max = joint
+            .and_then(|j| j.holdout.as_deref())
+            .and_then(unz_stages::disupt::holdout_median_max_m)
+            .map_or(f64::NAN, |h| h.1);
         println!(
-            "{:<16} {:>7} {:>8} {:>9.0} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>12.3}",
+            "{:<16} {:>7} {:>8} {:>9.0} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>12.3} {:>13} {:>12.1}",
             o.name,
             report.imu_accepted,
             report.rejected_total(),
-            d["distance_m"].as_f64().unwrap_or(f64::NAN),
-            err(&d["before"]),
-            err(&m["oepi"]),
-            err(&m["owpi"]),
-            err(&m["joint"]),
-            m["joint"]["x"]["sigma"]["azimuth_deg"]
-                .as_f64()
-                .unwrap_or(f64::NAN),
+            d.distance_m,
+            d.before.dx_m.hypot(d.before.dy_m),
+            err(method("oepi")),
+            err(method("owpi")),
+            err(joint),
+            sigma.map_or(f64::NAN, |s| s.azimuth_deg),
+            joint.zip(sigma).map_or("–".into(), |(j, s)| format!(
+                "{:.2}±{:.2}",
+                j.x.odo_lag_s, s.odo_lag_s
+            )),
+            holdout_max,
         );
     }
-    println!("errors are horizontal distances at the last control point");
+    println!(
+        "errors are horizontal distances at the last control point; the odometer lag is the joint \
+         fit's (the runs' odometers report 0.2 s late), hold-out the largest error at a control \
+         point left out of the joint fit"
+    );
     println!(
         "campaign: {}\nresults:  {} (per run: ingest/ derive/ navigate/ criteria/ disupt/ export/ review/)\nreport:   {}\nrecordings (open with `rerun FILE`):",
         campaign.display(),
