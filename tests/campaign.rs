@@ -161,6 +161,23 @@ fn shards_partition_the_campaign() {
     assert!(m.status.success(), "{}", String::from_utf8_lossy(&m.stderr));
     let (_, batches) = unz_formats::parquet_io::read_batches(&merged).unwrap();
     assert_eq!(batches.iter().map(|b| b.num_rows()).sum::<usize>(), 7);
+    // The README's DuckDB query over the shards' summaries runs as documented.
+    if let Some(py) = crate::util::python() {
+        let readme =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+        let start = readme.find("```sql\n").expect("README has a SQL example") + 7;
+        let sql = &readme[start..start + readme[start..].find("```").unwrap()];
+        let glob = tmp.path().join("out*").join("campaign.parquet");
+        let sql = sql.replace(
+            "/scratch/unz/shard-*/campaign.parquet",
+            glob.to_str().unwrap(),
+        );
+        let file = tmp.path().join("query.sql");
+        std::fs::write(&file, sql).unwrap();
+        let res = crate::util::python_json(&py, "run_duckdb.py", &[&file]);
+        assert_eq!(res["rows"].as_array().unwrap().len(), 7, "{res}");
+        assert_eq!(res["columns"][3], "before_m");
+    }
     // Merging a shard twice is refused.
     let mut twice = vec![
         "campaign",

@@ -1,5 +1,5 @@
 //! A campaign killed with SIGKILL at several points, then re-run, ends with the same files
-//! as an uninterrupted run (wall times aside), and no temporary file left over. The
+//! as an uninterrupted run (the recording compared by content), and no temporary file left over. The
 //! campaign summaries (wall times, what was computed) are not compared.
 
 use std::path::{Path, PathBuf};
@@ -24,51 +24,16 @@ fn files(root: &Path) -> Vec<PathBuf> {
     out
 }
 
-/// File content with the wall times (which differ run to run) removed.
+/// File content to compare: the bytes, except for the Rerun recording and the review's
+/// stage record that hashes it (see `reproducible.rs`).
 fn comparable(path: &Path) -> Vec<u8> {
     let bytes = std::fs::read(path).unwrap();
-    if path.file_name().is_some_and(|n| n == "disupt.json") {
+    if path.file_name().is_some_and(|n| n == "stage.json")
+        && path.parent().is_some_and(|d| d.ends_with("review"))
+    {
         let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
-        fn strip(v: &mut serde_json::Value) {
-            match v {
-                serde_json::Value::Object(m) => {
-                    m.remove("wall_s");
-                    m.values_mut().for_each(strip);
-                }
-                serde_json::Value::Array(a) => a.iter_mut().for_each(strip),
-                _ => {}
-            }
-        }
-        strip(&mut v);
-        return serde_json::to_vec(&v).unwrap();
-    }
-    if path.extension().is_some_and(|e| e == "mcap") {
-        // mcap 0.25 writes the summary's schemas and channels in HashMap order, which
-        // varies from process to process: compare the messages themselves.
-        let mut out = Vec::new();
-        for m in mcap::MessageStream::new(&bytes).unwrap() {
-            let m = m.unwrap();
-            out.extend_from_slice(m.channel.topic.as_bytes());
-            out.extend_from_slice(&m.log_time.to_le_bytes());
-            out.extend_from_slice(&m.data);
-        }
-        return out;
-    }
-    if path.file_name().is_some_and(|n| n == "stage.json") {
-        // Records hash their outputs: drop the hashes of the files compared loosely above
-        // and below (MCAP summaries, wall times).
-        let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
-        // The review reads disupt.json and disupt.md, whose wall times differ run to run.
-        if let Some(i) = v["inputs"].as_object_mut() {
-            i.retain(|k, _| !k.ends_with("disupt.json") && !k.ends_with("disupt.md"));
-        }
         if let Some(o) = v["outputs"].as_object_mut() {
-            o.retain(|k, _| {
-                !k.ends_with(".mcap")
-                    && !k.ends_with(".rrd")
-                    && k != "disupt.json"
-                    && k != "disupt.md"
-            });
+            o.retain(|k, _| !k.ends_with(".rrd"));
         }
         return serde_json::to_vec(&v).unwrap();
     }
@@ -80,15 +45,6 @@ fn comparable(path: &Path) -> Vec<u8> {
         };
         return python_json(&py, "check_rrd.py", &[path])
             .to_string()
-            .into_bytes();
-    }
-    if path.file_name().is_some_and(|n| n == "disupt.md") {
-        let text = String::from_utf8(bytes).unwrap();
-        return text
-            .lines()
-            .filter(|l| !l.contains(" passes in "))
-            .collect::<Vec<_>>()
-            .join("\n")
             .into_bytes();
     }
     bytes

@@ -7,5 +7,6 @@ mod estimation;
 mod ingest;
 mod kill;
 mod kingston;
+mod reproducible;
 mod review;
 mod util;

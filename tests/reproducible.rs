@@ -1,0 +1,53 @@
+//! The same input gives the same files: one run processed twice, into two output
+//! folders, compared byte for byte.
+
+use std::path::{Path, PathBuf};
+
+use crate::util::{simulated_run, unz_ok};
+
+fn files(root: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        for e in std::fs::read_dir(&dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.push(p.strip_prefix(root).unwrap().to_path_buf());
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn a_run_processed_twice_gives_identical_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = simulated_run(tmp.path(), 71, &["--duration-s", "600"]);
+    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
+    for out in [&a, &b] {
+        unz_ok(&["run", run.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    }
+    let (fa, fb) = (files(&a.join("sim-0071")), files(&b.join("sim-0071")));
+    assert_eq!(fa, fb);
+    assert!(fa.len() >= 27, "{fa:?}");
+    // The Rerun recording is the exception: rerun 0.36 names its chunks and rows with
+    // time-based ids and its blueprint with random ones, so its bytes (and the review's
+    // stage record, which hashes them) differ; what it holds is compared by the kill test.
+    let exceptions = ["review/sim-0071.rrd", "review/stage.json"];
+    let mut compared = 0;
+    for f in &fa {
+        if exceptions.iter().any(|e| f == Path::new(e)) {
+            continue;
+        }
+        let (x, y) = (
+            std::fs::read(a.join("sim-0071").join(f)).unwrap(),
+            std::fs::read(b.join("sim-0071").join(f)).unwrap(),
+        );
+        assert!(x == y, "{} differs between two identical runs", f.display());
+        compared += 1;
+    }
+    assert_eq!(compared, fa.len() - exceptions.len());
+}
