@@ -55,8 +55,56 @@ fn merge(base: &mut toml::Table, over: &toml::Table) {
 }
 
 fn parse(table: &toml::Table) -> anyhow::Result<Params> {
-    Params::deserialize(toml::Value::Table(table.clone()))
-        .map_err(|e| anyhow::anyhow!("{}", e.message().trim()))
+    let params = Params::deserialize(toml::Value::Table(table.clone()))
+        .map_err(|e| anyhow::anyhow!("{}", e.message().trim()))?;
+    validate(&params)?;
+    Ok(params)
+}
+
+/// Every parameter within its physical range: a value outside (NaN, ∞, 1e300…) would
+/// run to non-finite outputs under an "ok" status.
+pub fn validate(p: &Params) -> anyhow::Result<()> {
+    let d = &p.derive;
+    let (a, k, m) = (&p.align, &p.kalman, &p.disupt);
+    let checks: [(&str, f64, f64, f64); 16] = [
+        ("derive.filter.block_s", d.filter.block_s, 1e-4, 10.0),
+        ("derive.filter.cutoff_hz", d.filter.cutoff_hz, 1e-3, 50.0),
+        ("derive.epoch_s", d.epoch_s, 1e-3, 3600.0),
+        ("derive.odo_time_offset_s", d.odo_time_offset_s, -60.0, 60.0),
+        ("derive.gate_long_mps2", d.gate_long_mps2, 1e-3, 100.0),
+        ("derive.gate_lat_mps2", d.gate_lat_mps2, 1e-3, 100.0),
+        ("align.drift_sigma_rad_s", a.drift_sigma_rad_s, 0.0, 1e-2),
+        ("align.arw_rad_sqrt_s", a.arw_rad_sqrt_s, 0.0, 1e-2),
+        ("kalman.r_rad", k.r_rad, 1e-9, 1.0),
+        (
+            "kalman.rate_walk_rad_s_sqrt_s",
+            k.rate_walk_rad_s_sqrt_s,
+            0.0,
+            1.0,
+        ),
+        ("disupt.azimuth_bound_deg", m.azimuth_bound_deg, 1e-3, 180.0),
+        (
+            "disupt.drift_bound_deg_h",
+            m.drift_bound_deg_h,
+            1e-3,
+            1000.0,
+        ),
+        ("disupt.attitude_sigma_rad", m.attitude_sigma_rad, 1e-9, 1.0),
+        ("disupt.position_sigma_m", m.position_sigma_m, 1e-6, 1e5),
+        ("disupt.odo_lag_bound_s", m.odo_lag_bound_s, 1e-3, 5.0),
+        (
+            "derive.filter.cutoff_hz × block_s",
+            d.filter.cutoff_hz * d.filter.block_s,
+            0.0,
+            0.5,
+        ),
+    ];
+    for (name, v, lo, hi) in checks {
+        if !(v.is_finite() && (lo..=hi).contains(&v)) {
+            anyhow::bail!("{name} = {v} is outside [{lo}, {hi}]");
+        }
+    }
+    Ok(())
 }
 
 /// The effective parameters of a run: defaults, `config`, then the run's `[params]`.
@@ -98,6 +146,23 @@ mod tests {
         );
         let bad: toml::Table = toml::from_str("[kalman]\nr = 1\n").unwrap();
         assert!(for_run(&bad, &m).is_err());
+        // Values outside their physical range are refused by name (hostile archives).
+        for (text, name) in [
+            (
+                "[disupt]\nazimuth_bound_deg = 1e300\n",
+                "disupt.azimuth_bound_deg",
+            ),
+            (
+                "[derive.filter]\ncutoff_hz = nan\n",
+                "derive.filter.cutoff_hz",
+            ),
+            ("[derive.filter]\ncutoff_hz = 10.0\n", "cutoff_hz × block_s"),
+            ("[kalman]\nr_rad = -1.0\n", "kalman.r_rad"),
+        ] {
+            let t: toml::Table = toml::from_str(text).unwrap();
+            let e = format!("{:#}", effective(&t, None).unwrap_err());
+            assert!(e.contains(name), "{text}: {e}");
+        }
         // Round trip of the printed defaults.
         let shown: toml::Table = toml::from_str(&to_toml(&Params::default()).unwrap()).unwrap();
         assert_eq!(parse(&shown).unwrap(), Params::default());

@@ -21,8 +21,8 @@ use unz_stages::simulate::DEG_PER_H;
 use unz_stages::strapdown::{NavSettings, NavTrack};
 
 use crate::flow::{
-    IngestedSeries, NavCase, Overrides, Params, RunCtx, ensure_derive, load_case,
-    site_gravity_mps2, write_nav,
+    IngestedSeries, NavCase, Overrides, Params, RunCtx, ensure_derive, ensure_finite_track,
+    load_case, site_gravity_mps2, write_nav,
 };
 use crate::method_tables::{
     KRYT1_SERIES, MethodKryt1, MethodTrack, TRACKS, method_kryt1, method_track, write_kryt1_series,
@@ -90,10 +90,22 @@ pub struct MethodOut {
     /// Optimised settings.
     pub x: SettingsOut,
     /// ΔX at the last control point, m.
+    #[serde(
+        skip_serializing_if = "unz_stages::finite::is_absent",
+        default = "unz_stages::finite::absent"
+    )]
     pub dx_m: f64,
     /// ΔY at the last control point, m.
+    #[serde(
+        skip_serializing_if = "unz_stages::finite::is_absent",
+        default = "unz_stages::finite::absent"
+    )]
     pub dy_m: f64,
     /// Kryt1, rad.
+    #[serde(
+        skip_serializing_if = "unz_stages::finite::is_absent",
+        default = "unz_stages::finite::absent"
+    )]
     pub kryt1_rad: f64,
     /// Errors at every control point.
     pub control_points: Vec<Kryt2>,
@@ -113,6 +125,10 @@ pub struct MethodOut {
 #[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct DisuptOut {
     /// Distance travelled to the last control point, m.
+    #[serde(
+        skip_serializing_if = "unz_stages::finite::is_absent",
+        default = "unz_stages::finite::absent"
+    )]
     pub distance_m: f64,
     /// Errors with the initial settings.
     pub before: Before,
@@ -136,10 +152,22 @@ pub struct Before {
     /// Settings.
     pub x: SettingsOut,
     /// ΔX at the last control point, m.
+    #[serde(
+        skip_serializing_if = "unz_stages::finite::is_absent",
+        default = "unz_stages::finite::absent"
+    )]
     pub dx_m: f64,
     /// ΔY at the last control point, m.
+    #[serde(
+        skip_serializing_if = "unz_stages::finite::is_absent",
+        default = "unz_stages::finite::absent"
+    )]
     pub dy_m: f64,
     /// Kryt1, rad.
+    #[serde(
+        skip_serializing_if = "unz_stages::finite::is_absent",
+        default = "unz_stages::finite::absent"
+    )]
     pub kryt1_rad: f64,
     /// Errors at every control point.
     pub control_points: Vec<Kryt2>,
@@ -579,6 +607,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         md = format!(
             "{md}Before DISUPT: ΔX = {dx:.1} m, ΔY = {dy:.1} m at the last control point, after {distance_m:.0} m.\n"
         );
+        ensure_finite_track("corrected", &track)?;
         write_tracks(&dir.join(TRACKS), &tracks)?;
         write_kryt1_series(&dir.join(KRYT1_SERIES), &kryt1s)?;
         let sigma = route_sigma.map(|r| r.per_sample(track.len()));

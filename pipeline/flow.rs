@@ -170,12 +170,35 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     };
     ctx.run_stage(&stage, || {
         let raw = IngestedSeries::load(&ingest_dir)?;
-        write_derived(
-            &derive(&raw.series(), &params.derive, site_gravity_mps2(m)),
-            &dir,
-        )
+        let d = derive(&raw.series(), &params.derive, site_gravity_mps2(m));
+        ensure_finite("angle increment", d.dtheta_rad.iter().flatten().copied())?;
+        ensure_finite("velocity increment", d.dvel_mps.iter().flatten().copied())?;
+        ensure_finite("odometer distance", d.odo_dist_m.iter().copied())?;
+        ensure_finite("accelerometer pitch", d.epochs.theta_p_rad.iter().copied())?;
+        ensure_finite("accelerometer roll", d.epochs.phi_p_rad.iter().copied())?;
+        write_derived(&d, &dir)
     })?;
     Ok(dir)
+}
+
+/// Fails unless every value is finite, naming the quantity and the first sample that is
+/// not: a stage never records outputs that went to Inf or NaN.
+pub fn ensure_finite(what: &str, values: impl IntoIterator<Item = f64>) -> anyhow::Result<()> {
+    if let Some((k, v)) = values.into_iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        bail!("{what} is {v} at sample {k}: the input's scales or values are not physical");
+    }
+    Ok(())
+}
+
+/// Every navigated position of `track` finite (see [`ensure_finite`]).
+pub fn ensure_finite_track(what: &str, track: &NavTrack) -> anyhow::Result<()> {
+    ensure_finite(&format!("{what} latitude"), track.lat_rad.iter().copied())?;
+    ensure_finite(&format!("{what} longitude"), track.lon_rad.iter().copied())?;
+    ensure_finite(&format!("{what} height"), track.h_m.iter().copied())?;
+    ensure_finite(
+        &format!("{what} attitude"),
+        track.q_b_to_n.iter().map(|q| q[0]),
+    )
 }
 
 /// Normal gravity at the run's site, m/s² (derive's g).
@@ -450,6 +473,7 @@ pub fn ensure_navigate(
         let case = load_case(ctx, params, overrides)?;
         let mut track = NavTrack::default();
         case.navigate(&mut track);
+        ensure_finite_track("navigated", &track)?;
         let site = (
             case.settings.lat0_rad,
             case.settings.lon0_rad,

@@ -13,6 +13,7 @@ pub mod disupt_stage;
 pub mod export;
 pub mod flow;
 pub mod ingest;
+pub mod lock;
 pub mod method_tables;
 pub mod review;
 pub mod runs;

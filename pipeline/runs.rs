@@ -18,13 +18,28 @@ pub fn load_run(path: &Path) -> anyhow::Result<RunManifest> {
     Ok(RunManifest::load(&manifest)?)
 }
 
-/// `OUT/<name>/<stage>/`, created. The name is a validated plain name, so the folder
-/// stays inside `out`.
+/// `OUT/<name>/<stage>/`, created. The name is a validated plain name, and neither
+/// folder may be a symbolic link (one planted there would send outputs outside `out`).
 pub fn stage_dir(out: &Path, run_name: &str, stage: &str) -> anyhow::Result<PathBuf> {
     if !is_plain_name(run_name) {
         bail!("run name {run_name:?} is not a plain name");
     }
-    let dir = out.join(run_name).join(stage);
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let run_dir = out.join(run_name);
+    let dir = run_dir.join(stage);
+    for d in [&run_dir, &dir] {
+        match std::fs::symlink_metadata(d) {
+            Ok(m) if m.file_type().is_symlink() => bail!(
+                "{} is a symbolic link: outputs are written only inside the output folder",
+                d.display()
+            ),
+            Ok(m) if !m.is_dir() => bail!("{} exists and is not a folder", d.display()),
+            Ok(_) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                std::fs::create_dir(d).with_context(|| format!("cannot create {}", d.display()))?;
+            }
+            Err(e) => return Err(e).with_context(|| format!("cannot read {}", d.display())),
+        }
+    }
     Ok(dir)
 }

@@ -4,6 +4,7 @@ mod campaign;
 mod cli;
 mod disupt;
 mod estimation;
+mod hostile;
 mod ingest;
 mod kill;
 mod kingston;

@@ -190,15 +190,6 @@ impl Checker<'_> {
         }
     }
 
-    fn positive(&self, v: &Spanned<f64>, key: &str) -> Result<f64, FormatError> {
-        let x = *v.get_ref();
-        if x.is_finite() && x > 0.0 {
-            Ok(x)
-        } else {
-            self.err(v.span(), format!("{key} = {x} must be a positive number"))
-        }
-    }
-
     fn geodetic(
         &self,
         lat: &Spanned<f64>,
@@ -206,19 +197,29 @@ impl Checker<'_> {
         h: &Spanned<f64>,
     ) -> Result<Geodetic, FormatError> {
         Ok(Geodetic {
-            latitude_deg: self.in_range(lat, "latitude_deg", -90.0, 90.0)?,
+            // Not at the poles: north/east dead reckoning divides by cos(latitude).
+            latitude_deg: self.in_range(lat, "latitude_deg", -89.0, 89.0)?,
             longitude_deg: self.in_range(lon, "longitude_deg", -180.0, 180.0)?,
             height_m: self.in_range(h, "height_m", -1000.0, 10_000.0)?,
         })
     }
 }
 
-/// Whether `name` is a plain run name: letters, digits, `-`, `_`, `.`; not `.` or `..`.
+/// Names an output folder holds beside the runs' folders: no run may take them.
+pub const RESERVED_NAMES: [&str; 4] = [
+    "campaign.parquet",
+    "campaign.md",
+    "campaign.html",
+    "unz.lock",
+];
+
+/// Whether `name` is a plain run name: letters, digits, `-`, `_`, `.`; not starting with
+/// `.` (hidden and temporary files), and none of [`RESERVED_NAMES`].
 pub fn is_plain_name(name: &str) -> bool {
     !name.is_empty()
         && name.len() <= MAX_NAME_LEN
-        && name != "."
-        && name != ".."
+        && !name.starts_with('.')
+        && !RESERVED_NAMES.contains(&name)
         && name
             .chars()
             .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
@@ -275,7 +276,8 @@ impl RunManifest {
                 raw.name.span(),
                 format!(
                     "name {name:?} is not a plain run name (letters, digits, '-', '_', '.'; \
-                     at most {MAX_NAME_LEN} characters; not '.' or '..')"
+                     at most {MAX_NAME_LEN} characters; not starting with '.'; not one of \
+                     the output folder's own names {RESERVED_NAMES:?})"
                 ),
             );
         }
@@ -334,7 +336,7 @@ impl RunManifest {
             scale_m_per_pulse: o
                 .scale_m_per_pulse
                 .as_ref()
-                .map(|v| c.positive(v, "scale_m_per_pulse"))
+                .map(|v| c.in_range(v, "scale_m_per_pulse", 1e-6, 10.0))
                 .transpose()?,
             file: match &o.file {
                 Some(f) => match resolve_inside(dir, f.get_ref()) {

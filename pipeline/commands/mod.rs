@@ -19,8 +19,21 @@ use std::process::ExitCode;
 
 use crate::cli::{Cli, Command};
 
-/// Runs a parsed command line; the exit code says whether everything succeeded.
+/// Runs a parsed command line; the exit code says whether everything succeeded. A
+/// command that writes into an output folder holds its lock while it runs.
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+    let out = match &cli.command {
+        Command::Ingest(a) | Command::Derive(a) | Command::Export(a) | Command::Review(a) => {
+            Some(a.out.clone())
+        }
+        Command::Navigate(a) | Command::Criteria(a) => Some(a.stage.out.clone()),
+        Command::Disupt(a) => Some(a.stage.out.clone()),
+        Command::Sweep(a) => Some(a.stage.out.clone()),
+        Command::Run(a) => Some(a.out.clone()),
+        Command::Demo(a) => Some(a.out.clone()),
+        _ => None,
+    };
+    let _lock = out.as_deref().map(crate::lock::lock_output).transpose()?;
     match cli.command {
         Command::Simulate(a) => simulate::run(&a),
         Command::Ingest(a) => ingest::run(&a),

@@ -535,8 +535,16 @@ pub struct Step {
     /// Settings after it.
     pub output: X,
     /// ΔX at the last control point after the step, m.
+    #[serde(
+        skip_serializing_if = "crate::finite::is_absent",
+        default = "crate::finite::absent"
+    )]
     pub dx_m: f64,
     /// ΔY at the last control point after the step, m.
+    #[serde(
+        skip_serializing_if = "crate::finite::is_absent",
+        default = "crate::finite::absent"
+    )]
     pub dy_m: f64,
     /// Navigation passes of the step.
     pub evaluations: usize,

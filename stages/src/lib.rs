@@ -26,3 +26,17 @@ pub mod odo_lag;
 pub mod route_sigma;
 pub mod simulate;
 pub mod strapdown;
+
+/// Serde helpers for report fields that may have no value: a non-finite number is left
+/// out of the report (never written as `null` or a bare NaN) and reads back as NaN.
+pub mod finite {
+    /// Whether `v` is left out (`skip_serializing_if`).
+    pub fn is_absent(v: &f64) -> bool {
+        !v.is_finite()
+    }
+
+    /// The value of a field left out (`default`).
+    pub fn absent() -> f64 {
+        f64::NAN
+    }
+}

@@ -94,14 +94,18 @@ impl FileHeader {
             )));
         }
         let sample_period_us = u32_at(12);
-        if sample_period_us == 0 {
-            return Err(bad("sample_period_us is 0".into()));
+        if !(50..=1_000_000).contains(&sample_period_us) {
+            return Err(bad(format!(
+                "sample_period_us is {sample_period_us}, outside [50, 1000000] (20 kHz to 1 Hz)"
+            )));
         }
-        let positive = |name: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
+        // Physical ranges: an increment LSB so large that one count is beyond any sensor
+        // (or so small that a full i32 is no motion) would navigate to Inf and NaN.
+        let in_range = |name: &str, v: f64, lo: f64, hi: f64| {
+            if v.is_finite() && (lo..=hi).contains(&v) {
                 Ok(v)
             } else {
-                Err(bad(format!("{name} is {v}, expected a positive number")))
+                Err(bad(format!("{name} is {v}, outside [{lo:e}, {hi:e}]")))
             }
         };
         let serial_bytes = &b[48..64];
@@ -111,9 +115,9 @@ impl FileHeader {
             format_version,
             sample_period_us,
             start_time_us: i64::from_le_bytes(b[16..24].try_into().unwrap_or_default()),
-            dtheta_lsb_rad: positive("dtheta_lsb_rad", f64_at(24))?,
-            dvel_lsb_mps: positive("dvel_lsb_mps", f64_at(32))?,
-            odo_lsb_m: positive("odo_lsb_m", f64_at(40))?,
+            dtheta_lsb_rad: in_range("dtheta_lsb_rad", f64_at(24), 1e-15, 1e-3)?,
+            dvel_lsb_mps: in_range("dvel_lsb_mps", f64_at(32), 1e-15, 1e-2)?,
+            odo_lsb_m: in_range("odo_lsb_m", f64_at(40), 1e-6, 10.0)?,
             device_serial: String::from_utf8_lossy(&serial_bytes[..end]).into_owned(),
         })
     }

@@ -1,0 +1,205 @@
+//! Hostile archives and output folders: non-physical scales and parameters are refused
+//! with the file and the reason, no output escapes the output folder, and two processes
+//! do not share one. Every case is one run of a small campaign whose other run goes on.
+
+use std::path::{Path, PathBuf};
+
+use crate::util::{unz, unz_output};
+
+/// A campaign of two simulated 200 s runs; returns the campaign folder.
+fn campaign(dir: &Path) -> PathBuf {
+    let camp = dir.join("c");
+    let o = unz_output(&[
+        "simulate",
+        "--out",
+        camp.to_str().unwrap(),
+        "--seed",
+        "80",
+        "--runs",
+        "2",
+        "--duration-s",
+        "200",
+    ]);
+    assert!(o.status.success());
+    camp
+}
+
+/// Runs the campaign until `until`; returns (exit code, stdout).
+fn run(camp: &Path, out: &Path, until: &str) -> (Option<i32>, String) {
+    let o = unz_output(&[
+        "run",
+        camp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--until",
+        until,
+    ]);
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr),
+    )
+}
+
+fn patch_f64(path: &Path, offset: usize, v: f64) {
+    let mut b = std::fs::read(path).unwrap();
+    b[offset..offset + 8].copy_from_slice(&v.to_le_bytes());
+    std::fs::write(path, b).unwrap();
+}
+
+fn append(path: &Path, text: &str) {
+    let mut s = std::fs::read_to_string(path).unwrap();
+    s += text;
+    std::fs::write(path, s).unwrap();
+}
+
+/// Header scales of 1e300 (they navigated to Inf and NaN under an "ok" status), a
+/// manifest scale of 1e300, a disupt bound of 1e300 and a site at the pole: each fails its
+/// run with the file and the reason; the other run of the campaign finishes.
+#[test]
+fn non_physical_scales_and_parameters_fail_their_run_by_name() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let (good, bad) = (camp.join("sim-0080"), camp.join("sim-0081"));
+    let original_log = std::fs::read(bad.join("sim-0081.unz")).unwrap();
+    let original_manifest = std::fs::read_to_string(bad.join("run.toml")).unwrap();
+    type Case<'a> = (&'a str, Box<dyn Fn() + 'a>, &'a [&'a str]);
+    let cases: [Case; 6] = [
+        (
+            "header odo_lsb_m",
+            Box::new(|| patch_f64(&bad.join("sim-0081.unz"), 40, 1e300)),
+            &["sim-0081.unz", "odo_lsb_m"],
+        ),
+        (
+            "header dtheta_lsb_rad",
+            Box::new(|| patch_f64(&bad.join("sim-0081.unz"), 24, 1e300)),
+            &["sim-0081.unz", "dtheta_lsb_rad"],
+        ),
+        (
+            "header dvel_lsb_mps",
+            Box::new(|| patch_f64(&bad.join("sim-0081.unz"), 32, f64::NAN)),
+            &["sim-0081.unz", "dvel_lsb_mps"],
+        ),
+        (
+            "manifest scale",
+            Box::new(|| {
+                append(
+                    &bad.join("run.toml"),
+                    "\n[odometer]\nscale_m_per_pulse = 1e300\n",
+                )
+            }),
+            &["run.toml", "scale_m_per_pulse"],
+        ),
+        (
+            "disupt bound",
+            Box::new(|| {
+                append(
+                    &bad.join("run.toml"),
+                    "\n[params.disupt]\nazimuth_bound_deg = 1e300\n",
+                )
+            }),
+            &["run.toml", "disupt.azimuth_bound_deg"],
+        ),
+        (
+            "site at the pole",
+            Box::new(|| {
+                let text = std::fs::read_to_string(bad.join("run.toml")).unwrap();
+                let start = text.find("latitude_deg = ").unwrap();
+                let end = start + text[start..].find('\n').unwrap();
+                let patched = format!("{}latitude_deg = 90.0{}", &text[..start], &text[end..]);
+                std::fs::write(bad.join("run.toml"), patched).unwrap();
+            }),
+            &["run.toml", "latitude_deg"],
+        ),
+    ];
+    for (i, (what, damage, names)) in cases.iter().enumerate() {
+        std::fs::write(bad.join("sim-0081.unz"), &original_log).unwrap();
+        std::fs::write(bad.join("run.toml"), &original_manifest).unwrap();
+        damage();
+        let out = tmp.path().join(format!("o{i}"));
+        let (code, text) = run(&camp, &out, "disupt");
+        assert_eq!(code, Some(1), "{what}: {text}");
+        assert!(text.contains("FAILED sim-0081"), "{what}: {text}");
+        for n in *names {
+            assert!(text.contains(n), "{what}: no {n} in\n{text}");
+        }
+        assert!(out.join("campaign.md").is_file(), "{what}");
+        assert!(
+            out.join("sim-0080/disupt/disupt.json").is_file(),
+            "{what}: the other run goes on"
+        );
+        assert!(good.is_dir());
+    }
+}
+
+/// A run may not be named like the summary files; a symbolic link planted inside the
+/// output folder is refused; a second process on the same output folder is refused with
+/// the holder's pid.
+#[test]
+fn output_folder_is_ours_alone() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let manifest = camp.join("sim-0081/run.toml");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    std::fs::write(
+        &manifest,
+        text.replace("name = \"sim-0081\"", "name = \"campaign.parquet\""),
+    )
+    .unwrap();
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "ingest");
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("campaign.parquet") && text.contains("not a plain run name"),
+        "{text}"
+    );
+    assert!(
+        out.join("campaign.parquet").is_file(),
+        "the summary is still written"
+    );
+
+    // A symlink planted as a stage folder: refused, nothing written where it points.
+    let elsewhere = tmp.path().join("elsewhere");
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    std::fs::create_dir_all(out.join("sim-0080")).unwrap();
+    std::fs::remove_dir_all(out.join("sim-0080")).unwrap();
+    std::fs::create_dir_all(out.join("sim-0080")).unwrap();
+    std::os::unix::fs::symlink(&elsewhere, out.join("sim-0080/ingest")).unwrap();
+    let (code, text) = run(&camp, &out, "ingest");
+    assert_eq!(code, Some(1), "{text}");
+    assert!(text.contains("is a symbolic link"), "{text}");
+    assert_eq!(std::fs::read_dir(&elsewhere).unwrap().count(), 0);
+
+    // Two processes on one output folder: the second is refused at once.
+    let out2 = tmp.path().join("o2");
+    let mut first = unz()
+        .args([
+            "run",
+            camp.to_str().unwrap(),
+            "--out",
+            out2.to_str().unwrap(),
+        ])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Wait until the first holds the lock (it writes its pid into the lock file).
+    let lock = out2.join("unz.lock");
+    let t0 = std::time::Instant::now();
+    while std::fs::read_to_string(&lock).map_or(true, |s| s.trim().is_empty()) {
+        assert!(t0.elapsed().as_secs() < 30, "the first run never locked");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let second = unz_output(&[
+        "run",
+        camp.to_str().unwrap(),
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    first.wait().unwrap();
+    let err = String::from_utf8_lossy(&second.stderr);
+    assert!(!second.status.success(), "{err}");
+    assert!(
+        err.contains(&format!("in use by pid {}", first.id())),
+        "{err}"
+    );
+}
