@@ -171,6 +171,16 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     ctx.run_stage(&stage, || {
         let raw = IngestedSeries::load(&ingest_dir)?;
         let d = derive(&raw.series(), &params.derive, site_gravity_mps2(m));
+        // A few tags going back are repaired and counted; a time base that does not
+        // advance (constant or saturated tags) is no time base.
+        if d.repaired_times * 100 > d.t_s.len() {
+            bail!(
+                "{} of {} IMU time tags do not increase (constant, saturated or going back): \
+                 the log's time base is broken",
+                d.repaired_times,
+                d.t_s.len()
+            );
+        }
         ensure_finite("angle increment", d.dtheta_rad.iter().flatten().copied())?;
         ensure_finite("velocity increment", d.dvel_mps.iter().flatten().copied())?;
         ensure_finite("odometer distance", d.odo_dist_m.iter().copied())?;

@@ -292,8 +292,11 @@ pub fn ingest(
     })
 }
 
-fn open(path: &Path) -> anyhow::Result<std::fs::File> {
-    std::fs::File::open(path).map_err(|e| unz_formats::error::io_in_file(path, e).into())
+/// Opens a file `manifest` names, checking that what was opened is inside its folder.
+fn open(manifest: &RunManifest, path: &Path) -> anyhow::Result<std::fs::File> {
+    manifest
+        .open_named(path)
+        .map_err(|e| unz_formats::error::io_in_file(path, e).into())
 }
 
 fn ingest_binary(
@@ -302,7 +305,7 @@ fn ingest_binary(
     options: IngestOptions,
 ) -> anyhow::Result<(IngestReport, usize)> {
     let path = &manifest.raw;
-    let mut reader = RawReader::new(open(path)?).map_err(|e| e.in_file(path))?;
+    let mut reader = RawReader::new(open(manifest, path)?).map_err(|e| e.in_file(path))?;
     let header = reader.header().clone();
     let origin_ns = header.start_time_us.checked_mul(1000);
     let scale = manifest
@@ -370,7 +373,7 @@ fn ingest_text(
     options: IngestOptions,
 ) -> anyhow::Result<(IngestReport, usize)> {
     let path = &manifest.raw;
-    let mut reader = KfGinsReader::new(BufReader::with_capacity(1 << 16, open(path)?));
+    let mut reader = KfGinsReader::new(BufReader::with_capacity(1 << 16, open(manifest, path)?));
     let period = reader
         .period_s()
         .map_err(|e| e.in_file(path))?
@@ -406,8 +409,8 @@ fn ingest_text(
     if reader.columns() != Some(8)
         && let (Some(file), Some(kind)) = (&manifest.odometer.file, manifest.odometer.kind)
     {
-        let (samples, faults) =
-            read_odometer_file(BufReader::new(open(file)?), kind).map_err(|e| e.in_file(file))?;
+        let (samples, faults) = read_odometer_file(BufReader::new(open(manifest, file)?), kind)
+            .map_err(|e| e.in_file(file))?;
         for o in samples {
             sinks.push_odometer((o.t_s * 1e9).round() as i64, o.distance_m, None)?;
         }

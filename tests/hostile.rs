@@ -203,3 +203,37 @@ fn output_folder_is_ours_alone() {
         "{err}"
     );
 }
+
+/// All time tags constant: counted by the reader as time not increasing, and the run fails
+/// in derive with that reason instead of ending "ok" with no motion.
+#[test]
+fn a_log_whose_time_does_not_advance_fails_its_run() {
+    use unz_formats::raw::{Accepted, RawReader, RawWriter};
+
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let log = camp.join("sim-0081/sim-0081.unz");
+    let bytes = std::fs::read(&log).unwrap();
+    let mut reader = RawReader::new(bytes.as_slice()).unwrap();
+    let mut writer = RawWriter::new(Vec::new(), reader.header()).unwrap();
+    while let Some(rec) = reader.next_record().unwrap() {
+        match rec {
+            Accepted::Imu(s) => writer
+                .write_imu(&unz_formats::raw::ImuRecord {
+                    t_us: 10_000,
+                    ..s.raw
+                })
+                .unwrap(),
+            Accepted::Mark(m) => writer.write_mark(&m).unwrap(),
+        }
+    }
+    std::fs::write(&log, writer.finish().unwrap()).unwrap();
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "derive");
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("FAILED sim-0081") && text.contains("time tags do not increase"),
+        "{text}"
+    );
+    assert!(out.join("sim-0080/derive/derived.parquet").is_file());
+}

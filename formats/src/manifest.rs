@@ -254,7 +254,40 @@ pub fn resolve_inside(dir: &Path, rel: &str) -> Result<PathBuf, String> {
     Ok(joined)
 }
 
+/// Opens `path`, a file the manifest in `dir` names, and checks that what was opened is
+/// inside `dir`: the file the path resolves to now must be the very file opened (same
+/// device and inode), so a symbolic link switched between the manifest's check and the
+/// open cannot smuggle in a file from elsewhere.
+pub fn open_inside(dir: &Path, path: &Path) -> std::io::Result<std::fs::File> {
+    let file = std::fs::File::open(path)?;
+    let escape = |what: &str| {
+        std::io::Error::new(
+            std::io::ErrorKind::PermissionDenied,
+            format!("{what}: the file must stay inside the manifest's folder"),
+        )
+    };
+    let real = path.canonicalize()?;
+    if !real.starts_with(dir.canonicalize()?) {
+        return Err(escape("it resolves outside the manifest's folder"));
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        let (opened, named) = (file.metadata()?, std::fs::metadata(&real)?);
+        if (opened.dev(), opened.ino()) != (named.dev(), named.ino()) {
+            return Err(escape("it changed while it was being opened"));
+        }
+    }
+    Ok(file)
+}
+
 impl RunManifest {
+    /// Opens a file this manifest names (its raw log, its odometer file), inside its
+    /// folder; see [`open_inside`].
+    pub fn open_named(&self, path: &Path) -> std::io::Result<std::fs::File> {
+        open_inside(self.path.parent().unwrap_or(Path::new(".")), path)
+    }
+
     /// Reads and validates a manifest file.
     pub fn load(path: &Path) -> Result<Self, FileError> {
         let text = read_bounded(path, MAX_MANIFEST_BYTES).map_err(|e| e.in_file(path))?;
@@ -475,6 +508,27 @@ t_s = 2415.3
         let (line, reason) = err_line(&text);
         assert_eq!(line, 7);
         assert!(reason.contains("latitude_deg"), "{reason}");
+    }
+
+    /// Regression (hostile-archive probe): a symlink switched to a file outside the run
+    /// folder after the manifest's check is refused when the file is opened.
+    #[cfg(unix)]
+    #[test]
+    fn a_file_opened_outside_the_folder_is_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (run, outside) = (tmp.path().join("run"), tmp.path().join("secret.unz"));
+        std::fs::create_dir_all(&run).unwrap();
+        std::fs::write(&outside, b"outside").unwrap();
+        std::fs::write(run.join("inside.unz"), b"inside").unwrap();
+        let link = run.join("raw.unz");
+        std::os::unix::fs::symlink("inside.unz", &link).unwrap();
+        assert!(open_inside(&run, &link).is_ok());
+        // The link now points out (as a racing writer would switch it).
+        std::fs::remove_file(&link).unwrap();
+        std::os::unix::fs::symlink(&outside, &link).unwrap();
+        let e = open_inside(&run, &link).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::PermissionDenied, "{e}");
+        assert!(e.to_string().contains("outside"), "{e}");
     }
 
     #[test]

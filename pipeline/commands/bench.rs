@@ -78,6 +78,27 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
             run.records.len() as f64 / best / 1e6
         );
     }
+    // The reader's worst case: nothing but resync search (random bytes behind a valid
+    // header), in memory.
+    let mut noise = run.header.encode().to_vec();
+    let mut state = 0x9E37_79B9_7F4A_7C15_u64;
+    noise.extend((0..64usize << 20).map(|_| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 24) as u8
+    }));
+    let mut best = f64::INFINITY;
+    for _ in 0..args.repeat.max(1) {
+        let t0 = Instant::now();
+        let mut reader = unz_formats::raw::RawReader::new(noise.as_slice())?;
+        while std::hint::black_box(reader.next_record()?).is_some() {}
+        best = best.min(t0.elapsed().as_secs_f64());
+    }
+    println!(
+        "raw reader through 64 MiB of random bytes (all resync search): {:.0} MB/s",
+        noise.len() as f64 / 1e6 / best
+    );
     Ok(ExitCode::SUCCESS)
 }
 
