@@ -14,7 +14,6 @@ use unz_stages::disupt::{
     self, Holdout, JointFit, JointOptions, MethodResult, Problem, ProblemSpec, X, joint_fit,
 };
 use unz_stages::filter::LowPass;
-use unz_stages::linearized::FD_STEP;
 use unz_stages::odo_lag::{Rederive, joint_with_lag};
 use unz_stages::route_sigma::{Moved, RouteSigma, route_sigma};
 use unz_stages::simulate::DEG_PER_H;
@@ -386,18 +385,14 @@ fn joint_route_sigma(
 ) -> Option<RouteSigma> {
     let fit = &run.fit;
     let cov = fit.covariance.as_ref()?;
-    let p = disupt::params_of(&fit.result.x);
-    let mut moved: Vec<Moved<'_>> = fit
-        .free
+    let x = fit.result.x;
+    let mut moved: Vec<Moved<'_>> = disupt::moved_by_steps(&x, &fit.free)
         .iter()
-        .map(|&j| {
-            let mut pj = p;
-            pj[j] += FD_STEP[j];
-            Moved {
-                inputs: problem.inputs,
-                settings: problem.settings(&disupt::x_of(&pj)),
-                step: FD_STEP[j],
-            }
+        .zip(&fit.free)
+        .map(|(xs, s)| Moved {
+            inputs: problem.inputs,
+            settings: problem.settings(xs),
+            step: s.fd_step(),
         })
         .collect();
     let m = moved.len();

@@ -14,6 +14,7 @@ use unz_formats::atomic::write_json_atomic;
 use unz_formats::parquet_io::write_batch;
 use unz_formats::schema::scalar;
 use unz_stages::disupt::{Problem, X};
+use unz_stages::linearized::Setting;
 use unz_stages::simulate::DEG_PER_H;
 
 use crate::disupt_stage::{case_inputs, problem_of};
@@ -38,14 +39,25 @@ pub struct Axis {
     pub count: usize,
 }
 
-const NAMES: [&str; 6] = [
-    "azimuth_deg",
-    "drift_x_rad_s",
-    "drift_y_rad_s",
-    "drift_z_rad_s",
-    "odo_scale",
-    "odo_yaw_deg",
+/// The settings a sweep can move, by the name and unit it takes them in, with what turns
+/// a value into the optimisers' unit.
+const SWEEPABLE: [(&str, Setting, fn(f64) -> f64); 6] = [
+    ("azimuth_deg", Setting::Azimuth, |v| v),
+    ("drift_x_rad_s", Setting::DriftX, |v| v / DEG_PER_H),
+    ("drift_y_rad_s", Setting::DriftY, |v| v / DEG_PER_H),
+    ("drift_z_rad_s", Setting::DriftZ, |v| v / DEG_PER_H),
+    ("odo_scale", Setting::OdoScale, |v| (v - 1.0) * 1e6),
+    ("odo_yaw_deg", Setting::OdoYaw, |v| v),
 ];
+
+/// The setting a sweep name stands for and its conversion (names are checked by
+/// [`parse_over`]).
+fn sweepable(name: &str) -> Option<(Setting, fn(f64) -> f64)> {
+    SWEEPABLE
+        .iter()
+        .find(|(n, _, _)| *n == name)
+        .map(|&(_, s, f)| (s, f))
+}
 
 impl Axis {
     fn values(&self) -> Vec<f64> {
@@ -58,13 +70,8 @@ impl Axis {
     }
 
     fn apply(&self, x: &mut X, v: f64) {
-        match self.name.as_str() {
-            "azimuth_deg" => x.azimuth_deg = v,
-            "drift_x_rad_s" => x.drift_deg_h[0] = v / DEG_PER_H,
-            "drift_y_rad_s" => x.drift_deg_h[1] = v / DEG_PER_H,
-            "drift_z_rad_s" => x.drift_deg_h[2] = v / DEG_PER_H,
-            "odo_yaw_deg" => x.odo_yaw_deg = v,
-            _ => x.odo_ppm = (v - 1.0) * 1e6,
+        if let Some((setting, to_optimiser)) = sweepable(&self.name) {
+            x.set(setting, to_optimiser(v));
         }
     }
 }
@@ -77,8 +84,9 @@ pub fn parse_over(spec: &str) -> anyhow::Result<Vec<Axis>> {
             let (name, range) = part
                 .split_once('=')
                 .with_context(|| format!("{part:?}: expected name=from:to:count"))?;
-            if !NAMES.contains(&name) {
-                bail!("{name:?} is not a setting; one of {}", NAMES.join(", "));
+            if sweepable(name).is_none() {
+                let names: Vec<&str> = SWEEPABLE.iter().map(|s| s.0).collect();
+                bail!("{name:?} is not a setting; one of {}", names.join(", "));
             }
             let f: Vec<&str> = range.split(':').collect();
             let [from, to, count] = f[..] else {
@@ -112,7 +120,6 @@ struct SweepSummary<'a> {
     axes: &'a [Axis],
     points: usize,
     passes: usize,
-    wall_s: f64,
     min_kryt1: Option<Vec<f64>>,
     min_kryt2: Option<Vec<f64>>,
 }
@@ -204,13 +211,20 @@ pub fn ensure_sweep(ctx: &RunCtx, params: &Params, axes: &[Axis]) -> anyhow::Res
                 .min_by(|x, y| f(x).total_cmp(&f(y)))
                 .map(|g| [g.at.0, g.at.1].into_iter().take(axes.len()).collect())
         };
+        ctx.say(
+            "sweep",
+            &format!(
+                "{} points in {:.2} s",
+                grid.len(),
+                t0.elapsed().as_secs_f64()
+            ),
+        );
         write_json_atomic(
             &dir.join("sweep.json"),
             &SweepSummary {
                 axes,
                 points: grid.len(),
                 passes: problem.passes(),
-                wall_s: t0.elapsed().as_secs_f64(),
                 min_kryt1: argmin(|g| g.kryt1_rad),
                 min_kryt2: argmin(|g| g.kryt2_m),
             },

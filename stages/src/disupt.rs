@@ -36,12 +36,12 @@ use crate::criteria::{self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt2};
 use crate::derive::Epochs;
 use crate::earth;
 use crate::filter::LowPass;
-use crate::linearized::{FD_STEP, Linearization, N_PARAMS, Observation};
+use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
 use crate::simulate::DEG_PER_H;
 use crate::strapdown::{self, CriteriaSink, NavInputs, NavSettings};
 
 /// Settings in the optimisers' units.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct X {
     /// Initial azimuth, degrees.
     pub azimuth_deg: f64,
@@ -358,18 +358,12 @@ impl<'a> Problem<'a> {
         }
     }
 
-    /// The linearisation around `x` (whose exact observation is `y`) in the parameters
-    /// `which`: one forward-difference pass each, in parallel.
-    pub fn linearize(&self, x: &X, y: Observation, which: &[usize]) -> Linearization {
-        self.linearize_by(x, y, which, &AtomicUsize::new(0))
-    }
-
     /// [`Self::linearize`], its passes counted in `tally` too.
     pub fn linearize_by(
         &self,
         x: &X,
         y: Observation,
-        which: &[usize],
+        which: &[Setting],
         tally: &AtomicUsize,
     ) -> Linearization {
         let ys = self.observe_many_by(&moved_by_steps(x, which), tally);
@@ -390,10 +384,10 @@ impl<'a> Problem<'a> {
         self.base_lin.get_or_init(|| {
             let x0 = self.x0();
             let mut xs = vec![x0];
-            xs.extend(moved_by_steps(&x0, &BASE_PARAMS));
+            xs.extend(moved_by_steps(&x0, &BASE_SETTINGS));
             let mut ys = self.observe_many_by(&xs, &AtomicUsize::new(0));
             let y0 = ys.remove(0);
-            linearization_of(&x0, y0, &BASE_PARAMS, ys)
+            linearization_of(&x0, y0, &BASE_SETTINGS, ys)
         })
     }
 
@@ -402,13 +396,13 @@ impl<'a> Problem<'a> {
     pub fn completed(
         &self,
         lin: &Linearization,
-        which: &[usize],
+        which: &[Setting],
         tally: &AtomicUsize,
     ) -> Linearization {
-        let missing: Vec<usize> = which
+        let missing: Vec<Setting> = which
             .iter()
             .copied()
-            .filter(|&j| lin.slopes[j].is_none())
+            .filter(|s| lin.slopes[s.index()].is_none())
             .collect();
         let x = x_of(&lin.p_ref);
         let ys = self.observe_many_by(&moved_by_steps(&x, &missing), tally);
@@ -422,15 +416,14 @@ impl<'a> Problem<'a> {
     }
 }
 
-/// `x` moved by one finite-difference step in each parameter of `which`, in turn.
-fn moved_by_steps(x: &X, which: &[usize]) -> Vec<X> {
-    let p = params_of(x);
+/// `x` moved by one finite-difference step in each setting of `which`, in turn.
+pub fn moved_by_steps(x: &X, which: &[Setting]) -> Vec<X> {
     which
         .iter()
-        .map(|&j| {
-            let mut pj = p;
-            pj[j] += FD_STEP[j];
-            x_of(&pj)
+        .map(|&s| {
+            let mut xs = *x;
+            xs.set(s, x.get(s) + s.fd_step());
+            xs
         })
         .collect()
 }
@@ -440,12 +433,12 @@ fn moved_by_steps(x: &X, which: &[usize]) -> Vec<X> {
 fn linearization_of(
     x: &X,
     y: Observation,
-    which: &[usize],
+    which: &[Setting],
     moved: Vec<Observation>,
 ) -> Linearization {
     let mut slopes: [Option<Observation>; N_PARAMS] = Default::default();
-    for (&j, yj) in which.iter().zip(moved) {
-        slopes[j] = Some(yj.slope(&y, FD_STEP[j]));
+    for (&s, ys) in which.iter().zip(moved) {
+        slopes[s.index()] = Some(ys.slope(&y, s.fd_step()));
     }
     Linearization {
         p_ref: params_of(x),
@@ -454,41 +447,61 @@ fn linearization_of(
     }
 }
 
-/// `X` as the linearisation's parameter vector `[az, dx, dy, dz, tilt_pitch, tilt_roll,
-/// ppm, odo_yaw, odo_bias]`.
+/// `X` as the linearisation's parameter vector (in [`Setting::ALL`] order).
 pub fn params_of(x: &X) -> [f64; N_PARAMS] {
-    [
-        x.azimuth_deg,
-        x.drift_deg_h[0],
-        x.drift_deg_h[1],
-        x.drift_deg_h[2],
-        x.tilt_mrad[0],
-        x.tilt_mrad[1],
-        x.odo_ppm,
-        x.odo_yaw_deg,
-        x.odo_bias_mps,
-    ]
+    Setting::ALL.map(|s| x.get(s))
 }
 
-/// Parameters of the shared first linearisation: all but the odometer boresight, which
-/// only the joint fit moves, and only when asked.
-const BASE_PARAMS: [usize; 7] = [0, 1, 2, 3, 4, 5, 6];
-
-/// Index of the odometer yaw boresight in [`params_of`].
-const ODO_YAW: usize = 7;
-
-/// Index of the odometer speed bias in [`params_of`].
-const ODO_BIAS: usize = 8;
+/// Settings of the shared first linearisation: all but the odometer boresight and bias,
+/// which only the joint fit moves, and only when asked.
+const BASE_SETTINGS: [Setting; 7] = [
+    Setting::Azimuth,
+    Setting::DriftX,
+    Setting::DriftY,
+    Setting::DriftZ,
+    Setting::TiltPitch,
+    Setting::TiltRoll,
+    Setting::OdoScale,
+];
 
 /// The inverse of [`params_of`].
 pub fn x_of(p: &[f64; N_PARAMS]) -> X {
-    X {
-        azimuth_deg: p[0],
-        drift_deg_h: [p[1], p[2], p[3]],
-        tilt_mrad: [p[4], p[5]],
-        odo_ppm: p[6],
-        odo_yaw_deg: p[7],
-        odo_bias_mps: p[8],
+    let mut x = X::default();
+    for s in Setting::ALL {
+        x.set(s, p[s.index()]);
+    }
+    x
+}
+
+impl X {
+    /// The value of one setting, in the optimisers' units.
+    pub fn get(&self, s: Setting) -> f64 {
+        match s {
+            Setting::Azimuth => self.azimuth_deg,
+            Setting::DriftX => self.drift_deg_h[0],
+            Setting::DriftY => self.drift_deg_h[1],
+            Setting::DriftZ => self.drift_deg_h[2],
+            Setting::TiltPitch => self.tilt_mrad[0],
+            Setting::TiltRoll => self.tilt_mrad[1],
+            Setting::OdoScale => self.odo_ppm,
+            Setting::OdoYaw => self.odo_yaw_deg,
+            Setting::OdoBias => self.odo_bias_mps,
+        }
+    }
+
+    /// Sets one setting, in the optimisers' units.
+    pub fn set(&mut self, s: Setting, v: f64) {
+        match s {
+            Setting::Azimuth => self.azimuth_deg = v,
+            Setting::DriftX => self.drift_deg_h[0] = v,
+            Setting::DriftY => self.drift_deg_h[1] = v,
+            Setting::DriftZ => self.drift_deg_h[2] = v,
+            Setting::TiltPitch => self.tilt_mrad[0] = v,
+            Setting::TiltRoll => self.tilt_mrad[1] = v,
+            Setting::OdoScale => self.odo_ppm = v,
+            Setting::OdoYaw => self.odo_yaw_deg = v,
+            Setting::OdoBias => self.odo_bias_mps = v,
+        }
     }
 }
 
@@ -572,34 +585,17 @@ pub struct MethodResult {
     pub wall_s: f64,
 }
 
-fn set(x: &mut X, c: Component, v: f64) {
-    match c {
-        Component::Azimuth => x.azimuth_deg = v,
-        Component::DriftX => x.drift_deg_h[0] = v,
-        Component::DriftY => x.drift_deg_h[1] = v,
-        Component::DriftZ => x.drift_deg_h[2] = v,
-        Component::AzimuthDriftXy | Component::All => {}
-    }
-}
-
-fn get(x: &X, c: Component) -> f64 {
-    match c {
-        Component::Azimuth | Component::AzimuthDriftXy | Component::All => x.azimuth_deg,
-        Component::DriftX => x.drift_deg_h[0],
-        Component::DriftY => x.drift_deg_h[1],
-        Component::DriftZ => x.drift_deg_h[2],
-    }
-}
-
-/// The linearisation parameters a step moves.
-fn free_params(c: Component) -> &'static [usize] {
-    match c {
-        Component::Azimuth => &[0],
-        Component::DriftX => &[1],
-        Component::DriftY => &[2],
-        Component::DriftZ => &[3],
-        Component::AzimuthDriftXy => &[0, 1, 2],
-        Component::All => &[0, 1, 2, 3, 4, 5, 6],
+impl Component {
+    /// The settings a step moves.
+    fn settings(self) -> &'static [Setting] {
+        match self {
+            Component::Azimuth => &[Setting::Azimuth],
+            Component::DriftX => &[Setting::DriftX],
+            Component::DriftY => &[Setting::DriftY],
+            Component::DriftZ => &[Setting::DriftZ],
+            Component::AzimuthDriftXy => &[Setting::Azimuth, Setting::DriftX, Setting::DriftY],
+            Component::All => &BASE_SETTINGS,
+        }
     }
 }
 
@@ -628,7 +624,7 @@ struct Objective<'p, 'a> {
     problem: &'p Problem<'a>,
     lin: Option<&'p Linearization>,
     p: [f64; N_PARAMS],
-    free: &'static [usize],
+    free: &'static [Setting],
     criterion: Criterion,
     buf: RefCell<Observation>,
     tally: &'p AtomicUsize,
@@ -637,8 +633,8 @@ struct Objective<'p, 'a> {
 impl Objective<'_, '_> {
     fn at(&self, values: &[f64]) -> f64 {
         let mut p = self.p;
-        for (&j, &v) in self.free.iter().zip(values) {
-            p[j] = v;
+        for (s, &v) in self.free.iter().zip(values) {
+            p[s.index()] = v;
         }
         let value = |y: &Observation| match self.criterion {
             Criterion::Kryt1 => y.kryt1(self.problem.epochs, &self.problem.kalman),
@@ -693,20 +689,42 @@ fn minimise(
         problem,
         lin,
         p: params_of(&x),
-        free: free_params(component),
+        free: component.settings(),
         criterion,
         buf: RefCell::new(Observation::default()),
         tally,
     };
     let mut out = x;
-    if component == Component::AzimuthDriftXy {
-        let start = vec![x.azimuth_deg, x.drift_deg_h[0], x.drift_deg_h[1]];
-        let simplex = vec![
-            start.clone(),
-            vec![start[0] + 1.0, start[1], start[2]],
-            vec![start[0], start[1] + 1.0, start[2]],
-            vec![start[0], start[1], start[2] + 1.0],
-        ];
+    let settings = component.settings();
+    if let [single] = settings {
+        let half = if *single == Setting::Azimuth {
+            p.azimuth_bound_deg
+        } else {
+            p.drift_bound_deg_h
+        };
+        let c = x.get(*single);
+        let (rel, abs) = if lin.is_some() {
+            (1e-10, 1e-6)
+        } else {
+            (1e-8, 1e-4)
+        };
+        let solver = BrentOpt::new(c - half, c + half).set_tolerance(rel, abs);
+        let res = Executor::new(Along(&objective), solver)
+            .configure(|s| s.max_iters(200))
+            .run()
+            .map_err(optimiser_error)?;
+        out.set(*single, *res.state().get_best_param().unwrap_or(&c));
+        return Ok(out);
+    }
+    {
+        // Several settings at once: Nelder–Mead from a simplex of unit steps.
+        let start: Vec<f64> = settings.iter().map(|&s| x.get(s)).collect();
+        let mut simplex = vec![start.clone()];
+        simplex.extend((0..start.len()).map(|i| {
+            let mut v = start.clone();
+            v[i] += 1.0;
+            v
+        }));
         let solver = NelderMead::new(simplex)
             .with_sd_tolerance(1e-9)
             .map_err(optimiser_error)?;
@@ -715,32 +733,10 @@ fn minimise(
             .run()
             .map_err(optimiser_error)?;
         let best = res.state().get_best_param().cloned().unwrap_or(start);
-        out.azimuth_deg = best[0];
-        out.drift_deg_h[0] = best[1];
-        out.drift_deg_h[1] = best[2];
-        return Ok(out);
+        for (&s, v) in settings.iter().zip(best) {
+            out.set(s, v);
+        }
     }
-    let half = if component == Component::Azimuth {
-        p.azimuth_bound_deg
-    } else {
-        p.drift_bound_deg_h
-    };
-    let c = get(&x, component);
-    let (rel, abs) = if lin.is_some() {
-        (1e-10, 1e-6)
-    } else {
-        (1e-8, 1e-4)
-    };
-    let solver = BrentOpt::new(c - half, c + half).set_tolerance(rel, abs);
-    let res = Executor::new(Along(&objective), solver)
-        .configure(|s| s.max_iters(200))
-        .run()
-        .map_err(optimiser_error)?;
-    set(
-        &mut out,
-        component,
-        *res.state().get_best_param().unwrap_or(&c),
-    );
     Ok(out)
 }
 
@@ -756,7 +752,7 @@ fn search(
     p: &DisuptParams,
     tally: &AtomicUsize,
 ) -> Result<(X, Observation), DisuptError> {
-    let free = free_params(component);
+    let free = component.settings();
     let base = problem.base_linearization();
     let mut owned;
     let mut lin = if base.p_ref == params_of(&x) && base.covers(free) {
@@ -876,15 +872,19 @@ fn joint_residuals(
     // The odometer boresight moves the accelerometer references (derive's u̇ and ru go
     // along the odometer), not the gyro attitude.
     // So does the odometer bias (u̇ at starts and stops, ru in turns).
-    let yaw_rad = p[ODO_YAW].to_radians();
-    let bias = p[ODO_BIAS];
+    let yaw_rad = p[Setting::OdoYaw.index()].to_radians();
+    let bias = p[Setting::OdoBias.index()];
+    let tilt = [
+        p[Setting::TiltPitch.index()] * 1e-3,
+        p[Setting::TiltRoll.index()] * 1e-3,
+    ];
     for k in 0..e.block.len() {
         if e.valid[k] {
             let theta_p =
                 e.theta_p_rad[k] + e.theta_p_per_yaw[k] * yaw_rad + e.theta_p_per_bias[k] * bias;
             let phi_p = e.phi_p_rad[k] + e.phi_p_per_yaw[k] * yaw_rad + e.phi_p_per_bias[k] * bias;
-            r.push((y.theta_rad[k] - theta_p + p[4] * 1e-3) / s);
-            r.push((crate::attitude::wrap_pi(y.phi_rad[k] - phi_p) + p[5] * 1e-3) / s);
+            r.push((y.theta_rad[k] - theta_p + tilt[0]) / s);
+            r.push((crate::attitude::wrap_pi(y.phi_rad[k] - phi_p) + tilt[1]) / s);
         }
     }
     // A control point held out keeps its rows, at zero, so that row indices stay put.
@@ -899,7 +899,7 @@ fn joint_residuals(
     }
     // At rest the vertical gyro measures driftz directly (method.md): a prior.
     if let Some((dz, sd)) = problem.drift_z_prior_deg_h {
-        r.push((p[3] - dz) / sd);
+        r.push((p[Setting::DriftZ.index()] - dz) / sd);
     }
     r
 }
@@ -960,13 +960,14 @@ impl JointModel {
     fn new(
         problem: &Problem<'_>,
         lin: &Linearization,
-        free: &[usize],
+        free: &[Setting],
         params: &DisuptParams,
         skip_cp: Option<usize>,
     ) -> Self {
         let r0 = joint_residuals(problem, &lin.y_ref, &lin.p_ref, params, skip_cp);
         let mut a = DMatrix::zeros(r0.len(), free.len());
-        for (col, &j) in free.iter().enumerate() {
+        for (col, s) in free.iter().enumerate() {
+            let j = s.index();
             let Some(slope) = &lin.slopes[j] else {
                 continue;
             };
@@ -1055,8 +1056,8 @@ pub struct JointFit {
     pub dof: f64,
     /// σ the epochs were weighed with, rad.
     pub attitude_sigma_rad: f64,
-    /// Indices (see [`params_of`]) of the estimated parameters.
-    pub free: Vec<usize>,
+    /// The estimated settings.
+    pub free: Vec<Setting>,
     /// Their covariance, in the optimisers' units (rows and columns follow `free`).
     pub covariance: Option<DMatrix<f64>>,
     lin: Linearization,
@@ -1079,16 +1080,20 @@ pub fn joint_fit(
     let x0 = problem.x0();
     let skip = opts.skip_cp;
     let used_cps = problem.fixes.len() - usize::from(skip.is_some_and(|i| i < problem.fixes.len()));
-    let mut free = vec![0, 1, 2, 3, 4, 5];
+    // The attitude's settings always; the odometer's when control points see them.
+    let mut free: Vec<Setting> = Setting::ALL
+        .into_iter()
+        .filter(|s| !s.needs_control_points())
+        .collect();
     if used_cps > 0 {
-        if p.joint_odo_scale {
-            free.push(6);
-        }
-        if p.joint_odo_yaw {
-            free.push(ODO_YAW);
-        }
-        if p.joint_odo_bias == Some(true) {
-            free.push(ODO_BIAS);
+        for (on, s) in [
+            (p.joint_odo_scale, Setting::OdoScale),
+            (p.joint_odo_yaw, Setting::OdoYaw),
+            (p.joint_odo_bias == Some(true), Setting::OdoBias),
+        ] {
+            if on {
+                free.push(s);
+            }
         }
     }
     let free = &free[..];
@@ -1132,8 +1137,8 @@ pub fn joint_fit(
             let mut halvings = 0;
             loop {
                 p_new = pr;
-                for (k, &j) in free.iter().enumerate() {
-                    p_new[j] += step[k];
+                for (k, s) in free.iter().enumerate() {
+                    p_new[s.index()] += step[k];
                 }
                 y_new = problem.observe_by(&x_of(&p_new), &tally);
                 cost_new = ssr(&joint_residuals(problem, &y_new, &p_new, &w, skip));
@@ -1179,20 +1184,13 @@ pub fn joint_fit(
         a.row_mut(i).unscale_mut(inflation[i % 2].sqrt());
     }
     let covariance = (a.transpose() * &a).try_inverse().map(|c| c * s2);
+    // 1σ of each estimated setting (0 for the others).
     let sigma = covariance.as_ref().map(|c| {
-        let sd = |i: usize| {
-            free.iter()
-                .position(|&j| j == i)
-                .map_or(0.0, |k| c[(k, k)].max(0.0).sqrt())
-        };
-        X {
-            azimuth_deg: sd(0),
-            drift_deg_h: [sd(1), sd(2), sd(3)],
-            tilt_mrad: [sd(4), sd(5)],
-            odo_ppm: sd(6),
-            odo_yaw_deg: sd(7),
-            odo_bias_mps: sd(8),
+        let mut sd = X::default();
+        for (k, &s) in free.iter().enumerate() {
+            sd.set(s, c[(k, k)].max(0.0).sqrt());
         }
+        sd
     });
     let (dx_m, dy_m) = last_cp(&y);
     let evaluations = tally.load(Ordering::Relaxed);
@@ -1267,11 +1265,13 @@ pub fn holdout(
     let n = problem.fixes.len();
     let mut ps = Vec::with_capacity(n);
     for i in 0..n {
-        let free: Vec<usize> = if n > 1 {
-            fit.free.clone()
-        } else {
-            fit.free.iter().copied().filter(|&j| j < 6).collect()
-        };
+        // Without the only control point, nothing sees the odometer's settings.
+        let free: Vec<Setting> = fit
+            .free
+            .iter()
+            .copied()
+            .filter(|s| n > 1 || !s.needs_control_points())
+            .collect();
         let model = JointModel::new(problem, &fit.lin, &free, &fit.weights, Some(i));
         let delta = model
             .a
@@ -1280,8 +1280,8 @@ pub fn holdout(
             .solve(&(-&model.r0), 1e-12)
             .map_err(optimiser_error)?;
         let mut pi = fit.lin.p_ref;
-        for (k, &j) in free.iter().enumerate() {
-            pi[j] += delta[k];
+        for (k, s) in free.iter().enumerate() {
+            pi[s.index()] += delta[k];
         }
         ps.push(pi);
     }

@@ -11,16 +11,72 @@
 use crate::criteria::{ControlPointFix, KalmanParams, Kryt2, kryt1_of};
 use crate::derive::Epochs;
 
-/// Number of settings a linearisation can move: azimuth, drifts x/y/z, the two levelling
-/// corrections, the odometer scale, the odometer yaw boresight and the odometer speed
-/// bias (in that order, the joint fit's).
-pub const N_PARAMS: usize = 9;
+/// The settings a linearisation can move, by name; their order is that of the parameter
+/// vector ([`Setting::index`]). Units are the optimisers': degrees, °/h, mrad, ppm, m/s.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum Setting {
+    /// Initial azimuth, degrees.
+    Azimuth,
+    /// Gyro drift about body x, °/h.
+    DriftX,
+    /// Gyro drift about body y, °/h.
+    DriftY,
+    /// Gyro drift about body z, °/h.
+    DriftZ,
+    /// Pitch levelling correction, mrad.
+    TiltPitch,
+    /// Roll levelling correction, mrad.
+    TiltRoll,
+    /// Odometer scale deviation, ppm.
+    OdoScale,
+    /// Odometer yaw boresight, degrees.
+    OdoYaw,
+    /// Odometer speed bias, m/s.
+    OdoBias,
+}
 
-/// Forward-difference steps, in the optimisers' units: 0.01°, 0.01 °/h (×3), 0.01 mrad
-/// (×2), 10 ppm, 0.01°, 1 mm/s. Small enough that curvature does not bias the slope (a
-/// 0.01° azimuth change moves a 10 km route by 1.7 m), large enough to stay far above
-/// rounding.
-pub const FD_STEP: [f64; N_PARAMS] = [1e-2, 1e-2, 1e-2, 1e-2, 1e-2, 1e-2, 10.0, 1e-2, 1e-3];
+/// Number of settings a linearisation can move.
+pub const N_PARAMS: usize = Setting::ALL.len();
+
+impl Setting {
+    /// Every setting, in parameter-vector order.
+    pub const ALL: [Setting; 9] = [
+        Setting::Azimuth,
+        Setting::DriftX,
+        Setting::DriftY,
+        Setting::DriftZ,
+        Setting::TiltPitch,
+        Setting::TiltRoll,
+        Setting::OdoScale,
+        Setting::OdoYaw,
+        Setting::OdoBias,
+    ];
+
+    /// Position in the parameter vector.
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// Forward-difference step: 0.01°, 0.01 °/h, 0.01 mrad, 10 ppm, 0.01°, 1 mm/s. Small
+    /// enough that curvature does not bias the slope (a 0.01° azimuth change moves a 10 km
+    /// route by 1.7 m), large enough to stay far above rounding.
+    pub const fn fd_step(self) -> f64 {
+        match self {
+            Setting::OdoScale => 10.0,
+            Setting::OdoBias => 1e-3,
+            _ => 1e-2,
+        }
+    }
+
+    /// Whether only control points see it (the odometer's settings move the route, not
+    /// the attitude the gyros carry).
+    pub const fn needs_control_points(self) -> bool {
+        matches!(self, Setting::OdoScale | Setting::OdoYaw | Setting::OdoBias)
+    }
+}
 
 /// Largest pitch/roll difference between a prediction and an exact pass that counts as
 /// agreement, rad (2″: a hundredth of one epoch's 1 mrad residual noise).
@@ -138,9 +194,9 @@ pub struct Linearization {
 }
 
 impl Linearization {
-    /// Whether the model has a slope for every parameter in `which`.
-    pub fn covers(&self, which: &[usize]) -> bool {
-        which.iter().all(|&j| self.slopes[j].is_some())
+    /// Whether the model has a slope for every setting in `which`.
+    pub fn covers(&self, which: &[Setting]) -> bool {
+        which.iter().all(|s| self.slopes[s.index()].is_some())
     }
 
     /// The predicted observation at `p`, into `out` (reusing its buffers).
@@ -191,7 +247,9 @@ mod tests {
         assert_eq!(y.theta_rad, vec![0.25, 0.5]);
         assert_eq!(y.phi_rad, vec![-0.25, 0.625]);
         assert_eq!(y.cp_m, vec![[0.25, 0.75]]);
-        assert!(lin.covers(&[2]) && !lin.covers(&[0, 2]));
+        assert!(
+            lin.covers(&[Setting::DriftY]) && !lin.covers(&[Setting::Azimuth, Setting::DriftY])
+        );
         let s = obs(1.0).slope(&obs(0.0), 0.5);
         assert_eq!(
             (s.theta_rad, s.phi_rad, s.cp_m),

@@ -30,6 +30,7 @@ use argmin::solver::brent::BrentOpt;
 use crate::derive::{DeriveParams, Derived, RawSeries, derive, epochs_of, shifted_blocks};
 use crate::disupt::{DisuptError, DisuptParams, JointFit, JointOptions, ProblemSpec, joint_fit};
 use crate::filter::LowPass;
+use crate::linearized::Setting;
 
 /// Step of the curvature estimate around the optimum, s.
 const CURVATURE_STEP_S: f64 = 0.05;
@@ -156,8 +157,13 @@ pub fn joint_with_lag(
     let fit = joint_fit(&spec.on(&derived), params, &JointOptions::default())?;
     // The control points' misfit per residual beyond the lag's one degree of freedom,
     // when it is worse than their σ.
-    let cp_dof = (2 * spec.fixes.len())
-        .saturating_sub(fit.free.iter().filter(|&&j| j == 0 || j >= 6).count() + 1);
+    let cp_dof = (2 * spec.fixes.len()).saturating_sub(
+        fit.free
+            .iter()
+            .filter(|s| **s == Setting::Azimuth || s.needs_control_points())
+            .count()
+            + 1,
+    );
     let s2 = (c0 / cp_dof.max(1) as f64).max(1.0);
     let sigma_s = (curvature > 0.0)
         .then(|| (2.0 * s2 / curvature).sqrt())
