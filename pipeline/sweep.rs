@@ -41,7 +41,9 @@ pub struct Axis {
 
 /// The settings a sweep can move, by the name and unit it takes them in, with what turns
 /// a value into the optimisers' unit.
-const SWEEPABLE: [(&str, Setting, fn(f64) -> f64); 6] = [
+type ToOptimiser = fn(f64) -> f64;
+
+const SWEEPABLE: [(&str, Setting, ToOptimiser); 6] = [
     ("azimuth_deg", Setting::Azimuth, |v| v),
     ("drift_x_rad_s", Setting::DriftX, |v| v / DEG_PER_H),
     ("drift_y_rad_s", Setting::DriftY, |v| v / DEG_PER_H),
@@ -52,7 +54,7 @@ const SWEEPABLE: [(&str, Setting, fn(f64) -> f64); 6] = [
 
 /// The setting a sweep name stands for and its conversion (names are checked by
 /// [`parse_over`]).
-fn sweepable(name: &str) -> Option<(Setting, fn(f64) -> f64)> {
+fn sweepable(name: &str) -> Option<(Setting, ToOptimiser)> {
     SWEEPABLE
         .iter()
         .find(|(n, _, _)| *n == name)
