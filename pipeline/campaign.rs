@@ -18,6 +18,7 @@ use unz_formats::parquet_io::write_batch;
 use unz_formats::report::IngestReport;
 use unz_viz::report::{JointEstimate, ReportRow};
 
+use crate::artifacts::{RunLayout, StageName, files};
 use crate::disupt_stage::{DisuptOut, Method, MethodOut, SettingsOut, SigmaOut, ensure_disupt};
 use crate::flow::{
     Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest, ensure_navigate,
@@ -347,9 +348,11 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         "| run | status | distance [m] | rejected | before [m] | OEPI [m] | OWPI [m] | joint [m] | joint az σ [°] | hold-out median / max [m] | odometer lag [s] | wall [s] | computed | error |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for o in outcomes {
-        let dir = out.join(&o.name);
-        let ing: Option<IngestReport> = read_report(&dir.join("ingest/ingest.json"));
-        let d: Option<DisuptOut> = read_report(&dir.join("disupt/disupt.json"));
+        let layout = RunLayout::new(out, &o.name);
+        let ing: Option<IngestReport> =
+            read_report(&layout.file(StageName::Ingest, files::INGEST_REPORT));
+        let d: Option<DisuptOut> =
+            read_report(&layout.file(StageName::Disupt, files::DISUPT_REPORT));
         let values = column_values(ing.as_ref(), d.as_ref(), o.wall_s);
         for (c, v) in cols.iter_mut().zip(values) {
             c.1.push(v);
@@ -455,7 +458,8 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
 
 /// A run's row of `campaign.html`, from its `disupt.json`.
 fn report_row(out: &Path, o: &RunOutcome) -> ReportRow {
-    let d: Option<DisuptOut> = read_report(&out.join(&o.name).join("disupt/disupt.json"));
+    let layout = RunLayout::new(out, &o.name);
+    let d: Option<DisuptOut> = read_report(&layout.file(StageName::Disupt, files::DISUPT_REPORT));
     let mut last_cp_error_m = Vec::new();
     let mut cp_errors_m = Vec::new();
     let mut joint = None;

@@ -1,6 +1,7 @@
 //! Parquet form of the derive stage's outputs: `derived.parquet` (per IMU sample) and
 //! `epochs.parquet` (per ΔTg epoch), and loading them back.
 
+use crate::artifacts::files;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -64,7 +65,7 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
             f64s(&d.ru_mps2),
         ],
     )?;
-    write_batch(&dir.join("derived.parquet"), &batch)?;
+    write_batch(&dir.join(files::DERIVED), &batch)?;
 
     let e = &d.epochs;
     let at = |v: &[f64]| f64s(&e.block.iter().map(|&j| v[j]).collect::<Vec<_>>());
@@ -106,14 +107,14 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
             at(&d.ru_f),
         ],
     )?;
-    write_batch(&dir.join("epochs.parquet"), &batch)?;
+    write_batch(&dir.join(files::EPOCHS), &batch)?;
     Ok(())
 }
 
 /// Loads what [`write_derived`] wrote, counts included (the per-block filtered series
 /// are not kept).
 pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
-    let path = dir.join("derived.parquet");
+    let path = dir.join(files::DERIVED);
     let (schema, b) = read_table(&path)?;
     let meta = |k: &str| -> anyhow::Result<String> {
         schema
@@ -143,7 +144,7 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
         // in epochs.parquet, and nothing downstream reads the rest.
         ..Derived::default()
     };
-    let epath = dir.join("epochs.parquet");
+    let epath = dir.join(files::EPOCHS);
     let (_, e) = read_table(&epath)?;
     let blocks = e
         .column_by_name("block")

@@ -19,6 +19,7 @@ use unz_stages::route_sigma::{Moved, RouteSigma, route_sigma};
 use unz_stages::simulate::DEG_PER_H;
 use unz_stages::strapdown::{NavSettings, NavTrack};
 
+use crate::artifacts::{StageName, files};
 use crate::flow::{
     IngestedSeries, NavCase, Overrides, Params, RunCtx, ensure_derive, ensure_finite_track,
     load_case, site_gravity_mps2, write_nav,
@@ -27,7 +28,6 @@ use crate::method_tables::{
     KRYT1_SERIES, MethodKryt1, MethodTrack, TRACKS, method_kryt1, method_track, write_kryt1_series,
     write_tracks,
 };
-use crate::runs::stage_dir;
 use crate::stage::{Stage, params_hash};
 
 /// Which methods to run.
@@ -337,12 +337,12 @@ pub fn coarse_azimuth_deg(problem: &Problem<'_>) -> Option<f64> {
 /// manifest, the derived series and epochs, and the control-point marks.
 pub fn case_inputs(ctx: &RunCtx, params: &Params) -> anyhow::Result<Vec<PathBuf>> {
     let derive_dir = ensure_derive(ctx, params)?;
-    let ingest_dir = ctx.out.join(&ctx.manifest.name).join("ingest");
+    let ingest_dir = ctx.layout().dir(StageName::Ingest);
     Ok(vec![
         ctx.manifest.path.clone(),
-        derive_dir.join("derived.parquet"),
-        derive_dir.join("epochs.parquet"),
-        ingest_dir.join("marks.parquet"),
+        derive_dir.join(files::DERIVED),
+        derive_dir.join(files::EPOCHS),
+        ingest_dir.join(files::MARKS),
     ])
 }
 
@@ -424,7 +424,7 @@ fn joint_route_sigma(
 pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::Result<PathBuf> {
     let inputs = case_inputs(ctx, params)?;
     let m = &ctx.manifest;
-    let dir = stage_dir(&ctx.out, &m.name, "disupt")?;
+    let dir = ctx.layout().create(StageName::Disupt)?;
     let dparams = params.disupt;
     let stage = Stage {
         dir: dir.clone(),
@@ -433,16 +433,16 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[
-            "disupt.json",
-            "disupt.md",
-            "corrected_nav.parquet",
+            files::DISUPT_REPORT,
+            files::DISUPT_TABLES,
+            files::CORRECTED_NAV,
             TRACKS,
             KRYT1_SERIES,
         ],
     };
     ctx.run_stage(&stage, || {
         let case = load_case(ctx, params, &Overrides::default())?;
-        let ingested = IngestedSeries::load(&ctx.out.join(&m.name).join("ingest"))?;
+        let ingested = IngestedSeries::load(&ctx.layout().dir(StageName::Ingest))?;
         let rederive = Rederive::new(ingested.series(), params.derive, site_gravity_mps2(m));
         // A coarse search over ±180° of azimuth by the control points first: the run's
         // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).
@@ -606,9 +606,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         write_tracks(&dir.join(TRACKS), &tracks)?;
         write_kryt1_series(&dir.join(KRYT1_SERIES), &kryt1s)?;
         let sigma = route_sigma.map(|r| r.per_sample(track.len()));
-        write_nav(&dir.join("corrected_nav.parquet"), &case.derived, &track, site, sigma.as_ref())?;
-        write_atomic(&dir.join("disupt.md"), md.as_bytes())?;
-        write_json_atomic(&dir.join("disupt.json"), &out)?;
+        write_nav(&dir.join(files::CORRECTED_NAV), &case.derived, &track, site, sigma.as_ref())?;
+        write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;
+        write_json_atomic(&dir.join(files::DISUPT_REPORT), &out)?;
         Ok(())
     })?;
     Ok(dir)

@@ -13,9 +13,9 @@ use unz_formats::parquet_io::read_table;
 use unz_formats::tables::{f64_column, i64_column};
 use unz_viz::frames::enu_flu;
 
+use crate::artifacts::{StageName, files};
 use crate::disupt_stage::{Method, ensure_disupt};
 use crate::flow::{Overrides, Params, RunCtx, ensure_criteria};
-use crate::runs::stage_dir;
 use crate::stage::{Stage, params_hash};
 
 /// Output rate of the navigation channels, Hz.
@@ -104,20 +104,19 @@ fn copy_atomic(src: &std::path::Path, dest: &std::path::Path) -> anyhow::Result<
 pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let disupt_dir = ensure_disupt(ctx, params, Method::All)?;
     let (criteria_dir, _) = ensure_criteria(ctx, params, &Overrides::default())?;
-    let m = &ctx.manifest;
-    let dir = stage_dir(&ctx.out, &m.name, "export")?;
-    let nav_path = disupt_dir.join("corrected_nav.parquet");
-    let crit_path = criteria_dir.join("criteria.parquet");
+    let dir = ctx.layout().create(StageName::Export)?;
+    let nav_path = disupt_dir.join(files::CORRECTED_NAV);
+    let crit_path = criteria_dir.join(files::CRITERIA);
     let stage = Stage {
         dir: dir.clone(),
         name: "export",
         version: 1,
         params_hash: params_hash(&NAV_RATE_HZ)?,
         inputs: vec![nav_path.clone(), crit_path.clone()],
-        outputs: &["corrected_nav.parquet", "corrected.mcap"],
+        outputs: &[files::CORRECTED_NAV, "corrected.mcap"],
     };
     ctx.run_stage(&stage, || {
-        copy_atomic(&nav_path, &dir.join("corrected_nav.parquet"))?;
+        copy_atomic(&nav_path, &dir.join(files::CORRECTED_NAV))?;
         let (_, b) = read_table(&nav_path)?;
         let t = i64_column(&b, "t_ns")?;
         let col = |n: &str| f64_column(&b, n);

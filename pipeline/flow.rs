@@ -20,9 +20,9 @@ use unz_stages::filter::LowPass;
 use unz_stages::initial::{AlignParams, InitialReport, InitialRequest, Source, initial_settings};
 use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
 
+use crate::artifacts::{RunLayout, StageName, files};
 use crate::derive_io::{load_derived, write_derived};
 use crate::ingest::{IngestOptions, OUTPUTS as INGEST_OUTPUTS, ingest};
-use crate::runs::stage_dir;
 use crate::stage::{Stage, params_hash};
 
 /// Metadata key of `odometer.parquet`: metres per pulse used for `distance_m`.
@@ -87,6 +87,11 @@ impl RunCtx {
 }
 
 impl RunCtx {
+    /// Where this run's artifacts live.
+    pub fn layout(&self) -> RunLayout {
+        RunLayout::new(&self.out, &self.manifest.name)
+    }
+
     /// Says `what` of `stage` when verbose.
     pub fn say(&self, stage: &str, what: &str) {
         if self.verbose {
@@ -122,7 +127,7 @@ impl RunCtx {
 /// Stage 1.
 pub fn ensure_ingest(ctx: &RunCtx) -> anyhow::Result<PathBuf> {
     let m = &ctx.manifest;
-    let dir = stage_dir(&ctx.out, &m.name, "ingest")?;
+    let dir = ctx.layout().create(StageName::Ingest)?;
     let mut inputs = vec![m.path.clone(), m.raw.clone()];
     inputs.extend(m.odometer.file.clone());
     let stage = Stage {
@@ -155,10 +160,10 @@ fn load_table<T: Default>(
 pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let ingest_dir = ensure_ingest(ctx)?;
     let m = &ctx.manifest;
-    let dir = stage_dir(&ctx.out, &m.name, "derive")?;
+    let dir = ctx.layout().create(StageName::Derive)?;
     let inputs = vec![
-        ingest_dir.join("imu.parquet"),
-        ingest_dir.join("odometer.parquet"),
+        ingest_dir.join(files::IMU),
+        ingest_dir.join(files::ODOMETER),
     ];
     let stage = Stage {
         dir: dir.clone(),
@@ -166,7 +171,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         version: 3,
         params_hash: params_hash(&params.derive)?,
         inputs,
-        outputs: &["derived.parquet", "epochs.parquet"],
+        outputs: &[files::DERIVED, files::EPOCHS],
     };
     ctx.run_stage(&stage, || {
         let raw = IngestedSeries::load(&ingest_dir)?;
@@ -226,9 +231,9 @@ impl IngestedSeries {
     /// Loads `imu.parquet` and `odometer.parquet` of an ingest folder.
     pub fn load(ingest_dir: &Path) -> anyhow::Result<Self> {
         let (imu, _) =
-            load_table::<ImuTable>(&ingest_dir.join("imu.parquet"), ImuTable::extend_from_batch)?;
+            load_table::<ImuTable>(&ingest_dir.join(files::IMU), ImuTable::extend_from_batch)?;
         let (odo, _) = load_table::<OdometerTable>(
-            &ingest_dir.join("odometer.parquet"),
+            &ingest_dir.join(files::ODOMETER),
             OdometerTable::extend_from_batch,
         )?;
         if imu.is_empty() {
@@ -329,13 +334,13 @@ pub fn match_control_points(
 pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow::Result<NavCase> {
     let derive_dir = ensure_derive(ctx, params)?;
     let m = &ctx.manifest;
-    let ingest_dir = ctx.out.join(&m.name).join("ingest");
+    let ingest_dir = ctx.layout().dir(StageName::Ingest);
     let derived = load_derived(&derive_dir)?;
     let (marks, _) = load_table::<MarksTable>(
-        &ingest_dir.join("marks.parquet"),
+        &ingest_dir.join(files::MARKS),
         MarksTable::extend_from_batch,
     )?;
-    let (odo_schema, _) = read_batches(&ingest_dir.join("odometer.parquet"))?;
+    let (odo_schema, _) = read_batches(&ingest_dir.join(files::ODOMETER))?;
     let fixes = match_control_points(m, &marks, &derived)
         .with_context(|| format!("in {}", m.path.display()))?;
     let ingest_scale: Option<f64> = odo_schema
@@ -385,7 +390,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
 }
 
 /// Summary of a navigation pass (`navigate.json`).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct NavigateSummary {
     /// Initial settings and alignment.
     pub initial: InitialReport,
@@ -463,13 +468,13 @@ pub fn ensure_navigate(
 ) -> anyhow::Result<PathBuf> {
     let derive_dir = ensure_derive(ctx, params)?;
     let m = &ctx.manifest;
-    let dir = stage_dir(&ctx.out, &m.name, "navigate")?;
-    let ingest_dir = ctx.out.join(&m.name).join("ingest");
+    let dir = ctx.layout().create(StageName::Navigate)?;
+    let ingest_dir = ctx.layout().dir(StageName::Ingest);
     let inputs = vec![
         m.path.clone(),
-        derive_dir.join("derived.parquet"),
-        ingest_dir.join("marks.parquet"),
-        ingest_dir.join("odometer.parquet"),
+        derive_dir.join(files::DERIVED),
+        ingest_dir.join(files::MARKS),
+        ingest_dir.join(files::ODOMETER),
     ];
     let stage = Stage {
         dir: dir.clone(),
@@ -477,7 +482,7 @@ pub fn ensure_navigate(
         version: 2,
         params_hash: params_hash(&(params.align, overrides))?,
         inputs,
-        outputs: &["nav.parquet", "navigate.json"],
+        outputs: &[files::NAV, files::NAVIGATE_REPORT],
     };
     ctx.run_stage(&stage, || {
         let case = load_case(ctx, params, overrides)?;
@@ -489,7 +494,7 @@ pub fn ensure_navigate(
             case.settings.lon0_rad,
             case.settings.h0_m,
         );
-        write_nav(&dir.join("nav.parquet"), &case.derived, &track, site, None)?;
+        write_nav(&dir.join(files::NAV), &case.derived, &track, site, None)?;
         let summary = NavigateSummary {
             initial: case.initial,
             samples: track.len(),
@@ -499,7 +504,7 @@ pub fn ensure_navigate(
             repaired_times: case.derived.repaired_times,
             filled_gaps: case.derived.filled_gaps,
         };
-        write_json_atomic(&dir.join("navigate.json"), &summary)?;
+        write_json_atomic(&dir.join(files::NAVIGATE_REPORT), &summary)?;
         Ok(())
     })?;
     Ok(dir)
@@ -559,15 +564,15 @@ pub fn ensure_criteria(
 ) -> anyhow::Result<(PathBuf, CriteriaSummary)> {
     let nav_dir = ensure_navigate(ctx, params, overrides)?;
     let m = &ctx.manifest;
-    let derive_dir = ctx.out.join(&m.name).join("derive");
-    let ingest_dir = ctx.out.join(&m.name).join("ingest");
-    let dir = stage_dir(&ctx.out, &m.name, "criteria")?;
+    let derive_dir = ctx.layout().dir(StageName::Derive);
+    let ingest_dir = ctx.layout().dir(StageName::Ingest);
+    let dir = ctx.layout().create(StageName::Criteria)?;
     let inputs = vec![
         m.path.clone(),
-        nav_dir.join("nav.parquet"),
-        derive_dir.join("derived.parquet"),
-        derive_dir.join("epochs.parquet"),
-        ingest_dir.join("marks.parquet"),
+        nav_dir.join(files::NAV),
+        derive_dir.join(files::DERIVED),
+        derive_dir.join(files::EPOCHS),
+        ingest_dir.join(files::MARKS),
     ];
     let stage = Stage {
         dir: dir.clone(),
@@ -575,13 +580,13 @@ pub fn ensure_criteria(
         version: 1,
         params_hash: params_hash(&(params.kalman, params.derive.filter))?,
         inputs,
-        outputs: &["criteria.parquet", "criteria.json"],
+        outputs: &[files::CRITERIA, files::CRITERIA_REPORT],
     };
     ctx.run_stage(&stage, || {
         let d = load_derived(&derive_dir)?;
-        let track = load_nav(&nav_dir.join("nav.parquet"))?;
+        let track = load_nav(&nav_dir.join(files::NAV))?;
         let (marks, _) = load_table::<MarksTable>(
-            &ingest_dir.join("marks.parquet"),
+            &ingest_dir.join(files::MARKS),
             MarksTable::extend_from_batch,
         )?;
         let fixes = match_control_points(m, &marks, &d)
@@ -596,7 +601,7 @@ pub fn ensure_criteria(
             &mut Kryt1Scratch::default(),
             Some(&mut series),
         );
-        write_criteria_parquet(&dir.join("criteria.parquet"), &d, &series)?;
+        write_criteria_parquet(&dir.join(files::CRITERIA), &d, &series)?;
         let cps = criteria::kryt2(&track, &fixes);
         let summary = CriteriaSummary {
             kryt1_rad: k1,
@@ -605,10 +610,10 @@ pub fn ensure_criteria(
             kryt2_m: cps.last().map(|c| c.kryt2_m),
             control_points: cps,
         };
-        write_json_atomic(&dir.join("criteria.json"), &summary)?;
+        write_json_atomic(&dir.join(files::CRITERIA_REPORT), &summary)?;
         Ok(())
     })?;
-    let summary = serde_json::from_slice(&std::fs::read(dir.join("criteria.json"))?)?;
+    let summary = serde_json::from_slice(&std::fs::read(dir.join(files::CRITERIA_REPORT))?)?;
     Ok((dir, summary))
 }
 

@@ -9,6 +9,7 @@
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
+use crate::artifacts::files;
 use anyhow::Context;
 use serde::Serialize;
 use unz_formats::atomic::write_json_atomic;
@@ -25,11 +26,11 @@ const BATCH_ROWS: usize = 1 << 16;
 
 /// Output files of the ingest stage.
 pub const OUTPUTS: [&str; 6] = [
-    "imu.parquet",
-    "odometer.parquet",
-    "marks.parquet",
+    files::IMU,
+    files::ODOMETER,
+    files::MARKS,
     "raw.mcap",
-    "ingest.json",
+    files::INGEST_REPORT,
     "ingest_events.json",
 ];
 
@@ -210,8 +211,8 @@ impl Sinks {
             ));
         }
         Ok(Self {
-            imu: ParquetSink::create(&dir.join("imu.parquet"), imu_schema.clone())?,
-            odo: ParquetSink::create(&dir.join("odometer.parquet"), odo_schema.clone())?,
+            imu: ParquetSink::create(&dir.join(files::IMU), imu_schema.clone())?,
+            odo: ParquetSink::create(&dir.join(files::ODOMETER), odo_schema.clone())?,
             imu_rows: ImuTable::default(),
             odo_rows: OdometerTable::default(),
             marks: MarksTable::default(),
@@ -263,7 +264,7 @@ impl Sinks {
         self.imu.finish()?;
         self.odo.finish()?;
         unz_formats::parquet_io::write_batch(
-            &dir.join("marks.parquet"),
+            &dir.join(files::MARKS),
             &self.marks.to_batch(self.marks_schema.clone())?,
         )?;
         if let Some(m) = self.mcap {
@@ -284,7 +285,7 @@ pub fn ingest(
         LogFormat::UnzBinary => ingest_binary(manifest, dir, options)?,
         LogFormat::KfGins => ingest_text(manifest, dir, options)?,
     };
-    write_json_atomic(&dir.join("ingest.json"), &report)?;
+    write_json_atomic(&dir.join(files::INGEST_REPORT), &report)?;
     Ok(IngestOutcome {
         dir: dir.to_path_buf(),
         report,

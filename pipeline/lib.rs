@@ -4,6 +4,7 @@
 //! The binary's commands live in [`commands`], one file each; the stage functions they
 //! call (ingest, …) are in this crate's modules and take validated plans, not raw flags.
 
+pub mod artifacts;
 pub mod campaign;
 pub mod cli;
 pub mod commands;

@@ -16,6 +16,7 @@ use unz_viz::review::{
     ControlPointView, EpochSeries, ImuSeries, Kryt1Curve, Review, RouteSigmaView, Sweep, Track,
 };
 
+use crate::artifacts::{StageName, files};
 use crate::derive_io::load_derived;
 use crate::disupt_stage::{DisuptOut, Method, ensure_disupt};
 use crate::flow::{Overrides, Params, RunCtx, ensure_criteria};
@@ -23,7 +24,6 @@ use crate::method_tables::{
     KRYT1_SERIES, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_indices, read_kryt1_series,
     read_tracks,
 };
-use crate::runs::stage_dir;
 use crate::stage::{Stage, params_hash};
 
 /// What the review stage wrote.
@@ -64,18 +64,18 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
     let disupt_dir = ensure_disupt(ctx, params, Method::All)?;
     let (criteria_dir, _) = ensure_criteria(ctx, params, &Overrides::default())?;
     let m = &ctx.manifest;
-    let derive_dir = ctx.out.join(&m.name).join("derive");
-    let dir = stage_dir(&ctx.out, &m.name, "review")?;
+    let derive_dir = ctx.layout().dir(StageName::Derive);
+    let dir = ctx.layout().create(StageName::Review)?;
     let truth = truth_path(ctx);
     let sweep = sweep_path(ctx);
     let mut inputs = vec![
         m.path.clone(),
-        derive_dir.join("derived.parquet"),
-        derive_dir.join("epochs.parquet"),
-        criteria_dir.join("criteria.parquet"),
-        disupt_dir.join("disupt.json"),
-        disupt_dir.join("disupt.md"),
-        disupt_dir.join("corrected_nav.parquet"),
+        derive_dir.join(files::DERIVED),
+        derive_dir.join(files::EPOCHS),
+        criteria_dir.join(files::CRITERIA),
+        disupt_dir.join(files::DISUPT_REPORT),
+        disupt_dir.join(files::DISUPT_TABLES),
+        disupt_dir.join(files::CORRECTED_NAV),
         disupt_dir.join(TRACKS),
         disupt_dir.join(KRYT1_SERIES),
     ];
@@ -132,11 +132,11 @@ pub fn build_review(
         m.site.height_m,
     );
 
-    let crit_path = criteria_dir.join("criteria.parquet");
+    let crit_path = criteria_dir.join(files::CRITERIA);
     let (_, c) = read_table(&crit_path)?;
     let col = |n: &str| f64_column(&c, n);
     // The filtered acceleration terms at the same epochs (derive's epochs.parquet).
-    let (_, e) = read_table(&derive_dir.join("epochs.parquet"))?;
+    let (_, e) = read_table(&derive_dir.join(files::EPOCHS))?;
     let ecol = |n: &str| f64_column(&e, n);
     let epochs = EpochSeries {
         t_s: rel(&i64_column(&c, "t_ns")?),
@@ -170,7 +170,7 @@ pub fn build_review(
         })
         .collect();
 
-    let json_path = disupt_dir.join("disupt.json");
+    let json_path = disupt_dir.join(files::DISUPT_REPORT);
     let dj: DisuptOut = serde_json::from_slice(
         &std::fs::read(&json_path)
             .with_context(|| format!("cannot read {}", json_path.display()))?,
@@ -206,8 +206,13 @@ pub fn build_review(
             }
         })
         .collect();
-    let tables_markdown = std::fs::read_to_string(disupt_dir.join("disupt.md"))
-        .with_context(|| format!("cannot read {}", disupt_dir.join("disupt.md").display()))?;
+    let tables_markdown = std::fs::read_to_string(disupt_dir.join(files::DISUPT_TABLES))
+        .with_context(|| {
+            format!(
+                "cannot read {}",
+                disupt_dir.join(files::DISUPT_TABLES).display()
+            )
+        })?;
     let summary_markdown = format!(
         "Raw log `{}`; {:.0} s, {} IMU samples at {:.0} Hz; {:.0} m to the last control point.",
         m.raw.file_name().unwrap_or_default().to_string_lossy(),
@@ -216,11 +221,8 @@ pub fn build_review(
         1.0 / d.nominal_dt_s.max(1e-9),
         dj.distance_m,
     );
-    let route_sigma = read_route_sigma(
-        &disupt_dir.join("corrected_nav.parquet"),
-        &rel,
-        d.nominal_dt_s,
-    )?;
+    let route_sigma =
+        read_route_sigma(&disupt_dir.join(files::CORRECTED_NAV), &rel, d.nominal_dt_s)?;
     Ok(Review {
         name: m.name.clone(),
         sample_dt_s: d.nominal_dt_s,

@@ -17,9 +17,9 @@ use unz_stages::disupt::{Problem, X};
 use unz_stages::linearized::Setting;
 use unz_stages::simulate::DEG_PER_H;
 
+use crate::artifacts::StageName;
 use crate::disupt_stage::{case_inputs, problem_of};
 use crate::flow::{Overrides, Params, RunCtx, load_case};
-use crate::runs::stage_dir;
 use crate::stage::{Stage, params_hash};
 
 /// Largest grid evaluated (points).
@@ -177,8 +177,7 @@ pub fn evaluate_grid(problem: &Problem<'_>, axes: &[Axis]) -> Vec<GridPoint> {
 /// Runs the sweep (cached like a stage).
 pub fn ensure_sweep(ctx: &RunCtx, params: &Params, axes: &[Axis]) -> anyhow::Result<PathBuf> {
     let inputs = case_inputs(ctx, params)?;
-    let m = &ctx.manifest;
-    let dir = stage_dir(&ctx.out, &m.name, "sweep")?;
+    let dir = ctx.layout().create(StageName::Sweep)?;
     let stage = Stage {
         dir: dir.clone(),
         name: "sweep",

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use rayon::prelude::*;
 use unz_formats::IngestReport;
 
+use crate::artifacts::{RunLayout, StageName, files};
 use crate::campaign::{Plan, run_campaign, write_summary};
 use crate::cli::{DemoArgs, SimulateArgs};
 use crate::disupt_stage::{DisuptOut, MethodOut};
@@ -77,12 +78,14 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
             println!("{:<16} failed: {e}", o.name);
             continue;
         }
+        let layout = RunLayout::new(&results, &o.name);
         fn read<T: serde::de::DeserializeOwned>(p: std::path::PathBuf) -> Option<T> {
             serde_json::from_slice(&std::fs::read(p).ok()?).ok()
         }
         let report: IngestReport =
-            read(results.join(&o.name).join("ingest/ingest.json")).unwrap_or_default();
-        let Some(d) = read::<DisuptOut>(results.join(&o.name).join("disupt/disupt.json")) else {
+            read(layout.file(StageName::Ingest, files::INGEST_REPORT)).unwrap_or_default();
+        let Some(d) = read::<DisuptOut>(layout.file(StageName::Disupt, files::DISUPT_REPORT))
+        else {
             println!("{:<16} no DISUPT report", o.name);
             continue;
         };

@@ -2,6 +2,7 @@
 
 use std::process::ExitCode;
 
+use crate::artifacts::files;
 use crate::cli::DisuptArgs;
 use crate::disupt_stage::ensure_disupt;
 use crate::flow::RunCtx;
@@ -15,7 +16,10 @@ pub fn run(args: &DisuptArgs) -> anyhow::Result<ExitCode> {
         &crate::config::for_run(&toml::Table::new(), &ctx.manifest)?,
         args.method,
     )?;
-    print!("{}", std::fs::read_to_string(dir.join("disupt.md"))?);
+    print!(
+        "{}",
+        std::fs::read_to_string(dir.join(files::DISUPT_TABLES))?
+    );
     println!("{}", dir.display());
     Ok(ExitCode::SUCCESS)
 }

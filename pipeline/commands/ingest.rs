@@ -4,6 +4,7 @@ use std::process::ExitCode;
 
 use unz_formats::IngestReport;
 
+use crate::artifacts::files;
 use crate::cli::StageArgs;
 use crate::flow::{RunCtx, ensure_ingest};
 use crate::runs::load_run;
@@ -12,7 +13,7 @@ use crate::runs::load_run;
 pub fn run(args: &StageArgs) -> anyhow::Result<ExitCode> {
     let ctx = RunCtx::new(load_run(&args.run)?, args.out.clone(), true);
     let dir = ensure_ingest(&ctx)?;
-    let r: IngestReport = serde_json::from_slice(&std::fs::read(dir.join("ingest.json"))?)?;
+    let r: IngestReport = serde_json::from_slice(&std::fs::read(dir.join(files::INGEST_REPORT))?)?;
     println!(
         "{}: {} IMU records, {} marks; {} rejected, {} bytes skipped, {} samples lost → {}",
         ctx.manifest.name,

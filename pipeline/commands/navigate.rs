@@ -2,8 +2,9 @@
 
 use std::process::ExitCode;
 
+use crate::artifacts::files;
 use crate::cli::NavArgs;
-use crate::flow::{RunCtx, ensure_navigate};
+use crate::flow::{NavigateSummary, RunCtx, ensure_navigate};
 use crate::runs::load_run;
 
 /// Runs the command.
@@ -14,31 +15,32 @@ pub fn run(args: &NavArgs) -> anyhow::Result<ExitCode> {
         &crate::config::for_run(&toml::Table::new(), &ctx.manifest)?,
         &args.overrides()?,
     )?;
-    let summary: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("navigate.json"))?)?;
-    let i = &summary["initial"];
+    let summary: NavigateSummary =
+        serde_json::from_slice(&std::fs::read(dir.join(files::NAVIGATE_REPORT))?)?;
+    let i = &summary.initial;
     println!(
-        "{}: {:.0} m in {:.0} s; initial heading {:.3}° ({}), roll {:.3}°, pitch {:.3}°",
+        "{}: {:.0} m in {:.0} s; initial heading {:.3}° ({:?}), roll {:.3}°, pitch {:.3}°",
         ctx.manifest.name,
-        summary["distance_m"].as_f64().unwrap_or(0.0),
-        summary["duration_s"].as_f64().unwrap_or(0.0),
-        i["azimuth_deg"].as_f64().unwrap_or(0.0),
-        i["azimuth_source"].as_str().unwrap_or(""),
-        i["roll_deg"].as_f64().unwrap_or(0.0),
-        i["pitch_deg"].as_f64().unwrap_or(0.0),
+        summary.distance_m,
+        summary.duration_s,
+        i.azimuth_deg,
+        i.azimuth_source,
+        i.roll_deg,
+        i.pitch_deg,
     );
-    if let (Some(gc), Some(sigma)) = (
-        i["gyrocompass_deg"].as_f64(),
-        i["gyrocompass_sigma_deg"].as_f64(),
+    match (
+        i.gyrocompass_deg,
+        i.gyrocompass_sigma_deg,
+        i.gyrocompass_skipped,
     ) {
-        println!("gyrocompass heading {gc:.3}° ± {sigma:.2}° (1σ)");
+        (Some(gc), Some(sigma), _) => println!("gyrocompass heading {gc:.3}° ± {sigma:.2}° (1σ)"),
+        (_, _, Some(why)) => println!("gyrocompassing skipped: {why:?}"),
+        _ => {}
     }
-    for cp in summary["control_points"].as_array().into_iter().flatten() {
+    for cp in &summary.control_points {
         println!(
             "control point {}: ΔX {:.1} m, ΔY {:.1} m",
-            cp["id"],
-            cp["dx_m"].as_f64().unwrap_or(0.0),
-            cp["dy_m"].as_f64().unwrap_or(0.0)
+            cp.id, cp.dx_m, cp.dy_m
         );
     }
     println!("{}", dir.display());

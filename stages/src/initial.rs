@@ -64,8 +64,18 @@ impl Default for AlignParams {
     }
 }
 
+/// Why an alignment step was skipped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Skipped {
+    /// The run has no static start (logging began in motion): gyrocompassing needs one.
+    /// The azimuth then comes from the manifest or, without it, from DISUPT's search over
+    /// the control points.
+    NoStaticStart,
+}
+
 /// What the alignment found and used.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct InitialReport {
     /// Static period averaged, s.
     pub static_s: f64,
@@ -84,7 +94,7 @@ pub struct InitialReport {
     /// Gyrocompass heading, degrees (computed whenever there is a static start).
     pub gyrocompass_deg: Option<f64>,
     /// Why there is no gyrocompass heading, when there is none.
-    pub gyrocompass_skipped: Option<&'static str>,
+    pub gyrocompass_skipped: Option<Skipped>,
     /// Expected 1σ accuracy of the gyrocompass heading, degrees.
     pub gyrocompass_sigma_deg: Option<f64>,
     /// Drifts used, rad/s.
@@ -191,10 +201,7 @@ pub fn initial_settings(
         azimuth_deg: heading.to_degrees().rem_euclid(360.0),
         azimuth_source,
         gyrocompass_deg: gc.map(f64::to_degrees),
-        gyrocompass_skipped: (!has_static).then_some(
-            "no static start: gyrocompassing needs one; the azimuth comes from the manifest or, \
-             without it, from DISUPT's search over the control points",
-        ),
+        gyrocompass_skipped: (!has_static).then_some(Skipped::NoStaticStart),
         gyrocompass_sigma_deg: gc_sigma.map(f64::to_degrees),
         drift_rad_s: drift,
         drift_source,
