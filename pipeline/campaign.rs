@@ -490,7 +490,7 @@ fn report_row(out: &Path, o: &RunOutcome) -> ReportRow {
         if let Some(j) = d.methods.get("joint") {
             let (b, x) = (&d.before.x, &j.x);
             joint = x.sigma.as_ref().map(|s| {
-                let per_h = 1.0 / unz_stages::simulate::DEG_PER_H;
+                let per_h = 1.0 / unz_stages::units::DEG_PER_H;
                 JointEstimate {
                     azimuth_change_deg: (x.azimuth_deg - b.azimuth_deg + 180.0).rem_euclid(360.0)
                         - 180.0,

@@ -16,8 +16,8 @@ use unz_stages::disupt::{
 use unz_stages::filter::LowPass;
 use unz_stages::odo_lag::{Rederive, joint_with_lag};
 use unz_stages::route_sigma::{Moved, RouteSigma, route_sigma};
-use unz_stages::simulate::DEG_PER_H;
 use unz_stages::strapdown::{NavSettings, NavTrack};
+use unz_stages::units::DEG_PER_H;
 
 use crate::artifacts::{StageName, files};
 use crate::flow::{

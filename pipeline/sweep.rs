@@ -15,7 +15,7 @@ use unz_formats::parquet_io::write_batch;
 use unz_formats::schema::scalar;
 use unz_stages::disupt::{Problem, X};
 use unz_stages::linearized::Setting;
-use unz_stages::simulate::DEG_PER_H;
+use unz_stages::units::DEG_PER_H;
 
 use crate::artifacts::StageName;
 use crate::disupt_stage::{case_inputs, problem_of};

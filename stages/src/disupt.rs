@@ -37,8 +37,8 @@ use crate::derive::Epochs;
 use crate::earth;
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
-use crate::simulate::DEG_PER_H;
 use crate::strapdown::{self, CriteriaSink, NavInputs, NavSettings};
+use crate::units::DEG_PER_H;
 
 /// Settings in the optimisers' units.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]

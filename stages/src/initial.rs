@@ -57,8 +57,8 @@ pub struct AlignParams {
 impl Default for AlignParams {
     fn default() -> Self {
         Self {
-            drift_sigma_rad_s: 1.0 * std::f64::consts::PI / 180.0 / 3600.0,
-            arw_rad_sqrt_s: 0.07 * std::f64::consts::PI / 180.0 / 60.0,
+            drift_sigma_rad_s: crate::units::DEG_PER_H,
+            arw_rad_sqrt_s: 0.07 * crate::units::DEG_PER_SQRT_H,
             drift_z_from_static: true,
         }
     }

@@ -6,7 +6,8 @@ use common::case_with;
 use unz_stages::attitude::wrap_pi;
 use unz_stages::criteria::KalmanParams;
 use unz_stages::disupt::{DisuptParams, Problem, joint, oepi, owpi};
-use unz_stages::simulate::{DEG_PER_H, SensorErrors};
+use unz_stages::simulate::SensorErrors;
+use unz_stages::units::DEG_PER_H;
 
 /// The DISUPT problem of a simulated case, from its manifest's settings.
 fn problem_of(c: &common::Case) -> Problem<'_> {

@@ -6,8 +6,9 @@ use common::case;
 use rayon::prelude::*;
 use unz_stages::attitude::wrap_pi;
 use unz_stages::earth;
-use unz_stages::simulate::{DEG_PER_H, SensorErrors};
+use unz_stages::simulate::SensorErrors;
 use unz_stages::strapdown::NavSettings;
+use unz_stages::units::DEG_PER_H;
 
 #[test]
 fn true_settings_without_noise_reproduce_truth() {

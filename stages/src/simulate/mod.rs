@@ -15,20 +15,17 @@ pub mod route;
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
+use rand_distr::StandardNormal;
 use unz_formats::raw::{FileHeader, ImuRecord, MarkRecord};
 
 use crate::attitude::Euler;
 use crate::earth;
+use crate::units::{DEG_PER_H, DEG_PER_SQRT_H, MILLI_G};
 
-/// Degrees per hour in rad/s.
-pub const DEG_PER_H: f64 = std::f64::consts::PI / 180.0 / 3600.0;
 /// LN-200 angle random walk, rad/√s (0.07 °/√h).
-pub const LN200_ARW_RAD_SQRT_S: f64 = 0.07 * std::f64::consts::PI / 180.0 / 60.0;
+pub const LN200_ARW_RAD_SQRT_S: f64 = 0.07 * DEG_PER_SQRT_H;
 /// LN-200-class velocity random walk, (m/s)/√s (0.03 m/s/√h).
 pub const LN200_VRW_MPS_SQRT_S: f64 = 0.03 / 60.0;
-/// One milli-g, m/s².
-pub const MILLI_G: f64 = 9.806_65e-3;
 
 /// What errors the simulated sensors have.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -308,8 +305,12 @@ pub fn simulate(config: &SimConfig) -> SimRun {
     let mut cum_vel = Vector3::<f64>::zeros();
     let mut counts_theta = [0i64; 3];
     let mut counts_vel = [0i64; 3];
-    let arw = Normal::new(0.0, LN200_ARW_RAD_SQRT_S * dt.sqrt()).unwrap_or_else(|_| unreachable!());
-    let vrw = Normal::new(0.0, LN200_VRW_MPS_SQRT_S * dt.sqrt()).unwrap_or_else(|_| unreachable!());
+    // Zero-mean normal noise of these σ per sample (what `Normal` draws, without its
+    // fallible constructor).
+    let (arw, vrw) = (
+        LN200_ARW_RAD_SQRT_S * dt.sqrt(),
+        LN200_VRW_MPS_SQRT_S * dt.sqrt(),
+    );
     let mut records = Vec::with_capacity(n);
     let mut truth = Truth::default();
     let motion = &plan.motion;
@@ -343,8 +344,8 @@ pub fn simulate(config: &SimConfig) -> SimRun {
         dvel += Vector3::from(bias) * dt;
         if e.noise {
             for i in 0..3 {
-                dtheta[i] += arw.sample(&mut rng);
-                dvel[i] += vrw.sample(&mut rng);
+                dtheta[i] += arw * rng.sample::<f64, _>(StandardNormal);
+                dvel[i] += vrw * rng.sample::<f64, _>(StandardNormal);
             }
         }
         cum_theta += dtheta;
