@@ -36,6 +36,18 @@ pub enum FormatError {
         /// What is wrong.
         reason: String,
     },
+    /// Parquet failed (the cause kept as the source).
+    #[error("parquet: {0}")]
+    Parquet(#[from] parquet::errors::ParquetError),
+    /// Arrow failed.
+    #[error("arrow: {0}")]
+    Arrow(#[from] arrow::error::ArrowError),
+    /// MCAP failed.
+    #[error("mcap: {0}")]
+    Mcap(#[from] mcap::McapError),
+    /// A JSON message could not be encoded.
+    #[error("json: {0}")]
+    Json(#[from] serde_json::Error),
     /// Anything else, said in words.
     #[error("{0}")]
     Invalid(String),

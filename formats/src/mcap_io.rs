@@ -22,8 +22,8 @@ pub struct JsonMcap {
     message: Vec<u8>,
 }
 
-fn mcap_err(path: &Path, e: impl std::fmt::Display) -> FileError {
-    FormatError::Invalid(format!("mcap: {e}")).in_file(path)
+fn mcap_err(path: &Path, e: impl Into<FormatError>) -> FileError {
+    e.into().in_file(path)
 }
 
 impl JsonMcap {
@@ -92,7 +92,7 @@ impl JsonMcap {
         let dest = self.file.dest().to_path_buf();
         self.writer.finish().map_err(|e| mcap_err(&dest, e))?;
         let mut inner = self.writer.into_inner();
-        std::io::Write::flush(&mut inner).map_err(|e| mcap_err(&dest, e))?;
+        std::io::Write::flush(&mut inner).map_err(|e| crate::error::io_in_file(&dest, e))?;
         drop(inner);
         self.file.commit()
     }

@@ -21,8 +21,8 @@ pub struct ParquetSink {
     rows: usize,
 }
 
-fn parquet_err(path: &Path, e: impl std::fmt::Display) -> FileError {
-    FormatError::Invalid(format!("parquet: {e}")).in_file(path)
+fn parquet_err(path: &Path, e: impl Into<FormatError>) -> FileError {
+    e.into().in_file(path)
 }
 
 impl ParquetSink {

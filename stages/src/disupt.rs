@@ -606,13 +606,15 @@ pub enum DisuptError {
     /// A method needs control points the run does not have.
     #[error("{0} needs at least one control point")]
     NoControlPoint(&'static str),
-    /// An optimiser failed.
+    /// An optimiser (argmin) failed; the cause is kept as the source.
     #[error("optimiser: {0}")]
-    Optimiser(String),
-}
-
-fn optimiser_error(e: impl std::fmt::Display) -> DisuptError {
-    DisuptError::Optimiser(e.to_string())
+    Optimiser(#[from] ArgminError),
+    /// A least-squares step (Levenberg–Marquardt) did not converge.
+    #[error("least squares did not converge: {0}")]
+    LeastSquares(String),
+    /// A linear solve failed.
+    #[error("linear solve: {0}")]
+    Linear(&'static str),
 }
 
 /// Relinearisations of one search before it falls back to exact passes.
@@ -712,7 +714,7 @@ fn minimise(
         let res = Executor::new(Along(&objective), solver)
             .configure(|s| s.max_iters(200))
             .run()
-            .map_err(optimiser_error)?;
+            .map_err(DisuptError::Optimiser)?;
         out.set(*single, *res.state().get_best_param().unwrap_or(&c));
         return Ok(out);
     }
@@ -727,11 +729,11 @@ fn minimise(
         }));
         let solver = NelderMead::new(simplex)
             .with_sd_tolerance(1e-9)
-            .map_err(optimiser_error)?;
+            .map_err(DisuptError::Optimiser)?;
         let res = Executor::new(Within(&objective), solver)
             .configure(|s| s.max_iters(if lin.is_some() { 2000 } else { 400 }))
             .run()
-            .map_err(optimiser_error)?;
+            .map_err(DisuptError::Optimiser)?;
         let best = res.state().get_best_param().cloned().unwrap_or(start);
         for (&s, v) in settings.iter().zip(best) {
             out.set(s, v);
@@ -1129,7 +1131,10 @@ pub fn joint_fit(
                 delta: DVector::zeros(free.len()),
             });
             if !report.termination.was_successful() {
-                return Err(DisuptError::Optimiser(format!("{:?}", report.termination)));
+                return Err(DisuptError::LeastSquares(format!(
+                    "{:?}",
+                    report.termination
+                )));
             }
             // The exact pass at the model's optimum; halve the step while it does worse.
             let mut step = solved.delta;
@@ -1278,7 +1283,7 @@ pub fn holdout(
             .clone()
             .svd(true, true)
             .solve(&(-&model.r0), 1e-12)
-            .map_err(optimiser_error)?;
+            .map_err(DisuptError::Linear)?;
         let mut pi = fit.lin.p_ref;
         for (k, s) in free.iter().enumerate() {
             pi[s.index()] += delta[k];

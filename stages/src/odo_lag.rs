@@ -147,7 +147,7 @@ pub fn joint_with_lag(
     let res = Executor::new(&profile, solver)
         .configure(|s| s.max_iters(60))
         .run()
-        .map_err(|e| DisuptError::Optimiser(e.to_string()))?;
+        .map_err(DisuptError::Optimiser)?;
     let lag_s = res.state().get_best_param().copied().unwrap_or(0.0);
     let c0 = profile.cost(lag_s)?;
     let (lo, hi) = (lag_s - CURVATURE_STEP_S, lag_s + CURVATURE_STEP_S);
