@@ -9,7 +9,8 @@ use anyhow::Context;
 use serde::Serialize;
 use serde_json::json;
 use unz_formats::mcap_io::{JsonMcap, numeric_object_schema};
-use unz_formats::parquet_io::read_table;
+use unz_formats::parquet_io::{read_schema, read_table};
+use unz_formats::schema::META_TIME_ORIGIN;
 use unz_formats::tables::{f64_column, i64_column};
 use unz_viz::frames::enu_flu;
 
@@ -107,16 +108,26 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let dir = ctx.layout().create(StageName::Export)?;
     let nav_path = disupt_dir.join(files::CORRECTED_NAV);
     let crit_path = criteria_dir.join(files::CRITERIA);
+    // The log's UTC origin, when its header gave one, is in the ingested tables' schema.
+    let imu_path = ctx.layout().file(StageName::Ingest, files::IMU);
     let stage = Stage {
         dir: dir.clone(),
         name: "export",
-        version: 1,
+        version: 2,
         params_hash: params_hash(&NAV_RATE_HZ)?,
-        inputs: vec![nav_path.clone(), crit_path.clone()],
+        inputs: vec![nav_path.clone(), crit_path.clone(), imu_path.clone()],
         outputs: &[files::CORRECTED_NAV, "corrected.mcap"],
     };
     ctx.run_stage(&stage, || {
         copy_atomic(&nav_path, &dir.join(files::CORRECTED_NAV))?;
+        // MCAP log times in UTC when the log gives it (Foxglove shows the drive's date,
+        // not 1970), as raw.mcap's; the messages keep the run's own time.
+        let origin_ns: i64 = read_schema(&imu_path)?
+            .metadata()
+            .get(META_TIME_ORIGIN)
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(0);
+        let log_time_of = |t_ns: i64| u64::try_from(origin_ns.saturating_add(t_ns)).unwrap_or(0);
         let (_, b) = read_table(&nav_path)?;
         let t = i64_column(&b, "t_ns")?;
         let col = |n: &str| f64_column(&b, n);
@@ -155,7 +166,7 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                 continue;
             }
             next = t[k] + step_ns;
-            let log_time = u64::try_from(t[k]).unwrap_or(0);
+            let log_time = log_time_of(t[k]);
             let timestamp = Stamp {
                 sec: t[k].div_euclid(1_000_000_000),
                 nsec: t[k].rem_euclid(1_000_000_000),
@@ -231,7 +242,7 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                 .zip(&cols)
                 .map(|(n, v)| ((*n).to_owned(), json!(v[k])))
                 .collect();
-            mcap.write(&mut crit, u64::try_from(tk).unwrap_or(0), &msg)?;
+            mcap.write(&mut crit, log_time_of(tk), &msg)?;
         }
         mcap.finish()?;
         Ok(())

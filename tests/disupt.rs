@@ -145,4 +145,19 @@ fn export_writes_foxglove_channels() {
     assert_eq!(ch["/corrected/pose"]["count"], 3000);
     assert_eq!(ch["/criteria"]["count"], 300);
     assert_eq!(info["monotonic"], true);
+    // Log times in UTC, as raw.mcap's (the simulated header starts in 2026), not 1970.
+    let raw = python_json(
+        &py,
+        "check_mcap.py",
+        &[&out.join("sim-0078/ingest/raw.mcap")],
+    );
+    let (first, raw_first) = (
+        info["first_log_time"].as_u64().unwrap(),
+        raw["first_log_time"].as_u64().unwrap(),
+    );
+    assert!(first > 1_700_000_000_000_000_000, "{first}");
+    assert!(
+        first.abs_diff(raw_first) < 1_000_000_000,
+        "{first} vs {raw_first}"
+    );
 }

@@ -93,6 +93,14 @@ pub fn write_batch(dest: &Path, batch: &RecordBatch) -> Result<(), FileError> {
     sink.finish()
 }
 
+/// Reads a Parquet file's schema (with its metadata) only.
+pub fn read_schema(path: &Path) -> Result<SchemaRef, FileError> {
+    let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
+    let builder =
+        ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| parquet_err(path, e))?;
+    Ok(builder.schema().clone())
+}
+
 /// Reads a whole Parquet file: its schema and batches.
 pub fn read_batches(path: &Path) -> Result<(SchemaRef, Vec<RecordBatch>), FileError> {
     let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;

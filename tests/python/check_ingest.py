@@ -31,14 +31,17 @@ def mcap_info(path):
         last = {}
         monotonic = True
         decoded = 0
+        first_log_time = None
         for _schema, channel, message in reader.iter_messages(log_time_order=False):
+            if first_log_time is None or message.log_time < first_log_time:
+                first_log_time = message.log_time
             if channel.topic in last and message.log_time < last[channel.topic]:
                 monotonic = False
             last[channel.topic] = message.log_time
             if decoded < 1000:
                 json.loads(message.data)
                 decoded += 1
-        return {"channels": channels, "monotonic": monotonic}
+        return {"channels": channels, "monotonic": monotonic, "first_log_time": first_log_time}
 
 
 def main():

@@ -69,6 +69,7 @@ pub fn write_rrd(review: &Review, path: &Path) -> Result<RrdStats, RecordingErro
     };
     let rec = rerun::RecordingStreamBuilder::new("unz-review")
         .recording_id(review.name.as_str())
+        .recording_name(review.name.as_str())
         .save(&tmp)
         .map_err(rerun_err)?;
     let mut w = Writer {
@@ -218,15 +219,23 @@ impl Writer<'_> {
                 .with_colors([[31, 119, 180, 255]])
                 .with_radii([rerun::Radius::new_ui_points(6.0)]),
         )?;
+        // One short line per point (the corrected error, else the first settings'): close
+        // points' labels would otherwise pile up into an unreadable block. Every settings'
+        // errors are in the DISUPT tab's tables.
         let labels: Vec<String> = cps
             .iter()
             .map(|c| {
-                let errs: Vec<String> = c
+                let best = c
                     .errors
                     .iter()
-                    .map(|(l, dx, dy)| format!("{}: ΔX {dx:.1} m ΔY {dy:.1} m", display_name(l)))
-                    .collect();
-                format!("CP {}\n{}", c.id, errs.join("\n"))
+                    .find(|e| e.0 == "joint")
+                    .or_else(|| c.errors.last());
+                match best {
+                    Some((l, dx, dy)) => {
+                        format!("CP {} · {} {:.1} m", c.id, display_name(l), dx.hypot(*dy))
+                    }
+                    None => format!("CP {}", c.id),
+                }
             })
             .collect();
         self.rec.log_static(
