@@ -21,6 +21,10 @@ const META_NOMINAL_DT: &str = "unz.nominal_dt_s";
 const META_REPAIRED_TIMES: &str = "unz.repaired_times";
 /// Metadata key: samples that closed a gap and were scaled to it.
 const META_FILLED_GAPS: &str = "unz.filled_gaps";
+/// Metadata key: samples flagged with an IMU failure.
+const META_IMU_FAILURES: &str = "unz.imu_failure_samples";
+/// Metadata key: samples flagged with an odometer failure.
+const META_ODO_FAILURES: &str = "unz.odometer_failure_samples";
 
 fn f64s(v: &[f64]) -> Arc<Float64Array> {
     Arc::new(Float64Array::from(v.to_vec()))
@@ -34,6 +38,14 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
         (META_NOMINAL_DT.to_owned(), d.nominal_dt_s.to_string()),
         (META_REPAIRED_TIMES.to_owned(), d.repaired_times.to_string()),
         (META_FILLED_GAPS.to_owned(), d.filled_gaps.to_string()),
+        (
+            META_IMU_FAILURES.to_owned(),
+            d.imu_failure_samples.to_string(),
+        ),
+        (
+            META_ODO_FAILURES.to_owned(),
+            d.odometer_failure_samples.to_string(),
+        ),
         ("unz.table".to_owned(), "derived".to_owned()),
     ]);
     let schema = Arc::new(Schema::new_with_metadata(
@@ -140,6 +152,8 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
         block: meta(META_BLOCK)?.parse()?,
         repaired_times: meta(META_REPAIRED_TIMES)?.parse()?,
         filled_gaps: meta(META_FILLED_GAPS)?.parse()?,
+        imu_failure_samples: meta(META_IMU_FAILURES)?.parse()?,
+        odometer_failure_samples: meta(META_ODO_FAILURES)?.parse()?,
         // The per-block filtered series are not stored: their values at the epochs are
         // in epochs.parquet, and nothing downstream reads the rest.
         ..Derived::default()

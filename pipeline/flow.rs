@@ -175,7 +175,17 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     };
     ctx.run_stage(&stage, || {
         let raw = IngestedSeries::load(&ingest_dir)?;
-        let d = derive(&raw.series(), &params.derive, site_gravity_mps2(m));
+        let mut d = derive(&raw.series(), &params.derive, site_gravity_mps2(m));
+        (d.imu_failure_samples, d.odometer_failure_samples) = raw.failure_counts();
+        // A run whose odometer is flagged failed over much of it has no dead reckoning
+        // worth correcting; a short failure is counted and reported (navigate.json).
+        if d.odometer_failure_samples * 10 > d.t_s.len() {
+            bail!(
+                "the odometer is flagged failed (status bit 1) on {} of {} samples",
+                d.odometer_failure_samples,
+                d.t_s.len()
+            );
+        }
         // A few tags going back are repaired and counted; a time base that does not
         // advance (constant or saturated tags) is no time base.
         if d.repaired_times * 100 > d.t_s.len() {
@@ -243,6 +253,13 @@ impl IngestedSeries {
             bail!("the run has no odometer data (no 8th column and no odometer file)");
         }
         Ok(Self { imu, odo })
+    }
+
+    /// Samples whose status flags an IMU built-in-test failure (bit 0) and an odometer
+    /// failure (bit 1).
+    pub fn failure_counts(&self) -> (usize, usize) {
+        let count = |bit: u16| self.imu.status.iter().filter(|s| *s & bit != 0).count();
+        (count(1), count(2))
     }
 
     /// The series as derive takes them.
@@ -406,6 +423,12 @@ pub struct NavigateSummary {
     pub repaired_times: usize,
     /// Samples that closed a gap in the log and were scaled to it.
     pub filled_gaps: usize,
+    /// Samples whose status flags an IMU built-in-test failure.
+    #[serde(default)]
+    pub imu_failure_samples: usize,
+    /// Samples whose status flags an odometer failure (a run fails above a tenth).
+    #[serde(default)]
+    pub odometer_failure_samples: usize,
 }
 
 /// Writes `nav.parquet` (or `corrected_nav.parquet`, with the route's 1σ north, east and
@@ -503,6 +526,8 @@ pub fn ensure_navigate(
             control_points: criteria::kryt2(&track, &case.fixes),
             repaired_times: case.derived.repaired_times,
             filled_gaps: case.derived.filled_gaps,
+            imu_failure_samples: case.derived.imu_failure_samples,
+            odometer_failure_samples: case.derived.odometer_failure_samples,
         };
         write_json_atomic(&dir.join(files::NAVIGATE_REPORT), &summary)?;
         Ok(())

@@ -237,3 +237,47 @@ fn a_log_whose_time_does_not_advance_fails_its_run() {
     );
     assert!(out.join("sim-0080/derive/derived.parquet").is_file());
 }
+
+/// The odometer-failure status bit: set on every sample, the run fails and says so; set on
+/// a few, they are counted in navigate.json and the run goes on.
+#[test]
+fn odometer_failure_flags_are_honoured() {
+    use unz_formats::raw::{Accepted, RawReader, RawWriter};
+
+    let rewrite = |log: &Path, flagged: &dyn Fn(u32) -> bool| {
+        let bytes = std::fs::read(log).unwrap();
+        let mut reader = RawReader::new(bytes.as_slice()).unwrap();
+        let mut writer = RawWriter::new(Vec::new(), reader.header()).unwrap();
+        while let Some(rec) = reader.next_record().unwrap() {
+            match rec {
+                Accepted::Imu(s) => {
+                    let mut r = s.raw;
+                    if flagged(r.seq) {
+                        r.status |= 2;
+                    }
+                    writer.write_imu(&r).unwrap();
+                }
+                Accepted::Mark(m) => writer.write_mark(&m).unwrap(),
+            }
+        }
+        std::fs::write(log, writer.finish().unwrap()).unwrap();
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    rewrite(&camp.join("sim-0080/sim-0080.unz"), &|seq| {
+        (1000..1100).contains(&seq)
+    });
+    rewrite(&camp.join("sim-0081/sim-0081.unz"), &|_| true);
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "navigate");
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("FAILED sim-0081") && text.contains("odometer is flagged failed"),
+        "{text}"
+    );
+    let nav: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(out.join("sim-0080/navigate/navigate.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(nav["odometer_failure_samples"], 100, "{nav}");
+}

@@ -103,6 +103,10 @@ pub struct Derived {
     pub repaired_times: usize,
     /// Samples that closed a gap and were scaled to it.
     pub filled_gaps: usize,
+    /// Samples whose status flags an IMU built-in-test failure (bit 0).
+    pub imu_failure_samples: usize,
+    /// Samples whose status flags an odometer failure (bit 1).
+    pub odometer_failure_samples: usize,
 }
 
 impl Derived {
