@@ -8,7 +8,7 @@ use unz_formats::parquet_io::read_batches;
 use unz_formats::tables::f64_column;
 use unz_stages::simulate::TrueSettings;
 
-use crate::util::{simulated_run, unz_ok, unz_output};
+use crate::util::{run_until, simulated_run, unz_output};
 
 /// A column of a Parquet file, all batches.
 fn column(path: &Path, name: &str) -> Vec<f64> {
@@ -51,14 +51,7 @@ fn worst_m(errors: &[(f64, f64)]) -> f64 {
 fn process(dir: &Path, seed: u32, options: &[&str]) -> (std::path::PathBuf, std::path::PathBuf) {
     let run = simulated_run(dir, seed, options);
     let out = dir.join("o");
-    unz_ok(&[
-        "run",
-        run.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--until",
-        "disupt",
-    ]);
+    run_until(&run, &out, "disupt");
     (run, out)
 }
 

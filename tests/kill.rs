@@ -2,27 +2,10 @@
 //! as an uninterrupted run (the recording compared by content), and no temporary file left over. The
 //! campaign summaries (wall times, what was computed) are not compared.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 
-use crate::util::{python, python_json, unz, unz_ok};
-
-fn files(root: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap().flatten() {
-            let p = e.path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.push(p.strip_prefix(root).unwrap().to_path_buf());
-            }
-        }
-    }
-    out.sort();
-    out
-}
+use crate::util::{files_below as files, python, python_json, unz, unz_ok};
 
 /// File content to compare: the bytes, except for the Rerun recording and the review's
 /// stage record that hashes it (see `reproducible.rs`).

@@ -239,14 +239,7 @@ fn kingston_odometer_terms_through_the_binary() {
         manifest += &format!("\n[params.disupt]\njoint_odo_lag = {lag}\njoint_odo_bias = {bias}\n");
         std::fs::write(run.join("run.toml"), manifest).unwrap();
         let out = tmp.path().join(format!("o-{lag}-{bias}"));
-        crate::util::unz_ok(&[
-            "run",
-            run.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--until",
-            "disupt",
-        ]);
+        crate::util::run_until(&run, &out, "disupt");
         let dir = out.join("kingston2008-segment1/disupt");
         let d: DisuptOut =
             serde_json::from_slice(&std::fs::read(dir.join("disupt.json")).unwrap()).unwrap();

@@ -1,26 +1,9 @@
 //! The same input gives the same files: one run processed twice, into two output
 //! folders, compared byte for byte.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use crate::util::{simulated_run, unz_ok};
-
-fn files(root: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(dir) = stack.pop() {
-        for e in std::fs::read_dir(&dir).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.push(p.strip_prefix(root).unwrap().to_path_buf());
-            }
-        }
-    }
-    out.sort();
-    out
-}
+use crate::util::{files_below as files, simulated_run, unz_ok};
 
 #[test]
 fn a_run_processed_twice_gives_identical_files() {

@@ -88,3 +88,33 @@ pub fn python_json(py: &str, script: &str, args: &[&Path]) -> serde_json::Value 
     );
     serde_json::from_slice(&out.stdout).expect("script prints JSON")
 }
+
+/// `unz run RUN --out OUT --until STAGE`, asserting success.
+pub fn run_until(run: &Path, out: &Path, stage: &str) {
+    unz_ok(&[
+        "run",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--until",
+        stage,
+    ]);
+}
+
+/// Every file below `root`, relative to it, sorted.
+pub fn files_below(root: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        for e in std::fs::read_dir(&dir).unwrap().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                out.push(p.strip_prefix(root).unwrap().to_path_buf());
+            }
+        }
+    }
+    out.sort();
+    out
+}

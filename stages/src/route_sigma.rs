@@ -73,18 +73,23 @@ fn heading_of(q: &[f64; 4]) -> f64 {
     (2.0 * (x * y + w * z)).atan2(w * w + x * x - y * y - z * z)
 }
 
+/// (north, east) of sample `k` of `track` from the start of `s`, m.
+fn offset_m(track: &NavTrack, k: usize, s: &NavSettings) -> (f64, f64) {
+    earth::local_offset_m(
+        track.lat_rad[k],
+        track.lon_rad[k],
+        s.lat0_rad,
+        s.lon0_rad,
+        s.h0_m,
+    )
+}
+
 /// (north, east, heading) of `track` at the chosen samples.
 fn states(track: &NavTrack, samples: &[usize], s: &NavSettings) -> Vec<[f64; 3]> {
     samples
         .iter()
         .map(|&k| {
-            let (n, e) = earth::local_offset_m(
-                track.lat_rad[k],
-                track.lon_rad[k],
-                s.lat0_rad,
-                s.lon0_rad,
-                s.h0_m,
-            );
+            let (n, e) = offset_m(track, k, s);
             [n, e, heading_of(&track.q_b_to_n[k])]
         })
         .collect()
@@ -173,13 +178,7 @@ fn random_walk_variances(
     let mut out = Vec::with_capacity(samples.len());
     let mut next = samples.iter().peekable();
     for k in 0..track.len() {
-        let (n, e) = earth::local_offset_m(
-            track.lat_rad[k],
-            track.lon_rad[k],
-            s.lat0_rad,
-            s.lon0_rad,
-            s.h0_m,
-        );
+        let (n, e) = offset_m(track, k, s);
         let dt = dt_s.get(k).copied().unwrap_or(0.0);
         sums[0] += dt;
         sums[1] += dt * n;
