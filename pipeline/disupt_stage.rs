@@ -307,7 +307,7 @@ pub fn spec_of<'a>(case: &'a NavCase, settings: NavSettings, params: &Params) ->
 
 /// Step of the coarse azimuth search, degrees: the local searches then start within half
 /// of it of the best grid point, well inside their ±15°.
-const COARSE_AZIMUTH_STEP_DEG: f64 = 5.0;
+const COARSE_AZIMUTH_STEP_DEG: f64 = 10.0;
 
 /// The azimuth with the smallest RMS error over the control points on a grid over ±180°
 /// around the problem's start, when it beats the start; `None` without control points.

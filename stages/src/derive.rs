@@ -234,15 +234,7 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
     out.nominal_dt_s = nominal;
 
     // Time base, repaired; lost stretches filled by holding the rate.
-    let mut odo = OdoInterp::new(
-        raw.odo_t_ns,
-        raw.odo_distance_m,
-        t0,
-        params.odo_time_offset_s,
-    );
     let mut prev_t = -nominal;
-    let mut prev_d = odo.at(-nominal);
-    let mut prev_u = 0.0;
     for k in 0..n {
         let mut t = (raw.imu_t_ns[k] - t0) as f64 * 1e-9;
         if k > 0 && t <= prev_t {
@@ -258,24 +250,14 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
         };
         let dth = raw.dtheta_rad[k].map(|v| v * scale);
         let dv = raw.dvel_mps[k].map(|v| v * scale);
-        let d = odo.at(t);
-        let dd = d - prev_d;
-        let u = dd / dt;
-        let u_dot = if k == 0 { 0.0 } else { (u - prev_u) / dt };
-        let r = dth[2] / dt;
         out.t_s.push(t);
         out.dt_s.push(dt);
         out.dtheta_rad.push(dth);
         out.dvel_mps.push(dv);
-        out.odo_dist_m.push(dd);
-        out.u_mps.push(u);
-        out.u_dot_mps2.push(u_dot);
-        out.r_rad_s.push(r);
-        out.ru_mps2.push(r * u);
+        out.r_rad_s.push(dth[2] / dt);
         prev_t = t;
-        prev_d = d;
-        prev_u = u;
     }
+    odometer_terms(&mut out, raw, params.odo_time_offset_s);
 
     // The filter F, then eqs 7–8 at the epochs.
     let lp = LowPass::new(&params.filter, nominal);
@@ -294,6 +276,48 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
         .collect();
     lp.apply(&ax, &mut out.ax_f);
     lp.apply(&ay, &mut out.ay_f);
+    filter_odometer_terms(&mut out, &lp);
+    out.epochs = epochs_of(&out, &lp, params, g_mps2);
+    out
+}
+
+/// Eqs 9–11 on `out`'s repaired time base: the odometer's distance over each sample (its
+/// time tags moved by `offset_s`), u, u̇ and ru.
+pub fn odometer_terms(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64) {
+    let n = out.t_s.len();
+    let mut odo = OdoInterp::new(raw.odo_t_ns, raw.odo_distance_m, out.t0_ns, offset_s);
+    for v in [
+        &mut out.odo_dist_m,
+        &mut out.u_mps,
+        &mut out.u_dot_mps2,
+        &mut out.ru_mps2,
+    ] {
+        v.clear();
+        v.reserve(n);
+    }
+    let Some((&t_first, &dt_first)) = out.t_s.first().zip(out.dt_s.first()) else {
+        return;
+    };
+    let mut prev_d = odo.at(t_first - dt_first);
+    let mut prev_u = 0.0;
+    for k in 0..n {
+        let (t, dt) = (out.t_s[k], out.dt_s[k]);
+        let d = odo.at(t);
+        let dd = d - prev_d;
+        let u = dd / dt;
+        let u_dot = if k == 0 { 0.0 } else { (u - prev_u) / dt };
+        out.odo_dist_m.push(dd);
+        out.u_mps.push(u);
+        out.u_dot_mps2.push(u_dot);
+        out.ru_mps2.push(out.r_rad_s[k] * u);
+        prev_d = d;
+        prev_u = u;
+    }
+}
+
+/// F's u̇, ru and the odometer-bias sensitivities, per block.
+pub fn filter_odometer_terms(out: &mut Derived, lp: &LowPass) {
+    let n = out.t_s.len();
     lp.apply(&out.u_dot_mps2, &mut out.u_dot_f);
     lp.apply(&out.ru_mps2, &mut out.ru_f);
     let moving: Vec<f64> = out
@@ -318,8 +342,6 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
         .collect();
     lp.apply(&r_moving, &mut out.r_moving_f);
     lp.apply(&moving_dot, &mut out.moving_dot_f);
-    out.epochs = epochs_of(&out, &lp, params, g_mps2);
-    out
 }
 
 /// Eqs 7–8 at the epochs (one every ΔTg), from the filtered block series of `d`.

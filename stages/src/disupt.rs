@@ -1032,13 +1032,18 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for LinearStep<'_> {
 const MAX_GAUSS_NEWTON: usize = 10;
 
 /// How [`joint_fit`] weighs and what it leaves out.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct JointOptions {
+#[derive(Debug, Clone, Copy, Default)]
+pub struct JointOptions<'w> {
     /// Weigh the epochs with this σ (rad) instead of their residuals' RMS (variance
     /// components), so that the costs of several fits compare (the odometer-lag search).
     pub attitude_sigma_rad: Option<f64>,
     /// Leave this control point (index into the problem's fixes) out of the fit.
     pub skip_cp: Option<usize>,
+    /// Start at this linearisation's point with its slopes, from a nearby problem (the
+    /// odometer-lag search's previous trial): one exact pass there instead of the shared
+    /// first linearisation. The slopes are a model like any other: where the exact passes
+    /// disagree with it, the fit relinearises.
+    pub warm: Option<&'w Linearization>,
 }
 
 /// A joint fit with what its callers need beyond the result: its cost, the weights and
@@ -1099,11 +1104,23 @@ pub fn joint_fit(
         }
     }
     let free = &free[..];
-    let base = problem.base_linearization();
+    let warm;
+    let start = match opts.warm {
+        Some(w) => {
+            let y = problem.observe_by(&x_of(&w.p_ref), &tally);
+            warm = Linearization {
+                p_ref: w.p_ref,
+                y_ref: y,
+                slopes: w.slopes.clone(),
+            };
+            &warm
+        }
+        None => problem.base_linearization(),
+    };
     let mut owned;
-    let mut lin = base;
-    if !base.covers(free) {
-        owned = problem.completed(base, free, &tally);
+    let mut lin = start;
+    if !start.covers(free) {
+        owned = problem.completed(start, free, &tally);
         lin = &owned;
     }
     let mut pr = lin.p_ref;
@@ -1234,6 +1251,13 @@ pub fn joint_fit(
     })
 }
 
+impl JointFit {
+    /// The linearisation that holds at the solution.
+    pub fn linearization(&self) -> &Linearization {
+        &self.lin
+    }
+}
+
 /// The error at a control point when it was left out of the joint fit.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Holdout {
@@ -1300,6 +1324,7 @@ pub fn holdout(
             let opts = JointOptions {
                 attitude_sigma_rad: Some(fit.attitude_sigma_rad),
                 skip_cp: Some(i),
+                warm: Some(&fit.lin),
             };
             joint_fit(problem, p, &opts)?.y
         };

@@ -5,8 +5,8 @@
 //! u̇ and ru). Both are exact in a re-derive with the odometer's time tags shifted, at any
 //! continuous shift (derive interpolates the cumulative distance); see [`Rederive::at`].
 //!
-//! The lag is found by an outer one-dimensional search (Brent, argmin) over such
-//! re-derives. At each trial lag the joint fit estimates every other setting from the
+//! The lag is found by an outer one-dimensional search over such re-derives (successive
+//! parabolas: the score is near-quadratic in the lag). At each trial lag the joint fit estimates every other setting from the
 //! attitude residuals and the control points (the epochs' weight held at that of the fit
 //! without a lag), and the trial is scored by the control points' part of its cost: what
 //! the route at the stops says of the timing. The attitude references are no judge of it:
@@ -24,16 +24,33 @@
 use std::cell::RefCell;
 use std::sync::OnceLock;
 
-use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
-use argmin::solver::brent::BrentOpt;
-
-use crate::derive::{DeriveParams, Derived, RawSeries, derive, epochs_of, shifted_blocks};
+use crate::derive::{
+    DeriveParams, Derived, RawSeries, derive, epochs_of, filter_odometer_terms, odometer_terms,
+    shifted_blocks,
+};
 use crate::disupt::{DisuptError, DisuptParams, JointFit, JointOptions, ProblemSpec, joint_fit};
 use crate::filter::LowPass;
-use crate::linearized::Setting;
+use crate::linearized::{Linearization, Setting};
 
-/// Step of the curvature estimate around the optimum, s.
+/// Half-width of the parabolas around the current vertex (and of the curvature), s.
 const CURVATURE_STEP_S: f64 = 0.05;
+/// The search stops when the vertex moves less than this, s.
+const TOLERANCE_S: f64 = 2e-3;
+/// Parabolas at most.
+const MAX_ROUNDS: usize = 5;
+
+/// Vertex and second derivative of the parabola through `(x_i, y_i)`, when it is convex.
+fn parabola(x: [f64; 3], y: [f64; 3]) -> Option<(f64, f64)> {
+    let d = (x[0] - x[1]) * (x[0] - x[2]) * (x[1] - x[2]);
+    if d == 0.0 {
+        return None;
+    }
+    let a = (x[2] * (y[1] - y[0]) + x[1] * (y[0] - y[2]) + x[0] * (y[2] - y[1])) / d;
+    let b =
+        (x[2] * x[2] * (y[0] - y[1]) + x[1] * x[1] * (y[2] - y[0]) + x[0] * x[0] * (y[1] - y[2]))
+            / d;
+    (a > 0.0 && a.is_finite()).then(|| (-b / (2.0 * a), 2.0 * a))
+}
 
 /// The joint fit at the estimated lag.
 #[derive(Debug, Clone)]
@@ -85,10 +102,11 @@ impl<'a> Rederive<'a> {
         let base = self
             .base
             .get_or_init(|| derive(&self.raw, &self.params, self.g_mps2));
-        let mut p = self.params;
-        p.odo_time_offset_s -= lag_s;
-        let mut d = derive(&self.raw, &p, self.g_mps2);
+        // The IMU's part is the configured derive's; the odometer's is derived anew.
+        let mut d = base.clone();
+        odometer_terms(&mut d, &self.raw, self.params.odo_time_offset_s - lag_s);
         let lp = LowPass::new(&self.params.filter, d.nominal_dt_s);
+        filter_odometer_terms(&mut d, &lp);
         let block_s = lp.block as f64 * d.nominal_dt_s;
         d.u_dot_f = shifted_blocks(&base.u_dot_f, block_s, lag_s);
         d.epochs = epochs_of(&d, &lp, &self.params, self.g_mps2);
@@ -103,6 +121,10 @@ struct Profile<'r> {
     params: &'r DisuptParams,
     attitude_sigma_rad: f64,
     trials: RefCell<Vec<[f64; 2]>>,
+    /// The latest trial's linearisation at its solution: the next trial starts there.
+    warm: RefCell<Linearization>,
+    /// Navigation passes of the trials.
+    passes: std::cell::Cell<usize>,
 }
 
 impl Profile<'_> {
@@ -114,13 +136,17 @@ impl Profile<'_> {
         // The same epochs at every trial: the gate moves with the lag, and an epoch
         // entering or leaving would make the costs incomparable.
         d.epochs.valid.clone_from(&self.valid);
+        let warm = self.warm.borrow().clone();
         let opts = JointOptions {
             attitude_sigma_rad: Some(self.attitude_sigma_rad),
             skip_cp: None,
+            warm: Some(&warm),
         };
-        let cost = joint_fit(&self.spec.on(&d), self.params, &opts)?.cp_cost;
-        self.trials.borrow_mut().push([lag_s, cost]);
-        Ok(cost)
+        let fit = joint_fit(&self.spec.on(&d), self.params, &opts)?;
+        self.trials.borrow_mut().push([lag_s, fit.cp_cost]);
+        self.passes.set(self.passes.get() + fit.result.evaluations);
+        *self.warm.borrow_mut() = fit.linearization().clone();
+        Ok(fit.cp_cost)
     }
 }
 
@@ -141,20 +167,56 @@ pub fn joint_with_lag(
         params,
         attitude_sigma_rad: fit0.attitude_sigma_rad,
         trials: RefCell::new(Vec::new()),
+        warm: RefCell::new(fit0.linearization().clone()),
+        passes: std::cell::Cell::new(fit0.result.evaluations),
     };
     let bound = params.odo_lag_bound_s;
-    let solver = BrentOpt::new(-bound, bound).set_tolerance(1e-6, 1e-3);
-    let res = Executor::new(&profile, solver)
-        .configure(|s| s.max_iters(60))
-        .run()
-        .map_err(DisuptError::Optimiser)?;
-    let lag_s = res.state().get_best_param().copied().unwrap_or(0.0);
-    let c0 = profile.cost(lag_s)?;
-    let (lo, hi) = (lag_s - CURVATURE_STEP_S, lag_s + CURVATURE_STEP_S);
-    let curvature =
-        (profile.cost(lo)? + profile.cost(hi)? - 2.0 * c0) / (CURVATURE_STEP_S * CURVATURE_STEP_S);
+    // The score is the control points' misfit, near-quadratic in the lag (the stops move
+    // in proportion to it): successive parabolas, first over ±0.3 of the bound, then over
+    // ±STEP around each vertex, until the vertex moves less than TOLERANCE_S.
+    profile.trials.borrow_mut().push([0.0, fit0.cp_cost]);
+    let wide = 0.3 * bound;
+    let mut points = [-wide, 0.0, wide];
+    let mut lag_s = 0.0;
+    let mut curvature = f64::NAN;
+    let mut c0 = fit0.cp_cost;
+    for round in 0..MAX_ROUNDS {
+        let costs = [
+            profile.cost(points[0])?,
+            profile.cost(points[1])?,
+            profile.cost(points[2])?,
+        ];
+        let previous = lag_s;
+        match parabola(points, costs) {
+            Some((vertex, second)) => {
+                lag_s = vertex.clamp(-bound, bound);
+                curvature = second;
+            }
+            None => {
+                // Not convex here: go on from the best trial so far.
+                let best = (0..3)
+                    .min_by(|&i, &j| costs[i].total_cmp(&costs[j]))
+                    .unwrap_or(1);
+                lag_s = points[best];
+                curvature = f64::NAN;
+            }
+        }
+        c0 = profile.cost(lag_s)?;
+        if round > 0 && (lag_s - previous).abs() < TOLERANCE_S && curvature.is_finite() {
+            break;
+        }
+        points = [lag_s - CURVATURE_STEP_S, lag_s, lag_s + CURVATURE_STEP_S];
+    }
     let derived = rederive.at(lag_s);
-    let fit = joint_fit(&spec.on(&derived), params, &JointOptions::default())?;
+    let warm = profile.warm.borrow().clone();
+    let mut fit = joint_fit(
+        &spec.on(&derived),
+        params,
+        &JointOptions {
+            warm: Some(&warm),
+            ..JointOptions::default()
+        },
+    )?;
     // The control points' misfit per residual beyond the lag's one degree of freedom,
     // when it is worse than their σ.
     let cp_dof = (2 * spec.fixes.len()).saturating_sub(
@@ -168,6 +230,11 @@ pub fn joint_with_lag(
     let sigma_s = (curvature > 0.0)
         .then(|| (2.0 * s2 / curvature).sqrt())
         .filter(|s| s.is_finite());
+    // The method's passes: the search's as well as the final fit's.
+    fit.result.evaluations += profile.passes.get();
+    if let Some(step) = fit.result.steps.first_mut() {
+        step.evaluations = fit.result.evaluations;
+    }
     Ok(LagFit {
         lag_s,
         sigma_s,
@@ -175,13 +242,4 @@ pub fn joint_with_lag(
         fit,
         profile: profile.trials.into_inner(),
     })
-}
-
-impl CostFunction for &Profile<'_> {
-    type Param = f64;
-    type Output = f64;
-
-    fn cost(&self, lag_s: &f64) -> Result<f64, ArgminError> {
-        Ok(Profile::cost(self, *lag_s)?)
-    }
 }
