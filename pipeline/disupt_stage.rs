@@ -420,6 +420,88 @@ fn joint_route_sigma(
     ))
 }
 
+/// `disupt.md`: the paper's tables per method, then the errors before DISUPT.
+fn markdown(run: &str, out: &DisuptOut) -> String {
+    let mut md = format!("# DISUPT: {run}\n\n");
+    for (name, title) in [("oepi", "OEPI"), ("owpi", "OWPI"), ("joint", "JOINT")] {
+        if let Some(o) = out.methods.get(name) {
+            md += &table(title, o);
+        } else if let Some(e) = out.skipped.get(name) {
+            md += &format!("## {title}\n\nnot run: {e}\n\n");
+        }
+    }
+    let (dx, dy) = (out.before.dx_m, out.before.dy_m);
+    md + &format!(
+        "Before DISUPT: ΔX = {dx:.1} m, ΔY = {dy:.1} m at the last control point, after {:.0} m.\n",
+        out.distance_m
+    )
+}
+
+/// A classic method's name and result.
+type ClassicResult = (&'static str, Result<MethodResult, disupt::DisuptError>);
+
+/// OEPI and OWPI (those `method` asks for) and the joint fit, concurrently (they share the
+/// problem's first linearisation). The joint fit estimates the odometer's lag when asked
+/// and the run has two control points or more.
+fn run_methods(
+    method: Method,
+    problem: &Problem<'_>,
+    spec: &ProblemSpec<'_>,
+    rederive: &Rederive<'_>,
+    case: &NavCase,
+    dparams: &disupt::DisuptParams,
+) -> (
+    Vec<ClassicResult>,
+    Option<Result<JointRun, disupt::DisuptError>>,
+) {
+    let classic: Vec<Method> = [Method::Oepi, Method::Owpi]
+        .into_iter()
+        .filter(|w| method == *w || method == Method::All)
+        .collect();
+    let want_joint = matches!(method, Method::Joint | Method::All);
+    rayon::join(
+        || {
+            classic
+                .par_iter()
+                .map(|&w| match w {
+                    Method::Oepi => ("oepi", disupt::oepi(problem, dparams)),
+                    _ => ("owpi", disupt::owpi(problem, dparams)),
+                })
+                .collect::<Vec<_>>()
+        },
+        || want_joint.then(|| run_joint(problem, spec, rederive, case, dparams)),
+    )
+}
+
+/// The joint fit, at the estimated odometer lag when there are two control points or more
+/// and it is asked for.
+fn run_joint(
+    problem: &Problem<'_>,
+    spec: &ProblemSpec<'_>,
+    rederive: &Rederive<'_>,
+    case: &NavCase,
+    dparams: &disupt::DisuptParams,
+) -> Result<JointRun, disupt::DisuptError> {
+    if dparams.joint_odo_lag && case.fixes.len() >= 2 {
+        let f = joint_with_lag(rederive, &case.derived, spec, dparams)?;
+        return Ok(JointRun {
+            lag: Lag {
+                lag_s: f.lag_s,
+                sigma_s: f.sigma_s.unwrap_or(0.0),
+            },
+            profile: Some(f.profile),
+            derived: Some(f.derived),
+            fit: f.fit,
+        });
+    }
+    Ok(JointRun {
+        fit: joint_fit(problem, dparams, &JointOptions::default())?,
+        lag: Lag::default(),
+        profile: None,
+        derived: None,
+    })
+}
+
 /// Stage 4.
 pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::Result<PathBuf> {
     let inputs = case_inputs(ctx, params)?;
@@ -450,7 +532,10 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let mut start = case.settings;
         if let Some(az) = coarse {
             start.initial.heading_rad = az.to_radians();
-            ctx.say("disupt", &format!("coarse azimuth search: start at {az:.1}°"));
+            ctx.say(
+                "disupt",
+                &format!("coarse azimuth search: start at {az:.1}°"),
+            );
         }
         let spec = spec_of(&case, start, params);
         let problem = spec.on(&case.derived);
@@ -458,53 +543,14 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             azimuth_deg: case.settings.initial.heading_rad.to_degrees(),
             ..problem.x0()
         };
-        let classic: Vec<Method> = [Method::Oepi, Method::Owpi]
-            .into_iter()
-            .filter(|w| method == *w || method == Method::All)
-            .collect();
-        let want_joint = matches!(method, Method::Joint | Method::All);
         // A speed odometer (OBD-II) has a bias worth estimating; pulses and distances not.
         let mut dparams = dparams;
         dparams.joint_odo_bias = Some(dparams.joint_odo_bias.unwrap_or(
             m.format == LogFormat::KfGins && m.odometer.kind != Some(OdometerKind::DistanceM),
         ));
-        let estimate_lag = dparams.joint_odo_lag && case.fixes.len() >= 2;
-        // The methods run concurrently (they share the problem's first linearisation).
         let t_methods = std::time::Instant::now();
-        let (classic_results, joint_result) = rayon::join(
-            || {
-                classic
-                    .par_iter()
-                    .map(|&w| match w {
-                        Method::Oepi => ("oepi", disupt::oepi(&problem, &dparams)),
-                        _ => ("owpi", disupt::owpi(&problem, &dparams)),
-                    })
-                    .collect::<Vec<_>>()
-            },
-            || {
-                want_joint.then(|| -> Result<JointRun, disupt::DisuptError> {
-                    if estimate_lag {
-                        let f = joint_with_lag(&rederive, &case.derived, &spec, &dparams)?;
-                        Ok(JointRun {
-                            lag: Lag {
-                                lag_s: f.lag_s,
-                                sigma_s: f.sigma_s.unwrap_or(0.0),
-                            },
-                            profile: Some(f.profile),
-                            derived: Some(f.derived),
-                            fit: f.fit,
-                        })
-                    } else {
-                        Ok(JointRun {
-                            fit: joint_fit(&problem, &dparams, &JointOptions::default())?,
-                            lag: Lag::default(),
-                            profile: None,
-                            derived: None,
-                        })
-                    }
-                })
-            },
-        );
+        let (classic_results, joint_result) =
+            run_methods(method, &problem, &spec, &rederive, &case, &dparams);
         ctx.say(
             "disupt",
             &format!("methods took {:.2} s", t_methods.elapsed().as_secs_f64()),
@@ -516,7 +562,11 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             .unwrap_or(&case.derived);
         let joint_problem = spec.on(joint_derived);
 
-        let site = (case.settings.lat0_rad, case.settings.lon0_rad, case.settings.h0_m);
+        let site = (
+            case.settings.lat0_rad,
+            case.settings.lon0_rad,
+            case.settings.h0_m,
+        );
         // One exact pass per method's settings: its trajectory, Kryt1 series and control
         // point errors, for review.
         let mut track = NavTrack::default();
@@ -524,27 +574,38 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let mut series = Kryt1Series::default();
         let mut tracks: Vec<MethodTrack> = Vec::new();
         let mut kryt1s: Vec<MethodKryt1> = Vec::new();
-        let mut review_pass = |name: &str, x: &X, d: &Derived, track: &mut NavTrack| -> (f64, Vec<Kryt2>) {
-            unz_stages::strapdown::navigate(&d.nav_inputs(), &problem.settings(x), track);
-            let k1 = criteria::kryt1(&d.epochs, &problem.lp, track, &problem.kalman, &mut scratch, Some(&mut series));
-            tracks.push(method_track(name, d, track, site));
-            kryt1s.push(method_kryt1(name, d, &series));
-            (k1, criteria::kryt2(track, &case.fixes))
-        };
-        let (before_kryt1, before_cps) = review_pass("initial", &x_before, &case.derived, &mut track);
+        let mut review_pass =
+            |name: &str, x: &X, d: &Derived, track: &mut NavTrack| -> (f64, Vec<Kryt2>) {
+                unz_stages::strapdown::navigate(&d.nav_inputs(), &problem.settings(x), track);
+                let k1 = criteria::kryt1(
+                    &d.epochs,
+                    &problem.lp,
+                    track,
+                    &problem.kalman,
+                    &mut scratch,
+                    Some(&mut series),
+                );
+                tracks.push(method_track(name, d, track, site));
+                kryt1s.push(method_kryt1(name, d, &series));
+                (k1, criteria::kryt2(track, &case.fixes))
+            };
+        let (before_kryt1, before_cps) =
+            review_pass("initial", &x_before, &case.derived, &mut track);
 
         // The review passes in order of preference for the corrected navigation (OWPI,
         // OEPI, then joint), so that the last one leaves the corrected track.
         let mut methods = std::collections::BTreeMap::new();
         let mut skipped = std::collections::BTreeMap::new();
-        let mut md = format!("# DISUPT: {}\n\n", m.name);
         let mut corrected_by = None;
         for (name, result) in classic_results.into_iter().rev() {
             match result {
                 Ok(r) => {
                     let cps = review_pass(name, &r.x, &case.derived, &mut track).1;
                     corrected_by = Some(name.to_owned());
-                    methods.insert(name.to_owned(), method_out(&r, &case.settings, Lag::default(), cps));
+                    methods.insert(
+                        name.to_owned(),
+                        method_out(&r, &case.settings, Lag::default(), cps),
+                    );
                 }
                 Err(e) => {
                     skipped.insert(name.to_owned(), e.to_string());
@@ -574,16 +635,14 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             }
             None => {}
         }
-        for (name, title) in [("oepi", "OEPI"), ("owpi", "OWPI"), ("joint", "JOINT")] {
-            if let Some(o) = methods.get(name) {
-                md += &table(title, o);
-            } else if let Some(e) = skipped.get(name) {
-                md += &format!("## {title}\n\nnot run: {e}\n\n");
-            }
-        }
         // `track` holds the last review pass: the best method's, else the initial one.
-        let distance_m = case.fixes.last().map_or_else(|| track.distance_m.last().copied().unwrap_or(0.0), |f| track.distance_m[f.sample]);
-        let (dx, dy) = before_cps.last().map_or((f64::NAN, f64::NAN), |k| (k.dx_m, k.dy_m));
+        let distance_m = case.fixes.last().map_or_else(
+            || track.distance_m.last().copied().unwrap_or(0.0),
+            |f| track.distance_m[f.sample],
+        );
+        let (dx, dy) = before_cps
+            .last()
+            .map_or((f64::NAN, f64::NAN), |k| (k.dx_m, k.dy_m));
         let out = DisuptOut {
             distance_m,
             before: Before {
@@ -599,14 +658,18 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             coarse_azimuth_deg: coarse,
             shared_passes: problem.base_passes(),
         };
-        md = format!(
-            "{md}Before DISUPT: ΔX = {dx:.1} m, ΔY = {dy:.1} m at the last control point, after {distance_m:.0} m.\n"
-        );
         ensure_finite_track("corrected", &track)?;
         write_tracks(&dir.join(TRACKS), &tracks)?;
         write_kryt1_series(&dir.join(KRYT1_SERIES), &kryt1s)?;
         let sigma = route_sigma.map(|r| r.per_sample(track.len()));
-        write_nav(&dir.join(files::CORRECTED_NAV), &case.derived, &track, site, sigma.as_ref())?;
+        write_nav(
+            &dir.join(files::CORRECTED_NAV),
+            &case.derived,
+            &track,
+            site,
+            sigma.as_ref(),
+        )?;
+        let md = markdown(&m.name, &out);
         write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;
         write_json_atomic(&dir.join(files::DISUPT_REPORT), &out)?;
         Ok(())

@@ -1031,6 +1031,19 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for LinearStep<'_> {
 /// Gauss–Newton iterations of the joint fit before it stops.
 const MAX_GAUSS_NEWTON: usize = 10;
 
+/// Covariance `s²(AᵀA)⁻¹` of the free parameters with the last linearisation (which
+/// agreed with the exact pass at the solution, so its slopes hold there), the first `n_att`
+/// rows (the attitude residuals `r` interleaves) discounted for their correlation from
+/// epoch to epoch.
+fn covariance_of(model: &JointModel, r: &[f64], n_att: usize, s2: f64) -> Option<DMatrix<f64>> {
+    let inflation = attitude_inflation(&r[..n_att.min(r.len())]);
+    let mut a = model.a.clone();
+    for i in 0..n_att.min(a.nrows()) {
+        a.row_mut(i).unscale_mut(inflation[i % 2].sqrt());
+    }
+    (a.transpose() * &a).try_inverse().map(|c| c * s2)
+}
+
 /// How [`joint_fit`] weighs and what it leaves out.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct JointOptions<'w> {
@@ -1192,20 +1205,11 @@ pub fn joint_fit(
         }
     }
     let x = x_of(&pr);
-    // Covariance s²(AᵀA)⁻¹ with the last linearisation (which agreed with the exact pass
-    // at the solution, so its slopes hold there), the attitude rows discounted for their
-    // correlation from epoch to epoch.
     let rows = model.r0.len() - if skip.is_some() { 2 } else { 0 };
     let dof = (rows as f64 - free.len() as f64).max(1.0);
-    let s2 = cost / dof;
-    let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
     let r = joint_residuals(problem, &y, &pr, &w, skip);
-    let inflation = attitude_inflation(&r[..n_att.min(r.len())]);
-    let mut a = model.a.clone();
-    for i in 0..n_att.min(a.nrows()) {
-        a.row_mut(i).unscale_mut(inflation[i % 2].sqrt());
-    }
-    let covariance = (a.transpose() * &a).try_inverse().map(|c| c * s2);
+    let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
+    let covariance = covariance_of(&model, &r, n_att, cost / dof);
     // 1σ of each estimated setting (0 for the others).
     let sigma = covariance.as_ref().map(|c| {
         let mut sd = X::default();
