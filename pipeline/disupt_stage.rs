@@ -13,7 +13,6 @@ use unz_stages::derive::Derived;
 use unz_stages::disupt::{
     self, Holdout, JointFit, JointOptions, MethodResult, Problem, ProblemSpec, X, joint_fit,
 };
-use unz_stages::filter::LowPass;
 use unz_stages::odo_lag::{Rederive, joint_with_lag};
 use unz_stages::route_sigma::{Moved, RouteSigma, route_sigma};
 use unz_stages::strapdown::{NavSettings, NavTrack};
@@ -276,17 +275,7 @@ fn table(name: &str, r: &MethodOut) -> String {
 /// The DISUPT problem of a loaded case, with the static start's vertical drift as a
 /// prior (its 1σ: the angle random walk averaged over the static start).
 pub fn problem_of<'a>(case: &'a NavCase, params: &Params) -> Problem<'a> {
-    let lp = LowPass::new(&params.derive.filter, case.derived.nominal_dt_s);
-    let mut problem = Problem::new(
-        case.inputs(),
-        case.settings,
-        &case.derived.epochs,
-        lp,
-        params.kalman,
-        &case.fixes,
-    );
-    problem.drift_z_prior_deg_h = spec_of(case, case.settings, params).drift_z_prior_deg_h;
-    problem
+    spec_of(case, case.settings, params).on(&case.derived)
 }
 
 /// The DISUPT problem of `case` around `settings`, to be set on a derive (the case's own,

@@ -146,9 +146,12 @@ pub struct ProblemSpec<'a> {
     pub drift_z_prior_deg_h: Option<(f64, f64)>,
 }
 
-impl ProblemSpec<'_> {
+impl<'a> ProblemSpec<'a> {
     /// The problem on the derive `d`.
-    pub fn on<'b>(&'b self, d: &'b crate::derive::Derived) -> Problem<'b> {
+    pub fn on<'b>(self, d: &'b crate::derive::Derived) -> Problem<'b>
+    where
+        'a: 'b,
+    {
         let mut p = Problem::new(
             d.nav_inputs(),
             self.settings,
@@ -384,10 +387,10 @@ impl<'a> Problem<'a> {
         self.base_lin.get_or_init(|| {
             let x0 = self.x0();
             let mut xs = vec![x0];
-            xs.extend(moved_by_steps(&x0, &BASE_SETTINGS));
+            xs.extend(moved_by_steps(&x0, BASE_SETTINGS));
             let mut ys = self.observe_many_by(&xs, &AtomicUsize::new(0));
             let y0 = ys.remove(0);
-            linearization_of(&x0, y0, &BASE_SETTINGS, ys)
+            linearization_of(&x0, y0, BASE_SETTINGS, ys)
         })
     }
 
@@ -454,15 +457,7 @@ pub fn params_of(x: &X) -> [f64; N_PARAMS] {
 
 /// Settings of the shared first linearisation: all but the odometer boresight and bias,
 /// which only the joint fit moves, and only when asked.
-const BASE_SETTINGS: [Setting; 7] = [
-    Setting::Azimuth,
-    Setting::DriftX,
-    Setting::DriftY,
-    Setting::DriftZ,
-    Setting::TiltPitch,
-    Setting::TiltRoll,
-    Setting::OdoScale,
-];
+const BASE_SETTINGS: &[Setting] = Setting::ALL.split_at(Setting::OdoYaw.index()).0;
 
 /// The inverse of [`params_of`].
 pub fn x_of(p: &[f64; N_PARAMS]) -> X {
@@ -594,7 +589,7 @@ impl Component {
             Component::DriftY => &[Setting::DriftY],
             Component::DriftZ => &[Setting::DriftZ],
             Component::AzimuthDriftXy => &[Setting::Azimuth, Setting::DriftX, Setting::DriftY],
-            Component::All => &BASE_SETTINGS,
+            Component::All => BASE_SETTINGS,
         }
     }
 }
