@@ -10,12 +10,12 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use arrow::array::{BooleanArray, Float64Array, RecordBatch, StringArray, UInt64Array};
-use arrow::datatypes::{DataType, Field, Schema};
 use rayon::prelude::*;
 use unz_formats::atomic::write_atomic;
 use unz_formats::manifest::RunManifest;
 use unz_formats::parquet_io::write_batch;
 use unz_formats::report::IngestReport;
+use unz_formats::schema;
 use unz_viz::report::{JointEstimate, ReportRow};
 
 use crate::artifacts::{RunLayout, StageName, files};
@@ -267,83 +267,147 @@ fn holdout_stats(j: &MethodOut) -> Option<(f64, f64)> {
 }
 
 /// The summary's numeric columns, in order.
-const COLUMNS: [&str; 27] = [
-    "distance_m",
-    "imu_accepted",
-    "rejected",
-    "lost_samples",
-    "before_dx_m",
-    "before_dy_m",
-    "oepi_dx_m",
-    "oepi_dy_m",
-    "owpi_dx_m",
-    "owpi_dy_m",
-    "joint_dx_m",
-    "joint_dy_m",
-    "joint_azimuth_deg",
-    "joint_azimuth_sigma_deg",
-    "joint_drift_z_rad_s",
-    "joint_drift_z_sigma_rad_s",
-    "joint_odo_scale",
-    "joint_odo_scale_sigma",
-    "joint_odo_yaw_deg",
-    "joint_odo_yaw_sigma_deg",
-    "joint_odo_lag_s",
-    "joint_odo_lag_sigma_s",
-    "joint_odo_bias_mps",
-    "joint_odo_bias_sigma_mps",
-    "joint_holdout_median_m",
-    "joint_holdout_max_m",
-    "wall_s",
-];
+/// One run's numbers in the campaign summary: one field per `campaign.parquet` column
+/// after the per-stage times (`None` where the run has no such number).
+#[derive(Debug, Clone, Copy, Default)]
+struct SummaryValues {
+    /// Odometer distance of the run, m.
+    distance_m: Option<f64>,
+    /// IMU records accepted.
+    imu_accepted: Option<f64>,
+    /// Records rejected, every reason.
+    rejected: Option<f64>,
+    /// IMU samples lost in gaps.
+    lost_samples: Option<f64>,
+    /// North error at the last control point before DISUPT, m.
+    before_dx_m: Option<f64>,
+    /// East error there before DISUPT, m.
+    before_dy_m: Option<f64>,
+    /// North error there after OEPI, m.
+    oepi_dx_m: Option<f64>,
+    /// East error there after OEPI, m.
+    oepi_dy_m: Option<f64>,
+    /// North error there after OWPI, m.
+    owpi_dx_m: Option<f64>,
+    /// East error there after OWPI, m.
+    owpi_dy_m: Option<f64>,
+    /// North error there after the joint fit, m.
+    joint_dx_m: Option<f64>,
+    /// East error there after the joint fit, m.
+    joint_dy_m: Option<f64>,
+    /// Joint azimuth, deg.
+    joint_azimuth_deg: Option<f64>,
+    /// Its 1σ, deg.
+    joint_azimuth_sigma_deg: Option<f64>,
+    /// Joint z drift, rad/s.
+    joint_drift_z_rad_s: Option<f64>,
+    /// Its 1σ, rad/s.
+    joint_drift_z_sigma_rad_s: Option<f64>,
+    /// Joint odometer scale (multiplier).
+    joint_odo_scale: Option<f64>,
+    /// Its 1σ.
+    joint_odo_scale_sigma: Option<f64>,
+    /// Joint odometer boresight yaw, deg.
+    joint_odo_yaw_deg: Option<f64>,
+    /// Its 1σ, deg.
+    joint_odo_yaw_sigma_deg: Option<f64>,
+    /// Joint odometer lag, s.
+    joint_odo_lag_s: Option<f64>,
+    /// Its 1σ, s.
+    joint_odo_lag_sigma_s: Option<f64>,
+    /// Joint odometer speed bias, m/s.
+    joint_odo_bias_mps: Option<f64>,
+    /// Its 1σ, m/s.
+    joint_odo_bias_sigma_mps: Option<f64>,
+    /// Median hold-out error over the control points, m.
+    joint_holdout_median_m: Option<f64>,
+    /// Largest hold-out error, m.
+    joint_holdout_max_m: Option<f64>,
+    /// Wall time of the run, s.
+    wall_s: Option<f64>,
+}
 
-/// A run's values of [`COLUMNS`].
-fn column_values(
-    ing: Option<&IngestReport>,
-    d: Option<&DisuptOut>,
-    wall_s: f64,
-) -> [Option<f64>; 27] {
-    let method = |name: &str| d.and_then(|d| d.methods.get(name));
-    let err = |name: &str| method(name).map(|m| (m.dx_m, m.dy_m));
-    let joint = method("joint");
-    let x = |f: fn(&SettingsOut) -> f64| joint.map(|j| f(&j.x));
-    let sd = |f: fn(&SigmaOut) -> f64| joint.and_then(|j| j.x.sigma.as_ref()).map(f);
-    let holdout = joint.and_then(holdout_stats);
-    [
-        d.map(|d| d.distance_m),
-        ing.map(|i| i.imu_accepted as f64),
-        ing.map(|i| i.rejected_total() as f64),
-        ing.map(|i| i.lost_samples as f64),
-        d.map(|d| d.before.dx_m),
-        d.map(|d| d.before.dy_m),
-        err("oepi").map(|e| e.0),
-        err("oepi").map(|e| e.1),
-        err("owpi").map(|e| e.0),
-        err("owpi").map(|e| e.1),
-        err("joint").map(|e| e.0),
-        err("joint").map(|e| e.1),
-        x(|x| x.azimuth_deg),
-        sd(|s| s.azimuth_deg),
-        x(|x| x.drift_rad_s[2]),
-        sd(|s| s.drift_rad_s[2]),
-        x(|x| x.odo_scale),
-        sd(|s| s.odo_scale),
-        x(|x| x.odo_yaw_deg),
-        sd(|s| s.odo_yaw_deg),
-        x(|x| x.odo_lag_s),
-        sd(|s| s.odo_lag_s),
-        x(|x| x.odo_bias_mps),
-        sd(|s| s.odo_bias_mps),
-        holdout.map(|h| h.0),
-        holdout.map(|h| h.1),
-        Some(wall_s),
-    ]
+impl SummaryValues {
+    /// The numbers of a run from its reports.
+    fn of(ing: Option<&IngestReport>, d: Option<&DisuptOut>, wall_s: f64) -> Self {
+        let method = |name: &str| d.and_then(|d| d.methods.get(name));
+        let err = |name: &str| method(name).map(|m| (m.dx_m, m.dy_m));
+        let joint = method("joint");
+        let x = |f: fn(&SettingsOut) -> f64| joint.map(|j| f(&j.x));
+        let sd = |f: fn(&SigmaOut) -> f64| joint.and_then(|j| j.x.sigma.as_ref()).map(f);
+        let holdout = joint.and_then(holdout_stats);
+        Self {
+            distance_m: d.map(|d| d.distance_m),
+            imu_accepted: ing.map(|i| i.imu_accepted as f64),
+            rejected: ing.map(|i| i.rejected_total() as f64),
+            lost_samples: ing.map(|i| i.lost_samples as f64),
+            before_dx_m: d.map(|d| d.before.dx_m),
+            before_dy_m: d.map(|d| d.before.dy_m),
+            oepi_dx_m: err("oepi").map(|e| e.0),
+            oepi_dy_m: err("oepi").map(|e| e.1),
+            owpi_dx_m: err("owpi").map(|e| e.0),
+            owpi_dy_m: err("owpi").map(|e| e.1),
+            joint_dx_m: err("joint").map(|e| e.0),
+            joint_dy_m: err("joint").map(|e| e.1),
+            joint_azimuth_deg: x(|x| x.azimuth_deg),
+            joint_azimuth_sigma_deg: sd(|s| s.azimuth_deg),
+            joint_drift_z_rad_s: x(|x| x.drift_rad_s[2]),
+            joint_drift_z_sigma_rad_s: sd(|s| s.drift_rad_s[2]),
+            joint_odo_scale: x(|x| x.odo_scale),
+            joint_odo_scale_sigma: sd(|s| s.odo_scale),
+            joint_odo_yaw_deg: x(|x| x.odo_yaw_deg),
+            joint_odo_yaw_sigma_deg: sd(|s| s.odo_yaw_deg),
+            joint_odo_lag_s: x(|x| x.odo_lag_s),
+            joint_odo_lag_sigma_s: sd(|s| s.odo_lag_s),
+            joint_odo_bias_mps: x(|x| x.odo_bias_mps),
+            joint_odo_bias_sigma_mps: sd(|s| s.odo_bias_mps),
+            joint_holdout_median_m: holdout.map(|h| h.0),
+            joint_holdout_max_m: holdout.map(|h| h.1),
+            wall_s: Some(wall_s),
+        }
+    }
+
+    /// (column name, value) in the file's order.
+    fn columns(&self) -> [(&'static str, Option<f64>); 27] {
+        [
+            ("distance_m", self.distance_m),
+            ("imu_accepted", self.imu_accepted),
+            ("rejected", self.rejected),
+            ("lost_samples", self.lost_samples),
+            ("before_dx_m", self.before_dx_m),
+            ("before_dy_m", self.before_dy_m),
+            ("oepi_dx_m", self.oepi_dx_m),
+            ("oepi_dy_m", self.oepi_dy_m),
+            ("owpi_dx_m", self.owpi_dx_m),
+            ("owpi_dy_m", self.owpi_dy_m),
+            ("joint_dx_m", self.joint_dx_m),
+            ("joint_dy_m", self.joint_dy_m),
+            ("joint_azimuth_deg", self.joint_azimuth_deg),
+            ("joint_azimuth_sigma_deg", self.joint_azimuth_sigma_deg),
+            ("joint_drift_z_rad_s", self.joint_drift_z_rad_s),
+            ("joint_drift_z_sigma_rad_s", self.joint_drift_z_sigma_rad_s),
+            ("joint_odo_scale", self.joint_odo_scale),
+            ("joint_odo_scale_sigma", self.joint_odo_scale_sigma),
+            ("joint_odo_yaw_deg", self.joint_odo_yaw_deg),
+            ("joint_odo_yaw_sigma_deg", self.joint_odo_yaw_sigma_deg),
+            ("joint_odo_lag_s", self.joint_odo_lag_s),
+            ("joint_odo_lag_sigma_s", self.joint_odo_lag_sigma_s),
+            ("joint_odo_bias_mps", self.joint_odo_bias_mps),
+            ("joint_odo_bias_sigma_mps", self.joint_odo_bias_sigma_mps),
+            ("joint_holdout_median_m", self.joint_holdout_median_m),
+            ("joint_holdout_max_m", self.joint_holdout_max_m),
+            ("wall_s", self.wall_s),
+        ]
+    }
 }
 
 /// Writes `campaign.parquet` and `campaign.md` into `out`.
 pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> {
-    let mut cols: Vec<(&str, Vec<Option<f64>>)> =
-        COLUMNS.iter().map(|n| (*n, Vec::new())).collect();
+    let mut cols: Vec<(&str, Vec<Option<f64>>)> = SummaryValues::default()
+        .columns()
+        .iter()
+        .map(|(n, _)| (*n, Vec::new()))
+        .collect();
     let mut md = String::from(
         "| run | status | distance [m] | rejected | before [m] | OEPI [m] | OWPI [m] | joint [m] | joint az σ [°] | hold-out median / max [m] | odometer lag [s] | wall [s] | computed | error |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
@@ -353,9 +417,9 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
             read_report(&layout.file(StageName::Ingest, files::INGEST_REPORT));
         let d: Option<DisuptOut> =
             read_report(&layout.file(StageName::Disupt, files::DISUPT_REPORT));
-        let values = column_values(ing.as_ref(), d.as_ref(), o.wall_s);
-        for (c, v) in cols.iter_mut().zip(values) {
-            c.1.push(v);
+        let v = SummaryValues::of(ing.as_ref(), d.as_ref(), o.wall_s);
+        for (c, (_, x)) in cols.iter_mut().zip(v.columns()) {
+            c.1.push(x);
         }
         let h = |a: Option<f64>, b: Option<f64>| {
             a.zip(b)
@@ -372,18 +436,19 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.2} | {} | {} |",
             o.name,
             if o.error.is_none() { "ok" } else { "failed" },
-            values[0].map_or("–".into(), |v| format!("{v:.0}")),
-            values[2].map_or("–".into(), |v| format!("{v:.0}")),
-            h(values[4], values[5]),
-            h(values[6], values[7]),
-            h(values[8], values[9]),
-            h(values[10], values[11]),
-            values[13].map_or("–".into(), |v| format!("{v:.3}")),
-            values[24]
-                .zip(values[25])
+            v.distance_m.map_or("–".into(), |x| format!("{x:.0}")),
+            v.rejected.map_or("–".into(), |x| format!("{x:.0}")),
+            h(v.before_dx_m, v.before_dy_m),
+            h(v.oepi_dx_m, v.oepi_dy_m),
+            h(v.owpi_dx_m, v.owpi_dy_m),
+            h(v.joint_dx_m, v.joint_dy_m),
+            v.joint_azimuth_sigma_deg
+                .map_or("–".into(), |x| format!("{x:.3}")),
+            v.joint_holdout_median_m
+                .zip(v.joint_holdout_max_m)
                 .map_or("–".into(), |(a, b)| format!("{a:.1} / {b:.1}")),
-            values[20]
-                .zip(values[21])
+            v.joint_odo_lag_s
+                .zip(v.joint_odo_lag_sigma_s)
                 .filter(|(_, s)| *s > 0.0)
                 .map_or("–".into(), |(l, s)| format!("{l:.3} ± {s:.3}")),
             o.wall_s,
@@ -399,13 +464,6 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
                 .replace('\n', " "),
         );
     }
-    let mut fields = vec![
-        Field::new("run", DataType::Utf8, false),
-        Field::new("manifest", DataType::Utf8, false),
-        Field::new("ok", DataType::Boolean, false),
-        Field::new("error", DataType::Utf8, true),
-        Field::new("stages_computed", DataType::UInt64, false),
-    ];
     let mut arrays: Vec<Arc<dyn arrow::array::Array>> = vec![
         Arc::new(StringArray::from(
             outcomes.iter().map(|o| o.name.clone()).collect::<Vec<_>>(),
@@ -433,7 +491,6 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         )),
     ];
     for stage in STAGES {
-        fields.push(Field::new(format!("{stage}_s"), DataType::Float64, true));
         arrays.push(Arc::new(Float64Array::from(
             outcomes
                 .iter()
@@ -441,13 +498,15 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
                 .collect::<Vec<_>>(),
         )));
     }
-    for (name, v) in cols {
-        fields.push(Field::new(name, DataType::Float64, true));
+    let stage_seconds: Vec<String> = STAGES.iter().map(|s| format!("{s}_s")).collect();
+    let value_names: Vec<&str> = cols.iter().map(|(n, _)| *n).collect();
+    let schema = schema::campaign(&stage_seconds, &value_names);
+    for (_, v) in cols {
         arrays.push(Arc::new(Float64Array::from(v)));
     }
     write_batch(
         &out.join("campaign.parquet"),
-        &RecordBatch::try_new(Arc::new(Schema::new(fields)), arrays)?,
+        &RecordBatch::try_new(schema, arrays)?,
     )?;
     write_atomic(&out.join("campaign.md"), md.as_bytes())?;
     let rows: Vec<ReportRow> = outcomes.iter().map(|o| report_row(out, o)).collect();

@@ -7,24 +7,11 @@ use std::sync::Arc;
 
 use anyhow::{Context, bail};
 use arrow::array::{AsArray, BooleanArray, Float64Array, Int64Array, RecordBatch, UInt64Array};
-use arrow::datatypes::{DataType, Field, Schema, UInt64Type};
+use arrow::datatypes::UInt64Type;
 use unz_formats::parquet_io::{read_table, write_batch};
-use unz_formats::schema::{FRAME_BODY, scalar, vec3};
+use unz_formats::schema::{self, derived_meta};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, Epochs};
-
-/// Metadata key: samples per block of the filter F.
-const META_BLOCK: &str = "unz.block";
-/// Metadata key: nominal sample period, s.
-const META_NOMINAL_DT: &str = "unz.nominal_dt_s";
-/// Metadata key: samples whose time tag derive repaired.
-const META_REPAIRED_TIMES: &str = "unz.repaired_times";
-/// Metadata key: samples that closed a gap and were scaled to it.
-const META_FILLED_GAPS: &str = "unz.filled_gaps";
-/// Metadata key: samples flagged with an IMU failure.
-const META_IMU_FAILURES: &str = "unz.imu_failure_samples";
-/// Metadata key: samples flagged with an odometer failure.
-const META_ODO_FAILURES: &str = "unz.odometer_failure_samples";
 
 fn f64s(v: &[f64]) -> Arc<Float64Array> {
     Arc::new(Float64Array::from(v.to_vec()))
@@ -32,36 +19,20 @@ fn f64s(v: &[f64]) -> Arc<Float64Array> {
 
 /// Writes `derived.parquet` and `epochs.parquet` into `dir`.
 pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
-    let f = |n: &str, unit: &str| scalar(n, DataType::Float64, false, unit);
-    let meta = std::collections::HashMap::from([
-        (META_BLOCK.to_owned(), d.block.to_string()),
-        (META_NOMINAL_DT.to_owned(), d.nominal_dt_s.to_string()),
-        (META_REPAIRED_TIMES.to_owned(), d.repaired_times.to_string()),
-        (META_FILLED_GAPS.to_owned(), d.filled_gaps.to_string()),
+    let schema = schema::derived([
+        (derived_meta::BLOCK, d.block.to_string()),
+        (derived_meta::NOMINAL_DT_S, d.nominal_dt_s.to_string()),
+        (derived_meta::REPAIRED_TIMES, d.repaired_times.to_string()),
+        (derived_meta::FILLED_GAPS, d.filled_gaps.to_string()),
         (
-            META_IMU_FAILURES.to_owned(),
+            derived_meta::IMU_FAILURES,
             d.imu_failure_samples.to_string(),
         ),
         (
-            META_ODO_FAILURES.to_owned(),
+            derived_meta::ODO_FAILURES,
             d.odometer_failure_samples.to_string(),
         ),
-        ("unz.table".to_owned(), "derived".to_owned()),
     ]);
-    let schema = Arc::new(Schema::new_with_metadata(
-        vec![
-            scalar("t_ns", DataType::Int64, false, "ns"),
-            f("dt_s", "s"),
-            vec3("dtheta_rad", "rad", FRAME_BODY),
-            vec3("dvel_mps", "m/s", FRAME_BODY),
-            f("odo_dist_m", "m"),
-            f("u_mps", "m/s"),
-            f("u_dot_mps2", "m/s^2"),
-            f("r_rad_s", "rad/s"),
-            f("ru_mps2", "m/s^2"),
-        ],
-        meta,
-    ));
     let t_ns: Vec<i64> = d.t_ns();
     let batch = RecordBatch::try_new(
         schema,
@@ -81,24 +52,7 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
 
     let e = &d.epochs;
     let at = |v: &[f64]| f64s(&e.block.iter().map(|&j| v[j]).collect::<Vec<_>>());
-    let schema = Arc::new(Schema::new_with_metadata(
-        vec![
-            scalar("t_ns", DataType::Int64, false, "ns"),
-            scalar("block", DataType::UInt64, false, "1"),
-            f("theta_p_rad", "rad"),
-            f("phi_p_rad", "rad"),
-            f("theta_p_per_yaw", "rad/rad"),
-            f("phi_p_per_yaw", "rad/rad"),
-            f("theta_p_per_bias", "rad/(m/s)"),
-            f("phi_p_per_bias", "rad/(m/s)"),
-            Field::new("valid", DataType::Boolean, false),
-            f("ax_f_mps2", "m/s^2"),
-            f("ay_f_mps2", "m/s^2"),
-            f("u_dot_f_mps2", "m/s^2"),
-            f("ru_f_mps2", "m/s^2"),
-        ],
-        std::collections::HashMap::from([("unz.table".to_owned(), "epochs".to_owned())]),
-    ));
+    let schema = schema::epochs();
     let batch = RecordBatch::try_new(
         schema,
         vec![
@@ -139,7 +93,7 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
     let t0_ns = t_ns.first().copied().unwrap_or(0);
     let mut d = Derived {
         t0_ns,
-        nominal_dt_s: meta(META_NOMINAL_DT)?.parse()?,
+        nominal_dt_s: meta(derived_meta::NOMINAL_DT_S)?.parse()?,
         t_s: t_ns.iter().map(|t| (t - t0_ns) as f64 * 1e-9).collect(),
         dt_s: f64_column(&b, "dt_s")?,
         dtheta_rad: vec3_column(&b, "dtheta_rad")?,
@@ -149,11 +103,11 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
         u_dot_mps2: f64_column(&b, "u_dot_mps2")?,
         r_rad_s: f64_column(&b, "r_rad_s")?,
         ru_mps2: f64_column(&b, "ru_mps2")?,
-        block: meta(META_BLOCK)?.parse()?,
-        repaired_times: meta(META_REPAIRED_TIMES)?.parse()?,
-        filled_gaps: meta(META_FILLED_GAPS)?.parse()?,
-        imu_failure_samples: meta(META_IMU_FAILURES)?.parse()?,
-        odometer_failure_samples: meta(META_ODO_FAILURES)?.parse()?,
+        block: meta(derived_meta::BLOCK)?.parse()?,
+        repaired_times: meta(derived_meta::REPAIRED_TIMES)?.parse()?,
+        filled_gaps: meta(derived_meta::FILLED_GAPS)?.parse()?,
+        imu_failure_samples: meta(derived_meta::IMU_FAILURES)?.parse()?,
+        odometer_failure_samples: meta(derived_meta::ODO_FAILURES)?.parse()?,
         // The per-block filtered series are not stored: their values at the epochs are
         // in epochs.parquet, and nothing downstream reads the rest.
         ..Derived::default()

@@ -551,11 +551,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             .unwrap_or(&case.derived);
         let joint_problem = spec.on(joint_derived);
 
-        let site = (
-            case.settings.lat0_rad,
-            case.settings.lon0_rad,
-            case.settings.h0_m,
-        );
+        let start = case.settings.start();
         // One exact pass per method's settings: its trajectory, Kryt1 series and control
         // point errors, for review.
         let mut track = NavTrack::default();
@@ -574,7 +570,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                     &mut scratch,
                     Some(&mut series),
                 );
-                tracks.push(method_track(name, d, track, site));
+                tracks.push(method_track(name, d, track, start));
                 kryt1s.push(method_kryt1(name, d, &series));
                 (k1, criteria::kryt2(track, &case.fixes))
             };
@@ -655,7 +651,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             &dir.join(files::CORRECTED_NAV),
             &case.derived,
             &track,
-            site,
+            start,
             sigma.as_ref(),
         )?;
         let md = markdown(&m.name, &out);

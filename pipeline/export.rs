@@ -12,6 +12,7 @@ use unz_formats::mcap_io::{JsonMcap, numeric_object_schema};
 use unz_formats::parquet_io::{read_schema, read_table};
 use unz_formats::schema::META_TIME_ORIGIN;
 use unz_formats::tables::{f64_column, i64_column};
+use unz_stages::attitude::Euler;
 use unz_viz::frames::enu_flu;
 
 use crate::artifacts::{StageName, files};
@@ -183,9 +184,12 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             mcap.write(&mut fix, log_time, &fix_msg)?;
             // Body forward-left-up in local east-north-up, as Foxglove's 3D panel expects.
             let q = enu_flu(
-                roll[k].to_radians(),
-                pitch[k].to_radians(),
-                heading[k].to_radians(),
+                &Euler {
+                    roll_rad: roll[k].to_radians(),
+                    pitch_rad: pitch[k].to_radians(),
+                    heading_rad: heading[k].to_radians(),
+                }
+                .to_quat_b_to_n(),
             );
             let pose_msg = PoseInFrame {
                 timestamp,

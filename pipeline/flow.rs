@@ -6,16 +6,15 @@ use std::sync::Arc;
 
 use anyhow::{Context, bail};
 use arrow::array::{BooleanArray, Float64Array, Int64Array, RecordBatch};
-use arrow::datatypes::{DataType, Field, Schema};
 use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::manifest::RunManifest;
 use unz_formats::parquet_io::{read_batches, write_batch};
-use unz_formats::schema::{nav_state_fields, scalar};
+use unz_formats::schema::{self, META_ODO_M_PER_PULSE};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f64_column, i64_column};
 use unz_stages::criteria::{self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt1Series, Kryt2};
 use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive};
-use unz_stages::earth;
+use unz_stages::earth::{self, Geodetic};
 use unz_stages::filter::LowPass;
 use unz_stages::initial::{AlignParams, InitialReport, InitialRequest, Source, initial_settings};
 use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
@@ -24,9 +23,6 @@ use crate::artifacts::{RunLayout, StageName, files};
 use crate::derive_io::{load_derived, write_derived};
 use crate::ingest::{IngestOptions, OUTPUTS as INGEST_OUTPUTS, ingest};
 use crate::stage::{Stage, params_hash};
-
-/// Metadata key of `odometer.parquet`: metres per pulse used for `distance_m`.
-pub const META_ODO_M_PER_PULSE: &str = "unz.odo_m_per_pulse";
 
 /// Parameters of every stage (defaults built in).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
@@ -347,6 +343,11 @@ pub fn match_control_points(
         .collect()
 }
 
+/// Where the run starts: the manifest's site.
+pub fn start_position(m: &RunManifest) -> Geodetic {
+    Geodetic::from_deg(m.site.latitude_deg, m.site.longitude_deg, m.site.height_m)
+}
+
 /// Loads a navigation case of the run with `overrides` (derive must be up to date).
 pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow::Result<NavCase> {
     let derive_dir = ensure_derive(ctx, params)?;
@@ -384,12 +385,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         static_s: i.static_s,
         odo_scale,
     };
-    let site = (
-        m.site.latitude_deg.to_radians(),
-        m.site.longitude_deg.to_radians(),
-        m.site.height_m,
-    );
-    let (settings, initial) = initial_settings(&derived, &req, &params.align, site);
+    let (settings, initial) = initial_settings(&derived, &req, &params.align, start_position(m));
     if initial.gyrocompass_skipped.is_some() && fixes.is_empty() {
         bail!(
             "the run has neither a static start nor a control point: without a static start \
@@ -437,18 +433,10 @@ pub fn write_nav(
     path: &Path,
     d: &Derived,
     t: &NavTrack,
-    site: (f64, f64, f64),
+    start: Geodetic,
     sigma: Option<&[Vec<f64>; 3]>,
 ) -> anyhow::Result<()> {
-    let mut fields = vec![scalar("t_ns", DataType::Int64, false, "ns")];
-    fields.extend(nav_state_fields());
-    fields.push(scalar("distance_m", DataType::Float64, false, "m"));
-    if sigma.is_some() {
-        fields.push(scalar("sigma_north_m", DataType::Float64, false, "m"));
-        fields.push(scalar("sigma_east_m", DataType::Float64, false, "m"));
-        fields.push(scalar("sigma_heading_deg", DataType::Float64, false, "deg"));
-    }
-    let schema = Arc::new(Schema::new(fields));
+    let schema = schema::nav(sigma.is_some());
     let deg = |v: &[f64]| {
         Arc::new(Float64Array::from(
             v.iter().map(|x| x.to_degrees()).collect::<Vec<_>>(),
@@ -459,7 +447,7 @@ pub fn write_nav(
         .lat_rad
         .iter()
         .zip(&t.lon_rad)
-        .map(|(&la, &lo)| earth::local_offset_m(la, lo, site.0, site.1, site.2))
+        .map(|(&la, &lo)| start.offset_m(la, lo))
         .unzip();
     let mut columns: Vec<arrow::array::ArrayRef> = vec![
         Arc::new(Int64Array::from(d.t_ns())),
@@ -512,12 +500,8 @@ pub fn ensure_navigate(
         let mut track = NavTrack::default();
         case.navigate(&mut track);
         ensure_finite_track("navigated", &track)?;
-        let site = (
-            case.settings.lat0_rad,
-            case.settings.lon0_rad,
-            case.settings.h0_m,
-        );
-        write_nav(&dir.join(files::NAV), &case.derived, &track, site, None)?;
+        let start = case.settings.start();
+        write_nav(&dir.join(files::NAV), &case.derived, &track, start, None)?;
         let summary = NavigateSummary {
             initial: case.initial,
             samples: track.len(),
@@ -643,21 +627,8 @@ pub fn ensure_criteria(
 }
 
 fn write_criteria_parquet(path: &Path, d: &Derived, s: &Kryt1Series) -> anyhow::Result<()> {
-    let f = |n: &str| scalar(n, DataType::Float64, false, "rad");
     let e = &d.epochs;
-    let schema = Arc::new(Schema::new(vec![
-        scalar("t_ns", DataType::Int64, false, "ns"),
-        f("theta_n_rad"),
-        f("phi_n_rad"),
-        f("theta_p_rad"),
-        f("phi_p_rad"),
-        f("d_theta_rad"),
-        f("d_phi_rad"),
-        f("kf_d_theta_rad"),
-        f("kf_d_phi_rad"),
-        f("kryt1_cum"),
-        Field::new("valid", DataType::Boolean, false),
-    ]));
+    let schema = schema::criteria();
     let c = |v: &[f64]| Arc::new(Float64Array::from(v.to_vec()));
     let batch = RecordBatch::try_new(
         schema,

@@ -201,15 +201,7 @@ impl Sinks {
         mcap: bool,
     ) -> anyhow::Result<Self> {
         let imu_schema = schema::imu(origin_ns);
-        let mut odo_schema = schema::odometer(origin_ns);
-        if let Some(s) = odo_m_per_pulse {
-            let mut meta = odo_schema.metadata().clone();
-            meta.insert(crate::flow::META_ODO_M_PER_PULSE.to_owned(), s.to_string());
-            odo_schema = std::sync::Arc::new(arrow::datatypes::Schema::new_with_metadata(
-                odo_schema.fields().clone(),
-                meta,
-            ));
-        }
+        let odo_schema = schema::odometer_scaled(origin_ns, odo_m_per_pulse);
         Ok(Self {
             imu: ParquetSink::create(&dir.join(files::IMU), imu_schema.clone())?,
             odo: ParquetSink::create(&dir.join(files::ODOMETER), odo_schema.clone())?,

@@ -7,13 +7,12 @@ use std::path::Path;
 use std::sync::Arc;
 
 use arrow::array::{Float64Array, Int64Array, RecordBatch, StringArray};
-use arrow::datatypes::{DataType, Field, Schema};
 use unz_formats::parquet_io::{read_table, write_batch};
-use unz_formats::schema::{nav_state_fields, scalar};
+use unz_formats::schema;
 use unz_formats::tables::{f64_column, i64_column};
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
-use unz_stages::earth;
+use unz_stages::earth::Geodetic;
 use unz_stages::strapdown::NavTrack;
 
 /// File name of the per-method trajectories.
@@ -76,12 +75,7 @@ pub fn decimation_indices(len: usize, nominal_dt_s: f64, rate_hz: f64) -> Vec<us
 
 /// Decimates a navigated track to [`TRACK_RATE_HZ`] with local offsets from `site`
 /// (latitude rad, longitude rad, height m).
-pub fn method_track(
-    method: &str,
-    d: &Derived,
-    track: &NavTrack,
-    site: (f64, f64, f64),
-) -> MethodTrack {
+pub fn method_track(method: &str, d: &Derived, track: &NavTrack, start: Geodetic) -> MethodTrack {
     let t_ns = d.t_ns();
     let idx = decimation_indices(track.len().min(t_ns.len()), d.nominal_dt_s, TRACK_RATE_HZ);
     let mut m = MethodTrack {
@@ -89,8 +83,7 @@ pub fn method_track(
         ..MethodTrack::default()
     };
     for &k in &idx {
-        let (n, e) =
-            earth::local_offset_m(track.lat_rad[k], track.lon_rad[k], site.0, site.1, site.2);
+        let (n, e) = start.offset_m(track.lat_rad[k], track.lon_rad[k]);
         let att = track.euler(k);
         m.t_ns.push(t_ns[k]);
         m.lat_deg.push(track.lat_rad[k].to_degrees());
@@ -130,12 +123,7 @@ fn cat<T: Copy>(parts: impl Iterator<Item = Vec<T>>) -> Vec<T> {
 
 /// Writes `tracks.parquet`.
 pub fn write_tracks(path: &Path, tracks: &[MethodTrack]) -> anyhow::Result<()> {
-    let mut fields = vec![
-        Field::new("method", DataType::Utf8, false),
-        scalar("t_ns", DataType::Int64, false, "ns"),
-    ];
-    fields.extend(nav_state_fields());
-    let schema = Arc::new(Schema::new(fields));
+    let schema = schema::tracks();
     let col = |get: fn(&MethodTrack) -> &Vec<f64>| {
         Arc::new(Float64Array::from(cat(tracks
             .iter()
@@ -162,13 +150,7 @@ pub fn write_tracks(path: &Path, tracks: &[MethodTrack]) -> anyhow::Result<()> {
 
 /// Writes `kryt1_series.parquet`.
 pub fn write_kryt1_series(path: &Path, series: &[MethodKryt1]) -> anyhow::Result<()> {
-    let schema = Arc::new(Schema::new(vec![
-        Field::new("method", DataType::Utf8, false),
-        scalar("t_ns", DataType::Int64, false, "ns"),
-        scalar("kryt1_cum", DataType::Float64, false, "rad"),
-        scalar("kf_d_theta_rad", DataType::Float64, false, "rad"),
-        scalar("kf_d_phi_rad", DataType::Float64, false, "rad"),
-    ]));
+    let schema = schema::kryt1_series();
     let col = |get: fn(&MethodKryt1) -> &Vec<f64>| {
         Arc::new(Float64Array::from(cat(series
             .iter()

@@ -11,7 +11,7 @@ use anyhow::Context;
 use unz_formats::parquet_io::read_table;
 use unz_formats::tables::{f64_column, i64_column};
 use unz_stages::criteria::Kryt2;
-use unz_stages::earth;
+use unz_stages::earth::Geodetic;
 use unz_viz::review::{
     ControlPointView, EpochSeries, ImuSeries, Kryt1Curve, Review, RouteSigmaView, Sweep, Track,
 };
@@ -19,7 +19,7 @@ use unz_viz::review::{
 use crate::artifacts::{StageName, files};
 use crate::derive_io::load_derived;
 use crate::disupt_stage::{DisuptOut, Method, ensure_disupt};
-use crate::flow::{Overrides, Params, RunCtx, ensure_criteria};
+use crate::flow::{Overrides, Params, RunCtx, ensure_criteria, start_position};
 use crate::method_tables::{
     KRYT1_SERIES, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_indices, read_kryt1_series,
     read_tracks,
@@ -126,11 +126,7 @@ pub fn build_review(
     let d = load_derived(derive_dir)?;
     let rel =
         |t_ns: &[i64]| -> Vec<f64> { t_ns.iter().map(|&t| (t - d.t0_ns) as f64 * 1e-9).collect() };
-    let site = (
-        m.site.latitude_deg.to_radians(),
-        m.site.longitude_deg.to_radians(),
-        m.site.height_m,
-    );
+    let start = start_position(m);
 
     let crit_path = criteria_dir.join(files::CRITERIA);
     let (_, c) = read_table(&crit_path)?;
@@ -156,10 +152,10 @@ pub fn build_review(
 
     let mut tracks: Vec<Track> = read_tracks(&disupt_dir.join(TRACKS))?
         .into_iter()
-        .map(|t| track_view(t, &rel, site.2))
+        .map(|t| track_view(t, &rel, start.h_m))
         .collect();
     if let Some(p) = truth {
-        tracks.push(truth_track(p, &rel, site, d.nominal_dt_s)?);
+        tracks.push(truth_track(p, &rel, start, d.nominal_dt_s)?);
     }
     let kryt1 = read_kryt1_series(&disupt_dir.join(KRYT1_SERIES))?
         .into_iter()
@@ -181,8 +177,7 @@ pub fn build_review(
         .iter()
         .map(|cp| {
             let (lat, lon) = (cp.position.latitude_deg, cp.position.longitude_deg);
-            let (north_m, east_m) =
-                earth::local_offset_m(lat.to_radians(), lon.to_radians(), site.0, site.1, site.2);
+            let (north_m, east_m) = start.offset_m(lat.to_radians(), lon.to_radians());
             let mut errors = Vec::new();
             let mut push = |label: &str, cps: &[Kryt2]| {
                 if let Some(e) = cps.iter().find(|e| e.id == cp.id) {
@@ -201,7 +196,7 @@ pub fn build_review(
                 lon_deg: lon,
                 north_m,
                 east_m,
-                up_m: cp.position.height_m - site.2,
+                up_m: cp.position.height_m - start.h_m,
                 errors,
             }
         })
@@ -266,7 +261,7 @@ fn track_view(t: MethodTrack, rel: &impl Fn(&[i64]) -> Vec<f64>, h0_m: f64) -> T
 fn truth_track(
     path: &Path,
     rel: &impl Fn(&[i64]) -> Vec<f64>,
-    site: (f64, f64, f64),
+    start: Geodetic,
     nominal_dt_s: f64,
 ) -> anyhow::Result<Track> {
     let (_, b) = read_table(path)?;
@@ -280,14 +275,12 @@ fn truth_track(
     let (north_m, east_m) = lat
         .iter()
         .zip(&lon)
-        .map(|(la, lo)| {
-            earth::local_offset_m(la.to_radians(), lo.to_radians(), site.0, site.1, site.2)
-        })
+        .map(|(la, lo)| start.offset_m(la.to_radians(), lo.to_radians()))
         .unzip();
     Ok(Track {
         label: "truth".into(),
         t_s: rel(&idx.iter().map(|&k| t[k]).collect::<Vec<_>>()),
-        up_m: pick("h_m")?.iter().map(|h| h - site.2).collect(),
+        up_m: pick("h_m")?.iter().map(|h| h - start.h_m).collect(),
         lat_deg: lat,
         lon_deg: lon,
         north_m,

@@ -8,10 +8,10 @@ use anyhow::Context;
 use arrow::array::{Float64Array, Int64Array, RecordBatch};
 use unz_formats::atomic::{write_atomic, write_json_atomic};
 use unz_formats::parquet_io::write_batch;
-use unz_formats::raw::RawWriter;
+use unz_formats::raw::{FileHeader, ImuRecord, MarkRecord, RawLog};
 use unz_formats::{schema, tables};
 use unz_stages::earth;
-use unz_stages::simulate::{SimRun, faults};
+use unz_stages::simulate::{SensorSpec, SimRun};
 
 /// What the simulator makes of a configuration changes when its code does: bump this with
 /// it, so that [`simulated_before`] does not trust runs of an older simulator.
@@ -63,7 +63,7 @@ pub fn write_run(run: &SimRun, dir: &Path) -> anyhow::Result<PathBuf> {
     std::fs::create_dir_all(&run_dir)
         .with_context(|| format!("cannot create {}", run_dir.display()))?;
     let raw_name = format!("{name}.unz");
-    write_atomic(&run_dir.join(&raw_name), &encode(run)?)?;
+    write_atomic(&run_dir.join(&raw_name), &raw_log(run).encode())?;
     write_truth(run, &run_dir)?;
     write_atomic(
         &run_dir.join("run.toml"),
@@ -79,7 +79,7 @@ pub fn write_faulty_copy(run: &SimRun, dir: &Path) -> anyhow::Result<PathBuf> {
     let run_dir = dir.join(&name);
     std::fs::create_dir_all(&run_dir)
         .with_context(|| format!("cannot create {}", run_dir.display()))?;
-    let damaged = faults::damage(run, run.config.seed);
+    let damaged = raw_log(run).damage(run.config.seed);
     let raw_name = format!("{name}.unz");
     write_atomic(&run_dir.join(&raw_name), &damaged.bytes)?;
     write_json_atomic(&run_dir.join("expected_ingest.json"), &damaged.expected)?;
@@ -92,38 +92,67 @@ pub fn write_faulty_copy(run: &SimRun, dir: &Path) -> anyhow::Result<PathBuf> {
     Ok(run_dir)
 }
 
-/// The clean raw log.
-pub fn encode(run: &SimRun) -> anyhow::Result<Vec<u8>> {
-    let mut w = RawWriter::new(
-        Vec::with_capacity(run.records.len() * 48 + 256),
-        &run.header,
-    )?;
-    let mut marks = run.marks.iter().peekable();
-    for (k, r) in run.records.iter().enumerate() {
-        w.write_imu(r)?;
-        while let Some((_, m)) = marks.next_if(|(mk, _)| *mk == k) {
-            w.write_mark(m)?;
-        }
+/// The raw header stating the simulated device's timing and scales.
+pub fn raw_header(s: &SensorSpec) -> FileHeader {
+    FileHeader {
+        sample_period_us: s.sample_period_us,
+        start_time_us: s.start_time_us,
+        dtheta_lsb_rad: s.dtheta_lsb_rad,
+        dvel_lsb_mps: s.dvel_lsb_mps,
+        odo_lsb_m: s.odo_lsb_m,
+        device_serial: s.serial.clone(),
+        ..FileHeader::unz50(s.start_time_us, &s.serial)
     }
-    Ok(w.finish()?)
+}
+
+/// The simulated run as a raw log (header, records and marks in the format's types).
+pub fn raw_log(run: &SimRun) -> RawLog {
+    RawLog {
+        header: raw_header(&run.sensor),
+        records: run
+            .records
+            .iter()
+            .map(|r| ImuRecord {
+                seq: r.seq,
+                t_us: r.t_us,
+                dtheta: r.dtheta_counts,
+                dvel: r.dvel_counts,
+                odo_count: r.odo_count,
+                status: r.status,
+            })
+            .collect(),
+        marks: run
+            .marks
+            .iter()
+            .map(|(k, m)| {
+                (
+                    *k,
+                    MarkRecord {
+                        t_us: m.t_us,
+                        point_id: m.point_id,
+                    },
+                )
+            })
+            .collect(),
+    }
 }
 
 fn write_truth(run: &SimRun, run_dir: &Path) -> anyhow::Result<()> {
     let settings_json = serde_json::to_string(&run.settings)?;
     let t = &run.truth;
-    let origin = run.header.start_time_us.checked_mul(1000);
+    let origin = run.sensor.start_time_us.checked_mul(1000);
     let sch = schema::truth(origin, &settings_json);
     let deg = |v: &[f64]| {
         Arc::new(Float64Array::from(
             v.iter().map(|x| x.to_degrees()).collect::<Vec<_>>(),
         ))
     };
-    let (lat0, lon0) = (run.site[0].to_radians(), run.site[1].to_radians());
+    let (lat0, lon0) = (run.site.lat_rad, run.site.lon_rad);
     let (north, east): (Vec<f64>, Vec<f64>) = t
         .lat_rad
         .iter()
         .zip(&t.lon_rad)
-        .map(|(&la, &lo)| earth::local_offset_m(la, lo, lat0, lon0, run.site[2]))
+        .map(|(&la, &lo)| earth::local_offset_m(la, lo, lat0, lon0, run.site.h_m))
         .unzip();
     let batch = RecordBatch::try_new(
         sch,

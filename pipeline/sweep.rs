@@ -7,12 +7,11 @@ use std::sync::atomic::AtomicUsize;
 
 use anyhow::{Context, bail};
 use arrow::array::{Float64Array, RecordBatch};
-use arrow::datatypes::{DataType, Schema};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::parquet_io::write_batch;
-use unz_formats::schema::scalar;
+use unz_formats::schema;
 use unz_stages::disupt::{Problem, X};
 use unz_stages::linearized::Setting;
 use unz_stages::units::DEG_PER_H;
@@ -194,17 +193,14 @@ pub fn ensure_sweep(ctx: &RunCtx, params: &Params, axes: &[Axis]) -> anyhow::Res
         let column = |f: fn(&GridPoint) -> f64| -> Arc<dyn arrow::array::Array> {
             Arc::new(Float64Array::from(grid.iter().map(f).collect::<Vec<_>>()))
         };
-        let mut fields = vec![scalar(&axes[0].name, DataType::Float64, false, "")];
         let mut columns = vec![column(|g| g.at.0)];
-        if let Some(ax) = axes.get(1) {
-            fields.push(scalar(&ax.name, DataType::Float64, false, ""));
+        if axes.len() > 1 {
             columns.push(column(|g| g.at.1));
         }
-        fields.push(scalar("kryt1_rad", DataType::Float64, false, "rad"));
-        fields.push(scalar("kryt2_m", DataType::Float64, false, "m"));
         columns.push(column(|g| g.kryt1_rad));
         columns.push(column(|g| g.kryt2_m));
-        let batch = RecordBatch::try_new(Arc::new(Schema::new(fields)), columns)?;
+        let names: Vec<&str> = axes.iter().map(|a| a.name.as_str()).collect();
+        let batch = RecordBatch::try_new(schema::sweep(&names), columns)?;
         write_batch(&dir.join("sweep.parquet"), &batch)?;
         let argmin = |f: fn(&GridPoint) -> f64| {
             grid.iter()

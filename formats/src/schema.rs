@@ -150,3 +150,172 @@ pub fn truth(time_origin_utc_ns: Option<i64>, true_settings_json: &str) -> Schem
     meta.insert(META_TRUE_SETTINGS.to_owned(), true_settings_json.to_owned());
     Arc::new(Schema::new_with_metadata(schema.fields().clone(), meta))
 }
+
+/// Schema metadata key of `odometer`: metres per pulse used for `distance_m`.
+pub const META_ODO_M_PER_PULSE: &str = "unz.odo_m_per_pulse";
+
+/// `odometer` with the scale that produced `distance_m` from pulses, when it did.
+pub fn odometer_scaled(time_origin_utc_ns: Option<i64>, m_per_pulse: Option<f64>) -> SchemaRef {
+    let schema = odometer(time_origin_utc_ns);
+    let Some(s) = m_per_pulse else {
+        return schema;
+    };
+    let mut meta = schema.metadata().clone();
+    meta.insert(META_ODO_M_PER_PULSE.to_owned(), s.to_string());
+    Arc::new(Schema::new_with_metadata(schema.fields().clone(), meta))
+}
+
+/// Schema metadata keys of `derived`: the derive stage's scalars and counts.
+pub mod derived_meta {
+    /// Samples per block of the filter F.
+    pub const BLOCK: &str = "unz.block";
+    /// Nominal sample period, s.
+    pub const NOMINAL_DT_S: &str = "unz.nominal_dt_s";
+    /// Samples whose time tag derive repaired.
+    pub const REPAIRED_TIMES: &str = "unz.repaired_times";
+    /// Samples that closed a gap and were scaled to it.
+    pub const FILLED_GAPS: &str = "unz.filled_gaps";
+    /// Samples flagged with an IMU failure.
+    pub const IMU_FAILURES: &str = "unz.imu_failure_samples";
+    /// Samples flagged with an odometer failure.
+    pub const ODO_FAILURES: &str = "unz.odometer_failure_samples";
+}
+
+fn f64_field(name: &str, unit: &str) -> Field {
+    scalar(name, DataType::Float64, false, unit)
+}
+
+fn table_meta(table: &str) -> HashMap<String, String> {
+    HashMap::from([(META_TABLE.to_owned(), table.to_owned())])
+}
+
+/// `derived`: the derive stage's per-sample series. `meta` holds the
+/// [`derived_meta`] keys with their values.
+pub fn derived(meta: impl IntoIterator<Item = (&'static str, String)>) -> SchemaRef {
+    let mut m = table_meta("derived");
+    m.extend(meta.into_iter().map(|(k, v)| (k.to_owned(), v)));
+    Arc::new(Schema::new_with_metadata(
+        vec![
+            time_field(),
+            f64_field("dt_s", "s"),
+            vec3(DTHETA_RAD, "rad", FRAME_BODY),
+            vec3(DVEL_MPS, "m/s", FRAME_BODY),
+            f64_field("odo_dist_m", "m"),
+            f64_field("u_mps", "m/s"),
+            f64_field("u_dot_mps2", "m/s^2"),
+            f64_field("r_rad_s", "rad/s"),
+            f64_field("ru_mps2", "m/s^2"),
+        ],
+        m,
+    ))
+}
+
+/// `epochs`: the derive stage's accelerometer references per ΔTg epoch.
+pub fn epochs() -> SchemaRef {
+    Arc::new(Schema::new_with_metadata(
+        vec![
+            time_field(),
+            scalar("block", DataType::UInt64, false, "1"),
+            f64_field("theta_p_rad", "rad"),
+            f64_field("phi_p_rad", "rad"),
+            f64_field("theta_p_per_yaw", "rad/rad"),
+            f64_field("phi_p_per_yaw", "rad/rad"),
+            f64_field("theta_p_per_bias", "rad/(m/s)"),
+            f64_field("phi_p_per_bias", "rad/(m/s)"),
+            Field::new("valid", DataType::Boolean, false),
+            f64_field("ax_f_mps2", "m/s^2"),
+            f64_field("ay_f_mps2", "m/s^2"),
+            f64_field("u_dot_f_mps2", "m/s^2"),
+            f64_field("ru_f_mps2", "m/s^2"),
+        ],
+        table_meta("epochs"),
+    ))
+}
+
+/// `nav` (`nav.parquet`, `corrected_nav.parquet`): the navigation state per IMU sample,
+/// with the route's 1σ north, east and heading when `with_sigma`.
+pub fn nav(with_sigma: bool) -> SchemaRef {
+    let mut fields = vec![time_field()];
+    fields.extend(nav_state_fields());
+    fields.push(f64_field(DISTANCE_M, "m"));
+    if with_sigma {
+        fields.push(f64_field("sigma_north_m", "m"));
+        fields.push(f64_field("sigma_east_m", "m"));
+        fields.push(f64_field("sigma_heading_deg", "deg"));
+    }
+    Arc::new(Schema::new(fields))
+}
+
+/// `criteria`: Kryt1's terms per epoch.
+pub fn criteria() -> SchemaRef {
+    let rad = |n: &str| f64_field(n, "rad");
+    Arc::new(Schema::new(vec![
+        time_field(),
+        rad("theta_n_rad"),
+        rad("phi_n_rad"),
+        rad("theta_p_rad"),
+        rad("phi_p_rad"),
+        rad("d_theta_rad"),
+        rad("d_phi_rad"),
+        rad("kf_d_theta_rad"),
+        rad("kf_d_phi_rad"),
+        rad("kryt1_cum"),
+        Field::new("valid", DataType::Boolean, false),
+    ]))
+}
+
+/// Column: the method a row belongs to (`tracks`, `kryt1_series`).
+pub const METHOD: &str = "method";
+
+/// `tracks`: every method's route, rows grouped by method.
+pub fn tracks() -> SchemaRef {
+    let mut fields = vec![Field::new(METHOD, DataType::Utf8, false), time_field()];
+    fields.extend(nav_state_fields());
+    Arc::new(Schema::new(fields))
+}
+
+/// `kryt1_series`: every method's cumulative Kryt1 and filtered residuals per epoch.
+pub fn kryt1_series() -> SchemaRef {
+    Arc::new(Schema::new(vec![
+        Field::new(METHOD, DataType::Utf8, false),
+        time_field(),
+        f64_field("kryt1_cum", "rad"),
+        f64_field("kf_d_theta_rad", "rad"),
+        f64_field("kf_d_phi_rad", "rad"),
+    ]))
+}
+
+/// `sweep`: the criteria over a grid of one or two settings (named by `axes`, unitless
+/// in the file: each axis's unit is in its name).
+pub fn sweep(axes: &[&str]) -> SchemaRef {
+    let mut fields: Vec<Field> = axes
+        .iter()
+        .map(|a| scalar(a, DataType::Float64, false, ""))
+        .collect();
+    fields.push(f64_field("kryt1_rad", "rad"));
+    fields.push(f64_field("kryt2_m", "m"));
+    Arc::new(Schema::new(fields))
+}
+
+/// `campaign`: one row per run; `stage_seconds` names the per-stage wall-time columns and
+/// `values` the nullable result columns that follow them.
+pub fn campaign(stage_seconds: &[String], values: &[&str]) -> SchemaRef {
+    let mut fields = vec![
+        Field::new("run", DataType::Utf8, false),
+        Field::new("manifest", DataType::Utf8, false),
+        Field::new("ok", DataType::Boolean, false),
+        Field::new("error", DataType::Utf8, true),
+        Field::new("stages_computed", DataType::UInt64, false),
+    ];
+    fields.extend(
+        stage_seconds
+            .iter()
+            .map(|n| Field::new(n.as_str(), DataType::Float64, true)),
+    );
+    fields.extend(
+        values
+            .iter()
+            .map(|n| Field::new(*n, DataType::Float64, true)),
+    );
+    Arc::new(Schema::new(fields))
+}

@@ -2,7 +2,7 @@
 
 use proptest::prelude::*;
 use unz_formats::raw::{
-    Accepted, FileHeader, HEADER_LEN, ImuRecord, MarkRecord, RawReader, RawWriter, TYPE_IMU,
+    Accepted, FileHeader, HEADER_LEN, ImuRecord, MarkRecord, RawLog, RawReader, RawWriter, TYPE_IMU,
 };
 use unz_formats::report::IngestReport;
 
@@ -482,4 +482,42 @@ fn resync_through_random_bytes_is_at_least_50_mb_per_s() {
     }
     let mb_s = (32 << 20) as f64 / 1e6 / best;
     assert!(mb_s >= 50.0, "resync through noise at {mb_s:.1} MB/s");
+}
+
+/// A log damaged with every fault the format knows reads back with exactly the
+/// accounting its damage predicts.
+#[test]
+fn a_damaged_log_reads_with_exactly_the_expected_accounting() {
+    let records: Vec<_> = (0..20_000)
+        .map(|i| imu(i, 10_000 * u64::from(i + 1), i))
+        .collect();
+    let marks = [3_000usize, 9_000, 15_000]
+        .iter()
+        .zip(1u32..)
+        .map(|(&k, id)| {
+            (
+                k,
+                MarkRecord {
+                    t_us: records[k].t_us,
+                    point_id: id,
+                },
+            )
+        })
+        .collect();
+    let log = RawLog {
+        header: FileHeader::unz50(1_700_000_000_000_000, "SN"),
+        records,
+        marks,
+    };
+    let clean = read(&log.encode());
+    assert_eq!(imus(&clean.0), log.records);
+    assert_eq!(clean.1.marks_accepted, 3);
+    for seed in [21, 22, 23] {
+        let d = log.damage(seed);
+        assert!(d.expected.is_consistent(), "{:?}", d.expected);
+        assert_eq!(d.expected.rejected.bad_crc, 6);
+        assert_eq!(d.expected.rejected.truncated, 1);
+        let (_, got) = read(&d.bytes);
+        assert_eq!(got, d.expected);
+    }
 }

@@ -80,7 +80,9 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     }
     // The reader's worst case: nothing but resync search (random bytes behind a valid
     // header), in memory.
-    let mut noise = run.header.encode().to_vec();
+    let mut noise = crate::simulate_io::raw_header(&run.sensor)
+        .encode()
+        .to_vec();
     let mut state = 0x9E37_79B9_7F4A_7C15_u64;
     noise.extend((0..64usize << 20).map(|_| {
         state ^= state << 13;

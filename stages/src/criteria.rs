@@ -54,6 +54,19 @@ pub struct Kryt1Series {
 pub struct Kryt1Scratch {
     theta_blocks: Vec<f64>,
     phi_blocks: Vec<f64>,
+    row3_sums: Vec<[f64; 3]>,
+}
+
+impl Kryt1Scratch {
+    /// The filtered blocks' values at each epoch into `theta` and `phi`.
+    fn at_epochs(&self, epochs: &Epochs, theta: &mut Vec<f64>, phi: &mut Vec<f64>) {
+        theta.clear();
+        phi.clear();
+        for &j in &epochs.block {
+            theta.push(self.theta_blocks[j]);
+            phi.push(self.phi_blocks[j]);
+        }
+    }
 }
 
 /// One axis's Kalman filter.
@@ -127,8 +140,8 @@ pub fn kryt1(
     )
 }
 
-/// The filtered gyro pitch Θ_N and roll Φ_N at every epoch, into `theta` and `phi`:
-/// everything Kryt1 and the attitude residuals read from a pass.
+/// The filtered gyro pitch Θ_N and roll Φ_N at every epoch of a stored track, into
+/// `theta` and `phi`: everything Kryt1 and the attitude residuals read from a pass.
 pub fn epoch_attitude(
     epochs: &Epochs,
     lp: &LowPass,
@@ -138,12 +151,7 @@ pub fn epoch_attitude(
     phi: &mut Vec<f64>,
 ) {
     filtered_roll_pitch(lp, track, scratch);
-    theta.clear();
-    phi.clear();
-    for &j in &epochs.block {
-        theta.push(scratch.theta_blocks[j]);
-        phi.push(scratch.phi_blocks[j]);
-    }
+    scratch.at_epochs(epochs, theta, phi);
 }
 
 /// [`epoch_attitude`] from the per-block sums of `C_b^n`'s third row that a
@@ -157,21 +165,8 @@ pub fn epoch_attitude_from_sums(
     theta: &mut Vec<f64>,
     phi: &mut Vec<f64>,
 ) {
-    scratch.phi_blocks.clear();
-    scratch.theta_blocks.clear();
-    for m in row3_sums {
-        let (r, p) = roll_pitch_from_row3(m[0], m[1], m[2]);
-        scratch.phi_blocks.push(r);
-        scratch.theta_blocks.push(p);
-    }
-    lp.filter_blocks(&mut scratch.theta_blocks);
-    lp.filter_blocks(&mut scratch.phi_blocks);
-    theta.clear();
-    phi.clear();
-    for &j in &epochs.block {
-        theta.push(scratch.theta_blocks[j]);
-        phi.push(scratch.phi_blocks[j]);
-    }
+    filtered_roll_pitch_from_sums(lp, row3_sums, scratch);
+    scratch.at_epochs(epochs, theta, phi);
 }
 
 /// Kryt1 from the filtered gyro (pitch, roll) of each epoch, given by `attitude(e)`;
@@ -213,56 +208,39 @@ pub fn kryt1_of(
     sum
 }
 
-/// The raw pitch and roll residuals ΔΘ, ΔΦ of the valid epochs, interleaved, into `out`
-/// (the joint estimator's attitude residuals; no Kalman smoothing).
-pub fn attitude_residuals(
-    epochs: &Epochs,
-    lp: &LowPass,
-    track: &NavTrack,
-    scratch: &mut Kryt1Scratch,
-    out: &mut Vec<f64>,
-) {
-    filtered_roll_pitch(lp, track, scratch);
-    out.clear();
-    for e in 0..epochs.block.len() {
-        if epochs.valid[e] {
-            let j = epochs.block[e];
-            out.push(scratch.theta_blocks[j] - epochs.theta_p_rad[e]);
-            out.push(crate::attitude::wrap_pi(
-                scratch.phi_blocks[j] - epochs.phi_p_rad[e],
-            ));
-        }
-    }
+/// F(Φ_N) and F(Θ_N) per block of a stored track into the scratch buffers.
+fn filtered_roll_pitch(lp: &LowPass, track: &NavTrack, scratch: &mut Kryt1Scratch) {
+    let mut sums = std::mem::take(&mut scratch.row3_sums);
+    block_row3_sums(&track.q_b_to_n, lp.block, &mut sums);
+    filtered_roll_pitch_from_sums(lp, &sums, scratch);
+    scratch.row3_sums = sums;
 }
 
-/// F(Φ_N) and F(Θ_N) per block into the scratch buffers.
-fn filtered_roll_pitch(lp: &LowPass, track: &NavTrack, scratch: &mut Kryt1Scratch) {
-    block_roll_pitch(
-        &track.q_b_to_n,
-        lp.block,
-        &mut scratch.phi_blocks,
-        &mut scratch.theta_blocks,
-    );
+/// F(Φ_N) and F(Θ_N) per block from the blocks' sums of `C_b^n`'s third row. Within a
+/// block (0.1 s) the attitude moves by far less than a degree, so the angles of the mean
+/// third row equal the mean angles to second order (< 1e-8 rad), at one asin and one
+/// atan2 per block instead of per sample (and the angles of a sum are those of the mean).
+fn filtered_roll_pitch_from_sums(lp: &LowPass, row3_sums: &[[f64; 3]], scratch: &mut Kryt1Scratch) {
+    scratch.phi_blocks.clear();
+    scratch.theta_blocks.clear();
+    for m in row3_sums {
+        let (r, p) = roll_pitch_from_row3(m[0], m[1], m[2]);
+        scratch.phi_blocks.push(r);
+        scratch.theta_blocks.push(p);
+    }
     lp.filter_blocks(&mut scratch.theta_blocks);
     lp.filter_blocks(&mut scratch.phi_blocks);
 }
 
-/// Block means of roll and pitch. Within a block (0.1 s) the attitude moves by far less
-/// than a degree, so the angles of the mean third row of `C_b^n` equal the mean angles to
-/// second order (< 1e-8 rad), at one asin and one atan2 per block instead of per sample.
-fn block_roll_pitch(q: &[[f64; 4]], block: usize, roll: &mut Vec<f64>, pitch: &mut Vec<f64>) {
-    roll.clear();
-    pitch.clear();
-    for c in q.chunks(block.max(1)) {
-        let mut m = [0.0; 3];
-        for qk in c {
+/// Sums of `C_b^n`'s third row over blocks of `block` samples.
+fn block_row3_sums(q: &[[f64; 4]], block: usize, out: &mut Vec<[f64; 3]>) {
+    out.clear();
+    out.extend(q.chunks(block.max(1)).map(|c| {
+        c.iter().fold([0.0; 3], |m, qk| {
             let r = dcm_row3(qk);
-            m = [m[0] + r[0], m[1] + r[1], m[2] + r[2]];
-        }
-        let (r, p) = roll_pitch_from_row3(m[0], m[1], m[2]);
-        roll.push(r);
-        pitch.push(p);
-    }
+            [m[0] + r[0], m[1] + r[1], m[2] + r[2]]
+        })
+    }));
 }
 
 /// A control point matched to a sample of the run.
@@ -297,6 +275,27 @@ pub struct Kryt2 {
     pub kryt2_m: f64,
 }
 
+impl Kryt2 {
+    /// Kryt2 at the control point `f` for the navigated-minus-known offsets `dx_m`
+    /// (north) and `dy_m` (east).
+    pub fn at(f: &ControlPointFix, dx_m: f64, dy_m: f64) -> Self {
+        Self {
+            id: f.id,
+            t_s: f.t_s,
+            dx_m,
+            dy_m,
+            kryt2_m: dx_m.hypot(dy_m),
+        }
+    }
+}
+
+/// RMS horizontal error over control points given as (ΔX, ΔY), m (NaN without any):
+/// the Kryt2 of a whole run.
+pub fn kryt2_rms_m(errors: impl ExactSizeIterator<Item = [f64; 2]>) -> f64 {
+    let n = errors.len() as f64;
+    (errors.map(|[dx, dy]| dx * dx + dy * dy).sum::<f64>() / n).sqrt()
+}
+
 /// Kryt2 at every control point.
 pub fn kryt2(track: &NavTrack, fixes: &[ControlPointFix]) -> Vec<Kryt2> {
     fixes
@@ -310,13 +309,7 @@ pub fn kryt2(track: &NavTrack, fixes: &[ControlPointFix]) -> Vec<Kryt2> {
                 f.lon_rad,
                 f.h_m,
             );
-            Kryt2 {
-                id: f.id,
-                t_s: f.t_s,
-                dx_m: dx,
-                dy_m: dy,
-                kryt2_m: dx.hypot(dy),
-            }
+            Kryt2::at(f, dx, dy)
         })
         .collect()
 }

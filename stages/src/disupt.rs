@@ -177,13 +177,7 @@ pub struct Evaluation {
 impl Evaluation {
     /// RMS Kryt2 over the control points, m (NaN without control points).
     pub fn kryt2_rms(&self) -> f64 {
-        (self
-            .kryt2
-            .iter()
-            .map(|k| k.kryt2_m * k.kryt2_m)
-            .sum::<f64>()
-            / self.kryt2.len() as f64)
-            .sqrt()
+        criteria::kryt2_rms_m(self.kryt2.iter().map(|k| [k.dx_m, k.dy_m]))
     }
 
     /// (ΔX, ΔY) at the last control point.

@@ -66,6 +66,34 @@ pub fn normal_gravity_mps2(lat_rad: f64, h_m: f64) -> f64 {
     g0 * (1.0 - 2.0 / A_M * (1.0 + F + M_GRAV - 2.0 * F * s2) * h_m + 3.0 * h_m * h_m / (A_M * A_M))
 }
 
+/// A geodetic position (WGS-84): a run's start, the origin of its local north and east.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Geodetic {
+    /// Latitude, rad.
+    pub lat_rad: f64,
+    /// Longitude, rad.
+    pub lon_rad: f64,
+    /// Height above the ellipsoid, m.
+    pub h_m: f64,
+}
+
+impl Geodetic {
+    /// The position at `lat_deg`, `lon_deg` (degrees) and `h_m`.
+    pub fn from_deg(lat_deg: f64, lon_deg: f64, h_m: f64) -> Self {
+        Self {
+            lat_rad: lat_deg.to_radians(),
+            lon_rad: lon_deg.to_radians(),
+            h_m,
+        }
+    }
+
+    /// North and east offsets (m) of `(lat_rad, lon_rad)` from this origin
+    /// ([`local_offset_m`]).
+    pub fn offset_m(&self, lat_rad: f64, lon_rad: f64) -> (f64, f64) {
+        local_offset_m(lat_rad, lon_rad, self.lat_rad, self.lon_rad, self.h_m)
+    }
+}
+
 /// North and east offsets (m) of `(lat, lon)` from a reference, scaled by the WGS-84
 /// meridian and prime-vertical radii at the reference (the paper's ΔX, ΔY).
 pub fn local_offset_m(

@@ -6,6 +6,7 @@ use serde::Serialize;
 use crate::align;
 use crate::attitude::Euler;
 use crate::derive::Derived;
+use crate::earth::Geodetic;
 use crate::strapdown::NavSettings;
 
 /// Where a setting came from.
@@ -120,14 +121,18 @@ pub fn detect_static_s(d: &Derived) -> f64 {
     d.t_s.last().copied().unwrap_or(0.0)
 }
 
-/// Resolves the initial settings of a pass at the site (`lat0`, `lon0` rad, `h0` m).
+/// Resolves the initial settings of a pass that starts at `start`.
 pub fn initial_settings(
     d: &Derived,
     req: &InitialRequest,
     p: &AlignParams,
-    site: (f64, f64, f64),
+    start: Geodetic,
 ) -> (NavSettings, InitialReport) {
-    let (lat0, lon0, h0) = site;
+    let Geodetic {
+        lat_rad: lat0,
+        lon_rad: lon0,
+        h_m: h0,
+    } = start;
     let static_s = req
         .static_s
         .unwrap_or_else(|| detect_static_s(d))

@@ -131,25 +131,13 @@ impl Observation {
         fixes
             .iter()
             .zip(&self.cp_m)
-            .map(|(f, c)| Kryt2 {
-                id: f.id,
-                t_s: f.t_s,
-                dx_m: c[0],
-                dy_m: c[1],
-                kryt2_m: c[0].hypot(c[1]),
-            })
+            .map(|(f, c)| Kryt2::at(f, c[0], c[1]))
             .collect()
     }
 
     /// RMS horizontal error over the control points, m (NaN without any).
     pub fn kryt2_rms(&self) -> f64 {
-        (self
-            .cp_m
-            .iter()
-            .map(|c| c[0] * c[0] + c[1] * c[1])
-            .sum::<f64>()
-            / self.cp_m.len() as f64)
-            .sqrt()
+        crate::criteria::kryt2_rms_m(self.cp_m.iter().copied())
     }
 
     fn axpy(&mut self, a: f64, d: &Self) {

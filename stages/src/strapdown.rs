@@ -25,6 +25,7 @@ mod lanes;
 use nalgebra::UnitQuaternion;
 
 use crate::attitude::Euler;
+use crate::earth::Geodetic;
 use lanes::{Emit, Lanes};
 
 /// Per-sample navigation inputs; all slices have the same length.
@@ -70,6 +71,17 @@ pub struct NavSettings {
     pub lon0_rad: f64,
     /// Start height, m.
     pub h0_m: f64,
+}
+
+impl NavSettings {
+    /// Where the pass starts.
+    pub fn start(&self) -> Geodetic {
+        Geodetic {
+            lat_rad: self.lat0_rad,
+            lon_rad: self.lon0_rad,
+            h_m: self.h0_m,
+        }
+    }
 }
 
 /// The navigated track, one entry per sample (the state at the end of its interval).

@@ -33,7 +33,7 @@ fn true_settings_without_noise_reproduce_truth() {
         let track = c.nav(&c.true_settings());
         let [roll, pitch, heading] = c.attitude_errors_deg(&track);
         let b = c.run.settings.accel_bias_mps2;
-        let g = earth::normal_gravity_mps2(c.run.site[0].to_radians(), c.run.site[2]);
+        let g = earth::normal_gravity_mps2(c.run.site.lat_rad, c.run.site.h_m);
         // Levelling leaves a tilt of |b_horizontal|/g, which turns move between roll and
         // pitch; biases off, only quantisation and the filter-free levelling remain.
         let tilt_deg = (b[0].hypot(b[1]) / g).to_degrees();
@@ -69,9 +69,9 @@ fn the_manifest_azimuth_costs_hundreds_of_metres() {
     let (dn, de) = earth::local_offset_m(
         c.run.truth.lat_rad[n],
         c.run.truth.lon_rad[n],
-        c.run.site[0].to_radians(),
-        c.run.site[1].to_radians(),
-        c.run.site[2],
+        c.run.site.lat_rad,
+        c.run.site.lon_rad,
+        c.run.site.h_m,
     );
     let predicted = 2.0 * (0.5 * az_err).sin().abs() * dn.hypot(de);
     eprintln!(

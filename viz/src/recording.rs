@@ -13,6 +13,7 @@ use crate::blueprint::review_blueprint;
 use crate::frames::enu_flu_xyzw;
 use crate::paths::*;
 use crate::review::{Review, Track, block_means, color_of, display_name};
+use unz_stages::attitude::Euler;
 
 /// Rate of the raw-rate series in the recording, Hz.
 pub const SERIES_RATE_HZ: f64 = 10.0;
@@ -265,11 +266,11 @@ impl Writer<'_> {
             .iter()
             .map(|&k| [t.east_m[k] as f32, t.north_m[k] as f32, t.up_m[k] as f32]);
         let quats = idx.iter().map(|&k| {
-            rerun::Quaternion::from_xyzw(enu_flu_xyzw(
-                t.roll_deg[k].to_radians(),
-                t.pitch_deg[k].to_radians(),
-                t.heading_deg[k].to_radians(),
-            ))
+            rerun::Quaternion::from_xyzw(enu_flu_xyzw(Euler {
+                roll_rad: t.roll_deg[k].to_radians(),
+                pitch_rad: t.pitch_deg[k].to_radians(),
+                heading_rad: t.heading_deg[k].to_radians(),
+            }))
         });
         self.rec.send_columns(
             WORLD_VEHICLE,

@@ -20,11 +20,13 @@
 //! ```
 
 mod crc;
+pub mod faults;
 mod header;
 mod reader;
 mod record;
 mod writer;
 
+pub use faults::{DamagedLog, RawLog};
 pub use header::{FileHeader, HEADER_LEN, MAGIC};
 pub use reader::{Accepted, FaultEvent, FaultKind, ImuSample, RawReader};
 pub use record::{

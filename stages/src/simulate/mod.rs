@@ -8,19 +8,19 @@
 //! random walk, quantisation with the residue carried forward, odometer scale error and
 //! pulse quantisation.
 
-pub mod faults;
 pub mod plan;
 pub mod route;
+pub mod sensor;
 
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
-use unz_formats::raw::{FileHeader, ImuRecord, MarkRecord};
 
 use crate::attitude::Euler;
-use crate::earth;
+use crate::earth::{self, Geodetic};
 use crate::units::{DEG_PER_H, DEG_PER_SQRT_H, MILLI_G};
+pub use sensor::{SensorMark, SensorSample, SensorSpec};
 
 /// LN-200 angle random walk, rad/√s (0.07 °/√h).
 pub const LN200_ARW_RAD_SQRT_S: f64 = 0.07 * DEG_PER_SQRT_H;
@@ -196,14 +196,14 @@ pub struct SimControlPoint {
 pub struct SimRun {
     /// Configuration it came from.
     pub config: SimConfig,
-    /// Raw-log header.
-    pub header: FileHeader,
-    /// IMU records in order.
-    pub records: Vec<ImuRecord>,
-    /// Marks, each with the index of the IMU record it follows.
-    pub marks: Vec<(usize, MarkRecord)>,
-    /// Start position (lat, lon degrees; height m).
-    pub site: [f64; 3],
+    /// The device's timing and count scales.
+    pub sensor: SensorSpec,
+    /// IMU samples in order.
+    pub records: Vec<SensorSample>,
+    /// Marks, each with the index of the IMU sample it follows.
+    pub marks: Vec<(usize, SensorMark)>,
+    /// Where the log starts (the manifest's site).
+    pub site: Geodetic,
     /// Control points.
     pub control_points: Vec<SimControlPoint>,
     /// Truth.
@@ -283,7 +283,7 @@ pub fn simulate(config: &SimConfig) -> SimRun {
     let az_err = uniform_signed(4.0, 8.0);
     let drift = if e.gyro_drift { drift } else { [0.0; 3] };
     let bias = if e.accel_bias { bias } else { [0.0; 3] };
-    let header = FileHeader::unz50(
+    let header = SensorSpec::unz50(
         1_780_000_000_000_000 + (config.seed % 1000) as i64 * 86_400_000_000,
         "LN200-SIM",
     );
@@ -362,11 +362,11 @@ pub fn simulate(config: &SimConfig) -> SimRun {
         }
         let t_end = (k + 1) as f64 * dt;
         let t_us = (k as u64 + 1) * u64::from(header.sample_period_us);
-        records.push(ImuRecord {
+        records.push(SensorSample {
             seq: k as u32,
             t_us,
-            dtheta: rec_theta,
-            dvel: rec_vel,
+            dtheta_counts: rec_theta,
+            dvel_counts: rec_vel,
             odo_count: 0, // below, from the truth's distance (and the odometer's lag)
             status: 0,
         });
@@ -408,7 +408,7 @@ pub fn simulate(config: &SimConfig) -> SimRun {
         let k = ((t_mark / dt).round() as usize).clamp(1, n) - 1;
         marks.push((
             k,
-            MarkRecord {
+            SensorMark {
                 t_us: records[k].t_us,
                 point_id: stop.id,
             },
@@ -426,13 +426,13 @@ pub fn simulate(config: &SimConfig) -> SimRun {
     let k0 = config
         .log_start_s
         .map_or(0, |s| ((s / dt).round() as usize).min(n - 1));
-    let mut site = [lat0_deg, lon0_deg, h0];
+    let mut site = Geodetic::from_deg(lat0_deg, lon0_deg, h0);
     if k0 > 0 {
-        site = [
-            truth.lat_rad[k0 - 1].to_degrees(),
-            truth.lon_rad[k0 - 1].to_degrees(),
-            truth.h_m[k0 - 1],
-        ];
+        site = Geodetic {
+            lat_rad: truth.lat_rad[k0 - 1],
+            lon_rad: truth.lon_rad[k0 - 1],
+            h_m: truth.h_m[k0 - 1],
+        };
         records.drain(..k0);
         truth.drain_front(k0);
         let kept: Vec<bool> = marks.iter().map(|(k, _)| *k >= k0).collect();
@@ -447,7 +447,7 @@ pub fn simulate(config: &SimConfig) -> SimRun {
     let azimuth_deg = e0.heading_rad.to_degrees().rem_euclid(360.0);
     SimRun {
         config: config.clone(),
-        header,
+        sensor: header,
         records,
         marks,
         site,
@@ -484,9 +484,9 @@ impl SimRun {
              [site]\nlatitude_deg = {lat:.9}\nlongitude_deg = {lon:.9}\nheight_m = {h:.3}\n\n\
              [initial]\nazimuth_deg = {az:.6}\nstatic_s = {st:.1}\n",
             seed = self.config.seed,
-            lat = self.site[0],
-            lon = self.site[1],
-            h = self.site[2],
+            lat = self.site.lat_rad.to_degrees(),
+            lon = self.site.lon_rad.to_degrees(),
+            h = self.site.h_m,
             az = self.settings.manifest_azimuth_deg,
             st = self.manifest_static_s,
         );
@@ -501,7 +501,7 @@ impl SimRun {
 
     /// Index of the truth sample nearest to `t_s`.
     pub fn truth_index(&self, t_s: f64) -> usize {
-        let dt = self.header.sample_period_s();
+        let dt = self.sensor.sample_period_s();
         ((t_s / dt).round() as usize).clamp(1, self.truth.t_ns.len()) - 1
     }
 }

@@ -36,22 +36,22 @@ pub fn case_of(config: &SimConfig) -> Case {
 /// A simulated run of `config`, derived with `params`.
 pub fn case_derived_with(config: &SimConfig, params: &DeriveParams) -> Case {
     let run = simulate(config);
-    let lsb = (run.header.dtheta_lsb_rad, run.header.dvel_lsb_mps);
+    let lsb = (run.sensor.dtheta_lsb_rad, run.sensor.dvel_lsb_mps);
     let t_ns: Vec<i64> = run.records.iter().map(|r| r.t_us as i64 * 1000).collect();
     let dtheta: Vec<[f64; 3]> = run
         .records
         .iter()
-        .map(|r| r.dtheta.map(|c| f64::from(c) * lsb.0))
+        .map(|r| r.dtheta_counts.map(|c| f64::from(c) * lsb.0))
         .collect();
     let dvel: Vec<[f64; 3]> = run
         .records
         .iter()
-        .map(|r| r.dvel.map(|c| f64::from(c) * lsb.1))
+        .map(|r| r.dvel_counts.map(|c| f64::from(c) * lsb.1))
         .collect();
     let odo: Vec<f64> = run
         .records
         .iter()
-        .map(|r| f64::from(r.odo_count) * run.header.odo_lsb_m)
+        .map(|r| f64::from(r.odo_count) * run.sensor.odo_lsb_m)
         .collect();
     let raw = RawSeries {
         imu_t_ns: &t_ns,
@@ -60,7 +60,7 @@ pub fn case_derived_with(config: &SimConfig, params: &DeriveParams) -> Case {
         odo_t_ns: &t_ns,
         odo_distance_m: &odo,
     };
-    let g = earth::normal_gravity_mps2(run.site[0].to_radians(), run.site[2]);
+    let g = earth::normal_gravity_mps2(run.site.lat_rad, run.site.h_m);
     let derived = derive(&raw, params, g);
     let fixes = run
         .marks
@@ -178,11 +178,7 @@ impl Case {
 
     /// Initial settings for `req` at the run's site, levelled over the static start.
     pub fn settings_for(&self, req: &InitialRequest) -> NavSettings {
-        let site = (
-            self.run.site[0].to_radians(),
-            self.run.site[1].to_radians(),
-            self.run.site[2],
-        );
+        let site = self.run.site;
         initial_settings(&self.derived, req, &AlignParams::default(), site).0
     }
 

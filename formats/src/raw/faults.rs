@@ -1,4 +1,5 @@
-//! A damaged copy of a simulated log, with the exact accounting a reader must report.
+//! A damaged copy of a log, with the exact accounting a reader must report (the
+//! simulator's faulty runs and the reader's tests).
 //!
 //! Faults are placed at least [`SPACING`] records apart and away from control-point
 //! marks, so each is accounted on its own (two faults in one spot would be
@@ -8,10 +9,10 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use unz_formats::raw::{HEADER_LEN, RawWriter, SYNC};
-use unz_formats::report::IngestReport;
 
-use super::SimRun;
+use super::header::FileHeader;
+use super::record::{ImuRecord, MarkRecord, SYNC, TYPE_IMU, TYPE_MARK, encode_frame};
+use crate::report::IngestReport;
 
 /// Minimum distance, in records, between two faults.
 pub const SPACING: usize = 8;
@@ -39,8 +40,44 @@ pub struct DamagedLog {
     pub expected: IngestReport,
 }
 
-/// Writes `run` with faults injected (deterministic in `seed`).
-pub fn damage(run: &SimRun, seed: u64) -> DamagedLog {
+/// A whole log: header, IMU records in order, and marks with the index of the IMU
+/// record each follows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawLog {
+    /// Header.
+    pub header: FileHeader,
+    /// IMU records in order.
+    pub records: Vec<ImuRecord>,
+    /// Marks, each with the index of the IMU record it follows.
+    pub marks: Vec<(usize, MarkRecord)>,
+}
+
+fn push_imu(out: &mut Vec<u8>, r: &ImuRecord) {
+    encode_frame(TYPE_IMU, &r.encode_payload(), out);
+}
+
+impl RawLog {
+    /// The file's bytes, undamaged.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.records.len() * 48 + 256);
+        out.extend_from_slice(&self.header.encode());
+        let mut marks = self.marks.iter().peekable();
+        for (k, r) in self.records.iter().enumerate() {
+            push_imu(&mut out, r);
+            while let Some((_, m)) = marks.next_if(|(mk, _)| *mk == k) {
+                encode_frame(TYPE_MARK, &m.encode_payload(), &mut out);
+            }
+        }
+        out
+    }
+
+    /// The file with faults injected (deterministic in `seed`), and its accounting.
+    pub fn damage(&self, seed: u64) -> DamagedLog {
+        damage(self, seed)
+    }
+}
+
+fn damage(run: &RawLog, seed: u64) -> DamagedLog {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xFA17_5EED);
     let n = run.records.len();
     let mut plan: Vec<Option<Fault>> = vec![None; n];
@@ -86,11 +123,9 @@ pub fn damage(run: &SimRun, seed: u64) -> DamagedLog {
     }
 
     let mut e = IngestReport::default();
-    let mut w = RawWriter::new(Vec::with_capacity(n * 48 + 4096), &run.header)
-        .unwrap_or_else(|_| unreachable!());
+    let mut w = Vec::with_capacity(n * 48 + 4096);
+    w.extend_from_slice(&run.header.encode());
     let mut marks = run.marks.iter().peekable();
-    let mut frame =
-        RawWriter::new(Vec::with_capacity(64), &run.header).unwrap_or_else(|_| unreachable!());
     let mut skip = 0usize;
     let mut lost_pending = 0u64;
     let mut prev_t = 0u64;
@@ -103,15 +138,10 @@ pub fn damage(run: &SimRun, seed: u64) -> DamagedLog {
             skip -= 1;
         } else if last {
             // The final record, cut short by a power loss.
-            let mut bytes = std::mem::replace(
-                &mut frame,
-                RawWriter::new(Vec::new(), &run.header).unwrap_or_else(|_| unreachable!()),
-            );
-            bytes.write_imu(&r).unwrap_or_else(|_| unreachable!());
-            let full = bytes.finish().unwrap_or_else(|_| unreachable!());
+            let mut full = Vec::with_capacity(48);
+            push_imu(&mut full, &r);
             let cut = rng.random_range(1..48);
-            w.write_raw(&full[HEADER_LEN..HEADER_LEN + cut])
-                .unwrap_or_else(|_| unreachable!());
+            w.extend_from_slice(&full[..cut]);
             e.records_read += 1;
             e.rejected.truncated += 1;
             e.truncated_bytes += cut as u64;
@@ -119,14 +149,11 @@ pub fn damage(run: &SimRun, seed: u64) -> DamagedLog {
             match plan[k] {
                 None => accept(&mut w, &r, &mut e, &mut lost_pending, &mut prev_t),
                 Some(Fault::BadCrc) => {
-                    let mut f =
-                        RawWriter::new(Vec::new(), &run.header).unwrap_or_else(|_| unreachable!());
-                    f.write_imu(&r).unwrap_or_else(|_| unreachable!());
-                    let mut bytes =
-                        f.finish().unwrap_or_else(|_| unreachable!())[HEADER_LEN..].to_vec();
+                    let mut bytes = Vec::with_capacity(48);
+                    push_imu(&mut bytes, &r);
                     let at = rng.random_range(4..46);
                     bytes[at] ^= rng.random_range(1..=255u8);
-                    w.write_raw(&bytes).unwrap_or_else(|_| unreachable!());
+                    w.extend_from_slice(&bytes);
                     e.records_read += 1;
                     e.rejected.bad_crc += 1;
                     e.bytes_skipped += bytes.len() as u64;
@@ -145,14 +172,14 @@ pub fn damage(run: &SimRun, seed: u64) -> DamagedLog {
                             }
                         })
                         .collect();
-                    w.write_raw(&junk).unwrap_or_else(|_| unreachable!());
+                    w.extend_from_slice(&junk);
                     e.bytes_skipped += len as u64;
                     e.resync_events += 1;
                     accept(&mut w, &r, &mut e, &mut lost_pending, &mut prev_t);
                 }
                 Some(Fault::Duplicate) => {
                     accept(&mut w, &r, &mut e, &mut lost_pending, &mut prev_t);
-                    w.write_imu(&r).unwrap_or_else(|_| unreachable!());
+                    push_imu(&mut w, &r);
                     e.records_read += 1;
                     e.rejected.duplicate_seq += 1;
                 }
@@ -163,8 +190,7 @@ pub fn damage(run: &SimRun, seed: u64) -> DamagedLog {
                 Some(Fault::Unknown) => {
                     let len = rng.random_range(0..=64);
                     let payload: Vec<u8> = (0..len).map(|_| rng.random()).collect();
-                    w.write_frame(rng.random_range(0x10..=0x7F), &payload)
-                        .unwrap_or_else(|_| unreachable!());
+                    encode_frame(rng.random_range(0x10..=0x7F), &payload, &mut w);
                     e.records_read += 1;
                     e.rejected.unknown_type += 1;
                     accept(&mut w, &r, &mut e, &mut lost_pending, &mut prev_t);
@@ -177,7 +203,7 @@ pub fn damage(run: &SimRun, seed: u64) -> DamagedLog {
         }
         while let Some((_, mark)) = marks.next_if(|(mk, _)| *mk == k) {
             if !last {
-                w.write_mark(mark).unwrap_or_else(|_| unreachable!());
+                encode_frame(TYPE_MARK, &mark.encode_payload(), &mut w);
                 e.records_read += 1;
                 e.records_accepted += 1;
                 e.marks_accepted += 1;
@@ -186,19 +212,19 @@ pub fn damage(run: &SimRun, seed: u64) -> DamagedLog {
     }
     e.lost_duration_s = e.lost_samples as f64 * run.header.sample_period_s();
     DamagedLog {
-        bytes: w.finish().unwrap_or_else(|_| unreachable!()),
+        bytes: w,
         expected: e,
     }
 }
 
 fn accept(
-    w: &mut RawWriter<Vec<u8>>,
-    r: &unz_formats::raw::ImuRecord,
+    w: &mut Vec<u8>,
+    r: &ImuRecord,
     e: &mut IngestReport,
     lost_pending: &mut u64,
     prev_t: &mut u64,
 ) {
-    w.write_imu(r).unwrap_or_else(|_| unreachable!());
+    push_imu(w, r);
     e.records_read += 1;
     e.records_accepted += 1;
     e.imu_accepted += 1;
