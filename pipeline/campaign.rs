@@ -331,10 +331,10 @@ impl SummaryValues {
     /// The numbers of a run from its reports.
     fn of(ing: Option<&IngestReport>, d: Option<&DisuptOut>, wall_s: f64) -> Self {
         let method = |name: &str| d.and_then(|d| d.methods.get(name));
-        let err = |name: &str| method(name).map(|m| (m.dx_m, m.dy_m));
+        let err = |name: &str| method(name).map(|m| (m.outcome.dx_m, m.outcome.dy_m));
         let joint = method("joint");
-        let x = |f: fn(&SettingsOut) -> f64| joint.map(|j| f(&j.x));
-        let sd = |f: fn(&SigmaOut) -> f64| joint.and_then(|j| j.x.sigma.as_ref()).map(f);
+        let x = |f: fn(&SettingsOut) -> f64| joint.map(|j| f(&j.outcome.x));
+        let sd = |f: fn(&SigmaOut) -> f64| joint.and_then(|j| j.outcome.x.sigma.as_ref()).map(f);
         let holdout = joint.and_then(holdout_stats);
         Self {
             distance_m: d.map(|d| d.distance_m),
@@ -534,7 +534,7 @@ fn report_row(out: &Path, o: &RunOutcome) -> ReportRow {
                 name,
                 d.methods
                     .get(name)
-                    .map(|m| (m.dx_m, m.dy_m, &m.control_points)),
+                    .map(|m| (m.outcome.dx_m, m.outcome.dy_m, &m.outcome.control_points)),
             )
         }));
         for (label, v) in settings {
@@ -547,7 +547,7 @@ fn report_row(out: &Path, o: &RunOutcome) -> ReportRow {
             }
         }
         if let Some(j) = d.methods.get("joint") {
-            let (b, x) = (&d.before.x, &j.x);
+            let (b, x) = (&d.before.x, &j.outcome.x);
             joint = x.sigma.as_ref().map(|s| {
                 let per_h = 1.0 / unz_stages::units::DEG_PER_H;
                 JointEstimate {

@@ -82,10 +82,10 @@ pub struct SigmaOut {
     pub odo_lag_s: f64,
 }
 
-/// One method in `disupt.json`.
+/// Settings and the errors they give: the run before DISUPT, and each method's result.
 #[derive(Debug, Clone, Serialize, serde::Deserialize)]
-pub struct MethodOut {
-    /// Optimised settings.
+pub struct Outcome {
+    /// The settings.
     pub x: SettingsOut,
     /// ΔX at the last control point, m.
     #[serde(
@@ -107,6 +107,14 @@ pub struct MethodOut {
     pub kryt1_rad: f64,
     /// Errors at every control point.
     pub control_points: Vec<Kryt2>,
+}
+
+/// One method in `disupt.json`: its [`Outcome`] (flattened) and how it got there.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+pub struct MethodOut {
+    /// Optimised settings and their errors.
+    #[serde(flatten)]
+    pub outcome: Outcome,
     /// Table rows.
     pub steps: Vec<disupt::Step>,
     /// Navigation passes.
@@ -128,8 +136,8 @@ pub struct DisuptOut {
         default = "unz_stages::finite::absent"
     )]
     pub distance_m: f64,
-    /// Errors with the initial settings.
-    pub before: Before,
+    /// The initial settings and their errors.
+    pub before: Outcome,
     /// Per method.
     pub methods: std::collections::BTreeMap<String, MethodOut>,
     /// Methods that could not run, with the reason.
@@ -142,33 +150,6 @@ pub struct DisuptOut {
     /// Passes of the first linearisation, shared by the methods (not in their own
     /// `evaluations`).
     pub shared_passes: usize,
-}
-
-/// Errors before DISUPT.
-#[derive(Debug, Clone, Serialize, serde::Deserialize)]
-pub struct Before {
-    /// Settings.
-    pub x: SettingsOut,
-    /// ΔX at the last control point, m.
-    #[serde(
-        skip_serializing_if = "unz_stages::finite::is_absent",
-        default = "unz_stages::finite::absent"
-    )]
-    pub dx_m: f64,
-    /// ΔY at the last control point, m.
-    #[serde(
-        skip_serializing_if = "unz_stages::finite::is_absent",
-        default = "unz_stages::finite::absent"
-    )]
-    pub dy_m: f64,
-    /// Kryt1, rad.
-    #[serde(
-        skip_serializing_if = "unz_stages::finite::is_absent",
-        default = "unz_stages::finite::absent"
-    )]
-    pub kryt1_rad: f64,
-    /// Errors at every control point.
-    pub control_points: Vec<Kryt2>,
 }
 
 /// The odometer lag of a method and its 1σ, s.
@@ -223,7 +204,7 @@ fn table(name: &str, r: &MethodOut) -> String {
             st.evaluations
         );
     }
-    if let Some(sd) = &r.x.sigma {
+    if let Some(sd) = &r.outcome.x.sigma {
         let per_h = |v: f64| v / DEG_PER_H;
         let _ = writeln!(
             s,
@@ -232,27 +213,27 @@ fn table(name: &str, r: &MethodOut) -> String {
             per_h(sd.drift_rad_s[0]),
             per_h(sd.drift_rad_s[1]),
             per_h(sd.drift_rad_s[2]),
-            sd.odo_scale / r.x.odo_scale * 1e6
+            sd.odo_scale / r.outcome.x.odo_scale * 1e6
         );
         if sd.odo_yaw_deg > 0.0 {
             let _ = writeln!(
                 s,
                 "\nOdometer yaw boresight {:.3}° ± {:.3}°.",
-                r.x.odo_yaw_deg, sd.odo_yaw_deg
+                r.outcome.x.odo_yaw_deg, sd.odo_yaw_deg
             );
         }
         if sd.odo_bias_mps > 0.0 {
             let _ = writeln!(
                 s,
                 "\nOdometer speed bias {:.3} m/s ± {:.3} m/s.",
-                r.x.odo_bias_mps, sd.odo_bias_mps
+                r.outcome.x.odo_bias_mps, sd.odo_bias_mps
             );
         }
         if r.lag_profile.is_some() {
             let _ = writeln!(
                 s,
                 "\nOdometer lag {:.3} s ± {:.3} s (positive: it reports late).",
-                r.x.odo_lag_s, sd.odo_lag_s
+                r.outcome.x.odo_lag_s, sd.odo_lag_s
             );
         }
     }
@@ -347,11 +328,13 @@ struct JointRun {
 /// A method's entry of `disupt.json`.
 fn method_out(r: &MethodResult, base: &NavSettings, lag: Lag, cps: Vec<Kryt2>) -> MethodOut {
     MethodOut {
-        x: settings_out(&r.x, base, r.sigma.as_ref(), lag),
-        dx_m: r.dx_m,
-        dy_m: r.dy_m,
-        kryt1_rad: r.kryt1,
-        control_points: cps,
+        outcome: Outcome {
+            x: settings_out(&r.x, base, r.sigma.as_ref(), lag),
+            dx_m: r.dx_m,
+            dy_m: r.dy_m,
+            kryt1_rad: r.kryt1,
+            control_points: cps,
+        },
         steps: r.steps.clone(),
         evaluations: r.evaluations,
         holdout: None,
@@ -630,7 +613,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             .map_or((f64::NAN, f64::NAN), |k| (k.dx_m, k.dy_m));
         let out = DisuptOut {
             distance_m,
-            before: Before {
+            before: Outcome {
                 x: settings_out(&x_before, &case.settings, None, Lag::default()),
                 dx_m: dx,
                 dy_m: dy,

@@ -187,7 +187,7 @@ pub fn build_review(
             push("initial", &dj.before.control_points);
             for method in ["oepi", "owpi", "joint"] {
                 if let Some(m) = dj.methods.get(method) {
-                    push(method, &m.control_points);
+                    push(method, &m.outcome.control_points);
                 }
             }
             ControlPointView {

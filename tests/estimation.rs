@@ -65,7 +65,7 @@ fn joint_fit_recovers_the_odometer_lag() {
     let (run0, out0) = process(tmp0.path(), 61, &base);
     let d0 = disupt_json(&out0, name);
     let worst0 = worst_m(&route_errors(&run0, &out0, name));
-    let lag0 = d0.methods["joint"].x.odo_lag_s;
+    let lag0 = d0.methods["joint"].outcome.x.odo_lag_s;
     eprintln!("no lag: estimated {lag0:.4} s, worst route error {worst0:.2} m");
     assert!(
         lag0.abs() < 0.03,
@@ -80,15 +80,15 @@ fn joint_fit_recovers_the_odometer_lag() {
         let joint = &d.methods["joint"];
         let true_lag = truth(&run).odo_lag_s;
         let worst = worst_m(&route_errors(&run, &out, name));
-        let sigma = joint.x.sigma.as_ref().unwrap().odo_lag_s;
+        let sigma = joint.outcome.x.sigma.as_ref().unwrap().odo_lag_s;
         eprintln!(
             "lag {true_lag} s: estimated {:.4} s ± {sigma:.4}, worst route error {worst:.2} m (no lag: {worst0:.2} m)",
-            joint.x.odo_lag_s
+            joint.outcome.x.odo_lag_s
         );
         assert!(
-            (joint.x.odo_lag_s - true_lag).abs() < 0.03,
+            (joint.outcome.x.odo_lag_s - true_lag).abs() < 0.03,
             "lag {} s, truth {true_lag} s",
-            joint.x.odo_lag_s
+            joint.outcome.x.odo_lag_s
         );
         assert!(sigma > 0.0 && sigma < 0.05, "σ {sigma} s");
         // Back to what the run gives without a lag: the lag's residual error (< 0.03 s)
@@ -125,7 +125,7 @@ fn runs_without_a_static_start_are_processed() {
     let d = disupt_json(&out, name);
     assert!(d.coarse_azimuth_deg.is_some());
     let joint = &d.methods["joint"];
-    let az_err = (joint.x.azimuth_deg - t.azimuth_deg + 180.0).rem_euclid(360.0) - 180.0;
+    let az_err = (joint.outcome.x.azimuth_deg - t.azimuth_deg + 180.0).rem_euclid(360.0) - 180.0;
     let errors = route_errors(&run, &out, name);
     let worst = worst_m(&errors);
     eprintln!(
@@ -139,7 +139,7 @@ fn runs_without_a_static_start_are_processed() {
         d.distance_m
     );
     let holdout = joint.holdout.as_ref().unwrap();
-    assert_eq!(holdout.len(), joint.control_points.len());
+    assert_eq!(holdout.len(), joint.outcome.control_points.len());
     for h in holdout {
         eprintln!(
             "hold-out at control point {}: {:.2} m",

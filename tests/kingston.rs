@@ -267,6 +267,7 @@ fn kingston_odometer_terms_through_the_binary() {
         e.sort_by(f64::total_cmp);
         let heading_err = e[e.len() / 2];
         let cp_max = j
+            .outcome
             .control_points
             .iter()
             .map(|c| c.kryt2_m)
@@ -278,13 +279,13 @@ fn kingston_odometer_terms_through_the_binary() {
             .fold(0.0, f64::max);
         eprintln!(
             "Kingston joint, lag {lag}, bias {bias}: heading {heading_err:.3}°, control points ≤ {cp_max:.2} m, hold-out ≤ {holdout_max:.2} m; lag {:.3} ± {:.3} s, bias {:.3} ± {:.3} m/s, scale {:+.0} ppm",
-            j.x.odo_lag_s,
-            j.x.sigma.as_ref().unwrap().odo_lag_s,
-            j.x.odo_bias_mps,
-            j.x.sigma.as_ref().unwrap().odo_bias_mps,
-            (j.x.odo_scale / d.before.x.odo_scale - 1.0) * 1e6
+            j.outcome.x.odo_lag_s,
+            j.outcome.x.sigma.as_ref().unwrap().odo_lag_s,
+            j.outcome.x.odo_bias_mps,
+            j.outcome.x.sigma.as_ref().unwrap().odo_bias_mps,
+            (j.outcome.x.odo_scale / d.before.x.odo_scale - 1.0) * 1e6
         );
-        rows.push((heading_err, cp_max, holdout_max, j.x.odo_bias_mps));
+        rows.push((heading_err, cp_max, holdout_max, j.outcome.x.odo_bias_mps));
     }
     let [plain, _, _, both] = [rows[0], rows[1], rows[2], rows[3]];
     // The README's figure: the OBD-II speed reads about 0.08 m/s low (its σ here ~0.015).

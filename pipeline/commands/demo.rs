@@ -90,9 +90,10 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
             continue;
         };
         let method = |name: &str| d.methods.get(name);
-        let err = |m: Option<&MethodOut>| m.map_or(f64::NAN, |m| m.dx_m.hypot(m.dy_m));
+        let err =
+            |m: Option<&MethodOut>| m.map_or(f64::NAN, |m| m.outcome.dx_m.hypot(m.outcome.dy_m));
         let joint = method("joint");
-        let sigma = joint.and_then(|j| j.x.sigma.as_ref());
+        let sigma = joint.and_then(|j| j.outcome.x.sigma.as_ref());
         let holdout_max = joint
             .and_then(|j| j.holdout.as_deref())
             .and_then(unz_stages::disupt::holdout_median_max_m)
@@ -110,7 +111,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
             sigma.map_or(f64::NAN, |s| s.azimuth_deg),
             joint.zip(sigma).map_or("–".into(), |(j, s)| format!(
                 "{:.2}±{:.2}",
-                j.x.odo_lag_s, s.odo_lag_s
+                j.outcome.x.odo_lag_s, s.odo_lag_s
             )),
             holdout_max,
         );
