@@ -281,3 +281,111 @@ fn odometer_failure_flags_are_honoured() {
     .unwrap();
     assert_eq!(nav["odometer_failure_samples"], 100, "{nav}");
 }
+
+/// A tmpfs mounted for one test, unmounted (lazily) when dropped.
+struct Mount(PathBuf);
+
+impl Mount {
+    /// Mounts a tmpfs with `options` at `dir`; `None` where this process may not mount
+    /// (not root, or a container without the capability).
+    fn tmpfs(dir: &Path, options: &str) -> Option<Self> {
+        std::fs::create_dir_all(dir).unwrap();
+        let ok = std::process::Command::new("mount")
+            .args(["-t", "tmpfs", "-o", options, "tmpfs", dir.to_str().unwrap()])
+            .stderr(std::process::Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success());
+        ok.then(|| Self(dir.to_path_buf()))
+    }
+
+    fn remount(&self, options: &str) {
+        let s = std::process::Command::new("mount")
+            .args([
+                "-o",
+                &format!("remount,{options}"),
+                self.0.to_str().unwrap(),
+            ])
+            .status()
+            .unwrap();
+        assert!(s.success());
+    }
+}
+
+impl Drop for Mount {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("umount")
+            .args(["-l", self.0.to_str().unwrap()])
+            .status();
+    }
+}
+
+fn files_under(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            out.extend(files_under(&p));
+        } else {
+            out.push(p);
+        }
+    }
+    out
+}
+
+/// A read-only output folder and a disk that fills up during the review: each error says
+/// the operating system's reason with the path (the Rerun SDK's writer used to say only
+/// "File-writer thread shut down prematurely"), and no temporary file stays behind.
+/// Needs to mount a tmpfs (root, as on CI); elsewhere it says so and checks nothing.
+#[test]
+fn read_only_and_full_output_folders_are_said_with_the_path() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let ro_dir = tmp.path().join("ro");
+    let Some(_ro) = Mount::tmpfs(&ro_dir, "ro,size=1m") else {
+        eprintln!("cannot mount a tmpfs here: the check needs root");
+        return;
+    };
+    let out = ro_dir.join("out");
+    let (code, text) = run(&camp, &out, "review");
+    assert_ne!(code, Some(0), "{text}");
+    assert!(
+        text.contains("Read-only file system") && text.contains(out.to_str().unwrap()),
+        "{text}"
+    );
+
+    // Everything up to export fits; then the disk is shrunk to leave less than half a
+    // recording.
+    let reference = tmp.path().join("reference");
+    let (code, text) = run(&camp, &reference, "review");
+    assert_eq!(code, Some(0), "{text}");
+    let review_bytes: u64 = files_under(&reference)
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "rrd"))
+        .map(|p| p.metadata().unwrap().len())
+        .max()
+        .unwrap();
+    let full_dir = tmp.path().join("full");
+    let full = Mount::tmpfs(&full_dir, "size=200m").unwrap();
+    let out = full_dir.join("out");
+    let (code, text) = run(&camp, &out, "export");
+    assert_eq!(code, Some(0), "{text}");
+    let used: u64 = files_under(&out)
+        .iter()
+        .map(|p| p.metadata().unwrap().len().div_ceil(4096) * 4096)
+        .sum();
+    full.remount(&format!("size={}", used + review_bytes / 2 + 64 * 1024));
+    let (code, text) = run(&camp, &out, "review");
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("stage review failed: cannot write")
+            && text.contains("No space left on device")
+            && text.contains(out.to_str().unwrap()),
+        "{text}"
+    );
+    assert!(!text.contains("shut down prematurely"), "{text}");
+    let left: Vec<_> = files_under(&out)
+        .into_iter()
+        .filter(|p| p.to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "temporary files left: {left:?}");
+}

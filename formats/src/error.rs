@@ -37,20 +37,37 @@ pub enum FormatError {
         reason: String,
     },
     /// Parquet failed (the cause kept as the source).
-    #[error("parquet: {0}")]
+    #[error("parquet: {}", with_causes(.0))]
     Parquet(#[from] parquet::errors::ParquetError),
     /// Arrow failed.
-    #[error("arrow: {0}")]
+    #[error("arrow: {}", with_causes(.0))]
     Arrow(#[from] arrow::error::ArrowError),
     /// MCAP failed.
-    #[error("mcap: {0}")]
+    #[error("mcap: {}", with_causes(.0))]
     Mcap(#[from] mcap::McapError),
     /// A JSON message could not be encoded.
-    #[error("json: {0}")]
+    #[error("json: {}", with_causes(.0))]
     Json(#[from] serde_json::Error),
     /// Anything else, said in words.
     #[error("{0}")]
     Invalid(String),
+}
+
+/// `e` and each of its causes that says something new, joined by ": " (a library's
+/// message may hide its cause: mcap's "I/O error from writing" does not say "No space
+/// left on device").
+pub fn with_causes(e: &(dyn std::error::Error + 'static)) -> String {
+    let mut out = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        let m = s.to_string();
+        if !out.contains(&m) {
+            out.push_str(": ");
+            out.push_str(&m);
+        }
+        source = s.source();
+    }
+    out
 }
 
 /// A [`FormatError`] with the file it concerns. Its message says both, so the error is

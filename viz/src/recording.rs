@@ -3,7 +3,8 @@
 //! Series go out with `send_columns` (one chunk per series, never one log call per
 //! sample). Raw-rate series are decimated to [`SERIES_RATE_HZ`] block means and the
 //! vehicle pose to [`POSE_RATE_HZ`]; trajectories arrive already decimated by the
-//! disupt stage. The file is written under a temporary name and renamed when complete.
+//! disupt stage. The recording is encoded in memory, written under a temporary name and
+//! renamed when complete.
 
 use std::path::{Path, PathBuf};
 
@@ -20,20 +21,21 @@ pub const SERIES_RATE_HZ: f64 = 10.0;
 /// Rate of the vehicle's pose and map position, Hz.
 pub const POSE_RATE_HZ: f64 = 2.0;
 
-/// A recording that could not be written.
+/// A recording that could not be written. The cause is the error's source, not repeated in
+/// its message.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum RecordingError {
     /// The Rerun SDK refused the data or the file.
-    #[error("rerun: {source} (writing {path})")]
+    #[error("the Rerun SDK refused the recording {path}")]
     Rerun {
         /// What the SDK said.
         source: rerun::RecordingStreamError,
         /// The recording.
         path: PathBuf,
     },
-    /// The recording could not be flushed to disk.
-    #[error("cannot flush the recording: {message} (writing {path})")]
+    /// The recording could not be encoded.
+    #[error("cannot encode the recording: {message} (writing {path})")]
     Flush {
         /// What the SDK said.
         message: String,
@@ -41,7 +43,7 @@ pub enum RecordingError {
         path: PathBuf,
     },
     /// A file operation failed.
-    #[error("{source} (in {path})")]
+    #[error("cannot write {path}")]
     Io {
         /// The I/O error.
         source: std::io::Error,
@@ -62,41 +64,47 @@ pub struct RrdStats {
 }
 
 /// Writes `review` to `path` atomically and returns what it wrote.
+///
+/// The recording is encoded in memory (a 40-minute run's is about 9 MB) and written by
+/// us, not by the SDK's file-writer thread: a full disk or a read-only folder then reports
+/// the operating system's own error ("No space left on device") with the path, where the
+/// SDK's writer says only that its thread shut down.
 pub fn write_rrd(review: &Review, path: &Path) -> Result<RrdStats, RecordingError> {
-    let tmp = tmp_name(path);
     let rerun_err = |source| RecordingError::Rerun {
         source,
         path: path.to_path_buf(),
     };
-    let rec = rerun::RecordingStreamBuilder::new("unz-review")
+    let (rec, storage) = rerun::RecordingStreamBuilder::new("unz-review")
         .recording_id(review.name.as_str())
         .recording_name(review.name.as_str())
-        .save(&tmp)
+        .memory()
         .map_err(rerun_err)?;
     let mut w = Writer {
         rec: &rec,
         stats: RrdStats::default(),
     };
-    let result = w.write(review).map_err(rerun_err).and_then(|()| {
-        review_blueprint(review)
-            .send(&rec, rerun::blueprint::BlueprintActivation::default())
-            .map_err(rerun_err)
-    });
+    w.write(review).map_err(rerun_err)?;
+    review_blueprint(review)
+        .send(&rec, rerun::blueprint::BlueprintActivation::default())
+        .map_err(rerun_err)?;
+    let bytes = storage
+        .drain_as_bytes()
+        .map_err(|e| RecordingError::Flush {
+            message: e.to_string(),
+            path: path.to_path_buf(),
+        })?;
     let mut stats = w.stats;
-    let flushed = rec.flush_blocking().map_err(|e| RecordingError::Flush {
-        message: e.to_string(),
-        path: path.to_path_buf(),
-    });
     drop(rec);
-    if let Err(e) = result.and(flushed) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e);
-    }
+    stats.bytes = bytes.len() as u64;
+    let tmp = tmp_name(path);
     let io = |source| RecordingError::Io {
         source,
         path: path.to_path_buf(),
     };
-    stats.bytes = std::fs::metadata(&tmp).map_err(io)?.len();
+    if let Err(e) = std::fs::write(&tmp, &bytes) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(io(e));
+    }
     std::fs::rename(&tmp, path).map_err(io)?;
     Ok(stats)
 }
