@@ -32,6 +32,10 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
             derived_meta::ODO_FAILURES,
             d.odometer_failure_samples.to_string(),
         ),
+        (
+            derived_meta::OUT_OF_RANGE,
+            d.out_of_range_samples.to_string(),
+        ),
     ]);
     let t_ns: Vec<i64> = d.t_ns();
     let batch = RecordBatch::try_new(
@@ -107,6 +111,7 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
         repaired_times: meta(derived_meta::REPAIRED_TIMES)?.parse()?,
         filled_gaps: meta(derived_meta::FILLED_GAPS)?.parse()?,
         imu_failure_samples: meta(derived_meta::IMU_FAILURES)?.parse()?,
+        out_of_range_samples: meta(derived_meta::OUT_OF_RANGE)?.parse()?,
         odometer_failure_samples: meta(derived_meta::ODO_FAILURES)?.parse()?,
         // The per-block filtered series are not stored: their values at the epochs are
         // in epochs.parquet, and nothing downstream reads the rest.

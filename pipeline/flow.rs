@@ -164,7 +164,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let stage = Stage {
         dir: dir.clone(),
         name: "derive",
-        version: 3,
+        version: 4,
         params_hash: params_hash(&params.derive)?,
         inputs,
         outputs: &[files::DERIVED, files::EPOCHS],
@@ -180,6 +180,18 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                 "the odometer is flagged failed (status bit 1) on {} of {} samples",
                 d.odometer_failure_samples,
                 d.t_s.len()
+            );
+        }
+        // A corrupt sample that passed the CRC (a 2^-16 chance per damaged frame) or a
+        // saturated one is replaced and counted; many are a broken instrument or log.
+        if d.out_of_range_samples * 100 > d.t_s.len() {
+            bail!(
+                "{} of {} IMU samples exceed the IMU's range ({:.0} °/s, {:.0} m/s²): saturated \
+                 or corrupt increments",
+                d.out_of_range_samples,
+                d.t_s.len(),
+                unz_stages::derive::GYRO_RANGE_RAD_S.to_degrees(),
+                unz_stages::derive::ACCEL_RANGE_MPS2
             );
         }
         // A few tags going back are repaired and counted; a time base that does not
@@ -425,6 +437,10 @@ pub struct NavigateSummary {
     /// Samples whose status flags an odometer failure (a run fails above a tenth).
     #[serde(default)]
     pub odometer_failure_samples: usize,
+    /// Samples whose increments exceeded the IMU's range, replaced by the previous
+    /// sample's rates (a run fails above a hundredth).
+    #[serde(default)]
+    pub out_of_range_samples: usize,
 }
 
 /// Writes `nav.parquet` (or `corrected_nav.parquet`, with the route's 1σ north, east and
@@ -511,6 +527,7 @@ pub fn ensure_navigate(
             repaired_times: case.derived.repaired_times,
             filled_gaps: case.derived.filled_gaps,
             imu_failure_samples: case.derived.imu_failure_samples,
+            out_of_range_samples: case.derived.out_of_range_samples,
             odometer_failure_samples: case.derived.odometer_failure_samples,
         };
         write_json_atomic(&dir.join(files::NAVIGATE_REPORT), &summary)?;

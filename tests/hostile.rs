@@ -389,3 +389,61 @@ fn read_only_and_full_output_folders_are_said_with_the_path() {
         .collect();
     assert!(left.is_empty(), "temporary files left: {left:?}");
 }
+
+/// Saturated angle increments (i32::MAX counts: 32 rad in 10 ms): a few are replaced by
+/// the previous sample's rates and counted in navigate.json, the route unharmed; many
+/// fail the run with the reason.
+#[test]
+fn saturated_increments_are_replaced_or_fail_their_run() {
+    use unz::flow::NavigateSummary;
+    use unz_formats::raw::{Accepted, RawReader, RawWriter};
+
+    let rewrite = |log: &Path, saturated: &dyn Fn(u32) -> bool| {
+        let bytes = std::fs::read(log).unwrap();
+        let mut reader = RawReader::new(bytes.as_slice()).unwrap();
+        let mut writer = RawWriter::new(Vec::new(), reader.header()).unwrap();
+        while let Some(rec) = reader.next_record().unwrap() {
+            match rec {
+                Accepted::Imu(s) => {
+                    let mut r = s.raw;
+                    if saturated(r.seq) {
+                        r.dtheta = [i32::MAX, i32::MIN, i32::MAX];
+                    }
+                    writer.write_imu(&r).unwrap();
+                }
+                Accepted::Mark(m) => writer.write_mark(&m).unwrap(),
+            }
+        }
+        std::fs::write(log, writer.finish().unwrap()).unwrap();
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let clean = tmp.path().join("clean");
+    let (code, text) = run(&camp, &clean, "navigate");
+    assert_eq!(code, Some(0), "{text}");
+    // Five samples in the static start (its rates are the previous sample's to the noise).
+    rewrite(&camp.join("sim-0080/sim-0080.unz"), &|seq| {
+        (1000..1005).contains(&seq)
+    });
+    rewrite(&camp.join("sim-0081/sim-0081.unz"), &|seq| seq % 10 == 0);
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "navigate");
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("FAILED sim-0081") && text.contains("exceed the IMU's range"),
+        "{text}"
+    );
+    let read = |dir: &Path| -> NavigateSummary {
+        serde_json::from_slice(&std::fs::read(dir.join("sim-0080/navigate/navigate.json")).unwrap())
+            .unwrap()
+    };
+    let (patched, reference) = (read(&out), read(&clean));
+    assert_eq!(patched.out_of_range_samples, 5);
+    assert_eq!(reference.out_of_range_samples, 0);
+    // Replacing 50 ms of rest by the rates before it moves the end of a 200 s drive by
+    // what 50 ms of gyro noise does: far below a metre (a saturated sample kept would
+    // have spun the attitude by 32 rad).
+    let end = |s: &NavigateSummary| s.control_points.last().map(|c| (c.dx_m, c.dy_m)).unwrap();
+    let (a, b) = (end(&patched), end(&reference));
+    assert!((a.0 - b.0).hypot(a.1 - b.1) < 0.5, "{a:?} vs {b:?}");
+}

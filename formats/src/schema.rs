@@ -179,6 +179,8 @@ pub mod derived_meta {
     pub const IMU_FAILURES: &str = "unz.imu_failure_samples";
     /// Samples flagged with an odometer failure.
     pub const ODO_FAILURES: &str = "unz.odometer_failure_samples";
+    /// Samples whose increments exceeded the IMU's range and were replaced.
+    pub const OUT_OF_RANGE: &str = "unz.out_of_range_samples";
 }
 
 fn f64_field(name: &str, unit: &str) -> Field {

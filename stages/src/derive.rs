@@ -107,7 +107,17 @@ pub struct Derived {
     pub imu_failure_samples: usize,
     /// Samples whose status flags an odometer failure (bit 1).
     pub odometer_failure_samples: usize,
+    /// Samples whose increments exceed the IMU's measurement range ([`GYRO_RANGE_RAD_S`],
+    /// [`ACCEL_RANGE_MPS2`]): saturated or corrupt counts, replaced by the previous
+    /// sample's rates.
+    pub out_of_range_samples: usize,
 }
+
+/// The LN-200's gyro range, ±1000 °/s: an angle increment faster than this is not a
+/// measurement.
+pub const GYRO_RANGE_RAD_S: f64 = 1000.0 * std::f64::consts::PI / 180.0;
+/// The LN-200's accelerometer range, ±40 g (the 70 g option included with margin: 70 g).
+pub const ACCEL_RANGE_MPS2: f64 = 70.0 * 9.806_65;
 
 impl Derived {
     /// Absolute time (ns, the log's time base) of a time `t_s` since `t0_ns`.
@@ -233,8 +243,10 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
     out.t0_ns = t0;
     out.nominal_dt_s = nominal;
 
-    // Time base, repaired; lost stretches filled by holding the rate.
+    // Time base, repaired; lost stretches filled by holding the rate; increments beyond
+    // the instrument's range replaced by the previous sample's rates.
     let mut prev_t = -nominal;
+    let mut prev_rates = ([0.0; 3], [0.0; 3]);
     for k in 0..n {
         let mut t = (raw.imu_t_ns[k] - t0) as f64 * 1e-9;
         if k > 0 && t <= prev_t {
@@ -248,8 +260,20 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
         } else {
             1.0
         };
-        let dth = raw.dtheta_rad[k].map(|v| v * scale);
-        let dv = raw.dvel_mps[k].map(|v| v * scale);
+        let mut dth = raw.dtheta_rad[k].map(|v| v * scale);
+        let mut dv = raw.dvel_mps[k].map(|v| v * scale);
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        // `!(a <= b)`: a NaN increment is out of range too.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
+        let out_of_range =
+            !(norm(dth) <= GYRO_RANGE_RAD_S * dt && norm(dv) <= ACCEL_RANGE_MPS2 * dt);
+        if out_of_range {
+            out.out_of_range_samples += 1;
+            dth = prev_rates.0.map(|w| w * dt);
+            dv = prev_rates.1.map(|a| a * dt);
+        } else {
+            prev_rates = (dth.map(|v| v / dt), dv.map(|v| v / dt));
+        }
         out.t_s.push(t);
         out.dt_s.push(dt);
         out.dtheta_rad.push(dth);
