@@ -162,6 +162,8 @@ fn review_recording_reads_back_with_the_pinned_rerun() {
         "/readme",
         "/sensitivity/kryt1",
         "/sensitivity/kryt2",
+        // The recording's name (the viewer's sources panel showed `<unknown>` without it).
+        "/__properties",
     ] {
         assert!(statics.contains(&e), "{e}: {statics:?}");
     }
@@ -297,5 +299,46 @@ fn campaign_report_renders_in_headless_chromium() {
         blank_ink < 0.001,
         "a blank page has {:.2} % ink",
         blank_ink * 100.0
+    );
+}
+
+/// The recording in the pinned rerun-sdk's web viewer (`rerun --serve-web`), opened by
+/// headless Chromium on SwiftShader: `scripts/viewer_screenshot.py` waits for the viewer,
+/// saves a screenshot and fails on an error in the viewer's console (map tiles, which
+/// need the network, excepted).
+#[test]
+fn the_recording_opens_in_the_web_viewer() {
+    let Some(py) = python() else { return };
+    let Some(chromium) = chromium() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let demo = tmp.path().join("demo");
+    unz_ok(&["demo", "--out", demo.to_str().unwrap()]);
+    let rrd = demo.join("results/sim-0001/review/sim-0001.rrd");
+    let png = tmp.path().join("viewer.png");
+    let out = Command::new(&py)
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/viewer_screenshot.py"))
+        .arg(&rrd)
+        .arg(&png)
+        .args(["--settle-s", "3", "--timeout-s", "400"])
+        .env("UNZ_CHROMIUM", &chromium)
+        .env("RERUN_ANALYTICS", "0")
+        .output()
+        .unwrap();
+    let said =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{said}");
+    assert!(said.contains("0 other errors"), "{said}");
+    // The whole 10-minute run streamed into the viewer (its `time` range, ns).
+    assert!(
+        said.contains("recording sim-0001 loaded") && said.contains(r#""max":599990000000"#),
+        "{said}"
+    );
+    let (w, h, ink) = png_ink(&png);
+    assert_eq!((w, h), (1600, 1000));
+    // Panels, plots and routes drawn, not a blank page (the viewer's theme is light).
+    assert!(
+        ink > 0.05,
+        "only {:.2} % of the screenshot is drawn: {said}",
+        ink * 100.0
     );
 }

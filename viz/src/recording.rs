@@ -79,6 +79,10 @@ pub fn write_rrd(review: &Review, path: &Path) -> Result<RrdStats, RecordingErro
         .recording_name(review.name.as_str())
         .memory()
         .map_err(rerun_err)?;
+    // A set recording id turns the SDK's own recording-info chunk off (and with it the
+    // name, which the viewer's sources panel then shows as `<unknown>`): send the name.
+    rec.send_recording_name(review.name.as_str())
+        .map_err(rerun_err)?;
     let mut w = Writer {
         rec: &rec,
         stats: RrdStats::default(),
@@ -209,7 +213,10 @@ impl Writer<'_> {
                 &rerun::LineStrips3D::new([local])
                     .with_colors([color])
                     .with_radii([rerun::Radius::new_ui_points(1.5)])
-                    .with_labels([label]),
+                    .with_labels([label])
+                    // The routes overlap: their labels would pile up on the control
+                    // points' (hovering a route names it; the colours are the plots').
+                    .with_show_labels(false),
             )?;
             self.stats.rows += 2;
             self.stats.entities += 2;
@@ -228,25 +235,9 @@ impl Writer<'_> {
                 .with_colors([[31, 119, 180, 255]])
                 .with_radii([rerun::Radius::new_ui_points(6.0)]),
         )?;
-        // One short line per point (the corrected error, else the first settings'): close
-        // points' labels would otherwise pile up into an unreadable block. Every settings'
-        // errors are in the DISUPT tab's tables.
-        let labels: Vec<String> = cps
-            .iter()
-            .map(|c| {
-                let best = c
-                    .errors
-                    .iter()
-                    .find(|e| e.0 == "joint")
-                    .or_else(|| c.errors.last());
-                match best {
-                    Some((l, dx, dy)) => {
-                        format!("CP {} · {} {:.1} m", c.id, display_name(l), dx.hypot(*dy))
-                    }
-                    None => format!("CP {}", c.id),
-                }
-            })
-            .collect();
+        // Just "CP n": close points' longer labels (with each settings' error) piled up
+        // into an unreadable block. The errors are in the DISUPT tab's tables.
+        let labels: Vec<String> = cps.iter().map(|c| format!("CP {}", c.id)).collect();
         self.rec.log_static(
             WORLD_CONTROL_POINTS,
             &rerun::Points3D::new(
