@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use rerun::{RecordingStream, TimeColumn};
 
-use crate::blueprint::review_blueprint;
+use crate::blueprint::send_review_blueprint;
 use crate::frames::enu_flu_xyzw;
 use crate::paths::*;
 use crate::review::{Review, Track, block_means, color_of, display_name};
@@ -88,9 +88,7 @@ pub fn write_rrd(review: &Review, path: &Path) -> Result<RrdStats, RecordingErro
         stats: RrdStats::default(),
     };
     w.write(review).map_err(rerun_err)?;
-    review_blueprint(review)
-        .send(&rec, rerun::blueprint::BlueprintActivation::default())
-        .map_err(rerun_err)?;
+    send_review_blueprint(&rec, review).map_err(rerun_err)?;
     let bytes = storage
         .drain_as_bytes()
         .map_err(|e| RecordingError::Flush {
