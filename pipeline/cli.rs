@@ -30,7 +30,7 @@ pub enum Command {
     Disupt(DisuptArgs),
     /// Sensitivity map: Kryt1 and Kryt2 over a grid of one or two settings.
     Sweep(SweepArgs),
-    /// Export the corrected navigation: corrected_nav.parquet and corrected.mcap (Foxglove).
+    /// Export the corrected navigation: corrected.mcap (ROS 2 messages, for Foxglove and Rerun).
     Export(StageArgs),
     /// Write the run's Rerun recording for review (OUT/<name>/review/<name>.rrd).
     Review(StageArgs),

@@ -1,5 +1,5 @@
 //! Stage 1, ingest: a run's raw log → `imu.parquet`, `odometer.parquet`, `marks.parquet`
-//! (zstd), `raw.mcap` (JSON channels for Foxglove) and `ingest.json` (the accounting of
+//! (zstd), `raw.mcap` (ROS 2 messages for Foxglove and Rerun) and `ingest.json` (the accounting of
 //! §1.4 of the raw-format spec), plus `ingest_events.json` locating the first faults.
 //!
 //! The log is streamed: memory is bounded by the reader's buffer and one batch of rows,
@@ -10,12 +10,12 @@ use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use crate::artifacts::files;
+use crate::raw_mcap::RawMcapWriter;
 use anyhow::Context;
 use serde::Serialize;
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::kfgins::{KfGinsReader, LineFault, read_odometer_file};
 use unz_formats::manifest::{LogFormat, RunManifest};
-use unz_formats::mcap_io::{Channel, JsonMcap, numeric_object_schema};
 use unz_formats::parquet_io::ParquetSink;
 use unz_formats::raw::{Accepted, FaultEvent, RawReader};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
@@ -67,119 +67,6 @@ struct EventsFile<'a> {
     odometer_file_faults: &'a [LineFault],
 }
 
-/// An IMU sample for viewing: rates over the sample's interval in single precision (7
-/// significant digits, far finer than a plot shows; it halves the JSON and its
-/// compression). The exact increments are in `imu.parquet`.
-#[derive(Serialize)]
-struct ImuMessage {
-    seq: u64,
-    rate_rad_s: [f32; 3],
-    accel_mps2: [f32; 3],
-    status: u16,
-}
-
-#[derive(Serialize)]
-struct OdoMessage {
-    distance_m: f64,
-    speed_mps: f64,
-}
-
-#[derive(Serialize)]
-struct MarkMessage {
-    point_id: u32,
-}
-
-/// The raw-data MCAP: `/imu`, `/odometer`, `/marks`.
-struct RawMcap {
-    mcap: JsonMcap,
-    imu: Channel,
-    odo: Channel,
-    marks: Channel,
-    origin_ns: i64,
-    last_odo: Option<(i64, f64)>,
-}
-
-impl RawMcap {
-    fn create(path: &Path, origin_ns: i64) -> anyhow::Result<Self> {
-        let mut mcap = JsonMcap::create(path)?;
-        let imu = mcap.add_channel(
-            "/imu",
-            "unz.ImuIncrement",
-            &numeric_object_schema(
-                "IMU rates over each sample interval (body FRD)",
-                &["seq", "status"],
-                &["rate_rad_s", "accel_mps2"],
-            ),
-        )?;
-        let odo = mcap.add_channel(
-            "/odometer",
-            "unz.Odometer",
-            &numeric_object_schema("Odometer", &["distance_m", "speed_mps"], &[]),
-        )?;
-        let marks = mcap.add_channel(
-            "/marks",
-            "unz.ControlPointMark",
-            &numeric_object_schema("Control-point mark", &["point_id"], &[]),
-        )?;
-        Ok(Self {
-            mcap,
-            imu,
-            odo,
-            marks,
-            origin_ns,
-            last_odo: None,
-        })
-    }
-
-    fn log_time(&self, t_ns: i64) -> u64 {
-        u64::try_from(self.origin_ns.saturating_add(t_ns)).unwrap_or(0)
-    }
-
-    fn imu(
-        &mut self,
-        t_ns: i64,
-        dt_s: f64,
-        seq: u64,
-        dtheta: [f64; 3],
-        dvel: [f64; 3],
-        status: u16,
-    ) -> anyhow::Result<()> {
-        let inv = if dt_s > 0.0 { 1.0 / dt_s } else { 0.0 };
-        let msg = ImuMessage {
-            seq,
-            rate_rad_s: dtheta.map(|v| (v * inv) as f32),
-            accel_mps2: dvel.map(|v| (v * inv) as f32),
-            status,
-        };
-        let lt = self.log_time(t_ns);
-        Ok(self.mcap.write(&mut self.imu, lt, &msg)?)
-    }
-
-    fn odometer(&mut self, t_ns: i64, distance_m: f64) -> anyhow::Result<()> {
-        let speed_mps = match self.last_odo {
-            Some((t0, d0)) if t_ns > t0 => (distance_m - d0) / ((t_ns - t0) as f64 * 1e-9),
-            _ => 0.0,
-        };
-        self.last_odo = Some((t_ns, distance_m));
-        let lt = self.log_time(t_ns);
-        Ok(self.mcap.write(
-            &mut self.odo,
-            lt,
-            &OdoMessage {
-                distance_m,
-                speed_mps,
-            },
-        )?)
-    }
-
-    fn mark(&mut self, t_ns: i64, point_id: u32) -> anyhow::Result<()> {
-        let lt = self.log_time(t_ns);
-        Ok(self
-            .mcap
-            .write(&mut self.marks, lt, &MarkMessage { point_id })?)
-    }
-}
-
 /// Table sinks of one ingest.
 struct Sinks {
     imu: ParquetSink,
@@ -190,7 +77,7 @@ struct Sinks {
     imu_schema: arrow::datatypes::SchemaRef,
     odo_schema: arrow::datatypes::SchemaRef,
     marks_schema: arrow::datatypes::SchemaRef,
-    mcap: Option<RawMcap>,
+    mcap: Option<RawMcapWriter>,
 }
 
 impl Sinks {
@@ -212,7 +99,7 @@ impl Sinks {
             odo_schema,
             marks_schema: schema::marks(origin_ns),
             mcap: if mcap {
-                Some(RawMcap::create(
+                Some(RawMcapWriter::create(
                     &dir.join("raw.mcap"),
                     origin_ns.unwrap_or(0),
                 )?)
@@ -234,19 +121,13 @@ impl Sinks {
         Ok(())
     }
 
-    fn push_odometer(
-        &mut self,
-        t_ns: i64,
-        distance_m: f64,
-        pulses: Option<i64>,
-    ) -> anyhow::Result<()> {
+    fn push_odometer(&mut self, t_ns: i64, distance_m: f64, pulses: Option<i64>) {
         self.odo_rows.t_ns.push(t_ns);
         self.odo_rows.distance_m.push(distance_m);
         self.odo_rows.pulses.push(pulses);
         if let Some(m) = &mut self.mcap {
-            m.odometer(t_ns, distance_m)?;
+            m.odometer(t_ns, distance_m);
         }
-        Ok(())
     }
 
     /// Writes the marks and closes every file (renaming them into place).
@@ -260,7 +141,7 @@ impl Sinks {
             &self.marks.to_batch(self.marks_schema.clone())?,
         )?;
         if let Some(m) = self.mcap {
-            m.mcap.finish()?;
+            m.finish()?;
         }
         Ok(odo_rows)
     }
@@ -324,13 +205,9 @@ fn ingest_binary(
                 rows.dvel_mps.push(dvel);
                 rows.status.push(s.raw.status);
                 if let Some(m) = &mut sinks.mcap {
-                    m.imu(t_ns, nominal_dt_s, s.seq, dtheta, dvel, s.raw.status)?;
+                    m.imu(t_ns, nominal_dt_s, s.seq, dtheta, dvel, s.raw.status);
                 }
-                sinks.push_odometer(
-                    t_ns,
-                    (s.odo_pulses - p0) as f64 * scale,
-                    Some(s.odo_pulses),
-                )?;
+                sinks.push_odometer(t_ns, (s.odo_pulses - p0) as f64 * scale, Some(s.odo_pulses));
                 sinks.flush(false)?;
             }
             Accepted::Mark(m) => {
@@ -340,7 +217,7 @@ fn ingest_binary(
                 sinks.marks.t_ns.push(t_ns);
                 sinks.marks.point_id.push(m.point_id);
                 if let Some(mc) = &mut sinks.mcap {
-                    mc.mark(t_ns, m.point_id)?;
+                    mc.mark(t_ns, m.point_id);
                 }
             }
         }
@@ -383,7 +260,7 @@ fn ingest_text(
         rows.dvel_mps.push(s.dvel_mps);
         rows.status.push(0);
         if let Some(m) = &mut sinks.mcap {
-            m.imu(t_ns, period, seq, s.dtheta_rad, s.dvel_mps, 0)?;
+            m.imu(t_ns, period, seq, s.dtheta_rad, s.dvel_mps, 0);
         }
         if let Some(v) = s.speed_mps {
             let d = match prev {
@@ -392,7 +269,7 @@ fn ingest_text(
                 None => 0.0,
             };
             prev = Some((s.t_s, v, d));
-            sinks.push_odometer(t_ns, d, None)?;
+            sinks.push_odometer(t_ns, d, None);
         }
         seq += 1;
         sinks.flush(false)?;
@@ -405,7 +282,7 @@ fn ingest_text(
         let (samples, faults) = read_odometer_file(BufReader::new(open(manifest, file)?), kind)
             .map_err(|e| e.in_file(file))?;
         for o in samples {
-            sinks.push_odometer((o.t_s * 1e9).round() as i64, o.distance_m, None)?;
+            sinks.push_odometer((o.t_s * 1e9).round() as i64, o.distance_m, None);
         }
         odometer_faults = faults;
     }

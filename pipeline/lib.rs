@@ -16,6 +16,7 @@ pub mod flow;
 pub mod ingest;
 pub mod lock;
 pub mod method_tables;
+pub mod raw_mcap;
 pub mod review;
 pub mod runs;
 pub mod simulate_io;

@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-if ! .venv/bin/python -c "import pyarrow, mcap, rerun, duckdb" 2>/dev/null; then
+if ! .venv/bin/python -c "import pyarrow, mcap, mcap_ros2, rerun, duckdb, websocket" 2>/dev/null; then
   python3 -m venv .venv
   .venv/bin/pip install --quiet --disable-pip-version-check -r tests/python/requirements.txt
 fi

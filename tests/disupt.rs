@@ -1,5 +1,7 @@
 //! DISUPT and sweeps end to end through the binary on a short simulated run.
 
+use std::path::Path;
+
 use serde_json::Value;
 
 use crate::util::{python, python_json, simulated_run, unz_ok};
@@ -133,17 +135,58 @@ fn export_writes_foxglove_channels() {
     let run = simulated_run(tmp.path(), 78, &["--duration-s", "300"]);
     unz_ok(&["run", run.to_str().unwrap(), "--out", out.to_str().unwrap()]);
     let dir = out.join("sim-0078/export");
-    assert!(dir.join("corrected_nav.parquet").is_file());
+    // The corrected trajectory is written once, by the disupt stage.
+    assert!(!dir.join("corrected_nav.parquet").exists());
+    let nav_path = out.join("sim-0078/disupt/corrected_nav.parquet");
+    assert!(nav_path.is_file());
     let Some(py) = python() else { return };
-    let info = python_json(&py, "check_mcap.py", &[&dir.join("corrected.mcap")]);
+    let topics = ["/corrected/fix", "/corrected/pose", "/criteria"].map(Path::new);
+    let mcap = dir.join("corrected.mcap");
+    let args: Vec<&Path> = std::iter::once(mcap.as_path()).chain(topics).collect();
+    let info = python_json(&py, "check_mcap.py", &args);
     let ch = &info["channels"];
-    assert_eq!(ch["/corrected/fix"]["schema_name"], "foxglove.LocationFix");
-    assert_eq!(ch["/corrected/pose"]["schema_name"], "foxglove.PoseInFrame");
-    assert_eq!(ch["/corrected/fix"]["schema_encoding"], "jsonschema");
+    assert_eq!(
+        ch["/corrected/fix"]["schema_name"],
+        "sensor_msgs/msg/NavSatFix"
+    );
+    assert_eq!(
+        ch["/corrected/pose"]["schema_name"],
+        "geometry_msgs/msg/PoseStamped"
+    );
+    assert_eq!(ch["/corrected/fix"]["schema_encoding"], "ros2msg");
+    assert_eq!(ch["/corrected/fix"]["message_encoding"], "cdr");
     // 300 s at 10 Hz, and the criteria at 1 s epochs.
     assert_eq!(ch["/corrected/fix"]["count"], 3000);
     assert_eq!(ch["/corrected/pose"]["count"], 3000);
     assert_eq!(ch["/criteria"]["count"], 300);
+    assert_eq!(info["decoded"], 3000 * 3 + 300);
+    // The first fix decodes to the corrected route's first sample (exact: f64 both ways).
+    let (_, b) = unz_formats::parquet_io::read_batches(&nav_path).unwrap();
+    let lat = unz_formats::tables::f64_column(&b[0], "lat_deg").unwrap()[0];
+    let lon = unz_formats::tables::f64_column(&b[0], "lon_deg").unwrap()[0];
+    let fix = &info["first"]["/corrected/fix"];
+    assert_eq!(fix["latitude"].as_f64(), Some(lat), "{fix}");
+    assert_eq!(fix["longitude"].as_f64(), Some(lon), "{fix}");
+    assert_eq!(fix["header"]["frame_id"], "wgs84");
+    let q = &info["first"]["/corrected/pose"]["pose"]["orientation"];
+    let norm: f64 = ["x", "y", "z", "w"]
+        .iter()
+        .map(|c| q[c].as_f64().unwrap().powi(2))
+        .sum();
+    assert!((norm - 1.0).abs() < 1e-12, "{q}");
+    // Rerun's own MCAP importer: the fixes become geographic points, the poses 3D poses.
+    let rr = python_json(&py, "rerun_mcap.py", &[&mcap]);
+    assert_eq!(rr["/corrected/fix"]["rows"], 3000, "{rr}");
+    let cols = |e: &str| rr[e]["columns"].as_array().unwrap().clone();
+    assert!(
+        cols("/corrected/fix").contains(&"GeoPoints:positions".into()),
+        "{rr}"
+    );
+    assert!(
+        cols("/corrected/pose").contains(&"InstancePoses3D:quaternions".into()),
+        "{rr}"
+    );
+    assert_eq!(rr["/criteria"]["rows"], 300, "{rr}");
     assert_eq!(info["monotonic"], true);
     // Log times in UTC, as raw.mcap's (the simulated header starts in 2026), not 1970.
     let raw = python_json(

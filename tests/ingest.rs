@@ -125,10 +125,67 @@ fn simulated_runs_ingest_and_faults_are_accounted_exactly() {
         assert_eq!(info["odometer"]["fields"]["distance_m"]["unit"], "m");
         let ch = &info["mcap"]["channels"];
         assert_eq!(ch["/imu"]["count"].as_u64().unwrap(), imu_rows);
-        assert_eq!(ch["/odometer"]["count"].as_u64().unwrap(), imu_rows);
+        // The odometer is thinned to 10 Hz for viewing (its exact pulses are in
+        // odometer.parquet): one message per 0.1 s of the log's span, plus at most two
+        // where the damaged log's time goes back.
+        let (_, batches) = unz_formats::parquet_io::read_batches(
+            &out.join("sim-0040-faulty/ingest/odometer.parquet"),
+        )
+        .unwrap();
+        let mut odo = unz_formats::tables::OdometerTable::default();
+        batches
+            .iter()
+            .for_each(|b| odo.extend_from_batch(b).unwrap());
+        let (t0, t1) = (
+            *odo.t_ns.iter().min().unwrap(),
+            *odo.t_ns.iter().max().unwrap(),
+        );
+        let odo_msgs = ch["/odometer"]["count"].as_u64().unwrap();
+        let expect = (t1 - t0) as f64 * 1e-8;
+        assert!(
+            (odo_msgs as f64 - expect).abs() <= 2.0 + 2.0 * t_back as f64,
+            "{odo_msgs} odometer messages over {expect} tenths of a second"
+        );
         assert_eq!(ch["/marks"]["count"].as_u64().unwrap(), 2);
-        assert_eq!(ch["/imu"]["message_encoding"], "json");
-        assert_eq!(ch["/imu"]["schema_encoding"], "jsonschema");
+        // ROS 2 messages, every one decoded by the mcap package's own ROS 2 decoder from
+        // the schema text we wrote, and equal to the Parquet tables.
+        assert_eq!(ch["/imu"]["message_encoding"], "cdr");
+        assert_eq!(ch["/imu"]["schema_encoding"], "ros2msg");
+        assert_eq!(ch["/imu"]["schema_name"], "unz_msgs/msg/ImuSample");
+        assert_eq!(
+            ch["/odometer"]["schema_name"],
+            "unz_msgs/msg/OdometerSample"
+        );
+        assert_eq!(ch["/marks"]["schema_name"], "unz_msgs/msg/ControlPointMark");
+        assert_eq!(
+            info["mcap"]["decoded"].as_u64(),
+            Some(imu_rows + odo_msgs + 2)
+        );
+        let agree = &info["imu_vs_parquet"];
+        assert_eq!(agree["seq_equal"], true, "{agree}");
+        assert_eq!(agree["status_equal"], true, "{agree}");
+        // Rates are the increments over the 100 Hz period in single precision: a relative
+        // error of at most 2 ulp of f32 (1.2e-7) after the division.
+        assert!(
+            (agree["period_s"].as_f64().unwrap() - 0.01).abs() < 1e-9,
+            "{agree}"
+        );
+        assert!(agree["rate_rel_err"].as_f64().unwrap() < 1.2e-7, "{agree}");
+        assert!(agree["accel_rel_err"].as_f64().unwrap() < 1.2e-7, "{agree}");
+        assert_eq!(info["marks_equal"], true);
+        // Rerun's own MCAP importer decodes every message by reflection of its schema.
+        let rr = python_json(
+            &py,
+            "rerun_mcap.py",
+            &[&out.join("sim-0040-faulty/ingest/raw.mcap")],
+        );
+        assert_eq!(rr["/imu"]["rows"].as_u64(), Some(imu_rows), "{rr}");
+        assert_eq!(rr["/odometer"]["rows"].as_u64(), Some(odo_msgs), "{rr}");
+        let imu_cols = rr["/imu"]["columns"].as_array().unwrap();
+        assert!(
+            imu_cols.contains(&"unz_msgs.msg.ImuSample:message".into()),
+            "{rr}"
+        );
         // The damaged log has 3 records whose time goes back: MCAP keeps them in file order.
         assert_eq!(info["mcap"]["monotonic"], false);
         let clean_info = python_json(&py, "check_ingest.py", &[&out.join("sim-0040/ingest")]);

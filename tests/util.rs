@@ -60,12 +60,15 @@ pub fn python() -> Option<String> {
     }
     let py = std::env::var("UNZ_PYTHON").unwrap_or_else(|_| "python3".into());
     let ok = Command::new(&py)
-        .args(["-c", "import pyarrow, mcap, rerun, duckdb, websocket"])
+        .args([
+            "-c",
+            "import pyarrow, mcap, mcap_ros2, rerun, duckdb, websocket",
+        ])
         .status()
         .is_ok_and(|s| s.success());
     assert!(
         ok,
-        "{py} lacks pyarrow/mcap/rerun-sdk/duckdb/websocket-client: run the tests through scripts/test.sh (it installs them), or set UNZ_SKIP_PYTHON=1"
+        "{py} lacks pyarrow/mcap/mcap-ros2-support/rerun-sdk/duckdb/websocket-client: run the tests through scripts/test.sh (it installs them), or set UNZ_SKIP_PYTHON=1"
     );
     Some(py)
 }

@@ -45,6 +45,9 @@ pub enum FormatError {
     /// MCAP failed.
     #[error("mcap: {}", with_causes(.0))]
     Mcap(#[from] mcap::McapError),
+    /// A CDR message could not be encoded.
+    #[error("cdr: {}", with_causes(.0))]
+    Cdr(#[from] re_cdr::Error),
     /// A JSON message could not be encoded.
     #[error("json: {}", with_causes(.0))]
     Json(#[from] serde_json::Error),

@@ -1,5 +1,5 @@
 //! File formats of the unz pipeline: the binary UNZ raw log, run manifests, KF-GINS text
-//! logs, canonical Arrow schemas, and Parquet / MCAP I/O.
+//! logs, canonical Arrow schemas, and Parquet / MCAP (ROS 2 messages) I/O.
 //!
 //! Everything here treats its input as untrusted: no panic on any byte sequence, no
 //! allocation sized by a length field, every fault counted and located (file, byte offset
@@ -21,6 +21,7 @@ pub mod mcap_io;
 pub mod parquet_io;
 pub mod raw;
 pub mod report;
+pub mod ros2_msgs;
 pub mod schema;
 pub mod tables;
 

@@ -1,5 +1,6 @@
-//! MCAP output with JSON messages described by JSON Schema, the encodings Foxglove
-//! decodes without set-up. Written atomically like every other output.
+//! MCAP output with ROS 2 messages (CDR-encoded, described by `ros2msg` schemas, see
+//! [`crate::ros2_msgs`]): binary, compact, and decoded by Foxglove and Rerun's MCAP
+//! importer without set-up. Written atomically like every other output.
 
 use std::collections::BTreeMap;
 use std::io::BufWriter;
@@ -7,16 +8,21 @@ use std::path::Path;
 
 use crate::atomic::AtomicFile;
 use crate::error::{FileError, FormatError};
+use crate::ros2_msgs::Ros2Message;
 
-/// Channel handle returned by [`JsonMcap::add_channel`].
-#[derive(Debug, Clone, Copy)]
-pub struct Channel {
+/// CDR encapsulation header: plain CDR, little-endian.
+const CDR_LE: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
+
+/// Channel handle returned by [`Ros2Mcap::add_channel`], typed by its message.
+#[derive(Debug)]
+pub struct Channel<M> {
     id: u16,
     sequence: u32,
+    _message: std::marker::PhantomData<fn(&M)>,
 }
 
-/// An MCAP file of JSON channels being written.
-pub struct JsonMcap {
+/// An MCAP file of ROS 2 channels being written.
+pub struct Ros2Mcap {
     writer: mcap::Writer<BufWriter<std::fs::File>>,
     file: AtomicFile,
     message: Vec<u8>,
@@ -26,7 +32,7 @@ fn mcap_err(path: &Path, e: impl Into<FormatError>) -> FileError {
     e.into().in_file(path)
 }
 
-impl JsonMcap {
+impl Ros2Mcap {
     /// Starts a zstd-chunked MCAP file at `dest`.
     pub fn create(dest: &Path) -> Result<Self, FileError> {
         let file = AtomicFile::create(dest)?;
@@ -35,7 +41,7 @@ impl JsonMcap {
             .compression(Some(mcap::Compression::Zstd))
             .compression_level(1)
             .compression_threads(0)
-            .profile("")
+            .profile("ros2")
             .library(concat!("unz ", env!("CARGO_PKG_VERSION")))
             .create(handle)
             .map_err(|e| mcap_err(dest, e))?;
@@ -46,34 +52,38 @@ impl JsonMcap {
         })
     }
 
-    /// Registers a channel whose messages are JSON objects described by `json_schema`.
-    pub fn add_channel(
-        &mut self,
-        topic: &str,
-        schema_name: &str,
-        json_schema: &str,
-    ) -> Result<Channel, FileError> {
+    /// Registers a channel of `M` messages on `topic`.
+    pub fn add_channel<M: Ros2Message>(&mut self, topic: &str) -> Result<Channel<M>, FileError> {
         let dest = self.file.dest().to_path_buf();
         let schema_id = self
             .writer
-            .add_schema(schema_name, "jsonschema", json_schema.as_bytes())
+            .add_schema(M::NAME, "ros2msg", M::DEFINITION.as_bytes())
             .map_err(|e| mcap_err(&dest, e))?;
         let id = self
             .writer
-            .add_channel(schema_id, topic, "json", &BTreeMap::new())
+            .add_channel(schema_id, topic, "cdr", &BTreeMap::new())
             .map_err(|e| mcap_err(&dest, e))?;
-        Ok(Channel { id, sequence: 0 })
+        Ok(Channel {
+            id,
+            sequence: 0,
+            _message: std::marker::PhantomData,
+        })
     }
 
-    /// Writes one message serialised from `value` at `log_time_ns`.
-    pub fn write(
+    /// Writes `message` on `channel` at `log_time_ns`.
+    pub fn write<M: Ros2Message>(
         &mut self,
-        channel: &mut Channel,
+        channel: &mut Channel<M>,
         log_time_ns: u64,
-        value: &impl serde::Serialize,
+        message: &M,
     ) -> Result<(), FileError> {
         self.message.clear();
-        serde_json::to_writer(&mut self.message, value)
+        self.message.extend_from_slice(&CDR_LE);
+        // CDR aligns from the end of the encapsulation header: the serializer counts from
+        // the buffer's length when it starts.
+        let mut ser = re_cdr::CdrSerializer::<re_cdr::LittleEndian>::new(&mut self.message);
+        message
+            .serialize(&mut ser)
             .map_err(|e| mcap_err(self.file.dest(), e))?;
         let header = mcap::records::MessageHeader {
             channel_id: channel.id,
@@ -96,19 +106,4 @@ impl JsonMcap {
         drop(inner);
         self.file.commit()
     }
-}
-
-/// JSON Schema of an object whose properties are all numbers or arrays of numbers.
-pub fn numeric_object_schema(title: &str, scalars: &[&str], vectors: &[&str]) -> String {
-    let mut props = serde_json::Map::new();
-    for s in scalars {
-        props.insert((*s).to_owned(), serde_json::json!({ "type": "number" }));
-    }
-    for v in vectors {
-        props.insert(
-            (*v).to_owned(),
-            serde_json::json!({ "type": "array", "items": { "type": "number" }, "minItems": 3, "maxItems": 3 }),
-        );
-    }
-    serde_json::json!({ "title": title, "type": "object", "properties": props }).to_string()
 }

@@ -1,0 +1,214 @@
+//! `raw.mcap`: the raw log as ROS 2 messages for Foxglove and Rerun (`/imu` at the log's
+//! rate, `/odometer` at most at 10 Hz, `/marks`), written on a thread of its own so that
+//! its encoding and compression overlap the reader and the Parquet encoders.
+//!
+//! The odometer is thinned to 10 Hz for viewing: a speed from the pulses of one 10 ms
+//! sample is quantised to a pulse per 10 ms (a 2 m/s step at 2 cm per pulse), and 0.1 s
+//! gives a readable speed. The exact pulses are in `odometer.parquet`.
+
+use std::path::Path;
+use std::sync::mpsc::{Receiver, Sender, SyncSender, channel, sync_channel};
+use std::thread::JoinHandle;
+
+use unz_formats::mcap_io::{Channel, Ros2Mcap};
+use unz_formats::ros2_msgs::{ControlPointMark, ImuSample, OdometerSample};
+
+/// Messages handed to the writer thread at a time.
+const BATCH: usize = 8192;
+/// Batches in flight (bounds the memory the thread can fall behind by).
+const IN_FLIGHT: usize = 4;
+/// Shortest interval between two `/odometer` messages, ns.
+const ODOMETER_VIEW_PERIOD_NS: i64 = 100_000_000;
+
+/// One message, with the run's time of its sample.
+enum Item {
+    Imu(i64, ImuSample),
+    Odometer(i64, f64),
+    Mark(i64, u32),
+}
+
+/// What the writer thread receives: messages, then whether to commit the file.
+enum Order {
+    Write(Vec<Item>),
+    Commit,
+}
+
+/// The writer's side of `raw.mcap`, on its thread.
+struct RawMcap {
+    mcap: Ros2Mcap,
+    imu: Channel<ImuSample>,
+    odo: Channel<OdometerSample>,
+    marks: Channel<ControlPointMark>,
+    origin_ns: i64,
+    /// Time and distance of the last `/odometer` message.
+    last_odo: Option<(i64, f64)>,
+}
+
+impl RawMcap {
+    fn log_time(&self, t_ns: i64) -> u64 {
+        u64::try_from(self.origin_ns.saturating_add(t_ns)).unwrap_or(0)
+    }
+
+    fn write(&mut self, item: Item) -> anyhow::Result<()> {
+        match item {
+            Item::Imu(t_ns, msg) => {
+                let lt = self.log_time(t_ns);
+                self.mcap.write(&mut self.imu, lt, &msg)?;
+            }
+            Item::Odometer(t_ns, distance_m) => {
+                let speed_mps = match self.last_odo {
+                    // Time went back (a damaged log): start again from this sample.
+                    Some((t0, _)) if t_ns < t0 => 0.0,
+                    Some((t0, _)) if t_ns - t0 < ODOMETER_VIEW_PERIOD_NS => return Ok(()),
+                    Some((t0, d0)) => (distance_m - d0) / ((t_ns - t0) as f64 * 1e-9),
+                    None => 0.0,
+                };
+                self.last_odo = Some((t_ns, distance_m));
+                let lt = self.log_time(t_ns);
+                let msg = OdometerSample {
+                    distance_m,
+                    speed_mps,
+                };
+                self.mcap.write(&mut self.odo, lt, &msg)?;
+            }
+            Item::Mark(t_ns, point_id) => {
+                let lt = self.log_time(t_ns);
+                self.mcap
+                    .write(&mut self.marks, lt, &ControlPointMark { point_id })?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes every batch received, handing the emptied batches back; commits the file
+    /// only when told to.
+    fn run(mut self, orders: Receiver<Order>, empties: Sender<Vec<Item>>) -> anyhow::Result<()> {
+        for order in orders {
+            match order {
+                Order::Write(mut items) => {
+                    for item in items.drain(..) {
+                        self.write(item)?;
+                    }
+                    // The ingest may have finished already: then nobody needs it back.
+                    let _ = empties.send(items);
+                }
+                Order::Commit => return Ok(self.mcap.finish()?),
+            }
+        }
+        // The ingest stopped without committing: the temporary file is dropped.
+        Ok(())
+    }
+}
+
+/// `raw.mcap` being written by its thread; messages are queued in batches.
+pub struct RawMcapWriter {
+    batch: Vec<Item>,
+    orders: Option<SyncSender<Order>>,
+    /// Batches the thread has written, to fill again (fresh 0.5 MB batches cost page
+    /// faults and cache misses that tripled the stage's time).
+    empties: Receiver<Vec<Item>>,
+    thread: Option<JoinHandle<anyhow::Result<()>>>,
+}
+
+impl RawMcapWriter {
+    /// Creates `path` (errors here are immediate) and starts its writer thread. Log times
+    /// are `origin_ns` (the log's UTC start, or 0) plus each sample's run time.
+    pub fn create(path: &Path, origin_ns: i64) -> anyhow::Result<Self> {
+        let mut mcap = Ros2Mcap::create(path)?;
+        let writer = RawMcap {
+            imu: mcap.add_channel("/imu")?,
+            odo: mcap.add_channel("/odometer")?,
+            marks: mcap.add_channel("/marks")?,
+            mcap,
+            origin_ns,
+            last_odo: None,
+        };
+        let (orders, receiver) = sync_channel(IN_FLIGHT);
+        let (give_back, empties) = channel();
+        let thread = std::thread::Builder::new()
+            .name("raw.mcap".into())
+            .spawn(move || writer.run(receiver, give_back))?;
+        Ok(Self {
+            batch: Vec::with_capacity(BATCH),
+            orders: Some(orders),
+            empties,
+            thread: Some(thread),
+        })
+    }
+
+    /// Queues one IMU sample: its increments over `dt_s` as rates.
+    pub fn imu(
+        &mut self,
+        t_ns: i64,
+        dt_s: f64,
+        seq: u64,
+        dtheta: [f64; 3],
+        dvel: [f64; 3],
+        status: u16,
+    ) {
+        let inv = if dt_s > 0.0 { 1.0 / dt_s } else { 0.0 };
+        let msg = ImuSample {
+            seq,
+            status,
+            rate_rad_s: dtheta.map(|v| (v * inv) as f32),
+            accel_mps2: dvel.map(|v| (v * inv) as f32),
+        };
+        self.push(Item::Imu(t_ns, msg));
+    }
+
+    /// Queues one odometer sample (written when 0.1 s has passed since the last one).
+    pub fn odometer(&mut self, t_ns: i64, distance_m: f64) {
+        self.push(Item::Odometer(t_ns, distance_m));
+    }
+
+    /// Queues a control-point mark.
+    pub fn mark(&mut self, t_ns: i64, point_id: u32) {
+        self.push(Item::Mark(t_ns, point_id));
+    }
+
+    fn push(&mut self, item: Item) {
+        self.batch.push(item);
+        if self.batch.len() >= BATCH {
+            self.send();
+        }
+    }
+
+    fn send(&mut self) {
+        let next = self
+            .empties
+            .try_recv()
+            .unwrap_or_else(|_| Vec::with_capacity(BATCH));
+        let items = std::mem::replace(&mut self.batch, next);
+        // A closed channel means the thread stopped on an error: `finish` reports it.
+        if let Some(orders) = &self.orders
+            && orders.send(Order::Write(items)).is_err()
+        {
+            self.orders = None;
+        }
+    }
+
+    /// Writes what is queued, the summary, and renames the file into place; the thread's
+    /// first error if it had one.
+    pub fn finish(mut self) -> anyhow::Result<()> {
+        self.send();
+        if let Some(orders) = self.orders.take() {
+            // An error here means the thread already stopped: its result says why.
+            let _ = orders.send(Order::Commit);
+        }
+        match self.thread.take().map(JoinHandle::join) {
+            Some(Ok(result)) => result,
+            Some(Err(_)) => anyhow::bail!("the raw.mcap writer thread panicked"),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Drop for RawMcapWriter {
+    /// Without `finish` (the ingest failed), the thread ends without committing the file.
+    fn drop(&mut self) {
+        self.orders = None;
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
