@@ -16,9 +16,14 @@
 //!   start and not conditioned on the control points, this part is an upper bound where
 //!   the fit has pinned the route.
 
+use rayon::prelude::*;
+
 use crate::attitude::wrap_pi;
 use crate::earth;
-use crate::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
+use crate::strapdown::{NavInputs, NavSettings, NavTrack, StateAt, run_states_at};
+
+/// Most passes stepped side by side.
+const LANES: usize = 8;
 
 /// σ of the corrected route at every `stride`-th sample (and the last).
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -95,6 +100,46 @@ fn states(track: &NavTrack, samples: &[usize], s: &NavSettings) -> Vec<[f64; 3]>
         .collect()
 }
 
+/// Each moved pass's (north, east, heading) at `samples`. Consecutive passes on the same
+/// inputs run side by side in vector lanes (at most eight), the batches in parallel; no
+/// track is stored. Each value is what the pass alone, tracked, gives bit for bit.
+fn moved_states(moved: &[Moved<'_>], samples: &[usize]) -> Vec<Vec<[f64; 3]>> {
+    let mut batches: Vec<&[Moved<'_>]> = Vec::new();
+    let mut start = 0;
+    for j in 1..=moved.len() {
+        if j == moved.len() || j - start == LANES || !moved[j].inputs.same_as(&moved[start].inputs)
+        {
+            batches.push(&moved[start..j]);
+            start = j;
+        }
+    }
+    batches
+        .par_iter()
+        .flat_map_iter(|batch| {
+            // Lanes come in 1, 2, 4 or 8; a partial batch repeats its last pass.
+            let padded = |l: usize| batch[l.min(batch.len() - 1)].settings;
+            let inputs = &batch[0].inputs;
+            let raw: Vec<Vec<StateAt>> = match batch.len() {
+                1 => run_states_at::<1>(inputs, &[batch[0].settings], samples).into(),
+                2 => run_states_at::<2>(inputs, &std::array::from_fn(padded), samples).into(),
+                3 | 4 => run_states_at::<4>(inputs, &std::array::from_fn(padded), samples).into(),
+                _ => run_states_at::<8>(inputs, &std::array::from_fn(padded), samples).into(),
+            };
+            raw.into_iter().zip(batch.iter()).map(|(states, mv)| {
+                let s = &mv.settings;
+                states
+                    .iter()
+                    .map(|&(lat, lon, q)| {
+                        let (n, e) =
+                            earth::local_offset_m(lat, lon, s.lat0_rad, s.lon0_rad, s.h0_m);
+                        [n, e, heading_of(&q)]
+                    })
+                    .collect::<Vec<_>>()
+            })
+        })
+        .collect()
+}
+
 /// One moved parameter: the settings of the pass and the inputs it runs on, the step
 /// that moved it (in the covariance's units), and its column in the covariance.
 pub struct Moved<'a> {
@@ -127,13 +172,11 @@ pub fn route_sigma(
         samples.push(n - 1);
     }
     let y0 = states(base_track, &samples, base_settings);
-    let mut track = NavTrack::default();
     // Sensitivities per sample: m parameters × 3 quantities.
     let m = moved.len();
     let mut g = vec![0.0; samples.len() * m * 3];
-    for (j, mv) in moved.iter().enumerate() {
-        navigate(&mv.inputs, &mv.settings, &mut track);
-        for (i, y) in states(&track, &samples, &mv.settings).iter().enumerate() {
+    for (j, (mv, ys)) in moved.iter().zip(moved_states(moved, &samples)).enumerate() {
+        for (i, y) in ys.iter().enumerate() {
             let d = [y[0] - y0[i][0], y[1] - y0[i][1], wrap_pi(y[2] - y0[i][2])];
             for q in 0..3 {
                 g[(i * 3 + q) * m + j] = d[q] / mv.step;

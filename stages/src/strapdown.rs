@@ -40,6 +40,13 @@ pub struct NavInputs<'a> {
 }
 
 impl NavInputs<'_> {
+    /// Whether `other` reads the very same series (not equal copies).
+    pub fn same_as(&self, other: &NavInputs<'_>) -> bool {
+        std::ptr::eq(self.dt_s, other.dt_s)
+            && std::ptr::eq(self.dtheta_rad, other.dtheta_rad)
+            && std::ptr::eq(self.odo_dist_m, other.odo_dist_m)
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.dt_s.len()
@@ -277,6 +284,46 @@ pub fn run_criteria<const N: usize>(
     };
     Lanes::<N>::new(settings).run(inputs, &mut lanes_sink);
     lanes_sink.close_block();
+}
+
+/// Position and attitude of a pass at one sample: latitude, longitude (rad) and the
+/// quaternion `C_b^n` (w, x, y, z).
+pub type StateAt = (f64, f64, [f64; 4]);
+
+/// Runs `N` passes side by side (one per settings) and returns each one's state at
+/// `samples` (increasing; samples past the end are left out): what a covariance
+/// propagated along the route reads, without storing `N` tracks.
+pub fn run_states_at<const N: usize>(
+    inputs: &NavInputs<'_>,
+    settings: &[NavSettings; N],
+    samples: &[usize],
+) -> [Vec<StateAt>; N] {
+    let mut sink = StatesAt {
+        samples,
+        next: 0,
+        out: std::array::from_fn(|_| Vec::with_capacity(samples.len())),
+    };
+    Lanes::<N>::new(settings).run(inputs, &mut sink);
+    sink.out
+}
+
+/// [`run_states_at`]'s sink.
+struct StatesAt<'a, const N: usize> {
+    samples: &'a [usize],
+    next: usize,
+    out: [Vec<StateAt>; N],
+}
+
+impl<const N: usize> Emit<N> for StatesAt<'_, N> {
+    #[inline(always)]
+    fn emit(&mut self, k: usize, lanes: &Lanes<N>) {
+        if self.samples.get(self.next) == Some(&k) {
+            self.next += 1;
+            for (l, out) in self.out.iter_mut().enumerate() {
+                out.push((lanes.lat_rad[l], lanes.lon_rad[l], lanes.q_of(l)));
+            }
+        }
+    }
 }
 
 /// `N` [`CriteriaSink`]s fed side by side: the block sums are accumulated in vector

@@ -441,4 +441,27 @@ mod tests {
         Lanes::new(&plain).run(&inputs, &mut four);
         assert_eq!(final_state(&four.0.unwrap())[..], batch[..4]);
     }
+
+    #[test]
+    fn states_at_samples_side_by_side_are_the_tracked_passes_bit_for_bit() {
+        let (dt, dth, odo) = inputs();
+        let inputs = NavInputs {
+            dt_s: &dt,
+            dtheta_rad: &dth,
+            odo_dist_m: &odo,
+        };
+        let all: [NavSettings; 4] = std::array::from_fn(|l| settings(l + 3));
+        // Past the end (5000 samples) is left out.
+        let samples = [0, 9, 2500, 4999, 5000];
+        let states = crate::strapdown::run_states_at(&inputs, &all, &samples);
+        let mut track = crate::strapdown::NavTrack::default();
+        for (s, got) in all.iter().zip(&states) {
+            crate::strapdown::navigate(&inputs, s, &mut track);
+            let want: Vec<_> = samples[..4]
+                .iter()
+                .map(|&k| (track.lat_rad[k], track.lon_rad[k], track.q_b_to_n[k]))
+                .collect();
+            assert_eq!(got, &want);
+        }
+    }
 }
