@@ -536,7 +536,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
     let stage = Stage {
         dir: dir.clone(),
         name: "disupt",
-        version: 4,
+        version: 5,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[

@@ -9,9 +9,10 @@ use arrow::array::{BooleanArray, Float64Array, Int64Array, RecordBatch};
 use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::manifest::RunManifest;
-use unz_formats::parquet_io::{read_batches, write_batch};
+use unz_formats::parquet_io::{ParquetSink, read_batches, write_batch};
 use unz_formats::schema::{self, META_ODO_M_PER_PULSE};
-use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f64_column, i64_column};
+use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f32_array, f64_column, i64_column};
+use unz_stages::attitude::Euler;
 use unz_stages::criteria::{self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt1Series, Kryt2};
 use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive};
 use unz_stages::earth::{self, Geodetic};
@@ -452,38 +453,44 @@ pub fn write_nav(
     start: Geodetic,
     sigma: Option<&[Vec<f64>; 3]>,
 ) -> anyhow::Result<()> {
+    /// Rows per batch: the columns of one batch are built at a time, whatever the run's
+    /// length.
+    const ROWS: usize = 1 << 16;
     let schema = schema::nav(sigma.is_some());
-    let deg = |v: &[f64]| {
-        Arc::new(Float64Array::from(
-            v.iter().map(|x| x.to_degrees()).collect::<Vec<_>>(),
-        ))
-    };
-    let (roll, pitch, heading) = t.euler_columns();
-    let (ne_n, ne_e): (Vec<f64>, Vec<f64>) = t
-        .lat_rad
-        .iter()
-        .zip(&t.lon_rad)
-        .map(|(&la, &lo)| start.offset_m(la, lo))
-        .unzip();
-    let mut columns: Vec<arrow::array::ArrayRef> = vec![
-        Arc::new(Int64Array::from(d.t_ns())),
-        deg(&t.lat_rad),
-        deg(&t.lon_rad),
-        Arc::new(Float64Array::from(t.h_m.clone())),
-        Arc::new(Float64Array::from(ne_n)),
-        Arc::new(Float64Array::from(ne_e)),
-        deg(&roll),
-        deg(&pitch),
-        deg(&heading),
-        Arc::new(Float64Array::from(t.distance_m.clone())),
-    ];
-    if let Some([n, e, h]) = sigma {
-        columns.push(Arc::new(Float64Array::from(n.clone())));
-        columns.push(Arc::new(Float64Array::from(e.clone())));
-        columns.push(deg(h));
+    let mut sink = ParquetSink::create(path, schema.clone())?;
+    let t_ns = d.t_ns();
+    for lo in (0..t.len()).step_by(ROWS) {
+        let r = lo..(lo + ROWS).min(t.len());
+        let euler: Vec<Euler> = r.clone().map(|k| t.euler(k)).collect();
+        let ne: Vec<(f64, f64)> = r
+            .clone()
+            .map(|k| start.offset_m(t.lat_rad[k], t.lon_rad[k]))
+            .collect();
+        let deg = |v: &[f64]| {
+            Arc::new(Float64Array::from_iter_values(
+                v.iter().map(|x| x.to_degrees()),
+            ))
+        };
+        let mut columns: Vec<arrow::array::ArrayRef> = vec![
+            Arc::new(Int64Array::from(t_ns[r.clone()].to_vec())),
+            deg(&t.lat_rad[r.clone()]),
+            deg(&t.lon_rad[r.clone()]),
+            f32_array(t.h_m[r.clone()].iter().copied()),
+            f32_array(ne.iter().map(|p| p.0)),
+            f32_array(ne.iter().map(|p| p.1)),
+            f32_array(euler.iter().map(|e| e.roll_rad.to_degrees())),
+            f32_array(euler.iter().map(|e| e.pitch_rad.to_degrees())),
+            f32_array(euler.iter().map(|e| e.heading_rad.to_degrees())),
+            f32_array(t.distance_m[r.clone()].iter().copied()),
+        ];
+        if let Some([n, e, h]) = sigma {
+            columns.push(f32_array(n[r.clone()].iter().copied()));
+            columns.push(f32_array(e[r.clone()].iter().copied()));
+            columns.push(f32_array(h[r.clone()].iter().map(|x| x.to_degrees())));
+        }
+        sink.write(&RecordBatch::try_new(schema.clone(), columns)?)?;
     }
-    let batch = RecordBatch::try_new(schema, columns)?;
-    write_batch(path, &batch)?;
+    sink.finish()?;
     Ok(())
 }
 
@@ -506,7 +513,7 @@ pub fn ensure_navigate(
     let stage = Stage {
         dir: dir.clone(),
         name: "navigate",
-        version: 2,
+        version: 3,
         params_hash: params_hash(&(params.align, overrides))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use arrow::array::{Float64Array, Int64Array, RecordBatch, StringArray};
 use unz_formats::parquet_io::{read_table, write_batch};
 use unz_formats::schema;
-use unz_formats::tables::{f64_column, i64_column};
+use unz_formats::tables::{f32_array, f64_column, i64_column};
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
@@ -129,6 +129,9 @@ pub fn write_tracks(path: &Path, tracks: &[MethodTrack]) -> anyhow::Result<()> {
             .iter()
             .map(|t| get(t).clone()))))
     };
+    let col32 = |get: fn(&MethodTrack) -> &Vec<f64>| {
+        f32_array(tracks.iter().flat_map(|t| get(t).iter().copied()))
+    };
     let batch = RecordBatch::try_new(
         schema,
         vec![
@@ -136,12 +139,12 @@ pub fn write_tracks(path: &Path, tracks: &[MethodTrack]) -> anyhow::Result<()> {
             Arc::new(Int64Array::from(cat(tracks.iter().map(|t| t.t_ns.clone())))),
             col(|t| &t.lat_deg),
             col(|t| &t.lon_deg),
-            col(|t| &t.h_m),
-            col(|t| &t.north_m),
-            col(|t| &t.east_m),
-            col(|t| &t.roll_deg),
-            col(|t| &t.pitch_deg),
-            col(|t| &t.heading_deg),
+            col32(|t| &t.h_m),
+            col32(|t| &t.north_m),
+            col32(|t| &t.east_m),
+            col32(|t| &t.roll_deg),
+            col32(|t| &t.pitch_deg),
+            col32(|t| &t.heading_deg),
         ],
     )?;
     write_batch(path, &batch)?;

@@ -7,7 +7,9 @@ use arrow::array::{
     UInt16Array, UInt32Array, UInt64Array,
 };
 use arrow::buffer::ScalarBuffer;
-use arrow::datatypes::{Float64Type, Int64Type, SchemaRef, UInt16Type, UInt32Type, UInt64Type};
+use arrow::datatypes::{
+    Float32Type, Float64Type, Int64Type, SchemaRef, UInt16Type, UInt32Type, UInt64Type,
+};
 
 use crate::error::FormatError;
 use crate::schema;
@@ -240,7 +242,19 @@ impl MarksTable {
 
 /// Reads a `Float64` column of a batch.
 pub fn f64_column(b: &RecordBatch, name: &str) -> Result<Vec<f64>, FormatError> {
+    // Single-precision columns (the navigation's attitude, local positions, σ) widen
+    // exactly.
+    if let Some(c) = column(b, name)?.as_primitive_opt::<Float32Type>() {
+        return Ok(c.values().iter().map(|&v| f64::from(v)).collect());
+    }
     Ok(prim::<Float64Type>(b, name)?.values().to_vec())
+}
+
+/// A single-precision array of `values` (for the columns the schemas declare `Float32`).
+pub fn f32_array(values: impl IntoIterator<Item = f64>) -> ArrayRef {
+    Arc::new(arrow::array::Float32Array::from_iter_values(
+        values.into_iter().map(|v| v as f32),
+    ))
 }
 
 /// Reads an `Int64` column of a batch.

@@ -29,9 +29,9 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             args.static_s
         );
     }
-    if !(args.duration_s >= args.static_s + 60.0 && args.duration_s <= 4.0 * 3600.0) {
+    if !(args.duration_s >= args.static_s + 60.0 && args.duration_s <= 12.0 * 3600.0) {
         bail!(
-            "--duration-s {} must be between static-s + 60 s and 4 h",
+            "--duration-s {} must be between static-s + 60 s and 12 h",
             args.duration_s
         );
     }
