@@ -18,6 +18,7 @@ import base64
 import json
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -143,7 +144,10 @@ def main():
     server = subprocess.Popen(
         [rerun, "--serve-web", "--bind", "127.0.0.1", "--port", str(grpc),
          "--web-viewer-port", str(web), "--hide-welcome-screen", args.rrd],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        # The venv's `rerun` is a wrapper that starts the real viewer binary as its child:
+        # a session of their own lets one signal stop both.
+        start_new_session=True,
     )
     profile = tempfile.mkdtemp(prefix="unz-chromium-")
     browser = None
@@ -155,6 +159,7 @@ def main():
              f"--remote-debugging-port={devtools}", "--remote-allow-origins=*",
              f"--user-data-dir={profile}", "about:blank"],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            start_new_session=True,
         )
         wait_http(f"http://127.0.0.1:{devtools}/json/version", deadline)
         pages = json.loads(wait_http(f"http://127.0.0.1:{devtools}/json/list", deadline))
@@ -218,10 +223,19 @@ def main():
             print(f"  {lvl}: {t[:400]}")
         return 1 if real else 0
     finally:
-        if browser:
-            browser.kill()
-        server.kill()
+        for proc in (browser, server):
+            if proc:
+                stop_group(proc)
         shutil.rmtree(profile, ignore_errors=True)
+
+
+def stop_group(proc):
+    """Kills `proc` and every process of its session, and reaps it."""
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    proc.wait()
 
 
 if __name__ == "__main__":
