@@ -1,10 +1,11 @@
 //! The ROS 2 messages of the MCAP files: each Rust type beside its `ros2msg` definition,
 //! encoded as little-endian CDR. Foxglove decodes any `ros2msg` schema without set-up,
-//! as does Rerun's MCAP importer (`sensor_msgs/msg/NavSatFix` as geographic points, the
-//! others by reflection).
+//! as does Rerun's MCAP importer (`sensor_msgs/msg/NavSatFix` as geographic points,
+//! `geometry_msgs/msg/PoseStamped` as poses, our `unz_msgs` by reflection).
 //!
 //! Field order in a struct is its CDR order: it must match the definition line by line
-//! (a test decodes each type against its own definition with an independent parser).
+//! (the end-to-end tests decode every message of both MCAP files with the mcap package's
+//! ROS 2 decoder, which parses these definitions, and with Rerun's importer).
 
 use serde::Serialize;
 
