@@ -58,6 +58,8 @@ pub mod files {
     pub const DERIVED: &str = "derived.parquet";
     /// derive: per-epoch series.
     pub const EPOCHS: &str = "epochs.parquet";
+    /// derive: the filtered series per block of F.
+    pub const BLOCKS: &str = "blocks.parquet";
     /// navigate: the track.
     pub const NAV: &str = "nav.parquet";
     /// navigate: its summary.

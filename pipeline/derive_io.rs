@@ -1,5 +1,6 @@
-//! Parquet form of the derive stage's outputs: `derived.parquet` (per IMU sample) and
-//! `epochs.parquet` (per ΔTg epoch), and loading them back.
+//! Parquet form of the derive stage's outputs: `derived.parquet` (per IMU sample),
+//! `epochs.parquet` (per ΔTg epoch) and `blocks.parquet` (the filtered series per block of
+//! F), and loading them back whole.
 
 use crate::artifacts::files;
 use std::path::Path;
@@ -17,7 +18,7 @@ fn f64s(v: &[f64]) -> Arc<Float64Array> {
     Arc::new(Float64Array::from(v.to_vec()))
 }
 
-/// Writes `derived.parquet` and `epochs.parquet` into `dir`.
+/// Writes `derived.parquet`, `epochs.parquet` and `blocks.parquet` into `dir`.
 pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
     let schema = schema::derived([
         (derived_meta::BLOCK, d.block.to_string()),
@@ -78,11 +79,24 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
         ],
     )?;
     write_batch(&dir.join(files::EPOCHS), &batch)?;
+
+    let batch = RecordBatch::try_new(
+        schema::blocks(),
+        vec![
+            f64s(&d.ax_f),
+            f64s(&d.ay_f),
+            f64s(&d.u_dot_f),
+            f64s(&d.ru_f),
+            f64s(&d.r_moving_f),
+            f64s(&d.moving_dot_f),
+        ],
+    )?;
+    write_batch(&dir.join(files::BLOCKS), &batch)?;
     Ok(())
 }
 
-/// Loads what [`write_derived`] wrote, counts included (the per-block filtered series
-/// are not kept).
+/// Loads what [`write_derived`] wrote: the derive whole, counts and filtered series
+/// included.
 pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
     let path = dir.join(files::DERIVED);
     let (schema, b) = read_table(&path)?;
@@ -113,10 +127,16 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
         imu_failure_samples: meta(derived_meta::IMU_FAILURES)?.parse()?,
         out_of_range_samples: meta(derived_meta::OUT_OF_RANGE)?.parse()?,
         odometer_failure_samples: meta(derived_meta::ODO_FAILURES)?.parse()?,
-        // The per-block filtered series are not stored: their values at the epochs are
-        // in epochs.parquet, and nothing downstream reads the rest.
         ..Derived::default()
     };
+    let bpath = dir.join(files::BLOCKS);
+    let (_, bl) = read_table(&bpath)?;
+    d.ax_f = f64_column(&bl, "ax_f_mps2")?;
+    d.ay_f = f64_column(&bl, "ay_f_mps2")?;
+    d.u_dot_f = f64_column(&bl, "u_dot_f_mps2")?;
+    d.ru_f = f64_column(&bl, "ru_f_mps2")?;
+    d.r_moving_f = f64_column(&bl, "r_moving_f_rad_s")?;
+    d.moving_dot_f = f64_column(&bl, "moving_dot_f_per_s")?;
     let epath = dir.join(files::EPOCHS);
     let (_, e) = read_table(&epath)?;
     let blocks = e
@@ -145,5 +165,121 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
     if d.epochs.block.iter().any(|&j| j >= n_blocks) {
         bail!("{}: epoch block beyond the samples", epath.display());
     }
+    if d.ax_f.len() != n_blocks {
+        bail!(
+            "{}: {} blocks for {} samples of {} (expected {n_blocks})",
+            bpath.display(),
+            d.ax_f.len(),
+            d.t_s.len(),
+            d.block
+        );
+    }
     Ok(d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use unz_stages::derive::{DeriveParams, RawSeries, derive};
+
+    /// Ingested columns: IMU times, angle and velocity increments, odometer times and
+    /// distances.
+    type Columns = (Vec<i64>, Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<i64>, Vec<f64>);
+
+    /// A drive with turns and speed changes, the odometer at its own rate, and one time
+    /// tag that goes back (repaired by derive).
+    fn raw() -> Columns {
+        let n = 30_000;
+        let mut t: Vec<i64> = (0..n).map(|k| 1_000_000_000 + k * 10_000_000).collect();
+        t[12_345] = t[12_344] - 1;
+        let dtheta = (0..n)
+            .map(|k| {
+                let s = k as f64 * 0.01;
+                [
+                    1e-5 * (s * 0.7).sin(),
+                    2e-5 * (s * 0.3).cos(),
+                    2e-3 * (s * 0.05).sin(),
+                ]
+            })
+            .collect();
+        let dvel = (0..n)
+            .map(|k| {
+                let s = k as f64 * 0.01;
+                [0.01 * (s * 0.1).sin(), 0.002 * (s * 0.2).cos(), -0.0981]
+            })
+            .collect();
+        let odo_t: Vec<i64> = (0..n / 10)
+            .map(|k| 1_000_000_000 + k * 100_000_000)
+            .collect();
+        let odo_d = (0..n / 10)
+            .map(|k| {
+                let s = k as f64 * 0.1;
+                8.0 * s + 30.0 * (s * 0.01).sin()
+            })
+            .collect();
+        (t, dtheta, dvel, odo_t, odo_d)
+    }
+
+    #[test]
+    fn the_derive_loads_back_whole() {
+        let (t, dth, dv, ot, od) = raw();
+        let series = RawSeries {
+            imu_t_ns: &t,
+            dtheta_rad: &dth,
+            dvel_mps: &dv,
+            odo_t_ns: &ot,
+            odo_distance_m: &od,
+        };
+        let d = derive(&series, &DeriveParams::default(), 9.81);
+        assert!(d.repaired_times == 1 && !d.u_dot_f.is_empty());
+        let tmp = tempfile::tempdir().unwrap();
+        write_derived(&d, tmp.path()).unwrap();
+        let loaded = load_derived(tmp.path()).unwrap();
+        // Every series bit for bit, but the times that are not whole nanoseconds (the
+        // repaired sample's, the epochs'): stored in nanoseconds, they come back within
+        // half of one.
+        let k = 12_345;
+        assert!((loaded.t_s[k] - d.t_s[k]).abs() <= 0.5e-9);
+        let mut same_times = loaded.clone();
+        same_times.t_s[k] = d.t_s[k];
+        assert_eq!(loaded.epochs.t_s.len(), d.epochs.t_s.len());
+        for (a, b) in loaded.epochs.t_s.iter().zip(&d.epochs.t_s) {
+            assert!((a - b).abs() <= 0.5e-9, "epoch at {b} s loads as {a} s");
+        }
+        same_times.epochs.t_s.clone_from(&d.epochs.t_s);
+        // Field by field first, so that a failure names the field, not the whole run.
+        macro_rules! same {
+            ($($f:ident).+) => {
+                assert!(same_times.$($f).+ == d.$($f).+, "{} differs", stringify!($($f).+));
+            };
+        }
+        same!(t0_ns);
+        same!(nominal_dt_s);
+        same!(t_s);
+        same!(dt_s);
+        same!(dtheta_rad);
+        same!(dvel_mps);
+        same!(odo_dist_m);
+        same!(u_mps);
+        same!(u_dot_mps2);
+        same!(r_rad_s);
+        same!(ru_mps2);
+        same!(ax_f);
+        same!(ay_f);
+        same!(u_dot_f);
+        same!(ru_f);
+        same!(r_moving_f);
+        same!(moving_dot_f);
+        same!(block);
+        same!(epochs.block);
+        same!(epochs.t_s);
+        same!(epochs.theta_p_rad);
+        same!(epochs.phi_p_rad);
+        same!(epochs.theta_p_per_yaw);
+        same!(epochs.phi_p_per_yaw);
+        same!(epochs.theta_p_per_bias);
+        same!(epochs.phi_p_per_bias);
+        same!(epochs.valid);
+        assert!(same_times == d);
+    }
 }

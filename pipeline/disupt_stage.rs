@@ -365,6 +365,7 @@ pub fn case_inputs(ctx: &RunCtx, params: &Params) -> anyhow::Result<Vec<PathBuf>
         ctx.manifest.path.clone(),
         derive_dir.join(files::DERIVED),
         derive_dir.join(files::EPOCHS),
+        derive_dir.join(files::BLOCKS),
         ingest_dir.join(files::MARKS),
     ])
 }
@@ -550,7 +551,10 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
     ctx.run_stage(&stage, || {
         let case = load_case(ctx, params, &Overrides::default())?;
         let ingested = IngestedSeries::load(&ctx.layout().dir(StageName::Ingest))?;
-        let rederive = Rederive::new(ingested.series(), params.derive, site_gravity_mps2(m));
+        // The derive stage's output is the configured derive, whole: re-derives at other
+        // odometer timings start from it instead of deriving it a second time.
+        let rederive = Rederive::new(ingested.series(), params.derive, site_gravity_mps2(m))
+            .around(&case.derived);
         // A coarse search over ±180° of azimuth by the control points first: the run's
         // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).
         let coarse = coarse_azimuth_deg(&problem_of(&case, params));

@@ -165,10 +165,10 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let stage = Stage {
         dir: dir.clone(),
         name: "derive",
-        version: 4,
+        version: 5,
         params_hash: params_hash(&params.derive)?,
         inputs,
-        outputs: &[files::DERIVED, files::EPOCHS],
+        outputs: &[files::DERIVED, files::EPOCHS, files::BLOCKS],
     };
     ctx.run_stage(&stage, || {
         let raw = IngestedSeries::load(&ingest_dir)?;

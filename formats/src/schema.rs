@@ -241,6 +241,23 @@ pub fn epochs() -> SchemaRef {
     ))
 }
 
+/// `blocks`: the derive stage's filtered series, one row per block of F (the samples
+/// between two outputs of the filter): what a re-derive at another odometer timing starts
+/// from, so that the configured derive is never computed twice.
+pub fn blocks() -> SchemaRef {
+    Arc::new(Schema::new_with_metadata(
+        vec![
+            f64_field("ax_f_mps2", "m/s^2"),
+            f64_field("ay_f_mps2", "m/s^2"),
+            f64_field("u_dot_f_mps2", "m/s^2"),
+            f64_field("ru_f_mps2", "m/s^2"),
+            f64_field("r_moving_f_rad_s", "rad/s"),
+            f64_field("moving_dot_f_per_s", "1/s"),
+        ],
+        table_meta("blocks"),
+    ))
+}
+
 /// `nav` (`nav.parquet`, `corrected_nav.parquet`): the navigation state per IMU sample,
 /// with the route's 1σ north, east and heading when `with_sigma`.
 pub fn nav(with_sigma: bool) -> SchemaRef {

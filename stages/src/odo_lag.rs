@@ -76,6 +76,8 @@ pub struct Rederive<'a> {
     pub params: DeriveParams,
     /// Normal gravity at the site, m/s².
     pub g_mps2: f64,
+    /// The configured derive, when the caller has it (the derive stage's cache).
+    configured: Option<&'a Derived>,
     base: OnceLock<Derived>,
 }
 
@@ -86,7 +88,17 @@ impl<'a> Rederive<'a> {
             raw,
             params,
             g_mps2,
+            configured: None,
             base: OnceLock::new(),
+        }
+    }
+
+    /// Re-derives around `configured`, the derive of `raw` with `params` already at hand
+    /// (the derive stage's output), instead of deriving it a second time.
+    pub fn around(self, configured: &'a Derived) -> Self {
+        Self {
+            configured: Some(configured),
+            ..self
         }
     }
 
@@ -99,9 +111,12 @@ impl<'a> Rederive<'a> {
     /// quantisation for every lag (derived anew, each fraction of a sample would draw
     /// another, and the fit's cost would be rough in the lag).
     pub fn at(&self, lag_s: f64) -> Derived {
-        let base = self
-            .base
-            .get_or_init(|| derive(&self.raw, &self.params, self.g_mps2));
+        let base = match self.configured {
+            Some(d) => d,
+            None => self
+                .base
+                .get_or_init(|| derive(&self.raw, &self.params, self.g_mps2)),
+        };
         // The IMU's part is the configured derive's; the odometer's is derived anew.
         let mut d = base.clone();
         odometer_terms(&mut d, &self.raw, self.params.odo_time_offset_s - lag_s);
