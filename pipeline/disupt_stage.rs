@@ -16,7 +16,7 @@ use unz_stages::disupt::{
 use unz_stages::linearized::Observation;
 use unz_stages::odo_lag::{Rederive, joint_with_lag};
 use unz_stages::route_sigma::{Moved, RouteSigma, route_sigma};
-use unz_stages::strapdown::{NavSettings, NavTrack};
+use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack};
 use unz_stages::units::DEG_PER_H;
 
 use crate::artifacts::{StageName, files};
@@ -422,12 +422,16 @@ fn joint_route_sigma(
         })
         .collect();
     let m = moved.len();
-    let lag_derived;
+    let lag_odo_dist_m;
     let mut c = cov.clone();
     if run.profile.is_some() && run.lag.sigma_s > 0.0 {
-        lag_derived = rederive.at(run.lag.lag_s + LAG_STEP_S);
+        // Only the odometer's increments move with the lag.
+        lag_odo_dist_m = rederive.odo_dist_at(run.lag.lag_s + LAG_STEP_S);
         moved.push(Moved {
-            inputs: lag_derived.nav_inputs(),
+            inputs: NavInputs {
+                odo_dist_m: &lag_odo_dist_m,
+                ..problem.inputs
+            },
             settings: problem.settings(&fit.result.x),
             step: LAG_STEP_S,
         });

@@ -308,35 +308,44 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
 /// Eqs 9–11 on `out`'s repaired time base: the odometer's distance over each sample (its
 /// time tags moved by `offset_s`), u, u̇ and ru.
 pub fn odometer_terms(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64) {
+    out.odo_dist_m = odometer_increments(out, raw, offset_s);
     let n = out.t_s.len();
-    let mut odo = OdoInterp::new(raw.odo_t_ns, raw.odo_distance_m, out.t0_ns, offset_s);
-    for v in [
-        &mut out.odo_dist_m,
-        &mut out.u_mps,
-        &mut out.u_dot_mps2,
-        &mut out.ru_mps2,
-    ] {
+    for v in [&mut out.u_mps, &mut out.u_dot_mps2, &mut out.ru_mps2] {
         v.clear();
         v.reserve(n);
     }
-    let Some((&t_first, &dt_first)) = out.t_s.first().zip(out.dt_s.first()) else {
-        return;
-    };
-    let mut prev_d = odo.at(t_first - dt_first);
     let mut prev_u = 0.0;
     for k in 0..n {
-        let (t, dt) = (out.t_s[k], out.dt_s[k]);
-        let d = odo.at(t);
-        let dd = d - prev_d;
-        let u = dd / dt;
-        let u_dot = if k == 0 { 0.0 } else { (u - prev_u) / dt };
-        out.odo_dist_m.push(dd);
+        let u = out.odo_dist_m[k] / out.dt_s[k];
+        let u_dot = if k == 0 {
+            0.0
+        } else {
+            (u - prev_u) / out.dt_s[k]
+        };
         out.u_mps.push(u);
         out.u_dot_mps2.push(u_dot);
         out.ru_mps2.push(out.r_rad_s[k] * u);
-        prev_d = d;
         prev_u = u;
     }
+}
+
+/// The odometer's distance over each sample's interval of `d` with the odometer's time
+/// tags moved by `offset_s`, m: all a navigation pass reads of the odometer.
+pub fn odometer_increments(d: &Derived, raw: &RawSeries<'_>, offset_s: f64) -> Vec<f64> {
+    let mut odo = OdoInterp::new(raw.odo_t_ns, raw.odo_distance_m, d.t0_ns, offset_s);
+    let Some((&t_first, &dt_first)) = d.t_s.first().zip(d.dt_s.first()) else {
+        return Vec::new();
+    };
+    let mut prev_d = odo.at(t_first - dt_first);
+    d.t_s
+        .iter()
+        .map(|&t| {
+            let now = odo.at(t);
+            let dd = now - prev_d;
+            prev_d = now;
+            dd
+        })
+        .collect()
 }
 
 /// F's u̇, ru and the odometer-bias sensitivities, per block.

@@ -25,8 +25,8 @@ use std::cell::RefCell;
 use std::sync::OnceLock;
 
 use crate::derive::{
-    DeriveParams, Derived, RawSeries, derive, epochs_of, filter_odometer_terms, odometer_terms,
-    shifted_blocks,
+    DeriveParams, Derived, RawSeries, derive, epochs_of, filter_odometer_terms,
+    odometer_increments, odometer_terms, shifted_blocks,
 };
 use crate::disupt::{DisuptError, DisuptParams, JointFit, JointOptions, ProblemSpec, joint_fit};
 use crate::filter::LowPass;
@@ -102,6 +102,16 @@ impl<'a> Rederive<'a> {
         }
     }
 
+    /// The configured derive: the caller's, else derived once.
+    fn configured(&self) -> &Derived {
+        match self.configured {
+            Some(d) => d,
+            None => self
+                .base
+                .get_or_init(|| derive(&self.raw, &self.params, self.g_mps2)),
+        }
+    }
+
     /// The derive with the odometer `lag_s` later than the configured offset says.
     ///
     /// The odometer increments the route integrates and `ru` (the yaw rate times the
@@ -111,12 +121,7 @@ impl<'a> Rederive<'a> {
     /// quantisation for every lag (derived anew, each fraction of a sample would draw
     /// another, and the fit's cost would be rough in the lag).
     pub fn at(&self, lag_s: f64) -> Derived {
-        let base = match self.configured {
-            Some(d) => d,
-            None => self
-                .base
-                .get_or_init(|| derive(&self.raw, &self.params, self.g_mps2)),
-        };
+        let base = self.configured();
         // The IMU's part is the configured derive's; the odometer's is derived anew.
         let mut d = base.clone();
         odometer_terms(&mut d, &self.raw, self.params.odo_time_offset_s - lag_s);
@@ -126,6 +131,16 @@ impl<'a> Rederive<'a> {
         d.u_dot_f = shifted_blocks(&base.u_dot_f, block_s, lag_s);
         d.epochs = epochs_of(&d, &lp, &self.params, self.g_mps2);
         d
+    }
+
+    /// What a navigation pass reads of [`Rederive::at`]`(lag_s)`: the odometer's
+    /// increments (the IMU's are the configured derive's), without the rest of a derive.
+    pub fn odo_dist_at(&self, lag_s: f64) -> Vec<f64> {
+        odometer_increments(
+            self.configured(),
+            &self.raw,
+            self.params.odo_time_offset_s - lag_s,
+        )
     }
 }
 
