@@ -113,13 +113,13 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
         t0_ns,
         nominal_dt_s: meta(derived_meta::NOMINAL_DT_S)?.parse()?,
         t_s: t_ns.iter().map(|t| (t - t0_ns) as f64 * 1e-9).collect(),
-        dt_s: f64_column(&b, "dt_s")?,
-        dtheta_rad: vec3_column(&b, "dtheta_rad")?,
-        dvel_mps: vec3_column(&b, "dvel_mps")?,
+        dt_s: f64_column(&b, "dt_s")?.into(),
+        dtheta_rad: vec3_column(&b, "dtheta_rad")?.into(),
+        dvel_mps: vec3_column(&b, "dvel_mps")?.into(),
         odo_dist_m: f64_column(&b, "odo_dist_m")?,
         u_mps: f64_column(&b, "u_mps")?,
         u_dot_mps2: f64_column(&b, "u_dot_mps2")?,
-        r_rad_s: f64_column(&b, "r_rad_s")?,
+        r_rad_s: f64_column(&b, "r_rad_s")?.into(),
         ru_mps2: f64_column(&b, "ru_mps2")?,
         block: meta(derived_meta::BLOCK)?.parse()?,
         repaired_times: meta(derived_meta::REPAIRED_TIMES)?.parse()?,
@@ -241,7 +241,11 @@ mod tests {
         let k = 12_345;
         assert!((loaded.t_s[k] - d.t_s[k]).abs() <= 0.5e-9);
         let mut same_times = loaded.clone();
-        same_times.t_s[k] = d.t_s[k];
+        same_times.t_s = {
+            let mut t = loaded.t_s.to_vec();
+            t[k] = d.t_s[k];
+            t.into()
+        };
         assert_eq!(loaded.epochs.t_s.len(), d.epochs.t_s.len());
         for (a, b) in loaded.epochs.t_s.iter().zip(&d.epochs.t_s) {
             assert!((a - b).abs() <= 0.5e-9, "epoch at {b} s loads as {a} s");

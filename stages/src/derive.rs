@@ -11,6 +11,8 @@
 //! Not guaranteed: sideslip, lever arms and the Earth-rate part of the yaw rate are not
 //! modelled (eq 6's simplifications; each below 0.01° on a land vehicle).
 
+use std::sync::Arc;
+
 use crate::filter::{FilterParams, LowPass};
 
 /// Parameters of the derive stage.
@@ -64,13 +66,17 @@ pub struct Derived {
     /// Nominal sample period (median interval), s.
     pub nominal_dt_s: f64,
     /// Per sample: time since `t0_ns`, s (repaired to increase).
-    pub t_s: Vec<f64>,
+    ///
+    /// The IMU's series (this, `dt_s`, `dtheta_rad`, `dvel_mps`, `r_rad_s`) are shared,
+    /// not copied, between a derive and its re-derives at other odometer timings: only
+    /// the odometer's part differs.
+    pub t_s: Arc<[f64]>,
     /// Per sample: interval, s.
-    pub dt_s: Vec<f64>,
+    pub dt_s: Arc<[f64]>,
     /// Per sample: angle increments, rad (lost stretches filled by holding the rate).
-    pub dtheta_rad: Vec<[f64; 3]>,
+    pub dtheta_rad: Arc<[[f64; 3]]>,
     /// Per sample: velocity increments, m/s (likewise).
-    pub dvel_mps: Vec<[f64; 3]>,
+    pub dvel_mps: Arc<[[f64; 3]]>,
     /// Per sample: odometer distance over the interval, m.
     pub odo_dist_m: Vec<f64>,
     /// Per sample: u, m/s (eq 9).
@@ -78,7 +84,7 @@ pub struct Derived {
     /// Per sample: u̇, m/s² (eq 10).
     pub u_dot_mps2: Vec<f64>,
     /// Per sample: yaw rate r, rad/s (body z gyro).
-    pub r_rad_s: Vec<f64>,
+    pub r_rad_s: Arc<[f64]>,
     /// Per sample: ru, m/s² (eq 11).
     pub ru_mps2: Vec<f64>,
     /// Per block: filtered a_x, m/s².
@@ -247,6 +253,13 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
     // the instrument's range replaced by the previous sample's rates.
     let mut prev_t = -nominal;
     let mut prev_rates = ([0.0; 3], [0.0; 3]);
+    let (mut t_s, mut dt_s, mut dtheta_rad, mut dvel_mps, mut r_rad_s) = (
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+    );
     for k in 0..n {
         let mut t = (raw.imu_t_ns[k] - t0) as f64 * 1e-9;
         if k > 0 && t <= prev_t {
@@ -274,13 +287,20 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
         } else {
             prev_rates = (dth.map(|v| v / dt), dv.map(|v| v / dt));
         }
-        out.t_s.push(t);
-        out.dt_s.push(dt);
-        out.dtheta_rad.push(dth);
-        out.dvel_mps.push(dv);
-        out.r_rad_s.push(dth[2] / dt);
+        t_s.push(t);
+        dt_s.push(dt);
+        dtheta_rad.push(dth);
+        dvel_mps.push(dv);
+        r_rad_s.push(dth[2] / dt);
         prev_t = t;
     }
+    (out.t_s, out.dt_s, out.dtheta_rad, out.dvel_mps, out.r_rad_s) = (
+        t_s.into(),
+        dt_s.into(),
+        dtheta_rad.into(),
+        dvel_mps.into(),
+        r_rad_s.into(),
+    );
     odometer_terms(&mut out, raw, params.odo_time_offset_s);
 
     // The filter F, then eqs 7–8 at the epochs.
@@ -289,13 +309,13 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
     let ax: Vec<f64> = out
         .dvel_mps
         .iter()
-        .zip(&out.dt_s)
+        .zip(out.dt_s.iter())
         .map(|(v, dt)| v[0] / dt)
         .collect();
     let ay: Vec<f64> = out
         .dvel_mps
         .iter()
-        .zip(&out.dt_s)
+        .zip(out.dt_s.iter())
         .map(|(v, dt)| v[1] / dt)
         .collect();
     lp.apply(&ax, &mut out.ax_f);
