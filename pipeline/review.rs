@@ -123,7 +123,7 @@ pub fn build_review(
     sweep: Option<&Path>,
 ) -> anyhow::Result<Review> {
     let m = &ctx.manifest;
-    let d = load_derived(derive_dir)?;
+    let mut d = load_derived(derive_dir)?;
     let rel =
         |t_ns: &[i64]| -> Vec<f64> { t_ns.iter().map(|&t| (t - d.t0_ns) as f64 * 1e-9).collect() };
     let start = start_position(m);
@@ -222,13 +222,13 @@ pub fn build_review(
         name: m.name.clone(),
         sample_dt_s: d.nominal_dt_s,
         imu: ImuSeries {
-            t_s: d.t_s.to_vec(),
-            dt_s: d.dt_s.to_vec(),
-            dtheta_rad: d.dtheta_rad.to_vec(),
-            dvel_mps: d.dvel_mps.to_vec(),
-            u_mps: d.u_mps.clone(),
-            u_dot_mps2: d.u_dot_mps2.clone(),
-            ru_mps2: d.ru_mps2.clone(),
+            t_s: d.t_s.clone(),
+            dt_s: d.dt_s.clone(),
+            dtheta_rad: d.dtheta_rad.clone(),
+            dvel_mps: d.dvel_mps.clone(),
+            u_mps: std::mem::take(&mut d.u_mps),
+            u_dot_mps2: std::mem::take(&mut d.u_dot_mps2),
+            ru_mps2: std::mem::take(&mut d.ru_mps2),
         },
         epochs,
         kryt1,

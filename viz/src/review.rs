@@ -36,14 +36,14 @@ pub struct Review {
 /// Per IMU sample.
 #[derive(Debug, Clone, Default)]
 pub struct ImuSeries {
-    /// Time, s.
-    pub t_s: Vec<f64>,
+    /// Time, s (shared with the derive it comes from, not copied).
+    pub t_s: std::sync::Arc<[f64]>,
     /// Interval, s.
-    pub dt_s: Vec<f64>,
+    pub dt_s: std::sync::Arc<[f64]>,
     /// Angle increments, rad, body frame.
-    pub dtheta_rad: Vec<[f64; 3]>,
+    pub dtheta_rad: std::sync::Arc<[[f64; 3]]>,
     /// Velocity increments, m/s, body frame.
-    pub dvel_mps: Vec<[f64; 3]>,
+    pub dvel_mps: std::sync::Arc<[[f64; 3]]>,
     /// Odometer speed u, m/s.
     pub u_mps: Vec<f64>,
     /// u̇, m/s².
