@@ -312,13 +312,7 @@ pub fn coarse_azimuth_deg(problem: &Problem<'_>) -> Option<f64> {
         .fixes
         .iter()
         .map(|f| {
-            let (n, e) = unz_stages::earth::local_offset_m(
-                f.lat_rad,
-                f.lon_rad,
-                start.lat_rad,
-                start.lon_rad,
-                start.h_m,
-            );
+            let (n, e) = start.offset_m(f.lat_rad, f.lon_rad);
             [n, e]
         })
         .collect();

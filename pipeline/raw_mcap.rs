@@ -23,7 +23,7 @@ const ODOMETER_VIEW_PERIOD_NS: i64 = 100_000_000;
 /// One message, with the run's time of its sample.
 enum Item {
     Imu(i64, ImuSample),
-    Odometer(i64, f64),
+    Odometer(i64, OdometerSample),
     Mark(i64, u32),
 }
 
@@ -40,8 +40,6 @@ struct RawMcap {
     odo: Channel<OdometerSample>,
     marks: Channel<ControlPointMark>,
     origin_ns: i64,
-    /// Time and distance of the last `/odometer` message.
-    last_odo: Option<(i64, f64)>,
 }
 
 impl RawMcap {
@@ -55,20 +53,8 @@ impl RawMcap {
                 let lt = self.log_time(t_ns);
                 self.mcap.write(&mut self.imu, lt, &msg)?;
             }
-            Item::Odometer(t_ns, distance_m) => {
-                let speed_mps = match self.last_odo {
-                    // Time went back (a damaged log): start again from this sample.
-                    Some((t0, _)) if t_ns < t0 => 0.0,
-                    Some((t0, _)) if t_ns - t0 < ODOMETER_VIEW_PERIOD_NS => return Ok(()),
-                    Some((t0, d0)) => (distance_m - d0) / ((t_ns - t0) as f64 * 1e-9),
-                    None => 0.0,
-                };
-                self.last_odo = Some((t_ns, distance_m));
+            Item::Odometer(t_ns, msg) => {
                 let lt = self.log_time(t_ns);
-                let msg = OdometerSample {
-                    distance_m,
-                    speed_mps,
-                };
                 self.mcap.write(&mut self.odo, lt, &msg)?;
             }
             Item::Mark(t_ns, point_id) => {
@@ -108,6 +94,8 @@ pub struct RawMcapWriter {
     /// faults and cache misses that tripled the stage's time).
     empties: Receiver<Vec<Item>>,
     thread: Option<JoinHandle<anyhow::Result<()>>>,
+    /// Time and distance of the last `/odometer` message.
+    last_odo: Option<(i64, f64)>,
 }
 
 impl RawMcapWriter {
@@ -121,7 +109,6 @@ impl RawMcapWriter {
             marks: mcap.add_channel("/marks")?,
             mcap,
             origin_ns,
-            last_odo: None,
         };
         let (orders, receiver) = sync_channel(IN_FLIGHT);
         let (give_back, empties) = channel();
@@ -133,6 +120,7 @@ impl RawMcapWriter {
             orders: Some(orders),
             empties,
             thread: Some(thread),
+            last_odo: None,
         })
     }
 
@@ -156,9 +144,22 @@ impl RawMcapWriter {
         self.push(Item::Imu(t_ns, msg));
     }
 
-    /// Queues one odometer sample (written when 0.1 s has passed since the last one).
+    /// Queues one odometer sample when 0.1 s has passed since the last one queued, with
+    /// the speed over that interval.
     pub fn odometer(&mut self, t_ns: i64, distance_m: f64) {
-        self.push(Item::Odometer(t_ns, distance_m));
+        let speed_mps = match self.last_odo {
+            // Time went back (a damaged log): start again from this sample.
+            Some((t0, _)) if t_ns < t0 => 0.0,
+            Some((t0, _)) if t_ns - t0 < ODOMETER_VIEW_PERIOD_NS => return,
+            Some((t0, d0)) => (distance_m - d0) / ((t_ns - t0) as f64 * 1e-9),
+            None => 0.0,
+        };
+        self.last_odo = Some((t_ns, distance_m));
+        let msg = OdometerSample {
+            distance_m,
+            speed_mps,
+        };
+        self.push(Item::Odometer(t_ns, msg));
     }
 
     /// Queues a control-point mark.

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::util::{unz, unz_output};
+use crate::util::{files_below, unz, unz_output};
 
 /// A campaign of two simulated 200 s runs; returns the campaign folder.
 fn campaign(dir: &Path) -> PathBuf {
@@ -204,30 +204,33 @@ fn output_folder_is_ours_alone() {
     );
 }
 
-/// All time tags constant: counted by the reader as time not increasing, and the run fails
-/// in derive with that reason instead of ending "ok" with no motion.
-#[test]
-fn a_log_whose_time_does_not_advance_fails_its_run() {
+/// Rewrites the raw log `log` record by record, IMU records through `edit`.
+fn rewrite_imu(log: &Path, edit: &dyn Fn(&mut unz_formats::raw::ImuRecord)) {
     use unz_formats::raw::{Accepted, RawReader, RawWriter};
 
-    let tmp = tempfile::tempdir().unwrap();
-    let camp = campaign(tmp.path());
-    let log = camp.join("sim-0081/sim-0081.unz");
-    let bytes = std::fs::read(&log).unwrap();
+    let bytes = std::fs::read(log).unwrap();
     let mut reader = RawReader::new(bytes.as_slice()).unwrap();
     let mut writer = RawWriter::new(Vec::new(), reader.header()).unwrap();
     while let Some(rec) = reader.next_record().unwrap() {
         match rec {
-            Accepted::Imu(s) => writer
-                .write_imu(&unz_formats::raw::ImuRecord {
-                    t_us: 10_000,
-                    ..s.raw
-                })
-                .unwrap(),
+            Accepted::Imu(s) => {
+                let mut r = s.raw;
+                edit(&mut r);
+                writer.write_imu(&r).unwrap();
+            }
             Accepted::Mark(m) => writer.write_mark(&m).unwrap(),
         }
     }
-    std::fs::write(&log, writer.finish().unwrap()).unwrap();
+    std::fs::write(log, writer.finish().unwrap()).unwrap();
+}
+
+/// All time tags constant: counted by the reader as time not increasing, and the run fails
+/// in derive with that reason instead of ending "ok" with no motion.
+#[test]
+fn a_log_whose_time_does_not_advance_fails_its_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    rewrite_imu(&camp.join("sim-0081/sim-0081.unz"), &|r| r.t_us = 10_000);
     let out = tmp.path().join("o");
     let (code, text) = run(&camp, &out, "derive");
     assert_eq!(code, Some(1), "{text}");
@@ -242,32 +245,14 @@ fn a_log_whose_time_does_not_advance_fails_its_run() {
 /// a few, they are counted in navigate.json and the run goes on.
 #[test]
 fn odometer_failure_flags_are_honoured() {
-    use unz_formats::raw::{Accepted, RawReader, RawWriter};
-
-    let rewrite = |log: &Path, flagged: &dyn Fn(u32) -> bool| {
-        let bytes = std::fs::read(log).unwrap();
-        let mut reader = RawReader::new(bytes.as_slice()).unwrap();
-        let mut writer = RawWriter::new(Vec::new(), reader.header()).unwrap();
-        while let Some(rec) = reader.next_record().unwrap() {
-            match rec {
-                Accepted::Imu(s) => {
-                    let mut r = s.raw;
-                    if flagged(r.seq) {
-                        r.status |= 2;
-                    }
-                    writer.write_imu(&r).unwrap();
-                }
-                Accepted::Mark(m) => writer.write_mark(&m).unwrap(),
-            }
-        }
-        std::fs::write(log, writer.finish().unwrap()).unwrap();
-    };
     let tmp = tempfile::tempdir().unwrap();
     let camp = campaign(tmp.path());
-    rewrite(&camp.join("sim-0080/sim-0080.unz"), &|seq| {
-        (1000..1100).contains(&seq)
+    rewrite_imu(&camp.join("sim-0080/sim-0080.unz"), &|r| {
+        if (1000..1100).contains(&r.seq) {
+            r.status |= 2;
+        }
     });
-    rewrite(&camp.join("sim-0081/sim-0081.unz"), &|_| true);
+    rewrite_imu(&camp.join("sim-0081/sim-0081.unz"), &|r| r.status |= 2);
     let out = tmp.path().join("o");
     let (code, text) = run(&camp, &out, "navigate");
     assert_eq!(code, Some(1), "{text}");
@@ -319,17 +304,9 @@ impl Drop for Mount {
     }
 }
 
+/// Every file below `dir`, as full paths.
 fn files_under(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    for e in std::fs::read_dir(dir).unwrap().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            out.extend(files_under(&p));
-        } else {
-            out.push(p);
-        }
-    }
-    out
+    files_below(dir).into_iter().map(|f| dir.join(f)).collect()
 }
 
 /// A read-only output folder and a disk that fills up during the review: each error says
@@ -396,25 +373,13 @@ fn read_only_and_full_output_folders_are_said_with_the_path() {
 #[test]
 fn saturated_increments_are_replaced_or_fail_their_run() {
     use unz::flow::NavigateSummary;
-    use unz_formats::raw::{Accepted, RawReader, RawWriter};
 
-    let rewrite = |log: &Path, saturated: &dyn Fn(u32) -> bool| {
-        let bytes = std::fs::read(log).unwrap();
-        let mut reader = RawReader::new(bytes.as_slice()).unwrap();
-        let mut writer = RawWriter::new(Vec::new(), reader.header()).unwrap();
-        while let Some(rec) = reader.next_record().unwrap() {
-            match rec {
-                Accepted::Imu(s) => {
-                    let mut r = s.raw;
-                    if saturated(r.seq) {
-                        r.dtheta = [i32::MAX, i32::MIN, i32::MAX];
-                    }
-                    writer.write_imu(&r).unwrap();
-                }
-                Accepted::Mark(m) => writer.write_mark(&m).unwrap(),
+    let saturate = |saturated: fn(u32) -> bool| {
+        move |r: &mut unz_formats::raw::ImuRecord| {
+            if saturated(r.seq) {
+                r.dtheta = [i32::MAX, i32::MIN, i32::MAX];
             }
         }
-        std::fs::write(log, writer.finish().unwrap()).unwrap();
     };
     let tmp = tempfile::tempdir().unwrap();
     let camp = campaign(tmp.path());
@@ -422,10 +387,14 @@ fn saturated_increments_are_replaced_or_fail_their_run() {
     let (code, text) = run(&camp, &clean, "navigate");
     assert_eq!(code, Some(0), "{text}");
     // Five samples in the static start (its rates are the previous sample's to the noise).
-    rewrite(&camp.join("sim-0080/sim-0080.unz"), &|seq| {
-        (1000..1005).contains(&seq)
-    });
-    rewrite(&camp.join("sim-0081/sim-0081.unz"), &|seq| seq % 10 == 0);
+    rewrite_imu(
+        &camp.join("sim-0080/sim-0080.unz"),
+        &saturate(|seq| (1000..1005).contains(&seq)),
+    );
+    rewrite_imu(
+        &camp.join("sim-0081/sim-0081.unz"),
+        &saturate(|seq| seq % 10 == 0),
+    );
     let out = tmp.path().join("o");
     let (code, text) = run(&camp, &out, "navigate");
     assert_eq!(code, Some(1), "{text}");

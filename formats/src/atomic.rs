@@ -99,7 +99,7 @@ pub fn write_atomic(dest: &Path, bytes: &[u8]) -> Result<(), FileError> {
 /// Serialises `value` as pretty JSON (with a final newline) to `dest` atomically.
 pub fn write_json_atomic(dest: &Path, value: &impl serde::Serialize) -> Result<(), FileError> {
     let mut bytes = serde_json::to_vec_pretty(value)
-        .map_err(|e| crate::error::FormatError::Invalid(e.to_string()).in_file(dest))?;
+        .map_err(|e| crate::error::FormatError::from(e).in_file(dest))?;
     bytes.push(b'\n');
     write_atomic(dest, &bytes)
 }

@@ -48,7 +48,7 @@ pub enum FormatError {
     /// A CDR message could not be encoded.
     #[error("cdr: {}", with_causes(.0))]
     Cdr(#[from] re_cdr::Error),
-    /// A JSON message could not be encoded.
+    /// A JSON report could not be encoded.
     #[error("json: {}", with_causes(.0))]
     Json(#[from] serde_json::Error),
     /// Anything else, said in words.

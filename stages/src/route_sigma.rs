@@ -19,7 +19,6 @@
 use rayon::prelude::*;
 
 use crate::attitude::wrap_pi;
-use crate::earth;
 use crate::strapdown::{NavInputs, NavSettings, NavTrack, StateAt, run_states_at};
 
 /// Most passes stepped side by side.
@@ -78,25 +77,17 @@ fn heading_of(q: &[f64; 4]) -> f64 {
     (2.0 * (x * y + w * z)).atan2(w * w + x * x - y * y - z * z)
 }
 
-/// (north, east) of sample `k` of `track` from the start of `s`, m.
-fn offset_m(track: &NavTrack, k: usize, s: &NavSettings) -> (f64, f64) {
-    earth::local_offset_m(
-        track.lat_rad[k],
-        track.lon_rad[k],
-        s.lat0_rad,
-        s.lon0_rad,
-        s.h0_m,
-    )
+/// (north m, east m from the start of `s`, heading rad) of a pass's state.
+fn state(s: &NavSettings, lat_rad: f64, lon_rad: f64, q: &[f64; 4]) -> [f64; 3] {
+    let (n, e) = s.start().offset_m(lat_rad, lon_rad);
+    [n, e, heading_of(q)]
 }
 
 /// (north, east, heading) of `track` at the chosen samples.
 fn states(track: &NavTrack, samples: &[usize], s: &NavSettings) -> Vec<[f64; 3]> {
     samples
         .iter()
-        .map(|&k| {
-            let (n, e) = offset_m(track, k, s);
-            [n, e, heading_of(&track.q_b_to_n[k])]
-        })
+        .map(|&k| state(s, track.lat_rad[k], track.lon_rad[k], &track.q_b_to_n[k]))
         .collect()
 }
 
@@ -126,14 +117,9 @@ fn moved_states(moved: &[Moved<'_>], samples: &[usize]) -> Vec<Vec<[f64; 3]>> {
                 _ => run_states_at::<8>(inputs, &std::array::from_fn(padded), samples).into(),
             };
             raw.into_iter().zip(batch.iter()).map(|(states, mv)| {
-                let s = &mv.settings;
                 states
                     .iter()
-                    .map(|&(lat, lon, q)| {
-                        let (n, e) =
-                            earth::local_offset_m(lat, lon, s.lat0_rad, s.lon0_rad, s.h0_m);
-                        [n, e, heading_of(&q)]
-                    })
+                    .map(|(lat, lon, q)| state(&mv.settings, *lat, *lon, q))
                     .collect::<Vec<_>>()
             })
         })
@@ -143,7 +129,7 @@ fn moved_states(moved: &[Moved<'_>], samples: &[usize]) -> Vec<Vec<[f64; 3]>> {
 /// One moved parameter: the settings of the pass and the inputs it runs on, the step
 /// that moved it (in the covariance's units), and its column in the covariance.
 pub struct Moved<'a> {
-    /// Inputs of the pass (the lag's pass has its own derive).
+    /// Inputs of the pass (the lag's pass has the odometer increments at the moved lag).
     pub inputs: NavInputs<'a>,
     /// Settings of the pass.
     pub settings: NavSettings,
@@ -220,8 +206,9 @@ fn random_walk_variances(
     let mut sums = [0.0; 5];
     let mut out = Vec::with_capacity(samples.len());
     let mut next = samples.iter().peekable();
+    let start = s.start();
     for k in 0..track.len() {
-        let (n, e) = offset_m(track, k, s);
+        let (n, e) = start.offset_m(track.lat_rad[k], track.lon_rad[k]);
         let dt = dt_s.get(k).copied().unwrap_or(0.0);
         sums[0] += dt;
         sums[1] += dt * n;
