@@ -152,7 +152,7 @@ fn process(
         let none = Overrides::default();
         for stage in &STAGES[..=plan.until] {
             match *stage {
-                "ingest" => drop(ensure_ingest(&ctx)?),
+                "ingest" => drop(ensure_ingest(&ctx, p)?),
                 "derive" => drop(ensure_derive(&ctx, p)?),
                 "navigate" => drop(ensure_navigate(&ctx, p, &none)?),
                 "criteria" => drop(ensure_criteria(&ctx, p, &none)?),

@@ -2,6 +2,8 @@
 //! `[params]` table in run.toml. Unknown keys and bad values are errors naming the file.
 //!
 //! ```toml
+//! [ingest]
+//! raw_mcap_compression = "zstd"
 //! [derive]
 //! epoch_s = 1.0
 //! [derive.filter]

@@ -547,15 +547,25 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         ],
     };
     ctx.run_stage(&stage, || {
+        let t0 = std::time::Instant::now();
+        let lap = |what: &str| {
+            ctx.say(
+                "disupt",
+                &format!("{what} at {:.3} s", t0.elapsed().as_secs_f64()),
+            )
+        };
         let case = load_case(ctx, params, &Overrides::default())?;
+        lap("case loaded");
         let ingested = IngestedSeries::load(&ctx.layout().dir(StageName::Ingest))?;
         // The derive stage's output is the configured derive, whole: re-derives at other
         // odometer timings start from it instead of deriving it a second time.
         let rederive = Rederive::new(ingested.series(), params.derive, site_gravity_mps2(m))
             .around(&case.derived);
+        lap("ingested loaded");
         // A coarse search over ±180° of azimuth by the control points first: the run's
         // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).
         let coarse = coarse_azimuth_deg(&problem_of(&case, params));
+        lap("coarse");
         let mut start = case.settings;
         if let Some(az) = coarse {
             start.initial.heading_rad = az.to_radians();
@@ -614,6 +624,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             };
         let (before_kryt1, before_cps) =
             review_pass("initial", &x_before, &case.derived, &mut track);
+        lap("first review");
 
         // The review passes in order of preference for the corrected navigation (OWPI,
         // OEPI, then joint), so that the last one leaves the corrected track.
@@ -635,6 +646,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 }
             }
         }
+        lap("classic reviews");
         let mut route_sigma = None;
         match &joint_result {
             Some(Ok(run)) => {
@@ -642,7 +654,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 let cps = review_pass("joint", &r.x, joint_derived, &mut track).1;
                 corrected_by = Some("joint".to_owned());
                 let mut out = method_out(r, &case.settings, run.lag, cps);
+                lap("joint review");
                 out.holdout = Some(disupt::holdout(&joint_problem, &run.fit, &dparams)?);
+                lap("holdout");
                 out.lag_profile = run.profile.clone();
                 methods.insert("joint".to_owned(), out);
                 route_sigma = joint_route_sigma(
@@ -658,6 +672,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             }
             None => {}
         }
+        lap("route sigma");
         // `track` holds the last review pass: the best method's, else the initial one.
         let distance_m = case.fixes.last().map_or_else(
             || track.distance_m.last().copied().unwrap_or(0.0),
@@ -695,6 +710,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let md = markdown(&m.name, &out);
         write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;
         write_json_atomic(&dir.join(files::DISUPT_REPORT), &out)?;
+        lap("written");
         Ok(())
     })?;
     Ok(dir)

@@ -8,7 +8,7 @@
 
 use std::path::PathBuf;
 
-use unz_formats::mcap_io::Ros2Mcap;
+use unz_formats::mcap_io::{McapCompression, Ros2Mcap};
 use unz_formats::parquet_io::{read_schema, read_table};
 use unz_formats::ros2_msgs::{
     Attitude, Criteria, Header, NavSatFix, NavSatStatus, Point, Pose, PoseStamped, Quaternion, Time,
@@ -63,7 +63,7 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             col("east_m")?,
         );
         let (roll, pitch, heading) = (col("roll_deg")?, col("pitch_deg")?, col("heading_deg")?);
-        let mut mcap = Ros2Mcap::create(&dir.join("corrected.mcap"))?;
+        let mut mcap = Ros2Mcap::create(&dir.join("corrected.mcap"), McapCompression::Zstd)?;
         let mut fix = mcap.add_channel::<NavSatFix>("/corrected/fix")?;
         let mut pose = mcap.add_channel::<PoseStamped>("/corrected/pose")?;
         let mut att = mcap.add_channel::<Attitude>("/corrected/attitude")?;

@@ -22,13 +22,15 @@ use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
 
 use crate::artifacts::{RunLayout, StageName, files};
 use crate::derive_io::{load_derived, write_derived};
-use crate::ingest::{IngestOptions, OUTPUTS as INGEST_OUTPUTS, ingest};
+use crate::ingest::{OUTPUTS as INGEST_OUTPUTS, ingest};
 use crate::stage::{Stage, params_hash};
 
 /// Parameters of every stage (defaults built in).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Params {
+    /// ingest.
+    pub ingest: crate::ingest::IngestParams,
     /// derive.
     pub derive: DeriveParams,
     /// Alignment.
@@ -122,7 +124,7 @@ impl RunCtx {
 }
 
 /// Stage 1.
-pub fn ensure_ingest(ctx: &RunCtx) -> anyhow::Result<PathBuf> {
+pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let m = &ctx.manifest;
     let dir = ctx.layout().create(StageName::Ingest)?;
     let mut inputs = vec![m.path.clone(), m.raw.clone()];
@@ -131,13 +133,11 @@ pub fn ensure_ingest(ctx: &RunCtx) -> anyhow::Result<PathBuf> {
         dir: dir.clone(),
         name: "ingest",
         version: 1,
-        params_hash: params_hash(&m.odometer.scale_m_per_pulse)?,
+        params_hash: params_hash(&(m.odometer.scale_m_per_pulse, params.ingest))?,
         inputs,
         outputs: &INGEST_OUTPUTS,
     };
-    ctx.run_stage(&stage, || {
-        ingest(m, &dir, IngestOptions::default()).map(|_| ())
-    })?;
+    ctx.run_stage(&stage, || ingest(m, &dir, params.ingest.into()).map(|_| ()))?;
     Ok(dir)
 }
 
@@ -155,7 +155,7 @@ fn load_table<T: Default>(
 
 /// Stage 2.
 pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
-    let ingest_dir = ensure_ingest(ctx)?;
+    let ingest_dir = ensure_ingest(ctx, params)?;
     let m = &ctx.manifest;
     let dir = ctx.layout().create(StageName::Derive)?;
     let inputs = vec![

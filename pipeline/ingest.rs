@@ -16,6 +16,7 @@ use serde::Serialize;
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::kfgins::{KfGinsReader, LineFault, read_odometer_file};
 use unz_formats::manifest::{LogFormat, RunManifest};
+use unz_formats::mcap_io::McapCompression;
 use unz_formats::parquet_io::ParquetSink;
 use unz_formats::raw::{Accepted, FaultEvent, RawReader};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
@@ -45,16 +46,27 @@ pub struct IngestOutcome {
     pub odometer_rows: usize,
 }
 
-/// Options of the ingest stage.
-#[derive(Debug, Clone, Copy)]
-pub struct IngestOptions {
-    /// Write `raw.mcap` too.
-    pub mcap: bool,
+/// Parameters of the ingest stage (`[ingest]` in a config file or a run's `[params]`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct IngestParams {
+    /// Compression of `raw.mcap`'s chunks: `none` (default, the fastest ingest) or `zstd`
+    /// (about half the size).
+    pub raw_mcap_compression: McapCompression,
 }
 
-impl Default for IngestOptions {
-    fn default() -> Self {
-        Self { mcap: true }
+/// Options of one ingest.
+#[derive(Debug, Clone, Copy)]
+pub struct IngestOptions {
+    /// Write `raw.mcap` too, compressed so.
+    pub mcap: Option<McapCompression>,
+}
+
+impl From<IngestParams> for IngestOptions {
+    fn from(p: IngestParams) -> Self {
+        Self {
+            mcap: Some(p.raw_mcap_compression),
+        }
     }
 }
 
@@ -85,7 +97,7 @@ impl Sinks {
         dir: &Path,
         origin_ns: Option<i64>,
         odo_m_per_pulse: Option<f64>,
-        mcap: bool,
+        mcap: Option<McapCompression>,
     ) -> anyhow::Result<Self> {
         let imu_schema = schema::imu(origin_ns);
         let odo_schema = schema::odometer_scaled(origin_ns, odo_m_per_pulse);
@@ -98,13 +110,13 @@ impl Sinks {
             imu_schema,
             odo_schema,
             marks_schema: schema::marks(origin_ns),
-            mcap: if mcap {
-                Some(RawMcapWriter::create(
+            mcap: match mcap {
+                Some(compression) => Some(RawMcapWriter::create(
                     &dir.join("raw.mcap"),
                     origin_ns.unwrap_or(0),
-                )?)
-            } else {
-                None
+                    compression,
+                )?),
+                None => None,
             },
         })
     }

@@ -10,7 +10,7 @@ use std::path::Path;
 use std::sync::mpsc::{Receiver, Sender, SyncSender, channel, sync_channel};
 use std::thread::JoinHandle;
 
-use unz_formats::mcap_io::{Channel, Ros2Mcap};
+use unz_formats::mcap_io::{Channel, McapCompression, Ros2Mcap};
 use unz_formats::ros2_msgs::{ControlPointMark, ImuSample, OdometerSample};
 
 /// Messages handed to the writer thread at a time.
@@ -101,8 +101,12 @@ pub struct RawMcapWriter {
 impl RawMcapWriter {
     /// Creates `path` (errors here are immediate) and starts its writer thread. Log times
     /// are `origin_ns` (the log's UTC start, or 0) plus each sample's run time.
-    pub fn create(path: &Path, origin_ns: i64) -> anyhow::Result<Self> {
-        let mut mcap = Ros2Mcap::create(path)?;
+    pub fn create(
+        path: &Path,
+        origin_ns: i64,
+        compression: McapCompression,
+    ) -> anyhow::Result<Self> {
+        let mut mcap = Ros2Mcap::create(path, compression)?;
         let writer = RawMcap {
             imu: mcap.add_channel("/imu")?,
             odo: mcap.add_channel("/odometer")?,

@@ -75,6 +75,19 @@ fn config_show_prints_the_effective_parameters() {
         t["kalman"]["r_rad"].as_float().is_some(),
         "defaults are filled in: {shown}"
     );
+    assert_eq!(
+        t["ingest"]["raw_mcap_compression"].as_str(),
+        Some("none"),
+        "{shown}"
+    );
+    std::fs::write(&cfg, "[ingest]\nraw_mcap_compression = \"zstd\"\n").unwrap();
+    let shown = unz_ok(&["config", "--show", "--config", cfg.to_str().unwrap()]);
+    let t: toml::Table = toml::from_str(&shown).unwrap();
+    assert_eq!(t["ingest"]["raw_mcap_compression"].as_str(), Some("zstd"));
+    std::fs::write(&cfg, "[ingest]\nraw_mcap_compression = \"lzma\"\n").unwrap();
+    let out = unz_output(&["config", "--show", "--config", cfg.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("lzma"));
     std::fs::write(&cfg, "[derive]\nsurprise = 1\n").unwrap();
     let out = unz_output(&["config", "--show", "--config", cfg.to_str().unwrap()]);
     assert!(!out.status.success());

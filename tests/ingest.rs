@@ -237,3 +237,78 @@ fn kingston_text_log_ingests_with_aligned_odometer() {
         assert_eq!(info["mcap"]["channels"]["/odometer"]["count"], 877);
     }
 }
+
+/// Every message of an MCAP file: (topic, log time, data), in file order, read with the
+/// mcap crate's own reader (chunk CRCs checked).
+fn mcap_messages(path: &Path) -> Vec<(String, u64, Vec<u8>)> {
+    let bytes = std::fs::read(path).unwrap();
+    mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| {
+            let m = m.unwrap();
+            (m.channel.topic.clone(), m.log_time, m.data.into_owned())
+        })
+        .collect()
+}
+
+/// The chunks' compression names of an MCAP file.
+fn mcap_chunk_compressions(path: &Path) -> Vec<String> {
+    let bytes = std::fs::read(path).unwrap();
+    mcap::read::LinearReader::new(&bytes)
+        .unwrap()
+        .filter_map(|r| match r.unwrap() {
+            mcap::records::Record::Chunk { header, .. } => Some(header.compression),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn raw_mcap_compression_changes_the_size_not_the_messages() {
+    use unz::ingest::{IngestOptions, ingest};
+    use unz_formats::mcap_io::McapCompression;
+    let tmp = tempfile::tempdir().unwrap();
+    let campaign = tmp.path().join("campaign");
+    unz_ok(&[
+        "simulate",
+        "--out",
+        campaign.to_str().unwrap(),
+        "--seed",
+        "41",
+        "--duration-s",
+        "300",
+    ]);
+    let manifest = unz::runs::load_run(&campaign.join("sim-0041")).unwrap();
+    let mut sizes = Vec::new();
+    let mut messages = Vec::new();
+    for (name, compression) in [
+        ("none", McapCompression::None),
+        ("zstd", McapCompression::Zstd),
+    ] {
+        let dir = tmp.path().join(name);
+        let options = IngestOptions {
+            mcap: Some(compression),
+        };
+        ingest(&manifest, &dir, options).unwrap();
+        let path = dir.join("raw.mcap");
+        let chunks = mcap_chunk_compressions(&path);
+        assert!(!chunks.is_empty());
+        let want = if compression == McapCompression::Zstd {
+            "zstd"
+        } else {
+            ""
+        };
+        assert!(chunks.iter().all(|c| c == want), "{name}: {chunks:?}");
+        sizes.push(std::fs::metadata(&path).unwrap().len());
+        messages.push(mcap_messages(&path));
+    }
+    // 30 000 IMU samples, the odometer at 10 Hz, the marks.
+    let imu = messages[0].iter().filter(|m| m.0 == "/imu").count();
+    assert_eq!(imu, 30_000);
+    assert!(messages[0] == messages[1], "the same messages either way");
+    // zstd takes the CDR's constant bytes and slow counters out: well under 3/4.
+    assert!(
+        (sizes[1] as f64) < 0.75 * sizes[0] as f64,
+        "sizes none/zstd: {sizes:?}"
+    );
+}

@@ -4,6 +4,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use unz_formats::manifest::RunManifest;
+use unz_formats::mcap_io::McapCompression;
 use unz_stages::simulate::{SimConfig, simulate};
 
 use crate::cli::{BenchArgs, BenchTarget};
@@ -60,8 +61,19 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     let raw_bytes = std::fs::metadata(&manifest.raw)?.len() as f64;
     // One core: the stage is single-threaded; nothing else runs meanwhile.
     for (label, options) in [
-        ("raw → Parquet", IngestOptions { mcap: false }),
-        ("full ingest (+ MCAP)", IngestOptions { mcap: true }),
+        ("raw → Parquet", IngestOptions { mcap: None }),
+        (
+            "full ingest (+ MCAP)",
+            IngestOptions {
+                mcap: Some(McapCompression::None),
+            },
+        ),
+        (
+            "full ingest (+ zstd MCAP)",
+            IngestOptions {
+                mcap: Some(McapCompression::Zstd),
+            },
+        ),
     ] {
         let mut best = f64::INFINITY;
         for _ in 0..args.repeat.max(1) {

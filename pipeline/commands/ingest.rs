@@ -12,7 +12,10 @@ use crate::runs::load_run;
 /// Runs the command.
 pub fn run(args: &StageArgs) -> anyhow::Result<ExitCode> {
     let ctx = RunCtx::new(load_run(&args.run)?, args.out.clone(), true);
-    let dir = ensure_ingest(&ctx)?;
+    let dir = ensure_ingest(
+        &ctx,
+        &crate::config::for_run(&toml::Table::new(), &ctx.manifest)?,
+    )?;
     let r: IngestReport = serde_json::from_slice(&std::fs::read(dir.join(files::INGEST_REPORT))?)?;
     println!(
         "{}: {} IMU records, {} marks; {} rejected, {} bytes skipped, {} samples lost → {}",
