@@ -554,14 +554,18 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 &format!("{what} at {:.3} s", t0.elapsed().as_secs_f64()),
             )
         };
-        let case = load_case(ctx, params, &Overrides::default())?;
-        lap("case loaded");
-        let ingested = IngestedSeries::load(&ctx.layout().dir(StageName::Ingest))?;
+        // The derive's output and the ingested series (the lag's re-derives read them) are
+        // read side by side.
+        let (case, ingested) = rayon::join(
+            || load_case(ctx, params, &Overrides::default()),
+            || IngestedSeries::load(&ctx.layout().dir(StageName::Ingest)),
+        );
+        let (case, ingested) = (case?, ingested?);
         // The derive stage's output is the configured derive, whole: re-derives at other
         // odometer timings start from it instead of deriving it a second time.
         let rederive = Rederive::new(ingested.series(), params.derive, site_gravity_mps2(m))
             .around(&case.derived);
-        lap("ingested loaded");
+        lap("loaded");
         // A coarse search over ±180° of azimuth by the control points first: the run's
         // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).
         let coarse = coarse_azimuth_deg(&problem_of(&case, params));
@@ -697,19 +701,29 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             shared_passes: problem.base_passes(),
         };
         ensure_finite_track("corrected", &track)?;
-        write_tracks(&dir.join(TRACKS), &tracks)?;
-        write_kryt1_series(&dir.join(KRYT1_SERIES), &kryt1s)?;
-        let sigma = route_sigma.map(|r| r.per_sample(track.len()));
-        write_nav(
-            &dir.join(files::CORRECTED_NAV),
-            &case.derived,
-            &track,
-            start,
-            sigma.as_ref(),
-        )?;
-        let md = markdown(&m.name, &out);
-        write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;
-        write_json_atomic(&dir.join(files::DISUPT_REPORT), &out)?;
+        // The corrected trajectory (the largest table) beside the others.
+        let (nav, rest) = rayon::join(
+            || {
+                let sigma = route_sigma.map(|r| r.per_sample(track.len()));
+                write_nav(
+                    &dir.join(files::CORRECTED_NAV),
+                    &case.derived,
+                    &track,
+                    start,
+                    sigma.as_ref(),
+                )
+            },
+            || -> anyhow::Result<()> {
+                write_tracks(&dir.join(TRACKS), &tracks)?;
+                write_kryt1_series(&dir.join(KRYT1_SERIES), &kryt1s)?;
+                let md = markdown(&m.name, &out);
+                write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;
+                write_json_atomic(&dir.join(files::DISUPT_REPORT), &out)?;
+                Ok(())
+            },
+        );
+        nav?;
+        rest?;
         lap("written");
         Ok(())
     })?;

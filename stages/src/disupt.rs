@@ -20,6 +20,7 @@
 //! their RMS horizontal error. The optimisers work in scaled units (degrees, °/h, ppm) so
 //! that their tolerances mean something.
 
+use std::borrow::Cow;
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -275,25 +276,38 @@ impl<'a> Problem<'a> {
         let threads = rayon::current_num_threads().max(1);
         let chunk = xs.len().div_ceil(threads).clamp(1, LANES);
         xs.par_chunks(chunk)
-            .flat_map_iter(|chunk| {
-                // Lanes come in 1, 2, 4 or 8; a partial batch repeats its last point.
-                let padded = |l: usize| chunk[l.min(chunk.len() - 1)];
-                let n = chunk.len();
-                let ys: Vec<Observation> = match n {
-                    1 => self.observe_lanes::<1>(&[chunk[0]], n, tally).into(),
-                    2 => self
-                        .observe_lanes::<2>(&std::array::from_fn(padded), n, tally)
-                        .into(),
-                    3 | 4 => self
-                        .observe_lanes::<4>(&std::array::from_fn(padded), n, tally)
-                        .into(),
-                    _ => self
-                        .observe_lanes::<8>(&std::array::from_fn(padded), n, tally)
-                        .into(),
-                };
-                ys.into_iter().take(n)
-            })
+            .flat_map_iter(|chunk| self.observe_batch(chunk, tally))
             .collect()
+    }
+
+    /// [`Self::observe_many_by`] on the calling thread only, in as few batches of lanes as
+    /// the points fill: the least CPU for a few points, where the caller's own concurrency
+    /// keeps the cores busy.
+    pub fn observe_batched_by(&self, xs: &[X], tally: &AtomicUsize) -> Vec<Observation> {
+        xs.chunks(LANES)
+            .flat_map(|chunk| self.observe_batch(chunk, tally))
+            .collect()
+    }
+
+    /// At most [`LANES`] points in one batch of lanes. Lanes come in 1, 2, 4 or 8; a
+    /// partial batch repeats its last point.
+    fn observe_batch(&self, chunk: &[X], tally: &AtomicUsize) -> Vec<Observation> {
+        let padded = |l: usize| chunk[l.min(chunk.len() - 1)];
+        let n = chunk.len();
+        let ys: Vec<Observation> = match n {
+            0 => Vec::new(),
+            1 => self.observe_lanes::<1>(&[chunk[0]], n, tally).into(),
+            2 => self
+                .observe_lanes::<2>(&std::array::from_fn(padded), n, tally)
+                .into(),
+            3 | 4 => self
+                .observe_lanes::<4>(&std::array::from_fn(padded), n, tally)
+                .into(),
+            _ => self
+                .observe_lanes::<8>(&std::array::from_fn(padded), n, tally)
+                .into(),
+        };
+        ys.into_iter().take(n).collect()
     }
 
     /// `N` ≤ [`LANES`] exact passes side by side. Only the first `points` lanes count as
@@ -731,39 +745,70 @@ fn minimise(
     Ok(out)
 }
 
-/// One step of OEPI/OWPI from `x` (whose exact observation is `y`): search the
-/// linearisation, confirm with an exact pass, relinearise where they disagree. Returns
-/// the optimum and its exact observation.
+/// Where one step of OEPI/OWPI ended.
+struct Searched {
+    /// The optimum.
+    x: X,
+    /// Its exact observation.
+    y: Observation,
+    /// A linearisation at `x` in the next step's settings, when it was built.
+    next_lin: Option<Linearization>,
+}
+
+/// One step of OEPI/OWPI from `x` (whose exact observation is `y`, and `lin` a
+/// linearisation there, when at hand): search the linearisation, confirm with an exact
+/// pass, relinearise where they disagree.
+///
+/// The exact pass at the model's optimum runs in one batch of lanes with the
+/// finite-difference passes either outcome needs next (this step's settings, to
+/// relinearise there if the two disagree; `next`, the following step's, if they agree),
+/// which cost little beside it: a step costs one batch of passes instead of two passes
+/// in turn, and the results are those of separate passes, bit for bit.
+#[allow(clippy::too_many_arguments)]
 fn search(
     problem: &Problem<'_>,
     x: X,
     y: &Observation,
-    component: Component,
+    lin: Option<Linearization>,
+    (component, next): (Component, &[Setting]),
     criterion: Criterion,
     p: &DisuptParams,
     tally: &AtomicUsize,
-) -> Result<(X, Observation), DisuptError> {
+) -> Result<Searched, DisuptError> {
     let free = component.settings();
     let base = problem.base_linearization();
-    let mut owned;
-    let mut lin = if base.p_ref == params_of(&x) && base.covers(free) {
-        base
-    } else {
-        owned = problem.linearize_by(&x, y.clone(), free, tally);
-        &owned
+    let at_x = |l: &Linearization| l.p_ref == params_of(&x) && l.covers(free);
+    let mut lin = match lin {
+        Some(l) if at_x(&l) => Cow::Owned(l),
+        _ if at_x(base) => Cow::Borrowed(base),
+        _ => Cow::Owned(problem.linearize_by(&x, y.clone(), free, tally)),
     };
+    let mut which = free.to_vec();
+    which.extend(next.iter().filter(|s| !free.contains(s)));
     for _ in 0..MAX_RELINEARISATIONS {
-        let x_new = minimise(problem, Some(lin), x, component, criterion, p, tally)?;
-        let y_new = problem.observe_by(&x_new, tally);
-        if lin.predict(&params_of(&x_new)).agrees_with(&y_new) {
-            return Ok((x_new, y_new));
+        let x_new = minimise(problem, Some(&lin), x, component, criterion, p, tally)?;
+        let mut xs = vec![x_new];
+        xs.extend(moved_by_steps(&x_new, &which));
+        let mut ys = problem.observe_batched_by(&xs, tally);
+        let y_new = ys.remove(0);
+        let agrees = lin.predict(&params_of(&x_new)).agrees_with(&y_new);
+        let there = linearization_of(&x_new, y_new.clone(), &which, ys);
+        if agrees {
+            return Ok(Searched {
+                x: x_new,
+                y: y_new,
+                next_lin: Some(there),
+            });
         }
-        owned = problem.linearize_by(&x_new, y_new, free, tally);
-        lin = &owned;
+        lin = Cow::Owned(there);
     }
     let x_new = minimise(problem, None, x, component, criterion, p, tally)?;
     let y_new = problem.observe_by(&x_new, tally);
-    Ok((x_new, y_new))
+    Ok(Searched {
+        x: x_new,
+        y: y_new,
+        next_lin: None,
+    })
 }
 
 fn last_cp(y: &Observation) -> (f64, f64) {
@@ -780,11 +825,23 @@ fn run_steps(
     let passes = || tally.load(Ordering::Relaxed);
     let mut x = problem.x0();
     let mut y = problem.base_linearization().y_ref.clone();
+    let mut lin = None;
     let mut steps = Vec::new();
     for (i, &(component, criterion)) in plan.iter().enumerate() {
         let before = passes();
         let input = x;
-        (x, y) = search(problem, x, &y, component, criterion, p, &tally)?;
+        let next = plan.get(i + 1).map_or(&[][..], |(c, _)| c.settings());
+        let done = search(
+            problem,
+            x,
+            &y,
+            lin.take(),
+            (component, next),
+            criterion,
+            p,
+            &tally,
+        )?;
+        (x, y, lin) = (done.x, done.y, done.next_lin);
         let (dx_m, dy_m) = last_cp(&y);
         steps.push(Step {
             step: i + 1,
