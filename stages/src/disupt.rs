@@ -1046,6 +1046,40 @@ impl JointModel {
     }
 }
 
+impl JointModel {
+    /// The model's least-squares step `δ` from `p_ref` (Levenberg–Marquardt).
+    fn solve(&self) -> Result<DVector<f64>, DisuptError> {
+        let (solved, report) = LevenbergMarquardt::new().minimize(LinearStep {
+            model: self,
+            delta: DVector::zeros(self.a.ncols()),
+        });
+        if !report.termination.was_successful() {
+            return Err(DisuptError::LeastSquares(format!(
+                "{:?}",
+                report.termination
+            )));
+        }
+        Ok(solved.delta)
+    }
+}
+
+impl JointFit {
+    /// The control points' part of the cost of this fit redone on `lin` alone (its
+    /// settings, weights and free parameters; no navigation pass): the model's optimum,
+    /// scored on the model's residuals there.
+    pub fn linearised_cp_cost(
+        &self,
+        problem: &Problem<'_>,
+        lin: &Linearization,
+    ) -> Result<f64, DisuptError> {
+        let model = JointModel::new(problem, lin, &self.free, &self.weights, None);
+        let r = &model.r0 + &model.a * model.solve()?;
+        let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
+        let rows = n_att..(n_att + 2 * lin.y_ref.cp_m.len()).min(r.len());
+        Ok(ssr(&r.as_slice()[rows]))
+    }
+}
+
 /// The linearised least-squares step in the form the LM crate wants (`δ` from `p_ref`).
 struct LinearStep<'m> {
     model: &'m JointModel,
@@ -1202,18 +1236,8 @@ pub fn joint_fit(
     };
     for round in 0..rounds {
         for _ in 0..MAX_GAUSS_NEWTON {
-            let (solved, report) = LevenbergMarquardt::new().minimize(LinearStep {
-                model: &model,
-                delta: DVector::zeros(free.len()),
-            });
-            if !report.termination.was_successful() {
-                return Err(DisuptError::LeastSquares(format!(
-                    "{:?}",
-                    report.termination
-                )));
-            }
             // The exact pass at the model's optimum; halve the step while it does worse.
-            let mut step = solved.delta;
+            let mut step = model.solve()?;
             let (mut p_new, mut y_new, mut cost_new);
             let mut halvings = 0;
             loop {

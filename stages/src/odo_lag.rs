@@ -6,10 +6,15 @@
 //! continuous shift (derive interpolates the cumulative distance); see [`Rederive::at`].
 //!
 //! The lag is found by an outer one-dimensional search over such re-derives (successive
-//! parabolas: the score is near-quadratic in the lag). At each trial lag the joint fit estimates every other setting from the
-//! attitude residuals and the control points (the epochs' weight held at that of the fit
-//! without a lag), and the trial is scored by the control points' part of its cost: what
-//! the route at the stops says of the timing. The attitude references are no judge of it:
+//! parabolas: the score is near-quadratic in the lag). At each trial lag the joint fit
+//! estimates every other setting from the attitude residuals and the control points (the
+//! epochs' weight held at that of the fit without a lag), and the trial is scored by the
+//! control points' part of its cost: what the route at the stops says of the timing.
+//! Each trial's fit is solved on the lag-free fit's linearisation around one exact pass
+//! on the trial's derive (the other settings move little with the lag, well within what
+//! the linearisation holds for): one pass per trial, where a fit with its own exact
+//! check took two, and every trial on the same model, so the score is smooth in the lag.
+//! The fit at the estimated lag is then done in full, checked by exact passes. The attitude references are no judge of it:
 //! eq 10's u̇ carries the odometer's pulse quantisation aliased to low frequencies, whose
 //! pull on the lag is biased (measured on a simulated run with a 0.4 s lag: the whole
 //! cost is smallest at 0.367 s, its control-point part at 0.400 s). Its 1σ comes from the
@@ -28,7 +33,9 @@ use crate::derive::{
     DeriveParams, Derived, RawSeries, derive, epochs_of, filter_odometer_terms,
     odometer_increments, odometer_terms, shifted_blocks,
 };
-use crate::disupt::{DisuptError, DisuptParams, JointFit, JointOptions, ProblemSpec, joint_fit};
+use crate::disupt::{
+    DisuptError, DisuptParams, JointFit, JointOptions, ProblemSpec, joint_fit, x_of,
+};
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, Setting};
 
@@ -148,11 +155,9 @@ struct Profile<'r> {
     rederive: &'r Rederive<'r>,
     valid: Vec<bool>,
     spec: &'r ProblemSpec<'r>,
-    params: &'r DisuptParams,
-    attitude_sigma_rad: f64,
+    /// The fit without a lag: its linearisation is every trial's model.
+    fit0: &'r JointFit,
     trials: RefCell<Vec<[f64; 2]>>,
-    /// The latest trial's linearisation at its solution: the next trial starts there.
-    warm: RefCell<Linearization>,
     /// Navigation passes of the trials.
     passes: std::cell::Cell<usize>,
 }
@@ -166,17 +171,17 @@ impl Profile<'_> {
         // The same epochs at every trial: the gate moves with the lag, and an epoch
         // entering or leaving would make the costs incomparable.
         d.epochs.valid.clone_from(&self.valid);
-        let warm = self.warm.borrow().clone();
-        let opts = JointOptions {
-            attitude_sigma_rad: Some(self.attitude_sigma_rad),
-            skip_cp: None,
-            warm: Some(&warm),
+        let problem = self.spec.on(&d);
+        let warm = self.fit0.linearization();
+        let lin = Linearization {
+            p_ref: warm.p_ref,
+            y_ref: problem.observe(&x_of(&warm.p_ref)),
+            slopes: warm.slopes.clone(),
         };
-        let fit = joint_fit(&self.spec.on(&d), self.params, &opts)?;
-        self.trials.borrow_mut().push([lag_s, fit.cp_cost]);
-        self.passes.set(self.passes.get() + fit.result.evaluations);
-        *self.warm.borrow_mut() = fit.linearization().clone();
-        Ok(fit.cp_cost)
+        let cost = self.fit0.linearised_cp_cost(&problem, &lin)?;
+        self.trials.borrow_mut().push([lag_s, cost]);
+        self.passes.set(self.passes.get() + 1);
+        Ok(cost)
     }
 }
 
@@ -194,22 +199,23 @@ pub fn joint_with_lag(
         rederive,
         valid: base.epochs.valid.clone(),
         spec,
-        params,
-        attitude_sigma_rad: fit0.attitude_sigma_rad,
+        fit0: &fit0,
         trials: RefCell::new(Vec::new()),
-        warm: RefCell::new(fit0.linearization().clone()),
         passes: std::cell::Cell::new(fit0.result.evaluations),
     };
     let bound = params.odo_lag_bound_s;
     // The score is the control points' misfit, near-quadratic in the lag (the stops move
     // in proportion to it): successive parabolas, first over ±0.3 of the bound, then over
     // ±STEP around each vertex, until the vertex moves less than TOLERANCE_S.
-    profile.trials.borrow_mut().push([0.0, fit0.cp_cost]);
+    // The trial at lag zero is on the derive the fit was made on, whose pass at the
+    // linearisation's point the linearisation holds: no pass.
+    let cost_at_0 = fit0.linearised_cp_cost(&spec.on(base), fit0.linearization())?;
+    profile.trials.borrow_mut().push([0.0, cost_at_0]);
     let wide = 0.3 * bound;
     let mut points = [-wide, 0.0, wide];
     let mut lag_s = 0.0;
     let mut curvature = f64::NAN;
-    let mut c0 = fit0.cp_cost;
+    let mut c0 = cost_at_0;
     for round in 0..MAX_ROUNDS {
         let costs = [
             profile.cost(points[0])?,
@@ -238,12 +244,11 @@ pub fn joint_with_lag(
         points = [lag_s - CURVATURE_STEP_S, lag_s, lag_s + CURVATURE_STEP_S];
     }
     let derived = rederive.at(lag_s);
-    let warm = profile.warm.borrow().clone();
     let mut fit = joint_fit(
         &spec.on(&derived),
         params,
         &JointOptions {
-            warm: Some(&warm),
+            warm: Some(fit0.linearization()),
             ..JointOptions::default()
         },
     )?;
