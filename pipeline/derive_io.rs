@@ -9,7 +9,7 @@ use std::sync::Arc;
 use anyhow::{Context, bail};
 use arrow::array::{AsArray, BooleanArray, Float64Array, Int64Array, RecordBatch, UInt64Array};
 use arrow::datatypes::UInt64Type;
-use unz_formats::parquet_io::{read_table, write_batch};
+use unz_formats::parquet_io::{ParquetSink, for_each_batch, read_table, write_batch};
 use unz_formats::schema::{self, derived_meta};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, Epochs};
@@ -38,22 +38,30 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
             d.out_of_range_samples.to_string(),
         ),
     ]);
+    // In batches of 65 536 rows: the columns of one batch are copied at a time, whatever
+    // the run's length.
+    const ROWS: usize = 1 << 16;
+    let mut sink = ParquetSink::create(&dir.join(files::DERIVED), schema.clone())?;
     let t_ns: Vec<i64> = d.t_ns();
-    let batch = RecordBatch::try_new(
-        schema,
-        vec![
-            Arc::new(Int64Array::from(t_ns)),
-            f64s(&d.dt_s),
-            vec3_to_array(&d.dtheta_rad),
-            vec3_to_array(&d.dvel_mps),
-            f64s(&d.odo_dist_m),
-            f64s(&d.u_mps),
-            f64s(&d.u_dot_mps2),
-            f64s(&d.r_rad_s),
-            f64s(&d.ru_mps2),
-        ],
-    )?;
-    write_batch(&dir.join(files::DERIVED), &batch)?;
+    for lo in (0..t_ns.len()).step_by(ROWS) {
+        let r = lo..(lo + ROWS).min(t_ns.len());
+        let batch = RecordBatch::try_new(
+            schema.clone(),
+            vec![
+                Arc::new(Int64Array::from(t_ns[r.clone()].to_vec())),
+                f64s(&d.dt_s[r.clone()]),
+                vec3_to_array(&d.dtheta_rad[r.clone()]),
+                vec3_to_array(&d.dvel_mps[r.clone()]),
+                f64s(&d.odo_dist_m[r.clone()]),
+                f64s(&d.u_mps[r.clone()]),
+                f64s(&d.u_dot_mps2[r.clone()]),
+                f64s(&d.r_rad_s[r.clone()]),
+                f64s(&d.ru_mps2[r]),
+            ],
+        )?;
+        sink.write(&batch)?;
+    }
+    sink.finish()?;
 
     let e = &d.epochs;
     let at = |v: &[f64]| f64s(&e.block.iter().map(|&j| v[j]).collect::<Vec<_>>());
@@ -99,7 +107,24 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
 /// included.
 pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
     let path = dir.join(files::DERIVED);
-    let (schema, b) = read_table(&path)?;
+    // Column by column, batch by batch: the run's series without the file's batches
+    // beside them.
+    let mut t_ns: Vec<i64> = Vec::new();
+    let (mut dt_s, mut odo_dist_m, mut u_mps, mut u_dot_mps2, mut r_rad_s, mut ru_mps2) =
+        (vec![], vec![], vec![], vec![], vec![], vec![]);
+    let (mut dtheta_rad, mut dvel_mps): (Vec<[f64; 3]>, Vec<[f64; 3]>) = (vec![], vec![]);
+    let schema = for_each_batch(&path, |b| {
+        t_ns.extend(i64_column(b, "t_ns")?);
+        dt_s.extend(f64_column(b, "dt_s")?);
+        dtheta_rad.extend(vec3_column(b, "dtheta_rad")?);
+        dvel_mps.extend(vec3_column(b, "dvel_mps")?);
+        odo_dist_m.extend(f64_column(b, "odo_dist_m")?);
+        u_mps.extend(f64_column(b, "u_mps")?);
+        u_dot_mps2.extend(f64_column(b, "u_dot_mps2")?);
+        r_rad_s.extend(f64_column(b, "r_rad_s")?);
+        ru_mps2.extend(f64_column(b, "ru_mps2")?);
+        Ok(())
+    })?;
     let meta = |k: &str| -> anyhow::Result<String> {
         schema
             .metadata()
@@ -107,20 +132,19 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
             .cloned()
             .with_context(|| format!("{} lacks metadata {k}", path.display()))
     };
-    let t_ns = i64_column(&b, "t_ns")?;
     let t0_ns = t_ns.first().copied().unwrap_or(0);
     let mut d = Derived {
         t0_ns,
         nominal_dt_s: meta(derived_meta::NOMINAL_DT_S)?.parse()?,
         t_s: t_ns.iter().map(|t| (t - t0_ns) as f64 * 1e-9).collect(),
-        dt_s: f64_column(&b, "dt_s")?.into(),
-        dtheta_rad: vec3_column(&b, "dtheta_rad")?.into(),
-        dvel_mps: vec3_column(&b, "dvel_mps")?.into(),
-        odo_dist_m: f64_column(&b, "odo_dist_m")?,
-        u_mps: f64_column(&b, "u_mps")?,
-        u_dot_mps2: f64_column(&b, "u_dot_mps2")?,
-        r_rad_s: f64_column(&b, "r_rad_s")?.into(),
-        ru_mps2: f64_column(&b, "ru_mps2")?,
+        dt_s: dt_s.into(),
+        dtheta_rad: dtheta_rad.into(),
+        dvel_mps: dvel_mps.into(),
+        odo_dist_m,
+        u_mps,
+        u_dot_mps2,
+        r_rad_s: r_rad_s.into(),
+        ru_mps2,
         block: meta(derived_meta::BLOCK)?.parse()?,
         repaired_times: meta(derived_meta::REPAIRED_TIMES)?.parse()?,
         filled_gaps: meta(derived_meta::FILLED_GAPS)?.parse()?,

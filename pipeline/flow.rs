@@ -9,7 +9,7 @@ use arrow::array::{BooleanArray, Float64Array, Int64Array, RecordBatch};
 use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::manifest::RunManifest;
-use unz_formats::parquet_io::{ParquetSink, read_batches, write_batch};
+use unz_formats::parquet_io::{ParquetSink, for_each_batch, read_batches, write_batch};
 use unz_formats::schema::{self, META_ODO_M_PER_PULSE};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f32_array, f64_column, i64_column};
 use unz_stages::attitude::Euler;
@@ -145,11 +145,8 @@ fn load_table<T: Default>(
     path: &Path,
     extend: impl Fn(&mut T, &RecordBatch) -> Result<(), unz_formats::FormatError>,
 ) -> anyhow::Result<(T, arrow::datatypes::SchemaRef)> {
-    let (schema, batches) = read_batches(path)?;
     let mut t = T::default();
-    for b in &batches {
-        extend(&mut t, b).map_err(|e| e.in_file(path))?;
-    }
+    let schema = for_each_batch(path, |b| extend(&mut t, b))?;
     Ok((t, schema))
 }
 
@@ -174,6 +171,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         let raw = IngestedSeries::load(&ingest_dir)?;
         let mut d = derive(&raw.series(), &params.derive, site_gravity_mps2(m));
         (d.imu_failure_samples, d.odometer_failure_samples) = raw.failure_counts();
+        drop(raw);
         // A run whose odometer is flagged failed over much of it has no dead reckoning
         // worth correcting; a short failure is counted and reported (navigate.json).
         if d.odometer_failure_samples * 10 > d.t_s.len() {

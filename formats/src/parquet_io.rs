@@ -101,6 +101,28 @@ pub fn read_schema(path: &Path) -> Result<SchemaRef, FileError> {
     Ok(builder.schema().clone())
 }
 
+/// Reads a Parquet file batch by batch (of 65 536 rows), handing each to `each`: a whole
+/// run's columns are built without the file's batches held beside them. Returns the
+/// schema.
+pub fn for_each_batch(
+    path: &Path,
+    mut each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
+) -> Result<SchemaRef, FileError> {
+    let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
+    let builder =
+        ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| parquet_err(path, e))?;
+    let schema = builder.schema().clone();
+    let reader = builder
+        .with_batch_size(1 << 16)
+        .build()
+        .map_err(|e| parquet_err(path, e))?;
+    for batch in reader {
+        let batch = batch.map_err(|e| parquet_err(path, e))?;
+        each(&batch).map_err(|e| e.in_file(path))?;
+    }
+    Ok(schema)
+}
+
 /// Reads a whole Parquet file: its schema and batches.
 pub fn read_batches(path: &Path) -> Result<(SchemaRef, Vec<RecordBatch>), FileError> {
     let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
