@@ -9,7 +9,7 @@ use arrow::array::{BooleanArray, Float64Array, Int64Array, RecordBatch};
 use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::manifest::RunManifest;
-use unz_formats::parquet_io::{ParquetSink, for_each_batch, read_batches, write_batch};
+use unz_formats::parquet_io::{ParquetSink, for_each_batch, read_schema, write_batch};
 use unz_formats::schema::{self, META_ODO_M_PER_PULSE};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f32_array, f64_column, i64_column};
 use unz_stages::attitude::Euler;
@@ -21,7 +21,7 @@ use unz_stages::initial::{AlignParams, InitialReport, InitialRequest, Source, in
 use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
 
 use crate::artifacts::{RunLayout, StageName, files};
-use crate::derive_io::{load_derived, write_derived};
+use crate::derive_io::{as_stored, load_derived, write_derived};
 use crate::ingest::{OUTPUTS as INGEST_OUTPUTS, ingest};
 use crate::stage::{Stage, params_hash};
 
@@ -64,6 +64,10 @@ pub struct RunCtx {
     pub log: std::sync::Mutex<Vec<(String, bool, f64)>>,
     /// A progress line showing the stage being worked on (campaigns on a terminal).
     pub progress: Option<indicatif::ProgressBar>,
+    /// The derive stage's output in memory, as [`load_derived`] gives it: the stages
+    /// after it in the same process share it instead of each decoding `derived.parquet`.
+    /// Set when the derive is computed or first loaded, cleared when it is recomputed.
+    derived: std::sync::Mutex<Option<Arc<Derived>>>,
 }
 
 impl RunCtx {
@@ -75,7 +79,37 @@ impl RunCtx {
             verbose,
             log: std::sync::Mutex::new(Vec::new()),
             progress: None,
+            derived: std::sync::Mutex::new(None),
         }
+    }
+
+    /// The derive in `derive_dir` (brought up to date by the caller): the one in memory,
+    /// else loaded and kept.
+    pub fn derived(&self, derive_dir: &Path) -> anyhow::Result<Arc<Derived>> {
+        let mut memo = self.derived.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(d) = memo.as_ref() {
+            return Ok(d.clone());
+        }
+        let d = Arc::new(load_derived(derive_dir)?);
+        *memo = Some(d.clone());
+        Ok(d)
+    }
+
+    /// Takes the derive out of memory: the last stage that reads it owns it then.
+    pub fn take_derived(&self, derive_dir: &Path) -> anyhow::Result<Derived> {
+        let memo = self
+            .derived
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take();
+        match memo {
+            Some(d) => Ok(Arc::try_unwrap(d).unwrap_or_else(|d| (*d).clone())),
+            None => load_derived(derive_dir),
+        }
+    }
+
+    fn set_derived(&self, d: Option<Arc<Derived>>) {
+        *self.derived.lock().unwrap_or_else(|e| e.into_inner()) = d;
     }
 
     fn record(&self, stage: &str, computed: bool, wall_s: f64) {
@@ -168,6 +202,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         outputs: &[files::DERIVED, files::EPOCHS, files::BLOCKS],
     };
     ctx.run_stage(&stage, || {
+        ctx.set_derived(None);
         let raw = IngestedSeries::load(&ingest_dir)?;
         let mut d = derive(&raw.series(), &params.derive, site_gravity_mps2(m));
         (d.imu_failure_samples, d.odometer_failure_samples) = raw.failure_counts();
@@ -208,7 +243,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ensure_finite("odometer distance", d.odo_dist_m.iter().copied())?;
         ensure_finite("accelerometer pitch", d.epochs.theta_p_rad.iter().copied())?;
         ensure_finite("accelerometer roll", d.epochs.phi_p_rad.iter().copied())?;
-        write_derived(&d, &dir)
+        write_derived(&d, &dir)?;
+        ctx.set_derived(Some(Arc::new(as_stored(d))));
+        Ok(())
     })?;
     Ok(dir)
 }
@@ -283,8 +320,8 @@ impl IngestedSeries {
 
 /// Everything a navigation pass needs, loaded once.
 pub struct NavCase {
-    /// Derived series.
-    pub derived: Derived,
+    /// Derived series (shared with the run's other stages in this process).
+    pub derived: Arc<Derived>,
     /// Control points matched to samples.
     pub fixes: Vec<ControlPointFix>,
     /// Settings of the pass.
@@ -364,12 +401,12 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
     let derive_dir = ensure_derive(ctx, params)?;
     let m = &ctx.manifest;
     let ingest_dir = ctx.layout().dir(StageName::Ingest);
-    let derived = load_derived(&derive_dir)?;
+    let derived = ctx.derived(&derive_dir)?;
     let (marks, _) = load_table::<MarksTable>(
         &ingest_dir.join(files::MARKS),
         MarksTable::extend_from_batch,
     )?;
-    let (odo_schema, _) = read_batches(&ingest_dir.join(files::ODOMETER))?;
+    let odo_schema = read_schema(&ingest_dir.join(files::ODOMETER))?;
     let fixes = match_control_points(m, &marks, &derived)
         .with_context(|| format!("in {}", m.path.display()))?;
     let ingest_scale: Option<f64> = odo_schema
@@ -614,7 +651,7 @@ pub fn ensure_criteria(
         outputs: &[files::CRITERIA, files::CRITERIA_REPORT],
     };
     ctx.run_stage(&stage, || {
-        let d = load_derived(&derive_dir)?;
+        let d = ctx.derived(&derive_dir)?;
         let track = load_nav(&nav_dir.join(files::NAV))?;
         let (marks, _) = load_table::<MarksTable>(
             &ingest_dir.join(files::MARKS),

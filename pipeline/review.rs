@@ -17,7 +17,6 @@ use unz_viz::review::{
 };
 
 use crate::artifacts::{StageName, files};
-use crate::derive_io::load_derived;
 use crate::disupt_stage::{DisuptOut, Method, ensure_disupt};
 use crate::flow::{Overrides, Params, RunCtx, ensure_criteria, start_position};
 use crate::method_tables::{
@@ -123,7 +122,7 @@ pub fn build_review(
     sweep: Option<&Path>,
 ) -> anyhow::Result<Review> {
     let m = &ctx.manifest;
-    let mut d = load_derived(derive_dir)?;
+    let mut d = ctx.take_derived(derive_dir)?;
     let rel =
         |t_ns: &[i64]| -> Vec<f64> { t_ns.iter().map(|&t| (t - d.t0_ns) as f64 * 1e-9).collect() };
     let start = start_position(m);
