@@ -38,7 +38,7 @@ use crate::derive::Epochs;
 use crate::earth;
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
-use crate::strapdown::{self, CriteriaSink, NavInputs, NavSettings};
+use crate::strapdown::{self, CriteriaSink, LaneBatch, NavInputs, NavSettings, in_lanes};
 use crate::units::DEG_PER_H;
 
 /// Settings in the optimisers' units.
@@ -190,7 +190,7 @@ impl Evaluation {
 }
 
 /// Most passes stepped side by side in vector lanes by [`Problem::observe_many_by`].
-pub const LANES: usize = 8;
+pub const LANES: usize = strapdown::MAX_LANES;
 
 thread_local! {
     static OBSERVE_SCRATCH: RefCell<([CriteriaSink; LANES], Kryt1Scratch)> =
@@ -263,8 +263,8 @@ impl<'a> Problem<'a> {
     /// [`Self::observe`], counted in `tally` too (a method's own passes). The pass keeps
     /// no track: it sums what the criteria need as it goes ([`CriteriaSink`]).
     pub fn observe_by(&self, x: &X, tally: &AtomicUsize) -> Observation {
-        let [y] = self.observe_lanes::<1>(&[*x], 1, tally);
-        y
+        let mut y = self.observe_batch(&[*x], tally);
+        y.pop().expect("one observation of one point")
     }
 
     /// The observations of several settings (in their order), each what
@@ -289,53 +289,17 @@ impl<'a> Problem<'a> {
             .collect()
     }
 
-    /// At most [`LANES`] points in one batch of lanes. Lanes come in 1, 2, 4 or 8; a
-    /// partial batch repeats its last point.
-    fn observe_batch(&self, chunk: &[X], tally: &AtomicUsize) -> Vec<Observation> {
-        let padded = |l: usize| chunk[l.min(chunk.len() - 1)];
-        let n = chunk.len();
-        let ys: Vec<Observation> = match n {
-            0 => Vec::new(),
-            1 => self.observe_lanes::<1>(&[chunk[0]], n, tally).into(),
-            2 => self
-                .observe_lanes::<2>(&std::array::from_fn(padded), n, tally)
-                .into(),
-            3 | 4 => self
-                .observe_lanes::<4>(&std::array::from_fn(padded), n, tally)
-                .into(),
-            _ => self
-                .observe_lanes::<8>(&std::array::from_fn(padded), n, tally)
-                .into(),
-        };
-        ys.into_iter().take(n).collect()
-    }
-
-    /// `N` ≤ [`LANES`] exact passes side by side. Only the first `points` lanes count as
-    /// passes (the rest repeat a point to fill the batch).
-    fn observe_lanes<const N: usize>(
-        &self,
-        xs: &[X; N],
-        points: usize,
-        tally: &AtomicUsize,
-    ) -> [Observation; N] {
-        tally.fetch_add(points, Ordering::Relaxed);
-        self.passes.fetch_add(points, Ordering::Relaxed);
-        let settings = xs.map(|x| self.settings(&x));
-        let n = self.inputs.len();
-        let at: Vec<usize> = self
-            .fixes
-            .iter()
-            .map(|f| f.sample)
-            .filter(|&k| k < n)
-            .collect();
-        OBSERVE_SCRATCH.with(|cell| {
-            let (sinks, scratch) = &mut *cell.borrow_mut();
-            let sinks: &mut [CriteriaSink; N] = (&mut sinks[..N])
-                .try_into()
-                .expect("at most LANES passes side by side");
-            strapdown::run_criteria(&self.inputs, &settings, self.lp.block, &at, sinks);
-            std::array::from_fn(|l| self.observation_of_sink(&sinks[l], scratch))
-        })
+    /// At most [`LANES`] points in one batch of lanes.
+    fn observe_batch(&self, xs: &[X], tally: &AtomicUsize) -> Vec<Observation> {
+        tally.fetch_add(xs.len(), Ordering::Relaxed);
+        self.passes.fetch_add(xs.len(), Ordering::Relaxed);
+        in_lanes(
+            xs.len(),
+            &mut OnDerives {
+                problems: &[self],
+                xs,
+            },
+        )
     }
 
     /// What the criteria read from a pass's sink.
@@ -424,6 +388,96 @@ impl<'a> Problem<'a> {
             }
         }
         out
+    }
+}
+
+/// The exact observation of `x` on each of `problems`, derives of one run at other
+/// odometer timings (the same IMU series, control points and blocks), in batches of
+/// lanes each on its own odometer increments; each what [`Problem::observe`] gives, bit
+/// for bit. Counted in `tally` and each problem's passes.
+///
+/// # Panics
+/// If the problems do not share their IMU series, control points and blocks.
+pub fn observe_each(problems: &[&Problem<'_>], x: &X, tally: &AtomicUsize) -> Vec<Observation> {
+    let Some(first) = problems.first() else {
+        return Vec::new();
+    };
+    assert!(
+        problems.iter().all(|p| p.inputs.same_imu_as(&first.inputs)
+            && p.inputs.len() == first.inputs.len()
+            && std::ptr::eq(p.fixes, first.fixes)
+            && p.lp.block == first.lp.block),
+        "derives of different runs or filters"
+    );
+    tally.fetch_add(problems.len(), Ordering::Relaxed);
+    problems
+        .chunks(LANES)
+        .flat_map(|chunk| {
+            for p in chunk {
+                p.passes.fetch_add(1, Ordering::Relaxed);
+            }
+            let xs = vec![*x; chunk.len()];
+            in_lanes(
+                chunk.len(),
+                &mut OnDerives {
+                    problems: chunk,
+                    xs: &xs,
+                },
+            )
+        })
+        .collect()
+}
+
+/// Points side by side: the `i`-th at `xs[i]` on `problems[i]`, or all on the only
+/// problem. The problems share their IMU series, control points and blocks; each lane
+/// runs on its own problem's odometer increments.
+struct OnDerives<'p, 'a> {
+    problems: &'p [&'p Problem<'a>],
+    xs: &'p [X],
+}
+
+impl<'a> OnDerives<'_, 'a> {
+    fn problem(&self, i: usize) -> &Problem<'a> {
+        self.problems[i.min(self.problems.len() - 1)]
+    }
+}
+
+impl LaneBatch for OnDerives<'_, '_> {
+    type Out = Observation;
+
+    fn run<const N: usize>(&mut self, points: [usize; N]) -> [Observation; N] {
+        let first = self.problems[0];
+        let settings = points.map(|i| self.problem(i).settings(&self.xs[i]));
+        let n = first.inputs.len();
+        let at: Vec<usize> = first
+            .fixes
+            .iter()
+            .map(|f| f.sample)
+            .filter(|&k| k < n)
+            .collect();
+        OBSERVE_SCRATCH.with(|cell| {
+            let (sinks, scratch) = &mut *cell.borrow_mut();
+            let sinks: &mut [CriteriaSink; N] = (&mut sinks[..N])
+                .try_into()
+                .expect("at most LANES passes side by side");
+            if self.problems.len() == 1 {
+                strapdown::run_criteria(&first.inputs, &settings, first.lp.block, &at, sinks);
+            } else {
+                let odometers = points.map(|i| self.problem(i).inputs.odo_dist_m);
+                strapdown::run_criteria_odometers(
+                    &first.inputs,
+                    odometers,
+                    &settings,
+                    first.lp.block,
+                    &at,
+                    sinks,
+                );
+            }
+            std::array::from_fn(|l| {
+                self.problem(points[l])
+                    .observation_of_sink(&sinks[l], scratch)
+            })
+        })
     }
 }
 

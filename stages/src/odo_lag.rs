@@ -14,7 +14,10 @@
 //! on the trial's derive (the other settings move little with the lag, well within what
 //! the linearisation holds for): one pass per trial, where a fit with its own exact
 //! check took two, and every trial on the same model, so the score is smooth in the lag.
-//! The fit at the estimated lag is then done in full, checked by exact passes. The attitude references are no judge of it:
+//! A parabola's three trials run side by side, each lane on its own derive's odometer
+//! increments ([`crate::disupt::observe_each`]), and the score at its vertex is read off
+//! the parabola: a round costs one batch of passes. The fit at the estimated lag is then
+//! done in full, checked by exact passes. The attitude references are no judge of it:
 //! eq 10's u̇ carries the odometer's pulse quantisation aliased to low frequencies, whose
 //! pull on the lag is biased (measured on a simulated run with a 0.4 s lag: the whole
 //! cost is smallest at 0.367 s, its control-point part at 0.400 s). Its 1σ comes from the
@@ -34,7 +37,8 @@ use crate::derive::{
     odometer_increments, odometer_terms, shifted_blocks,
 };
 use crate::disupt::{
-    DisuptError, DisuptParams, JointFit, JointOptions, ProblemSpec, joint_fit, x_of,
+    DisuptError, DisuptParams, JointFit, JointOptions, Problem, ProblemSpec, joint_fit,
+    observe_each, x_of,
 };
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, Setting};
@@ -57,6 +61,16 @@ fn parabola(x: [f64; 3], y: [f64; 3]) -> Option<(f64, f64)> {
         (x[2] * x[2] * (y[0] - y[1]) + x[1] * x[1] * (y[2] - y[0]) + x[0] * x[0] * (y[1] - y[2]))
             / d;
     (a > 0.0 && a.is_finite()).then(|| (-b / (2.0 * a), 2.0 * a))
+}
+
+/// The value at `at` of the parabola through `(x_i, y_i)` (Lagrange's form).
+fn through(x: [f64; 3], y: [f64; 3], at: f64) -> f64 {
+    (0..3)
+        .map(|i| {
+            let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+            y[i] * (at - x[j]) * (at - x[k]) / ((x[i] - x[j]) * (x[i] - x[k]))
+        })
+        .sum()
 }
 
 /// The joint fit at the estimated lag.
@@ -163,25 +177,50 @@ struct Profile<'r> {
 }
 
 impl Profile<'_> {
-    fn cost(&self, lag_s: f64) -> Result<f64, DisuptError> {
-        if let Some(t) = self.trials.borrow().iter().find(|t| t[0] == lag_s) {
-            return Ok(t[1]);
-        }
-        let mut d = self.rederive.at(lag_s);
-        // The same epochs at every trial: the gate moves with the lag, and an epoch
-        // entering or leaving would make the costs incomparable.
-        d.epochs.valid.clone_from(&self.valid);
-        let problem = self.spec.on(&d);
-        let warm = self.fit0.linearization();
-        let lin = Linearization {
-            p_ref: warm.p_ref,
-            y_ref: problem.observe(&x_of(&warm.p_ref)),
-            slopes: warm.slopes.clone(),
+    /// The scores at `lags`: those not tried yet are tried side by side (each trial's
+    /// pass in a lane on its own odometer increments).
+    fn costs<const K: usize>(&self, lags: [f64; K]) -> Result<[f64; K], DisuptError> {
+        let known = |lag: f64| {
+            self.trials
+                .borrow()
+                .iter()
+                .find(|t| t[0] == lag)
+                .map(|t| t[1])
         };
-        let cost = self.fit0.linearised_cp_cost(&problem, &lin)?;
-        self.trials.borrow_mut().push([lag_s, cost]);
-        self.passes.set(self.passes.get() + 1);
-        Ok(cost)
+        let mut new: Vec<f64> = Vec::new();
+        for &lag in &lags {
+            if known(lag).is_none() && !new.contains(&lag) {
+                new.push(lag);
+            }
+        }
+        let derives: Vec<Derived> = new
+            .iter()
+            .map(|&lag| {
+                let mut d = self.rederive.at(lag);
+                // The same epochs at every trial: the gate moves with the lag, and an
+                // epoch entering or leaving would make the costs incomparable.
+                d.epochs.valid.clone_from(&self.valid);
+                // A trial's pass reads the increments and the epochs only.
+                (d.u_mps, d.u_dot_mps2, d.ru_mps2) = (Vec::new(), Vec::new(), Vec::new());
+                d
+            })
+            .collect();
+        let problems: Vec<Problem<'_>> = derives.iter().map(|d| self.spec.on(d)).collect();
+        let refs: Vec<&Problem<'_>> = problems.iter().collect();
+        let warm = self.fit0.linearization();
+        let tally = std::sync::atomic::AtomicUsize::new(0);
+        let ys = observe_each(&refs, &x_of(&warm.p_ref), &tally);
+        for ((lag, problem), y) in new.iter().zip(&problems).zip(ys) {
+            let lin = Linearization {
+                p_ref: warm.p_ref,
+                y_ref: y,
+                slopes: warm.slopes.clone(),
+            };
+            let cost = self.fit0.linearised_cp_cost(problem, &lin)?;
+            self.trials.borrow_mut().push([*lag, cost]);
+        }
+        self.passes.set(self.passes.get() + new.len());
+        Ok(lags.map(|lag| known(lag).unwrap_or(f64::NAN)))
     }
 }
 
@@ -217,16 +256,14 @@ pub fn joint_with_lag(
     let mut curvature = f64::NAN;
     let mut c0 = cost_at_0;
     for round in 0..MAX_ROUNDS {
-        let costs = [
-            profile.cost(points[0])?,
-            profile.cost(points[1])?,
-            profile.cost(points[2])?,
-        ];
+        let costs = profile.costs(points)?;
         let previous = lag_s;
         match parabola(points, costs) {
             Some((vertex, second)) => {
                 lag_s = vertex.clamp(-bound, bound);
                 curvature = second;
+                // The score there, on the parabola (it is near-quadratic).
+                c0 = through(points, costs, lag_s);
             }
             None => {
                 // Not convex here: go on from the best trial so far.
@@ -235,12 +272,13 @@ pub fn joint_with_lag(
                     .unwrap_or(1);
                 lag_s = points[best];
                 curvature = f64::NAN;
+                c0 = costs[best];
             }
         }
-        c0 = profile.cost(lag_s)?;
         if round > 0 && (lag_s - previous).abs() < TOLERANCE_S && curvature.is_finite() {
             break;
         }
+        // The next parabola about the vertex: its three trials side by side.
         points = [lag_s - CURVATURE_STEP_S, lag_s, lag_s + CURVATURE_STEP_S];
     }
     let derived = rederive.at(lag_s);

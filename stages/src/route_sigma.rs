@@ -19,10 +19,9 @@
 use rayon::prelude::*;
 
 use crate::attitude::wrap_pi;
-use crate::strapdown::{NavInputs, NavSettings, NavTrack, StateAt, run_states_at};
-
-/// Most passes stepped side by side.
-const LANES: usize = 8;
+use crate::strapdown::{
+    LaneBatch, MAX_LANES, NavInputs, NavSettings, NavTrack, StateAt, in_lanes, run_states_at,
+};
 
 /// σ of the corrected route at every `stride`-th sample (and the last).
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -98,7 +97,9 @@ fn moved_states(moved: &[Moved<'_>], samples: &[usize]) -> Vec<Vec<[f64; 3]>> {
     let mut batches: Vec<&[Moved<'_>]> = Vec::new();
     let mut start = 0;
     for j in 1..=moved.len() {
-        if j == moved.len() || j - start == LANES || !moved[j].inputs.same_as(&moved[start].inputs)
+        if j == moved.len()
+            || j - start == MAX_LANES
+            || !moved[j].inputs.same_as(&moved[start].inputs)
         {
             batches.push(&moved[start..j]);
             start = j;
@@ -107,15 +108,7 @@ fn moved_states(moved: &[Moved<'_>], samples: &[usize]) -> Vec<Vec<[f64; 3]>> {
     batches
         .par_iter()
         .flat_map_iter(|batch| {
-            // Lanes come in 1, 2, 4 or 8; a partial batch repeats its last pass.
-            let padded = |l: usize| batch[l.min(batch.len() - 1)].settings;
-            let inputs = &batch[0].inputs;
-            let raw: Vec<Vec<StateAt>> = match batch.len() {
-                1 => run_states_at::<1>(inputs, &[batch[0].settings], samples).into(),
-                2 => run_states_at::<2>(inputs, &std::array::from_fn(padded), samples).into(),
-                3 | 4 => run_states_at::<4>(inputs, &std::array::from_fn(padded), samples).into(),
-                _ => run_states_at::<8>(inputs, &std::array::from_fn(padded), samples).into(),
-            };
+            let raw = in_lanes(batch.len(), &mut StatesOf { batch, samples });
             raw.into_iter().zip(batch.iter()).map(|(states, mv)| {
                 states
                     .iter()
@@ -124,6 +117,21 @@ fn moved_states(moved: &[Moved<'_>], samples: &[usize]) -> Vec<Vec<[f64; 3]>> {
             })
         })
         .collect()
+}
+
+/// Moved passes on the same inputs, their states at `samples`.
+struct StatesOf<'m, 'a> {
+    batch: &'m [Moved<'a>],
+    samples: &'m [usize],
+}
+
+impl LaneBatch for StatesOf<'_, '_> {
+    type Out = Vec<StateAt>;
+
+    fn run<const N: usize>(&mut self, points: [usize; N]) -> [Vec<StateAt>; N] {
+        let settings = points.map(|i| self.batch[i].settings);
+        run_states_at(&self.batch[0].inputs, &settings, self.samples)
+    }
 }
 
 /// One moved parameter: the settings of the pass and the inputs it runs on, the step

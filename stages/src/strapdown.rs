@@ -26,7 +26,7 @@ use nalgebra::UnitQuaternion;
 
 use crate::attitude::Euler;
 use crate::earth::Geodetic;
-use lanes::{Emit, Lanes};
+use lanes::{Emit, Lanes, OdometerPerLane};
 
 /// Per-sample navigation inputs; all slices have the same length.
 #[derive(Debug, Clone, Copy)]
@@ -45,6 +45,12 @@ impl NavInputs<'_> {
         std::ptr::eq(self.dt_s, other.dt_s)
             && std::ptr::eq(self.dtheta_rad, other.dtheta_rad)
             && std::ptr::eq(self.odo_dist_m, other.odo_dist_m)
+    }
+
+    /// Whether `other` reads the very same IMU series (its odometer's may differ: a
+    /// derive at another odometer timing).
+    pub fn same_imu_as(&self, other: &NavInputs<'_>) -> bool {
+        std::ptr::eq(self.dt_s, other.dt_s) && std::ptr::eq(self.dtheta_rad, other.dtheta_rad)
     }
 
     /// Number of samples.
@@ -261,6 +267,39 @@ impl<S: PassSink> Emit<1> for ToPassSink<'_, S> {
     }
 }
 
+/// Most passes stepped side by side in one batch of vector lanes.
+pub const MAX_LANES: usize = 8;
+
+/// Work on a few points (passes) that runs them side by side in `N` lanes, for any `N`
+/// [`in_lanes`] picks.
+pub trait LaneBatch {
+    /// What one point gives.
+    type Out;
+    /// The points `points` (indices; the last one repeated to fill the lanes) side by
+    /// side.
+    fn run<const N: usize>(&mut self, points: [usize; N]) -> [Self::Out; N];
+}
+
+/// The `n` ≤ [`MAX_LANES`] points of `batch` in one batch of 1, 2, 4 or 8 lanes (a
+/// partial batch repeats its last point), their results in order.
+///
+/// # Panics
+/// If `n` exceeds [`MAX_LANES`].
+pub fn in_lanes<B: LaneBatch>(n: usize, batch: &mut B) -> Vec<B::Out> {
+    assert!(n <= MAX_LANES, "{n} points for {MAX_LANES} lanes");
+    fn points<const N: usize>(n: usize) -> [usize; N] {
+        std::array::from_fn(|l| l.min(n - 1))
+    }
+    let out: Vec<B::Out> = match n {
+        0 => return Vec::new(),
+        1 => batch.run::<1>(points(n)).into(),
+        2 => batch.run::<2>(points(n)).into(),
+        3 | 4 => batch.run::<4>(points(n)).into(),
+        _ => batch.run::<8>(points(n)).into(),
+    };
+    out.into_iter().take(n).collect()
+}
+
 /// Runs `N` passes side by side (one per settings) into `sinks`, each reset first for
 /// blocks of `block` samples and the positions at `positions_at`: what the optimisers
 /// and sweeps read, several passes per vector instruction. Each sink ends exactly as a
@@ -283,6 +322,38 @@ pub fn run_criteria<const N: usize>(
         in_block: 0,
     };
     Lanes::<N>::new(settings).run(inputs, &mut lanes_sink);
+    lanes_sink.close_block();
+}
+
+/// [`run_criteria`] with each lane on its own odometer increments (`odometers[l]`, as
+/// long as `inputs`; `inputs.odo_dist_m` is not read): passes over derives at several
+/// odometer timings side by side, each as it would run alone.
+///
+/// # Panics
+/// If an odometer series is shorter than `inputs`.
+pub fn run_criteria_odometers<const N: usize>(
+    inputs: &NavInputs<'_>,
+    odometers: [&[f64]; N],
+    settings: &[NavSettings; N],
+    block: usize,
+    positions_at: &[usize],
+    sinks: &mut [CriteriaSink; N],
+) {
+    assert!(
+        odometers.iter().all(|o| o.len() >= inputs.len()),
+        "an odometer series shorter than the IMU's"
+    );
+    for sink in sinks.iter_mut() {
+        sink.reset(block, positions_at.iter().copied());
+    }
+    let mut lanes_sink = CriteriaLanes {
+        next_wanted: sinks.first().and_then(|s| s.wanted.last().copied()),
+        sinks,
+        block: block.max(1),
+        acc: [[0.0; N]; 3],
+        in_block: 0,
+    };
+    Lanes::<N>::new(settings).run_on(inputs, &OdometerPerLane(odometers), &mut lanes_sink);
     lanes_sink.close_block();
 }
 

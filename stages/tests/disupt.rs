@@ -187,6 +187,43 @@ fn track_free_passes_give_the_criteria_of_a_stored_track() {
     for (xi, yi) in xs.iter().zip(&batched) {
         assert_eq!(*yi, problem.observe(xi), "{xi:?}");
     }
+
+    // Derives at other odometer timings (the IMU's series shared, each its own odometer
+    // increments and epochs) side by side, each lane on its own odometer: what each
+    // derive's pass alone observes.
+    let derives: Vec<_> = (0..5)
+        .map(|i| {
+            let mut d = c.derived.clone();
+            let shift = i * 7;
+            d.odo_dist_m.rotate_right(shift);
+            d.odo_dist_m[..shift].fill(0.0);
+            for theta in &mut d.epochs.theta_p_rad {
+                *theta += 1e-4 * i as f64;
+            }
+            d
+        })
+        .collect();
+    let problems: Vec<Problem<'_>> = derives
+        .iter()
+        .map(|d| {
+            Problem::new(
+                d.nav_inputs(),
+                c.manifest_settings(),
+                &d.epochs,
+                c.lowpass(),
+                KalmanParams::default(),
+                &c.fixes,
+            )
+        })
+        .collect();
+    let refs: Vec<&Problem<'_>> = problems.iter().collect();
+    let tally = std::sync::atomic::AtomicUsize::new(0);
+    let each = unz_stages::disupt::observe_each(&refs, &x, &tally);
+    assert_eq!(tally.into_inner(), refs.len());
+    for (i, (p, y)) in refs.iter().zip(&each).enumerate() {
+        assert_eq!(*y, p.observe(&x), "derive {i}");
+    }
+    assert_ne!(each[0], each[4], "the odometers differ, so do the passes");
 }
 
 /// An IMU yawed on the vehicle turns the dead-reckoned route like an azimuth error does.

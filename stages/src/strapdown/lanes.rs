@@ -15,6 +15,32 @@ use crate::earth;
 const RENORMALISE_EVERY: usize = 64;
 
 /// What a run does with the lanes' state after each sample.
+/// Each lane's odometer increment at a sample, from the inputs' own increment there.
+pub(super) trait OdometerLanes<const N: usize> {
+    fn at(&self, k: usize, shared_m: f64) -> [f64; N];
+}
+
+/// Every lane on the inputs' odometer increments.
+pub(super) struct SharedOdometer;
+
+impl<const N: usize> OdometerLanes<N> for SharedOdometer {
+    #[inline(always)]
+    fn at(&self, _k: usize, shared_m: f64) -> [f64; N] {
+        [shared_m; N]
+    }
+}
+
+/// Each lane on its own odometer increments (derives at other odometer timings: the IMU's
+/// increments are the same), each at least as long as the inputs.
+pub(super) struct OdometerPerLane<'a, const N: usize>(pub [&'a [f64]; N]);
+
+impl<const N: usize> OdometerLanes<N> for OdometerPerLane<'_, N> {
+    #[inline(always)]
+    fn at(&self, k: usize, _shared_m: f64) -> [f64; N] {
+        std::array::from_fn(|l| self.0[l][k])
+    }
+}
+
 pub(super) trait Emit<const N: usize> {
     /// After sample `k`.
     fn emit(&mut self, k: usize, lanes: &Lanes<N>);
@@ -176,25 +202,46 @@ impl<const N: usize> Lanes<N> {
     /// the same bit for bit.
     #[inline(always)]
     pub fn run(self, inputs: &NavInputs<'_>, emit: &mut impl Emit<N>) {
+        self.run_on(inputs, &SharedOdometer, emit)
+    }
+
+    /// [`Self::run`] with each lane's odometer increments from `odometer`.
+    #[inline(always)]
+    pub fn run_on(
+        self,
+        inputs: &NavInputs<'_>,
+        odometer: &impl OdometerLanes<N>,
+        emit: &mut impl Emit<N>,
+    ) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             #[allow(unsafe_code)]
             // SAFETY: `run_avx2` only needs AVX2, and this CPU has it (checked above).
-            return unsafe { self.run_avx2(inputs, emit) };
+            return unsafe { self.run_avx2(inputs, odometer, emit) };
         }
-        self.run_portable(inputs, emit)
+        self.run_portable(inputs, odometer, emit)
     }
 
     /// [`Self::run_portable`] compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn run_avx2(self, inputs: &NavInputs<'_>, emit: &mut impl Emit<N>) {
-        self.run_portable(inputs, emit)
+    fn run_avx2(
+        self,
+        inputs: &NavInputs<'_>,
+        odometer: &impl OdometerLanes<N>,
+        emit: &mut impl Emit<N>,
+    ) {
+        self.run_portable(inputs, odometer, emit)
     }
 
     /// The sample loop, compiled once with and once without the boresight terms.
     #[inline(always)]
-    fn run_portable(mut self, inputs: &NavInputs<'_>, emit: &mut impl Emit<N>) {
+    fn run_portable(
+        mut self,
+        inputs: &NavInputs<'_>,
+        odometer: &impl OdometerLanes<N>,
+        emit: &mut impl Emit<N>,
+    ) {
         let samples = inputs
             .dt_s
             .iter()
@@ -203,26 +250,27 @@ impl<const N: usize> Lanes<N> {
             .enumerate();
         if self.boresight {
             for (k, ((&dt, dtheta), &odo)) in samples {
-                self.step::<true>(k, dt, dtheta, odo);
+                self.step::<true>(k, dt, dtheta, odometer.at(k, odo));
                 emit.emit(k, &self);
             }
         } else {
             for (k, ((&dt, dtheta), &odo)) in samples {
-                self.step::<false>(k, dt, dtheta, odo);
+                self.step::<false>(k, dt, dtheta, odometer.at(k, odo));
                 emit.emit(k, &self);
             }
         }
     }
 
     /// Advances every lane over sample `k` (interval `dt_s`, measured angle increments,
-    /// odometer distance at the nominal scale); `BORESIGHT` is whether any lane has one.
+    /// each lane's odometer distance at the nominal scale); `BORESIGHT` is whether any
+    /// lane has one.
     #[inline(always)]
     fn step<const BORESIGHT: bool>(
         &mut self,
         k: usize,
         dt_s: f64,
         dtheta_rad: &[f64; 3],
-        odo_m: f64,
+        odo_m: [f64; N],
     ) {
         for l in 0..N {
             if (self.lat_rad[l] - self.terms.lat_rad[l]).abs() > LAT_REFRESH_RAD {
@@ -266,9 +314,9 @@ impl<const N: usize> Lanes<N> {
         }
 
         // 2. Attitude, odometer dead reckoning, navigation-frame rotation.
-        // The odometer bias acts over the samples in which the odometer moved.
-        let moving_s = if odo_m != 0.0 { dt_s } else { 0.0 };
         for l in 0..N {
+            // The odometer bias acts over the samples in which the odometer moved.
+            let moving_s = if odo_m[l] != 0.0 { dt_s } else { 0.0 };
             let [qw, qx, qy, qz] = [self.q[0][l], self.q[1][l], self.q[2][l], self.q[3][l]];
             let (bw, bx, by, bz) = (c[l], s[l] * phi[0][l], s[l] * phi[1][l], s[l] * phi[2][l]);
             // q ⊗ q(φ): the body factor.
@@ -278,7 +326,7 @@ impl<const N: usize> Lanes<N> {
             let z = qw * bz + qx * by - qy * bx + qz * bw;
 
             // Odometer dead reckoning along the mid-interval direction of travel.
-            let ds = self.odo_scale[l] * odo_m + self.odo_bias_mps[l] * moving_s;
+            let ds = self.odo_scale[l] * odo_m[l] + self.odo_bias_mps[l] * moving_s;
             let dir_end = odo_dir_n([w, x, y, z], self.odo_sin[l], self.odo_cos[l], BORESIGHT);
             let half = 0.5 * ds;
             let dp = [
@@ -433,13 +481,43 @@ mod tests {
         }
         // The vector loop the CPU supports and the portable one agree too.
         let mut portable = Last(None);
-        Lanes::new(&all).run_portable(&inputs, &mut portable);
+        Lanes::new(&all).run_portable(&inputs, &SharedOdometer, &mut portable);
         assert_eq!(final_state(&portable.0.unwrap()), batch);
         // Without a boresight anywhere, the loop without its terms gives the same.
         let plain: [NavSettings; 4] = std::array::from_fn(settings);
         let mut four = Last(None);
         Lanes::new(&plain).run(&inputs, &mut four);
         assert_eq!(final_state(&four.0.unwrap())[..], batch[..4]);
+    }
+
+    #[test]
+    fn lanes_on_their_own_odometers_are_each_pass_on_its_own_inputs_bit_for_bit() {
+        let (dt, dth, odo) = inputs();
+        // The odometer at other timings: scaled, stopped for a while, one sample moved.
+        let mut stopped = odo.clone();
+        stopped[1000..1800].fill(0.0);
+        let mut moved = odo.iter().map(|d| d * 1.01).collect::<Vec<f64>>();
+        moved[3000] += 0.05;
+        let odometers: [&[f64]; 4] = [&odo, &stopped, &moved, &odo];
+        let all: [NavSettings; 4] = std::array::from_fn(|l| settings(l + 2));
+        let shared = NavInputs {
+            dt_s: &dt,
+            dtheta_rad: &dth,
+            odo_dist_m: &odo,
+        };
+        let mut batch = Last(None);
+        Lanes::new(&all).run_on(&shared, &OdometerPerLane(odometers), &mut batch);
+        let batch = final_state(&batch.0.unwrap());
+        for (l, (s, o)) in all.iter().zip(odometers).enumerate() {
+            let own = NavInputs {
+                odo_dist_m: o,
+                ..shared
+            };
+            let mut alone = Last(None);
+            Lanes::new(&[*s]).run(&own, &mut alone);
+            assert_eq!(final_state(&alone.0.unwrap())[0], batch[l], "lane {l}");
+        }
+        assert_ne!(batch[0], batch[1], "the odometers differ, so do the passes");
     }
 
     #[test]
