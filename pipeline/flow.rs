@@ -493,7 +493,6 @@ pub fn write_nav(
     const ROWS: usize = 1 << 16;
     let schema = schema::nav(sigma.is_some());
     let mut sink = ParquetSink::create(path, schema.clone())?;
-    let t_ns = d.t_ns();
     for lo in (0..t.len()).step_by(ROWS) {
         let r = lo..(lo + ROWS).min(t.len());
         let euler: Vec<Euler> = r.clone().map(|k| t.euler(k)).collect();
@@ -507,7 +506,9 @@ pub fn write_nav(
             ))
         };
         let mut columns: Vec<arrow::array::ArrayRef> = vec![
-            Arc::new(Int64Array::from(t_ns[r.clone()].to_vec())),
+            Arc::new(Int64Array::from_iter_values(
+                d.t_s[r.clone()].iter().map(|&t| d.ns_of(t)),
+            )),
             deg(&t.lat_rad[r.clone()]),
             deg(&t.lon_rad[r.clone()]),
             f32_array(t.h_m[r.clone()].iter().copied()),

@@ -76,8 +76,7 @@ pub fn decimation_indices(len: usize, nominal_dt_s: f64, rate_hz: f64) -> Vec<us
 /// Decimates a navigated track to [`TRACK_RATE_HZ`] with local offsets from `site`
 /// (latitude rad, longitude rad, height m).
 pub fn method_track(method: &str, d: &Derived, track: &NavTrack, start: Geodetic) -> MethodTrack {
-    let t_ns = d.t_ns();
-    let idx = decimation_indices(track.len().min(t_ns.len()), d.nominal_dt_s, TRACK_RATE_HZ);
+    let idx = decimation_indices(track.len().min(d.t_s.len()), d.nominal_dt_s, TRACK_RATE_HZ);
     let mut m = MethodTrack {
         method: method.to_owned(),
         ..MethodTrack::default()
@@ -85,7 +84,7 @@ pub fn method_track(method: &str, d: &Derived, track: &NavTrack, start: Geodetic
     for &k in &idx {
         let (n, e) = start.offset_m(track.lat_rad[k], track.lon_rad[k]);
         let att = track.euler(k);
-        m.t_ns.push(t_ns[k]);
+        m.t_ns.push(d.ns_of(d.t_s[k]));
         m.lat_deg.push(track.lat_rad[k].to_degrees());
         m.lon_deg.push(track.lon_rad[k].to_degrees());
         m.h_m.push(track.h_m[k]);
