@@ -77,19 +77,25 @@ pub fn file_hash(path: &Path) -> anyhow::Result<String> {
 }
 
 fn hash_content(path: &Path) -> anyhow::Result<String> {
+    thread_local! {
+        /// One read buffer per thread, not one zeroed per file.
+        static BUF: std::cell::RefCell<Vec<u8>> = std::cell::RefCell::new(vec![0; 1 << 20]);
+    }
     let mut f =
         std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut h = blake3::Hasher::new();
-    let mut buf = vec![0u8; 1 << 16];
-    loop {
-        let n = f
-            .read(&mut buf)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        if n == 0 {
-            break;
+    BUF.with(|buf| -> anyhow::Result<()> {
+        let buf = &mut *buf.borrow_mut();
+        loop {
+            let n = f
+                .read(buf)
+                .with_context(|| format!("cannot read {}", path.display()))?;
+            if n == 0 {
+                return Ok(());
+            }
+            h.update(&buf[..n]);
         }
-        h.update(&buf[..n]);
-    }
+    })?;
     Ok(h.finalize().to_hex().to_string())
 }
 
