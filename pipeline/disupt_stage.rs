@@ -8,15 +8,16 @@ use rayon::prelude::*;
 use serde::Serialize;
 use unz_formats::atomic::{write_atomic, write_json_atomic};
 use unz_formats::manifest::{LogFormat, OdometerKind};
-use unz_stages::criteria::{self, Kryt1Scratch, Kryt1Series, Kryt2};
+use unz_stages::criteria::{self, ControlPointFix, Kryt1Scratch, Kryt1Series, Kryt2};
 use unz_stages::derive::Derived;
 use unz_stages::disupt::{
     self, Holdout, JointFit, JointOptions, MethodResult, Problem, ProblemSpec, X, joint_fit,
 };
+use unz_stages::earth::Geodetic;
 use unz_stages::linearized::Observation;
 use unz_stages::odo_lag::{Rederive, joint_with_lag};
 use unz_stages::route_sigma::{Moved, RouteSigma, route_sigma};
-use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack};
+use unz_stages::strapdown::{self, LaneBatch, NavInputs, NavSettings, NavTrack, ReviewPass};
 use unz_stages::units::DEG_PER_H;
 
 use crate::artifacts::{StageName, files};
@@ -25,8 +26,8 @@ use crate::flow::{
     load_case, site_gravity_mps2, write_nav,
 };
 use crate::method_tables::{
-    KRYT1_SERIES, MethodKryt1, MethodTrack, TRACKS, method_kryt1, method_track, write_kryt1_series,
-    write_tracks,
+    KRYT1_SERIES, MethodKryt1, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_indices,
+    method_kryt1, method_track, write_kryt1_series, write_tracks,
 };
 use crate::stage::{Stage, params_hash};
 
@@ -526,6 +527,118 @@ fn run_joint(
     })
 }
 
+/// One set of settings to review: a method's (or the initial ones) and the derive its
+/// pass runs on.
+struct Reviewed<'d> {
+    name: &'static str,
+    x: X,
+    derived: &'d Derived,
+}
+
+/// What a review pass gives of one set of settings.
+struct ReviewOutcome {
+    kryt1_rad: f64,
+    cps: Vec<Kryt2>,
+    track: MethodTrack,
+    kryt1_series: MethodKryt1,
+}
+
+/// The review passes of `reviewed` (at most [`strapdown::MAX_LANES`]), side by side,
+/// each on its own derive's odometer (the derives share their IMU series); the last
+/// one's whole track into `track`. Each outcome is what the pass alone gives.
+fn review_passes(
+    problem: &Problem<'_>,
+    reviewed: &[Reviewed<'_>],
+    fixes: &[ControlPointFix],
+    start: Geodetic,
+    track: &mut NavTrack,
+) -> Vec<ReviewOutcome> {
+    let d0 = reviewed[0].derived;
+    let inputs = d0.nav_inputs();
+    let keep = decimation_indices(inputs.len(), d0.nominal_dt_s, TRACK_RATE_HZ);
+    let n = inputs.len();
+    let at: Vec<usize> = fixes.iter().map(|f| f.sample).filter(|&k| k < n).collect();
+    let passes = strapdown::in_lanes(
+        reviewed.len(),
+        &mut ReviewBatch {
+            problem,
+            reviewed,
+            keep: &keep,
+            at: &at,
+            track,
+        },
+    );
+    let mut scratch = Kryt1Scratch::default();
+    reviewed
+        .iter()
+        .zip(passes)
+        .map(|(r, pass)| {
+            let d = r.derived;
+            let (mut theta, mut phi) = (Vec::new(), Vec::new());
+            criteria::epoch_attitude_from_sums(
+                &d.epochs,
+                &problem.lp,
+                &pass.criteria.row3_sums,
+                &mut scratch,
+                &mut theta,
+                &mut phi,
+            );
+            let mut series = Kryt1Series::default();
+            let kryt1_rad = criteria::kryt1_of(
+                &d.epochs,
+                &problem.kalman,
+                |e| (theta[e], phi[e]),
+                Some(&mut series),
+            );
+            let cps = fixes
+                .iter()
+                .filter_map(|f| {
+                    let (lat, lon) = pass.criteria.position_at(f.sample)?;
+                    let (dx, dy) =
+                        unz_stages::earth::local_offset_m(lat, lon, f.lat_rad, f.lon_rad, f.h_m);
+                    Some(Kryt2::at(f, dx, dy))
+                })
+                .collect();
+            ReviewOutcome {
+                kryt1_rad,
+                cps,
+                track: method_track(r.name, d, &keep, &pass.rows, start),
+                kryt1_series: method_kryt1(r.name, d, &series),
+            }
+        })
+        .collect()
+}
+
+/// [`review_passes`]' lanes.
+struct ReviewBatch<'r, 'd, 'p> {
+    problem: &'r Problem<'p>,
+    reviewed: &'r [Reviewed<'d>],
+    keep: &'r [usize],
+    at: &'r [usize],
+    track: &'r mut NavTrack,
+}
+
+impl LaneBatch for ReviewBatch<'_, '_, '_> {
+    type Out = ReviewPass;
+
+    fn run<const N: usize>(&mut self, points: [usize; N]) -> [ReviewPass; N] {
+        let last = self.reviewed.len() - 1;
+        let settings = points.map(|i| self.problem.settings(&self.reviewed[i].x));
+        let odometers = points.map(|i| &self.reviewed[i].derived.odo_dist_m[..]);
+        let tracked = points.iter().position(|&i| i == last).unwrap_or(0);
+        strapdown::run_review(
+            &self.reviewed[0].derived.nav_inputs(),
+            odometers,
+            &settings,
+            self.problem.lp.block,
+            self.at,
+            self.keep,
+            tracked,
+            self.track,
+        )
+    }
+}
+
 /// Stage 4.
 pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::Result<PathBuf> {
     let inputs = case_inputs(ctx, params)?;
@@ -604,77 +717,86 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let joint_problem = spec.on(joint_derived);
 
         let start = case.settings.start();
-        // One exact pass per method's settings: its trajectory, Kryt1 series and control
-        // point errors, for review.
-        let mut track = NavTrack::default();
-        let mut scratch = Kryt1Scratch::default();
-        let mut series = Kryt1Series::default();
-        let mut tracks: Vec<MethodTrack> = Vec::new();
-        let mut kryt1s: Vec<MethodKryt1> = Vec::new();
-        let mut review_pass =
-            |name: &str, x: &X, d: &Derived, track: &mut NavTrack| -> (f64, Vec<Kryt2>) {
-                unz_stages::strapdown::navigate(&d.nav_inputs(), &problem.settings(x), track);
-                let k1 = criteria::kryt1(
-                    &d.epochs,
-                    &problem.lp,
-                    track,
-                    &problem.kalman,
-                    &mut scratch,
-                    Some(&mut series),
-                );
-                tracks.push(method_track(name, d, track, start));
-                kryt1s.push(method_kryt1(name, d, &series));
-                (k1, criteria::kryt2(track, &case.fixes))
-            };
-        let (before_kryt1, before_cps) =
-            review_pass("initial", &x_before, &case.derived, &mut track);
-        lap("first review");
-
-        // The review passes in order of preference for the corrected navigation (OWPI,
-        // OEPI, then joint), so that the last one leaves the corrected track.
+        // One exact pass per method's settings, side by side (the joint's on its own
+        // derive's odometer): its trajectory, Kryt1 series and control-point errors, for
+        // review. In order of preference for the corrected navigation (the initial
+        // settings, OWPI, OEPI, then joint): the last one's whole track is kept.
         let mut methods = std::collections::BTreeMap::new();
         let mut skipped = std::collections::BTreeMap::new();
-        let mut corrected_by = None;
+        let mut reviewed: Vec<Reviewed<'_>> = vec![Reviewed {
+            name: "initial",
+            x: x_before,
+            derived: &case.derived,
+        }];
+        let mut classic_ok = Vec::new();
         for (name, result) in classic_results.into_iter().rev() {
             match result {
                 Ok(r) => {
-                    let cps = review_pass(name, &r.x, &case.derived, &mut track).1;
-                    corrected_by = Some(name.to_owned());
-                    methods.insert(
-                        name.to_owned(),
-                        method_out(&r, &case.settings, Lag::default(), cps),
-                    );
+                    reviewed.push(Reviewed {
+                        name,
+                        x: r.x,
+                        derived: &case.derived,
+                    });
+                    classic_ok.push((name, r));
                 }
                 Err(e) => {
                     skipped.insert(name.to_owned(), e.to_string());
                 }
             }
         }
-        lap("classic reviews");
-        let mut route_sigma = None;
         match &joint_result {
-            Some(Ok(run)) => {
-                let r = &run.fit.result;
-                let cps = review_pass("joint", &r.x, joint_derived, &mut track).1;
-                corrected_by = Some("joint".to_owned());
-                let mut out = method_out(r, &case.settings, run.lag, cps);
-                lap("joint review");
-                out.holdout = Some(disupt::holdout(&joint_problem, &run.fit, &dparams)?);
-                lap("holdout");
-                out.lag_profile = run.profile.clone();
-                methods.insert("joint".to_owned(), out);
-                route_sigma = joint_route_sigma(
-                    &joint_problem,
-                    run,
-                    &rederive,
-                    &track,
-                    params.align.arw_rad_sqrt_s,
-                );
-            }
+            Some(Ok(run)) => reviewed.push(Reviewed {
+                name: "joint",
+                x: run.fit.result.x,
+                derived: joint_derived,
+            }),
             Some(Err(e)) => {
                 skipped.insert("joint".to_owned(), e.to_string());
             }
             None => {}
+        }
+        let corrected_by =
+            (reviewed.len() > 1).then(|| reviewed[reviewed.len() - 1].name.to_owned());
+        let mut track = NavTrack::default();
+        let outcomes = review_passes(&problem, &reviewed, &case.fixes, start, &mut track);
+        lap("reviews");
+        let mut tracks: Vec<MethodTrack> = Vec::new();
+        let mut kryt1s: Vec<MethodKryt1> = Vec::new();
+        let mut cps_of = std::collections::BTreeMap::new();
+        let mut before = (f64::NAN, Vec::new());
+        for (lane, o) in reviewed.iter().zip(outcomes) {
+            tracks.push(o.track);
+            kryt1s.push(o.kryt1_series);
+            if lane.name == "initial" {
+                before = (o.kryt1_rad, o.cps);
+            } else {
+                cps_of.insert(lane.name, o.cps);
+            }
+        }
+        let (before_kryt1, before_cps) = before;
+        for (name, r) in &classic_ok {
+            let cps = cps_of.remove(name).unwrap_or_default();
+            methods.insert(
+                (*name).to_owned(),
+                method_out(r, &case.settings, Lag::default(), cps),
+            );
+        }
+        let mut route_sigma = None;
+        if let Some(Ok(run)) = &joint_result {
+            let r = &run.fit.result;
+            let cps = cps_of.remove("joint").unwrap_or_default();
+            let mut out = method_out(r, &case.settings, run.lag, cps);
+            out.holdout = Some(disupt::holdout(&joint_problem, &run.fit, &dparams)?);
+            lap("holdout");
+            out.lag_profile = run.profile.clone();
+            methods.insert("joint".to_owned(), out);
+            route_sigma = joint_route_sigma(
+                &joint_problem,
+                run,
+                &rederive,
+                &track,
+                params.align.arw_rad_sqrt_s,
+            );
         }
         lap("route sigma");
         // `track` holds the last review pass: the best method's, else the initial one.

@@ -13,7 +13,7 @@ use unz_formats::tables::{f32_array, f64_column, i64_column};
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
-use unz_stages::strapdown::NavTrack;
+use unz_stages::strapdown::{TrackRow, euler_of};
 
 /// File name of the per-method trajectories.
 pub const TRACKS: &str = "tracks.parquet";
@@ -73,21 +73,26 @@ pub fn decimation_indices(len: usize, nominal_dt_s: f64, rate_hz: f64) -> Vec<us
     idx
 }
 
-/// Decimates a navigated track to [`TRACK_RATE_HZ`] with local offsets from `site`
-/// (latitude rad, longitude rad, height m).
-pub fn method_track(method: &str, d: &Derived, track: &NavTrack, start: Geodetic) -> MethodTrack {
-    let idx = decimation_indices(track.len().min(d.t_s.len()), d.nominal_dt_s, TRACK_RATE_HZ);
+/// One method's trajectory from its states at the samples `keep` (see
+/// [`decimation_indices`]), with local offsets from `start`.
+pub fn method_track(
+    method: &str,
+    d: &Derived,
+    keep: &[usize],
+    rows: &[TrackRow],
+    start: Geodetic,
+) -> MethodTrack {
     let mut m = MethodTrack {
         method: method.to_owned(),
         ..MethodTrack::default()
     };
-    for &k in &idx {
-        let (n, e) = start.offset_m(track.lat_rad[k], track.lon_rad[k]);
-        let att = track.euler(k);
+    for (&k, (lat, lon, h, q)) in keep.iter().zip(rows) {
+        let (n, e) = start.offset_m(*lat, *lon);
+        let att = euler_of(q);
         m.t_ns.push(d.ns_of(d.t_s[k]));
-        m.lat_deg.push(track.lat_rad[k].to_degrees());
-        m.lon_deg.push(track.lon_rad[k].to_degrees());
-        m.h_m.push(track.h_m[k]);
+        m.lat_deg.push(lat.to_degrees());
+        m.lon_deg.push(lon.to_degrees());
+        m.h_m.push(*h);
         m.north_m.push(n);
         m.east_m.push(e);
         m.roll_deg.push(att.roll_rad.to_degrees());

@@ -132,6 +132,14 @@ pub fn dcm_row3(q: &[f64; 4]) -> [f64; 3] {
     ]
 }
 
+/// Euler angles of the quaternion `[w, x, y, z]` of `C_b^n`.
+pub fn euler_of(q: &[f64; 4]) -> Euler {
+    let [w, x, y, z] = *q;
+    Euler::from_quat_b_to_n(&UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(
+        w, x, y, z,
+    )))
+}
+
 impl NavTrack {
     /// Sizes every column to `n` (allocates only when growing).
     pub fn resize(&mut self, n: usize) {
@@ -158,10 +166,7 @@ impl NavTrack {
 
     /// Euler angles of sample `k`.
     pub fn euler(&self, k: usize) -> Euler {
-        let [w, x, y, z] = self.q_b_to_n[k];
-        Euler::from_quat_b_to_n(&UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(
-            w, x, y, z,
-        )))
+        euler_of(&self.q_b_to_n[k])
     }
 
     /// Euler angles of every sample: (roll, pitch, heading) columns, rad.
@@ -360,6 +365,109 @@ pub fn run_criteria_odometers<const N: usize>(
 /// Position and attitude of a pass at one sample: latitude, longitude (rad) and the
 /// quaternion `C_b^n` (w, x, y, z).
 pub type StateAt = (f64, f64, [f64; 4]);
+
+/// One pass's state at a kept sample: latitude, longitude (rad), height (m) and the
+/// quaternion of `C_b^n` (w, x, y, z).
+pub type TrackRow = (f64, f64, f64, [f64; 4]);
+
+/// What [`run_review`] keeps of one pass.
+#[derive(Debug, Clone, Default)]
+pub struct ReviewPass {
+    /// What the criteria read (the sums per block, the positions at the control points).
+    pub criteria: CriteriaSink,
+    /// The states at the kept samples.
+    pub rows: Vec<TrackRow>,
+}
+
+/// Passes for review side by side, each lane on its own odometer increments
+/// (`odometers[l]`, as long as `inputs`): each keeps what the criteria read (blocks of
+/// `block` samples, positions at `positions_at`) and its states at `keep` (increasing),
+/// and lane `tracked` also its whole track, into `track` (resized). Each is exactly what
+/// the pass alone, tracked, gives.
+///
+/// # Panics
+/// If an odometer series is shorter than `inputs`, or `tracked` is not a lane.
+#[allow(clippy::too_many_arguments)]
+pub fn run_review<const N: usize>(
+    inputs: &NavInputs<'_>,
+    odometers: [&[f64]; N],
+    settings: &[NavSettings; N],
+    block: usize,
+    positions_at: &[usize],
+    keep: &[usize],
+    tracked: usize,
+    track: &mut NavTrack,
+) -> [ReviewPass; N] {
+    assert!(tracked < N, "lane {tracked} of {N}");
+    assert!(
+        odometers.iter().all(|o| o.len() >= inputs.len()),
+        "an odometer series shorter than the IMU's"
+    );
+    let mut sinks: [CriteriaSink; N] = std::array::from_fn(|_| CriteriaSink::default());
+    for sink in &mut sinks {
+        sink.reset(block, positions_at.iter().copied());
+    }
+    track.resize(inputs.len());
+    let mut review = ReviewLanes {
+        criteria: CriteriaLanes {
+            next_wanted: sinks.first().and_then(|s| s.wanted.last().copied()),
+            sinks: &mut sinks,
+            block: block.max(1),
+            acc: [[0.0; N]; 3],
+            in_block: 0,
+        },
+        keep,
+        next: 0,
+        rows: std::array::from_fn(|_| Vec::with_capacity(keep.len())),
+        tracked,
+        track,
+    };
+    Lanes::<N>::new(settings).run_on(inputs, &OdometerPerLane(odometers), &mut review);
+    review.criteria.close_block();
+    let rows = review.rows;
+    let mut rows = rows.into_iter();
+    sinks.map(|criteria| ReviewPass {
+        criteria,
+        rows: rows.next().unwrap_or_default(),
+    })
+}
+
+/// [`run_review`]'s sink.
+struct ReviewLanes<'a, const N: usize> {
+    criteria: CriteriaLanes<'a, N>,
+    keep: &'a [usize],
+    next: usize,
+    rows: [Vec<TrackRow>; N],
+    tracked: usize,
+    track: &'a mut NavTrack,
+}
+
+impl<const N: usize> Emit<N> for ReviewLanes<'_, N> {
+    #[inline(always)]
+    fn emit(&mut self, k: usize, lanes: &Lanes<N>) {
+        self.criteria.emit(k, lanes);
+        if self.keep.get(self.next) == Some(&k) {
+            self.next += 1;
+            for (l, rows) in self.rows.iter_mut().enumerate() {
+                rows.push((
+                    lanes.lat_rad[l],
+                    lanes.lon_rad[l],
+                    lanes.h_m[l],
+                    lanes.q_of(l),
+                ));
+            }
+        }
+        let t = self.tracked;
+        self.track.sample(
+            k,
+            lanes.lat_rad[t],
+            lanes.lon_rad[t],
+            lanes.h_m[t],
+            &lanes.q_of(t),
+            lanes.distance_m[t],
+        );
+    }
+}
 
 /// Runs `N` passes side by side (one per settings) and returns each one's state at
 /// `samples` (increasing; samples past the end are left out): what a covariance

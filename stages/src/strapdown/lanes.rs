@@ -521,6 +521,61 @@ mod tests {
     }
 
     #[test]
+    fn review_lanes_keep_what_each_tracked_pass_gives_bit_for_bit() {
+        use crate::strapdown::{CriteriaSink, NavTrack, navigate, run_criteria, run_review};
+        let (dt, dth, odo) = inputs();
+        let mut stopped = odo.clone();
+        stopped[1000..1800].fill(0.0);
+        let odometers: [&[f64]; 4] = [&odo, &stopped, &odo, &stopped];
+        let all: [NavSettings; 4] = std::array::from_fn(|l| settings(l + 2));
+        let shared = NavInputs {
+            dt_s: &dt,
+            dtheta_rad: &dth,
+            odo_dist_m: &odo,
+        };
+        let keep = [0, 10, 2500, 4999];
+        let fixes = [1200, 4000];
+        let mut kept_track = NavTrack::default();
+        let passes = run_review(
+            &shared,
+            odometers,
+            &all,
+            10,
+            &fixes,
+            &keep,
+            1,
+            &mut kept_track,
+        );
+        for (l, (s, o)) in all.iter().zip(odometers).enumerate() {
+            let own = NavInputs {
+                odo_dist_m: o,
+                ..shared
+            };
+            let mut track = NavTrack::default();
+            navigate(&own, s, &mut track);
+            let want: Vec<_> = keep
+                .iter()
+                .map(|&k| {
+                    (
+                        track.lat_rad[k],
+                        track.lon_rad[k],
+                        track.h_m[k],
+                        track.q_b_to_n[k],
+                    )
+                })
+                .collect();
+            assert_eq!(passes[l].rows, want, "lane {l}");
+            let mut alone = [CriteriaSink::default()];
+            run_criteria(&own, &[*s], 10, &fixes, &mut alone);
+            assert_eq!(passes[l].criteria.row3_sums, alone[0].row3_sums, "lane {l}");
+            assert_eq!(passes[l].criteria.positions, alone[0].positions, "lane {l}");
+            if l == 1 {
+                assert!(kept_track == track, "the tracked lane's whole track");
+            }
+        }
+    }
+
+    #[test]
     fn states_at_samples_side_by_side_are_the_tracked_passes_bit_for_bit() {
         let (dt, dth, odo) = inputs();
         let inputs = NavInputs {
