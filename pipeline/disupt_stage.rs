@@ -667,17 +667,22 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 &format!("{what} at {:.3} s", t0.elapsed().as_secs_f64()),
             )
         };
-        // The derive's output and the ingested series (the lag's re-derives read them) are
+        // The derive's output and the ingested odometer (the lag's re-derives read it) are
         // read side by side.
-        let (case, ingested) = rayon::join(
+        let (case, odometer) = rayon::join(
             || load_case(ctx, params, &Overrides::default()),
-            || IngestedSeries::load(&ctx.layout().dir(StageName::Ingest)),
+            || IngestedSeries::load_odometer(&ctx.layout().dir(StageName::Ingest)),
         );
-        let (case, ingested) = (case?, ingested?);
+        let (case, odometer) = (case?, odometer?);
         // The derive stage's output is the configured derive, whole: re-derives at other
-        // odometer timings start from it instead of deriving it a second time.
-        let rederive = Rederive::new(ingested.series(), params.derive, site_gravity_mps2(m))
-            .around(&case.derived);
+        // odometer timings start from it and move the odometer's part only.
+        let rederive = Rederive::of_odometer(
+            &case.derived,
+            &odometer.t_ns,
+            &odometer.distance_m,
+            params.derive,
+            site_gravity_mps2(m),
+        );
         lap("loaded");
         // A coarse search over ±180° of azimuth by the control points first: the run's
         // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).

@@ -299,6 +299,19 @@ impl IngestedSeries {
         Ok(Self { imu, odo })
     }
 
+    /// Loads `odometer.parquet` of an ingest folder alone (all a re-derive at another
+    /// odometer timing reads).
+    pub fn load_odometer(ingest_dir: &Path) -> anyhow::Result<OdometerTable> {
+        let (odo, _) = load_table::<OdometerTable>(
+            &ingest_dir.join(files::ODOMETER),
+            OdometerTable::extend_from_batch,
+        )?;
+        if odo.is_empty() {
+            bail!("the run has no odometer data (no 8th column and no odometer file)");
+        }
+        Ok(odo)
+    }
+
     /// Samples whose status flags an IMU built-in-test failure (bit 0) and an odometer
     /// failure (bit 1).
     pub fn failure_counts(&self) -> (usize, usize) {

@@ -123,6 +123,26 @@ impl<'a> Rederive<'a> {
         }
     }
 
+    /// Re-derives around `configured` (the derive stage's output with `params`) from the
+    /// ingested odometer alone (`odo_t_ns`, `odo_distance_m`): a re-derive moves only the
+    /// odometer's part, and takes the IMU's from `configured`.
+    pub fn of_odometer(
+        configured: &'a Derived,
+        odo_t_ns: &'a [i64],
+        odo_distance_m: &'a [f64],
+        params: DeriveParams,
+        g_mps2: f64,
+    ) -> Self {
+        let raw = RawSeries {
+            imu_t_ns: &[],
+            dtheta_rad: &[],
+            dvel_mps: &[],
+            odo_t_ns,
+            odo_distance_m,
+        };
+        Self::new(raw, params, g_mps2).around(configured)
+    }
+
     /// The configured derive: the caller's, else derived once.
     fn configured(&self) -> &Derived {
         match self.configured {
