@@ -126,6 +126,38 @@ pub const GYRO_RANGE_RAD_S: f64 = 1000.0 * std::f64::consts::PI / 180.0;
 pub const ACCEL_RANGE_MPS2: f64 = 70.0 * 9.806_65;
 
 impl Derived {
+    /// This derive without its odometer's per-sample series (increments, u, u̇, ru: left
+    /// empty) — what a re-derive at another odometer timing starts from, without copying
+    /// series it replaces. The IMU's series are shared, the rest copied.
+    pub fn without_odometer_series(&self) -> Derived {
+        Derived {
+            t0_ns: self.t0_ns,
+            nominal_dt_s: self.nominal_dt_s,
+            t_s: self.t_s.clone(),
+            dt_s: self.dt_s.clone(),
+            dtheta_rad: self.dtheta_rad.clone(),
+            dvel_mps: self.dvel_mps.clone(),
+            odo_dist_m: Vec::new(),
+            u_mps: Vec::new(),
+            u_dot_mps2: Vec::new(),
+            r_rad_s: self.r_rad_s.clone(),
+            ru_mps2: Vec::new(),
+            ax_f: self.ax_f.clone(),
+            ay_f: self.ay_f.clone(),
+            u_dot_f: self.u_dot_f.clone(),
+            ru_f: self.ru_f.clone(),
+            r_moving_f: self.r_moving_f.clone(),
+            moving_dot_f: self.moving_dot_f.clone(),
+            block: self.block,
+            epochs: self.epochs.clone(),
+            repaired_times: self.repaired_times,
+            filled_gaps: self.filled_gaps,
+            imu_failure_samples: self.imu_failure_samples,
+            odometer_failure_samples: self.odometer_failure_samples,
+            out_of_range_samples: self.out_of_range_samples,
+        }
+    }
+
     /// Absolute time (ns, the log's time base) of a time `t_s` since `t0_ns`.
     pub fn ns_of(&self, t_s: f64) -> i64 {
         self.t0_ns + (t_s * 1e9).round() as i64

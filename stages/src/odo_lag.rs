@@ -80,7 +80,9 @@ pub struct LagFit {
     pub lag_s: f64,
     /// Its 1σ, s; `None` where the cost profile has no curvature there.
     pub sigma_s: Option<f64>,
-    /// The derive at the lag.
+    /// The derive at the lag, as far as navigation passes and the fits read it: its
+    /// per-sample u, u̇ and ru are left empty (their filtered forms and the epochs are
+    /// kept).
     pub derived: Derived,
     /// The joint fit there.
     pub fit: JointFit,
@@ -164,7 +166,7 @@ impl<'a> Rederive<'a> {
     pub fn at(&self, lag_s: f64) -> Derived {
         let base = self.configured();
         // The IMU's part is the configured derive's; the odometer's is derived anew.
-        let mut d = base.clone();
+        let mut d = base.without_odometer_series();
         odometer_terms(&mut d, &self.raw, self.params.odo_time_offset_s - lag_s);
         let lp = LowPass::new(&self.params.filter, d.nominal_dt_s);
         filter_odometer_terms(&mut d, &lp);
@@ -301,7 +303,7 @@ pub fn joint_with_lag(
         // The next parabola about the vertex: its three trials side by side.
         points = [lag_s - CURVATURE_STEP_S, lag_s, lag_s + CURVATURE_STEP_S];
     }
-    let derived = rederive.at(lag_s);
+    let mut derived = rederive.at(lag_s);
     let mut fit = joint_fit(
         &spec.on(&derived),
         params,
@@ -328,6 +330,7 @@ pub fn joint_with_lag(
     if let Some(step) = fit.result.steps.first_mut() {
         step.evaluations = fit.result.evaluations;
     }
+    (derived.u_mps, derived.u_dot_mps2, derived.ru_mps2) = (Vec::new(), Vec::new(), Vec::new());
     Ok(LagFit {
         lag_s,
         sigma_s,
