@@ -286,16 +286,10 @@ impl IngestedSeries {
     pub fn load(ingest_dir: &Path) -> anyhow::Result<Self> {
         let (imu, _) =
             load_table::<ImuTable>(&ingest_dir.join(files::IMU), ImuTable::extend_from_batch)?;
-        let (odo, _) = load_table::<OdometerTable>(
-            &ingest_dir.join(files::ODOMETER),
-            OdometerTable::extend_from_batch,
-        )?;
         if imu.is_empty() {
             bail!("the raw log has no IMU record");
         }
-        if odo.is_empty() {
-            bail!("the run has no odometer data (no 8th column and no odometer file)");
-        }
+        let odo = Self::load_odometer(ingest_dir)?;
         Ok(Self { imu, odo })
     }
 

@@ -101,13 +101,16 @@ pub fn read_schema(path: &Path) -> Result<SchemaRef, FileError> {
     Ok(builder.schema().clone())
 }
 
-/// Reads a Parquet file batch by batch (of 65 536 rows), handing each to `each`: a whole
-/// run's columns are built without the file's batches held beside them. Returns the
-/// schema.
-pub fn for_each_batch(
+/// A reader of a Parquet file's batches (of 65 536 rows), and its schema.
+fn batch_reader(
     path: &Path,
-    mut each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
-) -> Result<SchemaRef, FileError> {
+) -> Result<
+    (
+        SchemaRef,
+        parquet::arrow::arrow_reader::ParquetRecordBatchReader,
+    ),
+    FileError,
+> {
     let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
     let builder =
         ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| parquet_err(path, e))?;
@@ -116,6 +119,16 @@ pub fn for_each_batch(
         .with_batch_size(1 << 16)
         .build()
         .map_err(|e| parquet_err(path, e))?;
+    Ok((schema, reader))
+}
+
+/// Reads a Parquet file batch by batch, handing each to `each`: a whole run's columns
+/// are built without the file's batches held beside them. Returns the schema.
+pub fn for_each_batch(
+    path: &Path,
+    mut each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
+) -> Result<SchemaRef, FileError> {
+    let (schema, reader) = batch_reader(path)?;
     for batch in reader {
         let batch = batch.map_err(|e| parquet_err(path, e))?;
         each(&batch).map_err(|e| e.in_file(path))?;
@@ -125,14 +138,7 @@ pub fn for_each_batch(
 
 /// Reads a whole Parquet file: its schema and batches.
 pub fn read_batches(path: &Path) -> Result<(SchemaRef, Vec<RecordBatch>), FileError> {
-    let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
-    let builder =
-        ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| parquet_err(path, e))?;
-    let schema = builder.schema().clone();
-    let reader = builder
-        .with_batch_size(1 << 16)
-        .build()
-        .map_err(|e| parquet_err(path, e))?;
+    let (schema, reader) = batch_reader(path)?;
     let batches = reader
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| parquet_err(path, e))?;

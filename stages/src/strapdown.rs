@@ -26,7 +26,7 @@ use nalgebra::UnitQuaternion;
 
 use crate::attitude::Euler;
 use crate::earth::Geodetic;
-use lanes::{Emit, Lanes, OdometerPerLane};
+use lanes::{Emit, Lanes, OdometerLanes, OdometerPerLane, SharedOdometer};
 
 /// Per-sample navigation inputs; all slices have the same length.
 #[derive(Debug, Clone, Copy)]
@@ -316,18 +316,14 @@ pub fn run_criteria<const N: usize>(
     positions_at: &[usize],
     sinks: &mut [CriteriaSink; N],
 ) {
-    for sink in sinks.iter_mut() {
-        sink.reset(block, positions_at.iter().copied());
-    }
-    let mut lanes_sink = CriteriaLanes {
-        next_wanted: sinks.first().and_then(|s| s.wanted.last().copied()),
+    run_criteria_on(
+        inputs,
+        &SharedOdometer,
+        settings,
+        block,
+        positions_at,
         sinks,
-        block: block.max(1),
-        acc: [[0.0; N]; 3],
-        in_block: 0,
-    };
-    Lanes::<N>::new(settings).run(inputs, &mut lanes_sink);
-    lanes_sink.close_block();
+    );
 }
 
 /// [`run_criteria`] with each lane on its own odometer increments (`odometers[l]`, as
@@ -348,6 +344,19 @@ pub fn run_criteria_odometers<const N: usize>(
         odometers.iter().all(|o| o.len() >= inputs.len()),
         "an odometer series shorter than the IMU's"
     );
+    let odometer = OdometerPerLane(odometers);
+    run_criteria_on(inputs, &odometer, settings, block, positions_at, sinks);
+}
+
+/// [`run_criteria`] with the lanes' odometer increments from `odometer`.
+fn run_criteria_on<const N: usize>(
+    inputs: &NavInputs<'_>,
+    odometer: &impl OdometerLanes<N>,
+    settings: &[NavSettings; N],
+    block: usize,
+    positions_at: &[usize],
+    sinks: &mut [CriteriaSink; N],
+) {
     for sink in sinks.iter_mut() {
         sink.reset(block, positions_at.iter().copied());
     }
@@ -358,7 +367,7 @@ pub fn run_criteria_odometers<const N: usize>(
         acc: [[0.0; N]; 3],
         in_block: 0,
     };
-    Lanes::<N>::new(settings).run_on(inputs, &OdometerPerLane(odometers), &mut lanes_sink);
+    Lanes::<N>::new(settings).run_on(inputs, odometer, &mut lanes_sink);
     lanes_sink.close_block();
 }
 
