@@ -63,9 +63,14 @@ pub struct MethodKryt1 {
     pub kf_d_phi_rad: Vec<f64>,
 }
 
+/// Samples between two kept at `rate_hz` (at least 1).
+pub fn decimation_step(nominal_dt_s: f64, rate_hz: f64) -> usize {
+    ((1.0 / (rate_hz * nominal_dt_s)).round() as usize).max(1)
+}
+
 /// Samples kept at `rate_hz`: every k-th one and always the last.
 pub fn decimation_indices(len: usize, nominal_dt_s: f64, rate_hz: f64) -> Vec<usize> {
-    let step = ((1.0 / (rate_hz * nominal_dt_s)).round() as usize).max(1);
+    let step = decimation_step(nominal_dt_s, rate_hz);
     let mut idx: Vec<usize> = (0..len).step_by(step).collect();
     if len > 0 && idx.last() != Some(&(len - 1)) {
         idx.push(len - 1);

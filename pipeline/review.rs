@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use unz_formats::parquet_io::read_table;
+use unz_formats::parquet_io::{for_each_batch_of, read_schema, read_table};
 use unz_formats::tables::{f64_column, i64_column};
 use unz_stages::criteria::Kryt2;
 use unz_stages::earth::Geodetic;
@@ -20,7 +20,7 @@ use crate::artifacts::{StageName, files};
 use crate::disupt_stage::{DisuptOut, Method, ensure_disupt};
 use crate::flow::{Overrides, Params, RunCtx, ensure_criteria, start_position};
 use crate::method_tables::{
-    KRYT1_SERIES, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_indices, read_kryt1_series,
+    KRYT1_SERIES, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_step, read_kryt1_series,
     read_tracks,
 };
 use crate::stage::{Stage, params_hash};
@@ -263,14 +263,19 @@ fn truth_track(
     start: Geodetic,
     nominal_dt_s: f64,
 ) -> anyhow::Result<Track> {
-    let (_, b) = read_table(path)?;
-    let t = i64_column(&b, "t_ns")?;
-    let idx = decimation_indices(t.len(), nominal_dt_s, TRACK_RATE_HZ);
-    let pick = |n: &str| -> anyhow::Result<Vec<f64>> {
-        let v = f64_column(&b, n)?;
-        Ok(idx.iter().map(|&k| v[k]).collect())
-    };
-    let (lat, lon) = (pick("lat_deg")?, pick("lon_deg")?);
+    let step = decimation_step(nominal_dt_s, TRACK_RATE_HZ);
+    let names = [
+        "lat_deg",
+        "lon_deg",
+        "h_m",
+        "roll_deg",
+        "pitch_deg",
+        "heading_deg",
+    ];
+    let (t, cols) = decimated_columns(path, &names, step, true)?;
+    let [lat, lon, h, roll, pitch, heading]: [Vec<f64>; 6] = cols
+        .try_into()
+        .map_err(|_| anyhow::anyhow!("{}: columns", path.display()))?;
     let (north_m, east_m) = lat
         .iter()
         .zip(&lon)
@@ -278,16 +283,58 @@ fn truth_track(
         .unzip();
     Ok(Track {
         label: "truth".into(),
-        t_s: rel(&idx.iter().map(|&k| t[k]).collect::<Vec<_>>()),
-        up_m: pick("h_m")?.iter().map(|h| h - start.h_m).collect(),
+        t_s: rel(&t),
+        up_m: h.iter().map(|h| h - start.h_m).collect(),
         lat_deg: lat,
         lon_deg: lon,
         north_m,
         east_m,
-        roll_deg: pick("roll_deg")?,
-        pitch_deg: pick("pitch_deg")?,
-        heading_deg: pick("heading_deg")?,
+        roll_deg: roll,
+        pitch_deg: pitch,
+        heading_deg: heading,
     })
+}
+
+/// Every `step`-th row (the last one too when `with_last`) of a table's `t_ns` and of the
+/// f64 columns `names`, read batch by batch without the table's other columns.
+fn decimated_columns(
+    path: &Path,
+    names: &[&str],
+    step: usize,
+    with_last: bool,
+) -> anyhow::Result<(Vec<i64>, Vec<Vec<f64>>)> {
+    let step = step.max(1);
+    let mut wanted = vec!["t_ns"];
+    wanted.extend_from_slice(names);
+    let (mut t, mut out) = (Vec::new(), vec![Vec::new(); names.len()]);
+    let mut rows = 0;
+    let mut last: Option<(usize, i64, Vec<f64>)> = None;
+    for_each_batch_of(path, &wanted, |b| {
+        let tb = i64_column(b, "t_ns")?;
+        let vb = names
+            .iter()
+            .map(|n| f64_column(b, n))
+            .collect::<Result<Vec<_>, _>>()?;
+        for k in (0..tb.len()).filter(|k| (rows + k) % step == 0) {
+            t.push(tb[k]);
+            for (o, v) in out.iter_mut().zip(&vb) {
+                o.push(v[k]);
+            }
+        }
+        if let Some(k) = tb.len().checked_sub(1) {
+            last = Some((rows + k, tb[k], vb.iter().map(|v| v[k]).collect()));
+        }
+        rows += tb.len();
+        Ok(())
+    })?;
+    if let Some((i, tl, vl)) = last.filter(|l| with_last && l.0 % step != 0) {
+        debug_assert_eq!(i + 1, rows);
+        t.push(tl);
+        for (o, v) in out.iter_mut().zip(vl) {
+            o.push(v);
+        }
+    }
+    Ok((t, out))
 }
 
 /// `sweep.parquet`: axis columns first (the first varies slowest), then `kryt1_rad`,
@@ -322,17 +369,69 @@ fn read_route_sigma(
     rel: &impl Fn(&[i64]) -> Vec<f64>,
     dt_s: f64,
 ) -> anyhow::Result<Option<RouteSigmaView>> {
-    let (schema, b) = read_table(path)?;
-    if schema.field_with_name("sigma_north_m").is_err() {
+    if read_schema(path)?.field_with_name("sigma_north_m").is_err() {
         return Ok(None);
     }
     let step =
         ((1.0 / (unz_viz::recording::SERIES_RATE_HZ * dt_s.max(1e-6))).round() as usize).max(1);
-    let every = |v: Vec<f64>| v.into_iter().step_by(step).collect::<Vec<_>>();
+    let names = ["sigma_north_m", "sigma_east_m", "sigma_heading_deg"];
+    let (t, cols) = decimated_columns(path, &names, step, false)?;
+    let [north_m, east_m, heading_deg]: [Vec<f64>; 3] = cols
+        .try_into()
+        .map_err(|_| anyhow::anyhow!("{}: columns", path.display()))?;
     Ok(Some(RouteSigmaView {
-        t_s: every(rel(&i64_column(&b, "t_ns")?)),
-        north_m: every(f64_column(&b, "sigma_north_m")?),
-        east_m: every(f64_column(&b, "sigma_east_m")?),
-        heading_deg: every(f64_column(&b, "sigma_heading_deg")?),
+        t_s: rel(&t),
+        north_m,
+        east_m,
+        heading_deg,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use arrow::array::{Float64Array, Int64Array, RecordBatch};
+    use arrow::datatypes::{DataType, Field, Schema};
+
+    use super::*;
+
+    /// Rows across several of the reader's batches: what the decimation keeps is what
+    /// the whole table picked by index gives.
+    #[test]
+    fn decimated_columns_are_the_rows_picked_from_the_whole_table() {
+        let n = 150_001;
+        let schema = Arc::new(Schema::new(vec![
+            Field::new("t_ns", DataType::Int64, false),
+            Field::new("a", DataType::Float64, false),
+            Field::new("skipped", DataType::Float64, false),
+            Field::new("b", DataType::Float64, false),
+        ]));
+        let t: Vec<i64> = (0..n).map(|k| 1_000 + 10 * k as i64).collect();
+        let a: Vec<f64> = (0..n).map(|k| (k as f64).sqrt()).collect();
+        let b: Vec<f64> = (0..n).map(|k| -(k as f64) * 0.5).collect();
+        let batch = RecordBatch::try_new(
+            schema,
+            vec![
+                Arc::new(Int64Array::from(t.clone())),
+                Arc::new(Float64Array::from(a.clone())),
+                Arc::new(Float64Array::from(b.clone())),
+                Arc::new(Float64Array::from(b.clone())),
+            ],
+        )
+        .unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("t.parquet");
+        unz_formats::parquet_io::write_batch(&path, &batch).unwrap();
+        for (step, with_last) in [(7, true), (7, false), (10, true), (1, false)] {
+            let (got_t, got) = decimated_columns(&path, &["a", "b"], step, with_last).unwrap();
+            let mut idx: Vec<usize> = (0..n).step_by(step).collect();
+            if with_last && idx.last() != Some(&(n - 1)) {
+                idx.push(n - 1);
+            }
+            assert_eq!(got_t, idx.iter().map(|&k| t[k]).collect::<Vec<_>>());
+            assert_eq!(got[0], idx.iter().map(|&k| a[k]).collect::<Vec<_>>());
+            assert_eq!(got[1], idx.iter().map(|&k| b[k]).collect::<Vec<_>>());
+        }
+    }
 }

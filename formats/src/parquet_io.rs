@@ -101,20 +101,23 @@ pub fn read_schema(path: &Path) -> Result<SchemaRef, FileError> {
     Ok(builder.schema().clone())
 }
 
-/// A reader of a Parquet file's batches (of 65 536 rows), and its schema.
+/// A reader of a Parquet file's batches (of 65 536 rows), and its schema; only the
+/// top-level `columns` named, when given (a name the file lacks is left out).
 fn batch_reader(
     path: &Path,
-) -> Result<
-    (
-        SchemaRef,
-        parquet::arrow::arrow_reader::ParquetRecordBatchReader,
-    ),
-    FileError,
-> {
+    columns: Option<&[&str]>,
+) -> Result<(SchemaRef, BatchReader), FileError> {
     let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
-    let builder =
+    let mut builder =
         ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| parquet_err(path, e))?;
     let schema = builder.schema().clone();
+    if let Some(columns) = columns {
+        let mask = parquet::arrow::ProjectionMask::columns(
+            builder.parquet_schema(),
+            columns.iter().copied(),
+        );
+        builder = builder.with_projection(mask);
+    }
     let reader = builder
         .with_batch_size(1 << 16)
         .build()
@@ -122,13 +125,27 @@ fn batch_reader(
     Ok((schema, reader))
 }
 
-/// Reads a Parquet file batch by batch, handing each to `each`: a whole run's columns
-/// are built without the file's batches held beside them. Returns the schema.
-pub fn for_each_batch(
+/// The batches of one Parquet file.
+type BatchReader = parquet::arrow::arrow_reader::ParquetRecordBatchReader;
+
+/// [`for_each_batch`] reading only the top-level `columns` named (the others are not
+/// decoded). Returns the file's whole schema.
+pub fn for_each_batch_of(
     path: &Path,
+    columns: &[&str],
+    each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
+) -> Result<SchemaRef, FileError> {
+    let (schema, reader) = batch_reader(path, Some(columns))?;
+    feed(path, schema, reader, each)
+}
+
+/// Hands every batch of `reader` (reading `path`) to `each`; returns `schema`.
+fn feed(
+    path: &Path,
+    schema: SchemaRef,
+    reader: BatchReader,
     mut each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
 ) -> Result<SchemaRef, FileError> {
-    let (schema, reader) = batch_reader(path)?;
     for batch in reader {
         let batch = batch.map_err(|e| parquet_err(path, e))?;
         each(&batch).map_err(|e| e.in_file(path))?;
@@ -136,9 +153,19 @@ pub fn for_each_batch(
     Ok(schema)
 }
 
+/// Reads a Parquet file batch by batch, handing each to `each`: a whole run's columns
+/// are built without the file's batches held beside them. Returns the schema.
+pub fn for_each_batch(
+    path: &Path,
+    each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
+) -> Result<SchemaRef, FileError> {
+    let (schema, reader) = batch_reader(path, None)?;
+    feed(path, schema, reader, each)
+}
+
 /// Reads a whole Parquet file: its schema and batches.
 pub fn read_batches(path: &Path) -> Result<(SchemaRef, Vec<RecordBatch>), FileError> {
-    let (schema, reader) = batch_reader(path)?;
+    let (schema, reader) = batch_reader(path, None)?;
     let batches = reader
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| parquet_err(path, e))?;
