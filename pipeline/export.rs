@@ -9,7 +9,7 @@
 use std::path::PathBuf;
 
 use unz_formats::mcap_io::{McapCompression, Ros2Mcap};
-use unz_formats::parquet_io::{read_schema, read_table};
+use unz_formats::parquet_io::{for_each_batch_of, read_schema, read_table};
 use unz_formats::ros2_msgs::{
     Attitude, Criteria, Header, NavSatFix, NavSatStatus, Point, Pose, PoseStamped, Quaternion, Time,
 };
@@ -52,28 +52,51 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             .and_then(|v| v.parse().ok())
             .unwrap_or(0);
         let log_time_of = |t_ns: i64| u64::try_from(origin_ns.saturating_add(t_ns)).unwrap_or(0);
-        let (_, b) = read_table(&nav_path)?;
-        let t = i64_column(&b, "t_ns")?;
-        let col = |n: &str| f64_column(&b, n);
-        let (lat, lon, h, north, east) = (
-            col("lat_deg")?,
-            col("lon_deg")?,
-            col("h_m")?,
-            col("north_m")?,
-            col("east_m")?,
-        );
-        let (roll, pitch, heading) = (col("roll_deg")?, col("pitch_deg")?, col("heading_deg")?);
+        // The corrected navigation at NAV_RATE_HZ, read batch by batch: only the columns
+        // the messages carry, and only the rows they keep.
+        let step_ns = (1e9 / NAV_RATE_HZ) as i64;
+        let names = [
+            "lat_deg",
+            "lon_deg",
+            "h_m",
+            "north_m",
+            "east_m",
+            "roll_deg",
+            "pitch_deg",
+            "heading_deg",
+        ];
+        let mut wanted = vec!["t_ns"];
+        wanted.extend(names);
+        let mut t: Vec<i64> = Vec::new();
+        let mut kept: [Vec<f64>; 8] = Default::default();
+        let mut h0: Option<f64> = None;
+        let mut next: Option<i64> = None;
+        for_each_batch_of(&nav_path, &wanted, |b| {
+            let tb = i64_column(b, "t_ns")?;
+            let cols = names
+                .iter()
+                .map(|n| f64_column(b, n))
+                .collect::<Result<Vec<_>, _>>()?;
+            for (k, &tk) in tb.iter().enumerate() {
+                h0.get_or_insert(cols[2][k]);
+                if next.is_some_and(|n| tk < n) {
+                    continue;
+                }
+                next = Some(tk + step_ns);
+                t.push(tk);
+                for (out, col) in kept.iter_mut().zip(&cols) {
+                    out.push(col[k]);
+                }
+            }
+            Ok(())
+        })?;
+        let [lat, lon, h, north, east, roll, pitch, heading] = kept;
+        let h0 = h0.unwrap_or(0.0);
         let mut mcap = Ros2Mcap::create(&dir.join("corrected.mcap"), McapCompression::Zstd)?;
         let mut fix = mcap.add_channel::<NavSatFix>("/corrected/fix")?;
         let mut pose = mcap.add_channel::<PoseStamped>("/corrected/pose")?;
         let mut att = mcap.add_channel::<Attitude>("/corrected/attitude")?;
-        let step_ns = (1e9 / NAV_RATE_HZ) as i64;
-        let mut next = t.first().copied().unwrap_or(0);
         for k in 0..t.len() {
-            if t[k] < next {
-                continue;
-            }
-            next = t[k] + step_ns;
             let log_time = log_time_of(t[k]);
             let stamp = Time::from_ns(t[k]);
             let fix_msg = NavSatFix {
@@ -110,7 +133,7 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                     position: Point {
                         x: east[k],
                         y: north[k],
-                        z: h[k] - h[0],
+                        z: h[k] - h0,
                     },
                     orientation: Quaternion {
                         x: q.i,
