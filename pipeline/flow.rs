@@ -603,17 +603,15 @@ pub struct CriteriaSummary {
 
 /// Loads `nav.parquet` back into a track (radians).
 pub fn load_nav(path: &Path) -> anyhow::Result<NavTrack> {
-    let (_, b) = unz_formats::parquet_io::read_table(path)?;
-    let rad = |n: &str| -> anyhow::Result<Vec<f64>> {
-        Ok(f64_column(&b, n)?
-            .into_iter()
-            .map(f64::to_radians)
-            .collect())
-    };
-    let _ = i64_column(&b, "t_ns")?;
-    let (roll, pitch, heading) = (rad("roll_deg")?, rad("pitch_deg")?, rad("heading_deg")?);
-    let q_b_to_n = (0..roll.len())
-        .map(|k| {
+    // Batch by batch: the track without the file's columns beside it.
+    let mut t = NavTrack::default();
+    for_each_batch(path, |b| {
+        let rad = |n: &str| -> Result<Vec<f64>, unz_formats::FormatError> {
+            Ok(f64_column(b, n)?.into_iter().map(f64::to_radians).collect())
+        };
+        let _ = i64_column(b, "t_ns")?;
+        let (roll, pitch, heading) = (rad("roll_deg")?, rad("pitch_deg")?, rad("heading_deg")?);
+        t.q_b_to_n.extend((0..roll.len()).map(|k| {
             let q = unz_stages::attitude::Euler {
                 roll_rad: roll[k],
                 pitch_rad: pitch[k],
@@ -621,15 +619,14 @@ pub fn load_nav(path: &Path) -> anyhow::Result<NavTrack> {
             }
             .to_quat_b_to_n();
             [q.w, q.i, q.j, q.k]
-        })
-        .collect();
-    Ok(NavTrack {
-        lat_rad: rad("lat_deg")?,
-        lon_rad: rad("lon_deg")?,
-        h_m: f64_column(&b, "h_m")?,
-        q_b_to_n,
-        distance_m: f64_column(&b, "distance_m")?,
-    })
+        }));
+        t.lat_rad.extend(rad("lat_deg")?);
+        t.lon_rad.extend(rad("lon_deg")?);
+        t.h_m.extend(f64_column(b, "h_m")?);
+        t.distance_m.extend(f64_column(b, "distance_m")?);
+        Ok(())
+    })?;
+    Ok(t)
 }
 
 /// Stage 3b: the criteria of the navigated track.
