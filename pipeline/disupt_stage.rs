@@ -664,7 +664,11 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let lap = |what: &str| {
             ctx.say(
                 "disupt",
-                &format!("{what} at {:.3} s", t0.elapsed().as_secs_f64()),
+                &format!(
+                    "{what} at {:.3} s{}",
+                    t0.elapsed().as_secs_f64(),
+                    crate::memory::rss_suffix()
+                ),
             )
         };
         // The derive's output and the ingested odometer (the lag's re-derives read it) are
@@ -712,7 +716,11 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             run_methods(method, &problem, &spec, &rederive, &case, &dparams);
         ctx.say(
             "disupt",
-            &format!("methods took {:.2} s", t_methods.elapsed().as_secs_f64()),
+            &format!(
+                "methods took {:.2} s{}",
+                t_methods.elapsed().as_secs_f64(),
+                crate::memory::rss_suffix()
+            ),
         );
         let joint_derived = joint_result
             .as_ref()
@@ -831,13 +839,12 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // The corrected trajectory (the largest table) beside the others.
         let (nav, rest) = rayon::join(
             || {
-                let sigma = route_sigma.map(|r| r.per_sample(track.len()));
                 write_nav(
                     &dir.join(files::CORRECTED_NAV),
                     &case.derived,
                     &track,
                     start,
-                    sigma.as_ref(),
+                    route_sigma.as_ref(),
                 )
             },
             || -> anyhow::Result<()> {

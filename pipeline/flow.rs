@@ -18,6 +18,7 @@ use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive};
 use unz_stages::earth::{self, Geodetic};
 use unz_stages::filter::LowPass;
 use unz_stages::initial::{AlignParams, InitialReport, InitialRequest, Source, initial_settings};
+use unz_stages::route_sigma::RouteSigma;
 use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
 
 use crate::artifacts::{RunLayout, StageName, files};
@@ -493,7 +494,7 @@ pub fn write_nav(
     d: &Derived,
     t: &NavTrack,
     start: Geodetic,
-    sigma: Option<&[Vec<f64>; 3]>,
+    sigma: Option<&RouteSigma>,
 ) -> anyhow::Result<()> {
     /// Rows per batch: the columns of one batch are built at a time, whatever the run's
     /// length.
@@ -526,10 +527,10 @@ pub fn write_nav(
             f32_array(euler.iter().map(|e| e.heading_rad.to_degrees())),
             f32_array(t.distance_m[r.clone()].iter().copied()),
         ];
-        if let Some([n, e, h]) = sigma {
-            columns.push(f32_array(n[r.clone()].iter().copied()));
-            columns.push(f32_array(e[r.clone()].iter().copied()));
-            columns.push(f32_array(h[r.clone()].iter().map(|x| x.to_degrees())));
+        if let Some([n, e, h]) = sigma.map(|s| s.at_samples(r.clone())) {
+            columns.push(f32_array(n));
+            columns.push(f32_array(e));
+            columns.push(f32_array(h.iter().map(|x| x.to_degrees())));
         }
         sink.write(&RecordBatch::try_new(schema.clone(), columns)?)?;
     }

@@ -15,6 +15,7 @@ pub mod export;
 pub mod flow;
 pub mod ingest;
 pub mod lock;
+pub mod memory;
 pub mod method_tables;
 pub mod raw_mcap;
 pub mod review;

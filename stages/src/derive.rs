@@ -400,6 +400,55 @@ pub fn odometer_increments(d: &Derived, raw: &RawSeries<'_>, offset_s: f64) -> V
         .collect()
 }
 
+/// [`odometer_terms`] then [`filter_odometer_terms`] without the per-sample series in
+/// between: the odometer's increments and F's block series of `out` are set, bit for bit
+/// those two give, and its per-sample u, u̇ and ru are left empty. A re-derive at another
+/// odometer timing needs no more, and holds one series of the run's length instead of
+/// seven.
+pub fn odometer_blocks(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64, lp: &LowPass) {
+    out.odo_dist_m = odometer_increments(out, raw, offset_s);
+    (out.u_mps, out.u_dot_mps2, out.ru_mps2) = (Vec::new(), Vec::new(), Vec::new());
+    let n = out.t_s.len();
+    let blocks = lp.blocks(n);
+    let mut means = [
+        &mut out.u_dot_f,
+        &mut out.ru_f,
+        &mut out.r_moving_f,
+        &mut out.moving_dot_f,
+    ];
+    for m in &mut means {
+        m.clear();
+        m.reserve(blocks);
+    }
+    // One block of each per-sample series at a time; its mean exactly as `LowPass::apply`
+    // takes it.
+    let mut chunk = vec![[0.0; 4]; lp.block.max(1)];
+    let (mut prev_u, mut prev_moving) = (0.0, 0.0);
+    for lo in (0..n).step_by(lp.block.max(1)) {
+        let hi = (lo + lp.block.max(1)).min(n);
+        for k in lo..hi {
+            let dt = out.dt_s[k];
+            let u = out.odo_dist_m[k] / dt;
+            let moving = f64::from(u8::from(out.odo_dist_m[k] != 0.0));
+            let r = out.r_rad_s[k];
+            let (u_dot, moving_dot) = if k == 0 {
+                (0.0, 0.0)
+            } else {
+                ((u - prev_u) / dt, (moving - prev_moving) / dt)
+            };
+            chunk[k - lo] = [u_dot, r * u, r * moving, moving_dot];
+            (prev_u, prev_moving) = (u, moving);
+        }
+        let c = &chunk[..hi - lo];
+        for (q, m) in means.iter_mut().enumerate() {
+            m.push(c.iter().map(|v| v[q]).sum::<f64>() / c.len() as f64);
+        }
+    }
+    for m in means {
+        lp.filter_blocks(m);
+    }
+}
+
 /// F's u̇, ru and the odometer-bias sensitivities, per block.
 pub fn filter_odometer_terms(out: &mut Derived, lp: &LowPass) {
     let n = out.t_s.len();
@@ -494,4 +543,65 @@ pub fn shifted_blocks(x: &[f64], block_s: f64, shift_s: f64) -> Vec<f64> {
                     + u * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3 + u * (3.0 * (p1 - p2) + p3 - p0)))
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn odometer_blocks_are_the_per_sample_terms_filtered_bit_for_bit() {
+        // A drive that starts, turns, stops and starts again, the odometer at 10 Hz with
+        // its own time base, and a run length that leaves a partial last block.
+        let n = 20_007;
+        let t: Vec<i64> = (0..n).map(|k| 5_000_000 + k * 10_000_000).collect();
+        let dtheta: Vec<[f64; 3]> = (0..n)
+            .map(|k| [0.0, 0.0, 3e-3 * (k as f64 * 1e-3).sin()])
+            .collect();
+        let dvel = vec![[0.0, 0.0, -0.098]; n as usize];
+        let odo_t: Vec<i64> = (0..n / 10).map(|k| 3_000_000 + k * 100_000_000).collect();
+        let odo_d: Vec<f64> = (0..n / 10)
+            .map(|k| {
+                let s = k as f64 * 0.1;
+                if (60.0..90.0).contains(&s) {
+                    500.0
+                } else {
+                    (8.0 * s).min(500.0 + 8.0 * (s - 90.0).max(0.0))
+                }
+            })
+            .collect();
+        let raw = RawSeries {
+            imu_t_ns: &t,
+            dtheta_rad: &dtheta,
+            dvel_mps: &dvel,
+            odo_t_ns: &odo_t,
+            odo_distance_m: &odo_d,
+        };
+        let params = DeriveParams::default();
+        let d = derive(&raw, &params, 9.81);
+        let lp = LowPass::new(&params.filter, d.nominal_dt_s);
+        for offset_s in [0.0, 0.123, -0.4] {
+            let mut whole = d.without_odometer_series();
+            odometer_terms(&mut whole, &raw, offset_s);
+            filter_odometer_terms(&mut whole, &lp);
+            let mut fused = d.without_odometer_series();
+            odometer_blocks(&mut fused, &raw, offset_s, &lp);
+            assert!(fused.u_mps.is_empty() && fused.ru_mps2.is_empty());
+            assert_eq!(fused.odo_dist_m, whole.odo_dist_m);
+            // Bits, not values: -0.0 and 0.0 would pass `==`.
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(
+                bits(&fused.u_dot_f),
+                bits(&whole.u_dot_f),
+                "u̇ at {offset_s}"
+            );
+            assert_eq!(bits(&fused.ru_f), bits(&whole.ru_f), "ru at {offset_s}");
+            assert_eq!(bits(&fused.r_moving_f), bits(&whole.r_moving_f));
+            assert_eq!(bits(&fused.moving_dot_f), bits(&whole.moving_dot_f));
+            assert!(
+                whole.moving_dot_f.iter().any(|&v| v != 0.0),
+                "the drive stops"
+            );
+        }
+    }
 }

@@ -33,8 +33,8 @@ use std::cell::RefCell;
 use std::sync::OnceLock;
 
 use crate::derive::{
-    DeriveParams, Derived, RawSeries, derive, epochs_of, filter_odometer_terms,
-    odometer_increments, odometer_terms, shifted_blocks,
+    DeriveParams, Derived, RawSeries, derive, epochs_of, odometer_blocks, odometer_increments,
+    shifted_blocks,
 };
 use crate::disupt::{
     DisuptError, DisuptParams, JointFit, JointOptions, Problem, ProblemSpec, joint_fit,
@@ -162,14 +162,20 @@ impl<'a> Rederive<'a> {
     /// moved in time: F is linear and time-invariant, so filtering a shifted `u̇` is
     /// shifting the filtered one, and this keeps one realisation of the pulse
     /// quantisation for every lag (derived anew, each fraction of a sample would draw
-    /// another, and the fit's cost would be rough in the lag).
+    /// another, and the fit's cost would be rough in the lag). Its per-sample u, u̇ and
+    /// ru are left empty (navigation passes and the fits read the increments, the block
+    /// series and the epochs).
     pub fn at(&self, lag_s: f64) -> Derived {
         let base = self.configured();
         // The IMU's part is the configured derive's; the odometer's is derived anew.
         let mut d = base.without_odometer_series();
-        odometer_terms(&mut d, &self.raw, self.params.odo_time_offset_s - lag_s);
         let lp = LowPass::new(&self.params.filter, d.nominal_dt_s);
-        filter_odometer_terms(&mut d, &lp);
+        odometer_blocks(
+            &mut d,
+            &self.raw,
+            self.params.odo_time_offset_s - lag_s,
+            &lp,
+        );
         let block_s = lp.block as f64 * d.nominal_dt_s;
         d.u_dot_f = shifted_blocks(&base.u_dot_f, block_s, lag_s);
         d.epochs = epochs_of(&d, &lp, &self.params, self.g_mps2);
@@ -222,8 +228,6 @@ impl Profile<'_> {
                 // The same epochs at every trial: the gate moves with the lag, and an
                 // epoch entering or leaving would make the costs incomparable.
                 d.epochs.valid.clone_from(&self.valid);
-                // A trial's pass reads the increments and the epochs only.
-                (d.u_mps, d.u_dot_mps2, d.ru_mps2) = (Vec::new(), Vec::new(), Vec::new());
                 d
             })
             .collect();
@@ -303,7 +307,7 @@ pub fn joint_with_lag(
         // The next parabola about the vertex: its three trials side by side.
         points = [lag_s - CURVATURE_STEP_S, lag_s, lag_s + CURVATURE_STEP_S];
     }
-    let mut derived = rederive.at(lag_s);
+    let derived = rederive.at(lag_s);
     let mut fit = joint_fit(
         &spec.on(&derived),
         params,
@@ -330,7 +334,6 @@ pub fn joint_with_lag(
     if let Some(step) = fit.result.steps.first_mut() {
         step.evaluations = fit.result.evaluations;
     }
-    (derived.u_mps, derived.u_dot_mps2, derived.ru_mps2) = (Vec::new(), Vec::new(), Vec::new());
     Ok(LagFit {
         lag_s,
         sigma_s,

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 use crate::attitude::wrap_pi;
 use crate::strapdown::{
-    LaneBatch, MAX_LANES, NavInputs, NavSettings, NavTrack, StateAt, in_lanes, run_states_at,
+    LaneBatch, MAX_LANES, NavInputs, NavSettings, NavTrack, in_lanes, run_states_at,
 };
 
 /// σ of the corrected route at every `stride`-th sample (and the last).
@@ -37,12 +37,22 @@ pub struct RouteSigma {
 }
 
 impl RouteSigma {
-    /// The three σ linearly interpolated to every sample of a run of `n` samples.
-    pub fn per_sample(&self, n: usize) -> [Vec<f64>; 3] {
+    /// The three σ linearly interpolated to the samples `range` of the run.
+    pub fn at_samples(&self, range: std::ops::Range<usize>) -> [Vec<f64>; 3] {
+        if self.sample.is_empty() {
+            let zeros = vec![0.0; range.len()];
+            return [zeros.clone(), zeros.clone(), zeros];
+        }
+        // The last value at or before the range's first sample (the first value before
+        // it).
+        let first = self
+            .sample
+            .partition_point(|&s| s <= range.start)
+            .saturating_sub(1);
         let interp = |v: &[f64]| -> Vec<f64> {
-            let mut out = Vec::with_capacity(n);
-            let mut j = 0;
-            for k in 0..n {
+            let mut out = Vec::with_capacity(range.len());
+            let mut j = first;
+            for k in range.clone() {
                 while j + 1 < self.sample.len() && self.sample[j + 1] <= k {
                     j += 1;
                 }
@@ -59,9 +69,6 @@ impl RouteSigma {
             }
             out
         };
-        if self.sample.is_empty() {
-            return [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
-        }
         [
             interp(&self.north_m),
             interp(&self.east_m),
@@ -90,10 +97,12 @@ fn states(track: &NavTrack, samples: &[usize], s: &NavSettings) -> Vec<[f64; 3]>
         .collect()
 }
 
-/// Each moved pass's (north, east, heading) at `samples`. Consecutive passes on the same
-/// inputs run side by side in vector lanes (at most eight), the batches in parallel; no
-/// track is stored. Each value is what the pass alone, tracked, gives bit for bit.
-fn moved_states(moved: &[Moved<'_>], samples: &[usize]) -> Vec<Vec<[f64; 3]>> {
+/// Each moved pass's sensitivities at `samples`: its (north, east, heading) there minus
+/// the corrected pass's `y0`, over its step. Consecutive passes on the same inputs run
+/// side by side in vector lanes (at most eight), the batches in parallel; no track is
+/// stored, nor a pass's states. Each value is what the pass alone, tracked, gives bit for
+/// bit.
+fn sensitivities(moved: &[Moved<'_>], samples: &[usize], y0: &[[f64; 3]]) -> Vec<Vec<[f64; 3]>> {
     let mut batches: Vec<&[Moved<'_>]> = Vec::new();
     let mut start = 0;
     for j in 1..=moved.len() {
@@ -107,30 +116,34 @@ fn moved_states(moved: &[Moved<'_>], samples: &[usize]) -> Vec<Vec<[f64; 3]>> {
     }
     batches
         .par_iter()
-        .flat_map_iter(|batch| {
-            let raw = in_lanes(batch.len(), &mut StatesOf { batch, samples });
-            raw.into_iter().zip(batch.iter()).map(|(states, mv)| {
-                states
-                    .iter()
-                    .map(|(lat, lon, q)| state(&mv.settings, *lat, *lon, q))
-                    .collect::<Vec<_>>()
-            })
-        })
+        .flat_map_iter(|batch| in_lanes(batch.len(), &mut SensitivitiesOf { batch, samples, y0 }))
         .collect()
 }
 
-/// Moved passes on the same inputs, their states at `samples`.
-struct StatesOf<'m, 'a> {
+/// Moved passes on the same inputs, their sensitivities at `samples`.
+struct SensitivitiesOf<'m, 'a> {
     batch: &'m [Moved<'a>],
     samples: &'m [usize],
+    y0: &'m [[f64; 3]],
 }
 
-impl LaneBatch for StatesOf<'_, '_> {
-    type Out = Vec<StateAt>;
+impl LaneBatch for SensitivitiesOf<'_, '_> {
+    type Out = Vec<[f64; 3]>;
 
-    fn run<const N: usize>(&mut self, points: [usize; N]) -> [Vec<StateAt>; N] {
+    fn run<const N: usize>(&mut self, points: [usize; N]) -> [Vec<[f64; 3]>; N] {
         let settings = points.map(|i| self.batch[i].settings);
-        run_states_at(&self.batch[0].inputs, &settings, self.samples)
+        let (batch, y0) = (self.batch, self.y0);
+        run_states_at(
+            &self.batch[0].inputs,
+            &settings,
+            self.samples,
+            |l, i, (lat, lon, q)| {
+                let mv = &batch[points[l]];
+                let y = state(&mv.settings, lat, lon, &q);
+                let d = [y[0] - y0[i][0], y[1] - y0[i][1], wrap_pi(y[2] - y0[i][2])];
+                d.map(|v| v / mv.step)
+            },
+        )
     }
 }
 
@@ -166,17 +179,9 @@ pub fn route_sigma(
         samples.push(n - 1);
     }
     let y0 = states(base_track, &samples, base_settings);
-    // Sensitivities per sample: m parameters × 3 quantities.
+    // Sensitivities: per parameter, per sample, the 3 quantities'.
     let m = moved.len();
-    let mut g = vec![0.0; samples.len() * m * 3];
-    for (j, (mv, ys)) in moved.iter().zip(moved_states(moved, &samples)).enumerate() {
-        for (i, y) in ys.iter().enumerate() {
-            let d = [y[0] - y0[i][0], y[1] - y0[i][1], wrap_pi(y[2] - y0[i][2])];
-            for q in 0..3 {
-                g[(i * 3 + q) * m + j] = d[q] / mv.step;
-            }
-        }
-    }
+    let g = sensitivities(moved, &samples, &y0);
     let walk = random_walk_variances(base_track, base_settings, dt_s, arw_rad_sqrt_s, &samples);
     let mut out = RouteSigma {
         sample: samples.clone(),
@@ -184,11 +189,11 @@ pub fn route_sigma(
     };
     for i in 0..samples.len() {
         let sd = |q: usize| {
-            let gi = &g[(i * 3 + q) * m..(i * 3 + q + 1) * m];
+            let gi = |a: usize| g[a][i][q];
             let mut v = 0.0;
             for a in 0..m {
                 for b in 0..m {
-                    v += gi[a] * covariance[(a, b)] * gi[b];
+                    v += gi(a) * covariance[(a, b)] * gi(b);
                 }
             }
             v.max(0.0)
@@ -231,4 +236,33 @@ fn random_walk_variances(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_range_interpolates_as_the_whole_run_does() {
+        let sigma = RouteSigma {
+            sample: vec![0, 10, 20, 25],
+            north_m: vec![1.0, 2.0, 4.0, 8.0],
+            east_m: vec![0.5, 0.25, 3.0, 1.0],
+            heading_rad: vec![0.0, 0.1, 0.2, 0.3],
+        };
+        let whole = sigma.at_samples(0..27);
+        // Values between the samples, and held after the last.
+        assert_eq!(whole[0][5], 1.5);
+        assert_eq!(whole[0][26], 8.0);
+        for lo in 0..27 {
+            for hi in lo..=27 {
+                let part = sigma.at_samples(lo..hi);
+                for q in 0..3 {
+                    assert_eq!(part[q], whole[q][lo..hi], "{lo}..{hi}");
+                }
+            }
+        }
+        let none = RouteSigma::default().at_samples(3..7);
+        assert_eq!(none[1], vec![0.0; 4]);
+    }
 }

@@ -479,16 +479,20 @@ impl<const N: usize> Emit<N> for ReviewLanes<'_, N> {
 }
 
 /// Runs `N` passes side by side (one per settings) and returns each one's state at
-/// `samples` (increasing; samples past the end are left out): what a covariance
-/// propagated along the route reads, without storing `N` tracks.
-pub fn run_states_at<const N: usize>(
+/// `samples` (increasing; samples past the end are left out), as `map(lane, i, state)`
+/// makes of the state at `samples[i]`: what a covariance propagated along the route
+/// reads, without storing `N` tracks (nor `N` series of whole states, where the caller
+/// keeps less).
+pub fn run_states_at<const N: usize, T>(
     inputs: &NavInputs<'_>,
     settings: &[NavSettings; N],
     samples: &[usize],
-) -> [Vec<StateAt>; N] {
+    map: impl FnMut(usize, usize, StateAt) -> T,
+) -> [Vec<T>; N] {
     let mut sink = StatesAt {
         samples,
         next: 0,
+        map,
         out: std::array::from_fn(|_| Vec::with_capacity(samples.len())),
     };
     Lanes::<N>::new(settings).run(inputs, &mut sink);
@@ -496,19 +500,25 @@ pub fn run_states_at<const N: usize>(
 }
 
 /// [`run_states_at`]'s sink.
-struct StatesAt<'a, const N: usize> {
+struct StatesAt<'a, const N: usize, T, F> {
     samples: &'a [usize],
     next: usize,
-    out: [Vec<StateAt>; N],
+    map: F,
+    out: [Vec<T>; N],
 }
 
-impl<const N: usize> Emit<N> for StatesAt<'_, N> {
+impl<const N: usize, T, F: FnMut(usize, usize, StateAt) -> T> Emit<N> for StatesAt<'_, N, T, F> {
     #[inline(always)]
     fn emit(&mut self, k: usize, lanes: &Lanes<N>) {
         if self.samples.get(self.next) == Some(&k) {
+            let i = self.next;
             self.next += 1;
             for (l, out) in self.out.iter_mut().enumerate() {
-                out.push((lanes.lat_rad[l], lanes.lon_rad[l], lanes.q_of(l)));
+                out.push((self.map)(
+                    l,
+                    i,
+                    (lanes.lat_rad[l], lanes.lon_rad[l], lanes.q_of(l)),
+                ));
             }
         }
     }

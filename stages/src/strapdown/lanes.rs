@@ -586,7 +586,7 @@ mod tests {
         let all: [NavSettings; 4] = std::array::from_fn(|l| settings(l + 3));
         // Past the end (5000 samples) is left out.
         let samples = [0, 9, 2500, 4999, 5000];
-        let states = crate::strapdown::run_states_at(&inputs, &all, &samples);
+        let states = crate::strapdown::run_states_at(&inputs, &all, &samples, |_, _, s| s);
         let mut track = crate::strapdown::NavTrack::default();
         for (s, got) in all.iter().zip(&states) {
             crate::strapdown::navigate(&inputs, s, &mut track);
