@@ -96,17 +96,13 @@ impl RunCtx {
         Ok(d)
     }
 
-    /// Takes the derive out of memory: the last stage that reads it owns it then.
-    pub fn take_derived(&self, derive_dir: &Path) -> anyhow::Result<Derived> {
-        let memo = self
-            .derived
+    /// Takes the derive out of memory, when the chain holds it: the last stage that reads
+    /// it owns it then.
+    pub fn take_kept_derived(&self) -> Option<Arc<Derived>> {
+        self.derived
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .take();
-        match memo {
-            Some(d) => Ok(Arc::try_unwrap(d).unwrap_or_else(|d| (*d).clone())),
-            None => load_derived(derive_dir),
-        }
+            .take()
     }
 
     fn set_derived(&self, d: Option<Arc<Derived>>) {

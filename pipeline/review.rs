@@ -9,11 +9,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use unz_formats::parquet_io::{for_each_batch_of, read_schema, read_table};
-use unz_formats::tables::{f64_column, i64_column};
+use unz_formats::schema::derived_meta;
+use unz_formats::tables::{f64_column, i64_column, vec3_column};
 use unz_stages::criteria::Kryt2;
 use unz_stages::earth::Geodetic;
 use unz_viz::review::{
-    ControlPointView, EpochSeries, ImuSeries, Kryt1Curve, Review, RouteSigmaView, Sweep, Track,
+    ControlPointView, EpochSeries, Kryt1Curve, Review, RouteSigmaView, SensorBlocks,
+    SensorBlocksBuilder, SensorSample, Sweep, Track,
 };
 
 use crate::artifacts::{StageName, files};
@@ -102,7 +104,15 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
             truth.as_deref(),
             sweep.as_deref(),
         )?;
+        ctx.say(
+            "review",
+            &format!("read the tables{}", crate::memory::rss_suffix()),
+        );
         unz_viz::recording::write_rrd(&review, &dir.join(&name))?;
+        ctx.say(
+            "review",
+            &format!("wrote the recording{}", crate::memory::rss_suffix()),
+        );
         Ok(())
     })?;
     let rrd = dir.join(&name);
@@ -110,6 +120,105 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
         .with_context(|| format!("cannot read {}", rrd.display()))?
         .len();
     Ok(ReviewOutput { rrd, bytes })
+}
+
+/// The derive's time base as the review reads it.
+struct RunTimes {
+    /// IMU time of the first sample, ns.
+    t0_ns: i64,
+    /// Nominal sample period, s.
+    nominal_dt_s: f64,
+    /// Time of the last sample since the first, s.
+    duration_s: f64,
+    /// IMU samples.
+    samples: usize,
+}
+
+/// The derive's per-sample series in the recording's blocks, and its time base: from the
+/// derive the chain holds in memory (released then: the review is the last to read it),
+/// else read from `derived.parquet` batch by batch, only the columns plotted. Either way
+/// the run's per-sample series are never held whole here.
+fn sensor_blocks(ctx: &RunCtx, derive_dir: &Path) -> anyhow::Result<(SensorBlocks, RunTimes)> {
+    if let Some(d) = ctx.take_kept_derived() {
+        let mut b = SensorBlocksBuilder::at_series_rate(d.nominal_dt_s);
+        for k in 0..d.t_s.len() {
+            b.push(SensorSample {
+                t_s: d.t_s[k],
+                dt_s: d.dt_s[k],
+                dtheta_rad: d.dtheta_rad[k],
+                dvel_mps: d.dvel_mps[k],
+                u_mps: d.u_mps[k],
+                u_dot_mps2: d.u_dot_mps2[k],
+                ru_mps2: d.ru_mps2[k],
+            });
+        }
+        let times = RunTimes {
+            t0_ns: d.t0_ns,
+            nominal_dt_s: d.nominal_dt_s,
+            duration_s: d.t_s.last().copied().unwrap_or(0.0),
+            samples: d.t_s.len(),
+        };
+        return Ok((b.finish(), times));
+    }
+    let path = derive_dir.join(files::DERIVED);
+    let nominal_dt_s: f64 = read_schema(&path)?
+        .metadata()
+        .get(derived_meta::NOMINAL_DT_S)
+        .and_then(|v| v.parse().ok())
+        .with_context(|| {
+            format!(
+                "{} lacks metadata {}",
+                path.display(),
+                derived_meta::NOMINAL_DT_S
+            )
+        })?;
+    let mut b = SensorBlocksBuilder::at_series_rate(nominal_dt_s);
+    let mut times = RunTimes {
+        t0_ns: 0,
+        nominal_dt_s,
+        duration_s: 0.0,
+        samples: 0,
+    };
+    let columns = [
+        "t_ns",
+        "dt_s",
+        "dtheta_rad",
+        "dvel_mps",
+        "u_mps",
+        "u_dot_mps2",
+        "ru_mps2",
+    ];
+    for_each_batch_of(&path, &columns, |batch| {
+        let t_ns = i64_column(batch, "t_ns")?;
+        let dt_s = f64_column(batch, "dt_s")?;
+        let dtheta_rad = vec3_column(batch, "dtheta_rad")?;
+        let dvel_mps = vec3_column(batch, "dvel_mps")?;
+        let u_mps = f64_column(batch, "u_mps")?;
+        let u_dot_mps2 = f64_column(batch, "u_dot_mps2")?;
+        let ru_mps2 = f64_column(batch, "ru_mps2")?;
+        if times.samples == 0
+            && let Some(&t0) = t_ns.first()
+        {
+            times.t0_ns = t0;
+        }
+        for k in 0..t_ns.len() {
+            // As `load_derived` makes the times.
+            let t_s = (t_ns[k] - times.t0_ns) as f64 * 1e-9;
+            b.push(SensorSample {
+                t_s,
+                dt_s: dt_s[k],
+                dtheta_rad: dtheta_rad[k],
+                dvel_mps: dvel_mps[k],
+                u_mps: u_mps[k],
+                u_dot_mps2: u_dot_mps2[k],
+                ru_mps2: ru_mps2[k],
+            });
+            times.duration_s = t_s;
+        }
+        times.samples += t_ns.len();
+        Ok(())
+    })?;
+    Ok((b.finish(), times))
 }
 
 /// Reads the cached tables into a [`Review`].
@@ -122,7 +231,7 @@ pub fn build_review(
     sweep: Option<&Path>,
 ) -> anyhow::Result<Review> {
     let m = &ctx.manifest;
-    let mut d = ctx.take_derived(derive_dir)?;
+    let (sensors, d) = sensor_blocks(ctx, derive_dir)?;
     let rel =
         |t_ns: &[i64]| -> Vec<f64> { t_ns.iter().map(|&t| (t - d.t0_ns) as f64 * 1e-9).collect() };
     let start = start_position(m);
@@ -210,8 +319,8 @@ pub fn build_review(
     let summary_markdown = format!(
         "Raw log `{}`; {:.0} s, {} IMU samples at {:.0} Hz; {:.0} m to the last control point.",
         m.raw.file_name().unwrap_or_default().to_string_lossy(),
-        d.t_s.last().copied().unwrap_or(0.0),
-        d.t_s.len(),
+        d.duration_s,
+        d.samples,
         1.0 / d.nominal_dt_s.max(1e-9),
         dj.distance_m,
     );
@@ -220,15 +329,7 @@ pub fn build_review(
     Ok(Review {
         name: m.name.clone(),
         sample_dt_s: d.nominal_dt_s,
-        imu: ImuSeries {
-            t_s: d.t_s.clone(),
-            dt_s: d.dt_s.clone(),
-            dtheta_rad: d.dtheta_rad.clone(),
-            dvel_mps: d.dvel_mps.clone(),
-            u_mps: std::mem::take(&mut d.u_mps),
-            u_dot_mps2: std::mem::take(&mut d.u_dot_mps2),
-            ru_mps2: std::mem::take(&mut d.ru_mps2),
-        },
+        sensors,
         epochs,
         kryt1,
         tracks,

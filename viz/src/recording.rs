@@ -13,7 +13,7 @@ use rerun::{RecordingStream, TimeColumn};
 use crate::blueprint::send_review_blueprint;
 use crate::frames::enu_flu_xyzw;
 use crate::paths::*;
-use crate::review::{Review, Track, block_means, color_of, display_name};
+use crate::review::{Review, Track, color_of, display_name};
 use unz_stages::attitude::Euler;
 
 /// Rate of the raw-rate series in the recording, Hz.
@@ -394,61 +394,55 @@ impl Writer<'_> {
     }
 
     fn sensors(&mut self, r: &Review) -> SdkResult<()> {
-        let imu = &r.imu;
-        let step = ((1.0 / (SERIES_RATE_HZ * r.sample_dt_s.max(1e-6))).round() as usize).max(1);
-        let n = imu.t_s.len();
-        let starts: Vec<usize> = (0..n).step_by(step).collect();
-        let t_s: Vec<f64> = starts.iter().map(|&k| imu.t_s[k]).collect();
-        let sample: Vec<i64> = starts.iter().map(|&k| k as i64).collect();
-        let mean = |v: &[f64]| block_means(v, step).map(|(_, m)| m).collect::<Vec<_>>();
+        let b = &r.sensors;
         let raw: [(String, &str, [u8; 4], &[f64]); 3] = [
             (
                 format!("{PLOT_SPEED}/u"),
                 "odometer speed u [m/s]",
                 [31, 119, 180, 255],
-                &imu.u_mps,
+                &b.u_mps,
             ),
             (
                 format!("{PLOT_ACCEL_TERMS}/u_dot"),
                 "u̇ [m/s²]",
                 [174, 199, 232, 255],
-                &imu.u_dot_mps2,
+                &b.u_dot_mps2,
             ),
             (
                 format!("{PLOT_ACCEL_TERMS}/ru"),
                 "ru [m/s²]",
                 [255, 187, 120, 255],
-                &imu.ru_mps2,
+                &b.ru_mps2,
             ),
         ];
         for (path, name, color, v) in raw {
-            self.series(&path, name, color, &t_s, Some(&sample), &mean(v))?;
+            self.series(&path, name, color, &b.t_s, Some(&b.sample), v)?;
         }
-        let b = &r.epochs;
+        let e = &r.epochs;
         let filtered: [(&str, &str, [u8; 4], &[f64]); 4] = [
             (
                 "u_dot_f",
                 "u̇ filtered [m/s²]",
                 [31, 119, 180, 255],
-                &b.u_dot_f_mps2,
+                &e.u_dot_f_mps2,
             ),
             (
                 "ru_f",
                 "ru filtered [m/s²]",
                 [255, 127, 14, 255],
-                &b.ru_f_mps2,
+                &e.ru_f_mps2,
             ),
             (
                 "ax_f",
                 "aₓ filtered [m/s²]",
                 [44, 160, 44, 255],
-                &b.ax_f_mps2,
+                &e.ax_f_mps2,
             ),
             (
                 "ay_f",
                 "a_y filtered [m/s²]",
                 [214, 39, 40, 255],
-                &b.ay_f_mps2,
+                &e.ay_f_mps2,
             ),
         ];
         for (leaf, name, color, v) in filtered {
@@ -456,41 +450,29 @@ impl Writer<'_> {
                 &format!("{PLOT_ACCEL_TERMS}/{leaf}"),
                 name,
                 color,
-                &b.t_s,
+                &e.t_s,
                 None,
                 v,
             )?;
         }
-        // Rates from the raw increments: block sums over block durations.
-        let dt_sum: Vec<f64> = block_means(&imu.dt_s, step)
-            .map(|(_, m)| m * step as f64)
-            .collect();
         let axes = ["x", "y", "z"];
         let colors = [[214, 39, 40, 255], [44, 160, 44, 255], [31, 119, 180, 255]];
         for a in 0..3 {
-            let rate = |inc: &[[f64; 3]], scale: f64| -> Vec<f64> {
-                inc.chunks(step)
-                    .zip(&dt_sum)
-                    .map(|(c, &dt)| c.iter().map(|v| v[a]).sum::<f64>() * scale / dt.max(1e-9))
-                    .collect()
-            };
-            let gyro = rate(&imu.dtheta_rad, 180.0 / std::f64::consts::PI);
-            let accel = rate(&imu.dvel_mps, 1.0);
             self.series(
                 &format!("{PLOT_IMU_GYRO}/{}", axes[a]),
                 &format!("ω{} body [°/s]", axes[a]),
                 colors[a],
-                &t_s,
-                Some(&sample),
-                &gyro,
+                &b.t_s,
+                Some(&b.sample),
+                &b.gyro_deg_s[a],
             )?;
             self.series(
                 &format!("{PLOT_IMU_ACCEL}/{}", axes[a]),
                 &format!("f{} body [m/s²]", axes[a]),
                 colors[a],
-                &t_s,
-                Some(&sample),
-                &accel,
+                &b.t_s,
+                Some(&b.sample),
+                &b.accel_mps2[a],
             )?;
         }
         Ok(())

@@ -11,8 +11,8 @@ pub struct Review {
     pub name: String,
     /// Nominal IMU sample period, s.
     pub sample_dt_s: f64,
-    /// Raw-rate series (decimated by the recording).
-    pub imu: ImuSeries,
+    /// Raw-rate series, in the recording's blocks.
+    pub sensors: SensorBlocks,
     /// Criteria series at the ΔTg epochs, initial settings.
     pub epochs: EpochSeries,
     /// Cumulative Kryt1 per settings (`initial` first).
@@ -33,23 +33,116 @@ pub struct Review {
     pub summary_markdown: String,
 }
 
-/// Per IMU sample.
-#[derive(Debug, Clone, Default)]
-pub struct ImuSeries {
-    /// Time, s (shared with the derive it comes from, not copied).
-    pub t_s: std::sync::Arc<[f64]>,
-    /// Interval, s.
-    pub dt_s: std::sync::Arc<[f64]>,
-    /// Angle increments, rad, body frame.
-    pub dtheta_rad: std::sync::Arc<[[f64; 3]]>,
-    /// Velocity increments, m/s, body frame.
-    pub dvel_mps: std::sync::Arc<[[f64; 3]]>,
-    /// Odometer speed u, m/s.
+/// The raw-rate series as the recording plots them: per block of [`SensorBlocks::step`]
+/// IMU samples (the last one may be shorter), the block's first time and sample, the
+/// means of u, u̇ and ru, and the body rates from the block's increments. Built sample by
+/// sample ([`SensorBlocksBuilder`]), so a run's per-sample series are never held whole.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SensorBlocks {
+    /// Samples per block.
+    pub step: usize,
+    /// Time of each block's first sample, s.
+    pub t_s: Vec<f64>,
+    /// Index of each block's first sample.
+    pub sample: Vec<i64>,
+    /// Mean odometer speed u, m/s.
     pub u_mps: Vec<f64>,
-    /// u̇, m/s².
+    /// Mean u̇, m/s².
     pub u_dot_mps2: Vec<f64>,
-    /// ru, m/s².
+    /// Mean ru, m/s².
     pub ru_mps2: Vec<f64>,
+    /// Body angular rate about x, y, z (angle increments over the block's duration), °/s.
+    pub gyro_deg_s: [Vec<f64>; 3],
+    /// Body specific force along x, y, z (velocity increments over the block's duration),
+    /// m/s².
+    pub accel_mps2: [Vec<f64>; 3],
+}
+
+/// One IMU sample of the derive, as [`SensorBlocksBuilder`] takes it.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SensorSample {
+    /// Time, s.
+    pub t_s: f64,
+    /// Interval, s.
+    pub dt_s: f64,
+    /// Angle increments, rad, body frame.
+    pub dtheta_rad: [f64; 3],
+    /// Velocity increments, m/s, body frame.
+    pub dvel_mps: [f64; 3],
+    /// Odometer speed u, m/s.
+    pub u_mps: f64,
+    /// u̇, m/s².
+    pub u_dot_mps2: f64,
+    /// ru, m/s².
+    pub ru_mps2: f64,
+}
+
+/// Builds [`SensorBlocks`] from samples handed in order.
+#[derive(Debug, Clone)]
+pub struct SensorBlocksBuilder {
+    out: SensorBlocks,
+    block: Vec<SensorSample>,
+    samples: usize,
+}
+
+impl SensorBlocksBuilder {
+    /// Blocks of `step` samples (at least one).
+    pub fn new(step: usize) -> Self {
+        let step = step.max(1);
+        Self {
+            out: SensorBlocks {
+                step,
+                ..SensorBlocks::default()
+            },
+            block: Vec::with_capacity(step),
+            samples: 0,
+        }
+    }
+
+    /// Blocks as long as the recording's series rate ([`crate::recording::SERIES_RATE_HZ`])
+    /// for IMU samples `sample_dt_s` apart.
+    pub fn at_series_rate(sample_dt_s: f64) -> Self {
+        Self::new(
+            (1.0 / (crate::recording::SERIES_RATE_HZ * sample_dt_s.max(1e-6))).round() as usize,
+        )
+    }
+
+    /// The next sample.
+    pub fn push(&mut self, s: SensorSample) {
+        self.block.push(s);
+        self.samples += 1;
+        if self.block.len() == self.out.step {
+            self.close();
+        }
+    }
+
+    /// The blocks, the last (shorter) one included.
+    pub fn finish(mut self) -> SensorBlocks {
+        if !self.block.is_empty() {
+            self.close();
+        }
+        self.out
+    }
+
+    fn close(&mut self) {
+        let c = &self.block;
+        let n = c.len() as f64;
+        let mean = |f: fn(&SensorSample) -> f64| c.iter().map(f).sum::<f64>() / n;
+        let out = &mut self.out;
+        out.t_s.push(c[0].t_s);
+        out.sample.push((self.samples - c.len()) as i64);
+        out.u_mps.push(mean(|s| s.u_mps));
+        out.u_dot_mps2.push(mean(|s| s.u_dot_mps2));
+        out.ru_mps2.push(mean(|s| s.ru_mps2));
+        // The block's duration as its mean interval times its length.
+        let dt_s = (mean(|s| s.dt_s) * n).max(1e-9);
+        for a in 0..3 {
+            let sum = |inc: fn(&SensorSample) -> [f64; 3]| c.iter().map(|s| inc(s)[a]).sum::<f64>();
+            out.gyro_deg_s[a].push(sum(|s| s.dtheta_rad) * (180.0 / std::f64::consts::PI) / dt_s);
+            out.accel_mps2[a].push(sum(|s| s.dvel_mps) * 1.0 / dt_s);
+        }
+        self.block.clear();
+    }
 }
 
 /// Per ΔTg epoch, with the initial settings.
@@ -149,14 +242,6 @@ pub struct Sweep {
     pub kryt2_m: Vec<f64>,
 }
 
-/// Block means of `v` over `step` samples: (index of each block's first sample, mean).
-pub fn block_means(v: &[f64], step: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
-    let step = step.max(1);
-    v.chunks(step)
-        .enumerate()
-        .map(move |(j, c)| (j * step, c.iter().sum::<f64>() / c.len() as f64))
-}
-
 /// Colour of a settings label, RGBA (initial red, OEPI orange, OWPI purple, joint
 /// green, truth dark grey).
 pub fn color_of(label: &str) -> [u8; 4] {
@@ -187,10 +272,32 @@ mod tests {
     use super::*;
 
     #[test]
-    fn block_means_cover_a_short_last_block() {
-        let v = [1.0, 3.0, 5.0, 7.0, 9.0];
-        let m: Vec<_> = block_means(&v, 2).collect();
-        assert_eq!(m, vec![(0, 2.0), (2, 6.0), (4, 9.0)]);
+    fn sensor_blocks_cover_a_short_last_block() {
+        let mut b = SensorBlocksBuilder::new(2);
+        for k in 0..5 {
+            let x = k as f64;
+            b.push(SensorSample {
+                t_s: 0.01 * x,
+                dt_s: 0.01,
+                dtheta_rad: [1e-3 * x, 0.0, -2e-3],
+                dvel_mps: [0.0, 0.1, -0.098],
+                u_mps: 1.0 + 2.0 * x,
+                u_dot_mps2: 0.0,
+                ru_mps2: x,
+            });
+        }
+        let s = b.finish();
+        assert_eq!(s.sample, vec![0, 2, 4]);
+        assert_eq!(s.t_s, vec![0.0, 0.02, 0.04]);
+        assert_eq!(s.u_mps, vec![2.0, 6.0, 9.0]);
+        assert_eq!(s.ru_mps2, vec![0.5, 2.5, 4.0]);
+        // Rates over each block's own duration, the short last one's too.
+        for (j, want) in [(0, 0.05), (1, 0.25), (2, 0.4)] {
+            let got = s.gyro_deg_s[0][j].to_radians();
+            assert!((got - want).abs() < 1e-12, "block {j}: {got} rad/s");
+            assert!((s.gyro_deg_s[2][j].to_radians() + 0.2).abs() < 1e-12);
+            assert!((s.accel_mps2[2][j] + 9.8).abs() < 1e-12);
+        }
     }
 }
 
