@@ -9,10 +9,10 @@ use std::sync::Arc;
 use anyhow::{Context, bail};
 use arrow::array::{AsArray, BooleanArray, Float64Array, Int64Array, RecordBatch, UInt64Array};
 use arrow::datatypes::UInt64Type;
-use unz_formats::parquet_io::{ParquetSink, for_each_batch, read_table, write_batch};
+use unz_formats::parquet_io::{ParquetSink, for_each_batch_of, read_table, write_batch};
 use unz_formats::schema::{self, derived_meta};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
-use unz_stages::derive::{Derived, Epochs};
+use unz_stages::derive::{Derived, Epochs, OdometerSpeed};
 
 fn f64s(v: &[f64]) -> Arc<Float64Array> {
     Arc::new(Float64Array::from(v.to_vec()))
@@ -42,21 +42,28 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
     // the run's length.
     const ROWS: usize = 1 << 16;
     let mut sink = ParquetSink::create(&dir.join(files::DERIVED), schema.clone())?;
-    let t_ns: Vec<i64> = d.t_ns();
-    for lo in (0..t_ns.len()).step_by(ROWS) {
-        let r = lo..(lo + ROWS).min(t_ns.len());
+    let n = d.t_s.len();
+    for lo in (0..n).step_by(ROWS) {
+        let r = lo..(lo + ROWS).min(n);
+        // u, u̇, ru and r are computed for the file, not kept by the derive.
+        let speeds: Vec<OdometerSpeed> = d.odometer_speeds(r.clone()).collect();
+        let speed = |f: fn(&OdometerSpeed) -> f64| {
+            Arc::new(Float64Array::from_iter_values(speeds.iter().map(f)))
+        };
         let batch = RecordBatch::try_new(
             schema.clone(),
             vec![
-                Arc::new(Int64Array::from(t_ns[r.clone()].to_vec())),
+                Arc::new(Int64Array::from_iter_values(
+                    d.t_s[r.clone()].iter().map(|&t| d.ns_of(t)),
+                )),
                 f64s(&d.dt_s[r.clone()]),
                 vec3_to_array(&d.dtheta_rad[r.clone()]),
                 vec3_to_array(&d.dvel_mps[r.clone()]),
                 f64s(&d.odo_dist_m[r.clone()]),
-                f64s(&d.u_mps[r.clone()]),
-                f64s(&d.u_dot_mps2[r.clone()]),
-                f64s(&d.r_rad_s[r.clone()]),
-                f64s(&d.ru_mps2[r]),
+                speed(|s| s.u_mps),
+                speed(|s| s.u_dot_mps2),
+                Arc::new(Float64Array::from_iter_values(r.map(|k| d.r_rad_s(k)))),
+                speed(|s| s.ru_mps2),
             ],
         )?;
         sink.write(&batch)?;
@@ -121,25 +128,22 @@ pub fn as_stored(mut d: Derived) -> Derived {
 }
 
 /// Loads what [`write_derived`] wrote: the derive whole, counts and filtered series
-/// included.
+/// included (u, u̇, ru and r, which the derive computes where it reads them, are not
+/// read back).
 pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
     let path = dir.join(files::DERIVED);
     // Column by column, batch by batch: the run's series without the file's batches
     // beside them.
     let mut t_ns: Vec<i64> = Vec::new();
-    let (mut dt_s, mut odo_dist_m, mut u_mps, mut u_dot_mps2, mut r_rad_s, mut ru_mps2) =
-        (vec![], vec![], vec![], vec![], vec![], vec![]);
+    let (mut dt_s, mut odo_dist_m) = (vec![], vec![]);
     let (mut dtheta_rad, mut dvel_mps): (Vec<[f64; 3]>, Vec<[f64; 3]>) = (vec![], vec![]);
-    let schema = for_each_batch(&path, |b| {
+    let columns = ["t_ns", "dt_s", "dtheta_rad", "dvel_mps", "odo_dist_m"];
+    let schema = for_each_batch_of(&path, &columns, |b| {
         t_ns.extend(i64_column(b, "t_ns")?);
         dt_s.extend(f64_column(b, "dt_s")?);
         dtheta_rad.extend(vec3_column(b, "dtheta_rad")?);
         dvel_mps.extend(vec3_column(b, "dvel_mps")?);
         odo_dist_m.extend(f64_column(b, "odo_dist_m")?);
-        u_mps.extend(f64_column(b, "u_mps")?);
-        u_dot_mps2.extend(f64_column(b, "u_dot_mps2")?);
-        r_rad_s.extend(f64_column(b, "r_rad_s")?);
-        ru_mps2.extend(f64_column(b, "ru_mps2")?);
         Ok(())
     })?;
     let meta = |k: &str| -> anyhow::Result<String> {
@@ -158,10 +162,6 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
         dtheta_rad: dtheta_rad.into(),
         dvel_mps: dvel_mps.into(),
         odo_dist_m,
-        u_mps,
-        u_dot_mps2,
-        r_rad_s: r_rad_s.into(),
-        ru_mps2,
         block: meta(derived_meta::BLOCK)?.parse()?,
         repaired_times: meta(derived_meta::REPAIRED_TIMES)?.parse()?,
         filled_gaps: meta(derived_meta::FILLED_GAPS)?.parse()?,
@@ -305,10 +305,6 @@ mod tests {
         same!(dtheta_rad);
         same!(dvel_mps);
         same!(odo_dist_m);
-        same!(u_mps);
-        same!(u_dot_mps2);
-        same!(r_rad_s);
-        same!(ru_mps2);
         same!(ax_f);
         same!(ay_f);
         same!(u_dot_f);
@@ -326,6 +322,28 @@ mod tests {
         same!(epochs.phi_p_per_bias);
         same!(epochs.valid);
         assert!(same_times == d);
+        // The file's u, u̇, ru and r are eqs 9–11 and the yaw rate of the derive.
+        let (_, table) = read_table(&tmp.path().join(files::DERIVED)).unwrap();
+        let column = |name: &str| f64_column(&table, name).unwrap();
+        let n = d.t_s.len();
+        let speeds: Vec<_> = d.odometer_speeds(0..n).collect();
+        assert_eq!(
+            column("u_mps"),
+            speeds.iter().map(|s| s.u_mps).collect::<Vec<_>>()
+        );
+        assert_eq!(
+            column("u_dot_mps2"),
+            speeds.iter().map(|s| s.u_dot_mps2).collect::<Vec<_>>()
+        );
+        assert_eq!(
+            column("ru_mps2"),
+            speeds.iter().map(|s| s.ru_mps2).collect::<Vec<_>>()
+        );
+        assert_eq!(
+            column("r_rad_s"),
+            (0..n).map(|k| d.r_rad_s(k)).collect::<Vec<_>>()
+        );
+        assert!(speeds.iter().any(|s| s.u_mps > 1.0 && s.ru_mps2 != 0.0));
         // What a stage is handed in memory is what it would load, bit for bit.
         assert!(
             as_stored(d) == loaded,

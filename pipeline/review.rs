@@ -141,15 +141,15 @@ struct RunTimes {
 fn sensor_blocks(ctx: &RunCtx, derive_dir: &Path) -> anyhow::Result<(SensorBlocks, RunTimes)> {
     if let Some(d) = ctx.take_kept_derived() {
         let mut b = SensorBlocksBuilder::at_series_rate(d.nominal_dt_s);
-        for k in 0..d.t_s.len() {
+        for (k, speed) in d.odometer_speeds(0..d.t_s.len()).enumerate() {
             b.push(SensorSample {
                 t_s: d.t_s[k],
                 dt_s: d.dt_s[k],
                 dtheta_rad: d.dtheta_rad[k],
                 dvel_mps: d.dvel_mps[k],
-                u_mps: d.u_mps[k],
-                u_dot_mps2: d.u_dot_mps2[k],
-                ru_mps2: d.ru_mps2[k],
+                u_mps: speed.u_mps,
+                u_dot_mps2: speed.u_dot_mps2,
+                ru_mps2: speed.ru_mps2,
             });
         }
         let times = RunTimes {

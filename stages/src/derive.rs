@@ -3,7 +3,9 @@
 //! Input: the IMU (time, angle and velocity increments) and the odometer's cumulative
 //! distance at its own rate. Output, per IMU sample: the repaired interval `dt`, the
 //! increments (a lost stretch is filled by holding the rate), the odometer distance over
-//! the interval, `u` (eq 9), `u̇` (eq 10), yaw rate `r`, `ru` (eq 11); per block of F
+//! the interval, and from these (computed where read, not stored:
+//! [`Derived::odometer_speeds`], [`Derived::r_rad_s`]) `u` (eq 9), `u̇` (eq 10), yaw rate
+//! `r`, `ru` (eq 11); per block of F
 //! ([`crate::filter`]): the filtered `a_x`, `a_y`, `u̇`, `ru`; per epoch (ΔTg = 1 s):
 //! accelerometer pitch Θ_p and roll Φ_p (eqs 7–8) and whether the simplified model (6)
 //! holds well enough to use the epoch (hard braking and hard turns are gated out).
@@ -67,7 +69,7 @@ pub struct Derived {
     pub nominal_dt_s: f64,
     /// Per sample: time since `t0_ns`, s (repaired to increase).
     ///
-    /// The IMU's series (this, `dt_s`, `dtheta_rad`, `dvel_mps`, `r_rad_s`) are shared,
+    /// The IMU's series (this, `dt_s`, `dtheta_rad`, `dvel_mps`) are shared,
     /// not copied, between a derive and its re-derives at other odometer timings: only
     /// the odometer's part differs.
     pub t_s: Arc<[f64]>,
@@ -79,14 +81,6 @@ pub struct Derived {
     pub dvel_mps: Arc<[[f64; 3]]>,
     /// Per sample: odometer distance over the interval, m.
     pub odo_dist_m: Vec<f64>,
-    /// Per sample: u, m/s (eq 9).
-    pub u_mps: Vec<f64>,
-    /// Per sample: u̇, m/s² (eq 10).
-    pub u_dot_mps2: Vec<f64>,
-    /// Per sample: yaw rate r, rad/s (body z gyro).
-    pub r_rad_s: Arc<[f64]>,
-    /// Per sample: ru, m/s² (eq 11).
-    pub ru_mps2: Vec<f64>,
     /// Per block: filtered a_x, m/s².
     pub ax_f: Vec<f64>,
     /// Per block: filtered a_y, m/s².
@@ -119,6 +113,17 @@ pub struct Derived {
     pub out_of_range_samples: usize,
 }
 
+/// Eqs 9–11 at one sample ([`Derived::odometer_speeds`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometerSpeed {
+    /// u, m/s (eq 9).
+    pub u_mps: f64,
+    /// u̇, m/s² (eq 10).
+    pub u_dot_mps2: f64,
+    /// ru, m/s² (eq 11).
+    pub ru_mps2: f64,
+}
+
 /// The LN-200's gyro range, ±1000 °/s: an angle increment faster than this is not a
 /// measurement.
 pub const GYRO_RANGE_RAD_S: f64 = 1000.0 * std::f64::consts::PI / 180.0;
@@ -126,9 +131,9 @@ pub const GYRO_RANGE_RAD_S: f64 = 1000.0 * std::f64::consts::PI / 180.0;
 pub const ACCEL_RANGE_MPS2: f64 = 70.0 * 9.806_65;
 
 impl Derived {
-    /// This derive without its odometer's per-sample series (increments, u, u̇, ru: left
-    /// empty) — what a re-derive at another odometer timing starts from, without copying
-    /// series it replaces. The IMU's series are shared, the rest copied.
+    /// This derive without its odometer's increments (left empty) — what a re-derive at
+    /// another odometer timing starts from, without copying the series it replaces. The
+    /// IMU's series are shared, the rest copied.
     pub fn without_odometer_series(&self) -> Derived {
         Derived {
             t0_ns: self.t0_ns,
@@ -138,10 +143,6 @@ impl Derived {
             dtheta_rad: self.dtheta_rad.clone(),
             dvel_mps: self.dvel_mps.clone(),
             odo_dist_m: Vec::new(),
-            u_mps: Vec::new(),
-            u_dot_mps2: Vec::new(),
-            r_rad_s: self.r_rad_s.clone(),
-            ru_mps2: Vec::new(),
             ax_f: self.ax_f.clone(),
             ay_f: self.ay_f.clone(),
             u_dot_f: self.u_dot_f.clone(),
@@ -156,6 +157,36 @@ impl Derived {
             odometer_failure_samples: self.odometer_failure_samples,
             out_of_range_samples: self.out_of_range_samples,
         }
+    }
+
+    /// Yaw rate r of sample `k`, rad/s (body z gyro: the angle increment over the
+    /// interval).
+    pub fn r_rad_s(&self, k: usize) -> f64 {
+        self.dtheta_rad[k][2] / self.dt_s[k]
+    }
+
+    /// Eqs 9–11 at the samples `range`: u (the odometer's distance over the interval),
+    /// u̇ (its change from the sample before, 0 at the first) and ru.
+    pub fn odometer_speeds(
+        &self,
+        range: std::ops::Range<usize>,
+    ) -> impl Iterator<Item = OdometerSpeed> + '_ {
+        let u = |k: usize| self.odo_dist_m[k] / self.dt_s[k];
+        let mut prev_u = range.start.checked_sub(1).map_or(0.0, u);
+        range.map(move |k| {
+            let u_mps = u(k);
+            let u_dot_mps2 = if k == 0 {
+                0.0
+            } else {
+                (u_mps - prev_u) / self.dt_s[k]
+            };
+            prev_u = u_mps;
+            OdometerSpeed {
+                u_mps,
+                u_dot_mps2,
+                ru_mps2: self.r_rad_s(k) * u_mps,
+            }
+        })
     }
 
     /// Absolute time (ns, the log's time base) of a time `t_s` since `t0_ns`.
@@ -285,8 +316,7 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
     // the instrument's range replaced by the previous sample's rates.
     let mut prev_t = -nominal;
     let mut prev_rates = ([0.0; 3], [0.0; 3]);
-    let (mut t_s, mut dt_s, mut dtheta_rad, mut dvel_mps, mut r_rad_s) = (
-        Vec::with_capacity(n),
+    let (mut t_s, mut dt_s, mut dtheta_rad, mut dvel_mps) = (
         Vec::with_capacity(n),
         Vec::with_capacity(n),
         Vec::with_capacity(n),
@@ -323,62 +353,28 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
         dt_s.push(dt);
         dtheta_rad.push(dth);
         dvel_mps.push(dv);
-        r_rad_s.push(dth[2] / dt);
         prev_t = t;
     }
-    (out.t_s, out.dt_s, out.dtheta_rad, out.dvel_mps, out.r_rad_s) = (
-        t_s.into(),
-        dt_s.into(),
-        dtheta_rad.into(),
-        dvel_mps.into(),
-        r_rad_s.into(),
-    );
-    odometer_terms(&mut out, raw, params.odo_time_offset_s);
+    (out.t_s, out.dt_s, out.dtheta_rad, out.dvel_mps) =
+        (t_s.into(), dt_s.into(), dtheta_rad.into(), dvel_mps.into());
 
     // The filter F, then eqs 7–8 at the epochs.
     let lp = LowPass::new(&params.filter, nominal);
     out.block = lp.block;
-    let ax: Vec<f64> = out
-        .dvel_mps
-        .iter()
-        .zip(out.dt_s.iter())
-        .map(|(v, dt)| v[0] / dt)
-        .collect();
-    let ay: Vec<f64> = out
-        .dvel_mps
-        .iter()
-        .zip(out.dt_s.iter())
-        .map(|(v, dt)| v[1] / dt)
-        .collect();
-    lp.apply(&ax, &mut out.ax_f);
-    lp.apply(&ay, &mut out.ay_f);
-    filter_odometer_terms(&mut out, &lp);
+    let accel = |axis: usize| {
+        let mut f = lp.block_means(
+            out.dvel_mps
+                .iter()
+                .zip(out.dt_s.iter())
+                .map(|(v, dt)| v[axis] / dt),
+        );
+        lp.filter_blocks(&mut f);
+        f
+    };
+    (out.ax_f, out.ay_f) = (accel(0), accel(1));
+    odometer_blocks(&mut out, raw, params.odo_time_offset_s, &lp);
     out.epochs = epochs_of(&out, &lp, params, g_mps2);
     out
-}
-
-/// Eqs 9–11 on `out`'s repaired time base: the odometer's distance over each sample (its
-/// time tags moved by `offset_s`), u, u̇ and ru.
-pub fn odometer_terms(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64) {
-    out.odo_dist_m = odometer_increments(out, raw, offset_s);
-    let n = out.t_s.len();
-    for v in [&mut out.u_mps, &mut out.u_dot_mps2, &mut out.ru_mps2] {
-        v.clear();
-        v.reserve(n);
-    }
-    let mut prev_u = 0.0;
-    for k in 0..n {
-        let u = out.odo_dist_m[k] / out.dt_s[k];
-        let u_dot = if k == 0 {
-            0.0
-        } else {
-            (u - prev_u) / out.dt_s[k]
-        };
-        out.u_mps.push(u);
-        out.u_dot_mps2.push(u_dot);
-        out.ru_mps2.push(out.r_rad_s[k] * u);
-        prev_u = u;
-    }
 }
 
 /// The odometer's distance over each sample's interval of `d` with the odometer's time
@@ -400,14 +396,12 @@ pub fn odometer_increments(d: &Derived, raw: &RawSeries<'_>, offset_s: f64) -> V
         .collect()
 }
 
-/// [`odometer_terms`] then [`filter_odometer_terms`] without the per-sample series in
-/// between: the odometer's increments and F's block series of `out` are set, bit for bit
-/// those two give, and its per-sample u, u̇ and ru are left empty. A re-derive at another
-/// odometer timing needs no more, and holds one series of the run's length instead of
-/// seven.
+/// The odometer's part of a derive with its time tags moved by `offset_s`: its increments
+/// and F's block series of u̇, ru and the odometer-bias sensitivities (r while moving,
+/// the rate of change of "moving"). Block means are taken as the samples come, without
+/// per-sample series of the run's length beside the increments.
 pub fn odometer_blocks(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64, lp: &LowPass) {
     out.odo_dist_m = odometer_increments(out, raw, offset_s);
-    (out.u_mps, out.u_dot_mps2, out.ru_mps2) = (Vec::new(), Vec::new(), Vec::new());
     let n = out.t_s.len();
     let blocks = lp.blocks(n);
     let mut means = [
@@ -430,7 +424,8 @@ pub fn odometer_blocks(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64, lp
             let dt = out.dt_s[k];
             let u = out.odo_dist_m[k] / dt;
             let moving = f64::from(u8::from(out.odo_dist_m[k] != 0.0));
-            let r = out.r_rad_s[k];
+            // `Derived::r_rad_s` (its fields borrowed apart).
+            let r = out.dtheta_rad[k][2] / dt;
             let (u_dot, moving_dot) = if k == 0 {
                 (0.0, 0.0)
             } else {
@@ -447,35 +442,6 @@ pub fn odometer_blocks(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64, lp
     for m in means {
         lp.filter_blocks(m);
     }
-}
-
-/// F's u̇, ru and the odometer-bias sensitivities, per block.
-pub fn filter_odometer_terms(out: &mut Derived, lp: &LowPass) {
-    let n = out.t_s.len();
-    lp.apply(&out.u_dot_mps2, &mut out.u_dot_f);
-    lp.apply(&out.ru_mps2, &mut out.ru_f);
-    let moving: Vec<f64> = out
-        .odo_dist_m
-        .iter()
-        .map(|&d| f64::from(u8::from(d != 0.0)))
-        .collect();
-    let r_moving: Vec<f64> = out
-        .r_rad_s
-        .iter()
-        .zip(&moving)
-        .map(|(r, m)| r * m)
-        .collect();
-    let moving_dot: Vec<f64> = (0..n)
-        .map(|k| {
-            if k == 0 {
-                0.0
-            } else {
-                (moving[k] - moving[k - 1]) / out.dt_s[k]
-            }
-        })
-        .collect();
-    lp.apply(&r_moving, &mut out.r_moving_f);
-    lp.apply(&moving_dot, &mut out.moving_dot_f);
 }
 
 /// Eqs 7–8 at the epochs (one every ΔTg), from the filtered block series of `d`.
@@ -549,59 +515,127 @@ pub fn shifted_blocks(x: &[f64], block_s: f64, shift_s: f64) -> Vec<f64> {
 mod tests {
     use super::*;
 
-    #[test]
-    fn odometer_blocks_are_the_per_sample_terms_filtered_bit_for_bit() {
-        // A drive that starts, turns, stops and starts again, the odometer at 10 Hz with
-        // its own time base, and a run length that leaves a partial last block.
+    /// A drive that starts, turns, stops and starts again, the odometer at 10 Hz with its
+    /// own time base, and a run length that leaves a partial last block: (IMU times,
+    /// angle increments, velocity increments, odometer times, odometer distances).
+    #[allow(clippy::type_complexity)]
+    fn drive() -> (Vec<i64>, Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<i64>, Vec<f64>) {
         let n = 20_007;
         let t: Vec<i64> = (0..n).map(|k| 5_000_000 + k * 10_000_000).collect();
-        let dtheta: Vec<[f64; 3]> = (0..n)
+        let dtheta = (0..n)
             .map(|k| [0.0, 0.0, 3e-3 * (k as f64 * 1e-3).sin()])
             .collect();
-        let dvel = vec![[0.0, 0.0, -0.098]; n as usize];
+        let dvel = (0..n)
+            .map(|k| [1e-3 * (k as f64 * 2e-3).cos(), 2e-4, -0.098])
+            .collect();
         let odo_t: Vec<i64> = (0..n / 10).map(|k| 3_000_000 + k * 100_000_000).collect();
-        let odo_d: Vec<f64> = (0..n / 10)
+        let odo_d = (0..n / 10)
             .map(|k| {
                 let s = k as f64 * 0.1;
-                if (60.0..90.0).contains(&s) {
-                    500.0
+                if s < 60.0 {
+                    8.0 * s
+                } else if s < 90.0 {
+                    480.0
                 } else {
-                    (8.0 * s).min(500.0 + 8.0 * (s - 90.0).max(0.0))
+                    480.0 + 8.0 * (s - 90.0)
                 }
             })
             .collect();
-        let raw = RawSeries {
-            imu_t_ns: &t,
-            dtheta_rad: &dtheta,
-            dvel_mps: &dvel,
-            odo_t_ns: &odo_t,
-            odo_distance_m: &odo_d,
-        };
+        (t, dtheta, dvel, odo_t, odo_d)
+    }
+
+    /// The ingested series of [`drive`]'s columns.
+    #[allow(clippy::type_complexity)]
+    fn series(c: &(Vec<i64>, Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<i64>, Vec<f64>)) -> RawSeries<'_> {
+        RawSeries {
+            imu_t_ns: &c.0,
+            dtheta_rad: &c.1,
+            dvel_mps: &c.2,
+            odo_t_ns: &c.3,
+            odo_distance_m: &c.4,
+        }
+    }
+
+    /// Eqs 9–11 per sample as whole series, the way the derive once stored them.
+    fn per_sample(d: &Derived) -> [Vec<f64>; 6] {
+        let n = d.t_s.len();
+        let (mut u, mut u_dot, mut ru, mut r_moving, mut moving_dot) =
+            (vec![], vec![], vec![], vec![], vec![]);
+        let moving: Vec<f64> = d
+            .odo_dist_m
+            .iter()
+            .map(|&x| f64::from(u8::from(x != 0.0)))
+            .collect();
+        for k in 0..n {
+            let r = d.dtheta_rad[k][2] / d.dt_s[k];
+            u.push(d.odo_dist_m[k] / d.dt_s[k]);
+            u_dot.push(if k == 0 {
+                0.0
+            } else {
+                (u[k] - u[k - 1]) / d.dt_s[k]
+            });
+            ru.push(r * u[k]);
+            r_moving.push(r * moving[k]);
+            moving_dot.push(if k == 0 {
+                0.0
+            } else {
+                (moving[k] - moving[k - 1]) / d.dt_s[k]
+            });
+        }
+        let ax = (0..n).map(|k| d.dvel_mps[k][0] / d.dt_s[k]).collect();
+        [u, u_dot, ru, r_moving, moving_dot, ax]
+    }
+
+    /// Bits, not values: -0.0 and 0.0 would pass `==`.
+    fn bits(v: &[f64]) -> Vec<u64> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    #[test]
+    fn block_series_are_the_per_sample_terms_filtered_bit_for_bit() {
+        let columns = drive();
+        let raw = series(&columns);
         let params = DeriveParams::default();
         let d = derive(&raw, &params, 9.81);
         let lp = LowPass::new(&params.filter, d.nominal_dt_s);
+        let filtered = |x: &[f64]| {
+            let mut out = Vec::new();
+            lp.apply(x, &mut out);
+            out
+        };
         for offset_s in [0.0, 0.123, -0.4] {
-            let mut whole = d.without_odometer_series();
-            odometer_terms(&mut whole, &raw, offset_s);
-            filter_odometer_terms(&mut whole, &lp);
-            let mut fused = d.without_odometer_series();
-            odometer_blocks(&mut fused, &raw, offset_s, &lp);
-            assert!(fused.u_mps.is_empty() && fused.ru_mps2.is_empty());
-            assert_eq!(fused.odo_dist_m, whole.odo_dist_m);
-            // Bits, not values: -0.0 and 0.0 would pass `==`.
-            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            let mut moved = d.without_odometer_series();
+            odometer_blocks(&mut moved, &raw, offset_s, &lp);
+            let [_, u_dot, ru, r_moving, moving_dot, ax] = per_sample(&moved);
             assert_eq!(
-                bits(&fused.u_dot_f),
-                bits(&whole.u_dot_f),
+                bits(&moved.u_dot_f),
+                bits(&filtered(&u_dot)),
                 "u̇ at {offset_s}"
             );
-            assert_eq!(bits(&fused.ru_f), bits(&whole.ru_f), "ru at {offset_s}");
-            assert_eq!(bits(&fused.r_moving_f), bits(&whole.r_moving_f));
-            assert_eq!(bits(&fused.moving_dot_f), bits(&whole.moving_dot_f));
-            assert!(
-                whole.moving_dot_f.iter().any(|&v| v != 0.0),
-                "the drive stops"
-            );
+            assert_eq!(bits(&moved.ru_f), bits(&filtered(&ru)), "ru at {offset_s}");
+            assert_eq!(bits(&moved.r_moving_f), bits(&filtered(&r_moving)));
+            assert_eq!(bits(&moved.moving_dot_f), bits(&filtered(&moving_dot)));
+            assert_eq!(bits(&moved.ax_f), bits(&filtered(&ax)));
+            assert!(moving_dot.iter().any(|&v| v != 0.0), "the drive stops");
         }
+    }
+
+    #[test]
+    fn odometer_speeds_are_eqs_9_to_11_over_any_range() {
+        let columns = drive();
+        let raw = series(&columns);
+        let d = derive(&raw, &DeriveParams::default(), 9.81);
+        let [u, u_dot, ru, ..] = per_sample(&d);
+        let n = d.t_s.len();
+        for range in [0..n, 0..1, 1..2, 4321..9876, n - 1..n] {
+            let got: Vec<OdometerSpeed> = d.odometer_speeds(range.clone()).collect();
+            assert_eq!(got.len(), range.len());
+            for (s, k) in got.iter().zip(range.clone()) {
+                assert_eq!(s.u_mps.to_bits(), u[k].to_bits(), "u at {k}");
+                assert_eq!(s.u_dot_mps2.to_bits(), u_dot[k].to_bits(), "u̇ at {k}");
+                assert_eq!(s.ru_mps2.to_bits(), ru[k].to_bits(), "ru at {k}");
+            }
+        }
+        assert!(u.iter().any(|&v| v > 7.0) && u_dot.iter().any(|&v| v != 0.0));
     }
 }

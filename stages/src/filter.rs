@@ -102,6 +102,25 @@ impl LowPass {
         self.biquad.filtfilt(out);
     }
 
+    /// Block means of the series `x` (unfiltered), taken as its values come: what
+    /// [`LowPass::apply`] filters, bit for bit, without the series held whole.
+    pub fn block_means(&self, x: impl Iterator<Item = f64>) -> Vec<f64> {
+        let (lower, _) = x.size_hint();
+        let mut out = Vec::with_capacity(self.blocks(lower));
+        let mut chunk = Vec::with_capacity(self.block);
+        for v in x {
+            chunk.push(v);
+            if chunk.len() == self.block {
+                out.push(chunk.iter().sum::<f64>() / chunk.len() as f64);
+                chunk.clear();
+            }
+        }
+        if !chunk.is_empty() {
+            out.push(chunk.iter().sum::<f64>() / chunk.len() as f64);
+        }
+        out
+    }
+
     /// Filters a series already reduced to block means.
     pub fn filter_blocks(&self, blocks: &mut [f64]) {
         self.biquad.filtfilt(blocks);

@@ -80,9 +80,7 @@ pub struct LagFit {
     pub lag_s: f64,
     /// Its 1σ, s; `None` where the cost profile has no curvature there.
     pub sigma_s: Option<f64>,
-    /// The derive at the lag, as far as navigation passes and the fits read it: its
-    /// per-sample u, u̇ and ru are left empty (their filtered forms and the epochs are
-    /// kept).
+    /// The derive at the lag.
     pub derived: Derived,
     /// The joint fit there.
     pub fit: JointFit,
@@ -162,9 +160,7 @@ impl<'a> Rederive<'a> {
     /// moved in time: F is linear and time-invariant, so filtering a shifted `u̇` is
     /// shifting the filtered one, and this keeps one realisation of the pulse
     /// quantisation for every lag (derived anew, each fraction of a sample would draw
-    /// another, and the fit's cost would be rough in the lag). Its per-sample u, u̇ and
-    /// ru are left empty (navigation passes and the fits read the increments, the block
-    /// series and the epochs).
+    /// another, and the fit's cost would be rough in the lag).
     pub fn at(&self, lag_s: f64) -> Derived {
         let base = self.configured();
         // The IMU's part is the configured derive's; the odometer's is derived anew.
