@@ -16,19 +16,19 @@ use unz_stages::disupt::{
 use unz_stages::earth::Geodetic;
 use unz_stages::linearized::Observation;
 use unz_stages::odo_lag::{Rederive, joint_with_lag};
-use unz_stages::route_sigma::{Moved, RouteSigma, route_sigma};
-use unz_stages::strapdown::{self, LaneBatch, NavInputs, NavSettings, NavTrack, ReviewPass};
+use unz_stages::route_sigma::{Moved, RouteBase, RouteSigma, route_sigma};
+use unz_stages::strapdown::{self, LaneBatch, NavInputs, NavSettings, PassSink, ReviewPass};
 use unz_stages::units::DEG_PER_H;
 
 use crate::artifacts::{StageName, files};
 use crate::flow::{
-    IngestedSeries, NavCase, Overrides, Params, RunCtx, ensure_derive, ensure_finite_track,
-    load_case, site_gravity_mps2, write_nav,
+    IngestedSeries, NavCase, Overrides, Params, RunCtx, ensure_derive, load_case, site_gravity_mps2,
 };
 use crate::method_tables::{
     KRYT1_SERIES, MethodKryt1, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_indices,
     method_kryt1, method_track, write_kryt1_series, write_tracks,
 };
+use crate::nav_writer::NavWriter;
 use crate::stage::{Stage, params_hash};
 
 /// Which methods to run.
@@ -394,15 +394,14 @@ fn method_out(r: &MethodResult, base: &NavSettings, lag: Lag, cps: Vec<Kryt2>) -
 /// Step of the lag in the route's sensitivity, s.
 const LAG_STEP_S: f64 = 0.05;
 
-/// σ of the joint's corrected route (`track`, the pass at its settings): the fit's
+/// σ of the joint's corrected route (`base`, taken from the pass at its settings): the fit's
 /// covariance through one moved pass per estimated setting, and the lag's variance
 /// through a pass on the derive at the moved lag.
 fn joint_route_sigma(
     problem: &Problem<'_>,
     run: &JointRun,
     rederive: &Rederive<'_>,
-    track: &NavTrack,
-    arw_rad_sqrt_s: f64,
+    base: &RouteBase<'_>,
 ) -> Option<RouteSigma> {
     let fit = &run.fit;
     let cov = fit.covariance.as_ref()?;
@@ -433,16 +432,7 @@ fn joint_route_sigma(
         c = c.resize(m + 1, m + 1, 0.0);
         c[(m, m)] = run.lag.sigma_s * run.lag.sigma_s;
     }
-    let stride = (0.1 / problem.inputs.dt_s.first().copied().unwrap_or(0.01)).round() as usize;
-    Some(route_sigma(
-        track,
-        &problem.settings(&fit.result.x),
-        &moved,
-        &c,
-        problem.inputs.dt_s,
-        arw_rad_sqrt_s,
-        stride,
-    ))
+    Some(route_sigma(base, &moved, &c))
 }
 
 /// `disupt.md`: the paper's tables per method, then the errors before DISUPT.
@@ -545,13 +535,13 @@ struct ReviewOutcome {
 
 /// The review passes of `reviewed` (at most [`strapdown::MAX_LANES`]), side by side,
 /// each on its own derive's odometer (the derives share their IMU series); the last
-/// one's whole track into `track`. Each outcome is what the pass alone gives.
+/// one's every sample into `track`. Each outcome is what the pass alone gives.
 fn review_passes(
     problem: &Problem<'_>,
     reviewed: &[Reviewed<'_>],
     fixes: &[ControlPointFix],
     start: Geodetic,
-    track: &mut NavTrack,
+    track: &mut impl PassSink,
 ) -> Vec<ReviewOutcome> {
     let d0 = reviewed[0].derived;
     let inputs = d0.nav_inputs();
@@ -610,15 +600,15 @@ fn review_passes(
 }
 
 /// [`review_passes`]' lanes.
-struct ReviewBatch<'r, 'd, 'p> {
+struct ReviewBatch<'r, 'd, 'p, S> {
     problem: &'r Problem<'p>,
     reviewed: &'r [Reviewed<'d>],
     keep: &'r [usize],
     at: &'r [usize],
-    track: &'r mut NavTrack,
+    track: &'r mut S,
 }
 
-impl LaneBatch for ReviewBatch<'_, '_, '_> {
+impl<S: PassSink> LaneBatch for ReviewBatch<'_, '_, '_, S> {
     type Out = ReviewPass;
 
     fn run<const N: usize>(&mut self, points: [usize; N]) -> [ReviewPass; N] {
@@ -770,8 +760,25 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         }
         let corrected_by =
             (reviewed.len() > 1).then(|| reviewed[reviewed.len() - 1].name.to_owned());
-        let mut track = NavTrack::default();
-        let outcomes = review_passes(&problem, &reviewed, &case.fixes, start, &mut track);
+        // The last review pass is the corrected navigation's. When it is the joint's with a
+        // covariance, the route's σ reads it as it runs; corrected_nav.parquet is written by
+        // a pass of its own once the σ is known (no track of the run's length is kept).
+        let mut route_base = joint_result
+            .as_ref()
+            .and_then(|r| r.as_ref().ok())
+            .filter(|run| run.fit.covariance.is_some())
+            .map(|run| {
+                let inputs = joint_problem.inputs;
+                let stride = (0.1 / inputs.dt_s.first().copied().unwrap_or(0.01)).round() as usize;
+                RouteBase::new(
+                    &joint_problem.settings(&run.fit.result.x),
+                    inputs.dt_s,
+                    params.align.arw_rad_sqrt_s,
+                    stride,
+                    inputs.len(),
+                )
+            });
+        let outcomes = review_passes(&problem, &reviewed, &case.fixes, start, &mut route_base);
         lap("reviews");
         let mut tracks: Vec<MethodTrack> = Vec::new();
         let mut kryt1s: Vec<MethodKryt1> = Vec::new();
@@ -803,20 +810,43 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             lap("holdout");
             out.lag_profile = run.profile.clone();
             methods.insert("joint".to_owned(), out);
-            route_sigma = joint_route_sigma(
-                &joint_problem,
-                run,
-                &rederive,
-                &track,
-                params.align.arw_rad_sqrt_s,
-            );
+            route_sigma = route_base
+                .as_ref()
+                .and_then(|base| joint_route_sigma(&joint_problem, run, &rederive, base));
         }
         lap("route sigma");
-        // `track` holds the last review pass: the best method's, else the initial one.
-        let distance_m = case.fixes.last().map_or_else(
-            || track.distance_m.last().copied().unwrap_or(0.0),
-            |f| track.distance_m[f.sample],
+        // The corrected navigation (the best method's, else the initial settings') written
+        // as its pass runs, beside the other tables.
+        let corrected = &reviewed[reviewed.len() - 1];
+        let last_fix: Vec<usize> = case.fixes.last().map(|f| f.sample).into_iter().collect();
+        let (nav, rest) = rayon::join(
+            || {
+                let mut nav = NavWriter::create(
+                    &dir.join(files::CORRECTED_NAV),
+                    &case.derived,
+                    start,
+                    route_sigma.as_ref(),
+                    &last_fix,
+                )?;
+                let inputs = NavInputs {
+                    odo_dist_m: &corrected.derived.odo_dist_m,
+                    ..case.derived.nav_inputs()
+                };
+                strapdown::run(&inputs, &problem.settings(&corrected.x), &mut nav);
+                nav.finish("corrected")
+            },
+            || -> anyhow::Result<()> {
+                write_tracks(&dir.join(TRACKS), &tracks)?;
+                write_kryt1_series(&dir.join(KRYT1_SERIES), &kryt1s)?;
+                Ok(())
+            },
         );
+        let nav = nav?;
+        rest?;
+        let distance_m = last_fix
+            .first()
+            .and_then(|&k| nav.at(k))
+            .map_or(nav.distance_m, |s| s.distance_m);
         let (dx, dy) = before_cps
             .last()
             .map_or((f64::NAN, f64::NAN), |k| (k.dx_m, k.dy_m));
@@ -835,29 +865,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             coarse_azimuth_deg: coarse,
             shared_passes: problem.base_passes(),
         };
-        ensure_finite_track("corrected", &track)?;
-        // The corrected trajectory (the largest table) beside the others.
-        let (nav, rest) = rayon::join(
-            || {
-                write_nav(
-                    &dir.join(files::CORRECTED_NAV),
-                    &case.derived,
-                    &track,
-                    start,
-                    route_sigma.as_ref(),
-                )
-            },
-            || -> anyhow::Result<()> {
-                write_tracks(&dir.join(TRACKS), &tracks)?;
-                write_kryt1_series(&dir.join(KRYT1_SERIES), &kryt1s)?;
-                let md = markdown(&m.name, &out);
-                write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;
-                write_json_atomic(&dir.join(files::DISUPT_REPORT), &out)?;
-                Ok(())
-            },
-        );
-        nav?;
-        rest?;
+        let md = markdown(&m.name, &out);
+        write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;
+        write_json_atomic(&dir.join(files::DISUPT_REPORT), &out)?;
         lap("written");
         Ok(())
     })?;

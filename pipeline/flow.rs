@@ -9,21 +9,20 @@ use arrow::array::{BooleanArray, Float64Array, Int64Array, RecordBatch};
 use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::manifest::RunManifest;
-use unz_formats::parquet_io::{ParquetSink, for_each_batch, read_schema, write_batch};
+use unz_formats::parquet_io::{for_each_batch, for_each_batch_of, read_schema, write_batch};
 use unz_formats::schema::{self, META_ODO_M_PER_PULSE};
-use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f32_array, f64_column, i64_column};
-use unz_stages::attitude::Euler;
+use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f64_column, i64_column};
 use unz_stages::criteria::{self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt1Series, Kryt2};
 use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive};
 use unz_stages::earth::{self, Geodetic};
 use unz_stages::filter::LowPass;
 use unz_stages::initial::{AlignParams, InitialReport, InitialRequest, Source, initial_settings};
-use unz_stages::route_sigma::RouteSigma;
 use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
 
 use crate::artifacts::{RunLayout, StageName, files};
 use crate::derive_io::{as_stored, load_derived, write_derived};
 use crate::ingest::{OUTPUTS as INGEST_OUTPUTS, ingest};
+use crate::nav_writer::NavWriter;
 use crate::stage::{Stage, params_hash};
 
 /// Parameters of every stage (defaults built in).
@@ -181,6 +180,17 @@ fn load_table<T: Default>(
     Ok((t, schema))
 }
 
+/// [`load_table`] of the top-level `columns` only (the others are not decoded).
+fn load_columns<T: Default>(
+    path: &Path,
+    columns: &[&str],
+    extend: impl Fn(&mut T, &RecordBatch) -> Result<(), unz_formats::FormatError>,
+) -> anyhow::Result<T> {
+    let mut t = T::default();
+    for_each_batch_of(path, columns, |b| extend(&mut t, b))?;
+    Ok(t)
+}
+
 /// Stage 2.
 pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let ingest_dir = ensure_ingest(ctx, params)?;
@@ -256,17 +266,6 @@ pub fn ensure_finite(what: &str, values: impl IntoIterator<Item = f64>) -> anyho
     Ok(())
 }
 
-/// Every navigated position of `track` finite (see [`ensure_finite`]).
-pub fn ensure_finite_track(what: &str, track: &NavTrack) -> anyhow::Result<()> {
-    ensure_finite(&format!("{what} latitude"), track.lat_rad.iter().copied())?;
-    ensure_finite(&format!("{what} longitude"), track.lon_rad.iter().copied())?;
-    ensure_finite(&format!("{what} height"), track.h_m.iter().copied())?;
-    ensure_finite(
-        &format!("{what} attitude"),
-        track.q_b_to_n.iter().map(|q| q[0]),
-    )
-}
-
 /// Normal gravity at the run's site, m/s² (derive's g).
 pub fn site_gravity_mps2(m: &RunManifest) -> f64 {
     earth::normal_gravity_mps2(m.site.latitude_deg.to_radians(), m.site.height_m)
@@ -279,10 +278,14 @@ pub struct IngestedSeries {
 }
 
 impl IngestedSeries {
-    /// Loads `imu.parquet` and `odometer.parquet` of an ingest folder.
+    /// Loads `imu.parquet` and `odometer.parquet` of an ingest folder: the columns derive
+    /// reads (not the IMU's sequence numbers nor the odometer's pulse counts).
     pub fn load(ingest_dir: &Path) -> anyhow::Result<Self> {
-        let (imu, _) =
-            load_table::<ImuTable>(&ingest_dir.join(files::IMU), ImuTable::extend_from_batch)?;
+        let imu = load_columns::<ImuTable>(
+            &ingest_dir.join(files::IMU),
+            &ImuTable::SERIES_COLUMNS,
+            ImuTable::extend_series_from_batch,
+        )?;
         if imu.is_empty() {
             bail!("the raw log has no IMU record");
         }
@@ -290,12 +293,13 @@ impl IngestedSeries {
         Ok(Self { imu, odo })
     }
 
-    /// Loads `odometer.parquet` of an ingest folder alone (all a re-derive at another
-    /// odometer timing reads).
+    /// Loads `odometer.parquet` of an ingest folder alone, its times and distances (all a
+    /// re-derive at another odometer timing reads).
     pub fn load_odometer(ingest_dir: &Path) -> anyhow::Result<OdometerTable> {
-        let (odo, _) = load_table::<OdometerTable>(
+        let odo = load_columns::<OdometerTable>(
             &ingest_dir.join(files::ODOMETER),
-            OdometerTable::extend_from_batch,
+            &OdometerTable::SERIES_COLUMNS,
+            OdometerTable::extend_series_from_batch,
         )?;
         if odo.is_empty() {
             bail!("the run has no odometer data (no 8th column and no odometer file)");
@@ -483,57 +487,6 @@ pub struct NavigateSummary {
     pub out_of_range_samples: usize,
 }
 
-/// Writes `nav.parquet` (or `corrected_nav.parquet`, with the route's 1σ north, east and
-/// heading per sample when given: `sigma_north_m`, `sigma_east_m`, `sigma_heading_deg`).
-pub fn write_nav(
-    path: &Path,
-    d: &Derived,
-    t: &NavTrack,
-    start: Geodetic,
-    sigma: Option<&RouteSigma>,
-) -> anyhow::Result<()> {
-    /// Rows per batch: the columns of one batch are built at a time, whatever the run's
-    /// length.
-    const ROWS: usize = 1 << 16;
-    let schema = schema::nav(sigma.is_some());
-    let mut sink = ParquetSink::create(path, schema.clone())?;
-    for lo in (0..t.len()).step_by(ROWS) {
-        let r = lo..(lo + ROWS).min(t.len());
-        let euler: Vec<Euler> = r.clone().map(|k| t.euler(k)).collect();
-        let ne: Vec<(f64, f64)> = r
-            .clone()
-            .map(|k| start.offset_m(t.lat_rad[k], t.lon_rad[k]))
-            .collect();
-        let deg = |v: &[f64]| {
-            Arc::new(Float64Array::from_iter_values(
-                v.iter().map(|x| x.to_degrees()),
-            ))
-        };
-        let mut columns: Vec<arrow::array::ArrayRef> = vec![
-            Arc::new(Int64Array::from_iter_values(
-                d.t_s[r.clone()].iter().map(|&t| d.ns_of(t)),
-            )),
-            deg(&t.lat_rad[r.clone()]),
-            deg(&t.lon_rad[r.clone()]),
-            f32_array(t.h_m[r.clone()].iter().copied()),
-            f32_array(ne.iter().map(|p| p.0)),
-            f32_array(ne.iter().map(|p| p.1)),
-            f32_array(euler.iter().map(|e| e.roll_rad.to_degrees())),
-            f32_array(euler.iter().map(|e| e.pitch_rad.to_degrees())),
-            f32_array(euler.iter().map(|e| e.heading_rad.to_degrees())),
-            f32_array(t.distance_m[r.clone()].iter().copied()),
-        ];
-        if let Some([n, e, h]) = sigma.map(|s| s.at_samples(r.clone())) {
-            columns.push(f32_array(n));
-            columns.push(f32_array(e));
-            columns.push(f32_array(h.iter().map(|x| x.to_degrees())));
-        }
-        sink.write(&RecordBatch::try_new(schema.clone(), columns)?)?;
-    }
-    sink.finish()?;
-    Ok(())
-}
-
 /// Stage 3a: navigation.
 pub fn ensure_navigate(
     ctx: &RunCtx,
@@ -560,17 +513,26 @@ pub fn ensure_navigate(
     };
     ctx.run_stage(&stage, || {
         let case = load_case(ctx, params, overrides)?;
-        let mut track = NavTrack::default();
-        case.navigate(&mut track);
-        ensure_finite_track("navigated", &track)?;
-        let start = case.settings.start();
-        write_nav(&dir.join(files::NAV), &case.derived, &track, start, None)?;
+        // The pass writes nav.parquet as it runs, keeping the positions at the control
+        // points.
+        let fix_samples: Vec<usize> = case.fixes.iter().map(|f| f.sample).collect();
+        let mut nav = NavWriter::create(
+            &dir.join(files::NAV),
+            &case.derived,
+            case.settings.start(),
+            None,
+            &fix_samples,
+        )?;
+        unz_stages::strapdown::run(&case.inputs(), &case.settings, &mut nav);
+        let nav = nav.finish("navigated")?;
         let summary = NavigateSummary {
             initial: case.initial,
-            samples: track.len(),
+            samples: nav.samples,
             duration_s: case.derived.t_s.last().copied().unwrap_or(0.0),
-            distance_m: track.distance_m.last().copied().unwrap_or(0.0),
-            control_points: criteria::kryt2(&track, &case.fixes),
+            distance_m: nav.distance_m,
+            control_points: criteria::kryt2_at(&case.fixes, |k| {
+                nav.at(k).map(|s| (s.lat_rad, s.lon_rad))
+            }),
             repaired_times: case.derived.repaired_times,
             filled_gaps: case.derived.filled_gaps,
             imu_failure_samples: case.derived.imu_failure_samples,

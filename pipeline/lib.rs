@@ -17,6 +17,7 @@ pub mod ingest;
 pub mod lock;
 pub mod memory;
 pub mod method_tables;
+pub mod nav_writer;
 pub mod raw_mcap;
 pub mod review;
 pub mod runs;

@@ -152,10 +152,24 @@ impl ImuTable {
 
     /// Appends the rows of a batch.
     pub fn extend_from_batch(&mut self, b: &RecordBatch) -> Result<(), FormatError> {
-        self.t_ns
-            .extend(prim::<Int64Type>(b, schema::T_NS)?.values().iter());
         self.seq
             .extend(prim::<UInt64Type>(b, schema::SEQ)?.values().iter());
+        self.extend_series_from_batch(b)
+    }
+
+    /// The columns a derive reads (not `seq`): what [`ImuTable::extend_series_from_batch`]
+    /// takes.
+    pub const SERIES_COLUMNS: [&str; 4] = [
+        schema::T_NS,
+        schema::DTHETA_RAD,
+        schema::DVEL_MPS,
+        schema::STATUS,
+    ];
+
+    /// Appends the rows of a batch of [`ImuTable::SERIES_COLUMNS`] (`seq` stays empty).
+    pub fn extend_series_from_batch(&mut self, b: &RecordBatch) -> Result<(), FormatError> {
+        self.t_ns
+            .extend(prim::<Int64Type>(b, schema::T_NS)?.values().iter());
         self.dtheta_rad.extend(vec3_values(b, schema::DTHETA_RAD)?);
         self.dvel_mps.extend(vec3_values(b, schema::DVEL_MPS)?);
         self.status
@@ -208,12 +222,22 @@ impl OdometerTable {
 
     /// Appends the rows of a batch.
     pub fn extend_from_batch(&mut self, b: &RecordBatch) -> Result<(), FormatError> {
+        self.pulses
+            .extend(prim::<Int64Type>(b, schema::PULSES)?.iter());
+        self.extend_series_from_batch(b)
+    }
+
+    /// The columns a derive reads (not `pulses`): what
+    /// [`OdometerTable::extend_series_from_batch`] takes.
+    pub const SERIES_COLUMNS: [&str; 2] = [schema::T_NS, schema::DISTANCE_M];
+
+    /// Appends the rows of a batch of [`OdometerTable::SERIES_COLUMNS`] (`pulses` stays
+    /// empty).
+    pub fn extend_series_from_batch(&mut self, b: &RecordBatch) -> Result<(), FormatError> {
         self.t_ns
             .extend(prim::<Int64Type>(b, schema::T_NS)?.values().iter());
         self.distance_m
             .extend(prim::<Float64Type>(b, schema::DISTANCE_M)?.values().iter());
-        self.pulses
-            .extend(prim::<Int64Type>(b, schema::PULSES)?.iter());
         Ok(())
     }
 }

@@ -298,18 +298,23 @@ pub fn kryt2_rms_m(errors: impl ExactSizeIterator<Item = [f64; 2]>) -> f64 {
 
 /// Kryt2 at every control point.
 pub fn kryt2(track: &NavTrack, fixes: &[ControlPointFix]) -> Vec<Kryt2> {
+    kryt2_at(fixes, |k| {
+        (k < track.len()).then(|| (track.lat_rad[k], track.lon_rad[k]))
+    })
+}
+
+/// Kryt2 at every control point whose sample `position` gives (latitude, longitude,
+/// rad); the others are left out.
+pub fn kryt2_at(
+    fixes: &[ControlPointFix],
+    position: impl Fn(usize) -> Option<(f64, f64)>,
+) -> Vec<Kryt2> {
     fixes
         .iter()
-        .filter(|f| f.sample < track.len())
-        .map(|f| {
-            let (dx, dy) = earth::local_offset_m(
-                track.lat_rad[f.sample],
-                track.lon_rad[f.sample],
-                f.lat_rad,
-                f.lon_rad,
-                f.h_m,
-            );
-            Kryt2::at(f, dx, dy)
+        .filter_map(|f| {
+            let (lat, lon) = position(f.sample)?;
+            let (dx, dy) = earth::local_offset_m(lat, lon, f.lat_rad, f.lon_rad, f.h_m);
+            Some(Kryt2::at(f, dx, dy))
         })
         .collect()
 }

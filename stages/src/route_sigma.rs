@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 use crate::attitude::wrap_pi;
 use crate::strapdown::{
-    LaneBatch, MAX_LANES, NavInputs, NavSettings, NavTrack, in_lanes, run_states_at,
+    LaneBatch, MAX_LANES, NavInputs, NavSettings, PassSink, in_lanes, run_states_at,
 };
 
 /// σ of the corrected route at every `stride`-th sample (and the last).
@@ -89,14 +89,6 @@ fn state(s: &NavSettings, lat_rad: f64, lon_rad: f64, q: &[f64; 4]) -> [f64; 3] 
     [n, e, heading_of(q)]
 }
 
-/// (north, east, heading) of `track` at the chosen samples.
-fn states(track: &NavTrack, samples: &[usize], s: &NavSettings) -> Vec<[f64; 3]> {
-    samples
-        .iter()
-        .map(|&k| state(s, track.lat_rad[k], track.lon_rad[k], &track.q_b_to_n[k]))
-        .collect()
-}
-
 /// Each moved pass's sensitivities at `samples`: its (north, east, heading) there minus
 /// the corrected pass's `y0`, over its step. Consecutive passes on the same inputs run
 /// side by side in vector lanes (at most eight), the batches in parallel; no track is
@@ -158,36 +150,95 @@ pub struct Moved<'a> {
     pub step: f64,
 }
 
-/// σ along the route of `base` (the corrected pass: its inputs, settings and track).
-/// `moved[j]` is parameter j moved by its step; `covariance` is over the same parameters,
-/// in their step units.
+/// What the route's σ reads of the corrected pass, taken as the pass runs (a
+/// [`PassSink`]; no track is stored): its (north, east, heading) and the angle random
+/// walk's variances at every `stride`-th sample and the last.
+#[derive(Debug, Clone)]
+pub struct RouteBase<'a> {
+    settings: NavSettings,
+    start: crate::earth::Geodetic,
+    dt_s: &'a [f64],
+    arw_q: f64,
+    samples: Vec<usize>,
+    next: usize,
+    /// Running sums over the samples so far: Σdt, Σdt·n, Σdt·n², Σdt·e, Σdt·e².
+    sums: [f64; 5],
+    y0: Vec<[f64; 3]>,
+    walk: Vec<[f64; 3]>,
+}
+
+impl<'a> RouteBase<'a> {
+    /// For a pass of `n` samples with `settings`, its intervals `dt_s` and the gyros' angle
+    /// random walk `arw_rad_sqrt_s`.
+    pub fn new(
+        settings: &NavSettings,
+        dt_s: &'a [f64],
+        arw_rad_sqrt_s: f64,
+        stride: usize,
+        n: usize,
+    ) -> Self {
+        let mut samples: Vec<usize> = (0..n).step_by(stride.max(1)).collect();
+        if n > 0 && samples.last() != Some(&(n - 1)) {
+            samples.push(n - 1);
+        }
+        Self {
+            settings: *settings,
+            start: settings.start(),
+            dt_s,
+            arw_q: arw_rad_sqrt_s * arw_rad_sqrt_s,
+            y0: Vec::with_capacity(samples.len()),
+            walk: Vec::with_capacity(samples.len()),
+            samples,
+            next: 0,
+            sums: [0.0; 5],
+        }
+    }
+}
+
+impl PassSink for RouteBase<'_> {
+    #[inline]
+    fn sample(&mut self, k: usize, lat: f64, lon: f64, _h: f64, q: &[f64; 4], _d: f64) {
+        // The random walk's share (see the module documentation).
+        let (n, e) = self.start.offset_m(lat, lon);
+        let dt = self.dt_s.get(k).copied().unwrap_or(0.0);
+        let sums = &mut self.sums;
+        sums[0] += dt;
+        sums[1] += dt * n;
+        sums[2] += dt * n * n;
+        sums[3] += dt * e;
+        sums[4] += dt * e * e;
+        if self.samples.get(self.next) == Some(&k) {
+            self.next += 1;
+            let north = e * e * sums[0] - 2.0 * e * sums[3] + sums[4];
+            let east = n * n * sums[0] - 2.0 * n * sums[1] + sums[2];
+            let q2 = self.arw_q;
+            self.walk
+                .push([q2 * north.max(0.0), q2 * east.max(0.0), q2 * sums[0]]);
+            self.y0.push(state(&self.settings, lat, lon, q));
+        }
+    }
+}
+
+/// σ along the route of the corrected pass `base` took. `moved[j]` is parameter j moved
+/// by its step; `covariance` is over the same parameters, in their step units.
 pub fn route_sigma(
-    base_track: &NavTrack,
-    base_settings: &NavSettings,
+    base: &RouteBase<'_>,
     moved: &[Moved<'_>],
     covariance: &nalgebra::DMatrix<f64>,
-    dt_s: &[f64],
-    arw_rad_sqrt_s: f64,
-    stride: usize,
 ) -> RouteSigma {
-    let n = base_track.len();
-    if n == 0 || moved.is_empty() {
+    // The samples the pass reached (all of them, once it has run).
+    let samples = &base.samples[..base.y0.len()];
+    if samples.is_empty() || moved.is_empty() {
         return RouteSigma::default();
     }
-    let mut samples: Vec<usize> = (0..n).step_by(stride.max(1)).collect();
-    if samples.last() != Some(&(n - 1)) {
-        samples.push(n - 1);
-    }
-    let y0 = states(base_track, &samples, base_settings);
     // Sensitivities: per parameter, per sample, the 3 quantities'.
     let m = moved.len();
-    let g = sensitivities(moved, &samples, &y0);
-    let walk = random_walk_variances(base_track, base_settings, dt_s, arw_rad_sqrt_s, &samples);
+    let g = sensitivities(moved, samples, &base.y0);
     let mut out = RouteSigma {
-        sample: samples.clone(),
+        sample: samples.to_vec(),
         ..Default::default()
     };
-    for i in 0..samples.len() {
+    for (i, walk) in base.walk.iter().enumerate() {
         let sd = |q: usize| {
             let gi = |a: usize| g[a][i][q];
             let mut v = 0.0;
@@ -198,42 +249,9 @@ pub fn route_sigma(
             }
             v.max(0.0)
         };
-        out.north_m.push((sd(0) + walk[i][0]).sqrt());
-        out.east_m.push((sd(1) + walk[i][1]).sqrt());
-        out.heading_rad.push((sd(2) + walk[i][2]).sqrt());
-    }
-    out
-}
-
-/// Variances (north m², east m², heading rad²) of the angle random walk's share at the
-/// chosen samples; see the module documentation.
-fn random_walk_variances(
-    track: &NavTrack,
-    s: &NavSettings,
-    dt_s: &[f64],
-    arw_rad_sqrt_s: f64,
-    samples: &[usize],
-) -> Vec<[f64; 3]> {
-    let q = arw_rad_sqrt_s * arw_rad_sqrt_s;
-    // Running sums over the samples so far: Σdt, Σdt·n, Σdt·n², Σdt·e, Σdt·e².
-    let mut sums = [0.0; 5];
-    let mut out = Vec::with_capacity(samples.len());
-    let mut next = samples.iter().peekable();
-    let start = s.start();
-    for k in 0..track.len() {
-        let (n, e) = start.offset_m(track.lat_rad[k], track.lon_rad[k]);
-        let dt = dt_s.get(k).copied().unwrap_or(0.0);
-        sums[0] += dt;
-        sums[1] += dt * n;
-        sums[2] += dt * n * n;
-        sums[3] += dt * e;
-        sums[4] += dt * e * e;
-        if next.peek() == Some(&&k) {
-            next.next();
-            let north = e * e * sums[0] - 2.0 * e * sums[3] + sums[4];
-            let east = n * n * sums[0] - 2.0 * n * sums[1] + sums[2];
-            out.push([q * north.max(0.0), q * east.max(0.0), q * sums[0]]);
-        }
+        out.north_m.push((sd(0) + walk[0]).sqrt());
+        out.east_m.push((sd(1) + walk[1]).sqrt());
+        out.heading_rad.push((sd(2) + walk[2]).sqrt());
     }
     out
 }

@@ -208,6 +208,22 @@ impl PassSink for NavTrack {
     }
 }
 
+/// A sink that may be absent: the samples go to it when it is there.
+impl<S: PassSink> PassSink for Option<S> {
+    #[inline(always)]
+    fn sample(&mut self, k: usize, lat: f64, lon: f64, h: f64, q: &[f64; 4], distance_m: f64) {
+        if let Some(s) = self {
+            s.sample(k, lat, lon, h, q, distance_m);
+        }
+    }
+}
+
+/// A pass whose samples nobody reads.
+impl PassSink for () {
+    #[inline(always)]
+    fn sample(&mut self, _: usize, _: f64, _: f64, _: f64, _: &[f64; 4], _: f64) {}
+}
+
 /// Runs the navigation over all samples, writing `track` (resized to the input length).
 pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
     track.resize(inputs.len());
@@ -391,8 +407,8 @@ pub struct ReviewPass {
 /// Passes for review side by side, each lane on its own odometer increments
 /// (`odometers[l]`, as long as `inputs`): each keeps what the criteria read (blocks of
 /// `block` samples, positions at `positions_at`) and its states at `keep` (increasing),
-/// and lane `tracked` also its whole track, into `track` (resized). Each is exactly what
-/// the pass alone, tracked, gives.
+/// and lane `tracked` also feeds every sample to `track` (a [`NavTrack`] sized to the
+/// input, or a sink that keeps less). Each is exactly what the pass alone, tracked, gives.
 ///
 /// # Panics
 /// If an odometer series is shorter than `inputs`, or `tracked` is not a lane.
@@ -405,7 +421,7 @@ pub fn run_review<const N: usize>(
     positions_at: &[usize],
     keep: &[usize],
     tracked: usize,
-    track: &mut NavTrack,
+    track: &mut impl PassSink,
 ) -> [ReviewPass; N] {
     assert!(tracked < N, "lane {tracked} of {N}");
     assert!(
@@ -416,7 +432,6 @@ pub fn run_review<const N: usize>(
     for sink in &mut sinks {
         sink.reset(block, positions_at.iter().copied());
     }
-    track.resize(inputs.len());
     let mut review = ReviewLanes {
         criteria: CriteriaLanes {
             next_wanted: sinks.first().and_then(|s| s.wanted.last().copied()),
@@ -442,16 +457,16 @@ pub fn run_review<const N: usize>(
 }
 
 /// [`run_review`]'s sink.
-struct ReviewLanes<'a, const N: usize> {
+struct ReviewLanes<'a, const N: usize, S> {
     criteria: CriteriaLanes<'a, N>,
     keep: &'a [usize],
     next: usize,
     rows: [Vec<TrackRow>; N],
     tracked: usize,
-    track: &'a mut NavTrack,
+    track: &'a mut S,
 }
 
-impl<const N: usize> Emit<N> for ReviewLanes<'_, N> {
+impl<const N: usize, S: PassSink> Emit<N> for ReviewLanes<'_, N, S> {
     #[inline(always)]
     fn emit(&mut self, k: usize, lanes: &Lanes<N>) {
         self.criteria.emit(k, lanes);

@@ -536,6 +536,7 @@ mod tests {
         let keep = [0, 10, 2500, 4999];
         let fixes = [1200, 4000];
         let mut kept_track = NavTrack::default();
+        kept_track.resize(shared.len());
         let passes = run_review(
             &shared,
             odometers,

@@ -1,0 +1,324 @@
+//! `nav.parquet` and `corrected_nav.parquet` written while their pass runs: the pass's
+//! samples go to the file [`ROWS`] at a time, and no track of the run's length is held.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use arrow::array::{ArrayRef, Float64Array, Int64Array, RecordBatch};
+use arrow::datatypes::SchemaRef;
+use unz_formats::error::{FileError, FormatError};
+use unz_formats::parquet_io::ParquetSink;
+use unz_formats::schema;
+use unz_formats::tables::f32_array;
+use unz_stages::derive::Derived;
+use unz_stages::earth::Geodetic;
+use unz_stages::route_sigma::RouteSigma;
+use unz_stages::strapdown::{NavTrack, PassSink};
+
+/// Rows per batch: the columns of one batch are built at a time, whatever the run's
+/// length.
+pub const ROWS: usize = 1 << 16;
+
+/// A navigation table being written by the pass that feeds it (a [`PassSink`]); it
+/// appears under its name on [`NavWriter::finish`], when every sample was finite.
+pub struct NavWriter<'a> {
+    path: PathBuf,
+    file: Option<ParquetSink>,
+    error: Option<FileError>,
+    schema: SchemaRef,
+    derived: &'a Derived,
+    start: Geodetic,
+    sigma: Option<&'a RouteSigma>,
+    /// The samples of the batch being filled, from sample `lo` on.
+    rows: NavTrack,
+    lo: usize,
+    /// The first non-finite latitude, longitude, height and attitude: (sample, value).
+    first_bad: [Option<(usize, f64)>; 4],
+    /// Samples whose position and distance are kept, in decreasing order (popped).
+    wanted: Vec<usize>,
+    kept: Vec<KeptSample>,
+    samples: usize,
+    last_distance_m: f64,
+}
+
+/// A sample's position and distance, kept for the stage's report.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KeptSample {
+    /// Sample index.
+    pub sample: usize,
+    /// Latitude, rad.
+    pub lat_rad: f64,
+    /// Longitude, rad.
+    pub lon_rad: f64,
+    /// Travelled distance, m.
+    pub distance_m: f64,
+}
+
+/// What a [`NavWriter`] saw of its pass.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct NavWritten {
+    /// Samples written.
+    pub samples: usize,
+    /// Travelled distance at the last sample, m (0 without one).
+    pub distance_m: f64,
+    /// The samples asked for at creation that the pass reached, in sample order.
+    pub kept: Vec<KeptSample>,
+}
+
+impl NavWritten {
+    /// The kept sample `sample`.
+    pub fn at(&self, sample: usize) -> Option<&KeptSample> {
+        self.kept
+            .binary_search_by_key(&sample, |s| s.sample)
+            .ok()
+            .map(|i| &self.kept[i])
+    }
+}
+
+impl<'a> NavWriter<'a> {
+    /// Starts `path` (`nav.parquet`, or `corrected_nav.parquet` with the route's 1σ north,
+    /// east and heading per sample when `sigma` is given: `sigma_north_m`,
+    /// `sigma_east_m`, `sigma_heading_deg`) for a pass over `derived`'s samples from
+    /// `start`, keeping the position and distance at the samples `keep`.
+    pub fn create(
+        path: &Path,
+        derived: &'a Derived,
+        start: Geodetic,
+        sigma: Option<&'a RouteSigma>,
+        keep: &[usize],
+    ) -> Result<Self, FileError> {
+        let schema = schema::nav(sigma.is_some());
+        let file = ParquetSink::create(path, schema.clone())?;
+        let mut wanted = keep.to_vec();
+        wanted.sort_unstable();
+        wanted.dedup();
+        wanted.reverse();
+        Ok(Self {
+            path: path.to_path_buf(),
+            file: Some(file),
+            error: None,
+            schema,
+            derived,
+            start,
+            sigma,
+            rows: NavTrack::default(),
+            lo: 0,
+            first_bad: [None; 4],
+            wanted,
+            kept: Vec::new(),
+            samples: 0,
+            last_distance_m: 0.0,
+        })
+    }
+
+    /// Writes the rows gathered so far as one batch.
+    fn flush(&mut self) {
+        let n = self.rows.len();
+        if n == 0 {
+            return;
+        }
+        if let Some(file) = self.file.as_mut() {
+            let written = nav_batch(
+                &self.schema,
+                self.derived,
+                self.lo,
+                &self.rows,
+                self.start,
+                self.sigma,
+            )
+            .map_err(|e| FormatError::from(e).in_file(&self.path))
+            .and_then(|b| file.write(&b));
+            if let Err(e) = written {
+                self.error = Some(e);
+                self.file = None;
+            }
+        }
+        self.lo += n;
+        for v in [
+            &mut self.rows.lat_rad,
+            &mut self.rows.lon_rad,
+            &mut self.rows.h_m,
+            &mut self.rows.distance_m,
+        ] {
+            v.clear();
+        }
+        self.rows.q_b_to_n.clear();
+    }
+
+    /// Writes the last rows and puts the file in place. `what` names the pass in the
+    /// error when a sample was not finite (the file is then not written).
+    pub fn finish(mut self, what: &str) -> anyhow::Result<NavWritten> {
+        self.flush();
+        let names = ["latitude", "longitude", "height", "attitude"];
+        for (name, bad) in names.iter().zip(self.first_bad) {
+            if let Some((k, v)) = bad {
+                anyhow::bail!(
+                    "{what} {name} is {v} at sample {k}: the input's scales or values are not \
+                     physical"
+                );
+            }
+        }
+        if let Some(e) = self.error {
+            return Err(e.into());
+        }
+        if let Some(file) = self.file {
+            file.finish()?;
+        }
+        Ok(NavWritten {
+            samples: self.samples,
+            distance_m: self.last_distance_m,
+            kept: self.kept,
+        })
+    }
+}
+
+impl PassSink for NavWriter<'_> {
+    fn sample(&mut self, k: usize, lat: f64, lon: f64, h: f64, q: &[f64; 4], distance_m: f64) {
+        for (slot, v) in self.first_bad.iter_mut().zip([lat, lon, h, q[0]]) {
+            if slot.is_none() && !v.is_finite() {
+                *slot = Some((k, v));
+            }
+        }
+        while self.wanted.last().is_some_and(|&w| w < k) {
+            self.wanted.pop();
+        }
+        if self.wanted.last() == Some(&k) {
+            self.wanted.pop();
+            self.kept.push(KeptSample {
+                sample: k,
+                lat_rad: lat,
+                lon_rad: lon,
+                distance_m,
+            });
+        }
+        self.samples = k + 1;
+        self.last_distance_m = distance_m;
+        let r = &mut self.rows;
+        r.lat_rad.push(lat);
+        r.lon_rad.push(lon);
+        r.h_m.push(h);
+        r.q_b_to_n.push(*q);
+        r.distance_m.push(distance_m);
+        if r.len() == ROWS {
+            self.flush();
+        }
+    }
+}
+
+/// The rows `t` of samples `lo..` as a batch of `schema` (from [`schema::nav`]).
+fn nav_batch(
+    schema: &SchemaRef,
+    d: &Derived,
+    lo: usize,
+    t: &NavTrack,
+    start: Geodetic,
+    sigma: Option<&RouteSigma>,
+) -> Result<RecordBatch, arrow::error::ArrowError> {
+    let r = lo..lo + t.len();
+    let euler: Vec<_> = (0..t.len()).map(|j| t.euler(j)).collect();
+    let ne: Vec<(f64, f64)> = (0..t.len())
+        .map(|j| start.offset_m(t.lat_rad[j], t.lon_rad[j]))
+        .collect();
+    let deg = |v: &[f64]| {
+        Arc::new(Float64Array::from_iter_values(
+            v.iter().map(|x| x.to_degrees()),
+        ))
+    };
+    let mut columns: Vec<ArrayRef> = vec![
+        Arc::new(Int64Array::from_iter_values(
+            d.t_s[r.clone()].iter().map(|&t| d.ns_of(t)),
+        )),
+        deg(&t.lat_rad),
+        deg(&t.lon_rad),
+        f32_array(t.h_m.iter().copied()),
+        f32_array(ne.iter().map(|p| p.0)),
+        f32_array(ne.iter().map(|p| p.1)),
+        f32_array(euler.iter().map(|e| e.roll_rad.to_degrees())),
+        f32_array(euler.iter().map(|e| e.pitch_rad.to_degrees())),
+        f32_array(euler.iter().map(|e| e.heading_rad.to_degrees())),
+        f32_array(t.distance_m.iter().copied()),
+    ];
+    if let Some([n, e, h]) = sigma.map(|s| s.at_samples(r)) {
+        columns.push(f32_array(n));
+        columns.push(f32_array(e));
+        columns.push(f32_array(h.iter().map(|x| x.to_degrees())));
+    }
+    RecordBatch::try_new(schema.clone(), columns)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use unz_formats::parquet_io::read_table;
+    use unz_formats::tables::{f64_column, i64_column};
+
+    /// A derive of `n` samples 10 ms apart (all the writer reads of it: the times).
+    fn derive_of(n: usize) -> Derived {
+        Derived {
+            t0_ns: 1_000_000_000,
+            nominal_dt_s: 0.01,
+            t_s: (0..n).map(|k| k as f64 * 0.01).collect(),
+            dt_s: vec![0.01; n].into(),
+            ..Derived::default()
+        }
+    }
+
+    fn feed(w: &mut NavWriter<'_>, n: usize, bad: Option<usize>) {
+        for k in 0..n {
+            let lat = if Some(k) == bad {
+                f64::NAN
+            } else {
+                0.8 + k as f64 * 1e-9
+            };
+            w.sample(k, lat, 0.5, 100.0, &[1.0, 0.0, 0.0, 0.0], k as f64 * 0.1);
+        }
+    }
+
+    #[test]
+    fn rows_go_out_in_batches_and_kept_samples_come_back() {
+        let n = ROWS + 5;
+        let d = derive_of(n);
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("nav.parquet");
+        let start = Geodetic {
+            lat_rad: 0.8,
+            lon_rad: 0.5,
+            h_m: 100.0,
+        };
+        let mut w = NavWriter::create(&path, &d, start, None, &[n - 1, 3, n + 10]).unwrap();
+        feed(&mut w, n, None);
+        let written = w.finish("navigated").unwrap();
+        assert_eq!(written.samples, n);
+        assert_eq!(written.distance_m, (n - 1) as f64 * 0.1);
+        // Kept in sample order; a sample the pass never reached is not there.
+        let kept: Vec<usize> = written.kept.iter().map(|s| s.sample).collect();
+        assert_eq!(kept, vec![3, n - 1]);
+        assert_eq!(written.at(3).unwrap().distance_m, 3.0 * 0.1);
+        let (_, t) = read_table(&path).unwrap();
+        assert_eq!(t.num_rows(), n);
+        let t_ns = i64_column(&t, "t_ns").unwrap();
+        assert_eq!(
+            t_ns[ROWS + 1],
+            1_000_000_000 + (ROWS as i64 + 1) * 10_000_000
+        );
+        let lat = f64_column(&t, "lat_deg").unwrap();
+        assert_eq!(lat[ROWS + 2], (0.8 + (ROWS + 2) as f64 * 1e-9).to_degrees());
+    }
+
+    #[test]
+    fn a_non_finite_sample_is_named_and_leaves_no_file() {
+        let d = derive_of(100);
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("corrected_nav.parquet");
+        let mut w = NavWriter::create(&path, &d, Geodetic::default(), None, &[]).unwrap();
+        feed(&mut w, 100, Some(7));
+        let e = w.finish("corrected").unwrap_err().to_string();
+        assert!(e.contains("corrected latitude is NaN at sample 7"), "{e}");
+        assert!(!path.exists());
+        assert_eq!(
+            std::fs::read_dir(tmp.path()).unwrap().count(),
+            0,
+            "a temporary file left"
+        );
+    }
+}
