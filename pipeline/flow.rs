@@ -11,8 +11,10 @@ use unz_formats::atomic::write_json_atomic;
 use unz_formats::manifest::RunManifest;
 use unz_formats::parquet_io::{for_each_batch, for_each_batch_of, read_schema, write_batch};
 use unz_formats::schema::{self, META_ODO_M_PER_PULSE};
-use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f64_column, i64_column};
-use unz_stages::criteria::{self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt1Series, Kryt2};
+use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f64_column};
+use unz_stages::criteria::{
+    self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt1Series, Kryt2, Row3Blocks,
+};
 use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive};
 use unz_stages::earth::{self, Geodetic};
 use unz_stages::filter::LowPass;
@@ -560,32 +562,49 @@ pub struct CriteriaSummary {
     pub kryt2_m: Option<f64>,
 }
 
-/// Loads `nav.parquet` back into a track (radians).
-pub fn load_nav(path: &Path) -> anyhow::Result<NavTrack> {
-    // Batch by batch: the track without the file's columns beside it.
-    let mut t = NavTrack::default();
-    for_each_batch(path, |b| {
+/// (sample, latitude rad, longitude rad).
+type Position = (usize, f64, f64);
+
+/// What the criteria read of `nav.parquet`, batch by batch (the track is never held
+/// whole): the sums of `C_b^n`'s third row per block of `block` samples, and the
+/// positions (sample, latitude rad, longitude rad) at the samples `at`.
+fn read_nav_for_criteria(
+    path: &Path,
+    block: usize,
+    at: &[usize],
+) -> anyhow::Result<(Vec<[f64; 3]>, Vec<Position>)> {
+    let mut blocks = Row3Blocks::new(block);
+    let mut positions = Vec::new();
+    let mut k0 = 0;
+    let columns = ["lat_deg", "lon_deg", "roll_deg", "pitch_deg", "heading_deg"];
+    for_each_batch_of(path, &columns, |b| {
         let rad = |n: &str| -> Result<Vec<f64>, unz_formats::FormatError> {
             Ok(f64_column(b, n)?.into_iter().map(f64::to_radians).collect())
         };
-        let _ = i64_column(b, "t_ns")?;
         let (roll, pitch, heading) = (rad("roll_deg")?, rad("pitch_deg")?, rad("heading_deg")?);
-        t.q_b_to_n.extend((0..roll.len()).map(|k| {
+        for k in 0..roll.len() {
             let q = unz_stages::attitude::Euler {
                 roll_rad: roll[k],
                 pitch_rad: pitch[k],
                 heading_rad: heading[k],
             }
             .to_quat_b_to_n();
-            [q.w, q.i, q.j, q.k]
-        }));
-        t.lat_rad.extend(rad("lat_deg")?);
-        t.lon_rad.extend(rad("lon_deg")?);
-        t.h_m.extend(f64_column(b, "h_m")?);
-        t.distance_m.extend(f64_column(b, "distance_m")?);
+            blocks.push(&[q.w, q.i, q.j, q.k]);
+        }
+        let n = roll.len();
+        let here: Vec<usize> = at
+            .iter()
+            .copied()
+            .filter(|&s| (k0..k0 + n).contains(&s))
+            .collect();
+        if !here.is_empty() {
+            let (lat, lon) = (rad("lat_deg")?, rad("lon_deg")?);
+            positions.extend(here.iter().map(|&s| (s, lat[s - k0], lon[s - k0])));
+        }
+        k0 += n;
         Ok(())
     })?;
-    Ok(t)
+    Ok((blocks.finish(), positions))
 }
 
 /// Stage 3b: the criteria of the navigated track.
@@ -616,7 +635,6 @@ pub fn ensure_criteria(
     };
     ctx.run_stage(&stage, || {
         let d = ctx.derived(&derive_dir)?;
-        let track = load_nav(&nav_dir.join(files::NAV))?;
         let (marks, _) = load_table::<MarksTable>(
             &ingest_dir.join(files::MARKS),
             MarksTable::extend_from_batch,
@@ -624,17 +642,25 @@ pub fn ensure_criteria(
         let fixes = match_control_points(m, &marks, &d)
             .with_context(|| format!("in {}", m.path.display()))?;
         let lp = LowPass::new(&params.derive.filter, d.nominal_dt_s);
+        let fix_samples: Vec<usize> = fixes.iter().map(|f| f.sample).collect();
+        let (row3_sums, positions) =
+            read_nav_for_criteria(&nav_dir.join(files::NAV), lp.block, &fix_samples)?;
         let mut series = Kryt1Series::default();
-        let k1 = criteria::kryt1(
+        let k1 = criteria::kryt1_from_sums(
             &d.epochs,
             &lp,
-            &track,
+            &row3_sums,
             &params.kalman,
             &mut Kryt1Scratch::default(),
             Some(&mut series),
         );
         write_criteria_parquet(&dir.join(files::CRITERIA), &d, &series)?;
-        let cps = criteria::kryt2(&track, &fixes);
+        let cps = criteria::kryt2_at(&fixes, |k| {
+            positions
+                .iter()
+                .find(|p| p.0 == k)
+                .map(|&(_, lat, lon)| (lat, lon))
+        });
         let summary = CriteriaSummary {
             kryt1_rad: k1,
             epochs: d.epochs.t_s.len(),

@@ -131,6 +131,30 @@ pub fn kryt1(
     series: Option<&mut Kryt1Series>,
 ) -> f64 {
     filtered_roll_pitch(lp, track, scratch);
+    kryt1_of_blocks(epochs, kp, scratch, series)
+}
+
+/// [`kryt1`] of a track given by its sums of `C_b^n`'s third row per block of F
+/// ([`Row3Blocks`]).
+pub fn kryt1_from_sums(
+    epochs: &Epochs,
+    lp: &LowPass,
+    row3_sums: &[[f64; 3]],
+    kp: &KalmanParams,
+    scratch: &mut Kryt1Scratch,
+    series: Option<&mut Kryt1Series>,
+) -> f64 {
+    filtered_roll_pitch_from_sums(lp, row3_sums, scratch);
+    kryt1_of_blocks(epochs, kp, scratch, series)
+}
+
+/// Kryt1 of the filtered blocks in `scratch`.
+fn kryt1_of_blocks(
+    epochs: &Epochs,
+    kp: &KalmanParams,
+    scratch: &Kryt1Scratch,
+    series: Option<&mut Kryt1Series>,
+) -> f64 {
     let (th, ph) = (&scratch.theta_blocks, &scratch.phi_blocks);
     kryt1_of(
         epochs,
@@ -234,13 +258,53 @@ fn filtered_roll_pitch_from_sums(lp: &LowPass, row3_sums: &[[f64; 3]], scratch: 
 
 /// Sums of `C_b^n`'s third row over blocks of `block` samples.
 fn block_row3_sums(q: &[[f64; 4]], block: usize, out: &mut Vec<[f64; 3]>) {
-    out.clear();
-    out.extend(q.chunks(block.max(1)).map(|c| {
-        c.iter().fold([0.0; 3], |m, qk| {
-            let r = dcm_row3(qk);
-            [m[0] + r[0], m[1] + r[1], m[2] + r[2]]
-        })
-    }));
+    let mut blocks = Row3Blocks::new(block);
+    blocks.sums = std::mem::take(out);
+    blocks.sums.clear();
+    for qk in q {
+        blocks.push(qk);
+    }
+    *out = blocks.finish();
+}
+
+/// Sums of `C_b^n`'s third row over blocks of samples, taken sample by sample (a track
+/// read batch by batch is never held whole).
+#[derive(Debug, Clone, Default)]
+pub struct Row3Blocks {
+    block: usize,
+    acc: [f64; 3],
+    in_block: usize,
+    sums: Vec<[f64; 3]>,
+}
+
+impl Row3Blocks {
+    /// Blocks of `block` samples (at least one).
+    pub fn new(block: usize) -> Self {
+        Self {
+            block: block.max(1),
+            ..Self::default()
+        }
+    }
+
+    /// The next sample's attitude quaternion `C_b^n` (w, x, y, z).
+    pub fn push(&mut self, q: &[f64; 4]) {
+        let r = dcm_row3(q);
+        let m = self.acc;
+        self.acc = [m[0] + r[0], m[1] + r[1], m[2] + r[2]];
+        self.in_block += 1;
+        if self.in_block == self.block {
+            self.sums.push(self.acc);
+            (self.acc, self.in_block) = ([0.0; 3], 0);
+        }
+    }
+
+    /// The sums, the last (shorter) block's included.
+    pub fn finish(mut self) -> Vec<[f64; 3]> {
+        if self.in_block > 0 {
+            self.sums.push(self.acc);
+        }
+        self.sums
+    }
 }
 
 /// A control point matched to a sample of the run.
@@ -317,4 +381,73 @@ pub fn kryt2_at(
             Some(Kryt2::at(f, dx, dy))
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn row3_blocks_sum_each_block_in_order_the_last_one_short() {
+        let q: Vec<[f64; 4]> = (0..23)
+            .map(|k| {
+                let a = 0.01 * k as f64;
+                let (s, c) = (0.5 * a).sin_cos();
+                [c, s * 0.6, s * 0.8, 0.0]
+            })
+            .collect();
+        let mut sums = Vec::new();
+        block_row3_sums(&q, 10, &mut sums);
+        assert_eq!(sums.len(), 3);
+        for (j, c) in q.chunks(10).enumerate() {
+            let mut want = [0.0; 3];
+            for qk in c {
+                let r = dcm_row3(qk);
+                want = [want[0] + r[0], want[1] + r[1], want[2] + r[2]];
+            }
+            assert_eq!(
+                sums[j].map(f64::to_bits),
+                want.map(f64::to_bits),
+                "block {j}"
+            );
+        }
+        // Kryt1 from the sums is Kryt1 of the track.
+        let track = NavTrack {
+            lat_rad: vec![0.8; q.len()],
+            lon_rad: vec![0.5; q.len()],
+            h_m: vec![0.0; q.len()],
+            q_b_to_n: q.clone(),
+            distance_m: vec![0.0; q.len()],
+        };
+        let epochs = Epochs {
+            block: vec![0, 1, 2],
+            t_s: vec![0.05, 0.15, 0.22],
+            theta_p_rad: vec![0.0, 0.01, 0.02],
+            phi_p_rad: vec![0.0, 0.0, 0.01],
+            valid: vec![true; 3],
+            ..Epochs::default()
+        };
+        let lp = LowPass::new(&crate::filter::FilterParams::default(), 0.01);
+        let kp = KalmanParams::default();
+        let whole = kryt1(
+            &epochs,
+            &lp,
+            &track,
+            &kp,
+            &mut Kryt1Scratch::default(),
+            None,
+        );
+        let mut blocks = Row3Blocks::new(lp.block);
+        q.iter().for_each(|qk| blocks.push(qk));
+        let summed = kryt1_from_sums(
+            &epochs,
+            &lp,
+            &blocks.finish(),
+            &kp,
+            &mut Kryt1Scratch::default(),
+            None,
+        );
+        assert_eq!(whole.to_bits(), summed.to_bits());
+        assert!(whole > 0.0);
+    }
 }
