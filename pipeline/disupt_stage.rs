@@ -815,6 +815,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 .and_then(|base| joint_route_sigma(&joint_problem, run, &rederive, base));
         }
         lap("route sigma");
+        // Re-derives are done: the ingested odometer goes before the writing.
+        drop(rederive);
+        drop(odometer);
         // The corrected navigation (the best method's, else the initial settings') written
         // as its pass runs, beside the other tables.
         let corrected = &reviewed[reviewed.len() - 1];

@@ -6,10 +6,10 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use arrow::array::{Float64Array, Int64Array, RecordBatch, StringArray};
+use arrow::array::{Float32Array, Float64Array, Int64Array, RecordBatch, StringArray};
 use unz_formats::parquet_io::{read_table, write_batch};
 use unz_formats::schema;
-use unz_formats::tables::{f32_array, f64_column, i64_column};
+use unz_formats::tables::{f32_column, f64_column, i64_column};
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
@@ -23,7 +23,8 @@ pub const KRYT1_SERIES: &str = "kryt1_series.parquet";
 /// map or in 3D; a 40-minute run keeps 24 000 rows per method).
 pub const TRACK_RATE_HZ: f64 = 10.0;
 
-/// One method's trajectory, decimated.
+/// One method's trajectory, decimated, in the types `tracks.parquet` stores (latitude
+/// and longitude need f64: f32 degrees resolve only about a metre).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct MethodTrack {
     /// `initial`, `oepi`, `owpi` or `joint`.
@@ -35,17 +36,17 @@ pub struct MethodTrack {
     /// Longitude, degrees.
     pub lon_deg: Vec<f64>,
     /// Height, m.
-    pub h_m: Vec<f64>,
+    pub h_m: Vec<f32>,
     /// North of the start, m.
-    pub north_m: Vec<f64>,
+    pub north_m: Vec<f32>,
     /// East of the start, m.
-    pub east_m: Vec<f64>,
+    pub east_m: Vec<f32>,
     /// Roll, degrees.
-    pub roll_deg: Vec<f64>,
+    pub roll_deg: Vec<f32>,
     /// Pitch, degrees.
-    pub pitch_deg: Vec<f64>,
+    pub pitch_deg: Vec<f32>,
     /// Heading, degrees.
-    pub heading_deg: Vec<f64>,
+    pub heading_deg: Vec<f32>,
 }
 
 /// One method's Kryt1 series at the ΔTg epochs.
@@ -97,13 +98,13 @@ pub fn method_track(
         m.t_ns.push(d.ns_of(d.t_s[k]));
         m.lat_deg.push(lat.to_degrees());
         m.lon_deg.push(lon.to_degrees());
-        m.h_m.push(*h);
-        m.north_m.push(n);
-        m.east_m.push(e);
-        m.roll_deg.push(att.roll_rad.to_degrees());
-        m.pitch_deg.push(att.pitch_rad.to_degrees());
+        m.h_m.push(*h as f32);
+        m.north_m.push(n as f32);
+        m.east_m.push(e as f32);
+        m.roll_deg.push(att.roll_rad.to_degrees() as f32);
+        m.pitch_deg.push(att.pitch_rad.to_degrees() as f32);
         m.heading_deg
-            .push(att.heading_rad.to_degrees().rem_euclid(360.0));
+            .push(att.heading_rad.to_degrees().rem_euclid(360.0) as f32);
     }
     m
 }
@@ -138,8 +139,10 @@ pub fn write_tracks(path: &Path, tracks: &[MethodTrack]) -> anyhow::Result<()> {
             .iter()
             .map(|t| get(t).clone()))))
     };
-    let col32 = |get: fn(&MethodTrack) -> &Vec<f64>| {
-        f32_array(tracks.iter().flat_map(|t| get(t).iter().copied()))
+    let col32 = |get: fn(&MethodTrack) -> &Vec<f32>| {
+        Arc::new(Float32Array::from_iter_values(
+            tracks.iter().flat_map(|t| get(t).iter().copied()),
+        ))
     };
     let batch = RecordBatch::try_new(
         schema,
@@ -206,9 +209,8 @@ fn method_ranges(
 pub fn read_tracks(path: &Path) -> anyhow::Result<Vec<MethodTrack>> {
     let (_, b) = read_table(path)?;
     let t = i64_column(&b, "t_ns")?;
-    let cols: Vec<Vec<f64>> = [
-        "lat_deg",
-        "lon_deg",
+    let (lat, lon) = (f64_column(&b, "lat_deg")?, f64_column(&b, "lon_deg")?);
+    let cols: Vec<Vec<f32>> = [
         "h_m",
         "north_m",
         "east_m",
@@ -217,21 +219,21 @@ pub fn read_tracks(path: &Path) -> anyhow::Result<Vec<MethodTrack>> {
         "heading_deg",
     ]
     .iter()
-    .map(|n| f64_column(&b, n))
+    .map(|n| f32_column(&b, n))
     .collect::<Result<_, _>>()?;
     Ok(method_ranges(&b, path)?
         .into_iter()
         .map(|(method, r)| MethodTrack {
             method,
             t_ns: t[r.clone()].to_vec(),
-            lat_deg: cols[0][r.clone()].to_vec(),
-            lon_deg: cols[1][r.clone()].to_vec(),
-            h_m: cols[2][r.clone()].to_vec(),
-            north_m: cols[3][r.clone()].to_vec(),
-            east_m: cols[4][r.clone()].to_vec(),
-            roll_deg: cols[5][r.clone()].to_vec(),
-            pitch_deg: cols[6][r.clone()].to_vec(),
-            heading_deg: cols[7][r].to_vec(),
+            lat_deg: lat[r.clone()].to_vec(),
+            lon_deg: lon[r.clone()].to_vec(),
+            h_m: cols[0][r.clone()].to_vec(),
+            north_m: cols[1][r.clone()].to_vec(),
+            east_m: cols[2][r.clone()].to_vec(),
+            roll_deg: cols[3][r.clone()].to_vec(),
+            pitch_deg: cols[4][r.clone()].to_vec(),
+            heading_deg: cols[5][r].to_vec(),
         })
         .collect())
 }

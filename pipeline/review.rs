@@ -343,17 +343,18 @@ pub fn build_review(
 }
 
 fn track_view(t: MethodTrack, rel: &impl Fn(&[i64]) -> Vec<f64>, h0_m: f64) -> Track {
+    let wide = |v: Vec<f32>| v.into_iter().map(f64::from).collect();
     Track {
         t_s: rel(&t.t_ns),
-        up_m: t.h_m.iter().map(|h| h - h0_m).collect(),
+        up_m: t.h_m.iter().map(|&h| f64::from(h) - h0_m).collect(),
         label: t.method,
         lat_deg: t.lat_deg,
         lon_deg: t.lon_deg,
-        north_m: t.north_m,
-        east_m: t.east_m,
-        roll_deg: t.roll_deg,
-        pitch_deg: t.pitch_deg,
-        heading_deg: t.heading_deg,
+        north_m: wide(t.north_m),
+        east_m: wide(t.east_m),
+        roll_deg: wide(t.roll_deg),
+        pitch_deg: wide(t.pitch_deg),
+        heading_deg: wide(t.heading_deg),
     }
 }
 

@@ -274,6 +274,11 @@ pub fn f64_column(b: &RecordBatch, name: &str) -> Result<Vec<f64>, FormatError> 
     Ok(prim::<Float64Type>(b, name)?.values().to_vec())
 }
 
+/// Reads a `Float32` column of a batch.
+pub fn f32_column(b: &RecordBatch, name: &str) -> Result<Vec<f32>, FormatError> {
+    Ok(prim::<Float32Type>(b, name)?.values().to_vec())
+}
+
 /// A single-precision array of `values` (for the columns the schemas declare `Float32`).
 pub fn f32_array(values: impl IntoIterator<Item = f64>) -> ArrayRef {
     Arc::new(arrow::array::Float32Array::from_iter_values(
