@@ -118,7 +118,7 @@ pub fn as_stored(mut d: Derived) -> Derived {
     let t_ns = d.t_ns();
     let t0_ns = t_ns.first().copied().unwrap_or(0);
     let epoch_t_ns = d.epoch_t_ns();
-    d.t_s = t_ns.iter().map(|t| (t - t0_ns) as f64 * 1e-9).collect();
+    d.t_s = Arc::new(t_ns.iter().map(|t| (t - t0_ns) as f64 * 1e-9).collect());
     d.epochs.t_s = epoch_t_ns
         .iter()
         .map(|t| (t - t0_ns) as f64 * 1e-9)
@@ -157,7 +157,7 @@ pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
     let mut d = Derived {
         t0_ns,
         nominal_dt_s: meta(derived_meta::NOMINAL_DT_S)?.parse()?,
-        t_s: t_ns.iter().map(|t| (t - t0_ns) as f64 * 1e-9).collect(),
+        t_s: Arc::new(t_ns.iter().map(|t| (t - t0_ns) as f64 * 1e-9).collect()),
         dt_s: dt_s.into(),
         dtheta_rad: dtheta_rad.into(),
         dvel_mps: dvel_mps.into(),

@@ -15,7 +15,7 @@ use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f64_column};
 use unz_stages::criteria::{
     self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt1Series, Kryt2, Row3Blocks,
 };
-use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive};
+use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive_owned};
 use unz_stages::earth::{self, Geodetic};
 use unz_stages::filter::LowPass;
 use unz_stages::initial::{AlignParams, InitialReport, InitialRequest, Source, initial_settings};
@@ -213,9 +213,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     ctx.run_stage(&stage, || {
         ctx.set_derived(None);
         let raw = IngestedSeries::load(&ingest_dir)?;
-        let mut d = derive(&raw.series(), &params.derive, site_gravity_mps2(m));
-        (d.imu_failure_samples, d.odometer_failure_samples) = raw.failure_counts();
-        drop(raw);
+        let counts = raw.failure_counts();
+        let mut d = raw.derive(&params.derive, site_gravity_mps2(m));
+        (d.imu_failure_samples, d.odometer_failure_samples) = counts;
         // A run whose odometer is flagged failed over much of it has no dead reckoning
         // worth correcting; a short failure is counted and reported (navigate.json).
         if d.odometer_failure_samples * 10 > d.t_s.len() {
@@ -316,15 +316,23 @@ impl IngestedSeries {
         (count(1), count(2))
     }
 
-    /// The series as derive takes them.
-    pub fn series(&self) -> RawSeries<'_> {
-        RawSeries {
-            imu_t_ns: &self.imu.t_ns,
-            dtheta_rad: &self.imu.dtheta_rad,
-            dvel_mps: &self.imu.dvel_mps,
+    /// Derives the run, the IMU's increments repaired in place (no copy of the run's
+    /// length): [`derive_owned`].
+    pub fn derive(self, params: &DeriveParams, g_mps2: f64) -> Derived {
+        let ImuTable {
+            t_ns,
+            dtheta_rad,
+            dvel_mps,
+            ..
+        } = self.imu;
+        let odometer = RawSeries {
+            imu_t_ns: &[],
+            dtheta_rad: &[],
+            dvel_mps: &[],
             odo_t_ns: &self.odo.t_ns,
             odo_distance_m: &self.odo.distance_m,
-        }
+        };
+        derive_owned(&t_ns, dtheta_rad, dvel_mps, &odometer, params, g_mps2)
     }
 }
 

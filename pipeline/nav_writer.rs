@@ -257,7 +257,7 @@ mod tests {
         Derived {
             t0_ns: 1_000_000_000,
             nominal_dt_s: 0.01,
-            t_s: (0..n).map(|k| k as f64 * 0.01).collect(),
+            t_s: std::sync::Arc::new((0..n).map(|k| k as f64 * 0.01).collect()),
             dt_s: vec![0.01; n].into(),
             ..Derived::default()
         }

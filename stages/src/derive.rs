@@ -69,16 +69,16 @@ pub struct Derived {
     pub nominal_dt_s: f64,
     /// Per sample: time since `t0_ns`, s (repaired to increase).
     ///
-    /// The IMU's series (this, `dt_s`, `dtheta_rad`, `dvel_mps`) are shared,
+    /// The IMU's series (this, `dt_s`, `dtheta_rad`, `dvel_mps`) are shared (`Arc`),
     /// not copied, between a derive and its re-derives at other odometer timings: only
     /// the odometer's part differs.
-    pub t_s: Arc<[f64]>,
+    pub t_s: Arc<Vec<f64>>,
     /// Per sample: interval, s.
-    pub dt_s: Arc<[f64]>,
+    pub dt_s: Arc<Vec<f64>>,
     /// Per sample: angle increments, rad (lost stretches filled by holding the rate).
-    pub dtheta_rad: Arc<[[f64; 3]]>,
+    pub dtheta_rad: Arc<Vec<[f64; 3]>>,
     /// Per sample: velocity increments, m/s (likewise).
-    pub dvel_mps: Arc<[[f64; 3]]>,
+    pub dvel_mps: Arc<Vec<[f64; 3]>>,
     /// Per sample: odometer distance over the interval, m.
     pub odo_dist_m: Vec<f64>,
     /// Per block: filtered a_x, m/s².
@@ -295,20 +295,47 @@ impl<'a> OdoInterp<'a> {
 
 /// Runs the stage. `g_mps2` is the normal gravity at the site.
 pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derived {
-    let n = raw.imu_t_ns.len();
+    derive_owned(
+        raw.imu_t_ns,
+        raw.dtheta_rad.to_vec(),
+        raw.dvel_mps.to_vec(),
+        raw,
+        params,
+        g_mps2,
+    )
+}
+
+/// [`derive`] of the IMU's increments given by value: they are repaired in place and
+/// become the derive's, without a copy of the run's length. The odometer is `raw`'s (its
+/// IMU columns are not read).
+pub fn derive_owned(
+    imu_t_ns: &[i64],
+    mut dtheta_rad: Vec<[f64; 3]>,
+    mut dvel_mps: Vec<[f64; 3]>,
+    raw: &RawSeries<'_>,
+    params: &DeriveParams,
+    g_mps2: f64,
+) -> Derived {
+    let n = imu_t_ns.len().min(dtheta_rad.len()).min(dvel_mps.len());
     let mut out = Derived::default();
     if n == 0 {
         return out;
     }
-    let t0 = raw.imu_t_ns[0];
-    let mut dts: Vec<f64> = raw
-        .imu_t_ns
+    dtheta_rad.truncate(n);
+    dvel_mps.truncate(n);
+    let t0 = imu_t_ns[0];
+    let mut dts: Vec<f64> = imu_t_ns[..n]
         .windows(2)
         .map(|w| (w[1] - w[0]) as f64 * 1e-9)
         .filter(|d| *d > 0.0)
         .collect();
-    dts.sort_by(f64::total_cmp);
-    let nominal = dts.get(dts.len() / 2).copied().unwrap_or(0.01);
+    // The median interval (the element a full sort puts in the middle).
+    let mid = dts.len() / 2;
+    if mid < dts.len() {
+        dts.select_nth_unstable_by(mid, f64::total_cmp);
+    }
+    let nominal = dts.get(mid).copied().unwrap_or(0.01);
+    drop(dts);
     out.t0_ns = t0;
     out.nominal_dt_s = nominal;
 
@@ -316,14 +343,9 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
     // the instrument's range replaced by the previous sample's rates.
     let mut prev_t = -nominal;
     let mut prev_rates = ([0.0; 3], [0.0; 3]);
-    let (mut t_s, mut dt_s, mut dtheta_rad, mut dvel_mps) = (
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-        Vec::with_capacity(n),
-    );
+    let (mut t_s, mut dt_s) = (Vec::with_capacity(n), Vec::with_capacity(n));
     for k in 0..n {
-        let mut t = (raw.imu_t_ns[k] - t0) as f64 * 1e-9;
+        let mut t = (imu_t_ns[k] - t0) as f64 * 1e-9;
         if k > 0 && t <= prev_t {
             t = prev_t + nominal;
             out.repaired_times += 1;
@@ -335,8 +357,8 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
         } else {
             1.0
         };
-        let mut dth = raw.dtheta_rad[k].map(|v| v * scale);
-        let mut dv = raw.dvel_mps[k].map(|v| v * scale);
+        let mut dth = dtheta_rad[k].map(|v| v * scale);
+        let mut dv = dvel_mps[k].map(|v| v * scale);
         let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         // `!(a <= b)`: a NaN increment is out of range too.
         #[allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -351,8 +373,8 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
         }
         t_s.push(t);
         dt_s.push(dt);
-        dtheta_rad.push(dth);
-        dvel_mps.push(dv);
+        dtheta_rad[k] = dth;
+        dvel_mps[k] = dv;
         prev_t = t;
     }
     (out.t_s, out.dt_s, out.dtheta_rad, out.dvel_mps) =
