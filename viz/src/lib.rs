@@ -20,3 +20,4 @@ pub mod paths;
 pub mod recording;
 pub mod report;
 pub mod review;
+mod rrd_sink;

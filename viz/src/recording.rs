@@ -3,11 +3,12 @@
 //! Series go out with `send_columns` (one chunk per series, never one log call per
 //! sample). Raw-rate series are decimated to [`SERIES_RATE_HZ`] block means and the
 //! vehicle pose to [`POSE_RATE_HZ`]; trajectories arrive already decimated by the
-//! disupt stage. The recording is encoded in memory, written under a temporary name and
-//! renamed when complete.
+//! disupt stage. The recording is encoded into a temporary file as it is logged
+//! ([`crate::rrd_sink`]) and renamed when complete.
 
 use std::path::{Path, PathBuf};
 
+use rerun::external::re_log_encoding::EncodeError;
 use rerun::{RecordingStream, TimeColumn};
 
 use crate::blueprint::send_review_blueprint;
@@ -65,20 +66,54 @@ pub struct RrdStats {
 
 /// Writes `review` to `path` atomically and returns what it wrote.
 ///
-/// The recording is encoded in memory (a 40-minute run's is about 9 MB) and written by
-/// us, not by the SDK's file-writer thread: a full disk or a read-only folder then reports
-/// the operating system's own error ("No space left on device") with the path, where the
-/// SDK's writer says only that its thread shut down.
+/// The recording is encoded into a temporary file as it is logged (no copy is held in
+/// memory) by our own sink, not by the SDK's file-writer thread: a full disk or a
+/// read-only folder then reports the operating system's own error ("No space left on
+/// device") with the path, where the SDK's writer says only that its thread shut down.
+/// The file takes its name when complete.
 pub fn write_rrd(review: &Review, path: &Path) -> Result<RrdStats, RecordingError> {
+    let tmp = tmp_name(path);
+    let written = write_rrd_to(review, path, &tmp);
+    match written {
+        Ok(mut stats) => {
+            let io = |source| RecordingError::Io {
+                source,
+                path: path.to_path_buf(),
+            };
+            stats.bytes = std::fs::metadata(&tmp).map_err(io)?.len();
+            std::fs::rename(&tmp, path).map_err(io)?;
+            Ok(stats)
+        }
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            Err(e)
+        }
+    }
+}
+
+/// [`write_rrd`] into `tmp`.
+fn write_rrd_to(review: &Review, path: &Path, tmp: &Path) -> Result<RrdStats, RecordingError> {
     let rerun_err = |source| RecordingError::Rerun {
         source,
         path: path.to_path_buf(),
     };
-    let (rec, storage) = rerun::RecordingStreamBuilder::new("unz-review")
+    let encode_err = |e: EncodeError| match e {
+        EncodeError::Write(source) => RecordingError::Io {
+            source,
+            path: path.to_path_buf(),
+        },
+        e => RecordingError::Flush {
+            message: e.to_string(),
+            path: path.to_path_buf(),
+        },
+    };
+    let (sink, file) = crate::rrd_sink::create(tmp).map_err(encode_err)?;
+    let rec = rerun::RecordingStreamBuilder::new("unz-review")
         .recording_id(review.name.as_str())
         .recording_name(review.name.as_str())
-        .memory()
+        .buffered()
         .map_err(rerun_err)?;
+    rec.set_sink(Box::new(sink));
     // A set recording id turns the SDK's own recording-info chunk off (and with it the
     // name, which the viewer's sources panel then shows as `<unknown>`): send the name.
     rec.send_recording_name(review.name.as_str())
@@ -89,25 +124,11 @@ pub fn write_rrd(review: &Review, path: &Path) -> Result<RrdStats, RecordingErro
     };
     w.write(review).map_err(rerun_err)?;
     send_review_blueprint(&rec, review).map_err(rerun_err)?;
-    let bytes = storage
-        .drain_as_bytes()
-        .map_err(|e| RecordingError::Flush {
-            message: e.to_string(),
-            path: path.to_path_buf(),
-        })?;
-    let mut stats = w.stats;
+    let stats = w.stats;
+    // Every message through the batcher into the sink, then the stream let go of it.
+    let _ = rec.flush_blocking();
     drop(rec);
-    stats.bytes = bytes.len() as u64;
-    let tmp = tmp_name(path);
-    let io = |source| RecordingError::Io {
-        source,
-        path: path.to_path_buf(),
-    };
-    if let Err(e) = std::fs::write(&tmp, &bytes) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(io(e));
-    }
-    std::fs::rename(&tmp, path).map_err(io)?;
+    file.finish().map_err(encode_err)?;
     Ok(stats)
 }
 
