@@ -9,7 +9,7 @@
 use std::path::PathBuf;
 
 use unz_formats::mcap_io::{McapCompression, Ros2Mcap};
-use unz_formats::parquet_io::{for_each_batch_of, read_schema, read_table};
+use unz_formats::parquet_io::{for_each_batch_of, read_schema};
 use unz_formats::ros2_msgs::{
     Attitude, Criteria, Header, NavSatFix, NavSatStatus, Point, Pose, PoseStamped, Quaternion, Time,
 };
@@ -20,7 +20,7 @@ use unz_viz::frames::enu_flu;
 
 use crate::artifacts::{StageName, files};
 use crate::disupt_stage::{Method, ensure_disupt};
-use crate::flow::{Overrides, Params, RunCtx, ensure_criteria};
+use crate::flow::{Overrides, Params, RunCtx, ensure_criteria, load_criteria};
 use crate::stage::{Stage, params_hash};
 
 /// Output rate of the navigation channels, Hz.
@@ -154,33 +154,19 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                 },
             )?;
         }
-        let (_, c) = read_table(&crit_path)?;
-        let col = |n: &str| f64_column(&c, n);
-        let (theta_n, phi_n, theta_p, phi_p) = (
-            col("theta_n_rad")?,
-            col("phi_n_rad")?,
-            col("theta_p_rad")?,
-            col("phi_p_rad")?,
-        );
-        let (d_theta, d_phi, kf_d_theta, kf_d_phi, kryt1_cum) = (
-            col("d_theta_rad")?,
-            col("d_phi_rad")?,
-            col("kf_d_theta_rad")?,
-            col("kf_d_phi_rad")?,
-            col("kryt1_cum")?,
-        );
+        let c = load_criteria(&crit_path)?;
         let mut crit = mcap.add_channel::<Criteria>("/criteria")?;
-        for (k, tk) in i64_column(&c, "t_ns")?.into_iter().enumerate() {
+        for (k, &tk) in c.t_ns.iter().enumerate() {
             let msg = Criteria {
-                theta_n_rad: theta_n[k],
-                phi_n_rad: phi_n[k],
-                theta_p_rad: theta_p[k],
-                phi_p_rad: phi_p[k],
-                d_theta_rad: d_theta[k],
-                d_phi_rad: d_phi[k],
-                kf_d_theta_rad: kf_d_theta[k],
-                kf_d_phi_rad: kf_d_phi[k],
-                kryt1_cum: kryt1_cum[k],
+                theta_n_rad: c.theta_n_rad[k],
+                phi_n_rad: c.phi_n_rad[k],
+                theta_p_rad: c.theta_p_rad[k],
+                phi_p_rad: c.phi_p_rad[k],
+                d_theta_rad: c.d_theta_rad[k],
+                d_phi_rad: c.d_phi_rad[k],
+                kf_d_theta_rad: c.kf_d_theta_rad[k],
+                kf_d_phi_rad: c.kf_d_phi_rad[k],
+                kryt1_cum: c.kryt1_cum[k],
             };
             mcap.write(&mut crit, log_time_of(tk), &msg)?;
         }

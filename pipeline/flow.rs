@@ -5,13 +5,13 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use anyhow::{Context, bail};
-use arrow::array::{BooleanArray, Float64Array, Int64Array, RecordBatch};
+use arrow::array::RecordBatch;
 use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::manifest::RunManifest;
 use unz_formats::parquet_io::{for_each_batch, for_each_batch_of, read_schema, write_batch};
 use unz_formats::schema::{self, META_ODO_M_PER_PULSE};
-use unz_formats::tables::{ImuTable, MarksTable, OdometerTable, f64_column};
+use unz_formats::tables::{CriteriaTable, ImuTable, MarksTable, OdometerTable, f64_column};
 use unz_stages::criteria::{
     self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt1Series, Kryt2, Row3Blocks,
 };
@@ -685,24 +685,25 @@ pub fn ensure_criteria(
 
 fn write_criteria_parquet(path: &Path, d: &Derived, s: &Kryt1Series) -> anyhow::Result<()> {
     let e = &d.epochs;
-    let schema = schema::criteria();
-    let c = |v: &[f64]| Arc::new(Float64Array::from(v.to_vec()));
-    let batch = RecordBatch::try_new(
-        schema,
-        vec![
-            Arc::new(Int64Array::from(d.epoch_t_ns())),
-            c(&s.theta_n_rad),
-            c(&s.phi_n_rad),
-            c(&e.theta_p_rad),
-            c(&e.phi_p_rad),
-            c(&s.d_theta_rad),
-            c(&s.d_phi_rad),
-            c(&s.kf_theta_rad),
-            c(&s.kf_phi_rad),
-            c(&s.kryt1_cum),
-            Arc::new(BooleanArray::from(e.valid.clone())),
-        ],
-    )?;
-    write_batch(path, &batch)?;
+    let table = CriteriaTable {
+        t_ns: d.epoch_t_ns(),
+        theta_n_rad: s.theta_n_rad.clone(),
+        phi_n_rad: s.phi_n_rad.clone(),
+        theta_p_rad: e.theta_p_rad.clone(),
+        phi_p_rad: e.phi_p_rad.clone(),
+        d_theta_rad: s.d_theta_rad.clone(),
+        d_phi_rad: s.d_phi_rad.clone(),
+        kf_d_theta_rad: s.kf_theta_rad.clone(),
+        kf_d_phi_rad: s.kf_phi_rad.clone(),
+        kryt1_cum: s.kryt1_cum.clone(),
+        valid: e.valid.clone(),
+    };
+    write_batch(path, &table.to_batch(schema::criteria())?)?;
     Ok(())
+}
+
+/// Loads `criteria.parquet`.
+pub fn load_criteria(path: &Path) -> anyhow::Result<CriteriaTable> {
+    let (table, _) = load_table::<CriteriaTable>(path, CriteriaTable::extend_from_batch)?;
+    Ok(table)
 }

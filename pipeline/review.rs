@@ -20,7 +20,7 @@ use unz_viz::review::{
 
 use crate::artifacts::{StageName, files};
 use crate::disupt_stage::{DisuptOut, Method, ensure_disupt};
-use crate::flow::{Overrides, Params, RunCtx, ensure_criteria, start_position};
+use crate::flow::{Overrides, Params, RunCtx, ensure_criteria, load_criteria, start_position};
 use crate::method_tables::{
     KRYT1_SERIES, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_step, read_kryt1_series,
     read_tracks,
@@ -236,22 +236,20 @@ pub fn build_review(
         |t_ns: &[i64]| -> Vec<f64> { t_ns.iter().map(|&t| (t - d.t0_ns) as f64 * 1e-9).collect() };
     let start = start_position(m);
 
-    let crit_path = criteria_dir.join(files::CRITERIA);
-    let (_, c) = read_table(&crit_path)?;
-    let col = |n: &str| f64_column(&c, n);
+    let c = load_criteria(&criteria_dir.join(files::CRITERIA))?;
     // The filtered acceleration terms at the same epochs (derive's epochs.parquet).
     let (_, e) = read_table(&derive_dir.join(files::EPOCHS))?;
     let ecol = |n: &str| f64_column(&e, n);
     let epochs = EpochSeries {
-        t_s: rel(&i64_column(&c, "t_ns")?),
-        theta_gyro_rad: col("theta_n_rad")?,
-        phi_gyro_rad: col("phi_n_rad")?,
-        theta_acc_rad: col("theta_p_rad")?,
-        phi_acc_rad: col("phi_p_rad")?,
-        d_theta_rad: col("d_theta_rad")?,
-        d_phi_rad: col("d_phi_rad")?,
-        kf_d_theta_rad: col("kf_d_theta_rad")?,
-        kf_d_phi_rad: col("kf_d_phi_rad")?,
+        t_s: rel(&c.t_ns),
+        theta_gyro_rad: c.theta_n_rad,
+        phi_gyro_rad: c.phi_n_rad,
+        theta_acc_rad: c.theta_p_rad,
+        phi_acc_rad: c.phi_p_rad,
+        d_theta_rad: c.d_theta_rad,
+        d_phi_rad: c.d_phi_rad,
+        kf_d_theta_rad: c.kf_d_theta_rad,
+        kf_d_phi_rad: c.kf_d_phi_rad,
         ax_f_mps2: ecol("ax_f_mps2")?,
         ay_f_mps2: ecol("ay_f_mps2")?,
         u_dot_f_mps2: ecol("u_dot_f_mps2")?,

@@ -274,21 +274,27 @@ pub fn nav(with_sigma: bool) -> SchemaRef {
 
 /// `criteria`: Kryt1's terms per epoch.
 pub fn criteria() -> SchemaRef {
-    let rad = |n: &str| f64_field(n, "rad");
-    Arc::new(Schema::new(vec![
-        time_field(),
-        rad("theta_n_rad"),
-        rad("phi_n_rad"),
-        rad("theta_p_rad"),
-        rad("phi_p_rad"),
-        rad("d_theta_rad"),
-        rad("d_phi_rad"),
-        rad("kf_d_theta_rad"),
-        rad("kf_d_phi_rad"),
-        rad("kryt1_cum"),
-        Field::new("valid", DataType::Boolean, false),
-    ]))
+    let mut fields = vec![time_field()];
+    fields.extend(CRITERIA_FLOATS.iter().map(|n| f64_field(n, "rad")));
+    fields.push(Field::new(VALID, DataType::Boolean, false));
+    Arc::new(Schema::new(fields))
 }
+
+/// The float columns of [`criteria`], in order (all in rad).
+pub const CRITERIA_FLOATS: [&str; 9] = [
+    "theta_n_rad",
+    "phi_n_rad",
+    "theta_p_rad",
+    "phi_p_rad",
+    "d_theta_rad",
+    "d_phi_rad",
+    "kf_d_theta_rad",
+    "kf_d_phi_rad",
+    "kryt1_cum",
+];
+
+/// Column: whether an epoch was used (not gated).
+pub const VALID: &str = "valid";
 
 /// Column: the method a row belongs to (`tracks`, `kryt1_series`).
 pub const METHOD: &str = "method";

@@ -3,8 +3,8 @@
 use std::sync::Arc;
 
 use arrow::array::{
-    Array, ArrayRef, AsArray, FixedSizeListArray, Float64Array, Int64Array, RecordBatch,
-    UInt16Array, UInt32Array, UInt64Array,
+    Array, ArrayRef, AsArray, BooleanArray, FixedSizeListArray, Float64Array, Int64Array,
+    RecordBatch, UInt16Array, UInt32Array, UInt64Array,
 };
 use arrow::buffer::ScalarBuffer;
 use arrow::datatypes::{
@@ -274,6 +274,92 @@ pub fn f64_column(b: &RecordBatch, name: &str) -> Result<Vec<f64>, FormatError> 
     Ok(prim::<Float64Type>(b, name)?.values().to_vec())
 }
 
+/// The criteria at the ΔTg epochs (schema [`schema::criteria`], `criteria.parquet`):
+/// written by the criteria stage, read by export and review.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CriteriaTable {
+    /// Epoch time, ns in the log's time base.
+    pub t_ns: Vec<i64>,
+    /// Filtered gyro (navigated) pitch Θ_N, rad.
+    pub theta_n_rad: Vec<f64>,
+    /// Filtered gyro roll Φ_N, rad.
+    pub phi_n_rad: Vec<f64>,
+    /// Accelerometer pitch Θ_p, rad.
+    pub theta_p_rad: Vec<f64>,
+    /// Accelerometer roll Φ_p, rad.
+    pub phi_p_rad: Vec<f64>,
+    /// Θ_N − Θ_p, rad.
+    pub d_theta_rad: Vec<f64>,
+    /// Φ_N − Φ_p (wrapped), rad.
+    pub d_phi_rad: Vec<f64>,
+    /// The Kalman filter's estimate of the pitch difference, rad.
+    pub kf_d_theta_rad: Vec<f64>,
+    /// The Kalman filter's estimate of the roll difference, rad.
+    pub kf_d_phi_rad: Vec<f64>,
+    /// Kryt1 accumulated up to the epoch, rad.
+    pub kryt1_cum: Vec<f64>,
+    /// Whether the epoch was used (not gated).
+    pub valid: Vec<bool>,
+}
+
+impl CriteriaTable {
+    /// The float columns, in the order of [`schema::CRITERIA_FLOATS`].
+    fn floats(&self) -> [&Vec<f64>; 9] {
+        [
+            &self.theta_n_rad,
+            &self.phi_n_rad,
+            &self.theta_p_rad,
+            &self.phi_p_rad,
+            &self.d_theta_rad,
+            &self.d_phi_rad,
+            &self.kf_d_theta_rad,
+            &self.kf_d_phi_rad,
+            &self.kryt1_cum,
+        ]
+    }
+
+    /// [`CriteriaTable::floats`], to extend.
+    fn floats_mut(&mut self) -> [&mut Vec<f64>; 9] {
+        [
+            &mut self.theta_n_rad,
+            &mut self.phi_n_rad,
+            &mut self.theta_p_rad,
+            &mut self.phi_p_rad,
+            &mut self.d_theta_rad,
+            &mut self.d_phi_rad,
+            &mut self.kf_d_theta_rad,
+            &mut self.kf_d_phi_rad,
+            &mut self.kryt1_cum,
+        ]
+    }
+
+    /// Converts to a record batch of `schema` (from [`schema::criteria`]).
+    pub fn to_batch(&self, schema: SchemaRef) -> Result<RecordBatch, FormatError> {
+        let mut columns: Vec<ArrayRef> = vec![Arc::new(Int64Array::from(self.t_ns.clone()))];
+        columns.extend(
+            self.floats()
+                .into_iter()
+                .map(|v| Arc::new(Float64Array::from(v.clone())) as ArrayRef),
+        );
+        columns.push(Arc::new(BooleanArray::from(self.valid.clone())));
+        batch(schema, columns)
+    }
+
+    /// Appends the rows of a batch.
+    pub fn extend_from_batch(&mut self, b: &RecordBatch) -> Result<(), FormatError> {
+        self.t_ns
+            .extend(prim::<Int64Type>(b, schema::T_NS)?.values().iter());
+        let valid = column(b, schema::VALID)?.as_boolean_opt().ok_or_else(|| {
+            FormatError::Invalid(format!("column {:?} is not Boolean", schema::VALID))
+        })?;
+        self.valid.extend((0..valid.len()).map(|i| valid.value(i)));
+        for (name, v) in schema::CRITERIA_FLOATS.iter().zip(self.floats_mut()) {
+            v.extend(prim::<Float64Type>(b, name)?.values().iter());
+        }
+        Ok(())
+    }
+}
+
 /// Reads a `Float32` column of a batch.
 pub fn f32_column(b: &RecordBatch, name: &str) -> Result<Vec<f32>, FormatError> {
     Ok(prim::<Float32Type>(b, name)?.values().to_vec())
@@ -299,4 +385,45 @@ pub fn vec3_column(b: &RecordBatch, name: &str) -> Result<Vec<[f64; 3]>, FormatE
 /// Builds a 3-vector array (for tables defined by the stages).
 pub fn vec3_to_array(v: &[[f64; 3]]) -> ArrayRef {
     vec3_array(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_criteria_table_reads_back_what_it_wrote() {
+        let v = |k: f64| vec![k, -k, 0.5 * k];
+        let table = CriteriaTable {
+            t_ns: vec![1_000, 2_000, 3_000],
+            theta_n_rad: v(1.0),
+            phi_n_rad: v(2.0),
+            theta_p_rad: v(3.0),
+            phi_p_rad: v(4.0),
+            d_theta_rad: v(5.0),
+            d_phi_rad: v(6.0),
+            kf_d_theta_rad: v(7.0),
+            kf_d_phi_rad: v(8.0),
+            kryt1_cum: v(9.0),
+            valid: vec![true, false, true],
+        };
+        let batch = table.to_batch(schema::criteria()).unwrap();
+        assert_eq!(batch.schema(), schema::criteria());
+        let mut back = CriteriaTable::default();
+        back.extend_from_batch(&batch).unwrap();
+        back.extend_from_batch(&batch.slice(1, 2)).unwrap();
+        let mut want = table.clone();
+        for (w, t) in want.floats_mut().into_iter().zip(table.floats()) {
+            w.extend_from_slice(&t[1..]);
+        }
+        want.t_ns.extend_from_slice(&table.t_ns[1..]);
+        want.valid.extend_from_slice(&table.valid[1..]);
+        assert_eq!(back, want);
+        // A column of the wrong type is named.
+        let e = CriteriaTable::default()
+            .extend_from_batch(&batch.project(&[0, 1, 2, 3, 4, 5, 6, 7, 8, 9]).unwrap())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("\"valid\""), "{e}");
+    }
 }
