@@ -7,7 +7,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use arrow::array::{Float32Array, Float64Array, Int64Array, RecordBatch, StringArray};
-use unz_formats::parquet_io::{read_table, write_batch};
+use unz_formats::parquet_io::{ParquetSink, read_table, write_batch};
 use unz_formats::schema;
 use unz_formats::tables::{f32_column, f64_column, i64_column};
 use unz_stages::criteria::Kryt1Series;
@@ -131,35 +131,32 @@ fn cat<T: Copy>(parts: impl Iterator<Item = Vec<T>>) -> Vec<T> {
     parts.flatten().collect()
 }
 
-/// Writes `tracks.parquet`.
+/// Writes `tracks.parquet`, one method's rows at a time (the methods' columns are not
+/// concatenated in memory first).
 pub fn write_tracks(path: &Path, tracks: &[MethodTrack]) -> anyhow::Result<()> {
     let schema = schema::tracks();
-    let col = |get: fn(&MethodTrack) -> &Vec<f64>| {
-        Arc::new(Float64Array::from(cat(tracks
-            .iter()
-            .map(|t| get(t).clone()))))
-    };
-    let col32 = |get: fn(&MethodTrack) -> &Vec<f32>| {
-        Arc::new(Float32Array::from_iter_values(
-            tracks.iter().flat_map(|t| get(t).iter().copied()),
-        ))
-    };
-    let batch = RecordBatch::try_new(
-        schema,
-        vec![
-            method_column(tracks.iter().map(|t| (t.method.as_str(), t.t_ns.len()))),
-            Arc::new(Int64Array::from(cat(tracks.iter().map(|t| t.t_ns.clone())))),
-            col(|t| &t.lat_deg),
-            col(|t| &t.lon_deg),
-            col32(|t| &t.h_m),
-            col32(|t| &t.north_m),
-            col32(|t| &t.east_m),
-            col32(|t| &t.roll_deg),
-            col32(|t| &t.pitch_deg),
-            col32(|t| &t.heading_deg),
-        ],
-    )?;
-    write_batch(path, &batch)?;
+    let mut sink = ParquetSink::create(path, schema.clone())?;
+    for t in tracks {
+        let f64s = |v: &[f64]| Arc::new(Float64Array::from(v.to_vec()));
+        let f32s = |v: &[f32]| Arc::new(Float32Array::from(v.to_vec()));
+        let batch = RecordBatch::try_new(
+            schema.clone(),
+            vec![
+                method_column(std::iter::once((t.method.as_str(), t.t_ns.len()))),
+                Arc::new(Int64Array::from(t.t_ns.clone())),
+                f64s(&t.lat_deg),
+                f64s(&t.lon_deg),
+                f32s(&t.h_m),
+                f32s(&t.north_m),
+                f32s(&t.east_m),
+                f32s(&t.roll_deg),
+                f32s(&t.pitch_deg),
+                f32s(&t.heading_deg),
+            ],
+        )?;
+        sink.write(&batch)?;
+    }
+    sink.finish()?;
     Ok(())
 }
 
