@@ -401,8 +401,24 @@ impl SummaryValues {
     }
 }
 
-/// Writes `campaign.parquet` and `campaign.md` into `out`.
+/// Removes the temporary files of the summaries (`.campaign.<ext>.<random>.tmp`) that a
+/// run killed while writing them left in `out` (the output folder is this process's
+/// alone: see [`crate::lock`]).
+fn remove_stale_summary_temps(out: &Path) {
+    let Ok(entries) = std::fs::read_dir(out) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.starts_with(".campaign.") && name.ends_with(".tmp") {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
+/// Writes `campaign.parquet`, `campaign.md` and `campaign.html` into `out`.
 pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> {
+    remove_stale_summary_temps(out);
     let mut cols: Vec<(&str, Vec<Option<f64>>)> = SummaryValues::default()
         .columns()
         .iter()
@@ -634,4 +650,31 @@ pub fn merge_summaries(outs: &[PathBuf], dest: &Path) -> anyhow::Result<usize> {
     let merged = arrow::compute::concat_batches(&schema, &batches)?;
     write_batch(dest, &merged)?;
     Ok(merged.num_rows())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_killed_summarys_temporary_files_are_removed_and_nothing_else() {
+        let dir = tempfile::tempdir().unwrap();
+        let names = [
+            ".campaign.md.5GrxMU.tmp",
+            ".campaign.parquet.x1.tmp",
+            ".other.md.x1.tmp",
+            "campaign.md",
+            "unz.lock",
+        ];
+        for n in names {
+            std::fs::write(dir.path().join(n), b"x").unwrap();
+        }
+        remove_stale_summary_temps(dir.path());
+        let mut left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, vec![".other.md.x1.tmp", "campaign.md", "unz.lock"]);
+    }
 }
