@@ -131,19 +131,32 @@ pub fn as_stored(mut d: Derived) -> Derived {
 /// included (u, u̇, ru and r, which the derive computes where it reads them, are not
 /// read back).
 pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
+    load_derived_of(dir, true)
+}
+
+/// [`load_derived`] without the per-sample increments and intervals (left empty): the
+/// times, the filtered block series and the epochs, all the criteria read.
+pub fn load_derived_times(dir: &Path) -> anyhow::Result<Derived> {
+    load_derived_of(dir, false)
+}
+
+fn load_derived_of(dir: &Path, increments: bool) -> anyhow::Result<Derived> {
     let path = dir.join(files::DERIVED);
     // Column by column, batch by batch: the run's series without the file's batches
     // beside them.
     let mut t_ns: Vec<i64> = Vec::new();
     let (mut dt_s, mut odo_dist_m) = (vec![], vec![]);
     let (mut dtheta_rad, mut dvel_mps): (Vec<[f64; 3]>, Vec<[f64; 3]>) = (vec![], vec![]);
-    let columns = ["t_ns", "dt_s", "dtheta_rad", "dvel_mps", "odo_dist_m"];
-    let schema = for_each_batch_of(&path, &columns, |b| {
+    let all = ["t_ns", "dt_s", "dtheta_rad", "dvel_mps", "odo_dist_m"];
+    let columns = if increments { &all[..] } else { &all[..1] };
+    let schema = for_each_batch_of(&path, columns, |b| {
         t_ns.extend(i64_column(b, "t_ns")?);
-        dt_s.extend(f64_column(b, "dt_s")?);
-        dtheta_rad.extend(vec3_column(b, "dtheta_rad")?);
-        dvel_mps.extend(vec3_column(b, "dvel_mps")?);
-        odo_dist_m.extend(f64_column(b, "odo_dist_m")?);
+        if increments {
+            dt_s.extend(f64_column(b, "dt_s")?);
+            dtheta_rad.extend(vec3_column(b, "dtheta_rad")?);
+            dvel_mps.extend(vec3_column(b, "dvel_mps")?);
+            odo_dist_m.extend(f64_column(b, "odo_dist_m")?);
+        }
         Ok(())
     })?;
     let meta = |k: &str| -> anyhow::Result<String> {
@@ -344,6 +357,19 @@ mod tests {
             (0..n).map(|k| d.r_rad_s(k)).collect::<Vec<_>>()
         );
         assert!(speeds.iter().any(|s| s.u_mps > 1.0 && s.ru_mps2 != 0.0));
+        // The times-only load is the whole one without the per-sample increments.
+        let times = load_derived_times(tmp.path()).unwrap();
+        assert!(times.dtheta_rad.is_empty() && times.odo_dist_m.is_empty());
+        assert!(
+            times
+                == Derived {
+                    dt_s: Default::default(),
+                    dtheta_rad: Default::default(),
+                    dvel_mps: Default::default(),
+                    odo_dist_m: Vec::new(),
+                    ..loaded.clone()
+                }
+        );
         // What a stage is handed in memory is what it would load, bit for bit.
         assert!(
             as_stored(d) == loaded,

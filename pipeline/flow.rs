@@ -22,7 +22,7 @@ use unz_stages::initial::{AlignParams, InitialReport, InitialRequest, Source, in
 use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
 
 use crate::artifacts::{RunLayout, StageName, files};
-use crate::derive_io::{as_stored, load_derived, write_derived};
+use crate::derive_io::{as_stored, load_derived, load_derived_times, write_derived};
 use crate::ingest::{OUTPUTS as INGEST_OUTPUTS, ingest};
 use crate::nav_writer::NavWriter;
 use crate::stage::{Stage, params_hash};
@@ -95,6 +95,14 @@ impl RunCtx {
         let d = Arc::new(load_derived(derive_dir)?);
         *memo = Some(d.clone());
         Ok(d)
+    }
+
+    /// The derive in memory, when the chain holds it (nothing is loaded).
+    pub fn kept_derived(&self) -> Option<Arc<Derived>> {
+        self.derived
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
     }
 
     /// Takes the derive out of memory, when the chain holds it: the last stage that reads
@@ -642,7 +650,12 @@ pub fn ensure_criteria(
         outputs: &[files::CRITERIA, files::CRITERIA_REPORT],
     };
     ctx.run_stage(&stage, || {
-        let d = ctx.derived(&derive_dir)?;
+        // The criteria read the derive's times and epochs only: without the chain's derive
+        // in memory, only those are loaded.
+        let d = match ctx.kept_derived() {
+            Some(d) => d,
+            None => Arc::new(load_derived_times(&derive_dir)?),
+        };
         let (marks, _) = load_table::<MarksTable>(
             &ingest_dir.join(files::MARKS),
             MarksTable::extend_from_batch,
