@@ -9,7 +9,9 @@ use std::sync::Arc;
 use anyhow::{Context, bail};
 use arrow::array::{AsArray, BooleanArray, Float64Array, Int64Array, RecordBatch, UInt64Array};
 use arrow::datatypes::UInt64Type;
-use unz_formats::parquet_io::{ParquetSink, for_each_batch_of, read_table, write_batch};
+use unz_formats::parquet_io::{
+    ParquetSink, for_each_batch_of, for_each_batch_of_while, read_table, write_batch,
+};
 use unz_formats::schema::{self, derived_meta};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, Epochs, OdometerSpeed};
@@ -131,31 +133,66 @@ pub fn as_stored(mut d: Derived) -> Derived {
 /// included (u, u̇, ru and r, which the derive computes where it reads them, are not
 /// read back).
 pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
-    load_derived_of(dir, true)
+    load_derived_of(dir, Columns::All)
+}
+
+/// [`load_derived`] without the velocity increments (left empty): what navigation passes
+/// read; the alignment reads the static start's ([`read_velocity_prefix`]).
+pub fn load_derived_for_navigation(dir: &Path) -> anyhow::Result<Derived> {
+    load_derived_of(dir, Columns::WithoutVelocity)
 }
 
 /// [`load_derived`] without the per-sample increments and intervals (left empty): the
 /// times, the filtered block series and the epochs, all the criteria read.
 pub fn load_derived_times(dir: &Path) -> anyhow::Result<Derived> {
-    load_derived_of(dir, false)
+    load_derived_of(dir, Columns::Times)
 }
 
-fn load_derived_of(dir: &Path, increments: bool) -> anyhow::Result<Derived> {
+/// The velocity increments of the first `n` samples of `derived.parquet` in `dir` (the
+/// batches after them are not decoded).
+pub fn read_velocity_prefix(dir: &Path, n: usize) -> anyhow::Result<Vec<[f64; 3]>> {
+    let mut out: Vec<[f64; 3]> = Vec::new();
+    if n == 0 {
+        return Ok(out);
+    }
+    for_each_batch_of_while(&dir.join(files::DERIVED), &["dvel_mps"], |b| {
+        let v = vec3_column(b, "dvel_mps")?;
+        let take = (n - out.len()).min(v.len());
+        out.extend_from_slice(&v[..take]);
+        Ok(out.len() < n)
+    })?;
+    Ok(out)
+}
+
+/// Which per-sample columns of `derived.parquet` a load reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Columns {
+    All,
+    WithoutVelocity,
+    Times,
+}
+
+fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
     let path = dir.join(files::DERIVED);
     // Column by column, batch by batch: the run's series without the file's batches
     // beside them.
     let mut t_ns: Vec<i64> = Vec::new();
     let (mut dt_s, mut odo_dist_m) = (vec![], vec![]);
     let (mut dtheta_rad, mut dvel_mps): (Vec<[f64; 3]>, Vec<[f64; 3]>) = (vec![], vec![]);
-    let all = ["t_ns", "dt_s", "dtheta_rad", "dvel_mps", "odo_dist_m"];
-    let columns = if increments { &all[..] } else { &all[..1] };
-    let schema = for_each_batch_of(&path, columns, |b| {
+    let names: &[&str] = match columns {
+        Columns::All => &["t_ns", "dt_s", "dtheta_rad", "dvel_mps", "odo_dist_m"],
+        Columns::WithoutVelocity => &["t_ns", "dt_s", "dtheta_rad", "odo_dist_m"],
+        Columns::Times => &["t_ns"],
+    };
+    let schema = for_each_batch_of(&path, names, |b| {
         t_ns.extend(i64_column(b, "t_ns")?);
-        if increments {
+        if columns != Columns::Times {
             dt_s.extend(f64_column(b, "dt_s")?);
             dtheta_rad.extend(vec3_column(b, "dtheta_rad")?);
-            dvel_mps.extend(vec3_column(b, "dvel_mps")?);
             odo_dist_m.extend(f64_column(b, "odo_dist_m")?);
+        }
+        if columns == Columns::All {
+            dvel_mps.extend(vec3_column(b, "dvel_mps")?);
         }
         Ok(())
     })?;
@@ -370,6 +407,19 @@ mod tests {
                     ..loaded.clone()
                 }
         );
+        // The navigation load is the whole one without the velocity increments, whose
+        // first samples come apart (asking for more than the run gives the run's).
+        let nav = load_derived_for_navigation(tmp.path()).unwrap();
+        assert!(
+            nav == Derived {
+                dvel_mps: Default::default(),
+                ..loaded.clone()
+            }
+        );
+        for n in [0, 1, 100, 70_000, 1 << 20] {
+            let prefix = read_velocity_prefix(tmp.path(), n).unwrap();
+            assert_eq!(prefix[..], loaded.dvel_mps[..n.min(loaded.dvel_mps.len())]);
+        }
         // What a stage is handed in memory is what it would load, bit for bit.
         assert!(
             as_stored(d) == loaded,

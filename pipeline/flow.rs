@@ -18,11 +18,16 @@ use unz_stages::criteria::{
 use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive_owned};
 use unz_stages::earth::{self, Geodetic};
 use unz_stages::filter::LowPass;
-use unz_stages::initial::{AlignParams, InitialReport, InitialRequest, Source, initial_settings};
+use unz_stages::initial::{
+    AlignParams, InitialReport, InitialRequest, Source, initial_settings_with_velocity,
+    static_samples,
+};
 use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
 
 use crate::artifacts::{RunLayout, StageName, files};
-use crate::derive_io::{as_stored, load_derived, load_derived_times, write_derived};
+use crate::derive_io::{
+    as_stored, load_derived_for_navigation, load_derived_times, read_velocity_prefix, write_derived,
+};
 use crate::ingest::{OUTPUTS as INGEST_OUTPUTS, ingest};
 use crate::nav_writer::NavWriter;
 use crate::stage::{Stage, params_hash};
@@ -66,9 +71,11 @@ pub struct RunCtx {
     pub log: std::sync::Mutex<Vec<(String, bool, f64)>>,
     /// A progress line showing the stage being worked on (campaigns on a terminal).
     pub progress: Option<indicatif::ProgressBar>,
-    /// The derive stage's output in memory, as [`load_derived`] gives it: the stages
-    /// after it in the same process share it instead of each decoding `derived.parquet`.
-    /// Set when the derive is computed or first loaded, cleared when it is recomputed.
+    /// The derive stage's output in memory: the stages after it in the same process share
+    /// it instead of each decoding `derived.parquet`. Set when the derive is computed
+    /// (whole, as [`crate::derive_io::load_derived`] gives it) or first loaded (without its velocity
+    /// increments, which only the alignment's static start and the review read), cleared
+    /// when it is recomputed.
     derived: std::sync::Mutex<Option<Arc<Derived>>>,
 }
 
@@ -86,13 +93,14 @@ impl RunCtx {
     }
 
     /// The derive in `derive_dir` (brought up to date by the caller): the one in memory,
-    /// else loaded and kept.
+    /// else loaded without its velocity increments and kept. Its `dvel_mps` is then empty:
+    /// [`load_case`] reads the static start's apart.
     pub fn derived(&self, derive_dir: &Path) -> anyhow::Result<Arc<Derived>> {
         let mut memo = self.derived.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(d) = memo.as_ref() {
             return Ok(d.clone());
         }
-        let d = Arc::new(load_derived(derive_dir)?);
+        let d = Arc::new(load_derived_for_navigation(derive_dir)?);
         *memo = Some(d.clone());
         Ok(d)
     }
@@ -459,7 +467,17 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         static_s: i.static_s,
         odo_scale,
     };
-    let (settings, initial) = initial_settings(&derived, &req, &params.align, start_position(m));
+    // The alignment reads the velocity increments of the static start only: read apart
+    // when the derive was loaded without them.
+    let prefix;
+    let dvel_mps: &[[f64; 3]] = if derived.dvel_mps.len() == derived.t_s.len() {
+        &derived.dvel_mps
+    } else {
+        prefix = read_velocity_prefix(&derive_dir, static_samples(&derived, &req))?;
+        &prefix
+    };
+    let (settings, initial) =
+        initial_settings_with_velocity(&derived, dvel_mps, &req, &params.align, start_position(m));
     if initial.gyrocompass_skipped.is_some() && fixes.is_empty() {
         bail!(
             "the run has neither a static start nor a control point: without a static start \

@@ -139,7 +139,12 @@ struct RunTimes {
 /// else read from `derived.parquet` batch by batch, only the columns plotted. Either way
 /// the run's per-sample series are never held whole here.
 fn sensor_blocks(ctx: &RunCtx, derive_dir: &Path) -> anyhow::Result<(SensorBlocks, RunTimes)> {
-    if let Some(d) = ctx.take_kept_derived() {
+    // The chain's derive serves when it is whole (loaded by a navigation stage, it lacks
+    // the velocity increments).
+    if let Some(d) = ctx
+        .take_kept_derived()
+        .filter(|d| d.dvel_mps.len() == d.t_s.len())
+    {
         let mut b = SensorBlocksBuilder::at_series_rate(d.nominal_dt_s);
         for (k, speed) in d.odometer_speeds(0..d.t_s.len()).enumerate() {
             b.push(SensorSample {

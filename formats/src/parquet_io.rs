@@ -139,6 +139,23 @@ pub fn for_each_batch_of(
     feed(path, schema, reader, each)
 }
 
+/// [`for_each_batch_of`] that stops, without decoding the rest, after the batch for
+/// which `each` returns `false`.
+pub fn for_each_batch_of_while(
+    path: &Path,
+    columns: &[&str],
+    mut each: impl FnMut(&RecordBatch) -> Result<bool, FormatError>,
+) -> Result<SchemaRef, FileError> {
+    let (schema, reader) = batch_reader(path, Some(columns))?;
+    for batch in reader {
+        let batch = batch.map_err(|e| parquet_err(path, e))?;
+        if !each(&batch).map_err(|e| e.in_file(path))? {
+            break;
+        }
+    }
+    Ok(schema)
+}
+
 /// Hands every batch of `reader` (reading `path`) to `each`; returns `schema`.
 fn feed(
     path: &Path,

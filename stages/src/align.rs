@@ -18,7 +18,21 @@ pub struct StaticMeans {
     pub duration_s: f64,
 }
 
-/// Means of the first samples covering `static_s` seconds (`dt`-weighted).
+/// Number of first samples whose intervals fit in `static_s` seconds: those
+/// [`static_means`] averages (it reads no increment beyond them).
+pub fn static_len(dt_s: &[f64], static_s: f64) -> usize {
+    let mut t = 0.0;
+    for (k, dt) in dt_s.iter().enumerate() {
+        if t + dt > static_s + 1e-9 {
+            return k;
+        }
+        t += dt;
+    }
+    dt_s.len()
+}
+
+/// Means of the first samples covering `static_s` seconds (`dt`-weighted). The
+/// increments need only cover [`static_len`] samples.
 pub fn static_means(
     dt_s: &[f64],
     dtheta_rad: &[[f64; 3]],
@@ -26,10 +40,7 @@ pub fn static_means(
     static_s: f64,
 ) -> StaticMeans {
     let (mut th, mut dv, mut t) = (Vector3::zeros(), Vector3::zeros(), 0.0);
-    for k in 0..dt_s.len() {
-        if t + dt_s[k] > static_s + 1e-9 {
-            break;
-        }
+    for k in 0..static_len(dt_s, static_s) {
         th += Vector3::from(dtheta_rad[k]);
         dv += Vector3::from(dvel_mps[k]);
         t += dt_s[k];

@@ -121,9 +121,34 @@ pub fn detect_static_s(d: &Derived) -> f64 {
     d.t_s.last().copied().unwrap_or(0.0)
 }
 
+/// Length of the static start `initial_settings` averages over, s: the request's, else
+/// detected from the odometer, at most the run.
+pub fn static_start_s(d: &Derived, req: &InitialRequest) -> f64 {
+    req.static_s
+        .unwrap_or_else(|| detect_static_s(d))
+        .min(d.t_s.last().copied().unwrap_or(0.0))
+}
+
+/// Samples of the static start (the only velocity increments [`initial_settings`] reads).
+pub fn static_samples(d: &Derived, req: &InitialRequest) -> usize {
+    crate::align::static_len(&d.dt_s, static_start_s(d, req))
+}
+
 /// Resolves the initial settings of a pass that starts at `start`.
 pub fn initial_settings(
     d: &Derived,
+    req: &InitialRequest,
+    p: &AlignParams,
+    start: Geodetic,
+) -> (NavSettings, InitialReport) {
+    initial_settings_with_velocity(d, &d.dvel_mps, req, p, start)
+}
+
+/// [`initial_settings`] with the velocity increments given apart from the derive: only
+/// the first [`static_samples`] are read, so a derive loaded without them needs no more.
+pub fn initial_settings_with_velocity(
+    d: &Derived,
+    dvel_mps: &[[f64; 3]],
     req: &InitialRequest,
     p: &AlignParams,
     start: Geodetic,
@@ -133,11 +158,8 @@ pub fn initial_settings(
         lon_rad: lon0,
         h_m: h0,
     } = start;
-    let static_s = req
-        .static_s
-        .unwrap_or_else(|| detect_static_s(d))
-        .min(d.t_s.last().copied().unwrap_or(0.0));
-    let means = align::static_means(&d.dt_s, &d.dtheta_rad, &d.dvel_mps, static_s);
+    let static_s = static_start_s(d, req);
+    let means = align::static_means(&d.dt_s, &d.dtheta_rad, dvel_mps, static_s);
     let has_static = means.duration_s >= 5.0;
     let (lev_roll, lev_pitch) = align::level(&means.f_b_mps2);
     // Without a static start, level in motion from the accelerometer references of the
