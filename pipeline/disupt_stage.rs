@@ -564,31 +564,16 @@ fn review_passes(
         .zip(passes)
         .map(|(r, pass)| {
             let d = r.derived;
-            let (mut theta, mut phi) = (Vec::new(), Vec::new());
-            criteria::epoch_attitude_from_sums(
+            let mut series = Kryt1Series::default();
+            let kryt1_rad = criteria::kryt1_from_sums(
                 &d.epochs,
                 &problem.lp,
                 &pass.criteria.row3_sums,
-                &mut scratch,
-                &mut theta,
-                &mut phi,
-            );
-            let mut series = Kryt1Series::default();
-            let kryt1_rad = criteria::kryt1_of(
-                &d.epochs,
                 &problem.kalman,
-                |e| (theta[e], phi[e]),
+                &mut scratch,
                 Some(&mut series),
             );
-            let cps = fixes
-                .iter()
-                .filter_map(|f| {
-                    let (lat, lon) = pass.criteria.position_at(f.sample)?;
-                    let (dx, dy) =
-                        unz_stages::earth::local_offset_m(lat, lon, f.lat_rad, f.lon_rad, f.h_m);
-                    Some(Kryt2::at(f, dx, dy))
-                })
-                .collect();
+            let cps = criteria::kryt2_at(fixes, |k| pass.criteria.position_at(k));
             ReviewOutcome {
                 kryt1_rad,
                 cps,
@@ -723,7 +708,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // One exact pass per method's settings, side by side (the joint's on its own
         // derive's odometer): its trajectory, Kryt1 series and control-point errors, for
         // review. In order of preference for the corrected navigation (the initial
-        // settings, OWPI, OEPI, then joint): the last one's whole track is kept.
+        // settings, OWPI, OEPI, then joint): the last one is the corrected navigation.
         let mut methods = std::collections::BTreeMap::new();
         let mut skipped = std::collections::BTreeMap::new();
         let mut reviewed: Vec<Reviewed<'_>> = vec![Reviewed {

@@ -13,7 +13,7 @@ use unz_formats::parquet_io::{for_each_batch_of, read_schema};
 use unz_formats::ros2_msgs::{
     Attitude, Criteria, Header, NavSatFix, NavSatStatus, Point, Pose, PoseStamped, Quaternion, Time,
 };
-use unz_formats::schema::META_TIME_ORIGIN;
+use unz_formats::schema::{META_TIME_ORIGIN, NAV_STATE};
 use unz_formats::tables::{f64_column, i64_column};
 use unz_stages::attitude::Euler;
 use unz_viz::frames::enu_flu;
@@ -55,16 +55,7 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // The corrected navigation at NAV_RATE_HZ, read batch by batch: only the columns
         // the messages carry, and only the rows they keep.
         let step_ns = (1e9 / NAV_RATE_HZ) as i64;
-        let names = [
-            "lat_deg",
-            "lon_deg",
-            "h_m",
-            "north_m",
-            "east_m",
-            "roll_deg",
-            "pitch_deg",
-            "heading_deg",
-        ];
+        let names = NAV_STATE;
         let mut wanted = vec!["t_ns"];
         wanted.extend(names);
         let mut t: Vec<i64> = Vec::new();

@@ -206,18 +206,12 @@ fn method_ranges(
 pub fn read_tracks(path: &Path) -> anyhow::Result<Vec<MethodTrack>> {
     let (_, b) = read_table(path)?;
     let t = i64_column(&b, "t_ns")?;
-    let (lat, lon) = (f64_column(&b, "lat_deg")?, f64_column(&b, "lon_deg")?);
-    let cols: Vec<Vec<f32>> = [
-        "h_m",
-        "north_m",
-        "east_m",
-        "roll_deg",
-        "pitch_deg",
-        "heading_deg",
-    ]
-    .iter()
-    .map(|n| f32_column(&b, n))
-    .collect::<Result<_, _>>()?;
+    let [lat, lon, rest @ ..] = schema::NAV_STATE;
+    let (lat, lon) = (f64_column(&b, lat)?, f64_column(&b, lon)?);
+    let cols: Vec<Vec<f32>> = rest
+        .iter()
+        .map(|n| f32_column(&b, n))
+        .collect::<Result<_, _>>()?;
     Ok(method_ranges(&b, path)?
         .into_iter()
         .map(|(method, r)| MethodTrack {

@@ -133,10 +133,9 @@ type BatchReader = parquet::arrow::arrow_reader::ParquetRecordBatchReader;
 pub fn for_each_batch_of(
     path: &Path,
     columns: &[&str],
-    each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
+    mut each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
 ) -> Result<SchemaRef, FileError> {
-    let (schema, reader) = batch_reader(path, Some(columns))?;
-    feed(path, schema, reader, each)
+    for_each_batch_of_while(path, columns, |b| each(b).map(|()| true))
 }
 
 /// [`for_each_batch_of`] that stops, without decoding the rest, after the batch for
@@ -144,9 +143,20 @@ pub fn for_each_batch_of(
 pub fn for_each_batch_of_while(
     path: &Path,
     columns: &[&str],
-    mut each: impl FnMut(&RecordBatch) -> Result<bool, FormatError>,
+    each: impl FnMut(&RecordBatch) -> Result<bool, FormatError>,
 ) -> Result<SchemaRef, FileError> {
     let (schema, reader) = batch_reader(path, Some(columns))?;
+    feed(path, schema, reader, each)
+}
+
+/// Hands the batches of `reader` (reading `path`) to `each` until it returns `false`;
+/// returns `schema`.
+fn feed(
+    path: &Path,
+    schema: SchemaRef,
+    reader: BatchReader,
+    mut each: impl FnMut(&RecordBatch) -> Result<bool, FormatError>,
+) -> Result<SchemaRef, FileError> {
     for batch in reader {
         let batch = batch.map_err(|e| parquet_err(path, e))?;
         if !each(&batch).map_err(|e| e.in_file(path))? {
@@ -156,28 +166,14 @@ pub fn for_each_batch_of_while(
     Ok(schema)
 }
 
-/// Hands every batch of `reader` (reading `path`) to `each`; returns `schema`.
-fn feed(
-    path: &Path,
-    schema: SchemaRef,
-    reader: BatchReader,
-    mut each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
-) -> Result<SchemaRef, FileError> {
-    for batch in reader {
-        let batch = batch.map_err(|e| parquet_err(path, e))?;
-        each(&batch).map_err(|e| e.in_file(path))?;
-    }
-    Ok(schema)
-}
-
 /// Reads a Parquet file batch by batch, handing each to `each`: a whole run's columns
 /// are built without the file's batches held beside them. Returns the schema.
 pub fn for_each_batch(
     path: &Path,
-    each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
+    mut each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
 ) -> Result<SchemaRef, FileError> {
     let (schema, reader) = batch_reader(path, None)?;
-    feed(path, schema, reader, each)
+    feed(path, schema, reader, |b| each(b).map(|()| true))
 }
 
 /// Reads a whole Parquet file: its schema and batches.

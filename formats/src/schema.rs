@@ -112,18 +112,25 @@ pub fn nav_state_fields() -> Vec<Field> {
     // Latitude and longitude need f64 (f32 degrees resolve only about a metre); the rest
     // in f32 resolves far below what the navigation knows (millimetres at 100 km,
     // 2e-5° in attitude) and halves the files.
-    let f = |n: &str, unit: &str| scalar(n, DataType::Float32, false, unit);
-    vec![
-        f64_field("lat_deg", "deg"),
-        f64_field("lon_deg", "deg"),
-        f("h_m", "m"),
-        f("north_m", "m"),
-        f("east_m", "m"),
-        f("roll_deg", "deg"),
-        f("pitch_deg", "deg"),
-        f("heading_deg", "deg"),
-    ]
+    let [lat, lon, rest @ ..] = NAV_STATE;
+    let mut fields = vec![f64_field(lat, "deg"), f64_field(lon, "deg")];
+    let units = ["m", "m", "m", "deg", "deg", "deg"];
+    fields.extend(rest.iter().zip(units).map(|(n, unit)| f32_field(n, unit)));
+    fields
 }
+
+/// The columns of [`nav_state_fields`], in order: latitude and longitude (f64), then
+/// height, north, east, roll, pitch and heading (f32).
+pub const NAV_STATE: [&str; 8] = [
+    "lat_deg",
+    "lon_deg",
+    "h_m",
+    "north_m",
+    "east_m",
+    "roll_deg",
+    "pitch_deg",
+    "heading_deg",
+];
 
 /// Schema metadata key of `truth`: the true settings as JSON.
 pub const META_TRUE_SETTINGS: &str = "unz.true_settings";

@@ -424,46 +424,26 @@ pub fn odometer_increments(d: &Derived, raw: &RawSeries<'_>, offset_s: f64) -> V
 /// per-sample series of the run's length beside the increments.
 pub fn odometer_blocks(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64, lp: &LowPass) {
     out.odo_dist_m = odometer_increments(out, raw, offset_s);
-    let n = out.t_s.len();
-    let blocks = lp.blocks(n);
-    let mut means = [
-        &mut out.u_dot_f,
-        &mut out.ru_f,
-        &mut out.r_moving_f,
-        &mut out.moving_dot_f,
-    ];
+    let d = &*out;
+    let moving = |k: usize| f64::from(u8::from(d.odo_dist_m[k] != 0.0));
+    let samples = d.odometer_speeds(0..d.t_s.len()).enumerate().map(|(k, s)| {
+        let moving_dot = if k == 0 {
+            0.0
+        } else {
+            (moving(k) - moving(k - 1)) / d.dt_s[k]
+        };
+        [
+            s.u_dot_mps2,
+            s.ru_mps2,
+            d.r_rad_s(k) * moving(k),
+            moving_dot,
+        ]
+    });
+    let mut means = lp.block_means_of(samples);
     for m in &mut means {
-        m.clear();
-        m.reserve(blocks);
-    }
-    // One block of each per-sample series at a time; its mean exactly as `LowPass::apply`
-    // takes it.
-    let mut chunk = vec![[0.0; 4]; lp.block.max(1)];
-    let (mut prev_u, mut prev_moving) = (0.0, 0.0);
-    for lo in (0..n).step_by(lp.block.max(1)) {
-        let hi = (lo + lp.block.max(1)).min(n);
-        for k in lo..hi {
-            let dt = out.dt_s[k];
-            let u = out.odo_dist_m[k] / dt;
-            let moving = f64::from(u8::from(out.odo_dist_m[k] != 0.0));
-            // `Derived::r_rad_s` (its fields borrowed apart).
-            let r = out.dtheta_rad[k][2] / dt;
-            let (u_dot, moving_dot) = if k == 0 {
-                (0.0, 0.0)
-            } else {
-                ((u - prev_u) / dt, (moving - prev_moving) / dt)
-            };
-            chunk[k - lo] = [u_dot, r * u, r * moving, moving_dot];
-            (prev_u, prev_moving) = (u, moving);
-        }
-        let c = &chunk[..hi - lo];
-        for (q, m) in means.iter_mut().enumerate() {
-            m.push(c.iter().map(|v| v[q]).sum::<f64>() / c.len() as f64);
-        }
-    }
-    for m in means {
         lp.filter_blocks(m);
     }
+    [out.u_dot_f, out.ru_f, out.r_moving_f, out.moving_dot_f] = means;
 }
 
 /// Eqs 7–8 at the epochs (one every ΔTg), from the filtered block series of `d`.

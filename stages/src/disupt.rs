@@ -1098,9 +1098,7 @@ impl JointModel {
             a,
         }
     }
-}
 
-impl JointModel {
     /// The model's least-squares step `δ` from `p_ref` (Levenberg–Marquardt).
     fn solve(&self) -> Result<DVector<f64>, DisuptError> {
         let (solved, report) = LevenbergMarquardt::new().minimize(LinearStep {

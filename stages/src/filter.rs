@@ -92,31 +92,41 @@ impl LowPass {
         n.div_ceil(self.block)
     }
 
-    /// Block means of `x` into `out` (resized), then filtered.
+    /// Block means of `x` into `out` (replaced), then filtered.
     pub fn apply(&self, x: &[f64], out: &mut Vec<f64>) {
-        out.clear();
-        out.extend(
-            x.chunks(self.block)
-                .map(|c| c.iter().sum::<f64>() / c.len() as f64),
-        );
+        *out = self.block_means(x.iter().copied());
         self.biquad.filtfilt(out);
     }
 
     /// Block means of the series `x` (unfiltered), taken as its values come: what
-    /// [`LowPass::apply`] filters, bit for bit, without the series held whole.
+    /// [`LowPass::apply`] filters, without the series held whole.
     pub fn block_means(&self, x: impl Iterator<Item = f64>) -> Vec<f64> {
-        let (lower, _) = x.size_hint();
-        let mut out = Vec::with_capacity(self.blocks(lower));
-        let mut chunk = Vec::with_capacity(self.block);
+        let [means] = self.block_means_of(x.map(|v| [v]));
+        means
+    }
+
+    /// [`LowPass::block_means`] of `N` series whose values come together.
+    pub fn block_means_of<const N: usize>(
+        &self,
+        x: impl Iterator<Item = [f64; N]>,
+    ) -> [Vec<f64>; N] {
+        let blocks = self.blocks(x.size_hint().0);
+        let mut out: [Vec<f64>; N] = std::array::from_fn(|_| Vec::with_capacity(blocks));
+        let mut chunk: Vec<[f64; N]> = Vec::with_capacity(self.block);
+        let close = |chunk: &mut Vec<[f64; N]>, out: &mut [Vec<f64>; N]| {
+            for (q, means) in out.iter_mut().enumerate() {
+                means.push(chunk.iter().map(|v| v[q]).sum::<f64>() / chunk.len() as f64);
+            }
+            chunk.clear();
+        };
         for v in x {
             chunk.push(v);
             if chunk.len() == self.block {
-                out.push(chunk.iter().sum::<f64>() / chunk.len() as f64);
-                chunk.clear();
+                close(&mut chunk, &mut out);
             }
         }
         if !chunk.is_empty() {
-            out.push(chunk.iter().sum::<f64>() / chunk.len() as f64);
+            close(&mut chunk, &mut out);
         }
         out
     }

@@ -218,12 +218,6 @@ impl<S: PassSink> PassSink for Option<S> {
     }
 }
 
-/// A pass whose samples nobody reads.
-impl PassSink for () {
-    #[inline(always)]
-    fn sample(&mut self, _: usize, _: f64, _: f64, _: f64, _: &[f64; 4], _: f64) {}
-}
-
 /// Runs the navigation over all samples, writing `track` (resized to the input length).
 pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
     track.resize(inputs.len());
@@ -373,16 +367,7 @@ fn run_criteria_on<const N: usize>(
     positions_at: &[usize],
     sinks: &mut [CriteriaSink; N],
 ) {
-    for sink in sinks.iter_mut() {
-        sink.reset(block, positions_at.iter().copied());
-    }
-    let mut lanes_sink = CriteriaLanes {
-        next_wanted: sinks.first().and_then(|s| s.wanted.last().copied()),
-        sinks,
-        block: block.max(1),
-        acc: [[0.0; N]; 3],
-        in_block: 0,
-    };
+    let mut lanes_sink = CriteriaLanes::new(sinks, block, positions_at);
     Lanes::<N>::new(settings).run_on(inputs, odometer, &mut lanes_sink);
     lanes_sink.close_block();
 }
@@ -429,17 +414,8 @@ pub fn run_review<const N: usize>(
         "an odometer series shorter than the IMU's"
     );
     let mut sinks: [CriteriaSink; N] = std::array::from_fn(|_| CriteriaSink::default());
-    for sink in &mut sinks {
-        sink.reset(block, positions_at.iter().copied());
-    }
     let mut review = ReviewLanes {
-        criteria: CriteriaLanes {
-            next_wanted: sinks.first().and_then(|s| s.wanted.last().copied()),
-            sinks: &mut sinks,
-            block: block.max(1),
-            acc: [[0.0; N]; 3],
-            in_block: 0,
-        },
+        criteria: CriteriaLanes::new(&mut sinks, block, positions_at),
         keep,
         next: 0,
         rows: std::array::from_fn(|_| Vec::with_capacity(keep.len())),
@@ -549,7 +525,22 @@ struct CriteriaLanes<'a, const N: usize> {
     next_wanted: Option<usize>,
 }
 
-impl<const N: usize> CriteriaLanes<'_, N> {
+impl<'a, const N: usize> CriteriaLanes<'a, N> {
+    /// Feeds `sinks`, each reset first for blocks of `block` samples and the positions at
+    /// `positions_at`.
+    fn new(sinks: &'a mut [CriteriaSink; N], block: usize, positions_at: &[usize]) -> Self {
+        for sink in sinks.iter_mut() {
+            sink.reset(block, positions_at.iter().copied());
+        }
+        Self {
+            next_wanted: sinks.first().and_then(|s| s.wanted.last().copied()),
+            sinks,
+            block: block.max(1),
+            acc: [[0.0; N]; 3],
+            in_block: 0,
+        }
+    }
+
     fn close_block(&mut self) {
         if self.in_block > 0 {
             for (l, sink) in self.sinks.iter_mut().enumerate() {

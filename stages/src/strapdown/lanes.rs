@@ -14,7 +14,6 @@ use crate::earth;
 /// Samples between renormalisations of the attitude quaternion.
 const RENORMALISE_EVERY: usize = 64;
 
-/// What a run does with the lanes' state after each sample.
 /// Each lane's odometer increment at a sample, from the inputs' own increment there.
 pub(super) trait OdometerLanes<const N: usize> {
     fn at(&self, k: usize, shared_m: f64) -> [f64; N];
@@ -41,6 +40,7 @@ impl<const N: usize> OdometerLanes<N> for OdometerPerLane<'_, N> {
     }
 }
 
+/// What a run does with the lanes' state after each sample.
 pub(super) trait Emit<const N: usize> {
     /// After sample `k`.
     fn emit(&mut self, k: usize, lanes: &Lanes<N>);
