@@ -10,7 +10,8 @@ use anyhow::{Context, bail};
 use arrow::array::{AsArray, BooleanArray, Float64Array, Int64Array, RecordBatch, UInt64Array};
 use arrow::datatypes::UInt64Type;
 use unz_formats::parquet_io::{
-    ParquetSink, for_each_batch_of, for_each_batch_of_while, read_table, write_batch,
+    ParquetSink, for_each_batch_of, for_each_batch_of_while, read_table, row_capacity_hint,
+    write_batch,
 };
 use unz_formats::schema::{self, derived_meta};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
@@ -174,24 +175,33 @@ enum Columns {
 
 fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
     let path = dir.join(files::DERIVED);
-    // Column by column, batch by batch: the run's series without the file's batches
-    // beside them.
-    let mut t_ns: Vec<i64> = Vec::new();
-    let (mut dt_s, mut odo_dist_m) = (vec![], vec![]);
-    let (mut dtheta_rad, mut dvel_mps): (Vec<[f64; 3]>, Vec<[f64; 3]>) = (vec![], vec![]);
+    // Column by column, batch by batch, each column sized to the file's rows once: the
+    // run's series without the file's batches beside them, nor a column grown twice
+    // over. Times go to seconds from the first as they are read.
+    let rows = row_capacity_hint(&path)?;
+    let per_sample = |wanted: bool| if wanted { rows } else { 0 };
+    let (with_nav, with_velocity) = (columns != Columns::Times, columns == Columns::All);
+    let mut t0_ns: Option<i64> = None;
+    let mut t_s: Vec<f64> = Vec::with_capacity(rows);
+    let mut dt_s = Vec::with_capacity(per_sample(with_nav));
+    let mut odo_dist_m = Vec::with_capacity(per_sample(with_nav));
+    let mut dtheta_rad: Vec<[f64; 3]> = Vec::with_capacity(per_sample(with_nav));
+    let mut dvel_mps: Vec<[f64; 3]> = Vec::with_capacity(per_sample(with_velocity));
     let names: &[&str] = match columns {
         Columns::All => &["t_ns", "dt_s", "dtheta_rad", "dvel_mps", "odo_dist_m"],
         Columns::WithoutVelocity => &["t_ns", "dt_s", "dtheta_rad", "odo_dist_m"],
         Columns::Times => &["t_ns"],
     };
     let schema = for_each_batch_of(&path, names, |b| {
-        t_ns.extend(i64_column(b, "t_ns")?);
-        if columns != Columns::Times {
+        let t_ns = i64_column(b, "t_ns")?;
+        let t0 = *t0_ns.get_or_insert(t_ns.first().copied().unwrap_or(0));
+        t_s.extend(t_ns.iter().map(|t| (t - t0) as f64 * 1e-9));
+        if with_nav {
             dt_s.extend(f64_column(b, "dt_s")?);
             dtheta_rad.extend(vec3_column(b, "dtheta_rad")?);
             odo_dist_m.extend(f64_column(b, "odo_dist_m")?);
         }
-        if columns == Columns::All {
+        if with_velocity {
             dvel_mps.extend(vec3_column(b, "dvel_mps")?);
         }
         Ok(())
@@ -203,11 +213,10 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
             .cloned()
             .with_context(|| format!("{} lacks metadata {k}", path.display()))
     };
-    let t0_ns = t_ns.first().copied().unwrap_or(0);
     let mut d = Derived {
-        t0_ns,
+        t0_ns: t0_ns.unwrap_or(0),
         nominal_dt_s: meta(derived_meta::NOMINAL_DT_S)?.parse()?,
-        t_s: Arc::new(t_ns.iter().map(|t| (t - t0_ns) as f64 * 1e-9).collect()),
+        t_s: Arc::new(t_s),
         dt_s: dt_s.into(),
         dtheta_rad: dtheta_rad.into(),
         dvel_mps: dvel_mps.into(),
@@ -242,7 +251,7 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
         block: blocks.values().iter().map(|&b| b as usize).collect(),
         t_s: i64_column(&e, "t_ns")?
             .iter()
-            .map(|t| (t - t0_ns) as f64 * 1e-9)
+            .map(|t| (t - d.t0_ns) as f64 * 1e-9)
             .collect(),
         theta_p_rad: f64_column(&e, "theta_p_rad")?,
         phi_p_rad: f64_column(&e, "phi_p_rad")?,

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use unz_formats::atomic::{write_atomic, write_json_atomic};
 use unz_formats::manifest::{LogFormat, OdometerKind};
-use unz_stages::criteria::{self, ControlPointFix, Kryt1Scratch, Kryt1Series, Kryt2};
+use unz_stages::criteria::{self, ControlPointFix, Kryt1Series, Kryt2};
 use unz_stages::derive::Derived;
 use unz_stages::disupt::{
     self, Holdout, JointFit, JointOptions, MethodResult, Problem, ProblemSpec, X, joint_fit,
@@ -394,13 +394,20 @@ fn method_out(r: &MethodResult, base: &NavSettings, lag: Lag, cps: Vec<Kryt2>) -
 /// Step of the lag in the route's sensitivity, s.
 const LAG_STEP_S: f64 = 0.05;
 
+/// Whether the route's σ of `run` has a lag part: a lag estimated with a σ, and a
+/// covariance for the rest.
+fn route_sigma_has_lag(run: &JointRun) -> bool {
+    run.fit.covariance.is_some() && run.profile.is_some() && run.lag.sigma_s > 0.0
+}
+
 /// σ of the joint's corrected route (`base`, taken from the pass at its settings): the fit's
 /// covariance through one moved pass per estimated setting, and the lag's variance
-/// through a pass on the derive at the moved lag.
+/// through a pass on the odometer increments at the moved lag (`lag_odo_dist_m`, when
+/// [`route_sigma_has_lag`]).
 fn joint_route_sigma(
     problem: &Problem<'_>,
     run: &JointRun,
-    rederive: &Rederive<'_>,
+    lag_odo_dist_m: Option<&[f64]>,
     base: &RouteBase<'_>,
 ) -> Option<RouteSigma> {
     let fit = &run.fit;
@@ -416,14 +423,12 @@ fn joint_route_sigma(
         })
         .collect();
     let m = moved.len();
-    let lag_odo_dist_m;
     let mut c = cov.clone();
-    if run.profile.is_some() && run.lag.sigma_s > 0.0 {
+    if let Some(odo_dist_m) = lag_odo_dist_m.filter(|_| route_sigma_has_lag(run)) {
         // Only the odometer's increments move with the lag.
-        lag_odo_dist_m = rederive.odo_dist_at(run.lag.lag_s + LAG_STEP_S);
         moved.push(Moved {
             inputs: NavInputs {
-                odo_dist_m: &lag_odo_dist_m,
+                odo_dist_m,
                 ..problem.inputs
             },
             settings: problem.settings(&fit.result.x),
@@ -558,19 +563,17 @@ fn review_passes(
             track,
         },
     );
-    let mut scratch = Kryt1Scratch::default();
     reviewed
         .iter()
         .zip(passes)
-        .map(|(r, pass)| {
+        .map(|(r, mut pass)| {
             let d = r.derived;
             let mut series = Kryt1Series::default();
-            let kryt1_rad = criteria::kryt1_from_sums(
+            let kryt1_rad = criteria::kryt1_from_blocks(
                 &d.epochs,
                 &problem.lp,
-                &pass.criteria.row3_sums,
+                std::mem::take(&mut pass.criteria.blocks),
                 &problem.kalman,
-                &mut scratch,
                 Some(&mut series),
             );
             let cps = criteria::kryt2_at(fixes, |k| pass.criteria.position_at(k));
@@ -697,9 +700,15 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 crate::memory::rss_suffix()
             ),
         );
-        let joint_derived = joint_result
-            .as_ref()
-            .and_then(|r| r.as_ref().ok())
+        // The route σ's lag pass reads the odometer at the moved lag: taken now, so that the
+        // ingested odometer and its re-derives go before the review passes.
+        let joint_run = joint_result.as_ref().and_then(|r| r.as_ref().ok());
+        let lag_odo_dist_m = joint_run
+            .filter(|run| route_sigma_has_lag(run))
+            .map(|run| rederive.odo_dist_at(run.lag.lag_s + LAG_STEP_S));
+        drop(rederive);
+        drop(odometer);
+        let joint_derived = joint_run
             .and_then(|r| r.derived.as_ref())
             .unwrap_or(&case.derived);
         let joint_problem = spec.on(joint_derived);
@@ -795,14 +804,12 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             lap("holdout");
             out.lag_profile = run.profile.clone();
             methods.insert("joint".to_owned(), out);
-            route_sigma = route_base
-                .as_ref()
-                .and_then(|base| joint_route_sigma(&joint_problem, run, &rederive, base));
+            route_sigma = route_base.as_ref().and_then(|base| {
+                joint_route_sigma(&joint_problem, run, lag_odo_dist_m.as_deref(), base)
+            });
         }
         lap("route sigma");
-        // Re-derives are done: the ingested odometer goes before the writing.
-        drop(rederive);
-        drop(odometer);
+        drop(lag_odo_dist_m);
         // The corrected navigation (the best method's, else the initial settings') written
         // as its pass runs, beside the other tables.
         let corrected = &reviewed[reviewed.len() - 1];

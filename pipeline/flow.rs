@@ -9,11 +9,13 @@ use arrow::array::RecordBatch;
 use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::manifest::RunManifest;
-use unz_formats::parquet_io::{for_each_batch, for_each_batch_of, read_schema, write_batch};
+use unz_formats::parquet_io::{
+    for_each_batch, for_each_batch_of, read_schema, row_capacity_hint, write_batch,
+};
 use unz_formats::schema::{self, META_ODO_M_PER_PULSE};
 use unz_formats::tables::{CriteriaTable, ImuTable, MarksTable, OdometerTable, f64_column};
 use unz_stages::criteria::{
-    self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt1Series, Kryt2, Row3Blocks,
+    self, BlockAttitude, ControlPointFix, KalmanParams, Kryt1Series, Kryt2, Row3Blocks,
 };
 use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive_owned};
 use unz_stages::earth::{self, Geodetic};
@@ -198,13 +200,16 @@ fn load_table<T: Default>(
     Ok((t, schema))
 }
 
-/// [`load_table`] of the top-level `columns` only (the others are not decoded).
-fn load_columns<T: Default>(
+/// [`load_table`] of the top-level `columns` only (the others are not decoded), into the
+/// table `with_capacity` makes with room for the file's rows
+/// ([`row_capacity_hint`]), so that no column grows twice over.
+fn load_columns<T>(
     path: &Path,
     columns: &[&str],
+    with_capacity: impl FnOnce(usize) -> T,
     extend: impl Fn(&mut T, &RecordBatch) -> Result<(), unz_formats::FormatError>,
 ) -> anyhow::Result<T> {
-    let mut t = T::default();
+    let mut t = with_capacity(row_capacity_hint(path)?);
     for_each_batch_of(path, columns, |b| extend(&mut t, b))?;
     Ok(t)
 }
@@ -299,9 +304,10 @@ impl IngestedSeries {
     /// Loads `imu.parquet` and `odometer.parquet` of an ingest folder: the columns derive
     /// reads (not the IMU's sequence numbers nor the odometer's pulse counts).
     pub fn load(ingest_dir: &Path) -> anyhow::Result<Self> {
-        let imu = load_columns::<ImuTable>(
+        let imu = load_columns(
             &ingest_dir.join(files::IMU),
             &ImuTable::SERIES_COLUMNS,
+            ImuTable::with_series_capacity,
             ImuTable::extend_series_from_batch,
         )?;
         if imu.is_empty() {
@@ -314,9 +320,10 @@ impl IngestedSeries {
     /// Loads `odometer.parquet` of an ingest folder alone, its times and distances (all a
     /// re-derive at another odometer timing reads).
     pub fn load_odometer(ingest_dir: &Path) -> anyhow::Result<OdometerTable> {
-        let odo = load_columns::<OdometerTable>(
+        let odo = load_columns(
             &ingest_dir.join(files::ODOMETER),
             &OdometerTable::SERIES_COLUMNS,
+            OdometerTable::with_series_capacity,
             OdometerTable::extend_series_from_batch,
         )?;
         if odo.is_empty() {
@@ -599,15 +606,16 @@ pub struct CriteriaSummary {
 /// (sample, latitude rad, longitude rad).
 type Position = (usize, f64, f64);
 
-/// What the criteria read of `nav.parquet`, batch by batch (the track is never held
-/// whole): the sums of `C_b^n`'s third row per block of `block` samples, and the
-/// positions (sample, latitude rad, longitude rad) at the samples `at`.
+/// What the criteria read of `nav.parquet` (`samples` rows), batch by batch (the track is
+/// never held whole): the attitude per block of `block` samples, and the positions
+/// (sample, latitude rad, longitude rad) at the samples `at`.
 fn read_nav_for_criteria(
     path: &Path,
+    samples: usize,
     block: usize,
     at: &[usize],
-) -> anyhow::Result<(Vec<[f64; 3]>, Vec<Position>)> {
-    let mut blocks = Row3Blocks::new(block);
+) -> anyhow::Result<(BlockAttitude, Vec<Position>)> {
+    let mut blocks = Row3Blocks::for_samples(samples, block);
     let mut positions = Vec::new();
     let mut k0 = 0;
     let columns = ["lat_deg", "lon_deg", "roll_deg", "pitch_deg", "heading_deg"];
@@ -682,17 +690,15 @@ pub fn ensure_criteria(
             .with_context(|| format!("in {}", m.path.display()))?;
         let lp = LowPass::new(&params.derive.filter, d.nominal_dt_s);
         let fix_samples: Vec<usize> = fixes.iter().map(|f| f.sample).collect();
-        let (row3_sums, positions) =
-            read_nav_for_criteria(&nav_dir.join(files::NAV), lp.block, &fix_samples)?;
+        let (blocks, positions) = read_nav_for_criteria(
+            &nav_dir.join(files::NAV),
+            d.t_s.len(),
+            lp.block,
+            &fix_samples,
+        )?;
         let mut series = Kryt1Series::default();
-        let k1 = criteria::kryt1_from_sums(
-            &d.epochs,
-            &lp,
-            &row3_sums,
-            &params.kalman,
-            &mut Kryt1Scratch::default(),
-            Some(&mut series),
-        );
+        let k1 =
+            criteria::kryt1_from_blocks(&d.epochs, &lp, blocks, &params.kalman, Some(&mut series));
         write_criteria_parquet(&dir.join(files::CRITERIA), &d, &series)?;
         let cps = criteria::kryt2_at(&fixes, |k| {
             positions

@@ -88,9 +88,18 @@ pub fn method_track(
     rows: &[TrackRow],
     start: Geodetic,
 ) -> MethodTrack {
+    let n = keep.len().min(rows.len());
     let mut m = MethodTrack {
         method: method.to_owned(),
-        ..MethodTrack::default()
+        t_ns: Vec::with_capacity(n),
+        lat_deg: Vec::with_capacity(n),
+        lon_deg: Vec::with_capacity(n),
+        h_m: Vec::with_capacity(n),
+        north_m: Vec::with_capacity(n),
+        east_m: Vec::with_capacity(n),
+        roll_deg: Vec::with_capacity(n),
+        pitch_deg: Vec::with_capacity(n),
+        heading_deg: Vec::with_capacity(n),
     };
     for (&k, (lat, lon, h, q)) in keep.iter().zip(rows) {
         let (n, e) = start.offset_m(*lat, *lon);

@@ -101,6 +101,20 @@ pub fn read_schema(path: &Path) -> Result<SchemaRef, FileError> {
     Ok(builder.schema().clone())
 }
 
+/// How many rows to make room for before reading a Parquet file batch by batch: the
+/// row count its footer states, but never more than the file's length in bytes, so that
+/// a footer that lies cannot make a reader reserve more than the file's size says. It
+/// is only a hint: the run-length files this pipeline reads hold many bytes per row, and
+/// a reader's columns still grow past it if the file has more rows.
+pub fn row_capacity_hint(path: &Path) -> Result<usize, FileError> {
+    let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
+    let len = file.metadata().map_err(|e| io_in_file(path, e))?.len();
+    let builder =
+        ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| parquet_err(path, e))?;
+    let rows = u64::try_from(builder.metadata().file_metadata().num_rows()).unwrap_or(0);
+    Ok(usize::try_from(rows.min(len)).unwrap_or(0))
+}
+
 /// A reader of a Parquet file's batches (of 65 536 rows), and its schema; only the
 /// top-level `columns` named, when given (a name the file lacks is left out).
 fn batch_reader(
@@ -191,4 +205,48 @@ pub fn read_table(path: &Path) -> Result<(SchemaRef, RecordBatch), FileError> {
     let batch =
         arrow::compute::concat_batches(&schema, &batches).map_err(|e| parquet_err(path, e))?;
     Ok((schema, batch))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use arrow::array::Float64Array;
+    use arrow::datatypes::{Field, Schema};
+    use std::sync::Arc;
+
+    #[test]
+    fn the_row_hint_is_the_footers_count_within_the_files_size() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let schema = Arc::new(Schema::new(vec![Field::new("x", DataType::Float64, false)]));
+        let write = |name: &str, values: Vec<f64>| {
+            let path = dir.path().join(name);
+            let batch =
+                RecordBatch::try_new(schema.clone(), vec![Arc::new(Float64Array::from(values))])
+                    .expect("batch");
+            write_batch(&path, &batch).expect("written");
+            path
+        };
+        // Noisy values: many bytes per row, so the footer's count stands.
+        let noisy = write(
+            "noisy.parquet",
+            (0..5000).map(|k| (k as f64).sin()).collect(),
+        );
+        assert_eq!(row_capacity_hint(&noisy).expect("hint"), 5000);
+        // A constant column compresses to fewer bytes than rows: the file's size bounds
+        // the hint, and reading still gives every row.
+        let flat = write("flat.parquet", vec![1.0; 200_000]);
+        let bytes = std::fs::metadata(&flat).expect("size").len() as usize;
+        assert!(bytes < 200_000);
+        assert_eq!(row_capacity_hint(&flat).expect("hint"), bytes);
+        let mut rows = 0;
+        for_each_batch(&flat, |b| {
+            rows += b.num_rows();
+            Ok(())
+        })
+        .expect("read");
+        assert_eq!(rows, 200_000);
+        // A missing file is an error naming it.
+        let err = row_capacity_hint(&dir.path().join("none.parquet")).expect_err("missing");
+        assert!(err.to_string().contains("none.parquet"), "{err}");
+    }
 }

@@ -166,6 +166,17 @@ impl ImuTable {
         schema::STATUS,
     ];
 
+    /// Empty, with room for `rows` rows of [`ImuTable::SERIES_COLUMNS`].
+    pub fn with_series_capacity(rows: usize) -> Self {
+        Self {
+            t_ns: Vec::with_capacity(rows),
+            seq: Vec::new(),
+            dtheta_rad: Vec::with_capacity(rows),
+            dvel_mps: Vec::with_capacity(rows),
+            status: Vec::with_capacity(rows),
+        }
+    }
+
     /// Appends the rows of a batch of [`ImuTable::SERIES_COLUMNS`] (`seq` stays empty).
     pub fn extend_series_from_batch(&mut self, b: &RecordBatch) -> Result<(), FormatError> {
         self.t_ns
@@ -230,6 +241,15 @@ impl OdometerTable {
     /// The columns a derive reads (not `pulses`): what
     /// [`OdometerTable::extend_series_from_batch`] takes.
     pub const SERIES_COLUMNS: [&str; 2] = [schema::T_NS, schema::DISTANCE_M];
+
+    /// Empty, with room for `rows` rows of [`OdometerTable::SERIES_COLUMNS`].
+    pub fn with_series_capacity(rows: usize) -> Self {
+        Self {
+            t_ns: Vec::with_capacity(rows),
+            distance_m: Vec::with_capacity(rows),
+            pulses: Vec::new(),
+        }
+    }
 
     /// Appends the rows of a batch of [`OdometerTable::SERIES_COLUMNS`] (`pulses` stays
     /// empty).

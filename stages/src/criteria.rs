@@ -49,22 +49,75 @@ pub struct Kryt1Series {
     pub kryt1_cum: Vec<f64>,
 }
 
-/// Reusable buffers of [`kryt1`], so repeated evaluations allocate nothing.
+/// Reusable buffers of [`kryt1`] and [`epoch_attitude`], so repeated evaluations of
+/// stored tracks allocate nothing.
 #[derive(Debug, Clone, Default)]
 pub struct Kryt1Scratch {
-    theta_blocks: Vec<f64>,
-    phi_blocks: Vec<f64>,
-    row3_sums: Vec<[f64; 3]>,
+    blocks: BlockAttitude,
 }
 
-impl Kryt1Scratch {
-    /// The filtered blocks' values at each epoch into `theta` and `phi`.
+/// The gyro roll Φ_N and pitch Θ_N of each block of F (`lp.block` samples): the angles of
+/// the sum of `C_b^n`'s third row over the block, the last (shorter) block included. Within
+/// a block (0.1 s) the attitude moves by far less than a degree, so the angles of the mean
+/// third row equal the mean angles to second order (< 1e-8 rad), at one asin and one atan2
+/// per block instead of per sample (and the angles of a sum are those of the mean). This is
+/// all Kryt1 reads of a pass; [`Self::filter`] turns it into F(Φ_N) and F(Θ_N) in place.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BlockAttitude {
+    /// Roll Φ_N per block, rad.
+    pub roll_rad: Vec<f64>,
+    /// Pitch Θ_N per block, rad.
+    pub pitch_rad: Vec<f64>,
+}
+
+impl BlockAttitude {
+    /// Empty, with room for the blocks of `samples` samples in blocks of `block`.
+    pub fn for_samples(samples: usize, block: usize) -> Self {
+        let n = samples.div_ceil(block.max(1));
+        Self {
+            roll_rad: Vec::with_capacity(n),
+            pitch_rad: Vec::with_capacity(n),
+        }
+    }
+
+    /// Appends the block whose samples' third rows of `C_b^n` sum to `row3_sum`.
+    pub fn push_row3_sum(&mut self, row3_sum: [f64; 3]) {
+        let (roll, pitch) = roll_pitch_from_row3(row3_sum[0], row3_sum[1], row3_sum[2]);
+        self.roll_rad.push(roll);
+        self.pitch_rad.push(pitch);
+    }
+
+    /// Blocks so far.
+    pub fn len(&self) -> usize {
+        self.roll_rad.len()
+    }
+
+    /// Whether there is no block.
+    pub fn is_empty(&self) -> bool {
+        self.roll_rad.is_empty()
+    }
+
+    /// Removes every block, keeping the room.
+    pub fn clear(&mut self) {
+        self.roll_rad.clear();
+        self.pitch_rad.clear();
+    }
+
+    /// Filters both series with F, in place: they become F(Φ_N) and F(Θ_N).
+    fn filter(&mut self, lp: &LowPass) {
+        lp.filter_blocks(&mut self.pitch_rad);
+        lp.filter_blocks(&mut self.roll_rad);
+    }
+
+    /// The filtered blocks' (Θ, Φ) at each epoch into `theta` and `phi`.
     fn at_epochs(&self, epochs: &Epochs, theta: &mut Vec<f64>, phi: &mut Vec<f64>) {
         theta.clear();
         phi.clear();
+        theta.reserve_exact(epochs.block.len());
+        phi.reserve_exact(epochs.block.len());
         for &j in &epochs.block {
-            theta.push(self.theta_blocks[j]);
-            phi.push(self.phi_blocks[j]);
+            theta.push(self.pitch_rad[j]);
+            phi.push(self.roll_rad[j]);
         }
     }
 }
@@ -131,31 +184,30 @@ pub fn kryt1(
     series: Option<&mut Kryt1Series>,
 ) -> f64 {
     filtered_roll_pitch(lp, track, scratch);
-    kryt1_of_blocks(epochs, kp, scratch, series)
+    kryt1_of_blocks(epochs, kp, &scratch.blocks, series)
 }
 
-/// [`kryt1`] of a track given by its sums of `C_b^n`'s third row per block of F
-/// ([`Row3Blocks`]).
-pub fn kryt1_from_sums(
+/// [`kryt1`] of a pass given by its attitude per block of F ([`BlockAttitude`], from a
+/// [`Row3Blocks`] or a [`crate::strapdown::CriteriaSink`]), which it filters in place.
+pub fn kryt1_from_blocks(
     epochs: &Epochs,
     lp: &LowPass,
-    row3_sums: &[[f64; 3]],
+    mut blocks: BlockAttitude,
     kp: &KalmanParams,
-    scratch: &mut Kryt1Scratch,
     series: Option<&mut Kryt1Series>,
 ) -> f64 {
-    filtered_roll_pitch_from_sums(lp, row3_sums, scratch);
-    kryt1_of_blocks(epochs, kp, scratch, series)
+    blocks.filter(lp);
+    kryt1_of_blocks(epochs, kp, &blocks, series)
 }
 
-/// Kryt1 of the filtered blocks in `scratch`.
+/// Kryt1 of the filtered blocks `blocks`.
 fn kryt1_of_blocks(
     epochs: &Epochs,
     kp: &KalmanParams,
-    scratch: &Kryt1Scratch,
+    blocks: &BlockAttitude,
     series: Option<&mut Kryt1Series>,
 ) -> f64 {
-    let (th, ph) = (&scratch.theta_blocks, &scratch.phi_blocks);
+    let (th, ph) = (&blocks.pitch_rad, &blocks.roll_rad);
     kryt1_of(
         epochs,
         kp,
@@ -175,22 +227,21 @@ pub fn epoch_attitude(
     phi: &mut Vec<f64>,
 ) {
     filtered_roll_pitch(lp, track, scratch);
-    scratch.at_epochs(epochs, theta, phi);
+    scratch.blocks.at_epochs(epochs, theta, phi);
 }
 
-/// [`epoch_attitude`] from the per-block sums of `C_b^n`'s third row that a
-/// [`crate::strapdown::CriteriaSink`] collected (blocks of `lp.block` samples) — the
-/// same numbers, without the stored track.
-pub fn epoch_attitude_from_sums(
+/// [`epoch_attitude`] from a pass's attitude per block of F (what a
+/// [`crate::strapdown::CriteriaSink`] collected), which it filters in place — the same
+/// numbers, without the stored track.
+pub fn epoch_attitude_from_blocks(
     epochs: &Epochs,
     lp: &LowPass,
-    row3_sums: &[[f64; 3]],
-    scratch: &mut Kryt1Scratch,
+    mut blocks: BlockAttitude,
     theta: &mut Vec<f64>,
     phi: &mut Vec<f64>,
 ) {
-    filtered_roll_pitch_from_sums(lp, row3_sums, scratch);
-    scratch.at_epochs(epochs, theta, phi);
+    blocks.filter(lp);
+    blocks.at_epochs(epochs, theta, phi);
 }
 
 /// Kryt1 from the filtered gyro (pitch, roll) of each epoch, given by `attitude(e)`;
@@ -232,49 +283,26 @@ pub fn kryt1_of(
     sum
 }
 
-/// F(Φ_N) and F(Θ_N) per block of a stored track into the scratch buffers.
+/// F(Φ_N) and F(Θ_N) per block of a stored track into the scratch's blocks.
 fn filtered_roll_pitch(lp: &LowPass, track: &NavTrack, scratch: &mut Kryt1Scratch) {
-    let mut sums = std::mem::take(&mut scratch.row3_sums);
-    block_row3_sums(&track.q_b_to_n, lp.block, &mut sums);
-    filtered_roll_pitch_from_sums(lp, &sums, scratch);
-    scratch.row3_sums = sums;
-}
-
-/// F(Φ_N) and F(Θ_N) per block from the blocks' sums of `C_b^n`'s third row. Within a
-/// block (0.1 s) the attitude moves by far less than a degree, so the angles of the mean
-/// third row equal the mean angles to second order (< 1e-8 rad), at one asin and one
-/// atan2 per block instead of per sample (and the angles of a sum are those of the mean).
-fn filtered_roll_pitch_from_sums(lp: &LowPass, row3_sums: &[[f64; 3]], scratch: &mut Kryt1Scratch) {
-    scratch.phi_blocks.clear();
-    scratch.theta_blocks.clear();
-    for m in row3_sums {
-        let (r, p) = roll_pitch_from_row3(m[0], m[1], m[2]);
-        scratch.phi_blocks.push(r);
-        scratch.theta_blocks.push(p);
+    let mut blocks = Row3Blocks::new(lp.block);
+    blocks.blocks = std::mem::take(&mut scratch.blocks);
+    blocks.blocks.clear();
+    for q in &track.q_b_to_n {
+        blocks.push(q);
     }
-    lp.filter_blocks(&mut scratch.theta_blocks);
-    lp.filter_blocks(&mut scratch.phi_blocks);
+    scratch.blocks = blocks.finish();
+    scratch.blocks.filter(lp);
 }
 
-/// Sums of `C_b^n`'s third row over blocks of `block` samples.
-fn block_row3_sums(q: &[[f64; 4]], block: usize, out: &mut Vec<[f64; 3]>) {
-    let mut blocks = Row3Blocks::new(block);
-    blocks.sums = std::mem::take(out);
-    blocks.sums.clear();
-    for qk in q {
-        blocks.push(qk);
-    }
-    *out = blocks.finish();
-}
-
-/// Sums of `C_b^n`'s third row over blocks of samples, taken sample by sample (a track
-/// read batch by batch is never held whole).
+/// A pass's [`BlockAttitude`], taken sample by sample from its attitude (a track read
+/// batch by batch is never held whole).
 #[derive(Debug, Clone, Default)]
 pub struct Row3Blocks {
     block: usize,
     acc: [f64; 3],
     in_block: usize,
-    sums: Vec<[f64; 3]>,
+    blocks: BlockAttitude,
 }
 
 impl Row3Blocks {
@@ -286,6 +314,14 @@ impl Row3Blocks {
         }
     }
 
+    /// [`Self::new`] with room for the blocks of `samples` samples.
+    pub fn for_samples(samples: usize, block: usize) -> Self {
+        Self {
+            blocks: BlockAttitude::for_samples(samples, block),
+            ..Self::new(block)
+        }
+    }
+
     /// The next sample's attitude quaternion `C_b^n` (w, x, y, z).
     pub fn push(&mut self, q: &[f64; 4]) {
         let r = dcm_row3(q);
@@ -293,17 +329,17 @@ impl Row3Blocks {
         self.acc = [m[0] + r[0], m[1] + r[1], m[2] + r[2]];
         self.in_block += 1;
         if self.in_block == self.block {
-            self.sums.push(self.acc);
+            self.blocks.push_row3_sum(self.acc);
             (self.acc, self.in_block) = ([0.0; 3], 0);
         }
     }
 
-    /// The sums, the last (shorter) block's included.
-    pub fn finish(mut self) -> Vec<[f64; 3]> {
+    /// The blocks, the last (shorter) one included.
+    pub fn finish(mut self) -> BlockAttitude {
         if self.in_block > 0 {
-            self.sums.push(self.acc);
+            self.blocks.push_row3_sum(self.acc);
         }
-        self.sums
+        self.blocks
     }
 }
 
@@ -388,7 +424,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn row3_blocks_sum_each_block_in_order_the_last_one_short() {
+    fn block_attitude_is_the_angles_of_each_block_sum_the_last_block_short() {
         let q: Vec<[f64; 4]> = (0..23)
             .map(|k| {
                 let a = 0.01 * k as f64;
@@ -396,22 +432,28 @@ mod tests {
                 [c, s * 0.6, s * 0.8, 0.0]
             })
             .collect();
-        let mut sums = Vec::new();
-        block_row3_sums(&q, 10, &mut sums);
-        assert_eq!(sums.len(), 3);
-        for (j, c) in q.chunks(10).enumerate() {
-            let mut want = [0.0; 3];
+        let mut blocks = Row3Blocks::for_samples(q.len(), 10);
+        q.iter().for_each(|qk| blocks.push(qk));
+        let blocks = blocks.finish();
+        assert_eq!(blocks.len(), 3);
+        let mut want_roll = Vec::new();
+        let mut want_pitch = Vec::new();
+        for c in q.chunks(10) {
+            let mut sum = [0.0; 3];
             for qk in c {
                 let r = dcm_row3(qk);
-                want = [want[0] + r[0], want[1] + r[1], want[2] + r[2]];
+                sum = [sum[0] + r[0], sum[1] + r[1], sum[2] + r[2]];
             }
-            assert_eq!(
-                sums[j].map(f64::to_bits),
-                want.map(f64::to_bits),
-                "block {j}"
-            );
+            let (roll, pitch) = roll_pitch_from_row3(sum[0], sum[1], sum[2]);
+            want_roll.push(roll);
+            want_pitch.push(pitch);
         }
-        // Kryt1 from the sums is Kryt1 of the track.
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&blocks.roll_rad), bits(&want_roll));
+        assert_eq!(bits(&blocks.pitch_rad), bits(&want_pitch));
+
+        // Kryt1 of the blocks, of the stored track, and of the blocks filtered by hand
+        // are one number.
         let track = NavTrack {
             lat_rad: vec![0.8; q.len()],
             lon_rad: vec![0.5; q.len()],
@@ -437,17 +479,12 @@ mod tests {
             &mut Kryt1Scratch::default(),
             None,
         );
-        let mut blocks = Row3Blocks::new(lp.block);
-        q.iter().for_each(|qk| blocks.push(qk));
-        let summed = kryt1_from_sums(
-            &epochs,
-            &lp,
-            &blocks.finish(),
-            &kp,
-            &mut Kryt1Scratch::default(),
-            None,
-        );
-        assert_eq!(whole.to_bits(), summed.to_bits());
+        let from_blocks = kryt1_from_blocks(&epochs, &lp, blocks, &kp, None);
+        lp.filter_blocks(&mut want_roll);
+        lp.filter_blocks(&mut want_pitch);
+        let by_hand = kryt1_of(&epochs, &kp, |e| (want_pitch[e], want_roll[e]), None);
+        assert_eq!(whole.to_bits(), by_hand.to_bits());
+        assert_eq!(from_blocks.to_bits(), by_hand.to_bits());
         assert!(whole > 0.0);
     }
 }

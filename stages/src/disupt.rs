@@ -33,7 +33,7 @@ use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::criteria::{self, ControlPointFix, KalmanParams, Kryt1Scratch, Kryt2};
+use crate::criteria::{self, ControlPointFix, KalmanParams, Kryt2};
 use crate::derive::Epochs;
 use crate::earth;
 use crate::filter::LowPass;
@@ -192,11 +192,6 @@ impl Evaluation {
 /// Most passes stepped side by side in vector lanes by [`Problem::observe_many_by`].
 pub const LANES: usize = strapdown::MAX_LANES;
 
-thread_local! {
-    static OBSERVE_SCRATCH: RefCell<([CriteriaSink; LANES], Kryt1Scratch)> =
-        RefCell::new(Default::default());
-}
-
 impl<'a> Problem<'a> {
     /// A problem around `base`.
     pub fn new(
@@ -303,13 +298,12 @@ impl<'a> Problem<'a> {
     }
 
     /// What the criteria read from a pass's sink.
-    fn observation_of_sink(&self, sink: &CriteriaSink, scratch: &mut Kryt1Scratch) -> Observation {
+    fn observation_of_sink(&self, mut sink: CriteriaSink) -> Observation {
         let mut y = Observation::default();
-        criteria::epoch_attitude_from_sums(
+        criteria::epoch_attitude_from_blocks(
             self.epochs,
             &self.lp,
-            &sink.row3_sums,
-            scratch,
+            std::mem::take(&mut sink.blocks),
             &mut y.theta_rad,
             &mut y.phi_rad,
         );
@@ -455,28 +449,26 @@ impl LaneBatch for OnDerives<'_, '_> {
             .map(|f| f.sample)
             .filter(|&k| k < n)
             .collect();
-        OBSERVE_SCRATCH.with(|cell| {
-            let (sinks, scratch) = &mut *cell.borrow_mut();
-            let sinks: &mut [CriteriaSink; N] = (&mut sinks[..N])
-                .try_into()
-                .expect("at most LANES passes side by side");
-            if self.problems.len() == 1 {
-                strapdown::run_criteria(&first.inputs, &settings, first.lp.block, &at, sinks);
-            } else {
-                let odometers = points.map(|i| self.problem(i).inputs.odo_dist_m);
-                strapdown::run_criteria_odometers(
-                    &first.inputs,
-                    odometers,
-                    &settings,
-                    first.lp.block,
-                    &at,
-                    sinks,
-                );
-            }
-            std::array::from_fn(|l| {
-                self.problem(points[l])
-                    .observation_of_sink(&sinks[l], scratch)
-            })
+        // The sinks live for this batch only: each holds its pass's blocks (a run's
+        // length), so none is kept once the observations are taken.
+        let mut sinks: [CriteriaSink; N] = std::array::from_fn(|_| CriteriaSink::default());
+        if self.problems.len() == 1 {
+            strapdown::run_criteria(&first.inputs, &settings, first.lp.block, &at, &mut sinks);
+        } else {
+            let odometers = points.map(|i| self.problem(i).inputs.odo_dist_m);
+            strapdown::run_criteria_odometers(
+                &first.inputs,
+                odometers,
+                &settings,
+                first.lp.block,
+                &at,
+                &mut sinks,
+            );
+        }
+        let mut sinks = sinks.into_iter();
+        std::array::from_fn(|l| {
+            let sink = sinks.next().expect("one sink per lane");
+            self.problem(points[l]).observation_of_sink(sink)
         })
     }
 }

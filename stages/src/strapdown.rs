@@ -25,6 +25,7 @@ mod lanes;
 use nalgebra::UnitQuaternion;
 
 use crate::attitude::Euler;
+use crate::criteria::BlockAttitude;
 use crate::earth::Geodetic;
 use lanes::{Emit, Lanes, OdometerLanes, OdometerPerLane, SharedOdometer};
 
@@ -224,25 +225,28 @@ pub fn navigate(inputs: &NavInputs<'_>, s: &NavSettings, track: &mut NavTrack) {
     run(inputs, s, track);
 }
 
-/// Sums of the third row of `C_b^n` per block of `block` samples, and the positions at
-/// chosen samples: all that the criteria read from a pass, without storing the track.
+/// The attitude per block of `block` samples, and the positions at chosen samples: all
+/// that the criteria read from a pass, without storing the track.
 #[derive(Debug, Clone, Default)]
 pub struct CriteriaSink {
     /// Samples per block.
     pub block: usize,
-    /// Per block: the sum of the samples' third rows of `C_b^n`.
-    pub row3_sums: Vec<[f64; 3]>,
+    /// Roll and pitch of each block's sum of the samples' third rows of `C_b^n`.
+    pub blocks: BlockAttitude,
     /// (sample, latitude rad, longitude rad) at the requested samples, in sample order.
     pub positions: Vec<(usize, f64, f64)>,
     wanted: Vec<usize>,
 }
 
 impl CriteriaSink {
-    /// Clears the sink for a pass with blocks of `block` samples, recording the positions
-    /// at `samples`.
-    fn reset(&mut self, block: usize, samples: impl IntoIterator<Item = usize>) {
+    /// Clears the sink for a pass over `len` samples in blocks of `block`, recording the
+    /// positions at `samples`.
+    fn reset(&mut self, len: usize, block: usize, samples: impl IntoIterator<Item = usize>) {
         self.block = block.max(1);
-        self.row3_sums.clear();
+        self.blocks.clear();
+        let room = len.div_ceil(self.block);
+        self.blocks.roll_rad.reserve_exact(room);
+        self.blocks.pitch_rad.reserve_exact(room);
         self.positions.clear();
         self.wanted.clear();
         self.wanted.extend(samples);
@@ -367,7 +371,7 @@ fn run_criteria_on<const N: usize>(
     positions_at: &[usize],
     sinks: &mut [CriteriaSink; N],
 ) {
-    let mut lanes_sink = CriteriaLanes::new(sinks, block, positions_at);
+    let mut lanes_sink = CriteriaLanes::new(sinks, inputs.len(), block, positions_at);
     Lanes::<N>::new(settings).run_on(inputs, odometer, &mut lanes_sink);
     lanes_sink.close_block();
 }
@@ -415,7 +419,7 @@ pub fn run_review<const N: usize>(
     );
     let mut sinks: [CriteriaSink; N] = std::array::from_fn(|_| CriteriaSink::default());
     let mut review = ReviewLanes {
-        criteria: CriteriaLanes::new(&mut sinks, block, positions_at),
+        criteria: CriteriaLanes::new(&mut sinks, inputs.len(), block, positions_at),
         keep,
         next: 0,
         rows: std::array::from_fn(|_| Vec::with_capacity(keep.len())),
@@ -526,11 +530,16 @@ struct CriteriaLanes<'a, const N: usize> {
 }
 
 impl<'a, const N: usize> CriteriaLanes<'a, N> {
-    /// Feeds `sinks`, each reset first for blocks of `block` samples and the positions at
-    /// `positions_at`.
-    fn new(sinks: &'a mut [CriteriaSink; N], block: usize, positions_at: &[usize]) -> Self {
+    /// Feeds `sinks`, each reset first for a pass over `len` samples in blocks of `block`
+    /// and the positions at `positions_at`.
+    fn new(
+        sinks: &'a mut [CriteriaSink; N],
+        len: usize,
+        block: usize,
+        positions_at: &[usize],
+    ) -> Self {
         for sink in sinks.iter_mut() {
-            sink.reset(block, positions_at.iter().copied());
+            sink.reset(len, block, positions_at.iter().copied());
         }
         Self {
             next_wanted: sinks.first().and_then(|s| s.wanted.last().copied()),
@@ -544,8 +553,8 @@ impl<'a, const N: usize> CriteriaLanes<'a, N> {
     fn close_block(&mut self) {
         if self.in_block > 0 {
             for (l, sink) in self.sinks.iter_mut().enumerate() {
-                sink.row3_sums
-                    .push([self.acc[0][l], self.acc[1][l], self.acc[2][l]]);
+                sink.blocks
+                    .push_row3_sum([self.acc[0][l], self.acc[1][l], self.acc[2][l]]);
             }
             self.acc = [[0.0; N]; 3];
             self.in_block = 0;

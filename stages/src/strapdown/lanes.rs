@@ -568,7 +568,7 @@ mod tests {
             assert_eq!(passes[l].rows, want, "lane {l}");
             let mut alone = [CriteriaSink::default()];
             run_criteria(&own, &[*s], 10, &fixes, &mut alone);
-            assert_eq!(passes[l].criteria.row3_sums, alone[0].row3_sums, "lane {l}");
+            assert_eq!(passes[l].criteria.blocks, alone[0].blocks, "lane {l}");
             assert_eq!(passes[l].criteria.positions, alone[0].positions, "lane {l}");
             if l == 1 {
                 assert!(kept_track == track, "the tracked lane's whole track");
