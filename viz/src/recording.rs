@@ -121,6 +121,7 @@ fn write_rrd_to(review: &Review, path: &Path, tmp: &Path) -> Result<RrdStats, Re
     let mut w = Writer {
         rec: &rec,
         stats: RrdStats::default(),
+        unflushed_rows: 0,
     };
     w.write(review).map_err(rerun_err)?;
     send_review_blueprint(&rec, review).map_err(rerun_err)?;
@@ -146,9 +147,33 @@ type SdkResult<T> = Result<T, rerun::RecordingStreamError>;
 struct Writer<'a> {
     rec: &'a RecordingStream,
     stats: RrdStats,
+    /// Rows sent since the stream was last flushed.
+    unflushed_rows: usize,
 }
 
+/// Rows sent before the stream is flushed: the SDK queues what is sent until its sink has
+/// encoded it, and the series are built faster than they are encoded, so without a bound a
+/// 12-hour run's queue held some 180 MB of them.
+const FLUSH_EVERY_ROWS: usize = 1 << 20;
+
 impl Writer<'_> {
+    /// Counts `rows` sent ([`Self::queued`]).
+    fn sent(&mut self, rows: usize) {
+        self.stats.rows += rows;
+        self.queued(rows);
+    }
+
+    /// Counts `rows` (or points) queued, and waits for the queue to drain once
+    /// [`FLUSH_EVERY_ROWS`] have been (a failed flush shows as the sink's error when the
+    /// file is finished).
+    fn queued(&mut self, rows: usize) {
+        self.unflushed_rows += rows;
+        if self.unflushed_rows >= FLUSH_EVERY_ROWS {
+            let _ = self.rec.flush_blocking();
+            self.unflushed_rows = 0;
+        }
+    }
+
     fn write(&mut self, r: &Review) -> SdkResult<()> {
         self.rec
             .log_static(README, &rerun::TextDocument::from_markdown(readme(r)))?;
@@ -199,7 +224,7 @@ impl Writer<'_> {
             index,
             rerun::Scalars::new(values[..n].iter().copied()).columns_of_unit_batches()?,
         )?;
-        self.stats.rows += n;
+        self.sent(n);
         self.stats.entities += 1;
         Ok(())
     }
@@ -239,6 +264,8 @@ impl Writer<'_> {
             )?;
             self.stats.rows += 2;
             self.stats.entities += 2;
+            // Every point twice: on the map and in 3-D.
+            self.queued(2 * t.north_m.len());
         }
         Ok(())
     }
@@ -317,7 +344,7 @@ impl Writer<'_> {
                 .with_colors([color_of(&t.label)])
                 .with_radii([rerun::Radius::new_ui_points(8.0)]),
         )?;
-        self.stats.rows += 2 * idx.len() + 1;
+        self.sent(2 * idx.len() + 1);
         self.stats.entities += 3;
         Ok(())
     }
