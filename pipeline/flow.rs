@@ -32,6 +32,7 @@ use crate::derive_io::{
 };
 use crate::ingest::{OUTPUTS as INGEST_OUTPUTS, ingest};
 use crate::nav_writer::NavWriter;
+use crate::review::{ReviewSensors, review_sensors};
 use crate::stage::{Stage, params_hash};
 
 /// Parameters of every stage (defaults built in).
@@ -79,6 +80,11 @@ pub struct RunCtx {
     /// increments, which only the alignment's static start and the review read), cleared
     /// when it is recomputed.
     derived: std::sync::Mutex<Option<Arc<Derived>>>,
+    /// Whether the review runs after the derive in this process: the derive stage then
+    /// takes what the review reads of its per-sample series ([`ReviewSensors`]) and
+    /// keeps the derive without its velocity increments.
+    pub review_follows: bool,
+    review_sensors: std::sync::Mutex<Option<ReviewSensors>>,
 }
 
 impl RunCtx {
@@ -91,6 +97,8 @@ impl RunCtx {
             log: std::sync::Mutex::new(Vec::new()),
             progress: None,
             derived: std::sync::Mutex::new(None),
+            review_follows: false,
+            review_sensors: std::sync::Mutex::new(None),
         }
     }
 
@@ -126,6 +134,21 @@ impl RunCtx {
 
     fn set_derived(&self, d: Option<Arc<Derived>>) {
         *self.derived.lock().unwrap_or_else(|e| e.into_inner()) = d;
+    }
+
+    /// Takes what the derive stage kept for the review, when it did.
+    pub fn take_review_sensors(&self) -> Option<ReviewSensors> {
+        self.review_sensors
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take()
+    }
+
+    fn set_review_sensors(&self, s: Option<ReviewSensors>) {
+        *self
+            .review_sensors
+            .lock()
+            .unwrap_or_else(|e| e.into_inner()) = s;
     }
 
     fn record(&self, stage: &str, computed: bool, wall_s: f64) {
@@ -233,6 +256,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     };
     ctx.run_stage(&stage, || {
         ctx.set_derived(None);
+        ctx.set_review_sensors(None);
         let raw = IngestedSeries::load(&ingest_dir)?;
         let counts = raw.failure_counts();
         let mut d = raw.derive(&params.derive, site_gravity_mps2(m));
@@ -274,7 +298,14 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ensure_finite("accelerometer pitch", d.epochs.theta_p_rad.iter().copied())?;
         ensure_finite("accelerometer roll", d.epochs.phi_p_rad.iter().copied())?;
         write_derived(&d, &dir)?;
-        ctx.set_derived(Some(Arc::new(as_stored(d))));
+        let mut d = as_stored(d);
+        if ctx.review_follows {
+            // Beyond the static start (which the alignment reads from the file), only the
+            // review reads the velocity increments: its blocks are taken now instead.
+            ctx.set_review_sensors(Some(review_sensors(&d)));
+            d.dvel_mps = Arc::default();
+        }
+        ctx.set_derived(Some(Arc::new(d)));
         Ok(())
     })?;
     Ok(dir)

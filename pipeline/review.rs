@@ -123,6 +123,7 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
 }
 
 /// The derive's time base as the review reads it.
+#[derive(Debug, Clone, Copy)]
 struct RunTimes {
     /// IMU time of the first sample, ns.
     t0_ns: i64,
@@ -134,36 +135,50 @@ struct RunTimes {
     samples: usize,
 }
 
-/// The derive's per-sample series in the recording's blocks, and its time base: from the
-/// derive the chain holds in memory (released then: the review is the last to read it),
-/// else read from `derived.parquet` batch by batch, only the columns plotted. Either way
-/// the run's per-sample series are never held whole here.
-fn sensor_blocks(ctx: &RunCtx, derive_dir: &Path) -> anyhow::Result<(SensorBlocks, RunTimes)> {
-    // The chain's derive serves when it is whole (loaded by a navigation stage, it lacks
-    // the velocity increments).
-    if let Some(d) = ctx
-        .take_kept_derived()
-        .filter(|d| d.dvel_mps.len() == d.t_s.len())
-    {
-        let mut b = SensorBlocksBuilder::at_series_rate(d.nominal_dt_s);
-        for (k, speed) in d.odometer_speeds(0..d.t_s.len()).enumerate() {
-            b.push(SensorSample {
-                t_s: d.t_s[k],
-                dt_s: d.dt_s[k],
-                dtheta_rad: d.dtheta_rad[k],
-                dvel_mps: d.dvel_mps[k],
-                u_mps: speed.u_mps,
-                u_dot_mps2: speed.u_dot_mps2,
-                ru_mps2: speed.ru_mps2,
-            });
-        }
-        let times = RunTimes {
+/// What the review reads of the derive's per-sample series: its sensor blocks and time
+/// base. Taken where the derive is computed when the review follows in the same process
+/// ([`RunCtx::review_follows`]), so that the chain does not keep the velocity increments,
+/// which nothing else reads, until the review.
+#[derive(Debug, Clone)]
+pub struct ReviewSensors {
+    blocks: SensorBlocks,
+    times: RunTimes,
+}
+
+/// [`ReviewSensors`] of a whole derive (as it is stored: [`crate::derive_io::as_stored`]).
+pub fn review_sensors(d: &unz_stages::derive::Derived) -> ReviewSensors {
+    let mut b = SensorBlocksBuilder::at_series_rate(d.nominal_dt_s);
+    for (k, speed) in d.odometer_speeds(0..d.t_s.len()).enumerate() {
+        b.push(SensorSample {
+            t_s: d.t_s[k],
+            dt_s: d.dt_s[k],
+            dtheta_rad: d.dtheta_rad[k],
+            dvel_mps: d.dvel_mps[k],
+            u_mps: speed.u_mps,
+            u_dot_mps2: speed.u_dot_mps2,
+            ru_mps2: speed.ru_mps2,
+        });
+    }
+    ReviewSensors {
+        blocks: b.finish(),
+        times: RunTimes {
             t0_ns: d.t0_ns,
             nominal_dt_s: d.nominal_dt_s,
             duration_s: d.t_s.last().copied().unwrap_or(0.0),
             samples: d.t_s.len(),
-        };
-        return Ok((b.finish(), times));
+        },
+    }
+}
+
+/// The derive's per-sample series in the recording's blocks, and its time base: those the
+/// derive stage took in this process ([`ReviewSensors`]), else read from
+/// `derived.parquet` batch by batch, only the columns plotted. Either way the run's
+/// per-sample series are never held whole here.
+fn sensor_blocks(ctx: &RunCtx, derive_dir: &Path) -> anyhow::Result<(SensorBlocks, RunTimes)> {
+    // The review is the last stage to read the chain's derive: it goes now.
+    drop(ctx.take_kept_derived());
+    if let Some(s) = ctx.take_review_sensors() {
+        return Ok((s.blocks, s.times));
     }
     let path = derive_dir.join(files::DERIVED);
     let nominal_dt_s: f64 = read_schema(&path)?
