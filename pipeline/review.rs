@@ -554,4 +554,40 @@ mod tests {
             assert_eq!(got[1], idx.iter().map(|&k| b[k]).collect::<Vec<_>>());
         }
     }
+
+    /// The sensor blocks the derive stage takes for a review in the same process are
+    /// those the review streams from `derived.parquet`, bit for bit, with the same time
+    /// base.
+    #[test]
+    fn sensors_taken_at_the_derive_are_those_streamed_from_its_file() {
+        use unz_stages::simulate::{SimConfig, simulate};
+
+        let tmp = tempfile::tempdir().unwrap();
+        let mut config = SimConfig::new("sensors", 5);
+        config.duration_s = 700.0; // blocks across several of the reader's batches
+        let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path()).unwrap();
+        let manifest = crate::runs::load_run(&run_dir).unwrap();
+        let out = tmp.path().join("out");
+        let params = crate::flow::Params::default();
+        let mut chain = RunCtx::new(manifest.clone(), out.clone(), false);
+        chain.review_follows = true;
+        let derive_dir = crate::flow::ensure_derive(&chain, &params).unwrap();
+        let kept = chain.take_review_sensors().expect("taken at the derive");
+        let chained = chain.kept_derived().expect("the chain's derive");
+        assert!(
+            chained.dvel_mps.is_empty(),
+            "kept without the velocity increments"
+        );
+        let alone = RunCtx::new(manifest, out, false);
+        let (blocks, times) = sensor_blocks(&alone, &derive_dir).unwrap();
+        assert!(blocks.t_s.len() > 1000, "{} blocks", blocks.t_s.len());
+        assert_eq!(kept.blocks, blocks);
+        assert_eq!(kept.times.t0_ns, times.t0_ns);
+        assert_eq!(
+            kept.times.nominal_dt_s.to_bits(),
+            times.nominal_dt_s.to_bits()
+        );
+        assert_eq!(kept.times.duration_s.to_bits(), times.duration_s.to_bits());
+        assert_eq!(kept.times.samples, times.samples);
+    }
 }
