@@ -757,19 +757,16 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // The last review pass is the corrected navigation's. When it is the joint's with a
         // covariance, the route's σ reads it as it runs; corrected_nav.parquet is written by
         // a pass of its own once the σ is known (no track of the run's length is kept).
-        let mut route_base = joint_result
-            .as_ref()
-            .and_then(|r| r.as_ref().ok())
+        let mut route_base = joint_run
             .filter(|run| run.fit.covariance.is_some())
             .map(|run| {
-                let inputs = joint_problem.inputs;
-                let stride = (0.1 / inputs.dt_s.first().copied().unwrap_or(0.01)).round() as usize;
+                let dt_s = joint_problem.inputs.dt_s;
+                let stride = (0.1 / dt_s.first().copied().unwrap_or(0.01)).round() as usize;
                 RouteBase::new(
                     &joint_problem.settings(&run.fit.result.x),
-                    inputs.dt_s,
+                    dt_s,
                     params.align.arw_rad_sqrt_s,
                     stride,
-                    inputs.len(),
                 )
             });
         let outcomes = review_passes(&problem, &reviewed, &case.fixes, start, &mut route_base);

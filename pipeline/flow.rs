@@ -75,10 +75,11 @@ pub struct RunCtx {
     /// A progress line showing the stage being worked on (campaigns on a terminal).
     pub progress: Option<indicatif::ProgressBar>,
     /// The derive stage's output in memory: the stages after it in the same process share
-    /// it instead of each decoding `derived.parquet`. Set when the derive is computed
-    /// (whole, as [`crate::derive_io::load_derived`] gives it) or first loaded (without its velocity
-    /// increments, which only the alignment's static start and the review read), cleared
-    /// when it is recomputed.
+    /// it instead of each decoding `derived.parquet`. Set when the derive is computed (as
+    /// [`crate::derive_io::load_derived`] gives it, without the velocity increments when
+    /// the review follows: see [`RunCtx::review_follows`]) or first loaded (without them:
+    /// only the alignment's static start and the review read them), cleared when it is
+    /// recomputed.
     derived: std::sync::Mutex<Option<Arc<Derived>>>,
     /// Whether the review runs after the derive in this process: the derive stage then
     /// takes what the review reads of its per-sample series ([`ReviewSensors`]) and

@@ -492,8 +492,7 @@ fn read_route_sigma(
     if read_schema(path)?.field_with_name("sigma_north_m").is_err() {
         return Ok(None);
     }
-    let step =
-        ((1.0 / (unz_viz::recording::SERIES_RATE_HZ * dt_s.max(1e-6))).round() as usize).max(1);
+    let step = decimation_step(dt_s.max(1e-6), unz_viz::recording::SERIES_RATE_HZ);
     let names = ["sigma_north_m", "sigma_east_m", "sigma_heading_deg"];
     let (t, cols) = decimated_columns(path, &names, step, false)?;
     let [north_m, east_m, heading_deg]: [Vec<f64>; 3] = cols

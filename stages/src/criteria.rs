@@ -73,11 +73,9 @@ pub struct BlockAttitude {
 impl BlockAttitude {
     /// Empty, with room for the blocks of `samples` samples in blocks of `block`.
     pub fn for_samples(samples: usize, block: usize) -> Self {
-        let n = samples.div_ceil(block.max(1));
-        Self {
-            roll_rad: Vec::with_capacity(n),
-            pitch_rad: Vec::with_capacity(n),
-        }
+        let mut blocks = Self::default();
+        blocks.clear_for(samples, block);
+        blocks
     }
 
     /// Appends the block whose samples' third rows of `C_b^n` sum to `row3_sum`.
@@ -101,6 +99,15 @@ impl BlockAttitude {
     pub fn clear(&mut self) {
         self.roll_rad.clear();
         self.pitch_rad.clear();
+    }
+
+    /// [`Self::clear`], with room made for the blocks of `samples` samples in blocks of
+    /// `block`.
+    pub fn clear_for(&mut self, samples: usize, block: usize) {
+        self.clear();
+        let n = samples.div_ceil(block.max(1));
+        self.roll_rad.reserve_exact(n);
+        self.pitch_rad.reserve_exact(n);
     }
 
     /// Filters both series with F, in place: they become F(Φ_N) and F(Θ_N).

@@ -168,15 +168,15 @@ pub struct RouteBase<'a> {
 }
 
 impl<'a> RouteBase<'a> {
-    /// For a pass of `n` samples with `settings`, its intervals `dt_s` and the gyros' angle
-    /// random walk `arw_rad_sqrt_s`.
+    /// For a pass with `settings` over the samples whose intervals are `dt_s`, and the
+    /// gyros' angle random walk `arw_rad_sqrt_s`.
     pub fn new(
         settings: &NavSettings,
         dt_s: &'a [f64],
         arw_rad_sqrt_s: f64,
         stride: usize,
-        n: usize,
     ) -> Self {
+        let n = dt_s.len();
         let mut samples: Vec<usize> = (0..n).step_by(stride.max(1)).collect();
         if n > 0 && samples.last() != Some(&(n - 1)) {
             samples.push(n - 1);

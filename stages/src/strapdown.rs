@@ -243,10 +243,7 @@ impl CriteriaSink {
     /// positions at `samples`.
     fn reset(&mut self, len: usize, block: usize, samples: impl IntoIterator<Item = usize>) {
         self.block = block.max(1);
-        self.blocks.clear();
-        let room = len.div_ceil(self.block);
-        self.blocks.roll_rad.reserve_exact(room);
-        self.blocks.pitch_rad.reserve_exact(room);
+        self.blocks.clear_for(len, self.block);
         self.positions.clear();
         self.wanted.clear();
         self.wanted.extend(samples);

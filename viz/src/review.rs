@@ -139,7 +139,7 @@ impl SensorBlocksBuilder {
         for a in 0..3 {
             let sum = |inc: fn(&SensorSample) -> [f64; 3]| c.iter().map(|s| inc(s)[a]).sum::<f64>();
             out.gyro_deg_s[a].push(sum(|s| s.dtheta_rad) * (180.0 / std::f64::consts::PI) / dt_s);
-            out.accel_mps2[a].push(sum(|s| s.dvel_mps) * 1.0 / dt_s);
+            out.accel_mps2[a].push(sum(|s| s.dvel_mps) / dt_s);
         }
         self.block.clear();
     }
