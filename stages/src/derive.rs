@@ -242,54 +242,88 @@ pub struct Epochs {
 }
 
 /// Cumulative odometer distance at time `t` (linear interpolation; held after the last
-/// tag, and continued back over one interval before the first).
+/// tag, and continued back over one interval before the first). Only tags later than the
+/// last one kept, with a finite distance, are kept; they are read from the ingested series
+/// as the calls advance, without a copy of the odometer's length.
 struct OdoInterp<'a> {
-    t: Vec<f64>,
+    t_ns: &'a [i64],
     d: &'a [f64],
-    keep: Vec<usize>,
-    i: usize,
+    t0_ns: i64,
+    offset_s: f64,
+    /// The first two kept tags (time s, distance m): the time before the first continues
+    /// their interval.
+    first: Option<(f64, f64)>,
+    second: Option<(f64, f64)>,
+    /// The kept tag at or before the last call's time, and the kept tag after it.
+    cur: (f64, f64),
+    next: Option<(f64, f64)>,
+    /// The ingested tag the search for the next kept one starts at.
+    from: usize,
+    /// The time of the last tag kept, s.
+    last_t: Option<f64>,
 }
 
 impl<'a> OdoInterp<'a> {
-    fn new(t_ns: &[i64], d: &'a [f64], t0_ns: i64, offset_s: f64) -> Self {
-        // Keep strictly increasing time tags only.
-        let mut keep = Vec::with_capacity(t_ns.len());
-        let mut t = Vec::with_capacity(t_ns.len());
-        for (i, &ti) in t_ns.iter().enumerate() {
-            let ts = (ti - t0_ns) as f64 * 1e-9 + offset_s;
-            if t.last().is_none_or(|&last| ts > last) && d[i].is_finite() {
-                t.push(ts);
-                keep.push(i);
+    fn new(t_ns: &'a [i64], d: &'a [f64], t0_ns: i64, offset_s: f64) -> Self {
+        let mut s = Self {
+            t_ns,
+            d,
+            t0_ns,
+            offset_s,
+            first: None,
+            second: None,
+            cur: (0.0, 0.0),
+            next: None,
+            from: 0,
+            last_t: None,
+        };
+        s.first = s.next_kept();
+        s.second = s.next_kept();
+        s.cur = s.first.unwrap_or_default();
+        s.next = s.second;
+        s
+    }
+
+    /// The next tag kept (time s, distance m), if any.
+    fn next_kept(&mut self) -> Option<(f64, f64)> {
+        let n = self.t_ns.len().min(self.d.len());
+        while self.from < n {
+            let i = self.from;
+            self.from += 1;
+            let ts = (self.t_ns[i] - self.t0_ns) as f64 * 1e-9 + self.offset_s;
+            if self.last_t.is_none_or(|last| ts > last) && self.d[i].is_finite() {
+                self.last_t = Some(ts);
+                return Some((ts, self.d[i]));
             }
         }
-        Self { t, d, keep, i: 0 }
+        None
     }
 
     /// Distance at `ts`; calls must come with non-decreasing `ts`.
     fn at(&mut self, ts: f64) -> f64 {
-        let n = self.t.len();
-        if n == 0 {
+        let Some((t_first, d_first)) = self.first else {
             return 0.0;
+        };
+        while let Some(next) = self.next.filter(|&(t, _)| t <= ts) {
+            self.cur = next;
+            self.next = self.next_kept();
         }
-        while self.i + 1 < n && self.t[self.i + 1] <= ts {
-            self.i += 1;
-        }
-        let (i, d) = (self.i, |j: usize| self.d[self.keep[j]]);
-        if ts <= self.t[0] {
+        if ts <= t_first {
             // Before the first tag: continue the first interval's speed back over at most
             // that interval (a log that begins in motion), else hold.
-            if n < 2 {
-                return d(0);
-            }
-            let span = self.t[1] - self.t[0];
-            let back = (self.t[0] - ts).min(span);
-            return d(0) - back * (d(1) - d(0)) / span;
+            let Some((t_second, d_second)) = self.second else {
+                return d_first;
+            };
+            let span = t_second - t_first;
+            let back = (t_first - ts).min(span);
+            return d_first - back * (d_second - d_first) / span;
         }
-        if i + 1 >= n {
-            return d(n - 1);
-        }
-        let w = (ts - self.t[i]) / (self.t[i + 1] - self.t[i]);
-        d(i) + w * (d(i + 1) - d(i))
+        let (t_i, d_i) = self.cur;
+        let Some((t_next, d_next)) = self.next else {
+            return d_i;
+        };
+        let w = (ts - t_i) / (t_next - t_i);
+        d_i + w * (d_next - d_i)
     }
 }
 
