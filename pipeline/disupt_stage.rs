@@ -792,49 +792,54 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 method_out(r, &case.settings, Lag::default(), cps),
             );
         }
+        let joint_cps = cps_of.remove("joint").unwrap_or_default();
+        // The methods' tracks and Kryt1 series are written (and let go) while the joint's
+        // hold-out and route σ are computed.
+        let (tracks_path, kryt1s_path) = (dir.join(TRACKS), dir.join(KRYT1_SERIES));
+        let (tables, joint) = rayon::join(
+            move || -> anyhow::Result<()> {
+                write_tracks(&tracks_path, &tracks)?;
+                write_kryt1_series(&kryt1s_path, &kryt1s)
+            },
+            || -> anyhow::Result<Option<(MethodOut, Option<RouteSigma>)>> {
+                let Some(Ok(run)) = &joint_result else {
+                    return Ok(None);
+                };
+                let mut out = method_out(&run.fit.result, &case.settings, run.lag, joint_cps);
+                out.holdout = Some(disupt::holdout(&joint_problem, &run.fit, &dparams)?);
+                lap("holdout");
+                out.lag_profile = run.profile.clone();
+                let route_sigma = route_base.as_ref().and_then(|base| {
+                    joint_route_sigma(&joint_problem, run, lag_odo_dist_m.as_deref(), base)
+                });
+                Ok(Some((out, route_sigma)))
+            },
+        );
+        tables?;
         let mut route_sigma = None;
-        if let Some(Ok(run)) = &joint_result {
-            let r = &run.fit.result;
-            let cps = cps_of.remove("joint").unwrap_or_default();
-            let mut out = method_out(r, &case.settings, run.lag, cps);
-            out.holdout = Some(disupt::holdout(&joint_problem, &run.fit, &dparams)?);
-            lap("holdout");
-            out.lag_profile = run.profile.clone();
+        if let Some((out, sigma)) = joint? {
             methods.insert("joint".to_owned(), out);
-            route_sigma = route_base.as_ref().and_then(|base| {
-                joint_route_sigma(&joint_problem, run, lag_odo_dist_m.as_deref(), base)
-            });
+            route_sigma = sigma;
         }
         lap("route sigma");
         drop(lag_odo_dist_m);
         // The corrected navigation (the best method's, else the initial settings') written
-        // as its pass runs, beside the other tables.
+        // as its pass runs.
         let corrected = &reviewed[reviewed.len() - 1];
         let last_fix: Vec<usize> = case.fixes.last().map(|f| f.sample).into_iter().collect();
-        let (nav, rest) = rayon::join(
-            || {
-                let mut nav = NavWriter::create(
-                    &dir.join(files::CORRECTED_NAV),
-                    &case.derived,
-                    start,
-                    route_sigma.as_ref(),
-                    &last_fix,
-                )?;
-                let inputs = NavInputs {
-                    odo_dist_m: &corrected.derived.odo_dist_m,
-                    ..case.derived.nav_inputs()
-                };
-                strapdown::run(&inputs, &problem.settings(&corrected.x), &mut nav);
-                nav.finish("corrected")
-            },
-            || -> anyhow::Result<()> {
-                write_tracks(&dir.join(TRACKS), &tracks)?;
-                write_kryt1_series(&dir.join(KRYT1_SERIES), &kryt1s)?;
-                Ok(())
-            },
-        );
-        let nav = nav?;
-        rest?;
+        let mut nav = NavWriter::create(
+            &dir.join(files::CORRECTED_NAV),
+            &case.derived,
+            start,
+            route_sigma.as_ref(),
+            &last_fix,
+        )?;
+        let inputs = NavInputs {
+            odo_dist_m: &corrected.derived.odo_dist_m,
+            ..case.derived.nav_inputs()
+        };
+        strapdown::run(&inputs, &problem.settings(&corrected.x), &mut nav);
+        let nav = nav.finish("corrected")?;
         let distance_m = last_fix
             .first()
             .and_then(|&k| nav.at(k))

@@ -20,7 +20,8 @@ use rayon::prelude::*;
 
 use crate::attitude::wrap_pi;
 use crate::strapdown::{
-    LaneBatch, MAX_LANES, NavInputs, NavSettings, PassSink, in_lanes, run_states_at,
+    LaneBatch, MAX_LANES, NavInputs, NavSettings, PassSink, StateAt, in_lanes, run_states_at,
+    run_states_each,
 };
 
 /// σ of the corrected route at every `stride`-th sample (and the last).
@@ -89,9 +90,16 @@ fn state(s: &NavSettings, lat_rad: f64, lon_rad: f64, q: &[f64; 4]) -> [f64; 3] 
     [n, e, heading_of(q)]
 }
 
-/// Each moved pass's sensitivities at `samples`: its (north, east, heading) there minus
-/// the corrected pass's `y0`, over its step. Consecutive passes on the same inputs run
-/// side by side in vector lanes (at most eight), the batches in parallel; no track is
+/// A moved pass's sensitivity at one sample: its (north, east, heading) in `state` minus
+/// the corrected pass's `y0` there, over its step.
+fn sensitivity(mv: &Moved<'_>, y0: &[f64; 3], (lat, lon, q): StateAt) -> [f64; 3] {
+    let y = state(&mv.settings, lat, lon, &q);
+    let d = [y[0] - y0[0], y[1] - y0[1], wrap_pi(y[2] - y0[2])];
+    d.map(|v| v / mv.step)
+}
+
+/// Each moved pass's sensitivities at `samples`. Consecutive passes on the same inputs
+/// run side by side in vector lanes (at most eight), the batches in parallel; no track is
 /// stored, nor a pass's states. Each value is what the pass alone, tracked, gives bit for
 /// bit.
 fn sensitivities(moved: &[Moved<'_>], samples: &[usize], y0: &[[f64; 3]]) -> Vec<Vec<[f64; 3]>> {
@@ -125,17 +133,43 @@ impl LaneBatch for SensitivitiesOf<'_, '_> {
     fn run<const N: usize>(&mut self, points: [usize; N]) -> [Vec<[f64; 3]>; N] {
         let settings = points.map(|i| self.batch[i].settings);
         let (batch, y0) = (self.batch, self.y0);
-        run_states_at(
-            &self.batch[0].inputs,
+        run_states_at(&self.batch[0].inputs, &settings, self.samples, |l, i, s| {
+            sensitivity(&batch[points[l]], &y0[i], s)
+        })
+    }
+}
+
+/// The moved passes in one batch of lanes, each on its own odometer increments: at each
+/// sample their sensitivities go straight into the σ (none is stored).
+struct SigmaInOneBatch<'m, 'a> {
+    moved: &'m [Moved<'a>],
+    base: &'m RouteBase<'a>,
+    covariance: &'m nalgebra::DMatrix<f64>,
+    out: &'m mut RouteSigma,
+}
+
+impl LaneBatch for SigmaInOneBatch<'_, '_> {
+    type Out = ();
+
+    fn run<const N: usize>(&mut self, points: [usize; N]) -> [(); N] {
+        let settings = points.map(|i| self.moved[i].settings);
+        let odometers = points.map(|i| self.moved[i].inputs.odo_dist_m);
+        let (moved, base, covariance) = (self.moved, self.base, self.covariance);
+        let samples = &base.samples[..base.y0.len()];
+        let out = &mut *self.out;
+        // Lane `a` runs moved pass `a` (the lanes past the last repeat it).
+        run_states_each(
+            &moved[0].inputs,
+            odometers,
             &settings,
-            self.samples,
-            |l, i, (lat, lon, q)| {
-                let mv = &batch[points[l]];
-                let y = state(&mv.settings, lat, lon, &q);
-                let d = [y[0] - y0[i][0], y[1] - y0[i][1], wrap_pi(y[2] - y0[i][2])];
-                d.map(|v| v / mv.step)
+            samples,
+            |i, states| {
+                let g: [[f64; 3]; N] =
+                    std::array::from_fn(|l| sensitivity(&moved[points[l]], &base.y0[i], states[l]));
+                out.push(&base.walk[i], moved.len(), covariance, |a| g[a]);
             },
-        )
+        );
+        [(); N]
     }
 }
 
@@ -219,8 +253,35 @@ impl PassSink for RouteBase<'_> {
     }
 }
 
+impl RouteSigma {
+    /// Appends the σ at one sample: `g(a)` is moved pass `a`'s sensitivity there (`m`
+    /// passes), `walk` the random walk's variances.
+    fn push(
+        &mut self,
+        walk: &[f64; 3],
+        m: usize,
+        covariance: &nalgebra::DMatrix<f64>,
+        g: impl Fn(usize) -> [f64; 3],
+    ) {
+        let sd = |q: usize| {
+            let mut v = 0.0;
+            for a in 0..m {
+                for b in 0..m {
+                    v += g(a)[q] * covariance[(a, b)] * g(b)[q];
+                }
+            }
+            v.max(0.0)
+        };
+        self.north_m.push((sd(0) + walk[0]).sqrt());
+        self.east_m.push((sd(1) + walk[1]).sqrt());
+        self.heading_rad.push((sd(2) + walk[2]).sqrt());
+    }
+}
+
 /// σ along the route of the corrected pass `base` took. `moved[j]` is parameter j moved
-/// by its step; `covariance` is over the same parameters, in their step units.
+/// by its step; `covariance` is over the same parameters, in their step units. When the
+/// moved passes fit in one batch of lanes (the same IMU series, at most eight), their
+/// sensitivities are combined at each sample as they run; else each pass's are kept.
 pub fn route_sigma(
     base: &RouteBase<'_>,
     moved: &[Moved<'_>],
@@ -231,27 +292,33 @@ pub fn route_sigma(
     if samples.is_empty() || moved.is_empty() {
         return RouteSigma::default();
     }
-    // Sensitivities: per parameter, per sample, the 3 quantities'.
     let m = moved.len();
-    let g = sensitivities(moved, samples, &base.y0);
     let mut out = RouteSigma {
         sample: samples.to_vec(),
-        ..Default::default()
+        north_m: Vec::with_capacity(samples.len()),
+        east_m: Vec::with_capacity(samples.len()),
+        heading_rad: Vec::with_capacity(samples.len()),
     };
-    for (i, walk) in base.walk.iter().enumerate() {
-        let sd = |q: usize| {
-            let gi = |a: usize| g[a][i][q];
-            let mut v = 0.0;
-            for a in 0..m {
-                for b in 0..m {
-                    v += gi(a) * covariance[(a, b)] * gi(b);
-                }
-            }
-            v.max(0.0)
-        };
-        out.north_m.push((sd(0) + walk[0]).sqrt());
-        out.east_m.push((sd(1) + walk[1]).sqrt());
-        out.heading_rad.push((sd(2) + walk[2]).sqrt());
+    if m <= MAX_LANES
+        && moved
+            .iter()
+            .all(|mv| mv.inputs.same_imu_as(&moved[0].inputs))
+    {
+        in_lanes(
+            m,
+            &mut SigmaInOneBatch {
+                moved,
+                base,
+                covariance,
+                out: &mut out,
+            },
+        );
+    } else {
+        // Sensitivities: per parameter, per sample, the 3 quantities'.
+        let g = sensitivities(moved, samples, &base.y0);
+        for (i, walk) in base.walk.iter().enumerate() {
+            out.push(walk, m, covariance, |a| g[a][i]);
+        }
     }
     out
 }
@@ -259,6 +326,139 @@ pub fn route_sigma(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    use crate::attitude::Euler;
+    use crate::strapdown::{self, NavTrack};
+
+    /// A turning drive: 0.01 s samples, the odometer at two timings.
+    fn drive(n: usize) -> (Vec<f64>, Vec<[f64; 3]>, Vec<f64>, Vec<f64>) {
+        let dtheta = (0..n)
+            .map(|k| {
+                let t = k as f64 * 0.01;
+                [
+                    1e-4 * (t * 3.0).sin(),
+                    2e-4 * (t * 2.0).cos(),
+                    3e-3 * (t * 0.5).sin(),
+                ]
+            })
+            .collect();
+        let later = (0..n)
+            .map(|k| 0.2 + 1e-3 * (k as f64 * 0.05).sin())
+            .collect();
+        (vec![0.01; n], dtheta, vec![0.2; n], later)
+    }
+
+    /// The corrected pass's settings moved by `j`-th steps.
+    fn settings(j: usize) -> NavSettings {
+        let f = j as f64;
+        NavSettings {
+            initial: Euler {
+                roll_rad: 0.01,
+                pitch_rad: -0.02,
+                heading_rad: 0.3 + 1e-4 * f,
+            },
+            drift_rad_s: [1e-6 * f, -2e-7, 3e-6 + 1e-8 * f],
+            odo_scale: 1.0 + 1e-5 * f,
+            odo_yaw_rad: if j == 4 { 1e-3 } else { 0.0 },
+            odo_bias_mps: if j == 6 { -0.01 } else { 0.0 },
+            lat0_rad: 0.78,
+            lon0_rad: -1.33,
+            h0_m: 90.0,
+        }
+    }
+
+    /// A covariance with every pair correlated, positive definite.
+    fn covariance(m: usize) -> nalgebra::DMatrix<f64> {
+        let a = nalgebra::DMatrix::from_fn(m, m, |i, j| ((i * 7 + j * 3) % 5) as f64 * 0.3 - 0.5);
+        &a * a.transpose() + nalgebra::DMatrix::identity(m, m)
+    }
+
+    /// σ by its definition, from every pass alone and tracked (without the random walk).
+    fn sigma_by_hand(
+        base: (&NavInputs<'_>, &NavSettings),
+        moved: &[Moved<'_>],
+        covariance: &nalgebra::DMatrix<f64>,
+        samples: &[usize],
+    ) -> [Vec<f64>; 3] {
+        let track = |inputs: &NavInputs<'_>, s: &NavSettings| {
+            let mut t = NavTrack::default();
+            t.resize(inputs.len());
+            strapdown::run(inputs, s, &mut t);
+            t
+        };
+        let y = |t: &NavTrack, s: &NavSettings, k: usize| {
+            state(s, t.lat_rad[k], t.lon_rad[k], &t.q_b_to_n[k])
+        };
+        let t0 = track(base.0, base.1);
+        let tracks: Vec<NavTrack> = moved
+            .iter()
+            .map(|mv| track(&mv.inputs, &mv.settings))
+            .collect();
+        let mut out = [Vec::new(), Vec::new(), Vec::new()];
+        for &k in samples {
+            let y0 = y(&t0, base.1, k);
+            let g: Vec<[f64; 3]> = moved
+                .iter()
+                .zip(&tracks)
+                .map(|(mv, t)| {
+                    let yj = y(t, &mv.settings, k);
+                    [yj[0] - y0[0], yj[1] - y0[1], wrap_pi(yj[2] - y0[2])].map(|v| v / mv.step)
+                })
+                .collect();
+            for (q, out) in out.iter_mut().enumerate() {
+                let mut v = 0.0;
+                for a in 0..g.len() {
+                    for b in 0..g.len() {
+                        v += g[a][q] * covariance[(a, b)] * g[b][q];
+                    }
+                }
+                out.push(v.max(0.0).sqrt());
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn the_route_sigma_is_its_definition_bit_for_bit_in_one_batch_or_more() {
+        let n = 2003;
+        let (dt, dtheta, odo, later) = drive(n);
+        let inputs = NavInputs {
+            dt_s: &dt,
+            dtheta_rad: &dtheta,
+            odo_dist_m: &odo,
+        };
+        let at_lag = NavInputs {
+            odo_dist_m: &later,
+            ..inputs
+        };
+        let corrected = settings(0);
+        let mut base = RouteBase::new(&corrected, &dt, 0.0, 10);
+        strapdown::run(&inputs, &corrected, &mut base);
+        // Six moved passes, the last at another odometer timing, fit in one batch of
+        // lanes; ten (nine settings and the lag) do not.
+        for m in [6, 10] {
+            let moved: Vec<Moved<'_>> = (1..=m)
+                .map(|j| Moved {
+                    inputs: if j == m { at_lag } else { inputs },
+                    settings: settings(j),
+                    step: 0.5 + 0.1 * j as f64,
+                })
+                .collect();
+            let c = covariance(m);
+            let sigma = route_sigma(&base, &moved, &c);
+            let samples: Vec<usize> = (0..n).step_by(10).chain([n - 1]).collect();
+            assert_eq!(sigma.sample, samples);
+            let want = sigma_by_hand((&inputs, &corrected), &moved, &c, &samples);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert!(
+                want[0].iter().all(|v| *v > 0.0),
+                "the passes move the route"
+            );
+            assert_eq!(bits(&sigma.north_m), bits(&want[0]), "{m} moved");
+            assert_eq!(bits(&sigma.east_m), bits(&want[1]), "{m} moved");
+            assert_eq!(bits(&sigma.heading_rad), bits(&want[2]), "{m} moved");
+        }
+    }
 
     #[test]
     fn a_range_interpolates_as_the_whole_run_does() {

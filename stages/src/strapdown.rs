@@ -516,6 +516,53 @@ impl<const N: usize, T, F: FnMut(usize, usize, StateAt) -> T> Emit<N> for States
     }
 }
 
+/// Runs `N` passes side by side, each lane on its own odometer increments (`odometers[l]`,
+/// as long as `inputs`; `inputs.odo_dist_m` is not read), and hands `each(i, states)`
+/// every lane's state at `samples[i]` (increasing; samples past the end are left out):
+/// what combines the passes sample by sample reads, without storing any pass's states.
+///
+/// # Panics
+/// If an odometer series is shorter than `inputs`.
+pub fn run_states_each<const N: usize>(
+    inputs: &NavInputs<'_>,
+    odometers: [&[f64]; N],
+    settings: &[NavSettings; N],
+    samples: &[usize],
+    each: impl FnMut(usize, [StateAt; N]),
+) {
+    assert!(
+        odometers.iter().all(|o| o.len() >= inputs.len()),
+        "an odometer series shorter than the IMU's"
+    );
+    let mut sink = StatesEach {
+        samples,
+        next: 0,
+        each,
+    };
+    Lanes::<N>::new(settings).run_on(inputs, &OdometerPerLane(odometers), &mut sink);
+}
+
+/// [`run_states_each`]'s sink.
+struct StatesEach<'a, F> {
+    samples: &'a [usize],
+    next: usize,
+    each: F,
+}
+
+impl<const N: usize, F: FnMut(usize, [StateAt; N])> Emit<N> for StatesEach<'_, F> {
+    #[inline(always)]
+    fn emit(&mut self, k: usize, lanes: &Lanes<N>) {
+        if self.samples.get(self.next) == Some(&k) {
+            let i = self.next;
+            self.next += 1;
+            (self.each)(
+                i,
+                std::array::from_fn(|l| (lanes.lat_rad[l], lanes.lon_rad[l], lanes.q_of(l))),
+            );
+        }
+    }
+}
+
 /// `N` [`CriteriaSink`]s fed side by side: the block sums are accumulated in vector
 /// lanes and handed to each sink when a block closes.
 struct CriteriaLanes<'a, const N: usize> {
