@@ -436,42 +436,110 @@ pub fn derive_owned(
 /// The odometer's distance over each sample's interval of `d` with the odometer's time
 /// tags moved by `offset_s`, m: all a navigation pass reads of the odometer.
 pub fn odometer_increments(d: &Derived, raw: &RawSeries<'_>, offset_s: f64) -> Vec<f64> {
-    let mut odo = OdoInterp::new(raw.odo_t_ns, raw.odo_distance_m, d.t0_ns, offset_s);
-    let Some((&t_first, &dt_first)) = d.t_s.first().zip(d.dt_s.first()) else {
-        return Vec::new();
-    };
-    let mut prev_d = odo.at(t_first - dt_first);
-    d.t_s
-        .iter()
-        .map(|&t| {
-            let now = odo.at(t);
-            let dd = now - prev_d;
-            prev_d = now;
-            dd
-        })
-        .collect()
+    MovedOdometer::new(d, raw, offset_s).increments().collect()
 }
+
+/// A derive's odometer increments with the odometer's time tags moved by an offset, read
+/// from the ingested odometer as a pass goes instead of stored: what
+/// [`odometer_increments`] gives, sample by sample.
+#[derive(Debug, Clone, Copy)]
+pub struct MovedOdometer<'a> {
+    t_s: &'a [f64],
+    first_dt_s: f64,
+    t0_ns: i64,
+    odo_t_ns: &'a [i64],
+    odo_distance_m: &'a [f64],
+    offset_s: f64,
+}
+
+impl<'a> MovedOdometer<'a> {
+    /// The increments over the samples of `d` of `raw`'s odometer moved by `offset_s`.
+    pub fn new(d: &'a Derived, raw: &RawSeries<'a>, offset_s: f64) -> Self {
+        Self {
+            t_s: &d.t_s,
+            first_dt_s: d.dt_s.first().copied().unwrap_or(0.0),
+            t0_ns: d.t0_ns,
+            odo_t_ns: raw.odo_t_ns,
+            odo_distance_m: raw.odo_distance_m,
+            offset_s,
+        }
+    }
+
+    /// The increments, m, one per sample from the first.
+    pub fn increments(&self) -> OdoIncrements<'a> {
+        let mut odo = OdoInterp::new(
+            self.odo_t_ns,
+            self.odo_distance_m,
+            self.t0_ns,
+            self.offset_s,
+        );
+        let prev_m = self
+            .t_s
+            .first()
+            .map_or(0.0, |&t| odo.at(t - self.first_dt_s));
+        OdoIncrements {
+            odo,
+            t_s: self.t_s.iter(),
+            prev_m,
+        }
+    }
+}
+
+/// [`MovedOdometer::increments`].
+pub struct OdoIncrements<'a> {
+    odo: OdoInterp<'a>,
+    t_s: std::slice::Iter<'a, f64>,
+    /// The distance at the end of the sample before, m.
+    prev_m: f64,
+}
+
+impl Iterator for OdoIncrements<'_> {
+    type Item = f64;
+
+    fn next(&mut self) -> Option<f64> {
+        let &t = self.t_s.next()?;
+        let now = self.odo.at(t);
+        let dd = now - self.prev_m;
+        self.prev_m = now;
+        Some(dd)
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        self.t_s.size_hint()
+    }
+}
+
+impl ExactSizeIterator for OdoIncrements<'_> {}
 
 /// The odometer's part of a derive with its time tags moved by `offset_s`: its increments
 /// and F's block series of u̇, ru and the odometer-bias sensitivities (r while moving,
-/// the rate of change of "moving"). Block means are taken as the samples come, without
-/// per-sample series of the run's length beside the increments.
+/// the rate of change of "moving"): [`odometer_blocks_of`].
 pub fn odometer_blocks(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64, lp: &LowPass) {
-    out.odo_dist_m = odometer_increments(out, raw, offset_s);
+    let increments = odometer_increments(out, raw, offset_s);
+    odometer_blocks_of(out, increments.iter().copied(), lp);
+    out.odo_dist_m = increments;
+}
+
+/// F's block series of the odometer's part of `out` (u̇, ru, r while moving, the rate of
+/// change of "moving") from its odometer `increments` over each sample (eqs 9–11, as
+/// [`Derived::odometer_speeds`]). Block means are taken as the samples come, without
+/// per-sample series of the run's length.
+pub fn odometer_blocks_of(out: &mut Derived, increments: impl Iterator<Item = f64>, lp: &LowPass) {
     let d = &*out;
-    let moving = |k: usize| f64::from(u8::from(d.odo_dist_m[k] != 0.0));
-    let samples = d.odometer_speeds(0..d.t_s.len()).enumerate().map(|(k, s)| {
-        let moving_dot = if k == 0 {
-            0.0
+    // u and "moving" of the sample before.
+    let mut prev = (0.0, 0.0);
+    let samples = increments.take(d.t_s.len()).enumerate().map(|(k, dd)| {
+        let dt = d.dt_s[k];
+        let u_mps = dd / dt;
+        let moving = f64::from(u8::from(dd != 0.0));
+        let (u_dot_mps2, moving_dot) = if k == 0 {
+            (0.0, 0.0)
         } else {
-            (moving(k) - moving(k - 1)) / d.dt_s[k]
+            ((u_mps - prev.0) / dt, (moving - prev.1) / dt)
         };
-        [
-            s.u_dot_mps2,
-            s.ru_mps2,
-            d.r_rad_s(k) * moving(k),
-            moving_dot,
-        ]
+        prev = (u_mps, moving);
+        let r = d.r_rad_s(k);
+        [u_dot_mps2, r * u_mps, r * moving, moving_dot]
     });
     let mut means = lp.block_means_of(samples);
     for m in &mut means {

@@ -34,7 +34,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::criteria::{self, ControlPointFix, KalmanParams, Kryt2};
-use crate::derive::Epochs;
+use crate::derive::{Epochs, MovedOdometer, OdoIncrements};
 use crate::earth;
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
@@ -127,6 +127,9 @@ pub struct Problem<'a> {
     pub fixes: &'a [ControlPointFix],
     /// Prior on the vertical drift from the static start: (value, 1σ), °/h.
     pub drift_z_prior_deg_h: Option<(f64, f64)>,
+    /// The odometer increments, when they are read as a pass goes instead of from
+    /// `inputs` (a derive at another odometer timing: [`ProblemSpec::on_moved`]).
+    moved_odometer: Option<MovedOdometer<'a>>,
     passes: AtomicUsize,
     base_lin: std::sync::OnceLock<Linearization>,
 }
@@ -162,6 +165,21 @@ impl<'a> ProblemSpec<'a> {
             self.fixes,
         );
         p.drift_z_prior_deg_h = self.drift_z_prior_deg_h;
+        p
+    }
+
+    /// The problem on the derive `d` whose odometer increments are not stored but read
+    /// from `odometer` as each pass goes (the odometer-lag search's trials).
+    pub fn on_moved<'b>(
+        self,
+        d: &'b crate::derive::Derived,
+        odometer: MovedOdometer<'b>,
+    ) -> Problem<'b>
+    where
+        'a: 'b,
+    {
+        let mut p = self.on(d);
+        p.moved_odometer = Some(odometer);
         p
     }
 }
@@ -210,8 +228,17 @@ impl<'a> Problem<'a> {
             kalman,
             fixes,
             drift_z_prior_deg_h: None,
+            moved_odometer: None,
             passes: AtomicUsize::new(0),
             base_lin: std::sync::OnceLock::new(),
+        }
+    }
+
+    /// The odometer increments a pass of this problem reads, sample by sample.
+    fn odometer_increments(&self) -> LaneIncrements<'a> {
+        match self.moved_odometer {
+            Some(moved) => LaneIncrements::Moved(moved.increments()),
+            None => LaneIncrements::Stored(self.inputs.odo_dist_m.iter()),
         }
     }
 
@@ -452,7 +479,17 @@ impl LaneBatch for OnDerives<'_, '_> {
         // The sinks live for this batch only: each holds its pass's blocks (a run's
         // length), so none is kept once the observations are taken.
         let mut sinks: [CriteriaSink; N] = std::array::from_fn(|_| CriteriaSink::default());
-        if self.problems.len() == 1 {
+        if self.problems.iter().any(|p| p.moved_odometer.is_some()) {
+            let odometers = points.map(|i| self.problem(i).odometer_increments());
+            strapdown::run_criteria_streams(
+                &first.inputs,
+                odometers,
+                &settings,
+                first.lp.block,
+                &at,
+                &mut sinks,
+            );
+        } else if self.problems.len() == 1 {
             strapdown::run_criteria(&first.inputs, &settings, first.lp.block, &at, &mut sinks);
         } else {
             let odometers = points.map(|i| self.problem(i).inputs.odo_dist_m);
@@ -472,6 +509,34 @@ impl LaneBatch for OnDerives<'_, '_> {
         })
     }
 }
+
+/// A lane's odometer increments: a derive's stored ones, or read from the ingested
+/// odometer as the pass goes.
+enum LaneIncrements<'a> {
+    Stored(std::slice::Iter<'a, f64>),
+    Moved(OdoIncrements<'a>),
+}
+
+impl Iterator for LaneIncrements<'_> {
+    type Item = f64;
+
+    #[inline]
+    fn next(&mut self) -> Option<f64> {
+        match self {
+            Self::Stored(it) => it.next().copied(),
+            Self::Moved(it) => it.next(),
+        }
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        match self {
+            Self::Stored(it) => it.size_hint(),
+            Self::Moved(it) => it.size_hint(),
+        }
+    }
+}
+
+impl ExactSizeIterator for LaneIncrements<'_> {}
 
 /// `x` moved by one finite-difference step in each setting of `which`, in turn.
 pub fn moved_by_steps(x: &X, which: &[Setting]) -> Vec<X> {

@@ -33,7 +33,7 @@ use std::cell::RefCell;
 use std::sync::OnceLock;
 
 use crate::derive::{
-    DeriveParams, Derived, RawSeries, derive, epochs_of, odometer_blocks, odometer_increments,
+    DeriveParams, Derived, MovedOdometer, RawSeries, derive, epochs_of, odometer_blocks_of,
     shifted_blocks,
 };
 use crate::disupt::{
@@ -162,26 +162,36 @@ impl<'a> Rederive<'a> {
     /// quantisation for every lag (derived anew, each fraction of a sample would draw
     /// another, and the fit's cost would be rough in the lag).
     pub fn at(&self, lag_s: f64) -> Derived {
+        let (mut d, odometer) = self.at_moved(lag_s);
+        d.odo_dist_m = odometer.increments().collect();
+        d
+    }
+
+    /// [`Rederive::at`] without the odometer's increments (left empty): they are read
+    /// from the returned odometer as a pass goes.
+    pub fn at_moved(&self, lag_s: f64) -> (Derived, MovedOdometer<'_>) {
         let base = self.configured();
         // The IMU's part is the configured derive's; the odometer's is derived anew.
         let mut d = base.without_odometer_series();
         let lp = LowPass::new(&self.params.filter, d.nominal_dt_s);
-        odometer_blocks(
-            &mut d,
-            &self.raw,
-            self.params.odo_time_offset_s - lag_s,
-            &lp,
-        );
+        let odometer = self.odometer_at(lag_s);
+        odometer_blocks_of(&mut d, odometer.increments(), &lp);
         let block_s = lp.block as f64 * d.nominal_dt_s;
         d.u_dot_f = shifted_blocks(&base.u_dot_f, block_s, lag_s);
         d.epochs = epochs_of(&d, &lp, &self.params, self.g_mps2);
-        d
+        (d, odometer)
     }
 
     /// What a navigation pass reads of [`Rederive::at`]`(lag_s)`: the odometer's
     /// increments (the IMU's are the configured derive's), without the rest of a derive.
     pub fn odo_dist_at(&self, lag_s: f64) -> Vec<f64> {
-        odometer_increments(
+        self.odometer_at(lag_s).increments().collect()
+    }
+
+    /// The odometer `lag_s` later than the configured offset says, over the configured
+    /// derive's samples.
+    fn odometer_at(&self, lag_s: f64) -> MovedOdometer<'_> {
+        MovedOdometer::new(
             self.configured(),
             &self.raw,
             self.params.odo_time_offset_s - lag_s,
@@ -217,17 +227,21 @@ impl Profile<'_> {
                 new.push(lag);
             }
         }
-        let derives: Vec<Derived> = new
+        // Each trial's odometer increments are read as its pass goes, not stored.
+        let derives: Vec<(Derived, MovedOdometer<'_>)> = new
             .iter()
             .map(|&lag| {
-                let mut d = self.rederive.at(lag);
+                let (mut d, odometer) = self.rederive.at_moved(lag);
                 // The same epochs at every trial: the gate moves with the lag, and an
                 // epoch entering or leaving would make the costs incomparable.
                 d.epochs.valid.clone_from(&self.valid);
-                d
+                (d, odometer)
             })
             .collect();
-        let problems: Vec<Problem<'_>> = derives.iter().map(|d| self.spec.on(d)).collect();
+        let problems: Vec<Problem<'_>> = derives
+            .iter()
+            .map(|(d, odometer)| self.spec.on_moved(d, *odometer))
+            .collect();
         let refs: Vec<&Problem<'_>> = problems.iter().collect();
         let warm = self.fit0.linearization();
         let tally = std::sync::atomic::AtomicUsize::new(0);

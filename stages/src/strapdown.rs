@@ -27,7 +27,7 @@ use nalgebra::UnitQuaternion;
 use crate::attitude::Euler;
 use crate::criteria::BlockAttitude;
 use crate::earth::Geodetic;
-use lanes::{Emit, Lanes, OdometerLanes, OdometerPerLane, SharedOdometer};
+use lanes::{Emit, Lanes, OdometerLanes, OdometerPerLane, OdometerStreams, SharedOdometer};
 
 /// Per-sample navigation inputs; all slices have the same length.
 #[derive(Debug, Clone, Copy)]
@@ -329,7 +329,7 @@ pub fn run_criteria<const N: usize>(
 ) {
     run_criteria_on(
         inputs,
-        &SharedOdometer,
+        &mut SharedOdometer,
         settings,
         block,
         positions_at,
@@ -355,14 +355,37 @@ pub fn run_criteria_odometers<const N: usize>(
         odometers.iter().all(|o| o.len() >= inputs.len()),
         "an odometer series shorter than the IMU's"
     );
-    let odometer = OdometerPerLane(odometers);
-    run_criteria_on(inputs, &odometer, settings, block, positions_at, sinks);
+    let mut odometer = OdometerPerLane(odometers);
+    run_criteria_on(inputs, &mut odometer, settings, block, positions_at, sinks);
+}
+
+/// [`run_criteria`] with each lane on the odometer increments `odometers[l]` yields (at
+/// least as many as `inputs` has samples; `inputs.odo_dist_m` is not read): passes over
+/// derives at several odometer timings whose increments are read as the passes go, not
+/// stored.
+///
+/// # Panics
+/// If an odometer yields fewer increments than `inputs` has samples.
+pub fn run_criteria_streams<const N: usize, I: ExactSizeIterator<Item = f64>>(
+    inputs: &NavInputs<'_>,
+    odometers: [I; N],
+    settings: &[NavSettings; N],
+    block: usize,
+    positions_at: &[usize],
+    sinks: &mut [CriteriaSink; N],
+) {
+    assert!(
+        odometers.iter().all(|o| o.len() >= inputs.len()),
+        "an odometer series shorter than the IMU's"
+    );
+    let mut odometer = OdometerStreams(odometers);
+    run_criteria_on(inputs, &mut odometer, settings, block, positions_at, sinks);
 }
 
 /// [`run_criteria`] with the lanes' odometer increments from `odometer`.
 fn run_criteria_on<const N: usize>(
     inputs: &NavInputs<'_>,
-    odometer: &impl OdometerLanes<N>,
+    odometer: &mut impl OdometerLanes<N>,
     settings: &[NavSettings; N],
     block: usize,
     positions_at: &[usize],
@@ -423,7 +446,7 @@ pub fn run_review<const N: usize>(
         tracked,
         track,
     };
-    Lanes::<N>::new(settings).run_on(inputs, &OdometerPerLane(odometers), &mut review);
+    Lanes::<N>::new(settings).run_on(inputs, &mut OdometerPerLane(odometers), &mut review);
     review.criteria.close_block();
     let rows = review.rows;
     let mut rows = rows.into_iter();
@@ -539,7 +562,7 @@ pub fn run_states_each<const N: usize>(
         next: 0,
         each,
     };
-    Lanes::<N>::new(settings).run_on(inputs, &OdometerPerLane(odometers), &mut sink);
+    Lanes::<N>::new(settings).run_on(inputs, &mut OdometerPerLane(odometers), &mut sink);
 }
 
 /// [`run_states_each`]'s sink.

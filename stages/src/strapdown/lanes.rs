@@ -14,18 +14,31 @@ use crate::earth;
 /// Samples between renormalisations of the attitude quaternion.
 const RENORMALISE_EVERY: usize = 64;
 
-/// Each lane's odometer increment at a sample, from the inputs' own increment there.
+/// Each lane's odometer increments.
 pub(super) trait OdometerLanes<const N: usize> {
-    fn at(&self, k: usize, shared_m: f64) -> [f64; N];
+    /// The samples of `inputs` the passes run over (those the odometer covers).
+    fn samples(&self, inputs: &NavInputs<'_>) -> usize;
+
+    /// Each lane's increment at sample `k`, m; called for `k` = 0, 1, … in turn.
+    fn at(&mut self, k: usize, inputs: &NavInputs<'_>) -> [f64; N];
+}
+
+/// The samples of `inputs` with an angle increment and an interval.
+fn imu_samples(inputs: &NavInputs<'_>) -> usize {
+    inputs.dt_s.len().min(inputs.dtheta_rad.len())
 }
 
 /// Every lane on the inputs' odometer increments.
 pub(super) struct SharedOdometer;
 
 impl<const N: usize> OdometerLanes<N> for SharedOdometer {
+    fn samples(&self, inputs: &NavInputs<'_>) -> usize {
+        imu_samples(inputs).min(inputs.odo_dist_m.len())
+    }
+
     #[inline(always)]
-    fn at(&self, _k: usize, shared_m: f64) -> [f64; N] {
-        [shared_m; N]
+    fn at(&mut self, k: usize, inputs: &NavInputs<'_>) -> [f64; N] {
+        [inputs.odo_dist_m[k]; N]
     }
 }
 
@@ -34,9 +47,28 @@ impl<const N: usize> OdometerLanes<N> for SharedOdometer {
 pub(super) struct OdometerPerLane<'a, const N: usize>(pub [&'a [f64]; N]);
 
 impl<const N: usize> OdometerLanes<N> for OdometerPerLane<'_, N> {
+    fn samples(&self, inputs: &NavInputs<'_>) -> usize {
+        imu_samples(inputs)
+    }
+
     #[inline(always)]
-    fn at(&self, k: usize, _shared_m: f64) -> [f64; N] {
+    fn at(&mut self, k: usize, _inputs: &NavInputs<'_>) -> [f64; N] {
         std::array::from_fn(|l| self.0[l][k])
+    }
+}
+
+/// Each lane on its own odometer increments as an iterator yields them (read as the pass
+/// goes), each at least as long as the inputs.
+pub(super) struct OdometerStreams<I, const N: usize>(pub [I; N]);
+
+impl<I: Iterator<Item = f64>, const N: usize> OdometerLanes<N> for OdometerStreams<I, N> {
+    fn samples(&self, inputs: &NavInputs<'_>) -> usize {
+        imu_samples(inputs)
+    }
+
+    #[inline(always)]
+    fn at(&mut self, _k: usize, _inputs: &NavInputs<'_>) -> [f64; N] {
+        std::array::from_fn(|l| self.0[l].next().unwrap_or(0.0))
     }
 }
 
@@ -202,7 +234,7 @@ impl<const N: usize> Lanes<N> {
     /// the same bit for bit.
     #[inline(always)]
     pub fn run(self, inputs: &NavInputs<'_>, emit: &mut impl Emit<N>) {
-        self.run_on(inputs, &SharedOdometer, emit)
+        self.run_on(inputs, &mut SharedOdometer, emit)
     }
 
     /// [`Self::run`] with each lane's odometer increments from `odometer`.
@@ -210,7 +242,7 @@ impl<const N: usize> Lanes<N> {
     pub fn run_on(
         self,
         inputs: &NavInputs<'_>,
-        odometer: &impl OdometerLanes<N>,
+        odometer: &mut impl OdometerLanes<N>,
         emit: &mut impl Emit<N>,
     ) {
         #[cfg(target_arch = "x86_64")]
@@ -228,7 +260,7 @@ impl<const N: usize> Lanes<N> {
     fn run_avx2(
         self,
         inputs: &NavInputs<'_>,
-        odometer: &impl OdometerLanes<N>,
+        odometer: &mut impl OdometerLanes<N>,
         emit: &mut impl Emit<N>,
     ) {
         self.run_portable(inputs, odometer, emit)
@@ -239,23 +271,22 @@ impl<const N: usize> Lanes<N> {
     fn run_portable(
         mut self,
         inputs: &NavInputs<'_>,
-        odometer: &impl OdometerLanes<N>,
+        odometer: &mut impl OdometerLanes<N>,
         emit: &mut impl Emit<N>,
     ) {
-        let samples = inputs
-            .dt_s
+        let n = odometer.samples(inputs);
+        let samples = inputs.dt_s[..n]
             .iter()
-            .zip(inputs.dtheta_rad)
-            .zip(inputs.odo_dist_m)
+            .zip(&inputs.dtheta_rad[..n])
             .enumerate();
         if self.boresight {
-            for (k, ((&dt, dtheta), &odo)) in samples {
-                self.step::<true>(k, dt, dtheta, odometer.at(k, odo));
+            for (k, (&dt, dtheta)) in samples {
+                self.step::<true>(k, dt, dtheta, odometer.at(k, inputs));
                 emit.emit(k, &self);
             }
         } else {
-            for (k, ((&dt, dtheta), &odo)) in samples {
-                self.step::<false>(k, dt, dtheta, odometer.at(k, odo));
+            for (k, (&dt, dtheta)) in samples {
+                self.step::<false>(k, dt, dtheta, odometer.at(k, inputs));
                 emit.emit(k, &self);
             }
         }
@@ -481,7 +512,7 @@ mod tests {
         }
         // The vector loop the CPU supports and the portable one agree too.
         let mut portable = Last(None);
-        Lanes::new(&all).run_portable(&inputs, &SharedOdometer, &mut portable);
+        Lanes::new(&all).run_portable(&inputs, &mut SharedOdometer, &mut portable);
         assert_eq!(final_state(&portable.0.unwrap()), batch);
         // Without a boresight anywhere, the loop without its terms gives the same.
         let plain: [NavSettings; 4] = std::array::from_fn(settings);
@@ -506,8 +537,17 @@ mod tests {
             odo_dist_m: &odo,
         };
         let mut batch = Last(None);
-        Lanes::new(&all).run_on(&shared, &OdometerPerLane(odometers), &mut batch);
+        Lanes::new(&all).run_on(&shared, &mut OdometerPerLane(odometers), &mut batch);
         let batch = final_state(&batch.0.unwrap());
+        // Read as the pass goes, over inputs without an odometer of their own: the same.
+        let mut streamed = Last(None);
+        let imu_only = NavInputs {
+            odo_dist_m: &[],
+            ..shared
+        };
+        let mut streams = OdometerStreams(odometers.map(|o| o.iter().copied()));
+        Lanes::new(&all).run_on(&imu_only, &mut streams, &mut streamed);
+        assert_eq!(final_state(&streamed.0.unwrap()), batch);
         for (l, (s, o)) in all.iter().zip(odometers).enumerate() {
             let own = NavInputs {
                 odo_dist_m: o,
