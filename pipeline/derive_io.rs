@@ -118,10 +118,15 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
 /// back within half of one. A stage handed the derive in memory then computes exactly
 /// what it computes from the cache.
 pub fn as_stored(mut d: Derived) -> Derived {
-    let t_ns = d.t_ns();
-    let t0_ns = t_ns.first().copied().unwrap_or(0);
+    let t0_ns = d.t_s.first().map_or(0, |&t| d.ns_of(t));
     let epoch_t_ns = d.epoch_t_ns();
-    d.t_s = Arc::new(t_ns.iter().map(|t| (t - t0_ns) as f64 * 1e-9).collect());
+    // In place (the derive's own times, not shared yet): `ns_of`, then seconds from the
+    // first stored time.
+    let was_t0_ns = d.t0_ns;
+    for t in Arc::make_mut(&mut d.t_s).iter_mut() {
+        let t_ns = was_t0_ns + (*t * 1e9).round() as i64;
+        *t = (t_ns - t0_ns) as f64 * 1e-9;
+    }
     d.epochs.t_s = epoch_t_ns
         .iter()
         .map(|t| (t - t0_ns) as f64 * 1e-9)

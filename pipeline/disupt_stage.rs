@@ -25,8 +25,8 @@ use crate::flow::{
     IngestedSeries, NavCase, Overrides, Params, RunCtx, ensure_derive, load_case, site_gravity_mps2,
 };
 use crate::method_tables::{
-    KRYT1_SERIES, MethodKryt1, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_indices,
-    method_kryt1, method_track, write_kryt1_series, write_tracks,
+    KRYT1_SERIES, MethodKryt1, MethodTrack, TRACK_RATE_HZ, TRACKS, TrackBuilder,
+    decimation_indices, method_kryt1, write_kryt1_series, write_tracks,
 };
 use crate::nav_writer::NavWriter;
 use crate::stage::{Stage, params_hash};
@@ -560,6 +560,7 @@ fn review_passes(
             reviewed,
             keep: &keep,
             at: &at,
+            start,
             track,
         },
     );
@@ -580,7 +581,7 @@ fn review_passes(
             ReviewOutcome {
                 kryt1_rad,
                 cps,
-                track: method_track(r.name, d, &keep, &pass.rows, start),
+                track: pass.rows.map(TrackBuilder::finish).unwrap_or_default(),
                 kryt1_series: method_kryt1(r.name, d, &series),
             }
         })
@@ -593,24 +594,35 @@ struct ReviewBatch<'r, 'd, 'p, S> {
     reviewed: &'r [Reviewed<'d>],
     keep: &'r [usize],
     at: &'r [usize],
+    start: Geodetic,
     track: &'r mut S,
 }
 
-impl<S: PassSink> LaneBatch for ReviewBatch<'_, '_, '_, S> {
-    type Out = ReviewPass;
+impl<'r, 'd, S: PassSink> LaneBatch for ReviewBatch<'r, 'd, '_, S> {
+    type Out = ReviewPass<Option<TrackBuilder<'d>>>;
 
-    fn run<const N: usize>(&mut self, points: [usize; N]) -> [ReviewPass; N] {
-        let last = self.reviewed.len() - 1;
-        let settings = points.map(|i| self.problem.settings(&self.reviewed[i].x));
-        let odometers = points.map(|i| &self.reviewed[i].derived.odo_dist_m[..]);
+    fn run<const N: usize>(&mut self, points: [usize; N]) -> [Self::Out; N] {
+        let reviewed = self.reviewed;
+        let last = reviewed.len() - 1;
+        let settings = points.map(|i| self.problem.settings(&reviewed[i].x));
+        let odometers = points.map(|i| &reviewed[i].derived.odo_dist_m[..]);
         let tracked = points.iter().position(|&i| i == last).unwrap_or(0);
+        // Each method's trajectory is built as its lane runs (none for a lane that
+        // repeats the one before).
+        let rows = std::array::from_fn(|l| {
+            (l == 0 || points[l] != points[l - 1]).then(|| {
+                let r = &reviewed[points[l]];
+                TrackBuilder::new(r.name, r.derived, self.keep.len(), self.start)
+            })
+        });
         strapdown::run_review(
-            &self.reviewed[0].derived.nav_inputs(),
+            &reviewed[0].derived.nav_inputs(),
             odometers,
             &settings,
             self.problem.lp.block,
             self.at,
             self.keep,
+            rows,
             tracked,
             self.track,
         )
@@ -798,7 +810,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let (tracks_path, kryt1s_path) = (dir.join(TRACKS), dir.join(KRYT1_SERIES));
         let (tables, joint) = rayon::join(
             move || -> anyhow::Result<()> {
-                write_tracks(&tracks_path, &tracks)?;
+                write_tracks(&tracks_path, tracks)?;
                 write_kryt1_series(&kryt1s_path, &kryt1s)
             },
             || -> anyhow::Result<Option<(MethodOut, Option<RouteSigma>)>> {

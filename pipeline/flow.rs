@@ -374,12 +374,16 @@ impl IngestedSeries {
     /// Derives the run, the IMU's increments repaired in place (no copy of the run's
     /// length): [`derive_owned`].
     pub fn derive(self, params: &DeriveParams, g_mps2: f64) -> Derived {
+        // The status flags are counted already (failure_counts), the sequence numbers not
+        // read: they go now, and the time tags once the time base is made.
         let ImuTable {
             t_ns,
+            seq,
             dtheta_rad,
             dvel_mps,
-            ..
+            status,
         } = self.imu;
+        drop((seq, status));
         let odometer = RawSeries {
             imu_t_ns: &[],
             dtheta_rad: &[],
@@ -387,7 +391,7 @@ impl IngestedSeries {
             odo_t_ns: &self.odo.t_ns,
             odo_distance_m: &self.odo.distance_m,
         };
-        derive_owned(&t_ns, dtheta_rad, dvel_mps, &odometer, params, g_mps2)
+        derive_owned(t_ns.into(), dtheta_rad, dvel_mps, &odometer, params, g_mps2)
     }
 }
 

@@ -13,7 +13,7 @@ use unz_formats::tables::{f32_column, f64_column, i64_column};
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
-use unz_stages::strapdown::{TrackRow, euler_of};
+use unz_stages::strapdown::{KeepRows, TrackRow, euler_of};
 
 /// File name of the per-method trajectories.
 pub const TRACKS: &str = "tracks.parquet";
@@ -79,35 +79,51 @@ pub fn decimation_indices(len: usize, nominal_dt_s: f64, rate_hz: f64) -> Vec<us
     idx
 }
 
-/// One method's trajectory from its states at the samples `keep` (see
-/// [`decimation_indices`]), with local offsets from `start`.
-pub fn method_track(
-    method: &str,
-    d: &Derived,
-    keep: &[usize],
-    rows: &[TrackRow],
+/// One method's trajectory built as its pass reaches the kept samples (see
+/// [`decimation_indices`]; a [`KeepRows`]), with local offsets from `start`: no state of
+/// the pass is stored beside it.
+pub struct TrackBuilder<'d> {
+    d: &'d Derived,
     start: Geodetic,
-) -> MethodTrack {
-    let n = keep.len().min(rows.len());
-    let mut m = MethodTrack {
-        method: method.to_owned(),
-        t_ns: Vec::with_capacity(n),
-        lat_deg: Vec::with_capacity(n),
-        lon_deg: Vec::with_capacity(n),
-        h_m: Vec::with_capacity(n),
-        north_m: Vec::with_capacity(n),
-        east_m: Vec::with_capacity(n),
-        roll_deg: Vec::with_capacity(n),
-        pitch_deg: Vec::with_capacity(n),
-        heading_deg: Vec::with_capacity(n),
-    };
-    for (&k, (lat, lon, h, q)) in keep.iter().zip(rows) {
-        let (n, e) = start.offset_m(*lat, *lon);
-        let att = euler_of(q);
+    track: MethodTrack,
+}
+
+impl<'d> TrackBuilder<'d> {
+    /// For `method`'s pass over `d`, keeping `rows` samples.
+    pub fn new(method: &str, d: &'d Derived, rows: usize, start: Geodetic) -> Self {
+        Self {
+            d,
+            start,
+            track: MethodTrack {
+                method: method.to_owned(),
+                t_ns: Vec::with_capacity(rows),
+                lat_deg: Vec::with_capacity(rows),
+                lon_deg: Vec::with_capacity(rows),
+                h_m: Vec::with_capacity(rows),
+                north_m: Vec::with_capacity(rows),
+                east_m: Vec::with_capacity(rows),
+                roll_deg: Vec::with_capacity(rows),
+                pitch_deg: Vec::with_capacity(rows),
+                heading_deg: Vec::with_capacity(rows),
+            },
+        }
+    }
+
+    /// The trajectory.
+    pub fn finish(self) -> MethodTrack {
+        self.track
+    }
+}
+
+impl KeepRows for TrackBuilder<'_> {
+    fn keep(&mut self, k: usize, (lat, lon, h, q): TrackRow) {
+        let (d, m) = (self.d, &mut self.track);
+        let (n, e) = self.start.offset_m(lat, lon);
+        let att = euler_of(&q);
         m.t_ns.push(d.ns_of(d.t_s[k]));
         m.lat_deg.push(lat.to_degrees());
         m.lon_deg.push(lon.to_degrees());
-        m.h_m.push(*h as f32);
+        m.h_m.push(h as f32);
         m.north_m.push(n as f32);
         m.east_m.push(e as f32);
         m.roll_deg.push(att.roll_rad.to_degrees() as f32);
@@ -115,7 +131,6 @@ pub fn method_track(
         m.heading_deg
             .push(att.heading_rad.to_degrees().rem_euclid(360.0) as f32);
     }
-    m
 }
 
 /// One method's Kryt1 series from the criteria of its pass.
@@ -141,26 +156,25 @@ fn cat<T: Copy>(parts: impl Iterator<Item = Vec<T>>) -> Vec<T> {
 }
 
 /// Writes `tracks.parquet`, one method's rows at a time (the methods' columns are not
-/// concatenated in memory first).
-pub fn write_tracks(path: &Path, tracks: &[MethodTrack]) -> anyhow::Result<()> {
+/// concatenated in memory first), each track let go once written.
+pub fn write_tracks(path: &Path, tracks: Vec<MethodTrack>) -> anyhow::Result<()> {
     let schema = schema::tracks();
     let mut sink = ParquetSink::create(path, schema.clone())?;
+    // Each track's columns become the batch's (no copy) and go once written.
     for t in tracks {
-        let f64s = |v: &[f64]| Arc::new(Float64Array::from(v.to_vec()));
-        let f32s = |v: &[f32]| Arc::new(Float32Array::from(v.to_vec()));
         let batch = RecordBatch::try_new(
             schema.clone(),
             vec![
                 method_column(std::iter::once((t.method.as_str(), t.t_ns.len()))),
-                Arc::new(Int64Array::from(t.t_ns.clone())),
-                f64s(&t.lat_deg),
-                f64s(&t.lon_deg),
-                f32s(&t.h_m),
-                f32s(&t.north_m),
-                f32s(&t.east_m),
-                f32s(&t.roll_deg),
-                f32s(&t.pitch_deg),
-                f32s(&t.heading_deg),
+                Arc::new(Int64Array::from(t.t_ns)),
+                Arc::new(Float64Array::from(t.lat_deg)),
+                Arc::new(Float64Array::from(t.lon_deg)),
+                Arc::new(Float32Array::from(t.h_m)),
+                Arc::new(Float32Array::from(t.north_m)),
+                Arc::new(Float32Array::from(t.east_m)),
+                Arc::new(Float32Array::from(t.roll_deg)),
+                Arc::new(Float32Array::from(t.pitch_deg)),
+                Arc::new(Float32Array::from(t.heading_deg)),
             ],
         )?;
         sink.write(&batch)?;
@@ -288,7 +302,7 @@ mod tests {
         };
         let tracks = vec![mk("initial", 3, 0.5), mk("joint", 2, 1.5)];
         let p = dir.path().join(TRACKS);
-        write_tracks(&p, &tracks).unwrap();
+        write_tracks(&p, tracks.clone()).unwrap();
         assert_eq!(read_tracks(&p).unwrap(), tracks);
         let series = vec![MethodKryt1 {
             method: "oepi".into(),

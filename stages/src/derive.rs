@@ -330,7 +330,7 @@ impl<'a> OdoInterp<'a> {
 /// Runs the stage. `g_mps2` is the normal gravity at the site.
 pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derived {
     derive_owned(
-        raw.imu_t_ns,
+        raw.imu_t_ns.into(),
         raw.dtheta_rad.to_vec(),
         raw.dvel_mps.to_vec(),
         raw,
@@ -340,10 +340,11 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
 }
 
 /// [`derive`] of the IMU's increments given by value: they are repaired in place and
-/// become the derive's, without a copy of the run's length. The odometer is `raw`'s (its
-/// IMU columns are not read).
+/// become the derive's, without a copy of the run's length. The IMU's time tags, when
+/// given by value too, go once the time base is made. The odometer is `raw`'s (its IMU
+/// columns are not read).
 pub fn derive_owned(
-    imu_t_ns: &[i64],
+    imu_t_ns: std::borrow::Cow<'_, [i64]>,
     mut dtheta_rad: Vec<[f64; 3]>,
     mut dvel_mps: Vec<[f64; 3]>,
     raw: &RawSeries<'_>,
@@ -411,6 +412,7 @@ pub fn derive_owned(
         dvel_mps[k] = dv;
         prev_t = t;
     }
+    drop(imu_t_ns);
     (out.t_s, out.dt_s, out.dtheta_rad, out.dvel_mps) =
         (t_s.into(), dt_s.into(), dtheta_rad.into(), dvel_mps.into());
 

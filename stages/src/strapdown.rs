@@ -404,34 +404,59 @@ pub type StateAt = (f64, f64, [f64; 4]);
 /// quaternion of `C_b^n` (w, x, y, z).
 pub type TrackRow = (f64, f64, f64, [f64; 4]);
 
+/// Where a review pass's states at its kept samples go, as the pass reaches them.
+pub trait KeepRows {
+    /// The state `row` at sample `k`.
+    fn keep(&mut self, k: usize, row: TrackRow);
+}
+
+/// The rows as they are.
+impl KeepRows for Vec<TrackRow> {
+    fn keep(&mut self, _k: usize, row: TrackRow) {
+        self.push(row);
+    }
+}
+
+/// Rows that may go nowhere (a lane that repeats another).
+impl<R: KeepRows> KeepRows for Option<R> {
+    #[inline]
+    fn keep(&mut self, k: usize, row: TrackRow) {
+        if let Some(r) = self {
+            r.keep(k, row);
+        }
+    }
+}
+
 /// What [`run_review`] keeps of one pass.
 #[derive(Debug, Clone, Default)]
-pub struct ReviewPass {
+pub struct ReviewPass<R> {
     /// What the criteria read (the sums per block, the positions at the control points).
     pub criteria: CriteriaSink,
     /// The states at the kept samples.
-    pub rows: Vec<TrackRow>,
+    pub rows: R,
 }
 
 /// Passes for review side by side, each lane on its own odometer increments
 /// (`odometers[l]`, as long as `inputs`): each keeps what the criteria read (blocks of
-/// `block` samples, positions at `positions_at`) and its states at `keep` (increasing),
-/// and lane `tracked` also feeds every sample to `track` (a [`NavTrack`] sized to the
-/// input, or a sink that keeps less). Each is exactly what the pass alone, tracked, gives.
+/// `block` samples, positions at `positions_at`) and hands its states at `keep`
+/// (increasing) to `rows[l]` as it reaches them, and lane `tracked` also feeds every
+/// sample to `track` (a [`NavTrack`] sized to the input, or a sink that keeps less). Each
+/// is exactly what the pass alone, tracked, gives.
 ///
 /// # Panics
 /// If an odometer series is shorter than `inputs`, or `tracked` is not a lane.
 #[allow(clippy::too_many_arguments)]
-pub fn run_review<const N: usize>(
+pub fn run_review<const N: usize, R: KeepRows>(
     inputs: &NavInputs<'_>,
     odometers: [&[f64]; N],
     settings: &[NavSettings; N],
     block: usize,
     positions_at: &[usize],
     keep: &[usize],
+    rows: [R; N],
     tracked: usize,
     track: &mut impl PassSink,
-) -> [ReviewPass; N] {
+) -> [ReviewPass<R>; N] {
     assert!(tracked < N, "lane {tracked} of {N}");
     assert!(
         odometers.iter().all(|o| o.len() >= inputs.len()),
@@ -442,43 +467,45 @@ pub fn run_review<const N: usize>(
         criteria: CriteriaLanes::new(&mut sinks, inputs.len(), block, positions_at),
         keep,
         next: 0,
-        rows: std::array::from_fn(|_| Vec::with_capacity(keep.len())),
+        rows,
         tracked,
         track,
     };
     Lanes::<N>::new(settings).run_on(inputs, &mut OdometerPerLane(odometers), &mut review);
     review.criteria.close_block();
-    let rows = review.rows;
-    let mut rows = rows.into_iter();
+    let mut rows = review.rows.into_iter();
     sinks.map(|criteria| ReviewPass {
         criteria,
-        rows: rows.next().unwrap_or_default(),
+        rows: rows.next().expect("one row sink per lane"),
     })
 }
 
 /// [`run_review`]'s sink.
-struct ReviewLanes<'a, const N: usize, S> {
+struct ReviewLanes<'a, const N: usize, R, S> {
     criteria: CriteriaLanes<'a, N>,
     keep: &'a [usize],
     next: usize,
-    rows: [Vec<TrackRow>; N],
+    rows: [R; N],
     tracked: usize,
     track: &'a mut S,
 }
 
-impl<const N: usize, S: PassSink> Emit<N> for ReviewLanes<'_, N, S> {
+impl<const N: usize, R: KeepRows, S: PassSink> Emit<N> for ReviewLanes<'_, N, R, S> {
     #[inline(always)]
     fn emit(&mut self, k: usize, lanes: &Lanes<N>) {
         self.criteria.emit(k, lanes);
         if self.keep.get(self.next) == Some(&k) {
             self.next += 1;
             for (l, rows) in self.rows.iter_mut().enumerate() {
-                rows.push((
-                    lanes.lat_rad[l],
-                    lanes.lon_rad[l],
-                    lanes.h_m[l],
-                    lanes.q_of(l),
-                ));
+                rows.keep(
+                    k,
+                    (
+                        lanes.lat_rad[l],
+                        lanes.lon_rad[l],
+                        lanes.h_m[l],
+                        lanes.q_of(l),
+                    ),
+                );
             }
         }
         let t = self.tracked;

@@ -584,6 +584,7 @@ mod tests {
             10,
             &fixes,
             &keep,
+            std::array::from_fn(|_| Vec::new()),
             1,
             &mut kept_track,
         );
