@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use unz_formats::parquet_io::{for_each_batch_of, read_schema, read_table};
+use unz_formats::parquet_io::{for_each_batch_of, read_schema, read_table, row_capacity_hint};
 use unz_formats::schema::derived_meta;
 use unz_formats::tables::{f64_column, i64_column, vec3_column};
 use unz_stages::criteria::Kryt2;
@@ -147,7 +147,7 @@ pub struct ReviewSensors {
 
 /// [`ReviewSensors`] of a whole derive (as it is stored: [`crate::derive_io::as_stored`]).
 pub fn review_sensors(d: &unz_stages::derive::Derived) -> ReviewSensors {
-    let mut b = SensorBlocksBuilder::at_series_rate(d.nominal_dt_s);
+    let mut b = SensorBlocksBuilder::at_series_rate(d.nominal_dt_s).with_room_for(d.t_s.len());
     for (k, speed) in d.odometer_speeds(0..d.t_s.len()).enumerate() {
         b.push(SensorSample {
             t_s: d.t_s[k],
@@ -192,7 +192,8 @@ fn sensor_blocks(ctx: &RunCtx, derive_dir: &Path) -> anyhow::Result<(SensorBlock
                 derived_meta::NOMINAL_DT_S
             )
         })?;
-    let mut b = SensorBlocksBuilder::at_series_rate(nominal_dt_s);
+    let mut b =
+        SensorBlocksBuilder::at_series_rate(nominal_dt_s).with_room_for(row_capacity_hint(&path)?);
     let mut times = RunTimes {
         t0_ns: 0,
         nominal_dt_s,

@@ -479,21 +479,11 @@ impl LaneBatch for OnDerives<'_, '_> {
         // The sinks live for this batch only: each holds its pass's blocks (a run's
         // length), so none is kept once the observations are taken.
         let mut sinks: [CriteriaSink; N] = std::array::from_fn(|_| CriteriaSink::default());
-        if self.problems.iter().any(|p| p.moved_odometer.is_some()) {
-            let odometers = points.map(|i| self.problem(i).odometer_increments());
-            strapdown::run_criteria_streams(
-                &first.inputs,
-                odometers,
-                &settings,
-                first.lp.block,
-                &at,
-                &mut sinks,
-            );
-        } else if self.problems.len() == 1 {
+        if self.problems.len() == 1 && first.moved_odometer.is_none() {
             strapdown::run_criteria(&first.inputs, &settings, first.lp.block, &at, &mut sinks);
         } else {
-            let odometers = points.map(|i| self.problem(i).inputs.odo_dist_m);
-            strapdown::run_criteria_odometers(
+            let odometers = points.map(|i| self.problem(i).odometer_increments());
+            strapdown::run_criteria_streams(
                 &first.inputs,
                 odometers,
                 &settings,

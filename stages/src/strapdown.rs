@@ -337,32 +337,10 @@ pub fn run_criteria<const N: usize>(
     );
 }
 
-/// [`run_criteria`] with each lane on its own odometer increments (`odometers[l]`, as
-/// long as `inputs`; `inputs.odo_dist_m` is not read): passes over derives at several
-/// odometer timings side by side, each as it would run alone.
-///
-/// # Panics
-/// If an odometer series is shorter than `inputs`.
-pub fn run_criteria_odometers<const N: usize>(
-    inputs: &NavInputs<'_>,
-    odometers: [&[f64]; N],
-    settings: &[NavSettings; N],
-    block: usize,
-    positions_at: &[usize],
-    sinks: &mut [CriteriaSink; N],
-) {
-    assert!(
-        odometers.iter().all(|o| o.len() >= inputs.len()),
-        "an odometer series shorter than the IMU's"
-    );
-    let mut odometer = OdometerPerLane(odometers);
-    run_criteria_on(inputs, &mut odometer, settings, block, positions_at, sinks);
-}
-
 /// [`run_criteria`] with each lane on the odometer increments `odometers[l]` yields (at
 /// least as many as `inputs` has samples; `inputs.odo_dist_m` is not read): passes over
-/// derives at several odometer timings whose increments are read as the passes go, not
-/// stored.
+/// derives at several odometer timings side by side, each as it would run alone, their
+/// increments stored or read as the passes go.
 ///
 /// # Panics
 /// If an odometer yields fewer increments than `inputs` has samples.

@@ -107,6 +107,27 @@ impl SensorBlocksBuilder {
         )
     }
 
+    /// Room for the blocks of `samples` samples, reserved once (a bound from trusted
+    /// counts: the caller's own series, or a Parquet footer bounded by its file's size).
+    pub fn with_room_for(mut self, samples: usize) -> Self {
+        let blocks = samples.div_ceil(self.out.step);
+        let out = &mut self.out;
+        for v in [
+            &mut out.t_s,
+            &mut out.u_mps,
+            &mut out.u_dot_mps2,
+            &mut out.ru_mps2,
+        ]
+        .into_iter()
+        .chain(&mut out.gyro_deg_s)
+        .chain(&mut out.accel_mps2)
+        {
+            v.reserve_exact(blocks);
+        }
+        out.sample.reserve_exact(blocks);
+        self
+    }
+
     /// The next sample.
     pub fn push(&mut self, s: SensorSample) {
         self.block.push(s);
