@@ -621,6 +621,72 @@ pub fn shifted_blocks(x: &[f64], block_s: f64, shift_s: f64) -> Vec<f64> {
 mod tests {
     use super::*;
 
+    /// The interpolation by its definition: the kept tags gathered first, then searched.
+    fn distance_by_definition(t_ns: &[i64], d: &[f64], t0_ns: i64, offset_s: f64, ts: f64) -> f64 {
+        let mut kept: Vec<(f64, f64)> = Vec::new();
+        for (&ti, &di) in t_ns.iter().zip(d) {
+            let t = (ti - t0_ns) as f64 * 1e-9 + offset_s;
+            if kept.last().is_none_or(|&(last, _)| t > last) && di.is_finite() {
+                kept.push((t, di));
+            }
+        }
+        match kept.as_slice() {
+            [] => 0.0,
+            [(_, d0)] => *d0,
+            [(t0, d0), (t1, d1), ..] if ts <= *t0 => {
+                let span = t1 - t0;
+                d0 - (t0 - ts).min(span) * (d1 - d0) / span
+            }
+            _ => {
+                let i = kept.partition_point(|&(t, _)| t <= ts) - 1;
+                match kept.get(i + 1) {
+                    None => kept[i].1,
+                    Some(&(t1, d1)) => {
+                        let (t0, d0) = kept[i];
+                        d0 + (ts - t0) / (t1 - t0) * (d1 - d0)
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_odometer_interpolation_is_its_definition_bit_for_bit() {
+        // Tags going back, repeated, a NaN distance, a gap; calls before the first tag,
+        // on tags, between them and after the last.
+        let t_ns = [
+            1_000_000_000,
+            1_100_000_000,
+            1_050_000_000,
+            1_100_000_000,
+            1_200_000_000,
+            1_300_000_000,
+            1_900_000_000,
+            2_000_000_000,
+        ];
+        let d = [0.0, 0.4, 9.0, 7.0, f64::NAN, 1.3, 3.0, 3.1];
+        let calls: Vec<f64> = (0..260).map(|i| -0.3 + i as f64 * 0.00731).collect();
+        for offset_s in [0.0, 0.0137, -0.25] {
+            for (tags, dists) in [
+                (&t_ns[..], &d[..]),
+                (&t_ns[..1], &d[..1]),
+                (&t_ns[..0], &d[..0]),
+                (&t_ns[4..], &d[4..]),
+            ] {
+                let mut odo = OdoInterp::new(tags, dists, 1_000_000_000, offset_s);
+                for &ts in &calls {
+                    let want = distance_by_definition(tags, dists, 1_000_000_000, offset_s, ts);
+                    assert_eq!(
+                        odo.at(ts).to_bits(),
+                        want.to_bits(),
+                        "{} tags, offset {offset_s}, at {ts}",
+                        tags.len()
+                    );
+                }
+            }
+        }
+    }
+
     /// A drive that starts, turns, stops and starts again, the odometer at 10 Hz with its
     /// own time base, and a run length that leaves a partial last block: (IMU times,
     /// angle increments, velocity increments, odometer times, odometer distances).
