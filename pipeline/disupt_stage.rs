@@ -503,7 +503,9 @@ fn run_joint(
     dparams: &disupt::DisuptParams,
 ) -> Result<JointRun, disupt::DisuptError> {
     if dparams.joint_odo_lag && case.fixes.len() >= 2 {
-        let f = joint_with_lag(rederive, &case.derived, spec, dparams)?;
+        // On the methods' shared problem: the lag-free fit starts from the same first
+        // linearisation as OEPI and OWPI, built once.
+        let f = joint_with_lag(rederive, problem, spec, dparams)?;
         return Ok(JointRun {
             lag: Lag {
                 lag_s: f.lag_s,

@@ -261,15 +261,16 @@ impl Profile<'_> {
 }
 
 /// The joint fit with the odometer lag estimated within ±`params.odo_lag_bound_s`.
-/// `base` is the derive at lag zero (the cached one); `spec` is the DISUPT problem to
-/// set on each derive.
+/// `base` is `spec` on the derive at lag zero (the cached one), the problem the other
+/// methods share (its first linearisation is built once for all); `spec` is the DISUPT
+/// problem to set on each re-derive.
 pub fn joint_with_lag(
     rederive: &Rederive<'_>,
-    base: &Derived,
+    base: &Problem<'_>,
     spec: &ProblemSpec<'_>,
     params: &DisuptParams,
 ) -> Result<LagFit, DisuptError> {
-    let fit0 = joint_fit(&spec.on(base), params, &JointOptions::default())?;
+    let fit0 = joint_fit(base, params, &JointOptions::default())?;
     let profile = Profile {
         rederive,
         valid: base.epochs.valid.clone(),
@@ -284,7 +285,7 @@ pub fn joint_with_lag(
     // ±STEP around each vertex, until the vertex moves less than TOLERANCE_S.
     // The trial at lag zero is on the derive the fit was made on, whose pass at the
     // linearisation's point the linearisation holds: no pass.
-    let cost_at_0 = fit0.linearised_cp_cost(&spec.on(base), fit0.linearization())?;
+    let cost_at_0 = fit0.linearised_cp_cost(base, fit0.linearization())?;
     profile.trials.borrow_mut().push([0.0, cost_at_0]);
     let wide = 0.3 * bound;
     let mut points = [-wide, 0.0, wide];
