@@ -2,10 +2,12 @@
 
 mod common;
 
-use common::case_with;
+use common::{case, case_with};
 use unz_stages::attitude::wrap_pi;
 use unz_stages::criteria::KalmanParams;
-use unz_stages::disupt::{DisuptParams, Problem, joint, oepi, owpi};
+use unz_stages::derive::DeriveParams;
+use unz_stages::disupt::{DisuptParams, Problem, ProblemSpec, X, joint, observe_each, oepi, owpi};
+use unz_stages::odo_lag::Rederive;
 use unz_stages::simulate::SensorErrors;
 use unz_stages::units::DEG_PER_H;
 
@@ -294,4 +296,67 @@ fn joint_fit_estimates_an_odometer_boresight_when_asked() {
         sd.azimuth_deg
     );
     assert!(route_error(&with_yaw.x) < 0.002 * distance);
+}
+
+#[test]
+fn a_problem_reading_its_odometer_as_it_goes_observes_what_the_stored_derive_gives() {
+    let c = case(44, SensorErrors::ALL);
+    let (odo_t_ns, odo_m) = c.raw_odometer();
+    let params = DeriveParams::default();
+    let g = unz_stages::earth::normal_gravity_mps2(c.run.site.lat_rad, c.run.site.h_m);
+    let rederive = Rederive::of_odometer(&c.derived, &odo_t_ns, &odo_m, params, g);
+    let spec = ProblemSpec {
+        settings: c.manifest_settings(),
+        filter: params.filter,
+        kalman: KalmanParams::default(),
+        fixes: &c.fixes,
+        drift_z_prior_deg_h: None,
+    };
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let tally = std::sync::atomic::AtomicUsize::new(0);
+    let mut positions = Vec::new();
+    for lag_s in [-0.37, 0.0, 0.21] {
+        let stored = rederive.at(lag_s);
+        let (moved, odometer) = rederive.at_moved(lag_s);
+        assert!(
+            moved.odo_dist_m.is_empty(),
+            "nothing of the run's length stored"
+        );
+        for (a, b) in [
+            (&stored.u_dot_f, &moved.u_dot_f),
+            (&stored.ru_f, &moved.ru_f),
+            (&stored.r_moving_f, &moved.r_moving_f),
+            (&stored.moving_dot_f, &moved.moving_dot_f),
+            (&stored.epochs.theta_p_rad, &moved.epochs.theta_p_rad),
+            (&stored.epochs.phi_p_rad, &moved.epochs.phi_p_rad),
+        ] {
+            assert_eq!(bits(a), bits(b), "lag {lag_s}");
+        }
+        let on_stored = spec.on(&stored);
+        let on_moved = spec.on_moved(&moved, odometer);
+        let x = X {
+            azimuth_deg: on_stored.x0().azimuth_deg + 0.3,
+            ..on_stored.x0()
+        };
+        // Alone, and in one batch of lanes beside a problem on a stored derive.
+        let alone = observe_each(&[&on_moved], &x, &tally);
+        let side_by_side = observe_each(&[&on_stored, &on_moved, &on_stored], &x, &tally);
+        let want = on_stored.observe(&x);
+        for y in [
+            &alone[0],
+            &side_by_side[0],
+            &side_by_side[1],
+            &side_by_side[2],
+        ] {
+            assert_eq!(bits(&y.theta_rad), bits(&want.theta_rad), "lag {lag_s}");
+            assert_eq!(bits(&y.phi_rad), bits(&want.phi_rad), "lag {lag_s}");
+            assert_eq!(y.cp_m, want.cp_m, "lag {lag_s}");
+        }
+        assert!(!want.cp_m.is_empty() && !want.theta_rad.is_empty());
+        positions.push(want.cp_m);
+    }
+    assert!(
+        positions[0] != positions[1] && positions[1] != positions[2],
+        "the lag moves the stops"
+    );
 }

@@ -190,6 +190,21 @@ impl Case {
         }
     }
 
+    /// The ingested odometer the case was derived from: time tags (ns) and cumulative
+    /// distances (m).
+    pub fn raw_odometer(&self) -> (Vec<i64>, Vec<f64>) {
+        self.run
+            .records
+            .iter()
+            .map(|r| {
+                (
+                    r.t_us as i64 * 1000,
+                    f64::from(r.odo_count) * self.run.sensor.odo_lsb_m,
+                )
+            })
+            .unzip()
+    }
+
     pub fn lowpass(&self) -> LowPass {
         LowPass::new(&DeriveParams::default().filter, self.derived.nominal_dt_s)
     }
