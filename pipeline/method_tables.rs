@@ -159,7 +159,9 @@ fn cat<T: Copy>(parts: impl Iterator<Item = Vec<T>>) -> Vec<T> {
 /// concatenated in memory first), each track let go once written.
 pub fn write_tracks(path: &Path, tracks: Vec<MethodTrack>) -> anyhow::Result<()> {
     let schema = schema::tracks();
-    let mut sink = ParquetSink::create(path, schema.clone())?;
+    // Row groups of 65 536 rows: the writer holds that many encoded rows, not a
+    // method's whole track.
+    let mut sink = ParquetSink::create_in_row_groups(path, schema.clone(), 1 << 16)?;
     // Each track's columns become the batch's (no copy) and go once written.
     for t in tracks {
         let batch = RecordBatch::try_new(

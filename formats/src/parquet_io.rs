@@ -26,8 +26,18 @@ fn parquet_err(path: &Path, e: impl Into<FormatError>) -> FileError {
 }
 
 impl ParquetSink {
-    /// Starts a zstd-compressed Parquet file at `dest`.
+    /// Starts a zstd-compressed Parquet file at `dest`, in row groups of 2^20 rows.
     pub fn create(dest: &Path, schema: SchemaRef) -> Result<Self, FileError> {
+        Self::create_in_row_groups(dest, schema, 1 << 20)
+    }
+
+    /// [`Self::create`] in row groups of at most `rows` rows: the writer holds one row
+    /// group's encoded rows at a time.
+    pub fn create_in_row_groups(
+        dest: &Path,
+        schema: SchemaRef,
+        rows: usize,
+    ) -> Result<Self, FileError> {
         let file = AtomicFile::create(dest)?;
         // Sensor columns are high-cardinality floats: a dictionary never pays off and
         // page statistics are not used by any reader here; byte-stream-split floats
@@ -35,7 +45,7 @@ impl ParquetSink {
         let level = ZstdLevel::try_new(1).map_err(|e| parquet_err(dest, e))?;
         let mut builder = WriterProperties::builder()
             .set_compression(Compression::ZSTD(level))
-            .set_max_row_group_row_count(Some(1 << 20))
+            .set_max_row_group_row_count(Some(rows.max(1)))
             .set_dictionary_enabled(false)
             .set_statistics_enabled(EnabledStatistics::Chunk);
         for field in schema.fields() {
