@@ -16,7 +16,9 @@ use unz_stages::disupt::{
 use unz_stages::earth::Geodetic;
 use unz_stages::linearized::Observation;
 use unz_stages::odo_lag::{Rederive, joint_with_lag};
-use unz_stages::route_sigma::{Moved, RouteBase, RouteSigma, route_sigma};
+use unz_stages::route_sigma::{
+    Moved, Ran, RouteBase, RouteSigma, route_samples, route_sigma, states_along,
+};
 use unz_stages::strapdown::{self, LaneBatch, NavInputs, NavSettings, PassSink, ReviewPass};
 use unz_stages::units::DEG_PER_H;
 
@@ -372,6 +374,10 @@ struct JointRun {
     lag: Lag,
     profile: Option<Vec<[f64; 2]>>,
     derived: Option<Derived>,
+    /// The route σ's pass at the lag moved by [`LAG_STEP_S`], run where the ingested
+    /// odometer is at hand: its states at the route's samples (when
+    /// [`route_sigma_has_lag`]).
+    lag_states: Option<Vec<[f64; 3]>>,
 }
 
 /// A method's entry of `disupt.json`.
@@ -402,18 +408,17 @@ fn route_sigma_has_lag(run: &JointRun) -> bool {
 
 /// σ of the joint's corrected route (`base`, taken from the pass at its settings): the fit's
 /// covariance through one moved pass per estimated setting, and the lag's variance
-/// through a pass on the odometer increments at the moved lag (`lag_odo_dist_m`, when
+/// through the pass at the moved lag (its states, `run.lag_states`, when
 /// [`route_sigma_has_lag`]).
 fn joint_route_sigma(
     problem: &Problem<'_>,
     run: &JointRun,
-    lag_odo_dist_m: Option<&[f64]>,
     base: &RouteBase<'_>,
 ) -> Option<RouteSigma> {
     let fit = &run.fit;
     let cov = fit.covariance.as_ref()?;
     let x = fit.result.x;
-    let mut moved: Vec<Moved<'_>> = disupt::moved_by_steps(&x, &fit.free)
+    let moved: Vec<Moved<'_>> = disupt::moved_by_steps(&x, &fit.free)
         .iter()
         .zip(&fit.free)
         .map(|(xs, s)| Moved {
@@ -424,20 +429,25 @@ fn joint_route_sigma(
         .collect();
     let m = moved.len();
     let mut c = cov.clone();
-    if let Some(odo_dist_m) = lag_odo_dist_m.filter(|_| route_sigma_has_lag(run)) {
-        // Only the odometer's increments move with the lag.
-        moved.push(Moved {
-            inputs: NavInputs {
-                odo_dist_m,
-                ..problem.inputs
-            },
-            settings: problem.settings(&fit.result.x),
+    let mut ran = Vec::new();
+    if let Some(states) = run
+        .lag_states
+        .as_deref()
+        .filter(|_| route_sigma_has_lag(run))
+    {
+        ran.push(Ran {
+            states,
             step: LAG_STEP_S,
         });
         c = c.resize(m + 1, m + 1, 0.0);
         c[(m, m)] = run.lag.sigma_s * run.lag.sigma_s;
     }
-    Some(route_sigma(base, &moved, &c))
+    Some(route_sigma(base, &moved, &ran, &c))
+}
+
+/// Samples between the route σ's values: 0.1 s.
+fn route_stride(dt_s: &[f64]) -> usize {
+    (0.1 / dt_s.first().copied().unwrap_or(0.01)).round() as usize
 }
 
 /// `disupt.md`: the paper's tables per method, then the errors before DISUPT.
@@ -506,7 +516,7 @@ fn run_joint(
         // On the methods' shared problem: the lag-free fit starts from the same first
         // linearisation as OEPI and OWPI, built once.
         let f = joint_with_lag(rederive, problem, spec, dparams)?;
-        return Ok(JointRun {
+        let mut run = JointRun {
             lag: Lag {
                 lag_s: f.lag_s,
                 sigma_s: f.sigma_s.unwrap_or(0.0),
@@ -514,13 +524,30 @@ fn run_joint(
             profile: Some(f.profile),
             derived: Some(f.derived),
             fit: f.fit,
-        });
+            lag_states: None,
+        };
+        if route_sigma_has_lag(&run) {
+            // The route σ's pass at the moved lag, now that the ingested odometer is at
+            // hand (beside OEPI and OWPI when they still run): only its states at the
+            // route's samples are kept, not its odometer increments.
+            let d = &case.derived;
+            let samples = route_samples(d.dt_s.len(), route_stride(&d.dt_s));
+            let odometer = rederive.odometer_at(run.lag.lag_s + LAG_STEP_S);
+            run.lag_states = Some(states_along(
+                &d.nav_inputs(),
+                odometer.increments(),
+                &problem.settings(&run.fit.result.x),
+                &samples,
+            ));
+        }
+        return Ok(run);
     }
     Ok(JointRun {
         fit: joint_fit(problem, dparams, &JointOptions::default())?,
         lag: Lag::default(),
         profile: None,
         derived: None,
+        lag_states: None,
     })
 }
 
@@ -714,12 +741,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 crate::memory::rss_suffix()
             ),
         );
-        // The route σ's lag pass reads the odometer at the moved lag: taken now, so that the
-        // ingested odometer and its re-derives go before the review passes.
+        // The ingested odometer and its re-derives go before the review passes (the route
+        // σ's pass at the moved lag ran with the joint).
         let joint_run = joint_result.as_ref().and_then(|r| r.as_ref().ok());
-        let lag_odo_dist_m = joint_run
-            .filter(|run| route_sigma_has_lag(run))
-            .map(|run| rederive.odo_dist_at(run.lag.lag_s + LAG_STEP_S));
         drop(rederive);
         drop(odometer);
         let joint_derived = joint_run
@@ -775,12 +799,11 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             .filter(|run| run.fit.covariance.is_some())
             .map(|run| {
                 let dt_s = joint_problem.inputs.dt_s;
-                let stride = (0.1 / dt_s.first().copied().unwrap_or(0.01)).round() as usize;
                 RouteBase::new(
                     &joint_problem.settings(&run.fit.result.x),
                     dt_s,
                     params.align.arw_rad_sqrt_s,
-                    stride,
+                    route_stride(dt_s),
                 )
             });
         let outcomes = review_passes(&problem, &reviewed, &case.fixes, start, &mut route_base);
@@ -823,9 +846,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 out.holdout = Some(disupt::holdout(&joint_problem, &run.fit, &dparams)?);
                 lap("holdout");
                 out.lag_profile = run.profile.clone();
-                let route_sigma = route_base.as_ref().and_then(|base| {
-                    joint_route_sigma(&joint_problem, run, lag_odo_dist_m.as_deref(), base)
-                });
+                let route_sigma = route_base
+                    .as_ref()
+                    .and_then(|base| joint_route_sigma(&joint_problem, run, base));
                 Ok(Some((out, route_sigma)))
             },
         );
@@ -836,7 +859,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             route_sigma = sigma;
         }
         lap("route sigma");
-        drop(lag_odo_dist_m);
         // The corrected navigation (the best method's, else the initial settings') written
         // as its pass runs.
         let corrected = &reviewed[reviewed.len() - 1];

@@ -182,15 +182,9 @@ impl<'a> Rederive<'a> {
         (d, odometer)
     }
 
-    /// What a navigation pass reads of [`Rederive::at`]`(lag_s)`: the odometer's
-    /// increments (the IMU's are the configured derive's), without the rest of a derive.
-    pub fn odo_dist_at(&self, lag_s: f64) -> Vec<f64> {
-        self.odometer_at(lag_s).increments().collect()
-    }
-
     /// The odometer `lag_s` later than the configured offset says, over the configured
-    /// derive's samples.
-    fn odometer_at(&self, lag_s: f64) -> MovedOdometer<'_> {
+    /// derive's samples: its increments read as a pass goes.
+    pub fn odometer_at(&self, lag_s: f64) -> MovedOdometer<'_> {
         MovedOdometer::new(
             self.configured(),
             &self.raw,

@@ -93,9 +93,14 @@ fn state(s: &NavSettings, lat_rad: f64, lon_rad: f64, q: &[f64; 4]) -> [f64; 3] 
 /// A moved pass's sensitivity at one sample: its (north, east, heading) in `state` minus
 /// the corrected pass's `y0` there, over its step.
 fn sensitivity(mv: &Moved<'_>, y0: &[f64; 3], (lat, lon, q): StateAt) -> [f64; 3] {
-    let y = state(&mv.settings, lat, lon, &q);
+    sensitivity_of(&state(&mv.settings, lat, lon, &q), y0, mv.step)
+}
+
+/// A moved pass's sensitivity from its (north, east, heading) `y` at a sample, the
+/// corrected pass's `y0` there and its step.
+fn sensitivity_of(y: &[f64; 3], y0: &[f64; 3], step: f64) -> [f64; 3] {
     let d = [y[0] - y0[0], y[1] - y0[1], wrap_pi(y[2] - y0[2])];
-    d.map(|v| v / mv.step)
+    d.map(|v| v / step)
 }
 
 /// Each moved pass's sensitivities at `samples`. Consecutive passes on the same inputs
@@ -139,10 +144,12 @@ impl LaneBatch for SensitivitiesOf<'_, '_> {
     }
 }
 
-/// The moved passes in one batch of lanes, each on its own odometer increments: at each
-/// sample their sensitivities go straight into the σ (none is stored).
+/// The moved passes in one batch of lanes, each on its own odometer increments, and the
+/// passes already run: at each sample their sensitivities go straight into the σ (none is
+/// stored).
 struct SigmaInOneBatch<'m, 'a> {
     moved: &'m [Moved<'a>],
+    ran: &'m [Ran<'a>],
     base: &'m RouteBase<'a>,
     covariance: &'m nalgebra::DMatrix<f64>,
     out: &'m mut RouteSigma,
@@ -153,24 +160,83 @@ impl LaneBatch for SigmaInOneBatch<'_, '_> {
 
     fn run<const N: usize>(&mut self, points: [usize; N]) -> [(); N] {
         let settings = points.map(|i| self.moved[i].settings);
-        let odometers = points.map(|i| self.moved[i].inputs.odo_dist_m);
-        let (moved, base, covariance) = (self.moved, self.base, self.covariance);
+        let odometers = points.map(|i| self.moved[i].inputs.odo_dist_m.iter().copied());
+        let (moved, ran, base, covariance) = (self.moved, self.ran, self.base, self.covariance);
         let samples = &base.samples[..base.y0.len()];
         let out = &mut *self.out;
-        // Lane `a` runs moved pass `a` (the lanes past the last repeat it).
+        let m = moved.len();
+        // Lane `a` runs moved pass `a` (the lanes past the last repeat it); the passes
+        // already run follow.
         run_states_each(
             &moved[0].inputs,
             odometers,
             &settings,
             samples,
             |i, states| {
+                let y0 = &base.y0[i];
                 let g: [[f64; 3]; N] =
-                    std::array::from_fn(|l| sensitivity(&moved[points[l]], &base.y0[i], states[l]));
-                out.push(&base.walk[i], moved.len(), covariance, |a| g[a]);
+                    std::array::from_fn(|l| sensitivity(&moved[points[l]], y0, states[l]));
+                out.push(&base.walk[i], m + ran.len(), covariance, |a| {
+                    match a.checked_sub(m) {
+                        None => g[a],
+                        Some(r) => ran[r].sensitivity(i, y0),
+                    }
+                });
             },
         );
         [(); N]
     }
+}
+
+/// A moved pass already run ([`states_along`]): its (north, east, heading) at the
+/// route's samples, and the step that moved it (in the covariance's units).
+pub struct Ran<'a> {
+    /// (north m, east m from the start, heading rad) at each of the route's samples.
+    pub states: &'a [[f64; 3]],
+    /// The step, in the covariance's units.
+    pub step: f64,
+}
+
+impl Ran<'_> {
+    /// Its sensitivity at the route's `i`-th sample, where the corrected pass is at `y0`.
+    fn sensitivity(&self, i: usize, y0: &[f64; 3]) -> [f64; 3] {
+        sensitivity_of(&self.states[i], y0, self.step)
+    }
+}
+
+/// The route's samples of a run of `n` samples: every `stride`-th, and the last.
+pub fn route_samples(n: usize, stride: usize) -> Vec<usize> {
+    let mut samples: Vec<usize> = (0..n).step_by(stride.max(1)).collect();
+    if n > 0 && samples.last() != Some(&(n - 1)) {
+        samples.push(n - 1);
+    }
+    samples
+}
+
+/// One pass with `settings` over `inputs`' IMU series and the odometer increments
+/// `odometer` yields (stored or read as the pass goes): its (north, east, heading) at
+/// `samples` ([`route_samples`]), for [`Ran`]. Taken where the odometer is at hand, it
+/// spares keeping its increments until the route's σ.
+///
+/// # Panics
+/// If the odometer yields fewer increments than `inputs` has samples.
+pub fn states_along(
+    inputs: &NavInputs<'_>,
+    odometer: impl ExactSizeIterator<Item = f64>,
+    settings: &NavSettings,
+    samples: &[usize],
+) -> Vec<[f64; 3]> {
+    let mut out = Vec::with_capacity(samples.len());
+    run_states_each(
+        inputs,
+        [odometer],
+        &[*settings],
+        samples,
+        |_, [(lat, lon, q)]| {
+            out.push(state(settings, lat, lon, &q));
+        },
+    );
+    out
 }
 
 /// One moved parameter: the settings of the pass and the inputs it runs on, the step
@@ -210,11 +276,7 @@ impl<'a> RouteBase<'a> {
         arw_rad_sqrt_s: f64,
         stride: usize,
     ) -> Self {
-        let n = dt_s.len();
-        let mut samples: Vec<usize> = (0..n).step_by(stride.max(1)).collect();
-        if n > 0 && samples.last() != Some(&(n - 1)) {
-            samples.push(n - 1);
-        }
+        let samples = route_samples(dt_s.len(), stride);
         Self {
             settings: *settings,
             start: settings.start(),
@@ -279,27 +341,32 @@ impl RouteSigma {
 }
 
 /// σ along the route of the corrected pass `base` took. `moved[j]` is parameter j moved
-/// by its step; `covariance` is over the same parameters, in their step units. When the
-/// moved passes fit in one batch of lanes (the same IMU series, at most eight), their
-/// sensitivities are combined at each sample as they run; else each pass's are kept.
+/// by its step, and `ran[j]` parameter `moved.len() + j`, its pass already run;
+/// `covariance` is over the same parameters, in their step units. When the moved passes
+/// fit in one batch of lanes (the same IMU series, at most eight), their sensitivities are
+/// combined at each sample as they run; else each pass's are kept.
 pub fn route_sigma(
     base: &RouteBase<'_>,
     moved: &[Moved<'_>],
+    ran: &[Ran<'_>],
     covariance: &nalgebra::DMatrix<f64>,
 ) -> RouteSigma {
     // The samples the pass reached (all of them, once it has run).
     let samples = &base.samples[..base.y0.len()];
-    if samples.is_empty() || moved.is_empty() {
+    let m = moved.len();
+    if samples.is_empty()
+        || m + ran.len() == 0
+        || ran.iter().any(|r| r.states.len() < samples.len())
+    {
         return RouteSigma::default();
     }
-    let m = moved.len();
     let mut out = RouteSigma {
         sample: samples.to_vec(),
         north_m: Vec::with_capacity(samples.len()),
         east_m: Vec::with_capacity(samples.len()),
         heading_rad: Vec::with_capacity(samples.len()),
     };
-    if m <= MAX_LANES
+    if (1..=MAX_LANES).contains(&m)
         && moved
             .iter()
             .all(|mv| mv.inputs.same_imu_as(&moved[0].inputs))
@@ -308,6 +375,7 @@ pub fn route_sigma(
             m,
             &mut SigmaInOneBatch {
                 moved,
+                ran,
                 base,
                 covariance,
                 out: &mut out,
@@ -317,7 +385,13 @@ pub fn route_sigma(
         // Sensitivities: per parameter, per sample, the 3 quantities'.
         let g = sensitivities(moved, samples, &base.y0);
         for (i, walk) in base.walk.iter().enumerate() {
-            out.push(walk, m, covariance, |a| g[a][i]);
+            let y0 = &base.y0[i];
+            out.push(walk, m + ran.len(), covariance, |a| {
+                match a.checked_sub(m) {
+                    None => g[a][i],
+                    Some(r) => ran[r].sensitivity(i, y0),
+                }
+            });
         }
     }
     out
@@ -419,7 +493,7 @@ mod tests {
     }
 
     #[test]
-    fn the_route_sigma_is_its_definition_bit_for_bit_in_one_batch_or_more() {
+    fn the_route_sigma_is_its_definition_bit_for_bit_in_one_batch_or_more_or_run_before() {
         let n = 2003;
         let (dt, dtheta, odo, later) = drive(n);
         let inputs = NavInputs {
@@ -434,9 +508,13 @@ mod tests {
         let corrected = settings(0);
         let mut base = RouteBase::new(&corrected, &dt, 0.0, 10);
         strapdown::run(&inputs, &corrected, &mut base);
+        let samples = route_samples(n, 10);
+        assert_eq!(*samples.last().unwrap(), n - 1);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         // Six moved passes, the last at another odometer timing, fit in one batch of
-        // lanes; ten (nine settings and the lag) do not.
-        for m in [6, 10] {
+        // lanes; ten (nine settings and the lag) do not. The pass at the other timing
+        // either runs beside the others or has run before (its states kept).
+        for (m, lag_ran) in [(6, false), (6, true), (10, false), (10, true)] {
             let moved: Vec<Moved<'_>> = (1..=m)
                 .map(|j| Moved {
                     inputs: if j == m { at_lag } else { inputs },
@@ -445,18 +523,26 @@ mod tests {
                 })
                 .collect();
             let c = covariance(m);
-            let sigma = route_sigma(&base, &moved, &c);
-            let samples: Vec<usize> = (0..n).step_by(10).chain([n - 1]).collect();
+            let states = states_along(&inputs, later.iter().copied(), &settings(m), &samples);
+            let sigma = if lag_ran {
+                let ran = [Ran {
+                    states: &states,
+                    step: moved[m - 1].step,
+                }];
+                route_sigma(&base, &moved[..m - 1], &ran, &c)
+            } else {
+                route_sigma(&base, &moved, &[], &c)
+            };
             assert_eq!(sigma.sample, samples);
             let want = sigma_by_hand((&inputs, &corrected), &moved, &c, &samples);
-            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert!(
                 want[0].iter().all(|v| *v > 0.0),
                 "the passes move the route"
             );
-            assert_eq!(bits(&sigma.north_m), bits(&want[0]), "{m} moved");
-            assert_eq!(bits(&sigma.east_m), bits(&want[1]), "{m} moved");
-            assert_eq!(bits(&sigma.heading_rad), bits(&want[2]), "{m} moved");
+            let case = format!("{m} moved, the lag's run before: {lag_ran}");
+            assert_eq!(bits(&sigma.north_m), bits(&want[0]), "{case}");
+            assert_eq!(bits(&sigma.east_m), bits(&want[1]), "{case}");
+            assert_eq!(bits(&sigma.heading_rad), bits(&want[2]), "{case}");
         }
     }
 

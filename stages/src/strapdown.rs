@@ -544,16 +544,17 @@ impl<const N: usize, T, F: FnMut(usize, usize, StateAt) -> T> Emit<N> for States
     }
 }
 
-/// Runs `N` passes side by side, each lane on its own odometer increments (`odometers[l]`,
-/// as long as `inputs`; `inputs.odo_dist_m` is not read), and hands `each(i, states)`
-/// every lane's state at `samples[i]` (increasing; samples past the end are left out):
-/// what combines the passes sample by sample reads, without storing any pass's states.
+/// Runs `N` passes side by side, each lane on the odometer increments `odometers[l]`
+/// yields (stored or read as the pass goes; at least as many as `inputs` has samples;
+/// `inputs.odo_dist_m` is not read), and hands `each(i, states)` every lane's state at
+/// `samples[i]` (increasing; samples past the end are left out): what combines the passes
+/// sample by sample reads, without storing any pass's states.
 ///
 /// # Panics
-/// If an odometer series is shorter than `inputs`.
-pub fn run_states_each<const N: usize>(
+/// If an odometer yields fewer increments than `inputs` has samples.
+pub fn run_states_each<const N: usize, I: ExactSizeIterator<Item = f64>>(
     inputs: &NavInputs<'_>,
-    odometers: [&[f64]; N],
+    odometers: [I; N],
     settings: &[NavSettings; N],
     samples: &[usize],
     each: impl FnMut(usize, [StateAt; N]),
@@ -567,7 +568,7 @@ pub fn run_states_each<const N: usize>(
         next: 0,
         each,
     };
-    Lanes::<N>::new(settings).run_on(inputs, &mut OdometerPerLane(odometers), &mut sink);
+    Lanes::<N>::new(settings).run_on(inputs, &mut OdometerStreams(odometers), &mut sink);
 }
 
 /// [`run_states_each`]'s sink.
