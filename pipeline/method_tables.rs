@@ -13,7 +13,7 @@ use unz_formats::tables::{f32_column, f64_column, i64_column};
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
-use unz_stages::strapdown::{KeepRows, TrackRow, euler_of};
+use unz_stages::strapdown::{KeepRows, TrackRow, euler_of, samples_every};
 
 /// File name of the per-method trajectories.
 pub const TRACKS: &str = "tracks.parquet";
@@ -71,12 +71,7 @@ pub fn decimation_step(nominal_dt_s: f64, rate_hz: f64) -> usize {
 
 /// Samples kept at `rate_hz`: every k-th one and always the last.
 pub fn decimation_indices(len: usize, nominal_dt_s: f64, rate_hz: f64) -> Vec<usize> {
-    let step = decimation_step(nominal_dt_s, rate_hz);
-    let mut idx: Vec<usize> = (0..len).step_by(step).collect();
-    if len > 0 && idx.last() != Some(&(len - 1)) {
-        idx.push(len - 1);
-    }
-    idx
+    samples_every(len, decimation_step(nominal_dt_s, rate_hz))
 }
 
 /// One method's trajectory built as its pass reaches the kept samples (see

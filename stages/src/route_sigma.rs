@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use crate::attitude::wrap_pi;
 use crate::strapdown::{
     LaneBatch, MAX_LANES, NavInputs, NavSettings, PassSink, StateAt, in_lanes, run_states_at,
-    run_states_each,
+    run_states_each, samples_every,
 };
 
 /// σ of the corrected route at every `stride`-th sample (and the last).
@@ -206,11 +206,7 @@ impl Ran<'_> {
 
 /// The route's samples of a run of `n` samples: every `stride`-th, and the last.
 pub fn route_samples(n: usize, stride: usize) -> Vec<usize> {
-    let mut samples: Vec<usize> = (0..n).step_by(stride.max(1)).collect();
-    if n > 0 && samples.last() != Some(&(n - 1)) {
-        samples.push(n - 1);
-    }
-    samples
+    samples_every(n, stride)
 }
 
 /// One pass with `settings` over `inputs`' IMU series and the odometer increments

@@ -374,6 +374,18 @@ fn run_criteria_on<const N: usize>(
     lanes_sink.close_block();
 }
 
+/// Of a run of `n` samples, every `step`-th (from the first; a step of 0 counts as 1)
+/// and the last, in a vector sized to them.
+pub fn samples_every(n: usize, step: usize) -> Vec<usize> {
+    let step = step.max(1);
+    let mut out = Vec::with_capacity(n.div_ceil(step) + 1);
+    out.extend((0..n).step_by(step));
+    if n > 0 && out.last() != Some(&(n - 1)) {
+        out.push(n - 1);
+    }
+    out
+}
+
 /// Position and attitude of a pass at one sample: latitude, longitude (rad) and the
 /// quaternion `C_b^n` (w, x, y, z).
 pub type StateAt = (f64, f64, [f64; 4]);
