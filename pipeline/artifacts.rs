@@ -60,6 +60,8 @@ pub mod files {
     pub const EPOCHS: &str = "epochs.parquet";
     /// derive: the filtered series per block of F.
     pub const BLOCKS: &str = "blocks.parquet";
+    /// derive: the per-sample sensor series in the review recording's blocks.
+    pub const SENSORS: &str = "sensors.parquet";
     /// navigate: the track.
     pub const NAV: &str = "nav.parquet";
     /// navigate: its summary.

@@ -129,7 +129,6 @@ fn process(
 ) -> (anyhow::Result<()>, Vec<(String, bool, f64)>) {
     let mut ctx = RunCtx::new(manifest.clone(), plan.out.clone(), plan.verbose);
     ctx.progress = bar;
-    ctx.review_follows = STAGES[plan.until] == "review";
     let result = (|| -> anyhow::Result<()> {
         if let Some(from) = plan.from {
             for stage in &STAGES[from..] {

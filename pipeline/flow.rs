@@ -32,7 +32,7 @@ use crate::derive_io::{
 };
 use crate::ingest::{OUTPUTS as INGEST_OUTPUTS, ingest};
 use crate::nav_writer::NavWriter;
-use crate::review::{ReviewSensors, review_sensors};
+use crate::review_sensors::{review_sensors, write_review_sensors};
 use crate::stage::{Stage, params_hash};
 
 /// Parameters of every stage (defaults built in).
@@ -75,17 +75,12 @@ pub struct RunCtx {
     /// A progress line showing the stage being worked on (campaigns on a terminal).
     pub progress: Option<indicatif::ProgressBar>,
     /// The derive stage's output in memory: the stages after it in the same process share
-    /// it instead of each decoding `derived.parquet`. Set when the derive is computed (as
-    /// [`crate::derive_io::load_derived`] gives it, without the velocity increments when
-    /// the review follows: see [`RunCtx::review_follows`]) or first loaded (without them:
-    /// only the alignment's static start and the review read them), cleared when it is
-    /// recomputed.
+    /// it instead of each decoding `derived.parquet`. Set when the derive is computed or
+    /// first loaded, as [`crate::derive_io::load_derived`] gives it back but without the
+    /// velocity increments (only the alignment's static start reads them, from the file,
+    /// and the review's sensor blocks, taken by the derive stage into `sensors.parquet`);
+    /// cleared when it is recomputed.
     derived: std::sync::Mutex<Option<Arc<Derived>>>,
-    /// Whether the review runs after the derive in this process: the derive stage then
-    /// takes what the review reads of its per-sample series ([`ReviewSensors`]) and
-    /// keeps the derive without its velocity increments.
-    pub review_follows: bool,
-    review_sensors: std::sync::Mutex<Option<ReviewSensors>>,
 }
 
 impl RunCtx {
@@ -98,8 +93,6 @@ impl RunCtx {
             log: std::sync::Mutex::new(Vec::new()),
             progress: None,
             derived: std::sync::Mutex::new(None),
-            review_follows: false,
-            review_sensors: std::sync::Mutex::new(None),
         }
     }
 
@@ -135,21 +128,6 @@ impl RunCtx {
 
     fn set_derived(&self, d: Option<Arc<Derived>>) {
         *self.derived.lock().unwrap_or_else(|e| e.into_inner()) = d;
-    }
-
-    /// Takes what the derive stage kept for the review, when it did.
-    pub fn take_review_sensors(&self) -> Option<ReviewSensors> {
-        self.review_sensors
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .take()
-    }
-
-    fn set_review_sensors(&self, s: Option<ReviewSensors>) {
-        *self
-            .review_sensors
-            .lock()
-            .unwrap_or_else(|e| e.into_inner()) = s;
     }
 
     fn record(&self, stage: &str, computed: bool, wall_s: f64) {
@@ -250,14 +228,13 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let stage = Stage {
         dir: dir.clone(),
         name: "derive",
-        version: 5,
+        version: 6,
         params_hash: params_hash(&params.derive)?,
         inputs,
-        outputs: &[files::DERIVED, files::EPOCHS, files::BLOCKS],
+        outputs: &[files::DERIVED, files::EPOCHS, files::BLOCKS, files::SENSORS],
     };
     ctx.run_stage(&stage, || {
         ctx.set_derived(None);
-        ctx.set_review_sensors(None);
         let raw = IngestedSeries::load(&ingest_dir)?;
         let counts = raw.failure_counts();
         let mut d = raw.derive(&params.derive, site_gravity_mps2(m));
@@ -300,12 +277,11 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ensure_finite("accelerometer roll", d.epochs.phi_p_rad.iter().copied())?;
         write_derived(&d, &dir)?;
         let mut d = as_stored(d);
-        if ctx.review_follows {
-            // Beyond the static start (which the alignment reads from the file), only the
-            // review reads the velocity increments: its blocks are taken now instead.
-            ctx.set_review_sensors(Some(review_sensors(&d)));
-            d.dvel_mps = Arc::default();
-        }
+        // Beyond the static start (which the alignment reads from the file), only the
+        // review reads the velocity increments: its blocks are taken now, and the chain
+        // keeps the derive without them.
+        write_review_sensors(&review_sensors(&d), &dir.join(files::SENSORS))?;
+        d.dvel_mps = Arc::default();
         ctx.set_derived(Some(Arc::new(d)));
         Ok(())
     })?;

@@ -20,6 +20,7 @@ pub mod method_tables;
 pub mod nav_writer;
 pub mod raw_mcap;
 pub mod review;
+pub mod review_sensors;
 pub mod runs;
 pub mod simulate_io;
 pub mod stage;

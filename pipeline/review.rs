@@ -8,14 +8,12 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use unz_formats::parquet_io::{for_each_batch_of, read_schema, read_table, row_capacity_hint};
-use unz_formats::schema::derived_meta;
-use unz_formats::tables::{f64_column, i64_column, vec3_column};
+use unz_formats::parquet_io::{for_each_batch_of, read_schema, read_table};
+use unz_formats::tables::{f64_column, i64_column};
 use unz_stages::criteria::Kryt2;
 use unz_stages::earth::Geodetic;
 use unz_viz::review::{
-    ControlPointView, EpochSeries, Kryt1Curve, Review, RouteSigmaView, SensorBlocks,
-    SensorBlocksBuilder, SensorSample, Sweep, Track,
+    ControlPointView, EpochSeries, Kryt1Curve, Review, RouteSigmaView, SensorBlocks, Sweep, Track,
 };
 
 use crate::artifacts::{StageName, files};
@@ -25,6 +23,7 @@ use crate::method_tables::{
     KRYT1_SERIES, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_step, read_kryt1_series,
     read_tracks,
 };
+use crate::review_sensors::{RunTimes, read_review_sensors};
 use crate::stage::{Stage, params_hash};
 
 /// What the review stage wrote.
@@ -71,7 +70,7 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
     let sweep = sweep_path(ctx);
     let mut inputs = vec![
         m.path.clone(),
-        derive_dir.join(files::DERIVED),
+        derive_dir.join(files::SENSORS),
         derive_dir.join(files::EPOCHS),
         criteria_dir.join(files::CRITERIA),
         disupt_dir.join(files::DISUPT_REPORT),
@@ -87,7 +86,7 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
     let stage = Stage {
         dir: dir.clone(),
         name: "review",
-        version: 2,
+        version: 3,
         params_hash: params_hash(&(
             unz_viz::recording::SERIES_RATE_HZ,
             unz_viz::recording::POSE_RATE_HZ,
@@ -122,124 +121,14 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
     Ok(ReviewOutput { rrd, bytes })
 }
 
-/// The derive's time base as the review reads it.
-#[derive(Debug, Clone, Copy)]
-struct RunTimes {
-    /// IMU time of the first sample, ns.
-    t0_ns: i64,
-    /// Nominal sample period, s.
-    nominal_dt_s: f64,
-    /// Time of the last sample since the first, s.
-    duration_s: f64,
-    /// IMU samples.
-    samples: usize,
-}
-
-/// What the review reads of the derive's per-sample series: its sensor blocks and time
-/// base. Taken where the derive is computed when the review follows in the same process
-/// ([`RunCtx::review_follows`]), so that the chain does not keep the velocity increments,
-/// which nothing else reads, until the review.
-#[derive(Debug, Clone)]
-pub struct ReviewSensors {
-    blocks: SensorBlocks,
-    times: RunTimes,
-}
-
-/// [`ReviewSensors`] of a whole derive (as it is stored: [`crate::derive_io::as_stored`]).
-pub fn review_sensors(d: &unz_stages::derive::Derived) -> ReviewSensors {
-    let mut b = SensorBlocksBuilder::at_series_rate(d.nominal_dt_s).with_room_for(d.t_s.len());
-    for (k, speed) in d.odometer_speeds(0..d.t_s.len()).enumerate() {
-        b.push(SensorSample {
-            t_s: d.t_s[k],
-            dt_s: d.dt_s[k],
-            dtheta_rad: d.dtheta_rad[k],
-            dvel_mps: d.dvel_mps[k],
-            u_mps: speed.u_mps,
-            u_dot_mps2: speed.u_dot_mps2,
-            ru_mps2: speed.ru_mps2,
-        });
-    }
-    ReviewSensors {
-        blocks: b.finish(),
-        times: RunTimes {
-            t0_ns: d.t0_ns,
-            nominal_dt_s: d.nominal_dt_s,
-            duration_s: d.t_s.last().copied().unwrap_or(0.0),
-            samples: d.t_s.len(),
-        },
-    }
-}
-
-/// The derive's per-sample series in the recording's blocks, and its time base: those the
-/// derive stage took in this process ([`ReviewSensors`]), else read from
-/// `derived.parquet` batch by batch, only the columns plotted. Either way the run's
-/// per-sample series are never held whole here.
+/// The derive's sensor series in the recording's blocks, and its time base, from
+/// `sensors.parquet` (taken by the derive stage: the run's per-sample series are not read
+/// here).
 fn sensor_blocks(ctx: &RunCtx, derive_dir: &Path) -> anyhow::Result<(SensorBlocks, RunTimes)> {
     // The review is the last stage to read the chain's derive: it goes now.
     drop(ctx.take_kept_derived());
-    if let Some(s) = ctx.take_review_sensors() {
-        return Ok((s.blocks, s.times));
-    }
-    let path = derive_dir.join(files::DERIVED);
-    let nominal_dt_s: f64 = read_schema(&path)?
-        .metadata()
-        .get(derived_meta::NOMINAL_DT_S)
-        .and_then(|v| v.parse().ok())
-        .with_context(|| {
-            format!(
-                "{} lacks metadata {}",
-                path.display(),
-                derived_meta::NOMINAL_DT_S
-            )
-        })?;
-    let mut b =
-        SensorBlocksBuilder::at_series_rate(nominal_dt_s).with_room_for(row_capacity_hint(&path)?);
-    let mut times = RunTimes {
-        t0_ns: 0,
-        nominal_dt_s,
-        duration_s: 0.0,
-        samples: 0,
-    };
-    let columns = [
-        "t_ns",
-        "dt_s",
-        "dtheta_rad",
-        "dvel_mps",
-        "u_mps",
-        "u_dot_mps2",
-        "ru_mps2",
-    ];
-    for_each_batch_of(&path, &columns, |batch| {
-        let t_ns = i64_column(batch, "t_ns")?;
-        let dt_s = f64_column(batch, "dt_s")?;
-        let dtheta_rad = vec3_column(batch, "dtheta_rad")?;
-        let dvel_mps = vec3_column(batch, "dvel_mps")?;
-        let u_mps = f64_column(batch, "u_mps")?;
-        let u_dot_mps2 = f64_column(batch, "u_dot_mps2")?;
-        let ru_mps2 = f64_column(batch, "ru_mps2")?;
-        if times.samples == 0
-            && let Some(&t0) = t_ns.first()
-        {
-            times.t0_ns = t0;
-        }
-        for k in 0..t_ns.len() {
-            // As `load_derived` makes the times.
-            let t_s = (t_ns[k] - times.t0_ns) as f64 * 1e-9;
-            b.push(SensorSample {
-                t_s,
-                dt_s: dt_s[k],
-                dtheta_rad: dtheta_rad[k],
-                dvel_mps: dvel_mps[k],
-                u_mps: u_mps[k],
-                u_dot_mps2: u_dot_mps2[k],
-                ru_mps2: ru_mps2[k],
-            });
-            times.duration_s = t_s;
-        }
-        times.samples += t_ns.len();
-        Ok(())
-    })?;
-    Ok((b.finish(), times))
+    let s = read_review_sensors(&derive_dir.join(files::SENSORS))?;
+    Ok((s.blocks, s.times))
 }
 
 /// Reads the cached tables into a [`Review`].
@@ -553,41 +442,5 @@ mod tests {
             assert_eq!(got[0], idx.iter().map(|&k| a[k]).collect::<Vec<_>>());
             assert_eq!(got[1], idx.iter().map(|&k| b[k]).collect::<Vec<_>>());
         }
-    }
-
-    /// The sensor blocks the derive stage takes for a review in the same process are
-    /// those the review streams from `derived.parquet`, bit for bit, with the same time
-    /// base.
-    #[test]
-    fn sensors_taken_at_the_derive_are_those_streamed_from_its_file() {
-        use unz_stages::simulate::{SimConfig, simulate};
-
-        let tmp = tempfile::tempdir().unwrap();
-        let mut config = SimConfig::new("sensors", 5);
-        config.duration_s = 700.0; // blocks across several of the reader's batches
-        let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path()).unwrap();
-        let manifest = crate::runs::load_run(&run_dir).unwrap();
-        let out = tmp.path().join("out");
-        let params = crate::flow::Params::default();
-        let mut chain = RunCtx::new(manifest.clone(), out.clone(), false);
-        chain.review_follows = true;
-        let derive_dir = crate::flow::ensure_derive(&chain, &params).unwrap();
-        let kept = chain.take_review_sensors().expect("taken at the derive");
-        let chained = chain.kept_derived().expect("the chain's derive");
-        assert!(
-            chained.dvel_mps.is_empty(),
-            "kept without the velocity increments"
-        );
-        let alone = RunCtx::new(manifest, out, false);
-        let (blocks, times) = sensor_blocks(&alone, &derive_dir).unwrap();
-        assert!(blocks.t_s.len() > 1000, "{} blocks", blocks.t_s.len());
-        assert_eq!(kept.blocks, blocks);
-        assert_eq!(kept.times.t0_ns, times.t0_ns);
-        assert_eq!(
-            kept.times.nominal_dt_s.to_bits(),
-            times.nominal_dt_s.to_bits()
-        );
-        assert_eq!(kept.times.duration_s.to_bits(), times.duration_s.to_bits());
-        assert_eq!(kept.times.samples, times.samples);
     }
 }

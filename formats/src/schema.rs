@@ -265,6 +265,41 @@ pub fn blocks() -> SchemaRef {
     ))
 }
 
+/// Schema metadata keys of `sensors`.
+pub mod sensors_meta {
+    /// IMU samples per block.
+    pub const STEP: &str = "unz.step";
+    /// Time of the derive's first sample, ns (the blocks' times are since it).
+    pub const T0_NS: &str = "unz.t0_ns";
+    /// Nominal sample period, s.
+    pub const NOMINAL_DT_S: &str = "unz.nominal_dt_s";
+    /// Time of the derive's last sample since its first, s.
+    pub const DURATION_S: &str = "unz.duration_s";
+    /// IMU samples of the derive.
+    pub const SAMPLES: &str = "unz.samples";
+}
+
+/// `sensors` (`derive/sensors.parquet`): the derive's per-sample sensor series in the
+/// review recording's blocks of `unz.step` samples (the last may be shorter): each
+/// block's first time and sample, the means of u, u̇ and ru, and the body rates and
+/// specific forces from the block's increments.
+pub fn sensors(meta: impl IntoIterator<Item = (&'static str, String)>) -> SchemaRef {
+    let mut m = table_meta("sensors");
+    m.extend(meta.into_iter().map(|(k, v)| (k.to_owned(), v)));
+    Arc::new(Schema::new_with_metadata(
+        vec![
+            time_field(),
+            scalar("sample", DataType::Int64, false, ""),
+            f64_field("u_mps", "m/s"),
+            f64_field("u_dot_mps2", "m/s^2"),
+            f64_field("ru_mps2", "m/s^2"),
+            vec3("gyro_deg_s", "deg/s", FRAME_BODY),
+            vec3("accel_mps2", "m/s^2", FRAME_BODY),
+        ],
+        m,
+    ))
+}
+
 /// `nav` (`nav.parquet`, `corrected_nav.parquet`): the navigation state per IMU sample,
 /// with the route's 1σ north, east and heading when `with_sigma`.
 pub fn nav(with_sigma: bool) -> SchemaRef {

@@ -10,8 +10,7 @@ use crate::runs::load_run;
 
 /// Runs the command.
 pub fn run(args: &StageArgs) -> anyhow::Result<ExitCode> {
-    let mut ctx = RunCtx::new(load_run(&args.run)?, args.out.clone(), true);
-    ctx.review_follows = true;
+    let ctx = RunCtx::new(load_run(&args.run)?, args.out.clone(), true);
     let out = ensure_review(
         &ctx,
         &crate::config::for_run(&toml::Table::new(), &ctx.manifest)?,

@@ -154,7 +154,7 @@ struct Writer<'a> {
 /// Rows sent before the stream is flushed: the SDK queues what is sent until its sink has
 /// encoded it, and the series are built faster than they are encoded, so without a bound a
 /// 12-hour run's queue held some 180 MB of them.
-const FLUSH_EVERY_ROWS: usize = 1 << 20;
+const FLUSH_EVERY_ROWS: usize = 1 << 18;
 
 impl Writer<'_> {
     /// Counts `rows` sent ([`Self::queued`]).
