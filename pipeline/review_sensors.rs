@@ -116,19 +116,7 @@ fn write_in_batches(s: &ReviewSensors, path: &Path, rows: usize) -> anyhow::Resu
 pub fn read_review_sensors(path: &Path) -> anyhow::Result<ReviewSensors> {
     let rows = row_capacity_hint(path)?;
     let mut blocks = SensorBlocks::default();
-    for v in [
-        &mut blocks.t_s,
-        &mut blocks.u_mps,
-        &mut blocks.u_dot_mps2,
-        &mut blocks.ru_mps2,
-    ]
-    .into_iter()
-    .chain(&mut blocks.gyro_deg_s)
-    .chain(&mut blocks.accel_mps2)
-    {
-        v.reserve_exact(rows);
-    }
-    blocks.sample.reserve_exact(rows);
+    blocks.reserve_exact(rows);
     let schema = read_schema(path)?;
     let m = schema.metadata();
     let t0_ns: i64 = meta(m, sensors_meta::T0_NS, path)?;

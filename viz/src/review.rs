@@ -58,6 +58,25 @@ pub struct SensorBlocks {
     pub accel_mps2: [Vec<f64>; 3],
 }
 
+impl SensorBlocks {
+    /// Room for `blocks` more blocks in every column, reserved once.
+    pub fn reserve_exact(&mut self, blocks: usize) {
+        for v in [
+            &mut self.t_s,
+            &mut self.u_mps,
+            &mut self.u_dot_mps2,
+            &mut self.ru_mps2,
+        ]
+        .into_iter()
+        .chain(&mut self.gyro_deg_s)
+        .chain(&mut self.accel_mps2)
+        {
+            v.reserve_exact(blocks);
+        }
+        self.sample.reserve_exact(blocks);
+    }
+}
+
 /// One IMU sample of the derive, as [`SensorBlocksBuilder`] takes it.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct SensorSample {
@@ -111,20 +130,7 @@ impl SensorBlocksBuilder {
     /// counts: the caller's own series, or a Parquet footer bounded by its file's size).
     pub fn with_room_for(mut self, samples: usize) -> Self {
         let blocks = samples.div_ceil(self.out.step);
-        let out = &mut self.out;
-        for v in [
-            &mut out.t_s,
-            &mut out.u_mps,
-            &mut out.u_dot_mps2,
-            &mut out.ru_mps2,
-        ]
-        .into_iter()
-        .chain(&mut out.gyro_deg_s)
-        .chain(&mut out.accel_mps2)
-        {
-            v.reserve_exact(blocks);
-        }
-        out.sample.reserve_exact(blocks);
+        self.out.reserve_exact(blocks);
         self
     }
 
