@@ -229,7 +229,8 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         dir: dir.clone(),
         name: "derive",
         version: 6,
-        params_hash: params_hash(&params.derive)?,
+        // The review's sensor blocks are taken here, at the recording's series rate.
+        params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
         outputs: &[files::DERIVED, files::EPOCHS, files::BLOCKS, files::SENSORS],
     };
