@@ -165,8 +165,9 @@ impl LaneBatch for SigmaInOneBatch<'_, '_> {
         let samples = &base.samples[..base.y0.len()];
         let out = &mut *self.out;
         let m = moved.len();
-        // Lane `a` runs moved pass `a` (the lanes past the last repeat it); the passes
-        // already run follow.
+        // Lane `a` runs moved pass `a` (the lanes past the last repeat it: not read); the
+        // passes already run follow. Each sensitivity is taken once per sample.
+        let mut g = Vec::with_capacity(m + ran.len());
         run_states_each(
             &moved[0].inputs,
             odometers,
@@ -174,14 +175,10 @@ impl LaneBatch for SigmaInOneBatch<'_, '_> {
             samples,
             |i, states| {
                 let y0 = &base.y0[i];
-                let g: [[f64; 3]; N] =
-                    std::array::from_fn(|l| sensitivity(&moved[points[l]], y0, states[l]));
-                out.push(&base.walk[i], m + ran.len(), covariance, |a| {
-                    match a.checked_sub(m) {
-                        None => g[a],
-                        Some(r) => ran[r].sensitivity(i, y0),
-                    }
-                });
+                g.clear();
+                g.extend((0..m).map(|a| sensitivity(&moved[points[a]], y0, states[a])));
+                g.extend(ran.iter().map(|r| r.sensitivity(i, y0)));
+                out.push(&base.walk[i], covariance, &g);
             },
         );
         [(); N]
@@ -312,20 +309,14 @@ impl PassSink for RouteBase<'_> {
 }
 
 impl RouteSigma {
-    /// Appends the σ at one sample: `g(a)` is moved pass `a`'s sensitivity there (`m`
-    /// passes), `walk` the random walk's variances.
-    fn push(
-        &mut self,
-        walk: &[f64; 3],
-        m: usize,
-        covariance: &nalgebra::DMatrix<f64>,
-        g: impl Fn(usize) -> [f64; 3],
-    ) {
+    /// Appends the σ at one sample: `g[a]` is moved pass `a`'s sensitivity there, `walk`
+    /// the random walk's variances.
+    fn push(&mut self, walk: &[f64; 3], covariance: &nalgebra::DMatrix<f64>, g: &[[f64; 3]]) {
         let sd = |q: usize| {
             let mut v = 0.0;
-            for a in 0..m {
-                for b in 0..m {
-                    v += g(a)[q] * covariance[(a, b)] * g(b)[q];
+            for (a, ga) in g.iter().enumerate() {
+                for (b, gb) in g.iter().enumerate() {
+                    v += ga[q] * covariance[(a, b)] * gb[q];
                 }
             }
             v.max(0.0)
@@ -379,15 +370,14 @@ pub fn route_sigma(
         );
     } else {
         // Sensitivities: per parameter, per sample, the 3 quantities'.
-        let g = sensitivities(moved, samples, &base.y0);
+        let by_pass = sensitivities(moved, samples, &base.y0);
+        let mut g = Vec::with_capacity(m + ran.len());
         for (i, walk) in base.walk.iter().enumerate() {
             let y0 = &base.y0[i];
-            out.push(walk, m + ran.len(), covariance, |a| {
-                match a.checked_sub(m) {
-                    None => g[a][i],
-                    Some(r) => ran[r].sensitivity(i, y0),
-                }
-            });
+            g.clear();
+            g.extend(by_pass.iter().map(|p| p[i]));
+            g.extend(ran.iter().map(|r| r.sensitivity(i, y0)));
+            out.push(walk, covariance, &g);
         }
     }
     out
