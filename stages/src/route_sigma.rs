@@ -235,7 +235,7 @@ pub fn states_along(
 /// One moved parameter: the settings of the pass and the inputs it runs on, the step
 /// that moved it (in the covariance's units), and its column in the covariance.
 pub struct Moved<'a> {
-    /// Inputs of the pass (the lag's pass has the odometer increments at the moved lag).
+    /// Inputs of the pass (its odometer increments may be another timing's).
     pub inputs: NavInputs<'a>,
     /// Settings of the pass.
     pub settings: NavSettings,
