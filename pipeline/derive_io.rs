@@ -236,8 +236,8 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
     };
     let bpath = dir.join(files::BLOCKS);
     let (_, bl) = read_table(&bpath)?;
-    d.ax_f = f64_column(&bl, "ax_f_mps2")?;
-    d.ay_f = f64_column(&bl, "ay_f_mps2")?;
+    d.ax_f = f64_column(&bl, "ax_f_mps2")?.into();
+    d.ay_f = f64_column(&bl, "ay_f_mps2")?.into();
     d.u_dot_f = f64_column(&bl, "u_dot_f_mps2")?;
     d.ru_f = f64_column(&bl, "ru_f_mps2")?;
     d.r_moving_f = f64_column(&bl, "r_moving_f_rad_s")?;

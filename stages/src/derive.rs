@@ -81,10 +81,11 @@ pub struct Derived {
     pub dvel_mps: Arc<Vec<[f64; 3]>>,
     /// Per sample: odometer distance over the interval, m.
     pub odo_dist_m: Vec<f64>,
-    /// Per block: filtered a_x, m/s².
-    pub ax_f: Vec<f64>,
-    /// Per block: filtered a_y, m/s².
-    pub ay_f: Vec<f64>,
+    /// Per block: filtered a_x, m/s² (shared with the re-derives at other odometer
+    /// timings, which move the odometer's part only).
+    pub ax_f: Arc<Vec<f64>>,
+    /// Per block: filtered a_y, m/s² (likewise).
+    pub ay_f: Arc<Vec<f64>>,
     /// Per block: filtered u̇, m/s².
     pub u_dot_f: Vec<f64>,
     /// Per block: filtered ru, m/s².
@@ -133,7 +134,7 @@ pub const ACCEL_RANGE_MPS2: f64 = 70.0 * 9.806_65;
 impl Derived {
     /// This derive without its odometer's increments (left empty) — what a re-derive at
     /// another odometer timing starts from, without copying the series it replaces. The
-    /// IMU's series are shared, the rest copied.
+    /// IMU's series and blocks are shared, the rest copied.
     pub fn without_odometer_series(&self) -> Derived {
         Derived {
             t0_ns: self.t0_ns,
@@ -429,7 +430,7 @@ pub fn derive_owned(
         lp.filter_blocks(&mut f);
         f
     };
-    (out.ax_f, out.ay_f) = (accel(0), accel(1));
+    (out.ax_f, out.ay_f) = (accel(0).into(), accel(1).into());
     odometer_blocks(&mut out, raw, params.odo_time_offset_s, &lp);
     out.epochs = epochs_of(&out, &lp, params, g_mps2);
     out
