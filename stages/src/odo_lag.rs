@@ -229,6 +229,16 @@ impl Profile<'_> {
                 // The same epochs at every trial: the gate moves with the lag, and an
                 // epoch entering or leaving would make the costs incomparable.
                 d.epochs.valid.clone_from(&self.valid);
+                // A trial's problem reads its epochs, not the block series they were
+                // made of: those go now (the run's length per series).
+                for v in [
+                    &mut d.u_dot_f,
+                    &mut d.ru_f,
+                    &mut d.r_moving_f,
+                    &mut d.moving_dot_f,
+                ] {
+                    *v = Vec::new();
+                }
                 (d, odometer)
             })
             .collect();
