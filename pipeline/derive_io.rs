@@ -15,7 +15,7 @@ use unz_formats::parquet_io::{
 };
 use unz_formats::schema::{self, derived_meta};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
-use unz_stages::derive::{Derived, Epochs, OdometerSpeed};
+use unz_stages::derive::{Derived, Epochs, OdometerSpeed, ns_since};
 
 fn f64s(v: &[f64]) -> Arc<Float64Array> {
     Arc::new(Float64Array::from(v.to_vec()))
@@ -124,8 +124,7 @@ pub fn as_stored(mut d: Derived) -> Derived {
     // first stored time.
     let was_t0_ns = d.t0_ns;
     for t in Arc::make_mut(&mut d.t_s).iter_mut() {
-        let t_ns = was_t0_ns + (*t * 1e9).round() as i64;
-        *t = (t_ns - t0_ns) as f64 * 1e-9;
+        *t = (ns_since(was_t0_ns, *t) - t0_ns) as f64 * 1e-9;
     }
     d.epochs.t_s = epoch_t_ns
         .iter()

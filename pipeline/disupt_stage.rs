@@ -430,11 +430,8 @@ fn joint_route_sigma(
     let m = moved.len();
     let mut c = cov.clone();
     let mut ran = Vec::new();
-    if let Some(states) = run
-        .lag_states
-        .as_deref()
-        .filter(|_| route_sigma_has_lag(run))
-    {
+    // Present only when the route σ has a lag part (see `run_joint`).
+    if let Some(states) = run.lag_states.as_deref() {
         ran.push(Ran {
             states,
             step: LAG_STEP_S,

@@ -12,7 +12,7 @@ use arrow::array::{Float64Array, Int64Array, RecordBatch};
 use unz_formats::parquet_io::{ParquetSink, for_each_batch, read_schema, row_capacity_hint};
 use unz_formats::schema::{self, sensors_meta};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
-use unz_stages::derive::Derived;
+use unz_stages::derive::{Derived, ns_since};
 use unz_viz::review::{SensorBlocks, SensorBlocksBuilder, SensorSample};
 
 /// The derive's time base as the review reads it.
@@ -94,9 +94,7 @@ fn write_in_batches(s: &ReviewSensors, path: &Path, rows: usize) -> anyhow::Resu
             schema.clone(),
             vec![
                 Arc::new(Int64Array::from_iter_values(
-                    b.t_s[r.clone()]
-                        .iter()
-                        .map(|&t_s| t.t0_ns + (t_s * 1e9).round() as i64),
+                    b.t_s[r.clone()].iter().map(|&t_s| ns_since(t.t0_ns, t_s)),
                 )),
                 Arc::new(Int64Array::from(b.sample[r.clone()].to_vec())),
                 f64s(&b.u_mps),

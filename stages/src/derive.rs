@@ -192,7 +192,7 @@ impl Derived {
 
     /// Absolute time (ns, the log's time base) of a time `t_s` since `t0_ns`.
     pub fn ns_of(&self, t_s: f64) -> i64 {
-        self.t0_ns + (t_s * 1e9).round() as i64
+        ns_since(self.t0_ns, t_s)
     }
 
     /// Per-sample times, ns.
@@ -213,6 +213,12 @@ impl Derived {
     pub fn epoch_t_ns(&self) -> Vec<i64> {
         self.epochs.t_s.iter().map(|&t| self.ns_of(t)).collect()
     }
+}
+
+/// Absolute time (ns) of a time `t_s` seconds after `t0_ns` ns, to the nearest
+/// nanosecond: how a derive's times are stored.
+pub fn ns_since(t0_ns: i64, t_s: f64) -> i64 {
+    t0_ns + (t_s * 1e9).round() as i64
 }
 
 /// Epochs at ΔTg: one every `epoch_blocks` blocks.

@@ -519,41 +519,16 @@ pub fn run_states_at<const N: usize, T>(
     inputs: &NavInputs<'_>,
     settings: &[NavSettings; N],
     samples: &[usize],
-    map: impl FnMut(usize, usize, StateAt) -> T,
+    mut map: impl FnMut(usize, usize, StateAt) -> T,
 ) -> [Vec<T>; N] {
-    let mut sink = StatesAt {
-        samples,
-        next: 0,
-        map,
-        out: std::array::from_fn(|_| Vec::with_capacity(samples.len())),
-    };
-    Lanes::<N>::new(settings).run(inputs, &mut sink);
-    sink.out
-}
-
-/// [`run_states_at`]'s sink.
-struct StatesAt<'a, const N: usize, T, F> {
-    samples: &'a [usize],
-    next: usize,
-    map: F,
-    out: [Vec<T>; N],
-}
-
-impl<const N: usize, T, F: FnMut(usize, usize, StateAt) -> T> Emit<N> for StatesAt<'_, N, T, F> {
-    #[inline(always)]
-    fn emit(&mut self, k: usize, lanes: &Lanes<N>) {
-        if self.samples.get(self.next) == Some(&k) {
-            let i = self.next;
-            self.next += 1;
-            for (l, out) in self.out.iter_mut().enumerate() {
-                out.push((self.map)(
-                    l,
-                    i,
-                    (lanes.lat_rad[l], lanes.lon_rad[l], lanes.q_of(l)),
-                ));
-            }
+    let mut out: [Vec<T>; N] = std::array::from_fn(|_| Vec::with_capacity(samples.len()));
+    let odometers = [(); N].map(|()| inputs.odo_dist_m.iter().copied());
+    run_states_each(inputs, odometers, settings, samples, |i, states| {
+        for (l, (out, state)) in out.iter_mut().zip(states).enumerate() {
+            out.push(map(l, i, state));
         }
-    }
+    });
+    out
 }
 
 /// Runs `N` passes side by side, each lane on the odometer increments `odometers[l]`
