@@ -12,6 +12,7 @@ pub mod config;
 pub mod derive_io;
 pub mod disupt_stage;
 pub mod export;
+pub mod file_hashes;
 pub mod flow;
 pub mod ingest;
 pub mod lock;

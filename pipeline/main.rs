@@ -5,7 +5,6 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
-    unz::memory::one_malloc_arena();
     let cli = unz::cli::Cli::parse();
     match unz::commands::run(cli) {
         Ok(code) => code,

@@ -2,15 +2,17 @@
 //! verbose phase logs.
 
 /// Asks glibc's allocator for one arena shared by all threads, instead of up to eight per
-/// core. Call it first thing in `main`, before any thread starts. Returns whether the
+/// core, for a process that works on one run at a time. Call it before the process's
+/// worker threads start: a thread keeps the arena it first took. Returns whether the
 /// setting took (`false` on other C libraries, where there is nothing to set).
 ///
 /// Why: glibc gives a thread its own arena when it finds the main one locked, and keeps
-/// what is freed there for that arena's later use. The stages allocate run-length
-/// vectors on the worker threads and free them on others, so at 12 h the resident set
-/// stood 55–65 MiB above the heap's peak. With one arena it stands about 15–20 MiB lower,
-/// and the campaign benchmark (2 threads, several stages allocating at once) runs no
-/// slower: the hot loops allocate nothing.
+/// what is freed there for that arena's later use. A run's stages allocate run-length
+/// vectors on the worker threads and free them on others: one 12-h run's resident set
+/// stood 55–65 MiB above its heap's peak, and comes 15–25 MiB lower with one arena
+/// (4 h: 210 → 184 MiB), at the same speed. Not for campaigns that work on several
+/// runs at once: their threads then wait on the one arena's lock (`unz bench campaign`
+/// ran about 12 % slower).
 pub fn one_malloc_arena() -> bool {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     {

@@ -4,12 +4,13 @@
 //! never taken as done. A stage whose record matches is skipped.
 
 use std::collections::BTreeMap;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
+
+use crate::file_hashes::file_hash;
 
 /// Name of the record in every stage folder.
 pub const RECORD: &str = "stage.json";
@@ -27,76 +28,6 @@ pub struct StageRecord {
     pub inputs: BTreeMap<String, String>,
     /// Output files (names in the stage folder) and their blake3.
     pub outputs: BTreeMap<String, String>,
-}
-
-/// What identifies a file's content without reading it again within one process: every
-/// output is written to a new file and renamed into place, so a changed file has a new
-/// inode (and usually a new size and modification time).
-type FileKey = (PathBuf, u64, u64, u64, i64, i64);
-
-fn file_key(path: &Path) -> Option<FileKey> {
-    use std::os::unix::fs::MetadataExt;
-    let m = std::fs::metadata(path).ok()?;
-    Some((
-        path.to_path_buf(),
-        m.dev(),
-        m.ino(),
-        m.len(),
-        m.mtime(),
-        m.mtime_nsec(),
-    ))
-}
-
-/// Hashes already computed in this process (a campaign checks the same inputs in several
-/// stages).
-static HASHES: std::sync::LazyLock<std::sync::Mutex<std::collections::HashMap<FileKey, String>>> =
-    std::sync::LazyLock::new(Default::default);
-
-/// Forgets the remembered hashes (a benchmark's "cached" pass measures what a new
-/// process would do).
-pub fn forget_hashes() {
-    if let Ok(mut m) = HASHES.lock() {
-        m.clear();
-    }
-}
-
-/// blake3 of a file's content, streamed; remembered for the process while the file keeps
-/// its inode, size and modification time.
-pub fn file_hash(path: &Path) -> anyhow::Result<String> {
-    let key = file_key(path);
-    if let Some(k) = &key
-        && let Some(h) = HASHES.lock().ok().and_then(|m| m.get(k).cloned())
-    {
-        return Ok(h);
-    }
-    let h = hash_content(path)?;
-    if let (Some(k), Ok(mut m)) = (key, HASHES.lock()) {
-        m.insert(k, h.clone());
-    }
-    Ok(h)
-}
-
-fn hash_content(path: &Path) -> anyhow::Result<String> {
-    thread_local! {
-        /// One read buffer per thread, not one zeroed per file.
-        static BUF: std::cell::RefCell<Vec<u8>> = std::cell::RefCell::new(vec![0; 1 << 20]);
-    }
-    let mut f =
-        std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let mut h = blake3::Hasher::new();
-    BUF.with(|buf| -> anyhow::Result<()> {
-        let buf = &mut *buf.borrow_mut();
-        loop {
-            let n = f
-                .read(buf)
-                .with_context(|| format!("cannot read {}", path.display()))?;
-            if n == 0 {
-                return Ok(());
-            }
-            h.update(&buf[..n]);
-        }
-    })?;
-    Ok(h.finalize().to_hex().to_string())
 }
 
 /// blake3 of the JSON of `params`.
@@ -205,22 +136,6 @@ impl Stage<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_file_replaced_by_rename_is_hashed_again() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("a.bin");
-        std::fs::write(&p, b"first").unwrap();
-        let h1 = file_hash(&p).unwrap();
-        assert_eq!(file_hash(&p).unwrap(), h1, "remembered");
-        // Same size, written the way every output is: a new file renamed into place.
-        let tmp = dir.path().join(".a.bin.tmp");
-        std::fs::write(&tmp, b"other").unwrap();
-        std::fs::rename(&tmp, &p).unwrap();
-        let h2 = file_hash(&p).unwrap();
-        assert_ne!(h1, h2);
-        assert_eq!(h2, blake3::hash(b"other").to_hex().to_string());
-    }
 
     #[test]
     fn invalidate_clears_what_a_killed_stage_left() {

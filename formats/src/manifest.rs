@@ -206,11 +206,12 @@ impl Checker<'_> {
 }
 
 /// Names an output folder holds beside the runs' folders: no run may take them.
-pub const RESERVED_NAMES: [&str; 4] = [
+pub const RESERVED_NAMES: [&str; 5] = [
     "campaign.parquet",
     "campaign.md",
     "campaign.html",
     "unz.lock",
+    "unz.hashes",
 ];
 
 /// Whether `name` is a plain run name: letters, digits, `-`, `_`, `.`; not starting with

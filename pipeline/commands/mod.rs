@@ -34,7 +34,25 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         _ => None,
     };
     let _lock = out.as_deref().map(crate::lock::lock_output).transpose()?;
-    match cli.command {
+    // A stage command works on one run: its threads share one malloc arena (`unz run`
+    // decides once it knows how many runs it has).
+    if matches!(
+        cli.command,
+        Command::Ingest(_)
+            | Command::Derive(_)
+            | Command::Navigate(_)
+            | Command::Criteria(_)
+            | Command::Disupt(_)
+            | Command::Sweep(_)
+            | Command::Export(_)
+            | Command::Review(_)
+    ) {
+        crate::memory::one_malloc_arena();
+    }
+    if let Some(out) = &out {
+        crate::file_hashes::load(out);
+    }
+    let code = match cli.command {
         Command::Simulate(a) => simulate::run(&a),
         Command::Ingest(a) => ingest::run(&a),
         Command::Derive(a) => derive::run(&a),
@@ -49,5 +67,13 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Config(a) => config::run(&a),
         Command::Demo(a) => demo::run(&a),
         Command::Bench(a) => bench::run(&a),
+    };
+    // Saved whatever the outcome: what was hashed stays true (a failed save costs the
+    // next process a read of the files, nothing else).
+    if let Some(out) = &out
+        && let Err(e) = crate::file_hashes::save(out)
+    {
+        eprintln!("warning: {e:#}");
     }
+    code
 }
