@@ -9,8 +9,8 @@
 /// Why: glibc gives a thread its own arena when it finds the main one locked, and keeps
 /// what is freed there for that arena's later use. A run's stages allocate run-length
 /// vectors on the worker threads and free them on others: one 12-h run's resident set
-/// stood 55–65 MiB above its heap's peak, and comes 15–25 MiB lower with one arena
-/// (4 h: 210 → 184 MiB), at the same speed. Not for campaigns that work on several
+/// stood 55–65 MiB above its heap's peak, and comes about 20 MiB lower with one arena
+/// (4 h: 205 → 179 MiB), at the same speed. Not for campaigns that work on several
 /// runs at once: their threads then wait on the one arena's lock (`unz bench campaign`
 /// ran about 12 % slower).
 pub fn one_malloc_arena() -> bool {
