@@ -16,6 +16,7 @@ use unz_formats::parquet_io::{
 use unz_formats::schema::{self, derived_meta};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, Epochs, OdometerSpeed, ns_since};
+use unz_stages::time_base::{NanoTimes, TimeBase};
 
 fn f64s(v: &[f64]) -> Arc<Float64Array> {
     Arc::new(Float64Array::from(v.to_vec()))
@@ -57,7 +58,7 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
             schema.clone(),
             vec![
                 Arc::new(Int64Array::from_iter_values(
-                    d.t_s[r.clone()].iter().map(|&t| d.ns_of(t)),
+                    d.t_s.range(r.clone()).map(|t| d.ns_of(t)),
                 )),
                 f64s(&d.dt_s[r.clone()]),
                 vec3_to_array(&d.dtheta_rad[r.clone()]),
@@ -118,14 +119,12 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
 /// back within half of one. A stage handed the derive in memory then computes exactly
 /// what it computes from the cache.
 pub fn as_stored(mut d: Derived) -> Derived {
-    let t0_ns = d.t_s.first().map_or(0, |&t| d.ns_of(t));
+    let t0_ns = d.t_s.first().map_or(0, |t| d.ns_of(t));
     let epoch_t_ns = d.epoch_t_ns();
-    // In place (the derive's own times, not shared yet): `ns_of`, then seconds from the
-    // first stored time.
+    // `ns_of`, then nanoseconds from the first stored time: the compact form a load
+    // gives.
     let was_t0_ns = d.t0_ns;
-    for t in Arc::make_mut(&mut d.t_s).iter_mut() {
-        *t = (ns_since(was_t0_ns, *t) - t0_ns) as f64 * 1e-9;
-    }
+    d.t_s = TimeBase::from_nanos(d.t_s.iter().map(|t| ns_since(was_t0_ns, t) - t0_ns));
     d.epochs.t_s = epoch_t_ns
         .iter()
         .map(|t| (t - t0_ns) as f64 * 1e-9)
@@ -186,7 +185,7 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
     let per_sample = |wanted: bool| if wanted { rows } else { 0 };
     let (with_nav, with_velocity) = (columns != Columns::Times, columns == Columns::All);
     let mut t0_ns: Option<i64> = None;
-    let mut t_s: Vec<f64> = Vec::with_capacity(rows);
+    let mut t_s = NanoTimes::builder().with_room_for(rows);
     let mut dt_s = Vec::with_capacity(per_sample(with_nav));
     let mut odo_dist_m = Vec::with_capacity(per_sample(with_nav));
     let mut dtheta_rad: Vec<[f64; 3]> = Vec::with_capacity(per_sample(with_nav));
@@ -199,7 +198,9 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
     let schema = for_each_batch_of(&path, names, |b| {
         let t_ns = i64_column(b, "t_ns")?;
         let t0 = *t0_ns.get_or_insert(t_ns.first().copied().unwrap_or(0));
-        t_s.extend(t_ns.iter().map(|t| (t - t0) as f64 * 1e-9));
+        for t in t_ns.iter() {
+            t_s.push(t - t0);
+        }
         if with_nav {
             dt_s.extend(f64_column(b, "dt_s")?);
             dtheta_rad.extend(vec3_column(b, "dtheta_rad")?);
@@ -220,7 +221,7 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
     let mut d = Derived {
         t0_ns: t0_ns.unwrap_or(0),
         nominal_dt_s: meta(derived_meta::NOMINAL_DT_S)?.parse()?,
-        t_s: Arc::new(t_s),
+        t_s: TimeBase::Nanos(Arc::new(t_s.finish())),
         dt_s: dt_s.into(),
         dtheta_rad: dtheta_rad.into(),
         dvel_mps: dvel_mps.into(),
@@ -343,11 +344,11 @@ mod tests {
         // repaired sample's, the epochs'): stored in nanoseconds, they come back within
         // half of one.
         let k = 12_345;
-        assert!((loaded.t_s[k] - d.t_s[k]).abs() <= 0.5e-9);
+        assert!((loaded.t_s.get(k) - d.t_s.get(k)).abs() <= 0.5e-9);
         let mut same_times = loaded.clone();
         same_times.t_s = {
             let mut t = loaded.t_s.to_vec();
-            t[k] = d.t_s[k];
+            t[k] = d.t_s.get(k);
             t.into()
         };
         assert_eq!(loaded.epochs.t_s.len(), d.epochs.t_s.len());

@@ -432,7 +432,7 @@ pub fn match_control_points(
             if rel < 0.0 || rel > last + d.nominal_dt_s {
                 bail!("control point {} at t_s = {t_s} is outside the log", cp.id);
             }
-            let sample = d.t_s.partition_point(|&t| t < rel).min(d.t_s.len() - 1);
+            let sample = d.t_s.partition_point(|t| t < rel).min(d.t_s.len() - 1);
             Ok(ControlPointFix {
                 id: cp.id,
                 sample,
@@ -584,7 +584,7 @@ pub fn ensure_navigate(
         let summary = NavigateSummary {
             initial: case.initial,
             samples: nav.samples,
-            duration_s: case.derived.t_s.last().copied().unwrap_or(0.0),
+            duration_s: case.derived.t_s.last().unwrap_or(0.0),
             distance_m: nav.distance_m,
             control_points: criteria::kryt2_at(&case.fixes, |k| {
                 nav.at(k).map(|s| (s.lat_rad, s.lon_rad))

@@ -115,7 +115,7 @@ impl KeepRows for TrackBuilder<'_> {
         let (d, m) = (self.d, &mut self.track);
         let (n, e) = self.start.offset_m(lat, lon);
         let att = euler_of(&q);
-        m.t_ns.push(d.ns_of(d.t_s[k]));
+        m.t_ns.push(d.ns_of(d.t_s.get(k)));
         m.lat_deg.push(lat.to_degrees());
         m.lon_deg.push(lon.to_degrees());
         m.h_m.push(h as f32);

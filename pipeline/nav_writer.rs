@@ -226,7 +226,7 @@ fn nav_batch(
     };
     let mut columns: Vec<ArrayRef> = vec![
         Arc::new(Int64Array::from_iter_values(
-            d.t_s[r.clone()].iter().map(|&t| d.ns_of(t)),
+            d.t_s.range(r.clone()).map(|t| d.ns_of(t)),
         )),
         deg(&t.lat_rad),
         deg(&t.lon_rad),
@@ -257,7 +257,7 @@ mod tests {
         Derived {
             t0_ns: 1_000_000_000,
             nominal_dt_s: 0.01,
-            t_s: std::sync::Arc::new((0..n).map(|k| k as f64 * 0.01).collect()),
+            t_s: (0..n).map(|k| k as f64 * 0.01).collect::<Vec<_>>().into(),
             dt_s: vec![0.01; n].into(),
             ..Derived::default()
         }

@@ -42,9 +42,13 @@ pub struct ReviewSensors {
 /// ([`crate::derive_io::as_stored`]), its velocity increments included.
 pub fn review_sensors(d: &Derived) -> ReviewSensors {
     let mut b = SensorBlocksBuilder::at_series_rate(d.nominal_dt_s).with_room_for(d.t_s.len());
-    for (k, speed) in d.odometer_speeds(0..d.t_s.len()).enumerate() {
+    for ((k, speed), t_s) in d
+        .odometer_speeds(0..d.t_s.len())
+        .enumerate()
+        .zip(d.t_s.iter())
+    {
         b.push(SensorSample {
-            t_s: d.t_s[k],
+            t_s,
             dt_s: d.dt_s[k],
             dtheta_rad: d.dtheta_rad[k],
             dvel_mps: d.dvel_mps[k],
@@ -58,7 +62,7 @@ pub fn review_sensors(d: &Derived) -> ReviewSensors {
         times: RunTimes {
             t0_ns: d.t0_ns,
             nominal_dt_s: d.nominal_dt_s,
-            duration_s: d.t_s.last().copied().unwrap_or(0.0),
+            duration_s: d.t_s.last().unwrap_or(0.0),
             samples: d.t_s.len(),
         },
     }

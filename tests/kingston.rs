@@ -70,7 +70,7 @@ fn kingston_gyrocompass_heading_changes_attitude_and_control_points() {
     case.navigate(&mut track);
     let r = reference();
     let t0_s = case.derived.t0_ns as f64 * 1e-9;
-    let pairs = at_reference(&track, t0_s, &case.derived.t_s, &r);
+    let pairs = at_reference(&track, t0_s, &case.derived.t_s.to_vec(), &r);
     assert!(
         pairs.len() > 850,
         "{} reference epochs matched",
@@ -189,7 +189,7 @@ fn kingston_disupt_corrects_the_gyrocompass_heading() {
     let mut judge = |x: unz_stages::disupt::X| {
         unz_stages::strapdown::navigate(&case.inputs(), &problem.settings(&x), &mut track);
         (
-            median_heading_error(&track, t0_s, &case.derived.t_s, &r),
+            median_heading_error(&track, t0_s, &case.derived.t_s.to_vec(), &r),
             criteria::kryt2(&track, &case.fixes),
         )
     };

@@ -16,6 +16,7 @@
 use std::sync::Arc;
 
 use crate::filter::{FilterParams, LowPass};
+use crate::time_base::{TimeBase, Times};
 
 /// Parameters of the derive stage.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -67,12 +68,13 @@ pub struct Derived {
     pub t0_ns: i64,
     /// Nominal sample period (median interval), s.
     pub nominal_dt_s: f64,
-    /// Per sample: time since `t0_ns`, s (repaired to increase).
+    /// Per sample: time since `t0_ns`, s (repaired to increase): as computed, or whole
+    /// nanoseconds once stored (then compact).
     ///
     /// The IMU's series (this, `dt_s`, `dtheta_rad`, `dvel_mps`) are shared (`Arc`),
     /// not copied, between a derive and its re-derives at other odometer timings: only
     /// the odometer's part differs.
-    pub t_s: Arc<Vec<f64>>,
+    pub t_s: TimeBase,
     /// Per sample: interval, s.
     pub dt_s: Arc<Vec<f64>>,
     /// Per sample: angle increments, rad (lost stretches filled by holding the rate).
@@ -197,7 +199,7 @@ impl Derived {
 
     /// Per-sample times, ns.
     pub fn t_ns(&self) -> Vec<i64> {
-        self.t_s.iter().map(|&t| self.ns_of(t)).collect()
+        self.t_s.iter().map(|t| self.ns_of(t)).collect()
     }
 
     /// The navigation kernel's inputs.
@@ -453,7 +455,7 @@ pub fn odometer_increments(d: &Derived, raw: &RawSeries<'_>, offset_s: f64) -> V
 /// [`odometer_increments`] gives, sample by sample.
 #[derive(Debug, Clone, Copy)]
 pub struct MovedOdometer<'a> {
-    t_s: &'a [f64],
+    t_s: &'a TimeBase,
     first_dt_s: f64,
     t0_ns: i64,
     odo_t_ns: &'a [i64],
@@ -485,7 +487,7 @@ impl<'a> MovedOdometer<'a> {
         let prev_m = self
             .t_s
             .first()
-            .map_or(0.0, |&t| odo.at(t - self.first_dt_s));
+            .map_or(0.0, |t| odo.at(t - self.first_dt_s));
         OdoIncrements {
             odo,
             t_s: self.t_s.iter(),
@@ -497,7 +499,7 @@ impl<'a> MovedOdometer<'a> {
 /// [`MovedOdometer::increments`].
 pub struct OdoIncrements<'a> {
     odo: OdoInterp<'a>,
-    t_s: std::slice::Iter<'a, f64>,
+    t_s: Times<'a>,
     /// The distance at the end of the sample before, m.
     prev_m: f64,
 }
@@ -506,7 +508,7 @@ impl Iterator for OdoIncrements<'_> {
     type Item = f64;
 
     fn next(&mut self) -> Option<f64> {
-        let &t = self.t_s.next()?;
+        let t = self.t_s.next()?;
         let now = self.odo.at(t);
         let dd = now - self.prev_m;
         self.prev_m = now;
@@ -585,7 +587,7 @@ pub fn epochs_of(d: &Derived, lp: &LowPass, params: &DeriveParams, g_mps2: f64) 
             + lateral * theta.sin() / (g_mps2 * theta.cos().powi(2)) * theta_per_bias)
             / phi.cos();
         e.block.push(j);
-        e.t_s.push(0.5 * (d.t_s[first] + d.t_s[last]));
+        e.t_s.push(0.5 * (d.t_s.get(first) + d.t_s.get(last)));
         e.theta_p_rad.push(theta);
         e.phi_p_rad.push(phi);
         e.theta_p_per_yaw.push(theta_per_yaw);

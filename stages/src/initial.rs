@@ -112,13 +112,13 @@ pub struct InitialReport {
 /// less 1 s.
 pub fn detect_static_s(d: &Derived) -> f64 {
     let mut dist = 0.0;
-    for k in 0..d.t_s.len() {
-        dist += d.odo_dist_m[k].abs();
+    for (t, dd) in d.t_s.iter().zip(&d.odo_dist_m) {
+        dist += dd.abs();
         if dist > 0.05 {
-            return (d.t_s[k] - 1.0).max(0.0);
+            return (t - 1.0).max(0.0);
         }
     }
-    d.t_s.last().copied().unwrap_or(0.0)
+    d.t_s.last().unwrap_or(0.0)
 }
 
 /// Length of the static start `initial_settings` averages over, s: the request's, else
@@ -126,7 +126,7 @@ pub fn detect_static_s(d: &Derived) -> f64 {
 pub fn static_start_s(d: &Derived, req: &InitialRequest) -> f64 {
     req.static_s
         .unwrap_or_else(|| detect_static_s(d))
-        .min(d.t_s.last().copied().unwrap_or(0.0))
+        .min(d.t_s.last().unwrap_or(0.0))
 }
 
 /// Samples of the static start (the only velocity increments [`initial_settings`] reads).

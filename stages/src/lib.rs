@@ -26,6 +26,7 @@ pub mod odo_lag;
 pub mod route_sigma;
 pub mod simulate;
 pub mod strapdown;
+pub mod time_base;
 pub mod units;
 
 /// Serde helpers for report fields that may have no value: a non-finite number is left

@@ -1,0 +1,315 @@
+//! A derive's per-sample times, s since its first sample's time.
+//!
+//! The derive computes its times in f64 ([`TimeBase::Seconds`]); once stored, they are
+//! whole nanoseconds from the first sample, read back as `ns as f64 * 1e-9`
+//! ([`TimeBase::Nanos`]). The stored form keeps each time as a 32-bit offset from the
+//! time of its block of [`NANOS_BLOCK`] samples: half the memory of an f64 per sample
+//! (17 MB less at 12 h at 100 Hz), with every time given back bit for bit.
+
+use std::sync::Arc;
+
+/// Samples per block of [`NanoTimes`]: at 100 Hz a block spans 0.64 s, far inside a
+/// 32-bit offset's 4.29 s, so only a gap in the log needs [`NanoTimes`]'s far list.
+pub const NANOS_BLOCK: usize = 64;
+
+/// Offset marking a sample whose time is in the far list.
+const FAR: u32 = u32::MAX;
+
+/// Per-sample times.
+#[derive(Clone)]
+pub enum TimeBase {
+    /// Seconds as computed (the derive's own times, before they are stored).
+    Seconds(Arc<Vec<f64>>),
+    /// Whole nanoseconds (as stored), compact.
+    Nanos(Arc<NanoTimes>),
+}
+
+impl Default for TimeBase {
+    fn default() -> Self {
+        TimeBase::Seconds(Arc::default())
+    }
+}
+
+impl std::fmt::Debug for TimeBase {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kind = match self {
+            TimeBase::Seconds(_) => "Seconds",
+            TimeBase::Nanos(_) => "Nanos",
+        };
+        write!(
+            f,
+            "TimeBase::{kind}({} samples, {:?} .. {:?} s)",
+            self.len(),
+            self.first(),
+            self.last()
+        )
+    }
+}
+
+/// Equal when every time is equal (whatever the form).
+impl PartialEq for TimeBase {
+    fn eq(&self, other: &Self) -> bool {
+        self.len() == other.len()
+            && self
+                .iter()
+                .zip(other.iter())
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+    }
+}
+
+impl From<Vec<f64>> for TimeBase {
+    fn from(t_s: Vec<f64>) -> Self {
+        TimeBase::Seconds(Arc::new(t_s))
+    }
+}
+
+impl TimeBase {
+    /// The stored form of whole nanoseconds since the first sample's time.
+    pub fn from_nanos(ns: impl IntoIterator<Item = i64>) -> Self {
+        let mut b = NanoTimes::builder();
+        for t in ns {
+            b.push(t);
+        }
+        TimeBase::Nanos(Arc::new(b.finish()))
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        match self {
+            TimeBase::Seconds(t) => t.len(),
+            TimeBase::Nanos(t) => t.len(),
+        }
+    }
+
+    /// Whether there is no sample.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Time of sample `k`, s.
+    ///
+    /// # Panics
+    /// If `k` is not below [`Self::len`].
+    #[inline]
+    pub fn get(&self, k: usize) -> f64 {
+        match self {
+            TimeBase::Seconds(t) => t[k],
+            TimeBase::Nanos(t) => t.get(k),
+        }
+    }
+
+    /// The first sample's time.
+    pub fn first(&self) -> Option<f64> {
+        (!self.is_empty()).then(|| self.get(0))
+    }
+
+    /// The last sample's time.
+    pub fn last(&self) -> Option<f64> {
+        self.len().checked_sub(1).map(|k| self.get(k))
+    }
+
+    /// The times of the samples `range`, in order.
+    ///
+    /// # Panics
+    /// If the range goes past [`Self::len`].
+    pub fn range(&self, range: std::ops::Range<usize>) -> Times<'_> {
+        assert!(range.end <= self.len(), "{range:?} of {}", self.len());
+        Times { base: self, range }
+    }
+
+    /// Every time, in order.
+    pub fn iter(&self) -> Times<'_> {
+        self.range(0..self.len())
+    }
+
+    /// The index of the first sample whose time fails `pred`, which holds for a prefix of
+    /// the samples (as [`slice::partition_point`]).
+    pub fn partition_point(&self, mut pred: impl FnMut(f64) -> bool) -> usize {
+        let (mut lo, mut hi) = (0, self.len());
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            if pred(self.get(mid)) {
+                lo = mid + 1;
+            } else {
+                hi = mid;
+            }
+        }
+        lo
+    }
+
+    /// The times in a vector.
+    pub fn to_vec(&self) -> Vec<f64> {
+        self.iter().collect()
+    }
+}
+
+/// [`TimeBase::range`].
+#[derive(Clone)]
+pub struct Times<'a> {
+    base: &'a TimeBase,
+    range: std::ops::Range<usize>,
+}
+
+impl Iterator for Times<'_> {
+    type Item = f64;
+
+    #[inline]
+    fn next(&mut self) -> Option<f64> {
+        let k = self.range.next()?;
+        Some(self.base.get(k))
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        self.range.size_hint()
+    }
+}
+
+impl ExactSizeIterator for Times<'_> {}
+
+/// Whole nanoseconds since the first sample's time, by blocks of [`NANOS_BLOCK`]
+/// samples: each block's first time in full, each sample's offset from it in 32 bits,
+/// and the times whose offset does not fit (across a gap of over 4.29 s, or before the
+/// block's first) apart.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct NanoTimes {
+    block_ns: Vec<i64>,
+    offset_ns: Vec<u32>,
+    /// (sample, time) of the samples whose offset is [`FAR`], by sample.
+    far: Vec<(usize, i64)>,
+}
+
+impl NanoTimes {
+    /// An empty builder.
+    pub fn builder() -> NanoTimesBuilder {
+        NanoTimesBuilder(NanoTimes::default())
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.offset_ns.len()
+    }
+
+    /// Whether there is no sample.
+    pub fn is_empty(&self) -> bool {
+        self.offset_ns.is_empty()
+    }
+
+    /// Time of sample `k`, ns.
+    #[inline]
+    pub fn ns(&self, k: usize) -> i64 {
+        let o = self.offset_ns[k];
+        if o != FAR {
+            self.block_ns[k / NANOS_BLOCK] + i64::from(o)
+        } else {
+            let i = self.far.partition_point(|&(j, _)| j < k);
+            self.far[i].1
+        }
+    }
+
+    /// Time of sample `k`, s: `ns as f64 * 1e-9`, as a stored derive's times are read.
+    #[inline]
+    pub fn get(&self, k: usize) -> f64 {
+        self.ns(k) as f64 * 1e-9
+    }
+}
+
+/// Builds a [`NanoTimes`] sample by sample.
+pub struct NanoTimesBuilder(NanoTimes);
+
+impl NanoTimesBuilder {
+    /// Room for `n` samples.
+    pub fn with_room_for(mut self, n: usize) -> Self {
+        self.0.offset_ns.reserve_exact(n);
+        self.0.block_ns.reserve_exact(n.div_ceil(NANOS_BLOCK));
+        self
+    }
+
+    /// The next sample's time, ns.
+    pub fn push(&mut self, ns: i64) {
+        let t = &mut self.0;
+        let k = t.offset_ns.len();
+        if k.is_multiple_of(NANOS_BLOCK) {
+            t.block_ns.push(ns);
+        }
+        let base = t.block_ns[k / NANOS_BLOCK];
+        match ns.checked_sub(base).and_then(|o| u32::try_from(o).ok()) {
+            Some(o) if o != FAR => t.offset_ns.push(o),
+            _ => {
+                t.offset_ns.push(FAR);
+                t.far.push((k, ns));
+            }
+        }
+    }
+
+    /// The times.
+    pub fn finish(self) -> NanoTimes {
+        self.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The stored times of `ns` as a derive read them before: `ns as f64 * 1e-9` each.
+    fn as_read(ns: &[i64]) -> Vec<u64> {
+        ns.iter().map(|&t| (t as f64 * 1e-9).to_bits()).collect()
+    }
+
+    fn bits(t: &TimeBase) -> Vec<u64> {
+        t.iter().map(f64::to_bits).collect()
+    }
+
+    #[test]
+    fn nanos_give_every_time_back_bit_for_bit() {
+        // 100 Hz with jitter, a 6 s gap (past a 32-bit offset), a 30 s one, repeated
+        // times, a time going back (not in a derive, but any input is kept), 12 h in.
+        let mut ns = Vec::new();
+        let mut t: i64 = 0;
+        for k in 0..10_000i64 {
+            t += match k {
+                500 => 6_000_000_000,
+                501 => 30_000_000_000,
+                700 | 701 => 0,
+                900 => -25_000_000,
+                _ => 10_000_000 + (k * 7919) % 1000 - 500,
+            };
+            ns.push(t + if k > 5000 { 43_200_000_000_000 } else { 0 });
+        }
+        let tb = TimeBase::from_nanos(ns.iter().copied());
+        assert_eq!(bits(&tb), as_read(&ns));
+        assert_eq!(tb.len(), ns.len());
+        for k in [0, 1, 63, 64, 499, 500, 501, 502, 700, 900, 5000, 5001, 9999] {
+            assert_eq!(tb.get(k).to_bits(), (ns[k] as f64 * 1e-9).to_bits(), "{k}");
+        }
+        let TimeBase::Nanos(n) = &tb else {
+            unreachable!()
+        };
+        // The gaps, the time going back and the 12-h jump only: the rest is 4 bytes.
+        assert!(n.far.len() < 200, "{}", n.far.len());
+        assert_eq!(
+            tb.range(499..503).map(f64::to_bits).collect::<Vec<_>>(),
+            as_read(&ns[499..503])
+        );
+        assert_eq!(tb.last(), Some(ns[9999] as f64 * 1e-9));
+    }
+
+    #[test]
+    fn forms_compare_by_value_and_search_as_slices_do() {
+        let ns: Vec<i64> = (0..1000).map(|k| k * 10_000_000 + k % 3).collect();
+        let secs: Vec<f64> = ns.iter().map(|&t| t as f64 * 1e-9).collect();
+        let (a, b) = (TimeBase::from_nanos(ns), TimeBase::from(secs.clone()));
+        assert_eq!(a, b);
+        for x in [-1.0, 0.0, 0.005, 3.33, 9.99, 100.0] {
+            assert_eq!(
+                a.partition_point(|t| t < x),
+                secs.partition_point(|&t| t < x)
+            );
+        }
+        let mut c = secs;
+        c[500] += 1e-12;
+        assert_ne!(a, TimeBase::from(c));
+        assert_eq!(TimeBase::default().first(), None);
+        assert_eq!(TimeBase::from_nanos([]).last(), None);
+    }
+}
