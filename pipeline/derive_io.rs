@@ -57,9 +57,7 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
         let batch = RecordBatch::try_new(
             schema.clone(),
             vec![
-                Arc::new(Int64Array::from_iter_values(
-                    d.t_s.range(r.clone()).map(|t| d.ns_of(t)),
-                )),
+                Arc::new(Int64Array::from_iter_values(d.t_ns(r.clone()))),
                 f64s(&d.dt_s[r.clone()]),
                 vec3_to_array(&d.dtheta_rad[r.clone()]),
                 vec3_to_array(&d.dvel_mps[r.clone()]),

@@ -225,9 +225,7 @@ fn nav_batch(
         ))
     };
     let mut columns: Vec<ArrayRef> = vec![
-        Arc::new(Int64Array::from_iter_values(
-            d.t_s.range(r.clone()).map(|t| d.ns_of(t)),
-        )),
+        Arc::new(Int64Array::from_iter_values(d.t_ns(r.clone()))),
         deg(&t.lat_rad),
         deg(&t.lon_rad),
         f32_array(t.h_m.iter().copied()),

@@ -197,9 +197,9 @@ impl Derived {
         ns_since(self.t0_ns, t_s)
     }
 
-    /// Per-sample times, ns.
-    pub fn t_ns(&self) -> Vec<i64> {
-        self.t_s.iter().map(|t| self.ns_of(t)).collect()
+    /// Times of the samples `range`, ns in the log's time base (as they are stored).
+    pub fn t_ns(&self, range: std::ops::Range<usize>) -> impl Iterator<Item = i64> + '_ {
+        self.t_s.range(range).map(|t| self.ns_of(t))
     }
 
     /// The navigation kernel's inputs.
