@@ -630,7 +630,7 @@ pub fn merge_summaries(outs: &[PathBuf], dest: &Path) -> anyhow::Result<usize> {
         }
         for b in &bs {
             let runs = b
-                .column_by_name("run")
+                .column_by_name(unz_formats::schema::CAMPAIGN_RUN)
                 .and_then(|c| c.as_any().downcast_ref::<StringArray>())
                 .with_context(|| format!("{}: no run column", path.display()))?;
             for r in runs.iter().flatten() {

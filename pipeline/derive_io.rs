@@ -13,7 +13,9 @@ use unz_formats::parquet_io::{
     ParquetSink, for_each_batch_of, for_each_batch_of_while, read_table, row_capacity_hint,
     write_batch,
 };
-use unz_formats::schema::{self, derived_meta};
+use unz_formats::schema::{
+    self, DTHETA_RAD, DVEL_MPS, T_NS, VALID, derived_cols, derived_meta, epochs_cols, filtered_cols,
+};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, Epochs, OdometerSpeed, ns_since};
 use unz_stages::time_base::{NanoTimes, TimeBase};
@@ -157,8 +159,8 @@ pub fn read_velocity_prefix(dir: &Path, n: usize) -> anyhow::Result<Vec<[f64; 3]
     if n == 0 {
         return Ok(out);
     }
-    for_each_batch_of_while(&dir.join(files::DERIVED), &["dvel_mps"], |b| {
-        let v = vec3_column(b, "dvel_mps")?;
+    for_each_batch_of_while(&dir.join(files::DERIVED), &[DVEL_MPS], |b| {
+        let v = vec3_column(b, DVEL_MPS)?;
         let take = (n - out.len()).min(v.len());
         out.extend_from_slice(&v[..take]);
         Ok(out.len() < n)
@@ -189,23 +191,34 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
     let mut dtheta_rad: Vec<[f64; 3]> = Vec::with_capacity(per_sample(with_nav));
     let mut dvel_mps: Vec<[f64; 3]> = Vec::with_capacity(per_sample(with_velocity));
     let names: &[&str] = match columns {
-        Columns::All => &["t_ns", "dt_s", "dtheta_rad", "dvel_mps", "odo_dist_m"],
-        Columns::WithoutVelocity => &["t_ns", "dt_s", "dtheta_rad", "odo_dist_m"],
-        Columns::Times => &["t_ns"],
+        Columns::All => &[
+            T_NS,
+            derived_cols::DT_S,
+            DTHETA_RAD,
+            DVEL_MPS,
+            derived_cols::ODO_DIST_M,
+        ],
+        Columns::WithoutVelocity => &[
+            T_NS,
+            derived_cols::DT_S,
+            DTHETA_RAD,
+            derived_cols::ODO_DIST_M,
+        ],
+        Columns::Times => &[T_NS],
     };
     let schema = for_each_batch_of(&path, names, |b| {
-        let t_ns = i64_column(b, "t_ns")?;
+        let t_ns = i64_column(b, T_NS)?;
         let t0 = *t0_ns.get_or_insert(t_ns.first().copied().unwrap_or(0));
         for t in t_ns.iter() {
             t_s.push(t - t0);
         }
         if with_nav {
-            dt_s.extend(f64_column(b, "dt_s")?);
-            dtheta_rad.extend(vec3_column(b, "dtheta_rad")?);
-            odo_dist_m.extend(f64_column(b, "odo_dist_m")?);
+            dt_s.extend(f64_column(b, derived_cols::DT_S)?);
+            dtheta_rad.extend(vec3_column(b, DTHETA_RAD)?);
+            odo_dist_m.extend(f64_column(b, derived_cols::ODO_DIST_M)?);
         }
         if with_velocity {
-            dvel_mps.extend(vec3_column(b, "dvel_mps")?);
+            dvel_mps.extend(vec3_column(b, DVEL_MPS)?);
         }
         Ok(())
     })?;
@@ -234,34 +247,40 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
     };
     let bpath = dir.join(files::BLOCKS);
     let (_, bl) = read_table(&bpath)?;
-    d.ax_f = f64_column(&bl, "ax_f_mps2")?.into();
-    d.ay_f = f64_column(&bl, "ay_f_mps2")?.into();
-    d.u_dot_f = f64_column(&bl, "u_dot_f_mps2")?;
-    d.ru_f = f64_column(&bl, "ru_f_mps2")?;
-    d.r_moving_f = f64_column(&bl, "r_moving_f_rad_s")?;
-    d.moving_dot_f = f64_column(&bl, "moving_dot_f_per_s")?;
+    d.ax_f = f64_column(&bl, filtered_cols::AX_F_MPS2)?.into();
+    d.ay_f = f64_column(&bl, filtered_cols::AY_F_MPS2)?.into();
+    d.u_dot_f = f64_column(&bl, filtered_cols::U_DOT_F_MPS2)?;
+    d.ru_f = f64_column(&bl, filtered_cols::RU_F_MPS2)?;
+    d.r_moving_f = f64_column(&bl, filtered_cols::R_MOVING_F_RAD_S)?;
+    d.moving_dot_f = f64_column(&bl, filtered_cols::MOVING_DOT_F_PER_S)?;
     let epath = dir.join(files::EPOCHS);
     let (_, e) = read_table(&epath)?;
     let blocks = e
-        .column_by_name("block")
+        .column_by_name(epochs_cols::BLOCK)
         .and_then(|c| c.as_primitive_opt::<UInt64Type>())
-        .context("epochs.parquet: block")?;
+        .with_context(|| {
+            format!(
+                "{}: no UInt64 column {:?}",
+                epath.display(),
+                epochs_cols::BLOCK
+            )
+        })?;
     let valid = e
-        .column_by_name("valid")
+        .column_by_name(VALID)
         .and_then(|c| c.as_boolean_opt())
-        .context("epochs.parquet: valid")?;
+        .with_context(|| format!("{}: no Boolean column {VALID:?}", epath.display()))?;
     d.epochs = Epochs {
         block: blocks.values().iter().map(|&b| b as usize).collect(),
-        t_s: i64_column(&e, "t_ns")?
+        t_s: i64_column(&e, T_NS)?
             .iter()
             .map(|t| (t - d.t0_ns) as f64 * 1e-9)
             .collect(),
-        theta_p_rad: f64_column(&e, "theta_p_rad")?,
-        phi_p_rad: f64_column(&e, "phi_p_rad")?,
-        theta_p_per_yaw: f64_column(&e, "theta_p_per_yaw")?,
-        phi_p_per_yaw: f64_column(&e, "phi_p_per_yaw")?,
-        theta_p_per_bias: f64_column(&e, "theta_p_per_bias")?,
-        phi_p_per_bias: f64_column(&e, "phi_p_per_bias")?,
+        theta_p_rad: f64_column(&e, epochs_cols::THETA_P_RAD)?,
+        phi_p_rad: f64_column(&e, epochs_cols::PHI_P_RAD)?,
+        theta_p_per_yaw: f64_column(&e, epochs_cols::THETA_P_PER_YAW)?,
+        phi_p_per_yaw: f64_column(&e, epochs_cols::PHI_P_PER_YAW)?,
+        theta_p_per_bias: f64_column(&e, epochs_cols::THETA_P_PER_BIAS)?,
+        phi_p_per_bias: f64_column(&e, epochs_cols::PHI_P_PER_BIAS)?,
         valid: (0..valid.len()).map(|i| valid.value(i)).collect(),
     };
     let n_blocks = d.t_s.len().div_ceil(d.block.max(1));
@@ -278,6 +297,36 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
         );
     }
     Ok(d)
+}
+
+/// The filtered acceleration terms at the ΔTg epochs, as `epochs.parquet` holds them
+/// beside the references (what the review plots under Kryt1; a load of the derive reads
+/// them per block from `blocks.parquet` instead).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct EpochTerms {
+    /// Filtered forward specific force, m/s².
+    pub ax_f_mps2: Vec<f64>,
+    /// Filtered lateral specific force, m/s².
+    pub ay_f_mps2: Vec<f64>,
+    /// Filtered odometer acceleration u̇, m/s².
+    pub u_dot_f_mps2: Vec<f64>,
+    /// Filtered centripetal term ru, m/s².
+    pub ru_f_mps2: Vec<f64>,
+}
+
+/// Reads the filtered terms of `epochs.parquet` in `dir`.
+pub fn read_epoch_terms(dir: &Path) -> anyhow::Result<EpochTerms> {
+    let path = dir.join(files::EPOCHS);
+    let (_, e) = read_table(&path)?;
+    let column = |name: &str| {
+        f64_column(&e, name).with_context(|| format!("cannot read {}", path.display()))
+    };
+    Ok(EpochTerms {
+        ax_f_mps2: column(filtered_cols::AX_F_MPS2)?,
+        ay_f_mps2: column(filtered_cols::AY_F_MPS2)?,
+        u_dot_f_mps2: column(filtered_cols::U_DOT_F_MPS2)?,
+        ru_f_mps2: column(filtered_cols::RU_F_MPS2)?,
+    })
 }
 
 #[cfg(test)]
@@ -390,22 +439,30 @@ mod tests {
         let n = d.t_s.len();
         let speeds: Vec<_> = d.odometer_speeds(0..n).collect();
         assert_eq!(
-            column("u_mps"),
+            column(derived_cols::U_MPS),
             speeds.iter().map(|s| s.u_mps).collect::<Vec<_>>()
         );
         assert_eq!(
-            column("u_dot_mps2"),
+            column(derived_cols::U_DOT_MPS2),
             speeds.iter().map(|s| s.u_dot_mps2).collect::<Vec<_>>()
         );
         assert_eq!(
-            column("ru_mps2"),
+            column(derived_cols::RU_MPS2),
             speeds.iter().map(|s| s.ru_mps2).collect::<Vec<_>>()
         );
         assert_eq!(
-            column("r_rad_s"),
+            column(derived_cols::R_RAD_S),
             (0..n).map(|k| d.r_rad_s(k)).collect::<Vec<_>>()
         );
         assert!(speeds.iter().any(|s| s.u_mps > 1.0 && s.ru_mps2 != 0.0));
+        // The epochs' filtered terms (what the review reads) are the blocks' at the epochs.
+        let terms = read_epoch_terms(tmp.path()).unwrap();
+        let at = |v: &[f64]| d.epochs.block.iter().map(|&j| v[j]).collect::<Vec<_>>();
+        assert_eq!(terms.ax_f_mps2, at(&d.ax_f));
+        assert_eq!(terms.ay_f_mps2, at(&d.ay_f));
+        assert_eq!(terms.u_dot_f_mps2, at(&d.u_dot_f));
+        assert_eq!(terms.ru_f_mps2, at(&d.ru_f));
+        assert!(terms.ax_f_mps2.len() > 10 && terms.ru_f_mps2.iter().any(|&v| v != 0.0));
         // The times-only load is the whole one without the per-sample increments.
         let times = load_derived_times(tmp.path()).unwrap();
         assert!(times.dtheta_rad.is_empty() && times.odo_dist_m.is_empty());

@@ -13,7 +13,7 @@ use unz_formats::parquet_io::{for_each_batch_of, read_schema};
 use unz_formats::ros2_msgs::{
     Attitude, Criteria, Header, NavSatFix, NavSatStatus, Point, Pose, PoseStamped, Quaternion, Time,
 };
-use unz_formats::schema::{META_TIME_ORIGIN, NAV_STATE};
+use unz_formats::schema::{self, META_TIME_ORIGIN, NAV_STATE};
 use unz_formats::tables::{f64_column, i64_column};
 use unz_stages::attitude::Euler;
 use unz_viz::frames::enu_flu;
@@ -56,14 +56,14 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // the messages carry, and only the rows they keep.
         let step_ns = (1e9 / NAV_RATE_HZ) as i64;
         let names = NAV_STATE;
-        let mut wanted = vec!["t_ns"];
+        let mut wanted = vec![schema::T_NS];
         wanted.extend(names);
         let mut t: Vec<i64> = Vec::new();
         let mut kept: [Vec<f64>; 8] = Default::default();
         let mut h0: Option<f64> = None;
         let mut next: Option<i64> = None;
         for_each_batch_of(&nav_path, &wanted, |b| {
-            let tb = i64_column(b, "t_ns")?;
+            let tb = i64_column(b, schema::T_NS)?;
             let cols = names
                 .iter()
                 .map(|n| f64_column(b, n))

@@ -631,12 +631,13 @@ fn read_nav_for_criteria(
     let mut blocks = Row3Blocks::for_samples(samples, block);
     let mut positions = Vec::new();
     let mut k0 = 0;
-    let columns = ["lat_deg", "lon_deg", "roll_deg", "pitch_deg", "heading_deg"];
+    use unz_formats::schema::nav_cols::{HEADING_DEG, LAT_DEG, LON_DEG, PITCH_DEG, ROLL_DEG};
+    let columns = [LAT_DEG, LON_DEG, ROLL_DEG, PITCH_DEG, HEADING_DEG];
     for_each_batch_of(path, &columns, |b| {
         let rad = |n: &str| -> Result<Vec<f64>, unz_formats::FormatError> {
             Ok(f64_column(b, n)?.into_iter().map(f64::to_radians).collect())
         };
-        let (roll, pitch, heading) = (rad("roll_deg")?, rad("pitch_deg")?, rad("heading_deg")?);
+        let (roll, pitch, heading) = (rad(ROLL_DEG)?, rad(PITCH_DEG)?, rad(HEADING_DEG)?);
         for k in 0..roll.len() {
             let q = unz_stages::attitude::Euler {
                 roll_rad: roll[k],
@@ -653,7 +654,7 @@ fn read_nav_for_criteria(
             .filter(|&s| (k0..k0 + n).contains(&s))
             .collect();
         if !here.is_empty() {
-            let (lat, lon) = (rad("lat_deg")?, rad("lon_deg")?);
+            let (lat, lon) = (rad(LAT_DEG)?, rad(LON_DEG)?);
             positions.extend(here.iter().map(|&s| (s, lat[s - k0], lon[s - k0])));
         }
         k0 += n;

@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use arrow::array::{Float32Array, Float64Array, Int64Array, RecordBatch, StringArray};
 use unz_formats::parquet_io::{ParquetSink, read_table, write_batch};
-use unz_formats::schema;
+use unz_formats::schema::{self, criteria_cols};
 use unz_formats::tables::{f32_column, f64_column, i64_column};
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
@@ -208,7 +208,7 @@ fn method_ranges(
     path: &Path,
 ) -> anyhow::Result<Vec<(String, std::ops::Range<usize>)>> {
     let methods = b
-        .column_by_name("method")
+        .column_by_name(schema::METHOD)
         .and_then(|c| c.as_any().downcast_ref::<StringArray>())
         .ok_or_else(|| anyhow::anyhow!("{}: no string column \"method\"", path.display()))?;
     let mut ranges: Vec<(String, std::ops::Range<usize>)> = Vec::new();
@@ -225,7 +225,7 @@ fn method_ranges(
 /// Reads `tracks.parquet`.
 pub fn read_tracks(path: &Path) -> anyhow::Result<Vec<MethodTrack>> {
     let (_, b) = read_table(path)?;
-    let t = i64_column(&b, "t_ns")?;
+    let t = i64_column(&b, schema::T_NS)?;
     let [lat, lon, rest @ ..] = schema::NAV_STATE;
     let (lat, lon) = (f64_column(&b, lat)?, f64_column(&b, lon)?);
     let cols: Vec<Vec<f32>> = rest
@@ -252,11 +252,11 @@ pub fn read_tracks(path: &Path) -> anyhow::Result<Vec<MethodTrack>> {
 /// Reads `kryt1_series.parquet`.
 pub fn read_kryt1_series(path: &Path) -> anyhow::Result<Vec<MethodKryt1>> {
     let (_, b) = read_table(path)?;
-    let t = i64_column(&b, "t_ns")?;
+    let t = i64_column(&b, schema::T_NS)?;
     let (k, th, ph) = (
-        f64_column(&b, "kryt1_cum")?,
-        f64_column(&b, "kf_d_theta_rad")?,
-        f64_column(&b, "kf_d_phi_rad")?,
+        f64_column(&b, criteria_cols::KRYT1_CUM)?,
+        f64_column(&b, criteria_cols::KF_D_THETA_RAD)?,
+        f64_column(&b, criteria_cols::KF_D_PHI_RAD)?,
     );
     Ok(method_ranges(&b, path)?
         .into_iter()

@@ -294,12 +294,12 @@ mod tests {
         assert_eq!(written.at(3).unwrap().distance_m, 3.0 * 0.1);
         let (_, t) = read_table(&path).unwrap();
         assert_eq!(t.num_rows(), n);
-        let t_ns = i64_column(&t, "t_ns").unwrap();
+        let t_ns = i64_column(&t, schema::T_NS).unwrap();
         assert_eq!(
             t_ns[ROWS + 1],
             1_000_000_000 + (ROWS as i64 + 1) * 10_000_000
         );
-        let lat = f64_column(&t, "lat_deg").unwrap();
+        let lat = f64_column(&t, schema::nav_cols::LAT_DEG).unwrap();
         assert_eq!(lat[ROWS + 2], (0.8 + (ROWS + 2) as f64 * 1e-9).to_degrees());
     }
 

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use unz_formats::parquet_io::{for_each_batch_of, read_schema, read_table};
+use unz_formats::schema::{T_NS, nav_cols, sweep_cols};
 use unz_formats::tables::{f64_column, i64_column};
 use unz_stages::criteria::Kryt2;
 use unz_stages::earth::Geodetic;
@@ -17,6 +18,7 @@ use unz_viz::review::{
 };
 
 use crate::artifacts::{StageName, files};
+use crate::derive_io::read_epoch_terms;
 use crate::disupt_stage::{DisuptOut, Method, ensure_disupt};
 use crate::flow::{Overrides, Params, RunCtx, ensure_criteria, load_criteria, start_position};
 use crate::method_tables::{
@@ -147,9 +149,8 @@ pub fn build_review(
     let start = start_position(m);
 
     let c = load_criteria(&criteria_dir.join(files::CRITERIA))?;
-    // The filtered acceleration terms at the same epochs (derive's epochs.parquet).
-    let (_, e) = read_table(&derive_dir.join(files::EPOCHS))?;
-    let ecol = |n: &str| f64_column(&e, n);
+    // The filtered acceleration terms at the same epochs.
+    let terms = read_epoch_terms(derive_dir)?;
     let epochs = EpochSeries {
         t_s: rel(&c.t_ns),
         theta_gyro_rad: c.theta_n_rad,
@@ -160,10 +161,10 @@ pub fn build_review(
         d_phi_rad: c.d_phi_rad,
         kf_d_theta_rad: c.kf_d_theta_rad,
         kf_d_phi_rad: c.kf_d_phi_rad,
-        ax_f_mps2: ecol("ax_f_mps2")?,
-        ay_f_mps2: ecol("ay_f_mps2")?,
-        u_dot_f_mps2: ecol("u_dot_f_mps2")?,
-        ru_f_mps2: ecol("ru_f_mps2")?,
+        ax_f_mps2: terms.ax_f_mps2,
+        ay_f_mps2: terms.ay_f_mps2,
+        u_dot_f_mps2: terms.u_dot_f_mps2,
+        ru_f_mps2: terms.ru_f_mps2,
     };
 
     let mut tracks: Vec<Track> = read_tracks(&disupt_dir.join(TRACKS))?
@@ -275,12 +276,12 @@ fn truth_track(
 ) -> anyhow::Result<Track> {
     let step = decimation_step(nominal_dt_s, TRACK_RATE_HZ);
     let names = [
-        "lat_deg",
-        "lon_deg",
-        "h_m",
-        "roll_deg",
-        "pitch_deg",
-        "heading_deg",
+        nav_cols::LAT_DEG,
+        nav_cols::LON_DEG,
+        nav_cols::H_M,
+        nav_cols::ROLL_DEG,
+        nav_cols::PITCH_DEG,
+        nav_cols::HEADING_DEG,
     ];
     let (t, cols) = decimated_columns(path, &names, step, true)?;
     let [lat, lon, h, roll, pitch, heading]: [Vec<f64>; 6] = cols
@@ -314,13 +315,13 @@ fn decimated_columns(
     with_last: bool,
 ) -> anyhow::Result<(Vec<i64>, Vec<Vec<f64>>)> {
     let step = step.max(1);
-    let mut wanted = vec!["t_ns"];
+    let mut wanted = vec![T_NS];
     wanted.extend_from_slice(names);
     let (mut t, mut out) = (Vec::new(), vec![Vec::new(); names.len()]);
     let mut rows = 0;
     let mut last: Option<(usize, i64, Vec<f64>)> = None;
     for_each_batch_of(path, &wanted, |b| {
-        let tb = i64_column(b, "t_ns")?;
+        let tb = i64_column(b, T_NS)?;
         let vb = names
             .iter()
             .map(|n| f64_column(b, n))
@@ -354,7 +355,7 @@ fn read_sweep(path: &Path) -> anyhow::Result<Sweep> {
     let mut axes = Vec::new();
     for f in schema.fields() {
         let name = f.name();
-        if name == "kryt1_rad" || name == "kryt2_m" {
+        if name == sweep_cols::KRYT1_RAD || name == sweep_cols::KRYT2_M {
             continue;
         }
         // The axis's distinct values in order of appearance.
@@ -367,8 +368,8 @@ fn read_sweep(path: &Path) -> anyhow::Result<Sweep> {
     }
     Ok(Sweep {
         axes,
-        kryt1_rad: f64_column(&b, "kryt1_rad")?,
-        kryt2_m: f64_column(&b, "kryt2_m")?,
+        kryt1_rad: f64_column(&b, sweep_cols::KRYT1_RAD)?,
+        kryt2_m: f64_column(&b, sweep_cols::KRYT2_M)?,
     })
 }
 
@@ -379,11 +380,18 @@ fn read_route_sigma(
     rel: &impl Fn(&[i64]) -> Vec<f64>,
     dt_s: f64,
 ) -> anyhow::Result<Option<RouteSigmaView>> {
-    if read_schema(path)?.field_with_name("sigma_north_m").is_err() {
+    if read_schema(path)?
+        .field_with_name(nav_cols::SIGMA_NORTH_M)
+        .is_err()
+    {
         return Ok(None);
     }
     let step = decimation_step(dt_s.max(1e-6), unz_viz::recording::SERIES_RATE_HZ);
-    let names = ["sigma_north_m", "sigma_east_m", "sigma_heading_deg"];
+    let names = [
+        nav_cols::SIGMA_NORTH_M,
+        nav_cols::SIGMA_EAST_M,
+        nav_cols::SIGMA_HEADING_DEG,
+    ];
     let (t, cols) = decimated_columns(path, &names, step, false)?;
     let [north_m, east_m, heading_deg]: [Vec<f64>; 3] = cols
         .try_into()

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use anyhow::Context;
 use arrow::array::{Float64Array, Int64Array, RecordBatch};
 use unz_formats::parquet_io::{ParquetSink, for_each_batch, read_schema, row_capacity_hint};
-use unz_formats::schema::{self, sensors_meta};
+use unz_formats::schema::{self, derived_cols, sensors_cols, sensors_meta};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, ns_since};
 use unz_viz::review::{SensorBlocks, SensorBlocksBuilder, SensorSample};
@@ -128,13 +128,19 @@ pub fn read_review_sensors(path: &Path) -> anyhow::Result<ReviewSensors> {
                 .iter()
                 .map(|&t| (t - t0_ns) as f64 * 1e-9),
         );
-        blocks.sample.extend(i64_column(batch, "sample")?);
-        blocks.u_mps.extend(f64_column(batch, "u_mps")?);
-        blocks.u_dot_mps2.extend(f64_column(batch, "u_dot_mps2")?);
-        blocks.ru_mps2.extend(f64_column(batch, "ru_mps2")?);
+        blocks
+            .sample
+            .extend(i64_column(batch, sensors_cols::SAMPLE)?);
+        blocks.u_mps.extend(f64_column(batch, derived_cols::U_MPS)?);
+        blocks
+            .u_dot_mps2
+            .extend(f64_column(batch, derived_cols::U_DOT_MPS2)?);
+        blocks
+            .ru_mps2
+            .extend(f64_column(batch, derived_cols::RU_MPS2)?);
         for (name, out) in [
-            ("gyro_deg_s", &mut blocks.gyro_deg_s),
-            ("accel_mps2", &mut blocks.accel_mps2),
+            (sensors_cols::GYRO_DEG_S, &mut blocks.gyro_deg_s),
+            (sensors_cols::ACCEL_MPS2, &mut blocks.accel_mps2),
         ] {
             for v in vec3_column(batch, name)? {
                 for (axis, x) in out.iter_mut().zip(v) {

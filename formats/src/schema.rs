@@ -122,15 +122,48 @@ pub fn nav_state_fields() -> Vec<Field> {
 /// The columns of [`nav_state_fields`], in order: latitude and longitude (f64), then
 /// height, north, east, roll, pitch and heading (f32).
 pub const NAV_STATE: [&str; 8] = [
-    "lat_deg",
-    "lon_deg",
-    "h_m",
-    "north_m",
-    "east_m",
-    "roll_deg",
-    "pitch_deg",
-    "heading_deg",
+    nav_cols::LAT_DEG,
+    nav_cols::LON_DEG,
+    nav_cols::H_M,
+    nav_cols::NORTH_M,
+    nav_cols::EAST_M,
+    nav_cols::ROLL_DEG,
+    nav_cols::PITCH_DEG,
+    nav_cols::HEADING_DEG,
 ];
+
+/// Columns of the navigation state ([`nav_state_fields`]), of [`nav`]'s route σ, and of
+/// [`truth`]'s position and attitude.
+pub mod nav_cols {
+    /// Latitude, deg.
+    pub const LAT_DEG: &str = "lat_deg";
+    /// Longitude, deg.
+    pub const LON_DEG: &str = "lon_deg";
+    /// Height, m.
+    pub const H_M: &str = "h_m";
+    /// North of the start, m.
+    pub const NORTH_M: &str = "north_m";
+    /// East of the start, m.
+    pub const EAST_M: &str = "east_m";
+    /// Roll, deg.
+    pub const ROLL_DEG: &str = "roll_deg";
+    /// Pitch, deg.
+    pub const PITCH_DEG: &str = "pitch_deg";
+    /// Heading, deg.
+    pub const HEADING_DEG: &str = "heading_deg";
+    /// The corrected route's 1σ north, m (`corrected_nav.parquet` of a joint fit).
+    pub const SIGMA_NORTH_M: &str = "sigma_north_m";
+    /// The corrected route's 1σ east, m.
+    pub const SIGMA_EAST_M: &str = "sigma_east_m";
+    /// The corrected route's 1σ heading, deg.
+    pub const SIGMA_HEADING_DEG: &str = "sigma_heading_deg";
+}
+
+/// Columns of [`truth`] beyond the navigation state's ([`nav_cols`]) and [`DISTANCE_M`].
+pub mod truth_cols {
+    /// True velocity, m/s, NED.
+    pub const VEL_NED_MPS: &str = "vel_ned_mps";
+}
 
 /// Schema metadata key of `truth`: the true settings as JSON.
 pub const META_TRUE_SETTINGS: &str = "unz.true_settings";
@@ -142,16 +175,16 @@ pub fn truth(time_origin_utc_ns: Option<i64>, true_settings_json: &str) -> Schem
     let schema = with_meta(
         vec![
             time_field(),
-            deg("lat_deg"),
-            deg("lon_deg"),
-            m("h_m"),
-            vec3("vel_ned_mps", "m/s", FRAME_NED),
-            deg("roll_deg"),
-            deg("pitch_deg"),
-            deg("heading_deg"),
+            deg(nav_cols::LAT_DEG),
+            deg(nav_cols::LON_DEG),
+            m(nav_cols::H_M),
+            vec3(truth_cols::VEL_NED_MPS, "m/s", FRAME_NED),
+            deg(nav_cols::ROLL_DEG),
+            deg(nav_cols::PITCH_DEG),
+            deg(nav_cols::HEADING_DEG),
             m(DISTANCE_M),
-            m("north_m"),
-            m("east_m"),
+            m(nav_cols::NORTH_M),
+            m(nav_cols::EAST_M),
         ],
         "truth",
         time_origin_utc_ns,
@@ -205,6 +238,22 @@ fn table_meta(table: &str) -> HashMap<String, String> {
     HashMap::from([(META_TABLE.to_owned(), table.to_owned())])
 }
 
+/// Columns of [`derived`] beyond [`T_NS`], [`DTHETA_RAD`] and [`DVEL_MPS`].
+pub mod derived_cols {
+    /// The sample's interval, s.
+    pub const DT_S: &str = "dt_s";
+    /// Odometer distance over the interval, m.
+    pub const ODO_DIST_M: &str = "odo_dist_m";
+    /// Odometer speed u, m/s (eq 9).
+    pub const U_MPS: &str = "u_mps";
+    /// Odometer acceleration u̇, m/s² (eq 10).
+    pub const U_DOT_MPS2: &str = "u_dot_mps2";
+    /// Yaw rate r, rad/s.
+    pub const R_RAD_S: &str = "r_rad_s";
+    /// Centripetal term ru, m/s² (eq 11).
+    pub const RU_MPS2: &str = "ru_mps2";
+}
+
 /// `derived`: the derive stage's per-sample series. `meta` holds the
 /// [`derived_meta`] keys with their values.
 pub fn derived(meta: impl IntoIterator<Item = (&'static str, String)>) -> SchemaRef {
@@ -213,17 +262,54 @@ pub fn derived(meta: impl IntoIterator<Item = (&'static str, String)>) -> Schema
     Arc::new(Schema::new_with_metadata(
         vec![
             time_field(),
-            f64_field("dt_s", "s"),
+            f64_field(derived_cols::DT_S, "s"),
             vec3(DTHETA_RAD, "rad", FRAME_BODY),
             vec3(DVEL_MPS, "m/s", FRAME_BODY),
-            f64_field("odo_dist_m", "m"),
-            f64_field("u_mps", "m/s"),
-            f64_field("u_dot_mps2", "m/s^2"),
-            f64_field("r_rad_s", "rad/s"),
-            f64_field("ru_mps2", "m/s^2"),
+            f64_field(derived_cols::ODO_DIST_M, "m"),
+            f64_field(derived_cols::U_MPS, "m/s"),
+            f64_field(derived_cols::U_DOT_MPS2, "m/s^2"),
+            f64_field(derived_cols::R_RAD_S, "rad/s"),
+            f64_field(derived_cols::RU_MPS2, "m/s^2"),
         ],
         m,
     ))
+}
+
+/// Columns of [`epochs`] beyond [`T_NS`], [`VALID`] and the filtered terms
+/// ([`filtered_cols`]).
+pub mod epochs_cols {
+    /// The epoch's block of F.
+    pub const BLOCK: &str = "block";
+    /// Accelerometer pitch Θ_p, rad.
+    pub const THETA_P_RAD: &str = "theta_p_rad";
+    /// Accelerometer roll Φ_p, rad.
+    pub const PHI_P_RAD: &str = "phi_p_rad";
+    /// ∂Θ_p per rad of odometer boresight yaw.
+    pub const THETA_P_PER_YAW: &str = "theta_p_per_yaw";
+    /// ∂Φ_p per rad of odometer boresight yaw.
+    pub const PHI_P_PER_YAW: &str = "phi_p_per_yaw";
+    /// ∂Θ_p per m/s of odometer speed bias.
+    pub const THETA_P_PER_BIAS: &str = "theta_p_per_bias";
+    /// ∂Φ_p per m/s of odometer speed bias.
+    pub const PHI_P_PER_BIAS: &str = "phi_p_per_bias";
+}
+
+/// The filtered terms, per block in [`blocks`] and at the epochs in [`epochs`].
+pub mod filtered_cols {
+    /// Filtered forward specific force, m/s².
+    pub const AX_F_MPS2: &str = "ax_f_mps2";
+    /// Filtered lateral specific force, m/s².
+    pub const AY_F_MPS2: &str = "ay_f_mps2";
+    /// Filtered odometer acceleration u̇, m/s².
+    pub const U_DOT_F_MPS2: &str = "u_dot_f_mps2";
+    /// Filtered centripetal term ru, m/s².
+    pub const RU_F_MPS2: &str = "ru_f_mps2";
+    /// Filtered r over the samples in which the odometer moved, rad/s (what an odometer
+    /// speed bias adds to ru, per m/s; blocks only).
+    pub const R_MOVING_F_RAD_S: &str = "r_moving_f_rad_s";
+    /// Filtered rate of change of "the odometer moved", 1/s (what an odometer speed bias
+    /// adds to u̇, per m/s; blocks only).
+    pub const MOVING_DOT_F_PER_S: &str = "moving_dot_f_per_s";
 }
 
 /// `epochs`: the derive stage's accelerometer references per ΔTg epoch.
@@ -231,18 +317,18 @@ pub fn epochs() -> SchemaRef {
     Arc::new(Schema::new_with_metadata(
         vec![
             time_field(),
-            scalar("block", DataType::UInt64, false, "1"),
-            f64_field("theta_p_rad", "rad"),
-            f64_field("phi_p_rad", "rad"),
-            f64_field("theta_p_per_yaw", "rad/rad"),
-            f64_field("phi_p_per_yaw", "rad/rad"),
-            f64_field("theta_p_per_bias", "rad/(m/s)"),
-            f64_field("phi_p_per_bias", "rad/(m/s)"),
-            Field::new("valid", DataType::Boolean, false),
-            f64_field("ax_f_mps2", "m/s^2"),
-            f64_field("ay_f_mps2", "m/s^2"),
-            f64_field("u_dot_f_mps2", "m/s^2"),
-            f64_field("ru_f_mps2", "m/s^2"),
+            scalar(epochs_cols::BLOCK, DataType::UInt64, false, "1"),
+            f64_field(epochs_cols::THETA_P_RAD, "rad"),
+            f64_field(epochs_cols::PHI_P_RAD, "rad"),
+            f64_field(epochs_cols::THETA_P_PER_YAW, "rad/rad"),
+            f64_field(epochs_cols::PHI_P_PER_YAW, "rad/rad"),
+            f64_field(epochs_cols::THETA_P_PER_BIAS, "rad/(m/s)"),
+            f64_field(epochs_cols::PHI_P_PER_BIAS, "rad/(m/s)"),
+            Field::new(VALID, DataType::Boolean, false),
+            f64_field(filtered_cols::AX_F_MPS2, "m/s^2"),
+            f64_field(filtered_cols::AY_F_MPS2, "m/s^2"),
+            f64_field(filtered_cols::U_DOT_F_MPS2, "m/s^2"),
+            f64_field(filtered_cols::RU_F_MPS2, "m/s^2"),
         ],
         table_meta("epochs"),
     ))
@@ -254,12 +340,12 @@ pub fn epochs() -> SchemaRef {
 pub fn blocks() -> SchemaRef {
     Arc::new(Schema::new_with_metadata(
         vec![
-            f64_field("ax_f_mps2", "m/s^2"),
-            f64_field("ay_f_mps2", "m/s^2"),
-            f64_field("u_dot_f_mps2", "m/s^2"),
-            f64_field("ru_f_mps2", "m/s^2"),
-            f64_field("r_moving_f_rad_s", "rad/s"),
-            f64_field("moving_dot_f_per_s", "1/s"),
+            f64_field(filtered_cols::AX_F_MPS2, "m/s^2"),
+            f64_field(filtered_cols::AY_F_MPS2, "m/s^2"),
+            f64_field(filtered_cols::U_DOT_F_MPS2, "m/s^2"),
+            f64_field(filtered_cols::RU_F_MPS2, "m/s^2"),
+            f64_field(filtered_cols::R_MOVING_F_RAD_S, "rad/s"),
+            f64_field(filtered_cols::MOVING_DOT_F_PER_S, "1/s"),
         ],
         table_meta("blocks"),
     ))
@@ -279,6 +365,17 @@ pub mod sensors_meta {
     pub const SAMPLES: &str = "unz.samples";
 }
 
+/// Columns of [`sensors`] beyond [`T_NS`] and the block means of u, u̇ and ru (named as
+/// in [`derived_cols`]).
+pub mod sensors_cols {
+    /// The block's first sample.
+    pub const SAMPLE: &str = "sample";
+    /// Body rate, deg/s, body FRD.
+    pub const GYRO_DEG_S: &str = "gyro_deg_s";
+    /// Specific force, m/s², body FRD.
+    pub const ACCEL_MPS2: &str = "accel_mps2";
+}
+
 /// `sensors` (`derive/sensors.parquet`): the derive's per-sample sensor series in the
 /// review recording's blocks of `unz.step` samples (the last may be shorter): each
 /// block's first time and sample, the means of u, u̇ and ru, and the body rates and
@@ -289,12 +386,12 @@ pub fn sensors(meta: impl IntoIterator<Item = (&'static str, String)>) -> Schema
     Arc::new(Schema::new_with_metadata(
         vec![
             time_field(),
-            scalar("sample", DataType::Int64, false, ""),
-            f64_field("u_mps", "m/s"),
-            f64_field("u_dot_mps2", "m/s^2"),
-            f64_field("ru_mps2", "m/s^2"),
-            vec3("gyro_deg_s", "deg/s", FRAME_BODY),
-            vec3("accel_mps2", "m/s^2", FRAME_BODY),
+            scalar(sensors_cols::SAMPLE, DataType::Int64, false, ""),
+            f64_field(derived_cols::U_MPS, "m/s"),
+            f64_field(derived_cols::U_DOT_MPS2, "m/s^2"),
+            f64_field(derived_cols::RU_MPS2, "m/s^2"),
+            vec3(sensors_cols::GYRO_DEG_S, "deg/s", FRAME_BODY),
+            vec3(sensors_cols::ACCEL_MPS2, "m/s^2", FRAME_BODY),
         ],
         m,
     ))
@@ -307,9 +404,9 @@ pub fn nav(with_sigma: bool) -> SchemaRef {
     fields.extend(nav_state_fields());
     fields.push(f32_field(DISTANCE_M, "m"));
     if with_sigma {
-        fields.push(f32_field("sigma_north_m", "m"));
-        fields.push(f32_field("sigma_east_m", "m"));
-        fields.push(f32_field("sigma_heading_deg", "deg"));
+        fields.push(f32_field(nav_cols::SIGMA_NORTH_M, "m"));
+        fields.push(f32_field(nav_cols::SIGMA_EAST_M, "m"));
+        fields.push(f32_field(nav_cols::SIGMA_HEADING_DEG, "deg"));
     }
     Arc::new(Schema::new(fields))
 }
@@ -326,14 +423,24 @@ pub fn criteria() -> SchemaRef {
 pub const CRITERIA_FLOATS: [&str; 9] = [
     "theta_n_rad",
     "phi_n_rad",
-    "theta_p_rad",
-    "phi_p_rad",
+    epochs_cols::THETA_P_RAD,
+    epochs_cols::PHI_P_RAD,
     "d_theta_rad",
     "d_phi_rad",
-    "kf_d_theta_rad",
-    "kf_d_phi_rad",
-    "kryt1_cum",
+    criteria_cols::KF_D_THETA_RAD,
+    criteria_cols::KF_D_PHI_RAD,
+    criteria_cols::KRYT1_CUM,
 ];
+
+/// The columns of [`criteria`] that [`kryt1_series`] repeats per method.
+pub mod criteria_cols {
+    /// The Kalman filter's estimate of the pitch difference, rad.
+    pub const KF_D_THETA_RAD: &str = "kf_d_theta_rad";
+    /// The Kalman filter's estimate of the roll difference, rad.
+    pub const KF_D_PHI_RAD: &str = "kf_d_phi_rad";
+    /// Kryt1 accumulated up to the epoch, rad.
+    pub const KRYT1_CUM: &str = "kryt1_cum";
+}
 
 /// Column: whether an epoch was used (not gated).
 pub const VALID: &str = "valid";
@@ -353,10 +460,18 @@ pub fn kryt1_series() -> SchemaRef {
     Arc::new(Schema::new(vec![
         Field::new(METHOD, DataType::Utf8, false),
         time_field(),
-        f64_field("kryt1_cum", "rad"),
-        f64_field("kf_d_theta_rad", "rad"),
-        f64_field("kf_d_phi_rad", "rad"),
+        f64_field(criteria_cols::KRYT1_CUM, "rad"),
+        f64_field(criteria_cols::KF_D_THETA_RAD, "rad"),
+        f64_field(criteria_cols::KF_D_PHI_RAD, "rad"),
     ]))
+}
+
+/// The criteria columns of [`sweep`], after its axes.
+pub mod sweep_cols {
+    /// Kryt1 over the run, rad.
+    pub const KRYT1_RAD: &str = "kryt1_rad";
+    /// RMS Kryt2 over the control points, m.
+    pub const KRYT2_M: &str = "kryt2_m";
 }
 
 /// `sweep`: the criteria over a grid of one or two settings (named by `axes`, unitless
@@ -366,16 +481,19 @@ pub fn sweep(axes: &[&str]) -> SchemaRef {
         .iter()
         .map(|a| scalar(a, DataType::Float64, false, ""))
         .collect();
-    fields.push(f64_field("kryt1_rad", "rad"));
-    fields.push(f64_field("kryt2_m", "m"));
+    fields.push(f64_field(sweep_cols::KRYT1_RAD, "rad"));
+    fields.push(f64_field(sweep_cols::KRYT2_M, "m"));
     Arc::new(Schema::new(fields))
 }
+
+/// Column of [`campaign`]: the run's name.
+pub const CAMPAIGN_RUN: &str = "run";
 
 /// `campaign`: one row per run; `stage_seconds` names the per-stage wall-time columns and
 /// `values` the nullable result columns that follow them.
 pub fn campaign(stage_seconds: &[String], values: &[&str]) -> SchemaRef {
     let mut fields = vec![
-        Field::new("run", DataType::Utf8, false),
+        Field::new(CAMPAIGN_RUN, DataType::Utf8, false),
         Field::new("manifest", DataType::Utf8, false),
         Field::new("ok", DataType::Boolean, false),
         Field::new("error", DataType::Utf8, true),
