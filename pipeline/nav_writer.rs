@@ -6,10 +6,12 @@ use std::sync::Arc;
 
 use arrow::array::{ArrayRef, Float64Array, Int64Array, RecordBatch};
 use arrow::datatypes::SchemaRef;
+use rayon::prelude::*;
 use unz_formats::error::{FileError, FormatError};
 use unz_formats::parquet_io::ParquetSink;
 use unz_formats::schema;
 use unz_formats::tables::f32_array;
+use unz_stages::attitude::Euler;
 use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
 use unz_stages::route_sigma::RouteSigma;
@@ -215,10 +217,16 @@ fn nav_batch(
     sigma: Option<&RouteSigma>,
 ) -> Result<RecordBatch, arrow::error::ArrowError> {
     let r = lo..lo + t.len();
-    let euler: Vec<_> = (0..t.len()).map(|j| t.euler(j)).collect();
-    let ne: Vec<(f64, f64)> = (0..t.len())
-        .map(|j| start.offset_m(t.lat_rad[j], t.lon_rad[j]))
-        .collect();
+    // The angles and the local offsets (trigonometry per row) side by side.
+    let (euler, ne): (Vec<Euler>, Vec<(f64, f64)>) = rayon::join(
+        || (0..t.len()).into_par_iter().map(|j| t.euler(j)).collect(),
+        || {
+            (0..t.len())
+                .into_par_iter()
+                .map(|j| start.offset_m(t.lat_rad[j], t.lon_rad[j]))
+                .collect()
+        },
+    );
     let deg = |v: &[f64]| {
         Arc::new(Float64Array::from_iter_values(
             v.iter().map(|x| x.to_degrees()),
