@@ -7,7 +7,8 @@ use arrow::datatypes::{DataType, Schema, SchemaRef};
 use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::arrow::arrow_writer::{
-    ArrowColumnWriter, ArrowLeafColumn, ArrowRowGroupWriterFactory, compute_leaves,
+    ArrowColumnChunk, ArrowColumnWriter, ArrowLeafColumn, ArrowRowGroupWriterFactory,
+    compute_leaves,
 };
 use parquet::basic::{Compression, Encoding, ZstdLevel};
 use parquet::file::properties::{EnabledStatistics, WriterProperties};
@@ -33,6 +34,8 @@ pub struct ParquetSink {
     group_rows: usize,
     /// Rows per row group at most.
     max_group_rows: usize,
+    /// Whether long batches' columns are encoded side by side.
+    side_by_side: bool,
     file: AtomicFile,
     rows: usize,
 }
@@ -103,9 +106,19 @@ impl ParquetSink {
             columns: Vec::new(),
             group_rows: 0,
             max_group_rows: rows.max(1),
+            side_by_side: true,
             file,
             rows: 0,
         })
+    }
+
+    /// Encodes the columns one after the other on the calling thread (the same file):
+    /// for a writer that already runs beside other work, such as the ingest's beside its
+    /// MCAP writer thread, where spreading the columns over the pool only contends with
+    /// that work.
+    pub fn on_this_thread(mut self) -> Self {
+        self.side_by_side = false;
+        self
     }
 
     /// Writes one batch, split where a row group fills (as `ArrowWriter::write` does).
@@ -155,7 +168,7 @@ impl ParquetSink {
                 )),
             ));
         }
-        let written = if batch.num_rows() >= PARALLEL_ROWS {
+        let written = if self.side_by_side && batch.num_rows() >= PARALLEL_ROWS {
             self.columns
                 .par_iter_mut()
                 .zip(leaves.par_iter())
@@ -176,11 +189,13 @@ impl ParquetSink {
             return Ok(());
         }
         let dest = self.file.dest();
-        let chunks = std::mem::take(&mut self.columns)
-            .into_par_iter()
-            .map(|w| w.close())
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| parquet_err(dest, e))?;
+        let columns = std::mem::take(&mut self.columns);
+        let chunks: Result<Vec<ArrowColumnChunk>, _> = if self.side_by_side {
+            columns.into_par_iter().map(|w| w.close()).collect()
+        } else {
+            columns.into_iter().map(|w| w.close()).collect()
+        };
+        let chunks = chunks.map_err(|e| parquet_err(dest, e))?;
         let mut group = self
             .writer
             .next_row_group()
@@ -373,8 +388,9 @@ mod tests {
         assert!(err.to_string().contains("none.parquet"), "{err}");
     }
 
-    /// The sink's columns, encoded side by side and split into row groups by the sink,
-    /// make the file `ArrowWriter` makes with the same settings, byte for byte: batches
+    /// The sink's columns, encoded side by side (or on the calling thread) and split into
+    /// row groups by the sink, make the file `ArrowWriter` makes with the same settings,
+    /// byte for byte: batches
     /// long and short (either side of [`PARALLEL_ROWS`]), row groups filled exactly and
     /// split mid-batch, a 3-vector column, a nullable one and an empty batch.
     #[test]
@@ -412,14 +428,22 @@ mod tests {
             lo += n;
         }
         let dir = tempfile::tempdir().expect("temp dir");
-        let path = dir.path().join("sink.parquet");
-        let mut sink =
-            ParquetSink::create_in_row_groups(&path, schema.clone(), group_rows).expect("sink");
-        for b in &batches {
-            sink.write(b).expect("written");
-        }
-        assert_eq!(sink.rows(), lo);
-        sink.finish().expect("finished");
+        let write = |name: &str, side_by_side: bool| {
+            let path = dir.path().join(name);
+            let mut sink =
+                ParquetSink::create_in_row_groups(&path, schema.clone(), group_rows).expect("sink");
+            if !side_by_side {
+                sink = sink.on_this_thread();
+            }
+            for b in &batches {
+                sink.write(b).expect("written");
+            }
+            assert_eq!(sink.rows(), lo);
+            sink.finish().expect("finished");
+            path
+        };
+        let path = write("sink.parquet", true);
+        let one_thread = write("one_thread.parquet", false);
 
         let mut plain = Vec::new();
         let props = writer_properties(&schema, group_rows).expect("settings");
@@ -430,9 +454,11 @@ mod tests {
         }
         writer.close().expect("closed");
 
-        let ours = std::fs::read(&path).expect("read");
-        assert_eq!(ours.len(), plain.len());
-        assert!(ours == plain, "the files differ");
+        for p in [&path, &one_thread] {
+            let ours = std::fs::read(p).expect("read");
+            assert_eq!(ours.len(), plain.len());
+            assert!(ours == plain, "{} differs", p.display());
+        }
         let meta = ParquetRecordBatchReaderBuilder::try_new(std::fs::File::open(&path).unwrap())
             .expect("reader")
             .metadata()
