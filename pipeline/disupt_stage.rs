@@ -13,7 +13,6 @@ use unz_stages::derive::Derived;
 use unz_stages::disupt::{
     self, Holdout, JointFit, JointOptions, MethodResult, Problem, ProblemSpec, X, joint_fit,
 };
-use unz_stages::earth::Geodetic;
 use unz_stages::linearized::Observation;
 use unz_stages::odo_lag::{Rederive, joint_with_lag};
 use unz_stages::route_sigma::{
@@ -27,8 +26,8 @@ use crate::flow::{
     IngestedSeries, NavCase, Overrides, Params, RunCtx, ensure_derive, load_case, site_gravity_mps2,
 };
 use crate::method_tables::{
-    KRYT1_SERIES, MethodKryt1, MethodTrack, TRACK_RATE_HZ, TRACKS, TrackBuilder,
-    decimation_indices, method_kryt1, write_kryt1_series, write_tracks,
+    KRYT1_SERIES, KeptTrack, MethodKryt1, TRACKS, TrackBuilder, method_kryt1, track_samples,
+    write_kryt1_series, write_tracks,
 };
 use crate::nav_writer::NavWriter;
 use crate::stage::{Stage, params_hash};
@@ -560,7 +559,7 @@ struct Reviewed<'d> {
 struct ReviewOutcome {
     kryt1_rad: f64,
     cps: Vec<Kryt2>,
-    track: MethodTrack,
+    track: KeptTrack,
     kryt1_series: MethodKryt1,
 }
 
@@ -571,12 +570,11 @@ fn review_passes(
     problem: &Problem<'_>,
     reviewed: &[Reviewed<'_>],
     fixes: &[ControlPointFix],
-    start: Geodetic,
     track: &mut (impl PassSink + Send),
 ) -> Vec<ReviewOutcome> {
     let d0 = reviewed[0].derived;
     let inputs = d0.nav_inputs();
-    let keep = decimation_indices(inputs.len(), d0.nominal_dt_s, TRACK_RATE_HZ);
+    let keep = track_samples(d0);
     let n = inputs.len();
     let at: Vec<usize> = fixes.iter().map(|f| f.sample).filter(|&k| k < n).collect();
     // Two batches side by side: the tracked (last) method alone, as it also feeds every
@@ -584,17 +582,8 @@ fn review_passes(
     // others (at 12 h: 0.38-0.40 s against 0.48-0.51 in one batch, 0.42-0.44 in halves).
     let (first, rest) = reviewed.split_at(reviewed.len() - 1);
     let (mut passes, rest) = rayon::join(
-        || {
-            review_lanes(
-                problem,
-                first,
-                &keep,
-                &at,
-                start,
-                &mut None::<strapdown::NavTrack>,
-            )
-        },
-        || review_lanes(problem, rest, &keep, &at, start, track),
+        || review_lanes(problem, first, &keep, &at, &mut None::<strapdown::NavTrack>),
+        || review_lanes(problem, rest, &keep, &at, track),
     );
     passes.extend(rest);
     reviewed
@@ -628,9 +617,8 @@ fn review_lanes<'d, S: PassSink>(
     reviewed: &[Reviewed<'d>],
     keep: &[usize],
     at: &[usize],
-    start: Geodetic,
     track: &mut S,
-) -> Vec<ReviewPass<Option<TrackBuilder<'d>>>> {
+) -> Vec<ReviewPass<Option<TrackBuilder>>> {
     strapdown::in_lanes(
         reviewed.len(),
         &mut ReviewBatch {
@@ -638,7 +626,6 @@ fn review_lanes<'d, S: PassSink>(
             reviewed,
             keep,
             at,
-            start,
             track,
         },
     )
@@ -650,12 +637,11 @@ struct ReviewBatch<'r, 'd, 'p, S> {
     reviewed: &'r [Reviewed<'d>],
     keep: &'r [usize],
     at: &'r [usize],
-    start: Geodetic,
     track: &'r mut S,
 }
 
 impl<'r, 'd, S: PassSink> LaneBatch for ReviewBatch<'r, 'd, '_, S> {
-    type Out = ReviewPass<Option<TrackBuilder<'d>>>;
+    type Out = ReviewPass<Option<TrackBuilder>>;
 
     fn run<const N: usize>(&mut self, points: [usize; N]) -> [Self::Out; N] {
         let reviewed = self.reviewed;
@@ -668,7 +654,7 @@ impl<'r, 'd, S: PassSink> LaneBatch for ReviewBatch<'r, 'd, '_, S> {
         let rows = std::array::from_fn(|l| {
             (l == 0 || points[l] != points[l - 1]).then(|| {
                 let r = &reviewed[points[l]];
-                TrackBuilder::new(r.name, r.derived, self.keep.len(), self.start)
+                TrackBuilder::new(r.name, self.keep.len())
             })
         });
         strapdown::run_review(
@@ -833,9 +819,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                     route_stride(dt_s),
                 )
             });
-        let outcomes = review_passes(&problem, &reviewed, &case.fixes, start, &mut route_base);
+        let outcomes = review_passes(&problem, &reviewed, &case.fixes, &mut route_base);
         lap("reviews");
-        let mut tracks: Vec<MethodTrack> = Vec::new();
+        let mut tracks: Vec<KeptTrack> = Vec::new();
         let mut kryt1s: Vec<MethodKryt1> = Vec::new();
         let mut cps_of = std::collections::BTreeMap::new();
         let mut before = (f64::NAN, Vec::new());
@@ -861,7 +847,14 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // hold-out's and the route σ's work never holds memory beside them.
         let (tracks_path, kryt1s_path) = (dir.join(TRACKS), dir.join(KRYT1_SERIES));
         let (tracks_written, kryt1s_written) = rayon::join(
-            move || write_tracks(&tracks_path, tracks),
+            || {
+                let d = &case.derived;
+                let t_ns: Vec<i64> = track_samples(d)
+                    .into_iter()
+                    .map(|k| d.ns_of(d.t_s.get(k)))
+                    .collect();
+                write_tracks(&tracks_path, &t_ns, start, tracks)
+            },
             move || write_kryt1_series(&kryt1s_path, &kryt1s),
         );
         tracks_written?;

@@ -74,29 +74,48 @@ pub fn decimation_indices(len: usize, nominal_dt_s: f64, rate_hz: f64) -> Vec<us
     samples_every(len, decimation_step(nominal_dt_s, rate_hz))
 }
 
-/// One method's trajectory built as its pass reaches the kept samples (see
-/// [`decimation_indices`]; a [`KeepRows`]), with local offsets from `start`: no state of
-/// the pass is stored beside it.
-pub struct TrackBuilder<'d> {
-    d: &'d Derived,
-    start: Geodetic,
-    track: MethodTrack,
+/// The samples of `d` the methods' trajectories keep (at [`TRACK_RATE_HZ`]).
+pub fn track_samples(d: &Derived) -> Vec<usize> {
+    decimation_indices(d.nav_inputs().len(), d.nominal_dt_s, TRACK_RATE_HZ)
 }
 
-impl<'d> TrackBuilder<'d> {
-    /// For `method`'s pass over `d`, keeping `rows` samples.
-    pub fn new(method: &str, d: &'d Derived, rows: usize, start: Geodetic) -> Self {
+/// One method's trajectory as its review pass keeps it, at [`track_samples`]: what
+/// [`MethodTrack`] holds but its times and local offsets, which [`write_tracks`] makes
+/// from the samples and the positions as it writes (12 of a row's 48 bytes fewer held
+/// beside the review lanes: 28 MB for four methods at 12 h).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct KeptTrack {
+    /// `initial`, `oepi`, `owpi` or `joint`.
+    pub method: String,
+    /// Latitude, rad.
+    pub lat_rad: Vec<f64>,
+    /// Longitude, rad.
+    pub lon_rad: Vec<f64>,
+    /// Height, m.
+    pub h_m: Vec<f32>,
+    /// Roll, degrees.
+    pub roll_deg: Vec<f32>,
+    /// Pitch, degrees.
+    pub pitch_deg: Vec<f32>,
+    /// Heading, degrees in [0, 360).
+    pub heading_deg: Vec<f32>,
+}
+
+/// One method's trajectory built as its pass reaches the kept samples (see
+/// [`track_samples`]; a [`KeepRows`]): no state of the pass is stored beside it.
+pub struct TrackBuilder {
+    track: KeptTrack,
+}
+
+impl TrackBuilder {
+    /// For `method`'s pass, keeping `rows` samples.
+    pub fn new(method: &str, rows: usize) -> Self {
         Self {
-            d,
-            start,
-            track: MethodTrack {
+            track: KeptTrack {
                 method: method.to_owned(),
-                t_ns: Vec::with_capacity(rows),
-                lat_deg: Vec::with_capacity(rows),
-                lon_deg: Vec::with_capacity(rows),
+                lat_rad: Vec::with_capacity(rows),
+                lon_rad: Vec::with_capacity(rows),
                 h_m: Vec::with_capacity(rows),
-                north_m: Vec::with_capacity(rows),
-                east_m: Vec::with_capacity(rows),
                 roll_deg: Vec::with_capacity(rows),
                 pitch_deg: Vec::with_capacity(rows),
                 heading_deg: Vec::with_capacity(rows),
@@ -105,22 +124,18 @@ impl<'d> TrackBuilder<'d> {
     }
 
     /// The trajectory.
-    pub fn finish(self) -> MethodTrack {
+    pub fn finish(self) -> KeptTrack {
         self.track
     }
 }
 
-impl KeepRows for TrackBuilder<'_> {
-    fn keep(&mut self, k: usize, (lat, lon, h, q): TrackRow) {
-        let (d, m) = (self.d, &mut self.track);
-        let (n, e) = self.start.offset_m(lat, lon);
+impl KeepRows for TrackBuilder {
+    fn keep(&mut self, _k: usize, (lat, lon, h, q): TrackRow) {
+        let m = &mut self.track;
         let att = euler_of(&q);
-        m.t_ns.push(d.ns_of(d.t_s.get(k)));
-        m.lat_deg.push(lat.to_degrees());
-        m.lon_deg.push(lon.to_degrees());
+        m.lat_rad.push(lat);
+        m.lon_rad.push(lon);
         m.h_m.push(h as f32);
-        m.north_m.push(n as f32);
-        m.east_m.push(e as f32);
         m.roll_deg.push(att.roll_rad.to_degrees() as f32);
         m.pitch_deg.push(att.pitch_rad.to_degrees() as f32);
         m.heading_deg
@@ -151,24 +166,52 @@ fn cat<T: Copy>(parts: impl Iterator<Item = Vec<T>>) -> Vec<T> {
 }
 
 /// Writes `tracks.parquet`, one method's rows at a time (the methods' columns are not
-/// concatenated in memory first), each track let go once written.
-pub fn write_tracks(path: &Path, tracks: Vec<MethodTrack>) -> anyhow::Result<()> {
+/// concatenated in memory first), each track let go once written. `t_ns` is the time of
+/// each kept sample (ns in the log's time base), and north and east are taken from
+/// `start`.
+pub fn write_tracks(
+    path: &Path,
+    t_ns: &[i64],
+    start: Geodetic,
+    tracks: Vec<KeptTrack>,
+) -> anyhow::Result<()> {
     let schema = schema::tracks();
     // Row groups of 65 536 rows: the writer holds that many encoded rows, not a
     // method's whole track.
     let mut sink = ParquetSink::create_in_row_groups(path, schema.clone(), 1 << 16)?;
-    // Each track's columns become the batch's (no copy) and go once written.
+    // Each track's kept columns become the batch's (no copy) and go once written.
     for t in tracks {
+        let rows = t.lat_rad.len();
+        anyhow::ensure!(
+            rows <= t_ns.len(),
+            "{}'s track has {rows} rows for the times of {} kept samples",
+            t.method,
+            t_ns.len()
+        );
+        let (north_m, east_m): (Vec<f32>, Vec<f32>) = t
+            .lat_rad
+            .iter()
+            .zip(&t.lon_rad)
+            .map(|(&lat, &lon)| {
+                let (n, e) = start.offset_m(lat, lon);
+                (n as f32, e as f32)
+            })
+            .unzip();
+        let degrees = |v: &[f64]| {
+            Arc::new(Float64Array::from_iter_values(
+                v.iter().map(|x| x.to_degrees()),
+            ))
+        };
         let batch = RecordBatch::try_new(
             schema.clone(),
             vec![
-                method_column(std::iter::once((t.method.as_str(), t.t_ns.len()))),
-                Arc::new(Int64Array::from(t.t_ns)),
-                Arc::new(Float64Array::from(t.lat_deg)),
-                Arc::new(Float64Array::from(t.lon_deg)),
+                method_column(std::iter::once((t.method.as_str(), rows))),
+                Arc::new(Int64Array::from(t_ns[..rows].to_vec())),
+                degrees(&t.lat_rad),
+                degrees(&t.lon_rad),
                 Arc::new(Float32Array::from(t.h_m)),
-                Arc::new(Float32Array::from(t.north_m)),
-                Arc::new(Float32Array::from(t.east_m)),
+                Arc::new(Float32Array::from(north_m)),
+                Arc::new(Float32Array::from(east_m)),
                 Arc::new(Float32Array::from(t.roll_deg)),
                 Arc::new(Float32Array::from(t.pitch_deg)),
                 Arc::new(Float32Array::from(t.heading_deg)),
@@ -285,22 +328,54 @@ mod tests {
     #[test]
     fn tables_round_trip_per_method() {
         let dir = tempfile::tempdir().unwrap();
-        let mk = |m: &str, n: usize, off: f64| MethodTrack {
+        let start = Geodetic {
+            lat_rad: 0.78,
+            lon_rad: -1.33,
+            h_m: 90.0,
+        };
+        let kept = |m: &str, n: usize, off: f64| KeptTrack {
             method: m.to_owned(),
-            t_ns: (0..n as i64).collect(),
-            lat_deg: vec![off; n],
-            lon_deg: vec![off + 1.0; n],
+            lat_rad: (0..n).map(|k| 0.78 + off * 1e-5 * k as f64).collect(),
+            lon_rad: (0..n).map(|k| -1.33 - off * 2e-5 * k as f64).collect(),
             h_m: vec![2.0; n],
-            north_m: vec![3.0; n],
-            east_m: vec![4.0; n],
             roll_deg: vec![5.0; n],
             pitch_deg: vec![6.0; n],
             heading_deg: vec![7.0; n],
         };
-        let tracks = vec![mk("initial", 3, 0.5), mk("joint", 2, 1.5)];
+        let tracks = vec![kept("initial", 3, 0.5), kept("joint", 2, 1.5)];
+        let t_ns = [1_000, 2_000, 3_000];
         let p = dir.path().join(TRACKS);
-        write_tracks(&p, tracks.clone()).unwrap();
-        assert_eq!(read_tracks(&p).unwrap(), tracks);
+        write_tracks(&p, &t_ns, start, tracks.clone()).unwrap();
+        // Times from the kept samples', degrees and local offsets from the positions.
+        let want: Vec<MethodTrack> = tracks
+            .iter()
+            .map(|t| {
+                let n = t.lat_rad.len();
+                let ne: Vec<(f64, f64)> = (0..n)
+                    .map(|k| start.offset_m(t.lat_rad[k], t.lon_rad[k]))
+                    .collect();
+                MethodTrack {
+                    method: t.method.clone(),
+                    t_ns: t_ns[..n].to_vec(),
+                    lat_deg: t.lat_rad.iter().map(|x| x.to_degrees()).collect(),
+                    lon_deg: t.lon_rad.iter().map(|x| x.to_degrees()).collect(),
+                    h_m: t.h_m.clone(),
+                    north_m: ne.iter().map(|p| p.0 as f32).collect(),
+                    east_m: ne.iter().map(|p| p.1 as f32).collect(),
+                    roll_deg: t.roll_deg.clone(),
+                    pitch_deg: t.pitch_deg.clone(),
+                    heading_deg: t.heading_deg.clone(),
+                }
+            })
+            .collect();
+        assert_eq!(read_tracks(&p).unwrap(), want);
+        assert!(want[1].north_m[1] > 0.1 && want[1].east_m[1] < -0.1);
+        // A track longer than the kept samples' times is refused, naming the method.
+        let long = vec![kept("oepi", 4, 0.5)];
+        let err = write_tracks(&dir.path().join("long.parquet"), &t_ns, start, long)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("oepi"), "{err}");
         let series = vec![MethodKryt1 {
             method: "oepi".into(),
             t_ns: vec![1, 2],
