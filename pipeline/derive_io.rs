@@ -379,7 +379,7 @@ mod tests {
             imu_t_ns: &t,
             dtheta_rad: &dth,
             dvel_mps: &dv,
-            odo_t_ns: &ot,
+            odo_t_ns: (&ot).into(),
             odo_distance_m: &od,
         };
         let d = derive(&series, &DeriveParams::default(), 9.81);

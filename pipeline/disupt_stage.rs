@@ -707,7 +707,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // read side by side.
         let (case, odometer) = rayon::join(
             || load_case(ctx, params, &Overrides::default()),
-            || IngestedSeries::load_odometer(&ctx.layout().dir(StageName::Ingest)),
+            || IngestedSeries::load_odometer_tags(&ctx.layout().dir(StageName::Ingest)),
         );
         let (case, odometer) = (case?, odometer?);
         // The derive stage's output is the configured derive, whole: re-derives at other

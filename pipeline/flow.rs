@@ -13,7 +13,9 @@ use unz_formats::parquet_io::{
     for_each_batch, for_each_batch_of, read_schema, row_capacity_hint, write_batch,
 };
 use unz_formats::schema::{self, META_ODO_M_PER_PULSE};
-use unz_formats::tables::{CriteriaTable, ImuTable, MarksTable, OdometerTable, f64_column};
+use unz_formats::tables::{
+    CriteriaTable, ImuTable, MarksTable, OdometerTable, f64_column, i64_column,
+};
 use unz_stages::criteria::{
     self, BlockAttitude, ControlPointFix, KalmanParams, Kryt1Series, Kryt2, Row3Blocks,
 };
@@ -25,6 +27,7 @@ use unz_stages::initial::{
     static_samples,
 };
 use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
+use unz_stages::time_base::TagTimes;
 
 use crate::artifacts::{RunLayout, StageName, files};
 use crate::derive_io::{
@@ -303,6 +306,15 @@ pub fn site_gravity_mps2(m: &RunManifest) -> f64 {
     earth::normal_gravity_mps2(m.site.latitude_deg.to_radians(), m.site.height_m)
 }
 
+/// An ingested odometer as the lag's re-derives read it, its time tags compact.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct OdometerTags {
+    /// Time tags, ns in the log's time base.
+    pub t_ns: TagTimes,
+    /// Cumulative distance, m.
+    pub distance_m: Vec<f64>,
+}
+
 /// The ingested IMU and odometer tables: what derive reads.
 pub struct IngestedSeries {
     imu: ImuTable,
@@ -341,6 +353,28 @@ impl IngestedSeries {
         Ok(odo)
     }
 
+    /// [`Self::load_odometer`] with the time tags compact ([`TagTimes`]: half the
+    /// memory), for the disupt stage, which holds the ingested odometer while the methods
+    /// run (35 → 17 MB of times at 12 h at 100 Hz).
+    pub fn load_odometer_tags(ingest_dir: &Path) -> anyhow::Result<OdometerTags> {
+        let path = ingest_dir.join(files::ODOMETER);
+        let rows = row_capacity_hint(&path)?;
+        let mut odo = OdometerTags {
+            t_ns: TagTimes::with_room_for(rows, []),
+            distance_m: Vec::with_capacity(rows),
+        };
+        for_each_batch_of(&path, &[schema::T_NS, schema::DISTANCE_M], |b| {
+            // Columns of one batch: as many times as distances.
+            odo.t_ns.extend(i64_column(b, schema::T_NS)?);
+            odo.distance_m.extend(f64_column(b, schema::DISTANCE_M)?);
+            Ok(())
+        })?;
+        if odo.distance_m.is_empty() {
+            bail!("the run has no odometer data (no 8th column and no odometer file)");
+        }
+        Ok(odo)
+    }
+
     /// Samples whose status flags an IMU built-in-test failure (bit 0) and an odometer
     /// failure (bit 1).
     pub fn failure_counts(&self) -> (usize, usize) {
@@ -365,7 +399,7 @@ impl IngestedSeries {
             imu_t_ns: &[],
             dtheta_rad: &[],
             dvel_mps: &[],
-            odo_t_ns: &self.odo.t_ns,
+            odo_t_ns: (&self.odo.t_ns).into(),
             odo_distance_m: &self.odo.distance_m,
         };
         derive_owned(t_ns.into(), dtheta_rad, dvel_mps, &odometer, params, g_mps2)
@@ -757,4 +791,45 @@ fn write_criteria_parquet(path: &Path, d: &Derived, s: &Kryt1Series) -> anyhow::
 pub fn load_criteria(path: &Path) -> anyhow::Result<CriteriaTable> {
     let (table, _) = load_table::<CriteriaTable>(path, CriteriaTable::extend_from_batch)?;
     Ok(table)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use unz_formats::parquet_io::write_batch;
+
+    /// The compact load gives the tags and distances the plain one gives, across the
+    /// reader's batches, a gap and a tag going back; an odometer-less run is refused.
+    #[test]
+    fn the_compact_odometer_is_the_ingested_one() {
+        let n = 150_000_i64;
+        let t_ns: Vec<i64> = (0..n)
+            .map(|k| {
+                let gap = if k >= 70_000 { 9_000_000_000 } else { 0 };
+                let back = if k == 100_000 { -20_000_000 } else { 0 };
+                5_000_000 + k * 10_000_000 + gap + back
+            })
+            .collect();
+        let table = OdometerTable {
+            distance_m: t_ns.iter().map(|&t| t as f64 * 1e-8).collect(),
+            pulses: vec![None; t_ns.len()],
+            t_ns,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(files::ODOMETER);
+        write_batch(&path, &table.to_batch(schema::odometer(None)).unwrap()).unwrap();
+        let plain = IngestedSeries::load_odometer(dir.path()).unwrap();
+        let tags = IngestedSeries::load_odometer_tags(dir.path()).unwrap();
+        assert_eq!(tags.t_ns.len(), table.t_ns.len());
+        assert_eq!(tags.t_ns.iter().collect::<Vec<_>>(), plain.t_ns);
+        assert_eq!(tags.distance_m, plain.distance_m);
+        assert_eq!(plain.t_ns, table.t_ns);
+
+        let empty = OdometerTable::default();
+        write_batch(&path, &empty.to_batch(schema::odometer(None)).unwrap()).unwrap();
+        let err = IngestedSeries::load_odometer_tags(dir.path())
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("no odometer data"), "{err}");
+    }
 }

@@ -16,7 +16,7 @@
 use std::sync::Arc;
 
 use crate::filter::{FilterParams, LowPass};
-use crate::time_base::{TimeBase, Times};
+use crate::time_base::{TagIter, TagTimes, TimeBase, Times};
 
 /// Parameters of the derive stage.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -56,9 +56,80 @@ pub struct RawSeries<'a> {
     /// Velocity increments, m/s, body FRD.
     pub dvel_mps: &'a [[f64; 3]],
     /// Odometer time, ns (own rate).
-    pub odo_t_ns: &'a [i64],
+    pub odo_t_ns: OdoTimes<'a>,
     /// Odometer cumulative distance, m.
     pub odo_distance_m: &'a [f64],
+}
+
+/// An ingested odometer's time tags, ns in the log's time base: one i64 each, or
+/// compact ([`TagTimes`], as the disupt stage holds them for the lag's re-derives). Read
+/// in order only.
+#[derive(Debug, Clone, Copy)]
+pub enum OdoTimes<'a> {
+    /// One i64 per tag.
+    Slice(&'a [i64]),
+    /// Steps in 32 bits.
+    Tags(&'a TagTimes),
+}
+
+impl<'a> OdoTimes<'a> {
+    /// Number of tags.
+    pub fn len(&self) -> usize {
+        match self {
+            OdoTimes::Slice(t) => t.len(),
+            OdoTimes::Tags(t) => t.len(),
+        }
+    }
+
+    /// Whether there is no tag.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The tags in order, ns.
+    fn iter(self) -> OdoTimesIter<'a> {
+        match self {
+            OdoTimes::Slice(t) => OdoTimesIter::Slice(t.iter()),
+            OdoTimes::Tags(t) => OdoTimesIter::Tags(t.iter()),
+        }
+    }
+}
+
+impl<'a> From<&'a [i64]> for OdoTimes<'a> {
+    fn from(t: &'a [i64]) -> Self {
+        OdoTimes::Slice(t)
+    }
+}
+
+impl<'a> From<&'a Vec<i64>> for OdoTimes<'a> {
+    fn from(t: &'a Vec<i64>) -> Self {
+        OdoTimes::Slice(t)
+    }
+}
+
+impl<'a> From<&'a TagTimes> for OdoTimes<'a> {
+    fn from(t: &'a TagTimes) -> Self {
+        OdoTimes::Tags(t)
+    }
+}
+
+/// [`OdoTimes::iter`].
+#[derive(Debug, Clone)]
+enum OdoTimesIter<'a> {
+    Slice(std::slice::Iter<'a, i64>),
+    Tags(TagIter<'a>),
+}
+
+impl Iterator for OdoTimesIter<'_> {
+    type Item = i64;
+
+    #[inline]
+    fn next(&mut self) -> Option<i64> {
+        match self {
+            OdoTimesIter::Slice(t) => t.next().copied(),
+            OdoTimesIter::Tags(t) => t.next(),
+        }
+    }
 }
 
 /// Everything the stage derives.
@@ -255,7 +326,8 @@ pub struct Epochs {
 /// last one kept, with a finite distance, are kept; they are read from the ingested series
 /// as the calls advance, without a copy of the odometer's length.
 struct OdoInterp<'a> {
-    t_ns: &'a [i64],
+    /// The tags from [`Self::from`] on.
+    t_ns: OdoTimesIter<'a>,
     d: &'a [f64],
     t0_ns: i64,
     offset_s: f64,
@@ -273,9 +345,9 @@ struct OdoInterp<'a> {
 }
 
 impl<'a> OdoInterp<'a> {
-    fn new(t_ns: &'a [i64], d: &'a [f64], t0_ns: i64, offset_s: f64) -> Self {
+    fn new(t_ns: OdoTimes<'a>, d: &'a [f64], t0_ns: i64, offset_s: f64) -> Self {
         let mut s = Self {
-            t_ns,
+            t_ns: t_ns.iter(),
             d,
             t0_ns,
             offset_s,
@@ -295,11 +367,11 @@ impl<'a> OdoInterp<'a> {
 
     /// The next tag kept (time s, distance m), if any.
     fn next_kept(&mut self) -> Option<(f64, f64)> {
-        let n = self.t_ns.len().min(self.d.len());
-        while self.from < n {
+        while self.from < self.d.len() {
+            let t_ns = self.t_ns.next()?;
             let i = self.from;
             self.from += 1;
-            let ts = (self.t_ns[i] - self.t0_ns) as f64 * 1e-9 + self.offset_s;
+            let ts = (t_ns - self.t0_ns) as f64 * 1e-9 + self.offset_s;
             if self.last_t.is_none_or(|last| ts > last) && self.d[i].is_finite() {
                 self.last_t = Some(ts);
                 return Some((ts, self.d[i]));
@@ -458,7 +530,7 @@ pub struct MovedOdometer<'a> {
     t_s: &'a TimeBase,
     first_dt_s: f64,
     t0_ns: i64,
-    odo_t_ns: &'a [i64],
+    odo_t_ns: OdoTimes<'a>,
     odo_distance_m: &'a [f64],
     offset_s: f64,
 }
@@ -682,7 +754,7 @@ mod tests {
                 (&t_ns[..0], &d[..0]),
                 (&t_ns[4..], &d[4..]),
             ] {
-                let mut odo = OdoInterp::new(tags, dists, 1_000_000_000, offset_s);
+                let mut odo = OdoInterp::new(tags.into(), dists, 1_000_000_000, offset_s);
                 for &ts in &calls {
                     let want = distance_by_definition(tags, dists, 1_000_000_000, offset_s, ts);
                     assert_eq!(
@@ -732,7 +804,7 @@ mod tests {
             imu_t_ns: &c.0,
             dtheta_rad: &c.1,
             dvel_mps: &c.2,
-            odo_t_ns: &c.3,
+            odo_t_ns: (&c.3).into(),
             odo_distance_m: &c.4,
         }
     }

@@ -33,8 +33,8 @@ use std::cell::RefCell;
 use std::sync::OnceLock;
 
 use crate::derive::{
-    DeriveParams, Derived, MovedOdometer, RawSeries, derive, epochs_of, odometer_blocks_of,
-    shifted_blocks,
+    DeriveParams, Derived, MovedOdometer, OdoTimes, RawSeries, derive, epochs_of,
+    odometer_blocks_of, shifted_blocks,
 };
 use crate::disupt::{
     DisuptError, DisuptParams, JointFit, JointOptions, Problem, ProblemSpec, joint_fit,
@@ -128,7 +128,7 @@ impl<'a> Rederive<'a> {
     /// odometer's part, and takes the IMU's from `configured`.
     pub fn of_odometer(
         configured: &'a Derived,
-        odo_t_ns: &'a [i64],
+        odo_t_ns: impl Into<OdoTimes<'a>>,
         odo_distance_m: &'a [f64],
         params: DeriveParams,
         g_mps2: f64,
@@ -137,7 +137,7 @@ impl<'a> Rederive<'a> {
             imu_t_ns: &[],
             dtheta_rad: &[],
             dvel_mps: &[],
-            odo_t_ns,
+            odo_t_ns: odo_t_ns.into(),
             odo_distance_m,
         };
         Self::new(raw, params, g_mps2).around(configured)

@@ -57,7 +57,7 @@ pub fn case_derived_with(config: &SimConfig, params: &DeriveParams) -> Case {
         imu_t_ns: &t_ns,
         dtheta_rad: &dtheta,
         dvel_mps: &dvel,
-        odo_t_ns: &t_ns,
+        odo_t_ns: (&t_ns).into(),
         odo_distance_m: &odo,
     };
     let g = earth::normal_gravity_mps2(run.site.lat_rad, run.site.h_m);
