@@ -2,13 +2,13 @@
 
 use std::path::Path;
 
+use arrow::array::ArrayRef;
 use arrow::array::RecordBatch;
-use arrow::datatypes::{DataType, Schema, SchemaRef};
+use arrow::datatypes::{DataType, FieldRef, Schema, SchemaRef};
 use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::arrow::arrow_writer::{
-    ArrowColumnChunk, ArrowColumnWriter, ArrowLeafColumn, ArrowRowGroupWriterFactory,
-    compute_leaves,
+    ArrowColumnChunk, ArrowColumnWriter, ArrowRowGroupWriterFactory, compute_leaves,
 };
 use parquet::basic::{Compression, Encoding, ZstdLevel};
 use parquet::file::properties::{EnabledStatistics, WriterProperties};
@@ -28,8 +28,11 @@ pub struct ParquetSink {
     writer: SerializedFileWriter<std::fs::File>,
     factory: ArrowRowGroupWriterFactory,
     schema: SchemaRef,
-    /// The column writers of the row group being filled (none between row groups).
+    /// The column writers of the row group being filled (none between row groups), one
+    /// per leaf column.
     columns: Vec<ArrowColumnWriter>,
+    /// Leaf columns of each of the schema's fields, in order.
+    leaves_per_field: Vec<usize>,
     /// Rows in that row group.
     group_rows: usize,
     /// Rows per row group at most.
@@ -99,11 +102,19 @@ impl ParquetSink {
         let (writer, factory) = ArrowWriter::try_new(handle, schema.clone(), Some(props))
             .and_then(|w| w.into_serialized_writer())
             .map_err(|e| parquet_err(dest, e))?;
+        let descr = writer.schema_descr();
+        let mut leaves_per_field = vec![0; schema.fields().len()];
+        for leaf in 0..descr.num_columns() {
+            if let Some(n) = leaves_per_field.get_mut(descr.get_column_root_idx(leaf)) {
+                *n += 1;
+            }
+        }
         Ok(Self {
             writer,
             factory,
             schema,
             columns: Vec::new(),
+            leaves_per_field,
             group_rows: 0,
             max_group_rows: rows.max(1),
             side_by_side: true,
@@ -154,30 +165,40 @@ impl ParquetSink {
     /// long enough.
     fn encode(&mut self, batch: &RecordBatch) -> Result<(), FileError> {
         let dest = self.file.dest();
-        let mut leaves: Vec<ArrowLeafColumn> = Vec::with_capacity(self.columns.len());
-        for (field, column) in self.schema.fields().iter().zip(batch.columns()) {
-            leaves.extend(compute_leaves(field, column).map_err(|e| parquet_err(dest, e))?);
+        // Each field's writers, taking its leaves (computed in its own task: a column's
+        // levels, up to 8 bytes a value, are held while that column is written only).
+        let mut fields = Vec::with_capacity(self.leaves_per_field.len());
+        let mut rest = self.columns.as_mut_slice();
+        for ((field, column), &n) in self
+            .schema
+            .fields()
+            .iter()
+            .zip(batch.columns())
+            .zip(&self.leaves_per_field)
+        {
+            let (writers, after) = rest.split_at_mut(n.min(rest.len()));
+            fields.push((field, column, writers));
+            rest = after;
         }
-        if leaves.len() != self.columns.len() {
-            return Err(parquet_err(
-                dest,
-                FormatError::Invalid(format!(
-                    "{} leaf columns for {} column writers",
+        let write = |(field, column, writers): (&FieldRef, &ArrayRef, &mut [ArrowColumnWriter])| {
+            let leaves = compute_leaves(field, column)?;
+            if leaves.len() != writers.len() {
+                return Err(parquet::errors::ParquetError::General(format!(
+                    "column {:?}: {} leaf columns for {} writers",
+                    field.name(),
                     leaves.len(),
-                    self.columns.len()
-                )),
-            ));
-        }
-        let written = if self.side_by_side && batch.num_rows() >= PARALLEL_ROWS {
-            self.columns
-                .par_iter_mut()
-                .zip(leaves.par_iter())
-                .try_for_each(|(w, leaf)| w.write(leaf))
-        } else {
-            self.columns
+                    writers.len()
+                )));
+            }
+            writers
                 .iter_mut()
                 .zip(&leaves)
                 .try_for_each(|(w, leaf)| w.write(leaf))
+        };
+        let written = if self.side_by_side && batch.num_rows() >= PARALLEL_ROWS {
+            fields.into_par_iter().try_for_each(write)
+        } else {
+            fields.into_iter().try_for_each(write)
         };
         written.map_err(|e| parquet_err(dest, e))
     }
