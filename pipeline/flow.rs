@@ -360,7 +360,7 @@ impl IngestedSeries {
         let path = ingest_dir.join(files::ODOMETER);
         let rows = row_capacity_hint(&path)?;
         let mut odo = OdometerTags {
-            t_ns: TagTimes::with_room_for(rows, []),
+            t_ns: TagTimes::with_room_for(rows),
             distance_m: Vec::with_capacity(rows),
         };
         for_each_batch_of(&path, &[schema::T_NS, schema::DISTANCE_M], |b| {

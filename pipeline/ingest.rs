@@ -102,8 +102,8 @@ impl Sinks {
         let imu_schema = schema::imu(origin_ns);
         let odo_schema = schema::odometer_scaled(origin_ns, odo_m_per_pulse);
         // With `raw.mcap` on its own thread, the tables' columns are encoded on the
-        // reading thread (spread over the pool they only contend with the MCAP writer:
-        // full ingest 150-180 MB/s against 163-186); without, side by side.
+        // reading thread (spread over the pool they contended with the MCAP writer: the
+        // full ingest's median fell from about 180 to 165 MB/s); without, side by side.
         let sink = |path: &Path, schema: &arrow::datatypes::SchemaRef| {
             ParquetSink::create(path, schema.clone()).map(|s| {
                 if mcap.is_some() {

@@ -81,7 +81,7 @@ pub fn track_samples(d: &Derived) -> Vec<usize> {
 
 /// One method's trajectory as its review pass keeps it, at [`track_samples`]: what
 /// [`MethodTrack`] holds but its times and local offsets, which [`write_tracks`] makes
-/// from the samples and the positions as it writes (12 of a row's 48 bytes fewer held
+/// from the samples and the positions as it writes (16 of a row's 48 bytes fewer held
 /// beside the review lanes: 28 MB for four methods at 12 h).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct KeptTrack {

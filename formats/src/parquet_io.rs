@@ -94,6 +94,12 @@ impl ParquetSink {
         schema: SchemaRef,
         rows: usize,
     ) -> Result<Self, FileError> {
+        if schema.fields().is_empty() {
+            return Err(parquet_err(
+                dest,
+                FormatError::Invalid("a table without columns".into()),
+            ));
+        }
         let file = AtomicFile::create(dest)?;
         let props = writer_properties(&schema, rows).map_err(|e| parquet_err(dest, e))?;
         let handle = file.file_handle()?;
@@ -134,6 +140,16 @@ impl ParquetSink {
 
     /// Writes one batch, split where a row group fills (as `ArrowWriter::write` does).
     pub fn write(&mut self, batch: &RecordBatch) -> Result<(), FileError> {
+        if batch.num_columns() != self.schema.fields().len() {
+            return Err(parquet_err(
+                self.file.dest(),
+                FormatError::Invalid(format!(
+                    "a batch of {} columns for a table of {}",
+                    batch.num_columns(),
+                    self.schema.fields().len()
+                )),
+            ));
+        }
         let n = batch.num_rows();
         let mut at = 0;
         while at < n {
@@ -486,5 +502,19 @@ mod tests {
             .clone();
         let groups: Vec<i64> = meta.row_groups().iter().map(|g| g.num_rows()).collect();
         assert_eq!(groups, [10_000, 10_000, 10_000, 10_000, 99]);
+        // A batch of another shape is refused, naming the file; so is a table without
+        // columns.
+        let mut sink =
+            ParquetSink::create(&dir.path().join("odd.parquet"), schema.clone()).expect("sink");
+        let err = sink
+            .write(&batches[0].project(&[0, 1]).expect("two columns"))
+            .expect_err("two columns of four")
+            .to_string();
+        assert!(
+            err.contains("odd.parquet") && err.contains("2 columns"),
+            "{err}"
+        );
+        let empty = Arc::new(Schema::empty());
+        assert!(ParquetSink::create(&dir.path().join("none.parquet"), empty).is_err());
     }
 }

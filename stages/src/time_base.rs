@@ -265,14 +265,12 @@ pub struct TagTimes {
 }
 
 impl TagTimes {
-    /// The tags `ns`, with room for `n` of them first.
-    pub fn with_room_for(n: usize, ns: impl IntoIterator<Item = i64>) -> Self {
-        let mut times = Self {
+    /// No tag yet, with room for `n`.
+    pub fn with_room_for(n: usize) -> Self {
+        Self {
             steps_ns: Vec::with_capacity(n),
             ..Self::default()
-        };
-        times.extend(ns);
-        times
+        }
     }
 
     /// Appends the tags `ns`.
@@ -379,7 +377,8 @@ mod tests {
             ns.push(t);
         }
         ns.extend([i64::MAX, i64::MIN, 0]);
-        let mut tags = TagTimes::with_room_for(ns.len(), ns[..7].iter().copied());
+        let mut tags = TagTimes::with_room_for(ns.len());
+        tags.extend(ns[..7].iter().copied());
         tags.extend(ns[7..3000].iter().copied());
         tags.extend(ns[3000..].iter().copied());
         assert_eq!(tags.len(), ns.len());
