@@ -17,7 +17,6 @@
 //! taken into the record as if the stage had written it.
 
 use std::collections::HashMap;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::{LazyLock, Mutex};
 use std::time::{Duration, SystemTime};
@@ -120,26 +119,13 @@ pub fn file_hash(path: &Path) -> anyhow::Result<String> {
 }
 
 fn hash_content(path: &Path) -> anyhow::Result<String> {
-    thread_local! {
-        /// One read buffer per thread, not one zeroed per file.
-        static BUF: std::cell::RefCell<Vec<u8>> = std::cell::RefCell::new(vec![0; 1 << 20]);
-    }
-    let mut f =
-        std::fs::File::open(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let mut h = blake3::Hasher::new();
-    BUF.with(|buf| -> anyhow::Result<()> {
-        let buf = &mut *buf.borrow_mut();
-        loop {
-            let n = f
-                .read(buf)
-                .with_context(|| format!("cannot read {}", path.display()))?;
-            if n == 0 {
-                return Ok(());
-            }
-            h.update(&buf[..n]);
-        }
-    })?;
-    Ok(h.finalize().to_hex().to_string())
+    let read = || -> std::io::Result<blake3::Hash> {
+        Ok(blake3::Hasher::new()
+            .update_reader(std::fs::File::open(path)?)?
+            .finalize())
+    };
+    let h = read().with_context(|| format!("cannot read {}", path.display()))?;
+    Ok(h.to_hex().to_string())
 }
 
 /// Forgets the remembered hashes (a benchmark's "cached" pass measures what a new

@@ -306,6 +306,9 @@ pub fn site_gravity_mps2(m: &RunManifest) -> f64 {
     earth::normal_gravity_mps2(m.site.latitude_deg.to_radians(), m.site.height_m)
 }
 
+/// Why a run without an odometer table cannot be derived.
+const NO_ODOMETER: &str = "the run has no odometer data (no 8th column and no odometer file)";
+
 /// An ingested odometer as the lag's re-derives read it, its time tags compact.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct OdometerTags {
@@ -348,7 +351,7 @@ impl IngestedSeries {
             OdometerTable::extend_series_from_batch,
         )?;
         if odo.is_empty() {
-            bail!("the run has no odometer data (no 8th column and no odometer file)");
+            bail!(NO_ODOMETER);
         }
         Ok(odo)
     }
@@ -370,7 +373,7 @@ impl IngestedSeries {
             Ok(())
         })?;
         if odo.distance_m.is_empty() {
-            bail!("the run has no odometer data (no 8th column and no odometer file)");
+            bail!(NO_ODOMETER);
         }
         Ok(odo)
     }

@@ -15,6 +15,8 @@
 
 use std::sync::Arc;
 
+use either::Either;
+
 use crate::filter::{FilterParams, LowPass};
 use crate::time_base::{TagIter, TagTimes, TimeBase, Times};
 
@@ -73,24 +75,11 @@ pub enum OdoTimes<'a> {
 }
 
 impl<'a> OdoTimes<'a> {
-    /// Number of tags.
-    pub fn len(&self) -> usize {
-        match self {
-            OdoTimes::Slice(t) => t.len(),
-            OdoTimes::Tags(t) => t.len(),
-        }
-    }
-
-    /// Whether there is no tag.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
     /// The tags in order, ns.
     fn iter(self) -> OdoTimesIter<'a> {
         match self {
-            OdoTimes::Slice(t) => OdoTimesIter::Slice(t.iter()),
-            OdoTimes::Tags(t) => OdoTimesIter::Tags(t.iter()),
+            OdoTimes::Slice(t) => Either::Left(t.iter().copied()),
+            OdoTimes::Tags(t) => Either::Right(t.iter()),
         }
     }
 }
@@ -114,23 +103,7 @@ impl<'a> From<&'a TagTimes> for OdoTimes<'a> {
 }
 
 /// [`OdoTimes::iter`].
-#[derive(Debug, Clone)]
-enum OdoTimesIter<'a> {
-    Slice(std::slice::Iter<'a, i64>),
-    Tags(TagIter<'a>),
-}
-
-impl Iterator for OdoTimesIter<'_> {
-    type Item = i64;
-
-    #[inline]
-    fn next(&mut self) -> Option<i64> {
-        match self {
-            OdoTimesIter::Slice(t) => t.next().copied(),
-            OdoTimesIter::Tags(t) => t.next(),
-        }
-    }
-}
+type OdoTimesIter<'a> = Either<std::iter::Copied<std::slice::Iter<'a, i64>>, TagIter<'a>>;
 
 /// Everything the stage derives.
 #[derive(Debug, Clone, Default, PartialEq)]

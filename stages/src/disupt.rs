@@ -28,6 +28,7 @@ use std::time::Instant;
 use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
 use argmin::solver::brent::BrentOpt;
 use argmin::solver::neldermead::NelderMead;
+use either::Either;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
 use rayon::prelude::*;
@@ -237,8 +238,8 @@ impl<'a> Problem<'a> {
     /// The odometer increments a pass of this problem reads, sample by sample.
     fn odometer_increments(&self) -> LaneIncrements<'a> {
         match self.moved_odometer {
-            Some(moved) => LaneIncrements::Moved(moved.increments()),
-            None => LaneIncrements::Stored(self.inputs.odo_dist_m.iter()),
+            Some(moved) => Either::Right(moved.increments()),
+            None => Either::Left(self.inputs.odo_dist_m.iter().copied()),
         }
     }
 
@@ -502,31 +503,7 @@ impl LaneBatch for OnDerives<'_, '_> {
 
 /// A lane's odometer increments: a derive's stored ones, or read from the ingested
 /// odometer as the pass goes.
-enum LaneIncrements<'a> {
-    Stored(std::slice::Iter<'a, f64>),
-    Moved(OdoIncrements<'a>),
-}
-
-impl Iterator for LaneIncrements<'_> {
-    type Item = f64;
-
-    #[inline]
-    fn next(&mut self) -> Option<f64> {
-        match self {
-            Self::Stored(it) => it.next().copied(),
-            Self::Moved(it) => it.next(),
-        }
-    }
-
-    fn size_hint(&self) -> (usize, Option<usize>) {
-        match self {
-            Self::Stored(it) => it.size_hint(),
-            Self::Moved(it) => it.size_hint(),
-        }
-    }
-}
-
-impl ExactSizeIterator for LaneIncrements<'_> {}
+type LaneIncrements<'a> = Either<std::iter::Copied<std::slice::Iter<'a, f64>>, OdoIncrements<'a>>;
 
 /// `x` moved by one finite-difference step in each setting of `which`, in turn.
 pub fn moved_by_steps(x: &X, which: &[Setting]) -> Vec<X> {
