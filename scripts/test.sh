@@ -5,6 +5,15 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# A full disk fails the build, the venv or Chromium's install in ways that do not say so:
+# say it first. The release build takes about 5 GiB under target/, the venv and Chromium
+# about 1.5 GiB.
+free_gib=$(( $(df -Pk . | awk 'NR == 2 { print $4 }') / 1024 / 1024 ))
+if [ "$free_gib" -lt 7 ]; then
+  echo "scripts/test.sh: warning: only ${free_gib} GiB free on the disk of $PWD;" \
+    "the build and the test set-up need about 7 GiB" >&2
+fi
+
 if ! .venv/bin/python -c "import pyarrow, mcap, mcap_ros2, rerun, duckdb, websocket" 2>/dev/null; then
   python3 -m venv .venv
   .venv/bin/pip install --quiet --disable-pip-version-check -r tests/python/requirements.txt
