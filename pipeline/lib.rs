@@ -9,6 +9,7 @@ pub mod campaign;
 pub mod cli;
 pub mod commands;
 pub mod config;
+pub mod cpu_time;
 pub mod derive_io;
 pub mod disupt_stage;
 pub mod export;

@@ -8,6 +8,7 @@ use unz_formats::mcap_io::McapCompression;
 use unz_stages::simulate::{SimConfig, simulate};
 
 use crate::cli::{BenchArgs, BenchTarget};
+use crate::cpu_time::{cpu_suffix, process_cpu_s};
 use crate::ingest::{IngestOptions, ingest};
 
 /// Runs the command.
@@ -238,10 +239,11 @@ fn bench_disupt(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     let p = DisuptParams::default();
     let mut best = f64::INFINITY;
     let mut report = String::new();
+    let mut cpu = String::new();
     for _ in 0..args.repeat.max(1) {
         // A fresh problem each time: nothing is reused between repetitions.
         let problem = problem_of(&case, &params);
-        let t0 = Instant::now();
+        let (t0, cpu0) = (Instant::now(), process_cpu_s());
         let results: Vec<_> = [0, 1, 2]
             .par_iter()
             .map(|&m| match m {
@@ -251,8 +253,10 @@ fn bench_disupt(args: &BenchArgs) -> anyhow::Result<ExitCode> {
             })
             .collect();
         let wall = t0.elapsed().as_secs_f64();
+        let cpu_s = process_cpu_s().zip(cpu0).map(|(b, a)| b - a);
         if wall < best {
             best = wall;
+            cpu = cpu_suffix(cpu_s, wall, rayon::current_num_threads());
             report = results
                 .iter()
                 .map(|(n, r)| match r {
@@ -264,7 +268,7 @@ fn bench_disupt(args: &BenchArgs) -> anyhow::Result<ExitCode> {
         }
     }
     println!(
-        "disupt: OEPI + OWPI + joint on a {:.0} s run in {best:.3} s on {} threads ({report}; plus the shared first linearisation, 8 passes)",
+        "disupt: OEPI + OWPI + joint on a {:.0} s run in {best:.3} s on {} threads{cpu} ({report}; plus the shared first linearisation, 8 passes)",
         args.duration_s,
         rayon::current_num_threads()
     );
@@ -322,11 +326,16 @@ fn bench_campaign(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     for label in ["cold", "cached"] {
         // What a new process does: it knows the hashes the last one saved.
         crate::file_hashes::forget_hashes();
-        let t = Instant::now();
+        let (t, cpu0) = (Instant::now(), process_cpu_s());
         crate::file_hashes::load(&out);
         let outcomes = run_campaign(&manifests, &plan);
         crate::file_hashes::save(&out)?;
         let wall = t.elapsed().as_secs_f64();
+        let cpu = cpu_suffix(
+            process_cpu_s().zip(cpu0).map(|(b, a)| b - a),
+            wall,
+            rayon::current_num_threads(),
+        );
         let failed = outcomes.iter().filter(|o| o.error.is_some()).count();
         let mut per_stage = std::collections::BTreeMap::<&str, f64>::new();
         for o in &outcomes {
@@ -341,7 +350,7 @@ fn bench_campaign(args: &BenchArgs) -> anyhow::Result<ExitCode> {
             .map(|s| format!("{s} {:.1}", per_stage.get(s).copied().unwrap_or(0.0)))
             .collect();
         println!(
-            "{label}: {} runs ({failed} failed) in {wall:.2} s on {} threads; summed stage times (s): {}",
+            "{label}: {} runs ({failed} failed) in {wall:.2} s on {} threads{cpu}; summed stage times (s): {}",
             outcomes.len(),
             rayon::current_num_threads(),
             stages.join(", ")

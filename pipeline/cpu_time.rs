@@ -1,0 +1,70 @@
+//! The process's CPU time, so that a benchmark can say how busy the cores were beside how
+//! long it took.
+
+/// CPU time used so far by the whole process (every thread, user and system), s: the
+/// process's CPU-time clock (`CLOCK_PROCESS_CPUTIME_ID`); `None` where there is none.
+pub fn process_cpu_s() -> Option<f64> {
+    #[cfg(unix)]
+    {
+        let t = rustix::time::clock_gettime(rustix::time::ClockId::ProcessCPUTime);
+        Some(t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9)
+    }
+    #[cfg(not(unix))]
+    {
+        None
+    }
+}
+
+/// `", CPU 17.8 s (96 % of 2 cores)"` for `cpu_s` of CPU over `wall_s` on `cores`, or
+/// nothing without a CPU time.
+pub fn cpu_suffix(cpu_s: Option<f64>, wall_s: f64, cores: usize) -> String {
+    cpu_s.map_or_else(String::new, |cpu| {
+        let busy = 100.0 * cpu / (wall_s * cores.max(1) as f64);
+        format!(", CPU {cpu:.2} s ({busy:.0} % of {cores} cores)")
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Works on this thread until it has had `cpu_s` of CPU (its own CPU-time clock).
+    #[cfg(unix)]
+    fn busy_for(cpu_s: f64) -> u64 {
+        use rustix::time::{ClockId, clock_gettime};
+        let now = || {
+            let t = clock_gettime(ClockId::ThreadCPUTime);
+            t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
+        };
+        let t0 = now();
+        let mut x = 0u64;
+        while now() - t0 < cpu_s {
+            x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+        }
+        x
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn the_process_clock_counts_every_threads_work() {
+        let before = process_cpu_s().unwrap();
+        // Two threads with 0.1 s of CPU each: the process has had at least 0.2 s more
+        // (other tests' threads of this process may add theirs).
+        std::thread::scope(|s| {
+            let other = s.spawn(|| busy_for(0.1));
+            busy_for(0.1);
+            other.join().unwrap();
+        });
+        let used = process_cpu_s().unwrap() - before;
+        assert!(used >= 0.2 - 1e-6, "{used} s");
+    }
+
+    #[test]
+    fn the_suffix_gives_the_cores_busy_share() {
+        assert_eq!(
+            cpu_suffix(Some(18.0), 10.0, 2),
+            ", CPU 18.00 s (90 % of 2 cores)"
+        );
+        assert_eq!(cpu_suffix(None, 10.0, 2), "");
+    }
+}
