@@ -15,7 +15,13 @@ pub fn process_cpu_s() -> Option<f64> {
     }
 }
 
-/// `", CPU 17.8 s (96 % of 2 cores)"` for `cpu_s` of CPU over `wall_s` on `cores`, or
+/// The cores this process may run on (what the standard library finds; 1 when it cannot
+/// tell).
+pub fn available_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// `", CPU 17.80 s (96 % of 2 cores)"` for `cpu_s` of CPU over `wall_s` on `cores`, or
 /// nothing without a CPU time.
 pub fn cpu_suffix(cpu_s: Option<f64>, wall_s: f64, cores: usize) -> String {
     cpu_s.map_or_else(String::new, |cpu| {

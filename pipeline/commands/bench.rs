@@ -8,7 +8,7 @@ use unz_formats::mcap_io::McapCompression;
 use unz_stages::simulate::{SimConfig, simulate};
 
 use crate::cli::{BenchArgs, BenchTarget};
-use crate::cpu_time::{cpu_suffix, process_cpu_s};
+use crate::cpu_time::{available_cores, cpu_suffix, process_cpu_s};
 use crate::ingest::{IngestOptions, ingest};
 
 /// Runs the command.
@@ -256,7 +256,7 @@ fn bench_disupt(args: &BenchArgs) -> anyhow::Result<ExitCode> {
         let cpu_s = process_cpu_s().zip(cpu0).map(|(b, a)| b - a);
         if wall < best {
             best = wall;
-            cpu = cpu_suffix(cpu_s, wall, rayon::current_num_threads());
+            cpu = cpu_suffix(cpu_s, wall, available_cores());
             report = results
                 .iter()
                 .map(|(n, r)| match r {
@@ -334,7 +334,7 @@ fn bench_campaign(args: &BenchArgs) -> anyhow::Result<ExitCode> {
         let cpu = cpu_suffix(
             process_cpu_s().zip(cpu0).map(|(b, a)| b - a),
             wall,
-            rayon::current_num_threads(),
+            available_cores(),
         );
         let failed = outcomes.iter().filter(|o| o.error.is_some()).count();
         let mut per_stage = std::collections::BTreeMap::<&str, f64>::new();
