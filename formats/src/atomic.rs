@@ -103,3 +103,73 @@ pub fn write_json_atomic(dest: &Path, value: &impl serde::Serialize) -> Result<(
     bytes.push(b'\n');
     write_atomic(dest, &bytes)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The names in `dir`, sorted.
+    fn names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn a_new_file_appears_whole_and_alone() {
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("a.json");
+        write_atomic(&dest, b"first").unwrap();
+        assert_eq!(std::fs::read(&dest).unwrap(), b"first");
+        assert_eq!(names(dir.path()), ["a.json"]);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(&dest).unwrap().permissions().mode();
+            assert_eq!(mode & 0o777, 0o644);
+        }
+    }
+
+    #[test]
+    fn a_file_there_is_replaced_whole_and_nothing_else_is_left() {
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("nav.parquet");
+        std::fs::write(&dest, b"old contents").unwrap();
+        // A reader that has the old file open keeps reading it.
+        let mut reader = std::fs::File::open(&dest).unwrap();
+        write_atomic(&dest, b"new").unwrap();
+        assert_eq!(std::fs::read(&dest).unwrap(), b"new");
+        assert_eq!(names(dir.path()), ["nav.parquet"]);
+        let mut old = String::new();
+        std::io::Read::read_to_string(&mut reader, &mut old).unwrap();
+        assert_eq!(old, "old contents");
+    }
+
+    #[test]
+    fn an_uncommitted_file_leaves_the_old_one_untouched() {
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("tracks.parquet");
+        std::fs::write(&dest, b"old").unwrap();
+        {
+            let mut f = AtomicFile::create(&dest).unwrap();
+            f.file().write_all(b"half of it").unwrap();
+        }
+        assert_eq!(std::fs::read(&dest).unwrap(), b"old");
+        assert_eq!(names(dir.path()), ["tracks.parquet"]);
+    }
+
+    #[test]
+    fn a_folder_in_the_way_is_an_error_naming_it_and_stays_as_it_was() {
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("out");
+        std::fs::create_dir(&dest).unwrap();
+        std::fs::write(dest.join("inside"), b"kept").unwrap();
+        let e = write_atomic(&dest, b"x").unwrap_err().to_string();
+        assert!(e.contains("out"), "{e}");
+        assert_eq!(std::fs::read(dest.join("inside")).unwrap(), b"kept");
+        assert_eq!(names(dir.path()), ["out"]);
+    }
+}
