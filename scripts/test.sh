@@ -8,11 +8,16 @@ cd "$(dirname "$0")/.."
 # A full disk fails the build, the venv or Chromium's install in ways that do not say so:
 # say it first. The release build takes about 5 GiB under target/, the venv and Chromium
 # about 1.5 GiB.
-free_gib=$(( $(df -Pk . | awk 'NR == 2 { print $4 }') / 1024 / 1024 ))
-if [ "$free_gib" -lt 7 ]; then
-  echo "scripts/test.sh: warning: only ${free_gib} GiB free on the disk of $PWD;" \
-    "the build and the test set-up need about 7 GiB" >&2
-fi
+free_kib=$(df -Pk . 2>/dev/null | awk 'NR == 2 { print $4 }' || true)
+case "$free_kib" in
+  '' | *[!0-9]*) ;; # df gave no figure: nothing to say
+  *)
+    if [ "$free_kib" -lt $((7 * 1024 * 1024)) ]; then
+      echo "scripts/test.sh: warning: only $((free_kib / 1024 / 1024)) GiB free on the disk" \
+        "of $PWD; the build and the test set-up need about 7 GiB" >&2
+    fi
+    ;;
+esac
 
 if ! .venv/bin/python -c "import pyarrow, mcap, mcap_ros2, rerun, duckdb, websocket" 2>/dev/null; then
   python3 -m venv .venv
