@@ -564,26 +564,25 @@ struct ReviewOutcome {
 }
 
 /// The review passes of `reviewed` (at most [`strapdown::MAX_LANES`]), side by side,
-/// each on its own derive's odometer (the derives share their IMU series); the last
-/// one's every sample into `track`. Each outcome is what the pass alone gives.
+/// each on its own derive's odometer (the derives share their IMU series), their tracks
+/// at the samples `keep`; the last one's every sample into `track`. Each outcome is what
+/// the pass alone gives.
 fn review_passes(
     problem: &Problem<'_>,
     reviewed: &[Reviewed<'_>],
     fixes: &[ControlPointFix],
+    keep: &[usize],
     track: &mut (impl PassSink + Send),
 ) -> Vec<ReviewOutcome> {
-    let d0 = reviewed[0].derived;
-    let inputs = d0.nav_inputs();
-    let keep = track_samples(d0);
-    let n = inputs.len();
+    let n = reviewed[0].derived.nav_inputs().len();
     let at: Vec<usize> = fixes.iter().map(|f| f.sample).filter(|&k| k < n).collect();
     // Two batches side by side: the tracked (last) method alone, as it also feeds every
     // sample to `track` (the route σ's states: the longer work per sample), and the
     // others (at 12 h: 0.38-0.40 s against 0.48-0.51 in one batch, 0.42-0.44 in halves).
     let (first, rest) = reviewed.split_at(reviewed.len() - 1);
     let (mut passes, rest) = rayon::join(
-        || review_lanes(problem, first, &keep, &at, &mut None::<strapdown::NavTrack>),
-        || review_lanes(problem, rest, &keep, &at, track),
+        || review_lanes(problem, first, keep, &at, &mut None::<strapdown::NavTrack>),
+        || review_lanes(problem, rest, keep, &at, track),
     );
     passes.extend(rest);
     reviewed
@@ -819,7 +818,15 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                     route_stride(dt_s),
                 )
             });
-        let outcomes = review_passes(&problem, &reviewed, &case.fixes, &mut route_base);
+        // The samples every method's track keeps; `tracks.parquet` takes their times.
+        let kept_samples = track_samples(&case.derived);
+        let outcomes = review_passes(
+            &problem,
+            &reviewed,
+            &case.fixes,
+            &kept_samples,
+            &mut route_base,
+        );
         lap("reviews");
         let mut tracks: Vec<KeptTrack> = Vec::new();
         let mut kryt1s: Vec<MethodKryt1> = Vec::new();
@@ -849,9 +856,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let (tracks_written, kryt1s_written) = rayon::join(
             || {
                 let d = &case.derived;
-                let t_ns: Vec<i64> = track_samples(d)
-                    .into_iter()
-                    .map(|k| d.ns_of(d.t_s.get(k)))
+                let t_ns: Vec<i64> = kept_samples
+                    .iter()
+                    .map(|&k| d.ns_of(d.t_s.get(k)))
                     .collect();
                 write_tracks(&tracks_path, &t_ns, start, tracks)
             },
