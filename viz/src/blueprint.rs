@@ -230,8 +230,12 @@ fn blueprint_messages(app_id: ApplicationId, layout: &Node) -> RecordingStreamRe
     let (bp, storage) = RecordingStreamBuilder::new(app_id)
         .recording_id(uuid_text(&node_id("blueprint")))
         .blueprint()
+        .batcher_config(crate::rrd_sink::IN_LOGGED_ORDER)
         .memory()?;
-    // The viewer reads blueprints on this timeline.
+    // The viewer reads blueprints on this timeline; no wall-clock ones (the same review
+    // gives the same recording).
+    bp.set_log_time_enabled(false);
+    bp.set_log_tick_enabled(false);
     bp.set_time_sequence("blueprint", 0);
     log_node(&bp, layout, "root")?;
     bp.log(

@@ -107,13 +107,18 @@ fn write_rrd_to(review: &Review, path: &Path, tmp: &Path) -> Result<RrdStats, Re
             path: path.to_path_buf(),
         },
     };
-    let (sink, file) = crate::rrd_sink::create(tmp).map_err(encode_err)?;
+    let (sink, file) = crate::rrd_sink::create(tmp, review.name.as_str()).map_err(encode_err)?;
     let rec = rerun::RecordingStreamBuilder::new("unz-review")
         .recording_id(review.name.as_str())
         .recording_name(review.name.as_str())
+        .batcher_config(crate::rrd_sink::IN_LOGGED_ORDER)
         .buffered()
         .map_err(rerun_err)?;
     rec.set_sink(Box::new(sink));
+    // No wall-clock timelines, whatever RERUN_LOG_TIME and RERUN_LOG_TICK say: the same
+    // review gives the same recording.
+    rec.set_log_time_enabled(false);
+    rec.set_log_tick_enabled(false);
     // A set recording id turns the SDK's own recording-info chunk off (and with it the
     // name, which the viewer's sources panel then shows as `<unknown>`): send the name.
     rec.send_recording_name(review.name.as_str())

@@ -1,23 +1,146 @@
 //! A Rerun log sink that encodes the recording into its file as it is logged: no copy
 //! of the recording is held in memory (a 12-hour run's is about 180 MB encoded, more as
 //! the SDK's messages), and the operating system's own errors reach the caller.
+//!
+//! The same review gives the same bytes. The SDK alone would not:
+//! - it names every message, chunk and row with a time-based id (a TUID: the clock's
+//!   nanoseconds and a counter). The sink renames them in the order they come, each a
+//!   fixed "time" drawn from the recording's id and a counter, so two recordings' ids
+//!   still differ. Rows keep their order within a chunk, chunks the order they came in.
+//! - it sends a blueprint's messages on another path than the recording's chunks, so the
+//!   two interleave differently each time: the blueprint's (a few dozen small messages)
+//!   are held and written after the recording's, when the file is finished;
+//! - its footer (an index of each store's chunks, which `rerun rrd verify` requires) lists
+//!   the stores, and each store's schema its columns, in hash maps' orders: the sink
+//!   rewrites it with the stores in the order of their ids and the columns in the order of
+//!   their names, and the frames around it to match.
+//!
+//! The batching of the streams is [`IN_LOGGED_ORDER`], and they log no wall-clock
+//! timelines (set where they are built).
 
-use std::fs::File;
-use std::io::BufWriter;
+use std::fs::{File, OpenOptions};
+use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::Path;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
-use rerun::external::re_log_encoding::{CrateVersion, EncodeError, Encoder, EncodingOptions};
-use rerun::log::LogMsg;
+use re_protos::external::prost::Message;
+use re_protos::log_msg::v1alpha1::RrdFooter as FooterProto;
+use rerun::StoreKind;
+use rerun::external::arrow::datatypes::{FieldRef, Schema};
+use rerun::external::arrow::error::ArrowError;
+use rerun::external::arrow::ipc::reader::StreamReader;
+use rerun::external::arrow::ipc::writer::StreamWriter;
+use rerun::external::re_log_encoding::{
+    CodecError, CrateVersion, Decodable, Encodable, EncodeError, Encoder, EncodingOptions,
+    MessageHeader, MessageKind, StreamFooter,
+};
+use rerun::external::re_tuid::Tuid;
+use rerun::log::{Chunk, ChunkBatcherConfig, ChunkId, LogMsg, RowId};
 use rerun::sink::{LogSink, SinkFlushError};
 
 type FileEncoder = Encoder<BufWriter<File>>;
 
-/// The encoder and the first error it met.
+/// The batching of a stream whose messages come in the order they were logged: each row
+/// logged is sent on as a chunk of its own at once. The SDK's default holds rows per
+/// entity and sends them on a timer, or on a flush in its hash map's order, so the same
+/// recording came in another order, in other chunks, each time. Set explicitly, it also
+/// overrides the `RERUN_FLUSH_*` environment variables. Our recordings log few rows one by
+/// one (texts, static layouts); their series go as whole columns, which it leaves alone.
+pub(crate) const IN_LOGGED_ORDER: ChunkBatcherConfig = ChunkBatcherConfig {
+    flush_num_rows: 1,
+    ..ChunkBatcherConfig::DEFAULT
+};
+
+/// The encoder, the first error it met, the ids handed out so far, and the blueprint's
+/// messages held until the file is finished.
 struct State {
     encoder: Option<FileEncoder>,
     error: Option<EncodeError>,
+    ids: StableIds,
+    blueprint: Vec<LogMsg>,
+}
+
+impl State {
+    /// Encodes `msg` with its ids renamed; the first error is kept, and anything after it
+    /// is dropped.
+    fn append(&mut self, msg: LogMsg) {
+        if self.error.is_some() {
+            return;
+        }
+        let Self { encoder, ids, .. } = self;
+        let result = ids.rename(msg).and_then(|msg| match encoder.as_mut() {
+            Some(encoder) => encoder.append(&msg).map(|_| ()),
+            None => Err(EncodeError::AlreadyFinished),
+        });
+        if let Err(e) = result {
+            self.error = Some(e);
+        }
+    }
+}
+
+/// Whether `msg` belongs to a blueprint (its store's, or the command activating it).
+fn is_blueprint(msg: &LogMsg) -> bool {
+    match msg {
+        LogMsg::BlueprintActivationCommand(_) => true,
+        other => other.store_id().kind() == StoreKind::Blueprint,
+    }
+}
+
+/// Time-based ids made stable: a fixed "time" and a counter.
+struct StableIds {
+    time_nanos: u64,
+    next: u64,
+}
+
+impl StableIds {
+    /// Ids for the recording `recording_id`: its "time" is drawn from the id (below 2^62
+    /// ns, so that no counter wraps it), the counter starts at 1.
+    fn for_recording(recording_id: &str) -> Self {
+        let h = blake3::hash(format!("unz-review-ids/{recording_id}").as_bytes());
+        let mut first = [0u8; 8];
+        first.copy_from_slice(&h.as_bytes()[..8]);
+        Self {
+            time_nanos: u64::from_le_bytes(first) >> 2,
+            next: 1,
+        }
+    }
+
+    /// The first of the next `n` ids.
+    fn take(&mut self, n: usize) -> Tuid {
+        let first = Tuid::from_nanos_and_inc(self.time_nanos, self.next);
+        self.next += n as u64;
+        first
+    }
+
+    /// `msg` with its ids replaced by the next ones: the store's info, or the chunk and
+    /// its rows (in the order the rows had).
+    fn rename(&mut self, msg: LogMsg) -> Result<LogMsg, EncodeError> {
+        Ok(match msg {
+            LogMsg::SetStoreInfo(mut info) => {
+                info.row_id = self.take(1);
+                LogMsg::SetStoreInfo(info)
+            }
+            LogMsg::ArrowMsg(store_id, arrow) => {
+                let chunk = Chunk::from_arrow_msg(&arrow).map_err(chunk_error)?;
+                let rows = chunk.row_ids_slice();
+                if !rows.is_sorted() {
+                    // The SDK hands rows out in order; a chunk that is not in order is left
+                    // as it came rather than reordered.
+                    return Ok(LogMsg::ArrowMsg(store_id, arrow));
+                }
+                let id = ChunkId::from_tuid(self.take(1));
+                let first_row = RowId::from_tuid(self.take(rows.len()));
+                let renamed = chunk.clone_as(id, first_row);
+                LogMsg::ArrowMsg(store_id, renamed.to_arrow_msg().map_err(chunk_error)?)
+            }
+            other @ LogMsg::BlueprintActivationCommand(_) => other,
+        })
+    }
+}
+
+fn chunk_error(e: rerun::log::ChunkError) -> EncodeError {
+    EncodeError::Chunk(Box::new(e))
 }
 
 fn lock(state: &Mutex<State>) -> MutexGuard<'_, State> {
@@ -34,10 +157,20 @@ pub(crate) struct RrdFile {
     state: Arc<Mutex<State>>,
 }
 
-/// Starts an RRD stream into `path` (created): the sink to set on a recording stream, and
-/// the handle that finishes the file.
-pub(crate) fn create(path: &Path) -> Result<(RrdFileSink, RrdFile), EncodeError> {
-    let file = BufWriter::with_capacity(1 << 20, File::create(path)?);
+/// Starts an RRD stream into `path` (created) for the recording `recording_id`: the sink
+/// to set on a recording stream, and the handle that finishes the file.
+pub(crate) fn create(
+    path: &Path,
+    recording_id: &str,
+) -> Result<(RrdFileSink, RrdFile), EncodeError> {
+    // Read too: the footer is read back to be put in order.
+    let file = OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(path)?;
+    let file = BufWriter::with_capacity(1 << 20, file);
     // What the SDK's memory and file sinks write: this version, compressed protobuf.
     let encoder = Encoder::new_eager(
         CrateVersion::LOCAL,
@@ -47,6 +180,8 @@ pub(crate) fn create(path: &Path) -> Result<(RrdFileSink, RrdFile), EncodeError>
     let state = Arc::new(Mutex::new(State {
         encoder: Some(encoder),
         error: None,
+        ids: StableIds::for_recording(recording_id),
+        blueprint: Vec::new(),
     }));
     Ok((
         RrdFileSink {
@@ -59,13 +194,10 @@ pub(crate) fn create(path: &Path) -> Result<(RrdFileSink, RrdFile), EncodeError>
 impl LogSink for RrdFileSink {
     fn send(&self, msg: LogMsg) {
         let mut s = lock(&self.state);
-        if s.error.is_some() {
-            return;
-        }
-        if let Some(encoder) = s.encoder.as_mut()
-            && let Err(e) = encoder.append(&msg)
-        {
-            s.error = Some(e);
+        if is_blueprint(&msg) {
+            s.blueprint.push(msg);
+        } else {
+            s.append(msg);
         }
     }
 
@@ -76,10 +208,14 @@ impl LogSink for RrdFileSink {
 }
 
 impl RrdFile {
-    /// Writes the stream's footer and flushes the file (call once the recording stream has
-    /// been flushed and dropped); the first error of the whole stream, if any.
+    /// Writes the blueprint's messages, the stream's footer in order, and flushes the file
+    /// (call once the recording stream has been flushed and dropped); the first error of
+    /// the whole stream, if any.
     pub(crate) fn finish(self) -> Result<(), EncodeError> {
         let mut s = lock(&self.state);
+        for msg in std::mem::take(&mut s.blueprint) {
+            s.append(msg);
+        }
         if let Some(e) = s.error.take() {
             s.encoder = None;
             return Err(e);
@@ -91,7 +227,100 @@ impl RrdFile {
         let file = encoder.into_inner()?;
         // Flushed, not synced: like every other output, the file is made whole by the
         // rename that follows, not made durable.
-        file.into_inner().map_err(|e| e.into_error())?;
-        Ok(())
+        let mut file = file.into_inner().map_err(|e| e.into_error())?;
+        footer_in_order(&mut file)
     }
+}
+
+/// Rewrites the RRD footer at the end of `file` in a fixed order: its stores in the
+/// order of their ids, and each store's schema with its columns in the order of their
+/// names (the encoder builds both from hash maps; the schema's checksum in the footer is
+/// already taken over the columns sorted by name). The footer's message header and the
+/// stream footer's span and checksum follow.
+fn footer_in_order(file: &mut File) -> Result<(), EncodeError> {
+    let size = StreamFooter::ENCODED_SIZE_BYTES as u64;
+    let header_size = MessageHeader::ENCODED_SIZE_BYTES as u64;
+    let end = file.seek(SeekFrom::End(0))?;
+    if end < size {
+        return Err(footer_error("the file is shorter than its stream footer"));
+    }
+    let mut tail = vec![0u8; StreamFooter::ENCODED_SIZE_BYTES];
+    file.seek(SeekFrom::Start(end - size))?;
+    file.read_exact(&mut tail)?;
+    let stream_footer = StreamFooter::from_rrd_bytes(&tail)?;
+    let [entry] = stream_footer.entries.as_slice() else {
+        return Err(footer_error(
+            "a stream footer that points at several footers",
+        ));
+    };
+    let span = entry.rrd_footer_byte_span_from_start_excluding_header;
+    if span.start < header_size || span.start.checked_add(span.len) != Some(end - size) {
+        return Err(footer_error(
+            "a footer that does not end where the stream footer starts",
+        ));
+    }
+    let mut header = vec![0u8; MessageHeader::ENCODED_SIZE_BYTES];
+    file.seek(SeekFrom::Start(span.start - header_size))?;
+    file.read_exact(&mut header)?;
+    let header = MessageHeader::from_rrd_bytes(&header)?;
+    if header.kind != MessageKind::End || header.len != span.len {
+        return Err(footer_error("no end-of-stream message before the footer"));
+    }
+    let len = usize::try_from(span.len).map_err(|_| footer_error("a footer too large"))?;
+    let mut bytes = vec![0u8; len];
+    file.seek(SeekFrom::Start(span.start))?;
+    file.read_exact(&mut bytes)?;
+    let mut footer = FooterProto::decode(bytes.as_slice())
+        .map_err(|e| footer_error(&format!("the footer does not decode: {e}")))?;
+    for manifest in &mut footer.manifests {
+        if let Some(schema) = manifest.sorbet_schema.as_mut()
+            && let Some(ipc) = schema.arrow_schema.as_mut()
+        {
+            *ipc = columns_by_name(ipc)?.into();
+        }
+    }
+    footer.manifests.sort_by_key(|m| {
+        m.store_id
+            .as_ref()
+            .map(|id| (id.kind, id.recording_id.clone()))
+    });
+    let ordered = footer.encode_to_vec();
+    if ordered == bytes {
+        return Ok(());
+    }
+    let mut frame = Vec::with_capacity(ordered.len() + (header_size + size) as usize);
+    MessageHeader {
+        kind: MessageKind::End,
+        len: ordered.len() as u64,
+    }
+    .to_rrd_bytes(&mut frame)?;
+    frame.extend_from_slice(&ordered);
+    StreamFooter::from_rrd_footer_bytes(span.start, &ordered).to_rrd_bytes(&mut frame)?;
+    file.seek(SeekFrom::Start(span.start - header_size))?;
+    file.write_all(&frame)?;
+    file.set_len(span.start - header_size + frame.len() as u64)?;
+    Ok(())
+}
+
+/// An Arrow IPC schema (a stream of the schema alone, as rerun writes it) with its
+/// columns in the order of their names.
+fn columns_by_name(ipc: &[u8]) -> Result<Vec<u8>, EncodeError> {
+    let arrow_error = |e: ArrowError| footer_error(&format!("the footer's schema: {e}"));
+    let schema = StreamReader::try_new(std::io::Cursor::new(ipc), None)
+        .map_err(arrow_error)?
+        .schema();
+    let mut fields: Vec<FieldRef> = schema.fields().iter().cloned().collect();
+    fields.sort_by(|a, b| a.name().cmp(b.name()));
+    let sorted = Schema::new_with_metadata(fields, schema.metadata().clone());
+    let mut out = Vec::with_capacity(ipc.len());
+    let mut writer = StreamWriter::try_new(&mut out, &sorted).map_err(arrow_error)?;
+    writer.finish().map_err(arrow_error)?;
+    drop(writer);
+    Ok(out)
+}
+
+fn footer_error(reason: &str) -> EncodeError {
+    EncodeError::Codec(Box::new(CodecError::FrameDecoding(format!(
+        "RRD footer: {reason}"
+    ))))
 }
