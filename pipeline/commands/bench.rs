@@ -8,7 +8,7 @@ use unz_formats::mcap_io::McapCompression;
 use unz_stages::simulate::{SimConfig, simulate};
 
 use crate::cli::{BenchArgs, BenchTarget};
-use crate::cpu_time::{available_cores, cpu_suffix, process_cpu_s};
+use crate::cpu_time::{available_cores, cpu_s_since, cpu_suffix, process_cpu_s};
 use crate::ingest::{IngestOptions, ingest};
 
 /// Runs the command.
@@ -253,7 +253,7 @@ fn bench_disupt(args: &BenchArgs) -> anyhow::Result<ExitCode> {
             })
             .collect();
         let wall = t0.elapsed().as_secs_f64();
-        let cpu_s = process_cpu_s().zip(cpu0).map(|(b, a)| b - a);
+        let cpu_s = cpu_s_since(cpu0);
         if wall < best {
             best = wall;
             cpu = cpu_suffix(cpu_s, wall, available_cores());
@@ -331,11 +331,7 @@ fn bench_campaign(args: &BenchArgs) -> anyhow::Result<ExitCode> {
         let outcomes = run_campaign(&manifests, &plan);
         crate::file_hashes::save(&out)?;
         let wall = t.elapsed().as_secs_f64();
-        let cpu = cpu_suffix(
-            process_cpu_s().zip(cpu0).map(|(b, a)| b - a),
-            wall,
-            available_cores(),
-        );
+        let cpu = cpu_suffix(cpu_s_since(cpu0), wall, available_cores());
         let failed = outcomes.iter().filter(|o| o.error.is_some()).count();
         let mut per_stage = std::collections::BTreeMap::<&str, f64>::new();
         for o in &outcomes {

@@ -232,10 +232,8 @@ fn blueprint_messages(app_id: ApplicationId, layout: &Node) -> RecordingStreamRe
         .blueprint()
         .batcher_config(crate::rrd_sink::IN_LOGGED_ORDER)
         .memory()?;
-    // The viewer reads blueprints on this timeline; no wall-clock ones (the same review
-    // gives the same recording).
-    bp.set_log_time_enabled(false);
-    bp.set_log_tick_enabled(false);
+    // The viewer reads blueprints on this timeline, and no wall-clock one.
+    crate::rrd_sink::without_wall_clock(&bp);
     bp.set_time_sequence("blueprint", 0);
     log_node(&bp, layout, "root")?;
     bp.log(

@@ -115,10 +115,7 @@ fn write_rrd_to(review: &Review, path: &Path, tmp: &Path) -> Result<RrdStats, Re
         .buffered()
         .map_err(rerun_err)?;
     rec.set_sink(Box::new(sink));
-    // No wall-clock timelines, whatever RERUN_LOG_TIME and RERUN_LOG_TICK say: the same
-    // review gives the same recording.
-    rec.set_log_time_enabled(false);
-    rec.set_log_tick_enabled(false);
+    crate::rrd_sink::without_wall_clock(&rec);
     // A set recording id turns the SDK's own recording-info chunk off (and with it the
     // name, which the viewer's sources panel then shows as `<unknown>`): send the name.
     rec.send_recording_name(review.name.as_str())

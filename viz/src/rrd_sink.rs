@@ -15,8 +15,8 @@
 //!   rewrites it with the stores in the order of their ids and the columns in the order of
 //!   their names, and the frames around it to match.
 //!
-//! The batching of the streams is [`IN_LOGGED_ORDER`], and they log no wall-clock
-//! timelines (set where they are built).
+//! The streams are built with the batching [`IN_LOGGED_ORDER`] and
+//! [`without_wall_clock`] timelines.
 
 use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
@@ -24,13 +24,12 @@ use std::path::Path;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
+use re_protos::common::v1alpha1::Schema as SchemaProto;
 use re_protos::external::prost::Message;
 use re_protos::log_msg::v1alpha1::RrdFooter as FooterProto;
-use rerun::StoreKind;
 use rerun::external::arrow::datatypes::{FieldRef, Schema};
 use rerun::external::arrow::error::ArrowError;
 use rerun::external::arrow::ipc::reader::StreamReader;
-use rerun::external::arrow::ipc::writer::StreamWriter;
 use rerun::external::re_log_encoding::{
     CodecError, CrateVersion, Decodable, Encodable, EncodeError, Encoder, EncodingOptions,
     MessageHeader, MessageKind, StreamFooter,
@@ -38,6 +37,7 @@ use rerun::external::re_log_encoding::{
 use rerun::external::re_tuid::Tuid;
 use rerun::log::{Chunk, ChunkBatcherConfig, ChunkId, LogMsg, RowId};
 use rerun::sink::{LogSink, SinkFlushError};
+use rerun::{RecordingStream, StoreKind};
 
 type FileEncoder = Encoder<BufWriter<File>>;
 
@@ -51,6 +51,13 @@ pub(crate) const IN_LOGGED_ORDER: ChunkBatcherConfig = ChunkBatcherConfig {
     flush_num_rows: 1,
     ..ChunkBatcherConfig::DEFAULT
 };
+
+/// Turns `rec`'s wall-clock timelines (`log_time`, `log_tick`) off, whatever
+/// `RERUN_LOG_TIME` and `RERUN_LOG_TICK` say: the same review gives the same recording.
+pub(crate) fn without_wall_clock(rec: &RecordingStream) {
+    rec.set_log_time_enabled(false);
+    rec.set_log_tick_enabled(false);
+}
 
 /// The encoder, the first error it met, the ids handed out so far, and the blueprint's
 /// messages held until the file is finished.
@@ -244,7 +251,7 @@ fn footer_in_order(file: &mut File) -> Result<(), EncodeError> {
     if end < size {
         return Err(footer_error("the file is shorter than its stream footer"));
     }
-    let mut tail = vec![0u8; StreamFooter::ENCODED_SIZE_BYTES];
+    let mut tail = [0u8; StreamFooter::ENCODED_SIZE_BYTES];
     file.seek(SeekFrom::Start(end - size))?;
     file.read_exact(&mut tail)?;
     let stream_footer = StreamFooter::from_rrd_bytes(&tail)?;
@@ -259,7 +266,7 @@ fn footer_in_order(file: &mut File) -> Result<(), EncodeError> {
             "a footer that does not end where the stream footer starts",
         ));
     }
-    let mut header = vec![0u8; MessageHeader::ENCODED_SIZE_BYTES];
+    let mut header = [0u8; MessageHeader::ENCODED_SIZE_BYTES];
     file.seek(SeekFrom::Start(span.start - header_size))?;
     file.read_exact(&mut header)?;
     let header = MessageHeader::from_rrd_bytes(&header)?;
@@ -273,10 +280,8 @@ fn footer_in_order(file: &mut File) -> Result<(), EncodeError> {
     let mut footer = FooterProto::decode(bytes.as_slice())
         .map_err(|e| footer_error(&format!("the footer does not decode: {e}")))?;
     for manifest in &mut footer.manifests {
-        if let Some(schema) = manifest.sorbet_schema.as_mut()
-            && let Some(ipc) = schema.arrow_schema.as_mut()
-        {
-            *ipc = columns_by_name(ipc)?.into();
+        if let Some(schema) = manifest.sorbet_schema.as_mut() {
+            *schema = columns_by_name(schema)?;
         }
     }
     footer.manifests.sort_by_key(|m| {
@@ -302,21 +307,21 @@ fn footer_in_order(file: &mut File) -> Result<(), EncodeError> {
     Ok(())
 }
 
-/// An Arrow IPC schema (a stream of the schema alone, as rerun writes it) with its
-/// columns in the order of their names.
-fn columns_by_name(ipc: &[u8]) -> Result<Vec<u8>, EncodeError> {
+/// A footer's schema (Arrow IPC, as rerun writes it) with its columns in the order of
+/// their names, written back as rerun writes it (`Schema::try_from`); read as it is, not
+/// migrated.
+fn columns_by_name(schema: &SchemaProto) -> Result<SchemaProto, EncodeError> {
     let arrow_error = |e: ArrowError| footer_error(&format!("the footer's schema: {e}"));
-    let schema = StreamReader::try_new(std::io::Cursor::new(ipc), None)
+    let Some(ipc) = schema.arrow_schema.as_ref() else {
+        return Ok(schema.clone());
+    };
+    let read = StreamReader::try_new(std::io::Cursor::new(ipc), None)
         .map_err(arrow_error)?
         .schema();
-    let mut fields: Vec<FieldRef> = schema.fields().iter().cloned().collect();
+    let mut fields: Vec<FieldRef> = read.fields().iter().cloned().collect();
     fields.sort_by(|a, b| a.name().cmp(b.name()));
-    let sorted = Schema::new_with_metadata(fields, schema.metadata().clone());
-    let mut out = Vec::with_capacity(ipc.len());
-    let mut writer = StreamWriter::try_new(&mut out, &sorted).map_err(arrow_error)?;
-    writer.finish().map_err(arrow_error)?;
-    drop(writer);
-    Ok(out)
+    SchemaProto::try_from(&Schema::new_with_metadata(fields, read.metadata().clone()))
+        .map_err(arrow_error)
 }
 
 fn footer_error(reason: &str) -> EncodeError {
