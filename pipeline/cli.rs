@@ -1,4 +1,7 @@
 //! Command-line definitions (clap derive; doc comments are the help text).
+// The doc comments are written for the terminal (`OUT/<name>`, `[params]`), not as
+// Markdown.
+#![allow(rustdoc::invalid_html_tags, rustdoc::broken_intra_doc_links)]
 
 use std::path::PathBuf;
 

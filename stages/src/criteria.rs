@@ -61,7 +61,7 @@ pub struct Kryt1Scratch {
 /// a block (0.1 s) the attitude moves by far less than a degree, so the angles of the mean
 /// third row equal the mean angles to second order (< 1e-8 rad), at one asin and one atan2
 /// per block instead of per sample (and the angles of a sum are those of the mean). This is
-/// all Kryt1 reads of a pass; [`Self::filter`] turns it into F(Φ_N) and F(Θ_N) in place.
+/// all Kryt1 reads of a pass; its `filter` turns it into F(Φ_N) and F(Θ_N) in place.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct BlockAttitude {
     /// Roll Φ_N per block, rad.

@@ -393,7 +393,7 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
     )
 }
 
-/// [`derive`] of the IMU's increments given by value: they are repaired in place and
+/// [`derive()`] of the IMU's increments given by value: they are repaired in place and
 /// become the derive's, without a copy of the run's length. The IMU's time tags, when
 /// given by value too, go once the time base is made. The odometer is `raw`'s (its IMU
 /// columns are not read).

@@ -4,7 +4,7 @@
 //! sample). Raw-rate series are decimated to [`SERIES_RATE_HZ`] block means and the
 //! vehicle pose to [`POSE_RATE_HZ`]; trajectories arrive already decimated by the
 //! disupt stage. The recording is encoded into a temporary file as it is logged
-//! ([`crate::rrd_sink`]) and renamed when complete.
+//! (the crate's `rrd_sink`) and renamed when complete.
 
 use std::path::{Path, PathBuf};
 

@@ -1,0 +1,163 @@
+//! The methods as the stage runs them: OEPI and OWPI beside the joint fit, the joint at
+//! the estimated odometer lag, and the σ of its corrected route.
+
+use rayon::prelude::*;
+use unz_stages::derive::Derived;
+use unz_stages::disupt::{
+    self, JointFit, JointOptions, MethodResult, Problem, ProblemSpec, joint_fit,
+};
+use unz_stages::odo_lag::{Rederive, joint_with_lag};
+use unz_stages::route_sigma::{
+    Moved, Ran, RouteBase, RouteSigma, route_samples, route_sigma, states_along,
+};
+
+use super::Method;
+use super::report::Lag;
+use crate::flow::NavCase;
+
+/// The joint fit as the stage ran it: at the estimated odometer lag (with the derive
+/// there) or at the configured timing.
+pub(super) struct JointRun {
+    pub(super) fit: JointFit,
+    pub(super) lag: Lag,
+    pub(super) profile: Option<Vec<[f64; 2]>>,
+    pub(super) derived: Option<Derived>,
+    /// The route σ's pass at the lag moved by [`LAG_STEP_S`], run where the ingested
+    /// odometer is at hand: its states at the route's samples (when
+    /// [`route_sigma_has_lag`]).
+    pub(super) lag_states: Option<Vec<[f64; 3]>>,
+}
+
+/// Step of the lag in the route's sensitivity, s.
+const LAG_STEP_S: f64 = 0.05;
+
+/// Whether the route's σ of `run` has a lag part: a lag estimated with a σ, and a
+/// covariance for the rest.
+fn route_sigma_has_lag(run: &JointRun) -> bool {
+    run.fit.covariance.is_some() && run.profile.is_some() && run.lag.sigma_s > 0.0
+}
+
+/// σ of the joint's corrected route (`base`, taken from the pass at its settings): the fit's
+/// covariance through one moved pass per estimated setting, and the lag's variance
+/// through the pass at the moved lag (its states, `run.lag_states`, when
+/// [`route_sigma_has_lag`]).
+pub(super) fn joint_route_sigma(
+    problem: &Problem<'_>,
+    run: &JointRun,
+    base: &RouteBase<'_>,
+) -> Option<RouteSigma> {
+    let fit = &run.fit;
+    let cov = fit.covariance.as_ref()?;
+    let x = fit.result.x;
+    let moved: Vec<Moved<'_>> = disupt::moved_by_steps(&x, &fit.free)
+        .iter()
+        .zip(&fit.free)
+        .map(|(xs, s)| Moved {
+            inputs: problem.inputs,
+            settings: problem.settings(xs),
+            step: s.fd_step(),
+        })
+        .collect();
+    let m = moved.len();
+    let mut c = cov.clone();
+    let mut ran = Vec::new();
+    // Present only when the route σ has a lag part (see `run_joint`).
+    if let Some(states) = run.lag_states.as_deref() {
+        ran.push(Ran {
+            states,
+            step: LAG_STEP_S,
+        });
+        c = c.resize(m + 1, m + 1, 0.0);
+        c[(m, m)] = run.lag.sigma_s * run.lag.sigma_s;
+    }
+    Some(route_sigma(base, &moved, &ran, &c))
+}
+
+/// Samples between the route σ's values: 0.1 s.
+pub(super) fn route_stride(dt_s: &[f64]) -> usize {
+    (0.1 / dt_s.first().copied().unwrap_or(0.01)).round() as usize
+}
+
+/// A classic method's name and result.
+pub(super) type ClassicResult = (&'static str, Result<MethodResult, disupt::DisuptError>);
+
+/// OEPI and OWPI (those `method` asks for) and the joint fit, concurrently (they share the
+/// problem's first linearisation). The joint fit estimates the odometer's lag when asked
+/// and the run has two control points or more.
+pub(super) fn run_methods(
+    method: Method,
+    problem: &Problem<'_>,
+    spec: &ProblemSpec<'_>,
+    rederive: &Rederive<'_>,
+    case: &NavCase,
+    dparams: &disupt::DisuptParams,
+) -> (
+    Vec<ClassicResult>,
+    Option<Result<JointRun, disupt::DisuptError>>,
+) {
+    let classic: Vec<Method> = [Method::Oepi, Method::Owpi]
+        .into_iter()
+        .filter(|w| method == *w || method == Method::All)
+        .collect();
+    let want_joint = matches!(method, Method::Joint | Method::All);
+    rayon::join(
+        || {
+            classic
+                .par_iter()
+                .map(|&w| match w {
+                    Method::Oepi => ("oepi", disupt::oepi(problem, dparams)),
+                    _ => ("owpi", disupt::owpi(problem, dparams)),
+                })
+                .collect::<Vec<_>>()
+        },
+        || want_joint.then(|| run_joint(problem, spec, rederive, case, dparams)),
+    )
+}
+
+/// The joint fit, at the estimated odometer lag when there are two control points or more
+/// and it is asked for.
+fn run_joint(
+    problem: &Problem<'_>,
+    spec: &ProblemSpec<'_>,
+    rederive: &Rederive<'_>,
+    case: &NavCase,
+    dparams: &disupt::DisuptParams,
+) -> Result<JointRun, disupt::DisuptError> {
+    if dparams.joint_odo_lag && case.fixes.len() >= 2 {
+        // On the methods' shared problem: the lag-free fit starts from the same first
+        // linearisation as OEPI and OWPI, built once.
+        let f = joint_with_lag(rederive, problem, spec, dparams)?;
+        let mut run = JointRun {
+            lag: Lag {
+                lag_s: f.lag_s,
+                sigma_s: f.sigma_s.unwrap_or(0.0),
+            },
+            profile: Some(f.profile),
+            derived: Some(f.derived),
+            fit: f.fit,
+            lag_states: None,
+        };
+        if route_sigma_has_lag(&run) {
+            // The route σ's pass at the moved lag, now that the ingested odometer is at
+            // hand (beside OEPI and OWPI when they still run): only its states at the
+            // route's samples are kept, not its odometer increments.
+            let d = &case.derived;
+            let samples = route_samples(d.dt_s.len(), route_stride(&d.dt_s));
+            let odometer = rederive.odometer_at(run.lag.lag_s + LAG_STEP_S);
+            run.lag_states = Some(states_along(
+                &d.nav_inputs(),
+                odometer.increments(),
+                &problem.settings(&run.fit.result.x),
+                &samples,
+            ));
+        }
+        return Ok(run);
+    }
+    Ok(JointRun {
+        fit: joint_fit(problem, dparams, &JointOptions::default())?,
+        lag: Lag::default(),
+        profile: None,
+        derived: None,
+        lag_states: None,
+    })
+}

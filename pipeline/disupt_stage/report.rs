@@ -1,0 +1,261 @@
+//! `disupt.json` and `disupt.md`: the settings each method found, the errors they give,
+//! and the paper's tables.
+
+use std::fmt::Write as _;
+
+use serde::Serialize;
+use unz_stages::criteria::Kryt2;
+use unz_stages::disupt::{self, Holdout, MethodResult, X};
+use unz_stages::strapdown::NavSettings;
+use unz_stages::units::DEG_PER_H;
+
+/// Settings as reported.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+pub struct SettingsOut {
+    /// Initial azimuth, degrees.
+    pub azimuth_deg: f64,
+    /// Gyro drifts, rad/s.
+    pub drift_rad_s: [f64; 3],
+    /// Odometer multiplier relative to the manifest's scale.
+    pub odo_scale: f64,
+    /// Odometer yaw boresight, degrees (moved by the joint fit only, when asked).
+    pub odo_yaw_deg: f64,
+    /// Odometer speed bias added while it moves, m/s (moved by the joint fit only, when
+    /// asked).
+    pub odo_bias_mps: f64,
+    /// Odometer lag, s (positive: the odometer reports late), beyond derive's
+    /// `odo_time_offset_s`; estimated by the joint fit only.
+    pub odo_lag_s: f64,
+    /// 1σ of each (joint only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma: Option<SigmaOut>,
+}
+
+/// 1σ of the settings.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+pub struct SigmaOut {
+    /// degrees.
+    pub azimuth_deg: f64,
+    /// rad/s.
+    pub drift_rad_s: [f64; 3],
+    /// Multiplier.
+    pub odo_scale: f64,
+    /// degrees (0 when not estimated).
+    pub odo_yaw_deg: f64,
+    /// m/s (0 when not estimated).
+    pub odo_bias_mps: f64,
+    /// s (0 when not estimated).
+    pub odo_lag_s: f64,
+}
+
+/// Settings and the errors they give: the run before DISUPT, and each method's result.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+pub struct Outcome {
+    /// The settings.
+    pub x: SettingsOut,
+    /// ΔX at the last control point, m.
+    #[serde(
+        skip_serializing_if = "unz_stages::finite::is_absent",
+        default = "unz_stages::finite::absent"
+    )]
+    pub dx_m: f64,
+    /// ΔY at the last control point, m.
+    #[serde(
+        skip_serializing_if = "unz_stages::finite::is_absent",
+        default = "unz_stages::finite::absent"
+    )]
+    pub dy_m: f64,
+    /// Kryt1, rad.
+    #[serde(
+        skip_serializing_if = "unz_stages::finite::is_absent",
+        default = "unz_stages::finite::absent"
+    )]
+    pub kryt1_rad: f64,
+    /// Errors at every control point.
+    pub control_points: Vec<Kryt2>,
+}
+
+/// One method in `disupt.json`: its [`Outcome`] (flattened) and how it got there.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+pub struct MethodOut {
+    /// Optimised settings and their errors.
+    #[serde(flatten)]
+    pub outcome: Outcome,
+    /// Table rows.
+    pub steps: Vec<disupt::Step>,
+    /// Navigation passes.
+    pub evaluations: usize,
+    /// Joint only: the error at each control point when it was left out of the fit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout: Option<Vec<Holdout>>,
+    /// Joint only, with the lag estimated: every lag tried (s) and the fit's cost there.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lag_profile: Option<Vec<[f64; 2]>>,
+}
+
+/// `disupt.json`.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+pub struct DisuptOut {
+    /// Distance travelled to the last control point, m.
+    #[serde(
+        skip_serializing_if = "unz_stages::finite::is_absent",
+        default = "unz_stages::finite::absent"
+    )]
+    pub distance_m: f64,
+    /// The initial settings and their errors.
+    pub before: Outcome,
+    /// Per method.
+    pub methods: std::collections::BTreeMap<String, MethodOut>,
+    /// Methods that could not run, with the reason.
+    pub skipped: std::collections::BTreeMap<String, String>,
+    /// The method whose settings made `corrected_nav.parquet`.
+    pub corrected_by: Option<String>,
+    /// The start of the searches when a coarse search over ±180° of azimuth by the
+    /// control points found a better one than the run's initial azimuth, degrees.
+    pub coarse_azimuth_deg: Option<f64>,
+    /// Passes of the first linearisation, shared by the methods (not in their own
+    /// `evaluations`).
+    pub shared_passes: usize,
+}
+
+/// The odometer lag of a method and its 1σ, s.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Lag {
+    pub(super) lag_s: f64,
+    pub(super) sigma_s: f64,
+}
+
+/// The settings `x` as reported, with their 1σ (`sigma`) and the lag.
+pub(super) fn settings_out(x: &X, base: &NavSettings, sigma: Option<&X>, lag: Lag) -> SettingsOut {
+    let base_scale = base.odo_scale;
+    SettingsOut {
+        azimuth_deg: x.azimuth_deg.rem_euclid(360.0),
+        drift_rad_s: x.drift_deg_h.map(|d| d * DEG_PER_H),
+        odo_scale: base_scale * (1.0 + x.odo_ppm * 1e-6),
+        odo_yaw_deg: base.odo_yaw_rad.to_degrees() + x.odo_yaw_deg,
+        odo_bias_mps: base.odo_bias_mps + x.odo_bias_mps,
+        odo_lag_s: lag.lag_s,
+        sigma: sigma.map(|s| SigmaOut {
+            azimuth_deg: s.azimuth_deg,
+            drift_rad_s: s.drift_deg_h.map(|d| d * DEG_PER_H),
+            odo_scale: base_scale * s.odo_ppm * 1e-6,
+            odo_yaw_deg: s.odo_yaw_deg,
+            odo_bias_mps: s.odo_bias_mps,
+            odo_lag_s: lag.sigma_s,
+        }),
+    }
+}
+
+/// A method's entry of `disupt.json`.
+pub(super) fn method_out(
+    r: &MethodResult,
+    base: &NavSettings,
+    lag: Lag,
+    cps: Vec<Kryt2>,
+) -> MethodOut {
+    MethodOut {
+        outcome: Outcome {
+            x: settings_out(&r.x, base, r.sigma.as_ref(), lag),
+            dx_m: r.dx_m,
+            dy_m: r.dy_m,
+            kryt1_rad: r.kryt1,
+            control_points: cps,
+        },
+        steps: r.steps.clone(),
+        evaluations: r.evaluations,
+        holdout: None,
+        lag_profile: None,
+    }
+}
+
+/// One method's table (the paper's Table 1 or 2), its 1σ and its hold-out.
+fn table(name: &str, r: &MethodOut) -> String {
+    let mut s = format!(
+        "## {name}\n\n| step | moved | by | azpocz in | driftx in | drifty in | driftz in | azpopt | driftx opt | drifty opt | driftz opt | ΔX [m] | ΔY [m] | passes |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+    );
+    for st in &r.steps {
+        let d = |x: &X, i: usize| format!("{:.6e}", x.drift_deg_h[i] * DEG_PER_H);
+        let _ = writeln!(
+            s,
+            "| {} | {:?} | {:?} | {:.4} | {} | {} | {} | {:.4} | {} | {} | {} | {:.1} | {:.1} | {} |",
+            st.step,
+            st.component,
+            st.criterion,
+            st.input.azimuth_deg,
+            d(&st.input, 0),
+            d(&st.input, 1),
+            d(&st.input, 2),
+            st.output.azimuth_deg,
+            d(&st.output, 0),
+            d(&st.output, 1),
+            d(&st.output, 2),
+            st.dx_m,
+            st.dy_m,
+            st.evaluations
+        );
+    }
+    if let Some(sd) = &r.outcome.x.sigma {
+        let per_h = |v: f64| v / DEG_PER_H;
+        let _ = writeln!(
+            s,
+            "\n1σ: azimuth {:.3}°, drifts [{:.3}, {:.3}, {:.3}] °/h, odometer {:.0} ppm",
+            sd.azimuth_deg,
+            per_h(sd.drift_rad_s[0]),
+            per_h(sd.drift_rad_s[1]),
+            per_h(sd.drift_rad_s[2]),
+            sd.odo_scale / r.outcome.x.odo_scale * 1e6
+        );
+        if sd.odo_yaw_deg > 0.0 {
+            let _ = writeln!(
+                s,
+                "\nOdometer yaw boresight {:.3}° ± {:.3}°.",
+                r.outcome.x.odo_yaw_deg, sd.odo_yaw_deg
+            );
+        }
+        if sd.odo_bias_mps > 0.0 {
+            let _ = writeln!(
+                s,
+                "\nOdometer speed bias {:.3} m/s ± {:.3} m/s.",
+                r.outcome.x.odo_bias_mps, sd.odo_bias_mps
+            );
+        }
+        if r.lag_profile.is_some() {
+            let _ = writeln!(
+                s,
+                "\nOdometer lag {:.3} s ± {:.3} s (positive: it reports late).",
+                r.outcome.x.odo_lag_s, sd.odo_lag_s
+            );
+        }
+    }
+    if let Some(h) = &r.holdout {
+        let _ = writeln!(
+            s,
+            "\nHold-out (each control point left out of the fit in turn):\n\n| point | ΔX [m] | ΔY [m] |\n|---|---|---|"
+        );
+        for p in h {
+            let _ = writeln!(s, "| {} | {:.2} | {:.2} |", p.id, p.dx_m, p.dy_m);
+        }
+        if let Some((median, max)) = disupt::holdout_median_max_m(h) {
+            let _ = writeln!(s, "\nHold-out error: median {median:.2} m, max {max:.2} m.");
+        }
+    }
+    let _ = writeln!(s, "\n{} passes.\n", r.evaluations);
+    s
+}
+
+/// `disupt.md`: the paper's tables per method, then the errors before DISUPT.
+pub(super) fn markdown(run: &str, out: &DisuptOut) -> String {
+    let mut md = format!("# DISUPT: {run}\n\n");
+    for (name, title) in [("oepi", "OEPI"), ("owpi", "OWPI"), ("joint", "JOINT")] {
+        if let Some(o) = out.methods.get(name) {
+            md += &table(title, o);
+        } else if let Some(e) = out.skipped.get(name) {
+            md += &format!("## {title}\n\nnot run: {e}\n\n");
+        }
+    }
+    let (dx, dy) = (out.before.dx_m, out.before.dy_m);
+    md + &format!(
+        "Before DISUPT: ΔX = {dx:.1} m, ΔY = {dy:.1} m at the last control point, after {:.0} m.\n",
+        out.distance_m
+    )
+}

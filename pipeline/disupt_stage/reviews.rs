@@ -1,0 +1,133 @@
+//! The review passes: one exact pass per method's settings, side by side, giving its
+//! track, Kryt1 series and control-point errors.
+
+use rayon::prelude::*;
+use unz_stages::criteria::{self, ControlPointFix, Kryt1Series, Kryt2};
+use unz_stages::derive::Derived;
+use unz_stages::disupt::{Problem, X};
+use unz_stages::strapdown::{self, LaneBatch, PassSink, ReviewPass};
+
+use crate::method_tables::{KeptTrack, MethodKryt1, TrackBuilder, method_kryt1};
+
+/// One set of settings to review: a method's (or the initial ones) and the derive its
+/// pass runs on.
+pub(super) struct Reviewed<'d> {
+    pub(super) name: &'static str,
+    pub(super) x: X,
+    pub(super) derived: &'d Derived,
+}
+
+/// What a review pass gives of one set of settings.
+pub(super) struct ReviewOutcome {
+    pub(super) kryt1_rad: f64,
+    pub(super) cps: Vec<Kryt2>,
+    pub(super) track: KeptTrack,
+    pub(super) kryt1_series: MethodKryt1,
+}
+
+/// The review passes of `reviewed` (at most [`strapdown::MAX_LANES`]), side by side,
+/// each on its own derive's odometer (the derives share their IMU series), their tracks
+/// at the samples `keep`; the last one's every sample into `track`. Each outcome is what
+/// the pass alone gives.
+pub(super) fn review_passes(
+    problem: &Problem<'_>,
+    reviewed: &[Reviewed<'_>],
+    fixes: &[ControlPointFix],
+    keep: &[usize],
+    track: &mut (impl PassSink + Send),
+) -> Vec<ReviewOutcome> {
+    let n = reviewed[0].derived.nav_inputs().len();
+    let at: Vec<usize> = fixes.iter().map(|f| f.sample).filter(|&k| k < n).collect();
+    // Two batches side by side: the tracked (last) method alone, as it also feeds every
+    // sample to `track` (the route σ's states: the longer work per sample), and the
+    // others (at 12 h: 0.38-0.40 s against 0.48-0.51 in one batch, 0.42-0.44 in halves).
+    let (first, rest) = reviewed.split_at(reviewed.len() - 1);
+    let (mut passes, rest) = rayon::join(
+        || review_lanes(problem, first, keep, &at, &mut None::<strapdown::NavTrack>),
+        || review_lanes(problem, rest, keep, &at, track),
+    );
+    passes.extend(rest);
+    reviewed
+        .par_iter()
+        .zip(passes)
+        .map(|(r, mut pass)| {
+            let d = r.derived;
+            let mut series = Kryt1Series::default();
+            let kryt1_rad = criteria::kryt1_from_blocks(
+                &d.epochs,
+                &problem.lp,
+                std::mem::take(&mut pass.criteria.blocks),
+                &problem.kalman,
+                Some(&mut series),
+            );
+            let cps = criteria::kryt2_at(fixes, |k| pass.criteria.position_at(k));
+            ReviewOutcome {
+                kryt1_rad,
+                cps,
+                track: pass.rows.map(TrackBuilder::finish).unwrap_or_default(),
+                kryt1_series: method_kryt1(r.name, d, &series),
+            }
+        })
+        .collect()
+}
+
+/// The passes of the methods `reviewed` side by side, the last one also feeding every
+/// sample to `track`.
+fn review_lanes<'d, S: PassSink>(
+    problem: &Problem<'_>,
+    reviewed: &[Reviewed<'d>],
+    keep: &[usize],
+    at: &[usize],
+    track: &mut S,
+) -> Vec<ReviewPass<Option<TrackBuilder>>> {
+    strapdown::in_lanes(
+        reviewed.len(),
+        &mut ReviewBatch {
+            problem,
+            reviewed,
+            keep,
+            at,
+            track,
+        },
+    )
+}
+
+/// [`review_passes`]' lanes.
+struct ReviewBatch<'r, 'd, 'p, S> {
+    problem: &'r Problem<'p>,
+    reviewed: &'r [Reviewed<'d>],
+    keep: &'r [usize],
+    at: &'r [usize],
+    track: &'r mut S,
+}
+
+impl<'r, 'd, S: PassSink> LaneBatch for ReviewBatch<'r, 'd, '_, S> {
+    type Out = ReviewPass<Option<TrackBuilder>>;
+
+    fn run<const N: usize>(&mut self, points: [usize; N]) -> [Self::Out; N] {
+        let reviewed = self.reviewed;
+        let last = reviewed.len() - 1;
+        let settings = points.map(|i| self.problem.settings(&reviewed[i].x));
+        let odometers = points.map(|i| &reviewed[i].derived.odo_dist_m[..]);
+        let tracked = points.iter().position(|&i| i == last).unwrap_or(0);
+        // Each method's trajectory is built as its lane runs (none for a lane that
+        // repeats the one before).
+        let rows = std::array::from_fn(|l| {
+            (l == 0 || points[l] != points[l - 1]).then(|| {
+                let r = &reviewed[points[l]];
+                TrackBuilder::new(r.name, self.keep.len())
+            })
+        });
+        strapdown::run_review(
+            &reviewed[0].derived.nav_inputs(),
+            odometers,
+            &settings,
+            self.problem.lp.block,
+            self.at,
+            self.keep,
+            rows,
+            tracked,
+            self.track,
+        )
+    }
+}

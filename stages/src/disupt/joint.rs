@@ -1,0 +1,447 @@
+//! The joint estimator: Gauss–Newton over every setting at once, on the attitude
+//! residual series and every control point, with each estimate's 1σ.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra::{DMatrix, DVector, Dyn, Owned};
+
+use super::DisuptError;
+use super::problem::Problem;
+use super::results::{Component, Criterion, MethodResult, Step, last_cp};
+use super::settings::{DisuptParams, X, x_of};
+use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
+
+/// The joint fit's weighted residuals and their Jacobian in the free parameters, from a
+/// linearisation: `r(p) ≈ r0 + A (p − p_ref)`.
+pub(super) struct JointModel {
+    pub(super) r0: DVector<f64>,
+    pub(super) a: DMatrix<f64>,
+}
+
+/// Weighted residuals of an observation at parameters `p`: every valid epoch's ΔΘ, ΔΦ
+/// (plus the levelling corrections), every control point's ΔX, ΔY, and the static
+/// driftz prior.
+fn joint_residuals(
+    problem: &Problem<'_>,
+    y: &Observation,
+    p: &[f64; N_PARAMS],
+    params: &DisuptParams,
+    skip_cp: Option<usize>,
+) -> Vec<f64> {
+    let e = problem.epochs;
+    let s = params.attitude_sigma_rad;
+    let mut r = Vec::with_capacity(2 * e.block.len() + 2 * y.cp_m.len() + 1);
+    // The odometer boresight moves the accelerometer references (derive's u̇ and ru go
+    // along the odometer), not the gyro attitude.
+    // So does the odometer bias (u̇ at starts and stops, ru in turns).
+    let yaw_rad = p[Setting::OdoYaw.index()].to_radians();
+    let bias = p[Setting::OdoBias.index()];
+    let tilt = [
+        p[Setting::TiltPitch.index()] * 1e-3,
+        p[Setting::TiltRoll.index()] * 1e-3,
+    ];
+    for k in 0..e.block.len() {
+        if e.valid[k] {
+            let theta_p =
+                e.theta_p_rad[k] + e.theta_p_per_yaw[k] * yaw_rad + e.theta_p_per_bias[k] * bias;
+            let phi_p = e.phi_p_rad[k] + e.phi_p_per_yaw[k] * yaw_rad + e.phi_p_per_bias[k] * bias;
+            r.push((y.theta_rad[k] - theta_p + tilt[0]) / s);
+            r.push((crate::attitude::wrap_pi(y.phi_rad[k] - phi_p) + tilt[1]) / s);
+        }
+    }
+    // A control point held out keeps its rows, at zero, so that row indices stay put.
+    for (i, c) in y.cp_m.iter().enumerate() {
+        let w = if skip_cp == Some(i) {
+            0.0
+        } else {
+            1.0 / params.position_sigma_m
+        };
+        r.push(c[0] * w);
+        r.push(c[1] * w);
+    }
+    // At rest the vertical gyro measures driftz directly (method.md): a prior.
+    if let Some((dz, sd)) = problem.drift_z_prior_deg_h {
+        r.push((p[Setting::DriftZ.index()] - dz) / sd);
+    }
+    r
+}
+
+/// RMS of the attitude residuals (ΔΘ, ΔΦ with the levelling corrections) of the valid
+/// epochs, rad.
+fn attitude_rms_rad(
+    problem: &Problem<'_>,
+    y: &Observation,
+    p: &[f64; N_PARAMS],
+    params: &DisuptParams,
+) -> f64 {
+    let n = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
+    let r = joint_residuals(problem, y, p, params, None);
+    (ssr(&r[..n.min(r.len())]) / n.max(1) as f64).sqrt() * params.attitude_sigma_rad
+}
+
+/// Variance inflation of the ΔΘ and ΔΦ residuals (`r` interleaves them) for their
+/// correlation from epoch to epoch. What the filter leaves of the vehicle's dynamics
+/// persists over many epochs (in the simulated runs the roll residuals' autocorrelation is
+/// still 0.4–0.5 after 20 s), so they carry less information than as many independent
+/// ones would. Each series' long-run variance over its variance, 1 + 2 Σ w_k ρ_k with
+/// Bartlett weights w_k = 1 − k/(K+1) and the Newey–West lag K = ⌊4 (n/100)^(2/9)⌋, is
+/// that factor (at least 1: anticorrelated residuals are not taken to carry more).
+fn attitude_inflation(r: &[f64]) -> [f64; 2] {
+    let long_run = |x: Vec<f64>| {
+        let n = x.len();
+        let mean = x.iter().sum::<f64>() / n.max(1) as f64;
+        let var: f64 = x.iter().map(|v| (v - mean).powi(2)).sum();
+        if var <= 0.0 {
+            return 1.0;
+        }
+        let lags = (4.0 * (n as f64 / 100.0).powf(2.0 / 9.0)).floor() as usize;
+        let sum: f64 = (1..=lags.min(n.saturating_sub(1)))
+            .map(|k| {
+                let rho = x
+                    .iter()
+                    .zip(&x[k..])
+                    .map(|(a, b)| (a - mean) * (b - mean))
+                    .sum::<f64>()
+                    / var;
+                (1.0 - k as f64 / (lags + 1) as f64) * rho
+            })
+            .sum();
+        (1.0 + 2.0 * sum).max(1.0)
+    };
+    [
+        long_run(r.iter().step_by(2).copied().collect()),
+        long_run(r.iter().skip(1).step_by(2).copied().collect()),
+    ]
+}
+
+fn ssr(r: &[f64]) -> f64 {
+    r.iter().map(|v| v * v).sum()
+}
+
+impl JointModel {
+    pub(super) fn new(
+        problem: &Problem<'_>,
+        lin: &Linearization,
+        free: &[Setting],
+        params: &DisuptParams,
+        skip_cp: Option<usize>,
+    ) -> Self {
+        let r0 = joint_residuals(problem, &lin.y_ref, &lin.p_ref, params, skip_cp);
+        let mut a = DMatrix::zeros(r0.len(), free.len());
+        for (col, s) in free.iter().enumerate() {
+            let j = s.index();
+            let Some(slope) = &lin.slopes[j] else {
+                continue;
+            };
+            // The residuals' slope: the observation's slope through the residual map,
+            // whose only other dependence on p is the levelling offsets and the prior.
+            let mut p1 = lin.p_ref;
+            p1[j] += 1.0;
+            let mut y1 = lin.y_ref.clone();
+            for (v, d) in y1.theta_rad.iter_mut().zip(&slope.theta_rad) {
+                *v += d;
+            }
+            for (v, d) in y1.phi_rad.iter_mut().zip(&slope.phi_rad) {
+                *v += d;
+            }
+            for (v, d) in y1.cp_m.iter_mut().zip(&slope.cp_m) {
+                v[0] += d[0];
+                v[1] += d[1];
+            }
+            let r1 = joint_residuals(problem, &y1, &p1, params, skip_cp);
+            for (i, (b, c)) in r1.iter().zip(&r0).enumerate() {
+                a[(i, col)] = b - c;
+            }
+        }
+        Self {
+            r0: DVector::from_vec(r0),
+            a,
+        }
+    }
+
+    /// The model's least-squares step `δ` from `p_ref` (Levenberg–Marquardt).
+    fn solve(&self) -> Result<DVector<f64>, DisuptError> {
+        let (solved, report) = LevenbergMarquardt::new().minimize(LinearStep {
+            model: self,
+            delta: DVector::zeros(self.a.ncols()),
+        });
+        if !report.termination.was_successful() {
+            return Err(DisuptError::LeastSquares(format!(
+                "{:?}",
+                report.termination
+            )));
+        }
+        Ok(solved.delta)
+    }
+}
+
+impl JointFit {
+    /// The control points' part of the cost of this fit redone on `lin` alone (its
+    /// settings, weights and free parameters; no navigation pass): the model's optimum,
+    /// scored on the model's residuals there.
+    pub fn linearised_cp_cost(
+        &self,
+        problem: &Problem<'_>,
+        lin: &Linearization,
+    ) -> Result<f64, DisuptError> {
+        let model = JointModel::new(problem, lin, &self.free, &self.weights, None);
+        let r = &model.r0 + &model.a * model.solve()?;
+        let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
+        let rows = n_att..(n_att + 2 * lin.y_ref.cp_m.len()).min(r.len());
+        Ok(ssr(&r.as_slice()[rows]))
+    }
+}
+
+/// The linearised least-squares step in the form the LM crate wants (`δ` from `p_ref`).
+struct LinearStep<'m> {
+    model: &'m JointModel,
+    delta: DVector<f64>,
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for LinearStep<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, d: &DVector<f64>) {
+        self.delta.copy_from(d);
+    }
+
+    fn params(&self) -> DVector<f64> {
+        self.delta.clone()
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        Some(&self.model.r0 + &self.model.a * &self.delta)
+    }
+
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        Some(self.model.a.clone())
+    }
+}
+
+/// Gauss–Newton iterations of the joint fit before it stops.
+const MAX_GAUSS_NEWTON: usize = 10;
+
+/// Covariance `s²(AᵀA)⁻¹` of the free parameters with the last linearisation (which
+/// agreed with the exact pass at the solution, so its slopes hold there), the first `n_att`
+/// rows (the attitude residuals `r` interleaves) discounted for their correlation from
+/// epoch to epoch.
+fn covariance_of(model: &JointModel, r: &[f64], n_att: usize, s2: f64) -> Option<DMatrix<f64>> {
+    let inflation = attitude_inflation(&r[..n_att.min(r.len())]);
+    let mut a = model.a.clone();
+    for i in 0..n_att.min(a.nrows()) {
+        a.row_mut(i).unscale_mut(inflation[i % 2].sqrt());
+    }
+    (a.transpose() * &a).try_inverse().map(|c| c * s2)
+}
+
+/// How [`joint_fit`] weighs and what it leaves out.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct JointOptions<'w> {
+    /// Weigh the epochs with this σ (rad) instead of their residuals' RMS (variance
+    /// components), so that the costs of several fits compare (the odometer-lag search).
+    pub attitude_sigma_rad: Option<f64>,
+    /// Leave this control point (index into the problem's fixes) out of the fit.
+    pub skip_cp: Option<usize>,
+    /// Start at this linearisation's point with its slopes, from a nearby problem (the
+    /// odometer-lag search's previous trial): one exact pass there instead of the shared
+    /// first linearisation. The slopes are a model like any other: where the exact passes
+    /// disagree with it, the fit relinearises.
+    pub warm: Option<&'w Linearization>,
+}
+
+/// A joint fit with what its callers need beyond the result: its cost, the weights and
+/// the covariance of the free parameters, and the linearisation that holds at the
+/// solution (for cheap refits).
+#[derive(Debug, Clone)]
+pub struct JointFit {
+    /// The method's result (settings, σ, table row).
+    pub result: MethodResult,
+    /// The exact observation at the solution.
+    pub y: Observation,
+    /// Weighted sum of squared residuals at the solution.
+    pub cost: f64,
+    /// The control points' part of it.
+    pub cp_cost: f64,
+    /// Residuals less free parameters.
+    pub dof: f64,
+    /// σ the epochs were weighed with, rad.
+    pub attitude_sigma_rad: f64,
+    /// The estimated settings.
+    pub free: Vec<Setting>,
+    /// Their covariance, in the optimisers' units (rows and columns follow `free`).
+    pub covariance: Option<DMatrix<f64>>,
+    pub(super) lin: Linearization,
+    pub(super) weights: DisuptParams,
+}
+
+/// The joint estimator.
+pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, DisuptError> {
+    joint_fit(problem, p, &JointOptions::default()).map(|f| f.result)
+}
+
+/// The joint estimator, with options; see [`joint`].
+pub fn joint_fit(
+    problem: &Problem<'_>,
+    p: &DisuptParams,
+    opts: &JointOptions,
+) -> Result<JointFit, DisuptError> {
+    let t0 = Instant::now();
+    let tally = AtomicUsize::new(0);
+    let x0 = problem.x0();
+    let skip = opts.skip_cp;
+    let used_cps = problem.fixes.len() - usize::from(skip.is_some_and(|i| i < problem.fixes.len()));
+    // The attitude's settings always; the odometer's when control points see them.
+    let mut free: Vec<Setting> = Setting::ALL
+        .into_iter()
+        .filter(|s| !s.needs_control_points())
+        .collect();
+    if used_cps > 0 {
+        for (on, s) in [
+            (p.joint_odo_scale, Setting::OdoScale),
+            (p.joint_odo_yaw, Setting::OdoYaw),
+            (p.joint_odo_bias == Some(true), Setting::OdoBias),
+        ] {
+            if on {
+                free.push(s);
+            }
+        }
+    }
+    let free = &free[..];
+    let warm;
+    let start = match opts.warm {
+        Some(w) => {
+            let y = problem.observe_by(&x_of(&w.p_ref), &tally);
+            warm = Linearization {
+                p_ref: w.p_ref,
+                y_ref: y,
+                slopes: w.slopes.clone(),
+            };
+            &warm
+        }
+        None => problem.base_linearization(),
+    };
+    let mut owned;
+    let mut lin = start;
+    if !start.covers(free) {
+        owned = problem.completed(start, free, &tally);
+        lin = &owned;
+    }
+    let mut pr = lin.p_ref;
+    let mut y = lin.y_ref.clone();
+    // The epochs are weighted by the σ their residuals show (variance components: the
+    // misfit the filter leaves is several mrad, more than the configured floor), so that
+    // the control points get their due weight. The first round takes it at the start; a
+    // second round follows if the solution's residuals say otherwise by more than 50 %.
+    let mut w = *p;
+    w.attitude_sigma_rad = match opts.attitude_sigma_rad {
+        Some(s) => s,
+        None => attitude_rms_rad(problem, &y, &pr, p).max(p.attitude_sigma_rad),
+    };
+    let mut cost = ssr(&joint_residuals(problem, &y, &pr, &w, skip));
+    let mut model = JointModel::new(problem, lin, free, &w, skip);
+    let rounds = if opts.attitude_sigma_rad.is_some() {
+        1
+    } else {
+        2
+    };
+    for round in 0..rounds {
+        for _ in 0..MAX_GAUSS_NEWTON {
+            // The exact pass at the model's optimum; halve the step while it does worse.
+            let mut step = model.solve()?;
+            let (mut p_new, mut y_new, mut cost_new);
+            let mut halvings = 0;
+            loop {
+                p_new = pr;
+                for (k, s) in free.iter().enumerate() {
+                    p_new[s.index()] += step[k];
+                }
+                y_new = problem.observe_by(&x_of(&p_new), &tally);
+                cost_new = ssr(&joint_residuals(problem, &y_new, &p_new, &w, skip));
+                if cost_new <= cost || halvings == 5 {
+                    break;
+                }
+                step /= 2.0;
+                halvings += 1;
+            }
+            let agrees = halvings == 0 && lin.predict(&p_new).agrees_with(&y_new);
+            (pr, y, cost) = (p_new, y_new, cost_new);
+            if agrees {
+                break;
+            }
+            owned = problem.linearize_by(&x_of(&pr), y.clone(), free, &tally);
+            lin = &owned;
+            model = JointModel::new(problem, lin, free, &w, skip);
+        }
+        if round == 0 && rounds == 2 {
+            let rms = attitude_rms_rad(problem, &y, &pr, &w).max(p.attitude_sigma_rad);
+            if (rms / w.attitude_sigma_rad - 1.0).abs() <= 0.5 {
+                break;
+            }
+            w.attitude_sigma_rad = rms;
+            cost = ssr(&joint_residuals(problem, &y, &pr, &w, skip));
+            // The linearisation still holds at `pr` (it agreed there): only the weights
+            // change.
+            model = JointModel::new(problem, lin, free, &w, skip);
+        }
+    }
+    let x = x_of(&pr);
+    let rows = model.r0.len() - if skip.is_some() { 2 } else { 0 };
+    let dof = (rows as f64 - free.len() as f64).max(1.0);
+    let r = joint_residuals(problem, &y, &pr, &w, skip);
+    let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
+    let covariance = covariance_of(&model, &r, n_att, cost / dof);
+    // 1σ of each estimated setting (0 for the others).
+    let sigma = covariance.as_ref().map(|c| {
+        let mut sd = X::default();
+        for (k, &s) in free.iter().enumerate() {
+            sd.set(s, c[(k, k)].max(0.0).sqrt());
+        }
+        sd
+    });
+    let (dx_m, dy_m) = last_cp(&y);
+    let evaluations = tally.load(Ordering::Relaxed);
+    let step = Step {
+        step: 1,
+        component: Component::All,
+        criterion: Criterion::LeastSquares,
+        input: x0,
+        output: x,
+        dx_m,
+        dy_m,
+        evaluations,
+    };
+    let result = MethodResult {
+        x,
+        sigma,
+        dx_m,
+        dy_m,
+        kryt1: y.kryt1(problem.epochs, &problem.kalman),
+        steps: vec![step],
+        evaluations,
+        wall_s: t0.elapsed().as_secs_f64(),
+    };
+    let cp_cost = ssr(&r[n_att.min(r.len())..n_att + 2 * y.cp_m.len()]);
+    Ok(JointFit {
+        result,
+        y,
+        cost,
+        cp_cost,
+        dof,
+        attitude_sigma_rad: w.attitude_sigma_rad,
+        free: free.to_vec(),
+        covariance,
+        lin: lin.clone(),
+        weights: w,
+    })
+}
+
+impl JointFit {
+    /// The linearisation that holds at the solution.
+    pub fn linearization(&self) -> &Linearization {
+        &self.lin
+    }
+}

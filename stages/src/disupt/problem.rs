@@ -1,0 +1,442 @@
+//! One run's optimisation problem: exact navigation passes of settings, side by side in
+//! vector lanes, and the linearisations the searches run on.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use either::Either;
+use rayon::prelude::*;
+
+use super::settings::{BASE_SETTINGS, X, params_of, x_of};
+use crate::criteria::{self, ControlPointFix, KalmanParams, Kryt2};
+use crate::derive::{Epochs, MovedOdometer, OdoIncrements};
+use crate::earth;
+use crate::filter::LowPass;
+use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
+use crate::strapdown::{self, CriteriaSink, LaneBatch, NavInputs, NavSettings, in_lanes};
+use crate::units::DEG_PER_H;
+
+/// One run's optimisation problem: everything is derived once; each evaluation is one
+/// navigation pass and the criteria, without I/O or allocation.
+pub struct Problem<'a> {
+    /// Navigation inputs.
+    pub inputs: NavInputs<'a>,
+    /// Settings before DISUPT (`x_pocz`).
+    pub base: NavSettings,
+    /// Epochs of the criteria.
+    pub epochs: &'a Epochs,
+    /// The filter F.
+    pub lp: LowPass,
+    /// Kalman filter of Kryt1.
+    pub kalman: KalmanParams,
+    /// Control points.
+    pub fixes: &'a [ControlPointFix],
+    /// Prior on the vertical drift from the static start: (value, 1σ), °/h.
+    pub drift_z_prior_deg_h: Option<(f64, f64)>,
+    /// The odometer increments, when they are read as a pass goes instead of from
+    /// `inputs` (a derive at another odometer timing: [`ProblemSpec::on_moved`]).
+    moved_odometer: Option<MovedOdometer<'a>>,
+    passes: AtomicUsize,
+    base_lin: std::sync::OnceLock<Linearization>,
+}
+
+/// Everything of a DISUPT problem but the derive it runs on, so that the same problem
+/// can be set on another derive (the odometer-lag search re-derives).
+#[derive(Debug, Clone, Copy)]
+pub struct ProblemSpec<'a> {
+    /// Settings before DISUPT (the searches' start).
+    pub settings: NavSettings,
+    /// The filter F's parameters.
+    pub filter: crate::filter::FilterParams,
+    /// Kalman filter of Kryt1.
+    pub kalman: KalmanParams,
+    /// Control points.
+    pub fixes: &'a [ControlPointFix],
+    /// Prior on the vertical drift from the static start: (value, 1σ), °/h.
+    pub drift_z_prior_deg_h: Option<(f64, f64)>,
+}
+
+impl<'a> ProblemSpec<'a> {
+    /// The problem on the derive `d`.
+    pub fn on<'b>(self, d: &'b crate::derive::Derived) -> Problem<'b>
+    where
+        'a: 'b,
+    {
+        let mut p = Problem::new(
+            d.nav_inputs(),
+            self.settings,
+            &d.epochs,
+            LowPass::new(&self.filter, d.nominal_dt_s),
+            self.kalman,
+            self.fixes,
+        );
+        p.drift_z_prior_deg_h = self.drift_z_prior_deg_h;
+        p
+    }
+
+    /// The problem on the derive `d` whose odometer increments are not stored but read
+    /// from `odometer` as each pass goes (the odometer-lag search's trials).
+    pub fn on_moved<'b>(
+        self,
+        d: &'b crate::derive::Derived,
+        odometer: MovedOdometer<'b>,
+    ) -> Problem<'b>
+    where
+        'a: 'b,
+    {
+        let mut p = self.on(d);
+        p.moved_odometer = Some(odometer);
+        p
+    }
+}
+
+/// Criteria of one pass.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Evaluation {
+    /// Kryt1, rad.
+    pub kryt1: f64,
+    /// Kryt2 at each control point.
+    pub kryt2: Vec<Kryt2>,
+}
+
+impl Evaluation {
+    /// RMS Kryt2 over the control points, m (NaN without control points).
+    pub fn kryt2_rms(&self) -> f64 {
+        criteria::kryt2_rms_m(self.kryt2.iter().map(|k| [k.dx_m, k.dy_m]))
+    }
+
+    /// (ΔX, ΔY) at the last control point.
+    pub fn last_error(&self) -> (f64, f64) {
+        self.kryt2
+            .last()
+            .map_or((f64::NAN, f64::NAN), |k| (k.dx_m, k.dy_m))
+    }
+}
+
+/// Most passes stepped side by side in vector lanes by [`Problem::observe_many_by`].
+pub const LANES: usize = strapdown::MAX_LANES;
+
+impl<'a> Problem<'a> {
+    /// A problem around `base`.
+    pub fn new(
+        inputs: NavInputs<'a>,
+        base: NavSettings,
+        epochs: &'a Epochs,
+        lp: LowPass,
+        kalman: KalmanParams,
+        fixes: &'a [ControlPointFix],
+    ) -> Self {
+        Self {
+            inputs,
+            base,
+            epochs,
+            lp,
+            kalman,
+            fixes,
+            drift_z_prior_deg_h: None,
+            moved_odometer: None,
+            passes: AtomicUsize::new(0),
+            base_lin: std::sync::OnceLock::new(),
+        }
+    }
+
+    /// The odometer increments a pass of this problem reads, sample by sample.
+    fn odometer_increments(&self) -> LaneIncrements<'a> {
+        match self.moved_odometer {
+            Some(moved) => Either::Right(moved.increments()),
+            None => Either::Left(self.inputs.odo_dist_m.iter().copied()),
+        }
+    }
+
+    /// Navigation passes so far.
+    pub fn passes(&self) -> usize {
+        self.passes.load(Ordering::Relaxed)
+    }
+
+    /// The base settings in optimiser units.
+    pub fn x0(&self) -> X {
+        X {
+            azimuth_deg: self.base.initial.heading_rad.to_degrees(),
+            drift_deg_h: self.base.drift_rad_s.map(|d| d / DEG_PER_H),
+            odo_ppm: 0.0,
+            tilt_mrad: [0.0; 2],
+            odo_yaw_deg: 0.0,
+            odo_bias_mps: 0.0,
+        }
+    }
+
+    /// Navigation settings of `x`.
+    pub fn settings(&self, x: &X) -> NavSettings {
+        let mut s = self.base;
+        s.initial.heading_rad = x.azimuth_deg.to_radians();
+        s.drift_rad_s = x.drift_deg_h.map(|d| d * DEG_PER_H);
+        s.odo_scale = self.base.odo_scale * (1.0 + x.odo_ppm * 1e-6);
+        s.odo_yaw_rad = self.base.odo_yaw_rad + x.odo_yaw_deg.to_radians();
+        s.odo_bias_mps = self.base.odo_bias_mps + x.odo_bias_mps;
+        s.initial.pitch_rad -= x.tilt_mrad[0] * 1e-3;
+        s.initial.roll_rad -= x.tilt_mrad[1] * 1e-3;
+        s
+    }
+
+    /// Kryt1 and Kryt2 of `x` (one exact pass).
+    pub fn evaluate(&self, x: &X) -> Evaluation {
+        self.evaluation_of(&self.observe(x))
+    }
+
+    /// What the criteria read from the pass of `x` (one exact pass).
+    pub fn observe(&self, x: &X) -> Observation {
+        self.observe_by(x, &AtomicUsize::new(0))
+    }
+
+    /// [`Self::observe`], counted in `tally` too (a method's own passes). The pass keeps
+    /// no track: it sums what the criteria need as it goes ([`CriteriaSink`]).
+    pub fn observe_by(&self, x: &X, tally: &AtomicUsize) -> Observation {
+        let mut y = self.observe_batch(&[*x], tally);
+        y.pop().expect("one observation of one point")
+    }
+
+    /// The observations of several settings (in their order), each what
+    /// [`Self::observe`] gives, bit for bit; counted in `tally` too. Up to [`LANES`]
+    /// passes run side by side in vector lanes, and the batches in parallel: the points
+    /// are shared evenly between rayon's threads first, so that a few points still use
+    /// every core.
+    pub fn observe_many_by(&self, xs: &[X], tally: &AtomicUsize) -> Vec<Observation> {
+        let threads = rayon::current_num_threads().max(1);
+        let chunk = xs.len().div_ceil(threads).clamp(1, LANES);
+        xs.par_chunks(chunk)
+            .flat_map_iter(|chunk| self.observe_batch(chunk, tally))
+            .collect()
+    }
+
+    /// [`Self::observe_many_by`] on the calling thread only, in as few batches of lanes as
+    /// the points fill: the least CPU for a few points, where the caller's own concurrency
+    /// keeps the cores busy.
+    pub fn observe_batched_by(&self, xs: &[X], tally: &AtomicUsize) -> Vec<Observation> {
+        xs.chunks(LANES)
+            .flat_map(|chunk| self.observe_batch(chunk, tally))
+            .collect()
+    }
+
+    /// At most [`LANES`] points in one batch of lanes.
+    fn observe_batch(&self, xs: &[X], tally: &AtomicUsize) -> Vec<Observation> {
+        tally.fetch_add(xs.len(), Ordering::Relaxed);
+        self.passes.fetch_add(xs.len(), Ordering::Relaxed);
+        in_lanes(
+            xs.len(),
+            &mut OnDerives {
+                problems: &[self],
+                xs,
+            },
+        )
+    }
+
+    /// What the criteria read from a pass's sink.
+    fn observation_of_sink(&self, mut sink: CriteriaSink) -> Observation {
+        let mut y = Observation::default();
+        criteria::epoch_attitude_from_blocks(
+            self.epochs,
+            &self.lp,
+            std::mem::take(&mut sink.blocks),
+            &mut y.theta_rad,
+            &mut y.phi_rad,
+        );
+        y.cp_m = self
+            .fixes
+            .iter()
+            .filter_map(|f| {
+                let (lat, lon) = sink.position_at(f.sample)?;
+                Some(earth::local_offset_m(lat, lon, f.lat_rad, f.lon_rad, f.h_m))
+            })
+            .map(|(dx, dy)| [dx, dy])
+            .collect();
+        y
+    }
+
+    /// The criteria of an observation.
+    pub fn evaluation_of(&self, y: &Observation) -> Evaluation {
+        Evaluation {
+            kryt1: y.kryt1(self.epochs, &self.kalman),
+            kryt2: y.kryt2(self.fixes),
+        }
+    }
+
+    /// The linearisation around `x` (whose exact observation is `y`) in the settings
+    /// `which`: one forward-difference pass per setting, counted in `tally`.
+    pub fn linearize_by(
+        &self,
+        x: &X,
+        y: Observation,
+        which: &[Setting],
+        tally: &AtomicUsize,
+    ) -> Linearization {
+        let ys = self.observe_many_by(&moved_by_steps(x, which), tally);
+        linearization_of(x, y, which, ys)
+    }
+
+    /// Passes of the shared first linearisation (0 before it is built).
+    pub fn base_passes(&self) -> usize {
+        self.base_lin
+            .get()
+            .map_or(0, |l| 1 + l.slopes.iter().flatten().count())
+    }
+
+    /// The linearisation around `x0` in every parameter but the odometer boresight,
+    /// built once and shared by the methods (each starts there; its passes are counted in
+    /// [`Self::base_passes`]).
+    pub fn base_linearization(&self) -> &Linearization {
+        self.base_lin.get_or_init(|| {
+            let x0 = self.x0();
+            let mut xs = vec![x0];
+            xs.extend(moved_by_steps(&x0, BASE_SETTINGS));
+            let mut ys = self.observe_many_by(&xs, &AtomicUsize::new(0));
+            let y0 = ys.remove(0);
+            linearization_of(&x0, y0, BASE_SETTINGS, ys)
+        })
+    }
+
+    /// `lin` with the slopes it lacks among `which` added (one pass each, counted in
+    /// `tally`).
+    pub fn completed(
+        &self,
+        lin: &Linearization,
+        which: &[Setting],
+        tally: &AtomicUsize,
+    ) -> Linearization {
+        let missing: Vec<Setting> = which
+            .iter()
+            .copied()
+            .filter(|s| lin.slopes[s.index()].is_none())
+            .collect();
+        let x = x_of(&lin.p_ref);
+        let ys = self.observe_many_by(&moved_by_steps(&x, &missing), tally);
+        let mut out = linearization_of(&x, lin.y_ref.clone(), &missing, ys);
+        for (j, slope) in lin.slopes.iter().enumerate() {
+            if slope.is_some() {
+                out.slopes[j].clone_from(slope);
+            }
+        }
+        out
+    }
+}
+
+/// The exact observation of `x` on each of `problems`, derives of one run at other
+/// odometer timings (the same IMU series, control points and blocks), in batches of
+/// lanes each on its own odometer increments; each what [`Problem::observe`] gives, bit
+/// for bit. Counted in `tally` and each problem's passes.
+///
+/// # Panics
+/// If the problems do not share their IMU series, control points and blocks.
+pub fn observe_each(problems: &[&Problem<'_>], x: &X, tally: &AtomicUsize) -> Vec<Observation> {
+    let Some(first) = problems.first() else {
+        return Vec::new();
+    };
+    assert!(
+        problems.iter().all(|p| p.inputs.same_imu_as(&first.inputs)
+            && p.inputs.len() == first.inputs.len()
+            && std::ptr::eq(p.fixes, first.fixes)
+            && p.lp.block == first.lp.block),
+        "derives of different runs or filters"
+    );
+    tally.fetch_add(problems.len(), Ordering::Relaxed);
+    problems
+        .chunks(LANES)
+        .flat_map(|chunk| {
+            for p in chunk {
+                p.passes.fetch_add(1, Ordering::Relaxed);
+            }
+            let xs = vec![*x; chunk.len()];
+            in_lanes(
+                chunk.len(),
+                &mut OnDerives {
+                    problems: chunk,
+                    xs: &xs,
+                },
+            )
+        })
+        .collect()
+}
+
+/// Points side by side: the `i`-th at `xs[i]` on `problems[i]`, or all on the only
+/// problem. The problems share their IMU series, control points and blocks; each lane
+/// runs on its own problem's odometer increments.
+struct OnDerives<'p, 'a> {
+    problems: &'p [&'p Problem<'a>],
+    xs: &'p [X],
+}
+
+impl<'a> OnDerives<'_, 'a> {
+    fn problem(&self, i: usize) -> &Problem<'a> {
+        self.problems[i.min(self.problems.len() - 1)]
+    }
+}
+
+impl LaneBatch for OnDerives<'_, '_> {
+    type Out = Observation;
+
+    fn run<const N: usize>(&mut self, points: [usize; N]) -> [Observation; N] {
+        let first = self.problems[0];
+        let settings = points.map(|i| self.problem(i).settings(&self.xs[i]));
+        let n = first.inputs.len();
+        let at: Vec<usize> = first
+            .fixes
+            .iter()
+            .map(|f| f.sample)
+            .filter(|&k| k < n)
+            .collect();
+        // The sinks live for this batch only: each holds its pass's blocks (a run's
+        // length), so none is kept once the observations are taken.
+        let mut sinks: [CriteriaSink; N] = std::array::from_fn(|_| CriteriaSink::default());
+        if self.problems.len() == 1 && first.moved_odometer.is_none() {
+            strapdown::run_criteria(&first.inputs, &settings, first.lp.block, &at, &mut sinks);
+        } else {
+            let odometers = points.map(|i| self.problem(i).odometer_increments());
+            strapdown::run_criteria_streams(
+                &first.inputs,
+                odometers,
+                &settings,
+                first.lp.block,
+                &at,
+                &mut sinks,
+            );
+        }
+        let mut sinks = sinks.into_iter();
+        std::array::from_fn(|l| {
+            let sink = sinks.next().expect("one sink per lane");
+            self.problem(points[l]).observation_of_sink(sink)
+        })
+    }
+}
+
+/// A lane's odometer increments: a derive's stored ones, or read from the ingested
+/// odometer as the pass goes.
+type LaneIncrements<'a> = Either<std::iter::Copied<std::slice::Iter<'a, f64>>, OdoIncrements<'a>>;
+
+/// `x` moved by one finite-difference step in each setting of `which`, in turn.
+pub fn moved_by_steps(x: &X, which: &[Setting]) -> Vec<X> {
+    which
+        .iter()
+        .map(|&s| {
+            let mut xs = *x;
+            xs.set(s, x.get(s) + s.fd_step());
+            xs
+        })
+        .collect()
+}
+
+/// The linearisation around `x` (observed `y`) from the observations `moved` of
+/// [`moved_by_steps`]`(x, which)`.
+pub(super) fn linearization_of(
+    x: &X,
+    y: Observation,
+    which: &[Setting],
+    moved: Vec<Observation>,
+) -> Linearization {
+    let mut slopes: [Option<Observation>; N_PARAMS] = Default::default();
+    for (&s, ys) in which.iter().zip(moved) {
+        slopes[s.index()] = Some(ys.slope(&y, s.fd_step()));
+    }
+    Linearization {
+        p_ref: params_of(x),
+        y_ref: y,
+        slopes,
+    }
+}
