@@ -1,0 +1,179 @@
+//! Stage 3b: the criteria of the navigated track, Kryt1 from its attitude per block and
+//! Kryt2 at the control points (`criteria.parquet`, `criteria.json`).
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::Context;
+use serde::{Deserialize, Serialize};
+use unz_formats::atomic::write_json_atomic;
+use unz_formats::parquet_io::{for_each_batch_of, write_batch};
+use unz_formats::schema;
+use unz_formats::tables::{CriteriaTable, MarksTable, f64_column};
+use unz_stages::criteria::{self, BlockAttitude, Kryt1Series, Kryt2, Row3Blocks};
+use unz_stages::derive::Derived;
+use unz_stages::filter::LowPass;
+
+use super::ingested::load_table;
+use super::{Overrides, Params, RunCtx, ensure_navigate, match_control_points};
+use crate::artifacts::{StageName, files};
+use crate::derive_io::load_derived_times;
+use crate::stage::{Stage, params_hash};
+
+/// `criteria.json`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct CriteriaSummary {
+    /// Kryt1, rad.
+    pub kryt1_rad: f64,
+    /// Epochs.
+    pub epochs: usize,
+    /// Epochs used (not gated).
+    pub valid_epochs: usize,
+    /// Kryt2 at every control point.
+    pub control_points: Vec<Kryt2>,
+    /// Kryt2 at the last control point, m.
+    pub kryt2_m: Option<f64>,
+}
+
+/// (sample, latitude rad, longitude rad).
+type Position = (usize, f64, f64);
+
+/// What the criteria read of `nav.parquet` (`samples` rows), batch by batch (the track is
+/// never held whole): the attitude per block of `block` samples, and the positions
+/// (sample, latitude rad, longitude rad) at the samples `at`.
+fn read_nav_for_criteria(
+    path: &Path,
+    samples: usize,
+    block: usize,
+    at: &[usize],
+) -> anyhow::Result<(BlockAttitude, Vec<Position>)> {
+    let mut blocks = Row3Blocks::for_samples(samples, block);
+    let mut positions = Vec::new();
+    let mut k0 = 0;
+    use unz_formats::schema::nav_cols::{HEADING_DEG, LAT_DEG, LON_DEG, PITCH_DEG, ROLL_DEG};
+    let columns = [LAT_DEG, LON_DEG, ROLL_DEG, PITCH_DEG, HEADING_DEG];
+    for_each_batch_of(path, &columns, |b| {
+        let rad = |n: &str| -> Result<Vec<f64>, unz_formats::FormatError> {
+            Ok(f64_column(b, n)?.into_iter().map(f64::to_radians).collect())
+        };
+        let (roll, pitch, heading) = (rad(ROLL_DEG)?, rad(PITCH_DEG)?, rad(HEADING_DEG)?);
+        for k in 0..roll.len() {
+            let q = unz_stages::attitude::Euler {
+                roll_rad: roll[k],
+                pitch_rad: pitch[k],
+                heading_rad: heading[k],
+            }
+            .to_quat_b_to_n();
+            blocks.push(&[q.w, q.i, q.j, q.k]);
+        }
+        let n = roll.len();
+        let here: Vec<usize> = at
+            .iter()
+            .copied()
+            .filter(|&s| (k0..k0 + n).contains(&s))
+            .collect();
+        if !here.is_empty() {
+            let (lat, lon) = (rad(LAT_DEG)?, rad(LON_DEG)?);
+            positions.extend(here.iter().map(|&s| (s, lat[s - k0], lon[s - k0])));
+        }
+        k0 += n;
+        Ok(())
+    })?;
+    Ok((blocks.finish(), positions))
+}
+
+/// Stage 3b: the criteria of the navigated track.
+pub fn ensure_criteria(
+    ctx: &RunCtx,
+    params: &Params,
+    overrides: &Overrides,
+) -> anyhow::Result<(PathBuf, CriteriaSummary)> {
+    let nav_dir = ensure_navigate(ctx, params, overrides)?;
+    let m = &ctx.manifest;
+    let derive_dir = ctx.layout().dir(StageName::Derive);
+    let ingest_dir = ctx.layout().dir(StageName::Ingest);
+    let dir = ctx.layout().create(StageName::Criteria)?;
+    let inputs = vec![
+        m.path.clone(),
+        nav_dir.join(files::NAV),
+        derive_dir.join(files::DERIVED),
+        derive_dir.join(files::EPOCHS),
+        ingest_dir.join(files::MARKS),
+    ];
+    let stage = Stage {
+        dir: dir.clone(),
+        name: "criteria",
+        version: 1,
+        params_hash: params_hash(&(params.kalman, params.derive.filter))?,
+        inputs,
+        outputs: &[files::CRITERIA, files::CRITERIA_REPORT],
+    };
+    ctx.run_stage(&stage, || {
+        // The criteria read the derive's times and epochs only: without the chain's derive
+        // in memory, only those are loaded.
+        let d = match ctx.kept_derived() {
+            Some(d) => d,
+            None => Arc::new(load_derived_times(&derive_dir)?),
+        };
+        let (marks, _) = load_table::<MarksTable>(
+            &ingest_dir.join(files::MARKS),
+            MarksTable::extend_from_batch,
+        )?;
+        let fixes = match_control_points(m, &marks, &d)
+            .with_context(|| format!("in {}", m.path.display()))?;
+        let lp = LowPass::new(&params.derive.filter, d.nominal_dt_s);
+        let fix_samples: Vec<usize> = fixes.iter().map(|f| f.sample).collect();
+        let (blocks, positions) = read_nav_for_criteria(
+            &nav_dir.join(files::NAV),
+            d.t_s.len(),
+            lp.block,
+            &fix_samples,
+        )?;
+        let mut series = Kryt1Series::default();
+        let k1 =
+            criteria::kryt1_from_blocks(&d.epochs, &lp, blocks, &params.kalman, Some(&mut series));
+        write_criteria_parquet(&dir.join(files::CRITERIA), &d, &series)?;
+        let cps = criteria::kryt2_at(&fixes, |k| {
+            positions
+                .iter()
+                .find(|p| p.0 == k)
+                .map(|&(_, lat, lon)| (lat, lon))
+        });
+        let summary = CriteriaSummary {
+            kryt1_rad: k1,
+            epochs: d.epochs.t_s.len(),
+            valid_epochs: d.epochs.valid.iter().filter(|v| **v).count(),
+            kryt2_m: cps.last().map(|c| c.kryt2_m),
+            control_points: cps,
+        };
+        write_json_atomic(&dir.join(files::CRITERIA_REPORT), &summary)?;
+        Ok(())
+    })?;
+    let summary = serde_json::from_slice(&std::fs::read(dir.join(files::CRITERIA_REPORT))?)?;
+    Ok((dir, summary))
+}
+
+fn write_criteria_parquet(path: &Path, d: &Derived, s: &Kryt1Series) -> anyhow::Result<()> {
+    let e = &d.epochs;
+    let table = CriteriaTable {
+        t_ns: d.epoch_t_ns(),
+        theta_n_rad: s.theta_n_rad.clone(),
+        phi_n_rad: s.phi_n_rad.clone(),
+        theta_p_rad: e.theta_p_rad.clone(),
+        phi_p_rad: e.phi_p_rad.clone(),
+        d_theta_rad: s.d_theta_rad.clone(),
+        d_phi_rad: s.d_phi_rad.clone(),
+        kf_d_theta_rad: s.kf_theta_rad.clone(),
+        kf_d_phi_rad: s.kf_phi_rad.clone(),
+        kryt1_cum: s.kryt1_cum.clone(),
+        valid: e.valid.clone(),
+    };
+    write_batch(path, &table.to_batch(schema::criteria())?)?;
+    Ok(())
+}
+
+/// Loads `criteria.parquet`.
+pub fn load_criteria(path: &Path) -> anyhow::Result<CriteriaTable> {
+    let (table, _) = load_table::<CriteriaTable>(path, CriteriaTable::extend_from_batch)?;
+    Ok(table)
+}

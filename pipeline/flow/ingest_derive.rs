@@ -1,0 +1,120 @@
+//! Stages 1 and 2: the ingest of the raw log, and the derive of its series.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use anyhow::bail;
+use unz_formats::manifest::RunManifest;
+use unz_stages::earth;
+
+use super::{IngestedSeries, Params, RunCtx};
+use crate::artifacts::{StageName, files};
+use crate::derive_io::{as_stored, write_derived};
+use crate::ingest::{OUTPUTS as INGEST_OUTPUTS, ingest};
+use crate::review_sensors::{review_sensors, write_review_sensors};
+use crate::stage::{Stage, params_hash};
+
+/// Stage 1.
+pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
+    let m = &ctx.manifest;
+    let dir = ctx.layout().create(StageName::Ingest)?;
+    let mut inputs = vec![m.path.clone(), m.raw.clone()];
+    inputs.extend(m.odometer.file.clone());
+    let stage = Stage {
+        dir: dir.clone(),
+        name: "ingest",
+        version: 1,
+        params_hash: params_hash(&(m.odometer.scale_m_per_pulse, params.ingest))?,
+        inputs,
+        outputs: &INGEST_OUTPUTS,
+    };
+    ctx.run_stage(&stage, || ingest(m, &dir, params.ingest.into()).map(|_| ()))?;
+    Ok(dir)
+}
+
+/// Stage 2.
+pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
+    let ingest_dir = ensure_ingest(ctx, params)?;
+    let m = &ctx.manifest;
+    let dir = ctx.layout().create(StageName::Derive)?;
+    let inputs = vec![
+        ingest_dir.join(files::IMU),
+        ingest_dir.join(files::ODOMETER),
+    ];
+    let stage = Stage {
+        dir: dir.clone(),
+        name: "derive",
+        version: 6,
+        // The review's sensor blocks are taken here, at the recording's series rate.
+        params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
+        inputs,
+        outputs: &[files::DERIVED, files::EPOCHS, files::BLOCKS, files::SENSORS],
+    };
+    ctx.run_stage(&stage, || {
+        ctx.set_derived(None);
+        let raw = IngestedSeries::load(&ingest_dir)?;
+        let counts = raw.failure_counts();
+        let mut d = raw.derive(&params.derive, site_gravity_mps2(m));
+        (d.imu_failure_samples, d.odometer_failure_samples) = counts;
+        // A run whose odometer is flagged failed over much of it has no dead reckoning
+        // worth correcting; a short failure is counted and reported (navigate.json).
+        if d.odometer_failure_samples * 10 > d.t_s.len() {
+            bail!(
+                "the odometer is flagged failed (status bit 1) on {} of {} samples",
+                d.odometer_failure_samples,
+                d.t_s.len()
+            );
+        }
+        // A corrupt sample that passed the CRC (a 2^-16 chance per damaged frame) or a
+        // saturated one is replaced and counted; many are a broken instrument or log.
+        if d.out_of_range_samples * 100 > d.t_s.len() {
+            bail!(
+                "{} of {} IMU samples exceed the IMU's range ({:.0} °/s, {:.0} m/s²): saturated \
+                 or corrupt increments",
+                d.out_of_range_samples,
+                d.t_s.len(),
+                unz_stages::derive::GYRO_RANGE_RAD_S.to_degrees(),
+                unz_stages::derive::ACCEL_RANGE_MPS2
+            );
+        }
+        // A few tags going back are repaired and counted; a time base that does not
+        // advance (constant or saturated tags) is no time base.
+        if d.repaired_times * 100 > d.t_s.len() {
+            bail!(
+                "{} of {} IMU time tags do not increase (constant, saturated or going back): \
+                 the log's time base is broken",
+                d.repaired_times,
+                d.t_s.len()
+            );
+        }
+        ensure_finite("angle increment", d.dtheta_rad.iter().flatten().copied())?;
+        ensure_finite("velocity increment", d.dvel_mps.iter().flatten().copied())?;
+        ensure_finite("odometer distance", d.odo_dist_m.iter().copied())?;
+        ensure_finite("accelerometer pitch", d.epochs.theta_p_rad.iter().copied())?;
+        ensure_finite("accelerometer roll", d.epochs.phi_p_rad.iter().copied())?;
+        write_derived(&d, &dir)?;
+        let mut d = as_stored(d);
+        // Beyond the static start (which the alignment reads from the file), only the
+        // review reads the velocity increments: its blocks are taken now, and the chain
+        // keeps the derive without them.
+        write_review_sensors(&review_sensors(&d), &dir.join(files::SENSORS))?;
+        d.dvel_mps = Arc::default();
+        ctx.set_derived(Some(Arc::new(d)));
+        Ok(())
+    })?;
+    Ok(dir)
+}
+
+/// Fails unless every value is finite, naming the quantity and the first sample that is
+/// not: a stage never records outputs that went to Inf or NaN.
+pub fn ensure_finite(what: &str, values: impl IntoIterator<Item = f64>) -> anyhow::Result<()> {
+    if let Some((k, v)) = values.into_iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        bail!("{what} is {v} at sample {k}: the input's scales or values are not physical");
+    }
+    Ok(())
+}
+
+/// Normal gravity at the run's site, m/s² (derive's g).
+pub fn site_gravity_mps2(m: &RunManifest) -> f64 {
+    earth::normal_gravity_mps2(m.site.latitude_deg.to_radians(), m.site.height_m)
+}

@@ -1,0 +1,101 @@
+//! Stage 3a: the navigation pass of a case, written to `nav.parquet` as it runs, and its
+//! summary (`navigate.json`).
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+use unz_formats::atomic::write_json_atomic;
+use unz_stages::criteria::{self, Kryt2};
+use unz_stages::initial::InitialReport;
+
+use super::{Overrides, Params, RunCtx, ensure_derive, load_case};
+use crate::artifacts::{StageName, files};
+use crate::nav_writer::NavWriter;
+use crate::stage::{Stage, params_hash};
+
+/// Summary of a navigation pass (`navigate.json`).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct NavigateSummary {
+    /// Initial settings and alignment.
+    pub initial: InitialReport,
+    /// Samples navigated.
+    pub samples: usize,
+    /// Duration, s.
+    pub duration_s: f64,
+    /// Distance travelled, m.
+    pub distance_m: f64,
+    /// Position errors at the control points.
+    pub control_points: Vec<Kryt2>,
+    /// Time tags derive repaired (not after the previous one).
+    pub repaired_times: usize,
+    /// Samples that closed a gap in the log and were scaled to it.
+    pub filled_gaps: usize,
+    /// Samples whose status flags an IMU built-in-test failure.
+    #[serde(default)]
+    pub imu_failure_samples: usize,
+    /// Samples whose status flags an odometer failure (a run fails above a tenth).
+    #[serde(default)]
+    pub odometer_failure_samples: usize,
+    /// Samples whose increments exceeded the IMU's range, replaced by the previous
+    /// sample's rates (a run fails above a hundredth).
+    #[serde(default)]
+    pub out_of_range_samples: usize,
+}
+
+/// Stage 3a: navigation.
+pub fn ensure_navigate(
+    ctx: &RunCtx,
+    params: &Params,
+    overrides: &Overrides,
+) -> anyhow::Result<PathBuf> {
+    let derive_dir = ensure_derive(ctx, params)?;
+    let m = &ctx.manifest;
+    let dir = ctx.layout().create(StageName::Navigate)?;
+    let ingest_dir = ctx.layout().dir(StageName::Ingest);
+    let inputs = vec![
+        m.path.clone(),
+        derive_dir.join(files::DERIVED),
+        ingest_dir.join(files::MARKS),
+        ingest_dir.join(files::ODOMETER),
+    ];
+    let stage = Stage {
+        dir: dir.clone(),
+        name: "navigate",
+        version: 3,
+        params_hash: params_hash(&(params.align, overrides))?,
+        inputs,
+        outputs: &[files::NAV, files::NAVIGATE_REPORT],
+    };
+    ctx.run_stage(&stage, || {
+        let case = load_case(ctx, params, overrides)?;
+        // The pass writes nav.parquet as it runs, keeping the positions at the control
+        // points.
+        let fix_samples: Vec<usize> = case.fixes.iter().map(|f| f.sample).collect();
+        let mut nav = NavWriter::create(
+            &dir.join(files::NAV),
+            &case.derived,
+            case.settings.start(),
+            None,
+            &fix_samples,
+        )?;
+        unz_stages::strapdown::run(&case.inputs(), &case.settings, &mut nav);
+        let nav = nav.finish("navigated")?;
+        let summary = NavigateSummary {
+            initial: case.initial,
+            samples: nav.samples,
+            duration_s: case.derived.t_s.last().unwrap_or(0.0),
+            distance_m: nav.distance_m,
+            control_points: criteria::kryt2_at(&case.fixes, |k| {
+                nav.at(k).map(|s| (s.lat_rad, s.lon_rad))
+            }),
+            repaired_times: case.derived.repaired_times,
+            filled_gaps: case.derived.filled_gaps,
+            imu_failure_samples: case.derived.imu_failure_samples,
+            out_of_range_samples: case.derived.out_of_range_samples,
+            odometer_failure_samples: case.derived.odometer_failure_samples,
+        };
+        write_json_atomic(&dir.join(files::NAVIGATE_REPORT), &summary)?;
+        Ok(())
+    })?;
+    Ok(dir)
+}

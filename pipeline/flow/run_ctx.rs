@@ -1,0 +1,126 @@
+//! One run being processed: its manifest, where it writes, what each stage did, and the
+//! derive the chain shares in memory.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::Context;
+use unz_formats::manifest::RunManifest;
+use unz_stages::derive::Derived;
+
+use crate::artifacts::RunLayout;
+use crate::derive_io::load_derived_for_navigation;
+use crate::stage::Stage;
+
+/// One run being processed.
+pub struct RunCtx {
+    /// Its manifest.
+    pub manifest: RunManifest,
+    /// Output root.
+    pub out: PathBuf,
+    /// Say on stderr which stages ran and which were skipped.
+    pub verbose: bool,
+    /// What each stage did: (stage, computed (not cached), wall s), in order.
+    pub log: std::sync::Mutex<Vec<(String, bool, f64)>>,
+    /// A progress line showing the stage being worked on (campaigns on a terminal).
+    pub progress: Option<indicatif::ProgressBar>,
+    /// The derive stage's output in memory: the stages after it in the same process share
+    /// it instead of each decoding `derived.parquet`. Set when the derive is computed or
+    /// first loaded, as [`crate::derive_io::load_derived`] gives it back but without the
+    /// velocity increments (only the alignment's static start reads them, from the file,
+    /// and the review's sensor blocks, taken by the derive stage into `sensors.parquet`);
+    /// cleared when it is recomputed.
+    derived: std::sync::Mutex<Option<Arc<Derived>>>,
+}
+
+impl RunCtx {
+    /// A context for the run described by `manifest`, writing under `out`.
+    pub fn new(manifest: RunManifest, out: PathBuf, verbose: bool) -> Self {
+        Self {
+            manifest,
+            out,
+            verbose,
+            log: std::sync::Mutex::new(Vec::new()),
+            progress: None,
+            derived: std::sync::Mutex::new(None),
+        }
+    }
+
+    /// The derive in `derive_dir` (brought up to date by the caller): the one in memory,
+    /// else loaded without its velocity increments and kept. Its `dvel_mps` is then empty:
+    /// [`load_case`](super::load_case) reads the static start's apart.
+    pub fn derived(&self, derive_dir: &Path) -> anyhow::Result<Arc<Derived>> {
+        let mut memo = self.derived.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(d) = memo.as_ref() {
+            return Ok(d.clone());
+        }
+        let d = Arc::new(load_derived_for_navigation(derive_dir)?);
+        *memo = Some(d.clone());
+        Ok(d)
+    }
+
+    /// The derive in memory, when the chain holds it (nothing is loaded).
+    pub fn kept_derived(&self) -> Option<Arc<Derived>> {
+        self.derived
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+
+    /// Takes the derive out of memory, when the chain holds it: the last stage that reads
+    /// it owns it then.
+    pub fn take_kept_derived(&self) -> Option<Arc<Derived>> {
+        self.derived
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take()
+    }
+
+    pub(super) fn set_derived(&self, d: Option<Arc<Derived>>) {
+        *self.derived.lock().unwrap_or_else(|e| e.into_inner()) = d;
+    }
+
+    fn record(&self, stage: &str, computed: bool, wall_s: f64) {
+        if let Ok(mut log) = self.log.lock() {
+            log.push((stage.to_owned(), computed, wall_s));
+        }
+    }
+}
+
+impl RunCtx {
+    /// Where this run's artifacts live.
+    pub fn layout(&self) -> RunLayout {
+        RunLayout::new(&self.out, &self.manifest.name)
+    }
+
+    /// Says `what` of `stage` when verbose.
+    pub fn say(&self, stage: &str, what: &str) {
+        if self.verbose {
+            eprintln!("{}: {stage}: {what}", self.manifest.name);
+        }
+    }
+
+    /// Runs `body` unless `stage` is up to date; then records it.
+    pub fn run_stage(
+        &self,
+        stage: &Stage<'_>,
+        body: impl FnOnce() -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
+        let t0 = std::time::Instant::now();
+        if let Some(p) = &self.progress {
+            p.set_message(format!("{}: {}", self.manifest.name, stage.name));
+        }
+        if stage.is_up_to_date()? {
+            self.say(stage.name, "up to date, skipped");
+            self.record(stage.name, false, t0.elapsed().as_secs_f64());
+            return Ok(());
+        }
+        stage.invalidate()?;
+        body().with_context(|| format!("{}: stage {} failed", self.manifest.name, stage.name))?;
+        stage.commit()?;
+        let wall_s = t0.elapsed().as_secs_f64();
+        self.say(stage.name, &format!("done in {wall_s:.2} s"));
+        self.record(stage.name, true, wall_s);
+        Ok(())
+    }
+}
