@@ -261,6 +261,16 @@ fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
     serde_json::from_slice(&std::fs::read(path).ok()?).ok()
 }
 
+/// The methods a run's disupt stage did not run, with the reason (the summary's error
+/// column of a run that did not fail).
+fn skipped_note(d: &DisuptOut) -> String {
+    d.skipped
+        .iter()
+        .map(|(name, why)| format!("{name} not run: {why}"))
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
 /// Median and largest horizontal hold-out error of the joint fit, m.
 fn holdout_stats(j: &MethodOut) -> Option<(f64, f64)> {
     unz_stages::disupt::holdout_median_max_m(j.holdout.as_ref()?)
@@ -474,8 +484,9 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
                 (false, false) => computed.join(", "),
             },
             o.error
-                .as_deref()
-                .unwrap_or("")
+                .clone()
+                .or_else(|| d.as_ref().map(skipped_note))
+                .unwrap_or_default()
                 .replace('|', "/")
                 .replace('\n', " "),
         );

@@ -68,7 +68,7 @@ fn parse(table: &toml::Table) -> anyhow::Result<Params> {
 pub fn validate(p: &Params) -> anyhow::Result<()> {
     let d = &p.derive;
     let (a, k, m) = (&p.align, &p.kalman, &p.disupt);
-    let checks: [(&str, f64, f64, f64); 16] = [
+    let checks: [(&str, f64, f64, f64); 17] = [
         ("derive.filter.block_s", d.filter.block_s, 1e-4, 10.0),
         ("derive.filter.cutoff_hz", d.filter.cutoff_hz, 1e-3, 50.0),
         ("derive.epoch_s", d.epoch_s, 1e-3, 3600.0),
@@ -94,6 +94,12 @@ pub fn validate(p: &Params) -> anyhow::Result<()> {
         ("disupt.attitude_sigma_rad", m.attitude_sigma_rad, 1e-9, 1.0),
         ("disupt.position_sigma_m", m.position_sigma_m, 1e-6, 1e5),
         ("disupt.odo_lag_bound_s", m.odo_lag_bound_s, 1e-3, 5.0),
+        (
+            "disupt.odo_scale_bound_ppm",
+            m.odo_scale_bound_ppm,
+            1.0,
+            1e6,
+        ),
         (
             "derive.filter.cutoff_hz × block_s",
             d.filter.cutoff_hz * d.filter.block_s,

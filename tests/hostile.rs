@@ -416,3 +416,64 @@ fn saturated_increments_are_replaced_or_fail_their_run() {
     let (a, b) = (end(&patched), end(&reference));
     assert!((a.0 - b.0).hypot(a.1 - b.1) < 0.5, "{a:?} vs {b:?}");
 }
+
+/// Moves the first control point of the manifest `run_toml` by `north_m` and `east_m`.
+fn move_control_point(run_toml: &Path, north_m: f64, east_m: f64) {
+    let mut m: toml::Table = std::fs::read_to_string(run_toml).unwrap().parse().unwrap();
+    let cp = m["control_point"].as_array_mut().unwrap()[0]
+        .as_table_mut()
+        .unwrap();
+    let lat_deg = cp["latitude_deg"].as_float().unwrap();
+    let lon_deg = cp["longitude_deg"].as_float().unwrap();
+    let r_m = 6_371_000.0;
+    cp["latitude_deg"] = (lat_deg + (north_m / r_m).to_degrees()).into();
+    cp["longitude_deg"] =
+        (lon_deg + (east_m / (r_m * lat_deg.to_radians().cos())).to_degrees()).into();
+    std::fs::write(run_toml, toml::to_string(&m).unwrap()).unwrap();
+}
+
+/// A control point no setting reaches (5 000 km from a start the vehicle left 750 m
+/// before) fails its run with the point and the manifest, where the joint fit used to
+/// follow it to an odometer scale of thousands and report 0 m under "ok". One within
+/// reach but 1 km off its surveyed place (a wrong point id, say): OEPI and OWPI stay in
+/// their bounds, and the joint fit, which would leave them to reach it, is refused with
+/// what it moved; the corrected navigation is OEPI's and the summary says why the joint
+/// is missing.
+#[test]
+fn control_points_the_log_cannot_reach_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    move_control_point(&camp.join("sim-0081/run.toml"), -5.0e6, 0.0);
+    move_control_point(&camp.join("sim-0080/run.toml"), 0.0, 1000.0);
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "disupt");
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("FAILED sim-0081")
+            && text.contains("sim-0081/run.toml")
+            && text.contains("control point 1 is 50")
+            && text.contains("no azimuth or odometer scale reaches it"),
+        "{text}"
+    );
+    let d: unz::disupt_stage::DisuptOut =
+        serde_json::from_slice(&std::fs::read(out.join("sim-0080/disupt/disupt.json")).unwrap())
+            .unwrap();
+    let why = &d.skipped["joint"];
+    assert!(why.contains("the fit left its bounds"), "{why}");
+    assert!(!d.methods.contains_key("joint"));
+    assert_eq!(d.corrected_by.as_deref(), Some("oepi"));
+    // OEPI's azimuth stays within ±15° of its start (the coarse search's, when it moved).
+    let oepi = &d.methods["oepi"].outcome.x;
+    let start_deg = d.coarse_azimuth_deg.unwrap_or(d.before.x.azimuth_deg);
+    let moved_deg = (oepi.azimuth_deg - start_deg + 180.0).rem_euclid(360.0) - 180.0;
+    assert!(moved_deg.abs() <= 15.0 + 1e-9, "{moved_deg}");
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    let row = summary
+        .lines()
+        .find(|l| l.starts_with("| sim-0080 "))
+        .unwrap();
+    assert!(
+        row.contains("| ok |") && row.contains("joint not run: the fit left its bounds"),
+        "{row}"
+    );
+}

@@ -115,7 +115,7 @@ pub(super) fn run_methods(
 }
 
 /// The joint fit, at the estimated odometer lag when there are two control points or more
-/// and it is asked for.
+/// and it is asked for; refused when it leaves its bounds ([`disupt::within_bounds`]).
 fn run_joint(
     problem: &Problem<'_>,
     spec: &ProblemSpec<'_>,
@@ -137,6 +137,7 @@ fn run_joint(
             fit: f.fit,
             lag_states: None,
         };
+        disupt::within_bounds(&run.fit, &problem.x0(), dparams)?;
         if route_sigma_has_lag(&run) {
             // The route σ's pass at the moved lag, now that the ingested odometer is at
             // hand (beside OEPI and OWPI when they still run): only its states at the
@@ -153,8 +154,10 @@ fn run_joint(
         }
         return Ok(run);
     }
+    let fit = joint_fit(problem, dparams, &JointOptions::default())?;
+    disupt::within_bounds(&fit, &problem.x0(), dparams)?;
     Ok(JointRun {
-        fit: joint_fit(problem, dparams, &JointOptions::default())?,
+        fit,
         lag: Lag::default(),
         profile: None,
         derived: None,

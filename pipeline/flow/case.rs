@@ -94,6 +94,55 @@ pub fn match_control_points(
         .collect()
 }
 
+/// How many times over the odometer's path to a mark a control point may lie from the
+/// start: a scale wrong by half still reaches it.
+const CP_REACH_PATH_FACTOR: f64 = 2.0;
+/// What a control point may lie beyond that, m: the site's own uncertainty (a start read
+/// off a map or a GNSS fix) and a mark pressed a little late.
+const CP_REACH_MARGIN_M: f64 = 100.0;
+
+/// Fails when a control point lies farther from the run's start than the vehicle can have
+/// gone by its mark (the odometer's path there, `odo_scale` times, [`CP_REACH_PATH_FACTOR`]
+/// over, plus [`CP_REACH_MARGIN_M`]). No setting DISUPT moves reaches such a point: the
+/// azimuth turns the route about the start, the odometer scale stretches it by per cent,
+/// the drifts bend it. Fitted anyway, the joint fit follows it to any value (an odometer
+/// scale of thousands) and the route is the fit's artefact; its coordinates, its mark's
+/// point id or the site are wrong, and the manifest says which point.
+pub fn check_reach(
+    m: &RunManifest,
+    fixes: &[ControlPointFix],
+    d: &Derived,
+    odo_scale: f64,
+) -> anyhow::Result<()> {
+    let start = start_position(m);
+    let mut by_sample: Vec<&ControlPointFix> = fixes.iter().collect();
+    by_sample.sort_by_key(|f| f.sample);
+    let (mut path_m, mut k) = (0.0, 0);
+    for f in by_sample {
+        let end = (f.sample + 1).min(d.odo_dist_m.len());
+        path_m += d.odo_dist_m[k.min(end)..end]
+            .iter()
+            .map(|s| s.abs())
+            .sum::<f64>();
+        k = k.max(end);
+        let travelled_m = path_m * odo_scale.abs();
+        let (north_m, east_m) = start.offset_m(f.lat_rad, f.lon_rad);
+        let away_m = north_m.hypot(east_m);
+        let reach_m = CP_REACH_PATH_FACTOR * travelled_m + CP_REACH_MARGIN_M;
+        if away_m.is_nan() || away_m > reach_m {
+            bail!(
+                "control point {} is {away_m:.0} m from the run's start (the site) but the \
+                 odometer measured {travelled_m:.0} m of travel by its mark at t_s = {:.2}: no \
+                 azimuth or odometer scale reaches it; its coordinates, its mark's point id or \
+                 the site are wrong",
+                f.id,
+                f.t_s
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Where the run starts: the manifest's site.
 pub fn start_position(m: &RunManifest) -> Geodetic {
     Geodetic::from_deg(m.site.latitude_deg, m.site.longitude_deg, m.site.height_m)
@@ -145,6 +194,8 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         prefix = read_velocity_prefix(&derive_dir, static_samples(&derived, &req))?;
         &prefix
     };
+    check_reach(m, &fixes, &derived, odo_scale)
+        .with_context(|| format!("in {}", m.path.display()))?;
     let (settings, initial) =
         initial_settings_with_velocity(&derived, dvel_mps, &req, &params.align, start_position(m));
     if initial.gyrocompass_skipped.is_some() && fixes.is_empty() {

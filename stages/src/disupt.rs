@@ -35,7 +35,7 @@ mod stepwise;
 use argmin::core::Error as ArgminError;
 
 pub use holdout::{Holdout, holdout, holdout_median_max_m};
-pub use joint::{JointFit, JointOptions, joint, joint_fit};
+pub use joint::{JointFit, JointOptions, joint, joint_fit, within_bounds};
 pub use problem::{Evaluation, LANES, Problem, ProblemSpec, moved_by_steps, observe_each};
 pub use results::{Component, Criterion, MethodResult, Step};
 pub use settings::{DisuptParams, X, params_of, x_of};
@@ -57,4 +57,12 @@ pub enum DisuptError {
     /// A linear solve failed.
     #[error("linear solve: {0}")]
     Linear(&'static str),
+    /// The joint fit moved settings beyond their bounds: the control points and the log
+    /// disagree beyond what the settings explain ([`DisuptParams::joint_bound`]).
+    #[error(
+        "the fit left its bounds ({0}): the control points and the log disagree beyond what \
+         the settings explain (a control point's coordinates or mark, or the odometer's scale, \
+         are wrong)"
+    )]
+    OutOfBounds(String),
 }

@@ -71,6 +71,21 @@ impl Setting {
         }
     }
 
+    /// Its name and unit (the optimisers' units) for messages.
+    pub const fn name_and_unit(self) -> (&'static str, &'static str) {
+        match self {
+            Setting::Azimuth => ("azimuth", "°"),
+            Setting::DriftX => ("drift x", "°/h"),
+            Setting::DriftY => ("drift y", "°/h"),
+            Setting::DriftZ => ("drift z", "°/h"),
+            Setting::TiltPitch => ("pitch levelling", "mrad"),
+            Setting::TiltRoll => ("roll levelling", "mrad"),
+            Setting::OdoScale => ("odometer scale", "ppm"),
+            Setting::OdoYaw => ("odometer yaw boresight", "°"),
+            Setting::OdoBias => ("odometer speed bias", "m/s"),
+        }
+    }
+
     /// Whether only control points see it (the odometer's settings move the route, not
     /// the attitude the gyros carry).
     pub const fn needs_control_points(self) -> bool {

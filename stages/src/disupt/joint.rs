@@ -278,9 +278,34 @@ pub struct JointFit {
     pub(super) weights: DisuptParams,
 }
 
-/// The joint estimator.
+/// The joint estimator; a fit that leaves its bounds is refused ([`within_bounds`]).
 pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, DisuptError> {
-    joint_fit(problem, p, &JointOptions::default()).map(|f| f.result)
+    let fit = joint_fit(problem, p, &JointOptions::default())?;
+    within_bounds(&fit, &problem.x0(), p)?;
+    Ok(fit.result)
+}
+
+/// Refuses `fit` when it moved a setting from `start` beyond its bound
+/// ([`DisuptParams::joint_bound`]): the least squares follow control points that no
+/// physical setting reaches (coordinates from another survey, a mark with the wrong point
+/// id, an odometer scale wrong by half) to any value, and the corrected route would be
+/// the fit's artefact, not an estimate.
+pub fn within_bounds(fit: &JointFit, start: &X, p: &DisuptParams) -> Result<(), DisuptError> {
+    let out = p.joint_out_of_bounds(start, &fit.result.x, &fit.free);
+    if out.is_empty() {
+        return Ok(());
+    }
+    let said: Vec<String> = out
+        .iter()
+        .map(|&(s, moved)| {
+            let (name, unit) = s.name_and_unit();
+            format!(
+                "{name} moved {moved:+.1} {unit}, bound ±{} {unit}",
+                p.joint_bound(s)
+            )
+        })
+        .collect();
+    Err(DisuptError::OutOfBounds(said.join("; ")))
 }
 
 /// The joint estimator, with options; see [`joint`].

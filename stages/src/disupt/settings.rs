@@ -88,6 +88,10 @@ pub struct DisuptParams {
     pub joint_odo_lag: bool,
     /// Half-width of the lag search, s.
     pub odo_lag_bound_s: f64,
+    /// How far the joint fit may move the odometer scale from its start, ppm. Wheel
+    /// radius, tyre pressure and wear change a land vehicle's scale by a few per cent; a
+    /// fit beyond this is the control points disagreeing with the log, not an estimate.
+    pub odo_scale_bound_ppm: f64,
 }
 
 impl Default for DisuptParams {
@@ -102,7 +106,52 @@ impl Default for DisuptParams {
             joint_odo_bias: None,
             joint_odo_lag: true,
             odo_lag_bound_s: 1.0,
+            odo_scale_bound_ppm: 100_000.0,
         }
+    }
+}
+
+/// Bound of the joint fit's odometer yaw boresight, degrees: a mounting error, not a
+/// direction (the simulator's own limit).
+pub const JOINT_ODO_YAW_BOUND_DEG: f64 = 10.0;
+/// Bound of the joint fit's odometer speed bias, m/s: an OBD-II speed's bias is a few
+/// hundredths to tenths (Kingston's: 0.1 m/s).
+pub const JOINT_ODO_BIAS_BOUND_MPS: f64 = 2.0;
+/// Bound of the joint fit's levelling corrections, mrad: an accelerometer bias of 50 mg
+/// (far beyond a navigation-grade or even a consumer MEMS accelerometer's) levels the
+/// start that far wrong.
+pub const JOINT_TILT_BOUND_MRAD: f64 = 50.0;
+
+impl DisuptParams {
+    /// How far the joint fit may move `s` from its start (in the optimisers' units): the
+    /// classic methods' search bounds for the azimuth and the drifts, physical bounds for
+    /// the rest.
+    pub fn joint_bound(&self, s: Setting) -> f64 {
+        match s {
+            Setting::Azimuth => self.azimuth_bound_deg,
+            Setting::DriftX | Setting::DriftY | Setting::DriftZ => self.drift_bound_deg_h,
+            Setting::TiltPitch | Setting::TiltRoll => JOINT_TILT_BOUND_MRAD,
+            Setting::OdoScale => self.odo_scale_bound_ppm,
+            Setting::OdoYaw => JOINT_ODO_YAW_BOUND_DEG,
+            Setting::OdoBias => JOINT_ODO_BIAS_BOUND_MPS,
+        }
+    }
+
+    /// The settings of `free` that `x` moved beyond [`Self::joint_bound`] from `start`,
+    /// each as (setting, how far it moved); the azimuth's move is taken modulo 360°
+    /// (the same heading). Non-finite moves are out of bounds.
+    pub fn joint_out_of_bounds(&self, start: &X, x: &X, free: &[Setting]) -> Vec<(Setting, f64)> {
+        free.iter()
+            .map(|&s| {
+                let moved = x.get(s) - start.get(s);
+                let moved = match s {
+                    Setting::Azimuth => (moved + 180.0).rem_euclid(360.0) - 180.0,
+                    _ => moved,
+                };
+                (s, moved)
+            })
+            .filter(|&(s, moved)| moved.is_nan() || moved.abs() > self.joint_bound(s))
+            .collect()
     }
 }
 
@@ -123,3 +172,60 @@ pub fn x_of(p: &[f64; N_PARAMS]) -> X {
 /// Settings of the shared first linearisation: all but the odometer boresight and bias,
 /// which only the joint fit moves, and only when asked.
 pub(super) const BASE_SETTINGS: &[Setting] = Setting::ALL.split_at(Setting::OdoYaw.index()).0;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each setting against its own bound; the azimuth modulo 360° (−18 535° from 207.96°
+    /// is −22.987°: a fit the fuzzed chain made); a non-finite move is out.
+    #[test]
+    fn joint_bounds_take_each_setting_and_the_azimuth_modulo_a_turn() {
+        let p = DisuptParams::default();
+        let start = X {
+            azimuth_deg: 207.958,
+            drift_deg_h: [0.0, 0.0, -0.96],
+            ..X::default()
+        };
+        let free = &Setting::ALL[..7];
+        let within = X {
+            azimuth_deg: 207.958 + 14.9 - 720.0,
+            drift_deg_h: [4.9, -4.9, -0.96 + 4.9],
+            tilt_mrad: [49.0, -49.0],
+            odo_ppm: -99_000.0,
+            ..start
+        };
+        assert!(p.joint_out_of_bounds(&start, &within, free).is_empty());
+        let fuzzed = X {
+            azimuth_deg: -18_535.029,
+            drift_deg_h: [179.1, 717.5, -0.957],
+            tilt_mrad: [168.3, -332.0],
+            odo_ppm: 9.524e9,
+            ..start
+        };
+        let out = p.joint_out_of_bounds(&start, &fuzzed, free);
+        let settings: Vec<Setting> = out.iter().map(|o| o.0).collect();
+        assert_eq!(
+            settings,
+            [
+                Setting::Azimuth,
+                Setting::DriftX,
+                Setting::DriftY,
+                Setting::TiltPitch,
+                Setting::TiltRoll,
+                Setting::OdoScale
+            ]
+        );
+        assert!((out[0].1 - -22.987).abs() < 1e-9, "{out:?}");
+        // Only the free settings are checked: a fixed odometer scale is not the fit's.
+        assert!(
+            p.joint_out_of_bounds(&start, &fuzzed, &free[3..4])
+                .is_empty()
+        );
+        let nan = X {
+            odo_ppm: f64::NAN,
+            ..start
+        };
+        assert_eq!(p.joint_out_of_bounds(&start, &nan, free).len(), 1);
+    }
+}
