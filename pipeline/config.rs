@@ -68,13 +68,14 @@ fn parse(table: &toml::Table) -> anyhow::Result<Params> {
 pub fn validate(p: &Params) -> anyhow::Result<()> {
     let d = &p.derive;
     let (a, k, m) = (&p.align, &p.kalman, &p.disupt);
-    let checks: [(&str, f64, f64, f64); 17] = [
+    let checks: [(&str, f64, f64, f64); 18] = [
         ("derive.filter.block_s", d.filter.block_s, 1e-4, 10.0),
         ("derive.filter.cutoff_hz", d.filter.cutoff_hz, 1e-3, 50.0),
         ("derive.epoch_s", d.epoch_s, 1e-3, 3600.0),
         ("derive.odo_time_offset_s", d.odo_time_offset_s, -60.0, 60.0),
         ("derive.gate_long_mps2", d.gate_long_mps2, 1e-3, 100.0),
         ("derive.gate_lat_mps2", d.gate_lat_mps2, 1e-3, 100.0),
+        ("derive.max_gap_s", d.max_gap_s, 1e-3, 86_400.0),
         ("align.drift_sigma_rad_s", a.drift_sigma_rad_s, 0.0, 1e-2),
         ("align.arw_rad_sqrt_s", a.arw_rad_sqrt_s, 0.0, 1e-2),
         ("kalman.r_rad", k.r_rad, 1e-9, 1.0),

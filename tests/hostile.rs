@@ -477,3 +477,40 @@ fn control_points_the_log_cannot_reach_are_refused() {
         "{row}"
     );
 }
+
+/// A 30-s hole in a moving run's IMU log (its time tags jump) fails the run at derive with
+/// where the gap is, where holding the rate across it turned the heading by whatever the
+/// vehicle was turning at times 3 000; a run that raises `derive.max_gap_s` past it (a
+/// pause its crew knows to have been at rest) is bridged as before.
+#[test]
+fn a_gap_longer_than_the_derive_bridges_fails_its_run() {
+    use std::cell::Cell;
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let shift_after = |log: &Path| {
+        let k = Cell::new(0_u32);
+        rewrite_imu(log, &|r| {
+            if k.get() >= 12_000 {
+                r.t_us += 30_000_000;
+            }
+            k.set(k.get() + 1);
+        })
+    };
+    shift_after(&camp.join("sim-0081/sim-0081.unz"));
+    shift_after(&camp.join("sim-0080/sim-0080.unz"));
+    append(
+        &camp.join("sim-0080/run.toml"),
+        "\n[params.derive]\nmax_gap_s = 40.0\n",
+    );
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "derive");
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("FAILED sim-0081")
+            && text.contains("gap of 30.01 s after t = 119.99 s (before sample 12000)")
+            && text.contains("derive.max_gap_s = 2 s"),
+        "{text}"
+    );
+    assert!(!text.contains("FAILED sim-0080"), "{text}");
+    assert!(out.join("sim-0080/derive/derived.parquet").is_file());
+}

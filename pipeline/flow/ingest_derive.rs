@@ -87,6 +87,19 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                 d.t_s.len()
             );
         }
+        // A gap is bridged by holding the rate across it: beyond a few seconds, the turns
+        // and the gyros' noise in it would be a step in the heading no setting explains.
+        let max_gap_s = params.derive.max_gap_s;
+        if let Some(k) = d.dt_s.iter().position(|&dt| dt > max_gap_s) {
+            bail!(
+                "the IMU log has a gap of {:.2} s after t = {:.2} s (before sample {k}): \
+                 dead reckoning does not bridge more than derive.max_gap_s = {max_gap_s} s \
+                 (the turns and the gyros' noise in it are unknown); split the run there, or \
+                 raise max_gap_s for a pause at rest",
+                d.dt_s[k],
+                d.t_s.get(k) - d.dt_s[k]
+            );
+        }
         ensure_finite("angle increment", d.dtheta_rad.iter().flatten().copied())?;
         ensure_finite("velocity increment", d.dvel_mps.iter().flatten().copied())?;
         ensure_finite("odometer distance", d.odo_dist_m.iter().copied())?;

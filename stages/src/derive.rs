@@ -34,6 +34,11 @@ pub struct DeriveParams {
     pub gate_long_mps2: f64,
     /// Epochs with |filtered ru| above this are gated out, m/s².
     pub gate_lat_mps2: f64,
+    /// Longest gap in the IMU's time tags the derive bridges, s (by holding the rate
+    /// across it); a longer one fails the run. The turns across a gap are unknown, and
+    /// so is the gyros' noise: an LN-200's angle random walk held from one 10-ms sample
+    /// turns the heading by 0.12° (1σ) over 10 s. A pause at rest may be worth raising it.
+    pub max_gap_s: f64,
 }
 
 impl Default for DeriveParams {
@@ -44,6 +49,7 @@ impl Default for DeriveParams {
             odo_time_offset_s: 0.0,
             gate_long_mps2: 1.5,
             gate_lat_mps2: 1.5,
+            max_gap_s: 2.0,
         }
     }
 }
