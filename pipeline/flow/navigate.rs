@@ -61,7 +61,8 @@ pub fn ensure_navigate(
     let stage = Stage {
         dir: dir.clone(),
         name: "navigate",
-        version: 3,
+        // 4: control points the log cannot reach fail the stage (case::check_reach).
+        version: 4,
         params_hash: params_hash(&(params.align, overrides))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],
