@@ -222,7 +222,8 @@ pub fn run_campaign(manifests: &[PathBuf], plan: &Plan) -> Vec<RunOutcome> {
                 b
             });
             let (result, stages) = match m {
-                Ok(m) => process(&m, plan, bar.clone()),
+                Ok(m) => guarded(|| process(&m, plan, bar.clone()))
+                    .unwrap_or_else(|e| (Err(e), Vec::new())),
                 Err(e) => (Err(e), Vec::new()),
             };
             if let Some(b) = bar {
@@ -254,6 +255,22 @@ pub fn run_campaign(manifests: &[PathBuf], plan: &Plan) -> Vec<RunOutcome> {
         total.finish_and_clear();
     }
     outcomes
+}
+
+/// Runs `f`, a panic in it turned into an error that says it is unz's bug: a defect that
+/// one run's data reaches fails that run alone, and the campaign's other runs and its
+/// summary go on (the panic's message and place are on stderr too, from the panic hook).
+/// A stage that panicked never recorded itself done, and its outputs are written whole or
+/// not at all, so a re-run redoes it.
+fn guarded<R>(f: impl FnOnce() -> R) -> anyhow::Result<R> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|payload| {
+        let what = payload
+            .downcast_ref::<&str>()
+            .map(|s| (*s).to_owned())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "no message".to_owned());
+        anyhow::anyhow!("internal error, a bug in unz (please report it with this run): {what}")
+    })
 }
 
 /// A run's report, read through its type; `None` when the run did not get that far.
@@ -666,6 +683,22 @@ pub fn merge_summaries(outs: &[PathBuf], dest: &Path) -> anyhow::Result<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A panic becomes the run's error with its message (a formatted one, a literal one);
+    /// a result goes through untouched.
+    #[test]
+    fn a_panicking_run_becomes_its_error() {
+        let index = 7;
+        let e = guarded(|| -> u8 { panic!("index {index} out of range") }).unwrap_err();
+        let said = format!("{e:#}");
+        assert!(
+            said.contains("a bug in unz") && said.contains("index 7 out of range"),
+            "{said}"
+        );
+        let e = guarded(|| -> u8 { panic!("literal") }).unwrap_err();
+        assert!(format!("{e}").ends_with(": literal"), "{e}");
+        assert_eq!(guarded(|| 5).unwrap(), 5);
+    }
 
     #[test]
     fn a_killed_summarys_temporary_files_are_removed_and_nothing_else() {

@@ -2,6 +2,7 @@
 
 mod campaign;
 mod cli;
+mod damaged;
 mod disupt;
 mod estimation;
 mod hostile;

@@ -90,6 +90,13 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // A gap is bridged by holding the rate across it: beyond a few seconds, the turns
         // and the gyros' noise in it would be a step in the heading no setting explains.
         let max_gap_s = params.derive.max_gap_s;
+        if d.nominal_dt_s > max_gap_s {
+            bail!(
+                "the IMU log's sample interval (the median step of its time tags) is {:.3} s, \
+                 longer than derive.max_gap_s = {max_gap_s} s: no IMU's rate",
+                d.nominal_dt_s
+            );
+        }
         if let Some(k) = d.dt_s.iter().position(|&dt| dt > max_gap_s) {
             bail!(
                 "the IMU log has a gap of {:.2} s after t = {:.2} s (before sample {k}): \
