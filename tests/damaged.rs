@@ -11,7 +11,7 @@ use std::path::Path;
 
 use unz_formats::raw::{Accepted, FileHeader, ImuRecord, MarkRecord, RawReader, RawWriter};
 
-use crate::util::unz_output;
+use crate::util::{simulated_run, unz_output};
 
 /// xorshift64: the cases are the same on every run of the test.
 struct Rng(u64);
@@ -200,21 +200,9 @@ fn damage(r: &mut Rng, log: &mut Log, manifest: &mut toml::Table) -> String {
 fn damaged_runs_end_ok_or_fail_by_name_and_the_campaign_goes_on() {
     const RUNS: usize = 24;
     let tmp = tempfile::tempdir().unwrap();
-    let sim = tmp.path().join("sim");
-    let o = unz_output(&[
-        "simulate",
-        "--out",
-        sim.to_str().unwrap(),
-        "--seed",
-        "80",
-        "--runs",
-        "1",
-        "--duration-s",
-        "200",
-    ]);
-    assert!(o.status.success());
-    let base_log = read_log(&sim.join("sim-0080/sim-0080.unz"));
-    let base_manifest: toml::Table = std::fs::read_to_string(sim.join("sim-0080/run.toml"))
+    let sim = simulated_run(&tmp.path().join("sim"), 80, &["--duration-s", "200"]);
+    let base_log = read_log(&sim.join("sim-0080.unz"));
+    let base_manifest: toml::Table = std::fs::read_to_string(sim.join("run.toml"))
         .unwrap()
         .parse()
         .unwrap();
