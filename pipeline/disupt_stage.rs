@@ -337,7 +337,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             coarse_azimuth_deg: coarse,
             shared_passes: problem.base_passes(),
         };
-        let md = markdown(&m.name, &out);
+        let md = markdown(&m.name, &out, &dparams);
         write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;
         write_json_atomic(&dir.join(files::DISUPT_REPORT), &out)?;
         lap("written");

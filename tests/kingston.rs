@@ -244,6 +244,22 @@ fn kingston_odometer_terms_through_the_binary() {
         let d: DisuptOut =
             serde_json::from_slice(&std::fs::read(dir.join("disupt.json")).unwrap()).unwrap();
         let j = &d.methods["joint"];
+        // OWPI's vertical drift by Kryt1 runs into its ±5 °/h and is said to (README).
+        let owpi_driftz = d.methods["owpi"]
+            .steps
+            .iter()
+            .find(|st| st.component == unz_stages::disupt::Component::DriftZ)
+            .unwrap();
+        assert_eq!(
+            owpi_driftz.at_bound,
+            [unz_stages::linearized::Setting::DriftZ]
+        );
+        assert!(
+            d.methods["oepi"]
+                .steps
+                .iter()
+                .all(|st| st.at_bound.is_empty())
+        );
         // The corrected heading against the settled reference, over the moving part.
         let (_, b) = read_batches(&dir.join("corrected_nav.parquet")).unwrap();
         let t_s: Vec<f64> = b

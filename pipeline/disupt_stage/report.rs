@@ -169,7 +169,7 @@ pub(super) fn method_out(
 }
 
 /// One method's table (the paper's Table 1 or 2), its 1σ and its hold-out.
-fn table(name: &str, r: &MethodOut) -> String {
+fn table(name: &str, r: &MethodOut, bounds: &disupt::DisuptParams) -> String {
     let mut s = format!(
         "## {name}\n\n| step | moved | by | azpocz in | driftx in | drifty in | driftz in | azpopt | driftx opt | drifty opt | driftz opt | ΔX [m] | ΔY [m] | passes |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
     );
@@ -192,6 +192,21 @@ fn table(name: &str, r: &MethodOut) -> String {
             st.dx_m,
             st.dy_m,
             st.evaluations
+        );
+    }
+    for st in r.steps.iter().filter(|st| !st.at_bound.is_empty()) {
+        let names: Vec<&str> = st.at_bound.iter().map(|b| b.name_and_unit().0).collect();
+        let _ = writeln!(
+            s,
+            "\nStep {}: {} stopped at the edge of the search's range (±{} from its input): \
+             clipped, not found; the criterion still fell beyond it.",
+            st.step,
+            names.join(", "),
+            st.at_bound
+                .iter()
+                .map(|&b| format!("{} {}", bounds.bound(b), b.name_and_unit().1))
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     }
     if let Some(sd) = &r.outcome.x.sigma {
@@ -243,12 +258,13 @@ fn table(name: &str, r: &MethodOut) -> String {
     s
 }
 
-/// `disupt.md`: the paper's tables per method, then the errors before DISUPT.
-pub(super) fn markdown(run: &str, out: &DisuptOut) -> String {
+/// `disupt.md`: the paper's tables per method (the steps a search left at the edge of its
+/// range, `bounds`, said below them), then the errors before DISUPT.
+pub(super) fn markdown(run: &str, out: &DisuptOut, bounds: &disupt::DisuptParams) -> String {
     let mut md = format!("# DISUPT: {run}\n\n");
     for (name, title) in [("oepi", "OEPI"), ("owpi", "OWPI"), ("joint", "JOINT")] {
         if let Some(o) = out.methods.get(name) {
-            md += &table(title, o);
+            md += &table(title, o, bounds);
         } else if let Some(e) = out.skipped.get(name) {
             md += &format!("## {title}\n\nnot run: {e}\n\n");
         }

@@ -102,8 +102,8 @@ const CP_REACH_PATH_FACTOR: f64 = 2.0;
 const CP_REACH_MARGIN_M: f64 = 100.0;
 
 /// Fails when a control point lies farther from the run's start than the vehicle can have
-/// gone by its mark (the odometer's path there, `odo_scale` times, [`CP_REACH_PATH_FACTOR`]
-/// over, plus [`CP_REACH_MARGIN_M`]). No setting DISUPT moves reaches such a point: the
+/// gone by its mark (the odometer's path there, `odo_scale` times, twice over, plus
+/// 100 m). No setting DISUPT moves reaches such a point: the
 /// azimuth turns the route about the start, the odometer scale stretches it by per cent,
 /// the drifts bend it. Fitted anyway, the joint fit follows it to any value (an odometer
 /// scale of thousands) and the route is the fit's artefact; its coordinates, its mark's

@@ -58,7 +58,7 @@ pub enum DisuptError {
     #[error("linear solve: {0}")]
     Linear(&'static str),
     /// The joint fit moved settings beyond their bounds: the control points and the log
-    /// disagree beyond what the settings explain ([`DisuptParams::joint_bound`]).
+    /// disagree beyond what the settings explain ([`DisuptParams::bound`]).
     #[error(
         "the fit left its bounds ({0}): the control points and the log disagree beyond what \
          the settings explain (a control point's coordinates or mark, or the odometer's scale, \

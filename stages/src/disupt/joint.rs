@@ -286,7 +286,7 @@ pub fn joint(problem: &Problem<'_>, p: &DisuptParams) -> Result<MethodResult, Di
 }
 
 /// Refuses `fit` when it moved a setting from `start` beyond its bound
-/// ([`DisuptParams::joint_bound`]): the least squares follow control points that no
+/// ([`DisuptParams::bound`]): the least squares follow control points that no
 /// physical setting reaches (coordinates from another survey, a mark with the wrong point
 /// id, an odometer scale wrong by half) to any value, and the corrected route would be
 /// the fit's artefact, not an estimate.
@@ -301,7 +301,7 @@ pub fn within_bounds(fit: &JointFit, start: &X, p: &DisuptParams) -> Result<(), 
             let (name, unit) = s.name_and_unit();
             format!(
                 "{name} moved {moved:+.1} {unit}, bound ±{} {unit}",
-                p.joint_bound(s)
+                p.bound(s)
             )
         })
         .collect();
@@ -438,6 +438,7 @@ pub fn joint_fit(
         dx_m,
         dy_m,
         evaluations,
+        at_bound: Vec::new(),
     };
     let result = MethodResult {
         x,

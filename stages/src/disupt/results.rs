@@ -61,6 +61,10 @@ pub struct Step {
     pub dy_m: f64,
     /// Navigation passes of the step.
     pub evaluations: usize,
+    /// Settings the step left at the edge of its search range
+    /// ([`super::DisuptParams::at_bound`]): clipped, not found.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub at_bound: Vec<crate::linearized::Setting>,
 }
 
 /// The result of one method.

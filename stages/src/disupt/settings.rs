@@ -123,10 +123,10 @@ pub const JOINT_ODO_BIAS_BOUND_MPS: f64 = 2.0;
 pub const JOINT_TILT_BOUND_MRAD: f64 = 50.0;
 
 impl DisuptParams {
-    /// How far the joint fit may move `s` from its start (in the optimisers' units): the
-    /// classic methods' search bounds for the azimuth and the drifts, physical bounds for
-    /// the rest.
-    pub fn joint_bound(&self, s: Setting) -> f64 {
+    /// How far a method may move `s` from where it starts (in the optimisers' units): the
+    /// half-width of the classic methods' searches for the azimuth and the drifts, and for
+    /// the joint fit those and physical bounds for the rest.
+    pub fn bound(&self, s: Setting) -> f64 {
         match s {
             Setting::Azimuth => self.azimuth_bound_deg,
             Setting::DriftX | Setting::DriftY | Setting::DriftZ => self.drift_bound_deg_h,
@@ -137,7 +137,7 @@ impl DisuptParams {
         }
     }
 
-    /// The settings of `free` that `x` moved beyond [`Self::joint_bound`] from `start`,
+    /// The settings of `free` that `x` moved beyond [`Self::bound`] from `start`,
     /// each as (setting, how far it moved); the azimuth's move is taken modulo 360°
     /// (the same heading). Non-finite moves are out of bounds.
     pub fn joint_out_of_bounds(&self, start: &X, x: &X, free: &[Setting]) -> Vec<(Setting, f64)> {
@@ -150,7 +150,18 @@ impl DisuptParams {
                 };
                 (s, moved)
             })
-            .filter(|&(s, moved)| moved.is_nan() || moved.abs() > self.joint_bound(s))
+            .filter(|&(s, moved)| moved.is_nan() || moved.abs() > self.bound(s))
+            .collect()
+    }
+
+    /// The settings of `moved` that a search from `input` left at the edge of its range
+    /// (within 0.1 % of [`Self::bound`]): the criterion still fell there, so the value is
+    /// where the search stopped, not a minimum it found.
+    pub fn at_bound(&self, input: &X, output: &X, moved: &[Setting]) -> Vec<Setting> {
+        moved
+            .iter()
+            .copied()
+            .filter(|&s| (output.get(s) - input.get(s)).abs() >= self.bound(s) * (1.0 - 1e-3))
             .collect()
     }
 }
@@ -227,5 +238,32 @@ mod tests {
             ..start
         };
         assert_eq!(p.joint_out_of_bounds(&start, &nan, free).len(), 1);
+    }
+
+    /// A search that stopped at the edge of its range is said to, one inside it not
+    /// (Kingston's OWPI: drift z from 2.1766 to 7.1766 °/h, its ±5 °/h searched through).
+    #[test]
+    fn a_search_stopped_at_its_range_is_at_its_bound() {
+        let p = DisuptParams::default();
+        let input = X {
+            azimuth_deg: 201.85,
+            drift_deg_h: [0.0, 0.0, 2.176_647_650_537_266],
+            ..X::default()
+        };
+        let pinned = X {
+            drift_deg_h: [0.0, 0.0, 7.176_646_603_937_24],
+            ..input
+        };
+        let moved = [Setting::DriftZ];
+        assert_eq!(p.at_bound(&input, &pinned, &moved), moved);
+        let found = X {
+            azimuth_deg: 201.85 - 14.9,
+            drift_deg_h: [0.0, 0.0, 6.9],
+            ..input
+        };
+        assert!(
+            p.at_bound(&input, &found, &[Setting::Azimuth, Setting::DriftZ])
+                .is_empty()
+        );
     }
 }

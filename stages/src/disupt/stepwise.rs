@@ -244,6 +244,7 @@ fn run_steps(
             dx_m,
             dy_m,
             evaluations: passes() - before,
+            at_bound: p.at_bound(&input, &x, component.settings()),
         });
     }
     let (dx_m, dy_m) = last_cp(&y);
