@@ -4,7 +4,7 @@
 //! cut short, header fields and marks changed, manifest numbers at their limits. Each
 //! damaged copy of one simulated run is a run of one campaign: each ends "ok" or fails
 //! with its stage and reason, none panics or hangs, and the campaign and its summary go
-//! on. (Exploring the same mutations in 1 200 one-run campaigns found the control points
+//! on. (Exploring the same mutations in 1 160 one-run campaigns found the control points
 //! no setting reaches and the gaps no dead reckoning bridges, `hostile.rs`.)
 
 use std::path::Path;
