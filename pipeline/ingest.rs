@@ -14,7 +14,9 @@ use crate::raw_mcap::RawMcapWriter;
 use anyhow::Context;
 use serde::Serialize;
 use unz_formats::atomic::write_json_atomic;
-use unz_formats::kfgins::{KfGinsReader, LineFault, read_odometer_file};
+use unz_formats::kfgins::{KfGinsReader, LAND_SPEED_RANGE_MPS, LineFault, read_odometer_file};
+
+use crate::odometer_range::OdometerRange;
 use unz_formats::manifest::{LogFormat, RunManifest};
 use unz_formats::mcap_io::McapCompression;
 use unz_formats::parquet_io::ParquetSink;
@@ -90,6 +92,8 @@ struct Sinks {
     odo_schema: arrow::datatypes::SchemaRef,
     marks_schema: arrow::datatypes::SchemaRef,
     mcap: Option<RawMcapWriter>,
+    /// The odometer's steps against a land vehicle's speed.
+    odo_range: OdometerRange,
 }
 
 impl Sinks {
@@ -130,6 +134,7 @@ impl Sinks {
                 )?),
                 None => None,
             },
+            odo_range: OdometerRange::default(),
         })
     }
 
@@ -146,6 +151,7 @@ impl Sinks {
     }
 
     fn push_odometer(&mut self, t_ns: i64, distance_m: f64, pulses: Option<i64>) {
+        let distance_m = self.odo_range.step(t_ns, distance_m);
         self.odo_rows.t_ns.push(t_ns);
         self.odo_rows.distance_m.push(distance_m);
         self.odo_rows.pulses.push(pulses);
@@ -154,8 +160,9 @@ impl Sinks {
         }
     }
 
-    /// Writes the marks and closes every file (renaming them into place).
-    fn finish(mut self, dir: &Path) -> anyhow::Result<usize> {
+    /// Writes the marks and closes every file (renaming them into place); returns the
+    /// odometer's rows and its steps replaced for their speed.
+    fn finish(mut self, dir: &Path) -> anyhow::Result<(usize, u64)> {
         self.flush(true)?;
         let odo_rows = self.odo.rows();
         self.imu.finish()?;
@@ -167,7 +174,7 @@ impl Sinks {
         if let Some(m) = self.mcap {
             m.finish()?;
         }
-        Ok(odo_rows)
+        Ok((odo_rows, self.odo_range.out_of_range))
     }
 }
 
@@ -182,6 +189,16 @@ pub fn ingest(
         LogFormat::UnzBinary => ingest_binary(manifest, dir, options)?,
         LogFormat::KfGins => ingest_text(manifest, dir, options)?,
     };
+    // A few corrupt odometer steps are replaced and counted; many are a broken odometer.
+    if report.odometer_out_of_range * 100 > odometer_rows as u64 {
+        anyhow::bail!(
+            "{} of {} odometer steps are beyond a land vehicle's speed ({} m/s): corrupt \
+             counts or readings",
+            report.odometer_out_of_range,
+            odometer_rows,
+            unz_formats::kfgins::LAND_SPEED_RANGE_MPS
+        );
+    }
     write_json_atomic(&dir.join(files::INGEST_REPORT), &report)?;
     Ok(IngestOutcome {
         dir: dir.to_path_buf(),
@@ -246,8 +263,9 @@ fn ingest_binary(
             }
         }
     }
-    let odo_rows = sinks.finish(dir)?;
-    let (report, events, events_total) = reader.into_report();
+    let (odo_rows, odometer_out_of_range) = sinks.finish(dir)?;
+    let (mut report, events, events_total) = reader.into_report();
+    report.odometer_out_of_range = odometer_out_of_range;
     write_json_atomic(
         &dir.join("ingest_events.json"),
         &EventsFile {
@@ -287,6 +305,13 @@ fn ingest_text(
             m.imu(t_ns, period, seq, s.dtheta_rad, s.dvel_mps, 0);
         }
         if let Some(v) = s.speed_mps {
+            if v.abs() > LAND_SPEED_RANGE_MPS {
+                // A corrupt reading: the sample goes on without its speed, counted.
+                sinks.odo_range.out_of_range += 1;
+                seq += 1;
+                sinks.flush(false)?;
+                continue;
+            }
             let d = match prev {
                 Some((t0, v0, d0)) if s.t_s > t0 => d0 + 0.5 * (v0 + v) * (s.t_s - t0),
                 Some((_, _, d0)) => d0,
@@ -310,8 +335,9 @@ fn ingest_text(
         }
         odometer_faults = faults;
     }
-    let odo_rows = sinks.finish(dir)?;
-    let report = reader.report().clone();
+    let (odo_rows, odometer_out_of_range) = sinks.finish(dir)?;
+    let mut report = reader.report().clone();
+    report.odometer_out_of_range = odometer_out_of_range;
     let (faults, total) = reader.faults();
     write_json_atomic(
         &dir.join("ingest_events.json"),

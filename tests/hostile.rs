@@ -514,3 +514,98 @@ fn a_gap_longer_than_the_derive_bridges_fails_its_run() {
     assert!(!text.contains("FAILED sim-0080"), "{text}");
     assert!(out.join("sim-0080/derive/derived.parquet").is_file());
 }
+
+/// Odometer steps no land vehicle makes: a pulse counter jumping by a million counts
+/// (12.5 km in 10 ms) in a UNZ log, and a 1e300 m/s line in a KF-GINS speed file. Each
+/// ended "ok" with the jump in its route (a distance of 1e300 m in the summary); now the
+/// step is replaced by the speed before it and counted (`ingest.json`), the bad line is a
+/// line fault, and the route is the one without them.
+#[test]
+fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
+    use std::cell::Cell;
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let k = Cell::new(0_u32);
+    rewrite_imu(&camp.join("sim-0081/sim-0081.unz"), &|r| {
+        if k.get() >= 12_000 {
+            r.odo_count = r.odo_count.wrapping_add(1_000_000);
+        }
+        k.set(k.get() + 1);
+    });
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "navigate");
+    assert_eq!(code, Some(0), "{text}");
+    let json = |p: &str| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(out.join(p)).unwrap()).unwrap()
+    };
+    assert_eq!(
+        json("sim-0081/ingest/ingest.json")["odometer_out_of_range"],
+        1
+    );
+    assert!(
+        json("sim-0080/ingest/ingest.json")
+            .get("odometer_out_of_range")
+            .is_none()
+    );
+    let distance = |run: &str| {
+        json(&format!("{run}/navigate/navigate.json"))["distance_m"]
+            .as_f64()
+            .unwrap()
+    };
+    // The two runs drive alike (seeds 80 and 81, 200 s); the jump is not in the route.
+    assert!(
+        distance("sim-0081") < 2.0 * distance("sim-0080"),
+        "{}",
+        distance("sim-0081")
+    );
+
+    let run = tmp.path().join("k");
+    std::fs::create_dir_all(&run).unwrap();
+    for f in ["imu.txt", "run.toml"] {
+        std::fs::copy(
+            crate::util::test_data("kingston2008-seg1").join(f),
+            run.join(f),
+        )
+        .unwrap();
+    }
+    let odometer =
+        std::fs::read_to_string(crate::util::test_data("kingston2008-seg1").join("odometer.txt"))
+            .unwrap();
+    let mut lines: Vec<String> = odometer.lines().map(String::from).collect();
+    let t = lines[500].split_whitespace().next().unwrap().to_owned();
+    lines[500] = format!("{t} 1e300");
+    std::fs::write(run.join("odometer.txt"), lines.join("\n") + "\n").unwrap();
+    let out = tmp.path().join("ko");
+    let (code, text) = run_until_k(&run, &out);
+    assert_eq!(code, Some(0), "{text}");
+    let events =
+        std::fs::read_to_string(out.join("kingston2008-segment1/ingest/ingest_events.json"))
+            .unwrap();
+    assert!(
+        events.contains("speed 1e300 m/s is beyond a land vehicle's"),
+        "{events}"
+    );
+    let nav: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(out.join("kingston2008-segment1/navigate/navigate.json")).unwrap(),
+    )
+    .unwrap();
+    // The segment's 2.3 km (README), not 1e300 m.
+    let d = nav["distance_m"].as_f64().unwrap();
+    assert!((2000.0..2700.0).contains(&d), "{d}");
+}
+
+/// Runs the single run folder `run` until navigate; (exit code, output).
+fn run_until_k(run: &Path, out: &Path) -> (Option<i32>, String) {
+    let o = crate::util::unz_output(&[
+        "run",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--until",
+        "navigate",
+    ]);
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr),
+    )
+}

@@ -284,10 +284,15 @@ pub struct OdometerSample {
     pub distance_m: f64,
 }
 
+/// Fastest a land vehicle's odometer may say it went, m/s (360 km/h): a speed beyond it
+/// is a corrupt reading, and a step of distance beyond it a corrupt count.
+pub const LAND_SPEED_RANGE_MPS: f64 = 100.0;
+
 /// Reads a two-column odometer file (`t_s value`) into cumulative distance.
 ///
-/// Speed is integrated with the trapezoidal rule. Lines that are not two finite numbers
-/// or go back in time are returned as faults; the rest is kept.
+/// Speed is integrated with the trapezoidal rule. Lines that are not two finite numbers,
+/// go back in time or give a speed beyond [`LAND_SPEED_RANGE_MPS`] are returned as
+/// faults; the rest is kept.
 pub fn read_odometer_file(
     src: impl BufRead,
     kind: OdometerKind,
@@ -328,6 +333,19 @@ pub fn read_odometer_file(
                 continue;
             }
         };
+        if kind == OdometerKind::SpeedMps && v.abs() > LAND_SPEED_RANGE_MPS {
+            faults.push(LineFault {
+                line: line_no,
+                reason: if v.abs() < 1e6 {
+                    format!("speed {v} m/s is beyond a land vehicle's ({LAND_SPEED_RANGE_MPS} m/s)")
+                } else {
+                    format!(
+                        "speed {v:e} m/s is beyond a land vehicle's ({LAND_SPEED_RANGE_MPS} m/s)"
+                    )
+                },
+            });
+            continue;
+        }
         if let Some((pt, _)) = prev
             && t <= pt
         {

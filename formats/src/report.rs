@@ -50,6 +50,14 @@ pub struct IngestReport {
     pub lost_duration_s: f64,
     /// Accepted IMU records whose `t_us` is not after the previous one's.
     pub t_non_increasing: u64,
+    /// Odometer steps beyond a land vehicle's speed (a corrupt count or reading), replaced
+    /// by the speed before them; a run fails above 1 % of its odometer's samples.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub odometer_out_of_range: u64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 impl IngestReport {
