@@ -10,13 +10,12 @@ use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use crate::artifacts::files;
+use crate::odometer_range::OdometerRange;
 use crate::raw_mcap::RawMcapWriter;
 use anyhow::Context;
 use serde::Serialize;
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::kfgins::{KfGinsReader, LAND_SPEED_RANGE_MPS, LineFault, read_odometer_file};
-
-use crate::odometer_range::OdometerRange;
 use unz_formats::manifest::{LogFormat, RunManifest};
 use unz_formats::mcap_io::McapCompression;
 use unz_formats::parquet_io::ParquetSink;
@@ -196,7 +195,7 @@ pub fn ingest(
              counts or readings",
             report.odometer_out_of_range,
             odometer_rows,
-            unz_formats::kfgins::LAND_SPEED_RANGE_MPS
+            LAND_SPEED_RANGE_MPS
         );
     }
     write_json_atomic(&dir.join(files::INGEST_REPORT), &report)?;
@@ -304,21 +303,19 @@ fn ingest_text(
         if let Some(m) = &mut sinks.mcap {
             m.imu(t_ns, period, seq, s.dtheta_rad, s.dvel_mps, 0);
         }
-        if let Some(v) = s.speed_mps {
-            if v.abs() > LAND_SPEED_RANGE_MPS {
-                // A corrupt reading: the sample goes on without its speed, counted.
-                sinks.odo_range.out_of_range += 1;
-                seq += 1;
-                sinks.flush(false)?;
-                continue;
+        match s.speed_mps {
+            // A corrupt reading: the sample goes on without its speed, counted.
+            Some(v) if v.abs() > LAND_SPEED_RANGE_MPS => sinks.odo_range.out_of_range += 1,
+            Some(v) => {
+                let d = match prev {
+                    Some((t0, v0, d0)) if s.t_s > t0 => d0 + 0.5 * (v0 + v) * (s.t_s - t0),
+                    Some((_, _, d0)) => d0,
+                    None => 0.0,
+                };
+                prev = Some((s.t_s, v, d));
+                sinks.push_odometer(t_ns, d, None);
             }
-            let d = match prev {
-                Some((t0, v0, d0)) if s.t_s > t0 => d0 + 0.5 * (v0 + v) * (s.t_s - t0),
-                Some((_, _, d0)) => d0,
-                None => 0.0,
-            };
-            prev = Some((s.t_s, v, d));
-            sinks.push_odometer(t_ns, d, None);
+            None => {}
         }
         seq += 1;
         sinks.flush(false)?;

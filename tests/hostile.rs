@@ -576,8 +576,7 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
     lines[500] = format!("{t} 1e300");
     std::fs::write(run.join("odometer.txt"), lines.join("\n") + "\n").unwrap();
     let out = tmp.path().join("ko");
-    let (code, text) = run_until_k(&run, &out);
-    assert_eq!(code, Some(0), "{text}");
+    crate::util::run_until(&run, &out, "navigate");
     let events =
         std::fs::read_to_string(out.join("kingston2008-segment1/ingest/ingest_events.json"))
             .unwrap();
@@ -592,20 +591,4 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
     // The segment's 2.3 km (README), not 1e300 m.
     let d = nav["distance_m"].as_f64().unwrap();
     assert!((2000.0..2700.0).contains(&d), "{d}");
-}
-
-/// Runs the single run folder `run` until navigate; (exit code, output).
-fn run_until_k(run: &Path, out: &Path) -> (Option<i32>, String) {
-    let o = crate::util::unz_output(&[
-        "run",
-        run.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--until",
-        "navigate",
-    ]);
-    (
-        o.status.code(),
-        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr),
-    )
 }

@@ -336,13 +336,15 @@ pub fn read_odometer_file(
         if kind == OdometerKind::SpeedMps && v.abs() > LAND_SPEED_RANGE_MPS {
             faults.push(LineFault {
                 line: line_no,
-                reason: if v.abs() < 1e6 {
-                    format!("speed {v} m/s is beyond a land vehicle's ({LAND_SPEED_RANGE_MPS} m/s)")
-                } else {
-                    format!(
-                        "speed {v:e} m/s is beyond a land vehicle's ({LAND_SPEED_RANGE_MPS} m/s)"
-                    )
-                },
+                reason: format!(
+                    "speed {} m/s is beyond a land vehicle's ({LAND_SPEED_RANGE_MPS} m/s)",
+                    // 1e300 as such, not as 301 digits.
+                    if v.abs() < 1e6 {
+                        format!("{v}")
+                    } else {
+                        format!("{v:e}")
+                    }
+                ),
             });
             continue;
         }
