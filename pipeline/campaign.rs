@@ -302,7 +302,7 @@ struct SummaryValues {
     distance_m: Option<f64>,
     /// IMU records accepted.
     imu_accepted: Option<f64>,
-    /// Records rejected, every reason.
+    /// Records rejected, every reason, and the odometer file's lines rejected.
     rejected: Option<f64>,
     /// IMU samples lost in gaps.
     lost_samples: Option<f64>,
@@ -366,7 +366,7 @@ impl SummaryValues {
         Self {
             distance_m: d.map(|d| d.distance_m),
             imu_accepted: ing.map(|i| i.imu_accepted as f64),
-            rejected: ing.map(|i| i.rejected_total() as f64),
+            rejected: ing.map(|i| i.rejected_all_files() as f64),
             lost_samples: ing.map(|i| i.lost_samples as f64),
             before_dx_m: d.map(|d| d.before.dx_m),
             before_dy_m: d.map(|d| d.before.dy_m),

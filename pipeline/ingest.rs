@@ -15,7 +15,7 @@ use crate::raw_mcap::RawMcapWriter;
 use anyhow::Context;
 use serde::Serialize;
 use unz_formats::atomic::write_json_atomic;
-use unz_formats::kfgins::{KfGinsReader, LAND_SPEED_RANGE_MPS, LineFault, read_odometer_file};
+use unz_formats::kfgins::{KfGinsReader, LAND_SPEED_RANGE_MPS, LineFault, OdometerFileReader};
 use unz_formats::manifest::{LogFormat, RunManifest};
 use unz_formats::mcap_io::McapCompression;
 use unz_formats::parquet_io::ParquetSink;
@@ -77,6 +77,8 @@ struct EventsFile<'a> {
     events_total: u64,
     events: &'a [FaultEvent],
     line_faults: &'a [LineFault],
+    /// The odometer file's first 1000 line faults (their total is `ingest.json`'s
+    /// `odometer_file.lines_rejected`).
     odometer_file_faults: &'a [LineFault],
 }
 
@@ -320,21 +322,22 @@ fn ingest_text(
         seq += 1;
         sinks.flush(false)?;
     }
-    let mut odometer_faults = Vec::new();
     // The 8th column, when present, is the odometer; otherwise the manifest's file.
+    let mut odometer_file = None;
     if reader.columns() != Some(8)
         && let (Some(file), Some(kind)) = (&manifest.odometer.file, manifest.odometer.kind)
     {
-        let (samples, faults) = read_odometer_file(BufReader::new(open(manifest, file)?), kind)
-            .map_err(|e| e.in_file(file))?;
-        for o in samples {
+        let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind);
+        while let Some(o) = odo.next_sample().map_err(|e| e.in_file(file))? {
             sinks.push_odometer((o.t_s * 1e9).round() as i64, o.distance_m, None);
+            sinks.flush(false)?;
         }
-        odometer_faults = faults;
+        odometer_file = Some(odo);
     }
     let (odo_rows, odometer_out_of_range) = sinks.finish(dir)?;
     let mut report = reader.report().clone();
     report.odometer_out_of_range = odometer_out_of_range;
+    report.odometer_file = odometer_file.as_ref().map(|o| o.report().clone());
     let (faults, total) = reader.faults();
     write_json_atomic(
         &dir.join("ingest_events.json"),
@@ -343,7 +346,7 @@ fn ingest_text(
             events_total: total,
             events: &[],
             line_faults: faults,
-            odometer_file_faults: &odometer_faults,
+            odometer_file_faults: odometer_file.as_ref().map_or(&[], |o| o.faults().0),
         },
     )?;
     Ok((report, odo_rows))

@@ -584,6 +584,21 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
         events.contains("speed 1e300 m/s is beyond a land vehicle's"),
         "{events}"
     );
+    // Every line of the odometer file is accounted, the rejected one too.
+    let report: unz_formats::IngestReport = serde_json::from_slice(
+        &std::fs::read(out.join("kingston2008-segment1/ingest/ingest.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        report.odometer_file,
+        Some(unz_formats::OdometerFileReport {
+            lines_read: lines.len() as u64,
+            lines_accepted: lines.len() as u64 - 1,
+            lines_rejected: 1,
+        })
+    );
+    assert!(report.is_consistent(), "{report:?}");
+    assert_eq!(report.rejected_all_files(), 1);
     let nav: serde_json::Value = serde_json::from_slice(
         &std::fs::read(out.join("kingston2008-segment1/navigate/navigate.json")).unwrap(),
     )

@@ -10,7 +10,7 @@ use std::io::BufRead;
 
 use crate::error::FormatError;
 use crate::manifest::OdometerKind;
-use crate::report::IngestReport;
+use crate::report::{IngestReport, OdometerFileReport};
 
 /// Longest line accepted; longer lines are malformed (and never buffered whole).
 pub const MAX_LINE_BYTES: usize = 4096;
@@ -41,15 +41,106 @@ pub struct LineFault {
     pub reason: String,
 }
 
+/// Line faults kept for the events file: the first [`FaultLog::KEPT`] and their total.
+#[derive(Debug, Default)]
+struct FaultLog {
+    kept: Vec<LineFault>,
+    total: u64,
+}
+
+impl FaultLog {
+    /// Faults kept with their line and reason; the rest are only counted.
+    const KEPT: usize = 1000;
+
+    fn push(&mut self, line: u64, reason: String) {
+        self.total += 1;
+        if self.kept.len() < Self::KEPT {
+            self.kept.push(LineFault { line, reason });
+        }
+    }
+}
+
+/// Lines of a text file, read through a bounded buffer: a line longer than
+/// [`MAX_LINE_BYTES`] is consumed but never held whole, however long it is.
+struct LineReader<R: BufRead> {
+    src: R,
+    /// 1-based number of the line last read.
+    line_no: u64,
+    buf: Vec<u8>,
+}
+
+/// One line as read.
+enum Line<'a> {
+    /// Longer than [`MAX_LINE_BYTES`].
+    Overlong,
+    /// Not UTF-8.
+    NotText,
+    /// Blank, or a comment (`#`, `%`).
+    Skipped,
+    /// A line to parse, trimmed.
+    Text(&'a str),
+}
+
+impl<R: BufRead> LineReader<R> {
+    fn new(src: R) -> Self {
+        Self {
+            src,
+            line_no: 0,
+            buf: Vec::with_capacity(256),
+        }
+    }
+
+    /// The next line, or `None` at the end of the file.
+    fn next_line(&mut self) -> Result<Option<Line<'_>>, FormatError> {
+        self.buf.clear();
+        let mut overlong = false;
+        loop {
+            let chunk = self
+                .src
+                .fill_buf()
+                .map_err(|source| FormatError::Io { offset: 0, source })?;
+            if chunk.is_empty() {
+                if self.buf.is_empty() && !overlong {
+                    return Ok(None);
+                }
+                break;
+            }
+            let (take, done) = match chunk.iter().position(|&b| b == b'\n') {
+                Some(k) => (k + 1, true),
+                None => (chunk.len(), false),
+            };
+            let room = MAX_LINE_BYTES.saturating_sub(self.buf.len());
+            self.buf.extend_from_slice(&chunk[..take.min(room)]);
+            overlong |= take > room;
+            self.src.consume(take);
+            if done {
+                break;
+            }
+        }
+        self.line_no += 1;
+        if overlong {
+            return Ok(Some(Line::Overlong));
+        }
+        let Ok(text) = std::str::from_utf8(&self.buf) else {
+            return Ok(Some(Line::NotText));
+        };
+        let text = text.trim();
+        Ok(Some(
+            if text.is_empty() || text.starts_with('#') || text.starts_with('%') {
+                Line::Skipped
+            } else {
+                Line::Text(text)
+            },
+        ))
+    }
+}
+
 /// Streaming reader of a KF-GINS IMU text log with accounting.
 pub struct KfGinsReader<R: BufRead> {
-    src: R,
-    line_no: u64,
+    lines: LineReader<R>,
     columns: Option<usize>,
-    buf: Vec<u8>,
     report: IngestReport,
-    faults: Vec<LineFault>,
-    faults_total: u64,
+    faults: FaultLog,
     /// Samples read ahead to estimate the sample period.
     ahead: std::collections::VecDeque<TextSample>,
     period_s: Option<f64>,
@@ -61,10 +152,8 @@ impl<R: BufRead> KfGinsReader<R> {
     /// Wraps a buffered source.
     pub fn new(src: R) -> Self {
         Self {
-            src,
-            line_no: 0,
+            lines: LineReader::new(src),
             columns: None,
-            buf: Vec::with_capacity(256),
             report: IngestReport {
                 rejected: crate::report::Rejected {
                     malformed_line: Some(0),
@@ -72,8 +161,7 @@ impl<R: BufRead> KfGinsReader<R> {
                 },
                 ..Default::default()
             },
-            faults: Vec::new(),
-            faults_total: 0,
+            faults: FaultLog::default(),
             ahead: std::collections::VecDeque::new(),
             period_s: None,
             prev: None,
@@ -88,7 +176,7 @@ impl<R: BufRead> KfGinsReader<R> {
 
     /// The first 1000 line faults and their total count.
     pub fn faults(&self) -> (&[LineFault], u64) {
-        (&self.faults, self.faults_total)
+        (&self.faults.kept, self.faults.total)
     }
 
     /// Number of columns of this file (7 or 8), once known.
@@ -105,61 +193,24 @@ impl<R: BufRead> KfGinsReader<R> {
     fn fault(&mut self, reason: String) {
         self.report.records_read += 1;
         *self.report.rejected.malformed_line.get_or_insert(0) += 1;
-        self.faults_total += 1;
-        if self.faults.len() < 1000 {
-            self.faults.push(LineFault {
-                line: self.line_no,
-                reason,
-            });
-        }
-    }
-
-    /// Reads the next line into `buf`; `Ok(false)` at the end. Overlong lines are cut.
-    fn read_line(&mut self) -> Result<Option<bool>, FormatError> {
-        self.buf.clear();
-        let mut overlong = false;
-        loop {
-            let chunk = self
-                .src
-                .fill_buf()
-                .map_err(|source| FormatError::Io { offset: 0, source })?;
-            if chunk.is_empty() {
-                return Ok(if self.buf.is_empty() && !overlong {
-                    None
-                } else {
-                    Some(overlong)
-                });
-            }
-            let (take, done) = match chunk.iter().position(|&b| b == b'\n') {
-                Some(k) => (k + 1, true),
-                None => (chunk.len(), false),
-            };
-            let room = MAX_LINE_BYTES.saturating_sub(self.buf.len());
-            self.buf.extend_from_slice(&chunk[..take.min(room)]);
-            overlong |= take > room;
-            self.src.consume(take);
-            if done {
-                return Ok(Some(overlong));
-            }
-        }
+        self.faults.push(self.lines.line_no, reason);
     }
 
     /// Parses lines until one record is found.
     fn next_raw(&mut self) -> Result<Option<TextSample>, FormatError> {
-        while let Some(overlong) = self.read_line()? {
-            self.line_no += 1;
-            if overlong {
-                self.fault(format!("line longer than {MAX_LINE_BYTES} bytes"));
-                continue;
-            }
-            let Ok(text) = std::str::from_utf8(&self.buf) else {
-                self.fault("not UTF-8 text".into());
-                continue;
+        while let Some(line) = self.lines.next_line()? {
+            let text = match line {
+                Line::Text(text) => text,
+                Line::Skipped => continue,
+                Line::Overlong => {
+                    self.fault(format!("line longer than {MAX_LINE_BYTES} bytes"));
+                    continue;
+                }
+                Line::NotText => {
+                    self.fault("not UTF-8 text".into());
+                    continue;
+                }
             };
-            let text = text.trim();
-            if text.is_empty() || text.starts_with('#') || text.starts_with('%') {
-                continue;
-            }
             let mut values = [0f64; 8];
             let mut n = 0;
             let mut bad = None;
@@ -201,7 +252,7 @@ impl<R: BufRead> KfGinsReader<R> {
                 continue;
             }
             return Ok(Some(TextSample {
-                line: self.line_no,
+                line: self.lines.line_no,
                 t_s: values[0],
                 dtheta_rad: [values[1], values[2], values[3]],
                 dvel_mps: [values[4], values[5], values[6]],
@@ -288,55 +339,90 @@ pub struct OdometerSample {
 /// is a corrupt reading, and a step of distance beyond it a corrupt count.
 pub const LAND_SPEED_RANGE_MPS: f64 = 100.0;
 
-/// Reads a two-column odometer file (`t_s value`) into cumulative distance.
+/// Streaming reader of a two-column odometer file (`t_s value`), giving cumulative
+/// distance, with accounting ([`OdometerFileReport`]).
 ///
 /// Speed is integrated with the trapezoidal rule. Lines that are not two finite numbers,
-/// go back in time or give a speed beyond [`LAND_SPEED_RANGE_MPS`] are returned as
-/// faults; the rest is kept.
-pub fn read_odometer_file(
-    src: impl BufRead,
+/// go back in time or give a speed beyond [`LAND_SPEED_RANGE_MPS`] are rejected, counted
+/// and (the first 1000) returned as faults with their line; the rest is kept. Memory is
+/// bounded by one line, whatever the file.
+pub struct OdometerFileReader<R: BufRead> {
+    lines: LineReader<R>,
     kind: OdometerKind,
-) -> Result<(Vec<OdometerSample>, Vec<LineFault>), FormatError> {
-    let mut out: Vec<OdometerSample> = Vec::new();
-    let mut faults = Vec::new();
-    let mut prev: Option<(f64, f64)> = None; // (t, value)
-    for (i, line) in src.split(b'\n').enumerate() {
-        let line_no = i as u64 + 1;
-        let bytes = line.map_err(|source| FormatError::Io { offset: 0, source })?;
-        let Ok(text) = std::str::from_utf8(&bytes) else {
-            faults.push(LineFault {
-                line: line_no,
-                reason: "not UTF-8 text".into(),
-            });
-            continue;
-        };
-        let text = text.trim();
-        if text.is_empty() || text.starts_with('#') || text.starts_with('%') {
-            continue;
+    report: OdometerFileReport,
+    faults: FaultLog,
+    /// Time and value of the last accepted line, and its distance, m.
+    prev: Option<(f64, f64, f64)>,
+}
+
+impl<R: BufRead> OdometerFileReader<R> {
+    /// Wraps a buffered source holding values of `kind`.
+    pub fn new(src: R, kind: OdometerKind) -> Self {
+        Self {
+            lines: LineReader::new(src),
+            kind,
+            report: OdometerFileReport::default(),
+            faults: FaultLog::default(),
+            prev: None,
         }
-        let fields: Vec<&str> = text
-            .split(|c: char| c.is_whitespace() || c == ',')
-            .filter(|f| !f.is_empty())
-            .take(3)
-            .collect();
-        let parsed: Option<Vec<f64>> = fields
-            .iter()
-            .map(|f| f.parse::<f64>().ok().filter(|v| v.is_finite()))
-            .collect();
-        let (t, v) = match parsed.as_deref() {
-            Some([t, v]) => (*t, *v),
-            _ => {
-                faults.push(LineFault {
-                    line: line_no,
-                    reason: format!("expected two numbers `t_s value`, got {text:?}"),
-                });
+    }
+
+    /// The accounting so far (final after the last sample).
+    pub fn report(&self) -> &OdometerFileReport {
+        &self.report
+    }
+
+    /// The first 1000 line faults and their total count.
+    pub fn faults(&self) -> (&[LineFault], u64) {
+        (&self.faults.kept, self.faults.total)
+    }
+
+    fn reject(&mut self, reason: String) {
+        self.report.lines_rejected += 1;
+        self.faults.push(self.lines.line_no, reason);
+    }
+
+    /// Returns the next accepted sample, or `None` at the end.
+    pub fn next_sample(&mut self) -> Result<Option<OdometerSample>, FormatError> {
+        while let Some(line) = self.lines.next_line()? {
+            let text = match line {
+                Line::Text(text) => text,
+                Line::Skipped => continue,
+                Line::Overlong => {
+                    self.report.lines_read += 1;
+                    self.reject(format!("line longer than {MAX_LINE_BYTES} bytes"));
+                    continue;
+                }
+                Line::NotText => {
+                    self.report.lines_read += 1;
+                    self.reject("not UTF-8 text".into());
+                    continue;
+                }
+            };
+            self.report.lines_read += 1;
+            let mut values = [0f64; 2];
+            let mut n = 0;
+            let mut finite = true;
+            for field in text
+                .split(|c: char| c.is_whitespace() || c == ',')
+                .filter(|f| !f.is_empty())
+                .take(3)
+            {
+                match field.parse::<f64>() {
+                    Ok(v) if v.is_finite() && n < 2 => values[n] = v,
+                    Ok(v) if v.is_finite() => {}
+                    _ => finite = false,
+                }
+                n += 1;
+            }
+            if n != 2 || !finite {
+                let reason = format!("expected two numbers `t_s value`, got {text:?}");
+                self.reject(reason);
                 continue;
             }
-        };
-        if kind == OdometerKind::SpeedMps && v.abs() > LAND_SPEED_RANGE_MPS {
-            faults.push(LineFault {
-                line: line_no,
-                reason: format!(
+            let [t, v] = values;
+            if self.kind == OdometerKind::SpeedMps && v.abs() > LAND_SPEED_RANGE_MPS {
+                self.reject(format!(
                     "speed {} m/s is beyond a land vehicle's ({LAND_SPEED_RANGE_MPS} m/s)",
                     // 1e300 as such, not as 301 digits.
                     if v.abs() < 1e6 {
@@ -344,30 +430,26 @@ pub fn read_odometer_file(
                     } else {
                         format!("{v:e}")
                     }
-                ),
-            });
-            continue;
-        }
-        if let Some((pt, _)) = prev
-            && t <= pt
-        {
-            faults.push(LineFault {
-                line: line_no,
-                reason: format!("time {t} is not after {pt}"),
-            });
-            continue;
-        }
-        let distance_m = match (kind, prev, out.last()) {
-            (OdometerKind::DistanceM, _, _) => v,
-            (OdometerKind::SpeedMps, Some((pt, pv)), Some(last)) => {
-                last.distance_m + 0.5 * (pv + v) * (t - pt)
+                ));
+                continue;
             }
-            (OdometerKind::SpeedMps, _, _) => 0.0,
-        };
-        prev = Some((t, v));
-        out.push(OdometerSample { t_s: t, distance_m });
+            if let Some((pt, _, _)) = self.prev
+                && t <= pt
+            {
+                self.reject(format!("time {t} is not after {pt}"));
+                continue;
+            }
+            let distance_m = match (self.kind, self.prev) {
+                (OdometerKind::DistanceM, _) => v,
+                (OdometerKind::SpeedMps, Some((pt, pv, pd))) => pd + 0.5 * (pv + v) * (t - pt),
+                (OdometerKind::SpeedMps, None) => 0.0,
+            };
+            self.prev = Some((t, v, distance_m));
+            self.report.lines_accepted += 1;
+            return Ok(Some(OdometerSample { t_s: t, distance_m }));
+        }
+        Ok(None)
     }
-    Ok((out, faults))
 }
 
 #[cfg(test)]
@@ -406,17 +488,87 @@ mod tests {
         assert_eq!(rep.rejected.malformed_line, Some(1));
     }
 
+    fn read_odometer(text: &str, kind: OdometerKind) -> (Vec<f64>, OdometerFileReport, Vec<u64>) {
+        let mut r = OdometerFileReader::new(text.as_bytes(), kind);
+        let mut d = Vec::new();
+        while let Some(s) = r.next_sample().unwrap() {
+            d.push(s.distance_m);
+        }
+        let lines = r.faults().0.iter().map(|f| f.line).collect();
+        (d, r.report().clone(), lines)
+    }
+
     #[test]
     fn speed_integrates_to_distance() {
-        let (v, faults) = read_odometer_file(
-            "0 0\n1 2\n2 2\n2 5\n3 0\n".as_bytes(),
-            OdometerKind::SpeedMps,
-        )
-        .unwrap();
-        assert_eq!(faults.len(), 1);
+        let (d, rep, faults) = read_odometer("0 0\n1 2\n2 2\n2 5\n3 0\n", OdometerKind::SpeedMps);
+        assert_eq!(faults, vec![4]);
+        assert_eq!(d, vec![0.0, 1.0, 3.0, 4.0]);
         assert_eq!(
-            v.iter().map(|s| s.distance_m).collect::<Vec<_>>(),
-            vec![0.0, 1.0, 3.0, 4.0]
+            rep,
+            OdometerFileReport {
+                lines_read: 5,
+                lines_accepted: 4,
+                lines_rejected: 1
+            }
         );
+    }
+
+    #[test]
+    fn every_odometer_line_is_accepted_or_rejected_with_its_number() {
+        let long = "1".repeat(3 * MAX_LINE_BYTES);
+        let mut text = format!(
+            "# t_s distance_m\n0 0\n\n1 5 7\n1 nan\n2 10\n{long}\n3\n2.5 9\n% note\n3 1e300\n"
+        )
+        .into_bytes();
+        text.extend_from_slice(b"\xff\n4 12");
+        let mut r = OdometerFileReader::new(text.as_slice(), OdometerKind::DistanceM);
+        let mut d = Vec::new();
+        while let Some(s) = r.next_sample().unwrap() {
+            d.push(s.distance_m);
+        }
+        // Distances are taken as read (their steps are the ingest's range check's).
+        assert_eq!(d, vec![0.0, 10.0, 9.0, 1e300, 12.0]);
+        let lines: Vec<u64> = r.faults().0.iter().map(|f| f.line).collect();
+        assert_eq!(lines, vec![4, 5, 7, 8, 12]);
+        assert_eq!(
+            *r.report(),
+            OdometerFileReport {
+                lines_read: 10,
+                lines_accepted: 5,
+                lines_rejected: 5
+            }
+        );
+    }
+
+    #[test]
+    fn a_file_of_one_endless_line_is_read_in_bounded_memory() {
+        // 64 MiB without a line break: one overlong line, never held whole.
+        struct Endless(usize);
+        impl std::io::Read for Endless {
+            fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+                let n = buf.len().min(self.0);
+                buf[..n].fill(b'7');
+                self.0 -= n;
+                Ok(n)
+            }
+        }
+        let src = std::io::BufReader::new(Endless(64 << 20));
+        let mut r = OdometerFileReader::new(src, OdometerKind::SpeedMps);
+        assert!(r.next_sample().unwrap().is_none());
+        assert_eq!(r.report().lines_rejected, 1);
+        assert!(r.lines.buf.capacity() <= 2 * MAX_LINE_BYTES);
+        assert_eq!(r.faults().1, 1);
+    }
+
+    #[test]
+    fn line_faults_beyond_the_first_thousand_are_counted_only() {
+        let text = "x\n".repeat(2500) + "0 1\n";
+        let (d, rep, _) = read_odometer(&text, OdometerKind::SpeedMps);
+        let mut r = OdometerFileReader::new(text.as_bytes(), OdometerKind::SpeedMps);
+        while r.next_sample().unwrap().is_some() {}
+        assert_eq!(r.faults().0.len(), 1000);
+        assert_eq!(r.faults().1, 2500);
+        assert_eq!(d, vec![0.0]);
+        assert_eq!(rep.lines_rejected, 2500);
     }
 }

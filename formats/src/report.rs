@@ -54,6 +54,23 @@ pub struct IngestReport {
     /// by the speed before them; a run fails above 1 % of its odometer's samples.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub odometer_out_of_range: u64,
+    /// Text logs with a separate odometer file (`[odometer] file`): its lines' account.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub odometer_file: Option<OdometerFileReport>,
+}
+
+/// Accounting of a separate odometer file: `lines_read == lines_accepted +
+/// lines_rejected`. Blank and comment lines are not read as records.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OdometerFileReport {
+    /// Lines that are neither blank nor a comment.
+    pub lines_read: u64,
+    /// Lines kept as odometer samples.
+    pub lines_accepted: u64,
+    /// Lines not kept: not two finite numbers, time not advancing, a speed beyond a land
+    /// vehicle's (their numbers and reasons are in `ingest_events.json`).
+    pub lines_rejected: u64,
 }
 
 fn is_zero(n: &u64) -> bool {
@@ -61,15 +78,25 @@ fn is_zero(n: &u64) -> bool {
 }
 
 impl IngestReport {
-    /// Σ of the rejected counts.
+    /// Σ of the raw log's rejected counts.
     pub fn rejected_total(&self) -> u64 {
         let r = &self.rejected;
         r.bad_crc + r.duplicate_seq + r.unknown_type + r.truncated + r.malformed_line.unwrap_or(0)
     }
 
-    /// Whether the identities of §1.4 hold.
+    /// Records and lines rejected, every file of the run (the raw log and its odometer
+    /// file).
+    pub fn rejected_all_files(&self) -> u64 {
+        self.rejected_total() + self.odometer_file.as_ref().map_or(0, |o| o.lines_rejected)
+    }
+
+    /// Whether the identities of §1.4 hold, and the odometer file's.
     pub fn is_consistent(&self) -> bool {
         self.records_read == self.records_accepted + self.rejected_total()
             && self.records_accepted == self.imu_accepted + self.marks_accepted
+            && self
+                .odometer_file
+                .as_ref()
+                .is_none_or(|o| o.lines_read == o.lines_accepted + o.lines_rejected)
     }
 }

@@ -102,7 +102,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
             "{:<16} {:>7} {:>8} {:>9.0} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>12.3} {:>13} {:>12.1}",
             o.name,
             report.imu_accepted,
-            report.rejected_total(),
+            report.rejected_all_files(),
             d.distance_m,
             d.before.dx_m.hypot(d.before.dy_m),
             err(method("oepi")),

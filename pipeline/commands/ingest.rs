@@ -17,14 +17,21 @@ pub fn run(args: &StageArgs) -> anyhow::Result<ExitCode> {
         &crate::config::for_run(&toml::Table::new(), &ctx.manifest)?,
     )?;
     let r: IngestReport = serde_json::from_slice(&std::fs::read(dir.join(files::INGEST_REPORT))?)?;
+    let odometer_file = r.odometer_file.as_ref().map_or(String::new(), |o| {
+        format!(
+            "; odometer file: {} lines kept, {} rejected",
+            o.lines_accepted, o.lines_rejected
+        )
+    });
     println!(
-        "{}: {} IMU records, {} marks; {} rejected, {} bytes skipped, {} samples lost → {}",
+        "{}: {} IMU records, {} marks; {} rejected, {} bytes skipped, {} samples lost{} → {}",
         ctx.manifest.name,
         r.imu_accepted,
         r.marks_accepted,
         r.rejected_total(),
         r.bytes_skipped,
         r.lost_samples,
+        odometer_file,
         dir.display()
     );
     Ok(ExitCode::SUCCESS)

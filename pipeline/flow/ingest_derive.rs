@@ -23,7 +23,9 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let stage = Stage {
         dir: dir.clone(),
         name: "ingest",
-        version: 1,
+        // 2: odometer steps beyond a land vehicle's speed replaced and counted; the
+        // odometer file's lines accounted in `ingest.json`.
+        version: 2,
         params_hash: params_hash(&(m.odometer.scale_m_per_pulse, params.ingest))?,
         inputs,
         outputs: &INGEST_OUTPUTS,
