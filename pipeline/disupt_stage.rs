@@ -80,6 +80,7 @@ pub fn case_inputs(ctx: &RunCtx, params: &Params) -> anyhow::Result<Vec<PathBuf>
         derive_dir.join(files::EPOCHS),
         derive_dir.join(files::BLOCKS),
         ingest_dir.join(files::MARKS),
+        ingest_dir.join(files::ODOMETER),
     ])
 }
 
@@ -92,7 +93,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
     let stage = Stage {
         dir: dir.clone(),
         name: "disupt",
-        version: 5,
+        // 6: of a control point marked more than once, the first mark at rest.
+        version: 6,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[

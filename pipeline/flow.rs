@@ -3,13 +3,14 @@
 //!
 //! [`RunCtx`] is the run being processed; [`ingest_derive`] holds stages 1 and 2,
 //! [`ingested`] what the derive reads of the ingest, [`case`] a navigation case (the
-//! derive, the control points and the initial settings), then [`navigate`] and
-//! [`criteria`] stages 3a and 3b.
+//! derive, the control points and the initial settings) and [`marks`] which mark stands
+//! for a control point, then [`navigate`] and [`criteria`] stages 3a and 3b.
 
 pub mod case;
 pub mod criteria;
 pub mod ingest_derive;
 pub mod ingested;
+pub mod marks;
 pub mod navigate;
 pub mod run_ctx;
 
@@ -18,7 +19,7 @@ use unz_stages::criteria::KalmanParams;
 use unz_stages::derive::DeriveParams;
 use unz_stages::initial::AlignParams;
 
-pub use case::{NavCase, load_case, match_control_points, start_position};
+pub use case::{MatchedPoints, NavCase, load_case, match_control_points, start_position};
 pub use criteria::{CriteriaSummary, ensure_criteria, load_criteria};
 pub use ingest_derive::{ensure_derive, ensure_finite, ensure_ingest, site_gravity_mps2};
 pub use ingested::{IngestedSeries, OdometerTags};

@@ -607,3 +607,89 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
     let d = nav["distance_m"].as_f64().unwrap();
     assert!((2000.0..2700.0).contains(&d), "{d}");
 }
+
+/// A control point marked twice: an early press 5 s before the stop, while driving up to
+/// it (the first mark was used, placing the point tens of metres up the road). The
+/// mark at the stop is used, `navigate.json` says which and why, and the errors at the
+/// control points are the log's without the early press, bit for bit.
+#[test]
+fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
+    use unz::flow::NavigateSummary;
+    use unz_formats::raw::{Accepted, MarkRecord, RawReader, RawWriter};
+
+    let tmp = tempfile::tempdir().unwrap();
+    let run = crate::util::simulated_run(tmp.path(), 90, &["--duration-s", "600"]);
+    let log = run.join("sim-0090.unz");
+    let bytes = std::fs::read(&log).unwrap();
+    let mut reader = RawReader::new(bytes.as_slice()).unwrap();
+    let mut records = Vec::new();
+    while let Some(rec) = reader.next_record().unwrap() {
+        records.push(rec);
+    }
+    let last_mark = records
+        .iter()
+        .rev()
+        .find_map(|r| match r {
+            Accepted::Mark(m) => Some(*m),
+            Accepted::Imu(_) => None,
+        })
+        .unwrap();
+    // The vehicle stops some time before the point is marked: the early press is 5 s
+    // before it stopped, while it drove up.
+    let (mut stopped_us, mut pulses) = (0, None);
+    for r in &records {
+        if let Accepted::Imu(s) = r
+            && s.raw.t_us < last_mark.t_us
+        {
+            if pulses.is_some_and(|p| p != s.odo_pulses) {
+                stopped_us = s.raw.t_us;
+            }
+            pulses = Some(s.odo_pulses);
+        }
+    }
+    let early = MarkRecord {
+        t_us: stopped_us - 5_000_000,
+        point_id: last_mark.point_id,
+    };
+
+    let navigate = |out: &Path| -> NavigateSummary {
+        crate::util::run_until(&run, out, "criteria");
+        serde_json::from_slice(&std::fs::read(out.join("sim-0090/navigate/navigate.json")).unwrap())
+            .unwrap()
+    };
+    let clean = navigate(&tmp.path().join("clean"));
+    assert!(clean.repeated_marks.is_empty());
+
+    let mut writer = RawWriter::new(Vec::new(), reader.header()).unwrap();
+    let mut pending = Some(early);
+    for rec in &records {
+        match rec {
+            Accepted::Imu(s) => {
+                if let Some(m) = pending.take_if(|m| m.t_us <= s.raw.t_us) {
+                    writer.write_mark(&m).unwrap();
+                }
+                writer.write_imu(&s.raw).unwrap();
+            }
+            Accepted::Mark(m) => writer.write_mark(m).unwrap(),
+        }
+    }
+    std::fs::write(&log, writer.finish().unwrap()).unwrap();
+
+    let twice = navigate(&tmp.path().join("twice"));
+    assert_eq!(twice.repeated_marks.len(), 1, "{:?}", twice.repeated_marks);
+    let r = &twice.repeated_marks[0];
+    assert_eq!((r.id, r.marks), (last_mark.point_id, 2));
+    assert!(
+        (r.first_t_s - early.t_us as f64 * 1e-6).abs() < 1e-6,
+        "{r:?}"
+    );
+    assert!(
+        (r.used_t_s - last_mark.t_us as f64 * 1e-6).abs() < 1e-6,
+        "{r:?}"
+    );
+    assert!(
+        r.at_rest && r.used_speed_mps.is_some_and(|v| v <= 0.1),
+        "{r:?}"
+    );
+    assert_eq!(twice.control_points, clean.control_points);
+}

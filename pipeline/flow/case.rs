@@ -1,6 +1,7 @@
 //! A navigation case: the derive, the control points matched to its samples, and the
 //! initial settings of the pass (overrides, the manifest, else the alignment).
 
+use std::path::Path;
 use std::sync::Arc;
 
 use anyhow::{Context, bail};
@@ -17,6 +18,7 @@ use unz_stages::initial::{
 use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
 
 use super::ingested::load_table;
+use super::marks::{RepeatedMark, choose_marks};
 use super::{Overrides, Params, RunCtx, ensure_derive};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::read_velocity_prefix;
@@ -27,6 +29,8 @@ pub struct NavCase {
     pub derived: Arc<Derived>,
     /// Control points matched to samples.
     pub fixes: Vec<ControlPointFix>,
+    /// Control points whose id was marked more than once, and the mark used.
+    pub repeated_marks: Vec<RepeatedMark>,
     /// Settings of the pass.
     pub settings: NavSettings,
     /// How they were found.
@@ -49,22 +53,40 @@ impl NavCase {
     }
 }
 
-/// Matches the manifest's control points: by their mark record, else by `t_s`.
+/// The manifest's control points matched to the log.
+#[derive(Debug, Clone, Default)]
+pub struct MatchedPoints {
+    /// Control points matched to samples, in the manifest's order.
+    pub fixes: Vec<ControlPointFix>,
+    /// Points whose id was marked more than once, and the mark used.
+    pub repeated_marks: Vec<RepeatedMark>,
+}
+
+/// Matches the manifest's control points: by their mark record (of an id marked more
+/// than once, the first made at rest: [`choose_marks`], reading the ingested
+/// `odometer`), else by `t_s`.
 pub fn match_control_points(
     m: &RunManifest,
     marks: &MarksTable,
     d: &Derived,
-) -> anyhow::Result<Vec<ControlPointFix>> {
+    odometer: &Path,
+) -> anyhow::Result<MatchedPoints> {
     let log_t_s = |t_ns: i64| t_ns as f64 * 1e-9;
-    // The first mark of each point id.
-    let mut first_mark = std::collections::HashMap::new();
-    for (i, &id) in marks.point_id.iter().enumerate() {
-        first_mark.entry(id).or_insert(i);
-    }
-    m.control_points
+    let Some(last) = d.t_s.last() else {
+        bail!("no samples")
+    };
+    let in_log = |t_s: f64| {
+        let rel = t_s - log_t_s(d.t0_ns);
+        (0.0..=last + d.nominal_dt_s).contains(&rel)
+    };
+    let ids: Vec<u32> = m.control_points.iter().map(|cp| cp.id).collect();
+    let (mark_of, repeated_marks) =
+        choose_marks(marks, &ids, odometer, |t_ns| in_log(log_t_s(t_ns)))?;
+    let fixes = m
+        .control_points
         .iter()
         .map(|cp| {
-            let t_s = first_mark
+            let t_s = mark_of
                 .get(&cp.id)
                 .map(|&i| log_t_s(marks.t_ns[i]))
                 .or(cp.t_s)
@@ -74,13 +96,10 @@ pub fn match_control_points(
                         cp.id
                     )
                 })?;
-            let rel = t_s - log_t_s(d.t0_ns);
-            let Some(last) = d.t_s.last() else {
-                bail!("no samples")
-            };
-            if rel < 0.0 || rel > last + d.nominal_dt_s {
+            if !in_log(t_s) {
                 bail!("control point {} at t_s = {t_s} is outside the log", cp.id);
             }
+            let rel = t_s - log_t_s(d.t0_ns);
             let sample = d.t_s.partition_point(|t| t < rel).min(d.t_s.len() - 1);
             Ok(ControlPointFix {
                 id: cp.id,
@@ -91,7 +110,11 @@ pub fn match_control_points(
                 h_m: cp.position.height_m,
             })
         })
-        .collect()
+        .collect::<anyhow::Result<_>>()?;
+    Ok(MatchedPoints {
+        fixes,
+        repeated_marks,
+    })
 }
 
 /// How many times over the odometer's path to a mark a control point may lie from the
@@ -159,7 +182,10 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         MarksTable::extend_from_batch,
     )?;
     let odo_schema = read_schema(&ingest_dir.join(files::ODOMETER))?;
-    let fixes = match_control_points(m, &marks, &derived)
+    let MatchedPoints {
+        fixes,
+        repeated_marks,
+    } = match_control_points(m, &marks, &derived, &ingest_dir.join(files::ODOMETER))
         .with_context(|| format!("in {}", m.path.display()))?;
     let ingest_scale: Option<f64> = odo_schema
         .metadata()
@@ -209,6 +235,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
     Ok(NavCase {
         derived,
         fixes,
+        repeated_marks,
         settings,
         initial,
     })

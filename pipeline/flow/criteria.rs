@@ -99,11 +99,13 @@ pub fn ensure_criteria(
         derive_dir.join(files::DERIVED),
         derive_dir.join(files::EPOCHS),
         ingest_dir.join(files::MARKS),
+        ingest_dir.join(files::ODOMETER),
     ];
     let stage = Stage {
         dir: dir.clone(),
         name: "criteria",
-        version: 1,
+        // 2: of a control point marked more than once, the first mark at rest.
+        version: 2,
         params_hash: params_hash(&(params.kalman, params.derive.filter))?,
         inputs,
         outputs: &[files::CRITERIA, files::CRITERIA_REPORT],
@@ -119,8 +121,9 @@ pub fn ensure_criteria(
             &ingest_dir.join(files::MARKS),
             MarksTable::extend_from_batch,
         )?;
-        let fixes = match_control_points(m, &marks, &d)
-            .with_context(|| format!("in {}", m.path.display()))?;
+        let fixes = match_control_points(m, &marks, &d, &ingest_dir.join(files::ODOMETER))
+            .with_context(|| format!("in {}", m.path.display()))?
+            .fixes;
         let lp = LowPass::new(&params.derive.filter, d.nominal_dt_s);
         let fix_samples: Vec<usize> = fixes.iter().map(|f| f.sample).collect();
         let (blocks, positions) = read_nav_for_criteria(

@@ -8,6 +8,7 @@ use unz_formats::atomic::write_json_atomic;
 use unz_stages::criteria::{self, Kryt2};
 use unz_stages::initial::InitialReport;
 
+use super::marks::RepeatedMark;
 use super::{Overrides, Params, RunCtx, ensure_derive, load_case};
 use crate::artifacts::{StageName, files};
 use crate::nav_writer::NavWriter;
@@ -26,6 +27,10 @@ pub struct NavigateSummary {
     pub distance_m: f64,
     /// Position errors at the control points.
     pub control_points: Vec<Kryt2>,
+    /// Control points whose id was marked more than once, and the mark used (absent
+    /// when none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub repeated_marks: Vec<RepeatedMark>,
     /// Time tags derive repaired (not after the previous one).
     pub repaired_times: usize,
     /// Samples that closed a gap in the log and were scaled to it.
@@ -62,7 +67,8 @@ pub fn ensure_navigate(
         dir: dir.clone(),
         name: "navigate",
         // 4: control points the log cannot reach fail the stage (case::check_reach).
-        version: 4,
+        // 5: of a control point marked more than once, the first mark at rest.
+        version: 5,
         params_hash: params_hash(&(params.align, overrides))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],
@@ -89,6 +95,7 @@ pub fn ensure_navigate(
             control_points: criteria::kryt2_at(&case.fixes, |k| {
                 nav.at(k).map(|s| (s.lat_rad, s.lon_rad))
             }),
+            repeated_marks: case.repeated_marks.clone(),
             repaired_times: case.derived.repaired_times,
             filled_gaps: case.derived.filled_gaps,
             imu_failure_samples: case.derived.imu_failure_samples,
