@@ -1,11 +1,11 @@
 //! Damaged content through the whole chain: records whose CRC is right but whose fields
 //! are not (times jumping or saturated, increments at the counters' limits, odometer
 //! counts stuck, jumping or wrapping, status bits), stretches dropped or repeated, logs
-//! cut short, header fields and marks changed, manifest numbers at their limits. Each
-//! damaged copy of one simulated run is a run of one campaign: each ends "ok" or fails
-//! with its stage and reason, none panics or hangs, and the campaign and its summary go
-//! on. (Exploring the same mutations in 1 160 one-run campaigns found the control points
-//! no setting reaches and the gaps no dead reckoning bridges, `hostile.rs`.)
+//! cut short, header fields and marks changed or repeated, manifest numbers at their
+//! limits. Each damaged copy of one simulated run is a run of one campaign: each ends "ok"
+//! or fails with its stage and reason, none panics or hangs, and the campaign and its
+//! summary go on. (Exploring the same mutations in 1 160 one-run campaigns found the
+//! control points no setting reaches and the gaps no dead reckoning bridges, `hostile.rs`.)
 
 use std::path::Path;
 
@@ -159,15 +159,7 @@ fn damage(r: &mut Rng, log: &mut Log, manifest: &mut toml::Table) -> String {
             }
             "header field changed".to_owned()
         }
-        12 => {
-            let t = imu[k].t_us;
-            match r.below(3) {
-                0 => log.marks.clear(),
-                1 => log.marks.iter_mut().for_each(|(_, mk)| mk.t_us = t),
-                _ => log.marks.iter_mut().for_each(|(_, mk)| mk.point_id = 77),
-            }
-            format!("marks changed at {k}")
-        }
+        12 => damage_marks(log, k, r.below(4)),
         _ => {
             let (table, key) = r.pick(&[
                 ("site", "latitude_deg"),
@@ -196,9 +188,41 @@ fn damage(r: &mut Rng, log: &mut Log, manifest: &mut toml::Table) -> String {
     }
 }
 
+/// Changes the marks of `log` at IMU record `k`, in one of four ways (`kind` 0–3).
+fn damage_marks(log: &mut Log, k: usize, kind: usize) -> String {
+    let t = log.imu[k].t_us;
+    match kind {
+        0 => {
+            log.marks.clear();
+            "marks removed".to_owned()
+        }
+        1 => {
+            log.marks.iter_mut().for_each(|(_, mk)| mk.t_us = t);
+            format!("marks moved to record {k}")
+        }
+        2 => {
+            log.marks.iter_mut().for_each(|(_, mk)| mk.point_id = 77);
+            "marks of point 77".to_owned()
+        }
+        _ => {
+            // Every point marked again at record k, wherever the vehicle is.
+            let again: Vec<_> = log
+                .marks
+                .iter()
+                .map(|(_, mk)| (k, MarkRecord { t_us: t, ..*mk }))
+                .collect();
+            log.marks.extend(again);
+            log.marks.sort_by_key(|(at, _)| *at);
+            format!("marks repeated at record {k}")
+        }
+    }
+}
+
 #[test]
 fn damaged_runs_end_ok_or_fail_by_name_and_the_campaign_goes_on() {
-    const RUNS: usize = 24;
+    // 24 randomly damaged runs, then one run for each way of changing the marks.
+    const RANDOM_RUNS: usize = 24;
+    const RUNS: usize = RANDOM_RUNS + 4;
     let tmp = tempfile::tempdir().unwrap();
     let sim = simulated_run(&tmp.path().join("sim"), 80, &["--duration-s", "200"]);
     let base_log = read_log(&sim.join("sim-0080.unz"));
@@ -213,10 +237,15 @@ fn damaged_runs_end_ok_or_fail_by_name_and_the_campaign_goes_on() {
         let name = format!("d{i:02}");
         let (mut log, mut manifest) = (base_log.clone(), base_manifest.clone());
         let mut said = Vec::new();
-        for _ in 0..1 + rng.below(3) {
-            if !log.imu.is_empty() {
-                said.push(damage(&mut rng, &mut log, &mut manifest));
+        if i < RANDOM_RUNS {
+            for _ in 0..1 + rng.below(3) {
+                if !log.imu.is_empty() {
+                    said.push(damage(&mut rng, &mut log, &mut manifest));
+                }
             }
+        } else {
+            let k = rng.below(log.imu.len());
+            said.push(damage_marks(&mut log, k, i - RANDOM_RUNS));
         }
         manifest.insert("name".into(), name.clone().into());
         let dir = camp.join(&name);

@@ -38,27 +38,40 @@ pub struct RepeatedMark {
     pub first_t_s: f64,
 }
 
-/// The mark that stands for each of `ids` (an index into `marks`), and the repeated ones.
+/// A control point as the choice of its mark sees it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointToMark {
+    /// Control-point id.
+    pub id: u32,
+    /// How far it lies from the run's start, m.
+    pub away_m: f64,
+}
+
+/// The mark that stands for each point (an index into `marks`), and the repeated ones.
 ///
-/// An id marked once is that mark. An id marked several times is the first of its marks
-/// `in_log` made at rest, else the slowest of them (the first on a tie), else (no mark
-/// in the log) its first mark. The ingested odometer (`odometer.parquet`) is read, once
-/// and batch by batch, only when some id is marked more than once.
+/// A point marked once is that mark. Of a point marked several times, the marks
+/// considered are those `in_log` from which the point is within reach (`reach_m` of the
+/// odometer's distance at the mark: the check [`check_reach`](super::case::check_reach)
+/// makes), or all of them `in_log` when none is; of those, the first made at rest, else
+/// the slowest (the first on a tie). With no mark in the log, its first mark. The
+/// ingested odometer (`odometer.parquet`) is read, once and batch by batch, only when
+/// some point is marked more than once.
 pub fn choose_marks(
     marks: &MarksTable,
-    ids: &[u32],
+    points: &[PointToMark],
     odometer: &Path,
     in_log: impl Fn(i64) -> bool,
+    reach_m: impl Fn(f64) -> f64,
 ) -> anyhow::Result<(BTreeMap<u32, usize>, Vec<RepeatedMark>)> {
-    let ids: std::collections::BTreeSet<u32> = ids.iter().copied().collect();
+    let away_m: BTreeMap<u32, f64> = points.iter().map(|p| (p.id, p.away_m)).collect();
     let mut of_id: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
     for (i, id) in marks.point_id.iter().enumerate() {
-        if ids.contains(id) {
+        if away_m.contains_key(id) {
             of_id.entry(*id).or_default().push(i);
         }
     }
     let mut chosen: BTreeMap<u32, usize> = of_id.iter().map(|(&id, v)| (id, v[0])).collect();
-    // The marks whose speed decides: those of repeated ids inside the log.
+    // The marks whose odometer decides: those of repeated ids inside the log.
     let candidates: Vec<(u32, Vec<usize>)> = of_id
         .iter()
         .filter(|(_, v)| v.len() > 1)
@@ -78,25 +91,35 @@ pub fn choose_marks(
         .iter()
         .flat_map(|(_, v)| v.iter().map(|&i| marks.t_ns[i]))
         .collect();
-    let speeds = odometer_speeds_mps(odometer, &times_ns)?;
-    let mut next = speeds.into_iter();
+    let about = odometer_about(odometer, &times_ns)?;
+    let mut next = about.into_iter();
     let mut repeated = Vec::with_capacity(candidates.len());
     for (id, inside) in candidates {
-        let speed: Vec<f64> = next.by_ref().take(inside.len()).collect();
+        let about: Vec<OdometerAbout> = next.by_ref().take(inside.len()).collect();
         let first = of_id[&id][0];
-        // The first at rest, else the slowest (the first on a tie); a mark without a
-        // speed (no odometer in the log) is never picked for one.
-        let finite = |k: &usize| speed[*k].is_finite();
-        let pick = (0..speed.len())
-            .filter(finite)
-            .find(|&k| speed[k] <= AT_REST_MPS)
+        // A mark without a speed (no odometer in the log) is never picked for one.
+        let usable: Vec<usize> = (0..about.len())
+            .filter(|&k| about[k].speed_mps.is_finite())
+            .collect();
+        let within: Vec<usize> = usable
+            .iter()
+            .copied()
+            .filter(|&k| away_m[&id] <= reach_m(about[k].distance_m.abs()))
+            .collect();
+        let considered = if within.is_empty() { usable } else { within };
+        let speed = |k: usize| about[k].speed_mps;
+        let pick = considered
+            .iter()
+            .copied()
+            .find(|&k| speed(k) <= AT_REST_MPS)
             .or_else(|| {
-                (0..speed.len())
-                    .filter(finite)
-                    .min_by(|&a, &b| speed[a].total_cmp(&speed[b]))
+                considered
+                    .iter()
+                    .copied()
+                    .min_by(|&a, &b| speed(a).total_cmp(&speed(b)))
             });
         let (used, used_speed_mps) = match pick {
-            Some(k) => (inside[k], Some(speed[k])),
+            Some(k) => (inside[k], Some(speed(k))),
             None => (inside.first().copied().unwrap_or(first), None),
         };
         chosen.insert(id, used);
@@ -112,37 +135,46 @@ pub fn choose_marks(
     Ok((chosen, repeated))
 }
 
-/// The ingested odometer's mean speed over ±[`SPEED_HALF_WINDOW_S`] about each of
-/// `times_ns`, m/s, reading `odometer.parquet` batch by batch. Distances are
-/// interpolated linearly between tags, held before the first and after the last; a tag
-/// not after the one before does not interpolate.
-pub fn odometer_speeds_mps(path: &Path, times_ns: &[i64]) -> anyhow::Result<Vec<f64>> {
+/// The ingested odometer about one time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometerAbout {
+    /// Mean speed over ±[`SPEED_HALF_WINDOW_S`], m/s.
+    pub speed_mps: f64,
+    /// Cumulative distance from the odometer's first sample, m.
+    pub distance_m: f64,
+}
+
+/// The ingested odometer about each of `times_ns`, reading `odometer.parquet` batch by
+/// batch. Distances are interpolated linearly between tags, held before the first and
+/// after the last; a tag not after the one before does not interpolate.
+pub fn odometer_about(path: &Path, times_ns: &[i64]) -> anyhow::Result<Vec<OdometerAbout>> {
     let half_ns = (SPEED_HALF_WINDOW_S * 1e9) as i64;
-    // Each time's two ends, in time order.
-    let mut ends: Vec<(i64, usize)> = times_ns
+    // Each time and its window's two ends, in time order.
+    let mut at_ns: Vec<(i64, usize)> = times_ns
         .iter()
         .enumerate()
         .flat_map(|(k, &t)| {
             [
-                (t.saturating_sub(half_ns), 2 * k),
-                (t.saturating_add(half_ns), 2 * k + 1),
+                (t.saturating_sub(half_ns), 3 * k),
+                (t, 3 * k + 1),
+                (t.saturating_add(half_ns), 3 * k + 2),
             ]
         })
         .collect();
-    ends.sort_unstable();
-    let mut at = vec![f64::NAN; ends.len()];
+    at_ns.sort_unstable();
+    let mut d_at = vec![f64::NAN; at_ns.len()];
     let mut next = 0;
     let mut prev: Option<(i64, f64)> = None;
     for_each_batch_of(path, &[schema::T_NS, schema::DISTANCE_M], |b| {
         let t = i64_column(b, schema::T_NS)?;
         let d = f64_column(b, schema::DISTANCE_M)?;
         for (&t, d) in t.iter().zip(d) {
-            while next < ends.len() && ends[next].0 <= t {
-                let end = ends[next].0;
-                at[ends[next].1] = match prev {
-                    _ if end == t => d,
-                    Some((t0, d0)) if t > t0 && end > t0 => {
-                        d0 + (d - d0) * ((end - t0) as f64 / (t - t0) as f64)
+            while next < at_ns.len() && at_ns[next].0 <= t {
+                let q = at_ns[next].0;
+                d_at[at_ns[next].1] = match prev {
+                    _ if q == t => d,
+                    Some((t0, d0)) if t > t0 && q > t0 => {
+                        d0 + (d - d0) * ((q - t0) as f64 / (t - t0) as f64)
                     }
                     Some((_, d0)) => d0,
                     // Before the first tag: held.
@@ -155,13 +187,16 @@ pub fn odometer_speeds_mps(path: &Path, times_ns: &[i64]) -> anyhow::Result<Vec<
         Ok(())
     })?;
     if let Some((_, d)) = prev {
-        for &(_, k) in &ends[next..] {
-            at[k] = d;
+        for &(_, k) in &at_ns[next..] {
+            d_at[k] = d;
         }
     }
-    Ok(at
-        .chunks_exact(2)
-        .map(|w| (w[1] - w[0]).abs() / (2.0 * SPEED_HALF_WINDOW_S))
+    Ok(d_at
+        .chunks_exact(3)
+        .map(|w| OdometerAbout {
+            speed_mps: (w[2] - w[0]).abs() / (2.0 * SPEED_HALF_WINDOW_S),
+            distance_m: w[1],
+        })
         .collect())
 }
 
@@ -197,6 +232,18 @@ mod tests {
         }
     }
 
+    /// Points at the start: within reach of every mark.
+    fn points(ids: &[u32]) -> Vec<PointToMark> {
+        ids.iter()
+            .map(|&id| PointToMark { id, away_m: 0.0 })
+            .collect()
+    }
+
+    /// The reach of `case::check_reach`.
+    fn reach(path_m: f64) -> f64 {
+        2.0 * path_m + 100.0
+    }
+
     #[test]
     fn speeds_about_marks_are_the_odometers() {
         let tmp = tempfile::tempdir().unwrap();
@@ -205,7 +252,11 @@ mod tests {
             .iter()
             .map(|s| (s * 1e9) as i64)
             .collect();
-        let v = odometer_speeds_mps(&path, &t).unwrap();
+        let v: Vec<f64> = odometer_about(&path, &t)
+            .unwrap()
+            .iter()
+            .map(|a| a.speed_mps)
+            .collect();
         assert!((v[0] - 10.0).abs() < 1e-9, "{v:?}");
         assert_eq!(v[1], 0.0);
         // Half of the window driving.
@@ -214,6 +265,16 @@ mod tests {
         assert!((v[3] - 7.5).abs() < 0.06, "{v:?}");
         // After the last tag too.
         assert_eq!(v[4], 0.0);
+        let d: Vec<f64> = odometer_about(&path, &t)
+            .unwrap()
+            .iter()
+            .map(|a| a.distance_m)
+            .collect();
+        assert!(
+            (d[0] - 100.0).abs() < 0.11 && (d[1] - 200.0).abs() < 1e-9,
+            "{d:?}"
+        );
+        assert!((d[4] - 400.0).abs() < 1e-9, "{d:?}");
     }
 
     #[test]
@@ -223,7 +284,7 @@ mod tests {
         let all = |_| true;
         // An early press while driving, then two at the stop; id 2 marked once.
         let m = marks(&[(15.0, 1), (25.0, 1), (26.0, 2), (30.0, 1)]);
-        let (chosen, repeated) = choose_marks(&m, &[1, 2], &path, all).unwrap();
+        let (chosen, repeated) = choose_marks(&m, &points(&[1, 2]), &path, all, reach).unwrap();
         assert_eq!(chosen[&1], 1);
         assert_eq!(chosen[&2], 2);
         assert_eq!(repeated.len(), 1);
@@ -233,7 +294,7 @@ mod tests {
 
         // None at rest: the slowest.
         let m = marks(&[(10.0, 1), (40.5, 1), (50.0, 1)]);
-        let (chosen, repeated) = choose_marks(&m, &[1], &path, all).unwrap();
+        let (chosen, repeated) = choose_marks(&m, &points(&[1]), &path, all, reach).unwrap();
         assert_eq!(chosen[&1], 1);
         assert!(!repeated[0].at_rest);
         let v = repeated[0].used_speed_mps.unwrap();
@@ -242,17 +303,37 @@ mod tests {
         // Marks outside the log do not count; with none inside, the first is kept (and
         // the match names it as outside the log).
         let m = marks(&[(25.0, 1), (35.0, 1)]);
-        let (chosen, _) = choose_marks(&m, &[1], &path, |t| t > 30_000_000_000).unwrap();
+        let p = points(&[1]);
+        let (chosen, _) = choose_marks(&m, &p, &path, |t| t > 30_000_000_000, reach).unwrap();
         assert_eq!(chosen[&1], 1);
-        let (chosen, repeated) = choose_marks(&m, &[1], &path, |_| false).unwrap();
+        let (chosen, repeated) = choose_marks(&m, &p, &path, |_| false, reach).unwrap();
         assert_eq!(chosen[&1], 0);
         assert_eq!(repeated[0].used_speed_mps, None);
 
         // Ids the manifest does not name are not read; no repeated id, no odometer read.
         let m = marks(&[(15.0, 7), (25.0, 7), (30.0, 1)]);
-        let (chosen, repeated) =
-            choose_marks(&m, &[1], Path::new("/nonexistent/odometer.parquet"), all).unwrap();
+        let nowhere = Path::new("/nonexistent/odometer.parquet");
+        let (chosen, repeated) = choose_marks(&m, &p, nowhere, all, reach).unwrap();
         assert_eq!((chosen.len(), chosen[&1]), (1, 2));
         assert!(repeated.is_empty());
+    }
+
+    #[test]
+    fn a_mark_the_point_is_out_of_reach_from_is_passed_over() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = odometer(tmp.path());
+        // Two presses at rest: at the first stop (200 m driven: a reach of 2 × 200 +
+        // 100 m) and at the second (400 m driven: 900 m).
+        let m = marks(&[(30.0, 1), (70.0, 1)]);
+        let choose = |away_m| {
+            let p = [PointToMark { id: 1, away_m }];
+            let (chosen, repeated) = choose_marks(&m, &p, &path, |_| true, reach).unwrap();
+            assert!(repeated[0].at_rest);
+            chosen[&1]
+        };
+        assert_eq!(choose(450.0), 0);
+        assert_eq!(choose(700.0), 1);
+        // Out of reach of both: the first at rest (and the reach check fails the run).
+        assert_eq!(choose(5000.0), 0);
     }
 }
