@@ -18,7 +18,7 @@ use unz_stages::initial::{
 use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
 
 use super::ingested::load_table;
-use super::marks::{PointToMark, RepeatedMark, choose_marks};
+use super::marks::{RepeatedMark, choose_marks};
 use super::{Overrides, Params, RunCtx, ensure_derive};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::read_velocity_prefix;
@@ -63,8 +63,8 @@ pub struct MatchedPoints {
 }
 
 /// Matches the manifest's control points: by their mark record (of an id marked more
-/// than once, the first made at rest within reach of the point: [`choose_marks`],
-/// reading the ingested `odometer`), else by `t_s`.
+/// than once, the last made at rest: [`choose_marks`], reading the ingested
+/// `odometer`), else by `t_s`.
 pub fn match_control_points(
     m: &RunManifest,
     marks: &MarksTable,
@@ -79,27 +79,9 @@ pub fn match_control_points(
         let rel = t_s - log_t_s(d.t0_ns);
         (0.0..=last + d.nominal_dt_s).contains(&rel)
     };
-    let start = start_position(m);
-    let points: Vec<PointToMark> = m
-        .control_points
-        .iter()
-        .map(|cp| {
-            let p = &cp.position;
-            let (north_m, east_m) =
-                start.offset_m(p.latitude_deg.to_radians(), p.longitude_deg.to_radians());
-            PointToMark {
-                id: cp.id,
-                away_m: north_m.hypot(east_m),
-            }
-        })
-        .collect();
-    let (mark_of, repeated_marks) = choose_marks(
-        marks,
-        &points,
-        odometer,
-        |t_ns| in_log(log_t_s(t_ns)),
-        reach_m,
-    )?;
+    let ids: Vec<u32> = m.control_points.iter().map(|cp| cp.id).collect();
+    let (mark_of, repeated_marks) =
+        choose_marks(marks, &ids, odometer, |t_ns| in_log(log_t_s(t_ns)))?;
     let fixes = m
         .control_points
         .iter()
@@ -142,12 +124,6 @@ const CP_REACH_PATH_FACTOR: f64 = 2.0;
 /// off a map or a GNSS fix) and a mark pressed a little late.
 const CP_REACH_MARGIN_M: f64 = 100.0;
 
-/// How far from the run's start a control point may lie when the odometer measured
-/// `travelled_m` by its mark, m.
-pub fn reach_m(travelled_m: f64) -> f64 {
-    CP_REACH_PATH_FACTOR * travelled_m + CP_REACH_MARGIN_M
-}
-
 /// Fails when a control point lies farther from the run's start than the vehicle can have
 /// gone by its mark (the odometer's path there, `odo_scale` times, twice over, plus
 /// 100 m). No setting DISUPT moves reaches such a point: the
@@ -175,7 +151,8 @@ pub fn check_reach(
         let travelled_m = path_m * odo_scale.abs();
         let (north_m, east_m) = start.offset_m(f.lat_rad, f.lon_rad);
         let away_m = north_m.hypot(east_m);
-        if away_m.is_nan() || away_m > reach_m(travelled_m) {
+        let reach_m = CP_REACH_PATH_FACTOR * travelled_m + CP_REACH_MARGIN_M;
+        if away_m.is_nan() || away_m > reach_m {
             bail!(
                 "control point {} is {away_m:.0} m from the run's start (the site) but the \
                  odometer measured {travelled_m:.0} m of travel by its mark at t_s = {:.2}: no \

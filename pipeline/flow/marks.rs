@@ -1,6 +1,8 @@
-//! Which mark stands for a control point: a point is surveyed at a stop, and a point id
-//! marked more than once (an early press while driving up to it, a second press at the
-//! stop, a press on a later pass) is placed at the first of its marks made at rest.
+//! Which mark stands for a control point. A point is surveyed at a stop, and a point id
+//! marked more than once is placed at the last of its marks made at rest: a second press
+//! is how an operator corrects a first one (made while driving up to the point, at a
+//! stop short of it, or during the static start), or repeats it at the same stop, where
+//! either serves.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -32,46 +34,34 @@ pub struct RepeatedMark {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub used_speed_mps: Option<f64>,
     /// Whether it was made at rest (at most [`AT_REST_MPS`]); when none of the marks
-    /// was, the slowest is used.
+    /// was, the slowest is used (the last on a tie).
     pub at_rest: bool,
-    /// Time of the id's first mark, s.
+    /// Time of the id's first mark, s (the one used before repeated marks were told
+    /// apart).
     pub first_t_s: f64,
 }
 
-/// A control point as the choice of its mark sees it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PointToMark {
-    /// Control-point id.
-    pub id: u32,
-    /// How far it lies from the run's start, m.
-    pub away_m: f64,
-}
-
-/// The mark that stands for each point (an index into `marks`), and the repeated ones.
+/// The mark that stands for each of `ids` (an index into `marks`), and the repeated ones.
 ///
-/// A point marked once is that mark. Of a point marked several times, the marks
-/// considered are those `in_log` from which the point is within reach (`reach_m` of the
-/// odometer's distance at the mark: the check [`check_reach`](super::case::check_reach)
-/// makes), or all of them `in_log` when none is; of those, the first made at rest, else
-/// the slowest (the first on a tie). With no mark in the log, its first mark. The
-/// ingested odometer (`odometer.parquet`) is read, once and batch by batch, only when
-/// some point is marked more than once.
+/// An id marked once is that mark. An id marked several times is the last of its marks
+/// `in_log` made at rest, else the slowest of them (the last on a tie), else (no mark in
+/// the log) its first mark. The ingested odometer (`odometer.parquet`) is read, once and
+/// batch by batch, only when some id is marked more than once.
 pub fn choose_marks(
     marks: &MarksTable,
-    points: &[PointToMark],
+    ids: &[u32],
     odometer: &Path,
     in_log: impl Fn(i64) -> bool,
-    reach_m: impl Fn(f64) -> f64,
 ) -> anyhow::Result<(BTreeMap<u32, usize>, Vec<RepeatedMark>)> {
-    let away_m: BTreeMap<u32, f64> = points.iter().map(|p| (p.id, p.away_m)).collect();
+    let ids: std::collections::BTreeSet<u32> = ids.iter().copied().collect();
     let mut of_id: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
     for (i, id) in marks.point_id.iter().enumerate() {
-        if away_m.contains_key(id) {
+        if ids.contains(id) {
             of_id.entry(*id).or_default().push(i);
         }
     }
     let mut chosen: BTreeMap<u32, usize> = of_id.iter().map(|(&id, v)| (id, v[0])).collect();
-    // The marks whose odometer decides: those of repeated ids inside the log.
+    // The marks whose speed decides: those of repeated ids inside the log.
     let candidates: Vec<(u32, Vec<usize>)> = of_id
         .iter()
         .filter(|(_, v)| v.len() > 1)
@@ -91,36 +81,28 @@ pub fn choose_marks(
         .iter()
         .flat_map(|(_, v)| v.iter().map(|&i| marks.t_ns[i]))
         .collect();
-    let about = odometer_about(odometer, &times_ns)?;
-    let mut next = about.into_iter();
+    let speeds = odometer_speeds_mps(odometer, &times_ns)?;
+    let mut next = speeds.into_iter();
     let mut repeated = Vec::with_capacity(candidates.len());
     for (id, inside) in candidates {
-        let about: Vec<OdometerAbout> = next.by_ref().take(inside.len()).collect();
+        let speed: Vec<f64> = next.by_ref().take(inside.len()).collect();
         let first = of_id[&id][0];
-        // A mark without a speed (no odometer in the log) is never picked for one.
-        let usable: Vec<usize> = (0..about.len())
-            .filter(|&k| about[k].speed_mps.is_finite())
-            .collect();
-        let within: Vec<usize> = usable
-            .iter()
-            .copied()
-            .filter(|&k| away_m[&id] <= reach_m(about[k].distance_m.abs()))
-            .collect();
-        let considered = if within.is_empty() { usable } else { within };
-        let speed = |k: usize| about[k].speed_mps;
-        let pick = considered
-            .iter()
-            .copied()
-            .find(|&k| speed(k) <= AT_REST_MPS)
+        // The last at rest, else the slowest (the last on a tie); a mark without a
+        // speed (no odometer in the log) is never picked for one.
+        let finite = |k: &usize| speed[*k].is_finite();
+        let pick = (0..speed.len())
+            .rev()
+            .filter(finite)
+            .find(|&k| speed[k] <= AT_REST_MPS)
             .or_else(|| {
-                considered
-                    .iter()
-                    .copied()
-                    .min_by(|&a, &b| speed(a).total_cmp(&speed(b)))
+                (0..speed.len())
+                    .rev()
+                    .filter(finite)
+                    .min_by(|&a, &b| speed[a].total_cmp(&speed[b]))
             });
         let (used, used_speed_mps) = match pick {
-            Some(k) => (inside[k], Some(speed(k))),
-            None => (inside.first().copied().unwrap_or(first), None),
+            Some(k) => (inside[k], Some(speed[k])),
+            None => (inside.last().copied().unwrap_or(first), None),
         };
         chosen.insert(id, used);
         repeated.push(RepeatedMark {
@@ -135,46 +117,37 @@ pub fn choose_marks(
     Ok((chosen, repeated))
 }
 
-/// The ingested odometer about one time.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OdometerAbout {
-    /// Mean speed over ±[`SPEED_HALF_WINDOW_S`], m/s.
-    pub speed_mps: f64,
-    /// Cumulative distance from the odometer's first sample, m.
-    pub distance_m: f64,
-}
-
-/// The ingested odometer about each of `times_ns`, reading `odometer.parquet` batch by
-/// batch. Distances are interpolated linearly between tags, held before the first and
-/// after the last; a tag not after the one before does not interpolate.
-pub fn odometer_about(path: &Path, times_ns: &[i64]) -> anyhow::Result<Vec<OdometerAbout>> {
+/// The ingested odometer's mean speed over ±[`SPEED_HALF_WINDOW_S`] about each of
+/// `times_ns`, m/s, reading `odometer.parquet` batch by batch. Distances are
+/// interpolated linearly between tags, held before the first and after the last; a tag
+/// not after the one before does not interpolate.
+pub fn odometer_speeds_mps(path: &Path, times_ns: &[i64]) -> anyhow::Result<Vec<f64>> {
     let half_ns = (SPEED_HALF_WINDOW_S * 1e9) as i64;
-    // Each time and its window's two ends, in time order.
-    let mut at_ns: Vec<(i64, usize)> = times_ns
+    // Each time's two ends, in time order.
+    let mut ends: Vec<(i64, usize)> = times_ns
         .iter()
         .enumerate()
         .flat_map(|(k, &t)| {
             [
-                (t.saturating_sub(half_ns), 3 * k),
-                (t, 3 * k + 1),
-                (t.saturating_add(half_ns), 3 * k + 2),
+                (t.saturating_sub(half_ns), 2 * k),
+                (t.saturating_add(half_ns), 2 * k + 1),
             ]
         })
         .collect();
-    at_ns.sort_unstable();
-    let mut d_at = vec![f64::NAN; at_ns.len()];
+    ends.sort_unstable();
+    let mut at = vec![f64::NAN; ends.len()];
     let mut next = 0;
     let mut prev: Option<(i64, f64)> = None;
     for_each_batch_of(path, &[schema::T_NS, schema::DISTANCE_M], |b| {
         let t = i64_column(b, schema::T_NS)?;
         let d = f64_column(b, schema::DISTANCE_M)?;
         for (&t, d) in t.iter().zip(d) {
-            while next < at_ns.len() && at_ns[next].0 <= t {
-                let q = at_ns[next].0;
-                d_at[at_ns[next].1] = match prev {
-                    _ if q == t => d,
-                    Some((t0, d0)) if t > t0 && q > t0 => {
-                        d0 + (d - d0) * ((q - t0) as f64 / (t - t0) as f64)
+            while next < ends.len() && ends[next].0 <= t {
+                let end = ends[next].0;
+                at[ends[next].1] = match prev {
+                    _ if end == t => d,
+                    Some((t0, d0)) if t > t0 && end > t0 => {
+                        d0 + (d - d0) * ((end - t0) as f64 / (t - t0) as f64)
                     }
                     Some((_, d0)) => d0,
                     // Before the first tag: held.
@@ -187,16 +160,13 @@ pub fn odometer_about(path: &Path, times_ns: &[i64]) -> anyhow::Result<Vec<Odome
         Ok(())
     })?;
     if let Some((_, d)) = prev {
-        for &(_, k) in &at_ns[next..] {
-            d_at[k] = d;
+        for &(_, k) in &ends[next..] {
+            at[k] = d;
         }
     }
-    Ok(d_at
-        .chunks_exact(3)
-        .map(|w| OdometerAbout {
-            speed_mps: (w[2] - w[0]).abs() / (2.0 * SPEED_HALF_WINDOW_S),
-            distance_m: w[1],
-        })
+    Ok(at
+        .chunks_exact(2)
+        .map(|w| (w[1] - w[0]).abs() / (2.0 * SPEED_HALF_WINDOW_S))
         .collect())
 }
 
@@ -232,18 +202,6 @@ mod tests {
         }
     }
 
-    /// Points at the start: within reach of every mark.
-    fn points(ids: &[u32]) -> Vec<PointToMark> {
-        ids.iter()
-            .map(|&id| PointToMark { id, away_m: 0.0 })
-            .collect()
-    }
-
-    /// The reach of `case::check_reach`.
-    fn reach(path_m: f64) -> f64 {
-        2.0 * path_m + 100.0
-    }
-
     #[test]
     fn speeds_about_marks_are_the_odometers() {
         let tmp = tempfile::tempdir().unwrap();
@@ -252,11 +210,7 @@ mod tests {
             .iter()
             .map(|s| (s * 1e9) as i64)
             .collect();
-        let v: Vec<f64> = odometer_about(&path, &t)
-            .unwrap()
-            .iter()
-            .map(|a| a.speed_mps)
-            .collect();
+        let v = odometer_speeds_mps(&path, &t).unwrap();
         assert!((v[0] - 10.0).abs() < 1e-9, "{v:?}");
         assert_eq!(v[1], 0.0);
         // Half of the window driving.
@@ -265,36 +219,32 @@ mod tests {
         assert!((v[3] - 7.5).abs() < 0.06, "{v:?}");
         // After the last tag too.
         assert_eq!(v[4], 0.0);
-        let d: Vec<f64> = odometer_about(&path, &t)
-            .unwrap()
-            .iter()
-            .map(|a| a.distance_m)
-            .collect();
-        assert!(
-            (d[0] - 100.0).abs() < 0.11 && (d[1] - 200.0).abs() < 1e-9,
-            "{d:?}"
-        );
-        assert!((d[4] - 400.0).abs() < 1e-9, "{d:?}");
     }
 
     #[test]
-    fn a_repeated_id_takes_its_first_mark_at_rest() {
+    fn a_repeated_id_takes_its_last_mark_at_rest() {
         let tmp = tempfile::tempdir().unwrap();
         let path = odometer(tmp.path());
         let all = |_| true;
         // An early press while driving, then two at the stop; id 2 marked once.
         let m = marks(&[(15.0, 1), (25.0, 1), (26.0, 2), (30.0, 1)]);
-        let (chosen, repeated) = choose_marks(&m, &points(&[1, 2]), &path, all, reach).unwrap();
-        assert_eq!(chosen[&1], 1);
+        let (chosen, repeated) = choose_marks(&m, &[1, 2], &path, all).unwrap();
+        assert_eq!(chosen[&1], 3);
         assert_eq!(chosen[&2], 2);
         assert_eq!(repeated.len(), 1);
         let r = &repeated[0];
         assert_eq!((r.id, r.marks, r.at_rest), (1, 3, true));
-        assert!((r.used_t_s - 25.0).abs() < 1e-9 && (r.first_t_s - 15.0).abs() < 1e-9);
+        assert!((r.used_t_s - 30.0).abs() < 1e-9 && (r.first_t_s - 15.0).abs() < 1e-9);
+
+        // A press during the static start and one at a stop short of the point, both at
+        // rest, corrected by the press at the point: the last.
+        let m = marks(&[(25.0, 1), (70.0, 1), (79.0, 1)]);
+        let (chosen, _) = choose_marks(&m, &[1], &path, all).unwrap();
+        assert_eq!(chosen[&1], 2);
 
         // None at rest: the slowest.
-        let m = marks(&[(10.0, 1), (40.5, 1), (50.0, 1)]);
-        let (chosen, repeated) = choose_marks(&m, &points(&[1]), &path, all, reach).unwrap();
+        let m = marks(&[(10.0, 1), (40.5, 1), (50.0, 1), (55.0, 1)]);
+        let (chosen, repeated) = choose_marks(&m, &[1], &path, all).unwrap();
         assert_eq!(chosen[&1], 1);
         assert!(!repeated[0].at_rest);
         let v = repeated[0].used_speed_mps.unwrap();
@@ -303,37 +253,17 @@ mod tests {
         // Marks outside the log do not count; with none inside, the first is kept (and
         // the match names it as outside the log).
         let m = marks(&[(25.0, 1), (35.0, 1)]);
-        let p = points(&[1]);
-        let (chosen, _) = choose_marks(&m, &p, &path, |t| t > 30_000_000_000, reach).unwrap();
-        assert_eq!(chosen[&1], 1);
-        let (chosen, repeated) = choose_marks(&m, &p, &path, |_| false, reach).unwrap();
+        let (chosen, _) = choose_marks(&m, &[1], &path, |t| t < 30_000_000_000).unwrap();
+        assert_eq!(chosen[&1], 0);
+        let (chosen, repeated) = choose_marks(&m, &[1], &path, |_| false).unwrap();
         assert_eq!(chosen[&1], 0);
         assert_eq!(repeated[0].used_speed_mps, None);
 
         // Ids the manifest does not name are not read; no repeated id, no odometer read.
         let m = marks(&[(15.0, 7), (25.0, 7), (30.0, 1)]);
-        let nowhere = Path::new("/nonexistent/odometer.parquet");
-        let (chosen, repeated) = choose_marks(&m, &p, nowhere, all, reach).unwrap();
+        let (chosen, repeated) =
+            choose_marks(&m, &[1], Path::new("/nonexistent/odometer.parquet"), all).unwrap();
         assert_eq!((chosen.len(), chosen[&1]), (1, 2));
         assert!(repeated.is_empty());
-    }
-
-    #[test]
-    fn a_mark_the_point_is_out_of_reach_from_is_passed_over() {
-        let tmp = tempfile::tempdir().unwrap();
-        let path = odometer(tmp.path());
-        // Two presses at rest: at the first stop (200 m driven: a reach of 2 × 200 +
-        // 100 m) and at the second (400 m driven: 900 m).
-        let m = marks(&[(30.0, 1), (70.0, 1)]);
-        let choose = |away_m| {
-            let p = [PointToMark { id: 1, away_m }];
-            let (chosen, repeated) = choose_marks(&m, &p, &path, |_| true, reach).unwrap();
-            assert!(repeated[0].at_rest);
-            chosen[&1]
-        };
-        assert_eq!(choose(450.0), 0);
-        assert_eq!(choose(700.0), 1);
-        // Out of reach of both: the first at rest (and the reach check fails the run).
-        assert_eq!(choose(5000.0), 0);
     }
 }
