@@ -21,7 +21,8 @@ use unz_viz::report::{JointEstimate, ReportRow};
 use crate::artifacts::{RunLayout, StageName, files};
 use crate::disupt_stage::{DisuptOut, Method, MethodOut, SettingsOut, SigmaOut, ensure_disupt};
 use crate::flow::{
-    Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest, ensure_navigate,
+    NavigateSummary, Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest,
+    ensure_navigate,
 };
 
 /// The stages of `unz run`, in order.
@@ -278,12 +279,27 @@ fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
     serde_json::from_slice(&std::fs::read(path).ok()?).ok()
 }
 
-/// The methods a run's disupt stage did not run, with the reason (the summary's error
-/// column of a run that did not fail).
-fn skipped_note(d: &DisuptOut) -> String {
-    d.skipped
-        .iter()
+/// What the summary's error column says of a run that did not fail: the methods its
+/// disupt stage did not run, with the reason, and its control points marked more than
+/// once, with the mark used.
+fn run_note(d: Option<&DisuptOut>, nav: Option<&NavigateSummary>) -> String {
+    let skipped = d.into_iter().flat_map(|d| &d.skipped);
+    let repeated = nav.into_iter().flat_map(|n| &n.repeated_marks);
+    skipped
         .map(|(name, why)| format!("{name} not run: {why}"))
+        .chain(repeated.map(|r| {
+            format!(
+                "control point {} marked {} times: the mark at t_s = {:.2} used ({})",
+                r.id,
+                r.marks,
+                r.used_t_s,
+                match (r.at_rest, r.used_speed_mps) {
+                    (true, _) => "the last at rest".to_owned(),
+                    (false, Some(v)) => format!("none at rest: the slowest, {v:.1} m/s"),
+                    (false, None) => "no odometer about it".to_owned(),
+                }
+            )
+        }))
         .collect::<Vec<_>>()
         .join("; ")
 }
@@ -460,6 +476,8 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
             read_report(&layout.file(StageName::Ingest, files::INGEST_REPORT));
         let d: Option<DisuptOut> =
             read_report(&layout.file(StageName::Disupt, files::DISUPT_REPORT));
+        let nav: Option<NavigateSummary> =
+            read_report(&layout.file(StageName::Navigate, files::NAVIGATE_REPORT));
         let v = SummaryValues::of(ing.as_ref(), d.as_ref(), o.wall_s);
         for (c, (_, x)) in cols.iter_mut().zip(v.columns()) {
             c.1.push(x);
@@ -502,7 +520,7 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
             },
             o.error
                 .clone()
-                .or_else(|| d.as_ref().map(skipped_note))
+                .or_else(|| Some(run_note(d.as_ref(), nav.as_ref())))
                 .unwrap_or_default()
                 .replace('|', "/")
                 .replace('\n', " "),

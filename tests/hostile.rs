@@ -692,4 +692,11 @@ fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
         "{r:?}"
     );
     assert_eq!(twice.control_points, clean.control_points);
+    let summary = std::fs::read_to_string(tmp.path().join("twice/campaign.md")).unwrap();
+    let note = format!(
+        "control point {} marked 2 times: the mark at t_s = {:.2} used (the last at rest)",
+        last_mark.point_id,
+        last_mark.t_us as f64 * 1e-6
+    );
+    assert!(summary.contains(&note), "{summary}");
 }
