@@ -36,8 +36,7 @@ pub struct RepeatedMark {
     /// Whether it was made at rest (at most [`AT_REST_MPS`]); when none of the marks
     /// was, the slowest is used (the last on a tie).
     pub at_rest: bool,
-    /// Time of the id's first mark, s (the one used before repeated marks were told
-    /// apart).
+    /// Time of the id's first mark, s.
     pub first_t_s: f64,
 }
 
