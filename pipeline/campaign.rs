@@ -470,6 +470,7 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
     let mut md = String::from(
         "| run | status | distance [m] | rejected | before [m] | OEPI [m] | OWPI [m] | joint [m] | joint az σ [°] | hold-out median / max [m] | odometer lag [s] | wall [s] | computed | error |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
+    let mut notes: Vec<Option<String>> = Vec::with_capacity(outcomes.len());
     for o in outcomes {
         let layout = RunLayout::new(out, &o.name);
         let ing: Option<IngestReport> =
@@ -479,6 +480,8 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         let nav: Option<NavigateSummary> =
             read_report(&layout.file(StageName::Navigate, files::NAVIGATE_REPORT));
         let v = SummaryValues::of(ing.as_ref(), d.as_ref(), o.wall_s);
+        let note =
+            Some(run_note(d.as_ref(), nav.as_ref())).filter(|n| o.error.is_none() && !n.is_empty());
         for (c, (_, x)) in cols.iter_mut().zip(v.columns()) {
             c.1.push(x);
         }
@@ -520,11 +523,12 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
             },
             o.error
                 .clone()
-                .or_else(|| Some(run_note(d.as_ref(), nav.as_ref())))
+                .or_else(|| note.clone())
                 .unwrap_or_default()
                 .replace('|', "/")
                 .replace('\n', " "),
         );
+        notes.push(note);
     }
     let mut arrays: Vec<Arc<dyn arrow::array::Array>> = vec![
         Arc::new(StringArray::from(
@@ -545,6 +549,7 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         Arc::new(StringArray::from(
             outcomes.iter().map(|o| o.error.clone()).collect::<Vec<_>>(),
         )),
+        Arc::new(StringArray::from(notes)),
         Arc::new(UInt64Array::from(
             outcomes
                 .iter()

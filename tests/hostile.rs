@@ -699,4 +699,21 @@ fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
         last_mark.t_us as f64 * 1e-6
     );
     assert!(summary.contains(&note), "{summary}");
+    let (_, batches) =
+        unz_formats::parquet_io::read_batches(&tmp.path().join("twice/campaign.parquet")).unwrap();
+    let notes = batches[0]
+        .column_by_name(unz_formats::schema::CAMPAIGN_NOTE)
+        .unwrap();
+    let notes = notes
+        .as_any()
+        .downcast_ref::<arrow::array::StringArray>()
+        .unwrap();
+    assert_eq!(notes.value(0), note);
+    let (_, batches) =
+        unz_formats::parquet_io::read_batches(&tmp.path().join("clean/campaign.parquet")).unwrap();
+    let column = batches[0].column_by_name("note").unwrap();
+    assert!(
+        column.is_null(0),
+        "a run with nothing to note has a null note"
+    );
 }

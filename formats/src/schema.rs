@@ -488,6 +488,9 @@ pub fn sweep(axes: &[&str]) -> SchemaRef {
 
 /// Column of [`campaign`]: the run's name.
 pub const CAMPAIGN_RUN: &str = "run";
+/// Column of [`campaign`]: what the reports of a run that did not fail flag (methods not run,
+/// control points marked more than once), null when nothing.
+pub const CAMPAIGN_NOTE: &str = "note";
 
 /// `campaign`: one row per run; `stage_seconds` names the per-stage wall-time columns and
 /// `values` the nullable result columns that follow them.
@@ -497,6 +500,7 @@ pub fn campaign(stage_seconds: &[String], values: &[&str]) -> SchemaRef {
         Field::new("manifest", DataType::Utf8, false),
         Field::new("ok", DataType::Boolean, false),
         Field::new("error", DataType::Utf8, true),
+        Field::new(CAMPAIGN_NOTE, DataType::Utf8, true),
         Field::new("stages_computed", DataType::UInt64, false),
     ];
     fields.extend(
