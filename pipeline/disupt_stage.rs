@@ -93,7 +93,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
     let stage = Stage {
         dir: dir.clone(),
         name: "disupt",
-        // 6: of a control point marked more than once, the first mark at rest.
+        // 6: of a control point marked more than once, the last mark at rest.
         version: 6,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,

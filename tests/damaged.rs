@@ -7,11 +7,9 @@
 //! summary go on. (Exploring the same mutations in 1 160 one-run campaigns found the
 //! control points no setting reaches and the gaps no dead reckoning bridges, `hostile.rs`.)
 
-use std::path::Path;
+use unz_formats::raw::MarkRecord;
 
-use unz_formats::raw::{Accepted, FileHeader, ImuRecord, MarkRecord, RawReader, RawWriter};
-
-use crate::util::{simulated_run, unz_output};
+use crate::util::{Log, read_log, simulated_run, unz_output, write_log};
 
 /// xorshift64: the cases are the same on every run of the test.
 struct Rng(u64);
@@ -31,43 +29,6 @@ impl Rng {
     fn pick<T: Copy>(&mut self, v: &[T]) -> T {
         v[self.below(v.len())]
     }
-}
-
-/// A raw log: its header, IMU records, and marks with the IMU record they precede.
-#[derive(Clone)]
-struct Log {
-    header: FileHeader,
-    imu: Vec<ImuRecord>,
-    marks: Vec<(usize, MarkRecord)>,
-}
-
-fn read_log(path: &Path) -> Log {
-    let bytes = std::fs::read(path).unwrap();
-    let mut reader = RawReader::new(bytes.as_slice()).unwrap();
-    let header = reader.header().clone();
-    let (mut imu, mut marks) = (Vec::new(), Vec::new());
-    while let Some(rec) = reader.next_record().unwrap() {
-        match rec {
-            Accepted::Imu(s) => imu.push(s.raw),
-            Accepted::Mark(m) => marks.push((imu.len(), m)),
-        }
-    }
-    Log { header, imu, marks }
-}
-
-fn write_log(path: &Path, log: &Log) {
-    let mut w = RawWriter::new(Vec::new(), &log.header).unwrap();
-    let mut marks = log.marks.iter().peekable();
-    for (k, r) in log.imu.iter().enumerate() {
-        while let Some((_, m)) = marks.next_if(|(at, _)| *at <= k) {
-            w.write_mark(m).unwrap();
-        }
-        w.write_imu(r).unwrap();
-    }
-    for (_, m) in marks {
-        w.write_mark(m).unwrap();
-    }
-    std::fs::write(path, w.finish().unwrap()).unwrap();
 }
 
 /// One damage to `log` or `manifest`; says what it did.

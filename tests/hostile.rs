@@ -614,41 +614,24 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
 /// control points are the log's without the early press, bit for bit.
 #[test]
 fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
+    use crate::util::{read_log, write_log};
     use unz::flow::NavigateSummary;
-    use unz_formats::raw::{Accepted, MarkRecord, RawReader, RawWriter};
+    use unz_formats::raw::MarkRecord;
 
     let tmp = tempfile::tempdir().unwrap();
     let run = crate::util::simulated_run(tmp.path(), 90, &["--duration-s", "600"]);
-    let log = run.join("sim-0090.unz");
-    let bytes = std::fs::read(&log).unwrap();
-    let mut reader = RawReader::new(bytes.as_slice()).unwrap();
-    let mut records = Vec::new();
-    while let Some(rec) = reader.next_record().unwrap() {
-        records.push(rec);
-    }
-    let last_mark = records
-        .iter()
-        .rev()
-        .find_map(|r| match r {
-            Accepted::Mark(m) => Some(*m),
-            Accepted::Imu(_) => None,
-        })
-        .unwrap();
+    let path = run.join("sim-0090.unz");
+    let mut log = read_log(&path);
+    let (_, last_mark) = *log.marks.last().unwrap();
     // The vehicle stops some time before the point is marked: the early press is 5 s
-    // before it stopped, while it drove up.
-    let (mut stopped_us, mut pulses) = (0, None);
-    for r in &records {
-        if let Accepted::Imu(s) = r
-            && s.raw.t_us < last_mark.t_us
-        {
-            if pulses.is_some_and(|p| p != s.odo_pulses) {
-                stopped_us = s.raw.t_us;
-            }
-            pulses = Some(s.odo_pulses);
-        }
-    }
+    // before it stopped (its last pulse), while it drove up.
+    let before = log.imu.partition_point(|r| r.t_us < last_mark.t_us);
+    let stopped = 1 + log.imu[..before]
+        .windows(2)
+        .rposition(|w| w[0].odo_count != w[1].odo_count)
+        .unwrap();
     let early = MarkRecord {
-        t_us: stopped_us - 5_000_000,
+        t_us: log.imu[stopped].t_us - 5_000_000,
         point_id: last_mark.point_id,
     };
 
@@ -660,20 +643,10 @@ fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
     let clean = navigate(&tmp.path().join("clean"));
     assert!(clean.repeated_marks.is_empty());
 
-    let mut writer = RawWriter::new(Vec::new(), reader.header()).unwrap();
-    let mut pending = Some(early);
-    for rec in &records {
-        match rec {
-            Accepted::Imu(s) => {
-                if let Some(m) = pending.take_if(|m| m.t_us <= s.raw.t_us) {
-                    writer.write_mark(&m).unwrap();
-                }
-                writer.write_imu(&s.raw).unwrap();
-            }
-            Accepted::Mark(m) => writer.write_mark(m).unwrap(),
-        }
-    }
-    std::fs::write(&log, writer.finish().unwrap()).unwrap();
+    let at = log.imu.partition_point(|r| r.t_us < early.t_us);
+    log.marks.push((at, early));
+    log.marks.sort_by_key(|&(at, _)| at);
+    write_log(&path, &log);
 
     let twice = navigate(&tmp.path().join("twice"));
     assert_eq!(twice.repeated_marks.len(), 1, "{:?}", twice.repeated_marks);

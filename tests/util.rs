@@ -3,6 +3,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use unz_formats::raw::{Accepted, FileHeader, ImuRecord, MarkRecord, RawReader, RawWriter};
+
 /// The `unz` binary under test.
 pub fn unz() -> Command {
     Command::new(env!("CARGO_BIN_EXE_unz"))
@@ -120,4 +122,46 @@ pub fn files_below(root: &Path) -> Vec<PathBuf> {
     }
     out.sort();
     out
+}
+
+/// A raw log: its header, IMU records, and marks with the IMU record they precede.
+#[derive(Clone)]
+pub struct Log {
+    /// The file header.
+    pub header: FileHeader,
+    /// IMU records, in order.
+    pub imu: Vec<ImuRecord>,
+    /// Marks, each with the index of the IMU record it precedes.
+    pub marks: Vec<(usize, MarkRecord)>,
+}
+
+/// Reads the raw log at `path` (records the reader rejects are left out).
+pub fn read_log(path: &Path) -> Log {
+    let bytes = std::fs::read(path).unwrap();
+    let mut reader = RawReader::new(bytes.as_slice()).unwrap();
+    let header = reader.header().clone();
+    let (mut imu, mut marks) = (Vec::new(), Vec::new());
+    while let Some(rec) = reader.next_record().unwrap() {
+        match rec {
+            Accepted::Imu(s) => imu.push(s.raw),
+            Accepted::Mark(m) => marks.push((imu.len(), m)),
+        }
+    }
+    Log { header, imu, marks }
+}
+
+/// Writes `log` to `path`, each mark before the IMU record it precedes.
+pub fn write_log(path: &Path, log: &Log) {
+    let mut w = RawWriter::new(Vec::new(), &log.header).unwrap();
+    let mut marks = log.marks.iter().peekable();
+    for (k, r) in log.imu.iter().enumerate() {
+        while let Some((_, m)) = marks.next_if(|(at, _)| *at <= k) {
+            w.write_mark(m).unwrap();
+        }
+        w.write_imu(r).unwrap();
+    }
+    for (_, m) in marks {
+        w.write_mark(m).unwrap();
+    }
+    std::fs::write(path, w.finish().unwrap()).unwrap();
 }

@@ -81,6 +81,19 @@ enum Line<'a> {
     Text(&'a str),
 }
 
+impl Line<'_> {
+    /// The record a line holds: none for a blank or comment line, else its text or why it
+    /// cannot be one.
+    fn record(&self) -> Option<Result<&str, String>> {
+        match self {
+            Line::Skipped => None,
+            Line::Text(text) => Some(Ok(text)),
+            Line::Overlong => Some(Err(format!("line longer than {MAX_LINE_BYTES} bytes"))),
+            Line::NotText => Some(Err("not UTF-8 text".into())),
+        }
+    }
+}
+
 impl<R: BufRead> LineReader<R> {
     fn new(src: R) -> Self {
         Self {
@@ -199,15 +212,11 @@ impl<R: BufRead> KfGinsReader<R> {
     /// Parses lines until one record is found.
     fn next_raw(&mut self) -> Result<Option<TextSample>, FormatError> {
         while let Some(line) = self.lines.next_line()? {
-            let text = match line {
-                Line::Text(text) => text,
-                Line::Skipped => continue,
-                Line::Overlong => {
-                    self.fault(format!("line longer than {MAX_LINE_BYTES} bytes"));
-                    continue;
-                }
-                Line::NotText => {
-                    self.fault("not UTF-8 text".into());
+            let text = match line.record() {
+                None => continue,
+                Some(Ok(text)) => text,
+                Some(Err(reason)) => {
+                    self.fault(reason);
                     continue;
                 }
             };
@@ -385,21 +394,17 @@ impl<R: BufRead> OdometerFileReader<R> {
     /// Returns the next accepted sample, or `None` at the end.
     pub fn next_sample(&mut self) -> Result<Option<OdometerSample>, FormatError> {
         while let Some(line) = self.lines.next_line()? {
-            let text = match line {
-                Line::Text(text) => text,
-                Line::Skipped => continue,
-                Line::Overlong => {
-                    self.report.lines_read += 1;
-                    self.reject(format!("line longer than {MAX_LINE_BYTES} bytes"));
-                    continue;
-                }
-                Line::NotText => {
-                    self.report.lines_read += 1;
-                    self.reject("not UTF-8 text".into());
+            let Some(record) = line.record() else {
+                continue;
+            };
+            self.report.lines_read += 1;
+            let text = match record {
+                Ok(text) => text,
+                Err(reason) => {
+                    self.reject(reason);
                     continue;
                 }
             };
-            self.report.lines_read += 1;
             let mut values = [0f64; 2];
             let mut n = 0;
             let mut finite = true;
@@ -488,19 +493,25 @@ mod tests {
         assert_eq!(rep.rejected.malformed_line, Some(1));
     }
 
-    fn read_odometer(text: &str, kind: OdometerKind) -> (Vec<f64>, OdometerFileReport, Vec<u64>) {
-        let mut r = OdometerFileReader::new(text.as_bytes(), kind);
+    /// Distances, accounting, the kept faults' line numbers and the faults' total.
+    fn read_odometer(
+        text: &[u8],
+        kind: OdometerKind,
+    ) -> (Vec<f64>, OdometerFileReport, Vec<u64>, u64) {
+        let mut r = OdometerFileReader::new(text, kind);
         let mut d = Vec::new();
         while let Some(s) = r.next_sample().unwrap() {
             d.push(s.distance_m);
         }
-        let lines = r.faults().0.iter().map(|f| f.line).collect();
-        (d, r.report().clone(), lines)
+        let (kept, total) = r.faults();
+        let lines = kept.iter().map(|f| f.line).collect();
+        (d, r.report().clone(), lines, total)
     }
 
     #[test]
     fn speed_integrates_to_distance() {
-        let (d, rep, faults) = read_odometer("0 0\n1 2\n2 2\n2 5\n3 0\n", OdometerKind::SpeedMps);
+        let (d, rep, faults, _) =
+            read_odometer(b"0 0\n1 2\n2 2\n2 5\n3 0\n", OdometerKind::SpeedMps);
         assert_eq!(faults, vec![4]);
         assert_eq!(d, vec![0.0, 1.0, 3.0, 4.0]);
         assert_eq!(
@@ -521,17 +532,12 @@ mod tests {
         )
         .into_bytes();
         text.extend_from_slice(b"\xff\n4 12");
-        let mut r = OdometerFileReader::new(text.as_slice(), OdometerKind::DistanceM);
-        let mut d = Vec::new();
-        while let Some(s) = r.next_sample().unwrap() {
-            d.push(s.distance_m);
-        }
+        let (d, rep, lines, _) = read_odometer(&text, OdometerKind::DistanceM);
         // Distances are taken as read (their steps are the ingest's range check's).
         assert_eq!(d, vec![0.0, 10.0, 9.0, 1e300, 12.0]);
-        let lines: Vec<u64> = r.faults().0.iter().map(|f| f.line).collect();
         assert_eq!(lines, vec![4, 5, 7, 8, 12]);
         assert_eq!(
-            *r.report(),
+            rep,
             OdometerFileReport {
                 lines_read: 10,
                 lines_accepted: 5,
@@ -563,11 +569,9 @@ mod tests {
     #[test]
     fn line_faults_beyond_the_first_thousand_are_counted_only() {
         let text = "x\n".repeat(2500) + "0 1\n";
-        let (d, rep, _) = read_odometer(&text, OdometerKind::SpeedMps);
-        let mut r = OdometerFileReader::new(text.as_bytes(), OdometerKind::SpeedMps);
-        while r.next_sample().unwrap().is_some() {}
-        assert_eq!(r.faults().0.len(), 1000);
-        assert_eq!(r.faults().1, 2500);
+        let (d, rep, lines, total) = read_odometer(text.as_bytes(), OdometerKind::SpeedMps);
+        assert_eq!(lines.len(), 1000);
+        assert_eq!(total, 2500);
         assert_eq!(d, vec![0.0]);
         assert_eq!(rep.lines_rejected, 2500);
     }

@@ -104,7 +104,7 @@ pub fn ensure_criteria(
     let stage = Stage {
         dir: dir.clone(),
         name: "criteria",
-        // 2: of a control point marked more than once, the first mark at rest.
+        // 2: of a control point marked more than once, the last mark at rest.
         version: 2,
         params_hash: params_hash(&(params.kalman, params.derive.filter))?,
         inputs,

@@ -67,7 +67,7 @@ pub fn ensure_navigate(
         dir: dir.clone(),
         name: "navigate",
         // 4: control points the log cannot reach fail the stage (case::check_reach).
-        // 5: of a control point marked more than once, the first mark at rest.
+        // 5: of a control point marked more than once, the last mark at rest.
         version: 5,
         params_hash: params_hash(&(params.align, overrides))?,
         inputs,
