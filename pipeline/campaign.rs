@@ -280,13 +280,18 @@ fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
 }
 
 /// What the summary's error column says of a run that did not fail: the methods its
-/// disupt stage did not run, with the reason, and its control points marked more than
-/// once, with the mark used.
+/// disupt stage did not run, with the reason, the control points the joint fit's
+/// hold-out finds inconsistent with the rest of the run, and the control points marked
+/// more than once, with the mark used.
 fn run_note(d: Option<&DisuptOut>, nav: Option<&NavigateSummary>) -> String {
     let skipped = d.into_iter().flat_map(|d| &d.skipped);
     let repeated = nav.into_iter().flat_map(|n| &n.repeated_marks);
+    let inconsistent = d
+        .and_then(|d| d.methods.get("joint")?.holdout.as_deref())
+        .and_then(unz_stages::disupt::inconsistent_points_note);
     skipped
         .map(|(name, why)| format!("{name} not run: {why}"))
+        .chain(inconsistent)
         .chain(repeated.map(|r| {
             format!(
                 "control point {} marked {} times: the mark at t_s = {:.2} used ({})",

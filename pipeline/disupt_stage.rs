@@ -94,7 +94,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         dir: dir.clone(),
         name: "disupt",
         // 6: of a control point marked more than once, the last mark at rest.
-        version: 6,
+        // 7: each hold-out's predicted σ and whether the point is consistent; a start
+        //    levelled in motion is fitted over the log's first minute.
+        version: 7,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[

@@ -4,11 +4,12 @@
 use std::path::Path;
 
 use unz::disupt_stage::DisuptOut;
+use unz::flow::NavigateSummary;
 use unz_formats::parquet_io::read_batches;
 use unz_formats::tables::f64_column;
 use unz_stages::simulate::TrueSettings;
 
-use crate::util::{run_until, simulated_run, unz_output};
+use crate::util::{run_until, simulated_run, unz_ok, unz_output};
 
 /// A column of a Parquet file, all batches.
 fn column(path: &Path, name: &str) -> Vec<f64> {
@@ -148,6 +149,135 @@ fn runs_without_a_static_start_are_processed() {
         );
         assert!(h.dx_m.is_finite() && h.dy_m.is_finite());
     }
+}
+
+/// The first row of a truth table's column `name`.
+fn truth_at_start(run: &Path, name: &str) -> f64 {
+    column(&run.join("truth.parquet"), name)[0]
+}
+
+/// Logs begun while driving (no static start), the manifest azimuth 117.6° off (not a
+/// whole number of the coarse search's 1° steps), two control points, six seeds: levelled
+/// in motion over the first minute, every start within 0.3° of the true pitch and roll,
+/// every joint azimuth within 0.2° of the truth and every route within 0.2 % of its
+/// distance (issue 11's targets). Measured: levelling ≤ 0.17° off, azimuth ≤ 0.10°
+/// (σ 0.03–0.17°), route ≤ 0.08 %. Levelled from the first epoch's references alone, the
+/// same logs started up to 2.8° off and two of the six joint fits left their bounds.
+#[test]
+fn logs_begun_while_driving_meet_the_targets_over_seeds() {
+    let tmp = tempfile::tempdir().unwrap();
+    let options = [
+        "--runs",
+        "6",
+        "--log-start-s",
+        "400",
+        "--azimuth-error-deg",
+        "117.6",
+    ];
+    let first = simulated_run(tmp.path(), 200, &options);
+    let campaign = first.parent().unwrap();
+    let out = tmp.path().join("o");
+    run_until(campaign, &out, "disupt");
+    for seed in 200..206 {
+        let name = format!("sim-{seed:04}");
+        let run = campaign.join(&name);
+        let nav: NavigateSummary = serde_json::from_slice(
+            &std::fs::read(out.join(&name).join("navigate/navigate.json")).unwrap(),
+        )
+        .unwrap();
+        let i = &nav.initial;
+        let level = i.in_motion_level.expect("levelled in motion over a window");
+        assert!(level.epochs >= 10, "{level:?}");
+        let pitch_err = i.pitch_deg - truth_at_start(&run, "pitch_deg");
+        let roll_err = i.roll_deg - truth_at_start(&run, "roll_deg");
+        let d = disupt_json(&out, &name);
+        let joint = d
+            .methods
+            .get("joint")
+            .unwrap_or_else(|| panic!("{name}: joint not run: {:?}", d.skipped.get("joint")));
+        let t = truth(&run);
+        let az_err =
+            (joint.outcome.x.azimuth_deg - t.azimuth_deg + 180.0).rem_euclid(360.0) - 180.0;
+        let worst = worst_m(&route_errors(&run, &out, &name));
+        eprintln!(
+            "{name}: levelled {pitch_err:+.3}° / {roll_err:+.3}° off ({} epochs), joint azimuth \
+             {az_err:+.3}°, worst route error {worst:.1} m over {:.0} m",
+            level.epochs, d.distance_m
+        );
+        assert!(pitch_err.abs() < 0.3 && roll_err.abs() < 0.3, "{name}");
+        assert!(az_err.abs() < 0.2, "{name}: joint azimuth off by {az_err}°");
+        assert!(
+            worst < 0.002 * d.distance_m,
+            "{name}: worst route error {worst} m over {} m",
+            d.distance_m
+        );
+    }
+}
+
+/// A control point surveyed 10 m off, among eleven: its hold-out error stands out of what
+/// the fit without it predicts (measured 6.8σ; the others ≤ 2.7σ), it alone is called
+/// inconsistent, and the campaign's note names it. The same run with its survey intact
+/// calls none (every hold-out ≤ 0.3σ).
+#[test]
+fn a_control_point_surveyed_off_is_called_inconsistent() {
+    let tmp = tempfile::tempdir().unwrap();
+    let name = "sim-0063";
+    let run = simulated_run(tmp.path(), 63, &["--cp-at-every-stop"]);
+    let campaign = run.parent().unwrap();
+    let out = tmp.path().join("o");
+    unz_ok(&[
+        "run",
+        campaign.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let clean = disupt_json(&out, name);
+    let holdout = clean.methods["joint"].holdout.clone().unwrap();
+    assert!(holdout.len() >= 3);
+    for h in &holdout {
+        let e = h.error_sigma.unwrap();
+        assert!(e < 1.0 && !h.inconsistent, "{h:?}");
+        assert!(h.sigma_north_m.unwrap() >= 1.0 && h.sigma_east_m.unwrap() >= 1.0);
+    }
+    // Point 6 moved 10 m north in the manifest.
+    let manifest = run.join("run.toml");
+    let mut m: toml::Table = toml::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
+    let points = m["control_point"].as_array_mut().unwrap();
+    let p6 = points
+        .iter_mut()
+        .find(|p| p["id"].as_integer() == Some(6))
+        .unwrap();
+    let lat = p6["latitude_deg"].as_float().unwrap();
+    p6["latitude_deg"] = toml::Value::Float(lat + 10.0 / 111_250.0);
+    std::fs::write(&manifest, toml::to_string(&m).unwrap()).unwrap();
+    unz_ok(&[
+        "run",
+        campaign.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let d = disupt_json(&out, name);
+    let holdout = d.methods["joint"].holdout.clone().unwrap();
+    for h in &holdout {
+        eprintln!(
+            "control point {}: hold-out {:.2} m, {:.1}σ",
+            h.id,
+            h.dx_m.hypot(h.dy_m),
+            h.error_sigma.unwrap()
+        );
+        assert_eq!(h.inconsistent, h.id == 6, "{h:?}");
+    }
+    let note = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        note.contains("control point inconsistent with the rest of the run")
+            && note.contains(": 6 ("),
+        "{note}"
+    );
+    let tables = std::fs::read_to_string(out.join(name).join("disupt/disupt.md")).unwrap();
+    assert!(
+        tables.contains("| 6 |") && tables.contains(" ✗ |"),
+        "{tables}"
+    );
 }
 
 /// The corrected route's σ: at least 95 % of the epochs lie within 3σ of the truth.

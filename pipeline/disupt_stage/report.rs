@@ -245,13 +245,29 @@ fn table(name: &str, r: &MethodOut, bounds: &disupt::DisuptParams) -> String {
     if let Some(h) = &r.holdout {
         let _ = writeln!(
             s,
-            "\nHold-out (each control point left out of the fit in turn):\n\n| point | ΔX [m] | ΔY [m] |\n|---|---|---|"
+            "\nHold-out (each control point left out of the fit in turn; σ: what the fit without \
+             it predicts there):\n\n| point | ΔX [m] | ΔY [m] | σ north [m] | σ east [m] | error / σ |\n|---|---|---|---|---|---|"
         );
+        let or_dash =
+            |v: Option<f64>, digits: usize| v.map_or("–".to_owned(), |v| format!("{v:.digits$}"));
         for p in h {
-            let _ = writeln!(s, "| {} | {:.2} | {:.2} |", p.id, p.dx_m, p.dy_m);
+            let _ = writeln!(
+                s,
+                "| {} | {:.2} | {:.2} | {} | {} | {}{} |",
+                p.id,
+                p.dx_m,
+                p.dy_m,
+                or_dash(p.sigma_north_m, 2),
+                or_dash(p.sigma_east_m, 2),
+                or_dash(p.error_sigma, 1),
+                if p.inconsistent { " ✗" } else { "" }
+            );
         }
         if let Some((median, max)) = disupt::holdout_median_max_m(h) {
             let _ = writeln!(s, "\nHold-out error: median {median:.2} m, max {max:.2} m.");
+        }
+        if let Some(note) = disupt::inconsistent_points_note(h) {
+            let _ = writeln!(s, "\n{note}.");
         }
     }
     let _ = writeln!(s, "\n{} passes.\n", r.evaluations);

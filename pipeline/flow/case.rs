@@ -11,9 +11,12 @@ use unz_formats::schema::META_ODO_M_PER_PULSE;
 use unz_formats::tables::MarksTable;
 use unz_stages::criteria::ControlPointFix;
 use unz_stages::derive::Derived;
+use unz_stages::disupt::ProblemSpec;
 use unz_stages::earth::Geodetic;
+use unz_stages::in_motion_level::{Free, IN_MOTION_LEVEL_WINDOW_S, level_in_motion};
 use unz_stages::initial::{
-    InitialReport, InitialRequest, Source, initial_settings_with_velocity, static_samples,
+    InMotionLevelReport, InitialReport, InitialRequest, Source, initial_settings_with_velocity,
+    static_samples,
 };
 use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
 
@@ -222,8 +225,9 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
     };
     check_reach(m, &fixes, &derived, odo_scale)
         .with_context(|| format!("in {}", m.path.display()))?;
-    let (settings, initial) =
+    let (mut settings, mut initial) =
         initial_settings_with_velocity(&derived, dvel_mps, &req, &params.align, start_position(m));
+    level_in_motion_over_window(&derived, params, &mut settings, &mut initial);
     if initial.gyrocompass_skipped.is_some() && fixes.is_empty() {
         bail!(
             "the run has neither a static start nor a control point: without a static start \
@@ -239,4 +243,40 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         settings,
         initial,
     })
+}
+
+/// A start levelled in motion (no static start) refitted over the log's first
+/// [`IN_MOTION_LEVEL_WINDOW_S`] ([`level_in_motion`]): the first epoch's accelerometer
+/// references alone carry the odometer acceleration's noise into the initial tilt.
+fn level_in_motion_over_window(
+    derived: &Derived,
+    params: &Params,
+    settings: &mut NavSettings,
+    initial: &mut InitialReport,
+) {
+    let free = Free {
+        pitch: initial.pitch_source == Source::InMotion,
+        roll: initial.roll_source == Source::InMotion,
+    };
+    if !(free.pitch || free.roll) {
+        return;
+    }
+    let spec = ProblemSpec {
+        settings: *settings,
+        filter: params.derive.filter,
+        kalman: params.kalman,
+        fixes: &[],
+        drift_z_prior_deg_h: None,
+    };
+    let Some(fit) = level_in_motion(&spec.on(derived), free) else {
+        return;
+    };
+    *settings = fit.settings;
+    initial.pitch_deg = settings.initial.pitch_rad.to_degrees();
+    initial.roll_deg = settings.initial.roll_rad.to_degrees();
+    initial.in_motion_level = Some(InMotionLevelReport {
+        window_s: IN_MOTION_LEVEL_WINDOW_S,
+        epochs: fit.epochs,
+        residual_rms_deg: fit.residual_rms_rad.to_degrees(),
+    });
 }

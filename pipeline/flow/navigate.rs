@@ -68,7 +68,8 @@ pub fn ensure_navigate(
         name: "navigate",
         // 4: control points the log cannot reach fail the stage (case::check_reach).
         // 5: of a control point marked more than once, the last mark at rest.
-        version: 5,
+        // 6: a start levelled in motion is fitted over the log's first minute.
+        version: 6,
         params_hash: params_hash(&(params.align, overrides))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],

@@ -34,7 +34,10 @@ mod stepwise;
 
 use argmin::core::Error as ArgminError;
 
-pub use holdout::{Holdout, holdout, holdout_median_max_m};
+pub use holdout::{
+    HOLDOUT_INCONSISTENT_SIGMA, HOLDOUT_MIN_POINTS, Holdout, holdout, holdout_median_max_m,
+    inconsistent_points_note,
+};
 pub use joint::{JointFit, JointOptions, joint, joint_fit, within_bounds};
 pub use problem::{Evaluation, LANES, Problem, ProblemSpec, moved_by_steps, observe_each};
 pub use results::{Component, Criterion, MethodResult, Step};

@@ -19,8 +19,9 @@ pub enum Source {
     Override,
     /// Computed from the static start.
     Static,
-    /// Levelled in motion: the accelerometer pitch and roll references of the first
-    /// epoch (eqs 7–8, odometer acceleration and centripetal terms removed).
+    /// Levelled in motion: from the accelerometer pitch and roll references (eqs 7–8,
+    /// odometer acceleration and centripetal terms removed) of the first epoch, then
+    /// fitted over the log's first minute ([`crate::in_motion_level`]).
     InMotion,
     /// Default value.
     Default,
@@ -106,6 +107,21 @@ pub struct InitialReport {
     pub drift_z_at_rest_rad_s: Option<f64>,
     /// Odometer multiplier.
     pub odo_scale: f64,
+    /// A start levelled in motion: how the pitch and roll above were fitted over the
+    /// log's first minute; absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub in_motion_level: Option<InMotionLevelReport>,
+}
+
+/// How a start levelled in motion was fitted ([`crate::in_motion_level`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct InMotionLevelReport {
+    /// Seconds from the first epoch whose valid epochs were read.
+    pub window_s: f64,
+    /// Valid epochs read.
+    pub epochs: usize,
+    /// RMS of their pitch and roll residuals at the fitted angles, degrees.
+    pub residual_rms_deg: f64,
 }
 
 /// Length of the static start: from the odometer, the time before it first moves 5 cm,
@@ -234,6 +250,7 @@ pub fn initial_settings_with_velocity(
         drift_source,
         drift_z_at_rest_rad_s: dz,
         odo_scale: req.odo_scale,
+        in_motion_level: None,
     };
     (settings, report)
 }

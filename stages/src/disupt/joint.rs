@@ -225,12 +225,17 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for LinearStep<'_> {
 /// Gauss–Newton iterations of the joint fit before it stops.
 const MAX_GAUSS_NEWTON: usize = 10;
 
-/// Covariance `s²(AᵀA)⁻¹` of the free parameters with the last linearisation (which
-/// agreed with the exact pass at the solution, so its slopes hold there), the first `n_att`
-/// rows (the attitude residuals `r` interleaves) discounted for their correlation from
-/// epoch to epoch.
-fn covariance_of(model: &JointModel, r: &[f64], n_att: usize, s2: f64) -> Option<DMatrix<f64>> {
-    let inflation = attitude_inflation(&r[..n_att.min(r.len())]);
+/// Covariance `s²(AᵀA)⁻¹` of the free parameters of `model` (the fit's last
+/// linearisation, which agreed with the exact pass at the solution, so its slopes hold
+/// there), the first `n_att` rows (the attitude residuals, interleaved ΔΘ, ΔΦ) discounted
+/// by `inflation` ([`attitude_inflation`] of the fit's residuals) for their correlation
+/// from epoch to epoch.
+pub(super) fn covariance_of(
+    model: &JointModel,
+    n_att: usize,
+    inflation: [f64; 2],
+    s2: f64,
+) -> Option<DMatrix<f64>> {
     let mut a = model.a.clone();
     for i in 0..n_att.min(a.nrows()) {
         a.row_mut(i).unscale_mut(inflation[i % 2].sqrt());
@@ -274,6 +279,8 @@ pub struct JointFit {
     pub free: Vec<Setting>,
     /// Their covariance, in the optimisers' units (rows and columns follow `free`).
     pub covariance: Option<DMatrix<f64>>,
+    /// The attitude residuals' variance inflation (ΔΘ, ΔΦ) the covariance took.
+    pub(super) inflation: [f64; 2],
     pub(super) lin: Linearization,
     pub(super) weights: DisuptParams,
 }
@@ -418,7 +425,8 @@ pub fn joint_fit(
     let dof = (rows as f64 - free.len() as f64).max(1.0);
     let r = joint_residuals(problem, &y, &pr, &w, skip);
     let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
-    let covariance = covariance_of(&model, &r, n_att, cost / dof);
+    let inflation = attitude_inflation(&r[..n_att.min(r.len())]);
+    let covariance = covariance_of(&model, n_att, inflation, cost / dof);
     // 1σ of each estimated setting (0 for the others).
     let sigma = covariance.as_ref().map(|c| {
         let mut sd = X::default();
@@ -460,6 +468,7 @@ pub fn joint_fit(
         attitude_sigma_rad: w.attitude_sigma_rad,
         free: free.to_vec(),
         covariance,
+        inflation,
         lin: lin.clone(),
         weights: w,
     })
