@@ -225,12 +225,15 @@ fn a_control_point_surveyed_off_is_called_inconsistent() {
     let run = simulated_run(tmp.path(), 63, &["--cp-at-every-stop"]);
     let campaign = run.parent().unwrap();
     let out = tmp.path().join("o");
-    unz_ok(&[
-        "run",
-        campaign.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let run_all = || {
+        unz_ok(&[
+            "run",
+            campaign.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    run_all();
     let clean = disupt_json(&out, name);
     let holdout = clean.methods["joint"].holdout.clone().unwrap();
     assert!(holdout.len() >= 3);
@@ -250,12 +253,7 @@ fn a_control_point_surveyed_off_is_called_inconsistent() {
     let lat = p6["latitude_deg"].as_float().unwrap();
     p6["latitude_deg"] = toml::Value::Float(lat + 10.0 / 111_250.0);
     std::fs::write(&manifest, toml::to_string(&m).unwrap()).unwrap();
-    unz_ok(&[
-        "run",
-        campaign.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    run_all();
     let d = disupt_json(&out, name);
     let holdout = d.methods["joint"].holdout.clone().unwrap();
     for h in &holdout {

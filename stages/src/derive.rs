@@ -300,6 +300,24 @@ pub struct Epochs {
     pub valid: Vec<bool>,
 }
 
+impl Epochs {
+    /// The first `n` epochs (all of them when there are fewer).
+    pub fn prefix(&self, n: usize) -> Self {
+        let n = n.min(self.block.len());
+        Self {
+            block: self.block[..n].to_vec(),
+            t_s: self.t_s[..n].to_vec(),
+            theta_p_rad: self.theta_p_rad[..n].to_vec(),
+            phi_p_rad: self.phi_p_rad[..n].to_vec(),
+            theta_p_per_yaw: self.theta_p_per_yaw[..n].to_vec(),
+            phi_p_per_yaw: self.phi_p_per_yaw[..n].to_vec(),
+            theta_p_per_bias: self.theta_p_per_bias[..n].to_vec(),
+            phi_p_per_bias: self.phi_p_per_bias[..n].to_vec(),
+            valid: self.valid[..n].to_vec(),
+        }
+    }
+}
+
 /// Cumulative odometer distance at time `t` (linear interpolation; held after the last
 /// tag, and continued back over one interval before the first). Only tags later than the
 /// last one kept, with a finite distance, are kept; they are read from the ingested series
@@ -680,6 +698,39 @@ pub fn shifted_blocks(x: &[f64], block_s: f64, shift_s: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_epochs_prefix_keeps_every_series_in_step() {
+        let n = |k: usize| (0..k).map(|i| i as f64).collect::<Vec<f64>>();
+        let e = Epochs {
+            block: vec![9, 19, 29],
+            t_s: n(3),
+            theta_p_rad: n(3),
+            phi_p_rad: n(3),
+            theta_p_per_yaw: n(3),
+            phi_p_per_yaw: n(3),
+            theta_p_per_bias: n(3),
+            phi_p_per_bias: n(3),
+            valid: vec![true, false, true],
+        };
+        let p = e.prefix(2);
+        assert_eq!(
+            (p.block.clone(), p.valid.clone()),
+            (vec![9, 19], vec![true, false])
+        );
+        for s in [
+            &p.t_s,
+            &p.theta_p_rad,
+            &p.phi_p_rad,
+            &p.theta_p_per_yaw,
+            &p.phi_p_per_yaw,
+            &p.theta_p_per_bias,
+            &p.phi_p_per_bias,
+        ] {
+            assert_eq!(s, &n(2));
+        }
+        assert_eq!(e.prefix(10), e);
+    }
 
     /// The interpolation by its definition: the kept tags gathered first, then searched.
     fn distance_by_definition(t_ns: &[i64], d: &[f64], t0_ns: i64, offset_s: f64, ts: f64) -> f64 {
