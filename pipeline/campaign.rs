@@ -591,6 +591,10 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
 fn report_row(out: &Path, o: &RunOutcome) -> ReportRow {
     let layout = RunLayout::new(out, &o.name);
     let d: Option<DisuptOut> = read_report(&layout.file(StageName::Disupt, files::DISUPT_REPORT));
+    let nav: Option<NavigateSummary> =
+        read_report(&layout.file(StageName::Navigate, files::NAVIGATE_REPORT));
+    let note =
+        Some(run_note(d.as_ref(), nav.as_ref())).filter(|n| o.error.is_none() && !n.is_empty());
     let mut last_cp_error_m = Vec::new();
     let mut cp_errors_m = Vec::new();
     let mut joint = None;
@@ -644,6 +648,7 @@ fn report_row(out: &Path, o: &RunOutcome) -> ReportRow {
         cp_errors_m,
         joint,
         holdout_m,
+        note,
         recording: out.join(&rrd).is_file().then_some(rrd),
         wall_s: o.wall_s,
         computed: o

@@ -216,7 +216,7 @@ fn logs_begun_while_driving_meet_the_targets_over_seeds() {
 
 /// A control point surveyed 10 m off, among eleven: its hold-out error stands out of what
 /// the fit without it predicts (measured 6.8σ; the others ≤ 2.7σ), it alone is called
-/// inconsistent, and the campaign's note names it. The same run with its survey intact
+/// inconsistent, and the campaign's note (`campaign.md`, `campaign.html`) names it. The same run with its survey intact
 /// calls none (every hold-out ≤ 0.3σ).
 #[test]
 fn a_control_point_surveyed_off_is_called_inconsistent() {
@@ -270,6 +270,11 @@ fn a_control_point_surveyed_off_is_called_inconsistent() {
         note.contains("control point inconsistent with the rest of the run")
             && note.contains(": 6 ("),
         "{note}"
+    );
+    let html = std::fs::read_to_string(out.join("campaign.html")).unwrap();
+    assert!(
+        html.contains("<span class=\"note\">control point inconsistent with the rest of the run"),
+        "{html}"
     );
     let tables = std::fs::read_to_string(out.join(name).join("disupt/disupt.md")).unwrap();
     assert!(

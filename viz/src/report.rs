@@ -24,6 +24,9 @@ pub struct ReportRow {
     pub joint: Option<JointEstimate>,
     /// Median and largest error of the joint fit at a control point left out of it, m.
     pub holdout_m: Option<(f64, f64)>,
+    /// What the reports of a run that did not fail flag (methods not run, inconsistent
+    /// or repeatedly marked control points), as in `campaign.md`'s error column.
+    pub note: Option<String>,
     /// Relative link to the run's review recording.
     pub recording: Option<String>,
     /// Wall time, s.
@@ -269,7 +272,7 @@ pub fn campaign_html(title: &str, rows: &[ReportRow]) -> String {
 <meta name=\"viewport\" content=\"width=device-width\"><title>{t}</title><style>\
 body{{font-family:sans-serif;margin:1.5em;color:#222}}table{{border-collapse:collapse;font-size:13px}}\
 td,th{{border:1px solid #ccc;padding:3px 6px;text-align:right}}td.l,th.l{{text-align:left}}\
-tr.failed{{background:#fde8e8}}figure{{display:inline-block;margin:0 1em 1em 0}}.err{{color:#b00}}\
+tr.failed{{background:#fde8e8}}figure{{display:inline-block;margin:0 1em 1em 0}}.err{{color:#b00}}.note{{color:#8a5a00}}\
 .sw{{display:inline-block;width:10px;height:10px;margin-right:4px}}</style></head><body>\
 <h1>{t}</h1><p>{n} runs: {ok} processed, {failed} failed.</p>\n",
         t = escape(title),
@@ -368,11 +371,14 @@ tr.failed{{background:#fde8e8}}figure{{display:inline-block;margin:0 1em 1em 0}}
             (None, true) => "cached".to_owned(),
             (_, false) => r.computed.join(", "),
         };
-        let last = match (&r.error, &r.recording) {
+        let mut last = match (&r.error, &r.recording) {
             (Some(e), _) => format!("<span class=\"err\">{}</span>", escape(e)),
             (None, Some(link)) => format!("<a href=\"{0}\">{0}</a>", escape(link)),
             (None, None) => String::new(),
         };
+        if let (None, Some(note)) = (&r.error, &r.note) {
+            let _ = write!(last, "<br><span class=\"note\">{}</span>", escape(note));
+        }
         let _ = writeln!(
             h,
             "<td>{:.2}</td><td class=\"l\">{}</td><td class=\"l\">{last}</td></tr>",
@@ -416,6 +422,20 @@ mod tests {
         assert_eq!(html.matches("<svg").count(), 5, "five plots");
         assert!(html.contains("a/review/a.rrd"));
         assert!(!html.contains("<script"), "no scripts");
+    }
+
+    #[test]
+    fn a_run_s_note_is_shown_escaped_and_a_failed_run_s_is_not() {
+        let mut noted = row("noted", 100.0, 2.0);
+        noted.note = Some("control point 6 inconsistent <check>".into());
+        let mut failed = row("failed", 1.0, 1.0);
+        failed.error = Some("broken".into());
+        failed.note = Some("never shown".into());
+        let html = campaign_html("Campaign", &[noted, failed]);
+        assert!(html.contains(
+            "noted/review/noted.rrd</a><br><span class=\"note\">control point 6 inconsistent &lt;check&gt;</span>"
+        ));
+        assert!(!html.contains("never shown"));
     }
 
     #[test]
