@@ -227,7 +227,6 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         .with_context(|| format!("in {}", m.path.display()))?;
     let (mut settings, mut initial) =
         initial_settings_with_velocity(&derived, dvel_mps, &req, &params.align, start_position(m));
-    level_in_motion_over_window(&derived, params, &mut settings, &mut initial);
     if initial.gyrocompass_skipped.is_some() && fixes.is_empty() {
         bail!(
             "the run has neither a static start nor a control point: without a static start \
@@ -236,6 +235,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
             m.path.display()
         );
     }
+    level_in_motion_over_window(&derived, params, &mut settings, &mut initial);
     Ok(NavCase {
         derived,
         fixes,
