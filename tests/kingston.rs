@@ -246,6 +246,15 @@ fn corrected_heading_error_deg(dir: &std::path::Path, r: &Reference) -> f64 {
     e[e.len() / 2]
 }
 
+/// The largest horizontal error of a method at the control points, m.
+fn worst_control_point_m(m: &unz::disupt_stage::MethodOut) -> f64 {
+    m.outcome
+        .control_points
+        .iter()
+        .map(|c| c.kryt2_m)
+        .fold(0.0, f64::max)
+}
+
 /// The real drive cut to begin while driving, 30 s after the vehicle first moves: no
 /// static start, the site the reference's position there, the manifest azimuth 100.3°
 /// off, the same two control points. Levelled in motion, the start is within 0.3° of the
@@ -325,12 +334,7 @@ fn kingston_cut_to_begin_while_driving() {
         .get("joint")
         .unwrap_or_else(|| panic!("joint not run: {:?}", d.skipped));
     let heading_err = corrected_heading_error_deg(&dir.join("disupt"), &reference());
-    let cp_max = j
-        .outcome
-        .control_points
-        .iter()
-        .map(|c| c.kryt2_m)
-        .fold(0.0, f64::max);
+    let cp_max = worst_control_point_m(j);
     eprintln!(
         "Kingston cut to begin while driving: levelled {pitch_err:+.3}° / {roll_err:+.3}° off, \
          corrected by {:?}, heading {heading_err:.3}°, control points ≤ {cp_max:.2} m",
@@ -384,12 +388,7 @@ fn kingston_odometer_terms_through_the_binary() {
                 .all(|st| st.at_bound.is_empty())
         );
         let heading_err = corrected_heading_error_deg(&dir, &r);
-        let cp_max = j
-            .outcome
-            .control_points
-            .iter()
-            .map(|c| c.kryt2_m)
-            .fold(0.0, f64::max);
+        let cp_max = worst_control_point_m(j);
         let holdout = j.holdout.as_ref().unwrap();
         let holdout_max = holdout
             .iter()
