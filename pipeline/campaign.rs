@@ -476,6 +476,7 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         "| run | status | distance [m] | rejected | before [m] | OEPI [m] | OWPI [m] | joint [m] | joint az σ [°] | hold-out median / max [m] | odometer lag [s] | wall [s] | computed | error |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let mut notes: Vec<Option<String>> = Vec::with_capacity(outcomes.len());
+    let mut rows: Vec<ReportRow> = Vec::with_capacity(outcomes.len());
     for o in outcomes {
         let layout = RunLayout::new(out, &o.name);
         let ing: Option<IngestReport> =
@@ -533,6 +534,7 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
                 .replace('|', "/")
                 .replace('\n', " "),
         );
+        rows.push(report_row(out, o, d.as_ref(), note.clone()));
         notes.push(note);
     }
     let mut arrays: Vec<Arc<dyn arrow::array::Array>> = vec![
@@ -581,25 +583,24 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         &RecordBatch::try_new(schema, arrays)?,
     )?;
     write_atomic(&out.join("campaign.md"), md.as_bytes())?;
-    let rows: Vec<ReportRow> = outcomes.iter().map(|o| report_row(out, o)).collect();
     let html = unz_viz::report::campaign_html(&format!("Campaign {}", out.display()), &rows);
     write_atomic(&out.join("campaign.html"), html.as_bytes())?;
     Ok(())
 }
 
-/// A run's row of `campaign.html`, from its `disupt.json`.
-fn report_row(out: &Path, o: &RunOutcome) -> ReportRow {
-    let layout = RunLayout::new(out, &o.name);
-    let d: Option<DisuptOut> = read_report(&layout.file(StageName::Disupt, files::DISUPT_REPORT));
-    let nav: Option<NavigateSummary> =
-        read_report(&layout.file(StageName::Navigate, files::NAVIGATE_REPORT));
-    let note =
-        Some(run_note(d.as_ref(), nav.as_ref())).filter(|n| o.error.is_none() && !n.is_empty());
+/// A run's row of `campaign.html`, from its `disupt.json` (`d`, as the summary read it)
+/// and its note.
+fn report_row(
+    out: &Path,
+    o: &RunOutcome,
+    d: Option<&DisuptOut>,
+    note: Option<String>,
+) -> ReportRow {
     let mut last_cp_error_m = Vec::new();
     let mut cp_errors_m = Vec::new();
     let mut joint = None;
     let mut holdout_m = None;
-    if let Some(d) = &d {
+    if let Some(d) = d {
         let settings = [(
             "initial",
             Some((d.before.dx_m, d.before.dy_m, &d.before.control_points)),
@@ -643,7 +644,7 @@ fn report_row(out: &Path, o: &RunOutcome) -> ReportRow {
     ReportRow {
         name: o.name.clone(),
         error: o.error.clone(),
-        distance_m: d.as_ref().map(|d| d.distance_m),
+        distance_m: d.map(|d| d.distance_m),
         last_cp_error_m,
         cp_errors_m,
         joint,

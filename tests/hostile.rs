@@ -643,9 +643,7 @@ fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
     let clean = navigate(&tmp.path().join("clean"));
     assert!(clean.repeated_marks.is_empty());
 
-    let at = log.imu.partition_point(|r| r.t_us < early.t_us);
-    log.marks.push((at, early));
-    log.marks.sort_by_key(|&(at, _)| at);
+    log.insert_mark(early);
     write_log(&path, &log);
 
     let twice = navigate(&tmp.path().join("twice"));
@@ -672,21 +670,25 @@ fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
         last_mark.t_us as f64 * 1e-6
     );
     assert!(summary.contains(&note), "{summary}");
-    let (_, batches) =
-        unz_formats::parquet_io::read_batches(&tmp.path().join("twice/campaign.parquet")).unwrap();
-    let notes = batches[0]
-        .column_by_name(unz_formats::schema::CAMPAIGN_NOTE)
-        .unwrap();
-    let notes = notes
-        .as_any()
-        .downcast_ref::<arrow::array::StringArray>()
-        .unwrap();
-    assert_eq!(notes.value(0), note);
-    let (_, batches) =
-        unz_formats::parquet_io::read_batches(&tmp.path().join("clean/campaign.parquet")).unwrap();
-    let column = batches[0].column_by_name("note").unwrap();
-    assert!(
-        column.is_null(0),
+    // The first run's note in the campaign summary of `dir`.
+    let note_of = |dir: &str| {
+        use arrow::array::Array;
+        let (_, batches) =
+            unz_formats::parquet_io::read_batches(&tmp.path().join(dir).join("campaign.parquet"))
+                .unwrap();
+        let column = batches[0]
+            .column_by_name(unz_formats::schema::CAMPAIGN_NOTE)
+            .unwrap()
+            .as_any()
+            .downcast_ref::<arrow::array::StringArray>()
+            .unwrap()
+            .clone();
+        column.is_valid(0).then(|| column.value(0).to_owned())
+    };
+    assert_eq!(note_of("twice"), Some(note));
+    assert_eq!(
+        note_of("clean"),
+        None,
         "a run with nothing to note has a null note"
     );
 }

@@ -9,9 +9,11 @@ use unz_stages::strapdown::NavTrack;
 
 use crate::util::test_data;
 
-/// The reference at 1 Hz: t_s, roll, pitch, azimuth (degrees), speed (m/s).
+/// The reference at 1 Hz: t_s, position (latitude, longitude in degrees, height in m),
+/// roll, pitch, azimuth (degrees), speed (m/s).
 struct Reference {
     t_s: Vec<f64>,
+    position: Vec<[f64; 3]>,
     roll: Vec<f64>,
     pitch: Vec<f64>,
     azimuth: Vec<f64>,
@@ -22,6 +24,7 @@ fn reference() -> Reference {
     let text = std::fs::read_to_string(test_data("kingston2008-seg1").join("truth.csv")).unwrap();
     let mut r = Reference {
         t_s: vec![],
+        position: vec![],
         roll: vec![],
         pitch: vec![],
         azimuth: vec![],
@@ -30,6 +33,7 @@ fn reference() -> Reference {
     for line in text.lines().skip(1) {
         let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
         r.t_s.push(v[0]);
+        r.position.push([v[1], v[2], v[3]]);
         r.speed.push(v[4].hypot(v[5]));
         r.roll.push(v[7]);
         r.pitch.push(v[8]);
@@ -285,17 +289,9 @@ fn kingston_cut_to_begin_while_driving() {
     };
     from("imu.txt", CUT_S);
     from("odometer.txt", CUT_S - 1.0);
-    let truth = std::fs::read_to_string(src.join("truth.csv")).unwrap();
-    let at_cut: Vec<f64> = truth
-        .lines()
-        .skip(1)
-        .map(|l| {
-            l.split(',')
-                .map(|x| x.parse().unwrap())
-                .collect::<Vec<f64>>()
-        })
-        .find(|v| v[0] == CUT_S)
-        .unwrap();
+    let r = reference();
+    let cut = r.t_s.iter().position(|&t| t == CUT_S).unwrap();
+    let [lat_deg, lon_deg, h_m] = r.position[cut];
     let manifest = std::fs::read_to_string(src.join("run.toml")).unwrap();
     let mut m: toml::Table = toml::from_str(&manifest).unwrap();
     let table = |kv: &[(&str, f64)]| {
@@ -306,12 +302,12 @@ fn kingston_cut_to_begin_while_driving() {
         )
     };
     m["site"] = table(&[
-        ("latitude_deg", at_cut[1]),
-        ("longitude_deg", at_cut[2]),
-        ("height_m", at_cut[3]),
+        ("latitude_deg", lat_deg),
+        ("longitude_deg", lon_deg),
+        ("height_m", h_m),
     ]);
     m["initial"] = table(&[
-        ("azimuth_deg", (at_cut[9] + 100.3).rem_euclid(360.0)),
+        ("azimuth_deg", (r.azimuth[cut] + 100.3).rem_euclid(360.0)),
         ("static_s", 0.0),
     ]);
     std::fs::write(run.join("run.toml"), toml::to_string(&m).unwrap()).unwrap();
@@ -326,14 +322,14 @@ fn kingston_cut_to_begin_while_driving() {
         i.in_motion_level.is_some() && i.gyrocompass_skipped.is_some(),
         "{i:?}"
     );
-    let (pitch_err, roll_err) = (i.pitch_deg - at_cut[8], i.roll_deg - at_cut[7]);
+    let (pitch_err, roll_err) = (i.pitch_deg - r.pitch[cut], i.roll_deg - r.roll[cut]);
     let d: DisuptOut =
         serde_json::from_slice(&std::fs::read(dir.join("disupt/disupt.json")).unwrap()).unwrap();
     let j = d
         .methods
         .get("joint")
         .unwrap_or_else(|| panic!("joint not run: {:?}", d.skipped));
-    let heading_err = corrected_heading_error_deg(&dir.join("disupt"), &reference());
+    let heading_err = corrected_heading_error_deg(&dir.join("disupt"), &r);
     let cp_max = worst_control_point_m(j);
     eprintln!(
         "Kingston cut to begin while driving: levelled {pitch_err:+.3}° / {roll_err:+.3}° off, \

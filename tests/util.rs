@@ -135,6 +135,15 @@ pub struct Log {
     pub marks: Vec<(usize, MarkRecord)>,
 }
 
+impl Log {
+    /// Adds `mark` before the first IMU record not earlier than it.
+    pub fn insert_mark(&mut self, mark: MarkRecord) {
+        let at = self.imu.partition_point(|r| r.t_us < mark.t_us);
+        let after = self.marks.partition_point(|(k, _)| *k <= at);
+        self.marks.insert(after, (at, mark));
+    }
+}
+
 /// Reads the raw log at `path` (records the reader rejects are left out).
 pub fn read_log(path: &Path) -> Log {
     let bytes = std::fs::read(path).unwrap();

@@ -6,7 +6,7 @@ use nalgebra::{DMatrix, Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
 
 use super::DisuptError;
-use super::joint::{JointFit, JointModel, JointOptions, covariance_of, joint_fit};
+use super::joint::{JointFit, JointModel, JointOptions, attitude_rows, covariance_of, joint_fit};
 use super::problem::Problem;
 use super::settings::{DisuptParams, X, x_of};
 use crate::linearized::Setting;
@@ -129,7 +129,7 @@ pub fn holdout(
     p: &DisuptParams,
 ) -> Result<Vec<Holdout>, DisuptError> {
     let n = problem.fixes.len();
-    let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
+    let n_att = attitude_rows(problem);
     let s2 = fit.cost / fit.dof;
     let mut ps = Vec::with_capacity(n);
     let mut spreads = Vec::with_capacity(n);

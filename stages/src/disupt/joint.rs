@@ -68,6 +68,12 @@ fn joint_residuals(
     r
 }
 
+/// Rows of the attitude residuals at the head of [`joint_residuals`]: ΔΘ and ΔΦ of every
+/// valid epoch.
+pub(super) fn attitude_rows(problem: &Problem<'_>) -> usize {
+    2 * problem.epochs.valid.iter().filter(|v| **v).count()
+}
+
 /// RMS of the attitude residuals (ΔΘ, ΔΦ with the levelling corrections) of the valid
 /// epochs, rad.
 fn attitude_rms_rad(
@@ -76,7 +82,7 @@ fn attitude_rms_rad(
     p: &[f64; N_PARAMS],
     params: &DisuptParams,
 ) -> f64 {
-    let n = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
+    let n = attitude_rows(problem);
     let r = joint_residuals(problem, y, p, params, None);
     (ssr(&r[..n.min(r.len())]) / n.max(1) as f64).sqrt() * params.attitude_sigma_rad
 }
@@ -188,7 +194,7 @@ impl JointFit {
     ) -> Result<f64, DisuptError> {
         let model = JointModel::new(problem, lin, &self.free, &self.weights, None);
         let r = &model.r0 + &model.a * model.solve()?;
-        let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
+        let n_att = attitude_rows(problem);
         let rows = n_att..(n_att + 2 * lin.y_ref.cp_m.len()).min(r.len());
         Ok(ssr(&r.as_slice()[rows]))
     }
@@ -424,7 +430,7 @@ pub fn joint_fit(
     let rows = model.r0.len() - if skip.is_some() { 2 } else { 0 };
     let dof = (rows as f64 - free.len() as f64).max(1.0);
     let r = joint_residuals(problem, &y, &pr, &w, skip);
-    let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
+    let n_att = attitude_rows(problem);
     let inflation = attitude_inflation(&r[..n_att.min(r.len())]);
     let covariance = covariance_of(&model, n_att, inflation, cost / dof);
     // 1σ of each estimated setting (0 for the others).
