@@ -52,8 +52,12 @@ pub mod files {
     pub const ODOMETER: &str = "odometer.parquet";
     /// ingest: control-point marks.
     pub const MARKS: &str = "marks.parquet";
+    /// ingest: the raw log's records as ROS 2 messages, for Foxglove and Rerun.
+    pub const RAW_MCAP: &str = "raw.mcap";
     /// ingest: the accounting report.
     pub const INGEST_REPORT: &str = "ingest.json";
+    /// ingest: the first faults, located ([`unz_formats::IngestEvents`]).
+    pub const INGEST_EVENTS: &str = "ingest_events.json";
     /// derive: per-sample series.
     pub const DERIVED: &str = "derived.parquet";
     /// derive: per-epoch series.

@@ -15,13 +15,13 @@ use crate::raw_mcap::RawMcapWriter;
 use anyhow::Context;
 use serde::Serialize;
 use unz_formats::atomic::write_json_atomic;
-use unz_formats::kfgins::{KfGinsReader, LAND_SPEED_RANGE_MPS, LineFault, OdometerFileReader};
+use unz_formats::kfgins::{KfGinsReader, LAND_SPEED_RANGE_MPS, OdometerFileReader};
 use unz_formats::manifest::{LogFormat, RunManifest};
 use unz_formats::mcap_io::McapCompression;
 use unz_formats::parquet_io::ParquetSink;
-use unz_formats::raw::{Accepted, FaultEvent, RawReader};
+use unz_formats::raw::{Accepted, RawReader};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
-use unz_formats::{IngestReport, schema};
+use unz_formats::{IngestEvents, IngestReport, schema};
 
 /// Rows per Parquet batch.
 const BATCH_ROWS: usize = 1 << 16;
@@ -31,9 +31,9 @@ pub const OUTPUTS: [&str; 6] = [
     files::IMU,
     files::ODOMETER,
     files::MARKS,
-    "raw.mcap",
+    files::RAW_MCAP,
     files::INGEST_REPORT,
-    "ingest_events.json",
+    files::INGEST_EVENTS,
 ];
 
 /// What the stage did.
@@ -69,17 +69,6 @@ impl From<IngestParams> for IngestOptions {
             mcap: Some(p.raw_mcap_compression),
         }
     }
-}
-
-#[derive(Serialize)]
-struct EventsFile<'a> {
-    raw: &'a Path,
-    events_total: u64,
-    events: &'a [FaultEvent],
-    line_faults: &'a [LineFault],
-    /// The odometer file's first 1000 line faults (their total is `ingest.json`'s
-    /// `odometer_file.lines_rejected`).
-    odometer_file_faults: &'a [LineFault],
 }
 
 /// Table sinks of one ingest.
@@ -129,7 +118,7 @@ impl Sinks {
             marks_schema: schema::marks(origin_ns),
             mcap: match mcap {
                 Some(compression) => Some(RawMcapWriter::create(
-                    &dir.join("raw.mcap"),
+                    &dir.join(files::RAW_MCAP),
                     origin_ns.unwrap_or(0),
                     compression,
                 )?),
@@ -268,13 +257,13 @@ fn ingest_binary(
     let (mut report, events, events_total) = reader.into_report();
     report.odometer_out_of_range = odometer_out_of_range;
     write_json_atomic(
-        &dir.join("ingest_events.json"),
-        &EventsFile {
-            raw: path,
+        &dir.join(files::INGEST_EVENTS),
+        &IngestEvents {
+            raw: manifest.named(path).to_path_buf(),
             events_total,
-            events: &events,
-            line_faults: &[],
-            odometer_file_faults: &[],
+            events,
+            line_faults: Vec::new(),
+            odometer_file_faults: Vec::new(),
         },
     )?;
     Ok((report, odo_rows))
@@ -340,13 +329,15 @@ fn ingest_text(
     report.odometer_file = odometer_file.as_ref().map(|o| o.report().clone());
     let (faults, total) = reader.faults();
     write_json_atomic(
-        &dir.join("ingest_events.json"),
-        &EventsFile {
-            raw: path,
+        &dir.join(files::INGEST_EVENTS),
+        &IngestEvents {
+            raw: manifest.named(path).to_path_buf(),
             events_total: total,
-            events: &[],
-            line_faults: faults,
-            odometer_file_faults: odometer_file.as_ref().map_or(&[], |o| o.faults().0),
+            events: Vec::new(),
+            line_faults: faults.to_vec(),
+            odometer_file_faults: odometer_file
+                .as_ref()
+                .map_or(Vec::new(), |o| o.faults().0.to_vec()),
         },
     )?;
     Ok((report, odo_rows))

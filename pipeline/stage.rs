@@ -24,11 +24,19 @@ pub struct StageRecord {
     pub version: u32,
     /// blake3 of the canonical JSON of the parameters.
     pub params_hash: String,
-    /// Input files (as given) and their blake3.
+    /// Input files and their blake3, each named where it lies: relative to the output
+    /// root (`<run>/<stage>/<file>`) for an earlier stage's output, relative to the run
+    /// folder behind [`RUN_FOLDER_KEY`] for a file of the run (its manifest, raw log,
+    /// odometer file). The record so does not depend on the working directory, nor on
+    /// where the campaign and output folders lie.
     pub inputs: BTreeMap<String, String>,
     /// Output files (names in the stage folder) and their blake3.
     pub outputs: BTreeMap<String, String>,
 }
+
+/// The prefix naming a file of the run folder in [`StageRecord::inputs`]: `@` is in no run
+/// name, so the key never reads as an output's.
+pub const RUN_FOLDER_KEY: &str = "@run";
 
 /// blake3 of the JSON of `params`.
 pub fn params_hash(params: &impl Serialize) -> anyhow::Result<String> {
@@ -54,21 +62,19 @@ pub struct Stage<'a> {
 }
 
 impl Stage<'_> {
-    /// Inputs by name — relative to the output root (`OUT`, two levels above the stage
-    /// folder) when they lie under it, so a moved output tree stays valid — and hash.
-    fn input_hashes(&self) -> anyhow::Result<BTreeMap<String, String>> {
+    /// Inputs by name and hash: see [`StageRecord::inputs`]. The output root is `OUT`,
+    /// two levels above the stage folder; `run_dir` is the run's folder.
+    fn input_hashes(&self, run_dir: &Path) -> anyhow::Result<BTreeMap<String, String>> {
         let root = self.dir.parent().and_then(Path::parent);
         self.inputs
             .iter()
-            .map(|p| {
-                let key = root.and_then(|r| p.strip_prefix(r).ok()).unwrap_or(p);
-                Ok((key.display().to_string(), file_hash(p)?))
-            })
+            .map(|p| Ok((input_key(p, root, run_dir), file_hash(p)?)))
             .collect()
     }
 
-    /// Whether the folder holds this stage's outputs for these parameters and inputs.
-    pub fn is_up_to_date(&self) -> anyhow::Result<bool> {
+    /// Whether the folder holds this stage's outputs for these parameters and inputs, the
+    /// run's own files being in `run_dir`.
+    pub fn is_up_to_date(&self, run_dir: &Path) -> anyhow::Result<bool> {
         let Ok(bytes) = std::fs::read(self.dir.join(RECORD)) else {
             return Ok(false);
         };
@@ -81,7 +87,7 @@ impl Stage<'_> {
         {
             return Ok(false);
         }
-        if rec.inputs != self.input_hashes()? {
+        if rec.inputs != self.input_hashes(run_dir)? {
             return Ok(false);
         }
         for name in self.outputs {
@@ -95,7 +101,7 @@ impl Stage<'_> {
     }
 
     /// Writes the record (after the outputs are in place).
-    pub fn commit(&self) -> anyhow::Result<()> {
+    pub fn commit(&self, run_dir: &Path) -> anyhow::Result<()> {
         let outputs = self
             .outputs
             .iter()
@@ -105,7 +111,7 @@ impl Stage<'_> {
             stage: self.name.to_owned(),
             version: self.version,
             params_hash: self.params_hash.clone(),
-            inputs: self.input_hashes()?,
+            inputs: self.input_hashes(run_dir)?,
             outputs,
         };
         write_json_atomic(&self.dir.join(RECORD), &rec)?;
@@ -133,9 +139,49 @@ impl Stage<'_> {
     }
 }
 
+/// An input's name in a record: relative to the output root `root` when under it, else
+/// `@run/<path>` relative to the run folder `run_dir` when under it (a run folder given as
+/// `.` holds every relative path that does not leave it), else the path as given.
+fn input_key(path: &Path, root: Option<&Path>, run_dir: &Path) -> String {
+    if let Some(rel) = root.and_then(|r| path.strip_prefix(r).ok()) {
+        return rel.display().to_string();
+    }
+    let in_cwd = run_dir == Path::new(".")
+        && path.is_relative()
+        && !path
+            .components()
+            .any(|c| matches!(c, std::path::Component::ParentDir));
+    match path.strip_prefix(run_dir) {
+        Ok(rel) => Path::new(RUN_FOLDER_KEY).join(rel).display().to_string(),
+        Err(_) if in_cwd => Path::new(RUN_FOLDER_KEY).join(path).display().to_string(),
+        Err(_) => path.display().to_string(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn inputs_are_named_where_they_lie_not_as_given() {
+        let root = Some(Path::new("../out"));
+        let key = |p: &str, run: &str| input_key(Path::new(p), root, Path::new(run));
+        assert_eq!(
+            key("../out/r1/derive/epochs.parquet", "../c/r1"),
+            "r1/derive/epochs.parquet"
+        );
+        assert_eq!(key("../c/r1/run.toml", "../c/r1"), "@run/run.toml");
+        assert_eq!(
+            key("/a/b/c/r1/logs/r1.unz", "/a/b/c/r1"),
+            "@run/logs/r1.unz"
+        );
+        // The same files named from the run folder itself.
+        assert_eq!(key("run.toml", "."), "@run/run.toml");
+        assert_eq!(key("./logs/r1.unz", "."), "@run/logs/r1.unz");
+        // Anything else as given.
+        assert_eq!(key("/etc/x.toml", "../c/r1"), "/etc/x.toml");
+        assert_eq!(key("../y.toml", "."), "../y.toml");
+    }
 
     #[test]
     fn invalidate_clears_what_a_killed_stage_left() {

@@ -577,12 +577,20 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
     std::fs::write(run.join("odometer.txt"), lines.join("\n") + "\n").unwrap();
     let out = tmp.path().join("ko");
     crate::util::run_until(&run, &out, "navigate");
-    let events =
-        std::fs::read_to_string(out.join("kingston2008-segment1/ingest/ingest_events.json"))
-            .unwrap();
+    let events: unz_formats::IngestEvents = serde_json::from_slice(
+        &std::fs::read(out.join("kingston2008-segment1/ingest/ingest_events.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(events.raw, Path::new("imu.txt"));
+    let [fault] = &events.odometer_file_faults[..] else {
+        panic!("{events:?}");
+    };
+    assert_eq!(fault.line, 501);
     assert!(
-        events.contains("speed 1e300 m/s is beyond a land vehicle's"),
-        "{events}"
+        fault
+            .reason
+            .contains("speed 1e300 m/s is beyond a land vehicle's"),
+        "{fault:?}"
     );
     // Every line of the odometer file is accounted, the rejected one too.
     let report: unz_formats::IngestReport = serde_json::from_slice(

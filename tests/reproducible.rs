@@ -3,9 +3,9 @@
 //! the derive on in memory), once stage by stage in a process each (every stage loads
 //! its inputs from the cache).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use crate::util::{files_below as files, simulated_run, unz_ok};
+use crate::util::{files_below as files, simulated_run, unz, unz_ok};
 
 #[test]
 fn a_run_processed_twice_gives_identical_files() {
@@ -35,4 +35,95 @@ fn a_run_processed_twice_gives_identical_files() {
         );
         assert!(x == y, "{} differs between the two", f.display());
     }
+}
+
+/// The stage records name a run's own files relative to its folder, and the outputs
+/// relative to the output folder: a campaign run again from another working directory,
+/// or moved with its output folder, is taken from the cache whole and its files stay
+/// byte-identical; and a run given as its `run.toml` from inside its folder is ingested
+/// (the manifest's folder is then `.`).
+#[test]
+fn a_campaign_run_from_elsewhere_or_moved_is_taken_from_the_cache() {
+    let tmp = tempfile::tempdir().unwrap();
+    let first = tmp.path().join("first");
+    std::fs::create_dir_all(first.join("sub")).unwrap();
+    unz_ok(&[
+        "simulate",
+        "--out",
+        first.join("c").to_str().unwrap(),
+        "--seed",
+        "72",
+        "--runs",
+        "2",
+        "--duration-s",
+        "300",
+    ]);
+    let run_in = |cwd: &Path, args: &[&str]| -> String {
+        let out = unz().current_dir(cwd).args(args).output().unwrap();
+        let (stdout, stderr) = (
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        );
+        assert!(
+            out.status.success(),
+            "unz {args:?} in {cwd:?}:\n{stdout}\n{stderr}"
+        );
+        stdout
+    };
+    let summary = run_in(&first, &["run", "c", "--out", "o"]);
+    assert!(summary.contains("2 ok (0 fully cached)"), "{summary}");
+    let snapshot = |root: &Path| -> Vec<(PathBuf, Vec<u8>)> {
+        files(root)
+            .into_iter()
+            // The summary holds the wall times and the hash memo file identities.
+            .filter(|f| f.starts_with("sim-0072") || f.starts_with("sim-0073"))
+            .map(|f| {
+                let bytes = std::fs::read(root.join(&f)).unwrap();
+                (f, bytes)
+            })
+            .collect()
+    };
+    let before = snapshot(&first.join("o"));
+    assert!(before.len() >= 50, "{:?}", before.len());
+
+    let again = run_in(&first.join("sub"), &["run", "../c", "--out", "../o"]);
+    assert!(again.contains("2 ok (2 fully cached)"), "{again}");
+    let moved = tmp.path().join("moved");
+    std::fs::rename(&first, &moved).unwrap();
+    let again = unz_ok(&[
+        "run",
+        moved.join("c").to_str().unwrap(),
+        "--out",
+        moved.join("o").to_str().unwrap(),
+    ]);
+    assert!(again.contains("2 ok (2 fully cached)"), "{again}");
+    assert!(before == snapshot(&moved.join("o")), "a file changed");
+
+    // From inside the run folder, by its manifest's bare name: the same ingest, which a
+    // later run of the campaign takes from the cache.
+    let run = moved.join("c/sim-0072");
+    let elsewhere = tmp.path().join("o2");
+    run_in(
+        &run,
+        &["ingest", "run.toml", "--out", elsewhere.to_str().unwrap()],
+    );
+    let ingest = |root: &Path| std::fs::read(root.join("sim-0072/ingest/ingest_events.json"));
+    assert_eq!(
+        ingest(&elsewhere).unwrap(),
+        ingest(&moved.join("o")).unwrap()
+    );
+    let stderr = String::from_utf8(
+        unz()
+            .args([
+                "derive",
+                run.to_str().unwrap(),
+                "--out",
+                elsewhere.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap()
+            .stderr,
+    )
+    .unwrap();
+    assert!(stderr.contains("ingest: up to date, skipped"), "{stderr}");
 }

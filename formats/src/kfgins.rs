@@ -33,7 +33,7 @@ pub struct TextSample {
 }
 
 /// A line that could not be used.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LineFault {
     /// 1-based line number.
     pub line: u64,

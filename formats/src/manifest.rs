@@ -286,7 +286,13 @@ impl RunManifest {
     /// Opens a file this manifest names (its raw log, its odometer file), inside its
     /// folder; see [`open_inside`].
     pub fn open_named(&self, path: &Path) -> std::io::Result<std::fs::File> {
-        open_inside(self.path.parent().unwrap_or(Path::new(".")), path)
+        open_inside(self.dir(), path)
+    }
+
+    /// `path` (a file this manifest names, resolved) as the manifest names it: relative
+    /// to its folder. Anything else is given back whole.
+    pub fn named<'p>(&self, path: &'p Path) -> &'p Path {
+        path.strip_prefix(self.dir()).unwrap_or(path)
     }
 
     /// Reads and validates a manifest file.
@@ -418,9 +424,12 @@ impl RunManifest {
         })
     }
 
-    /// The run folder (the manifest's parent).
+    /// The run folder (the manifest's parent; `.` for a manifest named without a folder).
     pub fn dir(&self) -> &Path {
-        self.path.parent().unwrap_or(Path::new("."))
+        match self.path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        }
     }
 }
 

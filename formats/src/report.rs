@@ -1,6 +1,12 @@
-//! The ingest report: the exact accounting of §1.4 of the raw-format spec.
+//! The ingest's reports: the exact accounting of §1.4 of the raw-format spec
+//! (`ingest.json`) and the faults it located (`ingest_events.json`).
+
+use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
+
+use crate::kfgins::LineFault;
+use crate::raw::FaultEvent;
 
 /// Records read but not kept, by reason.
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -71,6 +77,25 @@ pub struct OdometerFileReport {
     /// Lines not kept: not two finite numbers, time not advancing, a speed beyond a land
     /// vehicle's (their numbers and reasons are in `ingest_events.json`).
     pub lines_rejected: u64,
+}
+
+/// The first faults of one raw log, located (`ingest_events.json`): the counts are in
+/// [`IngestReport`], the places here.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IngestEvents {
+    /// The raw log, as the manifest names it (relative to the manifest's folder), so the
+    /// file does not depend on where the campaign lies or where it was run from.
+    pub raw: PathBuf,
+    /// Binary logs: every fault event, of which the first 1000 are in `events`.
+    pub events_total: u64,
+    /// Binary logs: the first faults, by byte offset.
+    pub events: Vec<FaultEvent>,
+    /// Text logs: the log's first 1000 rejected lines (their total is `events_total`).
+    pub line_faults: Vec<LineFault>,
+    /// The odometer file's first 1000 line faults (their total is `ingest.json`'s
+    /// `odometer_file.lines_rejected`).
+    pub odometer_file_faults: Vec<LineFault>,
 }
 
 fn is_zero(n: &u64) -> bool {

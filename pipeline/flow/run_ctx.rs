@@ -110,14 +110,14 @@ impl RunCtx {
         if let Some(p) = &self.progress {
             p.set_message(format!("{}: {}", self.manifest.name, stage.name));
         }
-        if stage.is_up_to_date()? {
+        if stage.is_up_to_date(self.manifest.dir())? {
             self.say(stage.name, "up to date, skipped");
             self.record(stage.name, false, t0.elapsed().as_secs_f64());
             return Ok(());
         }
         stage.invalidate()?;
         body().with_context(|| format!("{}: stage {} failed", self.manifest.name, stage.name))?;
-        stage.commit()?;
+        stage.commit(self.manifest.dir())?;
         let wall_s = t0.elapsed().as_secs_f64();
         self.say(stage.name, &format!("done in {wall_s:.2} s"));
         self.record(stage.name, true, wall_s);

@@ -28,7 +28,7 @@ const BUF_LEN: usize = 256 * 1024;
 const MAX_EVENTS: usize = 1000;
 
 /// What kind of fault an event records.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum FaultKind {
     /// A frame with a CRC mismatch.
@@ -50,7 +50,7 @@ pub enum FaultKind {
 }
 
 /// One fault, located by the byte offset of the record (or skipped run) in the file.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FaultEvent {
     /// Byte offset in the file.
     pub offset: u64,
