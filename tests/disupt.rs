@@ -2,9 +2,10 @@
 
 use std::path::Path;
 
-use serde_json::Value;
+use unz::disupt_stage::DisuptOut;
+use unz_stages::simulate::TrueSettings;
 
-use crate::util::{python, python_json, simulated_run, unz_ok};
+use crate::util::{python, python_json, read_json, simulated_run, unz_ok};
 
 #[test]
 fn disupt_and_sweep_through_the_binary() {
@@ -15,50 +16,37 @@ fn disupt_and_sweep_through_the_binary() {
         77,
         &["--duration-s", "900", "--azimuth-error-deg", "6"],
     );
-    let truth: Value =
-        serde_json::from_slice(&std::fs::read(run.join("truth.json")).unwrap()).unwrap();
-    let true_az = truth["azimuth_deg"].as_f64().unwrap();
+    let true_az = read_json::<TrueSettings>(&run.join("truth.json")).azimuth_deg;
     unz_ok(&[
         "disupt",
         run.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
     ]);
-    let d: Value =
-        serde_json::from_slice(&std::fs::read(out.join("sim-0077/disupt/disupt.json")).unwrap())
-            .unwrap();
-    for key in ["distance_m", "before", "methods"] {
-        assert!(d.get(key).is_some(), "disupt.json lacks {key}");
+    // Read back through its one typed definition: a missing field fails here.
+    let d: DisuptOut = read_json(&out.join("sim-0077/disupt/disupt.json"));
+    let before = d.before.dx_m.hypot(d.before.dy_m);
+    assert!(before.is_finite(), "{:?}", d.before);
+    let names: Vec<&str> = d.methods.keys().map(String::as_str).collect();
+    assert_eq!(names, ["joint", "oepi", "owpi"]);
+    for (m, r) in &d.methods {
+        assert!(
+            r.outcome.dx_m.is_finite() && r.outcome.dy_m.is_finite(),
+            "{m}"
+        );
+        assert!(!r.steps.is_empty() && r.evaluations > 0, "{m}");
     }
-    let before = d["before"]["dx_m"]
-        .as_f64()
-        .unwrap()
-        .hypot(d["before"]["dy_m"].as_f64().unwrap());
-    for m in ["oepi", "owpi", "joint"] {
-        let r = &d["methods"][m];
-        for key in ["x", "dx_m", "dy_m", "steps", "evaluations"] {
-            assert!(r.get(key).is_some(), "{m} lacks {key}");
-        }
-        assert_eq!(r["x"]["drift_rad_s"].as_array().unwrap().len(), 3);
-    }
-    assert!(
-        d["methods"]["joint"]["x"]["sigma"]["azimuth_deg"]
-            .as_f64()
-            .unwrap()
-            > 0.0
-    );
-    let oepi = &d["methods"]["oepi"];
-    let err = oepi["x"]["azimuth_deg"].as_f64().unwrap() - true_az;
-    let after = oepi["dx_m"]
-        .as_f64()
-        .unwrap()
-        .hypot(oepi["dy_m"].as_f64().unwrap());
+    let sigma = d.methods["joint"].outcome.x.sigma.as_ref().unwrap();
+    assert!(sigma.azimuth_deg > 0.0, "{sigma:?}");
+    let oepi = &d.methods["oepi"];
+    let err = oepi.outcome.x.azimuth_deg - true_az;
+    let after = oepi.outcome.dx_m.hypot(oepi.outcome.dy_m);
     assert!(err.abs() < 0.5, "OEPI azimuth off by {err}°");
     assert!(
         after < 0.2 * before,
         "OEPI: {after} m after, {before} m before"
     );
-    assert_eq!(oepi["steps"].as_array().unwrap().len(), 4);
+    assert_eq!(oepi.steps.len(), 4);
     let md = std::fs::read_to_string(out.join("sim-0077/disupt/disupt.md")).unwrap();
     assert!(md.contains("## OEPI") && md.contains("## OWPI") && md.contains("ΔX"));
     assert!(out.join("sim-0077/disupt/corrected_nav.parquet").is_file());
@@ -99,9 +87,8 @@ fn joint_estimates_an_odometer_boresight_when_configured() {
         79,
         &["--azimuth-error-deg", "6", "--odo-boresight-deg", "2"],
     );
-    let truth: Value =
-        serde_json::from_slice(&std::fs::read(run.join("truth.json")).unwrap()).unwrap();
-    assert_eq!(truth["odo_boresight_deg"].as_f64(), Some(2.0));
+    let truth: TrueSettings = read_json(&run.join("truth.json"));
+    assert_eq!(truth.odo_boresight_deg, 2.0);
     let manifest = run.join("run.toml");
     let mut text = std::fs::read_to_string(&manifest).unwrap();
     text.push_str("\n[params.disupt]\njoint_odo_yaw = true\n");
@@ -114,18 +101,15 @@ fn joint_estimates_an_odometer_boresight_when_configured() {
         "--method",
         "joint",
     ]);
-    let d: Value =
-        serde_json::from_slice(&std::fs::read(out.join("sim-0079/disupt/disupt.json")).unwrap())
-            .unwrap();
-    let x = &d["methods"]["joint"]["x"];
-    let yaw = x["odo_yaw_deg"].as_f64().unwrap();
-    let sd = x["sigma"]["odo_yaw_deg"].as_f64().unwrap();
+    let d: DisuptOut = read_json(&out.join("sim-0079/disupt/disupt.json"));
+    let x = &d.methods["joint"].outcome.x;
+    let (yaw, sd) = (x.odo_yaw_deg, x.sigma.as_ref().unwrap().odo_yaw_deg);
     assert!(sd > 0.0 && sd < 0.5, "σ {sd}°");
     assert!(
         (yaw - 2.0).abs() < 3.0 * sd,
         "boresight {yaw}° ± {sd}°, truth 2°"
     );
-    assert_eq!(d["before"]["x"]["odo_yaw_deg"].as_f64(), Some(0.0));
+    assert_eq!(d.before.x.odo_yaw_deg, 0.0);
 }
 
 #[test]

@@ -7,9 +7,10 @@ use unz::disupt_stage::DisuptOut;
 use unz::flow::NavigateSummary;
 use unz_formats::parquet_io::read_batches;
 use unz_formats::tables::f64_column;
+use unz_stages::initial::Source;
 use unz_stages::simulate::TrueSettings;
 
-use crate::util::{run_until, simulated_run, unz_ok, unz_output};
+use crate::util::{read_json, run_until, simulated_run, unz_ok, unz_output};
 
 /// A column of a Parquet file, all batches.
 fn column(path: &Path, name: &str) -> Vec<f64> {
@@ -21,12 +22,11 @@ fn column(path: &Path, name: &str) -> Vec<f64> {
 }
 
 fn truth(run: &Path) -> TrueSettings {
-    serde_json::from_slice(&std::fs::read(run.join("truth.json")).unwrap()).unwrap()
+    read_json(&run.join("truth.json"))
 }
 
 fn disupt_json(out: &Path, name: &str) -> DisuptOut {
-    serde_json::from_slice(&std::fs::read(out.join(name).join("disupt/disupt.json")).unwrap())
-        .unwrap()
+    read_json(&out.join(name).join("disupt/disupt.json"))
 }
 
 /// Horizontal errors of the corrected route against truth at every sample, m.
@@ -116,12 +116,13 @@ fn runs_without_a_static_start_are_processed() {
     );
     let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
     assert!(manifest.contains("static_s = 0.0"), "{manifest}");
-    let nav: serde_json::Value = serde_json::from_slice(
-        &std::fs::read(out.join(name).join("navigate/navigate.json")).unwrap(),
-    )
-    .unwrap();
-    assert!(nav["initial"]["gyrocompass_skipped"].is_string(), "{nav}");
-    assert_eq!(nav["initial"]["roll_source"], "in_motion");
+    let nav: NavigateSummary = read_json(&out.join(name).join("navigate/navigate.json"));
+    assert!(
+        nav.initial.gyrocompass_skipped.is_some(),
+        "{:?}",
+        nav.initial
+    );
+    assert_eq!(nav.initial.roll_source, Source::InMotion);
     let t = truth(&run);
     let d = disupt_json(&out, name);
     assert!(d.coarse_azimuth_deg.is_some());
@@ -181,10 +182,7 @@ fn logs_begun_while_driving_meet_the_targets_over_seeds() {
     for seed in 200..206 {
         let name = format!("sim-{seed:04}");
         let run = campaign.join(&name);
-        let nav: NavigateSummary = serde_json::from_slice(
-            &std::fs::read(out.join(&name).join("navigate/navigate.json")).unwrap(),
-        )
-        .unwrap();
+        let nav: NavigateSummary = read_json(&out.join(&name).join("navigate/navigate.json"));
         let i = &nav.initial;
         let level = i.in_motion_level.expect("levelled in motion over a window");
         assert!(level.epochs >= 10, "{level:?}");

@@ -4,7 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::util::{files_below, unz, unz_output};
+use unz::flow::NavigateSummary;
+use unz_formats::IngestReport;
+
+use crate::util::{files_below, read_json, unz, unz_output};
 
 /// A campaign of two simulated 200 s runs; returns the campaign folder.
 fn campaign(dir: &Path) -> PathBuf {
@@ -260,11 +263,8 @@ fn odometer_failure_flags_are_honoured() {
         text.contains("FAILED sim-0081") && text.contains("odometer is flagged failed"),
         "{text}"
     );
-    let nav: serde_json::Value = serde_json::from_slice(
-        &std::fs::read(out.join("sim-0080/navigate/navigate.json")).unwrap(),
-    )
-    .unwrap();
-    assert_eq!(nav["odometer_failure_samples"], 100, "{nav}");
+    let nav: NavigateSummary = read_json(&out.join("sim-0080/navigate/navigate.json"));
+    assert_eq!(nav.odometer_failure_samples, 100, "{nav:?}");
 }
 
 /// A tmpfs mounted for one test, unmounted (lazily) when dropped.
@@ -372,8 +372,6 @@ fn read_only_and_full_output_folders_are_said_with_the_path() {
 /// fail the run with the reason.
 #[test]
 fn saturated_increments_are_replaced_or_fail_their_run() {
-    use unz::flow::NavigateSummary;
-
     let saturate = |saturated: fn(u32) -> bool| {
         move |r: &mut unz_formats::raw::ImuRecord| {
             if saturated(r.seq) {
@@ -402,10 +400,8 @@ fn saturated_increments_are_replaced_or_fail_their_run() {
         text.contains("FAILED sim-0081") && text.contains("exceed the IMU's range"),
         "{text}"
     );
-    let read = |dir: &Path| -> NavigateSummary {
-        serde_json::from_slice(&std::fs::read(dir.join("sim-0080/navigate/navigate.json")).unwrap())
-            .unwrap()
-    };
+    let read =
+        |dir: &Path| -> NavigateSummary { read_json(&dir.join("sim-0080/navigate/navigate.json")) };
     let (patched, reference) = (read(&out), read(&clean));
     assert_eq!(patched.out_of_range_samples, 5);
     assert_eq!(reference.out_of_range_samples, 0);
@@ -455,9 +451,7 @@ fn control_points_the_log_cannot_reach_are_refused() {
             && text.contains("no azimuth or odometer scale reaches it"),
         "{text}"
     );
-    let d: unz::disupt_stage::DisuptOut =
-        serde_json::from_slice(&std::fs::read(out.join("sim-0080/disupt/disupt.json")).unwrap())
-            .unwrap();
+    let d: unz::disupt_stage::DisuptOut = read_json(&out.join("sim-0080/disupt/disupt.json"));
     let why = &d.skipped["joint"];
     assert!(why.contains("the fit left its bounds"), "{why}");
     assert!(!d.methods.contains_key("joint"));
@@ -535,22 +529,14 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
     let out = tmp.path().join("o");
     let (code, text) = run(&camp, &out, "navigate");
     assert_eq!(code, Some(0), "{text}");
-    let json = |p: &str| -> serde_json::Value {
-        serde_json::from_slice(&std::fs::read(out.join(p)).unwrap()).unwrap()
-    };
-    assert_eq!(
-        json("sim-0081/ingest/ingest.json")["odometer_out_of_range"],
-        1
-    );
-    assert!(
-        json("sim-0080/ingest/ingest.json")
-            .get("odometer_out_of_range")
-            .is_none()
-    );
+    let ingest = |run: &str| read_json::<IngestReport>(&out.join(run).join("ingest/ingest.json"));
+    assert_eq!(ingest("sim-0081").odometer_out_of_range, 1);
+    assert_eq!(ingest("sim-0080").odometer_out_of_range, 0);
+    // Written only when a step was replaced (the spec's keys otherwise).
+    let text = std::fs::read_to_string(out.join("sim-0080/ingest/ingest.json")).unwrap();
+    assert!(!text.contains("odometer_out_of_range"), "{text}");
     let distance = |run: &str| {
-        json(&format!("{run}/navigate/navigate.json"))["distance_m"]
-            .as_f64()
-            .unwrap()
+        read_json::<NavigateSummary>(&out.join(run).join("navigate/navigate.json")).distance_m
     };
     // The two runs drive alike (seeds 80 and 81, 200 s); the jump is not in the route.
     assert!(
@@ -577,10 +563,8 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
     std::fs::write(run.join("odometer.txt"), lines.join("\n") + "\n").unwrap();
     let out = tmp.path().join("ko");
     crate::util::run_until(&run, &out, "navigate");
-    let events: unz_formats::IngestEvents = serde_json::from_slice(
-        &std::fs::read(out.join("kingston2008-segment1/ingest/ingest_events.json")).unwrap(),
-    )
-    .unwrap();
+    let events: unz_formats::IngestEvents =
+        read_json(&out.join("kingston2008-segment1/ingest/ingest_events.json"));
     assert_eq!(events.raw, Path::new("imu.txt"));
     let [fault] = &events.odometer_file_faults[..] else {
         panic!("{events:?}");
@@ -593,10 +577,7 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
         "{fault:?}"
     );
     // Every line of the odometer file is accounted, the rejected one too.
-    let report: unz_formats::IngestReport = serde_json::from_slice(
-        &std::fs::read(out.join("kingston2008-segment1/ingest/ingest.json")).unwrap(),
-    )
-    .unwrap();
+    let report: IngestReport = read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
     assert_eq!(
         report.odometer_file,
         Some(unz_formats::OdometerFileReport {
@@ -607,12 +588,9 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
     );
     assert!(report.is_consistent(), "{report:?}");
     assert_eq!(report.rejected_all_files(), 1);
-    let nav: serde_json::Value = serde_json::from_slice(
-        &std::fs::read(out.join("kingston2008-segment1/navigate/navigate.json")).unwrap(),
-    )
-    .unwrap();
+    let nav: NavigateSummary = read_json(&out.join("kingston2008-segment1/navigate/navigate.json"));
     // The segment's 2.3 km (README), not 1e300 m.
-    let d = nav["distance_m"].as_f64().unwrap();
+    let d = nav.distance_m;
     assert!((2000.0..2700.0).contains(&d), "{d}");
 }
 
@@ -623,7 +601,6 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
 #[test]
 fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
     use crate::util::{read_log, write_log};
-    use unz::flow::NavigateSummary;
     use unz_formats::raw::MarkRecord;
 
     let tmp = tempfile::tempdir().unwrap();
@@ -645,8 +622,7 @@ fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
 
     let navigate = |out: &Path| -> NavigateSummary {
         crate::util::run_until(&run, out, "criteria");
-        serde_json::from_slice(&std::fs::read(out.join("sim-0090/navigate/navigate.json")).unwrap())
-            .unwrap()
+        read_json(&out.join("sim-0090/navigate/navigate.json"))
     };
     let clean = navigate(&tmp.path().join("clean"));
     assert!(clean.repeated_marks.is_empty());

@@ -6,10 +6,12 @@ use std::path::Path;
 use serde_json::Value;
 use unz_formats::IngestReport;
 
-use crate::util::{python, python_json, test_data, unz_ok};
+use unz::flow::NavigateSummary;
+
+use crate::util::{python, python_json, read_json, test_data, unz_ok};
 
 fn report(path: &Path) -> IngestReport {
-    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+    read_json(path)
 }
 
 #[test]
@@ -44,14 +46,8 @@ fn simulated_runs_ingest_and_faults_are_accounted_exactly() {
     );
 
     // Key by key, as JSON objects, so a key added or missing on either side fails too.
-    let got: Value = serde_json::from_slice(
-        &std::fs::read(out.join("sim-0040-faulty/ingest/ingest.json")).unwrap(),
-    )
-    .unwrap();
-    let want: Value = serde_json::from_slice(
-        &std::fs::read(campaign.join("sim-0040-faulty/expected_ingest.json")).unwrap(),
-    )
-    .unwrap();
+    let got: Value = read_json(&out.join("sim-0040-faulty/ingest/ingest.json"));
+    let want: Value = read_json(&campaign.join("sim-0040-faulty/expected_ingest.json"));
     let (got, want) = (got.as_object().unwrap(), want.as_object().unwrap());
     assert_eq!(
         got.keys().collect::<Vec<_>>(),
@@ -95,14 +91,11 @@ fn simulated_runs_ingest_and_faults_are_accounted_exactly() {
         "--out",
         out.to_str().unwrap(),
     ]);
-    let nav: Value = serde_json::from_slice(
-        &std::fs::read(out.join("sim-0040-faulty/navigate/navigate.json")).unwrap(),
-    )
-    .unwrap();
+    let nav: NavigateSummary = read_json(&out.join("sim-0040-faulty/navigate/navigate.json"));
     let t_back = want["t_non_increasing"].as_u64().unwrap();
     assert!(t_back > 0);
-    assert_eq!(nav["repaired_times"].as_u64(), Some(t_back), "{nav}");
-    assert!(nav["filled_gaps"].as_u64().unwrap() > 0, "{nav}");
+    assert_eq!(nav.repaired_times as u64, t_back, "{nav:?}");
+    assert!(nav.filled_gaps > 0, "{nav:?}");
 
     if let Some(py) = python() {
         let info = python_json(

@@ -7,7 +7,7 @@ use unz_stages::attitude::wrap_pi;
 use unz_stages::criteria;
 use unz_stages::strapdown::NavTrack;
 
-use crate::util::test_data;
+use crate::util::{read_json, test_data};
 
 /// The reference at 1 Hz: t_s, position (latitude, longitude in degrees, height in m),
 /// roll, pitch, azimuth (degrees), speed (m/s).
@@ -314,17 +314,14 @@ fn kingston_cut_to_begin_while_driving() {
     let out = tmp.path().join("o");
     crate::util::run_until(&run, &out, "disupt");
     let dir = out.join("kingston2008-segment1");
-    let nav: NavigateSummary =
-        serde_json::from_slice(&std::fs::read(dir.join("navigate/navigate.json")).unwrap())
-            .unwrap();
+    let nav: NavigateSummary = read_json(&dir.join("navigate/navigate.json"));
     let i = &nav.initial;
     assert!(
         i.in_motion_level.is_some() && i.gyrocompass_skipped.is_some(),
         "{i:?}"
     );
     let (pitch_err, roll_err) = (i.pitch_deg - r.pitch[cut], i.roll_deg - r.roll[cut]);
-    let d: DisuptOut =
-        serde_json::from_slice(&std::fs::read(dir.join("disupt/disupt.json")).unwrap()).unwrap();
+    let d: DisuptOut = read_json(&dir.join("disupt/disupt.json"));
     let j = d
         .methods
         .get("joint")
@@ -364,8 +361,7 @@ fn kingston_odometer_terms_through_the_binary() {
         let out = tmp.path().join(format!("o-{lag}-{bias}"));
         crate::util::run_until(&run, &out, "disupt");
         let dir = out.join("kingston2008-segment1/disupt");
-        let d: DisuptOut =
-            serde_json::from_slice(&std::fs::read(dir.join("disupt.json")).unwrap()).unwrap();
+        let d: DisuptOut = read_json(&dir.join("disupt.json"));
         let j = &d.methods["joint"];
         // OWPI's vertical drift by Kryt1 runs into its ±5 °/h and is said to (README).
         let owpi_driftz = d.methods["owpi"]

@@ -39,6 +39,13 @@ pub fn simulated_run(dir: &Path, seed: u32, options: &[&str]) -> PathBuf {
     campaign.join(format!("sim-{seed:04}"))
 }
 
+/// A JSON artifact read back through its one typed definition (the type the pipeline
+/// writes it with); a missing or mistyped field fails the test here.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> T {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    serde_json::from_slice(&bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
 /// Runs `unz` with `args`, returning the whole output.
 pub fn unz_output(args: &[&str]) -> Output {
     unz().args(args).output().expect("unz runs")
