@@ -289,8 +289,17 @@ fn run_note(d: Option<&DisuptOut>, nav: Option<&NavigateSummary>) -> String {
     let inconsistent = d
         .and_then(|d| d.methods.get("joint")?.holdout.as_deref())
         .and_then(unz_stages::disupt::inconsistent_points_note);
+    let coarse_refused = d
+        .and_then(|d| d.coarse_azimuth_refused.as_ref())
+        .map(crate::disupt_stage::coarse_refused_note);
     skipped
         .map(|(name, why)| format!("{name} not run: {why}"))
+        .chain(coarse_refused)
+        .chain(
+            d.into_iter()
+                .flat_map(|d| &d.not_used)
+                .map(|(name, why)| format!("{name} not used: {why}")),
+        )
         .chain(inconsistent)
         .chain(repeated.map(|r| {
             format!(

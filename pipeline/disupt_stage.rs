@@ -17,7 +17,7 @@ use unz_stages::route_sigma::RouteBase;
 use unz_stages::strapdown::{self, NavInputs, NavSettings};
 use unz_stages::units::DEG_PER_H;
 
-pub use coarse_azimuth::coarse_azimuth_deg;
+pub use coarse_azimuth::{Coarse, CoarseRefused, coarse_azimuth, coarse_refused_note};
 use joint_run::{joint_route_sigma, route_stride, run_methods};
 pub use report::{DisuptOut, MethodOut, Outcome, SettingsOut, SigmaOut};
 use report::{Lag, markdown, method_out, settings_out};
@@ -84,6 +84,44 @@ pub fn case_inputs(ctx: &RunCtx, params: &Params) -> anyhow::Result<Vec<PathBuf>
     ])
 }
 
+/// How many times OWPI's Kryt1 OEPI's may be before its settings are not used: over 21
+/// runs (17 simulated, Kingston, logs begun while driving) OEPI's was at most 1.36 times
+/// OWPI's (OEPI within 0.3° of the truth); on 24 routes looping back to within 10–70 m of
+/// their start, every OEPI more than 3.5° off had at least 3.67 times OWPI's.
+pub const OEPI_KRYT1_OVER_OWPI_MAX: f64 = 2.0;
+
+/// Why OEPI's settings (of Kryt1 `oepi_kryt1_rad`) do not correct the run, when they fit
+/// the log's pitch and roll much worse than OWPI's (`owpi_kryt1_rad`, the Kryt1 minimum,
+/// when OWPI ran: more than [`OEPI_KRYT1_OVER_OWPI_MAX`] times) or worse than the initial
+/// settings' (`before_kryt1_rad`). OEPI fits its azimuth and vertical drift by the control
+/// points alone; when those say little of them (points near the start: a route looping
+/// back to its start point) or are wrong, OEPI follows them where the log's pitch and roll
+/// do not (measured on such loops: OEPI 4–20° off, OWPI within 1.2°).
+fn oepi_refusal(
+    oepi_kryt1_rad: f64,
+    owpi_kryt1_rad: Option<f64>,
+    before_kryt1_rad: f64,
+) -> Option<String> {
+    let than = if let Some(owpi) =
+        owpi_kryt1_rad.filter(|&owpi| oepi_kryt1_rad > OEPI_KRYT1_OVER_OWPI_MAX * owpi)
+    {
+        format!(
+            "more than {OEPI_KRYT1_OVER_OWPI_MAX} times worse than OWPI's (Kryt1 {oepi_kryt1_rad:.2} against {owpi:.2})"
+        )
+    } else if oepi_kryt1_rad > before_kryt1_rad {
+        format!(
+            "worse than the initial settings' (Kryt1 {oepi_kryt1_rad:.2} against {before_kryt1_rad:.2})"
+        )
+    } else {
+        return None;
+    };
+    Some(format!(
+        "its settings fit the log's pitch and roll {than}: its azimuth and \
+         vertical drift, fitted by the control points alone, are not what the log shows (the \
+         control points lie too near the start to fix the azimuth, or are wrong)"
+    ))
+}
+
 /// Stage 4.
 pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::Result<PathBuf> {
     let inputs = case_inputs(ctx, params)?;
@@ -96,7 +134,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 6: of a control point marked more than once, the last mark at rest.
         // 7: each hold-out's predicted σ and whether the point is consistent; a start
         //    levelled in motion is fitted over the log's first minute.
-        version: 7,
+        // 8: a coarse azimuth the pitch and roll refuse is not taken, nor OEPI's settings
+        //    when they fit the pitch and roll worse than the initial settings.
+        version: 8,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[
@@ -138,15 +178,19 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         lap("loaded");
         // A coarse search over ±180° of azimuth by the control points first: the run's
         // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).
-        let coarse = coarse_azimuth_deg(&problem_of(&case, params));
+        let coarse = coarse_azimuth(&problem_of(&case, params));
         lap("coarse");
         let mut start = case.settings;
-        if let Some(az) = coarse {
-            start.initial.heading_rad = az.to_radians();
-            ctx.say(
-                "disupt",
-                &format!("coarse azimuth search: start at {az:.1}°"),
-            );
+        match coarse {
+            Coarse::Taken(az) => {
+                start.initial.heading_rad = az.to_radians();
+                ctx.say(
+                    "disupt",
+                    &format!("coarse azimuth search: start at {az:.1}°"),
+                );
+            }
+            Coarse::Refused(r) => ctx.say("disupt", &coarse_refused_note(&r)),
+            Coarse::Kept => {}
         }
         let spec = spec_of(&case, start, params);
         let problem = spec.on(&case.derived);
@@ -219,8 +263,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             }
             None => {}
         }
-        let corrected_by =
-            (reviewed.len() > 1).then(|| reviewed[reviewed.len() - 1].name.to_owned());
         // The last review pass is the corrected navigation's. When it is the joint's with a
         // covariance, the route's σ reads it as it runs; corrected_nav.parquet is written by
         // a pass of its own once the σ is known (no track of the run's length is kept).
@@ -249,7 +291,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let mut kryt1s: Vec<MethodKryt1> = Vec::new();
         let mut cps_of = std::collections::BTreeMap::new();
         let mut before = (f64::NAN, Vec::new());
+        let mut kryt1_of_lane = Vec::with_capacity(reviewed.len());
         for (lane, o) in reviewed.iter().zip(outcomes) {
+            kryt1_of_lane.push(o.kryt1_rad);
             tracks.push(o.track);
             kryt1s.push(o.kryt1_series);
             if lane.name == "initial" {
@@ -259,6 +303,21 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             }
         }
         let (before_kryt1, before_cps) = before;
+        // The corrected navigation is the last lane's, unless that is OEPI's and the log's
+        // pitch and roll refuse it: then the one before it (OWPI's, else the initial).
+        let mut not_used = std::collections::BTreeMap::new();
+        let mut corrected_lane = reviewed.len() - 1;
+        let owpi_kryt1 = reviewed
+            .iter()
+            .position(|lane| lane.name == "owpi")
+            .map(|i| kryt1_of_lane[i]);
+        if reviewed[corrected_lane].name == "oepi"
+            && let Some(why) = oepi_refusal(kryt1_of_lane[corrected_lane], owpi_kryt1, before_kryt1)
+        {
+            not_used.insert("oepi".to_owned(), why);
+            corrected_lane -= 1;
+        }
+        let corrected_by = (corrected_lane > 0).then(|| reviewed[corrected_lane].name.to_owned());
         for (name, r) in &classic_ok {
             let cps = cps_of.remove(name).unwrap_or_default();
             methods.insert(
@@ -304,7 +363,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         lap("hold-out and route sigma");
         // The corrected navigation (the best method's, else the initial settings') written
         // as its pass runs.
-        let corrected = &reviewed[reviewed.len() - 1];
+        let corrected = &reviewed[corrected_lane];
         let last_fix: Vec<usize> = case.fixes.last().map(|f| f.sample).into_iter().collect();
         let mut nav = NavWriter::create(
             &dir.join(files::CORRECTED_NAV),
@@ -338,7 +397,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             methods,
             skipped,
             corrected_by,
-            coarse_azimuth_deg: coarse,
+            not_used,
+            coarse_azimuth_deg: coarse.taken_deg(),
+            coarse_azimuth_refused: coarse.refused(),
             shared_passes: problem.base_passes(),
         };
         let md = markdown(&m.name, &out, &dparams);
@@ -348,4 +409,22 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         Ok(())
     })?;
     Ok(dir)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn oepi_is_refused_only_when_the_pitch_and_roll_refuse_it() {
+        // Within twice OWPI's and below the initial settings': used.
+        assert_eq!(oepi_refusal(1.9, Some(1.0), 10.0), None);
+        assert_eq!(oepi_refusal(5.0, None, 10.0), None);
+        // More than twice OWPI's, or above the initial settings' (OWPI or not).
+        let why = oepi_refusal(2.1, Some(1.0), 10.0).unwrap();
+        assert!(why.contains("more than 2 times worse than OWPI's (Kryt1 2.10 against 1.00)"));
+        let why = oepi_refusal(11.0, None, 10.0).unwrap();
+        assert!(why.contains("worse than the initial settings' (Kryt1 11.00 against 10.00)"));
+        assert!(oepi_refusal(11.0, Some(10.0), 10.0).is_some());
+    }
 }

@@ -351,3 +351,99 @@ fn no_static_start_and_no_control_point_is_an_error() {
         "{err}"
     );
 }
+
+/// A route that loops back past its start point, with its only control point there
+/// (seed 127: 20 m from the start after 9 km), surveyed 10 m off as a real point may be
+/// (or the route's own error at it): the control points then hardly say anything of the
+/// azimuth. The coarse search's turn (a match of the point at some other azimuth) is
+/// refused because the pitch and roll refuse it, and OEPI, which follows the point alone,
+/// does not correct the run; OWPI (the log's pitch and roll) does. The old code turned
+/// the start by 20° and corrected the run by OEPI 13.3° off the truth.
+#[test]
+fn a_route_looping_back_to_its_only_control_point_is_not_turned_by_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let name = "sim-0127";
+    let run = simulated_run(tmp.path(), 127, &["--azimuth-error-deg", "5.3"]);
+    let t = truth(&run);
+    // The truth's closest pass by the start after 3 km.
+    let tr = run.join("truth.parquet");
+    let (north, east, dist) = (
+        column(&tr, "north_m"),
+        column(&tr, "east_m"),
+        column(&tr, "distance_m"),
+    );
+    let k = (0..north.len())
+        .filter(|&k| dist[k] > 3000.0)
+        .min_by(|&a, &b| north[a].hypot(east[a]).total_cmp(&north[b].hypot(east[b])))
+        .unwrap();
+    let away_m = north[k].hypot(east[k]);
+    assert!(
+        away_m < 25.0 && dist[k] > 8000.0,
+        "{away_m} m after {} m",
+        dist[k]
+    );
+    let (lat, lon, h) = (
+        column(&tr, "lat_deg")[k],
+        column(&tr, "lon_deg")[k],
+        column(&tr, "h_m")[k],
+    );
+    let t_s = {
+        let (_, b) = read_batches(&tr).unwrap();
+        let t_ns: Vec<i64> = b
+            .iter()
+            .flat_map(|b| unz_formats::tables::i64_column(b, "t_ns").unwrap().to_vec())
+            .collect();
+        t_ns[k] as f64 * 1e-9
+    };
+    let manifest = run.join("run.toml");
+    let mut m: toml::Table = toml::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
+    let mut point = toml::Table::new();
+    point.insert("id".into(), 9.into());
+    point.insert("latitude_deg".into(), (lat + 10.0 / 111_250.0).into());
+    point.insert("longitude_deg".into(), lon.into());
+    point.insert("height_m".into(), h.into());
+    point.insert("t_s".into(), t_s.into());
+    m.insert(
+        "control_point".into(),
+        vec![toml::Value::Table(point)].into(),
+    );
+    std::fs::write(&manifest, toml::to_string(&m).unwrap()).unwrap();
+    let out = tmp.path().join("o");
+    unz_ok(&[
+        "run",
+        run.parent().unwrap().to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let d = disupt_json(&out, name);
+    let err = |az: f64| (az - t.azimuth_deg + 180.0).rem_euclid(360.0) - 180.0;
+    let refused = d.coarse_azimuth_refused.expect("the coarse turn refused");
+    assert!(d.coarse_azimuth_deg.is_none());
+    assert!(
+        refused.kryt1_rad > refused.start_kryt1_rad && err(refused.azimuth_deg).abs() > 5.0,
+        "{refused:?}"
+    );
+    let by = d.corrected_by.as_deref().unwrap();
+    let corrected = err(d.methods[by].outcome.x.azimuth_deg);
+    eprintln!(
+        "loop: corrected by {by}, azimuth {corrected:+.2}° off; OEPI {:+.2}°, refused coarse \
+         turn {:+.1}° off; not used: {:?}",
+        err(d.methods["oepi"].outcome.x.azimuth_deg),
+        err(refused.azimuth_deg),
+        d.not_used
+    );
+    // OWPI's over this route: 0.63° (its Kryt1-only fit; the manifest is 5.3° off).
+    assert!(corrected.abs() < 1.5, "{corrected}°");
+    assert!(d.not_used.contains_key("oepi"), "{:?}", d.not_used);
+    let tables = std::fs::read_to_string(out.join(name).join("disupt/disupt.md")).unwrap();
+    assert!(
+        tables.contains("Note: OEPI not used for the corrected navigation")
+            && tables.contains("Note: coarse azimuth search: turning the route"),
+        "{tables}"
+    );
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains("oepi not used: its settings fit the log's pitch and roll"),
+        "{summary}"
+    );
+}

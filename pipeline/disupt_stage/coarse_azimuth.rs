@@ -1,5 +1,6 @@
 //! The coarse azimuth search over ±180° by the control points, before the methods.
 
+use serde::{Deserialize, Serialize};
 use unz_stages::criteria;
 use unz_stages::disupt::{Problem, X};
 use unz_stages::linearized::Observation;
@@ -20,17 +21,84 @@ fn turned_rms_m(y0: &Observation, known_m: &[[f64; 2]], dpsi_rad: f64) -> f64 {
     }))
 }
 
+/// What the coarse azimuth search found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Coarse {
+    /// Nothing better than the run's initial azimuth (or no control point).
+    Kept,
+    /// A better start for the searches, degrees.
+    Taken(f64),
+    /// A turn that fits the control points better but the pitch and roll worse: refused.
+    Refused(CoarseRefused),
+}
+
+impl Coarse {
+    /// The azimuth taken, degrees.
+    pub fn taken_deg(self) -> Option<f64> {
+        match self {
+            Coarse::Taken(az) => Some(az),
+            _ => None,
+        }
+    }
+
+    /// The turn refused.
+    pub fn refused(self) -> Option<CoarseRefused> {
+        match self {
+            Coarse::Refused(r) => Some(r),
+            _ => None,
+        }
+    }
+}
+
+/// A coarse azimuth the control points preferred and Kryt1 refused (`disupt.json`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CoarseRefused {
+    /// The azimuth the control points preferred, degrees.
+    pub azimuth_deg: f64,
+    /// The control points' RMS error there, m.
+    pub kryt2_rms_m: f64,
+    /// Kryt1 there, rad.
+    pub kryt1_rad: f64,
+    /// The control points' RMS error at the run's initial azimuth, m.
+    pub start_kryt2_rms_m: f64,
+    /// Kryt1 at the run's initial azimuth, rad.
+    pub start_kryt1_rad: f64,
+}
+
+/// What a user is told of a refused coarse turn (the log, `disupt.md`, the campaign's
+/// note).
+pub fn coarse_refused_note(r: &CoarseRefused) -> String {
+    format!(
+        "coarse azimuth search: turning the route to {:.1}° fits the control points better \
+         ({:.1} m RMS against {:.1} m) but the pitch and roll worse (Kryt1 {:.2} against \
+         {:.2} rad), so the searches start at the initial azimuth: the control points lie too \
+         near the start to fix the azimuth (a route looping back to its start point)",
+        r.azimuth_deg, r.kryt2_rms_m, r.start_kryt2_rms_m, r.kryt1_rad, r.start_kryt1_rad
+    )
+}
+
 /// The azimuth with the smallest RMS error over the control points, searched over ±180°
-/// around the problem's start, when it beats the start; `None` without control points.
+/// around the problem's start, when it beats the start.
 ///
 /// A change of initial azimuth turns an odometer-aided route about its start (the
 /// Earth-rate terms it moves change the heading far less than the grid's step), so one
 /// pass gives the whole 1° grid; the grid's minima (at most eight) are then checked with
 /// exact passes side by side, and the best exact one is the answer. Nine passes instead
 /// of the 36 that a 10° grid of exact passes took.
-pub fn coarse_azimuth_deg(problem: &Problem<'_>) -> Option<f64> {
+///
+/// The turn is taken only when the gyro pitch and roll agree: Kryt1 there no larger than
+/// at the start. Control points say little of the azimuth when they lie near the start
+/// compared with the route's other errors (a drive that loops back to its start point):
+/// turning the route then matches them at almost any azimuth, and the search would start
+/// every method tens of degrees off (measured: a 7.8-km loop ending 10 m from the start,
+/// manifest 5.3° off, a survey 10–40 m off: turns of 74–141°, the joint fit out of its
+/// bounds, OEPI's "correction" 94–159° off with a 3-m error at the point). A wrong
+/// azimuth misapplies the Earth's rate to the pitch and roll, so Kryt1 shows it: 239 mrad
+/// there against 15.5 at the start, where on eight runs the taken turn's Kryt1 was 3–36
+/// times smaller than the start's.
+pub fn coarse_azimuth(problem: &Problem<'_>) -> Coarse {
     if problem.fixes.is_empty() {
-        return None;
+        return Coarse::Kept;
     }
     let x0 = problem.x0();
     let tally = std::sync::atomic::AtomicUsize::new(0);
@@ -66,14 +134,27 @@ pub fn coarse_azimuth_deg(problem: &Problem<'_>) -> Option<f64> {
             ..x0
         })
         .collect();
-    let exact: Vec<f64> = problem
-        .observe_many_by(&xs, &tally)
-        .iter()
-        .map(Observation::kryt2_rms)
-        .collect();
-    let best = (0..xs.len()).min_by(|&a, &b| exact[a].total_cmp(&exact[b]))?;
-    (exact[best] < y0.kryt2_rms()).then(|| {
-        let az = xs[best].azimuth_deg - x0.azimuth_deg;
-        x0.azimuth_deg + (az + 180.0).rem_euclid(360.0) - 180.0
-    })
+    let ys = problem.observe_many_by(&xs, &tally);
+    let exact: Vec<f64> = ys.iter().map(Observation::kryt2_rms).collect();
+    let Some(best) = (0..xs.len()).min_by(|&a, &b| exact[a].total_cmp(&exact[b])) else {
+        return Coarse::Kept;
+    };
+    if exact[best] >= y0.kryt2_rms() {
+        return Coarse::Kept;
+    }
+    let turn = xs[best].azimuth_deg - x0.azimuth_deg;
+    let azimuth_deg = x0.azimuth_deg + (turn + 180.0).rem_euclid(360.0) - 180.0;
+    let kryt1 = |y: &Observation| y.kryt1(problem.epochs, &problem.kalman);
+    let (kryt1_rad, start_kryt1_rad) = (kryt1(&ys[best]), kryt1(&y0));
+    if kryt1_rad <= start_kryt1_rad {
+        Coarse::Taken(azimuth_deg)
+    } else {
+        Coarse::Refused(CoarseRefused {
+            azimuth_deg,
+            kryt2_rms_m: exact[best],
+            kryt1_rad,
+            start_kryt2_rms_m: y0.kryt2_rms(),
+            start_kryt1_rad,
+        })
+    }
 }

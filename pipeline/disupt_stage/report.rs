@@ -110,9 +110,17 @@ pub struct DisuptOut {
     pub skipped: std::collections::BTreeMap<String, String>,
     /// The method whose settings made `corrected_nav.parquet`.
     pub corrected_by: Option<String>,
+    /// Methods that ran but were not taken for `corrected_nav.parquet` although preferred
+    /// to `corrected_by`, with the reason.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub not_used: std::collections::BTreeMap<String, String>,
     /// The start of the searches when a coarse search over ±180° of azimuth by the
     /// control points found a better one than the run's initial azimuth, degrees.
     pub coarse_azimuth_deg: Option<f64>,
+    /// The coarse search's turn when Kryt1 refused it (the searches then start at the
+    /// run's initial azimuth): control points too near the start to fix the azimuth.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub coarse_azimuth_refused: Option<super::CoarseRefused>,
     /// Passes of the first linearisation, shared by the methods (not in their own
     /// `evaluations`).
     pub shared_passes: usize,
@@ -284,6 +292,15 @@ pub(super) fn markdown(run: &str, out: &DisuptOut, bounds: &disupt::DisuptParams
         } else if let Some(e) = out.skipped.get(name) {
             md += &format!("## {title}\n\nnot run: {e}\n\n");
         }
+    }
+    for (name, why) in &out.not_used {
+        md += &format!(
+            "Note: {} not used for the corrected navigation: {why}.\n\n",
+            name.to_uppercase()
+        );
+    }
+    if let Some(r) = &out.coarse_azimuth_refused {
+        md += &format!("Note: {}.\n\n", super::coarse_refused_note(r));
     }
     let (dx, dy) = (out.before.dx_m, out.before.dy_m);
     md + &format!(
