@@ -292,8 +292,17 @@ fn run_note(d: Option<&DisuptOut>, nav: Option<&NavigateSummary>) -> String {
     let coarse_refused = d
         .and_then(|d| d.coarse_azimuth_refused.as_ref())
         .map(crate::disupt_stage::coarse_refused_note);
-    skipped
-        .map(|(name, why)| format!("{name} not run: {why}"))
+    // Methods refused for one reason (a run without motion refuses all three) share it.
+    let mut by_reason: Vec<(Vec<&str>, &str)> = Vec::new();
+    for (name, why) in skipped {
+        match by_reason.iter_mut().find(|(_, w)| *w == why.as_str()) {
+            Some((names, _)) => names.push(name),
+            None => by_reason.push((vec![name], why)),
+        }
+    }
+    by_reason
+        .into_iter()
+        .map(|(names, why)| format!("{} not run: {why}", names.join(", ")))
         .chain(coarse_refused)
         .chain(
             d.into_iter()

@@ -135,7 +135,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 7: each hold-out's predicted σ and whether the point is consistent; a start
         //    levelled in motion is fitted over the log's first minute.
         // 8: a coarse azimuth the pitch and roll refuse is not taken, nor OEPI's settings
-        //    when they fit the pitch and roll worse than the initial settings.
+        //    when they fit the pitch and roll far worse than OWPI's or the initial
+        //    settings'; a run that never drives is not corrected.
         version: 8,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,

@@ -447,3 +447,52 @@ fn a_route_looping_back_to_its_only_control_point_is_not_turned_by_it() {
         "{summary}"
     );
 }
+
+/// A run whose vehicle never drives (a static test, a run stopped after its alignment:
+/// 120 s, 60 s of it the static start, 0 m by the odometer) is not "corrected": at rest
+/// the azimuth and the horizontal drifts are confounded and its control point is its
+/// start. Every method is refused with the reason, once in the campaign's note, and the
+/// corrected navigation keeps the initial settings (the old code had OEPI correct it,
+/// 3° off the truth, beside a joint fit "out of its bounds").
+#[test]
+fn a_run_that_never_drives_is_not_corrected() {
+    let tmp = tempfile::tempdir().unwrap();
+    let name = "sim-0009";
+    let run = simulated_run(tmp.path(), 9, &["--duration-s", "120", "--static-s", "60"]);
+    let out = tmp.path().join("o");
+    unz_ok(&[
+        "run",
+        run.parent().unwrap().to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let nav: NavigateSummary = read_json(&out.join(name).join("navigate/navigate.json"));
+    assert!(nav.distance_m < 1.0, "{}", nav.distance_m);
+    let d = disupt_json(&out, name);
+    assert!(d.methods.is_empty(), "{:?}", d.methods.keys());
+    assert_eq!(d.corrected_by, None);
+    let names: Vec<&str> = d.skipped.keys().map(String::as_str).collect();
+    assert_eq!(names, ["joint", "oepi", "owpi"]);
+    for why in d.skipped.values() {
+        assert!(
+            why.starts_with("the vehicle travelled 0.0 m by its odometer, less than 50 m"),
+            "{why}"
+        );
+    }
+    // The corrected navigation is the initial settings' (heading at the first sample).
+    let heading = column(
+        &out.join(name).join("disupt/corrected_nav.parquet"),
+        "heading_deg",
+    )[0];
+    let initial = d.before.x.azimuth_deg;
+    assert!(
+        ((heading - initial + 180.0).rem_euclid(360.0) - 180.0).abs() < 1e-3,
+        "{heading} against {initial}"
+    );
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains("| joint, oepi, owpi not run: the vehicle travelled 0.0 m")
+            && summary.matches("the vehicle travelled").count() == 1,
+        "{summary}"
+    );
+}

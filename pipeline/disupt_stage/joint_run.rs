@@ -100,6 +100,18 @@ pub(super) fn run_methods(
         .filter(|w| method == *w || method == Method::All)
         .collect();
     let want_joint = matches!(method, Method::Joint | Method::All);
+    let travelled_m: f64 = case.derived.odo_dist_m.iter().map(|d| d.abs()).sum();
+    if travelled_m < disupt::MIN_TRAVEL_M {
+        let refused = || disupt::DisuptError::TooLittleMotion(travelled_m);
+        let names = classic.iter().map(|&w| match w {
+            Method::Oepi => "oepi",
+            _ => "owpi",
+        });
+        return (
+            names.map(|name| (name, Err(refused()))).collect(),
+            want_joint.then(|| Err(refused())),
+        );
+    }
     rayon::join(
         || {
             classic

@@ -68,4 +68,18 @@ pub enum DisuptError {
          are wrong)"
     )]
     OutOfBounds(String),
+    /// The vehicle hardly moved: nothing DISUPT corrects is observable.
+    #[error(
+        "the vehicle travelled {0:.1} m by its odometer, less than {MIN_TRAVEL_M} m: nothing \
+         the methods correct is observable without motion (at rest the azimuth and the \
+         horizontal drifts are confounded, and control points at the start say nothing of \
+         the azimuth); the run keeps its initial settings"
+    )]
+    TooLittleMotion(f64),
 }
+
+/// Odometer path below which a run is not corrected, m: a vehicle that did not drive (a
+/// static test, a run stopped after its alignment). Measured: such a run (120 s, 0 m) had
+/// OEPI and OWPI each 3° off the truth from a 6.5°-off start, the joint fit out of its
+/// bounds, and was "corrected" by OEPI.
+pub const MIN_TRAVEL_M: f64 = 50.0;
