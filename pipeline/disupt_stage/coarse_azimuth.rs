@@ -93,9 +93,11 @@ pub fn coarse_refused_note(r: &CoarseRefused) -> String {
 /// every method tens of degrees off (measured: a 7.8-km loop ending 10 m from the start,
 /// manifest 5.3° off, a survey 10–40 m off: turns of 74–141°, the joint fit out of its
 /// bounds, OEPI's "correction" 94–159° off with a 3-m error at the point). A wrong
-/// azimuth misapplies the Earth's rate to the pitch and roll, so Kryt1 shows it: 239 mrad
+/// azimuth misapplies the Earth's rate to the pitch and roll, so Kryt1 shows it: 161–239
 /// there against 15.5 at the start, where on eight runs the taken turn's Kryt1 was 3–36
-/// times smaller than the start's.
+/// times smaller than the start's. A right turn of a few degrees may be refused (Kryt1
+/// confounds the azimuth with the horizontal drifts there); the methods then find it
+/// from the initial azimuth, within their bounds.
 pub fn coarse_azimuth(problem: &Problem<'_>) -> Coarse {
     if problem.fixes.is_empty() {
         return Coarse::Kept;

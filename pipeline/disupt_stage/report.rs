@@ -115,7 +115,8 @@ pub struct DisuptOut {
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub not_used: std::collections::BTreeMap<String, String>,
     /// The start of the searches when a coarse search over ±180° of azimuth by the
-    /// control points found a better one than the run's initial azimuth, degrees.
+    /// control points found a better one than the run's initial azimuth and the pitch and
+    /// roll agreed, degrees.
     pub coarse_azimuth_deg: Option<f64>,
     /// The coarse search's turn when Kryt1 refused it (the searches then start at the
     /// run's initial azimuth): control points too near the start to fix the azimuth.
