@@ -35,10 +35,10 @@ const MEMO_VERSION: u32 = 1;
 /// than one kernel tick (10 ms at the lowest usual rate, 100 Hz).
 pub const SETTLED: Duration = Duration::from_millis(20);
 
-/// What identifies a file's content without reading it.
+/// What identifies a file's content without reading it. Not its name: the same file
+/// named two ways (`o/r/x` from the campaign's folder, `../o/r/x` from another) is one.
 #[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
 struct FileId {
-    path: PathBuf,
     dev: u64,
     ino: u64,
     len: u64,
@@ -51,7 +51,6 @@ impl FileId {
         use std::os::unix::fs::MetadataExt;
         let m = std::fs::metadata(path).ok()?;
         Some(FileId {
-            path: path.to_path_buf(),
             dev: m.dev(),
             ino: m.ino(),
             len: m.len(),
@@ -82,6 +81,9 @@ struct Known {
     blake3: String,
     /// Whether the file had settled when read (see [`settled`]).
     settled: bool,
+    /// The name this process last asked for it by (a loaded entry's: the saving
+    /// process's, which may not resolve from this working directory).
+    path: PathBuf,
 }
 
 /// Hashes known to this process.
@@ -97,8 +99,12 @@ fn known() -> std::sync::MutexGuard<'static, HashMap<FileId, Known>> {
 pub fn file_hash(path: &Path) -> anyhow::Result<String> {
     let id = FileId::of(path);
     if let Some(id) = &id
-        && let Some(k) = known().get(id)
+        && let Some(k) = known().get_mut(id)
     {
+        // Known by the name this process uses: the one `save` can stat again.
+        if k.path != path {
+            k.path = path.to_path_buf();
+        }
         return Ok(k.blake3.clone());
     }
     let read_start = SystemTime::now();
@@ -107,13 +113,11 @@ pub fn file_hash(path: &Path) -> anyhow::Result<String> {
         && FileId::of(path).as_ref() == Some(&id)
     {
         let settled = settled(id.changed_at(), read_start);
-        known().insert(
-            id,
-            Known {
-                blake3: h.clone(),
-                settled,
-            },
-        );
+        known().entry(id).or_insert(Known {
+            blake3: h.clone(),
+            settled,
+            path: path.to_path_buf(),
+        });
     }
     Ok(h)
 }
@@ -144,6 +148,7 @@ struct Memo {
 /// One saved hash.
 #[derive(Debug, Serialize, Deserialize)]
 struct MemoEntry {
+    path: PathBuf,
     #[serde(flatten)]
     id: FileId,
     blake3: String,
@@ -166,6 +171,7 @@ pub fn load(out: &Path) {
         known.entry(e.id).or_insert(Known {
             blake3: e.blake3,
             settled: true,
+            path: e.path,
         });
     }
 }
@@ -174,17 +180,20 @@ pub fn load(out: &Path) {
 /// have the identity they were hashed with, and were settled when read or lie under
 /// `out` (see the module's notes). Returns how many.
 pub fn save(out: &Path) -> anyhow::Result<usize> {
-    let entries: Vec<(FileId, String)> = known()
+    let entries: Vec<MemoEntry> = known()
         .iter()
-        .filter(|(id, k)| k.settled || id.path.starts_with(out))
-        .map(|(id, k)| (id.clone(), k.blake3.clone()))
+        .filter(|(_, k)| k.settled || k.path.starts_with(out))
+        .map(|(id, k)| MemoEntry {
+            path: k.path.clone(),
+            id: id.clone(),
+            blake3: k.blake3.clone(),
+        })
         .collect();
     let mut files: Vec<MemoEntry> = entries
         .into_iter()
-        .filter(|(id, _)| FileId::of(&id.path).as_ref() == Some(id))
-        .map(|(id, blake3)| MemoEntry { id, blake3 })
+        .filter(|e| FileId::of(&e.path).as_ref() == Some(&e.id))
         .collect();
-    files.sort_by(|a, b| a.id.path.cmp(&b.id.path));
+    files.sort_by(|a, b| a.path.cmp(&b.path));
     let n = files.len();
     // One line per file: a campaign of hundreds of runs saves thousands.
     let mut bytes = format!("{{\"version\":{MEMO_VERSION},\"files\":[\n").into_bytes();
@@ -211,6 +220,21 @@ mod tests {
     /// Whether this process remembers a hash for `path` as it is now (no read).
     fn remembered(path: &Path) -> Option<String> {
         known().get(&FileId::of(path)?).map(|k| k.blake3.clone())
+    }
+
+    #[test]
+    fn a_file_named_another_way_is_known() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("sub")).unwrap();
+        let p = dir.path().join("a.bin");
+        std::fs::write(&p, b"named twice").unwrap();
+        assert_eq!(file_hash(&p).unwrap(), hex(b"named twice"));
+        // From a sibling folder, as a campaign run from elsewhere names it: no read, and
+        // the name asked for last is the one saved (the one that resolves from here).
+        let alias = dir.path().join("sub").join("..").join("a.bin");
+        assert_eq!(remembered(&alias), Some(hex(b"named twice")));
+        assert_eq!(file_hash(&alias).unwrap(), hex(b"named twice"));
+        assert_eq!(known()[&FileId::of(&p).unwrap()].path, alias);
     }
 
     #[test]
@@ -257,7 +281,7 @@ mod tests {
         assert!(save(&out).unwrap() >= 2);
 
         // A new process: nothing remembered until the saved hashes are loaded.
-        known().retain(|id, _| id.path != p && id.path != q);
+        known().retain(|_, k| k.path != p && k.path != q);
         assert_eq!(remembered(&p), None);
         load(&out);
         assert_eq!(remembered(&p), Some(hex(b"first")));
@@ -275,12 +299,12 @@ mod tests {
         save(&out).unwrap();
         let saved: Memo =
             serde_json::from_slice(&std::fs::read(out.join(MEMO_FILE)).unwrap()).unwrap();
-        assert!(saved.files.iter().all(|e| e.id.path != q));
+        assert!(saved.files.iter().all(|e| e.path != q));
         assert!(
             saved
                 .files
                 .iter()
-                .all(|e| e.id.path != p || e.blake3 == hex(b"other"))
+                .all(|e| e.path != p || e.blake3 == hex(b"other"))
         );
     }
 
@@ -302,9 +326,9 @@ mod tests {
         save(&out).unwrap();
         let saved: Memo =
             serde_json::from_slice(&std::fs::read(out.join(MEMO_FILE)).unwrap()).unwrap();
-        assert!(saved.files.iter().any(|e| e.id.path == inside));
+        assert!(saved.files.iter().any(|e| e.path == inside));
         if fresh {
-            assert!(saved.files.iter().all(|e| e.id.path != outside));
+            assert!(saved.files.iter().all(|e| e.path != outside));
         }
     }
 
@@ -317,6 +341,7 @@ mod tests {
         let lie = |version: u32| Memo {
             version,
             files: vec![MemoEntry {
+                path: p.clone(),
                 id: id.clone(),
                 blake3: hex(b"a lie"),
             }],
