@@ -141,14 +141,19 @@ pub fn coarse_azimuth(problem: &Problem<'_>) -> Coarse {
     let Some(best) = (0..xs.len()).min_by(|&a, &b| exact[a].total_cmp(&exact[b])) else {
         return Coarse::Kept;
     };
-    if exact[best] >= y0.kryt2_rms() {
+    // (NaN errors, a pass that diverged, beat nothing.)
+    if exact[best].partial_cmp(&y0.kryt2_rms()) != Some(std::cmp::Ordering::Less) {
         return Coarse::Kept;
     }
     let turn = xs[best].azimuth_deg - x0.azimuth_deg;
     let azimuth_deg = x0.azimuth_deg + (turn + 180.0).rem_euclid(360.0) - 180.0;
     let kryt1 = |y: &Observation| y.kryt1(problem.epochs, &problem.kalman);
     let (kryt1_rad, start_kryt1_rad) = (kryt1(&ys[best]), kryt1(&y0));
-    if kryt1_rad <= start_kryt1_rad {
+    // Refused only on the evidence of two finite Kryt1 (none from a log without valid
+    // epochs: the control points then decide, as before).
+    let refused =
+        kryt1_rad.is_finite() && start_kryt1_rad.is_finite() && kryt1_rad > start_kryt1_rad;
+    if !refused {
         Coarse::Taken(azimuth_deg)
     } else {
         Coarse::Refused(CoarseRefused {
