@@ -365,12 +365,18 @@ fn a_route_looping_back_to_its_only_control_point_is_not_turned_by_it() {
     let name = "sim-0127";
     let run = simulated_run(tmp.path(), 127, &["--azimuth-error-deg", "5.3"]);
     let t = truth(&run);
-    // The truth's closest pass by the start after 3 km.
-    let tr = run.join("truth.parquet");
+    // The truth's closest pass by the start after 3 km (the truth read once).
+    let (_, truth_batches) = read_batches(&run.join("truth.parquet")).unwrap();
+    let truth_column = |name: &str| -> Vec<f64> {
+        truth_batches
+            .iter()
+            .flat_map(|b| f64_column(b, name).unwrap())
+            .collect()
+    };
     let (north, east, dist) = (
-        column(&tr, "north_m"),
-        column(&tr, "east_m"),
-        column(&tr, "distance_m"),
+        truth_column("north_m"),
+        truth_column("east_m"),
+        truth_column("distance_m"),
     );
     let k = (0..north.len())
         .filter(|&k| dist[k] > 3000.0)
@@ -383,18 +389,15 @@ fn a_route_looping_back_to_its_only_control_point_is_not_turned_by_it() {
         dist[k]
     );
     let (lat, lon, h) = (
-        column(&tr, "lat_deg")[k],
-        column(&tr, "lon_deg")[k],
-        column(&tr, "h_m")[k],
+        truth_column("lat_deg")[k],
+        truth_column("lon_deg")[k],
+        truth_column("h_m")[k],
     );
-    let t_s = {
-        let (_, b) = read_batches(&tr).unwrap();
-        let t_ns: Vec<i64> = b
-            .iter()
-            .flat_map(|b| unz_formats::tables::i64_column(b, "t_ns").unwrap().to_vec())
-            .collect();
-        t_ns[k] as f64 * 1e-9
-    };
+    let t_ns: Vec<i64> = truth_batches
+        .iter()
+        .flat_map(|b| unz_formats::tables::i64_column(b, "t_ns").unwrap().to_vec())
+        .collect();
+    let t_s = t_ns[k] as f64 * 1e-9;
     let manifest = run.join("run.toml");
     let mut m: toml::Table = toml::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
     let mut point = toml::Table::new();
@@ -409,12 +412,8 @@ fn a_route_looping_back_to_its_only_control_point_is_not_turned_by_it() {
     );
     std::fs::write(&manifest, toml::to_string(&m).unwrap()).unwrap();
     let out = tmp.path().join("o");
-    unz_ok(&[
-        "run",
-        run.parent().unwrap().to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    // The campaign, every stage: its summary carries the note.
+    run_until(run.parent().unwrap(), &out, "review");
     let d = disupt_json(&out, name);
     let err = |az: f64| (az - t.azimuth_deg + 180.0).rem_euclid(360.0) - 180.0;
     let refused = d.coarse_azimuth_refused.expect("the coarse turn refused");
@@ -460,12 +459,8 @@ fn a_run_that_never_drives_is_not_corrected() {
     let name = "sim-0009";
     let run = simulated_run(tmp.path(), 9, &["--duration-s", "120", "--static-s", "60"]);
     let out = tmp.path().join("o");
-    unz_ok(&[
-        "run",
-        run.parent().unwrap().to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    // The campaign, every stage: its summary carries the note.
+    run_until(run.parent().unwrap(), &out, "review");
     let nav: NavigateSummary = read_json(&out.join(name).join("navigate/navigate.json"));
     assert!(nav.distance_m < 1.0, "{}", nav.distance_m);
     let d = disupt_json(&out, name);

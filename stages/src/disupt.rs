@@ -80,6 +80,6 @@ pub enum DisuptError {
 
 /// Odometer path below which a run is not corrected, m: a vehicle that did not drive (a
 /// static test, a run stopped after its alignment). Measured: such a run (120 s, 0 m) had
-/// OEPI and OWPI each 3° off the truth from a 6.5°-off start, the joint fit out of its
+/// OEPI 3.0° and OWPI 3.5° off the truth from a 6.5°-off start, the joint fit out of its
 /// bounds, and was "corrected" by OEPI.
 pub const MIN_TRAVEL_M: f64 = 50.0;
