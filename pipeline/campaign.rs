@@ -280,9 +280,10 @@ fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
 }
 
 /// What the summary's error column says of a run that did not fail: the methods its
-/// disupt stage did not run, with the reason, the control points the joint fit's
-/// hold-out finds inconsistent with the rest of the run, and the control points marked
-/// more than once, with the mark used.
+/// disupt stage did not run (those refused for one reason together) or ran but did not
+/// use for the corrected navigation, with the reason; a coarse azimuth turn refused; the
+/// control points the joint fit's hold-out finds inconsistent with the rest of the run;
+/// and the control points marked more than once, with the mark used.
 fn run_note(d: Option<&DisuptOut>, nav: Option<&NavigateSummary>) -> String {
     let skipped = d.into_iter().flat_map(|d| &d.skipped);
     let repeated = nav.into_iter().flat_map(|n| &n.repeated_marks);

@@ -488,8 +488,9 @@ pub fn sweep(axes: &[&str]) -> SchemaRef {
 
 /// Column of [`campaign`]: the run's name.
 pub const CAMPAIGN_RUN: &str = "run";
-/// Column of [`campaign`]: what the reports of a run that did not fail flag (methods not run,
-/// control points inconsistent with the rest or marked more than once), null when nothing.
+/// Column of [`campaign`]: what the reports of a run that did not fail flag (methods not run
+/// or not used, a coarse azimuth turn refused, control points inconsistent with the rest or
+/// marked more than once), null when nothing.
 pub const CAMPAIGN_NOTE: &str = "note";
 
 /// `campaign`: one row per run; `stage_seconds` names the per-stage wall-time columns and

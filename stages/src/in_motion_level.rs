@@ -62,6 +62,9 @@ pub struct InMotionLevel {
 /// Fits the initial pitch and roll of `problem`'s base settings (those `free`) to the
 /// valid epochs of its first [`IN_MOTION_LEVEL_WINDOW_S`]; `None` with fewer than ten.
 pub fn level_in_motion(whole: &Problem<'_>, free: Free) -> Option<InMotionLevel> {
+    if !(free.pitch || free.roll) {
+        return None;
+    }
     let t_first = *whole.epochs.t_s.first()?;
     // The problem over the window and the filter's margin only.
     let kept = whole
@@ -85,7 +88,7 @@ pub fn level_in_motion(whole: &Problem<'_>, free: Free) -> Option<InMotionLevel>
         .take_while(|&k| e.t_s[k] <= t_first + IN_MOTION_LEVEL_WINDOW_S)
         .filter(|&k| e.valid[k])
         .collect();
-    if window.len() < MIN_EPOCHS || !(free.pitch || free.roll) {
+    if window.len() < MIN_EPOCHS {
         return None;
     }
     let residuals = |y: &crate::linearized::Observation| -> Vec<f64> {

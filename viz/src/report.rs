@@ -24,8 +24,9 @@ pub struct ReportRow {
     pub joint: Option<JointEstimate>,
     /// Median and largest error of the joint fit at a control point left out of it, m.
     pub holdout_m: Option<(f64, f64)>,
-    /// What the reports of a run that did not fail flag (methods not run, inconsistent
-    /// or repeatedly marked control points), as in `campaign.md`'s error column.
+    /// What the reports of a run that did not fail flag (methods not run or not used, a
+    /// coarse azimuth turn refused, inconsistent or repeatedly marked control points), as
+    /// in `campaign.md`'s error column.
     pub note: Option<String>,
     /// Relative link to the run's review recording.
     pub recording: Option<String>,
