@@ -137,7 +137,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 8: a coarse azimuth the pitch and roll refuse is not taken, nor OEPI's settings
         //    when they fit the pitch and roll far worse than OWPI's or the initial
         //    settings'; a run that never drives is not corrected.
-        version: 8,
+        version: 9,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[
@@ -179,7 +179,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         lap("loaded");
         // A coarse search over ±180° of azimuth by the control points first: the run's
         // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).
-        let coarse = coarse_azimuth(&problem_of(&case, params));
+        let coarse = coarse_azimuth(&problem_of(&case, params), &dparams);
         lap("coarse");
         let mut start = case.settings;
         match coarse {

@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 use unz_stages::criteria;
-use unz_stages::disupt::{Problem, X};
+use unz_stages::disupt::{DisuptParams, Problem, X, kryt1_with_free_drifts_xy};
 use unz_stages::linearized::Observation;
 
 /// Step of the coarse azimuth grid, degrees.
@@ -57,11 +57,11 @@ pub struct CoarseRefused {
     pub azimuth_deg: f64,
     /// The control points' RMS error there, m.
     pub kryt2_rms_m: f64,
-    /// Kryt1 there, rad.
+    /// Kryt1 there with the horizontal drifts free (their least Kryt1), rad.
     pub kryt1_rad: f64,
     /// The control points' RMS error at the run's initial azimuth, m.
     pub start_kryt2_rms_m: f64,
-    /// Kryt1 at the run's initial azimuth, rad.
+    /// Kryt1 at the run's initial azimuth with the horizontal drifts free, rad.
     pub start_kryt1_rad: f64,
 }
 
@@ -71,8 +71,9 @@ pub fn coarse_refused_note(r: &CoarseRefused) -> String {
     format!(
         "coarse azimuth search: turning the route to {:.1}° fits the control points better \
          ({:.1} m RMS against {:.1} m) but the pitch and roll worse (Kryt1 {:.2} against \
-         {:.2} rad), so the searches start at the initial azimuth: the control points lie too \
-         near the start to fix the azimuth (a route looping back to its start point)",
+         {:.2} rad, the horizontal drifts free), so the searches start at the initial \
+         azimuth: the control points lie too near the start to fix the azimuth (a route \
+         looping back to its start point), or one of them is wrong",
         r.azimuth_deg, r.kryt2_rms_m, r.start_kryt2_rms_m, r.kryt1_rad, r.start_kryt1_rad
     )
 }
@@ -95,10 +96,18 @@ pub fn coarse_refused_note(r: &CoarseRefused) -> String {
 /// bounds, OEPI's "correction" 94–159° off with a 3-m error at the point). A wrong
 /// azimuth misapplies the Earth's rate to the pitch and roll, so Kryt1 shows it: 161–239
 /// there against 15.5 at the start, where on eight runs the taken turn's Kryt1 was 3–36
-/// times smaller than the start's. A right turn of a few degrees may be refused (Kryt1
-/// confounds the azimuth with the horizontal drifts there); the methods then find it
-/// from the initial azimuth, within their bounds.
-pub fn coarse_azimuth(problem: &Problem<'_>) -> Coarse {
+/// times smaller than the start's.
+///
+/// Kryt1 at the initial drifts decides first, from the passes at hand. Where it would
+/// refuse, Kryt1 with the horizontal drifts free (within the methods' ±5 °/h) at both
+/// decides instead ([`kryt1_with_free_drifts_xy`], four passes), for at given drifts a
+/// few degrees of azimuth pass for them: two right turns of 5–6° on 15-minute runs
+/// showed 1.24 and 1.28 times the start's Kryt1 (2 of 12 such runs refused, with a note
+/// blaming a loop), and 0.97 and 0.79 times with the drifts free. The 22 wrong turns of
+/// 24 loops (four routes back within 20–75 m of their start after 5–11 km, the manifest
+/// 5.3° or 5–7.5° off, the point intact or 10–30 m off) kept 1.13–7.0 times the start's
+/// Kryt1 with the drifts free: all refused, as before.
+pub fn coarse_azimuth(problem: &Problem<'_>, dparams: &DisuptParams) -> Coarse {
     if problem.fixes.is_empty() {
         return Coarse::Kept;
     }
@@ -147,21 +156,35 @@ pub fn coarse_azimuth(problem: &Problem<'_>) -> Coarse {
     }
     let turn = xs[best].azimuth_deg - x0.azimuth_deg;
     let azimuth_deg = x0.azimuth_deg + (turn + 180.0).rem_euclid(360.0) - 180.0;
+    // Kryt1 at the initial drifts first (two sums over passes at hand); where it refuses,
+    // again with the horizontal drifts free at both, which decide (a few degrees of
+    // azimuth pass for them at given drifts). Refused only on the evidence of two finite
+    // values (none from a log without valid epochs, nor from an optimiser's failure: the
+    // control points then decide, as before).
+    let worse = |turned: f64, start: f64| turned.is_finite() && start.is_finite() && turned > start;
     let kryt1 = |y: &Observation| y.kryt1(problem.epochs, &problem.kalman);
-    let (kryt1_rad, start_kryt1_rad) = (kryt1(&ys[best]), kryt1(&y0));
-    // Refused only on the evidence of two finite Kryt1 (none from a log without valid
-    // epochs: the control points then decide, as before).
-    let refused =
-        kryt1_rad.is_finite() && start_kryt1_rad.is_finite() && kryt1_rad > start_kryt1_rad;
-    if !refused {
-        Coarse::Taken(azimuth_deg)
-    } else {
-        Coarse::Refused(CoarseRefused {
+    let refused = worse(kryt1(&ys[best]), kryt1(&y0)).then(|| {
+        match kryt1_with_free_drifts_xy(
+            problem,
+            &[(xs[best], &ys[best]), (x0, &y0)],
+            dparams,
+            &tally,
+        )
+        .as_deref()
+        {
+            Ok(&[turned, start]) => (turned, start),
+            _ => (f64::NAN, f64::NAN),
+        }
+    });
+    let refused = refused.filter(|&(turned, start)| worse(turned, start));
+    match refused {
+        None => Coarse::Taken(azimuth_deg),
+        Some((kryt1_rad, start_kryt1_rad)) => Coarse::Refused(CoarseRefused {
             azimuth_deg,
             kryt2_rms_m: exact[best],
             kryt1_rad,
             start_kryt2_rms_m: y0.kryt2_rms(),
             start_kryt1_rad,
-        })
+        }),
     }
 }

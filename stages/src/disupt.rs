@@ -42,7 +42,7 @@ pub use joint::{JointFit, JointOptions, joint, joint_fit, within_bounds};
 pub use problem::{Evaluation, LANES, Problem, ProblemSpec, moved_by_steps, observe_each};
 pub use results::{Component, Criterion, MethodResult, Step};
 pub use settings::{DisuptParams, X, params_of, x_of};
-pub use stepwise::{oepi, owpi};
+pub use stepwise::{kryt1_with_free_drifts_xy, oepi, owpi};
 
 /// Errors of the methods.
 #[derive(Debug, thiserror::Error)]

@@ -27,16 +27,30 @@ struct Objective<'p, 'a> {
     p: [f64; N_PARAMS],
     free: &'static [Setting],
     criterion: Criterion,
+    /// The methods' bounds, when the free settings are held within them around `p` (a
+    /// value beyond is taken at the bound).
+    within: Option<&'p DisuptParams>,
     buf: RefCell<Observation>,
     tally: &'p AtomicUsize,
 }
 
 impl Objective<'_, '_> {
-    fn at(&self, values: &[f64]) -> f64 {
+    /// The parameters at `values` of the free settings (held within the bounds when
+    /// asked).
+    fn params_at(&self, values: &[f64]) -> [f64; N_PARAMS] {
         let mut p = self.p;
         for (s, &v) in self.free.iter().zip(values) {
-            p[s.index()] = v;
+            let i = s.index();
+            p[i] = match self.within {
+                Some(bounds) => v.clamp(self.p[i] - bounds.bound(*s), self.p[i] + bounds.bound(*s)),
+                None => v,
+            };
         }
+        p
+    }
+
+    fn at(&self, values: &[f64]) -> f64 {
+        let p = self.params_at(values);
         let value = |y: &Observation| match self.criterion {
             Criterion::Kryt1 => y.kryt1(self.problem.epochs, &self.problem.kalman),
             Criterion::Kryt2 | Criterion::LeastSquares => y.kryt2_rms(),
@@ -76,27 +90,31 @@ impl CostFunction for Within<'_, '_, '_> {
     }
 }
 
-/// Minimises `criterion` over `component`, starting from `x`, on `lin` (or exactly).
+/// Minimises `criterion` over `settings`, starting from `x`, on `lin` (or exactly). A
+/// single setting is searched within its bound of `x` ([`DisuptParams::bound`]); several
+/// are searched freely, or within their bounds when `bounded`.
+#[allow(clippy::too_many_arguments)]
 fn minimise(
     problem: &Problem<'_>,
     lin: Option<&Linearization>,
     x: X,
-    component: Component,
+    settings: &'static [Setting],
     criterion: Criterion,
     p: &DisuptParams,
+    bounded: bool,
     tally: &AtomicUsize,
 ) -> Result<X, DisuptError> {
     let objective = Objective {
         problem,
         lin,
         p: params_of(&x),
-        free: component.settings(),
+        free: settings,
         criterion,
+        within: bounded.then_some(p),
         buf: RefCell::new(Observation::default()),
         tally,
     };
     let mut out = x;
-    let settings = component.settings();
     if let [single] = settings {
         let half = if *single == Setting::Azimuth {
             p.azimuth_bound_deg
@@ -134,8 +152,9 @@ fn minimise(
             .run()
             .map_err(DisuptError::Optimiser)?;
         let best = res.state().get_best_param().cloned().unwrap_or(start);
-        for (&s, v) in settings.iter().zip(best) {
-            out.set(s, v);
+        let best = objective.params_at(&best);
+        for &s in settings {
+            out.set(s, best[s.index()]);
         }
     }
     Ok(out)
@@ -182,7 +201,7 @@ fn search(
     let mut which = free.to_vec();
     which.extend(next.iter().filter(|s| !free.contains(s)));
     for _ in 0..MAX_RELINEARISATIONS {
-        let x_new = minimise(problem, Some(&lin), x, component, criterion, p, tally)?;
+        let x_new = minimise(problem, Some(&lin), x, free, criterion, p, false, tally)?;
         let mut xs = vec![x_new];
         xs.extend(moved_by_steps(&x_new, &which));
         let mut ys = problem.observe_batched_by(&xs, tally);
@@ -198,7 +217,7 @@ fn search(
         }
         lin = Cow::Owned(there);
     }
-    let x_new = minimise(problem, None, x, component, criterion, p, tally)?;
+    let x_new = minimise(problem, None, x, free, criterion, p, false, tally)?;
     let y_new = problem.observe_by(&x_new, tally);
     Ok(Searched {
         x: x_new,
@@ -258,6 +277,57 @@ fn run_steps(
         evaluations: passes(),
         wall_s: t0.elapsed().as_secs_f64(),
     })
+}
+
+/// The horizontal drifts, which a wrong azimuth's Earth rate can pass for in the pitch
+/// and roll.
+const DRIFTS_XY: &[Setting] = &[Setting::DriftX, Setting::DriftY];
+
+/// Kryt1 of each of `points` (settings and their exact observation) with the horizontal
+/// drifts free: the least Kryt1 over (driftx, drifty) within the methods' drift bound of
+/// there ([`DisuptParams::drift_bound_deg_h`]), on a linearisation in those two (two
+/// passes a point, side by side in lanes; counted in `tally`).
+///
+/// How well the log's pitch and roll accept each point's azimuth. At given drifts, Kryt1
+/// confounds a few degrees of azimuth with the horizontal drifts: the Earth's rate
+/// misapplied by an azimuth error δψ passes for a horizontal drift of Ω cos φ · δψ
+/// (0.84 °/h for 5° at 50° N, the size of an LN-200's drifts), so a right azimuth at the
+/// initial drifts may show more Kryt1 than a wrong one. With the drifts free, what remains
+/// is what no drift explains: the route's turns tell a drift, which turns with the body,
+/// from an azimuth error, which does not. The bound keeps the drifts to what a gyro may
+/// have: on a short drive, unbounded drifts pass for any azimuth (a 200-s run with a
+/// control point 1 km off: a wrong 78° turn had the least Kryt1 with drifts of about
+/// 10 °/h; within ±5 °/h, ten times the start's).
+pub fn kryt1_with_free_drifts_xy(
+    problem: &Problem<'_>,
+    points: &[(X, &Observation)],
+    p: &DisuptParams,
+    tally: &AtomicUsize,
+) -> Result<Vec<f64>, DisuptError> {
+    let moved: Vec<X> = points
+        .iter()
+        .flat_map(|(x, _)| moved_by_steps(x, DRIFTS_XY))
+        .collect();
+    let mut ys = problem.observe_many_by(&moved, tally).into_iter();
+    points
+        .iter()
+        .map(|&(x, y)| {
+            let lin = linearization_of(&x, y.clone(), DRIFTS_XY, ys.by_ref().take(2).collect());
+            let best = minimise(
+                problem,
+                Some(&lin),
+                x,
+                DRIFTS_XY,
+                Criterion::Kryt1,
+                p,
+                true,
+                tally,
+            )?;
+            Ok(lin
+                .predict(&params_of(&best))
+                .kryt1(problem.epochs, &problem.kalman))
+        })
+        .collect()
 }
 
 /// OEPI (paper Table 1).
