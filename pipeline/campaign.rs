@@ -281,7 +281,8 @@ fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
 
 /// What the summary's error column says of a run that did not fail: the methods its
 /// disupt stage did not run (those refused for one reason together) or ran but did not
-/// use for the corrected navigation, with the reason; a coarse azimuth turn refused; the
+/// use for the corrected navigation, with the reason; a coarse azimuth turn refused; an
+/// odometer yaw boresight the joint fit's residuals show (and estimated); the
 /// control points the joint fit's hold-out finds inconsistent with the rest of the run;
 /// and the control points marked more than once, with the mark used.
 fn run_note(d: Option<&DisuptOut>, nav: Option<&NavigateSummary>) -> String {
@@ -293,6 +294,9 @@ fn run_note(d: Option<&DisuptOut>, nav: Option<&NavigateSummary>) -> String {
     let coarse_refused = d
         .and_then(|d| d.coarse_azimuth_refused.as_ref())
         .map(crate::disupt_stage::coarse_refused_note);
+    let odo_yaw = d
+        .and_then(|d| d.joint_odo_yaw_check.as_ref())
+        .and_then(crate::disupt_stage::odo_yaw_note);
     // Methods refused for one reason (a run without motion refuses all three) share it.
     let mut by_reason: Vec<(Vec<&str>, &str)> = Vec::new();
     for (name, why) in skipped {
@@ -305,6 +309,7 @@ fn run_note(d: Option<&DisuptOut>, nav: Option<&NavigateSummary>) -> String {
         .into_iter()
         .map(|(names, why)| format!("{} not run: {why}", names.join(", ")))
         .chain(coarse_refused)
+        .chain(odo_yaw)
         .chain(
             d.into_iter()
                 .flat_map(|d| &d.not_used)

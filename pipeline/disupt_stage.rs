@@ -19,7 +19,10 @@ use unz_stages::units::DEG_PER_H;
 
 pub use coarse_azimuth::{Coarse, CoarseRefused, coarse_azimuth, coarse_refused_note};
 use joint_run::{joint_route_sigma, route_stride, run_methods};
-pub use report::{DisuptOut, MethodOut, Outcome, SettingsOut, SigmaOut};
+pub use report::{
+    DisuptOut, MethodOut, ODO_YAW_REFIT_Z, OdoYawCheck, Outcome, SettingsOut, SigmaOut,
+    odo_yaw_note,
+};
 use report::{Lag, markdown, method_out, settings_out};
 use reviews::{Reviewed, review_passes};
 
@@ -137,7 +140,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 8: a coarse azimuth the pitch and roll refuse is not taken, nor OEPI's settings
         //    when they fit the pitch and roll far worse than OWPI's or the initial
         //    settings'; a run that never drives is not corrected.
-        version: 9,
+        version: 10,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[
@@ -218,6 +221,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // The ingested odometer and its re-derives go before the review passes (the route
         // σ's pass at the moved lag ran with the joint).
         let joint_run = joint_result.as_ref().and_then(|r| r.as_ref().ok());
+        if let Some(note) = joint_run.and_then(|r| r.odo_yaw.as_ref().and_then(odo_yaw_note)) {
+            ctx.say("disupt", &note);
+        }
         drop(rederive);
         drop(odometer);
         let joint_derived = joint_run
@@ -349,7 +355,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             let mut out = method_out(&run.fit.result, &case.settings, run.lag, joint_cps);
             // The hold-out's fits and the route's σ are independent: side by side.
             let (holdout, sigma) = rayon::join(
-                || disupt::holdout(&joint_problem, &run.fit, &dparams),
+                || disupt::holdout(&joint_problem, &run.fit, &run.params),
                 || {
                     route_base
                         .as_ref()
@@ -401,6 +407,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             not_used,
             coarse_azimuth_deg: coarse.taken_deg(),
             coarse_azimuth_refused: coarse.refused(),
+            joint_odo_yaw_check: joint_result
+                .as_ref()
+                .and_then(|r| r.as_ref().ok()?.odo_yaw.clone()),
             shared_passes: problem.base_passes(),
         };
         let md = markdown(&m.name, &out, &dparams);

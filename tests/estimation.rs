@@ -484,6 +484,71 @@ fn a_right_coarse_turn_is_taken_where_only_the_drifts_made_kryt1_refuse_it() {
     }
 }
 
+/// An IMU turned 1.5° on the vehicle (seed 311), which the joint fit holds at zero by
+/// default: the control points see the boresight and the azimuth only as their sum, and
+/// the fit's azimuth took it (0.72° off at σ 0.18°). Its residuals show the
+/// boresight (9.4σ), so the fit is redone with it free: the azimuth within a few tenths
+/// of a degree and its σ honest, with a note in `disupt.md` and the campaign summary. A
+/// run without a boresight (seed 108, 0.0σ) keeps the boresight-free fit and says nothing.
+#[test]
+fn an_odometer_boresight_the_residuals_show_is_estimated() {
+    let tmp = tempfile::tempdir().unwrap();
+    let turned = simulated_run(tmp.path(), 311, &["--odo-boresight-deg", "1.5"]);
+    let plain = simulated_run(tmp.path(), 108, &[]);
+    let out = tmp.path().join("o");
+    run_until(turned.parent().unwrap(), &out, "disupt");
+    let err = |az: f64, t: &TrueSettings| (az - t.azimuth_deg + 180.0).rem_euclid(360.0) - 180.0;
+
+    let t = truth(&turned);
+    let d = disupt_json(&out, "sim-0311");
+    let check = d
+        .joint_odo_yaw_check
+        .clone()
+        .expect("the boresight checked");
+    eprintln!("boresight 1.5°: {check:?}");
+    assert!(check.refit && check.refit_error.is_none(), "{check:?}");
+    assert!(
+        check.odo_yaw_deg.abs() > 3.0 * check.sigma_deg
+            && (check.odo_yaw_deg - 1.5).abs() < 3.0 * check.sigma_deg,
+        "{check:?}"
+    );
+    let j = &d.methods["joint"].outcome.x;
+    let sd = j.sigma.as_ref().unwrap();
+    let az = err(j.azimuth_deg, &t);
+    eprintln!(
+        "joint: azimuth {az:+.3}° ± {:.3}°, boresight {:.3}° ± {:.3}°",
+        sd.azimuth_deg, j.odo_yaw_deg, sd.odo_yaw_deg
+    );
+    assert!(az.abs() < 0.5 && az.abs() < 3.0 * sd.azimuth_deg, "{az}");
+    assert!((j.odo_yaw_deg - 1.5).abs() < 3.0 * sd.odo_yaw_deg, "{j:?}");
+    let tables = std::fs::read_to_string(out.join("sim-0311/disupt/disupt.md")).unwrap();
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    for text in [&tables, &summary] {
+        assert!(
+            text.contains("show an odometer yaw boresight of +")
+                && text.contains("the joint fit estimates it"),
+            "{text}"
+        );
+    }
+
+    let t = truth(&plain);
+    let d = disupt_json(&out, "sim-0108");
+    let check = d
+        .joint_odo_yaw_check
+        .clone()
+        .expect("the boresight checked");
+    assert!(
+        !check.refit && check.odo_yaw_deg.abs() < 3.0 * check.sigma_deg,
+        "{check:?}"
+    );
+    let j = &d.methods["joint"].outcome.x;
+    assert_eq!(j.odo_yaw_deg, 0.0);
+    assert!(err(j.azimuth_deg, &t).abs() < 0.1);
+    let tables = std::fs::read_to_string(out.join("sim-0108/disupt/disupt.md")).unwrap();
+    assert!(!tables.contains("boresight"), "{tables}");
+    assert_eq!(summary.matches("boresight").count(), 1, "{summary}");
+}
+
 /// A run whose vehicle never drives (a static test, a run stopped after its alignment:
 /// 120 s, 60 s of it the static start, 0 m by the odometer) is not "corrected": at rest
 /// the azimuth and the horizontal drifts are confounded and its control point is its

@@ -122,9 +122,61 @@ pub struct DisuptOut {
     /// run's initial azimuth): control points too near the start to fix the azimuth.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub coarse_azimuth_refused: Option<super::CoarseRefused>,
+    /// What the joint fit's residuals said of an odometer yaw boresight, when the joint
+    /// fit held it at zero (`joint_odo_yaw` off) and ran.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_odo_yaw_check: Option<OdoYawCheck>,
     /// Passes of the first linearisation, shared by the methods (not in their own
     /// `evaluations`).
     pub shared_passes: usize,
+}
+
+/// An odometer yaw boresight the joint fit held at zero, as its residuals show it
+/// ([`disupt::JointFit::odo_yaw_seen`]), and whether the fit was redone with it free.
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
+pub struct OdoYawCheck {
+    /// The boresight the residuals show, degrees.
+    pub odo_yaw_deg: f64,
+    /// Its 1σ, degrees.
+    pub sigma_deg: f64,
+    /// Whether the joint fit was redone with the boresight free (seen beyond
+    /// [`ODO_YAW_REFIT_Z`] σ): the joint's settings in `methods` are then that fit's.
+    pub refit: bool,
+    /// Why the refit is not used, when it failed (the joint's settings are then the
+    /// boresight-free fit's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refit_error: Option<String>,
+}
+
+/// How many σ from zero a boresight the joint fit's residuals show must be for the fit to
+/// be redone with it free. Over 40 runs without one (simulated runs with and without a
+/// static start, loops, Kingston) it was at most 2.6σ; a 1.5° boresight showed 5.9–9.4σ.
+pub const ODO_YAW_REFIT_Z: f64 = 3.0;
+
+/// What a user is told of an odometer yaw boresight the joint fit's residuals show (the
+/// log, `disupt.md`, the campaign's note), when beyond [`ODO_YAW_REFIT_Z`] σ.
+pub fn odo_yaw_note(c: &OdoYawCheck) -> Option<String> {
+    if !c.refit && c.refit_error.is_none() {
+        return None;
+    }
+    let seen = format!(
+        "the pitch and roll show an odometer yaw boresight of {:+.2}° ± {:.2}° ({:.1}σ), which \
+         the control points cannot tell from the azimuth (an IMU turned on the vehicle, or a \
+         control point off its survey)",
+        c.odo_yaw_deg,
+        c.sigma_deg,
+        c.odo_yaw_deg.abs() / c.sigma_deg
+    );
+    Some(match &c.refit_error {
+        None => format!(
+            "{seen}: the joint fit estimates it (as `joint_odo_yaw = true` does), else its \
+             azimuth would take it whole"
+        ),
+        Some(e) => format!(
+            "{seen}; the joint fit with it free failed ({e}), so the joint's azimuth takes it \
+             whole"
+        ),
+    })
 }
 
 /// The odometer lag of a method and its 1σ, s.
@@ -302,6 +354,9 @@ pub(super) fn markdown(run: &str, out: &DisuptOut, bounds: &disupt::DisuptParams
     }
     if let Some(r) = &out.coarse_azimuth_refused {
         md += &format!("Note: {}.\n\n", super::coarse_refused_note(r));
+    }
+    if let Some(note) = out.joint_odo_yaw_check.as_ref().and_then(odo_yaw_note) {
+        md += &format!("Note: {note}.\n\n");
     }
     let (dx, dy) = (out.before.dx_m, out.before.dy_m);
     md + &format!(

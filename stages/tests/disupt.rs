@@ -7,8 +7,8 @@ use unz_stages::attitude::wrap_pi;
 use unz_stages::criteria::KalmanParams;
 use unz_stages::derive::DeriveParams;
 use unz_stages::disupt::{
-    DisuptParams, Problem, ProblemSpec, X, joint, kryt1_with_free_drifts_xy, observe_each, oepi,
-    owpi,
+    DisuptParams, JointOptions, Problem, ProblemSpec, X, joint, joint_fit,
+    kryt1_with_free_drifts_xy, observe_each, oepi, owpi,
 };
 use unz_stages::linearized::Observation;
 use unz_stages::odo_lag::Rederive;
@@ -253,7 +253,9 @@ fn joint_fit_estimates_an_odometer_boresight_when_asked() {
     let az_err = |az: f64| wrap_pi((az - truth.azimuth_deg).to_radians()).to_degrees();
     let distance = c.run.truth.distance_m[c.fixes.last().unwrap().sample];
 
-    let plain = joint(&problem, &DisuptParams::default()).unwrap();
+    let plain_fit =
+        joint_fit(&problem, &DisuptParams::default(), &JointOptions::default()).unwrap();
+    let plain = plain_fit.result.clone();
     let p = DisuptParams {
         joint_odo_yaw: true,
         ..DisuptParams::default()
@@ -302,6 +304,25 @@ fn joint_fit_estimates_an_odometer_boresight_when_asked() {
         sd.azimuth_deg
     );
     assert!(route_error(&with_yaw.x) < 0.002 * distance);
+    // The boresight-free fit's residuals show it: one linearised solve with it free (one
+    // pass) gives what the full fit with it free does, within a fraction of its σ (the
+    // check the disupt stage refits on beyond 3σ).
+    let tally = AtomicUsize::new(0);
+    let seen = plain_fit.odo_yaw_seen(&problem, &tally).unwrap().unwrap();
+    eprintln!("seen by the boresight-free fit: {seen:?}");
+    assert_eq!(tally.load(Ordering::Relaxed), 1);
+    assert!(
+        (seen.odo_yaw_deg - with_yaw.x.odo_yaw_deg).abs() < 0.5 * sd.odo_yaw_deg,
+        "{seen:?}"
+    );
+    assert!(
+        (seen.sigma_deg / sd.odo_yaw_deg - 1.0).abs() < 0.2,
+        "{seen:?}"
+    );
+    assert!(seen.z() > 3.0, "{seen:?}");
+    // A fit with the boresight free has nothing to check.
+    let yaw_fit = joint_fit(&problem, &p, &JointOptions::default()).unwrap();
+    assert_eq!(yaw_fit.odo_yaw_seen(&problem, &tally).unwrap(), None);
 }
 
 #[test]

@@ -485,4 +485,56 @@ impl JointFit {
     pub fn linearization(&self) -> &Linearization {
         &self.lin
     }
+
+    /// The odometer yaw boresight this fit held at zero, as its residuals show it: the
+    /// fit's model at its last linearisation with the boresight free too (one pass for
+    /// the boresight's slope, counted in `tally`), solved once, with its 1σ from that
+    /// model's covariance (the fit's weights and inflation). `None` when the fit had the
+    /// boresight free already or no control point (which the boresight needs).
+    ///
+    /// The boresight turns the route as the azimuth does, so the control points see only
+    /// their sum and the fit's azimuth takes it whole; the pitch and roll tell them apart
+    /// (a wrong azimuth misapplies the Earth's rate, a boresight moves the accelerometer
+    /// references along the odometer).
+    pub fn odo_yaw_seen(
+        &self,
+        problem: &Problem<'_>,
+        tally: &AtomicUsize,
+    ) -> Result<Option<OdoYawSeen>, DisuptError> {
+        if self.free.contains(&Setting::OdoYaw) || self.lin.y_ref.cp_m.is_empty() {
+            return Ok(None);
+        }
+        let mut free = self.free.clone();
+        free.push(Setting::OdoYaw);
+        let lin = problem.completed(&self.lin, &free, tally);
+        let model = JointModel::new(problem, &lin, &free, &self.weights, None);
+        let delta = model.solve()?;
+        let r = &model.r0 + &model.a * &delta;
+        let dof = (r.len() as f64 - free.len() as f64).max(1.0);
+        let n_att = attitude_rows(problem);
+        let Some(c) = covariance_of(&model, n_att, self.inflation, ssr(r.as_slice()) / dof) else {
+            return Ok(None);
+        };
+        let k = free.len() - 1;
+        Ok(Some(OdoYawSeen {
+            odo_yaw_deg: lin.p_ref[Setting::OdoYaw.index()] + delta[k],
+            sigma_deg: c[(k, k)].max(0.0).sqrt(),
+        }))
+    }
+}
+
+/// An odometer yaw boresight a joint fit's residuals show ([`JointFit::odo_yaw_seen`]).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct OdoYawSeen {
+    /// The boresight, degrees.
+    pub odo_yaw_deg: f64,
+    /// Its 1σ, degrees.
+    pub sigma_deg: f64,
+}
+
+impl OdoYawSeen {
+    /// How many σ from zero.
+    pub fn z(&self) -> f64 {
+        self.odo_yaw_deg.abs() / self.sigma_deg
+    }
 }
