@@ -140,6 +140,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 8: a coarse azimuth the pitch and roll refuse is not taken, nor OEPI's settings
         //    when they fit the pitch and roll far worse than OWPI's or the initial
         //    settings'; a run that never drives is not corrected.
+        // 9: the coarse turn Kryt1 refuses at the initial drifts is judged again with the
+        //    horizontal drifts free.
+        // 10: the joint fit's boresight check, and its refit beyond 3σ.
         version: 10,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
