@@ -279,7 +279,22 @@ fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
     serde_json::from_slice(&std::fs::read(path).ok()?).ok()
 }
 
-/// What the summary's error column says of a run that did not fail: the methods its
+/// What the summary says of a run whose odometer the log flags failed (status bit 1) on
+/// some samples (a run fails above a tenth): the dead reckoning has no distance over
+/// them, so the route after them is short by what the vehicle drove meanwhile, which the
+/// control points and the methods' fits then show.
+fn odometer_failure_note(n: &NavigateSummary) -> String {
+    let s = n.odometer_failure_samples as f64 * n.duration_s / n.samples.max(1) as f64;
+    format!(
+        "the odometer is flagged failed (status bit 1) on {} samples ({s:.1} s): the dead \
+         reckoning has no distance over them, so the route after them is short by what the \
+         vehicle drove meanwhile, and the control points' errors and the methods' fits carry it",
+        n.odometer_failure_samples
+    )
+}
+
+/// What the summary's error column says of a run that did not fail: an odometer flagged
+/// failed on some samples; the methods its
 /// disupt stage did not run (those refused for one reason together) or ran but did not
 /// use for the corrected navigation, with the reason; a coarse azimuth turn refused; an
 /// odometer yaw boresight the joint fit's residuals show (and estimated); the
@@ -297,6 +312,9 @@ fn run_note(d: Option<&DisuptOut>, nav: Option<&NavigateSummary>) -> String {
     let odo_yaw = d
         .and_then(|d| d.joint_odo_yaw_check.as_ref())
         .and_then(crate::disupt_stage::odo_yaw_note);
+    let odo_failed = nav
+        .filter(|n| n.odometer_failure_samples > 0)
+        .map(odometer_failure_note);
     // Methods refused for one reason (a run without motion refuses all three) share it.
     let mut by_reason: Vec<(Vec<&str>, &str)> = Vec::new();
     for (name, why) in skipped {
@@ -305,9 +323,13 @@ fn run_note(d: Option<&DisuptOut>, nav: Option<&NavigateSummary>) -> String {
             None => by_reason.push((vec![name], why)),
         }
     }
-    by_reason
+    odo_failed
         .into_iter()
-        .map(|(names, why)| format!("{} not run: {why}", names.join(", ")))
+        .chain(
+            by_reason
+                .into_iter()
+                .map(|(names, why)| format!("{} not run: {why}", names.join(", "))),
+        )
         .chain(coarse_refused)
         .chain(odo_yaw)
         .chain(

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use unz::flow::NavigateSummary;
 use unz_formats::IngestReport;
 
-use crate::util::{files_below, read_json, unz, unz_output};
+use crate::util::{files_below, read_json, read_log, unz, unz_output, write_log};
 
 /// A campaign of two simulated 200 s runs; returns the campaign folder.
 fn campaign(dir: &Path) -> PathBuf {
@@ -675,4 +675,45 @@ fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
         None,
         "a run with nothing to note has a null note"
     );
+}
+
+/// An odometer the log flags failed (status bit 1) for 15 s while driving, its count held:
+/// the dead reckoning loses the distance driven meanwhile (the route after it is short,
+/// the joint fit leaves its bounds reaching the control points), and the campaign's
+/// summary says so first, where it only said that the joint fit blamed the control points.
+#[test]
+fn an_odometer_flagged_failed_while_driving_is_said_in_the_summary() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let raw = camp.join("sim-0080/sim-0080.unz");
+    let mut log = read_log(&raw);
+    // From 150 s (driving since the 90-s static start) for 1500 samples of 100 Hz.
+    let k = 15_000;
+    let held = log.imu[k].odo_count;
+    for x in &mut log.imu[k..k + 1500] {
+        x.odo_count = held;
+        x.status |= 2;
+    }
+    write_log(&raw, &log);
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "disupt");
+    assert_eq!(code, Some(0), "{text}");
+    let nav: NavigateSummary = read_json(&out.join("sim-0080/navigate/navigate.json"));
+    assert_eq!(nav.odometer_failure_samples, 1500);
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    let row = |name: &str| {
+        summary
+            .lines()
+            .find(|l| l.starts_with(&format!("| {name} ")))
+            .unwrap()
+            .to_owned()
+    };
+    assert!(
+        row("sim-0080").contains(
+            "| the odometer is flagged failed (status bit 1) on 1500 samples (15.0 s): the dead \
+             reckoning has no distance over them"
+        ),
+        "{summary}"
+    );
+    assert!(!row("sim-0081").contains("flagged failed"), "{summary}");
 }
