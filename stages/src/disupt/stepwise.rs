@@ -296,8 +296,9 @@ const DRIFTS_XY: &[Setting] = &[Setting::DriftX, Setting::DriftY];
 /// is what no drift explains: the route's turns tell a drift, which turns with the body,
 /// from an azimuth error, which does not. The bound keeps the drifts to what a gyro may
 /// have: on a short drive, unbounded drifts pass for any azimuth (a 200-s run with a
-/// control point 1 km off: a wrong 78° turn had the least Kryt1 with drifts of about
-/// 10 °/h; within ±5 °/h, ten times the start's).
+/// control point 1 km off: a wrong 78° turn, whose misapplied Earth rate is about
+/// 12 °/h, had no more Kryt1 than the start with the drifts unbounded; within ±5 °/h, ten
+/// times the start's).
 pub fn kryt1_with_free_drifts_xy(
     problem: &Problem<'_>,
     points: &[(X, &Observation)],
