@@ -410,9 +410,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             not_used,
             coarse_azimuth_deg: coarse.taken_deg(),
             coarse_azimuth_refused: coarse.refused(),
-            joint_odo_yaw_check: joint_result
-                .as_ref()
-                .and_then(|r| r.as_ref().ok()?.odo_yaw.clone()),
+            joint_odo_yaw_check: joint_run.and_then(|r| r.odo_yaw.clone()),
             shared_passes: problem.base_passes(),
         };
         let md = markdown(&m.name, &out, &dparams);

@@ -508,8 +508,8 @@ fn an_odometer_boresight_the_residuals_show_is_estimated() {
     eprintln!("boresight 1.5°: {check:?}");
     assert!(check.refit && check.refit_error.is_none(), "{check:?}");
     assert!(
-        check.odo_yaw_deg.abs() > 3.0 * check.sigma_deg
-            && (check.odo_yaw_deg - 1.5).abs() < 3.0 * check.sigma_deg,
+        check.seen.odo_yaw_deg.abs() > 3.0 * check.seen.sigma_deg
+            && (check.seen.odo_yaw_deg - 1.5).abs() < 3.0 * check.seen.sigma_deg,
         "{check:?}"
     );
     let j = &d.methods["joint"].outcome.x;
@@ -538,7 +538,7 @@ fn an_odometer_boresight_the_residuals_show_is_estimated() {
         .clone()
         .expect("the boresight checked");
     assert!(
-        !check.refit && check.odo_yaw_deg.abs() < 3.0 * check.sigma_deg,
+        !check.refit && check.seen.odo_yaw_deg.abs() < 3.0 * check.seen.sigma_deg,
         "{check:?}"
     );
     let j = &d.methods["joint"].outcome.x;

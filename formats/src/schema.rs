@@ -488,8 +488,9 @@ pub fn sweep(axes: &[&str]) -> SchemaRef {
 
 /// Column of [`campaign`]: the run's name.
 pub const CAMPAIGN_RUN: &str = "run";
-/// Column of [`campaign`]: what the reports of a run that did not fail flag (methods not run
-/// or not used, a coarse azimuth turn refused, control points inconsistent with the rest or
+/// Column of [`campaign`]: what the reports of a run that did not fail flag (an odometer
+/// flagged failed on some samples, methods not run or not used, a coarse azimuth turn
+/// refused, an odometer boresight estimated, control points inconsistent with the rest or
 /// marked more than once), null when nothing.
 pub const CAMPAIGN_NOTE: &str = "note";
 

@@ -161,8 +161,7 @@ fn run_joint(
         return Ok(run);
     };
     let mut check = OdoYawCheck {
-        odo_yaw_deg: seen.odo_yaw_deg,
-        sigma_deg: seen.sigma_deg,
+        seen,
         refit: false,
         refit_error: None,
     };

@@ -135,10 +135,9 @@ pub struct DisuptOut {
 /// ([`disupt::JointFit::odo_yaw_seen`]), and whether the fit was redone with it free.
 #[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct OdoYawCheck {
-    /// The boresight the residuals show, degrees.
-    pub odo_yaw_deg: f64,
-    /// Its 1σ, degrees.
-    pub sigma_deg: f64,
+    /// The boresight the residuals show and its 1σ.
+    #[serde(flatten)]
+    pub seen: disupt::OdoYawSeen,
     /// Whether the joint fit was redone with the boresight free (seen beyond
     /// [`ODO_YAW_REFIT_Z`] σ): the joint's settings in `methods` are then that fit's.
     pub refit: bool,
@@ -163,9 +162,9 @@ pub fn odo_yaw_note(c: &OdoYawCheck) -> Option<String> {
         "the pitch and roll show an odometer yaw boresight of {:+.2}° ± {:.2}° ({:.1}σ), which \
          the control points cannot tell from the azimuth (an IMU turned on the vehicle, or a \
          control point off its survey)",
-        c.odo_yaw_deg,
-        c.sigma_deg,
-        c.odo_yaw_deg.abs() / c.sigma_deg
+        c.seen.odo_yaw_deg,
+        c.seen.sigma_deg,
+        c.seen.z()
     );
     Some(match &c.refit_error {
         None => format!(

@@ -24,9 +24,10 @@ pub struct ReportRow {
     pub joint: Option<JointEstimate>,
     /// Median and largest error of the joint fit at a control point left out of it, m.
     pub holdout_m: Option<(f64, f64)>,
-    /// What the reports of a run that did not fail flag (methods not run or not used, a
-    /// coarse azimuth turn refused, inconsistent or repeatedly marked control points), as
-    /// in `campaign.md`'s error column.
+    /// What the reports of a run that did not fail flag (an odometer flagged failed on some
+    /// samples, methods not run or not used, a coarse azimuth turn refused, an odometer
+    /// boresight estimated, inconsistent or repeatedly marked control points), as in
+    /// `campaign.md`'s error column.
     pub note: Option<String>,
     /// Relative link to the run's review recording.
     pub recording: Option<String>,
