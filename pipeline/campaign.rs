@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use unz_formats::atomic::write_atomic;
 use unz_formats::manifest::RunManifest;
 use unz_formats::parquet_io::write_batch;
-use unz_formats::report::IngestReport;
+use unz_formats::report::{IngestReport, OdometerFailures};
 use unz_formats::schema;
 use unz_viz::report::{JointEstimate, ReportRow};
 
@@ -280,17 +280,61 @@ fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
 }
 
 /// What the summary says of a run whose odometer the log flags failed (status bit 1) on
-/// some samples (a run fails above a tenth): the dead reckoning has no distance over
-/// them, so the route after them is short by what the vehicle drove meanwhile, which the
-/// control points and the methods' fits then show.
-fn odometer_failure_note(n: &NavigateSummary) -> String {
+/// some samples (a run fails above a tenth), from the ingest's account of its failures:
+/// bridged by the inertial along-track speed, with how long and how far; not bridged, the
+/// dead reckoning has no distance over them, so the route after them is short by what
+/// the vehicle drove meanwhile, which the control points and the methods' fits then show.
+fn odometer_failure_note(n: &NavigateSummary, failures: Option<&OdometerFailures>) -> String {
     let s = n.odometer_failure_samples as f64 * n.duration_s / n.samples.max(1) as f64;
-    format!(
-        "the odometer is flagged failed (status bit 1) on {} samples ({s:.1} s): the dead \
-         reckoning has no distance over them, so the route after them is short by what the \
-         vehicle drove meanwhile, and the control points' errors and the methods' fits carry it",
+    let flagged = format!(
+        "the odometer is flagged failed (status bit 1) on {} samples ({s:.1} s)",
         n.odometer_failure_samples
-    )
+    );
+    let bridged = failures.filter(|f| f.bridged > 0).map(|f| {
+        let one_ended = match f.one_ended {
+            0 => String::new(),
+            k => format!(
+                ", {k} of them at the log's end from the readings before it alone (its \
+                 distance drifts faster)"
+            ),
+        };
+        let how_long = if f.bridged == 1 {
+            format!("1 failure ({:.1} s", f.longest_bridged_s)
+        } else {
+            format!(
+                "{} failures (the longest {:.1} s",
+                f.bridged, f.longest_bridged_s
+            )
+        };
+        format!(
+            "bridged by the inertial along-track speed: {how_long}, {:.0} m driven over {}){one_ended}",
+            f.bridged_distance_m,
+            if f.bridged == 1 { "it" } else { "them" },
+        )
+    });
+    let not_bridged = failures.map_or(0, |f| f.not_bridged);
+    let lost = (not_bridged > 0 || failures.is_none()).then(|| {
+        let which = match failures {
+            Some(f) => format!(
+                "{not_bridged} failure{} ({} samples) not bridged (longer than {:.0} s, or \
+                 without readings around it): ",
+                if not_bridged == 1 { "" } else { "s" },
+                f.not_bridged_samples,
+                crate::odometer_bridge::MAX_BRIDGED_S
+            ),
+            None => String::new(),
+        };
+        format!(
+            "{which}the dead reckoning has no distance over them, so the route after them is \
+             short by what the vehicle drove meanwhile, and the control points' errors and \
+             the methods' fits carry it"
+        )
+    });
+    std::iter::once(flagged)
+        .chain(bridged)
+        .chain(lost)
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 /// What the summary's error column says of a run that did not fail: an odometer flagged
@@ -300,7 +344,11 @@ fn odometer_failure_note(n: &NavigateSummary) -> String {
 /// residuals show (and estimated); the control points the joint fit's hold-out finds
 /// inconsistent with the rest of the run; and the control points marked more than once,
 /// with the mark used.
-fn run_note(d: Option<&DisuptOut>, nav: Option<&NavigateSummary>) -> String {
+fn run_note(
+    d: Option<&DisuptOut>,
+    nav: Option<&NavigateSummary>,
+    ing: Option<&IngestReport>,
+) -> String {
     let skipped = d.into_iter().flat_map(|d| &d.skipped);
     let repeated = nav.into_iter().flat_map(|n| &n.repeated_marks);
     let inconsistent = d
@@ -314,7 +362,7 @@ fn run_note(d: Option<&DisuptOut>, nav: Option<&NavigateSummary>) -> String {
         .and_then(crate::disupt_stage::odo_yaw_note);
     let odo_failed = nav
         .filter(|n| n.odometer_failure_samples > 0)
-        .map(odometer_failure_note);
+        .map(|n| odometer_failure_note(n, ing.and_then(|i| i.odometer_failures.as_ref())));
     // Methods refused for one reason (a run without motion refuses all three) share it.
     let mut by_reason: Vec<(Vec<&str>, &str)> = Vec::new();
     for (name, why) in skipped {
@@ -532,8 +580,8 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         let nav: Option<NavigateSummary> =
             read_report(&layout.file(StageName::Navigate, files::NAVIGATE_REPORT));
         let v = SummaryValues::of(ing.as_ref(), d.as_ref(), o.wall_s);
-        let note =
-            Some(run_note(d.as_ref(), nav.as_ref())).filter(|n| o.error.is_none() && !n.is_empty());
+        let note = Some(run_note(d.as_ref(), nav.as_ref(), ing.as_ref()))
+            .filter(|n| o.error.is_none() && !n.is_empty());
         for (c, (_, x)) in cols.iter_mut().zip(v.columns()) {
             c.1.push(x);
         }

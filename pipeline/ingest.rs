@@ -2,14 +2,17 @@
 //! (zstd), `raw.mcap` (ROS 2 messages for Foxglove and Rerun) and `ingest.json` (the accounting of
 //! §1.4 of the raw-format spec), plus `ingest_events.json` locating the first faults.
 //!
-//! The log is streamed: memory is bounded by the reader's buffer and one batch of rows,
-//! whatever the file size. Bad records never stop the stage; an unreadable file does,
+//! The log is streamed: memory is bounded by the reader's buffer, one batch of rows and
+//! the samples an odometer failure holds back until it is bridged (at most 100 000;
+//! `crate::odometer_bridge`), whatever the file size. Bad records never stop the stage; an unreadable file does,
 //! with an error naming it.
 
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use crate::artifacts::files;
+use crate::flow::site_gravity_mps2;
+use crate::odometer_bridge::{OdometerBridger, OdometerSample};
 use crate::odometer_range::OdometerRange;
 use crate::raw_mcap::RawMcapWriter;
 use anyhow::Context;
@@ -69,6 +72,25 @@ impl From<IngestParams> for IngestOptions {
             mcap: Some(p.raw_mcap_compression),
         }
     }
+}
+
+/// The status bit of an odometer failure (the raw-format spec's §1.2).
+const STATUS_ODOMETER_FAILED: u16 = 1 << 1;
+
+/// A binary log's row, held while the odometer's failure around it is bridged.
+enum Row {
+    Imu {
+        t_ns: i64,
+        seq: u64,
+        dtheta_rad: [f64; 3],
+        dvel_mps: [f64; 3],
+        status: u16,
+        pulses: i64,
+    },
+    Mark {
+        t_ns: i64,
+        point_id: u32,
+    },
 }
 
 /// Table sinks of one ingest.
@@ -140,13 +162,46 @@ impl Sinks {
         Ok(())
     }
 
+    /// Appends an odometer sample whose distance is the route's.
     fn push_odometer(&mut self, t_ns: i64, distance_m: f64, pulses: Option<i64>) {
-        let distance_m = self.odo_range.step(t_ns, distance_m);
         self.odo_rows.t_ns.push(t_ns);
         self.odo_rows.distance_m.push(distance_m);
         self.odo_rows.pulses.push(pulses);
         if let Some(m) = &mut self.mcap {
             m.odometer(t_ns, distance_m);
+        }
+    }
+
+    /// Appends a row of a binary log, an IMU sample with the route's distance.
+    fn give(&mut self, row: Row, distance_m: Option<f64>, nominal_dt_s: f64) {
+        match row {
+            Row::Imu {
+                t_ns,
+                seq,
+                dtheta_rad,
+                dvel_mps,
+                status,
+                pulses,
+            } => {
+                let rows = &mut self.imu_rows;
+                rows.t_ns.push(t_ns);
+                rows.seq.push(seq);
+                rows.dtheta_rad.push(dtheta_rad);
+                rows.dvel_mps.push(dvel_mps);
+                rows.status.push(status);
+                if let Some(m) = &mut self.mcap {
+                    m.imu(t_ns, nominal_dt_s, seq, dtheta_rad, dvel_mps, status);
+                }
+                // Every IMU sample is given its distance.
+                self.push_odometer(t_ns, distance_m.unwrap_or(f64::NAN), Some(pulses));
+            }
+            Row::Mark { t_ns, point_id } => {
+                self.marks.t_ns.push(t_ns);
+                self.marks.point_id.push(point_id);
+                if let Some(mc) = &mut self.mcap {
+                    mc.mark(t_ns, point_id);
+                }
+            }
         }
     }
 
@@ -220,42 +275,69 @@ fn ingest_binary(
     let nominal_dt_s = header.sample_period_s();
     let mut sinks = Sinks::create(dir, origin_ns, Some(scale), options.mcap)?;
     let mut first_pulses = None;
+    // The odometer's failures (status bit 1) are bridged: their samples, and the marks
+    // among them, are held back until they are.
+    let mut bridger = OdometerBridger::new(site_gravity_mps2(manifest));
+    let give = |sinks: &mut Sinks, bridger: &mut OdometerBridger<Row>| {
+        for (row, distance_m) in bridger.ready() {
+            sinks.give(row, distance_m, nominal_dt_s);
+        }
+        sinks.flush(false)
+    };
     while let Some(rec) = reader.next_record().map_err(|e| e.in_file(path))? {
         match rec {
             Accepted::Imu(s) => {
                 let t_ns = i64::try_from(s.raw.t_us)
                     .unwrap_or(i64::MAX / 1000)
                     .saturating_mul(1000);
-                let dtheta = s.raw.dtheta.map(|c| f64::from(c) * header.dtheta_lsb_rad);
-                let dvel = s.raw.dvel.map(|c| f64::from(c) * header.dvel_lsb_mps);
+                let dtheta_rad = s.raw.dtheta.map(|c| f64::from(c) * header.dtheta_lsb_rad);
+                let dvel_mps = s.raw.dvel.map(|c| f64::from(c) * header.dvel_lsb_mps);
                 let p0 = *first_pulses.get_or_insert(s.odo_pulses);
-                let rows = &mut sinks.imu_rows;
-                rows.t_ns.push(t_ns);
-                rows.seq.push(s.seq);
-                rows.dtheta_rad.push(dtheta);
-                rows.dvel_mps.push(dvel);
-                rows.status.push(s.raw.status);
-                if let Some(m) = &mut sinks.mcap {
-                    m.imu(t_ns, nominal_dt_s, s.seq, dtheta, dvel, s.raw.status);
-                }
-                sinks.push_odometer(t_ns, (s.odo_pulses - p0) as f64 * scale, Some(s.odo_pulses));
-                sinks.flush(false)?;
+                let failed = s.raw.status & STATUS_ODOMETER_FAILED != 0;
+                // A failed odometer's count is not read, nor judged against a land
+                // vehicle's speed.
+                let distance_m = if failed {
+                    f64::NAN
+                } else {
+                    sinks
+                        .odo_range
+                        .step(t_ns, (s.odo_pulses - p0) as f64 * scale)
+                };
+                let sample = OdometerSample {
+                    t_s: t_ns as f64 * 1e-9,
+                    dtheta_rad,
+                    dvel_mps,
+                    distance_m,
+                    failed,
+                };
+                let row = Row::Imu {
+                    t_ns,
+                    seq: s.seq,
+                    dtheta_rad,
+                    dvel_mps,
+                    status: s.raw.status,
+                    pulses: s.odo_pulses,
+                };
+                bridger.sample(sample, row);
             }
             Accepted::Mark(m) => {
                 let t_ns = i64::try_from(m.t_us)
                     .unwrap_or(i64::MAX / 1000)
                     .saturating_mul(1000);
-                sinks.marks.t_ns.push(t_ns);
-                sinks.marks.point_id.push(m.point_id);
-                if let Some(mc) = &mut sinks.mcap {
-                    mc.mark(t_ns, m.point_id);
-                }
+                bridger.other(Row::Mark {
+                    t_ns,
+                    point_id: m.point_id,
+                });
             }
         }
+        give(&mut sinks, &mut bridger)?;
     }
+    bridger.finish();
+    give(&mut sinks, &mut bridger)?;
     let (odo_rows, odometer_out_of_range) = sinks.finish(dir)?;
     let (mut report, events, events_total) = reader.into_report();
     report.odometer_out_of_range = odometer_out_of_range;
+    report.odometer_failures = bridger.failures().cloned();
     write_json_atomic(
         &dir.join(files::INGEST_EVENTS),
         &IngestEvents {
@@ -304,6 +386,7 @@ fn ingest_text(
                     None => 0.0,
                 };
                 prev = Some((s.t_s, v, d));
+                let d = sinks.odo_range.step(t_ns, d);
                 sinks.push_odometer(t_ns, d, None);
             }
             None => {}
@@ -318,7 +401,9 @@ fn ingest_text(
     {
         let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind);
         while let Some(o) = odo.next_sample().map_err(|e| e.in_file(file))? {
-            sinks.push_odometer((o.t_s * 1e9).round() as i64, o.distance_m, None);
+            let t_ns = (o.t_s * 1e9).round() as i64;
+            let d = sinks.odo_range.step(t_ns, o.distance_m);
+            sinks.push_odometer(t_ns, d, None);
             sinks.flush(false)?;
         }
         odometer_file = Some(odo);

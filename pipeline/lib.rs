@@ -20,6 +20,7 @@ pub mod lock;
 pub mod memory;
 pub mod method_tables;
 pub mod nav_writer;
+pub mod odometer_bridge;
 pub mod odometer_range;
 pub mod raw_mcap;
 pub mod review;

@@ -593,3 +593,94 @@ fn a_run_that_never_drives_is_not_corrected() {
         "{summary}"
     );
 }
+
+/// An odometer the log flags failed for a minute while driving, its count held (the
+/// readings after it short by what was driven meanwhile): the ingest bridges it with the
+/// inertial along-track speed, and the corrected route is as good as the same run's
+/// without the failure, where a held count put the control points hundreds of metres
+/// off. The campaign's summary says the failure was bridged, with its length and distance.
+#[test]
+fn an_odometer_failure_while_driving_is_bridged_by_the_inertial_speed() {
+    let name = "sim-0063";
+    let tmp0 = tempfile::tempdir().unwrap();
+    let (run0, out0) = process(tmp0.path(), 63, &[]);
+    let worst0 = worst_m(&route_errors(&run0, &out0, name));
+    let az0 = disupt_json(&out0, name).methods["joint"]
+        .outcome
+        .x
+        .azimuth_deg;
+
+    let tmp = tempfile::tempdir().unwrap();
+    let run = simulated_run(tmp.path(), 63, &[]);
+    // The first minute from 600 s on over which the vehicle drives at least 400 m.
+    let truth_m = column(&run.join("truth.parquet"), "distance_m");
+    let len = 6000;
+    let k0 = (60_000..truth_m.len() - len)
+        .find(|&k| truth_m[k + len] - truth_m[k] > 400.0)
+        .unwrap();
+    let driven_m = truth_m[k0 + len] - truth_m[k0];
+    let raw = run.join(format!("{name}.unz"));
+    let mut log = crate::util::read_log(&raw);
+    let held = log.imu[k0].odo_count;
+    let missed = log.imu[k0 + len].odo_count.wrapping_sub(held);
+    for (k, x) in log.imu.iter_mut().enumerate().skip(k0) {
+        if k < k0 + len {
+            x.odo_count = held;
+            x.status |= 2;
+        } else {
+            x.odo_count = x.odo_count.wrapping_sub(missed);
+        }
+    }
+    crate::util::write_log(&raw, &log);
+    let out = tmp.path().join("o");
+    run_until(&run, &out, "disupt");
+
+    let ingest: unz_formats::IngestReport = read_json(&out.join(name).join("ingest/ingest.json"));
+    let f = ingest.odometer_failures.unwrap();
+    assert_eq!((f.bridged, f.bridged_samples, f.not_bridged), (1, 6000, 0));
+    // The odometer's own distance across it (its nominal scale), within the bridge's error
+    // over a minute (0.65 m rms in truth's metres; stages/tests/odo_bridge.rs).
+    let odo0 = column(
+        &out0.join(name).join("ingest/odometer.parquet"),
+        "distance_m",
+    );
+    let odo = column(
+        &out.join(name).join("ingest/odometer.parquet"),
+        "distance_m",
+    );
+    let across_err = odo[k0 + len] - odo0[k0 + len] - (odo[k0 - 1] - odo0[k0 - 1]);
+    let errors = route_errors(&run, &out, name);
+    let worst = worst_m(&errors);
+    let az = disupt_json(&out, name).methods["joint"]
+        .outcome
+        .x
+        .azimuth_deg;
+    eprintln!(
+        "odometer failed {:.0}–{:.0} s over {driven_m:.0} m: bridged {:.1} m, its error \
+         {across_err:.3} m; worst route error {worst:.2} m (without the failure {worst0:.2} \
+         m); joint azimuth {:.4}° against {:.4}°",
+        k0 as f64 * 0.01,
+        (k0 + len) as f64 * 0.01,
+        f.bridged_distance_m,
+        az,
+        az0
+    );
+    assert!(across_err.abs() < 2.0, "bridge off by {across_err} m");
+    assert!(
+        worst < 1.25 * worst0 + 2.0,
+        "worst route error {worst} m, {worst0} m without the failure"
+    );
+    assert!(
+        (az - az0).abs() < 0.05,
+        "joint azimuth {az}°, {az0}° without"
+    );
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains(
+            "the odometer is flagged failed (status bit 1) on 6000 samples (60.0 s); bridged \
+             by the inertial along-track speed: 1 failure (60.0 s, "
+        ),
+        "{summary}"
+    );
+    assert!(!summary.contains("no distance over them"), "{summary}");
+}

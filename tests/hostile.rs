@@ -678,28 +678,26 @@ fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
 }
 
 /// An odometer the log flags failed (status bit 1) for 15 s while driving, its count held:
-/// the dead reckoning loses the distance driven meanwhile (the route after it is short,
-/// the joint fit leaves its bounds reaching the control points), and the campaign's
-/// summary says so first, where it only said that the joint fit blamed the control points.
+/// the ingest bridges it with the inertial along-track speed (a held count lost the
+/// distance driven meanwhile, and the summary blamed the control points), and the
+/// campaign's summary says so first. A failure longer than the longest bridged (here
+/// 150 s of a 30-minute run) holds the distance over it, and the summary says that the
+/// route after it is short.
 #[test]
-fn an_odometer_flagged_failed_while_driving_is_said_in_the_summary() {
+fn an_odometer_flagged_failed_while_driving_is_bridged_and_said_in_the_summary() {
     let tmp = tempfile::tempdir().unwrap();
     let camp = campaign(tmp.path());
     let raw = camp.join("sim-0080/sim-0080.unz");
-    let mut log = read_log(&raw);
     // From 150 s (driving since the 90-s static start) for 1500 samples of 100 Hz.
-    let k = 15_000;
-    let held = log.imu[k].odo_count;
-    for x in &mut log.imu[k..k + 1500] {
-        x.odo_count = held;
-        x.status |= 2;
-    }
-    write_log(&raw, &log);
+    hold_and_flag(&raw, 15_000, 1500);
     let out = tmp.path().join("o");
     let (code, text) = run(&camp, &out, "disupt");
     assert_eq!(code, Some(0), "{text}");
     let nav: NavigateSummary = read_json(&out.join("sim-0080/navigate/navigate.json"));
     assert_eq!(nav.odometer_failure_samples, 1500);
+    let ingest: IngestReport = read_json(&out.join("sim-0080/ingest/ingest.json"));
+    let f = ingest.odometer_failures.unwrap();
+    assert_eq!((f.bridged, f.bridged_samples, f.not_bridged), (1, 1500, 0));
     let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
     let row = |name: &str| {
         summary
@@ -710,10 +708,89 @@ fn an_odometer_flagged_failed_while_driving_is_said_in_the_summary() {
     };
     assert!(
         row("sim-0080").contains(
-            "| the odometer is flagged failed (status bit 1) on 1500 samples (15.0 s): the dead \
-             reckoning has no distance over them"
+            "| the odometer is flagged failed (status bit 1) on 1500 samples (15.0 s); bridged \
+             by the inertial along-track speed: 1 failure (15.0 s, "
         ),
         "{summary}"
     );
+    assert!(!row("sim-0080").contains("no distance"), "{summary}");
     assert!(!row("sim-0081").contains("flagged failed"), "{summary}");
+
+    // 150 s flagged in a 30-minute run (a tenth of it would fail the run).
+    let camp = tmp.path().join("long");
+    let o = unz_output(&[
+        "simulate",
+        "--out",
+        camp.to_str().unwrap(),
+        "--seed",
+        "82",
+        "--runs",
+        "1",
+        "--duration-s",
+        "1800",
+    ]);
+    assert!(o.status.success());
+    let (k0, len) = (30_000, 15_000);
+    hold_and_flag(&camp.join("sim-0082/sim-0082.unz"), k0, len);
+    let out = tmp.path().join("o-long");
+    let (code, text) = run(&camp, &out, "disupt");
+    assert_eq!(code, Some(0), "{text}");
+    let ingest: IngestReport = read_json(&out.join("sim-0082/ingest/ingest.json"));
+    let f = ingest.odometer_failures.unwrap();
+    assert_eq!(
+        (f.bridged, f.not_bridged, f.not_bridged_samples),
+        (0, 1, 15_000)
+    );
+    // The distance holds over it, and goes on after it.
+    let (_, batches) =
+        unz_formats::parquet_io::read_batches(&out.join("sim-0082/ingest/odometer.parquet"))
+            .unwrap();
+    let d: Vec<f64> = batches
+        .iter()
+        .flat_map(|b| unz_formats::tables::f64_column(b, "distance_m").unwrap())
+        .collect();
+    let log = read_log(&camp.join("sim-0082/sim-0082.unz"));
+    let lsb_m = log.header.odo_lsb_m;
+    assert!(d[k0 - 1] > 100.0, "{}", d[k0 - 1]);
+    // A flagged sample's count is not read: the first reading after goes on from the
+    // last before.
+    assert!(d[k0..=k0 + len].iter().all(|&x| x == d[k0 - 1]));
+    let counted_m = |k: usize| {
+        f64::from(
+            log.imu[k]
+                .odo_count
+                .wrapping_sub(log.imu[k0 + len].odo_count),
+        ) * lsb_m
+    };
+    for (k, x) in d.iter().enumerate().skip(k0 + len) {
+        let want = d[k0 + len] + counted_m(k);
+        assert!((x - want).abs() < 1e-6, "{k}: {x} against {want}");
+    }
+    assert!(d[d.len() - 1] > d[k0 - 1] + 1000.0);
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains(
+            "the odometer is flagged failed (status bit 1) on 15000 samples (150.0 s); 1 \
+             failure (15000 samples) not bridged (longer than 120 s, or without readings \
+             around it): the dead reckoning has no distance over them"
+        ),
+        "{summary}"
+    );
+}
+
+/// Flags the odometer failed on samples `[k0, k0 + len)` of the raw log at `raw`, its
+/// count held over them (the counts after them short by what was driven meanwhile).
+fn hold_and_flag(raw: &Path, k0: usize, len: usize) {
+    let mut log = read_log(raw);
+    let held = log.imu[k0].odo_count;
+    let missed = log.imu[k0 + len].odo_count.wrapping_sub(held);
+    for (k, x) in log.imu.iter_mut().enumerate().skip(k0) {
+        if k < k0 + len {
+            x.odo_count = held;
+            x.status |= 2;
+        } else {
+            x.odo_count = x.odo_count.wrapping_sub(missed);
+        }
+    }
+    write_log(raw, &log);
 }

@@ -26,4 +26,4 @@ pub mod schema;
 pub mod tables;
 
 pub use error::{FileError, FormatError};
-pub use report::{IngestEvents, IngestReport, OdometerFileReport};
+pub use report::{IngestEvents, IngestReport, OdometerFailures, OdometerFileReport};

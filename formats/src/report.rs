@@ -63,6 +63,48 @@ pub struct IngestReport {
     /// Text logs with a separate odometer file (`[odometer] file`): its lines' account.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub odometer_file: Option<OdometerFileReport>,
+    /// Binary logs whose status flags the odometer failed (bit 1) on some samples: its
+    /// failures, bridged in `odometer.parquet` or not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub odometer_failures: Option<OdometerFailures>,
+}
+
+/// The odometer's failures a binary log flags (status bit 1). A failure is a run of
+/// flagged samples (a working stretch shorter than a second inside one is taken into
+/// it); its counts are never read. Bridged, the route's distance over it is the inertial
+/// along-track speed's, fitted to the odometer's readings around it
+/// (`unz_stages::odo_bridge`); not bridged, the route has no distance over it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OdometerFailures {
+    /// Failures bridged.
+    pub bridged: u64,
+    /// Samples flagged in them.
+    pub bridged_samples: u64,
+    /// Of the bridged, those with readings before them only (the log ends in them):
+    /// their distance drifts faster (measured: 0.25 m at most over 10 s, 40 m over 30 s).
+    pub one_ended: u64,
+    /// The longest bridged, s: from its first flagged sample to the first working one
+    /// after it (or its last sample).
+    pub longest_bridged_s: f64,
+    /// Distance the bridges give the route across them, m.
+    pub bridged_distance_m: f64,
+    /// The largest root-mean-square residual of a bridge's fit to the odometer's readings
+    /// around it, m: about a pulse's quantisation (a 12.5-mm pulse: 4 mm) when the
+    /// inertial speed and the odometer agree.
+    pub worst_residual_m: f64,
+    /// Failures not bridged (longer than the longest bridged, or without readings
+    /// around them): the route has no distance over them.
+    pub not_bridged: u64,
+    /// Samples flagged in them.
+    pub not_bridged_samples: u64,
+}
+
+impl OdometerFailures {
+    /// Flagged samples, bridged or not.
+    pub fn samples(&self) -> u64 {
+        self.bridged_samples + self.not_bridged_samples
+    }
 }
 
 /// Accounting of a separate odometer file: `lines_read == lines_accepted +

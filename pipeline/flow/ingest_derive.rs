@@ -25,8 +25,9 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         name: "ingest",
         // 2: odometer steps beyond a land vehicle's speed replaced and counted; the
         // odometer file's lines accounted in `ingest.json`. 3: `ingest_events.json` names
-        // the raw log as the manifest does, not as the path was given.
-        version: 3,
+        // the raw log as the manifest does, not as the path was given. 4: the odometer's
+        // failures (status bit 1) bridged by the inertial along-track speed.
+        version: 4,
         params_hash: params_hash(&(m.odometer.scale_m_per_pulse, params.ingest))?,
         inputs,
         outputs: &INGEST_OUTPUTS,

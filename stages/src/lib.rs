@@ -23,6 +23,7 @@ pub mod filter;
 pub mod in_motion_level;
 pub mod initial;
 pub mod linearized;
+pub mod odo_bridge;
 pub mod odo_lag;
 pub mod route_sigma;
 pub mod simulate;

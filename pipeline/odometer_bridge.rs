@@ -1,0 +1,453 @@
+//! The ingest's bridge of the odometer's failures a binary log flags (status bit 1),
+//! streamed: the samples of a failure, and those of the odometer working again after it
+//! up to [`WINDOW_S`], are held back until it can be bridged
+//! ([`unz_stages::odo_bridge::bridge`]), then given out in the order taken, each with the
+//! route's distance. Held back at most: the longest bridged failure and a window, about
+//! 13 000 samples at 100 Hz.
+//!
+//! A flagged sample's count is never read: the count of a failed odometer may hold,
+//! jump, restart or be garbage. The readings after a failure continue the bridge (or,
+//! not bridged, the distance held over it), whatever their count did meanwhile.
+
+use std::collections::VecDeque;
+
+use unz_formats::OdometerFailures;
+use unz_stages::odo_bridge::{BridgeSample, Reading, WINDOW_S, bridge};
+
+/// The longest failure bridged, s. Measured on simulated failures while driving, the
+/// bridge's error across a failure is 0.10 m rms (0.24 m at most) over 30 s, 0.65 m
+/// (1.6 m) over 60 s and 3.8 m (11 m, of 611 m driven) over 120 s; beyond, the tilt's
+/// drift that the readings around it do not see grows with the cube of its length.
+pub const MAX_BRIDGED_S: f64 = 120.0;
+/// A working stretch shorter than this between flagged samples is taken into one
+/// failure, s: too short to see the speed and the tilt after the first.
+const MIN_WORKING_S: f64 = 1.0;
+/// Samples held back at most, whatever their time tags say (tags that do not advance
+/// would otherwise hold a log back whole).
+const MAX_HELD: usize = 100_000;
+
+/// One IMU sample, as the bridge takes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometerSample {
+    /// Time tag, s.
+    pub t_s: f64,
+    /// Angle increments, body FRD, rad.
+    pub dtheta_rad: [f64; 3],
+    /// Velocity increments, body FRD, m/s.
+    pub dvel_mps: [f64; 3],
+    /// The odometer's cumulative distance, m (not read when `failed`).
+    pub distance_m: f64,
+    /// The status flags the odometer failed.
+    pub failed: bool,
+}
+
+/// What is held back: a sample, or another item (a mark) between samples.
+enum Held<P> {
+    Sample(OdometerSample, P),
+    Other(P),
+}
+
+/// Where the stream is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum State {
+    /// The odometer works.
+    Working,
+    /// In a failure since `since_s`; working again since `working_s`, if it is.
+    Failed {
+        since_s: f64,
+        working_s: Option<f64>,
+    },
+    /// In a failure too long to bridge: its samples hold the distance.
+    Unbridged,
+}
+
+/// The odometer's distances through its failures, streamed: payloads `P` in, each with
+/// its distance (`None` for items that are not samples) out, in order.
+pub struct OdometerBridger<P> {
+    g_mps2: f64,
+    state: State,
+    /// The last [`WINDOW_S`] of working samples given out, their readings the route's.
+    before: VecDeque<BridgeSample>,
+    held: VecDeque<Held<P>>,
+    ready: VecDeque<(P, Option<f64>)>,
+    /// Added to the odometer's distance to give the route's, m.
+    offset_m: f64,
+    /// The route's distance at the last sample given out, m.
+    last_m: f64,
+    failures: OdometerFailures,
+}
+
+impl<P> OdometerBridger<P> {
+    /// A bridger at a site where gravity is `g_mps2`.
+    pub fn new(g_mps2: f64) -> Self {
+        Self {
+            g_mps2,
+            state: State::Working,
+            before: VecDeque::new(),
+            held: VecDeque::new(),
+            ready: VecDeque::new(),
+            offset_m: 0.0,
+            last_m: 0.0,
+            failures: OdometerFailures::default(),
+        }
+    }
+
+    /// Takes the next IMU sample.
+    pub fn sample(&mut self, s: OdometerSample, payload: P) {
+        match self.state {
+            State::Working if !s.failed => self.give_working(s, payload),
+            State::Working => {
+                self.state = State::Failed {
+                    since_s: s.t_s,
+                    working_s: None,
+                };
+                self.held.push_back(Held::Sample(s, payload));
+            }
+            State::Failed { since_s, working_s } => {
+                if s.failed
+                    && let Some(w) = working_s
+                    && s.t_s - w >= MIN_WORKING_S
+                {
+                    // Working long enough to bridge the failure before: this sample
+                    // begins another.
+                    self.resolve();
+                    self.state = State::Failed {
+                        since_s: s.t_s,
+                        working_s: None,
+                    };
+                    self.held.push_back(Held::Sample(s, payload));
+                    return;
+                }
+                self.held.push_back(Held::Sample(s, payload));
+                let working_s = match (s.failed, working_s) {
+                    (true, _) => None,
+                    (false, None) => Some(s.t_s),
+                    (false, Some(w)) => Some(w),
+                };
+                self.state = State::Failed { since_s, working_s };
+                match working_s {
+                    Some(w) if s.t_s - w >= WINDOW_S => self.resolve(),
+                    None if s.t_s - since_s > MAX_BRIDGED_S || self.held.len() >= MAX_HELD => {
+                        self.give_up()
+                    }
+                    _ if self.held.len() >= MAX_HELD => self.resolve(),
+                    _ => {}
+                }
+            }
+            State::Unbridged => self.give_unbridged(s, payload),
+        }
+    }
+
+    /// Takes an item that is not a sample (a mark): given out in its place among them.
+    pub fn other(&mut self, payload: P) {
+        if self.held.is_empty() {
+            self.ready.push_back((payload, None));
+        } else {
+            self.held.push_back(Held::Other(payload));
+        }
+    }
+
+    /// What is ready, in order.
+    pub fn ready(&mut self) -> std::collections::vec_deque::Drain<'_, (P, Option<f64>)> {
+        self.ready.drain(..)
+    }
+
+    /// Ends the stream: a failure still held is bridged from what there is.
+    pub fn finish(&mut self) {
+        if matches!(self.state, State::Failed { .. }) {
+            self.resolve();
+        }
+    }
+
+    /// The failures so far; `None` without any.
+    pub fn failures(&self) -> Option<&OdometerFailures> {
+        let f = &self.failures;
+        (f.bridged + f.not_bridged > 0).then_some(f)
+    }
+
+    fn give_working(&mut self, s: OdometerSample, payload: P) {
+        let d = s.distance_m + self.offset_m;
+        self.last_m = d;
+        self.before.push_back(BridgeSample {
+            t_s: s.t_s,
+            dtheta_rad: s.dtheta_rad,
+            dvel_mps: s.dvel_mps,
+            reading: Reading::Before(d),
+        });
+        while self
+            .before
+            .front()
+            .is_some_and(|f| s.t_s - f.t_s > WINDOW_S)
+        {
+            self.before.pop_front();
+        }
+        self.ready.push_back((payload, Some(d)));
+    }
+
+    /// Bridges the failure held, gives it out, and goes on working.
+    fn resolve(&mut self) {
+        self.state = State::Working;
+        let samples = || {
+            self.held.iter().filter_map(|h| match h {
+                Held::Sample(s, _) => Some(s),
+                Held::Other(_) => None,
+            })
+        };
+        // The samples up to the last flagged one are the failure's; those after, its
+        // readings after.
+        let Some(n_failed) = samples()
+            .enumerate()
+            .filter(|(_, s)| s.failed)
+            .last()
+            .map(|(k, _)| k + 1)
+        else {
+            return;
+        };
+        let flagged = samples().filter(|s| s.failed).count() as u64;
+        let first_t_s = samples().next().map_or(0.0, |s| s.t_s);
+        let first_after = samples().nth(n_failed).copied();
+        let end_t_s = first_after
+            .or_else(|| samples().nth(n_failed - 1).copied())
+            .map_or(first_t_s, |s| s.t_s);
+        let mut window: Vec<BridgeSample> = self.before.iter().copied().collect();
+        window.extend(samples().enumerate().map(|(k, s)| BridgeSample {
+            t_s: s.t_s,
+            dtheta_rad: s.dtheta_rad,
+            dvel_mps: s.dvel_mps,
+            reading: if k < n_failed {
+                Reading::Failed
+            } else {
+                Reading::After(s.distance_m + self.offset_m)
+            },
+        }));
+        // With no reading before (a log that begins failed), the bridge starts at the
+        // route's distance so far.
+        let anchor_m = if self.before.is_empty() {
+            self.last_m
+        } else {
+            0.0
+        };
+        let f = &mut self.failures;
+        let failed_m: Vec<f64> = match bridge(&window, self.g_mps2) {
+            Some(b) => {
+                f.bridged += 1;
+                f.bridged_samples += flagged;
+                f.one_ended += u64::from(first_after.is_none());
+                f.longest_bridged_s = f.longest_bridged_s.max(end_t_s - first_t_s);
+                f.bridged_distance_m += b.across_m;
+                f.worst_residual_m = f.worst_residual_m.max(b.rms_residual_m);
+                self.offset_m += b.after_offset_m + anchor_m;
+                b.failed_distance_m.iter().map(|d| d + anchor_m).collect()
+            }
+            None => {
+                // Without readings around it the route holds its distance over it.
+                f.not_bridged += 1;
+                f.not_bridged_samples += flagged;
+                if let Some(s) = first_after {
+                    self.offset_m = self.last_m - s.distance_m;
+                }
+                vec![self.last_m; n_failed]
+            }
+        };
+        self.before.clear();
+        let mut failed_m = failed_m.into_iter();
+        for h in std::mem::take(&mut self.held) {
+            match h {
+                Held::Other(p) => self.ready.push_back((p, None)),
+                Held::Sample(s, p) => match failed_m.next() {
+                    Some(d) => {
+                        self.last_m = d;
+                        self.ready.push_back((p, Some(d)));
+                    }
+                    None => self.give_working(s, p),
+                },
+            }
+        }
+    }
+
+    /// A failure too long to bridge: what is held is given out, its flagged samples
+    /// holding the distance and its working ones (stretches shorter than
+    /// [`MIN_WORKING_S`]) going on from there; so is the rest of the failure.
+    fn give_up(&mut self) {
+        self.failures.not_bridged += 1;
+        self.before.clear();
+        self.state = State::Unbridged;
+        for h in std::mem::take(&mut self.held) {
+            match h {
+                Held::Other(p) => self.ready.push_back((p, None)),
+                Held::Sample(s, p) => self.give_unbridged(s, p),
+            }
+        }
+    }
+
+    /// A sample of a failure not bridged: flagged, it holds the distance; working, the
+    /// readings go on from the distance held.
+    fn give_unbridged(&mut self, s: OdometerSample, payload: P) {
+        if s.failed {
+            // The readings before it do not run on to the readings after it.
+            self.before.clear();
+            self.failures.not_bridged_samples += 1;
+            self.state = State::Unbridged;
+            self.ready.push_back((payload, Some(self.last_m)));
+        } else {
+            if self.state == State::Unbridged {
+                self.offset_m = self.last_m - s.distance_m;
+            }
+            self.state = State::Working;
+            self.give_working(s, payload);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const G: f64 = 9.8;
+    const V_MPS: f64 = 10.0;
+    const DT_S: f64 = 0.01;
+
+    /// A level drive at 10 m/s for `n` samples of 100 Hz, flagged failed where
+    /// `failed(t)`, its count held over the failures (the readings after them short);
+    /// a mark after every 1000th sample. Returns what comes out, in order: (payload,
+    /// distance), payloads numbered as taken.
+    fn drive(
+        n: usize,
+        failed: impl Fn(f64) -> bool,
+    ) -> (Vec<(usize, Option<f64>)>, OdometerBridger<usize>) {
+        let mut b = OdometerBridger::new(G);
+        let mut out = Vec::new();
+        let mut id = 0;
+        let mut missed_m = 0.0;
+        for k in 1..=n {
+            let t_s = k as f64 * DT_S;
+            let f = failed(t_s);
+            if f {
+                missed_m += V_MPS * DT_S;
+            }
+            let s = OdometerSample {
+                t_s,
+                dtheta_rad: [0.0; 3],
+                dvel_mps: [0.0, 0.0, -G * DT_S],
+                distance_m: if f { f64::NAN } else { V_MPS * t_s - missed_m },
+                failed: f,
+            };
+            b.sample(s, id);
+            id += 1;
+            if k % 1000 == 0 {
+                b.other(id);
+                id += 1;
+            }
+            out.extend(b.ready());
+        }
+        b.finish();
+        out.extend(b.ready());
+        (out, b)
+    }
+
+    /// Every payload out once, in order; the samples' distances those of a drive at
+    /// 10 m/s from `d0_m` at the first sample (marks none).
+    fn check(out: &[(usize, Option<f64>)], d0_m: f64) {
+        let mut k = 0;
+        for (i, (id, d)) in out.iter().enumerate() {
+            assert_eq!(*id, i);
+            if (i + 1) % 1001 == 0 {
+                assert_eq!(*d, None, "{i}");
+                continue;
+            }
+            k += 1;
+            let want = d0_m + V_MPS * DT_S * (k - 1) as f64;
+            assert!(
+                (d.unwrap() - want).abs() < 1e-6,
+                "{i}: {d:?} against {want}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_failure_is_bridged_and_the_stream_keeps_its_order() {
+        let (out, b) = drive(6000, |t| (20.0..40.0).contains(&t));
+        assert_eq!(out.len(), 6006);
+        check(&out, 0.1);
+        let f = b.failures().unwrap();
+        assert_eq!((f.bridged, f.bridged_samples, f.one_ended), (1, 2000, 0));
+        assert!((f.longest_bridged_s - 20.0).abs() < 0.02, "{f:?}");
+        // From the last reading before (19.99 s) to the first after (40.00 s).
+        assert!((f.bridged_distance_m - 200.1).abs() < 1e-6, "{f:?}");
+        assert!(f.worst_residual_m < 1e-6, "{f:?}");
+        assert_eq!(f.not_bridged, 0);
+    }
+
+    #[test]
+    fn a_short_working_stretch_is_taken_into_one_failure() {
+        let (out, b) = drive(6000, |t| {
+            (20.0..25.0).contains(&t) || (25.5..30.0).contains(&t)
+        });
+        check(&out, 0.1);
+        let f = b.failures().unwrap();
+        assert_eq!((f.bridged, f.bridged_samples), (1, 950), "{f:?}");
+        // Two failures 2 s apart are two.
+        let (out, b) = drive(6000, |t| {
+            (20.0..25.0).contains(&t) || (27.0..30.0).contains(&t)
+        });
+        check(&out, 0.1);
+        assert_eq!(b.failures().unwrap().bridged, 2);
+    }
+
+    #[test]
+    fn failures_at_the_log_s_ends_are_bridged_from_one_side() {
+        let (out, b) = drive(6000, |t| t >= 50.0);
+        check(&out, 0.1);
+        let f = b.failures().unwrap();
+        assert_eq!((f.bridged, f.one_ended), (1, 1), "{f:?}");
+        // A log that begins failed starts its route at 0.
+        let (out, b) = drive(6000, |t| t < 5.0);
+        check(&out, 0.0);
+        assert_eq!(b.failures().unwrap().bridged, 1);
+    }
+
+    /// Beyond the longest bridged, the distance holds over the failure and the readings
+    /// after it continue from there; a later failure is bridged again.
+    #[test]
+    fn a_failure_longer_than_the_longest_bridged_holds_the_distance() {
+        let (out, b) = drive(30_000, |t| {
+            (20.0..150.0).contains(&t) || (200.0..210.0).contains(&t)
+        });
+        assert_eq!(out.len(), 30_030);
+        let distance = |t_s: f64| {
+            let k = (t_s / DT_S).round() as usize;
+            out[k - 1 + (k - 1) / 1000].1.unwrap()
+        };
+        assert!((distance(19.99) - 199.9).abs() < 1e-6);
+        assert_eq!(distance(100.0), distance(19.99));
+        assert_eq!(distance(149.99), distance(19.99));
+        // The first reading after (150.00 s) continues from the distance held.
+        assert!((distance(160.0) - distance(19.99) - 100.0).abs() < 1e-6);
+        assert!((distance(250.0) - distance(160.0) - 900.0).abs() < 1e-6);
+        let f = b.failures().unwrap();
+        assert_eq!((f.not_bridged, f.not_bridged_samples), (1, 13_000), "{f:?}");
+        assert_eq!((f.bridged, f.bridged_samples), (1, 1000), "{f:?}");
+
+        // A flag flickering on every tenth sample for 180 s: its first 120 s are one
+        // failure, too long to bridge, whose working samples keep their steps and
+        // flagged ones hold; the last minute is another, bridged.
+        let (out, b) = drive(30_000, |t| {
+            (20.0..200.0).contains(&t) && ((t / DT_S).round() as usize).is_multiple_of(10)
+        });
+        let f = b.failures().unwrap();
+        assert_eq!((f.bridged, f.not_bridged), (1, 1), "{f:?}");
+        assert_eq!(f.bridged_samples + f.not_bridged_samples, 1800, "{f:?}");
+        assert!(f.longest_bridged_s > 55.0, "{f:?}");
+        let speed = f.bridged_distance_m / (f.longest_bridged_s + DT_S);
+        assert!((speed - V_MPS).abs() < 1e-6, "{f:?}");
+        let distance = |k: usize| out[k - 1 + (k - 1) / 1000].1.unwrap();
+        for k in (3000..13_000).step_by(10) {
+            // Sample k flagged: it holds, and k + 1 goes on from it; k + 2… step.
+            assert_eq!(distance(k), distance(k - 1), "{k}");
+            assert_eq!(distance(k + 1), distance(k), "{k}");
+            for j in k + 2..k + 10 {
+                assert!((distance(j) - distance(j - 1) - 0.1).abs() < 1e-9, "{j}");
+            }
+        }
+    }
+}
