@@ -318,7 +318,9 @@ fn ingest_binary(
                     status: s.raw.status,
                     pulses: s.odo_pulses,
                 };
-                bridger.sample(sample, row);
+                if let Some((row, distance_m)) = bridger.sample(sample, row) {
+                    sinks.give(row, Some(distance_m), nominal_dt_s);
+                }
             }
             Accepted::Mark(m) => {
                 let t_ns = i64::try_from(m.t_us)

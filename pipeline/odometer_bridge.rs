@@ -92,10 +92,18 @@ impl<P> OdometerBridger<P> {
         }
     }
 
-    /// Takes the next IMU sample.
-    pub fn sample(&mut self, s: OdometerSample, payload: P) {
+    /// Takes the next IMU sample. While the odometer works and nothing is held, the
+    /// sample comes straight back with its distance (the common case, without a queue);
+    /// otherwise what is ready comes out of [`Self::ready`].
+    pub fn sample(&mut self, s: OdometerSample, payload: P) -> Option<(P, f64)> {
+        if self.state == State::Working && !s.failed {
+            if self.ready.is_empty() {
+                return Some((payload, self.keep_working(&s)));
+            }
+            self.give_working(s, payload);
+            return None;
+        }
         match self.state {
-            State::Working if !s.failed => self.give_working(s, payload),
             State::Working => {
                 self.state = State::Failed {
                     since_s: s.t_s,
@@ -116,7 +124,7 @@ impl<P> OdometerBridger<P> {
                         working_s: None,
                     };
                     self.held.push_back(Held::Sample(s, payload));
-                    return;
+                    return None;
                 }
                 self.held.push_back(Held::Sample(s, payload));
                 let working_s = match (s.failed, working_s) {
@@ -136,6 +144,7 @@ impl<P> OdometerBridger<P> {
             }
             State::Unbridged => self.give_unbridged(s, payload),
         }
+        None
     }
 
     /// Takes an item that is not a sample (a mark): given out in its place among them.
@@ -166,6 +175,12 @@ impl<P> OdometerBridger<P> {
     }
 
     fn give_working(&mut self, s: OdometerSample, payload: P) {
+        let d = self.keep_working(&s);
+        self.ready.push_back((payload, Some(d)));
+    }
+
+    /// The route's distance at a working sample, kept for a failure's window.
+    fn keep_working(&mut self, s: &OdometerSample) -> f64 {
         let d = s.distance_m + self.offset_m;
         self.last_m = d;
         self.before.push_back(BridgeSample {
@@ -181,7 +196,7 @@ impl<P> OdometerBridger<P> {
         {
             self.before.pop_front();
         }
-        self.ready.push_back((payload, Some(d)));
+        d
     }
 
     /// Bridges the failure held, gives it out, and goes on working.
@@ -332,7 +347,10 @@ mod tests {
                 distance_m: if f { f64::NAN } else { V_MPS * t_s - missed_m },
                 failed: f,
             };
-            b.sample(s, id);
+            if let Some((p, d)) = b.sample(s, id) {
+                out.extend(b.ready());
+                out.push((p, Some(d)));
+            }
             id += 1;
             if k % 1000 == 0 {
                 b.other(id);
