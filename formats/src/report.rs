@@ -82,7 +82,8 @@ pub struct OdometerFailures {
     /// Samples flagged in them.
     pub bridged_samples: u64,
     /// Of the bridged, those with readings before them only (the log ends in them):
-    /// their distance drifts faster (measured: 0.25 m at most over 10 s, 40 m over 30 s).
+    /// their distance drifts faster (measured: 0.31 m at most over 10 s, tens of metres
+    /// over 30 s).
     pub one_ended: u64,
     /// The longest bridged, s: from its first flagged sample to the first working one
     /// after it (or its last sample).
