@@ -619,19 +619,7 @@ fn an_odometer_failure_while_driving_is_bridged_by_the_inertial_speed() {
         .find(|&k| truth_m[k + len] - truth_m[k] > 400.0)
         .unwrap();
     let driven_m = truth_m[k0 + len] - truth_m[k0];
-    let raw = run.join(format!("{name}.unz"));
-    let mut log = crate::util::read_log(&raw);
-    let held = log.imu[k0].odo_count;
-    let missed = log.imu[k0 + len].odo_count.wrapping_sub(held);
-    for (k, x) in log.imu.iter_mut().enumerate().skip(k0) {
-        if k < k0 + len {
-            x.odo_count = held;
-            x.status |= 2;
-        } else {
-            x.odo_count = x.odo_count.wrapping_sub(missed);
-        }
-    }
-    crate::util::write_log(&raw, &log);
+    crate::util::hold_and_flag(&run.join(format!("{name}.unz")), k0, len);
     let out = tmp.path().join("o");
     run_until(&run, &out, "disupt");
 

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use unz::flow::NavigateSummary;
 use unz_formats::IngestReport;
 
-use crate::util::{files_below, read_json, read_log, unz, unz_output, write_log};
+use crate::util::{files_below, hold_and_flag, read_json, read_log, unz, unz_output};
 
 /// A campaign of two simulated 200 s runs; returns the campaign folder.
 fn campaign(dir: &Path) -> PathBuf {
@@ -776,21 +776,4 @@ fn an_odometer_flagged_failed_while_driving_is_bridged_and_said_in_the_summary()
         ),
         "{summary}"
     );
-}
-
-/// Flags the odometer failed on samples `[k0, k0 + len)` of the raw log at `raw`, its
-/// count held over them (the counts after them short by what was driven meanwhile).
-fn hold_and_flag(raw: &Path, k0: usize, len: usize) {
-    let mut log = read_log(raw);
-    let held = log.imu[k0].odo_count;
-    let missed = log.imu[k0 + len].odo_count.wrapping_sub(held);
-    for (k, x) in log.imu.iter_mut().enumerate().skip(k0) {
-        if k < k0 + len {
-            x.odo_count = held;
-            x.status |= 2;
-        } else {
-            x.odo_count = x.odo_count.wrapping_sub(missed);
-        }
-    }
-    write_log(raw, &log);
 }
