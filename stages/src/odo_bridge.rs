@@ -28,15 +28,16 @@
 //! its reading at t is the route at t − lag, while the IMU's increments are on time. A
 //! bridge that took it on time put the inertial speed's changes a lag early against the
 //! readings, and the tilt it fitted to them was off: a 0.4-s lag made 30-s bridges 13 m
-//! rms off (69 m at most). So each failure's fit is made at lags on a grid over ±1 s
-//! (the joint's bound) and at the vertex of the parabola through the best three, with a
+//! rms off (69 m at most). So each failure's fit is made at lags on a 0.2-s grid over
+//! ±1 s (the joint's bound; each fit starts from its neighbour's gravity direction) and
+//! at the vertex of the parabola through the best three, with a
 //! prior that holds the lag near zero where the readings do not see it; the bridge is
 //! then in the odometer's time base, as the readings are.
 //!
 //! Measured against truth on 30 simulated failures of each length (every sensor error
-//! on, hills and turns; `stages/tests/odo_bridge.rs`), rms (max): on time, 0.030 m
-//! (0.15) over 10 s, 0.13 m (0.39) over 30 s, 0.67 m (1.6) over 60 s, 3.9 m (11) over
-//! 120 s; 0.4 s late, 0.029 m (0.12), 0.88 m (4.2), 1.04 m (3.0), 5.0 m (13).
+//! on, hills and turns; `stages/tests/odo_bridge.rs`), rms (max): on time, 0.041 m
+//! (0.21) over 10 s, 0.11 m (0.24) over 30 s, 0.63 m (1.6) over 60 s, 3.8 m (11) over
+//! 120 s; 0.4 s late, 0.031 m (0.12), 0.87 m (4.2), 1.03 m (3.0), 4.8 m (13).
 //!
 //! Neglected: the IMU's lever arm and its yaw on the vehicle (a 1° boresight scales the
 //! along-track acceleration by 0.99985), and the rotation of the Earth-fixed frame
@@ -63,8 +64,8 @@ const MAX_ITERATIONS: usize = 8;
 const MIN_READINGS: usize = 10;
 /// The odometer's lag is searched over ±this, s: the joint fit's bound.
 const MAX_LAG_S: f64 = 1.0;
-/// Grid steps each side of zero lag (0.1 s).
-const LAG_STEPS: i32 = 10;
+/// Grid steps each side of zero lag (0.2 s; the vertex of a parabola refines it).
+const LAG_STEPS: i32 = 5;
 /// Prior σ of the lag, s: holds it near zero where the readings do not see it (a
 /// constant speed about the failure, where it does not matter either). Of 0.2, 0.5 and
 /// 2 s, 0.2 s did best on failures without a lag and about as well with 0.4 s.
@@ -158,16 +159,36 @@ impl Model {
 }
 
 impl Model {
-    /// The model at time `t_s` (samples at `times`), linear between samples and beyond
-    /// the ends.
-    fn at(&self, times: &[f64], t_s: f64) -> [f64; 6] {
-        let n = times.len();
-        let k = times.partition_point(|&t| t <= t_s).clamp(1, n - 1);
-        let (t0, t1) = (times[k - 1], times[k]);
-        let w = if t1 > t0 { (t_s - t0) / (t1 - t0) } else { 0.0 };
+    /// The model at a time given by [`Between::of`].
+    fn at(&self, (k, w): Between) -> [f64; 6] {
         let (a, b) = (&self.distance[k - 1], &self.distance[k]);
         std::array::from_fn(|i| a[i] + w * (b[i] - a[i]))
     }
+}
+
+/// A time between samples `k − 1` and `k`, at weight `w` from the first (linear, and
+/// beyond the ends).
+type Between = (usize, f64);
+
+/// Where each of `times` less `lag_s` falls among `times` (increasing, at least two).
+fn between(times: &[f64], lag_s: f64) -> Vec<Between> {
+    let n = times.len();
+    let mut k = 1;
+    times
+        .iter()
+        .map(|&t| {
+            let t_s = t - lag_s;
+            // The times are increasing, and so are these: a forward walk.
+            while k < n - 1 && times[k] <= t_s {
+                k += 1;
+            }
+            while k > 1 && times[k - 1] > t_s {
+                k -= 1;
+            }
+            let (t0, t1) = (times[k - 1], times[k]);
+            (k, if t1 > t0 { (t_s - t0) / (t1 - t0) } else { 0.0 })
+        })
+        .collect()
 }
 
 /// Two unit vectors across `u`, and across each other.
@@ -225,12 +246,21 @@ pub fn bridge(window: &[BridgeSample], g_mps2: f64) -> Option<Bridge> {
     };
     // The odometer's lag: on a grid over ±MAX_LAG_S, then at the vertex of the
     // parabola through the best and its neighbours.
-    let grid: Vec<(f64, Solved)> = (-LAG_STEPS..=LAG_STEPS)
-        .filter_map(|i| {
-            let lag_s = MAX_LAG_S * f64::from(i) / f64::from(LAG_STEPS);
-            problem.solve(u0, lag_s).map(|f| (lag_s, f))
-        })
-        .collect();
+    // Each fit starts from gravity's direction at the lag before it (from zero out).
+    let zero = problem.solve(u0, 0.0)?;
+    let mut grid: Vec<(f64, Solved)> = Vec::with_capacity(2 * LAG_STEPS as usize + 1);
+    for side in [-1.0, 1.0] {
+        let mut u = zero.u;
+        for i in 1..=LAG_STEPS {
+            let lag_s = side * MAX_LAG_S * f64::from(i) / f64::from(LAG_STEPS);
+            if let Some(f) = problem.solve(u, lag_s) {
+                u = f.u;
+                grid.push((lag_s, f));
+            }
+        }
+    }
+    grid.push((0.0, zero));
+    grid.sort_by(|a, b| a.0.total_cmp(&b.0));
     let best = (0..grid.len()).min_by(|&i, &j| grid[i].1.cost.total_cmp(&grid[j].1.cost))?;
     let mut solved = grid[best].1.clone();
     let mut lag_s = grid[best].0;
@@ -243,7 +273,10 @@ pub fn bridge(window: &[BridgeSample], g_mps2: f64) -> Option<Bridge> {
         let second = y[0] - 2.0 * y[1] + y[2];
         if second > 0.0 {
             let vertex = x[1] - 0.5 * h * (y[2] - y[0]) / second;
-            if let Some(f) = problem.solve(u0, vertex).filter(|f| f.cost < solved.cost) {
+            if let Some(f) = problem
+                .solve(solved.u, vertex)
+                .filter(|f| f.cost < solved.cost)
+            {
                 solved = f;
                 lag_s = vertex;
             }
@@ -300,6 +333,8 @@ struct Solved {
     squares: f64,
     /// The readings' χ² plus the lag's prior.
     cost: f64,
+    /// Gravity's direction it converged to (a start for the fit at a nearby lag).
+    u: Vector3<f64>,
 }
 
 /// What a window's fits share.
@@ -317,12 +352,13 @@ impl Fit<'_> {
     fn solve(&self, u0: Vector3<f64>, lag_s: f64) -> Option<Solved> {
         let (window, n_x) = (self.window, self.n_x);
         let times: Vec<f64> = window.iter().map(|s| s.t_s).collect();
+        let at = between(&times, lag_s);
         let rows = self.readings + 4;
         let mut u = u0;
         for iteration in 0.. {
             let model = Model::new(window, self.axes, u, self.g_mps2);
             // The model at each sample's time less the lag.
-            let lagged: Vec<[f64; 6]> = times.iter().map(|t| model.at(&times, t - lag_s)).collect();
+            let lagged: Vec<[f64; 6]> = at.iter().map(|&b| model.at(b)).collect();
             let mut a = DMatrix::zeros(rows, n_x);
             let mut b = DVector::zeros(rows);
             let mut row = 0;
@@ -375,9 +411,9 @@ impl Fit<'_> {
                 let cost = squares / DISTANCE_SIGMA_M.powi(2) + (lag_s / LAG_SIGMA_S).powi(2);
                 return cost.is_finite().then_some(Solved {
                     route,
-
                     squares,
                     cost,
+                    u,
                 });
             }
             // Re-centre gravity's direction on the angles found, and take them again
