@@ -23,8 +23,8 @@ pub const MAX_BRIDGED_S: f64 = 120.0;
 /// A working stretch shorter than this between flagged samples is taken into one
 /// failure, s: too short to see the speed and the tilt after the first.
 const MIN_WORKING_S: f64 = 1.0;
-/// Samples held back at most, whatever their time tags say (tags that do not advance
-/// would otherwise hold a log back whole).
+/// Samples held back at most, and kept for a failure's window before it, whatever their
+/// time tags say (tags that do not advance would otherwise hold a log whole).
 const MAX_HELD: usize = 100_000;
 
 /// One IMU sample, as the bridge takes it.
@@ -190,10 +190,11 @@ impl<P> OdometerBridger<P> {
             dvel_mps: s.dvel_mps,
             reading: Reading::Before(d),
         });
-        while self
-            .before
-            .front()
-            .is_some_and(|f| s.t_s - f.t_s > WINDOW_S)
+        while self.before.len() > MAX_HELD
+            || self
+                .before
+                .front()
+                .is_some_and(|f| s.t_s - f.t_s > WINDOW_S)
         {
             self.before.pop_front();
         }

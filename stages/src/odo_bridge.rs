@@ -60,6 +60,8 @@ const TILT_SIGMA_RAD: f64 = 0.1;
 const TILT_RATE_SIGMA_RAD_S: f64 = 1.5e-4;
 /// Gauss–Newton iterations at most.
 const MAX_ITERATIONS: usize = 8;
+/// Iterations of an SVD at most (seven columns converge in a few dozen).
+const SVD_MAX_ITERATIONS: usize = 1000;
 /// Readings a fit needs at least.
 const MIN_READINGS: usize = 10;
 /// The odometer's lag is searched over ±this, s: the joint fit's bound.
@@ -245,8 +247,8 @@ pub fn bridge(window: &[BridgeSample], g_mps2: f64) -> Option<Bridge> {
         readings,
     };
     // The odometer's lag: on a grid over ±MAX_LAG_S, then at the vertex of the
-    // parabola through the best and its neighbours.
-    // Each fit starts from gravity's direction at the lag before it (from zero out).
+    // parabola through the best and its neighbours. Each fit starts from gravity's
+    // direction at the lag before it (from zero out).
     let zero = problem.solve(u0, 0.0)?;
     let mut grid: Vec<(f64, Solved)> = Vec::with_capacity(2 * LAG_STEPS as usize + 1);
     for side in [-1.0, 1.0] {
@@ -269,10 +271,15 @@ pub fn bridge(window: &[BridgeSample], g_mps2: f64) -> Option<Bridge> {
             .iter()
             .map(|(l, f)| (*l, f.cost))
             .unzip();
-        let h = x[1] - x[0];
-        let second = y[0] - 2.0 * y[1] + y[2];
-        if second > 0.0 {
-            let vertex = x[1] - 0.5 * h * (y[2] - y[0]) / second;
+        // Through three points (a failed fit may have left the grid uneven).
+        let d = (x[0] - x[1]) * (x[0] - x[2]) * (x[1] - x[2]);
+        let a = (x[2] * (y[1] - y[0]) + x[1] * (y[0] - y[2]) + x[0] * (y[2] - y[1])) / d;
+        let b = (x[2] * x[2] * (y[0] - y[1])
+            + x[1] * x[1] * (y[2] - y[0])
+            + x[0] * x[0] * (y[1] - y[2]))
+            / d;
+        if a > 0.0 && a.is_finite() {
+            let vertex = (-b / (2.0 * a)).clamp(x[0], x[2]);
             if let Some(f) = problem
                 .solve(solved.u, vertex)
                 .filter(|f| f.cost < solved.cost)
@@ -437,7 +444,15 @@ fn solve_scaled(mut a: DMatrix<f64>, b: DVector<f64>) -> Option<DVector<f64>> {
     for (j, s) in scales.iter().enumerate() {
         a.column_mut(j).scale_mut(*s);
     }
-    let x = a.svd(true, true).solve(&b, 1e-12).ok()?;
+    // A log's values are untrusted: a matrix that is not finite, or an SVD that does not
+    // converge within its iterations, is no bridge (never an endless loop).
+    if !a.iter().chain(b.iter()).all(|v| v.is_finite()) {
+        return None;
+    }
+    let x = a
+        .try_svd(true, true, f64::EPSILON, SVD_MAX_ITERATIONS)?
+        .solve(&b, 1e-12)
+        .ok()?;
     Some(DVector::from_iterator(
         x.len(),
         x.iter().zip(&scales).map(|(x, s)| x * s),
