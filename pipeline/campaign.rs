@@ -338,12 +338,12 @@ fn odometer_failure_note(n: &NavigateSummary, failures: Option<&OdometerFailures
 }
 
 /// What the summary's error column says of a run that did not fail: an odometer flagged
-/// failed on some samples; the methods its disupt stage did not run (those refused for
-/// one reason together) or ran but did not use for the corrected navigation, with the
-/// reason; a coarse azimuth turn refused; an odometer yaw boresight the joint fit's
-/// residuals show (and estimated); the control points the joint fit's hold-out finds
-/// inconsistent with the rest of the run; and the control points marked more than once,
-/// with the mark used.
+/// failed on some samples (bridged or not); the methods its disupt stage did not run
+/// (those refused for one reason together) or ran but did not use for the corrected
+/// navigation, with the reason; a coarse azimuth turn refused; an odometer yaw boresight
+/// the joint fit's residuals show (and estimated); the control points the joint fit's
+/// hold-out finds inconsistent with the rest of the run; and the control points marked
+/// more than once, with the mark used.
 fn run_note(
     d: Option<&DisuptOut>,
     nav: Option<&NavigateSummary>,

@@ -4,8 +4,8 @@
 //!
 //! The log is streamed: memory is bounded by the reader's buffer, one batch of rows and
 //! the samples an odometer failure holds back until it is bridged (at most 100 000;
-//! `crate::odometer_bridge`), whatever the file size. Bad records never stop the stage; an unreadable file does,
-//! with an error naming it.
+//! `crate::odometer_bridge`), whatever the file size. Bad records never stop the stage;
+//! an unreadable file does, with an error naming it.
 
 use std::io::BufReader;
 use std::path::{Path, PathBuf};

@@ -73,7 +73,8 @@ pub struct IngestReport {
 /// flagged samples (a working stretch shorter than a second inside one is taken into
 /// it); its counts are never read. Bridged, the route's distance over it is the inertial
 /// along-track speed's, fitted to the odometer's readings around it
-/// (`unz_stages::odo_bridge`); not bridged, the route has no distance over it.
+/// (`unz_stages::odo_bridge`); not bridged, the route has no distance over its flagged
+/// samples.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OdometerFailures {
@@ -95,17 +96,10 @@ pub struct OdometerFailures {
     /// inertial speed and the odometer agree.
     pub worst_residual_m: f64,
     /// Failures not bridged (longer than the longest bridged, or without readings
-    /// around them): the route has no distance over them.
+    /// around them): the route has no distance over their flagged samples.
     pub not_bridged: u64,
     /// Samples flagged in them.
     pub not_bridged_samples: u64,
-}
-
-impl OdometerFailures {
-    /// Flagged samples, bridged or not.
-    pub fn samples(&self) -> u64 {
-        self.bridged_samples + self.not_bridged_samples
-    }
 }
 
 /// Accounting of a separate odometer file: `lines_read == lines_accepted +

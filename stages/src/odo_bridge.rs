@@ -30,9 +30,11 @@
 //! readings, and the tilt it fitted to them was off: a 0.4-s lag made 30-s bridges 13 m
 //! rms off (69 m at most). So each failure's fit is made at lags on a 0.2-s grid over
 //! ±1 s (the joint's bound; each fit starts from its neighbour's gravity direction) and
-//! at the vertex of the parabola through the best three, with a
-//! prior that holds the lag near zero where the readings do not see it; the bridge is
-//! then in the odometer's time base, as the readings are.
+//! at the vertex of the parabola through the best three, with a prior that holds the lag
+//! near zero where the readings do not see it; the bridge is then in the odometer's time
+//! base, as the readings are. A lag the readings around a failure do not show (the
+//! vehicle at rest on one side, at a constant speed on the other) is not found: the
+//! bridge is then off by the lag times the change of speed.
 //!
 //! Measured against truth on 30 simulated failures of each length (every sensor error
 //! on, hills and turns; `stages/tests/odo_bridge.rs`), rms (max): on time, 0.041 m
@@ -40,10 +42,8 @@
 //! 120 s; 0.4 s late, 0.031 m (0.12), 0.87 m (4.2), 1.03 m (3.0), 4.8 m (13).
 //!
 //! Neglected: the IMU's lever arm and its yaw on the vehicle (a 1° boresight scales the
-//! along-track acceleration by 0.99985), and the rotation of the Earth-fixed frame
-//! beyond its rate (the Coriolis acceleration, ≤ 2Ω·v ≈ 3 mm/s² at 20 m/s, is not along
-//! the track of a vehicle that does not turn, and is a few centimetres over a minute when
-//! it does).
+//! along-track acceleration by 0.99985). The Coriolis acceleration (2Ω × v, ≤ 3 mm/s² at
+//! 20 m/s) is across the velocity, never along the track.
 
 use nalgebra::{DMatrix, DVector, Rotation3, Vector3};
 
