@@ -11,20 +11,24 @@ use crate::util::{files_below, hold_and_flag, read_json, read_log, unz, unz_outp
 
 /// A campaign of two simulated 200 s runs; returns the campaign folder.
 fn campaign(dir: &Path) -> PathBuf {
-    let camp = dir.join("c");
+    simulated_campaign(&dir.join("c"), 80, 2, 200.0)
+}
+
+/// Simulates `runs` runs of `duration_s` from `seed` into `camp`; returns it.
+fn simulated_campaign(camp: &Path, seed: u32, runs: u32, duration_s: f64) -> PathBuf {
     let o = unz_output(&[
         "simulate",
         "--out",
         camp.to_str().unwrap(),
         "--seed",
-        "80",
+        &seed.to_string(),
         "--runs",
-        "2",
+        &runs.to_string(),
         "--duration-s",
-        "200",
+        &duration_s.to_string(),
     ]);
     assert!(o.status.success());
-    camp
+    camp.to_path_buf()
 }
 
 /// Runs the campaign until `until`; returns (exit code, stdout).
@@ -717,19 +721,7 @@ fn an_odometer_flagged_failed_while_driving_is_bridged_and_said_in_the_summary()
     assert!(!row("sim-0081").contains("flagged failed"), "{summary}");
 
     // 150 s flagged in a 30-minute run (a tenth of it would fail the run).
-    let camp = tmp.path().join("long");
-    let o = unz_output(&[
-        "simulate",
-        "--out",
-        camp.to_str().unwrap(),
-        "--seed",
-        "82",
-        "--runs",
-        "1",
-        "--duration-s",
-        "1800",
-    ]);
-    assert!(o.status.success());
+    let camp = simulated_campaign(&tmp.path().join("long"), 82, 1, 1800.0);
     let (k0, len) = (30_000, 15_000);
     hold_and_flag(&camp.join("sim-0082/sim-0082.unz"), k0, len);
     let out = tmp.path().join("o-long");

@@ -241,6 +241,7 @@ pub fn bridge(window: &[BridgeSample], g_mps2: f64) -> Option<Bridge> {
     let n_x = if has_after && has_before { 7 } else { 6 };
     let problem = Fit {
         window,
+        times: window.iter().map(|s| s.t_s).collect(),
         axes: &axes,
         g_mps2,
         n_x,
@@ -347,6 +348,8 @@ struct Solved {
 /// What a window's fits share.
 struct Fit<'a> {
     window: &'a [BridgeSample],
+    /// The window's time tags, s.
+    times: Vec<f64>,
     axes: &'a [Vector3<f64>],
     g_mps2: f64,
     n_x: usize,
@@ -358,8 +361,7 @@ impl Fit<'_> {
     /// t − lag), Gauss–Newton from gravity's direction `u0`.
     fn solve(&self, u0: Vector3<f64>, lag_s: f64) -> Option<Solved> {
         let (window, n_x) = (self.window, self.n_x);
-        let times: Vec<f64> = window.iter().map(|s| s.t_s).collect();
-        let at = between(&times, lag_s);
+        let at = between(&self.times, lag_s);
         let rows = self.readings + 4;
         let mut u = u0;
         for iteration in 0.. {
