@@ -279,17 +279,31 @@ fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
     serde_json::from_slice(&std::fs::read(path).ok()?).ok()
 }
 
-/// What the summary says of a run whose odometer the log flags failed (status bit 1) on
-/// some samples (a run fails above a tenth), from the ingest's account of its failures:
-/// bridged by the inertial along-track speed, with how long and how far; not bridged, the
-/// dead reckoning has no distance over them, so the route after them is short by what
-/// the vehicle drove meanwhile, which the control points and the methods' fits then show.
+/// What the summary says of a run whose odometer failed on some samples: flagged by the
+/// log (status bit 1; a run fails above a tenth), or a count that stopped where the
+/// vehicle could not have, from the ingest's account of its failures: bridged by the
+/// inertial along-track speed, with how long and how far; not bridged, the dead reckoning
+/// has no distance over them, so the route after them is short by what the vehicle drove
+/// meanwhile, which the control points and the methods' fits then show.
 fn odometer_failure_note(n: &NavigateSummary, failures: Option<&OdometerFailures>) -> String {
-    let s = n.odometer_failure_samples as f64 * n.duration_s / n.samples.max(1) as f64;
-    let flagged = format!(
-        "the odometer is flagged failed (status bit 1) on {} samples ({s:.1} s)",
-        n.odometer_failure_samples
-    );
+    let seconds = |samples: u64| samples as f64 * n.duration_s / n.samples.max(1) as f64;
+    let flagged = (n.odometer_failure_samples > 0).then(|| {
+        format!(
+            "the odometer is flagged failed (status bit 1) on {} samples ({:.1} s)",
+            n.odometer_failure_samples,
+            seconds(n.odometer_failure_samples as u64)
+        )
+    });
+    let stuck = failures.filter(|f| f.stuck > 0).map(|f| {
+        format!(
+            "the odometer's count stopped where the vehicle could not have, unflagged: {} \
+             time{} ({} samples, {:.1} s)",
+            f.stuck,
+            if f.stuck == 1 { "" } else { "s" },
+            f.stuck_samples,
+            seconds(f.stuck_samples)
+        )
+    });
     let bridged = failures.filter(|f| f.bridged > 0).map(|f| {
         let one_ended = match f.one_ended {
             0 => String::new(),
@@ -330,7 +344,9 @@ fn odometer_failure_note(n: &NavigateSummary, failures: Option<&OdometerFailures
              the methods' fits carry it"
         )
     });
-    std::iter::once(flagged)
+    flagged
+        .into_iter()
+        .chain(stuck)
         .chain(bridged)
         .chain(lost)
         .collect::<Vec<_>>()
@@ -360,9 +376,10 @@ fn run_note(
     let odo_yaw = d
         .and_then(|d| d.joint_odo_yaw_check.as_ref())
         .and_then(crate::disupt_stage::odo_yaw_note);
+    let failures = ing.and_then(|i| i.odometer_failures.as_ref());
     let odo_failed = nav
-        .filter(|n| n.odometer_failure_samples > 0)
-        .map(|n| odometer_failure_note(n, ing.and_then(|i| i.odometer_failures.as_ref())));
+        .filter(|n| n.odometer_failure_samples > 0 || failures.is_some_and(|f| f.stuck > 0))
+        .map(|n| odometer_failure_note(n, failures));
     // Methods refused for one reason (a run without motion refuses all three) share it.
     let mut by_reason: Vec<(Vec<&str>, &str)> = Vec::new();
     for (name, why) in skipped {

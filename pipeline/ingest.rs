@@ -277,7 +277,7 @@ fn ingest_binary(
     let mut first_pulses = None;
     // The odometer's failures (status bit 1) are bridged: their samples, and the marks
     // among them, are held back until they are.
-    let mut bridger = OdometerBridger::new(site_gravity_mps2(manifest));
+    let mut bridger = OdometerBridger::new(site_gravity_mps2(manifest), scale, nominal_dt_s);
     let give = |sinks: &mut Sinks, bridger: &mut OdometerBridger<Row>| {
         for (row, distance_m) in bridger.ready() {
             sinks.give(row, distance_m, nominal_dt_s);

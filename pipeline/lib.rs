@@ -22,6 +22,7 @@ pub mod method_tables;
 pub mod nav_writer;
 pub mod odometer_bridge;
 pub mod odometer_range;
+pub mod odometer_stuck;
 pub mod raw_mcap;
 pub mod review;
 pub mod review_sensors;

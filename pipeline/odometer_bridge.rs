@@ -1,11 +1,13 @@
-//! The ingest's bridge of the odometer's failures a binary log flags (status bit 1),
-//! streamed: the samples of a failure, and those of the odometer working again after it
-//! up to [`WINDOW_S`], are held back until it can be bridged
-//! ([`unz_stages::odo_bridge::bridge`]), then given out in the order taken, each with the
-//! route's distance. Held back at most: the longest bridged failure and a window, about
-//! 13 000 samples at 100 Hz.
+//! The ingest's bridge of the odometer's failures in a binary log, streamed: those the
+//! log flags (status bit 1), and counts that stop where the vehicle could not have
+//! ([`crate::odometer_stuck`]), found from their last step on. The samples of a failure,
+//! and those of the odometer working again after it up to [`WINDOW_S`], are held back
+//! until it can be bridged ([`unz_stages::odo_bridge::bridge`]), then given out in the
+//! order taken, each with the route's distance. Held back at most: the longest bridged
+//! failure and a window, about 13 000 samples at 100 Hz (and, while a standing count is
+//! judged, the samples since its last step: 0.1 s to a few seconds).
 //!
-//! A flagged sample's count is never read: the count of a failed odometer may hold,
+//! A failed sample's count is never read: the count of a failed odometer may hold,
 //! jump, restart or be garbage. The readings after a failure continue the bridge (or,
 //! not bridged, the distance held over it), whatever their count did meanwhile.
 
@@ -13,6 +15,8 @@ use std::collections::VecDeque;
 
 use unz_formats::OdometerFailures;
 use unz_stages::odo_bridge::{BridgeSample, Reading, WINDOW_S, bridge};
+
+use crate::odometer_stuck::{Count, StuckCount};
 
 /// The longest failure bridged, s. Measured on simulated failures while driving, the
 /// bridge's error across a failure is 0.11 m rms (0.24 m at most) over 30 s, 0.63 m
@@ -38,7 +42,7 @@ pub struct OdometerSample {
     pub dvel_mps: [f64; 3],
     /// The odometer's cumulative distance, m (not read when `failed`).
     pub distance_m: f64,
-    /// The status flags the odometer failed.
+    /// The status flags the odometer failed (or, once taken, its count is stuck).
     pub failed: bool,
 }
 
@@ -51,7 +55,7 @@ enum Held<P> {
 /// Where the stream is.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum State {
-    /// The odometer works.
+    /// The odometer works (samples may be held while a standing count is judged).
     Working,
     /// In a failure since `since_s`; working again since `working_s`, if it is.
     Failed {
@@ -67,6 +71,8 @@ enum State {
 pub struct OdometerBridger<P> {
     g_mps2: f64,
     state: State,
+    /// The count judged against a land vehicle's braking.
+    stuck: StuckCount,
     /// The last [`WINDOW_S`] of working samples given out, their readings the route's.
     before: VecDeque<BridgeSample>,
     held: VecDeque<Held<P>>,
@@ -79,11 +85,13 @@ pub struct OdometerBridger<P> {
 }
 
 impl<P> OdometerBridger<P> {
-    /// A bridger at a site where gravity is `g_mps2`.
-    pub fn new(g_mps2: f64) -> Self {
+    /// A bridger at a site where gravity is `g_mps2`, for a count of `pulse_m` metres per
+    /// pulse sampled every `period_s`.
+    pub fn new(g_mps2: f64, pulse_m: f64, period_s: f64) -> Self {
         Self {
             g_mps2,
             state: State::Working,
+            stuck: StuckCount::new(pulse_m, period_s),
             before: VecDeque::new(),
             held: VecDeque::new(),
             ready: VecDeque::new(),
@@ -96,7 +104,35 @@ impl<P> OdometerBridger<P> {
     /// Takes the next IMU sample. While the odometer works and nothing is held, the
     /// sample comes straight back with its distance (the common case, without a queue);
     /// otherwise what is ready comes out of [`Self::ready`].
-    pub fn sample(&mut self, s: OdometerSample, payload: P) -> Option<(P, f64)> {
+    pub fn sample(&mut self, mut s: OdometerSample, payload: P) -> Option<(P, f64)> {
+        let count = if s.failed {
+            self.stuck.flagged();
+            Count::Plausible
+        } else {
+            self.stuck.judge(s.t_s, s.distance_m)
+        };
+        match count {
+            Count::Plausible => {
+                if self.state == State::Working && !self.held.is_empty() {
+                    // The count judged moved again: what was held was working.
+                    self.give_held_working();
+                }
+            }
+            Count::Suspect => {
+                if self.state == State::Working {
+                    self.held.push_back(Held::Sample(s, payload));
+                    return None;
+                }
+            }
+            Count::Found { standing } => {
+                s.failed = true;
+                self.take_stuck(standing);
+            }
+            Count::Stuck => {
+                s.failed = true;
+                self.failures.stuck_samples += 1;
+            }
+        }
         if self.state == State::Working && !s.failed {
             if self.ready.is_empty() {
                 return Some((payload, self.keep_working(&s)));
@@ -162,10 +198,13 @@ impl<P> OdometerBridger<P> {
         self.ready.drain(..)
     }
 
-    /// Ends the stream: a failure still held is bridged from what there is.
+    /// Ends the stream: a failure still held is bridged from what there is, and a
+    /// standing count not judged stuck was working.
     pub fn finish(&mut self) {
-        if matches!(self.state, State::Failed { .. }) {
-            self.resolve();
+        match self.state {
+            State::Failed { .. } => self.resolve(),
+            State::Working => self.give_held_working(),
+            State::Unbridged => {}
         }
     }
 
@@ -173,6 +212,53 @@ impl<P> OdometerBridger<P> {
     pub fn failures(&self) -> Option<&OdometerFailures> {
         let f = &self.failures;
         (f.bridged + f.not_bridged > 0).then_some(f)
+    }
+
+    /// A count found stuck: the `standing` samples held before this one (since its last
+    /// step) fail with it, and a failure begins at the first of them (or, in one,
+    /// goes on).
+    fn take_stuck(&mut self, standing: usize) {
+        self.failures.stuck += 1;
+        self.failures.stuck_samples += 1 + standing as u64;
+        let mut first_t_s = None;
+        let mut left = standing;
+        for h in self.held.iter_mut().rev() {
+            if left == 0 {
+                break;
+            }
+            if let Held::Sample(x, _) = h {
+                x.failed = true;
+                first_t_s = Some(x.t_s);
+                left -= 1;
+            }
+        }
+        match self.state {
+            State::Working => {
+                if let Some(since_s) = first_t_s {
+                    self.state = State::Failed {
+                        since_s,
+                        working_s: None,
+                    };
+                }
+            }
+            State::Failed { since_s, .. } => {
+                self.state = State::Failed {
+                    since_s,
+                    working_s: None,
+                };
+            }
+            State::Unbridged => {}
+        }
+    }
+
+    /// Gives out what is held as working samples (and the marks among them).
+    fn give_held_working(&mut self) {
+        for h in std::mem::take(&mut self.held) {
+            match h {
+                Held::Other(p) => self.ready.push_back((p, None)),
+                Held::Sample(s, p) => self.give_working(s, p),
+            }
+        }
     }
 
     fn give_working(&mut self, s: OdometerSample, payload: P) {
@@ -323,6 +409,7 @@ mod tests {
     const G: f64 = 9.8;
     const V_MPS: f64 = 10.0;
     const DT_S: f64 = 0.01;
+    const PULSE_M: f64 = 0.0125;
 
     /// A level drive at 10 m/s for `n` samples of 100 Hz, flagged failed where
     /// `failed(t)`, its count held over the failures (the readings after them short);
@@ -332,21 +419,35 @@ mod tests {
         n: usize,
         failed: impl Fn(f64) -> bool,
     ) -> (Vec<(usize, Option<f64>)>, OdometerBridger<usize>) {
-        let mut b = OdometerBridger::new(G);
+        drive_stuck(n, failed, |_| false)
+    }
+
+    /// [`drive`], with the count also held, unflagged, where `stuck(t)`.
+    fn drive_stuck(
+        n: usize,
+        failed: impl Fn(f64) -> bool,
+        stuck: impl Fn(f64) -> bool,
+    ) -> (Vec<(usize, Option<f64>)>, OdometerBridger<usize>) {
+        let mut b = OdometerBridger::new(G, PULSE_M, DT_S);
         let mut out = Vec::new();
         let mut id = 0;
         let mut missed_m = 0.0;
         for k in 1..=n {
             let t_s = k as f64 * DT_S;
             let f = failed(t_s);
-            if f {
+            if f || stuck(t_s) {
                 missed_m += V_MPS * DT_S;
             }
             let s = OdometerSample {
                 t_s,
                 dtheta_rad: [0.0; 3],
                 dvel_mps: [0.0, 0.0, -G * DT_S],
-                distance_m: if f { f64::NAN } else { V_MPS * t_s - missed_m },
+                // A count of whole pulses.
+                distance_m: if f {
+                    f64::NAN
+                } else {
+                    ((V_MPS * t_s - missed_m) / PULSE_M).round() * PULSE_M
+                },
                 failed: f,
             };
             if let Some((p, d)) = b.sample(s, id) {
@@ -396,6 +497,28 @@ mod tests {
         assert!((f.bridged_distance_m - 200.1).abs() < 1e-6, "{f:?}");
         assert!(f.worst_residual_m < 1e-6, "{f:?}");
         assert_eq!(f.not_bridged, 0);
+    }
+
+    /// A count that stops at 10 m/s without a flag is a failure from its last step on,
+    /// bridged like a flagged one; the samples judged while it stood keep their order.
+    #[test]
+    fn a_count_stuck_while_driving_is_bridged_unflagged() {
+        let (out, b) = drive_stuck(6000, |_| false, |t| (20.0..40.0).contains(&t));
+        assert_eq!(out.len(), 6006);
+        check(&out, 0.1);
+        let f = b.failures().unwrap();
+        assert_eq!((f.bridged, f.bridged_samples, f.not_bridged), (1, 2000, 0));
+        assert_eq!((f.stuck, f.stuck_samples), (1, 2000));
+        assert!((f.longest_bridged_s - 20.0).abs() < 0.02, "{f:?}");
+        // Stuck for the rest of the log: one-ended, and beyond the longest bridged.
+        let (out, b) = drive_stuck(30_000, |_| false, |t| t >= 100.0);
+        let f = b.failures().unwrap();
+        assert_eq!((f.bridged, f.not_bridged, f.stuck), (0, 1, 1), "{f:?}");
+        assert_eq!(f.stuck_samples, 20_001, "{f:?}");
+        assert_eq!(out.len(), 30_030);
+        // A count that stands at a stop is no failure; neither is a flag's own.
+        let (_, b) = drive_stuck(6000, |t| (20.0..21.0).contains(&t), |_| false);
+        assert_eq!(b.failures().unwrap().stuck, 0);
     }
 
     #[test]

@@ -619,7 +619,7 @@ fn an_odometer_failure_while_driving_is_bridged_by_the_inertial_speed() {
         .find(|&k| truth_m[k + len] - truth_m[k] > 400.0)
         .unwrap();
     let driven_m = truth_m[k0 + len] - truth_m[k0];
-    crate::util::hold_and_flag(&run.join(format!("{name}.unz")), k0, len);
+    crate::util::hold_count(&run.join(format!("{name}.unz")), k0, len, true);
     let out = tmp.path().join("o");
     run_until(&run, &out, "disupt");
 

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use unz::flow::NavigateSummary;
 use unz_formats::IngestReport;
 
-use crate::util::{files_below, hold_and_flag, read_json, read_log, unz, unz_output};
+use crate::util::{files_below, hold_count, read_json, read_log, unz, unz_output};
 
 /// A campaign of two simulated 200 s runs; returns the campaign folder.
 fn campaign(dir: &Path) -> PathBuf {
@@ -693,7 +693,7 @@ fn an_odometer_flagged_failed_while_driving_is_bridged_and_said_in_the_summary()
     let camp = campaign(tmp.path());
     let raw = camp.join("sim-0080/sim-0080.unz");
     // From 150 s (driving since the 90-s static start) for 1500 samples of 100 Hz.
-    hold_and_flag(&raw, 15_000, 1500);
+    hold_count(&raw, 15_000, 1500, true);
     let out = tmp.path().join("o");
     let (code, text) = run(&camp, &out, "disupt");
     assert_eq!(code, Some(0), "{text}");
@@ -723,7 +723,7 @@ fn an_odometer_flagged_failed_while_driving_is_bridged_and_said_in_the_summary()
     // 150 s flagged in a 30-minute run (a tenth of it would fail the run).
     let camp = simulated_campaign(&tmp.path().join("long"), 82, 1, 1800.0);
     let (k0, len) = (30_000, 15_000);
-    hold_and_flag(&camp.join("sim-0082/sim-0082.unz"), k0, len);
+    hold_count(&camp.join("sim-0082/sim-0082.unz"), k0, len, true);
     let out = tmp.path().join("o-long");
     let (code, text) = run(&camp, &out, "disupt");
     assert_eq!(code, Some(0), "{text}");
@@ -766,6 +766,82 @@ fn an_odometer_flagged_failed_while_driving_is_bridged_and_said_in_the_summary()
              failure (15000 samples) not bridged (longer than 120 s, or without readings \
              around it): the dead reckoning has no distance over them"
         ),
+        "{summary}"
+    );
+}
+
+/// An odometer count that stops while driving without a flag (a broken wheel sensor or
+/// cable): a stop from the speed before would have taken metres, so the ingest finds it
+/// from the count's last step on and bridges it like a flagged failure, and the summary
+/// says so. Stopped for the rest of a 30-minute run, it is too long to bridge: found,
+/// the distance held, and said.
+#[test]
+fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let raw = camp.join("sim-0080/sim-0080.unz");
+    hold_count(&raw, 15_000, 1500, false);
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "disupt");
+    assert_eq!(code, Some(0), "{text}");
+    let nav: NavigateSummary = read_json(&out.join("sim-0080/navigate/navigate.json"));
+    assert_eq!(nav.odometer_failure_samples, 0);
+    let ingest: IngestReport = read_json(&out.join("sim-0080/ingest/ingest.json"));
+    let f = ingest.odometer_failures.unwrap();
+    // From the sample after the last step (15 000) to the last held (16 500).
+    assert_eq!((f.bridged, f.bridged_samples, f.not_bridged), (1, 1500, 0));
+    assert_eq!((f.stuck, f.stuck_samples), (1, 1500));
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains(
+            "| the odometer's count stopped where the vehicle could not have, unflagged: 1 \
+             time (1500 samples, 15.0 s); bridged by the inertial along-track speed: 1 \
+             failure (15.0 s, "
+        ),
+        "{summary}"
+    );
+    let other: IngestReport = read_json(&out.join("sim-0081/ingest/ingest.json"));
+    assert_eq!(other.odometer_failures, None);
+
+    // Stopped at speed 20 minutes into a 30-minute run, for good.
+    let camp = simulated_campaign(&tmp.path().join("long"), 82, 1, 1800.0);
+    let raw = camp.join("sim-0082/sim-0082.unz");
+    let log = read_log(&raw);
+    let n = log.imu.len();
+    let k0 = (120_000..n - 100)
+        .find(|&k| {
+            let pulses = log.imu[k + 100]
+                .odo_count
+                .wrapping_sub(log.imu[k].odo_count);
+            f64::from(pulses) * log.header.odo_lsb_m > 5.0
+        })
+        .unwrap();
+    hold_count(&raw, k0, n - 1 - k0, false);
+    let out = tmp.path().join("o-long");
+    let (code, text) = run(&camp, &out, "disupt");
+    assert_eq!(code, Some(0), "{text}");
+    let ingest: IngestReport = read_json(&out.join("sim-0082/ingest/ingest.json"));
+    let f = ingest.odometer_failures.unwrap();
+    let stuck = (n - 1 - k0) as u64;
+    assert_eq!(
+        (
+            f.stuck,
+            f.stuck_samples,
+            f.bridged,
+            f.not_bridged,
+            f.not_bridged_samples
+        ),
+        (1, stuck, 0, 1, stuck)
+    );
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains(&format!(
+            "the odometer's count stopped where the vehicle could not have, unflagged: 1 time \
+             ({stuck} samples, {:.1} s); 1 failure ({stuck} samples) not bridged (longer than \
+             120 s, or without readings around it): the dead reckoning has no distance over \
+             them",
+            stuck as f64 * 0.01
+        )),
         "{summary}"
     );
 }

@@ -182,16 +182,19 @@ pub fn write_log(path: &Path, log: &Log) {
     std::fs::write(path, w.finish().unwrap()).unwrap();
 }
 
-/// Flags the odometer failed on samples `[k0, k0 + len)` of the raw log at `raw`, its
-/// count held over them (the counts after them short by what was driven meanwhile).
-pub fn hold_and_flag(raw: &Path, k0: usize, len: usize) {
+/// Holds the odometer's count on samples `[k0, k0 + len)` of the raw log at `raw` (the
+/// counts after them short by what was driven meanwhile), flagging them failed if
+/// `flagged` (status bit 1); unflagged, the count stops as a broken wheel sensor's does.
+pub fn hold_count(raw: &Path, k0: usize, len: usize, flagged: bool) {
     let mut log = read_log(raw);
     let held = log.imu[k0].odo_count;
     let missed = log.imu[k0 + len].odo_count.wrapping_sub(held);
     for (k, x) in log.imu.iter_mut().enumerate().skip(k0) {
         if k < k0 + len {
             x.odo_count = held;
-            x.status |= 2;
+            if flagged {
+                x.status |= 2;
+            }
         } else {
             x.odo_count = x.odo_count.wrapping_sub(missed);
         }

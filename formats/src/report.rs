@@ -63,30 +63,31 @@ pub struct IngestReport {
     /// Text logs with a separate odometer file (`[odometer] file`): its lines' account.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub odometer_file: Option<OdometerFileReport>,
-    /// Binary logs whose status flags the odometer failed (bit 1) on some samples: its
-    /// failures, bridged in `odometer.parquet` or not.
+    /// Binary logs whose status flags the odometer failed (bit 1) on some samples, or
+    /// whose count stopped where the vehicle could not have: its failures, bridged in
+    /// `odometer.parquet` or not.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub odometer_failures: Option<OdometerFailures>,
 }
 
-/// The odometer's failures a binary log flags (status bit 1). A failure is a run of
-/// flagged samples (a working stretch shorter than a second inside one is taken into
-/// it); its counts are never read. Bridged, the route's distance over it is the inertial
-/// along-track speed's, fitted to the odometer's readings around it
-/// (`unz_stages::odo_bridge`); not bridged, the route has no distance over its flagged
-/// samples.
+/// The odometer's failures in a binary log: flagged (status bit 1), or found from a count
+/// that stopped where the vehicle could not have. A failure is a run of failed samples (a
+/// working stretch shorter than a second inside one is taken into it); their counts are
+/// never read. Bridged, the route's distance over it is the inertial along-track speed's,
+/// fitted to the odometer's readings around it (`unz_stages::odo_bridge`); not bridged,
+/// the route has no distance over its failed samples.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OdometerFailures {
     /// Failures bridged.
     pub bridged: u64,
-    /// Samples flagged in them.
+    /// Samples failed in them.
     pub bridged_samples: u64,
     /// Of the bridged, those with readings before them only (the log ends in them):
     /// their distance drifts faster (measured: 0.49 m at most over 10 s, tens of metres
     /// over 30 s).
     pub one_ended: u64,
-    /// The longest bridged, s: from its first flagged sample to the first working one
+    /// The longest bridged, s: from its first failed sample to the first working one
     /// after it (or its last sample).
     pub longest_bridged_s: f64,
     /// Distance the bridges give the route across them, m.
@@ -96,10 +97,18 @@ pub struct OdometerFailures {
     /// inertial speed and the odometer agree.
     pub worst_residual_m: f64,
     /// Failures not bridged (longer than the longest bridged, or without readings
-    /// around them): the route has no distance over their flagged samples.
+    /// around them): the route has no distance over their failed samples.
     pub not_bridged: u64,
-    /// Samples flagged in them.
+    /// Samples failed in them.
     pub not_bridged_samples: u64,
+    /// Of the failures, those the log does not flag: a count that stopped where the
+    /// vehicle could not have (`unz::odometer_stuck`), bridged or not like the flagged
+    /// ones.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub stuck: u64,
+    /// Samples of theirs (counted in `bridged_samples` or `not_bridged_samples` too).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub stuck_samples: u64,
 }
 
 /// Accounting of a separate odometer file: `lines_read == lines_accepted +
