@@ -19,10 +19,10 @@ use unz_stages::odo_bridge::{BridgeSample, Reading, WINDOW_S, bridge};
 use crate::odometer_stuck::{Count, StuckCount};
 
 /// The longest failure bridged, s. Measured on simulated failures while driving, the
-/// bridge's error across a failure is 0.11 m rms (0.24 m at most) over 30 s, 0.63 m
-/// (1.6 m) over 60 s and 3.8 m (11 m, of 601 m driven) over 120 s with the odometer on
-/// time (0.4 s late: 0.87, 1.03 and 4.8 m rms); beyond, the tilt's drift that the
-/// readings around it do not see grows with the cube of its length.
+/// bridge's error across a failure is 0.13 m rms (0.33 m at most) over 30 s, 0.69 m
+/// (1.6 m) over 60 s and 4.4 m (17 m) over 120 s with the odometer on time (0.4 s late:
+/// 0.92 and 1.1 m rms over 30 and 60 s); beyond, the tilt's drift that the readings
+/// around it do not see grows with the cube of its length.
 pub const MAX_BRIDGED_S: f64 = 120.0;
 /// A working stretch shorter than this between flagged samples is taken into one
 /// failure, s: too short to see the speed and the tilt after the first.

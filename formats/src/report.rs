@@ -84,7 +84,7 @@ pub struct OdometerFailures {
     /// Samples failed in them.
     pub bridged_samples: u64,
     /// Of the bridged, those with readings before them only (the log ends in them):
-    /// their distance drifts faster (measured: 0.49 m at most over 10 s, tens of metres
+    /// their distance drifts faster (measured: 0.23 m at most over 10 s, tens of metres
     /// over 30 s).
     pub one_ended: u64,
     /// The longest bridged, s: from its first failed sample to the first working one

@@ -12,12 +12,18 @@
 //! The odometer's distances around the failure determine those, with the speed at the
 //! window's start: up to [`WINDOW_S`] of the odometer working before the failure (its
 //! distances are the route's) and after it (the count may have held, jumped or restarted
-//! meanwhile, so those are off the route's by an unknown offset). The model is linear in
-//! the start distance, the start speed, the tilt's two angles and two drift rates, and
-//! the offset, given gravity's direction around which the angles are taken; it is solved
-//! by least squares and re-centred on the new direction until the angles vanish
-//! (Gauss–Newton). The tilt's angles and rates get weak priors, for what a window does not
-//! see (the cross-track tilt of a straight drive, the drift of a short window).
+//! meanwhile, so those are off the route's by an unknown offset). Two more unknowns the
+//! tilt cannot stand for once the vehicle turns: the x accelerometer's bias (fixed to the
+//! body, where a tilt is fixed to frame 0) and the odometer's scale error (its readings
+//! are in its nominal metres per pulse, the inertial speed in metres; the bridge is given
+//! in the readings' metres, as the rest of the route is). The model is linear in the start
+//! distance, the start speed, the tilt's two angles and two drift rates, the bias, the
+//! scale error (which scales the inertial distance's every term; the others' columns
+//! absorb its product with them) and the offset, given gravity's direction around which
+//! the angles are taken; it is solved by least squares and re-centred on the new direction
+//! until the angles vanish (Gauss–Newton). The tilt's angles and rates, the bias and the
+//! scale error get priors, for what a window does not see (the cross-track tilt of a
+//! straight drive, the drift of a short window, the scale at a constant speed).
 //!
 //! Two windows, at both ends of the failure, see the speed and the tilt along the track
 //! at both ends, which is what errors of the start's tilt, of the accelerometer biases
@@ -37,9 +43,14 @@
 //! bridge is then off by the lag times the change of speed.
 //!
 //! Measured against truth on 30 simulated failures of each length (every sensor error
-//! on, hills and turns; `stages/tests/odo_bridge.rs`), rms (max): on time, 0.041 m
-//! (0.21) over 10 s, 0.11 m (0.24) over 30 s, 0.63 m (1.6) over 60 s, 3.8 m (11) over
-//! 120 s; 0.4 s late, 0.031 m (0.12), 0.87 m (4.2), 1.03 m (3.0), 4.8 m (13).
+//! on, hills and turns, readings in the nominal metres per pulse;
+//! `stages/tests/odo_bridge.rs`), rms (max) in the odometer's metres: on time, 0.015 m
+//! (0.032) over 10 s, 0.13 m (0.33) over 30 s, 0.69 m (1.6) over 60 s, 4.4 m (17) over
+//! 120 s; 0.4 s late, 0.022 m (0.089), 0.92 m (4.3), 1.1 m (3.0). With the odometer's
+//! scale 1 % off (the simulator's are 0.05–0.3 %): 0.014 m (0.032), 0.39 m (1.5), 1.1 m
+//! (3.1); 0.4 s late 0.022 m (0.088), 0.97 m (4.3), 1.6 m (3.7). Without the scale error
+//! and the bias among the unknowns the same 60-s failures were 1.1 m (4.8) off, and
+//! 4.4 m (23) with the scale 1 % off.
 //!
 //! Neglected: the IMU's lever arm and its yaw on the vehicle (a 1° boresight scales the
 //! along-track acceleration by 0.99985). The Coriolis acceleration (2Ω × v, ≤ 3 mm/s² at
@@ -58,6 +69,13 @@ const DISTANCE_SIGMA_M: f64 = 0.02;
 const TILT_SIGMA_RAD: f64 = 0.1;
 /// Prior σ of the tilt's drift rate, rad/s: twice the horizontal Earth rate.
 const TILT_RATE_SIGMA_RAD_S: f64 = 1.5e-4;
+/// Prior σ of the x accelerometer's bias, m/s² (1 mg; an LN-200's is a few tenths).
+const ACCEL_BIAS_SIGMA_MPS2: f64 = 0.01;
+/// Prior σ of the odometer's scale error against its nominal metres per pulse. A tyre's
+/// radius is known to a percent or so, but a window of 10 s sees the scale only through
+/// its changes of speed, where the lag is seen too: of 0.3, 0.5 and 1 %, 0.5 % did best
+/// on scale errors of 0.05–1.3 % with and without a lag.
+const ODO_SCALE_SIGMA: f64 = 0.005;
 /// Gauss–Newton iterations at most.
 const MAX_ITERATIONS: usize = 8;
 /// Iterations of an SVD at most (seven columns converge in a few dozen).
@@ -117,23 +135,27 @@ pub struct Bridge {
     pub lag_s: f64,
 }
 
+/// Terms of the model's distance: the constant part, then one per unknown from the speed
+/// onwards.
+const TERMS: usize = 7;
+
 /// The along-track speed and distance over a window, each as an affine function of the
-/// unknowns `[d0, v0, α, β, α̇, β̇]` (start distance, start speed, tilt angles about the
-/// two axes across gravity, and their rates): column 0 the constant part, then one
-/// column per unknown from the speed onwards (the distance's own unknown is added by
-/// the caller).
+/// unknowns `[d0, v0, α, β, α̇, β̇, b]` (start distance, start speed, tilt angles about
+/// the two axes across gravity, their rates, and the x accelerometer's bias): column 0
+/// the constant part, then one column per unknown from the speed onwards (the distance's
+/// own unknown is added by the caller).
 struct Model {
-    /// Distance at each sample: constant, then ∂/∂[v0, α, β, α̇, β̇].
-    distance: Vec<[f64; 6]>,
+    /// Distance at each sample: constant, then ∂/∂[v0, α, β, α̇, β̇, b].
+    distance: Vec<[f64; TERMS]>,
 }
 
 impl Model {
     fn new(window: &[BridgeSample], axes: &[Vector3<f64>], u: Vector3<f64>, g_mps2: f64) -> Self {
         let (p, q) = across(&u);
         let t0 = window[0].t_s;
-        let mut speed = [0.0, 1.0, 0.0, 0.0, 0.0, 0.0];
+        let mut speed = [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0];
         let mut distance = Vec::with_capacity(window.len());
-        distance.push([0.0; 6]);
+        distance.push([0.0; TERMS]);
         for k in 1..window.len() {
             let dt = (window[k].t_s - window[k - 1].t_s).max(0.0);
             let tau = 0.5 * (window[k].t_s + window[k - 1].t_s) - t0;
@@ -146,10 +168,11 @@ impl Model {
                 g_dt * q.dot(&x),
                 g_dt * tau * p.dot(&x),
                 g_dt * tau * q.dot(&x),
+                -dt,
             ];
             let last = distance[k - 1];
-            let mut d = [0.0; 6];
-            for i in 0..6 {
+            let mut d = [0.0; TERMS];
+            for i in 0..TERMS {
                 let v_before = speed[i];
                 speed[i] += step[i];
                 d[i] = last[i] + 0.5 * (v_before + speed[i]) * dt;
@@ -162,7 +185,7 @@ impl Model {
 
 impl Model {
     /// The model at a time given by [`Between::of`].
-    fn at(&self, (k, w): Between) -> [f64; 6] {
+    fn at(&self, (k, w): Between) -> [f64; TERMS] {
         let (a, b) = (&self.distance[k - 1], &self.distance[k]);
         std::array::from_fn(|i| a[i] + w * (b[i] - a[i]))
     }
@@ -237,8 +260,8 @@ pub fn bridge(window: &[BridgeSample], g_mps2: f64) -> Option<Bridge> {
         axes.push(r * Vector3::x());
     }
     let u0 = -force.try_normalize(f64::MIN_POSITIVE)?;
-    // Unknowns: [d0, v0, α, β, α̇, β̇] and, with readings after, their offset.
-    let n_x = if has_after && has_before { 7 } else { 6 };
+    // Unknowns: [d0, v0, α, β, α̇, β̇, b, κ] and, with readings after, their offset.
+    let n_x = if has_after && has_before { 9 } else { 8 };
     let problem = Fit {
         window,
         times: window.iter().map(|s| s.t_s).collect(),
@@ -362,12 +385,12 @@ impl Fit<'_> {
     fn solve(&self, u0: Vector3<f64>, lag_s: f64) -> Option<Solved> {
         let (window, n_x) = (self.window, self.n_x);
         let at = between(&self.times, lag_s);
-        let rows = self.readings + 4;
+        let rows = self.readings + 6;
         let mut u = u0;
         for iteration in 0.. {
             let model = Model::new(window, self.axes, u, self.g_mps2);
             // The model at each sample's time less the lag.
-            let lagged: Vec<[f64; 6]> = at.iter().map(|&b| model.at(b)).collect();
+            let lagged: Vec<[f64; TERMS]> = at.iter().map(|&b| model.at(b)).collect();
             let mut a = DMatrix::zeros(rows, n_x);
             let mut b = DVector::zeros(rows);
             let mut row = 0;
@@ -378,11 +401,13 @@ impl Fit<'_> {
                     Reading::After(given) => (given, -1.0),
                 };
                 a[(row, 0)] = 1.0;
-                for i in 1..6 {
-                    a[(row, i)] = d[i];
-                }
-                if n_x == 7 {
-                    a[(row, 6)] = offset;
+                a.view_mut((row, 1), (1, TERMS - 1))
+                    .iter_mut()
+                    .zip(&d[1..])
+                    .for_each(|(a, d)| *a = *d);
+                a[(row, TERMS)] = d[0];
+                if n_x == TERMS + 2 {
+                    a[(row, TERMS + 1)] = offset;
                 }
                 b[row] = given - d[0];
                 row += 1;
@@ -394,6 +419,8 @@ impl Fit<'_> {
                 TILT_SIGMA_RAD,
                 TILT_RATE_SIGMA_RAD_S,
                 TILT_RATE_SIGMA_RAD_S,
+                ACCEL_BIAS_SIGMA_MPS2,
+                ODO_SCALE_SIGMA,
             ]
             .into_iter()
             .enumerate()
@@ -406,9 +433,17 @@ impl Fit<'_> {
             if turn.norm() < 1e-10 || iteration + 1 == MAX_ITERATIONS {
                 let route: Vec<f64> = lagged
                     .iter()
-                    .map(|d| d[0] + solution[0] + (1..6).map(|i| d[i] * solution[i]).sum::<f64>())
+                    .map(|d| {
+                        d[0] * (1.0 + solution[TERMS])
+                            + solution[0]
+                            + (1..TERMS).map(|i| d[i] * solution[i]).sum::<f64>()
+                    })
                     .collect();
-                let offset = if n_x == 7 { solution[6] } else { 0.0 };
+                let offset = if n_x == TERMS + 2 {
+                    solution[TERMS + 1]
+                } else {
+                    0.0
+                };
                 let mut squares = 0.0;
                 for (s, d) in window.iter().zip(&route) {
                     match s.reading {
