@@ -29,4 +29,5 @@ pub mod review_sensors;
 pub mod runs;
 pub mod simulate_io;
 pub mod stage;
+pub mod standing_motion;
 pub mod sweep;

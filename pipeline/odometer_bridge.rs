@@ -5,7 +5,8 @@
 //! until it can be bridged ([`unz_stages::odo_bridge::bridge`]), then given out in the
 //! order taken, each with the route's distance. Held back at most: the longest bridged
 //! failure and a window, about 13 000 samples at 100 Hz (and, while a standing count is
-//! judged, the samples since its last step: 0.1 s to a few seconds).
+//! judged, the samples since its last step, 0.1 s to a few seconds, or the IMU's watch
+//! of it, 5 s).
 //!
 //! A failed sample's count is never read: the count of a failed odometer may hold,
 //! jump, restart or be garbage. The readings after a failure continue the bridge (or,
@@ -14,6 +15,7 @@
 use std::collections::VecDeque;
 
 use unz_formats::OdometerFailures;
+use unz_stages::derive::{ACCEL_RANGE_MPS2, GYRO_RANGE_RAD_S};
 use unz_stages::odo_bridge::{BridgeSample, Reading, WINDOW_S, bridge};
 
 use crate::odometer_stuck::{Count, StuckCount};
@@ -73,6 +75,11 @@ pub struct OdometerBridger<P> {
     state: State,
     /// The count judged against a land vehicle's braking.
     stuck: StuckCount,
+    /// The largest increments in the IMU's range over twice the sample period (the
+    /// ingest's tags may jitter; the derive repairs them): velocity, angle.
+    max_increments: (f64, f64),
+    /// The last increments within the IMU's range (velocity, angle).
+    last_increments: ([f64; 3], [f64; 3]),
     /// The last [`WINDOW_S`] of working samples given out, their readings the route's.
     before: VecDeque<BridgeSample>,
     held: VecDeque<Held<P>>,
@@ -91,7 +98,12 @@ impl<P> OdometerBridger<P> {
         Self {
             g_mps2,
             state: State::Working,
-            stuck: StuckCount::new(pulse_m, period_s),
+            stuck: StuckCount::new(pulse_m, period_s, g_mps2),
+            max_increments: (
+                2.0 * ACCEL_RANGE_MPS2 * period_s.abs(),
+                2.0 * GYRO_RANGE_RAD_S * period_s.abs(),
+            ),
+            last_increments: ([0.0; 3], [0.0; 3]),
             before: VecDeque::new(),
             held: VecDeque::new(),
             ready: VecDeque::new(),
@@ -105,11 +117,25 @@ impl<P> OdometerBridger<P> {
     /// sample comes straight back with its distance (the common case, without a queue);
     /// otherwise what is ready comes out of [`Self::ready`].
     pub fn sample(&mut self, mut s: OdometerSample, payload: P) -> Option<(P, f64)> {
+        // Increments beyond the IMU's range (saturated or corrupt counts) are the last
+        // ones within it here, as the derive replaces them: the bridge and the watch of a
+        // standing count integrate them.
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        // `!(a <= b)`: a NaN increment is out of range too.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
+        if !(norm(s.dvel_mps) <= self.max_increments.0
+            && norm(s.dtheta_rad) <= self.max_increments.1)
+        {
+            (s.dvel_mps, s.dtheta_rad) = self.last_increments;
+        } else {
+            self.last_increments = (s.dvel_mps, s.dtheta_rad);
+        }
         let count = if s.failed {
             self.stuck.flagged();
             Count::Plausible
         } else {
-            self.stuck.judge(s.t_s, s.distance_m)
+            self.stuck
+                .judge(s.t_s, s.distance_m, s.dvel_mps, s.dtheta_rad)
         };
         match count {
             Count::Plausible => {
@@ -121,6 +147,13 @@ impl<P> OdometerBridger<P> {
             Count::Suspect => {
                 if self.state == State::Working {
                     self.held.push_back(Held::Sample(s, payload));
+                    return None;
+                }
+            }
+            Count::Standing { release_before_s } => {
+                if self.state == State::Working {
+                    self.held.push_back(Held::Sample(s, payload));
+                    self.give_held_before(release_before_s);
                     return None;
                 }
             }
@@ -248,6 +281,21 @@ impl<P> OdometerBridger<P> {
                 };
             }
             State::Unbridged => {}
+        }
+    }
+
+    /// Gives out the working samples held from before `t_s` (and the marks among and
+    /// after them), in order.
+    fn give_held_before(&mut self, t_s: f64) {
+        while let Some(h) = self.held.front() {
+            if matches!(h, Held::Sample(s, _) if s.t_s >= t_s) {
+                break;
+            }
+            match self.held.pop_front() {
+                Some(Held::Other(p)) => self.ready.push_back((p, None)),
+                Some(Held::Sample(s, p)) => self.give_working(s, p),
+                None => break,
+            }
         }
     }
 

@@ -5,11 +5,15 @@
 //! not moved for [`MIN_STUCK_S`], the count is stuck from its last step on, until it moves
 //! again.
 //!
-//! Judged on the counts alone, so no assumption about the IMU enters: a count that stops
-//! below about 2.3 m/s (12.5-mm pulses: a stop from there fits within 6 cm) is not
-//! found, nor one that stops while the vehicle stands.
+//! That is judged on the counts alone, so no assumption about the IMU enters. A count
+//! that stops below about 2.3 m/s (12.5-mm pulses: a stop from there fits within 6 cm),
+//! or while the vehicle stands, is found by the IMU instead, once the vehicle moves while
+//! it stands ([`crate::standing_motion`]), from [`SETTLE_S`] after the count's last step
+//! on.
 
 use std::collections::VecDeque;
+
+use crate::standing_motion::{Motion, StandingMotion};
 
 /// The hardest a land vehicle slows, m/s² (1.5 g: beyond any braking on tyres or
 /// tracks; only a collision stops it faster).
@@ -24,6 +28,9 @@ const SPEED_WINDOW_S: f64 = 0.1;
 const MAX_TAG_STEP_PERIODS: f64 = 2.0;
 /// What the least distance covered must exceed beyond a pulse, m.
 const MARGIN_M: f64 = 0.05;
+/// After a plausible stop, the IMU watches the standing count from this long after its
+/// last step, s: the vehicle has come to rest within a pulse by then.
+pub const SETTLE_S: f64 = 0.5;
 
 /// What a working sample's count says.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,6 +39,13 @@ pub enum Count {
     Plausible,
     /// Standing since a step at a speed a stop would soon show: not judged yet.
     Suspect,
+    /// Standing as a vehicle at rest may, watched by the IMU: hold it (it fails if the
+    /// vehicle is found moving); samples before `release_before_s` are no longer
+    /// watched.
+    Standing {
+        /// The IMU's reference end, s.
+        release_before_s: f64,
+    },
     /// Found stuck at this sample: it and the `standing` samples before it (since the
     /// count's last step) are a failure.
     Found {
@@ -68,17 +82,21 @@ pub struct StuckCount {
     standing: Option<Standing>,
     /// The distance the count is stuck at, m.
     stuck_m: Option<f64>,
+    /// The IMU while the count stands.
+    motion: StandingMotion,
 }
 
 impl StuckCount {
-    /// A count of `pulse_m` metres per pulse, sampled every `period_s`.
-    pub fn new(pulse_m: f64, period_s: f64) -> Self {
+    /// A count of `pulse_m` metres per pulse, sampled every `period_s`, where gravity is
+    /// `g_mps2`.
+    pub fn new(pulse_m: f64, period_s: f64, g_mps2: f64) -> Self {
         Self {
             pulse_m: pulse_m.abs(),
             max_tag_step_s: MAX_TAG_STEP_PERIODS * period_s.abs(),
             recent: VecDeque::new(),
             standing: None,
             stuck_m: None,
+            motion: StandingMotion::new(g_mps2, period_s),
         }
     }
 
@@ -86,10 +104,18 @@ impl StuckCount {
     pub fn flagged(&mut self) {
         self.recent.clear();
         self.standing = None;
+        self.motion.reset();
     }
 
-    /// Judges the working sample at `t_s` whose distance is `distance_m`.
-    pub fn judge(&mut self, t_s: f64, distance_m: f64) -> Count {
+    /// Judges the working sample at `t_s` whose distance is `distance_m`, with its
+    /// velocity and angle increments (body FRD).
+    pub fn judge(
+        &mut self,
+        t_s: f64,
+        distance_m: f64,
+        dvel_mps: [f64; 3],
+        dtheta_rad: [f64; 3],
+    ) -> Count {
         if let Some(m) = self.stuck_m {
             if distance_m == m {
                 return Count::Stuck;
@@ -104,6 +130,7 @@ impl StuckCount {
         };
         if distance_m != step_m {
             self.standing = None;
+            self.motion.reset();
             self.recent.push_back((t_s, distance_m));
             while self.recent.len() > 2 && self.recent[1].0 <= t_s - SPEED_WINDOW_S {
                 self.recent.pop_front();
@@ -126,7 +153,18 @@ impl StuckCount {
         let (v, t, a) = (s.v_min_mps, s.elapsed_s, MAX_DECEL_MPS2);
         let enough_m = self.pulse_m + MARGIN_M;
         if v * v / (2.0 * a) <= enough_m {
-            return Count::Plausible;
+            if t < SETTLE_S {
+                return Count::Plausible;
+            }
+            return match self.motion.push(t_s, dvel_mps, dtheta_rad) {
+                Motion::Reference => Count::Plausible,
+                Motion::Watching { release_before_s } => Count::Standing { release_before_s },
+                Motion::Moving { watched } => {
+                    self.standing = None;
+                    self.stuck_m = Some(distance_m);
+                    Count::Found { standing: watched }
+                }
+            };
         }
         let least_m = if t < v / a {
             v * t - 0.5 * a * t * t
@@ -167,17 +205,20 @@ mod tests {
 
     const PULSE_M: f64 = 0.0125;
     const DT_S: f64 = 0.01;
+    const G: f64 = 9.81;
+    /// A level vehicle's increments at rest or at a constant speed.
+    const DVEL: [f64; 3] = [0.0, 0.0, -G * DT_S];
 
     /// Judges a count of 12.5-mm pulses sampled at 100 Hz along `distance_m(t)`, stuck
     /// from `stuck_s` on if given; returns every judgement.
     fn judge(n: usize, distance_m: impl Fn(f64) -> f64, stuck_s: Option<f64>) -> Vec<Count> {
-        let mut c = StuckCount::new(PULSE_M, DT_S);
+        let mut c = StuckCount::new(PULSE_M, DT_S, G);
         let pulses = |t: f64| (distance_m(t) / PULSE_M).floor() * PULSE_M;
         (0..n)
             .map(|k| {
                 let t = k as f64 * DT_S;
                 let t_read = stuck_s.map_or(t, |s| t.min(s));
-                c.judge(t, pulses(t_read))
+                c.judge(t, pulses(t_read), DVEL, [0.0; 3])
             })
             .collect()
     }
@@ -195,8 +236,10 @@ mod tests {
             };
             let out = judge(30_000, d, None);
             assert!(
-                out.iter()
-                    .all(|c| *c == Count::Plausible || *c == Count::Suspect),
+                out.iter().all(|c| matches!(
+                    c,
+                    Count::Plausible | Count::Suspect | Count::Standing { .. }
+                )),
                 "{decel} m/s²"
             );
         }
@@ -225,7 +268,7 @@ mod tests {
         assert!(out[k - standing..k].iter().all(|c| *c == Count::Suspect));
 
         // A latch that repeats a count for 5 samples and catches up: nothing found.
-        let mut c = StuckCount::new(PULSE_M, DT_S);
+        let mut c = StuckCount::new(PULSE_M, DT_S, G);
         let mut held = None;
         for k in 0..1000 {
             let d = (10.0 * k as f64 * DT_S / PULSE_M).floor() * PULSE_M;
@@ -236,7 +279,7 @@ mod tests {
             };
             assert!(
                 matches!(
-                    c.judge(k as f64 * DT_S, read),
+                    c.judge(k as f64 * DT_S, read, DVEL, [0.0; 3]),
                     Count::Plausible | Count::Suspect
                 ),
                 "{k}"
@@ -244,7 +287,7 @@ mod tests {
         }
 
         // Moving again ends it; a later stop at speed is found again.
-        let mut c = StuckCount::new(PULSE_M, DT_S);
+        let mut c = StuckCount::new(PULSE_M, DT_S, G);
         let mut counts = Vec::new();
         for k in 0..3000 {
             let t = k as f64 * DT_S;
@@ -255,7 +298,7 @@ mod tests {
             } else {
                 10.0 * t
             };
-            counts.push(c.judge(t, (d / PULSE_M).floor() * PULSE_M));
+            counts.push(c.judge(t, (d / PULSE_M).floor() * PULSE_M, DVEL, [0.0; 3]));
         }
         let found = counts
             .iter()
@@ -265,25 +308,71 @@ mod tests {
         assert!(counts[1001..].iter().all(|c| *c == Count::Plausible));
     }
 
+    /// A count that stops while the vehicle stands and stays stopped as it drives off
+    /// at 1 m/s² is found by the IMU 1.4–1.5 s on, with the samples of its watch; one
+    /// that counts as it drives off is not.
+    #[test]
+    fn a_count_stopped_at_rest_is_found_when_the_vehicle_drives_off() {
+        for counting in [false, true] {
+            let mut c = StuckCount::new(PULSE_M, DT_S, G);
+            let mut found = None;
+            for k in 0..4000 {
+                let t = k as f64 * DT_S;
+                let driving_s = (t - 20.0).max(0.0);
+                let d = 0.5 * driving_s * driving_s;
+                let read = if counting {
+                    (d / PULSE_M).floor() * PULSE_M
+                } else {
+                    0.0
+                };
+                let accel = if t >= 20.0 { 1.0 } else { 0.0 };
+                let dvel = [accel * DT_S, 0.0, -G * DT_S];
+                match c.judge(t, read, dvel, [0.0; 3]) {
+                    Count::Found { standing } => {
+                        assert!(found.is_none());
+                        found = Some((t, standing));
+                    }
+                    Count::Stuck => assert!(found.is_some()),
+                    Count::Suspect => panic!("{t}"),
+                    _ => assert!(found.is_none(), "{t}"),
+                }
+            }
+            if counting {
+                assert_eq!(found, None);
+            } else {
+                let (t, standing) = found.unwrap();
+                assert!((21.4..21.55).contains(&t), "{t}");
+                // The watch: the 5 s before.
+                assert!((499..=501).contains(&standing), "{standing}");
+            }
+        }
+    }
+
     /// Time tags that jump while the count stands do not make a stop impossible, and a
     /// reading after a flagged sample has no speed before it.
     #[test]
     fn jumping_tags_and_flags_do_not_find_a_stuck_count() {
-        let mut c = StuckCount::new(PULSE_M, DT_S);
+        let mut c = StuckCount::new(PULSE_M, DT_S, G);
         for k in 0..100 {
-            c.judge(k as f64 * DT_S, 0.1 * k as f64);
+            c.judge(k as f64 * DT_S, 0.1 * k as f64, DVEL, [0.0; 3]);
         }
         // 3 standing samples, tags 10 s apart: counted as two periods each.
         for j in 1..=3 {
-            assert_eq!(c.judge(0.99 + 10.0 * j as f64, 0.1 * 99.0), Count::Suspect);
+            assert_eq!(
+                c.judge(0.99 + 10.0 * j as f64, 0.1 * 99.0, DVEL, [0.0; 3]),
+                Count::Suspect
+            );
         }
-        let mut c = StuckCount::new(PULSE_M, DT_S);
+        let mut c = StuckCount::new(PULSE_M, DT_S, G);
         for k in 0..100 {
-            c.judge(k as f64 * DT_S, 0.1 * k as f64);
+            c.judge(k as f64 * DT_S, 0.1 * k as f64, DVEL, [0.0; 3]);
         }
         c.flagged();
         for k in 100..200 {
-            assert_eq!(c.judge(k as f64 * DT_S, 50.0), Count::Plausible);
+            assert!(matches!(
+                c.judge(k as f64 * DT_S, 50.0, DVEL, [0.0; 3]),
+                Count::Plausible | Count::Standing { .. }
+            ));
         }
     }
 }

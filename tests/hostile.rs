@@ -794,7 +794,7 @@ fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
     let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
     assert!(
         summary.contains(
-            "| the odometer's count stopped where the vehicle could not have, unflagged: 1 \
+            "| the odometer's count stood while the vehicle moved, unflagged: 1 \
              time (1500 samples, 15.0 s); bridged by the inertial along-track speed: 1 \
              failure (15.0 s, "
         ),
@@ -836,7 +836,7 @@ fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
     let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
     assert!(
         summary.contains(&format!(
-            "the odometer's count stopped where the vehicle could not have, unflagged: 1 time \
+            "the odometer's count stood while the vehicle moved, unflagged: 1 time \
              ({stuck} samples, {:.1} s); 1 failure ({stuck} samples) not bridged (longer than \
              120 s, or without readings around it): the dead reckoning has no distance over \
              them",

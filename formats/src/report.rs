@@ -64,14 +64,14 @@ pub struct IngestReport {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub odometer_file: Option<OdometerFileReport>,
     /// Binary logs whose status flags the odometer failed (bit 1) on some samples, or
-    /// whose count stopped where the vehicle could not have: its failures, bridged in
+    /// whose count stood while the vehicle moved: its failures, bridged in
     /// `odometer.parquet` or not.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub odometer_failures: Option<OdometerFailures>,
 }
 
 /// The odometer's failures in a binary log: flagged (status bit 1), or found from a count
-/// that stopped where the vehicle could not have. A failure is a run of failed samples (a
+/// that stood while the vehicle moved. A failure is a run of failed samples (a
 /// working stretch shorter than a second inside one is taken into it); their counts are
 /// never read. Bridged, the route's distance over it is the inertial along-track speed's,
 /// fitted to the odometer's readings around it (`unz_stages::odo_bridge`); not bridged,
@@ -101,9 +101,8 @@ pub struct OdometerFailures {
     pub not_bridged: u64,
     /// Samples failed in them.
     pub not_bridged_samples: u64,
-    /// Of the failures, those the log does not flag: a count that stopped where the
-    /// vehicle could not have (`unz::odometer_stuck`), bridged or not like the flagged
-    /// ones.
+    /// Of the failures, those the log does not flag: a count that stood while the vehicle
+    /// moved (`unz::odometer_stuck`), bridged or not like the flagged ones.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub stuck: u64,
     /// Samples of theirs (counted in `bridged_samples` or `not_bridged_samples` too).
