@@ -1,12 +1,12 @@
 //! The ingest's bridge of the odometer's failures in a binary log, streamed: those the
-//! log flags (status bit 1), and counts that stop where the vehicle could not have
-//! ([`crate::odometer_stuck`]), found from their last step on. The samples of a failure,
-//! and those of the odometer working again after it up to [`WINDOW_S`], are held back
-//! until it can be bridged ([`unz_stages::odo_bridge::bridge`]), then given out in the
-//! order taken, each with the route's distance. Held back at most: the longest bridged
-//! failure and a window, about 13 000 samples at 100 Hz (and, while a standing count is
-//! judged, the samples since its last step, 0.1 s to a few seconds, or the IMU's watch
-//! of it, 5 s).
+//! log flags (status bit 1), and counts that stand while the vehicle moves
+//! ([`crate::odometer_stuck`]: by braking, from their last step on, or by the IMU, from
+//! its watch's start). The samples of a failure, and those of the odometer working again
+//! after it up to [`WINDOW_S`], are held back until it can be bridged
+//! ([`unz_stages::odo_bridge::bridge`]), then given out in the order taken, each with the
+//! route's distance. Held back at most: the longest bridged failure and a window, about
+//! 13 000 samples at 100 Hz (and, while a standing count is judged, the samples since its
+//! last step, 0.1 s to a few seconds, or the IMU's watch of it, 5 s).
 //!
 //! A failed sample's count is never read: the count of a failed odometer may hold,
 //! jump, restart or be garbage. The readings after a failure continue the bridge (or,
@@ -247,9 +247,9 @@ impl<P> OdometerBridger<P> {
         (f.bridged + f.not_bridged > 0).then_some(f)
     }
 
-    /// A count found stuck: the `standing` samples held before this one (since its last
-    /// step) fail with it, and a failure begins at the first of them (or, in one,
-    /// goes on).
+    /// A count found stuck: the `standing` samples held before this one fail with it,
+    /// and a failure begins at the first of them (or, in one, goes on). Working, what is
+    /// held before them (the IMU's watch slid on by a block at this sample) is given out.
     fn take_stuck(&mut self, standing: usize) {
         self.failures.stuck += 1;
         self.failures.stuck_samples += 1 + standing as u64;
@@ -268,6 +268,16 @@ impl<P> OdometerBridger<P> {
         match self.state {
             State::Working => {
                 if let Some(since_s) = first_t_s {
+                    while let Some(h) = self.held.front() {
+                        if matches!(h, Held::Sample(x, _) if x.failed) {
+                            break;
+                        }
+                        match self.held.pop_front() {
+                            Some(Held::Other(p)) => self.ready.push_back((p, None)),
+                            Some(Held::Sample(x, p)) => self.give_working(x, p),
+                            None => break,
+                        }
+                    }
                     self.state = State::Failed {
                         since_s,
                         working_s: None,

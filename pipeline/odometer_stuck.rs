@@ -1,5 +1,5 @@
-//! An odometer count that stops where the vehicle cannot have: a broken wheel sensor or
-//! cable gives no pulses, and the log does not flag it. After a step at speed v, a
+//! An odometer count that stands while the vehicle moves: a broken wheel sensor or cable
+//! gives no pulses, and the log does not flag it. After a step at speed v, a
 //! vehicle braking at its hardest ([`MAX_DECEL_MPS2`]) still covers v·T − a·T²/2 in T
 //! (v²/2a once stopped). Once that is more than a pulse and a margin, and the count has
 //! not moved for [`MIN_STUCK_S`], the count is stuck from its last step on, until it moves
@@ -43,13 +43,13 @@ pub enum Count {
     /// vehicle is found moving); samples before `release_before_s` are no longer
     /// watched.
     Standing {
-        /// The IMU's reference end, s.
+        /// The IMU's watch's start, s.
         release_before_s: f64,
     },
     /// Found stuck at this sample: it and the `standing` samples before it (since the
-    /// count's last step) are a failure.
+    /// count's last step, or the IMU's watch of it) are a failure.
     Found {
-        /// Samples the count stood before this one.
+        /// Samples of the count's stand before this one that fail with it.
         standing: usize,
     },
     /// Still stuck at the value it was found stuck at.
