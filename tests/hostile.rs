@@ -773,8 +773,9 @@ fn an_odometer_flagged_failed_while_driving_is_bridged_and_said_in_the_summary()
 /// An odometer count that stops while driving without a flag (a broken wheel sensor or
 /// cable): a stop from the speed before would have taken metres, so the ingest finds it
 /// from the count's last step on and bridges it like a flagged failure, and the summary
-/// says so. Stopped for the rest of a 30-minute run, it is too long to bridge: found,
-/// the distance held, and said.
+/// says so. Stopped for the last 2–3 minutes of a 30-minute run, it is too long to
+/// bridge: found, the distance held, and said; stopped for its last third, the run
+/// fails, as a run flagged failed over a tenth of it does.
 #[test]
 fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
     let tmp = tempfile::tempdir().unwrap();
@@ -803,19 +804,25 @@ fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
     let other: IngestReport = read_json(&out.join("sim-0081/ingest/ingest.json"));
     assert_eq!(other.odometer_failures, None);
 
-    // Stopped at speed 20 minutes into a 30-minute run, for good.
+    // Stopped at speed for good, in a 30-minute run: for the last 120–180 s (not bridged,
+    // under a tenth of the run), and from 20 minutes on (a third: the run fails).
     let camp = simulated_campaign(&tmp.path().join("long"), 82, 1, 1800.0);
     let raw = camp.join("sim-0082/sim-0082.unz");
     let log = read_log(&raw);
     let n = log.imu.len();
-    let k0 = (120_000..n - 100)
-        .find(|&k| {
-            let pulses = log.imu[k + 100]
-                .odo_count
-                .wrapping_sub(log.imu[k].odo_count);
-            f64::from(pulses) * log.header.odo_lsb_m > 5.0
-        })
-        .unwrap();
+    let at_speed = |from: usize| {
+        (from..n - 100)
+            .find(|&k| {
+                let pulses = log.imu[k + 100]
+                    .odo_count
+                    .wrapping_sub(log.imu[k].odo_count);
+                f64::from(pulses) * log.header.odo_lsb_m > 5.0
+            })
+            .unwrap()
+    };
+    let k0 = at_speed(n - 18_000);
+    assert!(n - 1 - k0 > 12_000, "{k0}");
+    let original = std::fs::read(&raw).unwrap();
     hold_count(&raw, k0, n - 1 - k0, false);
     let out = tmp.path().join("o-long");
     let (code, text) = run(&camp, &out, "disupt");
@@ -843,5 +850,19 @@ fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
             stuck as f64 * 0.01
         )),
         "{summary}"
+    );
+
+    std::fs::write(&raw, original).unwrap();
+    let k0 = at_speed(120_000);
+    hold_count(&raw, k0, n - 1 - k0, false);
+    let (code, text) = run(&camp, &tmp.path().join("o-third"), "disupt");
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains(&format!(
+            "the odometer's count stood while the vehicle moved (unflagged) on {} of {n} \
+             samples",
+            n - 1 - k0
+        )),
+        "{text}"
     );
 }

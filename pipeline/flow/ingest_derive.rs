@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use anyhow::bail;
+use anyhow::{Context, bail};
+use unz_formats::IngestReport;
 use unz_formats::manifest::RunManifest;
 use unz_stages::earth;
 
@@ -45,11 +46,14 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let inputs = vec![
         ingest_dir.join(files::IMU),
         ingest_dir.join(files::ODOMETER),
+        ingest_dir.join(files::INGEST_REPORT),
     ];
     let stage = Stage {
         dir: dir.clone(),
         name: "derive",
-        version: 6,
+        // 7: an odometer count that stood while the vehicle moved counts with the
+        // flagged samples against a tenth of the run.
+        version: 7,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
@@ -61,14 +65,28 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         let counts = raw.failure_counts();
         let mut d = raw.derive(&params.derive, site_gravity_mps2(m));
         (d.imu_failure_samples, d.odometer_failure_samples) = counts;
-        // A run whose odometer is flagged failed over much of it has no dead reckoning
-        // worth correcting; a short failure is counted and reported (navigate.json).
-        if d.odometer_failure_samples * 10 > d.t_s.len() {
-            bail!(
-                "the odometer is flagged failed (status bit 1) on {} of {} samples",
-                d.odometer_failure_samples,
-                d.t_s.len()
-            );
+        // A run whose odometer failed over much of it (flagged, or a count that stood
+        // while the vehicle moved) has no dead reckoning worth correcting; a short
+        // failure is bridged or not, counted and reported (navigate.json, ingest.json).
+        let report_path = ingest_dir.join(files::INGEST_REPORT);
+        let report: IngestReport = serde_json::from_slice(&std::fs::read(&report_path)?)
+            .with_context(|| format!("{}", report_path.display()))?;
+        let stuck = report.odometer_failures.map_or(0, |f| f.stuck_samples) as usize;
+        if (d.odometer_failure_samples + stuck) * 10 > d.t_s.len() {
+            let (flagged, n) = (d.odometer_failure_samples, d.t_s.len());
+            match (flagged, stuck) {
+                (_, 0) => bail!(
+                    "the odometer is flagged failed (status bit 1) on {flagged} of {n} samples"
+                ),
+                (0, _) => bail!(
+                    "the odometer's count stood while the vehicle moved (unflagged) on {stuck} \
+                     of {n} samples"
+                ),
+                _ => bail!(
+                    "the odometer is flagged failed (status bit 1) on {flagged} and its count \
+                     stood while the vehicle moved (unflagged) on {stuck} of {n} samples"
+                ),
+            }
         }
         // A corrupt sample that passed the CRC (a 2^-16 chance per damaged frame) or a
         // saturated one is replaced and counted; many are a broken instrument or log.
