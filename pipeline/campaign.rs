@@ -280,8 +280,8 @@ fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
 }
 
 /// What the summary says of a run whose odometer failed on some samples: flagged by the
-/// log (status bit 1; a run fails above a tenth), or a count that stopped where the
-/// vehicle could not have, from the ingest's account of its failures: bridged by the
+/// log (status bit 1), or a count that stood while the vehicle moved (a run fails above a
+/// tenth of both), from the ingest's account of its failures: bridged by the
 /// inertial along-track speed, with how long and how far; not bridged, the dead reckoning
 /// has no distance over them, so the route after them is short by what the vehicle drove
 /// meanwhile, which the control points and the methods' fits then show.
