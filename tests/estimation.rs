@@ -595,8 +595,8 @@ fn a_run_that_never_drives_is_not_corrected() {
 }
 
 /// An odometer failed for a minute while driving, its count held (the readings after it
-/// short by what was driven meanwhile), flagged by the log or not (a broken wheel sensor,
-/// found because no braking stops a vehicle within a pulse): the ingest bridges it with
+/// short by what was driven meanwhile), flagged by the log or not (a wheel sensor broken
+/// at a stop, found by the IMU as the vehicle drives off): the ingest bridges it with
 /// the inertial along-track speed, and the corrected route is as good as the same run's
 /// without the failure, where a held count put the control points hundreds of metres
 /// off. The campaign's summary says the failure was bridged, with its length and distance.

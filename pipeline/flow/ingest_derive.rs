@@ -28,7 +28,8 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // odometer file's lines accounted in `ingest.json`. 3: `ingest_events.json` names
         // the raw log as the manifest does, not as the path was given. 4: the odometer's
         // failures (status bit 1) bridged by the inertial along-track speed. 5: a count that
-        // stops where the vehicle could not have is a failure too.
+        // stands while the vehicle moves is a failure too; the bridge fits the odometer's
+        // scale error and the x accelerometer's bias.
         version: 5,
         params_hash: params_hash(&(m.odometer.scale_m_per_pulse, params.ingest))?,
         inputs,

@@ -6,8 +6,9 @@
 //!
 //! The model's drift of the tilt (the Earth's rate and the gyros' drift) carries weight:
 //! held at zero, the 60-s failures' rms was 4.6 m (0.65 m with it), the 120-s ones' 47 m
-//! (3.8 m), measured in true metres per pulse before the scale error was an unknown. The window of readings on each side, 10 s, was the best of 2.5, 5, 10 and
-//! 20 s on the 60- and 120-s failures.
+//! (3.8 m), measured in true metres per pulse before the scale error was an unknown. The
+//! window of readings on each side, 10 s, was the best of 2.5, 5, 10 and 20 s on the 60-
+//! and 120-s failures.
 
 use unz_stages::odo_bridge::{BridgeSample, Reading, WINDOW_S, bridge};
 use unz_stages::simulate::{SimConfig, SimRun, simulate};
