@@ -579,6 +579,69 @@ mod tests {
         assert_eq!(b.failures().unwrap().stuck, 0);
     }
 
+    /// A count that stops at rest and stays stopped as the vehicle pulls away (at 1 m/s²
+    /// from 30 s to 10 m/s) until 60 s: the IMU's watch finds it, the samples before the
+    /// watch go out as working, and the bridge gives the drive's distance; every sample
+    /// and mark comes out once, in order.
+    #[test]
+    fn a_count_stopped_at_rest_is_bridged_as_the_vehicle_drives_off() {
+        let route_m = |t: f64| {
+            let a = (t - 30.0).clamp(0.0, 10.0);
+            0.5 * a * a + 10.0 * (t - 40.0).max(0.0)
+        };
+        let mut b = OdometerBridger::new(G, PULSE_M, DT_S);
+        let mut out = Vec::new();
+        for k in 1..=9000 {
+            let t_s = k as f64 * DT_S;
+            // The increment over (t − 0.01 s, t].
+            let accel = if (3001..=4000).contains(&k) { 1.0 } else { 0.0 };
+            // Stuck from 20 s to 60 s; after, short by what was driven meanwhile.
+            let read_m = if (20.0..60.0).contains(&t_s) {
+                route_m(20.0)
+            } else if t_s >= 60.0 {
+                route_m(t_s) - route_m(60.0)
+            } else {
+                route_m(t_s)
+            };
+            let s = OdometerSample {
+                t_s,
+                dtheta_rad: [0.0; 3],
+                dvel_mps: [accel * DT_S, 0.0, -G * DT_S],
+                distance_m: (read_m / PULSE_M).round() * PULSE_M,
+                failed: false,
+            };
+            if let Some((p, d)) = b.sample(s, k) {
+                out.extend(b.ready());
+                out.push((p, Some(d)));
+            }
+            if k % 1000 == 0 {
+                b.other(0);
+            }
+            out.extend(b.ready());
+        }
+        b.finish();
+        out.extend(b.ready());
+        let samples: Vec<(usize, f64)> = out
+            .iter()
+            .filter(|(p, _)| *p > 0)
+            .map(|(p, d)| (*p, d.unwrap()))
+            .collect();
+        assert_eq!(samples.len(), 9000);
+        assert_eq!(out.len(), 9009);
+        // Exact data (the readings whole pulses of an exact route): the bridge is exact.
+        for (i, (k, d)) in samples.iter().enumerate() {
+            assert_eq!(*k, i + 1);
+            let want = route_m(*k as f64 * DT_S);
+            assert!((d - want).abs() < 1e-6, "{k}: {d} against {want}");
+        }
+        let f = b.failures().unwrap();
+        assert_eq!((f.stuck, f.bridged, f.not_bridged), (1, 1, 0), "{f:?}");
+        // From the watch's start (5 s before the vehicle is found moving, 1.4–1.7 s after
+        // it pulls away) to 60 s.
+        assert!((3300..=3600).contains(&f.stuck_samples), "{f:?}");
+        assert_eq!(f.stuck_samples, f.bridged_samples);
+    }
+
     #[test]
     fn a_short_working_stretch_is_taken_into_one_failure() {
         let (out, b) = drive(6000, |t| {
