@@ -64,14 +64,9 @@ pub struct IngestParams {
 pub struct IngestOptions {
     /// Write `raw.mcap` too, compressed so.
     pub mcap: Option<McapCompression>,
-}
-
-impl From<IngestParams> for IngestOptions {
-    fn from(p: IngestParams) -> Self {
-        Self {
-            mcap: Some(p.raw_mcap_compression),
-        }
-    }
+    /// The odometer's lag as configured, s (the derive's `odo_time_offset_s`, negated):
+    /// an odometer failure's bridge searches its lag about it.
+    pub odo_lag_prior_s: f64,
 }
 
 /// The status bit of an odometer failure (the raw-format spec's §1.2).
@@ -277,7 +272,12 @@ fn ingest_binary(
     let mut first_pulses = None;
     // The odometer's failures (status bit 1) are bridged: their samples, and the marks
     // among them, are held back until they are.
-    let mut bridger = OdometerBridger::new(site_gravity_mps2(manifest), scale, nominal_dt_s);
+    let mut bridger = OdometerBridger::new(
+        site_gravity_mps2(manifest),
+        scale,
+        nominal_dt_s,
+        options.odo_lag_prior_s,
+    );
     let give = |sinks: &mut Sinks, bridger: &mut OdometerBridger<Row>| {
         for (row, distance_m) in bridger.ready() {
             sinks.give(row, distance_m, nominal_dt_s);

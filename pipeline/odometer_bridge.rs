@@ -72,6 +72,8 @@ enum State {
 /// its distance (`None` for items that are not samples) out, in order.
 pub struct OdometerBridger<P> {
     g_mps2: f64,
+    /// The odometer's lag as configured, s: the bridge's lag is searched about it.
+    lag_prior_s: f64,
     state: State,
     /// The count judged against a land vehicle's braking.
     stuck: StuckCount,
@@ -93,10 +95,12 @@ pub struct OdometerBridger<P> {
 
 impl<P> OdometerBridger<P> {
     /// A bridger at a site where gravity is `g_mps2`, for a count of `pulse_m` metres per
-    /// pulse sampled every `period_s`.
-    pub fn new(g_mps2: f64, pulse_m: f64, period_s: f64) -> Self {
+    /// pulse sampled every `period_s`, late by `lag_prior_s` as far as is known (the
+    /// derive's configured `odo_time_offset_s`, negated).
+    pub fn new(g_mps2: f64, pulse_m: f64, period_s: f64, lag_prior_s: f64) -> Self {
         Self {
             g_mps2,
+            lag_prior_s,
             state: State::Working,
             stuck: StuckCount::new(pulse_m, period_s, g_mps2),
             max_increments: (
@@ -389,7 +393,7 @@ impl<P> OdometerBridger<P> {
             0.0
         };
         let f = &mut self.failures;
-        let failed_m: Vec<f64> = match bridge(&window, self.g_mps2) {
+        let failed_m: Vec<f64> = match bridge(&window, self.g_mps2, self.lag_prior_s) {
             Some(b) => {
                 f.bridged += 1;
                 f.bridged_samples += flagged;
@@ -486,7 +490,7 @@ mod tests {
         failed: impl Fn(f64) -> bool,
         stuck: impl Fn(f64) -> bool,
     ) -> (Vec<(usize, Option<f64>)>, OdometerBridger<usize>) {
-        let mut b = OdometerBridger::new(G, PULSE_M, DT_S);
+        let mut b = OdometerBridger::new(G, PULSE_M, DT_S, 0.0);
         let mut out = Vec::new();
         let mut id = 0;
         let mut missed_m = 0.0;
@@ -589,7 +593,7 @@ mod tests {
             let a = (t - 30.0).clamp(0.0, 10.0);
             0.5 * a * a + 10.0 * (t - 40.0).max(0.0)
         };
-        let mut b = OdometerBridger::new(G, PULSE_M, DT_S);
+        let mut b = OdometerBridger::new(G, PULSE_M, DT_S, 0.0);
         let mut out = Vec::new();
         for k in 1..=9000 {
             let t_s = k as f64 * DT_S;

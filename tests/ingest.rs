@@ -281,6 +281,7 @@ fn raw_mcap_compression_changes_the_size_not_the_messages() {
         let dir = tmp.path().join(name);
         let options = IngestOptions {
             mcap: Some(compression),
+            odo_lag_prior_s: 0.0,
         };
         ingest(&manifest, &dir, options).unwrap();
         let path = dir.join("raw.mcap");

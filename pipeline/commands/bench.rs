@@ -62,17 +62,25 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     let raw_bytes = std::fs::metadata(&manifest.raw)?.len() as f64;
     // One core: the stage is single-threaded; nothing else runs meanwhile.
     for (label, options) in [
-        ("raw → Parquet", IngestOptions { mcap: None }),
+        (
+            "raw → Parquet",
+            IngestOptions {
+                mcap: None,
+                odo_lag_prior_s: 0.0,
+            },
+        ),
         (
             "full ingest (+ MCAP)",
             IngestOptions {
                 mcap: Some(McapCompression::None),
+                odo_lag_prior_s: 0.0,
             },
         ),
         (
             "full ingest (+ zstd MCAP)",
             IngestOptions {
                 mcap: Some(McapCompression::Zstd),
+                odo_lag_prior_s: 0.0,
             },
         ),
     ] {

@@ -11,7 +11,7 @@ use unz_stages::earth;
 use super::{IngestedSeries, Params, RunCtx};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::{as_stored, write_derived};
-use crate::ingest::{OUTPUTS as INGEST_OUTPUTS, ingest};
+use crate::ingest::{IngestOptions, OUTPUTS as INGEST_OUTPUTS, ingest};
 use crate::review_sensors::{review_sensors, write_review_sensors};
 use crate::stage::{Stage, params_hash};
 
@@ -29,13 +29,22 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // the raw log as the manifest does, not as the path was given. 4: the odometer's
         // failures (status bit 1) bridged by the inertial along-track speed. 5: a count that
         // stands while the vehicle moves is a failure too; the bridge fits the odometer's
-        // scale error and the x accelerometer's bias.
+        // scale error and the x accelerometer's bias, and searches the lag about the
+        // derive's configured odometer time offset.
         version: 5,
-        params_hash: params_hash(&(m.odometer.scale_m_per_pulse, params.ingest))?,
+        params_hash: params_hash(&(
+            m.odometer.scale_m_per_pulse,
+            params.ingest,
+            params.derive.odo_time_offset_s,
+        ))?,
         inputs,
         outputs: &INGEST_OUTPUTS,
     };
-    ctx.run_stage(&stage, || ingest(m, &dir, params.ingest.into()).map(|_| ()))?;
+    let options = IngestOptions {
+        mcap: Some(params.ingest.raw_mcap_compression),
+        odo_lag_prior_s: -params.derive.odo_time_offset_s,
+    };
+    ctx.run_stage(&stage, || ingest(m, &dir, options).map(|_| ()))?;
     Ok(dir)
 }
 

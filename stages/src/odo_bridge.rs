@@ -229,9 +229,10 @@ fn across(u: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
 
 /// Bridges the failure in `window` (its failed samples between the odometer's readings
 /// before and after them) with the along-track speed the IMU gives; `g_mps2` is gravity
-/// at the site. `None` when the window has fewer than 10 readings, or the fit is not
-/// finite.
-pub fn bridge(window: &[BridgeSample], g_mps2: f64) -> Option<Bridge> {
+/// at the site, `lag_prior_s` the odometer's lag as far as it is known (a user's
+/// configured time offset, negated; 0 without), around which the lag is searched.
+/// `None` when the window has fewer than 10 readings, or the fit is not finite.
+pub fn bridge(window: &[BridgeSample], g_mps2: f64, lag_prior_s: f64) -> Option<Bridge> {
     let readings = window
         .iter()
         .filter(|s| !matches!(s.reading, Reading::Failed))
@@ -262,6 +263,11 @@ pub fn bridge(window: &[BridgeSample], g_mps2: f64) -> Option<Bridge> {
     let u0 = -force.try_normalize(f64::MIN_POSITIVE)?;
     // Unknowns: [d0, v0, α, β, α̇, β̇, b, κ] and, with readings after, their offset.
     let n_x = if has_after && has_before { 9 } else { 8 };
+    let lag_prior_s = if lag_prior_s.is_finite() {
+        lag_prior_s
+    } else {
+        0.0
+    };
     let problem = Fit {
         window,
         times: window.iter().map(|s| s.t_s).collect(),
@@ -269,23 +275,24 @@ pub fn bridge(window: &[BridgeSample], g_mps2: f64) -> Option<Bridge> {
         g_mps2,
         n_x,
         readings,
+        lag_prior_s,
     };
-    // The odometer's lag: on a grid over ±MAX_LAG_S, then at the vertex of the
-    // parabola through the best and its neighbours. Each fit starts from gravity's
-    // direction at the lag before it (from zero out).
-    let zero = problem.solve(u0, 0.0)?;
+    // The odometer's lag: on a grid over ±MAX_LAG_S about the prior, then at the vertex
+    // of the parabola through the best and its neighbours. Each fit starts from
+    // gravity's direction at the lag before it (from the prior out).
+    let zero = problem.solve(u0, lag_prior_s)?;
     let mut grid: Vec<(f64, Solved)> = Vec::with_capacity(2 * LAG_STEPS as usize + 1);
     for side in [-1.0, 1.0] {
         let mut u = zero.u;
         for i in 1..=LAG_STEPS {
-            let lag_s = side * MAX_LAG_S * f64::from(i) / f64::from(LAG_STEPS);
+            let lag_s = lag_prior_s + side * MAX_LAG_S * f64::from(i) / f64::from(LAG_STEPS);
             if let Some(f) = problem.solve(u, lag_s) {
                 u = f.u;
                 grid.push((lag_s, f));
             }
         }
     }
-    grid.push((0.0, zero));
+    grid.push((lag_prior_s, zero));
     grid.sort_by(|a, b| a.0.total_cmp(&b.0));
     let best = (0..grid.len()).min_by(|&i, &j| grid[i].1.cost.total_cmp(&grid[j].1.cost))?;
     let mut solved = grid[best].1.clone();
@@ -377,6 +384,8 @@ struct Fit<'a> {
     g_mps2: f64,
     n_x: usize,
     readings: usize,
+    /// The lag's prior, s.
+    lag_prior_s: f64,
 }
 
 impl Fit<'_> {
@@ -452,7 +461,8 @@ impl Fit<'_> {
                         Reading::Failed => {}
                     }
                 }
-                let cost = squares / DISTANCE_SIGMA_M.powi(2) + (lag_s / LAG_SIGMA_S).powi(2);
+                let cost = squares / DISTANCE_SIGMA_M.powi(2)
+                    + ((lag_s - self.lag_prior_s) / LAG_SIGMA_S).powi(2);
                 return cost.is_finite().then_some(Solved {
                     route,
                     squares,

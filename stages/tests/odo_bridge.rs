@@ -93,7 +93,7 @@ fn errors(
             if !after {
                 w.retain(|s| !matches!(s.reading, Reading::After(_)));
             }
-            let b = bridge(&w, G_MPS2).expect("bridged");
+            let b = bridge(&w, G_MPS2, 0.0).expect("bridged");
             let end = if after { k1 } else { k1 - 1 };
             // The odometer's reading at t is the route at t − lag.
             let lag = (run.config.odo_lag_s / dt).round() as usize;
@@ -213,7 +213,7 @@ fn a_failure_without_readings_is_not_bridged_and_a_held_count_is_offset() {
     let run = &runs(0.0)[0];
     let (k0, k1) = (20_000, 23_000);
     let mut w = window(run, k0, k1, 0.0);
-    let b = bridge(&w, G_MPS2).unwrap();
+    let b = bridge(&w, G_MPS2, 0.0).unwrap();
     let missed_m = (run.records[k1].odo_count - run.records[k0 - 1].odo_count) as f64
         * run.settings.odo_scale_m_per_pulse;
     assert!(missed_m > 100.0, "{missed_m}");
@@ -223,5 +223,5 @@ fn a_failure_without_readings_is_not_bridged_and_a_held_count_is_offset() {
     );
     assert_eq!(b.failed_distance_m.len(), k1 - k0);
     w.retain(|s| matches!(s.reading, Reading::Failed));
-    assert_eq!(bridge(&w, G_MPS2), None);
+    assert_eq!(bridge(&w, G_MPS2, 0.0), None);
 }
