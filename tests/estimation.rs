@@ -716,16 +716,7 @@ fn an_odometer_failure_is_bridged_about_the_configured_lag() {
     let config = dir.path().join("unz.toml");
     std::fs::write(&config, "[derive]\nodo_time_offset_s = -0.4\n").unwrap();
     let run_with_config = |run: &Path, out: &Path| {
-        crate::util::unz_ok(&[
-            "run",
-            run.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--until",
-            "disupt",
-            "--config",
-            config.to_str().unwrap(),
-        ]);
+        crate::util::run_until_with(run, out, "disupt", &["--config", config.to_str().unwrap()]);
     };
     let run0 = simulated_run(&dir.path().join("clean"), 64, &["--odo-lag-s", "0.4"]);
     let out0 = dir.path().join("o-clean");

@@ -103,14 +103,21 @@ pub fn python_json(py: &str, script: &str, args: &[&Path]) -> serde_json::Value 
 
 /// `unz run RUN --out OUT --until STAGE`, asserting success.
 pub fn run_until(run: &Path, out: &Path, stage: &str) {
-    unz_ok(&[
+    run_until_with(run, out, stage, &[]);
+}
+
+/// [`run_until`] with `extra` arguments (`--config FILE`, say).
+pub fn run_until_with(run: &Path, out: &Path, stage: &str, extra: &[&str]) {
+    let mut args = vec![
         "run",
         run.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
         "--until",
         stage,
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    unz_ok(&args);
 }
 
 /// Every file below `root`, relative to it, sorted.
