@@ -15,7 +15,7 @@
 use std::collections::VecDeque;
 
 use unz_formats::OdometerFailures;
-use unz_stages::derive::{ACCEL_RANGE_MPS2, GYRO_RANGE_RAD_S};
+use unz_stages::derive::increments_in_range;
 use unz_stages::odo_bridge::{BridgeSample, Reading, WINDOW_S, bridge};
 
 use crate::odometer_stuck::{Count, StuckCount};
@@ -77,9 +77,9 @@ pub struct OdometerBridger<P> {
     state: State,
     /// The count judged against a land vehicle's braking.
     stuck: StuckCount,
-    /// The largest increments in the IMU's range over twice the sample period (the
-    /// ingest's tags may jitter; the derive repairs them): velocity, angle.
-    max_increments: (f64, f64),
+    /// The interval increments are judged over against the IMU's range, s: twice the
+    /// sample period (the ingest's tags may jitter; the derive repairs them).
+    range_interval_s: f64,
     /// The last increments within the IMU's range (velocity, angle).
     last_increments: ([f64; 3], [f64; 3]),
     /// The last [`WINDOW_S`] of working samples given out, their readings the route's.
@@ -103,10 +103,7 @@ impl<P> OdometerBridger<P> {
             lag_prior_s,
             state: State::Working,
             stuck: StuckCount::new(pulse_m, period_s, g_mps2),
-            max_increments: (
-                2.0 * ACCEL_RANGE_MPS2 * period_s.abs(),
-                2.0 * GYRO_RANGE_RAD_S * period_s.abs(),
-            ),
+            range_interval_s: 2.0 * period_s.abs(),
             last_increments: ([0.0; 3], [0.0; 3]),
             before: VecDeque::new(),
             held: VecDeque::new(),
@@ -124,15 +121,10 @@ impl<P> OdometerBridger<P> {
         // Increments beyond the IMU's range (saturated or corrupt counts) are the last
         // ones within it here, as the derive replaces them: the bridge and the watch of a
         // standing count integrate them.
-        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        // `!(a <= b)`: a NaN increment is out of range too.
-        #[allow(clippy::neg_cmp_op_on_partial_ord)]
-        if !(norm(s.dvel_mps) <= self.max_increments.0
-            && norm(s.dtheta_rad) <= self.max_increments.1)
-        {
-            (s.dvel_mps, s.dtheta_rad) = self.last_increments;
-        } else {
+        if increments_in_range(s.dtheta_rad, s.dvel_mps, self.range_interval_s) {
             self.last_increments = (s.dvel_mps, s.dtheta_rad);
+        } else {
+            (s.dvel_mps, s.dtheta_rad) = self.last_increments;
         }
         let count = if s.failed {
             self.stuck.flagged();
@@ -157,7 +149,7 @@ impl<P> OdometerBridger<P> {
             Count::Standing { release_before_s } => {
                 if self.state == State::Working {
                     self.held.push_back(Held::Sample(s, payload));
-                    self.give_held_before(release_before_s);
+                    self.give_held_while(|h| h.t_s < release_before_s);
                     return None;
                 }
             }
@@ -272,16 +264,7 @@ impl<P> OdometerBridger<P> {
         match self.state {
             State::Working => {
                 if let Some(since_s) = first_t_s {
-                    while let Some(h) = self.held.front() {
-                        if matches!(h, Held::Sample(x, _) if x.failed) {
-                            break;
-                        }
-                        match self.held.pop_front() {
-                            Some(Held::Other(p)) => self.ready.push_back((p, None)),
-                            Some(Held::Sample(x, p)) => self.give_working(x, p),
-                            None => break,
-                        }
-                    }
+                    self.give_held_while(|x| !x.failed);
                     self.state = State::Failed {
                         since_s,
                         working_s: None,
@@ -298,11 +281,11 @@ impl<P> OdometerBridger<P> {
         }
     }
 
-    /// Gives out the working samples held from before `t_s` (and the marks among and
-    /// after them), in order.
-    fn give_held_before(&mut self, t_s: f64) {
+    /// Gives out the held samples from the front while `working` holds for them, as
+    /// working samples, with the marks among and after them, in order.
+    fn give_held_while(&mut self, working: impl Fn(&OdometerSample) -> bool) {
         while let Some(h) = self.held.front() {
-            if matches!(h, Held::Sample(s, _) if s.t_s >= t_s) {
+            if matches!(h, Held::Sample(s, _) if !working(s)) {
                 break;
             }
             match self.held.pop_front() {
@@ -315,12 +298,7 @@ impl<P> OdometerBridger<P> {
 
     /// Gives out what is held as working samples (and the marks among them).
     fn give_held_working(&mut self) {
-        for h in std::mem::take(&mut self.held) {
-            match h {
-                Held::Other(p) => self.ready.push_back((p, None)),
-                Held::Sample(s, p) => self.give_working(s, p),
-            }
-        }
+        self.give_held_while(|_| true);
     }
 
     fn give_working(&mut self, s: OdometerSample, payload: P) {

@@ -183,6 +183,14 @@ pub const GYRO_RANGE_RAD_S: f64 = 1000.0 * std::f64::consts::PI / 180.0;
 /// The LN-200's accelerometer range, ±40 g (the 70 g option included with margin: 70 g).
 pub const ACCEL_RANGE_MPS2: f64 = 70.0 * 9.806_65;
 
+/// Whether an IMU sample's angle and velocity increments over `dt_s` are within the
+/// instrument's range ([`GYRO_RANGE_RAD_S`], [`ACCEL_RANGE_MPS2`]); a NaN increment is
+/// not.
+pub fn increments_in_range(dtheta_rad: [f64; 3], dvel_mps: [f64; 3], dt_s: f64) -> bool {
+    let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    norm(dtheta_rad) <= GYRO_RANGE_RAD_S * dt_s && norm(dvel_mps) <= ACCEL_RANGE_MPS2 * dt_s
+}
+
 impl Derived {
     /// This derive without its odometer's increments (left empty) — what a re-derive at
     /// another odometer timing starts from, without copying the series it replaces. The
@@ -472,12 +480,7 @@ pub fn derive_owned(
         };
         let mut dth = dtheta_rad[k].map(|v| v * scale);
         let mut dv = dvel_mps[k].map(|v| v * scale);
-        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        // `!(a <= b)`: a NaN increment is out of range too.
-        #[allow(clippy::neg_cmp_op_on_partial_ord)]
-        let out_of_range =
-            !(norm(dth) <= GYRO_RANGE_RAD_S * dt && norm(dv) <= ACCEL_RANGE_MPS2 * dt);
-        if out_of_range {
+        if !increments_in_range(dth, dv, dt) {
             out.out_of_range_samples += 1;
             dth = prev_rates.0.map(|w| w * dt);
             dv = prev_rates.1.map(|a| a * dt);

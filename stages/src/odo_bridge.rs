@@ -76,18 +76,28 @@ const ACCEL_BIAS_SIGMA_MPS2: f64 = 0.01;
 /// its changes of speed, where the lag is seen too: of 0.3, 0.5 and 1 %, 0.5 % did best
 /// on scale errors of 0.05–1.3 % with and without a lag.
 const ODO_SCALE_SIGMA: f64 = 0.005;
+/// Prior σs of the unknowns from the tilt on: α, β, α̇, β̇, the bias, the scale error.
+const PRIOR_SIGMAS: [f64; 6] = [
+    TILT_SIGMA_RAD,
+    TILT_SIGMA_RAD,
+    TILT_RATE_SIGMA_RAD_S,
+    TILT_RATE_SIGMA_RAD_S,
+    ACCEL_BIAS_SIGMA_MPS2,
+    ODO_SCALE_SIGMA,
+];
 /// Gauss–Newton iterations at most.
 const MAX_ITERATIONS: usize = 8;
-/// Iterations of an SVD at most (seven columns converge in a few dozen).
+/// Iterations of an SVD at most (nine columns converge in a few dozen).
 const SVD_MAX_ITERATIONS: usize = 1000;
 /// Readings a fit needs at least.
 const MIN_READINGS: usize = 10;
-/// The odometer's lag is searched over ±this, s: the joint fit's bound.
+/// The odometer's lag is searched over ±this about its prior, s: the joint fit's bound.
 const MAX_LAG_S: f64 = 1.0;
-/// Grid steps each side of zero lag (0.2 s; the vertex of a parabola refines it).
+/// Grid steps each side of the prior (0.2 s; the vertex of a parabola refines it).
 const LAG_STEPS: i32 = 5;
-/// Prior σ of the lag, s: holds it near zero where the readings do not see it (a
-/// constant speed about the failure, where it does not matter either). Of 0.2, 0.5 and
+/// Prior σ of the lag, s: holds it near its prior (zero unless configured) where the
+/// readings do not see it (a constant speed about the failure, where it does not matter
+/// either). Of 0.2, 0.5 and
 /// 2 s, 0.2 s did best on failures without a lag and about as well with 0.4 s.
 const LAG_SIGMA_S: f64 = 0.2;
 
@@ -181,10 +191,8 @@ impl Model {
         }
         Self { distance }
     }
-}
 
-impl Model {
-    /// The model at a time given by [`Between::of`].
+    /// The model at a time given by [`between`].
     fn at(&self, (k, w): Between) -> [f64; TERMS] {
         let (a, b) = (&self.distance[k - 1], &self.distance[k]);
         std::array::from_fn(|i| a[i] + w * (b[i] - a[i]))
@@ -298,19 +306,12 @@ pub fn bridge(window: &[BridgeSample], g_mps2: f64, lag_prior_s: f64) -> Option<
     let mut solved = grid[best].1.clone();
     let mut lag_s = grid[best].0;
     if best > 0 && best + 1 < grid.len() {
-        let (x, y): (Vec<f64>, Vec<f64>) = grid[best - 1..=best + 1]
-            .iter()
-            .map(|(l, f)| (*l, f.cost))
-            .unzip();
-        // Through three points (a failed fit may have left the grid uneven).
-        let d = (x[0] - x[1]) * (x[0] - x[2]) * (x[1] - x[2]);
-        let a = (x[2] * (y[1] - y[0]) + x[1] * (y[0] - y[2]) + x[0] * (y[2] - y[1])) / d;
-        let b = (x[2] * x[2] * (y[0] - y[1])
-            + x[1] * x[1] * (y[2] - y[0])
-            + x[0] * x[0] * (y[1] - y[2]))
-            / d;
-        if a > 0.0 && a.is_finite() {
-            let vertex = (-b / (2.0 * a)).clamp(x[0], x[2]);
+        // Through three points of any spacing (a failed fit may have left the grid
+        // uneven).
+        let x: [f64; 3] = std::array::from_fn(|i| grid[best - 1 + i].0);
+        let y: [f64; 3] = std::array::from_fn(|i| grid[best - 1 + i].1.cost);
+        if let Some((vertex, _)) = crate::odo_lag::parabola(x, y) {
+            let vertex = vertex.clamp(x[0], x[2]);
             if let Some(f) = problem
                 .solve(solved.u, vertex)
                 .filter(|f| f.cost < solved.cost)
@@ -394,7 +395,7 @@ impl Fit<'_> {
     fn solve(&self, u0: Vector3<f64>, lag_s: f64) -> Option<Solved> {
         let (window, n_x) = (self.window, self.n_x);
         let at = between(&self.times, lag_s);
-        let rows = self.readings + 6;
+        let rows = self.readings + PRIOR_SIGMAS.len();
         let mut u = u0;
         for iteration in 0.. {
             let model = Model::new(window, self.axes, u, self.g_mps2);
@@ -423,17 +424,7 @@ impl Fit<'_> {
             }
             a.rows_mut(0, row).scale_mut(1.0 / DISTANCE_SIGMA_M);
             b.rows_mut(0, row).scale_mut(1.0 / DISTANCE_SIGMA_M);
-            for (i, sigma) in [
-                TILT_SIGMA_RAD,
-                TILT_SIGMA_RAD,
-                TILT_RATE_SIGMA_RAD_S,
-                TILT_RATE_SIGMA_RAD_S,
-                ACCEL_BIAS_SIGMA_MPS2,
-                ODO_SCALE_SIGMA,
-            ]
-            .into_iter()
-            .enumerate()
-            {
+            for (i, sigma) in PRIOR_SIGMAS.into_iter().enumerate() {
                 a[(row + i, 2 + i)] = 1.0 / sigma;
             }
             let solution = solve_scaled(a, b)?;

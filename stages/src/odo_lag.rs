@@ -51,7 +51,7 @@ const TOLERANCE_S: f64 = 2e-3;
 const MAX_ROUNDS: usize = 5;
 
 /// Vertex and second derivative of the parabola through `(x_i, y_i)`, when it is convex.
-fn parabola(x: [f64; 3], y: [f64; 3]) -> Option<(f64, f64)> {
+pub(crate) fn parabola(x: [f64; 3], y: [f64; 3]) -> Option<(f64, f64)> {
     let d = (x[0] - x[1]) * (x[0] - x[2]) * (x[1] - x[2]);
     if d == 0.0 {
         return None;
