@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use crate::artifacts::files;
 use crate::flow::site_gravity_mps2;
-use crate::odometer_bridge::{OdometerBridger, OdometerSample};
+use crate::odometer_bridge::{Given, OdometerBridger, OdometerSample};
 use crate::odometer_range::OdometerRange;
 use crate::raw_mcap::RawMcapWriter;
 use anyhow::Context;
@@ -25,6 +25,7 @@ use unz_formats::parquet_io::ParquetSink;
 use unz_formats::raw::{Accepted, RawReader};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
 use unz_formats::{IngestEvents, IngestReport, schema};
+use unz_formats::schema::DistanceSource;
 
 /// Rows per Parquet batch.
 const BATCH_ROWS: usize = 1 << 16;
@@ -157,18 +158,24 @@ impl Sinks {
         Ok(())
     }
 
-    /// Appends an odometer sample whose distance is the route's.
-    fn push_odometer(&mut self, t_ns: i64, distance_m: f64, pulses: Option<i64>) {
+    /// Appends an odometer sample whose distance is the route's, from `source`.
+    fn push_odometer(
+        &mut self,
+        t_ns: i64,
+        (distance_m, source): Given,
+        pulses: Option<i64>,
+    ) {
         self.odo_rows.t_ns.push(t_ns);
         self.odo_rows.distance_m.push(distance_m);
         self.odo_rows.pulses.push(pulses);
+        self.odo_rows.source.push(source as u8);
         if let Some(m) = &mut self.mcap {
             m.odometer(t_ns, distance_m);
         }
     }
 
     /// Appends a row of a binary log, an IMU sample with the route's distance.
-    fn give(&mut self, row: Row, distance_m: Option<f64>, nominal_dt_s: f64) {
+    fn give(&mut self, row: Row, distance: Option<Given>, nominal_dt_s: f64) {
         match row {
             Row::Imu {
                 t_ns,
@@ -188,7 +195,8 @@ impl Sinks {
                     m.imu(t_ns, nominal_dt_s, seq, dtheta_rad, dvel_mps, status);
                 }
                 // Every IMU sample is given its distance.
-                self.push_odometer(t_ns, distance_m.unwrap_or(f64::NAN), Some(pulses));
+                let held = (f64::NAN, DistanceSource::Held);
+                self.push_odometer(t_ns, distance.unwrap_or(held), Some(pulses));
             }
             Row::Mark { t_ns, point_id } => {
                 self.marks.t_ns.push(t_ns);
@@ -279,8 +287,8 @@ fn ingest_binary(
         options.odo_lag_prior_s,
     );
     let give = |sinks: &mut Sinks, bridger: &mut OdometerBridger<Row>| {
-        for (row, distance_m) in bridger.ready() {
-            sinks.give(row, distance_m, nominal_dt_s);
+        for (row, distance) in bridger.ready() {
+            sinks.give(row, distance, nominal_dt_s);
         }
         sinks.flush(false)
     };
@@ -319,7 +327,8 @@ fn ingest_binary(
                     pulses: s.odo_pulses,
                 };
                 if let Some((row, distance_m)) = bridger.sample(sample, row) {
-                    sinks.give(row, Some(distance_m), nominal_dt_s);
+                    let given = (distance_m, DistanceSource::Reading);
+                    sinks.give(row, Some(given), nominal_dt_s);
                 }
             }
             Accepted::Mark(m) => {
@@ -389,7 +398,7 @@ fn ingest_text(
                 };
                 prev = Some((s.t_s, v, d));
                 let d = sinks.odo_range.step(t_ns, d);
-                sinks.push_odometer(t_ns, d, None);
+                sinks.push_odometer(t_ns, (d, DistanceSource::Reading), None);
             }
             None => {}
         }
@@ -405,7 +414,7 @@ fn ingest_text(
         while let Some(o) = odo.next_sample().map_err(|e| e.in_file(file))? {
             let t_ns = (o.t_s * 1e9).round() as i64;
             let d = sinks.odo_range.step(t_ns, o.distance_m);
-            sinks.push_odometer(t_ns, d, None);
+            sinks.push_odometer(t_ns, (d, DistanceSource::Reading), None);
             sinks.flush(false)?;
         }
         odometer_file = Some(odo);

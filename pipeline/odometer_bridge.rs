@@ -15,6 +15,7 @@
 use std::collections::VecDeque;
 
 use unz_formats::OdometerFailures;
+use unz_formats::schema::DistanceSource;
 use unz_stages::derive::increments_in_range;
 use unz_stages::odo_bridge::{BridgeSample, Reading, WINDOW_S, bridge};
 
@@ -32,6 +33,9 @@ const MIN_WORKING_S: f64 = 1.0;
 /// Samples held back at most, and kept for a failure's window before it, whatever their
 /// time tags say (tags that do not advance would otherwise hold a log whole).
 const MAX_HELD: usize = 100_000;
+
+/// A sample's distance as given out, m (the route's), and where it comes from.
+pub type Given = (f64, DistanceSource);
 
 /// One IMU sample, as the bridge takes it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -85,7 +89,7 @@ pub struct OdometerBridger<P> {
     /// The last [`WINDOW_S`] of working samples given out, their readings the route's.
     before: VecDeque<BridgeSample>,
     held: VecDeque<Held<P>>,
-    ready: VecDeque<(P, Option<f64>)>,
+    ready: VecDeque<(P, Option<Given>)>,
     /// Added to the odometer's distance to give the route's, m.
     offset_m: f64,
     /// The route's distance at the last sample given out, m.
@@ -223,7 +227,7 @@ impl<P> OdometerBridger<P> {
     }
 
     /// What is ready, in order.
-    pub fn ready(&mut self) -> std::collections::vec_deque::Drain<'_, (P, Option<f64>)> {
+    pub fn ready(&mut self) -> std::collections::vec_deque::Drain<'_, (P, Option<Given>)> {
         self.ready.drain(..)
     }
 
@@ -303,7 +307,8 @@ impl<P> OdometerBridger<P> {
 
     fn give_working(&mut self, s: OdometerSample, payload: P) {
         let d = self.keep_working(&s);
-        self.ready.push_back((payload, Some(d)));
+        self.ready
+            .push_back((payload, Some((d, DistanceSource::Reading))));
     }
 
     /// The route's distance at a working sample, kept for a failure's window.
@@ -371,7 +376,7 @@ impl<P> OdometerBridger<P> {
             0.0
         };
         let f = &mut self.failures;
-        let failed_m: Vec<f64> = match bridge(&window, self.g_mps2, self.lag_prior_s) {
+        let (failed_m, source): (Vec<f64>, _) = match bridge(&window, self.g_mps2, self.lag_prior_s) {
             Some(b) => {
                 f.bridged += 1;
                 f.bridged_samples += flagged;
@@ -380,7 +385,10 @@ impl<P> OdometerBridger<P> {
                 f.bridged_distance_m += b.across_m;
                 f.worst_residual_m = f.worst_residual_m.max(b.rms_residual_m);
                 self.offset_m += b.after_offset_m + anchor_m;
-                b.failed_distance_m.iter().map(|d| d + anchor_m).collect()
+                (
+                    b.failed_distance_m.iter().map(|d| d + anchor_m).collect(),
+                    DistanceSource::Bridged,
+                )
             }
             None => {
                 // Without readings around it the route holds its distance over it.
@@ -389,7 +397,7 @@ impl<P> OdometerBridger<P> {
                 if let Some(s) = first_after {
                     self.offset_m = self.last_m - s.distance_m;
                 }
-                vec![self.last_m; n_failed]
+                (vec![self.last_m; n_failed], DistanceSource::Held)
             }
         };
         self.before.clear();
@@ -400,7 +408,7 @@ impl<P> OdometerBridger<P> {
                 Held::Sample(s, p) => match failed_m.next() {
                     Some(d) => {
                         self.last_m = d;
-                        self.ready.push_back((p, Some(d)));
+                        self.ready.push_back((p, Some((d, source))));
                     }
                     None => self.give_working(s, p),
                 },
@@ -431,7 +439,8 @@ impl<P> OdometerBridger<P> {
             self.before.clear();
             self.failures.not_bridged_samples += 1;
             self.state = State::Unbridged;
-            self.ready.push_back((payload, Some(self.last_m)));
+            self.ready
+                .push_back((payload, Some((self.last_m, DistanceSource::Held))));
         } else {
             if self.state == State::Unbridged {
                 self.offset_m = self.last_m - s.distance_m;
@@ -445,6 +454,13 @@ impl<P> OdometerBridger<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The distances of what comes out, without their sources.
+    fn metres<P>(
+        ready: impl Iterator<Item = (P, Option<Given>)>,
+    ) -> impl Iterator<Item = (P, Option<f64>)> {
+        ready.map(|(p, g)| (p, g.map(|(m, _)| m)))
+    }
 
     const G: f64 = 9.8;
     const V_MPS: f64 = 10.0;
@@ -468,6 +484,16 @@ mod tests {
         failed: impl Fn(f64) -> bool,
         stuck: impl Fn(f64) -> bool,
     ) -> (Vec<(usize, Option<f64>)>, OdometerBridger<usize>) {
+        let (out, b) = drive_given(n, failed, stuck);
+        (metres(out.into_iter()).collect(), b)
+    }
+
+    /// [`drive_stuck`] with each distance's source.
+    fn drive_given(
+        n: usize,
+        failed: impl Fn(f64) -> bool,
+        stuck: impl Fn(f64) -> bool,
+    ) -> (Vec<(usize, Option<Given>)>, OdometerBridger<usize>) {
         let mut b = OdometerBridger::new(G, PULSE_M, DT_S, 0.0);
         let mut out = Vec::new();
         let mut id = 0;
@@ -492,7 +518,7 @@ mod tests {
             };
             if let Some((p, d)) = b.sample(s, id) {
                 out.extend(b.ready());
-                out.push((p, Some(d)));
+                out.push((p, Some((d, DistanceSource::Reading))));
             }
             id += 1;
             if k % 1000 == 0 {
@@ -537,6 +563,34 @@ mod tests {
         assert!((f.bridged_distance_m - 200.1).abs() < 1e-6, "{f:?}");
         assert!(f.worst_residual_m < 1e-6, "{f:?}");
         assert_eq!(f.not_bridged, 0);
+    }
+
+    /// Each distance says where it comes from: the readings, the bridge over a failure,
+    /// the distance held over one too long to bridge.
+    #[test]
+    fn each_distance_names_its_source() {
+        let (out, _) = drive_given(30_000, |t| {
+            (20.0..40.0).contains(&t) || (60.0..190.0).contains(&t)
+        }, |_| false);
+        let source = |t_s: f64| {
+            let k = (t_s / DT_S).round() as usize;
+            out[k - 1 + (k - 1) / 1000].1.unwrap().1
+        };
+        for (t_s, want) in [
+            (19.99, DistanceSource::Reading),
+            (20.0, DistanceSource::Bridged),
+            (39.99, DistanceSource::Bridged),
+            (40.0, DistanceSource::Reading),
+            (59.99, DistanceSource::Reading),
+            (60.0, DistanceSource::Held),
+            (189.99, DistanceSource::Held),
+            (190.0, DistanceSource::Reading),
+        ] {
+            assert_eq!(source(t_s), want, "at {t_s} s");
+        }
+        let count = |want| out.iter().filter(|(_, g)| g.is_some_and(|g| g.1 == want)).count();
+        assert_eq!(count(DistanceSource::Bridged), 2000);
+        assert_eq!(count(DistanceSource::Held), 13_000);
     }
 
     /// A count that stops at 10 m/s without a flag is a failure from its last step on,
@@ -593,16 +647,16 @@ mod tests {
                 failed: false,
             };
             if let Some((p, d)) = b.sample(s, k) {
-                out.extend(b.ready());
+                out.extend(metres(b.ready()));
                 out.push((p, Some(d)));
             }
             if k % 1000 == 0 {
                 b.other(0);
             }
-            out.extend(b.ready());
+            out.extend(metres(b.ready()));
         }
         b.finish();
-        out.extend(b.ready());
+        out.extend(metres(b.ready()));
         let samples: Vec<(usize, f64)> = out
             .iter()
             .filter(|(p, _)| *p > 0)

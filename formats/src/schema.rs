@@ -24,6 +24,8 @@ pub const STATUS: &str = "status";
 pub const DISTANCE_M: &str = "distance_m";
 /// Column: cumulative odometer pulses (unwrapped), when the odometer counts pulses.
 pub const PULSES: &str = "pulses";
+/// Column: where an odometer sample's distance comes from ([`DistanceSource`]'s codes).
+pub const DISTANCE_SOURCE: &str = "distance_source";
 /// Column: control-point id.
 pub const POINT_ID: &str = "point_id";
 
@@ -90,10 +92,44 @@ pub fn odometer(time_origin_utc_ns: Option<i64>) -> SchemaRef {
             time_field(),
             scalar(DISTANCE_M, DataType::Float64, false, "m"),
             scalar(PULSES, DataType::Int64, true, "pulses"),
+            scalar(DISTANCE_SOURCE, DataType::UInt8, false, "code").with_metadata(
+                HashMap::from([
+                    ("unit".to_owned(), "code".to_owned()),
+                    ("values".to_owned(), DistanceSource::CODES.to_owned()),
+                ]),
+            ),
         ],
         "odometer",
         time_origin_utc_ns,
     )
+}
+
+/// Where an odometer sample's distance comes from (column [`DISTANCE_SOURCE`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[repr(u8)]
+pub enum DistanceSource {
+    /// The odometer's reading (after a failure, moved on to continue the distance).
+    #[default]
+    Reading = 0,
+    /// Failed, and bridged: the distance is the inertial along-track speed's.
+    Bridged = 1,
+    /// Failed, not bridged: the distance held over it.
+    Held = 2,
+}
+
+impl DistanceSource {
+    /// The codes as the column's `values` metadata states them.
+    pub const CODES: &str = "0 the odometer's reading, 1 failed and bridged, 2 failed and held";
+
+    /// The source of a code; `None` for a code no writer makes.
+    pub fn of_code(code: u8) -> Option<Self> {
+        match code {
+            0 => Some(Self::Reading),
+            1 => Some(Self::Bridged),
+            2 => Some(Self::Held),
+            _ => None,
+        }
+    }
 }
 
 /// `marks`: control-point marks.

@@ -4,11 +4,12 @@ use std::sync::Arc;
 
 use arrow::array::{
     Array, ArrayRef, AsArray, BooleanArray, FixedSizeListArray, Float64Array, Int64Array,
-    RecordBatch, UInt16Array, UInt32Array, UInt64Array,
+    RecordBatch, UInt8Array, UInt16Array, UInt32Array, UInt64Array,
 };
 use arrow::buffer::ScalarBuffer;
 use arrow::datatypes::{
-    Float32Type, Float64Type, Int64Type, SchemaRef, UInt16Type, UInt32Type, UInt64Type,
+    Float32Type, Float64Type, Int64Type, SchemaRef, UInt8Type, UInt16Type, UInt32Type,
+    UInt64Type,
 };
 
 use crate::error::FormatError;
@@ -38,6 +39,8 @@ pub struct OdometerTable {
     pub distance_m: Vec<f64>,
     /// Cumulative pulses, when counted.
     pub pulses: Vec<Option<i64>>,
+    /// Where each distance comes from ([`schema::DistanceSource`]'s codes).
+    pub source: Vec<u8>,
 }
 
 /// Control-point marks (schema [`schema::marks`]).
@@ -198,6 +201,7 @@ impl OdometerTable {
                 Arc::new(Int64Array::from(std::mem::take(&mut self.t_ns))),
                 Arc::new(Float64Array::from(std::mem::take(&mut self.distance_m))),
                 Arc::new(Int64Array::from(std::mem::take(&mut self.pulses))),
+                Arc::new(UInt8Array::from(std::mem::take(&mut self.source))),
             ],
         )
     }
@@ -217,6 +221,7 @@ impl OdometerTable {
         self.t_ns.clear();
         self.distance_m.clear();
         self.pulses.clear();
+        self.source.clear();
     }
 
     /// Converts to a record batch of `schema` (from [`schema::odometer`]).
@@ -227,6 +232,7 @@ impl OdometerTable {
                 Arc::new(Int64Array::from(self.t_ns.clone())),
                 Arc::new(Float64Array::from(self.distance_m.clone())),
                 Arc::new(Int64Array::from(self.pulses.clone())),
+                Arc::new(UInt8Array::from(self.source.clone())),
             ],
         )
     }
@@ -235,6 +241,8 @@ impl OdometerTable {
     pub fn extend_from_batch(&mut self, b: &RecordBatch) -> Result<(), FormatError> {
         self.pulses
             .extend(prim::<Int64Type>(b, schema::PULSES)?.iter());
+        self.source
+            .extend(prim::<UInt8Type>(b, schema::DISTANCE_SOURCE)?.values().iter());
         self.extend_series_from_batch(b)
     }
 
@@ -248,6 +256,7 @@ impl OdometerTable {
             t_ns: Vec::with_capacity(rows),
             distance_m: Vec::with_capacity(rows),
             pulses: Vec::new(),
+            source: Vec::new(),
         }
     }
 

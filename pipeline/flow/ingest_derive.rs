@@ -30,8 +30,10 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // failures (status bit 1) bridged by the inertial along-track speed. 5: a count that
         // stands while the vehicle moves is a failure too; the bridge fits the odometer's
         // scale error and the x accelerometer's bias, and searches the lag about the
-        // derive's configured odometer time offset.
-        version: 5,
+        // derive's configured odometer time offset. 6: `odometer.parquet`'s
+        // `distance_source` says which distances are the odometer's readings, bridged or
+        // held (the disupt stage bridges again at the lag it estimates).
+        version: 6,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,

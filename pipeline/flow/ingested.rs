@@ -159,6 +159,7 @@ mod tests {
         let table = OdometerTable {
             distance_m: t_ns.iter().map(|&t| t as f64 * 1e-8).collect(),
             pulses: vec![None; t_ns.len()],
+            source: vec![0; t_ns.len()],
             t_ns,
         };
         let dir = tempfile::tempdir().unwrap();

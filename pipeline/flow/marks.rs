@@ -187,6 +187,7 @@ mod tests {
             t.t_ns.push(k * 10_000_000);
             t.distance_m.push(d);
             t.pulses.push(None);
+            t.source.push(0);
         }
         let path = dir.join("odometer.parquet");
         let schema = schema::odometer_scaled(None, None);
