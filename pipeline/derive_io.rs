@@ -18,6 +18,7 @@ use unz_formats::schema::{
 };
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, Epochs, OdometerSpeed, ns_since};
+use unz_stages::odo_rebridge::WindowVelocities;
 use unz_stages::time_base::{NanoTimes, TimeBase};
 
 fn f64s(v: &[f64]) -> Arc<Float64Array> {
@@ -165,6 +166,42 @@ pub fn read_velocity_prefix(dir: &Path, n: usize) -> anyhow::Result<Vec<[f64; 3]
         out.extend_from_slice(&v[..take]);
         Ok(out.len() < n)
     })?;
+    Ok(out)
+}
+
+/// The velocity increments of `derived.parquet` in `dir` over each of `ranges` (sample
+/// indices, in order and not overlapping; the batches after the last are not decoded).
+pub fn read_velocity_ranges(
+    dir: &Path,
+    ranges: &[std::ops::Range<usize>],
+) -> anyhow::Result<WindowVelocities> {
+    let mut out: WindowVelocities = ranges.iter().map(|r| Vec::with_capacity(r.len())).collect();
+    let Some(end) = ranges.iter().map(|r| r.end).max() else {
+        return Ok(out);
+    };
+    let mut first_row = 0;
+    for_each_batch_of_while(&dir.join(files::DERIVED), &[DVEL_MPS], |b| {
+        let rows = first_row..first_row + b.num_rows();
+        if ranges
+            .iter()
+            .any(|r| r.start < rows.end && rows.start < r.end)
+        {
+            let v = vec3_column(b, DVEL_MPS)?;
+            for (r, o) in ranges.iter().zip(&mut out) {
+                let (from, to) = (r.start.max(rows.start), r.end.min(rows.end));
+                if from < to {
+                    o.extend_from_slice(&v[from - rows.start..to - rows.start]);
+                }
+            }
+        }
+        first_row = rows.end;
+        Ok(first_row < end)
+    })?;
+    anyhow::ensure!(
+        out.iter().zip(ranges).all(|(o, r)| o.len() == r.len()),
+        "{} has fewer rows than the derive's samples",
+        dir.join(files::DERIVED).display()
+    );
     Ok(out)
 }
 
@@ -489,6 +526,14 @@ mod tests {
             let prefix = read_velocity_prefix(tmp.path(), n).unwrap();
             assert_eq!(prefix[..], loaded.dvel_mps[..n.min(loaded.dvel_mps.len())]);
         }
+        // So do stretches of them, across batches; beyond the run, an error.
+        let n = loaded.dvel_mps.len();
+        let ranges = [0..3, 100..100, 1000..25_000, n - 5..n];
+        let stretches = read_velocity_ranges(tmp.path(), &ranges).unwrap();
+        for (r, v) in ranges.iter().zip(&stretches) {
+            assert_eq!(v[..], loaded.dvel_mps[r.clone()], "{r:?}");
+        }
+        assert!(read_velocity_ranges(tmp.path(), &[n - 5..n + 1]).is_err());
         // What a stage is handed in memory is what it would load, bit for bit.
         assert!(
             as_stored(d) == loaded,

@@ -13,6 +13,7 @@ use unz_formats::atomic::{write_atomic, write_json_atomic};
 use unz_formats::manifest::{LogFormat, OdometerKind};
 use unz_stages::disupt::{self, Problem, ProblemSpec, X};
 use unz_stages::odo_lag::Rederive;
+use unz_stages::odo_rebridge::Rebridges;
 use unz_stages::route_sigma::RouteBase;
 use unz_stages::strapdown::{self, NavInputs, NavSettings};
 use unz_stages::units::DEG_PER_H;
@@ -27,6 +28,7 @@ use report::{Lag, markdown, method_out, settings_out};
 use reviews::{Reviewed, review_passes};
 
 use crate::artifacts::{StageName, files};
+use crate::derive_io::read_velocity_ranges;
 use crate::flow::{
     IngestedSeries, NavCase, Overrides, Params, RunCtx, ensure_derive, load_case, site_gravity_mps2,
 };
@@ -143,7 +145,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 9: the coarse turn Kryt1 refuses at the initial drifts is judged again with the
         //    horizontal drifts free.
         // 10: the joint fit's boresight check, and its refit beyond 3σ.
-        version: 10,
+        // 11: the odometer's bridged failures bridged again at each lag the joint tries.
+        version: 11,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[
@@ -175,13 +178,24 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let (case, odometer) = (case?, odometer?);
         // The derive stage's output is the configured derive, whole: re-derives at other
         // odometer timings start from it and move the odometer's part only.
+        // The odometer's bridged failures are bridged again at each lag the joint fit
+        // tries (the ingest's bridges took the lag their readings showed).
+        let rebridges = Rebridges::new(
+            &case.derived,
+            &odometer.distance_m,
+            &odometer.failed,
+            site_gravity_mps2(m),
+            -params.derive.odo_time_offset_s,
+            |rows| read_velocity_ranges(&ctx.layout().dir(StageName::Derive), rows),
+        )?;
         let rederive = Rederive::of_odometer(
             &case.derived,
             &odometer.t_ns,
             &odometer.distance_m,
             params.derive,
             site_gravity_mps2(m),
-        );
+        )
+        .with_rebridges(rebridges);
         lap("loaded");
         // A coarse search over ±180° of azimuth by the control points first: the run's
         // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).
@@ -367,6 +381,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             );
             out.holdout = Some(holdout?);
             out.lag_profile = run.profile.clone();
+            out.rebridged = run.rebridged;
             methods.insert("joint".to_owned(), out);
             route_sigma = sigma;
         }

@@ -23,9 +23,9 @@ use unz_formats::manifest::{LogFormat, RunManifest};
 use unz_formats::mcap_io::McapCompression;
 use unz_formats::parquet_io::ParquetSink;
 use unz_formats::raw::{Accepted, RawReader};
+use unz_formats::schema::DistanceSource;
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
 use unz_formats::{IngestEvents, IngestReport, schema};
-use unz_formats::schema::DistanceSource;
 
 /// Rows per Parquet batch.
 const BATCH_ROWS: usize = 1 << 16;
@@ -159,12 +159,7 @@ impl Sinks {
     }
 
     /// Appends an odometer sample whose distance is the route's, from `source`.
-    fn push_odometer(
-        &mut self,
-        t_ns: i64,
-        (distance_m, source): Given,
-        pulses: Option<i64>,
-    ) {
+    fn push_odometer(&mut self, t_ns: i64, (distance_m, source): Given, pulses: Option<i64>) {
         self.odo_rows.t_ns.push(t_ns);
         self.odo_rows.distance_m.push(distance_m);
         self.odo_rows.pulses.push(pulses);

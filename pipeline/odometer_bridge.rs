@@ -376,7 +376,8 @@ impl<P> OdometerBridger<P> {
             0.0
         };
         let f = &mut self.failures;
-        let (failed_m, source): (Vec<f64>, _) = match bridge(&window, self.g_mps2, self.lag_prior_s) {
+        let (failed_m, source): (Vec<f64>, _) = match bridge(&window, self.g_mps2, self.lag_prior_s)
+        {
             Some(b) => {
                 f.bridged += 1;
                 f.bridged_samples += flagged;
@@ -569,9 +570,11 @@ mod tests {
     /// the distance held over one too long to bridge.
     #[test]
     fn each_distance_names_its_source() {
-        let (out, _) = drive_given(30_000, |t| {
-            (20.0..40.0).contains(&t) || (60.0..190.0).contains(&t)
-        }, |_| false);
+        let (out, _) = drive_given(
+            30_000,
+            |t| (20.0..40.0).contains(&t) || (60.0..190.0).contains(&t),
+            |_| false,
+        );
         let source = |t_s: f64| {
             let k = (t_s / DT_S).round() as usize;
             out[k - 1 + (k - 1) / 1000].1.unwrap().1
@@ -588,7 +591,11 @@ mod tests {
         ] {
             assert_eq!(source(t_s), want, "at {t_s} s");
         }
-        let count = |want| out.iter().filter(|(_, g)| g.is_some_and(|g| g.1 == want)).count();
+        let count = |want| {
+            out.iter()
+                .filter(|(_, g)| g.is_some_and(|g| g.1 == want))
+                .count()
+        };
         assert_eq!(count(DistanceSource::Bridged), 2000);
         assert_eq!(count(DistanceSource::Held), 13_000);
     }

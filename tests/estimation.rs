@@ -1,7 +1,7 @@
 //! Estimation that real logs need, against simulated truth through the binary: the
 //! odometer's lag, runs without a static start, hold-out errors and the route's σ.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use unz::disupt_stage::DisuptOut;
 use unz::flow::NavigateSummary;
@@ -703,45 +703,86 @@ fn an_odometer_failure_while_driving_is_bridged_by_the_inertial_speed() {
     }
 }
 
+/// A 40-minute simulated run `seed` with its odometer 0.4 s late, processed to disupt
+/// with `args` twice: as simulated (`.0`), and with its count held and flagged failed for
+/// a minute that begins at a stop and ends driving (`.1`); the failure's first sample
+/// (`.2`).
+struct LateFailure {
+    name: String,
+    clean: (PathBuf, PathBuf),
+    failed: (PathBuf, PathBuf),
+    k0: usize,
+    _dir: tempfile::TempDir,
+}
+
+/// The failure's samples.
+const LATE_FAILURE_LEN: usize = 6000;
+
+impl LateFailure {
+    fn run(seed: u32, args: &[&str]) -> Self {
+        let name = format!("sim-{seed:04}");
+        let dir = tempfile::tempdir().unwrap();
+        let run_to_disupt = |run: &Path, out: &Path| {
+            crate::util::run_until_with(run, out, "disupt", args);
+        };
+        let run0 = simulated_run(&dir.path().join("clean"), seed, &["--odo-lag-s", "0.4"]);
+        let out0 = dir.path().join("o-clean");
+        run_to_disupt(&run0, &out0);
+        let run = simulated_run(&dir.path().join("failed"), seed, &["--odo-lag-s", "0.4"]);
+        let truth_m = column(&run.join("truth.parquet"), "distance_m");
+        let len = LATE_FAILURE_LEN;
+        let k0 = (60_000..truth_m.len() - len)
+            .find(|&k| truth_m[k + len] - truth_m[k] > 400.0)
+            .unwrap();
+        // Standing at the failure's start.
+        assert!(truth_m[k0] - truth_m[k0 - 1000] < 0.01);
+        crate::util::hold_count(&run.join(format!("{name}.unz")), k0, len, true);
+        let out = dir.path().join("o");
+        run_to_disupt(&run, &out);
+        Self {
+            name,
+            clean: (run0, out0),
+            failed: (run, out),
+            k0,
+            _dir: dir,
+        }
+    }
+
+    /// How far the ingest's bridge is off across the failure, m.
+    fn ingest_bridge_off_m(&self) -> f64 {
+        let odometer = |out: &Path| {
+            column(
+                &out.join(&self.name).join("ingest/odometer.parquet"),
+                "distance_m",
+            )
+        };
+        let (odo0, odo) = (odometer(&self.clean.1), odometer(&self.failed.1));
+        let (k0, k1) = (self.k0 - 1, self.k0 + LATE_FAILURE_LEN);
+        odo[k1] - odo0[k1] - (odo[k0] - odo0[k0])
+    }
+
+    /// The worst errors of the corrected route against truth, m: with the failure, and
+    /// without.
+    fn worst_route_m(&self) -> (f64, f64) {
+        let worst = |(run, out): &(PathBuf, PathBuf)| worst_m(&route_errors(run, out, &self.name));
+        (worst(&self.failed), worst(&self.clean))
+    }
+}
+
 /// An odometer 0.4 s late, flagged failed for a minute that begins at a stop: the
 /// readings around the failure do not show the lag (the vehicle stands in those before,
 /// drives at a constant speed in those after), so a bridge that holds the lag near zero
-/// is off by the lag times the speed (3.7 m here, and the corrected route 4.05 m off).
-/// With the lag configured (`[derive] odo_time_offset_s = -0.4`), the bridge searches
-/// about it: within 1.5 m, and the route back to the same run's without the failure.
+/// is off by the lag times the speed (3.7 m here). With the lag configured (`[derive]
+/// odo_time_offset_s = -0.4`), the ingest's bridge searches about it: within 1.5 m, and
+/// the route back to the same run's without the failure.
 #[test]
 fn an_odometer_failure_is_bridged_about_the_configured_lag() {
-    let name = "sim-0064";
-    let dir = tempfile::tempdir().unwrap();
-    let config = dir.path().join("unz.toml");
+    let config_dir = tempfile::tempdir().unwrap();
+    let config = config_dir.path().join("unz.toml");
     std::fs::write(&config, "[derive]\nodo_time_offset_s = -0.4\n").unwrap();
-    let run_with_config = |run: &Path, out: &Path| {
-        crate::util::run_until_with(run, out, "disupt", &["--config", config.to_str().unwrap()]);
-    };
-    let run0 = simulated_run(&dir.path().join("clean"), 64, &["--odo-lag-s", "0.4"]);
-    let out0 = dir.path().join("o-clean");
-    run_with_config(&run0, &out0);
-    let run = simulated_run(&dir.path().join("failed"), 64, &["--odo-lag-s", "0.4"]);
-    let truth_m = column(&run.join("truth.parquet"), "distance_m");
-    let len = 6000;
-    let k0 = (60_000..truth_m.len() - len)
-        .find(|&k| truth_m[k + len] - truth_m[k] > 400.0)
-        .unwrap();
-    // Standing at the failure's start.
-    assert!(truth_m[k0] - truth_m[k0 - 1000] < 0.01);
-    crate::util::hold_count(&run.join(format!("{name}.unz")), k0, len, true);
-    let out = dir.path().join("o");
-    run_with_config(&run, &out);
-    let odometer = |out: &Path| {
-        column(
-            &out.join(name).join("ingest/odometer.parquet"),
-            "distance_m",
-        )
-    };
-    let (odo0, odo) = (odometer(&out0), odometer(&out));
-    let across_err = odo[k0 + len] - odo0[k0 + len] - (odo[k0 - 1] - odo0[k0 - 1]);
-    let worst0 = worst_m(&route_errors(&run0, &out0, name));
-    let worst = worst_m(&route_errors(&run, &out, name));
+    let case = LateFailure::run(64, &["--config", config.to_str().unwrap()]);
+    let across_err = case.ingest_bridge_off_m();
+    let (worst, worst0) = case.worst_route_m();
     eprintln!(
         "lag configured: bridge {across_err:.3} m off; worst route error {worst:.2} m \
          ({worst0:.2} m without the failure)"
@@ -750,5 +791,59 @@ fn an_odometer_failure_is_bridged_about_the_configured_lag() {
     assert!(
         worst < 1.25 * worst0 + 2.0,
         "worst route error {worst} m, {worst0} m without the failure"
+    );
+}
+
+/// The same failure without the lag configured (seed 65): the ingest's bridge holds the
+/// lag near zero and is 3.6 m off, and the previous build's joint fit, scoring each lag
+/// on that bridge, estimated the lag at −0.09 s (0.30 s without the failure) and left the
+/// corrected route 9.6 m off (2.2 m without). The disupt stage now bridges the failure
+/// again at each lag the joint fit tries: the lag is the run's without the failure, the
+/// bridge changes by the ingest's error, and the route is back to the run's without it.
+#[test]
+fn an_odometer_failure_is_bridged_again_at_the_estimated_lag() {
+    let case = LateFailure::run(65, &[]);
+    let across_err = case.ingest_bridge_off_m();
+    let (worst, worst0) = case.worst_route_m();
+    let joint = |out: &Path| {
+        let d = disupt_json(out, &case.name);
+        d.methods["joint"].clone()
+    };
+    let (j, j0) = (joint(&case.failed.1), joint(&case.clean.1));
+    let (lag, lag0) = (j.outcome.x.odo_lag_s, j0.outcome.x.odo_lag_s);
+    let rebridged = j.rebridged.expect("the failure bridged again");
+    eprintln!(
+        "lag estimated: {lag:.3} s ({lag0:.3} s without the failure); ingest's bridge \
+         {across_err:.2} m off, changed by {:.2} m; worst route error {worst:.2} m \
+         ({worst0:.2} m without the failure)",
+        rebridged.largest_change_m
+    );
+    assert!(j0.rebridged.is_none());
+    assert_eq!((rebridged.failures, rebridged.left), (1, 0));
+    // The ingest's bridge is off by about the lag times the speed after the failure;
+    // bridged again, within 1.5 m (as with the lag configured).
+    assert!(
+        across_err.abs() > 2.0,
+        "the ingest's bridge {across_err} m off"
+    );
+    let rebridged_err = across_err + rebridged.largest_change_m;
+    assert!(
+        rebridged_err.abs() < 1.5,
+        "bridged again {rebridged_err} m off"
+    );
+    // The lag's σ is 0.03–0.06 s on these runs.
+    assert!(
+        (lag - lag0).abs() < 0.05,
+        "lag {lag} s, {lag0} s without the failure"
+    );
+    assert!(
+        worst < 1.25 * worst0 + 2.0,
+        "worst route error {worst} m, {worst0} m without the failure"
+    );
+    let md =
+        std::fs::read_to_string(case.failed.1.join(&case.name).join("disupt/disupt.md")).unwrap();
+    assert!(
+        md.contains("Odometer failures bridged again at each lag tried: 1 "),
+        "{md}"
     );
 }

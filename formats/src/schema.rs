@@ -92,12 +92,10 @@ pub fn odometer(time_origin_utc_ns: Option<i64>) -> SchemaRef {
             time_field(),
             scalar(DISTANCE_M, DataType::Float64, false, "m"),
             scalar(PULSES, DataType::Int64, true, "pulses"),
-            scalar(DISTANCE_SOURCE, DataType::UInt8, false, "code").with_metadata(
-                HashMap::from([
-                    ("unit".to_owned(), "code".to_owned()),
-                    ("values".to_owned(), DistanceSource::CODES.to_owned()),
-                ]),
-            ),
+            scalar(DISTANCE_SOURCE, DataType::UInt8, false, "code").with_metadata(HashMap::from([
+                ("unit".to_owned(), "code".to_owned()),
+                ("values".to_owned(), DistanceSource::CODES.to_owned()),
+            ])),
         ],
         "odometer",
         time_origin_utc_ns,

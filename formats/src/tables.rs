@@ -8,8 +8,7 @@ use arrow::array::{
 };
 use arrow::buffer::ScalarBuffer;
 use arrow::datatypes::{
-    Float32Type, Float64Type, Int64Type, SchemaRef, UInt8Type, UInt16Type, UInt32Type,
-    UInt64Type,
+    Float32Type, Float64Type, Int64Type, SchemaRef, UInt8Type, UInt16Type, UInt32Type, UInt64Type,
 };
 
 use crate::error::FormatError;
@@ -241,8 +240,11 @@ impl OdometerTable {
     pub fn extend_from_batch(&mut self, b: &RecordBatch) -> Result<(), FormatError> {
         self.pulses
             .extend(prim::<Int64Type>(b, schema::PULSES)?.iter());
-        self.source
-            .extend(prim::<UInt8Type>(b, schema::DISTANCE_SOURCE)?.values().iter());
+        self.source.extend(
+            prim::<UInt8Type>(b, schema::DISTANCE_SOURCE)?
+                .values()
+                .iter(),
+        );
         self.extend_series_from_batch(b)
     }
 
@@ -404,6 +406,11 @@ pub fn f32_array(values: impl IntoIterator<Item = f64>) -> ArrayRef {
 /// Reads an `Int64` column of a batch.
 pub fn i64_column(b: &RecordBatch, name: &str) -> Result<Vec<i64>, FormatError> {
     Ok(prim::<Int64Type>(b, name)?.values().to_vec())
+}
+
+/// Reads a `UInt8` column of a batch.
+pub fn u8_column(b: &RecordBatch, name: &str) -> Result<Vec<u8>, FormatError> {
+    Ok(prim::<UInt8Type>(b, name)?.values().to_vec())
 }
 
 /// Reads a 3-vector column of a batch.

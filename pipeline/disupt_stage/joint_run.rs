@@ -7,6 +7,7 @@ use unz_stages::disupt::{
     self, JointFit, JointOptions, MethodResult, Problem, ProblemSpec, joint_fit,
 };
 use unz_stages::odo_lag::{Rederive, joint_with_lag};
+use unz_stages::odo_rebridge::Rebridged;
 use unz_stages::route_sigma::{
     Moved, Ran, RouteBase, RouteSigma, route_samples, route_sigma, states_along,
 };
@@ -31,6 +32,9 @@ pub(super) struct JointRun {
     pub(super) params: disupt::DisuptParams,
     /// The odometer yaw boresight check of a fit that held it at zero.
     pub(super) odo_yaw: Option<OdoYawCheck>,
+    /// The odometer's failures bridged again at each lag, and what that changed at the
+    /// estimated one.
+    pub(super) rebridged: Option<Rebridged>,
 }
 
 /// Step of the lag in the route's sensitivity, s.
@@ -206,6 +210,7 @@ fn fit_joint(
             lag_states: None,
             params: *dparams,
             odo_yaw: None,
+            rebridged: rederive.rebridges().map(|r| r.changes_at(f.lag_s)),
         };
         disupt::within_bounds(&run.fit, &problem.x0(), dparams)?;
         if route_sigma_has_lag(&run) {
@@ -234,5 +239,6 @@ fn fit_joint(
         lag_states: None,
         params: *dparams,
         odo_yaw: None,
+        rebridged: None,
     })
 }

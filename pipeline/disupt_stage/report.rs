@@ -6,6 +6,7 @@ use std::fmt::Write as _;
 use serde::Serialize;
 use unz_stages::criteria::Kryt2;
 use unz_stages::disupt::{self, Holdout, MethodResult, X};
+use unz_stages::odo_rebridge::Rebridged;
 use unz_stages::strapdown::NavSettings;
 use unz_stages::units::DEG_PER_H;
 
@@ -91,6 +92,11 @@ pub struct MethodOut {
     /// Joint only, with the lag estimated: every lag tried (s) and the fit's cost there.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lag_profile: Option<Vec<[f64; 2]>>,
+    /// Joint only, with the lag estimated and odometer failures the ingest bridged: the
+    /// failures bridged again at each lag tried, and what that changed at the estimated
+    /// one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rebridged: Option<Rebridged>,
 }
 
 /// `disupt.json`.
@@ -178,6 +184,19 @@ pub fn odo_yaw_note(c: &OdoYawCheck) -> Option<String> {
     })
 }
 
+/// What `disupt.md` says of the odometer's failures bridged again at the lag.
+fn rebridged_note(b: &Rebridged) -> String {
+    let left = match b.left {
+        0 => String::new(),
+        n => format!("; {n} left as the ingest bridged them"),
+    };
+    format!(
+        "Odometer failures bridged again at each lag tried: {} (at the estimated lag, the \
+         distance across one changed by {:+.2} m at most against the ingest's bridge){left}.",
+        b.failures, b.largest_change_m
+    )
+}
+
 /// The odometer lag of a method and its 1σ, s.
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct Lag {
@@ -225,6 +244,7 @@ pub(super) fn method_out(
         evaluations: r.evaluations,
         holdout: None,
         lag_profile: None,
+        rebridged: None,
     }
 }
 
@@ -300,6 +320,9 @@ fn table(name: &str, r: &MethodOut, bounds: &disupt::DisuptParams) -> String {
                 "\nOdometer lag {:.3} s ± {:.3} s (positive: it reports late).",
                 r.outcome.x.odo_lag_s, sd.odo_lag_s
             );
+        }
+        if let Some(b) = &r.rebridged {
+            let _ = writeln!(s, "\n{}", rebridged_note(b));
         }
     }
     if let Some(h) = &r.holdout {

@@ -7,8 +7,10 @@ use anyhow::bail;
 use arrow::array::RecordBatch;
 use unz_formats::parquet_io::{for_each_batch, for_each_batch_of, row_capacity_hint};
 use unz_formats::schema;
-use unz_formats::tables::{ImuTable, OdometerTable, f64_column, i64_column};
+use unz_formats::schema::DistanceSource;
+use unz_formats::tables::{ImuTable, OdometerTable, f64_column, i64_column, u8_column};
 use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive_owned};
+use unz_stages::odo_rebridge::FailedRows;
 use unz_stages::time_base::TagTimes;
 
 use crate::artifacts::files;
@@ -46,6 +48,9 @@ pub struct OdometerTags {
     pub t_ns: TagTimes,
     /// Cumulative distance, m.
     pub distance_m: Vec<f64>,
+    /// Rows whose distances are not the odometer's readings (its failures, bridged or
+    /// held), in order.
+    pub failed: Vec<FailedRows>,
 }
 
 /// The ingested IMU and odometer tables: what derive reads.
@@ -95,11 +100,32 @@ impl IngestedSeries {
         let mut odo = OdometerTags {
             t_ns: TagTimes::with_room_for(rows),
             distance_m: Vec::with_capacity(rows),
+            failed: Vec::new(),
         };
-        for_each_batch_of(&path, &[schema::T_NS, schema::DISTANCE_M], |b| {
-            // Columns of one batch: as many times as distances.
+        let columns = [schema::T_NS, schema::DISTANCE_M, schema::DISTANCE_SOURCE];
+        for_each_batch_of(&path, &columns, |b| {
+            // Columns of one batch: as many times as distances and sources.
+            let first_row = odo.distance_m.len();
             odo.t_ns.extend(i64_column(b, schema::T_NS)?);
             odo.distance_m.extend(f64_column(b, schema::DISTANCE_M)?);
+            let sources = u8_column(b, schema::DISTANCE_SOURCE)?;
+            for (k, code) in sources.into_iter().enumerate() {
+                let bridged = match DistanceSource::of_code(code) {
+                    Some(DistanceSource::Reading) => continue,
+                    Some(DistanceSource::Bridged) => true,
+                    // Held, or a code no writer makes: not the odometer's reading.
+                    _ => false,
+                };
+                let row = first_row + k;
+                match odo.failed.last_mut() {
+                    Some(f) if f.first + f.len == row && f.bridged == bridged => f.len += 1,
+                    _ => odo.failed.push(FailedRows {
+                        first: row,
+                        len: 1,
+                        bridged,
+                    }),
+                }
+            }
             Ok(())
         })?;
         if odo.distance_m.is_empty() {

@@ -334,6 +334,8 @@ struct OdoInterp<'a> {
     /// The tags from [`Self::from`] on.
     t_ns: OdoTimesIter<'a>,
     d: &'a [f64],
+    /// Distances replacing some of `d`'s, and the rows after them moved.
+    patch: Option<PatchCursor>,
     t0_ns: i64,
     offset_s: f64,
     /// The first two kept tags (time s, distance m): the time before the first continues
@@ -350,10 +352,21 @@ struct OdoInterp<'a> {
 }
 
 impl<'a> OdoInterp<'a> {
-    fn new(t_ns: OdoTimes<'a>, d: &'a [f64], t0_ns: i64, offset_s: f64) -> Self {
+    fn new(
+        t_ns: OdoTimes<'a>,
+        d: &'a [f64],
+        patch: Option<Arc<OdoPatch>>,
+        t0_ns: i64,
+        offset_s: f64,
+    ) -> Self {
         let mut s = Self {
             t_ns: t_ns.iter(),
             d,
+            patch: patch.map(|patch| PatchCursor {
+                patch,
+                span: 0,
+                shift_m: 0.0,
+            }),
             t0_ns,
             offset_s,
             first: None,
@@ -377,9 +390,13 @@ impl<'a> OdoInterp<'a> {
             let i = self.from;
             self.from += 1;
             let ts = (t_ns - self.t0_ns) as f64 * 1e-9 + self.offset_s;
-            if self.last_t.is_none_or(|last| ts > last) && self.d[i].is_finite() {
+            let d = match &mut self.patch {
+                Some(p) => p.at(i, self.d[i]),
+                None => self.d[i],
+            };
+            if self.last_t.is_none_or(|last| ts > last) && d.is_finite() {
                 self.last_t = Some(ts);
-                return Some((ts, self.d[i]));
+                return Some((ts, d));
             }
         }
         None
@@ -410,6 +427,53 @@ impl<'a> OdoInterp<'a> {
         };
         let w = (ts - t_i) / (t_next - t_i);
         d_i + w * (d_next - d_i)
+    }
+}
+
+/// Distances that replace an ingested odometer's over some of its rows (its failures
+/// bridged again, [`crate::odo_rebridge`]), each moving the rows after it.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct OdoPatch {
+    /// In row order, not overlapping.
+    pub spans: Vec<PatchSpan>,
+}
+
+/// Rows of an [`OdoPatch`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct PatchSpan {
+    /// The first row replaced.
+    pub first: usize,
+    /// The distances of the rows from `first` on, m.
+    pub distance_m: Vec<f64>,
+    /// Added to the ingested distances of the rows after the span (up to the next one),
+    /// m: the moves of every span up to this one.
+    pub shift_after_m: f64,
+}
+
+/// An [`OdoPatch`] read row by row, in order.
+struct PatchCursor {
+    patch: Arc<OdoPatch>,
+    /// The first span not yet behind the rows read.
+    span: usize,
+    /// Added to the ingested distances where no span replaces them, m.
+    shift_m: f64,
+}
+
+impl PatchCursor {
+    /// The distance of row `i` (not before the last one asked), whose ingested one is
+    /// `ingested_m`.
+    fn at(&mut self, i: usize, ingested_m: f64) -> f64 {
+        let spans = &self.patch.spans;
+        while let Some(s) = spans.get(self.span)
+            && s.first + s.distance_m.len() <= i
+        {
+            self.shift_m = s.shift_after_m;
+            self.span += 1;
+        }
+        match spans.get(self.span) {
+            Some(s) if i >= s.first => s.distance_m[i - s.first],
+            _ => ingested_m + self.shift_m,
+        }
     }
 }
 
@@ -525,9 +589,11 @@ pub fn odometer_increments(d: &Derived, raw: &RawSeries<'_>, offset_s: f64) -> V
 /// A derive's odometer increments with the odometer's time tags moved by an offset, read
 /// from the ingested odometer as a pass goes instead of stored: what
 /// [`odometer_increments`] gives, sample by sample.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct MovedOdometer<'a> {
     t_s: &'a TimeBase,
+    /// Distances replacing some of the ingested ones.
+    patch: Option<Arc<OdoPatch>>,
     first_dt_s: f64,
     t0_ns: i64,
     odo_t_ns: OdoTimes<'a>,
@@ -545,7 +611,13 @@ impl<'a> MovedOdometer<'a> {
             odo_t_ns: raw.odo_t_ns,
             odo_distance_m: raw.odo_distance_m,
             offset_s,
+            patch: None,
         }
+    }
+
+    /// This odometer with `patch`'s distances over some of its rows.
+    pub fn patched(self, patch: Option<Arc<OdoPatch>>) -> Self {
+        Self { patch, ..self }
     }
 
     /// The increments, m, one per sample from the first.
@@ -553,6 +625,7 @@ impl<'a> MovedOdometer<'a> {
         let mut odo = OdoInterp::new(
             self.odo_t_ns,
             self.odo_distance_m,
+            self.patch.clone(),
             self.t0_ns,
             self.offset_s,
         );
@@ -787,7 +860,7 @@ mod tests {
                 (&t_ns[..0], &d[..0]),
                 (&t_ns[4..], &d[4..]),
             ] {
-                let mut odo = OdoInterp::new(tags.into(), dists, 1_000_000_000, offset_s);
+                let mut odo = OdoInterp::new(tags.into(), dists, None, 1_000_000_000, offset_s);
                 for &ts in &calls {
                     let want = distance_by_definition(tags, dists, 1_000_000_000, offset_s, ts);
                     assert_eq!(

@@ -25,6 +25,7 @@ pub mod initial;
 pub mod linearized;
 pub mod odo_bridge;
 pub mod odo_lag;
+pub mod odo_rebridge;
 pub mod route_sigma;
 pub mod simulate;
 pub mod strapdown;

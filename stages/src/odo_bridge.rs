@@ -241,54 +241,17 @@ fn across(u: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
 /// configured time offset, negated; 0 without), around which the lag is searched.
 /// `None` when the window has fewer than 10 readings, or the fit is not finite.
 pub fn bridge(window: &[BridgeSample], g_mps2: f64, lag_prior_s: f64) -> Option<Bridge> {
-    let readings = window
-        .iter()
-        .filter(|s| !matches!(s.reading, Reading::Failed))
-        .count();
-    if readings < MIN_READINGS || window.len() < 2 {
-        return None;
-    }
-    let has_before = window
-        .iter()
-        .any(|s| matches!(s.reading, Reading::Before(_)));
-    let has_after = window
-        .iter()
-        .any(|s| matches!(s.reading, Reading::After(_)));
-    // The body's x axis at each sample, in frame 0; gravity's direction from the summed
-    // specific force (in frame 0 it is the change of velocity less g·u·T: a vehicle's
-    // change of speed over the window tilts the guess by a few degrees at most).
-    let mut axes = Vec::with_capacity(window.len());
-    let mut r = Rotation3::identity();
-    let mut force = Vector3::zeros();
-    axes.push(Vector3::x());
-    for s in &window[1..] {
-        let r_before = r;
-        r *= Rotation3::from_scaled_axis(Vector3::from(s.dtheta_rad));
-        force += (r_before * Rotation3::from_scaled_axis(0.5 * Vector3::from(s.dtheta_rad)))
-            * Vector3::from(s.dvel_mps);
-        axes.push(r * Vector3::x());
-    }
-    let u0 = -force.try_normalize(f64::MIN_POSITIVE)?;
-    // Unknowns: [d0, v0, α, β, α̇, β̇, b, κ] and, with readings after, their offset.
-    let n_x = if has_after && has_before { 9 } else { 8 };
     let lag_prior_s = if lag_prior_s.is_finite() {
         lag_prior_s
     } else {
         0.0
     };
-    let problem = Fit {
-        window,
-        times: window.iter().map(|s| s.t_s).collect(),
-        axes: &axes,
-        g_mps2,
-        n_x,
-        readings,
-        lag_prior_s,
-    };
+    let prepared = Prepared::of(window)?;
+    let problem = prepared.fit(window, g_mps2, lag_prior_s);
     // The odometer's lag: on a grid over ±MAX_LAG_S about the prior, then at the vertex
     // of the parabola through the best and its neighbours. Each fit starts from
     // gravity's direction at the lag before it (from the prior out).
-    let zero = problem.solve(u0, lag_prior_s)?;
+    let zero = problem.solve(prepared.u0, lag_prior_s)?;
     let mut grid: Vec<(f64, Solved)> = Vec::with_capacity(2 * LAG_STEPS as usize + 1);
     for side in [-1.0, 1.0] {
         let mut u = zero.u;
@@ -321,6 +284,99 @@ pub fn bridge(window: &[BridgeSample], g_mps2: f64, lag_prior_s: f64) -> Option<
             }
         }
     }
+    bridge_of(window, solved, prepared.readings, lag_s)
+}
+
+/// Bridges the failure in `window` as [`bridge`] does, with the odometer's lag known:
+/// `lag_s` late (its reading at t is the route at t − lag). One fit, without a search:
+/// what the disupt stage does at each lag it tries, once the whole run shows the lag
+/// (the readings around a failure from a stop do not).
+pub fn bridge_at_lag(window: &[BridgeSample], g_mps2: f64, lag_s: f64) -> Option<Bridge> {
+    if !lag_s.is_finite() {
+        return None;
+    }
+    let prepared = Prepared::of(window)?;
+    let solved = prepared
+        .fit(window, g_mps2, lag_s)
+        .solve(prepared.u0, lag_s)?;
+    bridge_of(window, solved, prepared.readings, lag_s)
+}
+
+/// What a window's fits start from.
+struct Prepared {
+    /// The body's x axis at each sample, in frame 0.
+    axes: Vec<Vector3<f64>>,
+    /// Gravity's direction, a first guess.
+    u0: Vector3<f64>,
+    /// The odometer's readings (samples not failed).
+    readings: usize,
+    /// Unknowns.
+    n_x: usize,
+}
+
+impl Prepared {
+    /// `None` when the window has fewer than [`MIN_READINGS`] readings.
+    fn of(window: &[BridgeSample]) -> Option<Self> {
+        let readings = window
+            .iter()
+            .filter(|s| !matches!(s.reading, Reading::Failed))
+            .count();
+        if readings < MIN_READINGS || window.len() < 2 {
+            return None;
+        }
+        let has_before = window
+            .iter()
+            .any(|s| matches!(s.reading, Reading::Before(_)));
+        let has_after = window
+            .iter()
+            .any(|s| matches!(s.reading, Reading::After(_)));
+        // The body's x axis at each sample, in frame 0; gravity's direction from the
+        // summed specific force (in frame 0 it is the change of velocity less g·u·T: a
+        // vehicle's change of speed over the window tilts the guess by a few degrees at
+        // most).
+        let mut axes = Vec::with_capacity(window.len());
+        let mut r = Rotation3::identity();
+        let mut force = Vector3::zeros();
+        axes.push(Vector3::x());
+        for s in &window[1..] {
+            let r_before = r;
+            r *= Rotation3::from_scaled_axis(Vector3::from(s.dtheta_rad));
+            force += (r_before * Rotation3::from_scaled_axis(0.5 * Vector3::from(s.dtheta_rad)))
+                * Vector3::from(s.dvel_mps);
+            axes.push(r * Vector3::x());
+        }
+        let u0 = -force.try_normalize(f64::MIN_POSITIVE)?;
+        // Unknowns: [d0, v0, α, β, α̇, β̇, b, κ] and, with readings after, their offset.
+        let n_x = if has_after && has_before { 9 } else { 8 };
+        Some(Self {
+            axes,
+            u0,
+            readings,
+            n_x,
+        })
+    }
+
+    /// The window's fits, the lag's prior at `lag_prior_s`.
+    fn fit<'a>(&'a self, window: &'a [BridgeSample], g_mps2: f64, lag_prior_s: f64) -> Fit<'a> {
+        Fit {
+            window,
+            times: window.iter().map(|s| s.t_s).collect(),
+            axes: &self.axes,
+            g_mps2,
+            n_x: self.n_x,
+            readings: self.readings,
+            lag_prior_s,
+        }
+    }
+}
+
+/// The bridge of `window` from its fit at `lag_s`.
+fn bridge_of(
+    window: &[BridgeSample],
+    solved: Solved,
+    readings: usize,
+    lag_s: f64,
+) -> Option<Bridge> {
     let Solved { route, squares, .. } = solved;
     // Continuous with the last reading before (else the first sample at 0), and the
     // readings after continuous with the bridge.

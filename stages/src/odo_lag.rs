@@ -42,6 +42,7 @@ use crate::disupt::{
 };
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, Setting};
+use crate::odo_rebridge::Rebridges;
 
 /// Half-width of the parabolas around the current vertex (and of the curvature), s.
 const CURVATURE_STEP_S: f64 = 0.05;
@@ -100,6 +101,8 @@ pub struct Rederive<'a> {
     /// The configured derive, when the caller has it (the derive stage's cache).
     configured: Option<&'a Derived>,
     base: OnceLock<Derived>,
+    /// The odometer's bridged failures, bridged again at each lag.
+    rebridges: Option<Rebridges<'a>>,
 }
 
 impl<'a> Rederive<'a> {
@@ -111,7 +114,19 @@ impl<'a> Rederive<'a> {
             g_mps2,
             configured: None,
             base: OnceLock::new(),
+            rebridges: None,
         }
+    }
+
+    /// Re-derives whose odometer's failures are bridged again at their lag
+    /// ([`Rebridges`]).
+    pub fn with_rebridges(self, rebridges: Option<Rebridges<'a>>) -> Self {
+        Self { rebridges, ..self }
+    }
+
+    /// The odometer's bridged failures, bridged again at each lag, if any.
+    pub fn rebridges(&self) -> Option<&Rebridges<'a>> {
+        self.rebridges.as_ref()
     }
 
     /// Re-derives around `configured`, the derive of `raw` with `params` already at hand
@@ -183,13 +198,15 @@ impl<'a> Rederive<'a> {
     }
 
     /// The odometer `lag_s` later than the configured offset says, over the configured
-    /// derive's samples: its increments read as a pass goes.
+    /// derive's samples: its increments read as a pass goes (its failures bridged at
+    /// that lag).
     pub fn odometer_at(&self, lag_s: f64) -> MovedOdometer<'_> {
         MovedOdometer::new(
             self.configured(),
             &self.raw,
             self.params.odo_time_offset_s - lag_s,
         )
+        .patched(self.rebridges.as_ref().map(|r| r.patch_at(lag_s)))
     }
 }
 
@@ -244,7 +261,7 @@ impl Profile<'_> {
             .collect();
         let problems: Vec<Problem<'_>> = derives
             .iter()
-            .map(|(d, odometer)| self.spec.on_moved(d, *odometer))
+            .map(|(d, odometer)| self.spec.on_moved(d, odometer.clone()))
             .collect();
         let refs: Vec<&Problem<'_>> = problems.iter().collect();
         let warm = self.fit0.linearization();
@@ -289,13 +306,18 @@ pub fn joint_with_lag(
     // ±STEP around each vertex, until the vertex moves less than TOLERANCE_S.
     // The trial at lag zero is on the derive the fit was made on, whose pass at the
     // linearisation's point the linearisation holds: no pass.
-    let cost_at_0 = fit0.linearised_cp_cost(base, fit0.linearization())?;
-    profile.trials.borrow_mut().push([0.0, cost_at_0]);
+    // With the odometer's failures bridged again at each lag, the lag zero's derive is
+    // not the fit's (whose failures the ingest bridged): its trial is a pass like any,
+    // beside the first parabola's others.
+    if rederive.rebridges().is_none() {
+        let cost_at_0 = fit0.linearised_cp_cost(base, fit0.linearization())?;
+        profile.trials.borrow_mut().push([0.0, cost_at_0]);
+    }
     let wide = 0.3 * bound;
     let mut points = [-wide, 0.0, wide];
     let mut lag_s = 0.0;
     let mut curvature = f64::NAN;
-    let mut c0 = cost_at_0;
+    let mut c0 = f64::NAN;
     for round in 0..MAX_ROUNDS {
         let costs = profile.costs(points)?;
         let previous = lag_s;

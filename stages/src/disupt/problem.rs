@@ -141,7 +141,7 @@ impl<'a> Problem<'a> {
 
     /// The odometer increments a pass of this problem reads, sample by sample.
     fn odometer_increments(&self) -> LaneIncrements<'a> {
-        match self.moved_odometer {
+        match &self.moved_odometer {
             Some(moved) => Either::Right(moved.increments()),
             None => Either::Left(self.inputs.odo_dist_m.iter().copied()),
         }
