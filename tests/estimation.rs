@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use unz::disupt_stage::DisuptOut;
 use unz::flow::NavigateSummary;
 use unz_formats::parquet_io::read_batches;
-use unz_formats::tables::f64_column;
+use unz_formats::tables::{f64_column, u8_column};
 use unz_stages::initial::Source;
 use unz_stages::simulate::TrueSettings;
 
@@ -820,6 +820,23 @@ fn an_odometer_failure_is_bridged_again_at_the_estimated_lag() {
     );
     assert!(j0.rebridged.is_none());
     assert_eq!((rebridged.failures, rebridged.left), (1, 0));
+    // `odometer.parquet` names the failure's rows bridged, and no other.
+    let (_, batches) = read_batches(
+        &case
+            .failed
+            .1
+            .join(&case.name)
+            .join("ingest/odometer.parquet"),
+    )
+    .unwrap();
+    let source: Vec<u8> = batches
+        .iter()
+        .flat_map(|b| u8_column(b, "distance_source").unwrap())
+        .collect();
+    let bridged: Vec<usize> = (0..source.len()).filter(|&k| source[k] != 0).collect();
+    assert_eq!(bridged.len(), LATE_FAILURE_LEN);
+    assert_eq!(bridged[0], case.k0);
+    assert!(bridged.iter().all(|&k| source[k] == 1));
     // The ingest's bridge is off by about the lag times the speed after the failure;
     // bridged again, within 1.5 m (as with the lag configured).
     assert!(

@@ -383,7 +383,10 @@ impl<'a> OdoInterp<'a> {
         s
     }
 
-    /// The next tag kept (time s, distance m), if any.
+    /// The next tag kept (time s, distance m), if any. Inline: the navigation's passes
+    /// read the odometer through it at every sample (out of line it cost the disupt
+    /// process 3 % more instructions).
+    #[inline]
     fn next_kept(&mut self) -> Option<(f64, f64)> {
         while self.from < self.d.len() {
             let t_ns = self.t_ns.next()?;
@@ -461,7 +464,9 @@ struct PatchCursor {
 
 impl PatchCursor {
     /// The distance of row `i` (not before the last one asked), whose ingested one is
-    /// `ingested_m`.
+    /// `ingested_m`. Out of line: most runs have no patch, and their odometer's reading
+    /// loop stays as small as it was.
+    #[inline(never)]
     fn at(&mut self, i: usize, ingested_m: f64) -> f64 {
         let spans = &self.patch.spans;
         while let Some(s) = spans.get(self.span)
