@@ -354,7 +354,8 @@ fn odometer_failure_note(n: &NavigateSummary, failures: Option<&OdometerFailures
 }
 
 /// What the summary's error column says of a run that did not fail: an odometer flagged
-/// failed on some samples (bridged or not); the methods its disupt stage did not run
+/// failed on some samples (bridged or not, and bridged again at the joint's lag); the
+/// methods its disupt stage did not run
 /// (those refused for one reason together) or ran but did not use for the corrected
 /// navigation, with the reason; a coarse azimuth turn refused; an odometer yaw boresight
 /// the joint fit's residuals show (and estimated); the control points the joint fit's
@@ -380,6 +381,9 @@ fn run_note(
     let odo_failed = nav
         .filter(|n| n.odometer_failure_samples > 0 || failures.is_some_and(|f| f.stuck > 0))
         .map(|n| odometer_failure_note(n, failures));
+    let rebridged = d
+        .and_then(|d| d.methods.get("joint")?.rebridged.as_ref())
+        .map(crate::disupt_stage::rebridged_note);
     // Methods refused for one reason (a run without motion refuses all three) share it.
     let mut by_reason: Vec<(Vec<&str>, &str)> = Vec::new();
     for (name, why) in skipped {
@@ -390,6 +394,7 @@ fn run_note(
     }
     odo_failed
         .into_iter()
+        .chain(rebridged)
         .chain(
             by_reason
                 .into_iter()

@@ -22,7 +22,7 @@ pub use coarse_azimuth::{Coarse, CoarseRefused, coarse_azimuth, coarse_refused_n
 use joint_run::{joint_route_sigma, route_stride, run_methods};
 pub use report::{
     DisuptOut, MethodOut, ODO_YAW_REFIT_Z, OdoYawCheck, Outcome, SettingsOut, SigmaOut,
-    odo_yaw_note,
+    odo_yaw_note, rebridged_note,
 };
 use report::{Lag, markdown, method_out, settings_out};
 use reviews::{Reviewed, review_passes};
@@ -176,8 +176,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             || IngestedSeries::load_odometer_tags(&ctx.layout().dir(StageName::Ingest)),
         );
         let (case, odometer) = (case?, odometer?);
-        // The derive stage's output is the configured derive, whole: re-derives at other
-        // odometer timings start from it and move the odometer's part only.
         // The odometer's bridged failures are bridged again at each lag the joint fit
         // tries (the ingest's bridges took the lag their readings showed).
         let rebridges = Rebridges::new(
@@ -188,6 +186,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             -params.derive.odo_time_offset_s,
             |rows| read_velocity_ranges(&ctx.layout().dir(StageName::Derive), rows),
         )?;
+        // The derive stage's output is the configured derive, whole: re-derives at other
+        // odometer timings start from it and move the odometer's part only.
         let rederive = Rederive::of_odometer(
             &case.derived,
             &odometer.t_ns,

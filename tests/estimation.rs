@@ -860,7 +860,15 @@ fn an_odometer_failure_is_bridged_again_at_the_estimated_lag() {
     let md =
         std::fs::read_to_string(case.failed.1.join(&case.name).join("disupt/disupt.md")).unwrap();
     assert!(
-        md.contains("Odometer failures bridged again at each lag tried: 1 "),
+        md.contains(
+            "The joint fit bridged the odometer's failures again at each lag it tried: 1 (at \
+             its lag, the distance across one changed by -3."
+        ),
         "{md}"
+    );
+    let summary = std::fs::read_to_string(case.failed.1.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains("; the joint fit bridged the odometer's failures again at each lag"),
+        "{summary}"
     );
 }

@@ -184,15 +184,17 @@ pub fn odo_yaw_note(c: &OdoYawCheck) -> Option<String> {
     })
 }
 
-/// What `disupt.md` says of the odometer's failures bridged again at the lag.
-fn rebridged_note(b: &Rebridged) -> String {
+/// What `disupt.md` and the campaign's summary say of the odometer's failures the joint
+/// fit bridged again at each lag it tried.
+pub fn rebridged_note(b: &Rebridged) -> String {
     let left = match b.left {
         0 => String::new(),
         n => format!("; {n} left as the ingest bridged them"),
     };
     format!(
-        "Odometer failures bridged again at each lag tried: {} (at the estimated lag, the \
-         distance across one changed by {:+.2} m at most against the ingest's bridge){left}.",
+        "the joint fit bridged the odometer's failures again at each lag it tried: {} (at \
+         its lag, the distance across one changed by {:+.2} m at most against the ingest's \
+         bridge){left}",
         b.failures, b.largest_change_m
     )
 }
@@ -322,7 +324,8 @@ fn table(name: &str, r: &MethodOut, bounds: &disupt::DisuptParams) -> String {
             );
         }
         if let Some(b) = &r.rebridged {
-            let _ = writeln!(s, "\n{}", rebridged_note(b));
+            let note = rebridged_note(b);
+            let _ = writeln!(s, "\nThe {}.", note.strip_prefix("the ").unwrap_or(&note));
         }
     }
     if let Some(h) = &r.holdout {
