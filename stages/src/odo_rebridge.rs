@@ -20,7 +20,9 @@ use std::ops::Range;
 use std::sync::Arc;
 
 use crate::derive::{Derived, OdoPatch, PatchSpan};
-use crate::odo_bridge::{BridgeSample, Reading, WINDOW_S, bridge_at_lag};
+use rayon::prelude::*;
+
+use crate::odo_bridge::{Bridge, BridgeSample, Reading, WINDOW_S, bridge_at_lag};
 
 /// Failures bridged again at most, the longest first: each lag the joint fit tries
 /// bridges each of them once (a minute's failure in about 10 M instructions, some ten
@@ -200,31 +202,39 @@ impl<'a> Rebridges<'a> {
         }
     }
 
-    /// The failures bridged at the joint's `lag_s`.
+    /// The failures bridged at the joint's `lag_s`: each on its own (side by side), then
+    /// in order, each moving the rows after it.
     fn bridged_at(&self, lag_s: f64) -> Bridged {
         let (d, odo) = (self.derived, self.odo_distance_m);
         let lag_s = self.lag_at_zero_s + lag_s;
+        let bridges: Vec<Option<Bridge>> = self
+            .windows
+            .par_iter()
+            .map(|w| {
+                let window: Vec<BridgeSample> = (w.start..w.end)
+                    .zip(&w.dvel_mps)
+                    .map(|(k, dvel_mps)| BridgeSample {
+                        t_s: d.t_s.get(k),
+                        dtheta_rad: d.dtheta_rad[k],
+                        dvel_mps: *dvel_mps,
+                        reading: if k < w.first {
+                            Reading::Before(odo[k])
+                        } else if k < w.end_failed {
+                            Reading::Failed
+                        } else {
+                            Reading::After(odo[k])
+                        },
+                    })
+                    .collect();
+                bridge_at_lag(&window, self.g_mps2, lag_s)
+            })
+            .collect();
         let mut shift_m = 0.0;
         let mut failed_fits = 0;
         let mut spans = Vec::with_capacity(self.windows.len());
         let mut has_after = Vec::with_capacity(self.windows.len());
-        for w in &self.windows {
-            let window: Vec<BridgeSample> = (w.start..w.end)
-                .zip(&w.dvel_mps)
-                .map(|(k, dvel_mps)| BridgeSample {
-                    t_s: d.t_s.get(k),
-                    dtheta_rad: d.dtheta_rad[k],
-                    dvel_mps: *dvel_mps,
-                    reading: if k < w.first {
-                        Reading::Before(odo[k])
-                    } else if k < w.end_failed {
-                        Reading::Failed
-                    } else {
-                        Reading::After(odo[k])
-                    },
-                })
-                .collect();
-            let Some(b) = bridge_at_lag(&window, self.g_mps2, lag_s) else {
+        for (w, b) in self.windows.iter().zip(bridges) {
+            let Some(b) = b else {
                 failed_fits += 1;
                 continue;
             };
