@@ -324,8 +324,9 @@ fn table(name: &str, r: &MethodOut, bounds: &disupt::DisuptParams) -> String {
             );
         }
         if let Some(b) = &r.rebridged {
-            let note = rebridged_note(b);
-            let _ = writeln!(s, "\nThe {}.", note.strip_prefix("the ").unwrap_or(&note));
+            let mut note = rebridged_note(b);
+            note[..1].make_ascii_uppercase();
+            let _ = writeln!(s, "\n{note}.");
         }
     }
     if let Some(h) = &r.holdout {

@@ -185,7 +185,16 @@ mod tests {
         let table = OdometerTable {
             distance_m: t_ns.iter().map(|&t| t as f64 * 1e-8).collect(),
             pulses: vec![None; t_ns.len()],
-            source: vec![0; t_ns.len()],
+            // Failed rows: bridged from 20 000 for 3 000, held from 23 000 for 1 000 (and
+            // a code no writer makes after them), bridged again from 140 000 to the end.
+            source: (0..t_ns.len())
+                .map(|k| match k {
+                    20_000..23_000 | 140_000.. => 1,
+                    23_000..24_000 => 2,
+                    24_000 => 9,
+                    _ => 0,
+                })
+                .collect(),
             t_ns,
         };
         let dir = tempfile::tempdir().unwrap();
@@ -197,6 +206,19 @@ mod tests {
         assert_eq!(tags.t_ns.iter().collect::<Vec<_>>(), plain.t_ns);
         assert_eq!(tags.distance_m, plain.distance_m);
         assert_eq!(plain.t_ns, table.t_ns);
+        let failed = |first, len, bridged| FailedRows {
+            first,
+            len,
+            bridged,
+        };
+        assert_eq!(
+            tags.failed,
+            [
+                failed(20_000, 3000, true),
+                failed(23_000, 1001, false),
+                failed(140_000, 10_000, true)
+            ]
+        );
 
         let empty = OdometerTable::default();
         write_batch(&path, &empty.to_batch(schema::odometer(None)).unwrap()).unwrap();
