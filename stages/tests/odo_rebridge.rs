@@ -252,3 +252,67 @@ fn the_longest_failures_are_bridged_again() {
     .unwrap();
     assert!(none.is_none());
 }
+
+/// A log that begins failed is bridged from the readings after it alone, from where the
+/// ingest began it; one that ends failed, from those before it, its change measured to
+/// its last row.
+#[test]
+fn failures_at_the_log_s_ends_are_bridged_again_from_one_side() {
+    let n = 6000;
+    let drive = Drive::new(n, |_| 0.0);
+    // A constant 10 m/s, the odometer on time.
+    let route = |k: usize| pulses(10.0 * drive.tags_ns[k] as f64 * 1e-9);
+    let failed = [
+        FailedRows {
+            first: 0,
+            len: 500,
+            bridged: true,
+        },
+        FailedRows {
+            first: 5000,
+            len: 1000,
+            bridged: true,
+        },
+    ];
+    // The ingest began the route at 0 at the first row and held it over the failures;
+    // the readings after the first are 3 m off (what its bridge left).
+    let odo: Vec<f64> = (0..n)
+        .map(|k| match k {
+            ..500 => 0.0,
+            500..5000 => route(k) - route(0) + 3.0,
+            _ => route(4999) - route(0) + 3.0,
+        })
+        .collect();
+    let r = Rebridges::new(&drive.derived, &odo, &failed, G_MPS2, 0.0, drive.velocity())
+        .unwrap()
+        .unwrap();
+    let patch = r.patch_at(0.0);
+    assert_eq!(patch.spans.len(), 2);
+    let (first, last) = (&patch.spans[0], &patch.spans[1]);
+    for (i, d) in first.distance_m.iter().enumerate() {
+        let want = route(i) - route(0);
+        assert!((d - want).abs() < 0.01, "row {i}: {d} against {want}");
+    }
+    // The readings after it move back by the 3 m.
+    assert!(
+        (first.shift_after_m + 3.0).abs() < 0.01,
+        "{}",
+        first.shift_after_m
+    );
+    // The last failure continues the moved readings before it.
+    for (i, d) in last.distance_m.iter().enumerate() {
+        let want = route(5000 + i) - route(0);
+        assert!(
+            (d - want).abs() < 0.02,
+            "row {}: {d} against {want}",
+            5000 + i
+        );
+    }
+    // Its change: the distance it adds over the ingest's held one (1000 rows at 0.1 m).
+    let changed = r.changes_at(0.0);
+    assert_eq!((changed.failures, changed.left), (2, 0));
+    assert!(
+        (changed.largest_change_m - 100.0).abs() < 0.05,
+        "{changed:?}"
+    );
+}
