@@ -14,13 +14,16 @@ use unz_formats::tables::{f64_column, i64_column};
 use unz_stages::criteria::Kryt2;
 use unz_stages::earth::Geodetic;
 use unz_viz::review::{
-    ControlPointView, EpochSeries, Kryt1Curve, Review, RouteSigmaView, SensorBlocks, Sweep, Track,
+    ControlPointView, EpochSeries, Kryt1Curve, OdometerFailure, Review, RouteSigmaView,
+    SensorBlocks, Sweep, Track,
 };
 
 use crate::artifacts::{StageName, files};
 use crate::derive_io::read_epoch_terms;
 use crate::disupt_stage::{DisuptOut, Method, ensure_disupt};
-use crate::flow::{Overrides, Params, RunCtx, ensure_criteria, load_criteria, start_position};
+use crate::flow::{
+    IngestedSeries, Overrides, Params, RunCtx, ensure_criteria, load_criteria, start_position,
+};
 use crate::method_tables::{
     KRYT1_SERIES, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_step, read_kryt1_series,
     read_tracks,
@@ -80,6 +83,7 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
         disupt_dir.join(files::CORRECTED_NAV),
         disupt_dir.join(TRACKS),
         disupt_dir.join(KRYT1_SERIES),
+        ctx.layout().dir(StageName::Ingest).join(files::ODOMETER),
     ];
     inputs.extend(truth.iter().cloned());
     inputs.extend(sweep.iter().cloned());
@@ -88,7 +92,8 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
     let stage = Stage {
         dir: dir.clone(),
         name: "review",
-        version: 3,
+        // 4: the odometer's failures on the speed's plot.
+        version: 4,
         params_hash: params_hash(&(
             unz_viz::recording::SERIES_RATE_HZ,
             unz_viz::recording::POSE_RATE_HZ,
@@ -235,10 +240,21 @@ pub fn build_review(
     );
     let route_sigma =
         read_route_sigma(&disupt_dir.join(files::CORRECTED_NAV), &rel, d.nominal_dt_s)?;
+    // A binary log's odometer rows are its IMU samples (a text log's are not, and it
+    // has no failure).
+    let odometer_failures = IngestedSeries::load_failed_rows(&ctx.layout().dir(StageName::Ingest))?
+        .into_iter()
+        .map(|f| OdometerFailure {
+            first_sample: f.first as i64,
+            samples: f.len as i64,
+            bridged: f.bridged,
+        })
+        .collect();
     Ok(Review {
         name: m.name.clone(),
         sample_dt_s: d.nominal_dt_s,
         sensors,
+        odometer_failures,
         epochs,
         kryt1,
         tracks,

@@ -871,4 +871,21 @@ fn an_odometer_failure_is_bridged_again_at_the_estimated_lag() {
         summary.contains("; the joint fit bridged the odometer's failures again at each lag"),
         "{summary}"
     );
+    // The review shows the failure on the speed's plot: the 10-Hz blocks that hold its
+    // 6000 samples (600, or 601 where it begins inside one), and nothing held.
+    let run = case.failed.0.to_str().unwrap();
+    crate::util::unz_ok(&["review", run, "--out", case.failed.1.to_str().unwrap()]);
+    let Some(py) = crate::util::python() else {
+        return;
+    };
+    let rrd = case
+        .failed
+        .1
+        .join(&case.name)
+        .join(format!("review/{}.rrd", case.name));
+    let info = crate::util::python_json(&py, "check_rrd.py", &[&rrd]);
+    let rows = &info["temporal_rows"];
+    let bridged = rows["/plots/speed/bridged"].as_i64().unwrap();
+    assert!((600..=601).contains(&bridged), "{bridged} blocks bridged");
+    assert!(rows.get("/plots/speed/held").is_none(), "{info}");
 }

@@ -90,6 +90,10 @@ fn review_recording_reads_back_with_the_pinned_rerun() {
     let samples = parquet_rows(&out.join("sim-0079/derive/derived.parquet"));
     let epochs = parquet_rows(&out.join("sim-0079/criteria/criteria.parquet"));
     let rows = &info["temporal_rows"];
+    // The odometer never failed: nothing on the speed's plot but its speed.
+    for leaf in ["bridged", "held"] {
+        assert!(rows.get(format!("/plots/speed/{leaf}")).is_none(), "{leaf}");
+    }
     let decimated = (samples + 9) / 10; // 10 Hz block means of 100 Hz samples
     for e in [
         "speed/u",

@@ -53,6 +53,36 @@ pub struct OdometerTags {
     pub failed: Vec<FailedRows>,
 }
 
+/// Adds the failed rows of a batch of `odometer.parquet`'s `distance_source`, its first
+/// row `first_row`, to `failed` (in order; runs of one kind join across batches).
+fn extend_failed(
+    failed: &mut Vec<FailedRows>,
+    first_row: usize,
+    b: &RecordBatch,
+) -> Result<(), unz_formats::FormatError> {
+    for (k, code) in u8_column(b, schema::DISTANCE_SOURCE)?
+        .into_iter()
+        .enumerate()
+    {
+        let bridged = match DistanceSource::of_code(code) {
+            Some(DistanceSource::Reading) => continue,
+            Some(DistanceSource::Bridged) => true,
+            // Held, or a code no writer makes: not the odometer's reading.
+            _ => false,
+        };
+        let row = first_row + k;
+        match failed.last_mut() {
+            Some(f) if f.first + f.len == row && f.bridged == bridged => f.len += 1,
+            _ => failed.push(FailedRows {
+                first: row,
+                len: 1,
+                bridged,
+            }),
+        }
+    }
+    Ok(())
+}
+
 /// The ingested IMU and odometer tables: what derive reads.
 pub struct IngestedSeries {
     imu: ImuTable,
@@ -108,30 +138,26 @@ impl IngestedSeries {
             let first_row = odo.distance_m.len();
             odo.t_ns.extend(i64_column(b, schema::T_NS)?);
             odo.distance_m.extend(f64_column(b, schema::DISTANCE_M)?);
-            let sources = u8_column(b, schema::DISTANCE_SOURCE)?;
-            for (k, code) in sources.into_iter().enumerate() {
-                let bridged = match DistanceSource::of_code(code) {
-                    Some(DistanceSource::Reading) => continue,
-                    Some(DistanceSource::Bridged) => true,
-                    // Held, or a code no writer makes: not the odometer's reading.
-                    _ => false,
-                };
-                let row = first_row + k;
-                match odo.failed.last_mut() {
-                    Some(f) if f.first + f.len == row && f.bridged == bridged => f.len += 1,
-                    _ => odo.failed.push(FailedRows {
-                        first: row,
-                        len: 1,
-                        bridged,
-                    }),
-                }
-            }
-            Ok(())
+            extend_failed(&mut odo.failed, first_row, b)
         })?;
         if odo.distance_m.is_empty() {
             bail!(NO_ODOMETER);
         }
         Ok(odo)
+    }
+
+    /// The rows of `odometer.parquet` of an ingest folder whose distances are not the
+    /// odometer's readings (its `distance_source` column alone: what the review shows).
+    pub fn load_failed_rows(ingest_dir: &Path) -> anyhow::Result<Vec<FailedRows>> {
+        let mut failed = Vec::new();
+        let mut rows = 0;
+        let path = ingest_dir.join(files::ODOMETER);
+        for_each_batch_of(&path, &[schema::DISTANCE_SOURCE], |b| {
+            extend_failed(&mut failed, rows, b)?;
+            rows += b.num_rows();
+            Ok(())
+        })?;
+        Ok(failed)
     }
 
     /// Samples whose status flags an IMU built-in-test failure (bit 0) and an odometer
@@ -218,6 +244,10 @@ mod tests {
                 failed(23_000, 1001, false),
                 failed(140_000, 10_000, true)
             ]
+        );
+        assert_eq!(
+            IngestedSeries::load_failed_rows(dir.path()).unwrap(),
+            tags.failed
         );
 
         let empty = OdometerTable::default();

@@ -14,7 +14,7 @@ use rerun::{RecordingStream, TimeColumn};
 use crate::blueprint::send_review_blueprint;
 use crate::frames::enu_flu_xyzw;
 use crate::paths::*;
-use crate::review::{Review, Track, color_of, display_name};
+use crate::review::{OdometerFailure, Review, Track, color_of, display_name};
 use unz_stages::attitude::Euler;
 
 /// Rate of the raw-rate series in the recording, Hz.
@@ -190,6 +190,72 @@ impl Writer<'_> {
         self.criteria(r)?;
         self.sensors(r)?;
         self.sweep(r)?;
+        Ok(())
+    }
+
+    /// The odometer's speed over its failures, as points on the speed's plot: the blocks
+    /// that hold a failed sample, bridged (`plots/speed/bridged`) or held
+    /// (`plots/speed/held`).
+    fn odometer_failures(&mut self, r: &Review) -> SdkResult<()> {
+        let b = &r.sensors;
+        for (bridged, leaf, name, color) in [
+            (
+                true,
+                "bridged",
+                "odometer failed, bridged [m/s]",
+                [214, 39, 40, 255],
+            ),
+            (
+                false,
+                "held",
+                "odometer failed, held [m/s]",
+                [127, 127, 127, 255],
+            ),
+        ] {
+            let spans: Vec<&OdometerFailure> = r
+                .odometer_failures
+                .iter()
+                .filter(|f| f.bridged == bridged)
+                .collect();
+            let mut spans = spans.iter().peekable();
+            let (mut t_s, mut sample, mut u) = (Vec::new(), Vec::new(), Vec::new());
+            for k in 0..b.t_s.len().min(b.sample.len()).min(b.u_mps.len()) {
+                let first = b.sample[k];
+                let end = first + b.step as i64;
+                // Spans wholly before this block are done.
+                while spans
+                    .next_if(|f| f.first_sample + f.samples <= first)
+                    .is_some()
+                {}
+                if spans.peek().is_some_and(|f| f.first_sample < end) {
+                    t_s.push(b.t_s[k]);
+                    sample.push(first);
+                    u.push(b.u_mps[k]);
+                }
+            }
+            if t_s.is_empty() {
+                continue;
+            }
+            let path = format!("{PLOT_SPEED}/{leaf}");
+            self.rec.log_static(
+                path.as_str(),
+                &rerun::SeriesPoints::new()
+                    .with_names([name])
+                    .with_colors([color])
+                    .with_marker_sizes([2.5]),
+            )?;
+            let index = vec![
+                TimeColumn::new_duration_secs(TIME, t_s.iter().copied()),
+                TimeColumn::new_sequence(SAMPLE, sample.iter().copied()),
+            ];
+            self.rec.send_columns(
+                path.as_str(),
+                index,
+                rerun::Scalars::new(u.iter().copied()).columns_of_unit_batches()?,
+            )?;
+            self.sent(t_s.len());
+            self.stats.entities += 1;
+        }
         Ok(())
     }
 
@@ -468,6 +534,7 @@ impl Writer<'_> {
         for (path, name, color, v) in raw {
             self.series(&path, name, color, &b.t_s, Some(&b.sample), v)?;
         }
+        self.odometer_failures(r)?;
         let e = &r.epochs;
         let filtered: [(&str, &str, [u8; 4], &[f64]); 4] = [
             (
@@ -614,8 +681,10 @@ its box is forward-left-up.\n\
 - **Pitch / roll**: gyro (navigated, green) against accelerometer (blue) values at the ΔTg \
 epochs with the initial settings; **residuals** ΔΘ, ΔΦ and their Kalman estimates; \
 **Kryt1** cumulative for every settings (the paper's Fig. 1).\n\
-- **Sensors**: odometer speed u, the acceleration terms u̇ and ru with the filtered aₓ, a_y \
-that Kryt1 compares, and the IMU's rates from its raw increments ({rate} Hz block means).\n\
+- **Sensors**: odometer speed u (red points where the odometer failed and its distance was \
+bridged by the inertial speed, grey where it held), the acceleration terms u̇ and ru with \
+the filtered aₓ, a_y that Kryt1 compares, and the IMU's rates from its raw increments \
+({rate} Hz block means).\n\
 - **DISUPT**: the tables of each method, and the sensitivity maps when `unz sweep` ran.\n\n\
 Timelines: `time` (s since the first IMU sample) and `sample` (raw IMU sample index, on \
 raw-rate series).\n",

@@ -13,6 +13,8 @@ pub struct Review {
     pub sample_dt_s: f64,
     /// Raw-rate series, in the recording's blocks.
     pub sensors: SensorBlocks,
+    /// Where the odometer failed (its distance bridged by the inertial speed, or held).
+    pub odometer_failures: Vec<OdometerFailure>,
     /// Criteria series at the ΔTg epochs, initial settings.
     pub epochs: EpochSeries,
     /// Cumulative Kryt1 per settings (`initial` first).
@@ -31,6 +33,17 @@ pub struct Review {
     pub tables_markdown: String,
     /// A few lines on the run (Markdown), shown in the read-me document.
     pub summary_markdown: String,
+}
+
+/// IMU samples over which the odometer failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OdometerFailure {
+    /// The first sample.
+    pub first_sample: i64,
+    /// Samples.
+    pub samples: i64,
+    /// Bridged by the inertial along-track speed; else the distance held.
+    pub bridged: bool,
 }
 
 /// The raw-rate series as the recording plots them: per block of [`SensorBlocks::step`]
