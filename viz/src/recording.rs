@@ -14,7 +14,7 @@ use rerun::{RecordingStream, TimeColumn};
 use crate::blueprint::send_review_blueprint;
 use crate::frames::enu_flu_xyzw;
 use crate::paths::*;
-use crate::review::{OdometerFailure, Review, Track, color_of, display_name};
+use crate::review::{Review, Track, color_of, display_name};
 use unz_stages::attitude::Euler;
 
 /// Rate of the raw-rate series in the recording, Hz.
@@ -212,30 +212,13 @@ impl Writer<'_> {
                 [127, 127, 127, 255],
             ),
         ] {
-            let spans: Vec<&OdometerFailure> = r
-                .odometer_failures
-                .iter()
-                .filter(|f| f.bridged == bridged)
-                .collect();
-            let mut spans = spans.iter().peekable();
-            let (mut t_s, mut sample, mut u) = (Vec::new(), Vec::new(), Vec::new());
-            for k in 0..b.t_s.len().min(b.sample.len()).min(b.u_mps.len()) {
-                let first = b.sample[k];
-                let end = first + b.step as i64;
-                // Spans wholly before this block are done.
-                while spans
-                    .next_if(|f| f.first_sample + f.samples <= first)
-                    .is_some()
-                {}
-                if spans.peek().is_some_and(|f| f.first_sample < end) {
-                    t_s.push(b.t_s[k]);
-                    sample.push(first);
-                    u.push(b.u_mps[k]);
-                }
-            }
-            if t_s.is_empty() {
+            let blocks = b.blocks_of(&r.odometer_failures, bridged);
+            if blocks.is_empty() {
                 continue;
             }
+            let t_s: Vec<f64> = blocks.iter().map(|&k| b.t_s[k]).collect();
+            let sample: Vec<i64> = blocks.iter().map(|&k| b.sample[k]).collect();
+            let u: Vec<f64> = blocks.iter().map(|&k| b.u_mps[k]).collect();
             let path = format!("{PLOT_SPEED}/{leaf}");
             self.rec.log_static(
                 path.as_str(),

@@ -72,6 +72,25 @@ pub struct SensorBlocks {
 }
 
 impl SensorBlocks {
+    /// The blocks that hold a sample of one of `failures` (in order) that is `bridged`
+    /// (or held, with `false`).
+    pub fn blocks_of(&self, failures: &[OdometerFailure], bridged: bool) -> Vec<usize> {
+        let mut spans = failures.iter().filter(|f| f.bridged == bridged).peekable();
+        let mut out = Vec::new();
+        for (k, &first) in self.sample.iter().enumerate() {
+            let end = first + self.step as i64;
+            // Spans wholly before this block are done.
+            while spans
+                .next_if(|f| f.first_sample + f.samples <= first)
+                .is_some()
+            {}
+            if spans.peek().is_some_and(|f| f.first_sample < end) {
+                out.push(k);
+            }
+        }
+        out
+    }
+
     /// Room for `blocks` more blocks in every column, reserved once.
     pub fn reserve_exact(&mut self, blocks: usize) {
         for v in [
@@ -338,6 +357,33 @@ mod tests {
             assert!((s.gyro_deg_s[2][j].to_radians() + 0.2).abs() < 1e-12);
             assert!((s.accel_mps2[2][j] + 9.8).abs() < 1e-12);
         }
+    }
+
+    /// The blocks a failure's samples fall in, by kind: one sample in a block is enough,
+    /// and a block between two failures is not one.
+    #[test]
+    fn a_failure_s_blocks_are_those_that_hold_its_samples() {
+        // Blocks of 10 samples, the last short: 0, 10, …, 90, 100 (of 105 samples).
+        let blocks = SensorBlocks {
+            step: 10,
+            sample: (0..=100).step_by(10).collect(),
+            ..SensorBlocks::default()
+        };
+        let failure = |first_sample, samples, bridged| OdometerFailure {
+            first_sample,
+            samples,
+            bridged,
+        };
+        let failures = [
+            failure(5, 10, true),   // samples 5–14: blocks 0 and 1
+            failure(30, 10, false), // 30–39: block 3
+            failure(40, 1, true),   // 40: block 4
+            failure(69, 2, false),  // 69–70: blocks 6 and 7
+            failure(104, 1, true),  // 104: the short last block
+        ];
+        assert_eq!(blocks.blocks_of(&failures, true), vec![0, 1, 4, 10]);
+        assert_eq!(blocks.blocks_of(&failures, false), vec![3, 6, 7]);
+        assert!(blocks.blocks_of(&[], true).is_empty());
     }
 }
 
