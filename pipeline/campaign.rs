@@ -487,6 +487,12 @@ struct SummaryValues {
     joint_holdout_median_m: Option<f64>,
     /// Largest hold-out error, m.
     joint_holdout_max_m: Option<f64>,
+    /// Samples whose odometer distance is not the odometer's reading (failed: bridged or
+    /// held), flagged or found stuck.
+    odometer_failed_samples: Option<f64>,
+    /// The largest change of a failure's distance across it when the joint fit bridged
+    /// the failures again at its lag, against the ingest's bridge, m (signed).
+    joint_rebridge_change_m: Option<f64>,
     /// Wall time of the run, s.
     wall_s: Option<f64>,
 }
@@ -527,12 +533,20 @@ impl SummaryValues {
             joint_odo_bias_sigma_mps: sd(|s| s.odo_bias_mps),
             joint_holdout_median_m: holdout.map(|h| h.0),
             joint_holdout_max_m: holdout.map(|h| h.1),
+            odometer_failed_samples: ing.map(|i| {
+                i.odometer_failures
+                    .as_ref()
+                    .map_or(0.0, |f| (f.bridged_samples + f.not_bridged_samples) as f64)
+            }),
+            joint_rebridge_change_m: joint
+                .and_then(|j| j.rebridged.as_ref())
+                .map(|r| r.largest_change_m),
             wall_s: Some(wall_s),
         }
     }
 
     /// (column name, value) in the file's order.
-    fn columns(&self) -> [(&'static str, Option<f64>); 27] {
+    fn columns(&self) -> [(&'static str, Option<f64>); 29] {
         [
             ("distance_m", self.distance_m),
             ("imu_accepted", self.imu_accepted),
@@ -560,6 +574,8 @@ impl SummaryValues {
             ("joint_odo_bias_sigma_mps", self.joint_odo_bias_sigma_mps),
             ("joint_holdout_median_m", self.joint_holdout_median_m),
             ("joint_holdout_max_m", self.joint_holdout_max_m),
+            ("odometer_failed_samples", self.odometer_failed_samples),
+            ("joint_rebridge_change_m", self.joint_rebridge_change_m),
             ("wall_s", self.wall_s),
         ]
     }

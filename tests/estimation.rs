@@ -871,6 +871,13 @@ fn an_odometer_failure_is_bridged_again_at_the_estimated_lag() {
         summary.contains("; the joint fit bridged the odometer's failures again at each lag"),
         "{summary}"
     );
+    // The campaign's table has both, for queries over a campaign.
+    let campaign_column = |name: &str| column(&case.failed.1.join("campaign.parquet"), name);
+    assert_eq!(campaign_column("odometer_failed_samples"), [6000.0]);
+    assert_eq!(
+        campaign_column("joint_rebridge_change_m"),
+        [rebridged.largest_change_m]
+    );
     // The review shows the failure on the speed's plot: the 10-Hz blocks that hold its
     // 6000 samples (600, or 601 where it begins inside one), and nothing held.
     let run = case.failed.0.to_str().unwrap();

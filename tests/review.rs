@@ -47,6 +47,13 @@ fn review_recording_reads_back_with_the_pinned_rerun() {
         let v = unz_formats::tables::f64_column(&batches[0], col).unwrap();
         assert!(v[0].is_finite(), "{col}: {v:?}");
     }
+    // The odometer never failed: no failed sample, nothing bridged again.
+    let failed = unz_formats::tables::f64_column(&batches[0], "odometer_failed_samples").unwrap();
+    assert_eq!(failed, [0.0]);
+    let rebridge = batches[0]
+        .column_by_name("joint_rebridge_change_m")
+        .unwrap();
+    assert!(arrow::array::Array::is_null(rebridge, 0));
     let md = std::fs::read_to_string(out.join("campaign.md")).unwrap();
     assert!(md.contains("hold-out median / max [m]"), "{md}");
     assert!(
