@@ -321,8 +321,7 @@ fn ingest_binary(
                     status: s.raw.status,
                     pulses: s.odo_pulses,
                 };
-                if let Some((row, distance_m)) = bridger.sample(sample, row) {
-                    let given = (distance_m, DistanceSource::Reading);
+                if let Some((row, given)) = bridger.sample(sample, row) {
                     sinks.give(row, Some(given), nominal_dt_s);
                 }
             }

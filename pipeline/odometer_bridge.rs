@@ -121,7 +121,7 @@ impl<P> OdometerBridger<P> {
     /// Takes the next IMU sample. While the odometer works and nothing is held, the
     /// sample comes straight back with its distance (the common case, without a queue);
     /// otherwise what is ready comes out of [`Self::ready`].
-    pub fn sample(&mut self, mut s: OdometerSample, payload: P) -> Option<(P, f64)> {
+    pub fn sample(&mut self, mut s: OdometerSample, payload: P) -> Option<(P, Given)> {
         // Increments beyond the IMU's range (saturated or corrupt counts) are the last
         // ones within it here, as the derive replaces them: the bridge and the watch of a
         // standing count integrate them.
@@ -168,7 +168,7 @@ impl<P> OdometerBridger<P> {
         }
         if self.state == State::Working && !s.failed {
             if self.ready.is_empty() {
-                return Some((payload, self.keep_working(&s)));
+                return Some((payload, (self.keep_working(&s), DistanceSource::Reading)));
             }
             self.give_working(s, payload);
             return None;
@@ -517,9 +517,9 @@ mod tests {
                 },
                 failed: f,
             };
-            if let Some((p, d)) = b.sample(s, id) {
+            if let Some((p, given)) = b.sample(s, id) {
                 out.extend(b.ready());
-                out.push((p, Some((d, DistanceSource::Reading))));
+                out.push((p, Some(given)));
             }
             id += 1;
             if k % 1000 == 0 {
@@ -653,7 +653,7 @@ mod tests {
                 distance_m: (read_m / PULSE_M).round() * PULSE_M,
                 failed: false,
             };
-            if let Some((p, d)) = b.sample(s, k) {
+            if let Some((p, (d, _))) = b.sample(s, k) {
                 out.extend(metres(b.ready()));
                 out.push((p, Some(d)));
             }

@@ -17,7 +17,7 @@
 //! log's odometer at its own rate, never bridged) is left as ingested.
 
 use std::ops::Range;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 
 use rayon::prelude::*;
 
@@ -70,15 +70,9 @@ pub struct Rebridges<'a> {
     lag_at_zero_s: f64,
     /// Bridged failures beyond [`MAX_REBRIDGED`], left as the ingest bridged them.
     left: usize,
-}
-
-/// The failures bridged at one lag.
-struct Bridged {
-    patch: OdoPatch,
-    /// Per span: whether readings follow it.
-    has_after: Vec<bool>,
-    /// Failures whose fit failed (left as ingested).
-    failed_fits: usize,
+    /// The last lag bridged, and its patch: the joint's estimated lag is bridged for its
+    /// derive and again for its report.
+    last: Mutex<Option<(f64, Arc<OdoPatch>)>>,
 }
 
 /// What bridging again at a lag changed.
@@ -164,27 +158,38 @@ impl<'a> Rebridges<'a> {
             g_mps2,
             lag_at_zero_s,
             left,
+            last: Mutex::new(None),
         }))
     }
 
     /// The distances of the failures bridged at the joint's `lag_s`, and what the change
     /// of each moves the rows after it by.
     pub fn patch_at(&self, lag_s: f64) -> Arc<OdoPatch> {
-        Arc::new(self.bridged_at(lag_s).patch)
+        let last = || self.last.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some((at, patch)) = &*last()
+            && at.to_bits() == lag_s.to_bits()
+        {
+            return patch.clone();
+        }
+        // Bridged without the lock held (the fits run on the pool).
+        let patch = Arc::new(self.bridged_at(lag_s));
+        *last() = Some((lag_s, patch.clone()));
+        patch
     }
 
     /// What bridging at the joint's `lag_s` changes against the ingest's bridges.
     pub fn changes_at(&self, lag_s: f64) -> Rebridged {
-        let Bridged {
-            patch,
-            has_after,
-            failed_fits,
-        } = self.bridged_at(lag_s);
+        let patch = self.patch_at(lag_s);
         let odo = self.odo_distance_m;
+        let mut windows = self.windows.iter();
         let mut shift_before = 0.0;
         let mut largest_change_m: f64 = 0.0;
-        for (s, after) in patch.spans.iter().zip(has_after) {
+        for s in &patch.spans {
             let end = s.first + s.distance_m.len();
+            // Each span is a window's (those whose fit failed have none).
+            let after = windows
+                .find(|w| w.first == s.first)
+                .is_some_and(|w| w.end > w.end_failed);
             let change = if after {
                 // The rows after it move by the change across.
                 s.shift_after_m - shift_before
@@ -198,14 +203,15 @@ impl<'a> Rebridges<'a> {
         }
         Rebridged {
             failures: patch.spans.len(),
-            left: self.left + failed_fits,
+            // With the failures whose fit failed at the lag.
+            left: self.left + self.windows.len() - patch.spans.len(),
             largest_change_m,
         }
     }
 
     /// The failures bridged at the joint's `lag_s`: each on its own (side by side), then
     /// in order, each moving the rows after it.
-    fn bridged_at(&self, lag_s: f64) -> Bridged {
+    fn bridged_at(&self, lag_s: f64) -> OdoPatch {
         let (d, odo) = (self.derived, self.odo_distance_m);
         let lag_s = self.lag_at_zero_s + lag_s;
         let bridges: Vec<Option<Bridge>> = self
@@ -231,12 +237,10 @@ impl<'a> Rebridges<'a> {
             })
             .collect();
         let mut shift_m = 0.0;
-        let mut failed_fits = 0;
         let mut spans = Vec::with_capacity(self.windows.len());
-        let mut has_after = Vec::with_capacity(self.windows.len());
         for (w, b) in self.windows.iter().zip(bridges) {
+            // A failure whose fit failed stays as the ingest bridged it.
             let Some(b) = b else {
-                failed_fits += 1;
                 continue;
             };
             // Without readings before, the bridge starts where the ingest's did.
@@ -245,22 +249,18 @@ impl<'a> Rebridges<'a> {
             } else {
                 0.0
             };
+            let distance_m = b
+                .failed_distance_m
+                .iter()
+                .map(|x| x + anchor_m + shift_m)
+                .collect();
+            shift_m += b.after_offset_m + anchor_m;
             spans.push(PatchSpan {
                 first: w.first,
-                distance_m: b
-                    .failed_distance_m
-                    .iter()
-                    .map(|x| x + anchor_m + shift_m)
-                    .collect(),
-                shift_after_m: shift_m + b.after_offset_m + anchor_m,
+                distance_m,
+                shift_after_m: shift_m,
             });
-            shift_m += b.after_offset_m + anchor_m;
-            has_after.push(w.end > w.end_failed);
         }
-        Bridged {
-            patch: OdoPatch { spans },
-            has_after,
-            failed_fits,
-        }
+        OdoPatch { spans }
     }
 }
