@@ -493,6 +493,9 @@ struct SummaryValues {
     /// The largest change of a failure's distance across it when the joint fit bridged
     /// the failures again at its lag, against the ingest's bridge, m (signed).
     joint_rebridge_change_m: Option<f64>,
+    /// Control points the joint fit left out as inconsistent with the rest of the run
+    /// (0 when it ran and kept them all).
+    joint_excluded_points: Option<f64>,
     /// Wall time of the run, s.
     wall_s: Option<f64>,
 }
@@ -541,12 +544,14 @@ impl SummaryValues {
             joint_rebridge_change_m: joint
                 .and_then(|j| j.rebridged.as_ref())
                 .map(|r| r.largest_change_m),
+            joint_excluded_points: joint
+                .map(|j| j.holdout.iter().flatten().filter(|h| h.excluded).count() as f64),
             wall_s: Some(wall_s),
         }
     }
 
     /// (column name, value) in the file's order.
-    fn columns(&self) -> [(&'static str, Option<f64>); 29] {
+    fn columns(&self) -> [(&'static str, Option<f64>); 30] {
         [
             ("distance_m", self.distance_m),
             ("imu_accepted", self.imu_accepted),
@@ -576,6 +581,7 @@ impl SummaryValues {
             ("joint_holdout_max_m", self.joint_holdout_max_m),
             ("odometer_failed_samples", self.odometer_failed_samples),
             ("joint_rebridge_change_m", self.joint_rebridge_change_m),
+            ("joint_excluded_points", self.joint_excluded_points),
             ("wall_s", self.wall_s),
         ]
     }

@@ -2,6 +2,7 @@
 //! `disupt.json`, `disupt.md` (the paper's Tables 1 and 2) and `corrected_nav.parquet`.
 
 mod coarse_azimuth;
+mod exclusions;
 mod joint_run;
 mod report;
 mod reviews;
@@ -70,6 +71,7 @@ pub fn spec_of<'a>(case: &'a NavCase, settings: NavSettings, params: &Params) ->
         filter: params.derive.filter,
         kalman: params.kalman,
         fixes: &case.fixes,
+        excluded_cps: &[],
         drift_z_prior_deg_h: prior,
     }
 }
@@ -146,7 +148,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         //    horizontal drifts free.
         // 10: the joint fit's boresight check, and its refit beyond 3σ.
         // 11: the odometer's bridged failures bridged again at each lag the joint tries.
-        version: 11,
+        // 12: control points inconsistent with the rest left out of the joint fit.
+        version: 12,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[
@@ -235,6 +238,28 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 crate::memory::rss_suffix()
             ),
         );
+        // The joint fit without the control points it left out, and its hold-out when the
+        // search for them computed it.
+        let (excluded, mut early_holdout, mut exclusion_error, joint_result) = match joint_result {
+            Some(Ok(x)) => (x.excluded, x.holdout, x.refit_error, Some(Ok(x.run))),
+            other => (Vec::new(), None, None, other.map(|r| r.map(|x| x.run))),
+        };
+        if !excluded.is_empty() {
+            let ids: Vec<String> = excluded
+                .iter()
+                .map(|&i| case.fixes[i].id.to_string())
+                .collect();
+            ctx.say(
+                "disupt",
+                &format!(
+                    "control points left out of the joint fit, inconsistent with the rest: {}",
+                    ids.join(", ")
+                ),
+            );
+        }
+        if let Some(e) = &exclusion_error {
+            ctx.say("disupt", e);
+        }
         // The ingested odometer and its re-derives go before the review passes (the route
         // σ's pass at the moved lag ran with the joint).
         let joint_run = joint_result.as_ref().and_then(|r| r.as_ref().ok());
@@ -246,7 +271,11 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let joint_derived = joint_run
             .and_then(|r| r.derived.as_ref())
             .unwrap_or(&case.derived);
-        let joint_problem = spec.on(joint_derived);
+        let joint_spec = ProblemSpec {
+            excluded_cps: &excluded,
+            ..spec
+        };
+        let joint_problem = joint_spec.on(joint_derived);
 
         let start = case.settings.start();
         // One exact pass per method's settings, side by side (the joint's on its own
@@ -370,9 +399,13 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let mut route_sigma = None;
         if let Some(Ok(run)) = &joint_result {
             let mut out = method_out(&run.fit.result, &case.settings, run.lag, joint_cps);
-            // The hold-out's fits and the route's σ are independent: side by side.
+            // The hold-out's fits (unless the exclusions' search left them) and the route's
+            // σ are independent: side by side.
             let (holdout, sigma) = rayon::join(
-                || disupt::holdout(&joint_problem, &run.fit, &run.params),
+                || match early_holdout.take() {
+                    Some(h) => Ok(h),
+                    None => disupt::holdout(&joint_problem, &run.fit, &run.params),
+                },
                 || {
                     route_base
                         .as_ref()
@@ -380,6 +413,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 },
             );
             out.holdout = Some(holdout?);
+            out.exclusion_error = exclusion_error.take();
             out.lag_profile = run.profile.clone();
             out.rebridged = run.rebridged;
             methods.insert("joint".to_owned(), out);

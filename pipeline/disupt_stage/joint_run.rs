@@ -13,6 +13,7 @@ use unz_stages::route_sigma::{
 };
 
 use super::Method;
+use super::exclusions::{Excluding, exclude_inconsistent};
 use super::report::{Lag, ODO_YAW_REFIT_Z, OdoYawCheck};
 use crate::flow::NavCase;
 
@@ -92,7 +93,9 @@ pub(super) type ClassicResult = (&'static str, Result<MethodResult, disupt::Disu
 
 /// OEPI and OWPI (those `method` asks for) and the joint fit, concurrently (they share the
 /// problem's first linearisation). The joint fit estimates the odometer's lag when asked
-/// and the run has two control points or more.
+/// and the run has two control points or more, and is redone without the control points
+/// inconsistent with the rest ([`exclude_inconsistent`]; its hold-out's passes beside
+/// OEPI's and OWPI's).
 pub(super) fn run_methods(
     method: Method,
     problem: &Problem<'_>,
@@ -102,7 +105,7 @@ pub(super) fn run_methods(
     dparams: &disupt::DisuptParams,
 ) -> (
     Vec<ClassicResult>,
-    Option<Result<JointRun, disupt::DisuptError>>,
+    Option<Result<Excluding, disupt::DisuptError>>,
 ) {
     let classic: Vec<Method> = [Method::Oepi, Method::Owpi]
         .into_iter()
@@ -131,7 +134,12 @@ pub(super) fn run_methods(
                 })
                 .collect::<Vec<_>>()
         },
-        || want_joint.then(|| run_joint(problem, spec, rederive, case, dparams)),
+        || {
+            want_joint.then(|| {
+                let run = run_joint(problem, spec, rederive, case, dparams)?;
+                exclude_inconsistent(problem, spec, rederive, case, dparams, run)
+            })
+        },
     )
 }
 
@@ -141,7 +149,7 @@ pub(super) fn run_methods(
 /// azimuth error only as their sum, so the boresight-free fit's azimuth takes the
 /// boresight whole, with a σ that does not include it (measured: a 1.5° boresight, the
 /// joint azimuth 0.72–1.60° off at σ 0.02–0.18°; refit, 0.03–0.22° off at σ 0.21–0.23°).
-fn run_joint(
+pub(super) fn run_joint(
     problem: &Problem<'_>,
     spec: &ProblemSpec<'_>,
     rederive: &Rederive<'_>,
@@ -195,7 +203,7 @@ fn fit_joint(
     case: &NavCase,
     dparams: &disupt::DisuptParams,
 ) -> Result<JointRun, disupt::DisuptError> {
-    if dparams.joint_odo_lag && case.fixes.len() >= 2 {
+    if dparams.joint_odo_lag && problem.cps_used() >= 2 {
         // On the methods' shared problem: the lag-free fit starts from the same first
         // linearisation as OEPI and OWPI, built once.
         let f = joint_with_lag(rederive, problem, spec, dparams)?;

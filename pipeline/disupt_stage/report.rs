@@ -97,6 +97,10 @@ pub struct MethodOut {
     /// one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rebridged: Option<Rebridged>,
+    /// Joint only: why a control point found inconsistent stayed in the fit (the fit
+    /// without it failed). The points left out are `holdout`'s `excluded`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exclusion_error: Option<String>,
 }
 
 /// `disupt.json`.
@@ -247,6 +251,7 @@ pub(super) fn method_out(
         holdout: None,
         lag_profile: None,
         rebridged: None,
+        exclusion_error: None,
     }
 }
 
@@ -347,7 +352,11 @@ fn table(name: &str, r: &MethodOut, bounds: &disupt::DisuptParams) -> String {
                 or_dash(p.sigma_north_m, 2),
                 or_dash(p.sigma_east_m, 2),
                 or_dash(p.error_sigma, 1),
-                if p.inconsistent { " ✗" } else { "" }
+                match (p.excluded, p.inconsistent) {
+                    (true, _) => " ✗ left out of the fit",
+                    (false, true) => " ✗",
+                    (false, false) => "",
+                }
             );
         }
         if let Some((median, max)) = disupt::holdout_median_max_m(h) {
@@ -355,6 +364,9 @@ fn table(name: &str, r: &MethodOut, bounds: &disupt::DisuptParams) -> String {
         }
         if let Some(note) = disupt::inconsistent_points_note(h) {
             let _ = writeln!(s, "\n{note}.");
+        }
+        if let Some(e) = &r.exclusion_error {
+            let _ = writeln!(s, "\n{e}.");
         }
     }
     let _ = writeln!(s, "\n{} passes.\n", r.evaluations);

@@ -266,6 +266,7 @@ fn level_in_motion_over_window(
         filter: params.derive.filter,
         kalman: params.kalman,
         fixes: &[],
+        excluded_cps: &[],
         drift_z_prior_deg_h: None,
     };
     let Some(fit) = level_in_motion(&spec.on(derived), free) else {

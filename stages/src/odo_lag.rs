@@ -355,7 +355,7 @@ pub fn joint_with_lag(
     )?;
     // The control points' misfit per residual beyond the lag's one degree of freedom,
     // when it is worse than their σ.
-    let cp_dof = (2 * spec.fixes.len()).saturating_sub(
+    let cp_dof = (2 * spec.cps_used()).saturating_sub(
         fit.free
             .iter()
             .filter(|s| **s == Setting::Azimuth || s.needs_control_points())

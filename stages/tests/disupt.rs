@@ -337,6 +337,7 @@ fn a_problem_reading_its_odometer_as_it_goes_observes_what_the_stored_derive_giv
         filter: params.filter,
         kalman: KalmanParams::default(),
         fixes: &c.fixes,
+        excluded_cps: &[],
         drift_z_prior_deg_h: None,
     };
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();

@@ -49,6 +49,10 @@ pub struct Holdout {
     /// [`HOLDOUT_MIN_POINTS`] control points: the point disagrees with the rest of the
     /// run (its coordinates, its mark or the stop are suspect).
     pub inconsistent: bool,
+    /// The joint fit left the point out ([`Problem::excluded_cps`]): the error is the
+    /// fit's own there, its spread what the fit predicts.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub excluded: bool,
 }
 
 impl Holdout {
@@ -68,13 +72,19 @@ impl Holdout {
             error_sigma,
             inconsistent: points >= HOLDOUT_MIN_POINTS
                 && error_sigma.is_some_and(|e| e > HOLDOUT_INCONSISTENT_SIGMA),
+            excluded: false,
         }
     }
 }
 
-/// Median and largest horizontal error of hold-out results, m (`None` without any).
+/// Median and largest horizontal error of hold-out results, m, over the points the fit
+/// weighs (those it left out measure their survey, not the route); `None` without any.
 pub fn holdout_median_max_m(h: &[Holdout]) -> Option<(f64, f64)> {
-    let mut e: Vec<f64> = h.iter().map(|p| p.dx_m.hypot(p.dy_m)).collect();
+    let mut e: Vec<f64> = h
+        .iter()
+        .filter(|p| !p.excluded)
+        .map(|p| p.dx_m.hypot(p.dy_m))
+        .collect();
     e.sort_by(f64::total_cmp);
     let n = e.len();
     let median = match n {
@@ -85,55 +95,77 @@ pub fn holdout_median_max_m(h: &[Holdout]) -> Option<(f64, f64)> {
     Some((median, e[n - 1]))
 }
 
-/// What a user is told of the control points whose hold-out error is inconsistent with
-/// its predicted spread (`None` when none is): each one's error and how many σ it is,
-/// the largest first. An error at one point pulls the fits that keep it, so the others'
-/// hold-outs can fail beside it; the largest is the likeliest culprit.
+/// What a user is told of the control points the joint fit left out, and of those whose
+/// hold-out error is inconsistent with its predicted spread but stayed in (`None` when
+/// there are none): each one's error and how many σ it is, the largest first. An error
+/// at one point pulls the fits that keep it, so the others' hold-outs can fail beside
+/// it; the largest is the likeliest culprit.
 pub fn inconsistent_points_note(h: &[Holdout]) -> Option<String> {
-    let mut bad: Vec<&Holdout> = h.iter().filter(|p| p.inconsistent).collect();
-    if bad.is_empty() {
-        return None;
-    }
-    bad.sort_by(|a, b| {
-        b.error_sigma
-            .unwrap_or(0.0)
-            .total_cmp(&a.error_sigma.unwrap_or(0.0))
+    let listed = |keep: &dyn Fn(&Holdout) -> bool| {
+        let mut bad: Vec<&Holdout> = h.iter().filter(|p| keep(p)).collect();
+        bad.sort_by(|a, b| {
+            b.error_sigma
+                .unwrap_or(0.0)
+                .total_cmp(&a.error_sigma.unwrap_or(0.0))
+        });
+        let each: Vec<String> = bad
+            .iter()
+            .map(|p| {
+                format!(
+                    "{} ({:.1} m, {:.1}σ)",
+                    p.id,
+                    p.dx_m.hypot(p.dy_m),
+                    p.error_sigma.unwrap_or(f64::NAN)
+                )
+            })
+            .collect();
+        let plural = if bad.len() > 1 { "s" } else { "" };
+        (!bad.is_empty()).then(|| (plural, each.join(", ")))
+    };
+    let excluded = listed(&|p| p.excluded).map(|(s, each)| {
+        format!(
+            "control point{s} left out of the joint fit, inconsistent with the rest of the run \
+             (error, and in σ of what the fit without it predicts): {each}; check the \
+             coordinates and the mark"
+        )
     });
-    let each: Vec<String> = bad
-        .iter()
-        .map(|p| {
-            format!(
-                "{} ({:.1} m, {:.1}σ)",
-                p.id,
-                p.dx_m.hypot(p.dy_m),
-                p.error_sigma.unwrap_or(f64::NAN)
-            )
-        })
-        .collect();
-    Some(format!(
-        "control point{} inconsistent with the rest of the run (hold-out error, and in σ of \
-         what the fit without it predicts): {}; check the coordinates and the mark, the \
-         largest first",
-        if bad.len() > 1 { "s" } else { "" },
-        each.join(", ")
-    ))
+    let kept = listed(&|p| p.inconsistent && !p.excluded).map(|(s, each)| {
+        format!(
+            "control point{s} inconsistent with the rest of the run (hold-out error, and in σ \
+             of what the fit without it predicts): {each}; check the coordinates and the \
+             mark, the largest first"
+        )
+    });
+    let notes: Vec<String> = excluded.into_iter().chain(kept).collect();
+    (!notes.is_empty()).then(|| notes.join("; "))
 }
 
 /// Hold-out errors: for every control point, the joint fit without it (same weights),
 /// and the error there of an exact pass with those settings. Each refit solves the
 /// fit's linearisation without the point's rows (no pass); the exact passes run side by
-/// side, and a refit whose exact pass disagrees with the model is redone in full.
+/// side, and a refit whose exact pass disagrees with the model is redone in full. A
+/// point the fit already leaves out ([`Problem::excluded_cps`]) has the fit's own error
+/// there (no refit, no pass). The consistency call counts the points the fit weighs.
 pub fn holdout(
     problem: &Problem<'_>,
     fit: &JointFit,
     p: &DisuptParams,
 ) -> Result<Vec<Holdout>, DisuptError> {
-    let n = problem.fixes.len();
+    let n = problem.cps_used();
     let n_att = attitude_rows(problem);
     let s2 = fit.cost / fit.dof;
-    let mut ps = Vec::with_capacity(n);
-    let mut spreads = Vec::with_capacity(n);
-    for i in 0..n {
+    let mut refits = Vec::with_capacity(n);
+    let mut out: Vec<Option<Holdout>> = vec![None; problem.fixes.len()];
+    for (i, held) in out.iter_mut().enumerate() {
+        if !problem.cp_used(i) {
+            let model = JointModel::new(problem, &fit.lin, &fit.free, &fit.weights, None);
+            let spread = predicted_spread(fit, &model, &fit.free, i, n_att, s2, p);
+            *held = Some(Holdout {
+                excluded: true,
+                ..Holdout::new(problem.fixes[i].id, fit.y.cp_m[i], spread, n)
+            });
+            continue;
+        }
         // Without the only control point, nothing sees the odometer's settings.
         let free: Vec<Setting> = fit
             .free
@@ -152,14 +184,13 @@ pub fn holdout(
         for (k, s) in free.iter().enumerate() {
             pi[s.index()] += delta[k];
         }
-        ps.push(pi);
-        spreads.push(predicted_spread(fit, &model, &free, i, n_att, s2, p));
+        let spread = predicted_spread(fit, &model, &free, i, n_att, s2, p);
+        refits.push((i, pi, spread));
     }
-    let xs: Vec<X> = ps.iter().map(x_of).collect();
+    let xs: Vec<X> = refits.iter().map(|(_, pi, _)| x_of(pi)).collect();
     let ys = problem.observe_many_by(&xs, &AtomicUsize::new(0));
-    let mut out = Vec::with_capacity(n);
-    for (i, ((pi, y), spread)) in ps.iter().zip(ys).zip(spreads).enumerate() {
-        let y = if fit.lin.predict(pi).agrees_with(&y) {
+    for ((i, pi, spread), y) in refits.into_iter().zip(ys) {
+        let y = if fit.lin.predict(&pi).agrees_with(&y) {
             y
         } else {
             let opts = JointOptions {
@@ -169,9 +200,9 @@ pub fn holdout(
             };
             joint_fit(problem, p, &opts)?.y
         };
-        out.push(Holdout::new(problem.fixes[i].id, y.cp_m[i], spread, n));
+        out[i] = Some(Holdout::new(problem.fixes[i].id, y.cp_m[i], spread, n));
     }
-    Ok(out)
+    Ok(out.into_iter().flatten().collect())
 }
 
 /// The predicted covariance (north, east; m²) of control point `i`'s hold-out error:
@@ -245,6 +276,30 @@ mod tests {
         );
         let none = Holdout::new(1, [100.0, 0.0], None, 5);
         assert_eq!((none.error_sigma, none.inconsistent), (None, false));
+    }
+
+    #[test]
+    fn points_left_out_are_named_apart_and_not_in_the_median() {
+        let s = Matrix2::new(1.0, 0.0, 0.0, 1.0);
+        let left_out = Holdout {
+            excluded: true,
+            ..Holdout::new(6, [9.0, 0.0], Some(s), 4)
+        };
+        let h = [
+            Holdout::new(1, [0.5, 0.0], Some(s), 4),
+            left_out,
+            Holdout::new(2, [0.0, 4.0], Some(s), 4),
+        ];
+        assert_eq!(holdout_median_max_m(&h), Some((2.25, 4.0)));
+        assert_eq!(holdout_median_max_m(&h[1..2]), None);
+        assert_eq!(
+            inconsistent_points_note(&h).unwrap(),
+            "control point left out of the joint fit, inconsistent with the rest of the run \
+             (error, and in σ of what the fit without it predicts): 6 (9.0 m, 9.0σ); check the \
+             coordinates and the mark; control point inconsistent with the rest of the run \
+             (hold-out error, and in σ of what the fit without it predicts): 2 (4.0 m, 4.0σ); \
+             check the coordinates and the mark, the largest first"
+        );
     }
 
     #[test]

@@ -51,9 +51,10 @@ fn joint_residuals(
             r.push((crate::attitude::wrap_pi(y.phi_rad[k] - phi_p) + tilt[1]) / s);
         }
     }
-    // A control point held out keeps its rows, at zero, so that row indices stay put.
+    // A control point held out or excluded keeps its rows, at zero, so that row indices
+    // stay put.
     for (i, c) in y.cp_m.iter().enumerate() {
-        let w = if skip_cp == Some(i) {
+        let w = if skip_cp == Some(i) || !problem.cp_used(i) {
             0.0
         } else {
             1.0 / params.position_sigma_m
@@ -331,7 +332,9 @@ pub fn joint_fit(
     let tally = AtomicUsize::new(0);
     let x0 = problem.x0();
     let skip = opts.skip_cp;
-    let used_cps = problem.fixes.len() - usize::from(skip.is_some_and(|i| i < problem.fixes.len()));
+    let used_cps = (0..problem.fixes.len())
+        .filter(|&i| problem.cp_used(i) && skip != Some(i))
+        .count();
     // The attitude's settings always; the odometer's when control points see them.
     let mut free: Vec<Setting> = Setting::ALL
         .into_iter()
@@ -427,7 +430,8 @@ pub fn joint_fit(
         }
     }
     let x = x_of(&pr);
-    let rows = model.r0.len() - if skip.is_some() { 2 } else { 0 };
+    // The rows of control points left out are zero: not residuals.
+    let rows = model.r0.len() - 2 * (problem.fixes.len() - used_cps);
     let dof = (rows as f64 - free.len() as f64).max(1.0);
     let r = joint_residuals(problem, &y, &pr, &w, skip);
     let n_att = attitude_rows(problem);
@@ -501,7 +505,10 @@ impl JointFit {
         problem: &Problem<'_>,
         tally: &AtomicUsize,
     ) -> Result<Option<OdoYawSeen>, DisuptError> {
-        if self.free.contains(&Setting::OdoYaw) || self.lin.y_ref.cp_m.is_empty() {
+        if self.free.contains(&Setting::OdoYaw)
+            || self.lin.y_ref.cp_m.is_empty()
+            || problem.cps_used() == 0
+        {
             return Ok(None);
         }
         let mut free = self.free.clone();

@@ -30,6 +30,10 @@ pub struct Problem<'a> {
     pub kalman: KalmanParams,
     /// Control points.
     pub fixes: &'a [ControlPointFix],
+    /// Control points (indices into `fixes`) the joint fit leaves out: their errors are
+    /// still observed by every pass, but the fit does not weigh them (points found
+    /// inconsistent with the rest of the run).
+    pub excluded_cps: &'a [usize],
     /// Prior on the vertical drift from the static start: (value, 1σ), °/h.
     pub drift_z_prior_deg_h: Option<(f64, f64)>,
     /// The odometer increments, when they are read as a pass goes instead of from
@@ -51,11 +55,18 @@ pub struct ProblemSpec<'a> {
     pub kalman: KalmanParams,
     /// Control points.
     pub fixes: &'a [ControlPointFix],
+    /// Control points the joint fit leaves out ([`Problem::excluded_cps`]).
+    pub excluded_cps: &'a [usize],
     /// Prior on the vertical drift from the static start: (value, 1σ), °/h.
     pub drift_z_prior_deg_h: Option<(f64, f64)>,
 }
 
 impl<'a> ProblemSpec<'a> {
+    /// How many control points the joint fit weighs ([`Problem::cps_used`]).
+    pub fn cps_used(&self) -> usize {
+        cps_used(self.fixes, self.excluded_cps)
+    }
+
     /// The problem on the derive `d`.
     pub fn on<'b>(self, d: &'b crate::derive::Derived) -> Problem<'b>
     where
@@ -70,6 +81,7 @@ impl<'a> ProblemSpec<'a> {
             self.fixes,
         );
         p.drift_z_prior_deg_h = self.drift_z_prior_deg_h;
+        p.excluded_cps = self.excluded_cps;
         p
     }
 
@@ -87,6 +99,11 @@ impl<'a> ProblemSpec<'a> {
         p.moved_odometer = Some(odometer);
         p
     }
+}
+
+/// How many of `fixes` are not among `excluded` (indices into them).
+fn cps_used(fixes: &[ControlPointFix], excluded: &[usize]) -> usize {
+    (0..fixes.len()).filter(|i| !excluded.contains(i)).count()
 }
 
 /// Criteria of one pass.
@@ -132,10 +149,37 @@ impl<'a> Problem<'a> {
             lp,
             kalman,
             fixes,
+            excluded_cps: &[],
             drift_z_prior_deg_h: None,
             moved_odometer: None,
             passes: AtomicUsize::new(0),
             base_lin: std::sync::OnceLock::new(),
+        }
+    }
+
+    /// This problem with the joint fit leaving `excluded` out (indices into `fixes`;
+    /// [`Self::excluded_cps`]). The first linearisation, once built, is shared: it does not
+    /// depend on the fit's weights.
+    pub fn excluding<'b>(&'b self, excluded: &'b [usize]) -> Problem<'b>
+    where
+        'a: 'b,
+    {
+        let base_lin = std::sync::OnceLock::new();
+        if let Some(lin) = self.base_lin.get() {
+            let _ = base_lin.set(lin.clone());
+        }
+        Problem {
+            inputs: self.inputs,
+            base: self.base,
+            epochs: self.epochs,
+            lp: self.lp,
+            kalman: self.kalman,
+            fixes: self.fixes,
+            excluded_cps: excluded,
+            drift_z_prior_deg_h: self.drift_z_prior_deg_h,
+            moved_odometer: self.moved_odometer.clone(),
+            passes: AtomicUsize::new(0),
+            base_lin,
         }
     }
 
@@ -145,6 +189,16 @@ impl<'a> Problem<'a> {
             Some(moved) => Either::Right(moved.increments()),
             None => Either::Left(self.inputs.odo_dist_m.iter().copied()),
         }
+    }
+
+    /// Whether the joint fit weighs control point `i` (not in [`Self::excluded_cps`]).
+    pub fn cp_used(&self, i: usize) -> bool {
+        !self.excluded_cps.contains(&i)
+    }
+
+    /// How many control points the joint fit weighs.
+    pub fn cps_used(&self) -> usize {
+        cps_used(self.fixes, self.excluded_cps)
     }
 
     /// Navigation passes so far.

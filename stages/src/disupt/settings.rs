@@ -92,6 +92,13 @@ pub struct DisuptParams {
     /// radius, tyre pressure and wear change a land vehicle's scale by a few per cent; a
     /// fit beyond this is the control points disagreeing with the log, not an estimate.
     pub odo_scale_bound_ppm: f64,
+    /// Leave control points that disagree with the rest of the run out of the joint fit:
+    /// the point whose hold-out error is the most inconsistent
+    /// ([`super::HOLDOUT_INCONSISTENT_SIGMA`]) is excluded and the fit redone without it,
+    /// one at a time, while at least [`super::HOLDOUT_MIN_POINTS`] points stay in the fit
+    /// and at most a third of the run's points are excluded. Off: such points are named
+    /// and kept.
+    pub joint_exclude_inconsistent: bool,
 }
 
 impl Default for DisuptParams {
@@ -107,6 +114,7 @@ impl Default for DisuptParams {
             joint_odo_lag: true,
             odo_lag_bound_s: 1.0,
             odo_scale_bound_ppm: 100_000.0,
+            joint_exclude_inconsistent: true,
         }
     }
 }

@@ -1,0 +1,116 @@
+//! Control points inconsistent with the rest of the run, left out of the joint fit one at
+//! a time.
+
+use unz_stages::disupt::{self, HOLDOUT_MIN_POINTS, Holdout, Problem, ProblemSpec};
+use unz_stages::odo_lag::Rederive;
+
+use super::joint_run::{JointRun, run_joint};
+use crate::flow::NavCase;
+
+/// The joint fit without the control points it found inconsistent.
+pub(super) struct Excluding {
+    /// The fit without them.
+    pub(super) run: JointRun,
+    /// The points left out: indices into the case's fixes, ascending.
+    pub(super) excluded: Vec<usize>,
+    /// The hold-out of `run`, when the search computed it: it stopped because no point it
+    /// weighs was inconsistent, or because the refit without one failed.
+    pub(super) holdout: Option<Vec<Holdout>>,
+    /// Why an inconsistent point stayed in the fit: the fit without it failed.
+    pub(super) refit_error: Option<String>,
+}
+
+/// Most of a run's `n` control points the joint fit may leave out: a third of them (more
+/// disagreeing points say the log or the settings are wrong, not the survey), and so many
+/// that [`HOLDOUT_MIN_POINTS`] stay to judge the rest. With three points the hold-out
+/// names a point but cannot tell which is wrong (measured: a point 10 m off among three,
+/// another called the more inconsistent); with four it can.
+pub(super) fn most_excluded(n: usize) -> usize {
+    (n / 3).min(n.saturating_sub(HOLDOUT_MIN_POINTS))
+}
+
+/// `run` redone without the control points its hold-out finds inconsistent, when
+/// `dparams.joint_exclude_inconsistent`: the most inconsistent point (in σ of what the
+/// fit without it predicts) is left out and the whole joint fit redone without it
+/// ([`run_joint`]: lag, boresight check), then the new fit's hold-out judged, until no
+/// point it weighs is inconsistent or [`most_excluded`] are out. A point off pulls the
+/// fits that keep it, so the others' hold-outs can fail beside it; judged again without
+/// it, they pass.
+pub(super) fn exclude_inconsistent(
+    problem: &Problem<'_>,
+    spec: &ProblemSpec<'_>,
+    rederive: &Rederive<'_>,
+    case: &NavCase,
+    dparams: &disupt::DisuptParams,
+    run: JointRun,
+) -> Result<Excluding, disupt::DisuptError> {
+    let mut out = Excluding {
+        run,
+        excluded: Vec::new(),
+        holdout: None,
+        refit_error: None,
+    };
+    if !dparams.joint_exclude_inconsistent {
+        return Ok(out);
+    }
+    while out.excluded.len() < most_excluded(case.fixes.len()) {
+        let now = ProblemSpec {
+            excluded_cps: &out.excluded,
+            ..*spec
+        };
+        let fitted_on = now.on(out.run.derived.as_ref().unwrap_or(&case.derived));
+        let h = disupt::holdout(&fitted_on, &out.run.fit, &out.run.params)?;
+        let worst = h
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.inconsistent && !p.excluded)
+            .max_by(|a, b| {
+                let sigma = |p: &Holdout| p.error_sigma.unwrap_or(0.0);
+                sigma(a.1).total_cmp(&sigma(b.1))
+            })
+            .map(|(i, _)| i);
+        let Some(i) = worst else {
+            out.holdout = Some(h);
+            break;
+        };
+        let mut next = out.excluded.clone();
+        next.push(i);
+        next.sort_unstable();
+        let without = ProblemSpec {
+            excluded_cps: &next,
+            ..*spec
+        };
+        match run_joint(&problem.excluding(&next), &without, rederive, case, dparams) {
+            Ok(mut refit) => {
+                // The method's passes: every fit's.
+                let r = &mut refit.fit.result;
+                r.evaluations += out.run.fit.result.evaluations;
+                if let Some(step) = r.steps.first_mut() {
+                    step.evaluations = r.evaluations;
+                }
+                out.run = refit;
+                out.excluded = next;
+            }
+            Err(e) => {
+                out.refit_error = Some(format!(
+                    "the joint fit without control point {} failed: {e}",
+                    case.fixes[i].id
+                ));
+                out.holdout = Some(h);
+                break;
+            }
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_third_of_the_points_at_most_and_three_stay() {
+        let most: Vec<usize> = (0..=12).map(most_excluded).collect();
+        assert_eq!(most, [0, 0, 0, 0, 1, 1, 2, 2, 2, 3, 3, 3, 4]);
+    }
+}
