@@ -1,7 +1,10 @@
 //! Control points inconsistent with the rest of the run, left out of the joint fit one at
 //! a time.
 
-use unz_stages::disupt::{self, HOLDOUT_MIN_POINTS, Holdout, Problem, ProblemSpec};
+use rayon::prelude::*;
+use unz_stages::disupt::{
+    self, DisuptError, HOLDOUT_MIN_POINTS, Holdout, JointOptions, Problem, ProblemSpec,
+};
 use unz_stages::odo_lag::Rederive;
 
 use super::joint_run::{JointRun, run_joint};
@@ -29,7 +32,8 @@ pub(super) fn most_excluded(n: usize) -> usize {
     (n / 3).min(n.saturating_sub(HOLDOUT_MIN_POINTS))
 }
 
-/// `run` redone without the control points its hold-out finds inconsistent, when
+/// `run` (a fit without `excluded`) redone without the control points its hold-out finds
+/// inconsistent, when
 /// `dparams.joint_exclude_inconsistent`: the most inconsistent point (in σ of what the
 /// fit without it predicts) is left out and the whole joint fit redone without it
 /// ([`run_joint`]: lag, boresight check), then the new fit's hold-out judged, until no
@@ -43,10 +47,11 @@ pub(super) fn exclude_inconsistent(
     case: &NavCase,
     dparams: &disupt::DisuptParams,
     run: JointRun,
-) -> Result<Excluding, disupt::DisuptError> {
+    excluded: Vec<usize>,
+) -> Result<Excluding, DisuptError> {
     let mut out = Excluding {
         run,
-        excluded: Vec::new(),
+        excluded,
         holdout: None,
         refit_error: None,
     };
@@ -102,6 +107,81 @@ pub(super) fn exclude_inconsistent(
         }
     }
     Ok(out)
+}
+
+/// The joint fit that `refused` for leaving its bounds, redone without the one control
+/// point whose absence brings it within them (when `dparams.joint_exclude_inconsistent`
+/// and [`most_excluded`] allows one): a point surveyed hundreds of metres off (a digit
+/// typed wrong) drags the fit beyond them before any hold-out can judge it. Each point is
+/// left out in turn of a fit at the configured odometer timing, side by side; of the fits
+/// within their bounds, the one whose control points fit best (least cost, all with as
+/// many points) names the point, and the whole fit is redone without it ([`run_joint`]).
+/// Two such points are not searched (a fit per pair). `refused` stands, with what was
+/// tried, when no single point explains it.
+pub(super) fn without_the_point_out_of_bounds(
+    problem: &Problem<'_>,
+    spec: &ProblemSpec<'_>,
+    rederive: &Rederive<'_>,
+    case: &NavCase,
+    dparams: &disupt::DisuptParams,
+    refused: DisuptError,
+) -> Result<(JointRun, Vec<usize>), DisuptError> {
+    let n = case.fixes.len();
+    if !dparams.joint_exclude_inconsistent || most_excluded(n) == 0 {
+        return Err(refused);
+    }
+    let start = problem.x0();
+    // (point, the fit's control-point cost when within its bounds, its passes)
+    let tried: Vec<(usize, Option<f64>, usize)> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let without = [i];
+            let p = problem.excluding(&without);
+            match disupt::joint_fit(&p, dparams, &JointOptions::default()) {
+                Ok(fit) => {
+                    let within = disupt::within_bounds(&fit, &start, dparams).is_ok();
+                    (i, within.then_some(fit.cp_cost), fit.result.evaluations)
+                }
+                Err(_) => (i, None, p.passes()),
+            }
+        })
+        .collect();
+    let best = tried
+        .iter()
+        .filter_map(|&(i, cost, _)| Some((i, cost?)))
+        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+    let no_single = |e: DisuptError| match e {
+        DisuptError::OutOfBounds(said) => {
+            DisuptError::OutOfBounds(format!("{said}; without any one control point as well"))
+        }
+        other => other,
+    };
+    let Some((i, _)) = best else {
+        return Err(no_single(refused));
+    };
+    let excluded = vec![i];
+    let without = ProblemSpec {
+        excluded_cps: &excluded,
+        ..*spec
+    };
+    match run_joint(
+        &problem.excluding(&excluded),
+        &without,
+        rederive,
+        case,
+        dparams,
+    ) {
+        Ok(mut run) => {
+            // The method's passes: the search's too.
+            let r = &mut run.fit.result;
+            r.evaluations += tried.iter().map(|t| t.2).sum::<usize>();
+            if let Some(step) = r.steps.first_mut() {
+                step.evaluations = r.evaluations;
+            }
+            Ok((run, excluded))
+        }
+        Err(_) => Err(no_single(refused)),
+    }
 }
 
 #[cfg(test)]

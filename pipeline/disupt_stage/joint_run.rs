@@ -13,7 +13,7 @@ use unz_stages::route_sigma::{
 };
 
 use super::Method;
-use super::exclusions::{Excluding, exclude_inconsistent};
+use super::exclusions::{Excluding, exclude_inconsistent, without_the_point_out_of_bounds};
 use super::report::{Lag, ODO_YAW_REFIT_Z, OdoYawCheck};
 use crate::flow::NavCase;
 
@@ -136,8 +136,14 @@ pub(super) fn run_methods(
         },
         || {
             want_joint.then(|| {
-                let run = run_joint(problem, spec, rederive, case, dparams)?;
-                exclude_inconsistent(problem, spec, rederive, case, dparams, run)
+                let (run, excluded) = match run_joint(problem, spec, rederive, case, dparams) {
+                    Ok(run) => (run, Vec::new()),
+                    Err(e @ disupt::DisuptError::OutOfBounds(_)) => {
+                        without_the_point_out_of_bounds(problem, spec, rederive, case, dparams, e)?
+                    }
+                    Err(e) => return Err(e),
+                };
+                exclude_inconsistent(problem, spec, rederive, case, dparams, run, excluded)
             })
         },
     )
