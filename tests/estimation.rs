@@ -225,6 +225,17 @@ fn move_control_point(manifest: &Path, id: i64, north_m: f64) {
     });
 }
 
+/// The joint's hold-out, and the ids of the control points it left out.
+fn left_out(d: &DisuptOut) -> (Vec<unz_stages::disupt::Holdout>, Vec<u32>) {
+    let holdout = d.methods["joint"].holdout.clone().unwrap();
+    let ids = holdout
+        .iter()
+        .filter(|h| h.excluded)
+        .map(|h| h.id)
+        .collect();
+    (holdout, ids)
+}
+
 /// Rewrites the manifest `run.toml` through `f`.
 fn edit_manifest(manifest: &Path, f: impl FnOnce(&mut toml::Table)) {
     let mut m: toml::Table = toml::from_str(&std::fs::read_to_string(manifest).unwrap()).unwrap();
@@ -352,12 +363,7 @@ fn control_points_surveyed_off_are_left_out_of_the_fit() {
     });
     move_control_point(&manifest, 9, -8.0);
     let (_, d, worst_two) = run_into("two");
-    let holdout = d.methods["joint"].holdout.clone().unwrap();
-    let excluded: Vec<u32> = holdout
-        .iter()
-        .filter(|h| h.excluded)
-        .map(|h| h.id)
-        .collect();
+    let (holdout, excluded) = left_out(&d);
     assert_eq!(excluded, [6, 9], "{holdout:?}");
     assert!(
         holdout.iter().all(|h| h.excluded == h.inconsistent),
@@ -376,12 +382,7 @@ fn control_points_surveyed_off_are_left_out_of_the_fit() {
     move_control_point(&manifest, 9, 8.0);
     let (_, d, worst_typo) = run_into("typo");
     assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
-    let holdout = d.methods["joint"].holdout.clone().unwrap();
-    let excluded: Vec<u32> = holdout
-        .iter()
-        .filter(|h| h.excluded)
-        .map(|h| h.id)
-        .collect();
+    let (holdout, excluded) = left_out(&d);
     assert_eq!(excluded, [6], "{holdout:?}");
     let six = holdout.iter().find(|h| h.id == 6).unwrap();
     assert!((six.dx_m.hypot(six.dy_m) - 1000.0).abs() < 1.0, "{six:?}");

@@ -88,11 +88,7 @@ pub(super) fn exclude_inconsistent(
         match run_joint(&problem.excluding(&next), &without, rederive, case, dparams) {
             Ok(mut refit) => {
                 // The method's passes: every fit's.
-                let r = &mut refit.fit.result;
-                r.evaluations += out.run.fit.result.evaluations;
-                if let Some(step) = r.steps.first_mut() {
-                    step.evaluations = r.evaluations;
-                }
+                add_passes(&mut refit, out.run.fit.result.evaluations);
                 out.run = refit;
                 out.excluded = next;
             }
@@ -173,14 +169,19 @@ pub(super) fn without_the_point_out_of_bounds(
     ) {
         Ok(mut run) => {
             // The method's passes: the search's too.
-            let r = &mut run.fit.result;
-            r.evaluations += tried.iter().map(|t| t.2).sum::<usize>();
-            if let Some(step) = r.steps.first_mut() {
-                step.evaluations = r.evaluations;
-            }
+            add_passes(&mut run, tried.iter().map(|t| t.2).sum());
             Ok((run, excluded))
         }
         Err(_) => Err(no_single(refused)),
+    }
+}
+
+/// Counts `passes` of fits before it in `run`'s (and its one step's).
+fn add_passes(run: &mut JointRun, passes: usize) {
+    let r = &mut run.fit.result;
+    r.evaluations += passes;
+    if let Some(step) = r.steps.first_mut() {
+        step.evaluations = r.evaluations;
     }
 }
 
