@@ -304,6 +304,14 @@ fn odometer_failure_note(n: &NavigateSummary, failures: Option<&OdometerFailures
             seconds(f.stuck_samples)
         )
     });
+    let gaps = failures.filter(|f| f.file_gaps > 0).map(|f| {
+        format!(
+            "the odometer file has no readings over {} gap{} longer than {:.0} s",
+            f.file_gaps,
+            if f.file_gaps == 1 { "" } else { "s" },
+            crate::odometer_gaps::MIN_GAP_S
+        )
+    });
     let bridged = failures.filter(|f| f.bridged > 0).map(|f| {
         let one_ended = match f.one_ended {
             0 => String::new(),
@@ -327,7 +335,17 @@ fn odometer_failure_note(n: &NavigateSummary, failures: Option<&OdometerFailures
         )
     });
     let not_bridged = failures.map_or(0, |f| f.not_bridged);
-    let lost = (not_bridged > 0 || failures.is_none()).then(|| {
+    let file_gaps = failures.is_some_and(|f| f.file_gaps > 0);
+    let trapezoid = (not_bridged > 0 && file_gaps).then(|| {
+        format!(
+            "{not_bridged} not bridged (longer than {:.0} s, or without readings around it): \
+             the distance over {} is the trapezoid of the speeds at {} ends",
+            crate::odometer_bridge::MAX_BRIDGED_S,
+            if not_bridged == 1 { "it" } else { "them" },
+            if not_bridged == 1 { "its" } else { "their" },
+        )
+    });
+    let lost = (!file_gaps && (not_bridged > 0 || failures.is_none())).then(|| {
         let which = match failures {
             Some(f) => format!(
                 "{not_bridged} failure{} ({} samples) not bridged (longer than {:.0} s, or \
@@ -346,8 +364,10 @@ fn odometer_failure_note(n: &NavigateSummary, failures: Option<&OdometerFailures
     });
     flagged
         .into_iter()
+        .chain(gaps)
         .chain(stuck)
         .chain(bridged)
+        .chain(trapezoid)
         .chain(lost)
         .collect::<Vec<_>>()
         .join("; ")
@@ -379,7 +399,9 @@ fn run_note(
         .and_then(crate::disupt_stage::odo_yaw_note);
     let failures = ing.and_then(|i| i.odometer_failures.as_ref());
     let odo_failed = nav
-        .filter(|n| n.odometer_failure_samples > 0 || failures.is_some_and(|f| f.stuck > 0))
+        .filter(|n| {
+            n.odometer_failure_samples > 0 || failures.is_some_and(|f| f.stuck + f.file_gaps > 0)
+        })
         .map(|n| odometer_failure_note(n, failures));
     let rebridged = d
         .and_then(|d| d.methods.get("joint")?.rebridged.as_ref())

@@ -4,8 +4,9 @@
 //!
 //! The log is streamed: memory is bounded by the reader's buffer, one batch of rows and
 //! the samples an odometer failure holds back until it is bridged (at most 100 000;
-//! `crate::odometer_bridge`), whatever the file size. Bad records never stop the stage;
-//! an unreadable file does, with an error naming it.
+//! `crate::odometer_bridge`), or for a text log the readings and the IMU's samples around
+//! its odometer file's gaps (`crate::odometer_gaps`), whatever the file size. Bad records
+//! never stop the stage; an unreadable file does, with an error naming it.
 
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
@@ -13,13 +14,14 @@ use std::path::{Path, PathBuf};
 use crate::artifacts::files;
 use crate::flow::site_gravity_mps2;
 use crate::odometer_bridge::{Given, OdometerBridger, OdometerSample};
+use crate::odometer_gaps::{GapBridger, find_gaps};
 use crate::odometer_range::OdometerRange;
 use crate::raw_mcap::RawMcapWriter;
 use anyhow::Context;
 use serde::Serialize;
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::kfgins::{KfGinsReader, LAND_SPEED_RANGE_MPS, OdometerFileReader};
-use unz_formats::manifest::{LogFormat, RunManifest};
+use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_formats::mcap_io::McapCompression;
 use unz_formats::parquet_io::ParquetSink;
 use unz_formats::raw::{Accepted, RawReader};
@@ -367,6 +369,31 @@ fn ingest_text(
         .period_s()
         .map_err(|e| e.in_file(path))?
         .unwrap_or(0.0);
+    // A speed file's gaps are found first, its readings around them kept, so that the
+    // IMU's samples over them can be kept as they stream by.
+    let speed_file = manifest
+        .odometer
+        .file
+        .as_ref()
+        .filter(|_| manifest.odometer.kind == Some(OdometerKind::SpeedMps));
+    let mut gaps = match speed_file {
+        Some(file) => {
+            let mut odo = OdometerFileReader::new(
+                BufReader::new(open(manifest, file)?),
+                OdometerKind::SpeedMps,
+            );
+            let (found, more) = find_gaps(&mut odo).map_err(|e| e.in_file(file))?;
+            (!found.is_empty() || more > 0).then(|| {
+                GapBridger::new(
+                    found,
+                    more,
+                    site_gravity_mps2(manifest),
+                    options.odo_lag_prior_s,
+                )
+            })
+        }
+        None => None,
+    };
     let mut sinks = Sinks::create(dir, None, None, options.mcap)?;
     let mut seq = 0u64;
     let mut prev: Option<(f64, f64, f64)> = None; // (t, speed, distance) for the 8th column
@@ -380,6 +407,9 @@ fn ingest_text(
         rows.status.push(0);
         if let Some(m) = &mut sinks.mcap {
             m.imu(t_ns, period, seq, s.dtheta_rad, s.dvel_mps, 0);
+        }
+        if let Some(g) = &mut gaps {
+            g.sample(t_ns, s.dtheta_rad, s.dvel_mps);
         }
         match s.speed_mps {
             // A corrupt reading: the sample goes on without its speed, counted.
@@ -401,21 +431,28 @@ fn ingest_text(
     }
     // The 8th column, when present, is the odometer; otherwise the manifest's file.
     let mut odometer_file = None;
+    let mut bridged = None;
     if reader.columns() != Some(8)
         && let (Some(file), Some(kind)) = (&manifest.odometer.file, manifest.odometer.kind)
     {
+        let mut gaps = gaps.map(GapBridger::finish);
         let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind);
         while let Some(o) = odo.next_sample().map_err(|e| e.in_file(file))? {
             let t_ns = (o.t_s * 1e9).round() as i64;
             let d = sinks.odo_range.step(t_ns, o.distance_m);
-            sinks.push_odometer(t_ns, (d, DistanceSource::Reading), None);
+            match &mut gaps {
+                Some(g) => g.give(t_ns, d, |t, given| sinks.push_odometer(t, given, None)),
+                None => sinks.push_odometer(t_ns, (d, DistanceSource::Reading), None),
+            }
             sinks.flush(false)?;
         }
         odometer_file = Some(odo);
+        bridged = gaps.map(|g| g.failures().clone());
     }
     let (odo_rows, odometer_out_of_range) = sinks.finish(dir)?;
     let mut report = reader.report().clone();
     report.odometer_out_of_range = odometer_out_of_range;
+    report.odometer_failures = bridged;
     report.odometer_file = odometer_file.as_ref().map(|o| o.report().clone());
     let (faults, total) = reader.faults();
     write_json_atomic(

@@ -240,14 +240,25 @@ pub fn build_review(
     );
     let route_sigma =
         read_route_sigma(&disupt_dir.join(files::CORRECTED_NAV), &rel, d.nominal_dt_s)?;
-    // A binary log's odometer rows are its IMU samples (a text log's are not, and it
-    // has no failure).
-    let odometer_failures = IngestedSeries::load_failed_rows(&ctx.layout().dir(StageName::Ingest))?
+    // A binary log's odometer rows are its IMU samples; a text log's are its odometer
+    // file's readings, and the rows bridged across its gaps are at IMU samples, found by
+    // their time tags.
+    let (failed, rows) = IngestedSeries::load_failed_rows(&ctx.layout().dir(StageName::Ingest))?;
+    let sample_at = |t_ns: i64| sensors.sample_at((t_ns - d.t0_ns) as f64 * 1e-9, d.nominal_dt_s);
+    let odometer_failures = failed
         .into_iter()
-        .map(|f| OdometerFailure {
-            first_sample: f.first as i64,
-            samples: f.len as i64,
-            bridged: f.bridged,
+        .map(|f| {
+            let (first_sample, samples) = if rows == d.samples {
+                (f.rows.first as i64, f.rows.len as i64)
+            } else {
+                let first = sample_at(f.first_t_ns);
+                (first, sample_at(f.last_t_ns) - first + 1)
+            };
+            OdometerFailure {
+                first_sample,
+                samples,
+                bridged: f.rows.bridged,
+            }
         })
         .collect();
     Ok(Review {

@@ -108,6 +108,11 @@ pub struct OdometerFailures {
     /// Samples of theirs (counted in `bridged_samples` or `not_bridged_samples` too).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub stuck_samples: u64,
+    /// A text log's odometer file: its gaps without readings (`unz::odometer_gaps`), each a
+    /// failure bridged or not like a binary log's (its samples the IMU's across it). One
+    /// not bridged keeps the trapezoid of the speeds at its ends.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub file_gaps: u64,
 }
 
 /// Accounting of a separate odometer file: `lines_read == lines_accepted +

@@ -53,6 +53,17 @@ pub struct OdometerTags {
     pub failed: Vec<FailedRows>,
 }
 
+/// Failed rows of `odometer.parquet` with the time tags of the first and the last.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FailedSpan {
+    /// The rows.
+    pub rows: FailedRows,
+    /// The first row's time tag, ns.
+    pub first_t_ns: i64,
+    /// The last row's, ns.
+    pub last_t_ns: i64,
+}
+
 /// Adds the failed rows of a batch of `odometer.parquet`'s `distance_source`, its first
 /// row `first_row`, to `failed` (in order; runs of one kind join across batches).
 fn extend_failed(
@@ -147,17 +158,43 @@ impl IngestedSeries {
     }
 
     /// The rows of `odometer.parquet` of an ingest folder whose distances are not the
-    /// odometer's readings (its `distance_source` column alone: what the review shows).
-    pub fn load_failed_rows(ingest_dir: &Path) -> anyhow::Result<Vec<FailedRows>> {
+    /// odometer's readings, with the time tags of each span's first and last row, and
+    /// the table's rows (its `distance_source` and `t_ns` columns: what the review shows).
+    pub fn load_failed_rows(ingest_dir: &Path) -> anyhow::Result<(Vec<FailedSpan>, usize)> {
         let mut failed = Vec::new();
+        let mut times: Vec<[i64; 2]> = Vec::new();
         let mut rows = 0;
         let path = ingest_dir.join(files::ODOMETER);
-        for_each_batch_of(&path, &[schema::DISTANCE_SOURCE], |b| {
+        for_each_batch_of(&path, &[schema::T_NS, schema::DISTANCE_SOURCE], |b| {
             extend_failed(&mut failed, rows, b)?;
-            rows += b.num_rows();
+            let t_ns = i64_column(b, schema::T_NS)?;
+            let batch = rows..rows + t_ns.len();
+            // Spans not wholly before this batch: those begun in it, and the last one
+            // (which may have begun in an earlier batch and end in this one).
+            let from = times.len().saturating_sub(1);
+            times.resize(failed.len(), [0; 2]);
+            for (f, t) in failed[from..].iter().zip(&mut times[from..]) {
+                if batch.contains(&f.first) {
+                    t[0] = t_ns[f.first - rows];
+                }
+                let last = f.first + f.len - 1;
+                if batch.contains(&last) {
+                    t[1] = t_ns[last - rows];
+                }
+            }
+            rows = batch.end;
             Ok(())
         })?;
-        Ok(failed)
+        let spans = failed
+            .into_iter()
+            .zip(times)
+            .map(|(rows, [first_t_ns, last_t_ns])| FailedSpan {
+                rows,
+                first_t_ns,
+                last_t_ns,
+            })
+            .collect();
+        Ok((spans, rows))
     }
 
     /// Samples whose status flags an IMU built-in-test failure (bit 0) and an odometer
@@ -245,10 +282,22 @@ mod tests {
                 failed(140_000, 10_000, true)
             ]
         );
+        // The review's reading: the same spans, each with its first and last row's tags
+        // (the last span ends in a later batch than it begins).
+        let (spans, rows) = IngestedSeries::load_failed_rows(dir.path()).unwrap();
+        assert_eq!(rows, table.t_ns.len());
         assert_eq!(
-            IngestedSeries::load_failed_rows(dir.path()).unwrap(),
+            spans.iter().map(|s| s.rows).collect::<Vec<_>>(),
             tags.failed
         );
+        for s in &spans {
+            let last = s.rows.first + s.rows.len - 1;
+            assert_eq!(
+                (s.first_t_ns, s.last_t_ns),
+                (table.t_ns[s.rows.first], table.t_ns[last]),
+                "{s:?}"
+            );
+        }
 
         let empty = OdometerTable::default();
         write_batch(&path, &empty.to_batch(schema::odometer(None)).unwrap()).unwrap();

@@ -72,6 +72,17 @@ pub struct SensorBlocks {
 }
 
 impl SensorBlocks {
+    /// The sample at `t_s` (the blocks' time base), samples `sample_dt_s` apart within
+    /// the block that holds it; 0 without blocks.
+    pub fn sample_at(&self, t_s: f64, sample_dt_s: f64) -> i64 {
+        let b = self.t_s.partition_point(|&t| t <= t_s).saturating_sub(1);
+        let (Some(&t0), Some(&first)) = (self.t_s.get(b), self.sample.get(b)) else {
+            return 0;
+        };
+        let within = ((t_s - t0) / sample_dt_s.max(1e-9)).round().max(0.0);
+        first + (within as i64).min(self.step.saturating_sub(1) as i64)
+    }
+
     /// The blocks that hold a sample of one of `failures` (in order) that is `bridged`
     /// (or held, with `false`).
     pub fn blocks_of(&self, failures: &[OdometerFailure], bridged: bool) -> Vec<usize> {
@@ -329,6 +340,22 @@ pub fn display_name(label: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_time_is_a_sample_of_its_block() {
+        let blocks = SensorBlocks {
+            step: 10,
+            t_s: vec![0.0, 1.0, 2.0],
+            sample: vec![0, 10, 20],
+            ..SensorBlocks::default()
+        };
+        assert_eq!(blocks.sample_at(1.3, 0.1), 13);
+        assert_eq!(blocks.sample_at(0.0, 0.1), 0);
+        assert_eq!(blocks.sample_at(-5.0, 0.1), 0);
+        // Beyond the last block's samples: its last.
+        assert_eq!(blocks.sample_at(9.0, 0.1), 29);
+        assert_eq!(SensorBlocks::default().sample_at(1.0, 0.1), 0);
+    }
 
     #[test]
     fn sensor_blocks_cover_a_short_last_block() {

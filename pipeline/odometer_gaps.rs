@@ -1,0 +1,415 @@
+//! Gaps in a text log's odometer speed file (an OBD-II logger's dropouts), bridged by the
+//! IMU.
+//!
+//! A speed file's distance is the trapezoid of its speeds: across a gap that is the mean
+//! of the speeds at its ends times its length, whatever the vehicle did meanwhile.
+//! Measured on Kingston's drive with a minute of its 1-Hz speeds removed (stop-and-go
+//! traffic): the joint fit's control points went from 1.0 and 0.4 m to 95 and 30 m off,
+//! and nothing said why. A gap here is an interval between two readings longer than
+//! [`MIN_GAP_S`] and [`GAP_PERIODS`] times the file's recent intervals. Each is bridged
+//! as a binary log's failure is ([`unz_stages::odo_bridge::bridge`]: the inertial
+//! along-track speed, fitted to the readings up to [`WINDOW_S`] each side, interpolated to
+//! the IMU's samples), and the bridge's distances are written as odometer rows at the
+//! IMU's samples across it (`distance_source` bridged); the readings after it are moved
+//! by what the bridge gives across it less the trapezoid.
+//!
+//! Three passes: the file once to find its gaps ([`find_gaps`]), the IMU's samples as the
+//! ingest streams them ([`GapBridger`]), and the file again as it is written
+//! ([`BridgedGaps::give`]). Memory: the readings around the gaps (at most 2 000 000), the
+//! IMU's samples over the windows open at a time, and the bridged rows (one per IMU
+//! sample inside a gap).
+
+use std::collections::VecDeque;
+use std::io::BufRead;
+
+use unz_formats::OdometerFailures;
+use unz_formats::error::FormatError;
+use unz_formats::kfgins::OdometerFileReader;
+use unz_formats::schema::DistanceSource;
+use unz_stages::odo_bridge::{BridgeSample, Reading, WINDOW_S, bridge};
+
+use crate::odometer_bridge::{Given, MAX_BRIDGED_S};
+
+/// Shortest gap between two readings bridged, s: over a few seconds the trapezoid of the
+/// speeds at its ends is within centimetres to decimetres of the route.
+pub const MIN_GAP_S: f64 = 3.0;
+/// A gap is also this many times the median of the file's last nine intervals: a
+/// file written at its own slow rate has no gaps.
+pub const GAP_PERIODS: f64 = 3.0;
+/// Intervals the file's recent rate is taken over.
+const RECENT: usize = 9;
+/// Readings kept before a gap at most, whatever their time tags (a file at a kilohertz
+/// would hold 10 000 over [`WINDOW_S`]).
+const MAX_WINDOW_READINGS: usize = 100_000;
+/// Gaps bridged at most; beyond, a file with more is counted, its other gaps left to the
+/// trapezoid.
+const MAX_GAPS: usize = 10_000;
+/// Readings kept around all the gaps at most (32 MB): a file far denser than its gaps'
+/// windows need leaves its later gaps to the trapezoid, counted.
+const MAX_KEPT_READINGS: usize = 2_000_000;
+
+/// A gap in the file, with the readings around it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Gap {
+    /// The last reading before it, s.
+    pub from_s: f64,
+    /// The first reading after it, s.
+    pub to_s: f64,
+    /// The readings within [`WINDOW_S`] before it (up to `from_s`) and after it (from
+    /// `to_s`, not past the next gap): time, s, and distance as the file gives it, m.
+    readings: Vec<(f64, f64)>,
+}
+
+impl Gap {
+    /// The window's first and last times, s.
+    fn span_s(&self) -> (f64, f64) {
+        let first = self.readings.first().map_or(self.from_s, |r| r.0);
+        let last = self.readings.last().map_or(self.to_s, |r| r.0);
+        (first, last)
+    }
+
+    /// The file's distance at `t_s` by linear interpolation between its readings on the
+    /// same side of the gap.
+    fn reading_at(&self, t_s: f64) -> Reading {
+        if t_s > self.from_s && t_s < self.to_s {
+            return Reading::Failed;
+        }
+        let side: &[(f64, f64)] = {
+            let split = self.readings.partition_point(|r| r.0 <= self.from_s);
+            if t_s <= self.from_s {
+                &self.readings[..split]
+            } else {
+                &self.readings[split..]
+            }
+        };
+        let k = side
+            .partition_point(|r| r.0 < t_s)
+            .clamp(1, side.len().max(1));
+        let d = match side {
+            [] => f64::NAN,
+            [only] => only.1,
+            _ => {
+                let ((t0, d0), (t1, d1)) = (side[k - 1], side[k.min(side.len() - 1)]);
+                if t1 > t0 {
+                    d0 + (d1 - d0) * (t_s - t0) / (t1 - t0)
+                } else {
+                    d0
+                }
+            }
+        };
+        if t_s <= self.from_s {
+            Reading::Before(d)
+        } else {
+            Reading::After(d)
+        }
+    }
+}
+
+/// The gaps of an odometer file (read through `reader` to its end), in order, with the
+/// readings around each. At most 10 000; the count of the others is returned too.
+pub fn find_gaps<R: BufRead>(
+    reader: &mut OdometerFileReader<R>,
+) -> Result<(Vec<Gap>, u64), FormatError> {
+    let mut gaps: Vec<Gap> = Vec::new();
+    let mut more = 0u64;
+    let mut kept = 0usize;
+    let mut before: VecDeque<(f64, f64)> = VecDeque::new();
+    let mut intervals: VecDeque<f64> = VecDeque::with_capacity(RECENT);
+    // The gap whose readings after it are being collected.
+    let mut collecting = false;
+    while let Some(s) = reader.next_sample()? {
+        let r = (s.t_s, s.distance_m);
+        if let Some(&(t0, _)) = before.back() {
+            let dt = r.0 - t0;
+            let mut recent: Vec<f64> = intervals.iter().copied().collect();
+            recent.sort_by(f64::total_cmp);
+            // The file's first interval, with no rate to judge it by, is not a gap.
+            let typical = recent
+                .get(recent.len() / 2)
+                .copied()
+                .unwrap_or(f64::INFINITY);
+            if dt > MIN_GAP_S && dt > GAP_PERIODS * typical {
+                if gaps.len() < MAX_GAPS && kept + before.len() < MAX_KEPT_READINGS {
+                    kept += before.len();
+                    gaps.push(Gap {
+                        from_s: t0,
+                        to_s: r.0,
+                        readings: before.iter().copied().collect(),
+                    });
+                    collecting = true;
+                } else {
+                    more += 1;
+                    collecting = false;
+                }
+                before.clear();
+            } else {
+                if intervals.len() == RECENT {
+                    intervals.pop_front();
+                }
+                intervals.push_back(dt);
+            }
+        }
+        if collecting && let Some(g) = gaps.last_mut() {
+            if r.0 - g.to_s <= WINDOW_S
+                && g.readings.len() < 2 * MAX_WINDOW_READINGS
+                && kept < MAX_KEPT_READINGS
+            {
+                kept += 1;
+                g.readings.push(r);
+            } else {
+                collecting = false;
+            }
+        }
+        before.push_back(r);
+        while before.len() > MAX_WINDOW_READINGS
+            || before.front().is_some_and(|f| r.0 - f.0 > WINDOW_S)
+        {
+            before.pop_front();
+        }
+    }
+    Ok((gaps, more))
+}
+
+/// A gap as bridged.
+#[derive(Debug, Clone, PartialEq)]
+struct BridgedGap {
+    from_s: f64,
+    to_s: f64,
+    /// The rows across it: each IMU sample's time tag, ns, and the route's distance in the
+    /// file's distance (before the earlier gaps' offsets), m. Empty when not bridged.
+    rows: Vec<(i64, f64)>,
+    /// Added to the file's distances from `to_s` on, m (0 when not bridged).
+    after_offset_m: f64,
+}
+
+/// An IMU sample: its time tag, ns, its angle and velocity increments (body FRD; rad,
+/// m/s).
+type ImuSample = (i64, [f64; 3], [f64; 3]);
+
+/// The IMU's samples in the gaps' windows, collected as the ingest streams them, each
+/// gap bridged once its window is whole.
+pub struct GapBridger {
+    gaps: VecDeque<Gap>,
+    /// Gaps longer than [`MAX_BRIDGED_S`] (from, to; s): their samples are counted only.
+    long: VecDeque<(f64, f64)>,
+    /// Windows being filled: the gap, and the IMU samples in its window so far.
+    open: VecDeque<(Gap, Vec<ImuSample>)>,
+    done: Vec<BridgedGap>,
+    failures: OdometerFailures,
+    g_mps2: f64,
+    lag_prior_s: f64,
+    more_gaps: u64,
+}
+
+impl GapBridger {
+    /// Bridges `gaps` (of [`find_gaps`], `more_gaps` beyond them) where gravity is
+    /// `g_mps2`, the odometer's lag searched about `lag_prior_s`.
+    pub fn new(gaps: Vec<Gap>, more_gaps: u64, g_mps2: f64, lag_prior_s: f64) -> Self {
+        let (gaps, long): (Vec<Gap>, Vec<Gap>) = gaps
+            .into_iter()
+            .partition(|g| g.to_s - g.from_s <= MAX_BRIDGED_S);
+        let failures = OdometerFailures {
+            file_gaps: (gaps.len() + long.len()) as u64 + more_gaps,
+            not_bridged: long.len() as u64,
+            ..OdometerFailures::default()
+        };
+        Self {
+            gaps: gaps.into(),
+            long: long.iter().map(|g| (g.from_s, g.to_s)).collect(),
+            open: VecDeque::new(),
+            done: Vec::new(),
+            failures,
+            g_mps2,
+            lag_prior_s,
+            more_gaps,
+        }
+    }
+
+    /// Takes the next IMU sample (time tags increasing).
+    pub fn sample(&mut self, t_ns: i64, dtheta_rad: [f64; 3], dvel_mps: [f64; 3]) {
+        let t_s = t_ns as f64 * 1e-9;
+        while self.long.front().is_some_and(|g| g.1 <= t_s) {
+            self.long.pop_front();
+        }
+        if self.long.front().is_some_and(|g| g.0 < t_s) {
+            self.failures.not_bridged_samples += 1;
+        }
+        while self.gaps.front().is_some_and(|g| g.span_s().0 <= t_s) {
+            let g = self.gaps.pop_front().expect("a gap in front");
+            self.open.push_back((g, Vec::new()));
+        }
+        for (g, samples) in &mut self.open {
+            if t_s <= g.span_s().1 {
+                samples.push((t_ns, dtheta_rad, dvel_mps));
+            }
+        }
+        while self.open.front().is_some_and(|(g, _)| g.span_s().1 < t_s) {
+            let (g, samples) = self.open.pop_front().expect("a window in front");
+            self.close(g, samples);
+        }
+    }
+
+    /// Bridges the gap `g` with the IMU's `samples` over its window.
+    fn close(&mut self, g: Gap, samples: Vec<ImuSample>) {
+        let length_s = g.to_s - g.from_s;
+        let window: Vec<BridgeSample> = samples
+            .iter()
+            .map(|&(t_ns, dtheta_rad, dvel_mps)| {
+                let t_s = t_ns as f64 * 1e-9;
+                BridgeSample {
+                    t_s,
+                    dtheta_rad,
+                    dvel_mps,
+                    reading: g.reading_at(t_s),
+                }
+            })
+            .collect();
+        let failed = window
+            .iter()
+            .filter(|s| matches!(s.reading, Reading::Failed))
+            .count() as u64;
+        let bridged = bridge(&window, self.g_mps2, self.lag_prior_s);
+        let f = &mut self.failures;
+        let rows = match bridged {
+            Some(b) => {
+                f.bridged += 1;
+                f.bridged_samples += failed;
+                f.longest_bridged_s = f.longest_bridged_s.max(length_s);
+                f.bridged_distance_m += b.across_m;
+                f.worst_residual_m = f.worst_residual_m.max(b.rms_residual_m);
+                let at: Vec<i64> = window
+                    .iter()
+                    .zip(&samples)
+                    .filter(|(s, _)| matches!(s.reading, Reading::Failed))
+                    .map(|(_, s)| s.0)
+                    .collect();
+                let offset = b.after_offset_m;
+                self.done.push(BridgedGap {
+                    from_s: g.from_s,
+                    to_s: g.to_s,
+                    rows: at.into_iter().zip(b.failed_distance_m).collect(),
+                    after_offset_m: offset,
+                });
+                return;
+            }
+            None => Vec::new(),
+        };
+        f.not_bridged += 1;
+        f.not_bridged_samples += failed;
+        self.done.push(BridgedGap {
+            from_s: g.from_s,
+            to_s: g.to_s,
+            rows,
+            after_offset_m: 0.0,
+        });
+    }
+
+    /// Bridges the gaps whose windows the IMU's samples ended in (with the samples
+    /// there); a gap after the last sample is left to the trapezoid, counted.
+    pub fn finish(mut self) -> BridgedGaps {
+        while let Some((g, samples)) = self.open.pop_front() {
+            self.close(g, samples);
+        }
+        self.failures.not_bridged += self.gaps.len() as u64 + self.more_gaps;
+        BridgedGaps {
+            gaps: self.done.into(),
+            offset_m: 0.0,
+            failures: self.failures,
+        }
+    }
+}
+
+/// The bridged gaps, to write with the file's readings.
+pub struct BridgedGaps {
+    gaps: VecDeque<BridgedGap>,
+    /// The earlier gaps' offsets, m.
+    offset_m: f64,
+    failures: OdometerFailures,
+}
+
+impl BridgedGaps {
+    /// How the gaps were bridged.
+    pub fn failures(&self) -> &OdometerFailures {
+        &self.failures
+    }
+
+    /// Gives the file's reading at `t_ns` (its distance `distance_m`, as the file gives
+    /// it) to `out` with the route's distance, after the rows of the gaps that end at it.
+    pub fn give(&mut self, t_ns: i64, distance_m: f64, mut out: impl FnMut(i64, Given)) {
+        let t_s = t_ns as f64 * 1e-9;
+        while self.gaps.front().is_some_and(|g| g.to_s <= t_s) {
+            let g = self.gaps.pop_front().expect("a gap in front");
+            for (t, d) in g.rows {
+                out(t, (d + self.offset_m, DistanceSource::Bridged));
+            }
+            self.offset_m += g.after_offset_m;
+        }
+        out(t_ns, (distance_m + self.offset_m, DistanceSource::Reading));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use unz_formats::manifest::OdometerKind;
+
+    fn gaps_of(text: &str) -> (Vec<Gap>, u64) {
+        let mut r = OdometerFileReader::new(text.as_bytes(), OdometerKind::SpeedMps);
+        find_gaps(&mut r).unwrap()
+    }
+
+    #[test]
+    fn a_gap_is_long_against_the_files_own_rate() {
+        // 1 Hz at 2 m/s, a 20-s gap from 30 s, then on.
+        let mut text = String::new();
+        for t in (0..=30).chain(50..=70) {
+            text += &format!("{t} 2.0\n");
+        }
+        let (gaps, more) = gaps_of(&text);
+        assert_eq!((gaps.len(), more), (1, 0));
+        let g = &gaps[0];
+        assert_eq!((g.from_s, g.to_s), (30.0, 50.0));
+        // Ten seconds each side, the reading at each end included.
+        assert_eq!(g.readings.first().unwrap().0, 20.0);
+        assert_eq!(g.readings.last().unwrap().0, 60.0);
+        assert_eq!(g.readings.len(), 22);
+        assert_eq!(g.reading_at(25.5), Reading::Before(51.0));
+        assert_eq!(g.reading_at(40.0), Reading::Failed);
+        // The file's trapezoid across the gap: 2 m/s over 20 s.
+        assert_eq!(g.reading_at(55.0), Reading::After(110.0));
+        // A file at 0.2 Hz has no gaps; two missed seconds at 1 Hz are not one.
+        let slow: String = (0..20).map(|k| format!("{} 1.0\n", 5 * k)).collect();
+        assert!(gaps_of(&slow).0.is_empty());
+        let missed: String = (0..30)
+            .filter(|t| *t != 11 && *t != 12)
+            .map(|t| format!("{t} 1.0\n"))
+            .collect();
+        assert!(gaps_of(&missed).0.is_empty());
+    }
+
+    #[test]
+    fn bridged_rows_come_before_the_reading_that_ends_their_gap() {
+        let mut gaps = BridgedGaps {
+            gaps: VecDeque::from([BridgedGap {
+                from_s: 1.0,
+                to_s: 2.0,
+                rows: vec![(1_500_000_000, 15.0)],
+                after_offset_m: -3.0,
+            }]),
+            offset_m: 0.0,
+            failures: OdometerFailures::default(),
+        };
+        let mut out = Vec::new();
+        for (t_ns, d) in [(1_000_000_000, 10.0), (2_000_000_000, 23.0)] {
+            gaps.give(t_ns, d, |t, given| out.push((t, given)));
+        }
+        assert_eq!(
+            out,
+            [
+                (1_000_000_000, (10.0, DistanceSource::Reading)),
+                (1_500_000_000, (15.0, DistanceSource::Bridged)),
+                (2_000_000_000, (20.0, DistanceSource::Reading)),
+            ]
+        );
+    }
+}
