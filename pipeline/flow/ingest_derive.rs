@@ -32,8 +32,9 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // scale error and the x accelerometer's bias, and searches the lag about the
         // derive's configured odometer time offset. 6: `odometer.parquet`'s
         // `distance_source` says which distances are the odometer's readings, bridged or
-        // held (the disupt stage bridges again at the lag it estimates).
-        version: 6,
+        // held (the disupt stage bridges again at the lag it estimates). 7: a text log's
+        // odometer speed file's gaps are bridged.
+        version: 7,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
