@@ -33,13 +33,12 @@ pub(super) fn most_excluded(n: usize) -> usize {
 }
 
 /// `run` (a fit without `excluded`) redone without the control points its hold-out finds
-/// inconsistent, when
-/// `dparams.joint_exclude_inconsistent`: the most inconsistent point (in σ of what the
-/// fit without it predicts) is left out and the whole joint fit redone without it
-/// ([`run_joint`]: lag, boresight check), then the new fit's hold-out judged, until no
-/// point it weighs is inconsistent or [`most_excluded`] are out. A point off pulls the
-/// fits that keep it, so the others' hold-outs can fail beside it; judged again without
-/// it, they pass.
+/// inconsistent, when `dparams.joint_exclude_inconsistent`: the most inconsistent point
+/// (in σ of what the fit without it predicts) is left out and the whole joint fit redone
+/// without it ([`run_joint`]: lag, boresight check), then the new fit's hold-out judged,
+/// until no point it weighs is inconsistent or [`most_excluded`] are out. A point off
+/// pulls the fits that keep it, so the others' hold-outs can fail beside it; judged again
+/// without it, they pass.
 pub(super) fn exclude_inconsistent(
     problem: &Problem<'_>,
     spec: &ProblemSpec<'_>,

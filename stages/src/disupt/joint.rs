@@ -431,7 +431,10 @@ pub fn joint_fit(
     }
     let x = x_of(&pr);
     // The rows of control points left out are zero: not residuals.
-    let rows = model.r0.len() - 2 * (problem.fixes.len() - used_cps);
+    let rows = model
+        .r0
+        .len()
+        .saturating_sub(2 * (problem.fixes.len() - used_cps));
     let dof = (rows as f64 - free.len() as f64).max(1.0);
     let r = joint_residuals(problem, &y, &pr, &w, skip);
     let n_att = attitude_rows(problem);
