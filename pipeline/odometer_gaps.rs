@@ -388,6 +388,37 @@ mod tests {
     }
 
     #[test]
+    fn many_gaps_and_a_long_one_are_counted_in_bounded_memory() {
+        // 30 000 gaps of 4 s between pairs of readings 1 s apart: 10 000 kept, the rest
+        // counted.
+        let text: String = (0..30_000)
+            .flat_map(|k| [5 * k, 5 * k + 1])
+            .map(|t| format!("{t} 1.0\n"))
+            .collect();
+        let (gaps, more) = gaps_of(&text);
+        assert_eq!((gaps.len(), more), (MAX_GAPS, 30_000 - 1 - MAX_GAPS as u64));
+        // An hour without readings, and IMU samples through it at 10 Hz: counted, never
+        // held (a window is not opened for it), nothing bridged, nothing moved.
+        let long = "0 1.0\n1 1.0\n2 1.0\n3602 1.0\n3603 1.0\n";
+        let (gaps, more) = gaps_of(long);
+        let mut bridger = GapBridger::new(gaps, more, 9.81, 0.0);
+        for k in 0..36_100_i64 {
+            bridger.sample(k * 100_000_000, [0.0; 3], [0.0, 0.0, -0.981]);
+            assert!(bridger.open.is_empty());
+        }
+        let mut bridged = bridger.finish();
+        let f = bridged.failures().clone();
+        assert_eq!((f.file_gaps, f.bridged, f.not_bridged), (1, 0, 1), "{f:?}");
+        assert_eq!(f.not_bridged_samples, 35_999);
+        let mut out = Vec::new();
+        bridged.give(3_602_000_000_000, 3602.0, |t, g| out.push((t, g)));
+        assert_eq!(
+            out,
+            [(3_602_000_000_000, (3602.0, DistanceSource::Reading))]
+        );
+    }
+
+    #[test]
     fn bridged_rows_come_before_the_reading_that_ends_their_gap() {
         let mut gaps = BridgedGaps {
             gaps: VecDeque::from([BridgedGap {
