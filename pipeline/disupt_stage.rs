@@ -240,10 +240,14 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         );
         // The joint fit without the control points it left out, and its hold-out when the
         // search for them computed it.
-        let (excluded, mut early_holdout, mut exclusion_error, joint_result) = match joint_result {
-            Some(Ok(x)) => (x.excluded, x.holdout, x.refit_error, Some(Ok(x.run))),
-            other => (Vec::new(), None, None, other.map(|r| r.map(|x| x.run))),
-        };
+        let mut found = exclusions::Exclusions::default();
+        let joint_result = joint_result.map(|r| {
+            r.map(|x| {
+                found = x.found;
+                x.run
+            })
+        });
+        let excluded = std::mem::take(&mut found.excluded);
         if !excluded.is_empty() {
             let ids: Vec<String> = excluded
                 .iter()
@@ -257,7 +261,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 ),
             );
         }
-        if let Some(e) = &exclusion_error {
+        if let Some(e) = &found.refit_error {
             ctx.say("disupt", e);
         }
         // The ingested odometer and its re-derives go before the review passes (the route
@@ -402,7 +406,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             // The hold-out's fits (unless the exclusions' search left them) and the route's
             // σ are independent: side by side.
             let (holdout, sigma) = rayon::join(
-                || match early_holdout.take() {
+                || match found.holdout.take() {
                     Some(h) => Ok(h),
                     None => disupt::holdout(&joint_problem, &run.fit, &run.params),
                 },
@@ -413,7 +417,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 },
             );
             out.holdout = Some(holdout?);
-            out.exclusion_error = exclusion_error.take();
+            out.exclusion_error = found.refit_error.take();
+            out.refused_with_all_points = found.refused_with_all.take();
             out.lag_profile = run.profile.clone();
             out.rebridged = run.rebridged;
             methods.insert("joint".to_owned(), out);

@@ -382,6 +382,16 @@ fn control_points_surveyed_off_are_left_out_of_the_fit() {
     move_control_point(&manifest, 9, 8.0);
     let (_, d, worst_typo) = run_into("typo");
     assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
+    // The report says why the point was looked for: the fit with it was refused.
+    let why = d.methods["joint"].refused_with_all_points.clone().unwrap();
+    assert!(why.starts_with("the fit left its bounds"), "{why}");
+    let tables =
+        std::fs::read_to_string(tmp.path().join("typo").join(name).join("disupt/disupt.md"))
+            .unwrap();
+    assert!(
+        tables.contains("With every control point the fit was refused: the fit left its bounds"),
+        "{tables}"
+    );
     let (holdout, excluded) = left_out(&d);
     assert_eq!(excluded, [6], "{holdout:?}");
     let six = holdout.iter().find(|h| h.id == 6).unwrap();

@@ -14,13 +14,33 @@ use crate::flow::NavCase;
 pub(super) struct Excluding {
     /// The fit without them.
     pub(super) run: JointRun,
+    /// What the search found.
+    pub(super) found: Exclusions,
+}
+
+/// What the search for control points to leave out found, beside the fit.
+#[derive(Debug, Default)]
+pub(super) struct Exclusions {
     /// The points left out: indices into the case's fixes, ascending.
     pub(super) excluded: Vec<usize>,
-    /// The hold-out of `run`, when the search computed it: it stopped because no point it
-    /// weighs was inconsistent, or because the refit without one failed.
+    /// The hold-out of the fit, when the search computed it: it stopped because no point
+    /// the fit weighs was inconsistent, or because the refit without one failed.
     pub(super) holdout: Option<Vec<Holdout>>,
     /// Why an inconsistent point stayed in the fit: the fit without it failed.
     pub(super) refit_error: Option<String>,
+    /// Why the fit with every point was refused, when leaving one out brought it within
+    /// its bounds ([`without_the_point_out_of_bounds`]).
+    pub(super) refused_with_all: Option<String>,
+}
+
+impl Excluding {
+    /// `run`, with every point in it.
+    pub(super) fn of(run: JointRun) -> Self {
+        Self {
+            run,
+            found: Exclusions::default(),
+        }
+    }
 }
 
 /// Most of a run's `n` control points the joint fit may leave out: a third of them (more
@@ -32,7 +52,7 @@ pub(super) fn most_excluded(n: usize) -> usize {
     (n / 3).min(n.saturating_sub(HOLDOUT_MIN_POINTS))
 }
 
-/// `run` (a fit without `excluded`) redone without the control points its hold-out finds
+/// `out`'s fit (without its `excluded`) redone without the control points its hold-out finds
 /// inconsistent, when `dparams.joint_exclude_inconsistent`: the most inconsistent point
 /// (in σ of what the fit without it predicts) is left out and the whole joint fit redone
 /// without it ([`run_joint`]: lag, boresight check), then the new fit's hold-out judged,
@@ -45,21 +65,14 @@ pub(super) fn exclude_inconsistent(
     rederive: &Rederive<'_>,
     case: &NavCase,
     dparams: &disupt::DisuptParams,
-    run: JointRun,
-    excluded: Vec<usize>,
+    mut out: Excluding,
 ) -> Result<Excluding, DisuptError> {
-    let mut out = Excluding {
-        run,
-        excluded,
-        holdout: None,
-        refit_error: None,
-    };
     if !dparams.joint_exclude_inconsistent {
         return Ok(out);
     }
-    while out.excluded.len() < most_excluded(case.fixes.len()) {
+    while out.found.excluded.len() < most_excluded(case.fixes.len()) {
         let now = ProblemSpec {
-            excluded_cps: &out.excluded,
+            excluded_cps: &out.found.excluded,
             ..*spec
         };
         let fitted_on = now.on(out.run.derived.as_ref().unwrap_or(&case.derived));
@@ -74,10 +87,10 @@ pub(super) fn exclude_inconsistent(
             })
             .map(|(i, _)| i);
         let Some(i) = worst else {
-            out.holdout = Some(h);
+            out.found.holdout = Some(h);
             break;
         };
-        let mut next = out.excluded.clone();
+        let mut next = out.found.excluded.clone();
         next.push(i);
         next.sort_unstable();
         let without = ProblemSpec {
@@ -89,14 +102,14 @@ pub(super) fn exclude_inconsistent(
                 // The method's passes: every fit's.
                 add_passes(&mut refit, out.run.fit.result.evaluations);
                 out.run = refit;
-                out.excluded = next;
+                out.found.excluded = next;
             }
             Err(e) => {
-                out.refit_error = Some(format!(
+                out.found.refit_error = Some(format!(
                     "the joint fit without control point {} failed: {e}",
                     case.fixes[i].id
                 ));
-                out.holdout = Some(h);
+                out.found.holdout = Some(h);
                 break;
             }
         }
@@ -120,7 +133,7 @@ pub(super) fn without_the_point_out_of_bounds(
     case: &NavCase,
     dparams: &disupt::DisuptParams,
     refused: DisuptError,
-) -> Result<(JointRun, Vec<usize>), DisuptError> {
+) -> Result<Excluding, DisuptError> {
     let n = case.fixes.len();
     if !dparams.joint_exclude_inconsistent || most_excluded(n) == 0 {
         return Err(refused);
@@ -169,7 +182,14 @@ pub(super) fn without_the_point_out_of_bounds(
         Ok(mut run) => {
             // The method's passes: the search's too.
             add_passes(&mut run, tried.iter().map(|t| t.2).sum());
-            Ok((run, excluded))
+            Ok(Excluding {
+                run,
+                found: Exclusions {
+                    excluded,
+                    refused_with_all: Some(refused.to_string()),
+                    ..Exclusions::default()
+                },
+            })
         }
         Err(_) => Err(no_single(refused)),
     }

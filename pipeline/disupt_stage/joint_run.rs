@@ -136,14 +136,14 @@ pub(super) fn run_methods(
         },
         || {
             want_joint.then(|| {
-                let (run, excluded) = match run_joint(problem, spec, rederive, case, dparams) {
-                    Ok(run) => (run, Vec::new()),
+                let start = match run_joint(problem, spec, rederive, case, dparams) {
+                    Ok(run) => Excluding::of(run),
                     Err(e @ disupt::DisuptError::OutOfBounds(_)) => {
                         without_the_point_out_of_bounds(problem, spec, rederive, case, dparams, e)?
                     }
                     Err(e) => return Err(e),
                 };
-                exclude_inconsistent(problem, spec, rederive, case, dparams, run, excluded)
+                exclude_inconsistent(problem, spec, rederive, case, dparams, start)
             })
         },
     )

@@ -101,6 +101,10 @@ pub struct MethodOut {
     /// without it failed). The points left out are `holdout`'s `excluded`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub exclusion_error: Option<String>,
+    /// Joint only: why the fit with every control point was refused, when leaving the
+    /// one `holdout` marks `excluded` out brought it within its bounds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refused_with_all_points: Option<String>,
 }
 
 /// `disupt.json`.
@@ -252,6 +256,7 @@ pub(super) fn method_out(
         lag_profile: None,
         rebridged: None,
         exclusion_error: None,
+        refused_with_all_points: None,
     }
 }
 
@@ -367,6 +372,13 @@ fn table(name: &str, r: &MethodOut, bounds: &disupt::DisuptParams) -> String {
         }
         if let Some(e) = &r.exclusion_error {
             let _ = writeln!(s, "\n{e}.");
+        }
+        if let Some(why) = &r.refused_with_all_points {
+            let _ = writeln!(
+                s,
+                "\nWith every control point the fit was refused: {why}. Without the point \
+                 left out it was not."
+            );
         }
     }
     let _ = writeln!(s, "\n{} passes.\n", r.evaluations);
