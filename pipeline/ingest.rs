@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use crate::artifacts::files;
 use crate::flow::site_gravity_mps2;
 use crate::odometer_bridge::{Given, OdometerBridger, OdometerSample};
-use crate::odometer_gaps::{GapBridger, find_gaps};
+use crate::odometer_gaps::{GapBridger, find_gaps, tag_ns};
 use crate::odometer_range::OdometerRange;
 use crate::raw_mcap::RawMcapWriter;
 use anyhow::Context;
@@ -438,7 +438,7 @@ fn ingest_text(
         let mut gaps = gaps.map(GapBridger::finish);
         let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind);
         while let Some(o) = odo.next_sample().map_err(|e| e.in_file(file))? {
-            let t_ns = (o.t_s * 1e9).round() as i64;
+            let t_ns = tag_ns(o.t_s);
             let d = sinks.odo_range.step(t_ns, o.distance_m);
             match &mut gaps {
                 Some(g) => g.give(t_ns, d, |t, given| sinks.push_odometer(t, given, None)),

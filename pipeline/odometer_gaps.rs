@@ -170,11 +170,17 @@ pub fn find_gaps<R: BufRead>(
     Ok((gaps, more))
 }
 
+/// A time of the file, s, as the ingest tags it, ns.
+pub fn tag_ns(t_s: f64) -> i64 {
+    (t_s * 1e9).round() as i64
+}
+
 /// A gap as bridged.
 #[derive(Debug, Clone, PartialEq)]
 struct BridgedGap {
-    from_s: f64,
-    to_s: f64,
+    /// The first reading after it, ns, tagged as the ingest tags the file's readings
+    /// ([`tag_ns`]): it is met by the reading itself, whatever the float rounding.
+    to_ns: i64,
     /// The rows across it: each IMU sample's time tag, ns, and the route's distance in the
     /// file's distance (before the earlier gaps' offsets), m. Empty when not bridged.
     rows: Vec<(i64, f64)>,
@@ -285,8 +291,7 @@ impl GapBridger {
                     .collect();
                 let offset = b.after_offset_m;
                 self.done.push(BridgedGap {
-                    from_s: g.from_s,
-                    to_s: g.to_s,
+                    to_ns: tag_ns(g.to_s),
                     rows: at.into_iter().zip(b.failed_distance_m).collect(),
                     after_offset_m: offset,
                 });
@@ -297,8 +302,7 @@ impl GapBridger {
         f.not_bridged += 1;
         f.not_bridged_samples += failed;
         self.done.push(BridgedGap {
-            from_s: g.from_s,
-            to_s: g.to_s,
+            to_ns: tag_ns(g.to_s),
             rows,
             after_offset_m: 0.0,
         });
@@ -336,8 +340,7 @@ impl BridgedGaps {
     /// Gives the file's reading at `t_ns` (its distance `distance_m`, as the file gives
     /// it) to `out` with the route's distance, after the rows of the gaps that end at it.
     pub fn give(&mut self, t_ns: i64, distance_m: f64, mut out: impl FnMut(i64, Given)) {
-        let t_s = t_ns as f64 * 1e-9;
-        while self.gaps.front().is_some_and(|g| g.to_s <= t_s) {
+        while self.gaps.front().is_some_and(|g| g.to_ns <= t_ns) {
             let g = self.gaps.pop_front().expect("a gap in front");
             for (t, d) in g.rows {
                 out(t, (d + self.offset_m, DistanceSource::Bridged));
@@ -418,12 +421,105 @@ mod tests {
         );
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
+
+        /// Any speed file (its intervals mostly a second, some of them gaps of up to
+        /// 200 s) over a 10-Hz IMU of any increments: the rows come out in time order,
+        /// finite, the file's readings and one per IMU sample bridged, inside the gaps;
+        /// every gap is bridged or not, and every IMU sample inside one counted once.
+        #[test]
+        fn any_file_gives_rows_in_order_and_counts_that_add_up(
+            steps in proptest::collection::vec(
+                proptest::prop_oneof![4 => 1.0f64..1.0001, 1 => 3.5f64..200.0],
+                2..80,
+            ),
+            speeds in proptest::collection::vec(-1.0f64..30.0, 80),
+            imu in proptest::collection::vec(
+                (proptest::array::uniform3(-0.05f64..0.05), proptest::array::uniform3(-1.5f64..1.5)),
+                64,
+            ),
+        ) {
+            let mut t = 10.0;
+            let mut text = format!("{t} {}\n", speeds[0]);
+            for (k, dt) in steps.iter().enumerate() {
+                t += dt;
+                text += &format!("{t} {}\n", speeds[(k + 1) % speeds.len()]);
+            }
+            let end_s = t + 5.0;
+            let (gaps, more) = gaps_of(&text);
+            let spans: Vec<(f64, f64)> = gaps.iter().map(|g| (g.from_s, g.to_s)).collect();
+            let mut bridger = GapBridger::new(gaps, more, 9.81, 0.0);
+            let samples = (end_s * 10.0) as i64;
+            for k in 1..=samples {
+                let (dtheta, dvel) = imu[k as usize % imu.len()];
+                let dvel = [dvel[0] * 0.1, dvel[1] * 0.1, -0.981 + dvel[2] * 0.01];
+                bridger.sample(k * 100_000_000, dtheta.map(|w| w * 0.1), dvel);
+            }
+            let mut bridged = bridger.finish();
+            let f = bridged.failures().clone();
+            proptest::prop_assert_eq!(f.bridged + f.not_bridged, f.file_gaps);
+            proptest::prop_assert_eq!(f.file_gaps, spans.len() as u64 + more);
+            let inside = (1..=samples)
+                .filter(|k| {
+                    let t_s = (k * 100_000_000) as f64 * 1e-9;
+                    spans.iter().any(|&(a, b)| a < t_s && t_s < b)
+                })
+                .count() as u64;
+            proptest::prop_assert_eq!(f.bridged_samples + f.not_bridged_samples, inside);
+            let mut reader = OdometerFileReader::new(text.as_bytes(), OdometerKind::SpeedMps);
+            let mut rows: Vec<(i64, Given)> = Vec::new();
+            let mut readings = 0;
+            while let Some(o) = reader.next_sample().unwrap() {
+                readings += 1;
+                bridged.give(tag_ns(o.t_s), o.distance_m, |t, g| rows.push((t, g)));
+            }
+            proptest::prop_assert_eq!(rows.len() as u64, readings + f.bridged_samples);
+            proptest::prop_assert!(rows.windows(2).all(|w| w[0].0 < w[1].0));
+            proptest::prop_assert!(rows.iter().all(|r| r.1.0.is_finite()));
+            for (t_ns, (_, source)) in &rows {
+                if *source == DistanceSource::Bridged {
+                    let t_s = *t_ns as f64 * 1e-9;
+                    proptest::prop_assert!(spans.iter().any(|&(a, b)| a < t_s && t_s < b));
+                }
+            }
+        }
+    }
+
+    /// Found by the property test: a gap's end whose time in ns, back in seconds, is below
+    /// the time it came from was never met by its own reading, so its rows and offset
+    /// were lost. The gap's end is now compared in the readings' own ns.
+    #[test]
+    fn a_gap_ends_at_its_reading_whatever_the_float_rounding() {
+        let to_s = (0..100_000)
+            .map(|k| 70.0 + f64::from(k) * 0.001_234_567_890_1)
+            .find(|&t| (tag_ns(t) as f64) * 1e-9 < t)
+            .expect("a time that does not round-trip");
+        let text: String = (10..=15)
+            .map(|t| format!("{t} 2.0\n"))
+            .chain([format!("{to_s:?} 2.0\n")])
+            .collect();
+        let (gaps, more) = gaps_of(&text);
+        let mut bridger = GapBridger::new(gaps, more, 9.81, 0.0);
+        for k in 1..=((to_s + 5.0) * 10.0) as i64 {
+            bridger.sample(k * 100_000_000, [0.0; 3], [0.2, 0.0, -0.981]);
+        }
+        let mut bridged = bridger.finish();
+        let f = bridged.failures().clone();
+        assert_eq!(f.bridged, 1, "{f:?}");
+        let mut reader = OdometerFileReader::new(text.as_bytes(), OdometerKind::SpeedMps);
+        let mut rows = 0;
+        while let Some(o) = reader.next_sample().unwrap() {
+            bridged.give(tag_ns(o.t_s), o.distance_m, |_, _| rows += 1);
+        }
+        assert_eq!(rows, 7 + f.bridged_samples);
+    }
+
     #[test]
     fn bridged_rows_come_before_the_reading_that_ends_their_gap() {
         let mut gaps = BridgedGaps {
             gaps: VecDeque::from([BridgedGap {
-                from_s: 1.0,
-                to_s: 2.0,
+                to_ns: 2_000_000_000,
                 rows: vec![(1_500_000_000, 15.0)],
                 after_offset_m: -3.0,
             }]),
