@@ -637,6 +637,7 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
     );
     let mut notes: Vec<Option<String>> = Vec::with_capacity(outcomes.len());
     let mut rows: Vec<ReportRow> = Vec::with_capacity(outcomes.len());
+    let mut points = crate::campaign_points::PointsAcross::default();
     for o in outcomes {
         let layout = RunLayout::new(out, &o.name);
         let ing: Option<IngestReport> =
@@ -645,6 +646,15 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
             read_report(&layout.file(StageName::Disupt, files::DISUPT_REPORT));
         let nav: Option<NavigateSummary> =
             read_report(&layout.file(StageName::Navigate, files::NAVIGATE_REPORT));
+        // The runs' control points, by their surveyed positions (the manifest is read
+        // again only for a run whose joint fit has a hold-out).
+        if let Some(h) = d
+            .as_ref()
+            .and_then(|d| d.methods.get("joint")?.holdout.as_ref())
+            && let Ok(m) = RunManifest::load(&o.manifest)
+        {
+            points.add(&m.control_points, h);
+        }
         let v = SummaryValues::of(ing.as_ref(), d.as_ref(), o.wall_s);
         let note = Some(run_note(d.as_ref(), nav.as_ref(), ing.as_ref()))
             .filter(|n| o.error.is_none() && !n.is_empty());
@@ -742,6 +752,9 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         &out.join("campaign.parquet"),
         &RecordBatch::try_new(schema, arrays)?,
     )?;
+    if let Some(section) = points.markdown() {
+        md += &section;
+    }
     write_atomic(&out.join("campaign.md"), md.as_bytes())?;
     let html = unz_viz::report::campaign_html(&format!("Campaign {}", out.display()), &rows);
     write_atomic(&out.join("campaign.html"), html.as_bytes())?;

@@ -5,7 +5,9 @@ use std::collections::BTreeSet;
 use crate::util::unz_output;
 
 fn names(md: &str) -> BTreeSet<String> {
+    // The runs' table: up to the first blank line (sections follow it).
     md.lines()
+        .take_while(|l| !l.is_empty())
         .skip(2)
         .filter_map(|l| l.split('|').nth(1))
         .map(|s| s.trim().to_owned())

@@ -319,6 +319,16 @@ fn control_points_surveyed_off_are_left_out_of_the_fit() {
         ) && note.contains(": 6 ("),
         "{note}"
     );
+    // The campaign's points that disagree: point 6, visited by this one run, left out.
+    let section = &note[note
+        .find("## Control points that disagree")
+        .expect("the section")..];
+    assert!(
+        section
+            .lines()
+            .any(|l| l.starts_with("| 6 |") && l.contains("| 1 | 1 | 1 | 10.0 | 10.0 |")),
+        "{section}"
+    );
     let html = std::fs::read_to_string(out.join("campaign.html")).unwrap();
     assert!(
         html.contains("<span class=\"note\">control point left out of the joint fit"),
