@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 use unz_formats::manifest::ControlPoint;
-use unz_stages::disupt::Holdout;
+use unz_stages::disupt::{Holdout, median_max};
 
 /// A surveyed point: its id and its position to 1e-7° (about a centimetre).
 type Key = (u32, i64, i64);
@@ -78,23 +78,13 @@ impl PointsAcross {
              | inconsistent | hold-out median [m] | max [m] |\n|---|---|---|---|---|---|---|---|\n",
         );
         for ((id, ..), a) in shown {
-            let mut e = a.errors_m.clone();
-            e.sort_by(f64::total_cmp);
-            let n = e.len();
-            let median = if n % 2 == 1 {
-                e[n / 2]
-            } else {
-                0.5 * (e[n / 2 - 1] + e[n / 2])
+            let Some((median, max)) = median_max(&mut a.errors_m.clone()) else {
+                continue;
             };
             let _ = writeln!(
                 md,
-                "| {id} | {:.7} | {:.7} | {} | {} | {} | {median:.1} | {:.1} |",
-                a.latitude_deg,
-                a.longitude_deg,
-                a.runs,
-                a.left_out,
-                a.inconsistent,
-                e[n - 1]
+                "| {id} | {:.7} | {:.7} | {} | {} | {} | {median:.1} | {max:.1} |",
+                a.latitude_deg, a.longitude_deg, a.runs, a.left_out, a.inconsistent,
             );
         }
         Some(md)

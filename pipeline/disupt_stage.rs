@@ -20,7 +20,7 @@ use unz_stages::strapdown::{self, NavInputs, NavSettings};
 use unz_stages::units::DEG_PER_H;
 
 pub use coarse_azimuth::{Coarse, CoarseRefused, coarse_azimuth, coarse_refused_note};
-use joint_run::{joint_route_sigma, route_stride, run_methods};
+use joint_run::{JointInputs, joint_route_sigma, route_stride, run_methods};
 pub use report::{
     DisuptOut, MethodOut, ODO_YAW_REFIT_Z, OdoYawCheck, Outcome, SettingsOut, SigmaOut,
     odo_yaw_note, rebridged_note,
@@ -228,8 +228,16 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             m.format == LogFormat::KfGins && m.odometer.kind != Some(OdometerKind::DistanceM),
         ));
         let t_methods = std::time::Instant::now();
-        let (classic_results, joint_result) =
-            run_methods(method, &problem, &spec, &rederive, &case, &dparams);
+        let (classic_results, joint_result) = run_methods(
+            method,
+            JointInputs {
+                problem: &problem,
+                spec: &spec,
+                rederive: &rederive,
+                case: &case,
+                dparams: &dparams,
+            },
+        );
         ctx.say(
             "disupt",
             &format!(

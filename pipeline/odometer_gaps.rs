@@ -182,9 +182,9 @@ struct BridgedGap {
     /// ([`tag_ns`]): it is met by the reading itself, whatever the float rounding.
     to_ns: i64,
     /// The rows across it: each IMU sample's time tag, ns, and the route's distance in the
-    /// file's distance (before the earlier gaps' offsets), m. Empty when not bridged.
+    /// file's distance (before the earlier gaps' offsets), m.
     rows: Vec<(i64, f64)>,
-    /// Added to the file's distances from `to_s` on, m (0 when not bridged).
+    /// Added to the file's distances from `to_ns` on, m.
     after_offset_m: f64,
 }
 
@@ -200,7 +200,8 @@ pub struct GapBridger {
     long: VecDeque<(f64, f64)>,
     /// Windows being filled: the gap, and the IMU samples in its window so far.
     open: VecDeque<(Gap, Vec<ImuSample>)>,
-    done: Vec<BridgedGap>,
+    /// The gaps bridged, in order.
+    done: VecDeque<BridgedGap>,
     failures: OdometerFailures,
     g_mps2: f64,
     lag_prior_s: f64,
@@ -223,7 +224,7 @@ impl GapBridger {
             gaps: gaps.into(),
             long: long.iter().map(|g| (g.from_s, g.to_s)).collect(),
             open: VecDeque::new(),
-            done: Vec::new(),
+            done: VecDeque::new(),
             failures,
             g_mps2,
             lag_prior_s,
@@ -274,37 +275,27 @@ impl GapBridger {
             .iter()
             .filter(|s| matches!(s.reading, Reading::Failed))
             .count() as u64;
-        let bridged = bridge(&window, self.g_mps2, self.lag_prior_s);
         let f = &mut self.failures;
-        let rows = match bridged {
-            Some(b) => {
-                f.bridged += 1;
-                f.bridged_samples += failed;
-                f.longest_bridged_s = f.longest_bridged_s.max(length_s);
-                f.bridged_distance_m += b.across_m;
-                f.worst_residual_m = f.worst_residual_m.max(b.rms_residual_m);
-                let at: Vec<i64> = window
-                    .iter()
-                    .zip(&samples)
-                    .filter(|(s, _)| matches!(s.reading, Reading::Failed))
-                    .map(|(_, s)| s.0)
-                    .collect();
-                let offset = b.after_offset_m;
-                self.done.push(BridgedGap {
-                    to_ns: tag_ns(g.to_s),
-                    rows: at.into_iter().zip(b.failed_distance_m).collect(),
-                    after_offset_m: offset,
-                });
-                return;
-            }
-            None => Vec::new(),
+        let Some(b) = bridge(&window, self.g_mps2, self.lag_prior_s) else {
+            // Left to the trapezoid: nothing to write across it.
+            f.not_bridged += 1;
+            f.not_bridged_samples += failed;
+            return;
         };
-        f.not_bridged += 1;
-        f.not_bridged_samples += failed;
-        self.done.push(BridgedGap {
+        f.bridged += 1;
+        f.bridged_samples += failed;
+        f.longest_bridged_s = f.longest_bridged_s.max(length_s);
+        f.bridged_distance_m += b.across_m;
+        f.worst_residual_m = f.worst_residual_m.max(b.rms_residual_m);
+        let at = window
+            .iter()
+            .zip(&samples)
+            .filter(|(s, _)| matches!(s.reading, Reading::Failed))
+            .map(|(_, s)| s.0);
+        self.done.push_back(BridgedGap {
             to_ns: tag_ns(g.to_s),
-            rows,
-            after_offset_m: 0.0,
+            rows: at.zip(b.failed_distance_m).collect(),
+            after_offset_m: b.after_offset_m,
         });
     }
 
@@ -316,14 +307,15 @@ impl GapBridger {
         }
         self.failures.not_bridged += self.gaps.len() as u64 + self.more_gaps;
         BridgedGaps {
-            gaps: self.done.into(),
+            gaps: self.done,
             offset_m: 0.0,
             failures: self.failures,
         }
     }
 }
 
-/// The bridged gaps, to write with the file's readings.
+/// The bridged gaps, to write with the file's readings (a gap not bridged keeps the
+/// file's trapezoid: nothing to write).
 pub struct BridgedGaps {
     gaps: VecDeque<BridgedGap>,
     /// The earlier gaps' offsets, m.

@@ -3,12 +3,10 @@
 
 use rayon::prelude::*;
 use unz_stages::disupt::{
-    self, DisuptError, HOLDOUT_MIN_POINTS, Holdout, JointOptions, Problem, ProblemSpec,
+    self, DisuptError, HOLDOUT_MIN_POINTS, Holdout, JointOptions, ProblemSpec,
 };
-use unz_stages::odo_lag::Rederive;
 
-use super::joint_run::{JointRun, run_joint};
-use crate::flow::NavCase;
+use super::joint_run::{JointInputs, JointRun, run_joint};
 
 /// The joint fit without the control points it found inconsistent.
 pub(super) struct Excluding {
@@ -60,22 +58,18 @@ pub(super) fn most_excluded(n: usize) -> usize {
 /// pulls the fits that keep it, so the others' hold-outs can fail beside it; judged again
 /// without it, they pass.
 pub(super) fn exclude_inconsistent(
-    problem: &Problem<'_>,
-    spec: &ProblemSpec<'_>,
-    rederive: &Rederive<'_>,
-    case: &NavCase,
-    dparams: &disupt::DisuptParams,
+    x: JointInputs<'_>,
     mut out: Excluding,
 ) -> Result<Excluding, DisuptError> {
-    if !dparams.joint_exclude_inconsistent {
+    if !x.dparams.joint_exclude_inconsistent {
         return Ok(out);
     }
-    while out.found.excluded.len() < most_excluded(case.fixes.len()) {
+    while out.found.excluded.len() < most_excluded(x.case.fixes.len()) {
         let now = ProblemSpec {
             excluded_cps: &out.found.excluded,
-            ..*spec
+            ..*x.spec
         };
-        let fitted_on = now.on(out.run.derived.as_ref().unwrap_or(&case.derived));
+        let fitted_on = now.on(out.run.derived.as_ref().unwrap_or(&x.case.derived));
         let h = disupt::holdout(&fitted_on, &out.run.fit, &out.run.params)?;
         let worst = h
             .iter()
@@ -95,9 +89,13 @@ pub(super) fn exclude_inconsistent(
         next.sort_unstable();
         let without = ProblemSpec {
             excluded_cps: &next,
-            ..*spec
+            ..*x.spec
         };
-        match run_joint(&problem.excluding(&next), &without, rederive, case, dparams) {
+        match run_joint(JointInputs {
+            problem: &x.problem.excluding(&next),
+            spec: &without,
+            ..x
+        }) {
             Ok(mut refit) => {
                 // The method's passes: every fit's.
                 add_passes(&mut refit, out.run.fit.result.evaluations);
@@ -107,7 +105,7 @@ pub(super) fn exclude_inconsistent(
             Err(e) => {
                 out.found.refit_error = Some(format!(
                     "the joint fit without control point {} failed: {e}",
-                    case.fixes[i].id
+                    x.case.fixes[i].id
                 ));
                 out.found.holdout = Some(h);
                 break;
@@ -118,7 +116,7 @@ pub(super) fn exclude_inconsistent(
 }
 
 /// The joint fit that `refused` for leaving its bounds, redone without the one control
-/// point whose absence brings it within them (when `dparams.joint_exclude_inconsistent`
+/// point whose absence brings it within them (when `x.dparams.joint_exclude_inconsistent`
 /// and [`most_excluded`] allows one): a point surveyed hundreds of metres off (a digit
 /// typed wrong) drags the fit beyond them before any hold-out can judge it. Each point is
 /// left out in turn of a fit at the configured odometer timing, side by side; of the fits
@@ -127,27 +125,23 @@ pub(super) fn exclude_inconsistent(
 /// Two such points are not searched (a fit per pair). `refused` stands, with what was
 /// tried, when no single point explains it.
 pub(super) fn without_the_point_out_of_bounds(
-    problem: &Problem<'_>,
-    spec: &ProblemSpec<'_>,
-    rederive: &Rederive<'_>,
-    case: &NavCase,
-    dparams: &disupt::DisuptParams,
+    x: JointInputs<'_>,
     refused: DisuptError,
 ) -> Result<Excluding, DisuptError> {
-    let n = case.fixes.len();
-    if !dparams.joint_exclude_inconsistent || most_excluded(n) == 0 {
+    let n = x.case.fixes.len();
+    if !x.dparams.joint_exclude_inconsistent || most_excluded(n) == 0 {
         return Err(refused);
     }
-    let start = problem.x0();
+    let start = x.problem.x0();
     // (point, the fit's control-point cost when within its bounds, its passes)
     let tried: Vec<(usize, Option<f64>, usize)> = (0..n)
         .into_par_iter()
         .map(|i| {
             let without = [i];
-            let p = problem.excluding(&without);
-            match disupt::joint_fit(&p, dparams, &JointOptions::default()) {
+            let p = x.problem.excluding(&without);
+            match disupt::joint_fit(&p, x.dparams, &JointOptions::default()) {
                 Ok(fit) => {
-                    let within = disupt::within_bounds(&fit, &start, dparams).is_ok();
+                    let within = disupt::within_bounds(&fit, &start, x.dparams).is_ok();
                     (i, within.then_some(fit.cp_cost), fit.result.evaluations)
                 }
                 Err(_) => (i, None, p.passes()),
@@ -170,15 +164,13 @@ pub(super) fn without_the_point_out_of_bounds(
     let excluded = vec![i];
     let without = ProblemSpec {
         excluded_cps: &excluded,
-        ..*spec
+        ..*x.spec
     };
-    match run_joint(
-        &problem.excluding(&excluded),
-        &without,
-        rederive,
-        case,
-        dparams,
-    ) {
+    match run_joint(JointInputs {
+        problem: &x.problem.excluding(&excluded),
+        spec: &without,
+        ..x
+    }) {
         Ok(mut run) => {
             // The method's passes: the search's too.
             add_passes(&mut run, tried.iter().map(|t| t.2).sum());

@@ -88,6 +88,18 @@ pub(super) fn route_stride(dt_s: &[f64]) -> usize {
     (0.1 / dt_s.first().copied().unwrap_or(0.01)).round() as usize
 }
 
+/// What the joint fit runs on: the methods' shared problem and its spec (with the control
+/// points the fit leaves out), the re-derives at other odometer lags, the case and the
+/// parameters.
+#[derive(Clone, Copy)]
+pub(super) struct JointInputs<'p> {
+    pub(super) problem: &'p Problem<'p>,
+    pub(super) spec: &'p ProblemSpec<'p>,
+    pub(super) rederive: &'p Rederive<'p>,
+    pub(super) case: &'p NavCase,
+    pub(super) dparams: &'p disupt::DisuptParams,
+}
+
 /// A classic method's name and result.
 pub(super) type ClassicResult = (&'static str, Result<MethodResult, disupt::DisuptError>);
 
@@ -98,11 +110,7 @@ pub(super) type ClassicResult = (&'static str, Result<MethodResult, disupt::Disu
 /// OEPI's and OWPI's).
 pub(super) fn run_methods(
     method: Method,
-    problem: &Problem<'_>,
-    spec: &ProblemSpec<'_>,
-    rederive: &Rederive<'_>,
-    case: &NavCase,
-    dparams: &disupt::DisuptParams,
+    joint: JointInputs<'_>,
 ) -> (
     Vec<ClassicResult>,
     Option<Result<Excluding, disupt::DisuptError>>,
@@ -112,6 +120,12 @@ pub(super) fn run_methods(
         .filter(|w| method == *w || method == Method::All)
         .collect();
     let want_joint = matches!(method, Method::Joint | Method::All);
+    let JointInputs {
+        problem,
+        case,
+        dparams,
+        ..
+    } = joint;
     let travelled_m: f64 = case.derived.odo_dist_m.iter().map(|d| d.abs()).sum();
     if travelled_m < disupt::MIN_TRAVEL_M {
         let refused = || disupt::DisuptError::TooLittleMotion(travelled_m);
@@ -136,14 +150,14 @@ pub(super) fn run_methods(
         },
         || {
             want_joint.then(|| {
-                let start = match run_joint(problem, spec, rederive, case, dparams) {
+                let start = match run_joint(joint) {
                     Ok(run) => Excluding::of(run),
                     Err(e @ disupt::DisuptError::OutOfBounds(_)) => {
-                        without_the_point_out_of_bounds(problem, spec, rederive, case, dparams, e)?
+                        without_the_point_out_of_bounds(joint, e)?
                     }
                     Err(e) => return Err(e),
                 };
-                exclude_inconsistent(problem, spec, rederive, case, dparams, start)
+                exclude_inconsistent(joint, start)
             })
         },
     )
@@ -155,14 +169,14 @@ pub(super) fn run_methods(
 /// azimuth error only as their sum, so the boresight-free fit's azimuth takes the
 /// boresight whole, with a σ that does not include it (measured: a 1.5° boresight, the
 /// joint azimuth 0.72–1.60° off at σ 0.02–0.18°; refit, 0.03–0.22° off at σ 0.21–0.23°).
-pub(super) fn run_joint(
-    problem: &Problem<'_>,
-    spec: &ProblemSpec<'_>,
-    rederive: &Rederive<'_>,
-    case: &NavCase,
-    dparams: &disupt::DisuptParams,
-) -> Result<JointRun, disupt::DisuptError> {
-    let mut run = fit_joint(problem, spec, rederive, case, dparams)?;
+pub(super) fn run_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptError> {
+    let JointInputs {
+        problem,
+        spec,
+        dparams,
+        ..
+    } = x;
+    let mut run = fit_joint(x)?;
     if dparams.joint_odo_yaw {
         return Ok(run);
     }
@@ -188,7 +202,10 @@ pub(super) fn run_joint(
             joint_odo_yaw: true,
             ..*dparams
         };
-        match fit_joint(problem, spec, rederive, case, &with_yaw) {
+        match fit_joint(JointInputs {
+            dparams: &with_yaw,
+            ..x
+        }) {
             Ok(refit) => {
                 check.refit = true;
                 run = refit;
@@ -202,13 +219,14 @@ pub(super) fn run_joint(
 
 /// The joint fit, at the estimated odometer lag when there are two control points or more
 /// and it is asked for; refused when it leaves its bounds ([`disupt::within_bounds`]).
-fn fit_joint(
-    problem: &Problem<'_>,
-    spec: &ProblemSpec<'_>,
-    rederive: &Rederive<'_>,
-    case: &NavCase,
-    dparams: &disupt::DisuptParams,
-) -> Result<JointRun, disupt::DisuptError> {
+fn fit_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptError> {
+    let JointInputs {
+        problem,
+        spec,
+        rederive,
+        case,
+        dparams,
+    } = x;
     if dparams.joint_odo_lag && problem.cps_used() >= 2 {
         // On the methods' shared problem: the lag-free fit starts from the same first
         // linearisation as OEPI and OWPI, built once.

@@ -36,7 +36,7 @@ use argmin::core::Error as ArgminError;
 
 pub use holdout::{
     HOLDOUT_INCONSISTENT_SIGMA, HOLDOUT_MIN_POINTS, Holdout, holdout, holdout_median_max_m,
-    inconsistent_points_note,
+    inconsistent_points_note, median_max,
 };
 pub use joint::{JointFit, JointOptions, OdoYawSeen, joint, joint_fit, within_bounds};
 pub use problem::{Evaluation, LANES, Problem, ProblemSpec, moved_by_steps, observe_each};

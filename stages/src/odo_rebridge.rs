@@ -14,7 +14,8 @@
 //!
 //! A binary log's odometer has a row per IMU sample (its count is in the IMU's record),
 //! which is what makes the rows and the samples one: a run whose rows are not (a text
-//! log's odometer at its own rate, never bridged) is left as ingested.
+//! log's odometer at its own rate, its file's gaps bridged by the ingest alone) is left
+//! as ingested.
 
 use std::ops::Range;
 use std::sync::{Arc, Mutex, PoisonError};

@@ -85,14 +85,19 @@ pub fn holdout_median_max_m(h: &[Holdout]) -> Option<(f64, f64)> {
         .filter(|p| !p.excluded)
         .map(|p| p.dx_m.hypot(p.dy_m))
         .collect();
-    e.sort_by(f64::total_cmp);
-    let n = e.len();
+    median_max(&mut e)
+}
+
+/// Median and largest of `v` (sorted in place); `None` when it is empty.
+pub fn median_max(v: &mut [f64]) -> Option<(f64, f64)> {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
     let median = match n {
         0 => return None,
-        _ if n % 2 == 1 => e[n / 2],
-        _ => 0.5 * (e[n / 2 - 1] + e[n / 2]),
+        _ if n % 2 == 1 => v[n / 2],
+        _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
     };
-    Some((median, e[n - 1]))
+    Some((median, v[n - 1]))
 }
 
 /// What a user is told of the control points the joint fit left out, and of those whose
@@ -158,8 +163,8 @@ pub fn holdout(
     let mut out: Vec<Option<Holdout>> = vec![None; problem.fixes.len()];
     for (i, held) in out.iter_mut().enumerate() {
         if !problem.cp_used(i) {
-            let model = JointModel::new(problem, &fit.lin, &fit.free, &fit.weights, None);
-            let spread = predicted_spread(fit, &model, &fit.free, i, n_att, s2, p);
+            // The fit leaves the point out: its own covariance predicts the error there.
+            let spread = predicted_spread(fit, fit.covariance.as_ref(), &fit.free, i, p);
             *held = Some(Holdout {
                 excluded: true,
                 ..Holdout::new(problem.fixes[i].id, fit.y.cp_m[i], spread, n)
@@ -184,7 +189,8 @@ pub fn holdout(
         for (k, s) in free.iter().enumerate() {
             pi[s.index()] += delta[k];
         }
-        let spread = predicted_spread(fit, &model, &free, i, n_att, s2, p);
+        let c = covariance_of(&model, n_att, fit.inflation, s2);
+        let spread = predicted_spread(fit, c.as_ref(), &free, i, p);
         refits.push((i, pi, spread));
     }
     let xs: Vec<X> = refits.iter().map(|(_, pi, _)| x_of(pi)).collect();
@@ -206,20 +212,18 @@ pub fn holdout(
 }
 
 /// The predicted covariance (north, east; m²) of control point `i`'s hold-out error:
-/// `J C Jᵀ + σ² I`, with `C` the covariance of the fit without the point (`model`, its
-/// rows weighed out; the full fit's variance factor and attitude inflation), `J` the
-/// point's position per free setting (the fit's linearisation) and `σ` the control
-/// points' own (`position_sigma_m`). `None` when `C` is singular.
+/// `J C Jᵀ + σ² I`, with `C` the covariance of the `free` settings of the fit without the
+/// point (its rows weighed out; the full fit's variance factor and attitude inflation),
+/// `J` the point's position per free setting (the fit's linearisation) and `σ` the
+/// control points' own (`position_sigma_m`). `None` without `C` (singular).
 fn predicted_spread(
     fit: &JointFit,
-    model: &JointModel,
+    c: Option<&DMatrix<f64>>,
     free: &[Setting],
     i: usize,
-    n_att: usize,
-    s2: f64,
     p: &DisuptParams,
 ) -> Option<Matrix2<f64>> {
-    let c = covariance_of(model, n_att, fit.inflation, s2)?;
+    let c = c?;
     let mut j = DMatrix::zeros(2, free.len());
     for (k, s) in free.iter().enumerate() {
         if let Some(slope) = &fit.lin.slopes[s.index()] {
