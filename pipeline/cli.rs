@@ -100,6 +100,11 @@ pub struct SimulateArgs {
     /// (`static_s = 0` in the manifest), the site and truth taken at that moment.
     #[arg(long)]
     pub log_start_s: Option<f64>,
+    /// Survey each control point under the vehicle's mark, this far from the navigated
+    /// (odometer's) point in the IMU's axes: x forward, y right, z down, m (as
+    /// `x,y,z`). The manifest then gives it in `[params.vehicle] mark_lever_arm_m`.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub mark_lever_arm_m: Option<Vec<f64>>,
 }
 
 /// Arguments shared by the stage commands.

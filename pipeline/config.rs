@@ -21,6 +21,7 @@ use serde::Deserialize;
 use unz_formats::manifest::RunManifest;
 
 use crate::flow::Params;
+use crate::flow::case::MARK_LEVER_ARM_MAX_M;
 
 /// Reads a config file's table (empty without a file).
 pub fn load(path: Option<&Path>) -> anyhow::Result<toml::Table> {
@@ -29,7 +30,7 @@ pub fn load(path: Option<&Path>) -> anyhow::Result<toml::Table> {
     };
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let table: toml::Table = toml::from_str(&text).map_err(|e| {
+    let at_line = |e: toml::de::Error| {
         let line = e.span().map_or(0, |s| {
             text[..s.start.min(text.len())].lines().count().max(1)
         });
@@ -38,8 +39,11 @@ pub fn load(path: Option<&Path>) -> anyhow::Result<toml::Table> {
             e.message().trim(),
             path.display()
         )
-    })?;
-    // Checked now, so a bad config fails before any run starts.
+    };
+    let table: toml::Table = toml::from_str(&text).map_err(at_line)?;
+    // Checked now, so a bad config fails before any run starts: a key of the wrong shape
+    // by its line in the file, a value out of its range by its name.
+    toml::from_str::<Params>(&text).map_err(at_line)?;
     parse(&table).with_context(|| format!("in {}", path.display()))?;
     Ok(table)
 }
@@ -57,10 +61,32 @@ fn merge(base: &mut toml::Table, over: &toml::Table) {
 }
 
 fn parse(table: &toml::Table) -> anyhow::Result<Params> {
-    let params = Params::deserialize(toml::Value::Table(table.clone()))
-        .map_err(|e| anyhow::anyhow!("{}", e.message().trim()))?;
+    let params =
+        Params::deserialize(toml::Value::Table(table.clone())).map_err(|e| {
+            match where_in(table) {
+                Some(at) => anyhow::anyhow!("{at}: {}", e.message().trim()),
+                None => anyhow::anyhow!("{}", e.message().trim()),
+            }
+        })?;
     validate(&params)?;
     Ok(params)
+}
+
+/// The key a table fails to deserialize at, as `[section] key = value`: the table's
+/// values carry no position, so it is written out and read again, whose error has a
+/// span into that text.
+fn where_in(table: &toml::Table) -> Option<String> {
+    let text = toml::to_string(table).ok()?;
+    let span = toml::from_str::<Params>(&text).err()?.span()?;
+    let before = text.get(..span.start)?;
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    let line = text[line_start..].lines().next()?.trim();
+    let section = before[..line_start]
+        .lines()
+        .rev()
+        .find(|l| l.starts_with('['))
+        .unwrap_or("");
+    Some(format!("{section} {line}").trim().to_owned())
 }
 
 /// Every parameter within its physical range: a value outside (NaN, ∞, 1e300…) would
@@ -108,7 +134,14 @@ pub fn validate(p: &Params) -> anyhow::Result<()> {
             0.5,
         ),
     ];
-    for (name, v, lo, hi) in checks {
+    let arm = p.vehicle.mark_lever_arm_m;
+    let arm_checks = [
+        ("vehicle.mark_lever_arm_m[0]", arm[0]),
+        ("vehicle.mark_lever_arm_m[1]", arm[1]),
+        ("vehicle.mark_lever_arm_m[2]", arm[2]),
+    ]
+    .map(|(name, v)| (name, v, -MARK_LEVER_ARM_MAX_M, MARK_LEVER_ARM_MAX_M));
+    for (name, v, lo, hi) in checks.into_iter().chain(arm_checks) {
         if !(v.is_finite() && (lo..=hi).contains(&v)) {
             anyhow::bail!("{name} = {v} is outside [{lo}, {hi}]");
         }
@@ -167,11 +200,30 @@ mod tests {
             ),
             ("[derive.filter]\ncutoff_hz = 10.0\n", "cutoff_hz × block_s"),
             ("[kalman]\nr_rad = -1.0\n", "kalman.r_rad"),
+            (
+                "[vehicle]\nmark_lever_arm_m = [1.0, 1e300, 0.0]\n",
+                "vehicle.mark_lever_arm_m[1]",
+            ),
+            (
+                "[vehicle]\nmark_lever_arm_m = [1.0, 0.0, nan]\n",
+                "vehicle.mark_lever_arm_m[2]",
+            ),
+            (
+                "[vehicle]\nmark_lever_arm_m = [1.0, 0.0]\n",
+                "mark_lever_arm_m",
+            ),
         ] {
             let t: toml::Table = toml::from_str(text).unwrap();
             let e = format!("{:#}", effective(&t, None).unwrap_err());
             assert!(e.contains(name), "{text}: {e}");
         }
+        // A run's own vehicle over the campaign's.
+        let t: toml::Table =
+            toml::from_str("[vehicle]\nmark_lever_arm_m = [1.5, -1, 0.25]\n").unwrap();
+        assert_eq!(
+            effective(&t, None).unwrap().vehicle.mark_lever_arm_m,
+            [1.5, -1.0, 0.25]
+        );
         // Round trip of the printed defaults.
         let shown: toml::Table = toml::from_str(&to_toml(&Params::default()).unwrap()).unwrap();
         assert_eq!(parse(&shown).unwrap(), Params::default());

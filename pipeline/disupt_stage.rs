@@ -474,6 +474,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             coarse_azimuth_refused: coarse.refused(),
             joint_odo_yaw_check: joint_run.and_then(|r| r.odo_yaw.clone()),
             shared_passes: problem.base_passes(),
+            mark_lever_arm_m: params.vehicle.mark_arm(),
         };
         let md = markdown(&m.name, &out, &dparams);
         write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;

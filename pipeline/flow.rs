@@ -19,7 +19,9 @@ use unz_stages::criteria::KalmanParams;
 use unz_stages::derive::DeriveParams;
 use unz_stages::initial::AlignParams;
 
-pub use case::{MatchedPoints, NavCase, load_case, match_control_points, start_position};
+pub use case::{
+    MatchedPoints, NavCase, VehicleParams, load_case, match_control_points, start_position,
+};
 pub use criteria::{CriteriaSummary, ensure_criteria, load_criteria};
 pub use ingest_derive::{ensure_derive, ensure_finite, ensure_ingest, site_gravity_mps2};
 pub use ingested::{IngestedSeries, OdometerTags};
@@ -40,6 +42,8 @@ pub struct Params {
     pub kalman: KalmanParams,
     /// DISUPT methods.
     pub disupt: unz_stages::disupt::DisuptParams,
+    /// The vehicle's installation.
+    pub vehicle: VehicleParams,
 }
 
 /// Initial settings forced on the command line.

@@ -12,6 +12,7 @@ use unz_formats::parquet_io::ParquetSink;
 use unz_formats::schema;
 use unz_formats::tables::f32_array;
 use unz_stages::attitude::Euler;
+use unz_stages::criteria::FixPose;
 use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
 use unz_stages::route_sigma::RouteSigma;
@@ -43,15 +44,13 @@ pub struct NavWriter<'a> {
     last_distance_m: f64,
 }
 
-/// A sample's position and distance, kept for the stage's report.
+/// A sample's pose and distance, kept for the stage's report.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KeptSample {
     /// Sample index.
     pub sample: usize,
-    /// Latitude, rad.
-    pub lat_rad: f64,
-    /// Longitude, rad.
-    pub lon_rad: f64,
+    /// Position and attitude.
+    pub pose: FixPose,
     /// Travelled distance, m.
     pub distance_m: f64,
 }
@@ -188,8 +187,11 @@ impl PassSink for NavWriter<'_> {
             self.wanted.pop();
             self.kept.push(KeptSample {
                 sample: k,
-                lat_rad: lat,
-                lon_rad: lon,
+                pose: FixPose {
+                    lat_rad: lat,
+                    lon_rad: lon,
+                    q_b_to_n: *q,
+                },
                 distance_m,
             });
         }

@@ -414,6 +414,90 @@ fn control_points_surveyed_off_are_left_out_of_the_fit() {
 }
 
 /// The corrected route's σ: at least 95 % of the epochs lie within 3σ of the truth.
+/// Control points surveyed under the vehicle's mark, 1.5 m ahead of the navigated point,
+/// 1 m left and 0.3 m below (1.8 m horizontally): with the mark's lever arm configured
+/// (`[params.vehicle]`, which the simulator writes), every control point's error is the
+/// mark's, and the corrected route is the same run's with the points under the navigated
+/// point. With the arm left out, the mark's 1.8 m spreads
+/// over the route (measured: 2.38 m worst, against 0.28 m).
+#[test]
+fn control_points_are_compared_with_the_vehicles_mark() {
+    let tmp = tempfile::tempdir().unwrap();
+    let name = "sim-0063";
+    let (bare_run, bare_out) = process(&tmp.path().join("bare"), 63, &["--cp-at-every-stop"]);
+    let (run, out) = process(
+        &tmp.path().join("arm"),
+        63,
+        &["--cp-at-every-stop", "--mark-lever-arm-m", "1.5,-1.0,0.3"],
+    );
+    let worst_bare = worst_m(&route_errors(&bare_run, &bare_out, name));
+    let worst = worst_m(&route_errors(&run, &out, name));
+    eprintln!(
+        "worst route error: mark at the navigated point {worst_bare:.3} m, ahead {worst:.3} m"
+    );
+    assert!(
+        (worst - worst_bare).abs() < 0.02,
+        "{worst} m against {worst_bare} m"
+    );
+    let d = disupt_json(&out, name);
+    assert_eq!(d.mark_lever_arm_m, Some([1.5, -1.0, 0.3]));
+    assert_eq!(disupt_json(&bare_out, name).mark_lever_arm_m, None);
+    let md = std::fs::read_to_string(out.join(name).join("disupt/disupt.md")).unwrap();
+    assert!(
+        md.contains("1.50 m forward, -1.00 m right and 0.30 m down"),
+        "{md}"
+    );
+
+    // The errors at the points, of the mark and of the navigated point: with the joint's
+    // settings, one route, so they agree to the manifest's rounding (0.1 mm) and the
+    // heading's error turning the arm (0.01° of 1.8 m: 0.3 mm).
+    let joint_points = |d: &DisuptOut| d.methods["joint"].outcome.control_points.clone();
+    let same =
+        |a: &[unz_stages::criteria::Kryt2], b: &[unz_stages::criteria::Kryt2], tol_m: f64| {
+            assert_eq!(a.len(), b.len());
+            assert!(a.len() >= 4);
+            for (a, b) in a.iter().zip(b) {
+                assert!(
+                    (a.dx_m - b.dx_m).abs() < tol_m && (a.dy_m - b.dy_m).abs() < tol_m,
+                    "{a:?} {b:?}"
+                );
+            }
+        };
+    same(
+        &joint_points(&d),
+        &joint_points(&disupt_json(&bare_out, name)),
+        2e-3,
+    );
+    // Before DISUPT, the heading's error turns the arm (the manifest's azimuth is 4–8°
+    // off: up to 0.25 m of 1.8 m); the navigation, the criteria (which read its attitude
+    // back in f32: 1e-7 rad of 1.8 m) and DISUPT's start agree on it.
+    let nav =
+        |o: &Path| -> NavigateSummary { read_json(&o.join(name).join("navigate/navigate.json")) };
+    let criteria = |o: &Path| -> unz::flow::CriteriaSummary {
+        read_json(&o.join(name).join("criteria/criteria.json"))
+    };
+    run_until(&run, &out, "criteria");
+    let navigated = nav(&out).control_points;
+    same(&criteria(&out).control_points, &navigated, 1e-6);
+    same(&d.before.control_points, &navigated, 1e-6);
+    same(&navigated, &nav(&bare_out).control_points, 0.26);
+    assert_eq!(nav(&out).mark_lever_arm_m, Some([1.5, -1.0, 0.3]));
+
+    // The arm left out of the manifest: the points are 1.8 m from where the navigation
+    // compares them.
+    edit_manifest(&run.join("run.toml"), |m| {
+        m.remove("params");
+    });
+    run_until(&run, &out, "disupt");
+    let ignored = worst_m(&route_errors(&run, &out, name));
+    eprintln!("worst route error with the arm left out: {ignored:.3} m");
+    assert!(
+        ignored > worst_bare + 1.0,
+        "{ignored} m against {worst_bare} m"
+    );
+    assert_eq!(disupt_json(&out, name).mark_lever_arm_m, None);
+}
+
 #[test]
 fn route_sigma_covers_the_truth() {
     let tmp = tempfile::tempdir().unwrap();
@@ -592,7 +676,7 @@ fn a_right_coarse_turn_is_taken_where_only_the_drifts_made_kryt1_refuse_it() {
     let run = simulated_run(tmp.path(), 5, &["--duration-s", "900"]);
     let t = truth(&run);
     let out = tmp.path().join("o");
-    run_until(run.parent().unwrap(), &out, "disupt");
+    run_until(&run, &out, "disupt");
     let d = disupt_json(&out, name);
     let err = |az: f64| (az - t.azimuth_deg + 180.0).rem_euclid(360.0) - 180.0;
     assert!(

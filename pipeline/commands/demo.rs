@@ -34,6 +34,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         odo_lag_s: 0.2,
         cp_at_every_stop: true,
         log_start_s: None,
+        mark_lever_arm_m: None,
     };
     let dirs: Vec<PathBuf> = super::simulate::configs(&sim)?
         .par_iter()

@@ -43,6 +43,14 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             args.duration_s
         );
     }
+    let mut mark_lever_arm_m = [0.0; 3];
+    if let Some(arm) = &args.mark_lever_arm_m {
+        let max = crate::flow::case::MARK_LEVER_ARM_MAX_M;
+        if arm.len() != 3 || arm.iter().any(|v| v.is_nan() || v.abs() > max) {
+            bail!("--mark-lever-arm-m {arm:?} must be three numbers x,y,z within ±{max} m");
+        }
+        mark_lever_arm_m.copy_from_slice(arm);
+    }
     Ok((0..args.runs)
         .map(|i| {
             let seed = args.seed + u64::from(i);
@@ -54,6 +62,7 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             c.odo_lag_s = args.odo_lag_s;
             c.cp_at_every_stop = args.cp_at_every_stop;
             c.log_start_s = args.log_start_s;
+            c.mark_lever_arm_m = mark_lever_arm_m;
             c.errors = SensorErrors {
                 noise: !args.no_noise,
                 gyro_drift: !args.no_gyro_drift,

@@ -143,6 +143,11 @@ pub struct DisuptOut {
     /// Passes of the first linearisation, shared by the methods (not in their own
     /// `evaluations`).
     pub shared_passes: usize,
+    /// Where the vehicle's mark, whose errors at the control points every criterion and
+    /// table here gives, lies from the navigated point (`[vehicle] mark_lever_arm_m`,
+    /// IMU body axes, m); absent when it is the navigated point.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mark_lever_arm_m: Option<[f64; 3]>,
 }
 
 /// An odometer yaw boresight the joint fit held at zero, as its residuals show it
@@ -407,6 +412,14 @@ pub(super) fn markdown(run: &str, out: &DisuptOut, bounds: &disupt::DisuptParams
     }
     if let Some(note) = out.joint_odo_yaw_check.as_ref().and_then(odo_yaw_note) {
         md += &format!("Note: {note}.\n\n");
+    }
+    if let Some([x, y, z]) = out.mark_lever_arm_m {
+        md += &format!(
+            "Control points are compared with the vehicle's mark, {x:.2} m forward, {y:.2} m \
+             right and {z:.2} m down of the navigated point in the IMU's axes \
+             (`[vehicle] mark_lever_arm_m`); the corrected navigation is the navigated \
+             point's.\n\n"
+        );
     }
     let (dx, dy) = (out.before.dx_m, out.before.dy_m);
     md + &format!(

@@ -5,6 +5,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use anyhow::{Context, bail};
+use serde::{Deserialize, Serialize};
 use unz_formats::manifest::RunManifest;
 use unz_formats::parquet_io::read_schema;
 use unz_formats::schema::META_ODO_M_PER_PULSE;
@@ -56,6 +57,29 @@ impl NavCase {
     }
 }
 
+/// The vehicle's installation (`[vehicle]`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct VehicleParams {
+    /// Where the vehicle's control-point mark (the point the crew holds over a surveyed
+    /// point at a stop) lies from the navigated point, in the IMU's body axes (x forward,
+    /// y right, z down), m. The navigated point is the odometer's: dead reckoning carries
+    /// the wheels' distance along the body's x, so it follows the point that does not
+    /// slip sideways (a rigid axle's middle). Every control point's error is the mark's.
+    pub mark_lever_arm_m: [f64; 3],
+}
+
+impl VehicleParams {
+    /// The mark's lever arm, unless the mark is the navigated point (reports say it only
+    /// then).
+    pub fn mark_arm(&self) -> Option<[f64; 3]> {
+        Some(self.mark_lever_arm_m).filter(|a| *a != [0.0; 3])
+    }
+}
+
+/// Largest lever arm of the mark, m: a vehicle's length.
+pub const MARK_LEVER_ARM_MAX_M: f64 = 30.0;
+
 /// The manifest's control points matched to the log.
 #[derive(Debug, Clone, Default)]
 pub struct MatchedPoints {
@@ -67,12 +91,13 @@ pub struct MatchedPoints {
 
 /// Matches the manifest's control points: by their mark record (of an id marked more
 /// than once, the last made at rest: [`choose_marks`], reading the ingested
-/// `odometer`), else by `t_s`.
+/// `odometer`), else by `t_s`. Each point is compared with the `vehicle`'s mark.
 pub fn match_control_points(
     m: &RunManifest,
     marks: &MarksTable,
     d: &Derived,
     odometer: &Path,
+    vehicle: &VehicleParams,
 ) -> anyhow::Result<MatchedPoints> {
     let log_t_s = |t_ns: i64| t_ns as f64 * 1e-9;
     let Some(last) = d.t_s.last() else {
@@ -111,6 +136,7 @@ pub fn match_control_points(
                 lat_rad: cp.position.latitude_deg.to_radians(),
                 lon_rad: cp.position.longitude_deg.to_radians(),
                 h_m: cp.position.height_m,
+                mark_lever_arm_m: vehicle.mark_lever_arm_m,
             })
         })
         .collect::<anyhow::Result<_>>()?;
@@ -188,8 +214,14 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
     let MatchedPoints {
         fixes,
         repeated_marks,
-    } = match_control_points(m, &marks, &derived, &ingest_dir.join(files::ODOMETER))
-        .with_context(|| format!("in {}", m.path.display()))?;
+    } = match_control_points(
+        m,
+        &marks,
+        &derived,
+        &ingest_dir.join(files::ODOMETER),
+        &params.vehicle,
+    )
+    .with_context(|| format!("in {}", m.path.display()))?;
     let ingest_scale: Option<f64> = odo_schema
         .metadata()
         .get(META_ODO_M_PER_PULSE)

@@ -10,7 +10,7 @@ use unz_formats::atomic::write_json_atomic;
 use unz_formats::parquet_io::{for_each_batch_of, write_batch};
 use unz_formats::schema;
 use unz_formats::tables::{CriteriaTable, MarksTable, f64_column};
-use unz_stages::criteria::{self, BlockAttitude, Kryt1Series, Kryt2, Row3Blocks};
+use unz_stages::criteria::{self, BlockAttitude, FixPose, Kryt1Series, Kryt2, Row3Blocks};
 use unz_stages::derive::Derived;
 use unz_stages::filter::LowPass;
 
@@ -33,14 +33,19 @@ pub struct CriteriaSummary {
     pub control_points: Vec<Kryt2>,
     /// Kryt2 at the last control point, m.
     pub kryt2_m: Option<f64>,
+    /// Where the vehicle's mark, whose errors at the control points these are, lies from
+    /// the navigated point (`[vehicle] mark_lever_arm_m`, IMU body axes, m); absent when
+    /// it is the navigated point.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mark_lever_arm_m: Option<[f64; 3]>,
 }
 
-/// (sample, latitude rad, longitude rad).
-type Position = (usize, f64, f64);
+/// A sample and its pose.
+type Position = (usize, FixPose);
 
 /// What the criteria read of `nav.parquet` (`samples` rows), batch by batch (the track is
-/// never held whole): the attitude per block of `block` samples, and the positions
-/// (sample, latitude rad, longitude rad) at the samples `at`.
+/// never held whole): the attitude per block of `block` samples, and the poses at the
+/// samples `at`.
 fn read_nav_for_criteria(
     path: &Path,
     samples: usize,
@@ -57,14 +62,17 @@ fn read_nav_for_criteria(
             Ok(f64_column(b, n)?.into_iter().map(f64::to_radians).collect())
         };
         let (roll, pitch, heading) = (rad(ROLL_DEG)?, rad(PITCH_DEG)?, rad(HEADING_DEG)?);
-        for k in 0..roll.len() {
+        let q_at = |k: usize| {
             let q = unz_stages::attitude::Euler {
                 roll_rad: roll[k],
                 pitch_rad: pitch[k],
                 heading_rad: heading[k],
             }
             .to_quat_b_to_n();
-            blocks.push(&[q.w, q.i, q.j, q.k]);
+            [q.w, q.i, q.j, q.k]
+        };
+        for k in 0..roll.len() {
+            blocks.push(&q_at(k));
         }
         let n = roll.len();
         let here: Vec<usize> = at
@@ -74,7 +82,14 @@ fn read_nav_for_criteria(
             .collect();
         if !here.is_empty() {
             let (lat, lon) = (rad(LAT_DEG)?, rad(LON_DEG)?);
-            positions.extend(here.iter().map(|&s| (s, lat[s - k0], lon[s - k0])));
+            positions.extend(here.iter().map(|&s| {
+                let pose = FixPose {
+                    lat_rad: lat[s - k0],
+                    lon_rad: lon[s - k0],
+                    q_b_to_n: q_at(s - k0),
+                };
+                (s, pose)
+            }));
         }
         k0 += n;
         Ok(())
@@ -106,7 +121,7 @@ pub fn ensure_criteria(
         name: "criteria",
         // 2: of a control point marked more than once, the last mark at rest.
         version: 2,
-        params_hash: params_hash(&(params.kalman, params.derive.filter))?,
+        params_hash: params_hash(&(params.kalman, params.derive.filter, params.vehicle))?,
         inputs,
         outputs: &[files::CRITERIA, files::CRITERIA_REPORT],
     };
@@ -121,9 +136,15 @@ pub fn ensure_criteria(
             &ingest_dir.join(files::MARKS),
             MarksTable::extend_from_batch,
         )?;
-        let fixes = match_control_points(m, &marks, &d, &ingest_dir.join(files::ODOMETER))
-            .with_context(|| format!("in {}", m.path.display()))?
-            .fixes;
+        let fixes = match_control_points(
+            m,
+            &marks,
+            &d,
+            &ingest_dir.join(files::ODOMETER),
+            &params.vehicle,
+        )
+        .with_context(|| format!("in {}", m.path.display()))?
+        .fixes;
         let lp = LowPass::new(&params.derive.filter, d.nominal_dt_s);
         let fix_samples: Vec<usize> = fixes.iter().map(|f| f.sample).collect();
         let (blocks, positions) = read_nav_for_criteria(
@@ -137,10 +158,7 @@ pub fn ensure_criteria(
             criteria::kryt1_from_blocks(&d.epochs, &lp, blocks, &params.kalman, Some(&mut series));
         write_criteria_parquet(&dir.join(files::CRITERIA), &d, &series)?;
         let cps = criteria::kryt2_at(&fixes, |k| {
-            positions
-                .iter()
-                .find(|p| p.0 == k)
-                .map(|&(_, lat, lon)| (lat, lon))
+            positions.iter().find(|p| p.0 == k).map(|&(_, pose)| pose)
         });
         let summary = CriteriaSummary {
             kryt1_rad: k1,
@@ -148,6 +166,7 @@ pub fn ensure_criteria(
             valid_epochs: d.epochs.valid.iter().filter(|v| **v).count(),
             kryt2_m: cps.last().map(|c| c.kryt2_m),
             control_points: cps,
+            mark_lever_arm_m: params.vehicle.mark_arm(),
         };
         write_json_atomic(&dir.join(files::CRITERIA_REPORT), &summary)?;
         Ok(())

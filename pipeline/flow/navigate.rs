@@ -27,6 +27,11 @@ pub struct NavigateSummary {
     pub distance_m: f64,
     /// Position errors at the control points.
     pub control_points: Vec<Kryt2>,
+    /// Where the vehicle's mark, whose errors at the control points these are, lies from
+    /// the navigated point (`[vehicle] mark_lever_arm_m`, IMU body axes, m); absent when
+    /// it is the navigated point.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mark_lever_arm_m: Option<[f64; 3]>,
     /// Control points whose id was marked more than once, and the mark used (absent
     /// when none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -70,7 +75,7 @@ pub fn ensure_navigate(
         // 5: of a control point marked more than once, the last mark at rest.
         // 6: a start levelled in motion is fitted over the log's first minute.
         version: 6,
-        params_hash: params_hash(&(params.align, overrides))?,
+        params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],
     };
@@ -93,9 +98,8 @@ pub fn ensure_navigate(
             samples: nav.samples,
             duration_s: case.derived.t_s.last().unwrap_or(0.0),
             distance_m: nav.distance_m,
-            control_points: criteria::kryt2_at(&case.fixes, |k| {
-                nav.at(k).map(|s| (s.lat_rad, s.lon_rad))
-            }),
+            control_points: criteria::kryt2_at(&case.fixes, |k| nav.at(k).map(|s| s.pose)),
+            mark_lever_arm_m: params.vehicle.mark_arm(),
             repeated_marks: case.repeated_marks.clone(),
             repaired_times: case.derived.repaired_times,
             filled_gaps: case.derived.filled_gaps,

@@ -365,6 +365,49 @@ pub struct ControlPointFix {
     pub lon_rad: f64,
     /// Surveyed height, m.
     pub h_m: f64,
+    /// Where the vehicle's control-point mark (the point held over the surveyed one) lies
+    /// from the navigated point, in the IMU's body axes (x forward, y right, z down), m.
+    /// The navigated point is the odometer's: its distance is carried along the body's x.
+    pub mark_lever_arm_m: [f64; 3],
+}
+
+/// A navigated pose at a control point's sample: what its Kryt2 needs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FixPose {
+    /// Latitude, rad.
+    pub lat_rad: f64,
+    /// Longitude, rad.
+    pub lon_rad: f64,
+    /// Attitude `C_b^n` (w, x, y, z).
+    pub q_b_to_n: [f64; 4],
+}
+
+impl ControlPointFix {
+    /// ΔX (north) and ΔY (east), m: the navigated position of the vehicle's mark, at the
+    /// navigated `pose`, minus the surveyed point. The mark's arm turns with the body;
+    /// without one, this is the navigated point's offset itself, bit for bit.
+    pub fn offset_m(&self, pose: &FixPose) -> (f64, f64) {
+        let (dx, dy) = earth::local_offset_m(
+            pose.lat_rad,
+            pose.lon_rad,
+            self.lat_rad,
+            self.lon_rad,
+            self.h_m,
+        );
+        if self.mark_lever_arm_m == [0.0; 3] {
+            return (dx, dy);
+        }
+        let [w, x, y, z] = pose.q_b_to_n;
+        let a = self.mark_lever_arm_m;
+        // The first two rows of C_b^n applied to the arm.
+        let north = (1.0 - 2.0 * (y * y + z * z)) * a[0]
+            + 2.0 * (x * y - w * z) * a[1]
+            + 2.0 * (x * z + w * y) * a[2];
+        let east = 2.0 * (x * y + w * z) * a[0]
+            + (1.0 - 2.0 * (x * x + z * z)) * a[1]
+            + 2.0 * (y * z - w * x) * a[2];
+        (dx + north, dy + east)
+    }
 }
 
 /// Kryt2 at one control point.
@@ -406,21 +449,20 @@ pub fn kryt2_rms_m(errors: impl ExactSizeIterator<Item = [f64; 2]>) -> f64 {
 /// Kryt2 at every control point.
 pub fn kryt2(track: &NavTrack, fixes: &[ControlPointFix]) -> Vec<Kryt2> {
     kryt2_at(fixes, |k| {
-        (k < track.len()).then(|| (track.lat_rad[k], track.lon_rad[k]))
+        (k < track.len()).then(|| FixPose {
+            lat_rad: track.lat_rad[k],
+            lon_rad: track.lon_rad[k],
+            q_b_to_n: track.q_b_to_n[k],
+        })
     })
 }
 
-/// Kryt2 at every control point whose sample `position` gives (latitude, longitude,
-/// rad); the others are left out.
-pub fn kryt2_at(
-    fixes: &[ControlPointFix],
-    position: impl Fn(usize) -> Option<(f64, f64)>,
-) -> Vec<Kryt2> {
+/// Kryt2 at every control point whose sample `pose` gives; the others are left out.
+pub fn kryt2_at(fixes: &[ControlPointFix], pose: impl Fn(usize) -> Option<FixPose>) -> Vec<Kryt2> {
     fixes
         .iter()
         .filter_map(|f| {
-            let (lat, lon) = position(f.sample)?;
-            let (dx, dy) = earth::local_offset_m(lat, lon, f.lat_rad, f.lon_rad, f.h_m);
+            let (dx, dy) = f.offset_m(&pose(f.sample)?);
             Some(Kryt2::at(f, dx, dy))
         })
         .collect()
@@ -429,6 +471,61 @@ pub fn kryt2_at(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The mark's arm, turned by the attitude, moves the compared point north and east;
+    /// without an arm the offset is the navigated point's, bit for bit.
+    #[test]
+    fn the_marks_arm_turns_with_the_body() {
+        let fix = |arm: [f64; 3]| ControlPointFix {
+            id: 1,
+            sample: 0,
+            t_s: 0.0,
+            lat_rad: 0.9,
+            lon_rad: 0.3,
+            h_m: 100.0,
+            mark_lever_arm_m: arm,
+        };
+        let pose = |roll_deg: f64, pitch_deg: f64, heading_deg: f64| {
+            let q = crate::attitude::Euler {
+                roll_rad: roll_deg.to_radians(),
+                pitch_rad: pitch_deg.to_radians(),
+                heading_rad: heading_deg.to_radians(),
+            }
+            .to_quat_b_to_n();
+            FixPose {
+                lat_rad: 0.9 + 2e-7,
+                lon_rad: 0.3 - 1e-7,
+                q_b_to_n: [q.w, q.i, q.j, q.k],
+            }
+        };
+        let p = pose(3.0, -2.0, 57.0);
+        let bare = earth::local_offset_m(p.lat_rad, p.lon_rad, 0.9, 0.3, 100.0);
+        assert_eq!(fix([0.0; 3]).offset_m(&p), bare);
+        let moved = |arm: [f64; 3], p: &FixPose| {
+            let (dx, dy) = fix(arm).offset_m(p);
+            (dx - bare.0, dy - bare.1)
+        };
+        let close = |a: (f64, f64), b: (f64, f64)| {
+            assert!(
+                (a.0 - b.0).abs() < 1e-12 && (a.1 - b.1).abs() < 1e-12,
+                "{a:?} {b:?}"
+            )
+        };
+        // Heading east: forward is east, right is south.
+        let east = pose(0.0, 0.0, 90.0);
+        close(moved([2.0, 0.0, 0.0], &east), (0.0, 2.0));
+        close(moved([0.0, 1.5, 0.0], &east), (-1.5, 0.0));
+        // Nose up by 10° heading north: the down axis leans forward.
+        let up = pose(0.0, 10.0, 0.0);
+        let s = 10f64.to_radians().sin();
+        close(moved([0.0, 0.0, 1.0], &up), (s, 0.0));
+        // Rolled right by 20° heading north: the down axis leans left (west).
+        let rolled = pose(20.0, 0.0, 0.0);
+        close(
+            moved([0.0, 0.0, 1.0], &rolled),
+            (0.0, -20f64.to_radians().sin()),
+        );
+    }
 
     #[test]
     fn block_attitude_is_the_angles_of_each_block_sum_the_last_block_short() {

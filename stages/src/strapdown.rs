@@ -25,7 +25,7 @@ mod lanes;
 use nalgebra::UnitQuaternion;
 
 use crate::attitude::Euler;
-use crate::criteria::BlockAttitude;
+use crate::criteria::{BlockAttitude, FixPose};
 use crate::earth::Geodetic;
 use lanes::{Emit, Lanes, OdometerLanes, OdometerPerLane, OdometerStreams, SharedOdometer};
 
@@ -233,8 +233,8 @@ pub struct CriteriaSink {
     pub block: usize,
     /// Roll and pitch of each block's sum of the samples' third rows of `C_b^n`.
     pub blocks: BlockAttitude,
-    /// (sample, latitude rad, longitude rad) at the requested samples, in sample order.
-    pub positions: Vec<(usize, f64, f64)>,
+    /// The pose at each requested sample, in sample order.
+    pub positions: Vec<(usize, FixPose)>,
     wanted: Vec<usize>,
 }
 
@@ -252,12 +252,12 @@ impl CriteriaSink {
         self.wanted.reverse(); // popped from the end, in sample order
     }
 
-    /// Latitude and longitude recorded at `sample`.
-    pub fn position_at(&self, sample: usize) -> Option<(f64, f64)> {
+    /// The pose recorded at `sample`.
+    pub fn position_at(&self, sample: usize) -> Option<FixPose> {
         self.positions
             .binary_search_by_key(&sample, |p| p.0)
             .ok()
-            .map(|i| (self.positions[i].1, self.positions[i].2))
+            .map(|i| self.positions[i].1)
     }
 }
 
@@ -638,7 +638,12 @@ impl<const N: usize> Emit<N> for CriteriaLanes<'_, N> {
         if self.next_wanted == Some(k) {
             for (l, sink) in self.sinks.iter_mut().enumerate() {
                 sink.wanted.pop();
-                sink.positions.push((k, lanes.lat_rad[l], lanes.lon_rad[l]));
+                let pose = FixPose {
+                    lat_rad: lanes.lat_rad[l],
+                    lon_rad: lanes.lon_rad[l],
+                    q_b_to_n: lanes.q_of(l),
+                };
+                sink.positions.push((k, pose));
             }
             self.next_wanted = self.sinks.first().and_then(|s| s.wanted.last().copied());
         }

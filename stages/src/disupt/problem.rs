@@ -9,7 +9,6 @@ use rayon::prelude::*;
 use super::settings::{BASE_SETTINGS, X, params_of, x_of};
 use crate::criteria::{self, ControlPointFix, KalmanParams, Kryt2};
 use crate::derive::{Epochs, MovedOdometer, OdoIncrements};
-use crate::earth;
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
 use crate::strapdown::{self, CriteriaSink, LaneBatch, NavInputs, NavSettings, in_lanes};
@@ -296,10 +295,7 @@ impl<'a> Problem<'a> {
         y.cp_m = self
             .fixes
             .iter()
-            .filter_map(|f| {
-                let (lat, lon) = sink.position_at(f.sample)?;
-                Some(earth::local_offset_m(lat, lon, f.lat_rad, f.lon_rad, f.h_m))
-            })
+            .filter_map(|f| Some(f.offset_m(&sink.position_at(f.sample)?)))
             .map(|(dx, dy)| [dx, dy])
             .collect();
         y

@@ -88,6 +88,11 @@ pub struct SimConfig {
     /// driving): no static start, and the manifest's site, truth and settings are those
     /// of that moment. `None`: the log begins with the static start.
     pub log_start_s: Option<f64>,
+    /// Where the vehicle's control-point mark lies from the navigated point (the
+    /// odometer's, which the truth follows), in the IMU's body axes (x forward, y right,
+    /// z down), m: each control point is surveyed under the mark, not under the
+    /// navigated point. Zero by default.
+    pub mark_lever_arm_m: [f64; 3],
 }
 
 impl SimConfig {
@@ -105,6 +110,7 @@ impl SimConfig {
             odo_lag_s: 0.0,
             cp_at_every_stop: false,
             log_start_s: None,
+            mark_lever_arm_m: [0.0; 3],
         }
     }
 }
@@ -173,6 +179,20 @@ impl Truth {
         self.vel_ned_mps.drain(..k);
         self.euler.drain(..k);
         self.distance_m.drain(..k);
+    }
+}
+
+/// The true position of the vehicle's mark at truth sample `k`: the navigated point's
+/// moved by `arm_b_m` (body axes) turned into north, east and down by the IMU's true
+/// attitude.
+fn mark_position(truth: &Truth, k: usize, arm_b_m: &[f64; 3]) -> Geodetic {
+    let (lat, lon, h) = (truth.lat_rad[k], truth.lon_rad[k], truth.h_m[k]);
+    let ned = truth.euler[k].to_quat_b_to_n() * Vector3::from(*arm_b_m);
+    let (rm, rn) = earth::radii_m(lat);
+    Geodetic {
+        lat_rad: lat + ned.x / (rm + h),
+        lon_rad: lon + ned.y / ((rn + h) * lat.cos()),
+        h_m: h - ned.z,
     }
 }
 
@@ -413,11 +433,12 @@ pub fn simulate(config: &SimConfig) -> SimRun {
                 point_id: stop.id,
             },
         ));
+        let under_mark = mark_position(&truth, k, &config.mark_lever_arm_m);
         control_points.push(SimControlPoint {
             id: stop.id,
-            latitude_deg: truth.lat_rad[k].to_degrees(),
-            longitude_deg: truth.lon_rad[k].to_degrees(),
-            height_m: truth.h_m[k],
+            latitude_deg: under_mark.lat_rad.to_degrees(),
+            longitude_deg: under_mark.lon_rad.to_degrees(),
+            height_m: under_mark.h_m,
             t_s: records[k].t_us as f64 * 1e-6,
         });
     }
@@ -490,6 +511,13 @@ impl SimRun {
             az = self.settings.manifest_azimuth_deg,
             st = self.manifest_static_s,
         );
+        let arm = self.config.mark_lever_arm_m;
+        if arm != [0.0; 3] {
+            s += &format!(
+                "\n[params.vehicle]\nmark_lever_arm_m = [{}, {}, {}]\n",
+                arm[0], arm[1], arm[2]
+            );
+        }
         for cp in &self.control_points {
             s += &format!(
                 "\n[[control_point]]\nid = {}\nlatitude_deg = {:.9}\nlongitude_deg = {:.9}\nheight_m = {:.3}\n",

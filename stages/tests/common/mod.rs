@@ -73,6 +73,7 @@ pub fn case_derived_with(config: &SimConfig, params: &DeriveParams) -> Case {
             lat_rad: cp.latitude_deg.to_radians(),
             lon_rad: cp.longitude_deg.to_radians(),
             h_m: cp.height_m,
+            mark_lever_arm_m: run.config.mark_lever_arm_m,
         })
         .collect();
     Case {
