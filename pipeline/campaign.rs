@@ -397,6 +397,7 @@ fn run_note(
     let odo_yaw = d
         .and_then(|d| d.joint_odo_yaw_check.as_ref())
         .and_then(crate::disupt_stage::odo_yaw_note);
+    let mark_arm = d.and_then(crate::disupt_stage::joint_mark_arm_note);
     let failures = ing.and_then(|i| i.odometer_failures.as_ref());
     let odo_failed = nav
         .filter(|n| {
@@ -424,6 +425,7 @@ fn run_note(
         )
         .chain(coarse_refused)
         .chain(odo_yaw)
+        .chain(mark_arm)
         .chain(
             d.into_iter()
                 .flat_map(|d| &d.not_used)

@@ -22,8 +22,9 @@ use unz_stages::units::DEG_PER_H;
 pub use coarse_azimuth::{Coarse, CoarseRefused, coarse_azimuth, coarse_refused_note};
 use joint_run::{JointInputs, joint_route_sigma, route_stride, run_methods};
 pub use report::{
-    DisuptOut, MethodOut, ODO_YAW_REFIT_Z, OdoYawCheck, Outcome, SettingsOut, SigmaOut,
-    odo_yaw_note, rebridged_note,
+    DisuptOut, MARK_ARM_REFIT_SIGMA, MARK_ARM_SIGMA, MarkArmCheck, MethodOut, ODO_YAW_REFIT_Z,
+    OdoYawCheck, Outcome, SettingsOut, SigmaOut, joint_mark_arm_note, mark_arm_note, odo_yaw_note,
+    rebridged_note,
 };
 use report::{Lag, markdown, method_out, settings_out};
 use reviews::{Reviewed, review_passes};
@@ -278,6 +279,12 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         if let Some(note) = joint_run.and_then(|r| r.odo_yaw.as_ref().and_then(odo_yaw_note)) {
             ctx.say("disupt", &note);
         }
+        if let Some(note) = joint_run
+            .and_then(|r| r.mark_arm.as_ref())
+            .and_then(|c| mark_arm_note(c, params.vehicle.mark_arm()))
+        {
+            ctx.say("disupt", &note);
+        }
         drop(rederive);
         drop(odometer);
         let joint_derived = joint_run
@@ -475,6 +482,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             joint_odo_yaw_check: joint_run.and_then(|r| r.odo_yaw.clone()),
             shared_passes: problem.base_passes(),
             mark_lever_arm_m: params.vehicle.mark_arm(),
+            joint_mark_arm_check: joint_run.and_then(|r| r.mark_arm.clone()),
         };
         let md = markdown(&m.name, &out, &dparams);
         write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;

@@ -241,14 +241,7 @@ mod tests {
         assert_eq!(a.len(), 2);
         assert_eq!(a[1].values()[20], 0.0);
         let yaw = parse_over("odo_yaw_deg=-1:1:5").unwrap();
-        let mut x = X {
-            azimuth_deg: 0.0,
-            drift_deg_h: [0.0; 3],
-            odo_ppm: 0.0,
-            tilt_mrad: [0.0; 2],
-            odo_yaw_deg: 0.0,
-            odo_bias_mps: 0.0,
-        };
+        let mut x = X::default();
         yaw[0].apply(&mut x, yaw[0].values()[3]);
         assert_eq!(x.odo_yaw_deg, 0.5);
         for bad in [

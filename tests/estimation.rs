@@ -10,7 +10,7 @@ use unz_formats::tables::{f64_column, u8_column};
 use unz_stages::initial::Source;
 use unz_stages::simulate::TrueSettings;
 
-use crate::util::{read_json, run_until, simulated_run, unz_output};
+use crate::util::{read_json, run_until, run_until_with, simulated_run, unz_output};
 
 /// A column of a Parquet file, all batches.
 fn column(path: &Path, name: &str) -> Vec<f64> {
@@ -442,6 +442,12 @@ fn control_points_are_compared_with_the_vehicles_mark() {
     let d = disupt_json(&out, name);
     assert_eq!(d.mark_lever_arm_m, Some([1.5, -1.0, 0.3]));
     assert_eq!(disupt_json(&bare_out, name).mark_lever_arm_m, None);
+    // With the mark where the manifest says, its control points show no arm worth a refit
+    // (measured 0.04σ both).
+    for d in [&d, &disupt_json(&bare_out, name)] {
+        let c = d.joint_mark_arm_check.as_ref().unwrap();
+        assert!(!c.refit && c.seen.distance_sigma < 2.0, "{c:?}");
+    }
     let md = std::fs::read_to_string(out.join(name).join("disupt/disupt.md")).unwrap();
     assert!(
         md.contains("1.50 m forward, -1.00 m right and 0.30 m down"),
@@ -484,18 +490,62 @@ fn control_points_are_compared_with_the_vehicles_mark() {
     assert_eq!(nav(&out).mark_lever_arm_m, Some([1.5, -1.0, 0.3]));
 
     // The arm left out of the manifest: the points are 1.8 m from where the navigation
-    // compares them.
+    // compares them, and their errors turn with the heading at each stop. Held at the
+    // configured arm (`joint_mark_arm = false`), the fit spreads them over the route.
     edit_manifest(&run.join("run.toml"), |m| {
         m.remove("params");
     });
-    run_until(&run, &out, "disupt");
+    let held = tmp.path().join("held.toml");
+    std::fs::write(&held, "[disupt]\njoint_mark_arm = false\n").unwrap();
+    run_until_with(&run, &out, "disupt", &["--config", held.to_str().unwrap()]);
     let ignored = worst_m(&route_errors(&run, &out, name));
-    eprintln!("worst route error with the arm left out: {ignored:.3} m");
+    let d = disupt_json(&out, name);
+    let check = d.joint_mark_arm_check.clone().unwrap();
+    eprintln!("worst route error with the arm left out and held: {ignored:.3} m; {check:?}");
     assert!(
         ignored > worst_bare + 1.0,
         "{ignored} m against {worst_bare} m"
     );
-    assert_eq!(disupt_json(&out, name).mark_lever_arm_m, None);
+    assert_eq!(d.mark_lever_arm_m, None);
+    assert!(!check.refit && check.estimated.is_none());
+    // The check holds the fit's lag, which takes part of the arm along the vehicle
+    // (measured: 0.74 ± 0.31 m forward, −1.14 ± 0.31 m right; 4.4σ).
+    assert!(
+        check.seen.distance_sigma > unz::disupt_stage::MARK_ARM_REFIT_SIGMA,
+        "{check:?}"
+    );
+    let md = std::fs::read_to_string(out.join(name).join("disupt/disupt.md")).unwrap();
+    assert!(md.contains("which the joint fit did not estimate"), "{md}");
+
+    // By default the fit is redone with the mark free: it finds the arm within its σ
+    // (measured 1.48 ± 0.31 m forward, −1.00 ± 0.31 m right) and the route is the one with
+    // the arm configured.
+    run_until(&run, &out, "disupt");
+    let found = worst_m(&route_errors(&run, &out, name));
+    let d = disupt_json(&out, name);
+    let check = d.joint_mark_arm_check.clone().unwrap();
+    eprintln!("worst route error with the arm left out and estimated: {found:.3} m; {check:?}");
+    assert!(check.refit, "{check:?}");
+    let a = check.estimated.unwrap();
+    assert!(
+        (a.forward_m - 1.5).abs() < 3.0 * a.sigma_forward_m
+            && (a.right_m + 1.0).abs() < 3.0 * a.sigma_right_m
+            && a.sigma_forward_m < 0.5
+            && a.sigma_right_m < 0.5,
+        "{a:?}"
+    );
+    assert_eq!(
+        d.methods["joint"].outcome.x.mark_arm_m,
+        Some([a.forward_m, a.right_m])
+    );
+    assert!(
+        (found - worst_bare).abs() < 0.1,
+        "{found} m against {worst_bare} m"
+    );
+    let md = std::fs::read_to_string(out.join(name).join("disupt/disupt.md")).unwrap();
+    assert!(md.contains("the joint fit estimates it"), "{md}");
+    let note = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(note.contains("the vehicle's mark is not where"), "{note}");
 }
 
 #[test]

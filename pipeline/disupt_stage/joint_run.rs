@@ -14,7 +14,9 @@ use unz_stages::route_sigma::{
 
 use super::Method;
 use super::exclusions::{Excluding, exclude_inconsistent, without_the_point_out_of_bounds};
-use super::report::{Lag, ODO_YAW_REFIT_Z, OdoYawCheck};
+use super::report::{
+    Lag, MARK_ARM_REFIT_SIGMA, MARK_ARM_SIGMA, MarkArmCheck, ODO_YAW_REFIT_Z, OdoYawCheck,
+};
 use crate::flow::NavCase;
 
 /// The joint fit as the stage ran it: at the estimated odometer lag (with the derive
@@ -33,6 +35,9 @@ pub(super) struct JointRun {
     pub(super) params: disupt::DisuptParams,
     /// The odometer yaw boresight check of a fit that held it at zero.
     pub(super) odo_yaw: Option<OdoYawCheck>,
+    /// The mark's lever arm the fit's control points showed beyond the configured one,
+    /// when the fit held it.
+    pub(super) mark_arm: Option<MarkArmCheck>,
     /// The odometer's failures bridged again at each lag, and what that changed at the
     /// estimated one.
     pub(super) rebridged: Option<Rebridged>,
@@ -59,9 +64,15 @@ pub(super) fn joint_route_sigma(
     let fit = &run.fit;
     let cov = fit.covariance.as_ref()?;
     let x = fit.result.x;
-    let moved: Vec<Moved<'_>> = disupt::moved_by_steps(&x, &fit.free)
+    // The mark moves no pass (only what the control points are compared with): its
+    // settings leave the route, and their rows the covariance (the others' marginal).
+    let kept: Vec<usize> = (0..fit.free.len())
+        .filter(|&i| !fit.free[i].is_mark_arm())
+        .collect();
+    let free: Vec<_> = kept.iter().map(|&i| fit.free[i]).collect();
+    let moved: Vec<Moved<'_>> = disupt::moved_by_steps(&x, &free)
         .iter()
-        .zip(&fit.free)
+        .zip(&free)
         .map(|(xs, s)| Moved {
             inputs: problem.inputs,
             settings: problem.settings(xs),
@@ -69,7 +80,11 @@ pub(super) fn joint_route_sigma(
         })
         .collect();
     let m = moved.len();
-    let mut c = cov.clone();
+    let mut c = if kept.len() == fit.free.len() {
+        cov.clone()
+    } else {
+        cov.select_rows(&kept).select_columns(&kept)
+    };
     let mut ran = Vec::new();
     // Present only when the route σ has a lag part (see `run_joint`).
     if let Some(states) = run.lag_states.as_deref() {
@@ -170,6 +185,58 @@ pub(super) fn run_methods(
 /// boresight whole, with a σ that does not include it (measured: a 1.5° boresight, the
 /// joint azimuth 0.72–1.60° off at σ 0.02–0.18°; refit, 0.03–0.22° off at σ 0.21–0.23°).
 pub(super) fn run_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptError> {
+    let mut run = run_joint_yaw_checked(x)?;
+    if run.params.joint_mark_arm == Some(true) {
+        return Ok(run);
+    }
+    let on_lag;
+    let fitted_on = match &run.derived {
+        Some(d) => {
+            on_lag = x.spec.on(d);
+            &on_lag
+        }
+        None => x.problem,
+    };
+    let Ok(Some(seen)) = run.fit.mark_arm_seen(fitted_on) else {
+        return Ok(run);
+    };
+    let mut check = MarkArmCheck {
+        seen,
+        estimated: None,
+        refit: false,
+        refit_error: None,
+    };
+    if seen.distance_sigma > MARK_ARM_REFIT_SIGMA && run.params.joint_mark_arm.is_none() {
+        let with_arm = disupt::DisuptParams {
+            joint_mark_arm: Some(true),
+            ..run.params
+        };
+        match run_joint_yaw_checked(JointInputs {
+            dparams: &with_arm,
+            ..x
+        }) {
+            Ok(refit) => {
+                check.estimated = refit.fit.mark_arm_estimate();
+                if check
+                    .estimated
+                    .is_some_and(|a| a.distance_sigma > MARK_ARM_SIGMA)
+                {
+                    check.refit = true;
+                    let odo_yaw = run.odo_yaw.take();
+                    run = refit;
+                    run.odo_yaw = run.odo_yaw.take().or(odo_yaw);
+                }
+            }
+            Err(e) => check.refit_error = Some(e.to_string()),
+        }
+    }
+    run.mark_arm = Some(check);
+    Ok(run)
+}
+
+/// [`run_joint`] before the mark's arm is checked: the fit, and its odometer yaw
+/// boresight's check.
+fn run_joint_yaw_checked(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptError> {
     let JointInputs {
         problem,
         spec,
@@ -242,6 +309,7 @@ fn fit_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptError> {
             lag_states: None,
             params: *dparams,
             odo_yaw: None,
+            mark_arm: None,
             rebridged: rederive.rebridges().map(|r| r.changes_at(f.lag_s)),
         };
         disupt::within_bounds(&run.fit, &problem.x0(), dparams)?;
@@ -271,6 +339,7 @@ fn fit_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptError> {
         lag_states: None,
         params: *dparams,
         odo_yaw: None,
+        mark_arm: None,
         rebridged: None,
     })
 }

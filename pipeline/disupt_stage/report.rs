@@ -27,6 +27,10 @@ pub struct SettingsOut {
     /// Odometer lag, s (positive: the odometer reports late), beyond derive's
     /// `odo_time_offset_s`; estimated by the joint fit only.
     pub odo_lag_s: f64,
+    /// The vehicle's mark moved from the configured lever arm along the body's x and y,
+    /// m (by the joint fit only, when it estimates the mark).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mark_arm_m: Option<[f64; 2]>,
     /// 1σ of each (joint only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma: Option<SigmaOut>,
@@ -47,6 +51,9 @@ pub struct SigmaOut {
     pub odo_bias_mps: f64,
     /// s (0 when not estimated).
     pub odo_lag_s: f64,
+    /// m (absent when not estimated).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mark_arm_m: Option<[f64; 2]>,
 }
 
 /// Settings and the errors they give: the run before DISUPT, and each method's result.
@@ -148,6 +155,82 @@ pub struct DisuptOut {
     /// IMU body axes, m); absent when it is the navigated point.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mark_lever_arm_m: Option<[f64; 3]>,
+    /// The mark's horizontal lever arm the joint fit's control points showed beyond
+    /// `mark_lever_arm_m` when the fit held the mark ([`disupt::JointFit::mark_arm_seen`];
+    /// the fit weighed [`disupt::MARK_ARM_MIN_POINTS`] points or more), and whether the
+    /// fit was redone estimating it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_mark_arm_check: Option<MarkArmCheck>,
+}
+
+/// A mark's lever arm the joint fit's control points show, and whether the fit was redone
+/// estimating it (`disupt.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
+pub struct MarkArmCheck {
+    /// The arm they show, with its covariance, beyond the configured one: the fit's model
+    /// with the mark free, at the fit's odometer lag.
+    #[serde(flatten)]
+    pub seen: disupt::MarkArmSeen,
+    /// The arm the joint fit redone with the mark free estimated (its lag searched again),
+    /// when `seen` was beyond [`MARK_ARM_REFIT_SIGMA`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimated: Option<disupt::MarkArmSeen>,
+    /// Whether that refit is the joint's result (its estimate beyond [`MARK_ARM_SIGMA`]):
+    /// the joint's settings in `methods` are then its, its `mark_arm_m` the estimate.
+    pub refit: bool,
+    /// Why the refit failed, when it did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refit_error: Option<String>,
+}
+
+/// How far from no arm, in σ of its covariance, the arm the control points show must be
+/// for the joint fit to be redone with the mark free: the two-dimensional 95 % (χ² with
+/// two degrees of freedom). The check holds the fit's lag, which takes part of an arm
+/// along the vehicle (a 1.5-m arm showed as 0.4–1.3 m), so it asks for the refit early.
+pub const MARK_ARM_REFIT_SIGMA: f64 = 2.45;
+
+/// How far from no arm, in σ of its covariance, the arm the refit estimates must be for
+/// the refit to be the joint's result and a user to be told: the two-dimensional 3σ (χ²
+/// with two degrees of freedom at 99.73 %). Below it, the fit that held the mark stands.
+pub const MARK_ARM_SIGMA: f64 = 3.44;
+
+/// What a user is told of a mark's lever arm the joint fit estimated (the log,
+/// `disupt.md`, the campaign's note), or failed to, from the `configured` arm.
+pub fn mark_arm_note(check: &MarkArmCheck, configured: Option<[f64; 3]>) -> Option<String> {
+    let seen = "the control points' errors turn with the vehicle's heading at the stops: the \
+                vehicle's mark is not where `[vehicle] mark_lever_arm_m` puts it";
+    let [x, y, z] = configured.unwrap_or_default();
+    match (&check.refit_error, &check.estimated) {
+        (Some(e), _) if check.seen.distance_sigma > MARK_ARM_SIGMA => Some(format!(
+            "{seen} (about {:+.2} m forward and {:+.2} m right of it, {:.1}σ); the joint fit \
+             with the mark free failed ({e}), so the route keeps part of that error",
+            check.seen.forward_m, check.seen.right_m, check.seen.distance_sigma
+        )),
+        (None, Some(a)) if check.refit => Some(format!(
+            "{seen}: the joint fit estimates it {:+.2} ± {:.2} m forward and {:+.2} ± {:.2} m \
+             right of it ({:.1}σ), at [{:.2}, {:.2}, {z}] m from the navigated point in the \
+             IMU's axes; set the lever arm to that",
+            a.forward_m,
+            a.sigma_forward_m,
+            a.right_m,
+            a.sigma_right_m,
+            a.distance_sigma,
+            x + a.forward_m,
+            y + a.right_m,
+        )),
+        (None, None) if check.seen.distance_sigma > MARK_ARM_SIGMA => Some(format!(
+            "{seen} (about {:+.2} m forward and {:+.2} m right of it, {:.1}σ), which the joint \
+             fit did not estimate (`joint_mark_arm = false`): the route keeps part of that \
+             error",
+            check.seen.forward_m, check.seen.right_m, check.seen.distance_sigma
+        )),
+        _ => None,
+    }
+}
+
+/// [`mark_arm_note`] of a run's `disupt.json`.
+pub fn joint_mark_arm_note(out: &DisuptOut) -> Option<String> {
+    mark_arm_note(out.joint_mark_arm_check.as_ref()?, out.mark_lever_arm_m)
 }
 
 /// An odometer yaw boresight the joint fit held at zero, as its residuals show it
@@ -229,6 +312,7 @@ pub(super) fn settings_out(x: &X, base: &NavSettings, sigma: Option<&X>, lag: La
         odo_yaw_deg: base.odo_yaw_rad.to_degrees() + x.odo_yaw_deg,
         odo_bias_mps: base.odo_bias_mps + x.odo_bias_mps,
         odo_lag_s: lag.lag_s,
+        mark_arm_m: Some(x.mark_arm_m).filter(|a| *a != [0.0; 2]),
         sigma: sigma.map(|s| SigmaOut {
             azimuth_deg: s.azimuth_deg,
             drift_rad_s: s.drift_deg_h.map(|d| d * DEG_PER_H),
@@ -236,6 +320,7 @@ pub(super) fn settings_out(x: &X, base: &NavSettings, sigma: Option<&X>, lag: La
             odo_yaw_deg: s.odo_yaw_deg,
             odo_bias_mps: s.odo_bias_mps,
             odo_lag_s: lag.sigma_s,
+            mark_arm_m: Some(s.mark_arm_m).filter(|a| *a != [0.0; 2]),
         }),
     }
 }
@@ -331,6 +416,14 @@ fn table(name: &str, r: &MethodOut, bounds: &disupt::DisuptParams) -> String {
                 r.outcome.x.odo_bias_mps, sd.odo_bias_mps
             );
         }
+        if let (Some(a), Some(sa)) = (r.outcome.x.mark_arm_m, sd.mark_arm_m) {
+            let _ = writeln!(
+                s,
+                "\nThe vehicle's mark {:+.2} m ± {:.2} m forward and {:+.2} m ± {:.2} m right of \
+                 the configured lever arm.",
+                a[0], sa[0], a[1], sa[1]
+            );
+        }
         if r.lag_profile.is_some() {
             let _ = writeln!(
                 s,
@@ -411,6 +504,9 @@ pub(super) fn markdown(run: &str, out: &DisuptOut, bounds: &disupt::DisuptParams
         md += &format!("Note: {}.\n\n", super::coarse_refused_note(r));
     }
     if let Some(note) = out.joint_odo_yaw_check.as_ref().and_then(odo_yaw_note) {
+        md += &format!("Note: {note}.\n\n");
+    }
+    if let Some(note) = joint_mark_arm_note(out) {
         md += &format!("Note: {note}.\n\n");
     }
     if let Some([x, y, z]) = out.mark_lever_arm_m {

@@ -382,6 +382,25 @@ pub struct FixPose {
     pub q_b_to_n: [f64; 4],
 }
 
+impl FixPose {
+    /// The first two rows of `C_b^n`: how a body-axes vector moves north and east.
+    pub fn body_to_ne(&self) -> [[f64; 3]; 2] {
+        let [w, x, y, z] = self.q_b_to_n;
+        [
+            [
+                1.0 - 2.0 * (y * y + z * z),
+                2.0 * (x * y - w * z),
+                2.0 * (x * z + w * y),
+            ],
+            [
+                2.0 * (x * y + w * z),
+                1.0 - 2.0 * (x * x + z * z),
+                2.0 * (y * z - w * x),
+            ],
+        ]
+    }
+}
+
 impl ControlPointFix {
     /// ΔX (north) and ΔY (east), m: the navigated position of the vehicle's mark, at the
     /// navigated `pose`, minus the surveyed point. The mark's arm turns with the body;
@@ -397,15 +416,10 @@ impl ControlPointFix {
         if self.mark_lever_arm_m == [0.0; 3] {
             return (dx, dy);
         }
-        let [w, x, y, z] = pose.q_b_to_n;
         let a = self.mark_lever_arm_m;
-        // The first two rows of C_b^n applied to the arm.
-        let north = (1.0 - 2.0 * (y * y + z * z)) * a[0]
-            + 2.0 * (x * y - w * z) * a[1]
-            + 2.0 * (x * z + w * y) * a[2];
-        let east = 2.0 * (x * y + w * z) * a[0]
-            + (1.0 - 2.0 * (x * x + z * z)) * a[1]
-            + 2.0 * (y * z - w * x) * a[2];
+        let [n, e] = pose.body_to_ne();
+        let north = n[0] * a[0] + n[1] * a[1] + n[2] * a[2];
+        let east = e[0] * a[0] + e[1] * a[1] + e[2] * a[2];
         (dx + north, dy + east)
     }
 }

@@ -38,7 +38,10 @@ pub use holdout::{
     HOLDOUT_INCONSISTENT_SIGMA, HOLDOUT_MIN_POINTS, Holdout, holdout, holdout_median_max_m,
     inconsistent_points_note, median_max,
 };
-pub use joint::{JointFit, JointOptions, OdoYawSeen, joint, joint_fit, within_bounds};
+pub use joint::{
+    JointFit, JointOptions, MARK_ARM_MIN_POINTS, MarkArmSeen, OdoYawSeen, joint, joint_fit,
+    within_bounds,
+};
 pub use problem::{Evaluation, LANES, Problem, ProblemSpec, moved_by_steps, observe_each};
 pub use results::{Component, Criterion, MethodResult, Step};
 pub use settings::{DisuptParams, X, params_of, x_of};

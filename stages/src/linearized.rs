@@ -12,7 +12,8 @@ use crate::criteria::{ControlPointFix, KalmanParams, Kryt2, kryt1_of};
 use crate::derive::Epochs;
 
 /// The settings a linearisation can move, by name; their order is that of the parameter
-/// vector ([`Setting::index`]). Units are the optimisers': degrees, °/h, mrad, ppm, m/s.
+/// vector ([`Setting::index`]). Units are the optimisers': degrees, °/h, mrad, ppm, m/s,
+/// m.
 #[derive(
     Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
 )]
@@ -36,6 +37,12 @@ pub enum Setting {
     OdoYaw,
     /// Odometer speed bias, m/s.
     OdoBias,
+    /// The vehicle's mark along the body's x (forward), added to the configured lever
+    /// arm, m.
+    MarkForward,
+    /// The vehicle's mark along the body's y (right), added to the configured lever arm,
+    /// m.
+    MarkRight,
 }
 
 /// Number of settings a linearisation can move.
@@ -43,7 +50,7 @@ pub const N_PARAMS: usize = Setting::ALL.len();
 
 impl Setting {
     /// Every setting, in parameter-vector order.
-    pub const ALL: [Setting; 9] = [
+    pub const ALL: [Setting; 11] = [
         Setting::Azimuth,
         Setting::DriftX,
         Setting::DriftY,
@@ -53,6 +60,8 @@ impl Setting {
         Setting::OdoScale,
         Setting::OdoYaw,
         Setting::OdoBias,
+        Setting::MarkForward,
+        Setting::MarkRight,
     ];
 
     /// Position in the parameter vector.
@@ -83,13 +92,29 @@ impl Setting {
             Setting::OdoScale => ("odometer scale", "ppm"),
             Setting::OdoYaw => ("odometer yaw boresight", "°"),
             Setting::OdoBias => ("odometer speed bias", "m/s"),
+            Setting::MarkForward => ("mark forward", "m"),
+            Setting::MarkRight => ("mark right", "m"),
         }
+    }
+
+    /// Whether it moves the vehicle's mark (the point compared with the control points)
+    /// and nothing of the pass: its slope is the attitude at each stop, without a pass
+    /// ([`Observation::cp_arm_ne`]).
+    pub const fn is_mark_arm(self) -> bool {
+        matches!(self, Setting::MarkForward | Setting::MarkRight)
     }
 
     /// Whether only control points see it (the odometer's settings move the route, not
     /// the attitude the gyros carry).
     pub const fn needs_control_points(self) -> bool {
-        matches!(self, Setting::OdoScale | Setting::OdoYaw | Setting::OdoBias)
+        matches!(
+            self,
+            Setting::OdoScale
+                | Setting::OdoYaw
+                | Setting::OdoBias
+                | Setting::MarkForward
+                | Setting::MarkRight
+        )
     }
 }
 
@@ -109,6 +134,10 @@ pub struct Observation {
     pub phi_rad: Vec<f64>,
     /// (ΔX north, ΔY east) at every control point, m.
     pub cp_m: Vec<[f64; 2]>,
+    /// At every control point, how a mark's arm along the body's x and y moves its
+    /// (north, east): the first two rows and columns of `C_b^n` at its stop (an exact
+    /// pass's; a prediction keeps its reference's).
+    pub cp_arm_ne: Vec<[[f64; 2]; 2]>,
 }
 
 impl Observation {
@@ -180,6 +209,7 @@ impl Observation {
                 .zip(&base.cp_m)
                 .map(|(a, b)| [(a[0] - b[0]) / h, (a[1] - b[1]) / h])
                 .collect(),
+            cp_arm_ne: Vec::new(),
         }
     }
 }
@@ -197,6 +227,24 @@ pub struct Linearization {
 }
 
 impl Linearization {
+    /// Adds the slopes of the mark's arm among `which` ([`Setting::is_mark_arm`]): the
+    /// reference's attitude at each stop, per metre; no pass. The attitude series do not
+    /// move (empty slopes add nothing).
+    pub fn add_mark_arm_slopes(&mut self, which: &[Setting]) {
+        for &s in which.iter().filter(|s| s.is_mark_arm()) {
+            let axis = usize::from(s == Setting::MarkRight);
+            self.slopes[s.index()] = Some(Observation {
+                cp_m: self
+                    .y_ref
+                    .cp_arm_ne
+                    .iter()
+                    .map(|m| [m[0][axis], m[1][axis]])
+                    .collect(),
+                ..Observation::default()
+            });
+        }
+    }
+
     /// Whether the model has a slope for every setting in `which`.
     pub fn covers(&self, which: &[Setting]) -> bool {
         which.iter().all(|s| self.slopes[s.index()].is_some())
@@ -232,6 +280,7 @@ mod tests {
             theta_rad: vec![a, 2.0 * a],
             phi_rad: vec![-a, 0.5],
             cp_m: vec![[a, 3.0 * a]],
+            cp_arm_ne: Vec::new(),
         }
     }
 

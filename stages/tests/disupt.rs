@@ -432,3 +432,93 @@ fn kryt1_with_free_horizontal_drifts_tells_the_azimuth_from_the_drifts() {
         assert!(a <= b, "{free:?} {fixed:?}");
     }
 }
+
+/// The vehicle's mark 1.5 m ahead of the navigated point, 1 m left and 0.3 m below, at
+/// eleven control points, but not in the fixes (an arm left out of the manifest). The
+/// mark's settings move no pass: their slopes are the attitude at each stop, exactly what
+/// a pass with the mark moved gives. Held, the fit's residuals show the arm; free, the
+/// joint fit finds it within its σ.
+#[test]
+fn the_joint_fit_finds_the_vehicles_mark() {
+    use unz_stages::linearized::Setting;
+    let mut config = SimConfig::new("mark", 63);
+    config.cp_at_every_stop = true;
+    config.mark_lever_arm_m = [1.5, -1.0, 0.3];
+    let c = case_of(&config);
+    let fixes: Vec<_> = c
+        .fixes
+        .iter()
+        .map(|f| unz_stages::criteria::ControlPointFix {
+            mark_lever_arm_m: [0.0; 3],
+            ..*f
+        })
+        .collect();
+    assert!(fixes.len() >= 9);
+    let problem = Problem::new(
+        c.inputs(),
+        c.manifest_settings(),
+        &c.derived.epochs,
+        c.lowpass(),
+        KalmanParams::default(),
+        &fixes,
+    );
+    // A pass with the mark moved 0.5 m forward and 0.25 m left is the pass without it,
+    // each control point moved by the attitude at its stop.
+    let x0 = problem.x0();
+    let y0 = problem.observe(&x0);
+    let moved = X {
+        mark_arm_m: [0.5, -0.25],
+        ..x0
+    };
+    let y1 = problem.observe(&moved);
+    assert_eq!((&y1.theta_rad, &y1.phi_rad), (&y0.theta_rad, &y0.phi_rad));
+    assert_eq!(y0.cp_arm_ne.len(), fixes.len());
+    for ((a, b), m) in y1.cp_m.iter().zip(&y0.cp_m).zip(&y0.cp_arm_ne) {
+        for r in 0..2 {
+            let want = b[r] + 0.5 * m[r][0] - 0.25 * m[r][1];
+            assert!((a[r] - want).abs() < 1e-9, "{a:?} {b:?} {m:?}");
+        }
+    }
+    // Its slopes take no pass.
+    let tally = AtomicUsize::new(0);
+    let lin = problem.linearize_by(
+        &x0,
+        y0.clone(),
+        &[Setting::MarkForward, Setting::MarkRight],
+        &tally,
+    );
+    assert_eq!(tally.load(Ordering::Relaxed), 0);
+    let slope = lin.slopes[Setting::MarkRight.index()].as_ref().unwrap();
+    assert_eq!(
+        slope.cp_m[3],
+        [y0.cp_arm_ne[3][0][1], y0.cp_arm_ne[3][1][1]]
+    );
+
+    let held = joint_fit(&problem, &DisuptParams::default(), &JointOptions::default()).unwrap();
+    let seen = held.mark_arm_seen(&problem).unwrap().unwrap();
+    let p = DisuptParams {
+        joint_mark_arm: Some(true),
+        ..DisuptParams::default()
+    };
+    let free = joint_fit(&problem, &p, &JointOptions::default()).unwrap();
+    let found = free.mark_arm_estimate().unwrap();
+    eprintln!("held, seen: {seen:?}\nfree: {found:?}");
+    for a in [&seen, &found] {
+        assert!(
+            (a.forward_m - 1.5).abs() < 3.0 * a.sigma_forward_m
+                && (a.right_m + 1.0).abs() < 3.0 * a.sigma_right_m
+                && a.sigma_forward_m < 0.5
+                && a.sigma_right_m < 0.5
+                && a.distance_sigma > 3.44,
+            "{a:?}"
+        );
+    }
+    assert_eq!(free.result.x.mark_arm_m, [found.forward_m, found.right_m]);
+    // The route: the held fit bends it toward the arm, the free one does not.
+    let route_error = |x: &X| c.max_route_error_m(&c.nav(&problem.settings(x)));
+    let (e_held, e_free) = (route_error(&held.result.x), route_error(&free.result.x));
+    eprintln!("worst route error: held {e_held:.2} m, free {e_free:.2} m");
+    assert!(e_free < 0.5 && e_held > e_free + 0.5, "{e_held} {e_free}");
+    // A fit with the mark free has nothing to check.
+    assert_eq!(free.mark_arm_seen(&problem).unwrap(), None);
+}

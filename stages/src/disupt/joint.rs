@@ -351,6 +351,9 @@ pub fn joint_fit(
             }
         }
     }
+    if p.joint_mark_arm == Some(true) && used_cps >= MARK_ARM_MIN_POINTS {
+        free.extend([Setting::MarkForward, Setting::MarkRight]);
+    }
     let free = &free[..];
     let warm;
     let start = match opts.warm {
@@ -531,6 +534,117 @@ impl JointFit {
             sigma_deg: c[(k, k)].max(0.0).sqrt(),
         }))
     }
+}
+
+impl JointFit {
+    /// The mark's horizontal lever arm the control points' errors show, beyond the one the
+    /// fixes already have: the fit's model at its last linearisation with the arm's two
+    /// components (body x forward, y right) free too, solved once, with their covariance
+    /// (the fit's weights and inflation). No pass: the arm moves each point by the
+    /// attitude at its stop, which the linearisation's exact pass kept. `None` with fewer
+    /// than [`MARK_ARM_MIN_POINTS`] points in the fit, a fit that had the mark free, or a
+    /// model that cannot be solved.
+    ///
+    /// An arm moves every point along the vehicle's heading at its stop, where the
+    /// settings move them along the route (the azimuth turns it about the start, the scale
+    /// stretches it, the drifts bend it): points stopped at several headings tell them
+    /// apart.
+    pub fn mark_arm_seen(&self, problem: &Problem<'_>) -> Result<Option<MarkArmSeen>, DisuptError> {
+        let y = &self.lin.y_ref;
+        if self.free.contains(&Setting::MarkForward)
+            || problem.cps_used() < MARK_ARM_MIN_POINTS
+            || y.cp_arm_ne.len() != y.cp_m.len()
+        {
+            return Ok(None);
+        }
+        let mut model = JointModel::new(problem, &self.lin, &self.free, &self.weights, None);
+        let k = model.a.ncols();
+        let mut a =
+            std::mem::replace(&mut model.a, DMatrix::zeros(0, 0)).resize_horizontally(k + 2, 0.0);
+        for axis in 0..2 {
+            let mut y1 = y.clone();
+            for (c, m) in y1.cp_m.iter_mut().zip(&y.cp_arm_ne) {
+                c[0] += m[0][axis];
+                c[1] += m[1][axis];
+            }
+            let r1 = joint_residuals(problem, &y1, &self.lin.p_ref, &self.weights, None);
+            for (i, (b, c)) in r1.iter().zip(model.r0.iter()).enumerate() {
+                a[(i, k + axis)] = b - c;
+            }
+        }
+        model.a = a;
+        let delta = model.solve()?;
+        let r = &model.r0 + &model.a * &delta;
+        let dof = (r.len() as f64 - (k + 2) as f64).max(1.0);
+        let n_att = attitude_rows(problem);
+        let Some(c) = covariance_of(&model, n_att, self.inflation, ssr(r.as_slice()) / dof) else {
+            return Ok(None);
+        };
+        Ok(MarkArmSeen::of(
+            [delta[k], delta[k + 1]],
+            [
+                [c[(k, k)], c[(k, k + 1)]],
+                [c[(k + 1, k)], c[(k + 1, k + 1)]],
+            ],
+        ))
+    }
+
+    /// The mark's move this fit estimated (when it had the mark free), with its
+    /// covariance.
+    pub fn mark_arm_estimate(&self) -> Option<MarkArmSeen> {
+        let at = |s: Setting| self.free.iter().position(|&f| f == s);
+        let (i, j) = (at(Setting::MarkForward)?, at(Setting::MarkRight)?);
+        let c = self.covariance.as_ref()?;
+        MarkArmSeen::of(
+            self.result.x.mark_arm_m,
+            [[c[(i, i)], c[(i, j)]], [c[(j, i)], c[(j, j)]]],
+        )
+    }
+}
+
+impl MarkArmSeen {
+    /// An arm and its 2 × 2 covariance; `None` unless both are finite and the covariance
+    /// is positive definite.
+    fn of(arm: [f64; 2], cov: [[f64; 2]; 2]) -> Option<Self> {
+        let det = cov[0][0] * cov[1][1] - cov[0][1] * cov[1][0];
+        if !(det > 0.0 && cov[0][0] > 0.0 && arm.iter().all(|v| v.is_finite())) {
+            return None;
+        }
+        // Mahalanobis distance from no arm: aᵀ C⁻¹ a.
+        let d2 = (cov[1][1] * arm[0] * arm[0] - 2.0 * cov[0][1] * arm[0] * arm[1]
+            + cov[0][0] * arm[1] * arm[1])
+            / det;
+        Some(Self {
+            forward_m: arm[0],
+            right_m: arm[1],
+            sigma_forward_m: cov[0][0].sqrt(),
+            sigma_right_m: cov[1][1].sqrt(),
+            correlation: cov[0][1] / (cov[0][0] * cov[1][1]).sqrt(),
+            distance_sigma: d2.max(0.0).sqrt(),
+        })
+    }
+}
+
+/// Points the fit must weigh for [`JointFit::mark_arm_seen`]: the arm's two components
+/// beside the settings need points at several headings.
+pub const MARK_ARM_MIN_POINTS: usize = 3;
+
+/// The mark's horizontal lever arm a joint fit's control points show
+/// ([`JointFit::mark_arm_seen`]), beyond the fixes' own, body axes.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MarkArmSeen {
+    /// Along the body's x (forward), m.
+    pub forward_m: f64,
+    /// Along the body's y (right), m.
+    pub right_m: f64,
+    /// 1σ of `forward_m`, m.
+    pub sigma_forward_m: f64,
+    /// 1σ of `right_m`, m.
+    pub sigma_right_m: f64,
+    /// Correlation of the two.
+    pub correlation: f64,
+    /// Its distance from no arm in its own covariance (Mahalanobis), in σ.
+    pub distance_sigma: f64,
 }
 
 /// An odometer yaw boresight a joint fit's residuals show ([`JointFit::odo_yaw_seen`]).

@@ -214,6 +214,7 @@ impl<'a> Problem<'a> {
             tilt_mrad: [0.0; 2],
             odo_yaw_deg: 0.0,
             odo_bias_mps: 0.0,
+            mark_arm_m: [0.0; 2],
         }
     }
 
@@ -283,7 +284,7 @@ impl<'a> Problem<'a> {
     }
 
     /// What the criteria read from a pass's sink.
-    fn observation_of_sink(&self, mut sink: CriteriaSink) -> Observation {
+    fn observation_of_sink(&self, mut sink: CriteriaSink, x: &X) -> Observation {
         let mut y = Observation::default();
         criteria::epoch_attitude_from_blocks(
             self.epochs,
@@ -295,7 +296,19 @@ impl<'a> Problem<'a> {
         y.cp_m = self
             .fixes
             .iter()
-            .filter_map(|f| Some(f.offset_m(&sink.position_at(f.sample)?)))
+            .filter_map(|f| {
+                let pose = sink.position_at(f.sample)?;
+                let [n, e] = pose.body_to_ne();
+                y.cp_arm_ne.push([[n[0], n[1]], [e[0], e[1]]]);
+                // The mark moved by the fit (none but the joint's), on the configured arm.
+                if x.mark_arm_m == [0.0; 2] {
+                    return Some(f.offset_m(&pose));
+                }
+                let mut moved = *f;
+                moved.mark_lever_arm_m[0] += x.mark_arm_m[0];
+                moved.mark_lever_arm_m[1] += x.mark_arm_m[1];
+                Some(moved.offset_m(&pose))
+            })
             .map(|(dx, dy)| [dx, dy])
             .collect();
         y
@@ -318,8 +331,11 @@ impl<'a> Problem<'a> {
         which: &[Setting],
         tally: &AtomicUsize,
     ) -> Linearization {
-        let ys = self.observe_many_by(&moved_by_steps(x, which), tally);
-        linearization_of(x, y, which, ys)
+        let by_pass: Vec<Setting> = which.iter().copied().filter(|s| !s.is_mark_arm()).collect();
+        let ys = self.observe_many_by(&moved_by_steps(x, &by_pass), tally);
+        let mut lin = linearization_of(x, y, &by_pass, ys);
+        lin.add_mark_arm_slopes(which);
+        lin
     }
 
     /// Passes of the shared first linearisation (0 before it is built).
@@ -356,9 +372,15 @@ impl<'a> Problem<'a> {
             .copied()
             .filter(|s| lin.slopes[s.index()].is_none())
             .collect();
+        let by_pass: Vec<Setting> = missing
+            .iter()
+            .copied()
+            .filter(|s| !s.is_mark_arm())
+            .collect();
         let x = x_of(&lin.p_ref);
-        let ys = self.observe_many_by(&moved_by_steps(&x, &missing), tally);
-        let mut out = linearization_of(&x, lin.y_ref.clone(), &missing, ys);
+        let ys = self.observe_many_by(&moved_by_steps(&x, &by_pass), tally);
+        let mut out = linearization_of(&x, lin.y_ref.clone(), &by_pass, ys);
+        out.add_mark_arm_slopes(&missing);
         for (j, slope) in lin.slopes.iter().enumerate() {
             if slope.is_some() {
                 out.slopes[j].clone_from(slope);
@@ -451,7 +473,8 @@ impl LaneBatch for OnDerives<'_, '_> {
         let mut sinks = sinks.into_iter();
         std::array::from_fn(|l| {
             let sink = sinks.next().expect("one sink per lane");
-            self.problem(points[l]).observation_of_sink(sink)
+            self.problem(points[l])
+                .observation_of_sink(sink, &self.xs[points[l]])
         })
     }
 }

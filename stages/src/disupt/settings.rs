@@ -25,6 +25,14 @@ pub struct X {
     /// biases enter the levelled initial attitude and the accelerometer pitch/roll alike;
     /// the levelling error then turns with the heading, the accelerometer one does not.
     pub tilt_mrad: [f64; 2],
+    /// Joint fit only (when asked for): the vehicle's mark moved along the body's x and y
+    /// from the configured lever arm, m.
+    #[serde(default, skip_serializing_if = "is_zero2")]
+    pub mark_arm_m: [f64; 2],
+}
+
+fn is_zero2(v: &[f64; 2]) -> bool {
+    *v == [0.0; 2]
 }
 
 impl X {
@@ -40,6 +48,8 @@ impl X {
             Setting::OdoScale => self.odo_ppm,
             Setting::OdoYaw => self.odo_yaw_deg,
             Setting::OdoBias => self.odo_bias_mps,
+            Setting::MarkForward => self.mark_arm_m[0],
+            Setting::MarkRight => self.mark_arm_m[1],
         }
     }
 
@@ -55,6 +65,8 @@ impl X {
             Setting::OdoScale => self.odo_ppm = v,
             Setting::OdoYaw => self.odo_yaw_deg = v,
             Setting::OdoBias => self.odo_bias_mps = v,
+            Setting::MarkForward => self.mark_arm_m[0] = v,
+            Setting::MarkRight => self.mark_arm_m[1] = v,
         }
     }
 }
@@ -99,6 +111,13 @@ pub struct DisuptParams {
     /// and at most a third of the run's points are excluded. Off: such points are named
     /// and kept.
     pub joint_exclude_inconsistent: bool,
+    /// Estimate the vehicle's mark (its lever arm along the body's x and y, added to the
+    /// configured one) in the joint fit: it moves each control point along the vehicle's
+    /// heading at its stop. Needs [`super::MARK_ARM_MIN_POINTS`] points. Absent: the
+    /// stage redoes the fit estimating it when the fit's control points show an arm
+    /// ([`super::JointFit::mark_arm_seen`]); `false`: never (what they show is still
+    /// reported).
+    pub joint_mark_arm: Option<bool>,
 }
 
 impl Default for DisuptParams {
@@ -115,6 +134,7 @@ impl Default for DisuptParams {
             odo_lag_bound_s: 1.0,
             odo_scale_bound_ppm: 100_000.0,
             joint_exclude_inconsistent: true,
+            joint_mark_arm: None,
         }
     }
 }
@@ -125,6 +145,8 @@ pub const JOINT_ODO_YAW_BOUND_DEG: f64 = 10.0;
 /// Bound of the joint fit's odometer speed bias, m/s: an OBD-II speed's bias is a few
 /// hundredths to tenths (Kingston's: 0.1 m/s).
 pub const JOINT_ODO_BIAS_BOUND_MPS: f64 = 2.0;
+/// Bound of the joint fit's move of the mark, m: a vehicle's length.
+pub const JOINT_MARK_ARM_BOUND_M: f64 = 10.0;
 /// Bound of the joint fit's levelling corrections, mrad: an accelerometer bias of 50 mg
 /// (far beyond a navigation-grade or even a consumer MEMS accelerometer's) levels the
 /// start that far wrong.
@@ -142,6 +164,7 @@ impl DisuptParams {
             Setting::OdoScale => self.odo_scale_bound_ppm,
             Setting::OdoYaw => JOINT_ODO_YAW_BOUND_DEG,
             Setting::OdoBias => JOINT_ODO_BIAS_BOUND_MPS,
+            Setting::MarkForward | Setting::MarkRight => JOINT_MARK_ARM_BOUND_M,
         }
     }
 
