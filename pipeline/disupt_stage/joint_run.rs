@@ -178,12 +178,12 @@ pub(super) fn run_methods(
     )
 }
 
-/// The joint fit ([`fit_joint`]), checked for an odometer yaw boresight when it held it at
-/// zero ([`disupt::JointFit::odo_yaw_seen`], one pass): seen beyond [`ODO_YAW_REFIT_Z`] σ,
-/// the fit is redone with the boresight free. The control points see a boresight and an
-/// azimuth error only as their sum, so the boresight-free fit's azimuth takes the
-/// boresight whole, with a σ that does not include it (measured: a 1.5° boresight, the
-/// joint azimuth 0.72–1.60° off at σ 0.02–0.18°; refit, 0.03–0.22° off at σ 0.21–0.23°).
+/// The joint fit checked for a boresight ([`run_joint_yaw_checked`]), then, when it held the
+/// vehicle's mark at the configured arm, checked for the arm its control points show
+/// ([`disupt::JointFit::mark_arm_seen`], no pass): seen beyond [`MARK_ARM_REFIT_SIGMA`]
+/// (and `joint_mark_arm` not set), the fit is redone with the mark free, its lag searched
+/// again, and kept when its estimate is beyond [`MARK_ARM_SIGMA`]. The check holds the
+/// lag, which takes part of an arm along the vehicle; the refit does not.
 pub(super) fn run_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptError> {
     let mut run = run_joint_yaw_checked(x)?;
     if run.params.joint_mark_arm == Some(true) {
@@ -234,8 +234,12 @@ pub(super) fn run_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptEr
     Ok(run)
 }
 
-/// [`run_joint`] before the mark's arm is checked: the fit, and its odometer yaw
-/// boresight's check.
+/// The joint fit ([`fit_joint`]), checked for an odometer yaw boresight when it held it at
+/// zero ([`disupt::JointFit::odo_yaw_seen`], one pass): seen beyond [`ODO_YAW_REFIT_Z`] σ,
+/// the fit is redone with the boresight free. The control points see a boresight and an
+/// azimuth error only as their sum, so the boresight-free fit's azimuth takes the
+/// boresight whole, with a σ that does not include it (measured: a 1.5° boresight, the
+/// joint azimuth 0.72–1.60° off at σ 0.02–0.18°; refit, 0.03–0.22° off at σ 0.21–0.23°).
 fn run_joint_yaw_checked(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptError> {
     let JointInputs {
         problem,
