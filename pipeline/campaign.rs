@@ -19,6 +19,7 @@ use unz_formats::schema;
 use unz_viz::report::{JointEstimate, ReportRow};
 
 use crate::artifacts::{RunLayout, StageName, files};
+use crate::campaign_mark::{MarkAcross, MarkEstimate};
 use crate::disupt_stage::{DisuptOut, Method, MethodOut, SettingsOut, SigmaOut, ensure_disupt};
 use crate::flow::{
     NavigateSummary, Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest,
@@ -449,6 +450,19 @@ fn run_note(
         .join("; ")
 }
 
+/// The vehicle's mark from the navigated point (the configured arm and the joint fit's
+/// move of it), when the joint fit estimated it.
+fn mark_estimate(d: &DisuptOut) -> Option<MarkEstimate> {
+    let x = &d.methods.get("joint")?.outcome.x;
+    let (a, s) = (x.mark_arm_m?, x.sigma.as_ref()?.mark_arm_m?);
+    let [f, r, z] = d.mark_lever_arm_m.unwrap_or_default();
+    Some(MarkEstimate {
+        forward_m: (f + a[0], s[0]),
+        right_m: (r + a[1], s[1]),
+        down_m: z,
+    })
+}
+
 /// Median and largest horizontal hold-out error of the joint fit, m.
 fn holdout_stats(j: &MethodOut) -> Option<(f64, f64)> {
     unz_stages::disupt::holdout_median_max_m(j.holdout.as_ref()?)
@@ -520,6 +534,16 @@ struct SummaryValues {
     /// Control points the joint fit left out as inconsistent with the rest of the run
     /// (0 when it ran and kept them all).
     joint_excluded_points: Option<f64>,
+    /// The vehicle's mark forward of the navigated point (IMU axes), m, when the joint
+    /// fit estimated it.
+    joint_mark_forward_m: Option<f64>,
+    /// Its 1σ, m.
+    joint_mark_forward_sigma_m: Option<f64>,
+    /// The vehicle's mark right of the navigated point, m, when the joint fit estimated
+    /// it.
+    joint_mark_right_m: Option<f64>,
+    /// Its 1σ, m.
+    joint_mark_right_sigma_m: Option<f64>,
     /// Wall time of the run, s.
     wall_s: Option<f64>,
 }
@@ -533,6 +557,7 @@ impl SummaryValues {
         let x = |f: fn(&SettingsOut) -> f64| joint.map(|j| f(&j.outcome.x));
         let sd = |f: fn(&SigmaOut) -> f64| joint.and_then(|j| j.outcome.x.sigma.as_ref()).map(f);
         let holdout = joint.and_then(holdout_stats);
+        let mark = d.and_then(mark_estimate);
         Self {
             distance_m: d.map(|d| d.distance_m),
             imu_accepted: ing.map(|i| i.imu_accepted as f64),
@@ -570,12 +595,16 @@ impl SummaryValues {
                 .map(|r| r.largest_change_m),
             joint_excluded_points: joint
                 .map(|j| j.holdout.iter().flatten().filter(|h| h.excluded).count() as f64),
+            joint_mark_forward_m: mark.map(|m| m.forward_m.0),
+            joint_mark_forward_sigma_m: mark.map(|m| m.forward_m.1),
+            joint_mark_right_m: mark.map(|m| m.right_m.0),
+            joint_mark_right_sigma_m: mark.map(|m| m.right_m.1),
             wall_s: Some(wall_s),
         }
     }
 
     /// (column name, value) in the file's order.
-    fn columns(&self) -> [(&'static str, Option<f64>); 30] {
+    fn columns(&self) -> [(&'static str, Option<f64>); 34] {
         [
             ("distance_m", self.distance_m),
             ("imu_accepted", self.imu_accepted),
@@ -606,6 +635,13 @@ impl SummaryValues {
             ("odometer_failed_samples", self.odometer_failed_samples),
             ("joint_rebridge_change_m", self.joint_rebridge_change_m),
             ("joint_excluded_points", self.joint_excluded_points),
+            ("joint_mark_forward_m", self.joint_mark_forward_m),
+            (
+                "joint_mark_forward_sigma_m",
+                self.joint_mark_forward_sigma_m,
+            ),
+            ("joint_mark_right_m", self.joint_mark_right_m),
+            ("joint_mark_right_sigma_m", self.joint_mark_right_sigma_m),
             ("wall_s", self.wall_s),
         ]
     }
@@ -640,6 +676,7 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
     let mut notes: Vec<Option<String>> = Vec::with_capacity(outcomes.len());
     let mut rows: Vec<ReportRow> = Vec::with_capacity(outcomes.len());
     let mut points = crate::campaign_points::PointsAcross::default();
+    let mut marks = MarkAcross::default();
     for o in outcomes {
         let layout = RunLayout::new(out, &o.name);
         let ing: Option<IngestReport> =
@@ -656,6 +693,14 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
             && let Ok(m) = RunManifest::load(&o.manifest)
         {
             points.add(&m.control_points, h);
+        }
+        if let Some(d) = &d {
+            let estimate = mark_estimate(d);
+            marks.add(
+                &o.name,
+                d.joint_mark_arm_check.is_some() || estimate.is_some(),
+                estimate,
+            );
         }
         let v = SummaryValues::of(ing.as_ref(), d.as_ref(), o.wall_s);
         let note = Some(run_note(d.as_ref(), nav.as_ref(), ing.as_ref()))
@@ -755,6 +800,9 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         &RecordBatch::try_new(schema, arrays)?,
     )?;
     if let Some(section) = points.markdown() {
+        md += &section;
+    }
+    if let Some(section) = marks.markdown() {
         md += &section;
     }
     write_atomic(&out.join("campaign.md"), md.as_bytes())?;

@@ -546,6 +546,17 @@ fn control_points_are_compared_with_the_vehicles_mark() {
     assert!(md.contains("the joint fit estimates it"), "{md}");
     let note = std::fs::read_to_string(out.join("campaign.md")).unwrap();
     assert!(note.contains("the vehicle's mark is not where"), "{note}");
+    // The campaign gives the mark to configure (no arm configured: the estimate itself).
+    let col = |n: &str| column(&out.join("campaign.parquet"), n)[0];
+    assert_eq!(
+        (col("joint_mark_forward_m"), col("joint_mark_right_m")),
+        (a.forward_m, a.right_m)
+    );
+    assert_eq!(col("joint_mark_forward_sigma_m"), a.sigma_forward_m);
+    assert!(
+        note.contains("## The vehicle's mark") && note.contains("1 of the 1 runs"),
+        "{note}"
+    );
 }
 
 #[test]
