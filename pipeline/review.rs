@@ -270,6 +270,7 @@ pub fn build_review(
         kryt1,
         tracks,
         vehicle_track: dj.corrected_by.clone(),
+        mark_lever_arm_m: vehicle_mark(&dj),
         route_sigma,
         control_points,
         sweep: sweep.map(read_sweep).transpose()?,
@@ -429,6 +430,22 @@ fn read_route_sigma(
         east_m,
         heading_deg,
     }))
+}
+
+/// The vehicle's mark from the navigated point, when away from it: the configured arm,
+/// moved by the joint fit's estimate when the joint's settings made the corrected
+/// navigation.
+fn vehicle_mark(dj: &DisuptOut) -> Option<[f64; 3]> {
+    let moved = dj
+        .methods
+        .get("joint")
+        .filter(|_| dj.corrected_by.as_deref() == Some("joint"))
+        .and_then(|j| j.outcome.x.mark_arm_m);
+    let [f, r, d] = dj.mark_lever_arm_m.unwrap_or_default();
+    match moved {
+        Some([df, dr]) => Some([f + df, r + dr, d]),
+        None => dj.mark_lever_arm_m,
+    }
 }
 
 #[cfg(test)]

@@ -557,6 +557,17 @@ fn control_points_are_compared_with_the_vehicles_mark() {
         note.contains("## The vehicle's mark") && note.contains("1 of the 1 runs"),
         "{note}"
     );
+    // The review draws the mark on the vehicle, where the control points are compared.
+    run_until(&run, &out, "review");
+    if let Some(py) = crate::util::python() {
+        let rrd = out.join(name).join("review").join(format!("{name}.rrd"));
+        let info = crate::util::python_json(&py, "check_rrd.py", &[&rrd]);
+        let statics = info["static"].as_array().unwrap();
+        assert!(
+            statics.iter().any(|e| e == "/world/vehicle/mark"),
+            "{statics:?}"
+        );
+    }
 }
 
 #[test]

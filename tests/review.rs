@@ -179,6 +179,9 @@ fn review_recording_reads_back_with_the_pinned_rerun() {
         assert!(statics.contains(&e), "{e}: {statics:?}");
     }
 
+    // The vehicle's mark is the navigated point: not drawn apart.
+    assert!(!statics.contains(&"/world/vehicle/mark"), "{statics:?}");
+
     // Garbage is refused by the same reader (the check is not a rubber stamp).
     let garbage = tmp.path().join("garbage.rrd");
     std::fs::write(&garbage, b"not a recording at all").unwrap();

@@ -23,6 +23,9 @@ pub const WORLD_CONTROL_POINTS: &str = "world/control_points";
 pub const WORLD_VEHICLE: &str = "world/vehicle";
 /// The vehicle's body box, child of [`WORLD_VEHICLE`].
 pub const WORLD_VEHICLE_BODY: &str = "world/vehicle/body";
+/// The vehicle's control-point mark, child of [`WORLD_VEHICLE`] (when away from the
+/// navigated point).
+pub const WORLD_VEHICLE_MARK: &str = "world/vehicle/mark";
 
 /// Pitch: gyro (navigated) and accelerometer.
 pub const PLOT_PITCH: &str = "plots/pitch";

@@ -382,6 +382,18 @@ impl Writer<'_> {
             &rerun::Boxes3D::from_centers_and_half_sizes([[0.0, 0.0, 0.8]], [[2.3, 0.9, 0.8]])
                 .with_colors([color_of(&t.label)]),
         )?;
+        if let Some([f, r, d]) = r.mark_lever_arm_m {
+            // Forward-right-down to the body's forward-left-up.
+            self.rec.log_static(
+                WORLD_VEHICLE_MARK,
+                &rerun::Points3D::new([[f as f32, -r as f32, -d as f32]])
+                    .with_colors([[31, 119, 180, 255]])
+                    .with_radii([rerun::Radius::new_ui_points(6.0)])
+                    .with_labels(["mark"]),
+            )?;
+            self.stats.rows += 1;
+            self.stats.entities += 1;
+        }
         self.rec.send_columns(
             MAP_VEHICLE,
             [times],

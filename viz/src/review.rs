@@ -25,6 +25,11 @@ pub struct Review {
     pub vehicle_track: Option<String>,
     /// Surveyed control points with the errors of each settings.
     pub control_points: Vec<ControlPointView>,
+    /// The vehicle's mark (what the control points are compared with) from the navigated
+    /// point, in the IMU's axes (x forward, y right, z down), m, when away from it: the
+    /// configured lever arm, moved by the joint fit when it estimated the mark and drives
+    /// the vehicle.
+    pub mark_lever_arm_m: Option<[f64; 3]>,
     /// Sensitivity map, when a sweep exists.
     pub sweep: Option<Sweep>,
     /// 1σ of the corrected route, when the joint fit made it.
