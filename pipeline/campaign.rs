@@ -433,6 +433,10 @@ fn run_note(
                 .map(|(name, why)| format!("{name} not used: {why}")),
         )
         .chain(inconsistent)
+        .chain(
+            nav.and_then(|n| n.unknown_marks.as_ref())
+                .map(|u| format!("marks of ids no control point has: {}", u.listed())),
+        )
         .chain(repeated.map(|r| {
             format!(
                 "control point {} marked {} times: the mark at t_s = {:.2} used ({})",

@@ -150,7 +150,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 10: the joint fit's boresight check, and its refit beyond 3σ.
         // 11: the odometer's bridged failures bridged again at each lag the joint tries.
         // 12: control points inconsistent with the rest left out of the joint fit.
-        version: 12,
+        // 13: the vehicle's mark: compared at its lever arm, checked and estimated.
+        version: 13,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[

@@ -866,3 +866,64 @@ fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
         "{text}"
     );
 }
+
+/// A mark whose point id no control point has (a key pressed wrong, or a point left out
+/// of the manifest): beside a control point that then matches nothing, the run's error
+/// names both, the id typed wrong being the likely fault; beside points that all match
+/// (here by their `t_s`), the run goes on and `navigate.json` and the campaign's note say
+/// which marks matched no point.
+#[test]
+fn marks_of_ids_no_control_point_has_are_said() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let mark_t_s = |run: &str| {
+        let log = crate::util::read_log(&camp.join(run).join(format!("{run}.unz")));
+        let (_, mark) = *log.marks.last().unwrap();
+        assert_eq!(mark.point_id, 1);
+        mark.t_us as f64 * 1e-6
+    };
+    let renumber = |run: &str, t_s: Option<f64>| {
+        let path = camp.join(run).join("run.toml");
+        let mut m: toml::Table = std::fs::read_to_string(&path).unwrap().parse().unwrap();
+        let cp = m["control_point"].as_array_mut().unwrap()[0]
+            .as_table_mut()
+            .unwrap();
+        cp.insert("id".into(), 7.into());
+        if let Some(t) = t_s {
+            cp.insert("t_s".into(), t.into());
+        }
+        std::fs::write(&path, toml::to_string(&m).unwrap()).unwrap();
+    };
+    let (t80, t81) = (mark_t_s("sim-0080"), mark_t_s("sim-0081"));
+    renumber("sim-0080", None);
+    renumber("sim-0081", Some(t81));
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "navigate");
+    assert_eq!(code, Some(1), "{text}");
+    let said = format!(
+        "control point 7 matches no mark record and has no t_s; the log has marks of ids no \
+         control point has: 1 at t_s = {t80:.2}"
+    );
+    assert!(
+        text.contains("FAILED sim-0080") && text.contains(&said),
+        "{text}"
+    );
+    let nav: NavigateSummary = read_json(&out.join("sim-0081/navigate/navigate.json"));
+    let unknown = nav.unknown_marks.unwrap();
+    assert_eq!(unknown.total, 1);
+    assert_eq!(unknown.first.len(), 1);
+    assert_eq!(unknown.first[0].0, 1);
+    assert!((unknown.first[0].1 - t81).abs() < 1e-6, "{unknown:?}");
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    let row = summary
+        .lines()
+        .find(|l| l.starts_with("| sim-0081 "))
+        .unwrap();
+    assert!(
+        row.contains("| ok |")
+            && row.contains(&format!(
+                "marks of ids no control point has: 1 at t_s = {t81:.2}"
+            )),
+        "{row}"
+    );
+}

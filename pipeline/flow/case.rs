@@ -22,7 +22,7 @@ use unz_stages::initial::{
 use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
 
 use super::ingested::load_table;
-use super::marks::{RepeatedMark, choose_marks};
+use super::marks::{RepeatedMark, UnknownMarks, choose_marks};
 use super::{Overrides, Params, RunCtx, ensure_derive};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::read_velocity_prefix;
@@ -35,6 +35,8 @@ pub struct NavCase {
     pub fixes: Vec<ControlPointFix>,
     /// Control points whose id was marked more than once, and the mark used.
     pub repeated_marks: Vec<RepeatedMark>,
+    /// Marks whose id no control point of the manifest has.
+    pub unknown_marks: Option<UnknownMarks>,
     /// Settings of the pass.
     pub settings: NavSettings,
     /// How they were found.
@@ -87,6 +89,8 @@ pub struct MatchedPoints {
     pub fixes: Vec<ControlPointFix>,
     /// Points whose id was marked more than once, and the mark used.
     pub repeated_marks: Vec<RepeatedMark>,
+    /// Marks whose id no control point of the manifest has.
+    pub unknown_marks: Option<UnknownMarks>,
 }
 
 /// Matches the manifest's control points: by their mark record (of an id marked more
@@ -110,6 +114,18 @@ pub fn match_control_points(
     let ids: Vec<u32> = m.control_points.iter().map(|cp| cp.id).collect();
     let (mark_of, repeated_marks) =
         choose_marks(marks, &ids, odometer, |t_ns| in_log(log_t_s(t_ns)))?;
+    let unknown_marks = UnknownMarks::of(marks, &ids);
+    // A point without its mark beside a mark without its point: an id keyed or typed
+    // wrong, which the error names.
+    let unknown_said = unknown_marks
+        .as_ref()
+        .map(|u| {
+            format!(
+                "; the log has marks of ids no control point has: {}",
+                u.listed()
+            )
+        })
+        .unwrap_or_default();
     let fixes = m
         .control_points
         .iter()
@@ -120,7 +136,7 @@ pub fn match_control_points(
                 .or(cp.t_s)
                 .with_context(|| {
                     format!(
-                        "control point {} matches no mark record and has no t_s",
+                        "control point {} matches no mark record and has no t_s{unknown_said}",
                         cp.id
                     )
                 })?;
@@ -143,6 +159,7 @@ pub fn match_control_points(
     Ok(MatchedPoints {
         fixes,
         repeated_marks,
+        unknown_marks,
     })
 }
 
@@ -214,6 +231,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
     let MatchedPoints {
         fixes,
         repeated_marks,
+        unknown_marks,
     } = match_control_points(
         m,
         &marks,
@@ -272,6 +290,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         derived,
         fixes,
         repeated_marks,
+        unknown_marks,
         settings,
         initial,
     })

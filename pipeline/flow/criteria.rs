@@ -120,7 +120,8 @@ pub fn ensure_criteria(
         dir: dir.clone(),
         name: "criteria",
         // 2: of a control point marked more than once, the last mark at rest.
-        version: 2,
+        // 3: control points compared at the vehicle's mark.
+        version: 3,
         params_hash: params_hash(&(params.kalman, params.derive.filter, params.vehicle))?,
         inputs,
         outputs: &[files::CRITERIA, files::CRITERIA_REPORT],

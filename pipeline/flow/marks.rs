@@ -40,6 +40,54 @@ pub struct RepeatedMark {
     pub first_t_s: f64,
 }
 
+/// Marks whose point id no control point of the manifest has: a key pressed wrong, or a
+/// point missing from the manifest (`navigate.json`'s `unknown_marks`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct UnknownMarks {
+    /// How many marks.
+    pub total: usize,
+    /// The first [`UNKNOWN_MARKS_LISTED`], in the log's order: (point id, time s in the
+    /// log's time base).
+    pub first: Vec<(u32, f64)>,
+}
+
+/// Most unknown marks listed by time (the rest are counted).
+pub const UNKNOWN_MARKS_LISTED: usize = 20;
+
+impl UnknownMarks {
+    /// The marks of `marks` whose id is not among `ids`; `None` without any.
+    pub fn of(marks: &MarksTable, ids: &[u32]) -> Option<Self> {
+        let mut out = Self {
+            total: 0,
+            first: Vec::new(),
+        };
+        for (id, t_ns) in marks.point_id.iter().zip(&marks.t_ns) {
+            if ids.contains(id) {
+                continue;
+            }
+            out.total += 1;
+            if out.first.len() < UNKNOWN_MARKS_LISTED {
+                out.first.push((*id, *t_ns as f64 * 1e-9));
+            }
+        }
+        (out.total > 0).then_some(out)
+    }
+
+    /// "4 at t_s = 1234.50, 7 at t_s = …" (and how many more).
+    pub fn listed(&self) -> String {
+        let mut s = self
+            .first
+            .iter()
+            .map(|(id, t)| format!("{id} at t_s = {t:.2}"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        if self.total > self.first.len() {
+            s += &format!(" and {} more", self.total - self.first.len());
+        }
+        s
+    }
+}
+
 /// The mark that stands for each of `ids` (an index into `marks`), and the repeated ones.
 ///
 /// An id marked once is that mark. An id marked several times is the last of its marks

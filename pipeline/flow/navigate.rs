@@ -8,7 +8,7 @@ use unz_formats::atomic::write_json_atomic;
 use unz_stages::criteria::{self, Kryt2};
 use unz_stages::initial::InitialReport;
 
-use super::marks::RepeatedMark;
+use super::marks::{RepeatedMark, UnknownMarks};
 use super::{Overrides, Params, RunCtx, ensure_derive, load_case};
 use crate::artifacts::{StageName, files};
 use crate::nav_writer::NavWriter;
@@ -36,6 +36,10 @@ pub struct NavigateSummary {
     /// when none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub repeated_marks: Vec<RepeatedMark>,
+    /// Marks whose id no control point of the manifest has: a key pressed wrong, or a
+    /// point missing from the manifest (absent when none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unknown_marks: Option<UnknownMarks>,
     /// Time tags derive repaired (not after the previous one).
     pub repaired_times: usize,
     /// Samples that closed a gap in the log and were scaled to it.
@@ -74,7 +78,9 @@ pub fn ensure_navigate(
         // 4: control points the log cannot reach fail the stage (case::check_reach).
         // 5: of a control point marked more than once, the last mark at rest.
         // 6: a start levelled in motion is fitted over the log's first minute.
-        version: 6,
+        // 7: control points compared at the vehicle's mark; marks of ids no control point
+        //    has are said.
+        version: 7,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],
@@ -101,6 +107,7 @@ pub fn ensure_navigate(
             control_points: criteria::kryt2_at(&case.fixes, |k| nav.at(k).map(|s| s.pose)),
             mark_lever_arm_m: params.vehicle.mark_arm(),
             repeated_marks: case.repeated_marks.clone(),
+            unknown_marks: case.unknown_marks.clone(),
             repaired_times: case.derived.repaired_times,
             filled_gaps: case.derived.filled_gaps,
             imu_failure_samples: case.derived.imu_failure_samples,
