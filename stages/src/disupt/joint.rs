@@ -517,22 +517,59 @@ impl JointFit {
         {
             return Ok(None);
         }
+        let Some(s) = self.solved_with(problem, &[Setting::OdoYaw], tally)? else {
+            return Ok(None);
+        };
+        Ok(Some(OdoYawSeen {
+            odo_yaw_deg: s.value(0),
+            sigma_deg: s.covariance[(s.k, s.k)].max(0.0).sqrt(),
+        }))
+    }
+
+    /// The fit's model at its last linearisation with `extra` settings free too (their
+    /// slopes added to it, the passes counted in `tally`), solved once, with the
+    /// covariance of that model (the fit's weights and inflation).
+    fn solved_with(
+        &self,
+        problem: &Problem<'_>,
+        extra: &[Setting],
+        tally: &AtomicUsize,
+    ) -> Result<Option<SolvedWith>, DisuptError> {
         let mut free = self.free.clone();
-        free.push(Setting::OdoYaw);
+        free.extend_from_slice(extra);
         let lin = problem.completed(&self.lin, &free, tally);
         let model = JointModel::new(problem, &lin, &free, &self.weights, None);
         let delta = model.solve()?;
         let r = &model.r0 + &model.a * &delta;
         let dof = (r.len() as f64 - free.len() as f64).max(1.0);
         let n_att = attitude_rows(problem);
-        let Some(c) = covariance_of(&model, n_att, self.inflation, ssr(r.as_slice()) / dof) else {
-            return Ok(None);
-        };
-        let k = free.len() - 1;
-        Ok(Some(OdoYawSeen {
-            odo_yaw_deg: lin.p_ref[Setting::OdoYaw.index()] + delta[k],
-            sigma_deg: c[(k, k)].max(0.0).sqrt(),
+        let covariance = covariance_of(&model, n_att, self.inflation, ssr(r.as_slice()) / dof);
+        Ok(covariance.map(|covariance| SolvedWith {
+            k: self.free.len(),
+            at: extra.iter().map(|s| lin.p_ref[s.index()]).collect(),
+            delta,
+            covariance,
         }))
+    }
+}
+
+/// [`JointFit::solved_with`]'s solution: the extra settings are its last columns, from
+/// `k` on.
+struct SolvedWith {
+    /// The first extra setting's column.
+    k: usize,
+    /// The extra settings' values at the linearisation's point.
+    at: Vec<f64>,
+    /// The step from that point, every free setting.
+    delta: DVector<f64>,
+    /// Its covariance.
+    covariance: DMatrix<f64>,
+}
+
+impl SolvedWith {
+    /// The `i`-th extra setting's solved value.
+    fn value(&self, i: usize) -> f64 {
+        self.at[i] + self.delta[self.k + i]
     }
 }
 
@@ -557,35 +594,16 @@ impl JointFit {
         {
             return Ok(None);
         }
-        let mut model = JointModel::new(problem, &self.lin, &self.free, &self.weights, None);
-        let k = model.a.ncols();
-        let mut a =
-            std::mem::replace(&mut model.a, DMatrix::zeros(0, 0)).resize_horizontally(k + 2, 0.0);
-        for axis in 0..2 {
-            let mut y1 = y.clone();
-            for (c, m) in y1.cp_m.iter_mut().zip(&y.cp_arm_ne) {
-                c[0] += m[0][axis];
-                c[1] += m[1][axis];
-            }
-            let r1 = joint_residuals(problem, &y1, &self.lin.p_ref, &self.weights, None);
-            for (i, (b, c)) in r1.iter().zip(model.r0.iter()).enumerate() {
-                a[(i, k + axis)] = b - c;
-            }
-        }
-        model.a = a;
-        let delta = model.solve()?;
-        let r = &model.r0 + &model.a * &delta;
-        let dof = (r.len() as f64 - (k + 2) as f64).max(1.0);
-        let n_att = attitude_rows(problem);
-        let Some(c) = covariance_of(&model, n_att, self.inflation, ssr(r.as_slice()) / dof) else {
+        // The mark's slopes take no pass.
+        let no_pass = AtomicUsize::new(0);
+        let extra = [Setting::MarkForward, Setting::MarkRight];
+        let Some(s) = self.solved_with(problem, &extra, &no_pass)? else {
             return Ok(None);
         };
+        let c = |a: usize, b: usize| s.covariance[(s.k + a, s.k + b)];
         Ok(MarkArmSeen::of(
-            [delta[k], delta[k + 1]],
-            [
-                [c[(k, k)], c[(k, k + 1)]],
-                [c[(k + 1, k)], c[(k + 1, k + 1)]],
-            ],
+            [s.value(0), s.value(1)],
+            [[c(0, 0), c(0, 1)], [c(1, 0), c(1, 1)]],
         ))
     }
 
