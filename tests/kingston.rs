@@ -609,3 +609,55 @@ fn kingston_a_gap_in_the_odometer_file_is_bridged() {
         .unwrap();
     assert_eq!(blocks, 400, "{blocks} blocks bridged");
 }
+
+/// Kingston's control points are the reference's positions at its stops, and the
+/// reference is not the navigated point (the odometer's, an axle's middle). Compared at a
+/// mark 1.5 m ahead of the navigated point (`[vehicle] mark_lever_arm_m`, the best of a
+/// 0.5-m sweep of forward and right offsets), the joint's hold-outs fall from 1.33 and
+/// 3.02 m to 0.07 and 0.06 m; behind it they grow (at 0.7 m behind: 4.34 m). The heading
+/// does not move (the arm turns with the vehicle): on the only real data here, that is
+/// the arm's sign and its axes. Two points are too few for the joint fit to check or
+/// estimate the mark, so it is a sweep, not an estimate with a σ.
+#[test]
+fn kingston_control_points_fit_a_reference_point_ahead_of_the_axle() {
+    use unz::disupt_stage::DisuptOut;
+
+    let r = reference();
+    let tmp = tempfile::tempdir().unwrap();
+    let run_with = |forward_m: f64| {
+        let tag = format!("{forward_m}");
+        let run = tmp.path().join(format!("k{tag}"));
+        std::fs::create_dir_all(&run).unwrap();
+        for f in ["imu.txt", "odometer.txt", "run.toml"] {
+            std::fs::copy(test_data("kingston2008-seg1").join(f), run.join(f)).unwrap();
+        }
+        let mut manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+        manifest += &format!("\n[params.vehicle]\nmark_lever_arm_m = [{forward_m}, 0.0, 0.0]\n");
+        std::fs::write(run.join("run.toml"), manifest).unwrap();
+        let out = tmp.path().join(format!("o{tag}"));
+        crate::util::run_until(&run, &out, "disupt");
+        let dir = out.join("kingston2008-segment1/disupt");
+        let d: DisuptOut = read_json(&dir.join("disupt.json"));
+        let j = &d.methods["joint"];
+        let holdout_max = j
+            .holdout
+            .as_ref()
+            .unwrap()
+            .iter()
+            .map(|h| h.dx_m.hypot(h.dy_m))
+            .fold(0.0, f64::max);
+        let heading = corrected_heading_error_deg(&dir, &r);
+        eprintln!(
+            "Kingston, mark {forward_m} m ahead: hold-out ≤ {holdout_max:.2} m, control points ≤ {:.2} m, heading {heading:.3}°",
+            worst_control_point_m(j)
+        );
+        assert!(d.joint_mark_arm_check.is_none(), "two points: not checked");
+        (holdout_max, heading)
+    };
+    let (behind, at, ahead) = (run_with(-1.5), run_with(0.0), run_with(1.5));
+    assert!(
+        ahead.0 < 0.5 && at.0 > 2.0 && behind.0 > at.0,
+        "{behind:?} {at:?} {ahead:?}"
+    );
+    assert!((ahead.1 - at.1).abs() < 0.02, "{ahead:?} {at:?}");
+}
