@@ -457,12 +457,11 @@ fn run_note(
 /// The vehicle's mark from the navigated point (the configured arm and the joint fit's
 /// move of it), when the joint fit estimated it.
 fn mark_estimate(d: &DisuptOut) -> Option<MarkEstimate> {
-    let x = &d.methods.get("joint")?.outcome.x;
-    let (a, s) = (x.mark_arm_m?, x.sigma.as_ref()?.mark_arm_m?);
-    let [f, r, z] = d.mark_lever_arm_m.unwrap_or_default();
+    let ([f, r, z], s) = d.joint_mark()?;
+    let s = s?;
     Some(MarkEstimate {
-        forward_m: (f + a[0], s[0]),
-        right_m: (r + a[1], s[1]),
+        forward_m: (f, s[0]),
+        right_m: (r, s[1]),
         down_m: z,
     })
 }

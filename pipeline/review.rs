@@ -436,16 +436,10 @@ fn read_route_sigma(
 /// moved by the joint fit's estimate when the joint's settings made the corrected
 /// navigation.
 fn vehicle_mark(dj: &DisuptOut) -> Option<[f64; 3]> {
-    let moved = dj
-        .methods
-        .get("joint")
+    dj.joint_mark()
         .filter(|_| dj.corrected_by.as_deref() == Some("joint"))
-        .and_then(|j| j.outcome.x.mark_arm_m);
-    let [f, r, d] = dj.mark_lever_arm_m.unwrap_or_default();
-    match moved {
-        Some([df, dr]) => Some([f + df, r + dr, d]),
-        None => dj.mark_lever_arm_m,
-    }
+        .map(|(arm, _)| arm)
+        .or(dj.mark_lever_arm_m)
 }
 
 #[cfg(test)]

@@ -47,6 +47,16 @@ fn run(camp: &Path, out: &Path, until: &str) -> (Option<i32>, String) {
     )
 }
 
+/// The row of run `name` in the runs' table of `out/campaign.md`.
+fn campaign_row(out: &Path, name: &str) -> String {
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    summary
+        .lines()
+        .find(|l| l.starts_with(&format!("| {name} ")))
+        .unwrap_or_else(|| panic!("no row of {name}: {summary}"))
+        .to_owned()
+}
+
 fn patch_f64(path: &Path, offset: usize, v: f64) {
     let mut b = std::fs::read(path).unwrap();
     b[offset..offset + 8].copy_from_slice(&v.to_le_bytes());
@@ -465,11 +475,7 @@ fn control_points_the_log_cannot_reach_are_refused() {
     let start_deg = d.coarse_azimuth_deg.unwrap_or(d.before.x.azimuth_deg);
     let moved_deg = (oepi.azimuth_deg - start_deg + 180.0).rem_euclid(360.0) - 180.0;
     assert!(moved_deg.abs() <= 15.0 + 1e-9, "{moved_deg}");
-    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
-    let row = summary
-        .lines()
-        .find(|l| l.starts_with("| sim-0080 "))
-        .unwrap();
+    let row = campaign_row(&out, "sim-0080");
     assert!(
         row.contains("| ok |") && row.contains("joint not run: the fit left its bounds"),
         "{row}"
@@ -914,11 +920,7 @@ fn marks_of_ids_no_control_point_has_are_said() {
     assert_eq!(unknown.first.len(), 1);
     assert_eq!(unknown.first[0].0, 1);
     assert!((unknown.first[0].1 - t81).abs() < 1e-6, "{unknown:?}");
-    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
-    let row = summary
-        .lines()
-        .find(|l| l.starts_with("| sim-0081 "))
-        .unwrap();
+    let row = campaign_row(&out, "sim-0081");
     assert!(
         row.contains("| ok |")
             && row.contains(&format!(

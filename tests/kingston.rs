@@ -342,6 +342,17 @@ fn kingston_cut_to_begin_while_driving() {
 /// `unz run`: the OBD-II speed's lag and bias (the README's Kingston table). The figures
 /// are the route's heading against the settled reference, the errors at the control
 /// points, and each control point's error when it was left out of the fit.
+/// The shipped Kingston run copied into `run` (created), `extra` added to its manifest.
+fn kingston_with(run: &std::path::Path, extra: &str) -> std::path::PathBuf {
+    std::fs::create_dir_all(run).unwrap();
+    for f in ["imu.txt", "odometer.txt", "run.toml"] {
+        std::fs::copy(test_data("kingston2008-seg1").join(f), run.join(f)).unwrap();
+    }
+    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap() + "\n" + extra;
+    std::fs::write(run.join("run.toml"), manifest).unwrap();
+    run.to_path_buf()
+}
+
 #[test]
 fn kingston_odometer_terms_through_the_binary() {
     use unz::disupt_stage::DisuptOut;
@@ -350,14 +361,10 @@ fn kingston_odometer_terms_through_the_binary() {
     let tmp = tempfile::tempdir().unwrap();
     let mut rows = Vec::new();
     for (lag, bias) in [(false, false), (true, false), (false, true), (true, true)] {
-        let run = tmp.path().join(format!("k-{lag}-{bias}"));
-        std::fs::create_dir_all(&run).unwrap();
-        for f in ["imu.txt", "odometer.txt", "run.toml"] {
-            std::fs::copy(test_data("kingston2008-seg1").join(f), run.join(f)).unwrap();
-        }
-        let mut manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
-        manifest += &format!("\n[params.disupt]\njoint_odo_lag = {lag}\njoint_odo_bias = {bias}\n");
-        std::fs::write(run.join("run.toml"), manifest).unwrap();
+        let run = kingston_with(
+            &tmp.path().join(format!("k-{lag}-{bias}")),
+            &format!("[params.disupt]\njoint_odo_lag = {lag}\njoint_odo_bias = {bias}\n"),
+        );
         let out = tmp.path().join(format!("o-{lag}-{bias}"));
         crate::util::run_until(&run, &out, "disupt");
         let dir = out.join("kingston2008-segment1/disupt");
@@ -626,14 +633,10 @@ fn kingston_control_points_fit_a_reference_point_ahead_of_the_axle() {
     let tmp = tempfile::tempdir().unwrap();
     let run_with = |forward_m: f64| {
         let tag = format!("{forward_m}");
-        let run = tmp.path().join(format!("k{tag}"));
-        std::fs::create_dir_all(&run).unwrap();
-        for f in ["imu.txt", "odometer.txt", "run.toml"] {
-            std::fs::copy(test_data("kingston2008-seg1").join(f), run.join(f)).unwrap();
-        }
-        let mut manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
-        manifest += &format!("\n[params.vehicle]\nmark_lever_arm_m = [{forward_m}, 0.0, 0.0]\n");
-        std::fs::write(run.join("run.toml"), manifest).unwrap();
+        let run = kingston_with(
+            &tmp.path().join(format!("k{tag}")),
+            &format!("[params.vehicle]\nmark_lever_arm_m = [{forward_m}, 0.0, 0.0]\n"),
+        );
         let out = tmp.path().join(format!("o{tag}"));
         crate::util::run_until(&run, &out, "disupt");
         let dir = out.join("kingston2008-segment1/disupt");

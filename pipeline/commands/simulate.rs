@@ -45,11 +45,16 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
     }
     let mut mark_lever_arm_m = [0.0; 3];
     if let Some(arm) = &args.mark_lever_arm_m {
-        let max = crate::flow::case::MARK_LEVER_ARM_MAX_M;
-        if arm.len() != 3 || arm.iter().any(|v| v.is_nan() || v.abs() > max) {
-            bail!("--mark-lever-arm-m {arm:?} must be three numbers x,y,z within ±{max} m");
-        }
-        mark_lever_arm_m.copy_from_slice(arm);
+        let Ok(a) = <[f64; 3]>::try_from(arm.as_slice()) else {
+            bail!("--mark-lever-arm-m {arm:?} must be three numbers x,y,z");
+        };
+        mark_lever_arm_m = a;
+        // The range the manifest's `[params.vehicle]` is held to.
+        crate::config::validate(&crate::flow::Params {
+            vehicle: crate::flow::VehicleParams { mark_lever_arm_m },
+            ..Default::default()
+        })
+        .map_err(|e| anyhow::anyhow!("--mark-lever-arm-m: {e}"))?;
     }
     Ok((0..args.runs)
         .map(|i| {

@@ -87,15 +87,7 @@ pub(super) fn exclude_inconsistent(
         let mut next = out.found.excluded.clone();
         next.push(i);
         next.sort_unstable();
-        let without = ProblemSpec {
-            excluded_cps: &next,
-            ..*x.spec
-        };
-        match run_joint(JointInputs {
-            problem: &x.problem.excluding(&next),
-            spec: &without,
-            ..x
-        }) {
+        match run_joint_without(x, &next) {
             Ok(mut refit) => {
                 // The method's passes: every fit's.
                 add_passes(&mut refit, out.run.fit.result.evaluations);
@@ -113,6 +105,20 @@ pub(super) fn exclude_inconsistent(
         }
     }
     Ok(out)
+}
+
+/// The whole joint fit ([`run_joint`]) redone with the control points `excluded`
+/// (indices into the case's fixes) left out.
+fn run_joint_without(x: JointInputs<'_>, excluded: &[usize]) -> Result<JointRun, DisuptError> {
+    let without = ProblemSpec {
+        excluded_cps: excluded,
+        ..*x.spec
+    };
+    run_joint(JointInputs {
+        problem: &x.problem.excluding(excluded),
+        spec: &without,
+        ..x
+    })
 }
 
 /// The joint fit that `refused` for leaving its bounds, redone without the one control
@@ -162,15 +168,7 @@ pub(super) fn without_the_point_out_of_bounds(
         return Err(no_single(refused));
     };
     let excluded = vec![i];
-    let without = ProblemSpec {
-        excluded_cps: &excluded,
-        ..*x.spec
-    };
-    match run_joint(JointInputs {
-        problem: &x.problem.excluding(&excluded),
-        spec: &without,
-        ..x
-    }) {
+    match run_joint_without(x, &excluded) {
         Ok(mut run) => {
             // The method's passes: the search's too.
             add_passes(&mut run, tried.iter().map(|t| t.2).sum());

@@ -189,15 +189,7 @@ pub(super) fn run_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptEr
     if run.params.joint_mark_arm == Some(true) {
         return Ok(run);
     }
-    let on_lag;
-    let fitted_on = match &run.derived {
-        Some(d) => {
-            on_lag = x.spec.on(d);
-            &on_lag
-        }
-        None => x.problem,
-    };
-    let Ok(Some(seen)) = run.fit.mark_arm_seen(fitted_on) else {
+    let Ok(Some(seen)) = on_fitted_problem(&run, &x, |p| run.fit.mark_arm_seen(p)) else {
         return Ok(run);
     };
     let mut check = MarkArmCheck {
@@ -241,26 +233,13 @@ pub(super) fn run_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptEr
 /// boresight whole, with a σ that does not include it (measured: a 1.5° boresight, the
 /// joint azimuth 0.72–1.60° off at σ 0.02–0.18°; refit, 0.03–0.22° off at σ 0.21–0.23°).
 fn run_joint_yaw_checked(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptError> {
-    let JointInputs {
-        problem,
-        spec,
-        dparams,
-        ..
-    } = x;
+    let dparams = x.dparams;
     let mut run = fit_joint(x)?;
     if dparams.joint_odo_yaw {
         return Ok(run);
     }
-    let at_lag;
-    let fitted_on = match &run.derived {
-        Some(d) => {
-            at_lag = spec.on(d);
-            &at_lag
-        }
-        None => problem,
-    };
     let tally = std::sync::atomic::AtomicUsize::new(0);
-    let Ok(Some(seen)) = run.fit.odo_yaw_seen(fitted_on, &tally) else {
+    let Ok(Some(seen)) = on_fitted_problem(&run, &x, |p| run.fit.odo_yaw_seen(p, &tally)) else {
         return Ok(run);
     };
     let mut check = OdoYawCheck {
@@ -286,6 +265,19 @@ fn run_joint_yaw_checked(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptE
     }
     run.odo_yaw = Some(check);
     Ok(run)
+}
+
+/// `f` of the problem `run`'s fit was fitted on: the stage's, or the one on the derive at
+/// the estimated odometer lag.
+fn on_fitted_problem<T>(
+    run: &JointRun,
+    x: &JointInputs<'_>,
+    f: impl FnOnce(&Problem<'_>) -> T,
+) -> T {
+    match &run.derived {
+        Some(d) => f(&x.spec.on(d)),
+        None => f(x.problem),
+    }
 }
 
 /// The joint fit, at the estimated odometer lag when there are two control points or more

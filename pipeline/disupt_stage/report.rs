@@ -183,6 +183,20 @@ pub struct MarkArmCheck {
     pub refit_error: Option<String>,
 }
 
+impl DisuptOut {
+    /// The vehicle's mark from the navigated point as the joint fit estimated it (the
+    /// configured arm and the fit's move of it, IMU axes, m), with the 1σ of its forward
+    /// and right components when the fit has a covariance; `None` when the joint fit held
+    /// the mark.
+    pub fn joint_mark(&self) -> Option<([f64; 3], Option<[f64; 2]>)> {
+        let x = &self.methods.get("joint")?.outcome.x;
+        let moved = x.mark_arm_m?;
+        let sigma = x.sigma.as_ref().and_then(|s| s.mark_arm_m);
+        let [f, r, d] = self.mark_lever_arm_m.unwrap_or_default();
+        Some(([f + moved[0], r + moved[1], d], sigma))
+    }
+}
+
 /// How far from no arm, in σ of its covariance, the arm the control points show must be
 /// for the joint fit to be redone with the mark free: the two-dimensional 95 % (χ² with
 /// two degrees of freedom). The check holds the fit's lag, which takes part of an arm

@@ -323,7 +323,8 @@ impl<'a> Problem<'a> {
     }
 
     /// The linearisation around `x` (whose exact observation is `y`) in the settings
-    /// `which`: one forward-difference pass per setting, counted in `tally`.
+    /// `which`: one forward-difference pass per setting, counted in `tally`, but the
+    /// mark's, whose slopes are `y`'s attitude at the stops.
     pub fn linearize_by(
         &self,
         x: &X,
@@ -372,15 +373,7 @@ impl<'a> Problem<'a> {
             .copied()
             .filter(|s| lin.slopes[s.index()].is_none())
             .collect();
-        let by_pass: Vec<Setting> = missing
-            .iter()
-            .copied()
-            .filter(|s| !s.is_mark_arm())
-            .collect();
-        let x = x_of(&lin.p_ref);
-        let ys = self.observe_many_by(&moved_by_steps(&x, &by_pass), tally);
-        let mut out = linearization_of(&x, lin.y_ref.clone(), &by_pass, ys);
-        out.add_mark_arm_slopes(&missing);
+        let mut out = self.linearize_by(&x_of(&lin.p_ref), lin.y_ref.clone(), &missing, tally);
         for (j, slope) in lin.slopes.iter().enumerate() {
             if slope.is_some() {
                 out.slopes[j].clone_from(slope);
