@@ -111,6 +111,7 @@ mod tests {
     fn held(id: u32, error_m: f64, excluded: bool) -> Holdout {
         Holdout {
             id,
+            t_s: 0.0,
             dx_m: error_m,
             dy_m: 0.0,
             sigma_north_m: None,

@@ -105,6 +105,11 @@ pub struct SimulateArgs {
     /// `x,y,z`). The manifest then gives it in `[params.vehicle] mark_lever_arm_m`.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub mark_lever_arm_m: Option<Vec<f64>>,
+    /// Drive each route out and back: every control point but the far one is visited and
+    /// marked twice, at the same place, and the run ends at its start, on a point of its
+    /// own. Not with a mark lever arm.
+    #[arg(long)]
+    pub out_and_back: bool,
 }
 
 /// Arguments shared by the stage commands.

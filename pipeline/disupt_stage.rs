@@ -151,7 +151,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 11: the odometer's bridged failures bridged again at each lag the joint tries.
         // 12: control points inconsistent with the rest left out of the joint fit.
         // 13: the vehicle's mark: compared at its lever arm, checked and estimated.
-        version: 13,
+        // 14: a point the route comes back to: each visit, held out and left out together;
+        //     the hold-outs carry their stop's time.
+        version: 14,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[

@@ -93,7 +93,8 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
         dir: dir.clone(),
         name: "review",
         // 4: the odometer's failures on the speed's plot.
-        version: 4,
+        // 5: a point the route comes back to has an error per visit.
+        version: 5,
         params_hash: params_hash(&(
             unz_viz::recording::SERIES_RATE_HZ,
             unz_viz::recording::POSE_RATE_HZ,
@@ -201,9 +202,15 @@ pub fn build_review(
             let (lat, lon) = (cp.position.latitude_deg, cp.position.longitude_deg);
             let (north_m, east_m) = start.offset_m(lat.to_radians(), lon.to_radians());
             let mut errors = Vec::new();
+            // A point the route came back to has an error per visit, named by its time.
             let mut push = |label: &str, cps: &[Kryt2]| {
-                if let Some(e) = cps.iter().find(|e| e.id == cp.id) {
-                    errors.push((label.to_owned(), e.dx_m, e.dy_m));
+                let visits: Vec<&Kryt2> = cps.iter().filter(|e| e.id == cp.id).collect();
+                for e in &visits {
+                    let label = match visits.len() {
+                        1 => label.to_owned(),
+                        _ => format!("{label} at t_s = {:.1}", e.t_s),
+                    };
+                    errors.push((label, e.dx_m, e.dy_m));
                 }
             };
             push("initial", &dj.before.control_points);

@@ -35,6 +35,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         cp_at_every_stop: true,
         log_start_s: None,
         mark_lever_arm_m: None,
+        out_and_back: false,
     };
     let dirs: Vec<PathBuf> = super::simulate::configs(&sim)?
         .par_iter()

@@ -43,6 +43,12 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             args.duration_s
         );
     }
+    if args.out_and_back && args.mark_lever_arm_m.is_some() {
+        bail!(
+            "--out-and-back stops the navigated point over each point both ways: it takes no \
+             --mark-lever-arm-m"
+        );
+    }
     let mut mark_lever_arm_m = [0.0; 3];
     if let Some(arm) = &args.mark_lever_arm_m {
         let Ok(a) = <[f64; 3]>::try_from(arm.as_slice()) else {
@@ -68,6 +74,7 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             c.cp_at_every_stop = args.cp_at_every_stop;
             c.log_start_s = args.log_start_s;
             c.mark_lever_arm_m = mark_lever_arm_m;
+            c.out_and_back = args.out_and_back;
             c.errors = SensorErrors {
                 noise: !args.no_noise,
                 gyro_drift: !args.no_gyro_drift,

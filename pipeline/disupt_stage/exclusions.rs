@@ -1,7 +1,10 @@
 //! Control points inconsistent with the rest of the run, left out of the joint fit one at
-//! a time.
+//! a time (a point the route came back to, at every visit).
+
+use std::collections::BTreeSet;
 
 use rayon::prelude::*;
+use unz_stages::criteria::ControlPointFix;
 use unz_stages::disupt::{
     self, DisuptError, HOLDOUT_MIN_POINTS, Holdout, JointOptions, ProblemSpec,
 };
@@ -64,7 +67,8 @@ pub(super) fn exclude_inconsistent(
     if !x.dparams.joint_exclude_inconsistent {
         return Ok(out);
     }
-    while out.found.excluded.len() < most_excluded(x.case.fixes.len()) {
+    let points = points_of(&x.case.fixes);
+    while points_among(&x.case.fixes, &out.found.excluded) < most_excluded(points.len()) {
         let now = ProblemSpec {
             excluded_cps: &out.found.excluded,
             ..*x.spec
@@ -84,8 +88,9 @@ pub(super) fn exclude_inconsistent(
             out.found.holdout = Some(h);
             break;
         };
+        // The point at every visit: its coordinates are what is off.
         let mut next = out.found.excluded.clone();
-        next.push(i);
+        next.extend(visits_of(&x.case.fixes, i));
         next.sort_unstable();
         match run_joint_without(x, &next) {
             Ok(mut refit) => {
@@ -134,16 +139,16 @@ pub(super) fn without_the_point_out_of_bounds(
     x: JointInputs<'_>,
     refused: DisuptError,
 ) -> Result<Excluding, DisuptError> {
-    let n = x.case.fixes.len();
-    if !x.dparams.joint_exclude_inconsistent || most_excluded(n) == 0 {
+    let points = points_of(&x.case.fixes);
+    if !x.dparams.joint_exclude_inconsistent || most_excluded(points.len()) == 0 {
         return Err(refused);
     }
     let start = x.problem.x0();
-    // (point, the fit's control-point cost when within its bounds, its passes)
-    let tried: Vec<(usize, Option<f64>, usize)> = (0..n)
+    // (point's first fix, the fit's control-point cost when within its bounds, its passes)
+    let tried: Vec<(usize, Option<f64>, usize)> = points
         .into_par_iter()
         .map(|i| {
-            let without = [i];
+            let without = visits_of(&x.case.fixes, i);
             let p = x.problem.excluding(&without);
             match disupt::joint_fit(&p, x.dparams, &JointOptions::default()) {
                 Ok(fit) => {
@@ -167,7 +172,7 @@ pub(super) fn without_the_point_out_of_bounds(
     let Some((i, _)) = best else {
         return Err(no_single(refused));
     };
-    let excluded = vec![i];
+    let excluded = visits_of(&x.case.fixes, i);
     match run_joint_without(x, &excluded) {
         Ok(mut run) => {
             // The method's passes: the search's too.
@@ -183,6 +188,31 @@ pub(super) fn without_the_point_out_of_bounds(
         }
         Err(_) => Err(no_single(refused)),
     }
+}
+
+/// Each distinct point's first fix (indices into `fixes`): a point the route came back
+/// to has a fix per visit.
+fn points_of(fixes: &[ControlPointFix]) -> Vec<usize> {
+    let mut seen = BTreeSet::new();
+    (0..fixes.len())
+        .filter(|&i| seen.insert(fixes[i].id))
+        .collect()
+}
+
+/// How many distinct points the fixes `among` (indices into `fixes`) are.
+fn points_among(fixes: &[ControlPointFix], among: &[usize]) -> usize {
+    among
+        .iter()
+        .map(|&i| fixes[i].id)
+        .collect::<BTreeSet<u32>>()
+        .len()
+}
+
+/// Every visit of fix `i`'s point (indices into `fixes`, ascending).
+fn visits_of(fixes: &[ControlPointFix], i: usize) -> Vec<usize> {
+    (0..fixes.len())
+        .filter(|&j| fixes[j].id == fixes[i].id)
+        .collect()
 }
 
 /// Counts `passes` of fits before it in `run`'s (and its one step's).

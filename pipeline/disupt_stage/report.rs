@@ -463,7 +463,7 @@ fn table(name: &str, r: &MethodOut, bounds: &disupt::DisuptParams) -> String {
             let _ = writeln!(
                 s,
                 "| {} | {:.2} | {:.2} | {} | {} | {}{} |",
-                p.id,
+                p.label(h),
                 p.dx_m,
                 p.dy_m,
                 or_dash(p.sigma_north_m, 2),

@@ -1,6 +1,7 @@
 //! A navigation case: the derive, the control points matched to its samples, and the
 //! initial settings of the pass (overrides, the manifest, else the alignment).
 
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -19,7 +20,7 @@ use unz_stages::initial::{
     InMotionLevelReport, InitialReport, InitialRequest, Source, initial_settings_with_velocity,
     static_samples,
 };
-use unz_stages::strapdown::{NavInputs, NavSettings, NavTrack, navigate};
+use unz_stages::strapdown::{self, NavInputs, NavSettings, NavTrack, PassSink, navigate};
 
 use super::ingested::load_table;
 use super::marks::{RepeatedMark, UnknownMarks, choose_marks};
@@ -85,7 +86,8 @@ pub const MARK_LEVER_ARM_MAX_M: f64 = 30.0;
 /// The manifest's control points matched to the log.
 #[derive(Debug, Clone, Default)]
 pub struct MatchedPoints {
-    /// Control points matched to samples, in the manifest's order.
+    /// Control points matched to samples, in the manifest's order; a point visited more
+    /// than once has a fix per visit, in time order.
     pub fixes: Vec<ControlPointFix>,
     /// Points whose id was marked more than once, and the mark used.
     pub repeated_marks: Vec<RepeatedMark>,
@@ -93,15 +95,19 @@ pub struct MatchedPoints {
     pub unknown_marks: Option<UnknownMarks>,
 }
 
-/// Matches the manifest's control points: by their mark record (of an id marked more
-/// than once, the last made at rest: [`choose_marks`], reading the ingested
-/// `odometer`), else by `t_s`. Each point is compared with the `vehicle`'s mark.
+/// Matches the manifest's control points: by their mark records ([`choose_marks`],
+/// reading the ingested `odometer`: of an id marked more than once, the last made at
+/// rest, and the earlier stops that `navigated` puts at the same place, each a visit),
+/// else by `t_s`. Each point is compared with the `vehicle`'s mark. `navigated` gives the
+/// navigated north and east (m, from any origin) at samples; it is called only when
+/// some id was marked at rest at more than one stop.
 pub fn match_control_points(
     m: &RunManifest,
     marks: &MarksTable,
     d: &Derived,
     odometer: &Path,
     vehicle: &VehicleParams,
+    navigated: impl FnOnce(&[usize]) -> anyhow::Result<Vec<[f64; 2]>>,
 ) -> anyhow::Result<MatchedPoints> {
     let log_t_s = |t_ns: i64| t_ns as f64 * 1e-9;
     let Some(last) = d.t_s.last() else {
@@ -111,9 +117,23 @@ pub fn match_control_points(
         let rel = t_s - log_t_s(d.t0_ns);
         (0.0..=last + d.nominal_dt_s).contains(&rel)
     };
+    let sample_at = |t_s: f64| {
+        let rel = t_s - log_t_s(d.t0_ns);
+        d.t_s.partition_point(|t| t < rel).min(d.t_s.len() - 1)
+    };
     let ids: Vec<u32> = m.control_points.iter().map(|cp| cp.id).collect();
-    let (mark_of, repeated_marks) =
-        choose_marks(marks, &ids, odometer, |t_ns| in_log(log_t_s(t_ns)))?;
+    let chosen = choose_marks(marks, &ids, odometer, |t_ns| in_log(log_t_s(t_ns)))?;
+    let to_place = chosen.to_place();
+    let places: BTreeMap<usize, [f64; 2]> = if to_place.is_empty() {
+        BTreeMap::new()
+    } else {
+        let samples: Vec<usize> = to_place
+            .iter()
+            .map(|&i| sample_at(log_t_s(marks.t_ns[i])))
+            .collect();
+        to_place.into_iter().zip(navigated(&samples)?).collect()
+    };
+    let (marks_of, repeated_marks) = chosen.settle(marks, |i| places.get(&i).copied());
     let unknown_marks = UnknownMarks::of(marks, &ids);
     // A point without its mark beside a mark without its point: an id keyed or typed
     // wrong, which the error names.
@@ -126,36 +146,32 @@ pub fn match_control_points(
             )
         })
         .unwrap_or_default();
-    let fixes = m
-        .control_points
-        .iter()
-        .map(|cp| {
-            let t_s = mark_of
-                .get(&cp.id)
-                .map(|&i| log_t_s(marks.t_ns[i]))
-                .or(cp.t_s)
-                .with_context(|| {
-                    format!(
-                        "control point {} matches no mark record and has no t_s{unknown_said}",
-                        cp.id
-                    )
-                })?;
+    let mut fixes = Vec::with_capacity(m.control_points.len());
+    for cp in &m.control_points {
+        let times: Vec<f64> = match marks_of.get(&cp.id) {
+            Some(visits) => visits.iter().map(|&i| log_t_s(marks.t_ns[i])).collect(),
+            None => vec![cp.t_s.with_context(|| {
+                format!(
+                    "control point {} matches no mark record and has no t_s{unknown_said}",
+                    cp.id
+                )
+            })?],
+        };
+        for t_s in times {
             if !in_log(t_s) {
                 bail!("control point {} at t_s = {t_s} is outside the log", cp.id);
             }
-            let rel = t_s - log_t_s(d.t0_ns);
-            let sample = d.t_s.partition_point(|t| t < rel).min(d.t_s.len() - 1);
-            Ok(ControlPointFix {
+            fixes.push(ControlPointFix {
                 id: cp.id,
-                sample,
+                sample: sample_at(t_s),
                 t_s,
                 lat_rad: cp.position.latitude_deg.to_radians(),
                 lon_rad: cp.position.longitude_deg.to_radians(),
                 h_m: cp.position.height_m,
                 mark_lever_arm_m: vehicle.mark_lever_arm_m,
-            })
-        })
-        .collect::<anyhow::Result<_>>()?;
+            });
+        }
+    }
     Ok(MatchedPoints {
         fixes,
         repeated_marks,
@@ -228,18 +244,6 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         MarksTable::extend_from_batch,
     )?;
     let odo_schema = read_schema(&ingest_dir.join(files::ODOMETER))?;
-    let MatchedPoints {
-        fixes,
-        repeated_marks,
-        unknown_marks,
-    } = match_control_points(
-        m,
-        &marks,
-        &derived,
-        &ingest_dir.join(files::ODOMETER),
-        &params.vehicle,
-    )
-    .with_context(|| format!("in {}", m.path.display()))?;
     let ingest_scale: Option<f64> = odo_schema
         .metadata()
         .get(META_ODO_M_PER_PULSE)
@@ -273,10 +277,29 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         prefix = read_velocity_prefix(&derive_dir, static_samples(&derived, &req))?;
         &prefix
     };
-    check_reach(m, &fixes, &derived, odo_scale)
-        .with_context(|| format!("in {}", m.path.display()))?;
     let (mut settings, mut initial) =
         initial_settings_with_velocity(&derived, dvel_mps, &req, &params.align, start_position(m));
+    level_in_motion_over_window(&derived, params, &mut settings, &mut initial);
+    let inputs = NavInputs {
+        dt_s: &derived.dt_s,
+        dtheta_rad: &derived.dtheta_rad,
+        odo_dist_m: &derived.odo_dist_m,
+    };
+    let MatchedPoints {
+        fixes,
+        repeated_marks,
+        unknown_marks,
+    } = match_control_points(
+        m,
+        &marks,
+        &derived,
+        &ingest_dir.join(files::ODOMETER),
+        &params.vehicle,
+        |samples| Ok(navigated_places(&inputs, &settings, samples)),
+    )
+    .with_context(|| format!("in {}", m.path.display()))?;
+    check_reach(m, &fixes, &derived, odo_scale)
+        .with_context(|| format!("in {}", m.path.display()))?;
     if initial.gyrocompass_skipped.is_some() && fixes.is_empty() {
         bail!(
             "the run has neither a static start nor a control point: without a static start \
@@ -285,7 +308,6 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
             m.path.display()
         );
     }
-    level_in_motion_over_window(&derived, params, &mut settings, &mut initial);
     Ok(NavCase {
         derived,
         fixes,
@@ -294,6 +316,44 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         settings,
         initial,
     })
+}
+
+/// The navigated north and east (m, from the start) at each of `samples`, of a pass with
+/// `settings`: where a control point's marks at several stops were made.
+fn navigated_places(
+    inputs: &NavInputs<'_>,
+    settings: &NavSettings,
+    samples: &[usize],
+) -> Vec<[f64; 2]> {
+    /// Keeps the positions at the samples asked for (`wanted`: sample and where it goes,
+    /// by sample).
+    struct At {
+        wanted: Vec<(usize, usize)>,
+        next: usize,
+        start: Geodetic,
+        places: Vec<[f64; 2]>,
+    }
+    impl PassSink for At {
+        fn sample(&mut self, k: usize, lat: f64, lon: f64, _: f64, _: &[f64; 4], _: f64) {
+            while let Some(&(at, i)) = self.wanted.get(self.next).filter(|w| w.0 <= k) {
+                if at == k {
+                    let (north_m, east_m) = self.start.offset_m(lat, lon);
+                    self.places[i] = [north_m, east_m];
+                }
+                self.next += 1;
+            }
+        }
+    }
+    let mut wanted: Vec<(usize, usize)> = samples.iter().copied().zip(0..).collect();
+    wanted.sort_unstable();
+    let mut at = At {
+        wanted,
+        next: 0,
+        start: settings.start(),
+        places: vec![[f64::NAN; 2]; samples.len()],
+    };
+    strapdown::run(inputs, settings, &mut at);
+    at.places
 }
 
 /// A start levelled in motion (no static start) refitted over the log's first

@@ -12,10 +12,11 @@ use unz_formats::schema;
 use unz_formats::tables::{CriteriaTable, MarksTable, f64_column};
 use unz_stages::criteria::{self, BlockAttitude, FixPose, Kryt1Series, Kryt2, Row3Blocks};
 use unz_stages::derive::Derived;
+use unz_stages::earth::Geodetic;
 use unz_stages::filter::LowPass;
 
 use super::ingested::load_table;
-use super::{Overrides, Params, RunCtx, ensure_navigate, match_control_points};
+use super::{Overrides, Params, RunCtx, ensure_navigate, match_control_points, start_position};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::load_derived_times;
 use crate::stage::{Stage, params_hash};
@@ -97,6 +98,32 @@ fn read_nav_for_criteria(
     Ok((blocks.finish(), positions))
 }
 
+/// The navigated north and east (m, from `origin`) at each of `samples`, read from
+/// `nav.parquet` batch by batch.
+fn read_nav_places(
+    path: &Path,
+    origin: Geodetic,
+    samples: &[usize],
+) -> anyhow::Result<Vec<[f64; 2]>> {
+    use unz_formats::schema::nav_cols::{LAT_DEG, LON_DEG};
+    let mut places = vec![[f64::NAN; 2]; samples.len()];
+    let mut k0 = 0;
+    for_each_batch_of(path, &[LAT_DEG, LON_DEG], |b| {
+        let (lat, lon) = (f64_column(b, LAT_DEG)?, f64_column(b, LON_DEG)?);
+        let n = lat.len();
+        for (place, &s) in places.iter_mut().zip(samples) {
+            if (k0..k0 + n).contains(&s) {
+                let (north_m, east_m) =
+                    origin.offset_m(lat[s - k0].to_radians(), lon[s - k0].to_radians());
+                *place = [north_m, east_m];
+            }
+        }
+        k0 += n;
+        Ok(())
+    })?;
+    Ok(places)
+}
+
 /// Stage 3b: the criteria of the navigated track.
 pub fn ensure_criteria(
     ctx: &RunCtx,
@@ -121,7 +148,8 @@ pub fn ensure_criteria(
         name: "criteria",
         // 2: of a control point marked more than once, the last mark at rest.
         // 3: control points compared at the vehicle's mark.
-        version: 3,
+        // 4: a point the route comes back to is compared at each visit.
+        version: 4,
         params_hash: params_hash(&(params.kalman, params.derive.filter, params.vehicle))?,
         inputs,
         outputs: &[files::CRITERIA, files::CRITERIA_REPORT],
@@ -143,6 +171,8 @@ pub fn ensure_criteria(
             &d,
             &ingest_dir.join(files::ODOMETER),
             &params.vehicle,
+            // The navigation's places, as the navigate stage matched them.
+            |samples| read_nav_places(&nav_dir.join(files::NAV), start_position(m), samples),
         )
         .with_context(|| format!("in {}", m.path.display()))?
         .fixes;

@@ -1,8 +1,11 @@
-//! Which mark stands for a control point. A point is surveyed at a stop, and a point id
+//! Which marks stand for a control point. A point is surveyed at a stop, and a point id
 //! marked more than once is placed at the last of its marks made at rest: a second press
 //! is how an operator corrects a first one (made while driving up to the point, at a
 //! stop short of it, or during the static start), or repeats it at the same stop, where
-//! either serves.
+//! either serves. A point the route comes back to is visited again: marks at rest at
+//! stops apart along the odometer's path ([`SAME_STOP_PATH_M`]) that the navigation puts
+//! at the same place ([`same_place`]) are each a visit, and each is compared with the
+//! point.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -18,8 +21,26 @@ pub const SPEED_HALF_WINDOW_S: f64 = 1.0;
 /// (one 12.5-mm pulse in a 2-s window is 6 mm/s; a vehicle creeping up to a point goes
 /// 0.5 m/s and more).
 pub const AT_REST_MPS: f64 = 0.1;
+/// Marks of one id with at least this much of the odometer's path between them were made
+/// at different stops, m: a press repeated at a stop, or made while creeping up to the
+/// point, is well within it.
+pub const SAME_STOP_PATH_M: f64 = 100.0;
+/// Two stops whose navigated places (the initial settings, before DISUPT) are at most
+/// this far apart, plus [`SAME_PLACE_PER_PATH`] of the path between them, are at the same
+/// place, m: the initial azimuth and the odometer's scale move a place the route comes
+/// back to by the same amount both times, leaving the gyros' drift over the drive
+/// between (LN-200: about 0.5 % of it).
+pub const SAME_PLACE_M: f64 = 30.0;
+/// The part of the path between two stops added to [`SAME_PLACE_M`].
+pub const SAME_PLACE_PER_PATH: f64 = 0.03;
 
-/// A control point whose id was marked more than once, and the mark used
+/// Whether stops whose navigated places are `apart_m` apart, with `path_m` of the
+/// odometer's path between them, are at the same place.
+pub fn same_place(apart_m: f64, path_m: f64) -> bool {
+    apart_m <= SAME_PLACE_M + SAME_PLACE_PER_PATH * path_m.abs()
+}
+
+/// A control point whose id was marked more than once, and the marks used
 /// (`navigate.json`'s `repeated_marks`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RepeatedMark {
@@ -27,7 +48,7 @@ pub struct RepeatedMark {
     pub id: u32,
     /// Marks of that id in the log.
     pub marks: usize,
-    /// Time of the mark used, s in the log's time base.
+    /// Time of the mark used (of the last visit), s in the log's time base.
     pub used_t_s: f64,
     /// The odometer's mean speed over ±1 s about it, m/s (none when no mark of the id
     /// is inside the log, or the log has no odometer there).
@@ -38,6 +59,102 @@ pub struct RepeatedMark {
     pub at_rest: bool,
     /// Time of the id's first mark, s.
     pub first_t_s: f64,
+    /// The point visited more than once: the time of each visit's mark, s, in time
+    /// order (the last is `used_t_s`); each is compared with the point. Absent with one
+    /// visit.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub visits_t_s: Vec<f64>,
+    /// Marks at rest at other stops that the navigation puts elsewhere than the last
+    /// visit (beyond [`same_place`]): presses the last corrected, not used, s.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub elsewhere_t_s: Vec<f64>,
+}
+
+/// A stop's mark (index into the marks) and the odometer's distance there, m.
+type Stop = (usize, f64);
+
+/// A repeated id's marks, before the navigation says which stops are at the same place.
+#[derive(Debug, Clone)]
+struct Repeated {
+    id: u32,
+    marks: usize,
+    first: usize,
+    /// The mark of each stop made at rest, with the odometer's distance there, in time
+    /// order; or the one mark used (the slowest, or none at rest).
+    stops: Vec<Stop>,
+    used_speed_mps: Option<f64>,
+}
+
+/// The marks chosen for the manifest's control points ([`choose_marks`]); which of a
+/// point's stops are visits is settled by [`ChosenMarks::settle`].
+#[derive(Debug, Clone, Default)]
+pub struct ChosenMarks {
+    /// Each id's mark (index into the marks), for ids marked once.
+    once: BTreeMap<u32, usize>,
+    repeated: Vec<Repeated>,
+}
+
+impl ChosenMarks {
+    /// The marks whose navigated place [`Self::settle`] needs (indices into the marks):
+    /// the stops of ids marked at rest at more than one; none otherwise.
+    pub fn to_place(&self) -> Vec<usize> {
+        self.repeated
+            .iter()
+            .filter(|r| r.stops.len() > 1)
+            .flat_map(|r| r.stops.iter().map(|s| s.0))
+            .collect()
+    }
+
+    /// Each id's marks used (indices into the marks, in time order: a visit each), and
+    /// the repeated ids. Of an id marked at rest at several stops, the last is a visit,
+    /// and each earlier stop is one too when `place` (north and east, m, of a mark among
+    /// [`Self::to_place`]) puts it at the same place ([`same_place`]); else it is a press
+    /// the last corrected. A mark without a place is not a visit.
+    pub fn settle(
+        self,
+        marks: &MarksTable,
+        place: impl Fn(usize) -> Option<[f64; 2]>,
+    ) -> (BTreeMap<u32, Vec<usize>>, Vec<RepeatedMark>) {
+        let t_s = |i: usize| marks.t_ns[i] as f64 * 1e-9;
+        let mut used: BTreeMap<u32, Vec<usize>> =
+            self.once.into_iter().map(|(id, i)| (id, vec![i])).collect();
+        let mut repeated = Vec::with_capacity(self.repeated.len());
+        for r in self.repeated {
+            let (visits, elsewhere): (Vec<Stop>, Vec<Stop>) = match r.stops.split_last() {
+                Some((&(last, d_last), earlier)) => {
+                    let at_last = place(last);
+                    let beside_last = |&&(i, d): &&Stop| match (place(i), at_last) {
+                        (Some(a), Some(b)) => {
+                            same_place((a[0] - b[0]).hypot(a[1] - b[1]), d_last - d)
+                        }
+                        _ => false,
+                    };
+                    let (mut v, e): (Vec<Stop>, Vec<Stop>) = earlier.iter().partition(beside_last);
+                    v.push((last, d_last));
+                    (v, e)
+                }
+                None => (vec![(r.first, f64::NAN)], Vec::new()),
+            };
+            let last = visits.last().map_or(r.first, |v| v.0);
+            let times = |v: &[Stop]| v.iter().map(|&(i, _)| t_s(i)).collect::<Vec<_>>();
+            repeated.push(RepeatedMark {
+                id: r.id,
+                marks: r.marks,
+                used_t_s: t_s(last),
+                used_speed_mps: r.used_speed_mps,
+                at_rest: r.used_speed_mps.is_some_and(|v| v <= AT_REST_MPS),
+                first_t_s: t_s(r.first),
+                visits_t_s: if visits.len() > 1 {
+                    times(&visits)
+                } else {
+                    Vec::new()
+                },
+                elsewhere_t_s: times(&elsewhere),
+            });
+            used.insert(r.id, visits.into_iter().map(|v| v.0).collect());
+        }
+        (used, repeated)
+    }
 }
 
 /// Marks whose point id no control point of the manifest has: a key pressed wrong, or a
@@ -88,18 +205,21 @@ impl UnknownMarks {
     }
 }
 
-/// The mark that stands for each of `ids` (an index into `marks`), and the repeated ones.
+/// The marks that stand for each of `ids` ([`ChosenMarks`], settled by
+/// [`ChosenMarks::settle`]).
 ///
-/// An id marked once is that mark. An id marked several times is the last of its marks
-/// `in_log` made at rest, else the slowest of them (the last on a tie), else (no mark in
-/// the log) its first mark. The ingested odometer (`odometer.parquet`) is read, once and
-/// batch by batch, only when some id is marked more than once.
+/// An id marked once is that mark. Of an id marked several times, the marks `in_log` are
+/// split into stops where the odometer's path between neighbours reaches
+/// [`SAME_STOP_PATH_M`]; each stop's last mark made at rest is a candidate visit. Without
+/// any at rest, the slowest mark (the last on a tie), else (no mark in the log) its first
+/// mark, is used. The ingested odometer (`odometer.parquet`) is read, once and batch by
+/// batch, only when some id is marked more than once.
 pub fn choose_marks(
     marks: &MarksTable,
     ids: &[u32],
     odometer: &Path,
     in_log: impl Fn(i64) -> bool,
-) -> anyhow::Result<(BTreeMap<u32, usize>, Vec<RepeatedMark>)> {
+) -> anyhow::Result<ChosenMarks> {
     let ids: std::collections::BTreeSet<u32> = ids.iter().copied().collect();
     let mut of_id: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
     for (i, id) in marks.point_id.iter().enumerate() {
@@ -107,77 +227,116 @@ pub fn choose_marks(
             of_id.entry(*id).or_default().push(i);
         }
     }
-    let mut chosen: BTreeMap<u32, usize> = of_id.iter().map(|(&id, v)| (id, v[0])).collect();
-    // The marks whose speed decides: those of repeated ids inside the log.
+    let once: BTreeMap<u32, usize> = of_id
+        .iter()
+        .filter(|(_, v)| v.len() == 1)
+        .map(|(&id, v)| (id, v[0]))
+        .collect();
+    // The marks whose speed and path decide: those of repeated ids inside the log, in
+    // time order (the log's on a tie).
     let candidates: Vec<(u32, Vec<usize>)> = of_id
         .iter()
         .filter(|(_, v)| v.len() > 1)
         .map(|(&id, v)| {
-            let inside: Vec<usize> = v
+            let mut inside: Vec<usize> = v
                 .iter()
                 .copied()
                 .filter(|&i| in_log(marks.t_ns[i]))
                 .collect();
+            inside.sort_by_key(|&i| marks.t_ns[i]);
             (id, inside)
         })
         .collect();
     if candidates.is_empty() {
-        return Ok((chosen, Vec::new()));
+        return Ok(ChosenMarks {
+            once,
+            repeated: Vec::new(),
+        });
     }
     let times_ns: Vec<i64> = candidates
         .iter()
         .flat_map(|(_, v)| v.iter().map(|&i| marks.t_ns[i]))
         .collect();
-    let speeds = odometer_speeds_mps(odometer, &times_ns)?;
-    let mut next = speeds.into_iter();
+    let about = odometer_about(odometer, &times_ns)?;
+    let mut next = about.into_iter();
     let mut repeated = Vec::with_capacity(candidates.len());
     for (id, inside) in candidates {
-        let speed: Vec<f64> = next.by_ref().take(inside.len()).collect();
+        let at: Vec<OdometerAbout> = next.by_ref().take(inside.len()).collect();
         let first = of_id[&id][0];
-        // The last at rest, else the slowest (the last on a tie); a mark without a
-        // speed (no odometer in the log) is never picked for one.
-        let finite = |k: &usize| speed[*k].is_finite();
-        let pick = (0..speed.len())
-            .rev()
-            .filter(finite)
-            .find(|&k| speed[k] <= AT_REST_MPS)
-            .or_else(|| {
-                (0..speed.len())
-                    .rev()
-                    .filter(finite)
-                    .min_by(|&a, &b| speed[a].total_cmp(&speed[b]))
-            });
-        let (used, used_speed_mps) = match pick {
-            Some(k) => (inside[k], Some(speed[k])),
-            None => (inside.last().copied().unwrap_or(first), None),
+        // Stops: runs of marks with less than SAME_STOP_PATH_M between neighbours (an
+        // unknown distance does not part them).
+        let mut stops: Vec<Vec<usize>> = Vec::new();
+        for k in 0..at.len() {
+            let apart =
+                k > 0 && (at[k].distance_m - at[k - 1].distance_m).abs() >= SAME_STOP_PATH_M;
+            match stops.last_mut() {
+                Some(stop) if !apart => stop.push(k),
+                _ => stops.push(vec![k]),
+            }
+        }
+        let at_rest = |k: &usize| at[*k].speed_mps <= AT_REST_MPS;
+        let rest: Vec<usize> = stops
+            .iter()
+            .filter_map(|stop| stop.iter().rev().copied().find(at_rest))
+            .collect();
+        let (stops, used_speed_mps) = if let Some(&last) = rest.last() {
+            (
+                rest.iter()
+                    .map(|&k| (inside[k], at[k].distance_m))
+                    .collect(),
+                Some(at[last].speed_mps),
+            )
+        } else {
+            // None at rest: the slowest (the last on a tie); a mark without a speed (no
+            // odometer in the log) is never picked for one.
+            let slowest = (0..at.len())
+                .rev()
+                .filter(|&k| at[k].speed_mps.is_finite())
+                .min_by(|&a, &b| at[a].speed_mps.total_cmp(&at[b].speed_mps));
+            match slowest {
+                Some(k) => (vec![(inside[k], at[k].distance_m)], Some(at[k].speed_mps)),
+                None => (
+                    vec![(inside.last().copied().unwrap_or(first), f64::NAN)],
+                    None,
+                ),
+            }
         };
-        chosen.insert(id, used);
-        repeated.push(RepeatedMark {
+        repeated.push(Repeated {
             id,
             marks: of_id[&id].len(),
-            used_t_s: marks.t_ns[used] as f64 * 1e-9,
+            first,
+            stops,
             used_speed_mps,
-            at_rest: used_speed_mps.is_some_and(|v| v <= AT_REST_MPS),
-            first_t_s: marks.t_ns[first] as f64 * 1e-9,
         });
     }
-    Ok((chosen, repeated))
+    Ok(ChosenMarks { once, repeated })
 }
 
-/// The ingested odometer's mean speed over ±[`SPEED_HALF_WINDOW_S`] about each of
-/// `times_ns`, m/s, reading `odometer.parquet` batch by batch. Distances are
-/// interpolated linearly between tags, held before the first and after the last; a tag
-/// not after the one before does not interpolate.
-pub fn odometer_speeds_mps(path: &Path, times_ns: &[i64]) -> anyhow::Result<Vec<f64>> {
+/// The odometer about a time: its mean speed over ±[`SPEED_HALF_WINDOW_S`], m/s, and
+/// its distance there, m (NaN without an odometer).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometerAbout {
+    /// Mean speed, m/s.
+    pub speed_mps: f64,
+    /// Distance, m.
+    pub distance_m: f64,
+}
+
+/// The ingested odometer about each of `times_ns` ([`OdometerAbout`]), reading
+/// `odometer.parquet` batch by batch. Distances are interpolated linearly between tags,
+/// held before the first and after the last; a tag not after the one before does not
+/// interpolate.
+pub fn odometer_about(path: &Path, times_ns: &[i64]) -> anyhow::Result<Vec<OdometerAbout>> {
     let half_ns = (SPEED_HALF_WINDOW_S * 1e9) as i64;
-    // Each time's two ends, in time order.
+    // Each time's window ends and the time itself, in time order.
     let mut ends: Vec<(i64, usize)> = times_ns
         .iter()
         .enumerate()
         .flat_map(|(k, &t)| {
             [
-                (t.saturating_sub(half_ns), 2 * k),
-                (t.saturating_add(half_ns), 2 * k + 1),
+                (t.saturating_sub(half_ns), 3 * k),
+                (t, 3 * k + 1),
+                (t.saturating_add(half_ns), 3 * k + 2),
             ]
         })
         .collect();
@@ -212,8 +371,11 @@ pub fn odometer_speeds_mps(path: &Path, times_ns: &[i64]) -> anyhow::Result<Vec<
         }
     }
     Ok(at
-        .chunks_exact(2)
-        .map(|w| (w[1] - w[0]).abs() / (2.0 * SPEED_HALF_WINDOW_S))
+        .chunks_exact(3)
+        .map(|w| OdometerAbout {
+            speed_mps: (w[2] - w[0]).abs() / (2.0 * SPEED_HALF_WINDOW_S),
+            distance_m: w[1],
+        })
         .collect())
 }
 
@@ -251,14 +413,15 @@ mod tests {
     }
 
     #[test]
-    fn speeds_about_marks_are_the_odometers() {
+    fn speeds_and_distances_about_marks_are_the_odometers() {
         let tmp = tempfile::tempdir().unwrap();
         let path = odometer(tmp.path());
         let t: Vec<i64> = [10.0, 30.0, 20.0, 0.5, 100.0]
             .iter()
             .map(|s| (s * 1e9) as i64)
             .collect();
-        let v = odometer_speeds_mps(&path, &t).unwrap();
+        let a = odometer_about(&path, &t).unwrap();
+        let v: Vec<f64> = a.iter().map(|a| a.speed_mps).collect();
         assert!((v[0] - 10.0).abs() < 1e-9, "{v:?}");
         assert_eq!(v[1], 0.0);
         // Half of the window driving.
@@ -267,6 +430,22 @@ mod tests {
         assert!((v[3] - 7.5).abs() < 0.06, "{v:?}");
         // After the last tag too.
         assert_eq!(v[4], 0.0);
+        let d: Vec<f64> = a.iter().map(|a| a.distance_m).collect();
+        for (got, want) in d.iter().zip([100.0, 200.0, 200.0, 5.0, 400.0]) {
+            assert!((got - want).abs() < 0.11, "{d:?}");
+        }
+    }
+
+    /// Marks chosen and settled without any navigated place.
+    fn settled(
+        m: &MarksTable,
+        ids: &[u32],
+        path: &Path,
+        in_log: impl Fn(i64) -> bool,
+    ) -> (BTreeMap<u32, Vec<usize>>, Vec<RepeatedMark>) {
+        choose_marks(m, ids, path, in_log)
+            .unwrap()
+            .settle(m, |_| None)
     }
 
     #[test]
@@ -276,24 +455,26 @@ mod tests {
         let all = |_| true;
         // An early press while driving, then two at the stop; id 2 marked once.
         let m = marks(&[(15.0, 1), (25.0, 1), (26.0, 2), (30.0, 1)]);
-        let (chosen, repeated) = choose_marks(&m, &[1, 2], &path, all).unwrap();
-        assert_eq!(chosen[&1], 3);
-        assert_eq!(chosen[&2], 2);
+        let (chosen, repeated) = settled(&m, &[1, 2], &path, all);
+        assert_eq!(chosen[&1], [3]);
+        assert_eq!(chosen[&2], [2]);
         assert_eq!(repeated.len(), 1);
         let r = &repeated[0];
         assert_eq!((r.id, r.marks, r.at_rest), (1, 3, true));
         assert!((r.used_t_s - 30.0).abs() < 1e-9 && (r.first_t_s - 15.0).abs() < 1e-9);
+        assert!(r.visits_t_s.is_empty() && r.elsewhere_t_s.is_empty());
 
         // A press during the static start and one at a stop short of the point, both at
         // rest, corrected by the press at the point: the last.
         let m = marks(&[(25.0, 1), (70.0, 1), (79.0, 1)]);
-        let (chosen, _) = choose_marks(&m, &[1], &path, all).unwrap();
-        assert_eq!(chosen[&1], 2);
+        let (chosen, repeated) = settled(&m, &[1], &path, all);
+        assert_eq!(chosen[&1], [2]);
+        assert_eq!(repeated[0].elsewhere_t_s, [25.0]);
 
         // None at rest: the slowest.
         let m = marks(&[(10.0, 1), (40.5, 1), (50.0, 1), (55.0, 1)]);
-        let (chosen, repeated) = choose_marks(&m, &[1], &path, all).unwrap();
-        assert_eq!(chosen[&1], 1);
+        let (chosen, repeated) = settled(&m, &[1], &path, all);
+        assert_eq!(chosen[&1], [1]);
         assert!(!repeated[0].at_rest);
         let v = repeated[0].used_speed_mps.unwrap();
         assert!((v - 7.5).abs() < 0.06, "{repeated:?}");
@@ -301,17 +482,50 @@ mod tests {
         // Marks outside the log do not count; with none inside, the first is kept (and
         // the match names it as outside the log).
         let m = marks(&[(25.0, 1), (35.0, 1)]);
-        let (chosen, _) = choose_marks(&m, &[1], &path, |t| t < 30_000_000_000).unwrap();
-        assert_eq!(chosen[&1], 0);
-        let (chosen, repeated) = choose_marks(&m, &[1], &path, |_| false).unwrap();
-        assert_eq!(chosen[&1], 0);
+        let (chosen, _) = settled(&m, &[1], &path, |t| t < 30_000_000_000);
+        assert_eq!(chosen[&1], [0]);
+        let (chosen, repeated) = settled(&m, &[1], &path, |_| false);
+        assert_eq!(chosen[&1], [0]);
         assert_eq!(repeated[0].used_speed_mps, None);
 
         // Ids the manifest does not name are not read; no repeated id, no odometer read.
         let m = marks(&[(15.0, 7), (25.0, 7), (30.0, 1)]);
-        let (chosen, repeated) =
-            choose_marks(&m, &[1], Path::new("/nonexistent/odometer.parquet"), all).unwrap();
-        assert_eq!((chosen.len(), chosen[&1]), (1, 2));
+        let (chosen, repeated) = settled(&m, &[1], Path::new("/nonexistent/odometer.parquet"), all);
+        assert_eq!((chosen.len(), &chosen[&1]), (1, &vec![2]));
         assert!(repeated.is_empty());
+    }
+
+    #[test]
+    fn a_point_the_route_comes_back_to_is_visited_again() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = odometer(tmp.path());
+        // At rest at 200 m (twice: one stop) and at 400 m, and a press driving between.
+        let m = marks(&[(25.0, 1), (30.0, 1), (50.0, 1), (79.0, 1)]);
+        let c = choose_marks(&m, &[1], &path, |_| true).unwrap();
+        // One candidate per stop: the first stop's last press at rest, and the last.
+        assert_eq!(c.to_place(), [1, 3]);
+        // The navigation puts them 25 m apart, with 200 m of path between: within
+        // 30 m + 3 %, the same place.
+        let (used, repeated) = c
+            .clone()
+            .settle(&m, |i| Some(if i == 1 { [0.0, 0.0] } else { [15.0, 20.0] }));
+        assert_eq!(used[&1], [1, 3]);
+        let r = &repeated[0];
+        let ms = |t: &[f64]| {
+            t.iter()
+                .map(|t| (t * 1e3).round() as i64)
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(
+            (ms(&r.visits_t_s), ms(&[r.used_t_s])),
+            (vec![30_000, 79_000], vec![79_000])
+        );
+        assert!(r.elsewhere_t_s.is_empty() && r.at_rest);
+        // 40 m apart: elsewhere, a press the last corrected.
+        let (used, repeated) = c.settle(&m, |i| Some([0.0, if i == 1 { 0.0 } else { 40.0 }]));
+        assert_eq!(used[&1], [3]);
+        assert_eq!(ms(&repeated[0].elsewhere_t_s), [30_000]);
+        assert!(repeated[0].visits_t_s.is_empty());
+        assert!(same_place(30.0, 0.0) && !same_place(30.1, 0.0) && same_place(330.0, 10_000.0));
     }
 }

@@ -80,7 +80,8 @@ pub fn ensure_navigate(
         // 6: a start levelled in motion is fitted over the log's first minute.
         // 7: control points compared at the vehicle's mark; marks of ids no control point
         //    has are said.
-        version: 7,
+        // 8: a point the route comes back to is compared at each visit.
+        version: 8,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],

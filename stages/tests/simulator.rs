@@ -159,3 +159,50 @@ fn simulation_is_deterministic_and_seed_dependent() {
     config.seed = 6;
     assert_ne!(simulate(&config).records, a.records);
 }
+
+#[test]
+fn an_out_and_back_route_comes_back_over_its_points_and_ends_at_its_start() {
+    let mut c = SimConfig::new("back", 71);
+    c.duration_s = 1800.0;
+    c.cp_at_every_stop = true;
+    c.out_and_back = true;
+    let run = simulate(&c);
+    let t = &run.truth;
+    let at = |k: usize| {
+        let (rm, rn) = earth::radii_m(t.lat_rad[k]);
+        [
+            t.lat_rad[k] * (rm + t.h_m[k]),
+            t.lon_rad[k] * (rn + t.h_m[k]) * t.lat_rad[k].cos(),
+            t.h_m[k],
+        ]
+    };
+    let apart_m = |a: [f64; 3], b: [f64; 3]| (a[0] - b[0]).hypot(a[1] - b[1]);
+    // Each id's marks: the first and the last.
+    let mut visits = std::collections::BTreeMap::<u32, Vec<usize>>::new();
+    for (k, m) in &run.marks {
+        visits.entry(m.point_id).or_default().push(*k);
+    }
+    let twice: Vec<&Vec<usize>> = visits.values().filter(|v| v.len() == 2).collect();
+    // Every point out but the far one is visited again; the start has its own, once.
+    assert_eq!(twice.len() + 2, visits.len(), "{visits:?}");
+    assert!(twice.len() >= 3, "{visits:?}");
+    let mut out_and_back_m = 0.0_f64;
+    for v in &twice {
+        let (a, b) = (at(v[0]), at(v[1]));
+        out_and_back_m = out_and_back_m.max(apart_m(a, b)).max((a[2] - b[2]).abs());
+        // Far apart in the drive: out to the far end and back (a drive of 30 s at least).
+        assert!(t.distance_m[v[1]] - t.distance_m[v[0]] > 200.0, "{v:?}");
+    }
+    // The same path: the quadrature's error, well below a millimetre.
+    assert!(out_and_back_m < 1e-3, "{out_and_back_m} m");
+    // Home: the last sample over the first, after kilometres.
+    let n = t.h_m.len() - 1;
+    assert!(t.distance_m[n] > 5_000.0, "{} m", t.distance_m[n]);
+    assert!(apart_m(at(0), at(n)) < 1e-3 && (t.h_m[0] - t.h_m[n]).abs() < 1e-3);
+    // Turned about at the far end: home facing the other way.
+    let heading = |k: usize| t.euler[k].heading_rad;
+    assert!((wrap_pi(heading(n) - heading(0)).abs() - std::f64::consts::PI).abs() < 1e-6);
+    // The manifest lists each point once.
+    let manifest = run.manifest_toml("back", "back.unz");
+    assert_eq!(manifest.matches("[[control_point]]").count(), visits.len());
+}

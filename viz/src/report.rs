@@ -193,11 +193,21 @@ fn plot_estimates(
 fn plot_control_points(rows: &[ReportRow], svg: &mut String) -> PlotResult {
     let mut pairs: Vec<(&str, f64, f64)> = Vec::new();
     for r in rows {
-        for (id, label, after) in r.cp_errors_m.iter().filter(|e| e.1 != "initial") {
+        for (k, (id, label, after)) in r.cp_errors_m.iter().enumerate() {
+            if label == "initial" {
+                continue;
+            }
+            // A point the route came back to has an error per visit, in time order: the
+            // n-th after against the n-th before.
+            let visit = r.cp_errors_m[..k]
+                .iter()
+                .filter(|e| e.0 == *id && e.1 == *label)
+                .count();
             if let Some(before) = r
                 .cp_errors_m
                 .iter()
-                .find(|e| e.0 == *id && e.1 == "initial")
+                .filter(|e| e.0 == *id && e.1 == "initial")
+                .nth(visit)
             {
                 let method = METHODS
                     .iter()

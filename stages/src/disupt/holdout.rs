@@ -9,6 +9,7 @@ use super::DisuptError;
 use super::joint::{JointFit, JointModel, JointOptions, attitude_rows, covariance_of, joint_fit};
 use super::problem::Problem;
 use super::settings::{DisuptParams, X, x_of};
+use crate::criteria::ControlPointFix;
 use crate::linearized::Setting;
 
 /// How many σ of its predicted spread a control point's hold-out error may reach before
@@ -29,6 +30,10 @@ pub const HOLDOUT_MIN_POINTS: usize = 3;
 pub struct Holdout {
     /// Control-point id.
     pub id: u32,
+    /// Time of the stop, s in the log's time base: which visit, of a point the route
+    /// came back to.
+    #[serde(default)]
+    pub t_s: f64,
     /// ΔX north there, navigated minus known, m.
     pub dx_m: f64,
     /// ΔY east there, m.
@@ -56,7 +61,11 @@ pub struct Holdout {
 }
 
 impl Holdout {
-    fn new(id: u32, d: [f64; 2], s: Option<Matrix2<f64>>, points: usize) -> Self {
+    fn new(fix: &ControlPointFix, d: [f64; 2], s: Option<Matrix2<f64>>, points: usize) -> Self {
+        Self::of(fix.id, fix.t_s, d, s, points)
+    }
+
+    fn of(id: u32, t_s: f64, d: [f64; 2], s: Option<Matrix2<f64>>, points: usize) -> Self {
         let error_sigma = s.and_then(|s| {
             let d = Vector2::new(d[0], d[1]);
             let t = d.dot(&(s.try_inverse()? * d));
@@ -65,6 +74,7 @@ impl Holdout {
         let sd = |k: usize| error_sigma.and(s).map(|s| s[(k, k)].max(0.0).sqrt());
         Self {
             id,
+            t_s,
             dx_m: d[0],
             dy_m: d[1],
             sigma_north_m: sd(0),
@@ -73,6 +83,16 @@ impl Holdout {
             inconsistent: points >= HOLDOUT_MIN_POINTS
                 && error_sigma.is_some_and(|e| e > HOLDOUT_INCONSISTENT_SIGMA),
             excluded: false,
+        }
+    }
+
+    /// The point's id, and the visit's time when `all` (the run's hold-outs) has the
+    /// point more than once: a point the route came back to.
+    pub fn label(&self, all: &[Holdout]) -> String {
+        if all.iter().filter(|q| q.id == self.id).count() > 1 {
+            format!("{} at t_s = {:.1}", self.id, self.t_s)
+        } else {
+            self.id.to_string()
         }
     }
 }
@@ -106,6 +126,7 @@ pub fn median_max(v: &mut [f64]) -> Option<(f64, f64)> {
 /// at one point pulls the fits that keep it, so the others' hold-outs can fail beside
 /// it; the largest is the likeliest culprit.
 pub fn inconsistent_points_note(h: &[Holdout]) -> Option<String> {
+    let label = |p: &Holdout| p.label(h);
     let listed = |keep: &dyn Fn(&Holdout) -> bool| {
         let mut bad: Vec<&Holdout> = h.iter().filter(|p| keep(p)).collect();
         bad.sort_by(|a, b| {
@@ -118,7 +139,7 @@ pub fn inconsistent_points_note(h: &[Holdout]) -> Option<String> {
             .map(|p| {
                 format!(
                     "{} ({:.1} m, {:.1}σ)",
-                    p.id,
+                    label(p),
                     p.dx_m.hypot(p.dy_m),
                     p.error_sigma.unwrap_or(f64::NAN)
                 )
@@ -146,31 +167,42 @@ pub fn inconsistent_points_note(h: &[Holdout]) -> Option<String> {
 }
 
 /// Hold-out errors: for every control point, the joint fit without it (same weights),
-/// and the error there of an exact pass with those settings. Each refit solves the
-/// fit's linearisation without the point's rows (no pass); the exact passes run side by
-/// side, and a refit whose exact pass disagrees with the model is redone in full. A
-/// point the fit already leaves out ([`Problem::excluded_cps`]) has the fit's own error
-/// there (no refit, no pass). The consistency call counts the points the fit weighs.
+/// and the error there of an exact pass with those settings. A point the route came back
+/// to is held out at every visit (its coordinates are shared), and each visit has its
+/// error. Each refit solves the fit's linearisation without the point's rows (no pass);
+/// the exact passes run side by side, and a refit whose exact pass disagrees with the
+/// model is redone in full. A point the fit already leaves out
+/// ([`Problem::excluded_cps`]) has the fit's own error there (no refit, no pass). The
+/// consistency call counts the distinct points the fit weighs.
 pub fn holdout(
     problem: &Problem<'_>,
     fit: &JointFit,
     p: &DisuptParams,
 ) -> Result<Vec<Holdout>, DisuptError> {
-    let n = problem.cps_used();
+    let n = problem.points_used();
     let n_att = attitude_rows(problem);
     let s2 = fit.cost / fit.dof;
-    let mut refits = Vec::with_capacity(n);
-    let mut out: Vec<Option<Holdout>> = vec![None; problem.fixes.len()];
-    for (i, held) in out.iter_mut().enumerate() {
+    let fixes = problem.fixes;
+    let mut refits = Vec::with_capacity(fixes.len());
+    let mut out: Vec<Option<Holdout>> = vec![None; fixes.len()];
+    let mut visits_of: std::collections::BTreeMap<u32, Vec<usize>> = Default::default();
+    for (i, f) in fixes.iter().enumerate() {
+        visits_of.entry(f.id).or_default().push(i);
+    }
+    for i in 0..fixes.len() {
         if !problem.cp_used(i) {
             // The fit leaves the point out: its own covariance predicts the error there.
             let spread = predicted_spread(fit, fit.covariance.as_ref(), &fit.free, i, p);
-            *held = Some(Holdout {
+            out[i] = Some(Holdout {
                 excluded: true,
-                ..Holdout::new(problem.fixes[i].id, fit.y.cp_m[i], spread, n)
+                ..Holdout::new(&fixes[i], fit.y.cp_m[i], spread, n)
             });
             continue;
         }
+        // A point's later visits are held out with its first.
+        let Some(visits) = visits_of.remove(&fixes[i].id) else {
+            continue;
+        };
         // Without the only control point, nothing sees the odometer's settings.
         let free: Vec<Setting> = fit
             .free
@@ -190,23 +222,28 @@ pub fn holdout(
             pi[s.index()] += delta[k];
         }
         let c = covariance_of(&model, n_att, fit.inflation, s2);
-        let spread = predicted_spread(fit, c.as_ref(), &free, i, p);
-        refits.push((i, pi, spread));
+        let spreads: Vec<_> = visits
+            .iter()
+            .map(|&j| predicted_spread(fit, c.as_ref(), &free, j, p))
+            .collect();
+        refits.push((visits, pi, spreads));
     }
     let xs: Vec<X> = refits.iter().map(|(_, pi, _)| x_of(pi)).collect();
     let ys = problem.observe_many_by(&xs, &AtomicUsize::new(0));
-    for ((i, pi, spread), y) in refits.into_iter().zip(ys) {
+    for ((visits, pi, spreads), y) in refits.into_iter().zip(ys) {
         let y = if fit.lin.predict(&pi).agrees_with(&y) {
             y
         } else {
             let opts = JointOptions {
                 attitude_sigma_rad: Some(fit.attitude_sigma_rad),
-                skip_cp: Some(i),
+                skip_cp: Some(visits[0]),
                 warm: Some(&fit.lin),
             };
             joint_fit(problem, p, &opts)?.y
         };
-        out[i] = Some(Holdout::new(problem.fixes[i].id, y.cp_m[i], spread, n));
+        for (j, spread) in visits.into_iter().zip(spreads) {
+            out[j] = Some(Holdout::new(&fixes[j], y.cp_m[j], spread, n));
+        }
     }
     Ok(out.into_iter().flatten().collect())
 }
@@ -249,27 +286,29 @@ mod tests {
     fn the_error_is_measured_in_its_predicted_spread() {
         // σ north 2 m, σ east 1 m, uncorrelated: (2, 1) m is √2 σ.
         let s = Matrix2::new(4.0, 0.0, 0.0, 1.0);
-        let h = Holdout::new(7, [2.0, 1.0], Some(s), 3);
+        let h = Holdout::of(7, 0.0, [2.0, 1.0], Some(s), 3);
         assert!((h.error_sigma.unwrap() - 2f64.sqrt()).abs() < 1e-12);
         assert_eq!((h.sigma_north_m, h.sigma_east_m), (Some(2.0), Some(1.0)));
         assert!(!h.inconsistent);
         // Correlated: along the correlation the error counts less than across it.
         let c = Matrix2::new(1.0, 0.9, 0.9, 1.0);
-        let along = Holdout::new(1, [1.0, 1.0], Some(c), 3).error_sigma.unwrap();
-        let across = Holdout::new(1, [1.0, -1.0], Some(c), 3)
+        let along = Holdout::of(1, 0.0, [1.0, 1.0], Some(c), 3)
+            .error_sigma
+            .unwrap();
+        let across = Holdout::of(1, 0.0, [1.0, -1.0], Some(c), 3)
             .error_sigma
             .unwrap();
         assert!((along - (2.0 / 1.9f64).sqrt()).abs() < 1e-12);
         assert!((across - (2.0 / 0.1f64).sqrt()).abs() < 1e-9);
-        assert!(Holdout::new(1, [1.0, -1.0], Some(c), 3).inconsistent);
+        assert!(Holdout::of(1, 0.0, [1.0, -1.0], Some(c), 3).inconsistent);
     }
 
     #[test]
     fn two_points_or_no_spread_are_never_called_inconsistent() {
         let s = Matrix2::new(1.0, 0.0, 0.0, 1.0);
-        let far = Holdout::new(1, [100.0, 0.0], Some(s), 2);
+        let far = Holdout::of(1, 0.0, [100.0, 0.0], Some(s), 2);
         assert!((far.error_sigma.unwrap() - 100.0).abs() < 1e-12 && !far.inconsistent);
-        let singular = Holdout::new(1, [100.0, 0.0], Some(Matrix2::zeros()), 5);
+        let singular = Holdout::of(1, 0.0, [100.0, 0.0], Some(Matrix2::zeros()), 5);
         assert_eq!(
             (
                 singular.error_sigma,
@@ -278,7 +317,7 @@ mod tests {
             ),
             (None, None, false)
         );
-        let none = Holdout::new(1, [100.0, 0.0], None, 5);
+        let none = Holdout::of(1, 0.0, [100.0, 0.0], None, 5);
         assert_eq!((none.error_sigma, none.inconsistent), (None, false));
     }
 
@@ -287,12 +326,12 @@ mod tests {
         let s = Matrix2::new(1.0, 0.0, 0.0, 1.0);
         let left_out = Holdout {
             excluded: true,
-            ..Holdout::new(6, [9.0, 0.0], Some(s), 4)
+            ..Holdout::of(6, 0.0, [9.0, 0.0], Some(s), 4)
         };
         let h = [
-            Holdout::new(1, [0.5, 0.0], Some(s), 4),
+            Holdout::of(1, 0.0, [0.5, 0.0], Some(s), 4),
             left_out,
-            Holdout::new(2, [0.0, 4.0], Some(s), 4),
+            Holdout::of(2, 0.0, [0.0, 4.0], Some(s), 4),
         ];
         assert_eq!(holdout_median_max_m(&h), Some((2.25, 4.0)));
         assert_eq!(holdout_median_max_m(&h[1..2]), None);
@@ -310,15 +349,32 @@ mod tests {
     fn the_note_names_the_inconsistent_points_largest_first() {
         let s = Matrix2::new(1.0, 0.0, 0.0, 1.0);
         let h = [
-            Holdout::new(1, [0.5, 0.0], Some(s), 3),
-            Holdout::new(2, [4.0, 3.0], Some(s), 3),
-            Holdout::new(3, [0.0, 9.0], Some(s), 3),
+            Holdout::of(1, 0.0, [0.5, 0.0], Some(s), 3),
+            Holdout::of(2, 0.0, [4.0, 3.0], Some(s), 3),
+            Holdout::of(3, 0.0, [0.0, 9.0], Some(s), 3),
         ];
         assert_eq!(inconsistent_points_note(&h[..1]), None);
         let note = inconsistent_points_note(&h).unwrap();
         assert!(
             note.starts_with("control points inconsistent")
                 && note.contains(": 3 (9.0 m, 9.0σ), 2 (5.0 m, 5.0σ);"),
+            "{note}"
+        );
+    }
+
+    #[test]
+    fn a_point_visited_twice_is_named_with_each_visits_time() {
+        let s = Matrix2::new(1.0, 0.0, 0.0, 1.0);
+        let h = [
+            Holdout::of(1, 700.3, [0.0, 5.0], Some(s), 3),
+            Holdout::of(2, 900.0, [0.5, 0.0], Some(s), 3),
+            Holdout::of(1, 1600.0, [0.0, 4.5], Some(s), 3),
+        ];
+        let labels: Vec<String> = h.iter().map(|p| p.label(&h)).collect();
+        assert_eq!(labels, ["1 at t_s = 700.3", "2", "1 at t_s = 1600.0"]);
+        let note = inconsistent_points_note(&h).unwrap();
+        assert!(
+            note.contains(": 1 at t_s = 700.3 (5.0 m, 5.0σ), 1 at t_s = 1600.0 (4.5 m, 4.5σ);"),
             "{note}"
         );
     }

@@ -54,7 +54,7 @@ fn joint_residuals(
     // A control point held out or excluded keeps its rows, at zero, so that row indices
     // stay put.
     for (i, c) in y.cp_m.iter().enumerate() {
-        let w = if skip_cp == Some(i) || !problem.cp_used(i) {
+        let w = if problem.held_out(skip_cp, i) || !problem.cp_used(i) {
             0.0
         } else {
             1.0 / params.position_sigma_m
@@ -256,7 +256,8 @@ pub struct JointOptions<'w> {
     /// Weigh the epochs with this σ (rad) instead of their residuals' RMS (variance
     /// components), so that the costs of several fits compare (the odometer-lag search).
     pub attitude_sigma_rad: Option<f64>,
-    /// Leave this control point (index into the problem's fixes) out of the fit.
+    /// Leave this control point (index into the problem's fixes) out of the fit, with
+    /// its point's other visits ([`Problem::held_out`]).
     pub skip_cp: Option<usize>,
     /// Start at this linearisation's point with its slopes, from a nearby problem (the
     /// odometer-lag search's previous trial): one exact pass there instead of the shared
@@ -333,7 +334,7 @@ pub fn joint_fit(
     let x0 = problem.x0();
     let skip = opts.skip_cp;
     let used_cps = (0..problem.fixes.len())
-        .filter(|&i| problem.cp_used(i) && skip != Some(i))
+        .filter(|&i| problem.cp_used(i) && !problem.held_out(skip, i))
         .count();
     // The attitude's settings always; the odometer's when control points see them.
     let mut free: Vec<Setting> = Setting::ALL

@@ -195,9 +195,34 @@ impl<'a> Problem<'a> {
         !self.excluded_cps.contains(&i)
     }
 
-    /// How many control points the joint fit weighs.
+    /// How many control points the joint fit weighs (a visit each: a point the route
+    /// came back to counts once per visit).
     pub fn cps_used(&self) -> usize {
         cps_used(self.fixes, self.excluded_cps)
+    }
+
+    /// How many distinct points (ids) among them: what judges a point against the others.
+    pub fn points_used(&self) -> usize {
+        let mut ids: Vec<u32> = (0..self.fixes.len())
+            .filter(|&i| self.cp_used(i))
+            .map(|i| self.fixes[i].id)
+            .collect();
+        ids.sort_unstable();
+        ids.dedup();
+        ids.len()
+    }
+
+    /// Whether fixes `i` and `j` are visits of the same point (the same id): a point
+    /// left out of a fit, or held out, is left out at every visit, as its coordinates
+    /// are.
+    pub fn same_point(&self, i: usize, j: usize) -> bool {
+        self.fixes[i].id == self.fixes[j].id
+    }
+
+    /// Whether a fit holding out `skip` (a fix, with its point's other visits) leaves
+    /// fix `i` out too.
+    pub fn held_out(&self, skip: Option<usize>, i: usize) -> bool {
+        skip.is_some_and(|s| self.same_point(s, i))
     }
 
     /// Navigation passes so far.

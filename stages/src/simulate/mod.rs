@@ -93,6 +93,11 @@ pub struct SimConfig {
     /// z down), m: each control point is surveyed under the mark, not under the
     /// navigated point. Zero by default.
     pub mark_lever_arm_m: [f64; 3],
+    /// Drive the route out and back ([`plan::plan_out_and_back`]): every control point
+    /// but the far one is visited twice, at the same place, and marked at each visit; the
+    /// vehicle stands level at the start (no constant tilt). The navigated point stops over
+    /// the point both ways, so the mark's lever arm must be zero.
+    pub out_and_back: bool,
 }
 
 impl SimConfig {
@@ -111,6 +116,7 @@ impl SimConfig {
             cp_at_every_stop: false,
             log_start_s: None,
             mark_lever_arm_m: [0.0; 3],
+            out_and_back: false,
         }
     }
 }
@@ -224,7 +230,8 @@ pub struct SimRun {
     pub marks: Vec<(usize, SensorMark)>,
     /// Where the log starts (the manifest's site).
     pub site: Geodetic,
-    /// Control points.
+    /// Control points, one per mark (a point visited twice is here twice, with the same
+    /// coordinates; the manifest lists it once).
     pub control_points: Vec<SimControlPoint>,
     /// Truth.
     pub truth: Truth,
@@ -284,16 +291,24 @@ pub fn simulate(config: &SimConfig) -> SimRun {
     let lon0_deg: f64 = rng.random_range(14.5..24.0);
     let h0: f64 = rng.random_range(80.0..300.0);
     let heading0 = rng.random_range(0.0..std::f64::consts::TAU);
-    let mut plan = plan::plan_route(
+    let plan_with = if config.out_and_back {
+        plan::plan_out_and_back
+    } else {
+        plan::plan_route
+    };
+    let mut plan = plan_with(
         &mut rng,
         config.duration_s,
         config.static_s,
         heading0,
         config.cp_at_every_stop,
     );
-    // The vehicle stands and drives slightly tilted (parking slope, road camber).
-    plan.motion.pitch0_rad = rng.random_range(-0.6f64..0.6).to_radians();
-    plan.motion.roll0_rad = rng.random_range(-0.6f64..0.6).to_radians();
+    // The vehicle stands and drives slightly tilted (parking slope, road camber); not
+    // on a route driven back, whose grades change sign with the direction of travel.
+    let tilt_rad: [f64; 2] = std::array::from_fn(|_| rng.random_range(-0.6f64..0.6).to_radians());
+    if !config.out_and_back {
+        [plan.motion.pitch0_rad, plan.motion.roll0_rad] = tilt_rad;
+    }
     let e = config.errors;
     let mut uniform_signed =
         |lo: f64, hi: f64| rng.random_range(lo..hi) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
@@ -433,12 +448,22 @@ pub fn simulate(config: &SimConfig) -> SimRun {
                 point_id: stop.id,
             },
         ));
+        // A point visited again keeps where it was surveyed at its first visit.
+        let surveyed = control_points
+            .iter()
+            .find(|c: &&SimControlPoint| c.id == stop.id)
+            .map(|c| (c.latitude_deg, c.longitude_deg, c.height_m));
         let under_mark = mark_position(&truth, k, &config.mark_lever_arm_m);
+        let (latitude_deg, longitude_deg, height_m) = surveyed.unwrap_or((
+            under_mark.lat_rad.to_degrees(),
+            under_mark.lon_rad.to_degrees(),
+            under_mark.h_m,
+        ));
         control_points.push(SimControlPoint {
             id: stop.id,
-            latitude_deg: under_mark.lat_rad.to_degrees(),
-            longitude_deg: under_mark.lon_rad.to_degrees(),
-            height_m: under_mark.h_m,
+            latitude_deg,
+            longitude_deg,
+            height_m,
             t_s: records[k].t_us as f64 * 1e-6,
         });
     }
@@ -518,7 +543,8 @@ impl SimRun {
                 arm[0], arm[1], arm[2]
             );
         }
-        for cp in &self.control_points {
+        let mut listed = std::collections::BTreeSet::new();
+        for cp in self.control_points.iter().filter(|c| listed.insert(c.id)) {
             s += &format!(
                 "\n[[control_point]]\nid = {}\nlatitude_deg = {:.9}\nlongitude_deg = {:.9}\nheight_m = {:.3}\n",
                 cp.id, cp.latitude_deg, cp.longitude_deg, cp.height_m

@@ -1,5 +1,6 @@
 //! Random but realistic routes: a static start, drives of 5–15 m/s with turns, hills and
-//! side slopes, intermediate stops, a mid-route and a final stop on control points.
+//! side slopes, intermediate stops, a mid-route and a final stop on control points; or
+//! such a route driven out and back, its control points visited twice.
 
 use rand::Rng;
 
@@ -40,8 +41,7 @@ pub fn plan_route(
     heading0_rad: f64,
     cp_at_every_stop: bool,
 ) -> RoutePlan {
-    let final_stop_s = 60.0_f64.min(0.1 * duration_s).max(20.0);
-    let end_drive = duration_s - final_stop_s;
+    let end_drive = duration_s - final_stop_s(duration_s);
     let mid_target = static_s + 0.5 * (end_drive - static_s);
     let (mut accel, mut yaw, mut pitch, mut roll) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -133,6 +133,141 @@ pub fn plan_route(
             pitch0_rad: 0.0,
             roll0_rad: 0.0,
         },
+        stops,
+        rests,
+    }
+}
+
+/// The final stop of a route of `duration_s`, s: a tenth of it, within 20–60 s.
+fn final_stop_s(duration_s: f64) -> f64 {
+    60.0_f64.min(0.1 * duration_s).max(20.0)
+}
+
+/// How long the turn about at the far end of an out-and-back route takes, s.
+pub const PIVOT_S: f64 = 16.0;
+/// Least time the vehicle stands at the far end before and after the turn about, s.
+pub const FAR_REST_S: f64 = 10.0;
+
+/// Plans an out-and-back route of `duration_s` with a static start of `static_s`: a route
+/// of [`plan_route`] driven out over about half of it, a turn about on the spot at its
+/// last stop (a pivot turn, as a tracked vehicle makes: 180° in [`PIVOT_S`]), and the
+/// same path driven back to the start, where the vehicle stops to the end. Every stop
+/// out is made again at the same place on the way back, with its control point when it
+/// has one, so those points are visited twice (the far one once, within its stop); the
+/// stop at the start has a point of its own (the last id). The drive back is the drive
+/// out reversed in time: speed, turns, grades and side slopes mirrored, so the path is
+/// the same (grades and side slopes change sign in the direction of travel). The
+/// constant tilt of [`Motion`] must stay zero for the heights to close.
+pub fn plan_out_and_back(
+    rng: &mut impl Rng,
+    duration_s: f64,
+    static_s: f64,
+    heading0_rad: f64,
+    cp_at_every_stop: bool,
+) -> RoutePlan {
+    // The time the drive back mirrors: the middle of the turn about.
+    let mirror_s = 0.5 * (duration_s - final_stop_s(duration_s) + static_s);
+    // A route's last stop may begin after its planned end (a long stop near it): drawn
+    // again then, as the turn about needs its time before the mirror.
+    let fits = |r: &RoutePlan| {
+        r.stops
+            .last()
+            .is_some_and(|s| s.start_s <= mirror_s - FAR_REST_S)
+    };
+    let mut draw = || {
+        plan_route(
+            rng,
+            mirror_s - FAR_REST_S,
+            static_s,
+            heading0_rad,
+            cp_at_every_stop,
+        )
+    };
+    let mut out = draw();
+    for _ in 0..100 {
+        if fits(&out) {
+            break;
+        }
+        out = draw();
+    }
+    let mirror_s = mirror_s.max(out.stops.last().map_or(0.0, |s| s.start_s) + FAR_REST_S);
+    let back = |t: f64| 2.0 * mirror_s - t;
+    let mirrored = |p: &Profile, extra: Option<Pulse>| {
+        let pulses = p.pulses().iter().flat_map(|q| {
+            [
+                *q,
+                Pulse {
+                    t0_s: back(q.t0_s + q.dur_s),
+                    dur_s: q.dur_s,
+                    amp: -q.amp,
+                },
+            ]
+        });
+        Profile::new(pulses.chain(extra).collect())
+    };
+    let pivot = Pulse {
+        t0_s: mirror_s - 0.5 * PIVOT_S,
+        dur_s: PIVOT_S,
+        amp: std::f64::consts::TAU / PIVOT_S,
+    };
+    let m = &out.motion;
+    let motion = Motion {
+        heading0_rad,
+        accel: mirrored(&m.accel, None),
+        yaw_rate: mirrored(&m.yaw_rate, Some(pivot)),
+        pitch: mirrored(&m.pitch, None),
+        roll: mirrored(&m.roll, None),
+        pitch0_rad: 0.0,
+        roll0_rad: 0.0,
+    };
+    // The far stop spans the turn about; every other stop out is made again on the way
+    // back, in reverse order.
+    let end_id = out.stops.iter().map(|s| s.id).max().unwrap_or(0) + 1;
+    let (far, mut before) = out.stops.split_last().expect("a route has a final stop");
+    let (mut far_rest, mut rests_out) = out.rests.split_last().expect("a route has a final rest");
+    let mut far = *far;
+    // A route's last stop may follow its stop before without a drive between (the route
+    // ran out of time there): one stop, under the earlier one's id.
+    if let Some((last, rest)) = before.split_last()
+        && last.end_s >= far.start_s
+    {
+        far = PlannedStop {
+            id: last.id,
+            start_s: last.start_s,
+            ..far
+        };
+        before = rest;
+        let (last_rest, rest) = rests_out.split_last().expect("a stop has its rest");
+        far_rest = last_rest;
+        rests_out = rest;
+    }
+    let mut stops = before.to_vec();
+    stops.push(PlannedStop {
+        end_s: back(far.start_s),
+        ..far
+    });
+    stops.extend(before.iter().rev().map(|s| PlannedStop {
+        id: s.id,
+        start_s: back(s.end_s),
+        end_s: back(s.start_s),
+    }));
+    let home_s = back(static_s);
+    stops.push(PlannedStop {
+        id: end_id,
+        start_s: home_s,
+        end_s: duration_s,
+    });
+    let mut rests = rests_out.to_vec();
+    rests.push((far_rest.0, back(far_rest.0)));
+    rests.extend(
+        rests_out[1..]
+            .iter()
+            .rev()
+            .map(|&(a, b)| (back(b), back(a))),
+    );
+    rests.push((home_s, duration_s));
+    RoutePlan {
+        motion,
         stops,
         rests,
     }
