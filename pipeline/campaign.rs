@@ -21,6 +21,7 @@ use unz_viz::report::{JointEstimate, ReportRow};
 use crate::artifacts::{RunLayout, StageName, files};
 use crate::campaign_mark::{MarkAcross, MarkEstimate};
 use crate::disupt_stage::{DisuptOut, Method, MethodOut, SettingsOut, SigmaOut, ensure_disupt};
+use crate::flow::marks::RepeatedMark;
 use crate::flow::{
     NavigateSummary, Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest,
     ensure_navigate,
@@ -437,19 +438,7 @@ fn run_note(
             nav.and_then(|n| n.unknown_marks.as_ref())
                 .map(|u| format!("marks of ids no control point has: {}", u.listed())),
         )
-        .chain(repeated.map(|r| {
-            format!(
-                "control point {} marked {} times: the mark at t_s = {:.2} used ({})",
-                r.id,
-                r.marks,
-                r.used_t_s,
-                match (r.at_rest, r.used_speed_mps) {
-                    (true, _) => "the last at rest".to_owned(),
-                    (false, Some(v)) => format!("none at rest: the slowest, {v:.1} m/s"),
-                    (false, None) => "no odometer about it".to_owned(),
-                }
-            )
-        }))
+        .chain(repeated.map(RepeatedMark::said))
         .collect::<Vec<_>>()
         .join("; ")
 }

@@ -1230,4 +1230,10 @@ fn a_point_the_route_comes_back_to_is_compared_at_each_visit() {
         md.contains(&format!("| 1 at t_s = {:.1} |", visits[0])),
         "{md}"
     );
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    let note = format!(
+        "control point 1 visited 2 times (marked 2), at t_s = {:.2}, {:.2}",
+        visits[0], visits[1]
+    );
+    assert!(summary.contains(&note), "{summary}");
 }

@@ -687,6 +687,61 @@ fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
     );
 }
 
+/// A point's id pressed at rest at an earlier stop, kilometres of driving before the
+/// point (a stop taken for the point, corrected at the point itself): both presses are at
+/// rest and far apart along the path, as a point the route comes back to would be, but
+/// the navigation puts them hundreds of metres apart, so the earlier is a press the last
+/// corrected, not a visit. `navigate.json` says so (`elsewhere_t_s`), and the errors at
+/// the control points are the log's without it, bit for bit.
+#[test]
+fn a_press_at_another_stop_is_not_a_visit() {
+    use crate::util::{read_log, write_log};
+    use unz_formats::raw::MarkRecord;
+
+    let tmp = tempfile::tempdir().unwrap();
+    let run = crate::util::simulated_run(
+        tmp.path(),
+        91,
+        &["--duration-s", "1200", "--cp-at-every-stop"],
+    );
+    let path = run.join("sim-0091.unz");
+    let mut log = read_log(&path);
+    let (_, first) = log.marks[0];
+    let (_, last) = *log.marks.last().unwrap();
+    assert!(last.point_id > 2, "{:?}", log.marks);
+    // At the first point's stop, 2 s after its mark: the last point's id.
+    let wrong = MarkRecord {
+        t_us: first.t_us + 2_000_000,
+        point_id: last.point_id,
+    };
+    let navigate = |out: &Path| -> NavigateSummary {
+        crate::util::run_until(&run, out, "criteria");
+        read_json(&out.join("sim-0091/navigate/navigate.json"))
+    };
+    let clean = navigate(&tmp.path().join("clean"));
+    log.insert_mark(wrong);
+    write_log(&path, &log);
+    let pressed = navigate(&tmp.path().join("pressed"));
+    let r = &pressed.repeated_marks[0];
+    assert_eq!(
+        (r.id, r.marks, r.at_rest),
+        (last.point_id, 2, true),
+        "{r:?}"
+    );
+    assert!(r.visits_t_s.is_empty(), "{r:?}");
+    let t = |us: u64| us as f64 * 1e-6;
+    assert_eq!(r.elsewhere_t_s.len(), 1, "{r:?}");
+    assert!((r.elsewhere_t_s[0] - t(wrong.t_us)).abs() < 1e-6, "{r:?}");
+    assert!((r.used_t_s - t(last.t_us)).abs() < 1e-6, "{r:?}");
+    assert_eq!(pressed.control_points, clean.control_points);
+    let summary = std::fs::read_to_string(tmp.path().join("pressed/campaign.md")).unwrap();
+    let note = format!(
+        "placed elsewhere by the navigation, not used: t_s = {:.2}",
+        t(wrong.t_us)
+    );
+    assert!(summary.contains(&note), "{summary}");
+}
+
 /// An odometer the log flags failed (status bit 1) for 15 s while driving, its count held:
 /// the ingest bridges it with the inertial along-track speed (a held count lost the
 /// distance driven meanwhile, and the summary blamed the control points), and the

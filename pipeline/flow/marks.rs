@@ -73,6 +73,48 @@ pub struct RepeatedMark {
 /// A stop's mark (index into the marks) and the odometer's distance there, m.
 type Stop = (usize, f64);
 
+impl RepeatedMark {
+    /// What the campaign's note says of it: the visits, or the mark used and why, and
+    /// the presses at other stops left out.
+    pub fn said(&self) -> String {
+        let times = |t: &[f64]| {
+            t.iter()
+                .map(|t| format!("{t:.2}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let mut s = if self.visits_t_s.len() > 1 {
+            format!(
+                "control point {} visited {} times (marked {}), at t_s = {}",
+                self.id,
+                self.visits_t_s.len(),
+                self.marks,
+                times(&self.visits_t_s)
+            )
+        } else {
+            format!(
+                "control point {} marked {} times: the mark at t_s = {:.2} used ({})",
+                self.id,
+                self.marks,
+                self.used_t_s,
+                match (self.at_rest, self.used_speed_mps) {
+                    (true, _) => "the last at rest".to_owned(),
+                    (false, Some(v)) => format!("none at rest: the slowest, {v:.1} m/s"),
+                    (false, None) => "no odometer about it".to_owned(),
+                }
+            )
+        };
+        if !self.elsewhere_t_s.is_empty() {
+            s += &format!(
+                "; its marks at rest at other stops, placed elsewhere by the navigation, not \
+                 used: t_s = {}",
+                times(&self.elsewhere_t_s)
+            );
+        }
+        s
+    }
+}
+
 /// A repeated id's marks, before the navigation says which stops are at the same place.
 #[derive(Debug, Clone)]
 struct Repeated {
