@@ -35,23 +35,38 @@ pub struct PointsAcross {
 
 impl PointsAcross {
     /// Adds a run: its manifest's `points` and its joint fit's `holdout` (points without
-    /// a surveyed position in the manifest are skipped).
+    /// a surveyed position in the manifest are skipped). A point the run came back to
+    /// counts once for the run (left out, or inconsistent, at any visit), with each
+    /// visit's error.
     pub fn add(&mut self, points: &[ControlPoint], holdout: &[Holdout]) {
+        let mut of_run: BTreeMap<Key, (Across, bool, bool)> = BTreeMap::new();
         for h in holdout {
             let Some(p) = points.iter().find(|p| p.id == h.id) else {
                 continue;
             };
             let (lat, lon) = (p.position.latitude_deg, p.position.longitude_deg);
             let key = (h.id, (lat * 1e7).round() as i64, (lon * 1e7).round() as i64);
+            let (a, left_out, inconsistent) = of_run.entry(key).or_insert_with(|| {
+                let a = Across {
+                    latitude_deg: lat,
+                    longitude_deg: lon,
+                    ..Across::default()
+                };
+                (a, false, false)
+            });
+            *left_out |= h.excluded;
+            *inconsistent |= h.inconsistent;
+            a.errors_m.push(h.dx_m.hypot(h.dy_m));
+        }
+        for (key, (run, left_out, inconsistent)) in of_run {
             let a = self.points.entry(key).or_insert_with(|| Across {
-                latitude_deg: lat,
-                longitude_deg: lon,
-                ..Across::default()
+                errors_m: Vec::new(),
+                ..run.clone()
             });
             a.runs += 1;
-            a.left_out += usize::from(h.excluded);
-            a.inconsistent += usize::from(h.inconsistent);
-            a.errors_m.push(h.dx_m.hypot(h.dy_m));
+            a.left_out += usize::from(left_out);
+            a.inconsistent += usize::from(inconsistent);
+            a.errors_m.extend(run.errors_m);
         }
     }
 
@@ -134,8 +149,8 @@ mod tests {
             );
         }
         across.add(&[point(6, 50.0)], &[held(6, 0.3, false)]);
-        // One run's fault at point 1.
-        across.add(&[point(1, 52.0)], &[held(1, 4.0, true)]);
+        // One run's fault at point 1, which it came back to: one run, both visits' errors.
+        across.add(&[point(1, 52.0)], &[held(1, 4.0, true), held(1, 4.2, true)]);
         let md = across.markdown().unwrap();
         let rows: Vec<&str> = md.lines().filter(|l| l.starts_with("| ")).collect();
         assert_eq!(rows.len(), 3, "{md}");
@@ -144,7 +159,7 @@ mod tests {
             "{md}"
         );
         assert!(
-            rows[2].starts_with("| 1 | 52.0000000 | 21.0000000 | 4 | 1 | 1 | 0.2 | 4.0 |"),
+            rows[2].starts_with("| 1 | 52.0000000 | 21.0000000 | 4 | 1 | 1 | 0.2 | 4.2 |"),
             "{md}"
         );
     }

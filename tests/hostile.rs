@@ -742,6 +742,49 @@ fn a_press_at_another_stop_is_not_a_visit() {
     assert!(summary.contains(&note), "{summary}");
 }
 
+/// A route driven out and back ends on the point at its start, and the crew marked that
+/// point during the static start too: the same place, but the navigation starts at the
+/// manifest's site, so that mark compares the site with the survey (a site read off a
+/// map would make it a point off, and the end's visit left out with it). It is not a
+/// visit; `navigate.json` says so (`at_start_t_s`), and the errors at the control points
+/// are the log's without it, bit for bit.
+#[test]
+fn a_mark_during_the_static_start_is_not_a_visit() {
+    use crate::util::{read_log, write_log};
+    use unz_formats::raw::MarkRecord;
+
+    let tmp = tempfile::tempdir().unwrap();
+    let run =
+        crate::util::simulated_run(tmp.path(), 92, &["--duration-s", "1200", "--out-and-back"]);
+    let path = run.join("sim-0092.unz");
+    let mut log = read_log(&path);
+    let (_, home) = *log.marks.last().unwrap();
+    let early = MarkRecord {
+        t_us: 30_000_000,
+        point_id: home.point_id,
+    };
+    let navigate = |out: &Path| -> NavigateSummary {
+        crate::util::run_until(&run, out, "criteria");
+        read_json(&out.join("sim-0092/navigate/navigate.json"))
+    };
+    let clean = navigate(&tmp.path().join("clean"));
+    log.insert_mark(early);
+    write_log(&path, &log);
+    let marked = navigate(&tmp.path().join("marked"));
+    let r = marked
+        .repeated_marks
+        .iter()
+        .find(|r| r.id == home.point_id)
+        .unwrap();
+    assert_eq!((r.marks, r.at_start_t_s.len()), (2, 1), "{r:?}");
+    assert!((r.at_start_t_s[0] - 30.0).abs() < 1e-6, "{r:?}");
+    assert!(
+        r.visits_t_s.is_empty() && r.elsewhere_t_s.is_empty(),
+        "{r:?}"
+    );
+    assert_eq!(marked.control_points, clean.control_points);
+}
+
 /// An odometer the log flags failed (status bit 1) for 15 s while driving, its count held:
 /// the ingest bridges it with the inertial along-track speed (a held count lost the
 /// distance driven meanwhile, and the summary blamed the control points), and the

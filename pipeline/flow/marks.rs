@@ -68,6 +68,12 @@ pub struct RepeatedMark {
     /// visit (beyond [`same_place`]): presses the last corrected, not used, s.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub elsewhere_t_s: Vec<f64>,
+    /// Marks at rest at the run's start (less than [`SAME_STOP_PATH_M`] of the odometer's
+    /// path from the log's first reading), with a later stop marked: not used, s. The
+    /// navigation starts at the manifest's site, so a mark there compares the site with
+    /// the survey, not the navigation (a site read off a map would be a point off).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub at_start_t_s: Vec<f64>,
 }
 
 /// A stop's mark (index into the marks) and the odometer's distance there, m.
@@ -104,6 +110,13 @@ impl RepeatedMark {
                 }
             )
         };
+        if !self.at_start_t_s.is_empty() {
+            s += &format!(
+                "; its marks at the run's start (where the site stands for it), not used: \
+                 t_s = {}",
+                times(&self.at_start_t_s)
+            );
+        }
         if !self.elsewhere_t_s.is_empty() {
             s += &format!(
                 "; its marks at rest at other stops, placed elsewhere by the navigation, not \
@@ -124,6 +137,8 @@ struct Repeated {
     /// The mark of each stop made at rest, with the odometer's distance there, in time
     /// order; or the one mark used (the slowest, or none at rest).
     stops: Vec<Stop>,
+    /// Marks at rest at the run's start, before a later stop (not candidates).
+    at_start: Vec<usize>,
     used_speed_mps: Option<f64>,
 }
 
@@ -192,6 +207,7 @@ impl ChosenMarks {
                     Vec::new()
                 },
                 elsewhere_t_s: times(&elsewhere),
+                at_start_t_s: r.at_start.iter().map(|&i| t_s(i)).collect(),
             });
             used.insert(r.id, visits.into_iter().map(|v| v.0).collect());
         }
@@ -252,7 +268,9 @@ impl UnknownMarks {
 ///
 /// An id marked once is that mark. Of an id marked several times, the marks `in_log` are
 /// split into stops where the odometer's path between neighbours reaches
-/// [`SAME_STOP_PATH_M`]; each stop's last mark made at rest is a candidate visit. Without
+/// [`SAME_STOP_PATH_M`]; each stop's last mark made at rest is a candidate visit, but
+/// for stops at the run's start (within that path of the log's first odometer reading)
+/// before a later one. Without
 /// any at rest, the slowest mark (the last on a tie), else (no mark in the log) its first
 /// mark, is used. The ingested odometer (`odometer.parquet`) is read, once and batch by
 /// batch, only when some id is marked more than once.
@@ -295,11 +313,14 @@ pub fn choose_marks(
             repeated: Vec::new(),
         });
     }
+    // The marks' times, and the log's start last (the first reading, held before it).
     let times_ns: Vec<i64> = candidates
         .iter()
         .flat_map(|(_, v)| v.iter().map(|&i| marks.t_ns[i]))
+        .chain([i64::MIN])
         .collect();
-    let about = odometer_about(odometer, &times_ns)?;
+    let mut about = odometer_about(odometer, &times_ns)?;
+    let start_m = about.pop().map_or(f64::NAN, |a| a.distance_m);
     let mut next = about.into_iter();
     let mut repeated = Vec::with_capacity(candidates.len());
     for (id, inside) in candidates {
@@ -317,10 +338,20 @@ pub fn choose_marks(
             }
         }
         let at_rest = |k: &usize| at[*k].speed_mps <= AT_REST_MPS;
-        let rest: Vec<usize> = stops
+        let mut rest: Vec<usize> = stops
             .iter()
             .filter_map(|stop| stop.iter().rev().copied().find(at_rest))
             .collect();
+        // Stops at the run's start, before a later one: the site stands for them.
+        let at_start: Vec<usize> = match rest.split_last() {
+            Some((_, earlier)) => earlier
+                .iter()
+                .copied()
+                .filter(|&k| (at[k].distance_m - start_m).abs() < SAME_STOP_PATH_M)
+                .collect(),
+            None => Vec::new(),
+        };
+        rest.retain(|k| !at_start.contains(k));
         let (stops, used_speed_mps) = if let Some(&last) = rest.last() {
             (
                 rest.iter()
@@ -348,6 +379,7 @@ pub fn choose_marks(
             marks: of_id[&id].len(),
             first,
             stops,
+            at_start: at_start.into_iter().map(|k| inside[k]).collect(),
             used_speed_mps,
         });
     }
@@ -429,11 +461,16 @@ mod tests {
     /// An odometer at 100 Hz: driving at 10 m/s until 20 s, stopped until 40 s, driving
     /// again until 60 s, stopped after.
     fn odometer(dir: &Path) -> std::path::PathBuf {
+        odometer_driving(dir, |s| s <= 20.0 || (40.0 < s && s <= 60.0))
+    }
+
+    /// An odometer at 100 Hz for 80 s, at 10 m/s while `driving`, from 0 m.
+    fn odometer_driving(dir: &Path, driving: impl Fn(f64) -> bool) -> std::path::PathBuf {
         let mut t = OdometerTable::default();
         let mut d = 0.0;
         for k in 0..8000_i64 {
             let s = k as f64 * 0.01;
-            if k > 0 && (s <= 20.0 || (40.0 < s && s <= 60.0)) {
+            if k > 0 && driving(s) {
                 d += 0.1;
             }
             t.t_ns.push(k * 10_000_000);
@@ -569,5 +606,31 @@ mod tests {
         assert_eq!(ms(&repeated[0].elsewhere_t_s), [30_000]);
         assert!(repeated[0].visits_t_s.is_empty());
         assert!(same_place(30.0, 0.0) && !same_place(30.1, 0.0) && same_place(330.0, 10_000.0));
+    }
+
+    #[test]
+    fn a_mark_at_the_runs_start_is_not_a_visit() {
+        let tmp = tempfile::tempdir().unwrap();
+        // Standing until 10 s, then 200 m, standing after.
+        let path = odometer_driving(tmp.path(), |s| 10.0 < s && s <= 30.0);
+        let ms = |t: &[f64]| {
+            t.iter()
+                .map(|t| (t * 1e3).round() as i64)
+                .collect::<Vec<_>>()
+        };
+        // Marked at rest during the static start and at the stop 200 m on: the site
+        // stands for the start, so only the stop is a candidate (no place asked).
+        let m = marks(&[(5.0, 1), (40.0, 1)]);
+        let c = choose_marks(&m, &[1], &path, |_| true).unwrap();
+        assert!(c.to_place().is_empty());
+        let (used, repeated) = c.settle(&m, |_| None);
+        assert_eq!(used[&1], [1]);
+        assert_eq!(ms(&repeated[0].at_start_t_s), [5_000]);
+        assert!(repeated[0].visits_t_s.is_empty() && repeated[0].elsewhere_t_s.is_empty());
+        // Marked at the start only (twice): the last, as ever.
+        let m = marks(&[(2.0, 1), (5.0, 1)]);
+        let (used, repeated) = settled(&m, &[1], &path, |_| true);
+        assert_eq!(used[&1], [1]);
+        assert!(repeated[0].at_start_t_s.is_empty());
     }
 }
