@@ -153,7 +153,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 13: the vehicle's mark: compared at its lever arm, checked and estimated.
         // 14: a point the route comes back to: each visit, held out and left out together;
         //     the hold-outs carry their stop's time.
-        version: 14,
+        // 15: two points off searched: a pair out of bounds, or one more beside the most
+        //     inconsistent when the fit without it leaves its bounds.
+        version: 15,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[

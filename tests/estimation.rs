@@ -250,7 +250,9 @@ fn edit_manifest(manifest: &Path, f: impl FnOnce(&mut toml::Table)) {
 /// is said in `disupt.json` (`holdout[].excluded`), `disupt.md`, the campaign's note and
 /// its `joint_excluded_points` column. The same run intact calls none (every hold-out
 /// ≤ 0.3σ). A point a kilometre off, which drags the fit out of its bounds, is found by
-/// leaving each point out in turn (measured: 0.26 m).
+/// leaving each point out in turn (measured: 0.26 m); two such, by leaving out each pair
+/// (0.28 m); and two off of which one drags the fit without the other out of its bounds,
+/// by leaving one more out beside the most inconsistent (0.28 m).
 #[test]
 fn control_points_surveyed_off_are_left_out_of_the_fit() {
     let tmp = tempfile::tempdir().unwrap();
@@ -410,6 +412,37 @@ fn control_points_surveyed_off_are_left_out_of_the_fit() {
     assert!(
         worst_typo < worst_clean + 0.1,
         "{worst_typo} m against {worst_clean} m"
+    );
+
+    // Two points a kilometre off (6, and 4): no single point's absence brings the fit
+    // within its bounds; a pair's does (the previous build fell back to OEPI, 78 m off).
+    move_control_point(&manifest, 4, 1000.0);
+    let (_, d, worst_pair) = run_into("pair");
+    assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
+    let (holdout, excluded) = left_out(&d);
+    assert_eq!(excluded, [4, 6], "{holdout:?}");
+    eprintln!("worst route error with points 4 and 6 a kilometre off: {worst_pair:.2} m");
+    assert!(
+        worst_pair < worst_clean + 0.1,
+        "{worst_pair} m against {worst_clean} m"
+    );
+
+    // Point 2 a kilometre off and 5 700 m south: the fit with both stays within its
+    // bounds, but without 2 alone (the most inconsistent) it leaves them, dragged by 5;
+    // without both it is within. The previous build kept both: 39 m off.
+    move_control_point(&manifest, 4, -1000.0);
+    move_control_point(&manifest, 6, -1000.0);
+    move_control_point(&manifest, 2, 1000.0);
+    move_control_point(&manifest, 5, -700.0);
+    let (_, d, worst_dragged) = run_into("dragged");
+    assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
+    assert!(d.methods["joint"].refused_with_all_points.is_none());
+    let (holdout, excluded) = left_out(&d);
+    assert_eq!(excluded, [2, 5], "{holdout:?}");
+    eprintln!("worst route error with points 2 and 5 off, one dragging: {worst_dragged:.2} m");
+    assert!(
+        worst_dragged < worst_clean + 0.1,
+        "{worst_dragged} m against {worst_clean} m"
     );
 }
 

@@ -92,7 +92,23 @@ pub(super) fn exclude_inconsistent(
         let mut next = out.found.excluded.clone();
         next.extend(visits_of(&x.case.fixes, i));
         next.sort_unstable();
-        match run_joint_without(x, &next) {
+        // Without it the fit may leave its bounds, dragged by another point off (two
+        // typed wrong): one more (or two) left out brings it back within them.
+        let refit = match run_joint_without(x, &next) {
+            Err(DisuptError::OutOfBounds(said)) => {
+                let search = points_within_bounds(x, &next);
+                match search.without {
+                    Some(more) => run_joint_without(x, &more).map(|mut refit| {
+                        add_passes(&mut refit, search.passes);
+                        next = more;
+                        refit
+                    }),
+                    None => Err(DisuptError::OutOfBounds(said)),
+                }
+            }
+            other => other,
+        };
+        match refit {
             Ok(mut refit) => {
                 // The method's passes: every fit's.
                 add_passes(&mut refit, out.run.fit.result.evaluations);
@@ -126,57 +142,37 @@ fn run_joint_without(x: JointInputs<'_>, excluded: &[usize]) -> Result<JointRun,
     })
 }
 
-/// The joint fit that `refused` for leaving its bounds, redone without the one control
-/// point whose absence brings it within them (when `x.dparams.joint_exclude_inconsistent`
-/// and [`most_excluded`] allows one): a point surveyed hundreds of metres off (a digit
-/// typed wrong) drags the fit beyond them before any hold-out can judge it. Each point is
-/// left out in turn of a fit at the configured odometer timing, side by side; of the fits
-/// within their bounds, the one whose control points fit best (least cost, all with as
-/// many points) names the point, and the whole fit is redone without it ([`run_joint`]).
-/// Two such points are not searched (a fit per pair). `refused` stands, with what was
-/// tried, when no single point explains it.
+/// The joint fit that `refused` for leaving its bounds, redone without the control points
+/// whose absence brings it within them (when `x.dparams.joint_exclude_inconsistent` and
+/// [`most_excluded`] allows: [`points_within_bounds`]): a point surveyed hundreds of
+/// metres off (a digit typed wrong) drags the fit beyond them before any hold-out can
+/// judge it. `refused` stands, with what was tried, when no point or pair explains it.
 pub(super) fn without_the_point_out_of_bounds(
     x: JointInputs<'_>,
     refused: DisuptError,
 ) -> Result<Excluding, DisuptError> {
-    let points = points_of(&x.case.fixes);
-    if !x.dparams.joint_exclude_inconsistent || most_excluded(points.len()) == 0 {
+    if !x.dparams.joint_exclude_inconsistent {
         return Err(refused);
     }
-    let start = x.problem.x0();
-    // (point's first fix, the fit's control-point cost when within its bounds, its passes)
-    let tried: Vec<(usize, Option<f64>, usize)> = points
-        .into_par_iter()
-        .map(|i| {
-            let without = visits_of(&x.case.fixes, i);
-            let p = x.problem.excluding(&without);
-            match disupt::joint_fit(&p, x.dparams, &JointOptions::default()) {
-                Ok(fit) => {
-                    let within = disupt::within_bounds(&fit, &start, x.dparams).is_ok();
-                    (i, within.then_some(fit.cp_cost), fit.result.evaluations)
-                }
-                Err(_) => (i, None, p.passes()),
-            }
-        })
-        .collect();
-    let best = tried
-        .iter()
-        .filter_map(|&(i, cost, _)| Some((i, cost?)))
-        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+    let search = points_within_bounds(x, &[]);
     let no_single = |e: DisuptError| match e {
-        DisuptError::OutOfBounds(said) => {
-            DisuptError::OutOfBounds(format!("{said}; without any one control point as well"))
-        }
+        DisuptError::OutOfBounds(said) => DisuptError::OutOfBounds(format!(
+            "{said}; without any {} as well",
+            match search.largest {
+                0 => return DisuptError::OutOfBounds(said),
+                1 => "one control point",
+                _ => "one or two control points",
+            }
+        )),
         other => other,
     };
-    let Some((i, _)) = best else {
+    let Some(excluded) = search.without.clone() else {
         return Err(no_single(refused));
     };
-    let excluded = visits_of(&x.case.fixes, i);
     match run_joint_without(x, &excluded) {
         Ok(mut run) => {
             // The method's passes: the search's too.
-            add_passes(&mut run, tried.iter().map(|t| t.2).sum());
+            add_passes(&mut run, search.passes);
             Ok(Excluding {
                 run,
                 found: Exclusions {
@@ -188,6 +184,86 @@ pub(super) fn without_the_point_out_of_bounds(
         }
         Err(_) => Err(no_single(refused)),
     }
+}
+
+/// Most pairs of control points [`points_within_bounds`] tries, a fit each (thirteen
+/// points): beyond, it tries single points only.
+pub(super) const MAX_PAIRS: usize = 78;
+
+/// What [`points_within_bounds`] found.
+struct BoundsSearch {
+    /// The fixes to leave out (the base's and the points found, every visit; ascending),
+    /// when some brought the fit within its bounds.
+    without: Option<Vec<usize>>,
+    /// The most points tried together beside the base (0: none could be).
+    largest: usize,
+    /// The passes of every fit tried.
+    passes: usize,
+}
+
+/// The fewest control points (one, else two) whose leaving out beside the fixes `base`
+/// brings the joint fit, at the configured odometer timing, within its bounds, within
+/// [`most_excluded`]. Each point (every visit), then each pair of points (at most
+/// [`MAX_PAIRS`]), is left out of a fit, side by side; of the fits within their bounds
+/// with as few points out, the one whose control points fit best (least cost per point
+/// weighed) names them.
+fn points_within_bounds(x: JointInputs<'_>, base: &[usize]) -> BoundsSearch {
+    let fixes = &x.case.fixes;
+    let points = points_of(fixes);
+    let room = most_excluded(points.len()).saturating_sub(points_among(fixes, base));
+    let others: Vec<usize> = points.into_iter().filter(|i| !base.contains(i)).collect();
+    let start = x.problem.x0();
+    let mut search = BoundsSearch {
+        without: None,
+        largest: 0,
+        passes: 0,
+    };
+    for k in 1..=room.min(2) {
+        let sets: Vec<Vec<usize>> = match k {
+            1 => others.iter().map(|&i| vec![i]).collect(),
+            _ if others.len() * (others.len() - 1) / 2 <= MAX_PAIRS => others
+                .iter()
+                .enumerate()
+                .flat_map(|(a, &i)| others[a + 1..].iter().map(move |&j| vec![i, j]))
+                .collect(),
+            _ => break,
+        };
+        // (fixes left out, the fit's control-point cost per residual when within its
+        // bounds, its passes)
+        let tried: Vec<(Vec<usize>, Option<f64>, usize)> = sets
+            .into_par_iter()
+            .map(|set| {
+                let mut without = base.to_vec();
+                for i in set {
+                    without.extend(visits_of(fixes, i));
+                }
+                without.sort_unstable();
+                let p = x.problem.excluding(&without);
+                let weighed = 2.0 * (fixes.len() - without.len()) as f64;
+                let (cost, passes) =
+                    match disupt::joint_fit(&p, x.dparams, &JointOptions::default()) {
+                        Ok(fit) => {
+                            let within = disupt::within_bounds(&fit, &start, x.dparams).is_ok();
+                            let cost = within.then_some(fit.cp_cost / weighed.max(1.0));
+                            (cost, fit.result.evaluations)
+                        }
+                        Err(_) => (None, p.passes()),
+                    };
+                (without, cost, passes)
+            })
+            .collect();
+        search.largest = k;
+        search.passes += tried.iter().map(|t| t.2).sum::<usize>();
+        search.without = tried
+            .into_iter()
+            .filter_map(|(without, cost, _)| Some((without, cost?)))
+            .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+            .map(|(without, _)| without);
+        if search.without.is_some() {
+            break;
+        }
+    }
+    search
 }
 
 /// Each distinct point's first fix (indices into `fixes`): a point the route came back
