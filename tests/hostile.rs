@@ -604,43 +604,62 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
     assert!((2000.0..2700.0).contains(&d), "{d}");
 }
 
+/// Simulated run `seed` (`options`) navigated as simulated, into `dir/clean`, and with the
+/// mark `extra` gives for its log inserted, into `dir/marked`: (the two `navigate.json`s,
+/// the mark inserted, the log's last mark).
+fn navigated_with_mark(
+    dir: &Path,
+    seed: u32,
+    options: &[&str],
+    extra: impl FnOnce(&crate::util::Log) -> unz_formats::raw::MarkRecord,
+) -> (
+    NavigateSummary,
+    NavigateSummary,
+    unz_formats::raw::MarkRecord,
+    unz_formats::raw::MarkRecord,
+) {
+    let run = crate::util::simulated_run(dir, seed, options);
+    let name = format!("sim-{seed:04}");
+    let path = run.join(format!("{name}.unz"));
+    let mut log = read_log(&path);
+    let (_, last) = *log.marks.last().unwrap();
+    let mark = extra(&log);
+    let navigate = |out: &str| -> NavigateSummary {
+        let out = dir.join(out);
+        crate::util::run_until(&run, &out, "criteria");
+        read_json(&out.join(&name).join("navigate/navigate.json"))
+    };
+    let clean = navigate("clean");
+    log.insert_mark(mark);
+    crate::util::write_log(&path, &log);
+    (clean, navigate("marked"), mark, last)
+}
+
 /// A control point marked twice: an early press 5 s before the stop, while driving up to
 /// it (the first mark was used, placing the point tens of metres up the road). The
 /// mark at the stop is used, `navigate.json` says which and why, and the errors at the
 /// control points are the log's without the early press, bit for bit.
 #[test]
 fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
-    use crate::util::{read_log, write_log};
     use unz_formats::raw::MarkRecord;
 
     let tmp = tempfile::tempdir().unwrap();
-    let run = crate::util::simulated_run(tmp.path(), 90, &["--duration-s", "600"]);
-    let path = run.join("sim-0090.unz");
-    let mut log = read_log(&path);
-    let (_, last_mark) = *log.marks.last().unwrap();
-    // The vehicle stops some time before the point is marked: the early press is 5 s
-    // before it stopped (its last pulse), while it drove up.
-    let before = log.imu.partition_point(|r| r.t_us < last_mark.t_us);
-    let stopped = 1 + log.imu[..before]
-        .windows(2)
-        .rposition(|w| w[0].odo_count != w[1].odo_count)
-        .unwrap();
-    let early = MarkRecord {
-        t_us: log.imu[stopped].t_us - 5_000_000,
-        point_id: last_mark.point_id,
-    };
-
-    let navigate = |out: &Path| -> NavigateSummary {
-        crate::util::run_until(&run, out, "criteria");
-        read_json(&out.join("sim-0090/navigate/navigate.json"))
-    };
-    let clean = navigate(&tmp.path().join("clean"));
+    let (clean, twice, early, last_mark) =
+        navigated_with_mark(tmp.path(), 90, &["--duration-s", "600"], |log| {
+            let (_, last_mark) = *log.marks.last().unwrap();
+            // The vehicle stops some time before the point is marked: the early press is
+            // 5 s before it stopped (its last pulse), while it drove up.
+            let before = log.imu.partition_point(|r| r.t_us < last_mark.t_us);
+            let stopped = 1 + log.imu[..before]
+                .windows(2)
+                .rposition(|w| w[0].odo_count != w[1].odo_count)
+                .unwrap();
+            MarkRecord {
+                t_us: log.imu[stopped].t_us - 5_000_000,
+                point_id: last_mark.point_id,
+            }
+        });
     assert!(clean.repeated_marks.is_empty());
-
-    log.insert_mark(early);
-    write_log(&path, &log);
-
-    let twice = navigate(&tmp.path().join("twice"));
     assert_eq!(twice.repeated_marks.len(), 1, "{:?}", twice.repeated_marks);
     let r = &twice.repeated_marks[0];
     assert_eq!((r.id, r.marks), (last_mark.point_id, 2));
@@ -657,7 +676,7 @@ fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
         "{r:?}"
     );
     assert_eq!(twice.control_points, clean.control_points);
-    let summary = std::fs::read_to_string(tmp.path().join("twice/campaign.md")).unwrap();
+    let summary = std::fs::read_to_string(tmp.path().join("marked/campaign.md")).unwrap();
     let note = format!(
         "control point {} marked 2 times: the mark at t_s = {:.2} used (the last at rest)",
         last_mark.point_id,
@@ -679,7 +698,7 @@ fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
             .clone();
         column.is_valid(0).then(|| column.value(0).to_owned())
     };
-    assert_eq!(note_of("twice"), Some(note));
+    assert_eq!(note_of("marked"), Some(note));
     assert_eq!(
         note_of("clean"),
         None,
@@ -695,33 +714,20 @@ fn of_a_point_marked_twice_the_mark_at_rest_is_used() {
 /// the control points are the log's without it, bit for bit.
 #[test]
 fn a_press_at_another_stop_is_not_a_visit() {
-    use crate::util::{read_log, write_log};
     use unz_formats::raw::MarkRecord;
 
     let tmp = tempfile::tempdir().unwrap();
-    let run = crate::util::simulated_run(
-        tmp.path(),
-        91,
-        &["--duration-s", "1200", "--cp-at-every-stop"],
-    );
-    let path = run.join("sim-0091.unz");
-    let mut log = read_log(&path);
-    let (_, first) = log.marks[0];
-    let (_, last) = *log.marks.last().unwrap();
-    assert!(last.point_id > 2, "{:?}", log.marks);
-    // At the first point's stop, 2 s after its mark: the last point's id.
-    let wrong = MarkRecord {
-        t_us: first.t_us + 2_000_000,
-        point_id: last.point_id,
-    };
-    let navigate = |out: &Path| -> NavigateSummary {
-        crate::util::run_until(&run, out, "criteria");
-        read_json(&out.join("sim-0091/navigate/navigate.json"))
-    };
-    let clean = navigate(&tmp.path().join("clean"));
-    log.insert_mark(wrong);
-    write_log(&path, &log);
-    let pressed = navigate(&tmp.path().join("pressed"));
+    let options = ["--duration-s", "1200", "--cp-at-every-stop"];
+    let (clean, pressed, wrong, last) = navigated_with_mark(tmp.path(), 91, &options, |log| {
+        let (_, first) = log.marks[0];
+        let (_, last) = *log.marks.last().unwrap();
+        assert!(last.point_id > 2, "{:?}", log.marks);
+        // At the first point's stop, 2 s after its mark: the last point's id.
+        MarkRecord {
+            t_us: first.t_us + 2_000_000,
+            point_id: last.point_id,
+        }
+    });
     let r = &pressed.repeated_marks[0];
     assert_eq!(
         (r.id, r.marks, r.at_rest),
@@ -734,7 +740,7 @@ fn a_press_at_another_stop_is_not_a_visit() {
     assert!((r.elsewhere_t_s[0] - t(wrong.t_us)).abs() < 1e-6, "{r:?}");
     assert!((r.used_t_s - t(last.t_us)).abs() < 1e-6, "{r:?}");
     assert_eq!(pressed.control_points, clean.control_points);
-    let summary = std::fs::read_to_string(tmp.path().join("pressed/campaign.md")).unwrap();
+    let summary = std::fs::read_to_string(tmp.path().join("marked/campaign.md")).unwrap();
     let note = format!(
         "placed elsewhere by the navigation, not used: t_s = {:.2}",
         t(wrong.t_us)
@@ -750,27 +756,17 @@ fn a_press_at_another_stop_is_not_a_visit() {
 /// are the log's without it, bit for bit.
 #[test]
 fn a_mark_during_the_static_start_is_not_a_visit() {
-    use crate::util::{read_log, write_log};
     use unz_formats::raw::MarkRecord;
 
     let tmp = tempfile::tempdir().unwrap();
-    let run =
-        crate::util::simulated_run(tmp.path(), 92, &["--duration-s", "1200", "--out-and-back"]);
-    let path = run.join("sim-0092.unz");
-    let mut log = read_log(&path);
-    let (_, home) = *log.marks.last().unwrap();
-    let early = MarkRecord {
-        t_us: 30_000_000,
-        point_id: home.point_id,
-    };
-    let navigate = |out: &Path| -> NavigateSummary {
-        crate::util::run_until(&run, out, "criteria");
-        read_json(&out.join("sim-0092/navigate/navigate.json"))
-    };
-    let clean = navigate(&tmp.path().join("clean"));
-    log.insert_mark(early);
-    write_log(&path, &log);
-    let marked = navigate(&tmp.path().join("marked"));
+    let options = ["--duration-s", "1200", "--out-and-back"];
+    let (clean, marked, _, home) = navigated_with_mark(tmp.path(), 92, &options, |log| {
+        let (_, home) = *log.marks.last().unwrap();
+        MarkRecord {
+            t_us: 30_000_000,
+            point_id: home.point_id,
+        }
+    });
     let r = marked
         .repeated_marks
         .iter()
