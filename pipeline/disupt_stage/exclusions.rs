@@ -188,7 +188,7 @@ pub(super) fn without_the_point_out_of_bounds(
 
 /// Most pairs of control points [`points_within_bounds`] tries, a fit each (thirteen
 /// points): beyond, it tries single points only.
-pub(super) const MAX_PAIRS: usize = 78;
+const MAX_PAIRS: usize = 78;
 
 /// What [`points_within_bounds`] found.
 struct BoundsSearch {

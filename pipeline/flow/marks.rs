@@ -268,12 +268,11 @@ impl UnknownMarks {
 ///
 /// An id marked once is that mark. Of an id marked several times, the marks `in_log` are
 /// split into stops where the odometer's path between neighbours reaches
-/// [`SAME_STOP_PATH_M`]; each stop's last mark made at rest is a candidate visit, but
-/// for stops at the run's start (within that path of the log's first odometer reading)
-/// before a later one. Without
-/// any at rest, the slowest mark (the last on a tie), else (no mark in the log) its first
-/// mark, is used. The ingested odometer (`odometer.parquet`) is read, once and batch by
-/// batch, only when some id is marked more than once.
+/// [`SAME_STOP_PATH_M`]; each stop's last mark made at rest is a candidate visit, but for
+/// stops at the run's start (within that path of the log's first odometer reading) before
+/// a later one. Without any at rest, the slowest mark (the last on a tie), else (no mark
+/// in the log) its first mark, is used. The ingested odometer (`odometer.parquet`) is
+/// read, once and batch by batch, only when some id is marked more than once.
 pub fn choose_marks(
     marks: &MarksTable,
     ids: &[u32],
@@ -351,7 +350,8 @@ pub fn choose_marks(
                 .collect(),
             None => Vec::new(),
         };
-        rest.retain(|k| !at_start.contains(k));
+        let at_start_set: std::collections::BTreeSet<usize> = at_start.iter().copied().collect();
+        rest.retain(|k| !at_start_set.contains(k));
         let (stops, used_speed_mps) = if let Some(&last) = rest.last() {
             (
                 rest.iter()
