@@ -447,7 +447,10 @@ fn ingest_text(
             sinks.flush(false)?;
         }
         odometer_file = Some(odo);
-        bridged = gaps.map(|g| g.failures().clone());
+        // Stands the IMU found standing are no failure: nothing to report.
+        bridged = gaps
+            .map(|g| g.failures().clone())
+            .filter(|f| *f != unz_formats::OdometerFailures::default());
     }
     let (odo_rows, odometer_out_of_range) = sinks.finish(dir)?;
     let mut report = reader.report().clone();

@@ -13,6 +13,11 @@
 //! IMU's samples across it (`distance_source` bridged); the readings after it are moved
 //! by what the bridge gives across it less the trapezoid.
 //!
+//! A logger that writes zero, not nothing, when it loses the speed leaves no gap but a
+//! stand: the file's distance stands while the car drives. Every stand from
+//! [`STAND_MIN_S`] to the longest bridged is judged by the IMU ([`stand_failed_from`]),
+//! and one the car moved over is bridged as a gap is, from when it failed.
+//!
 //! Three passes: the file once to find its gaps ([`find_gaps`]), the IMU's samples as the
 //! ingest streams them ([`GapBridger`]), and the file again as it is written
 //! ([`BridgedGaps::give`]). Memory: the readings around the gaps (at most 2 000 000), the
@@ -27,6 +32,9 @@ use unz_formats::error::FormatError;
 use unz_formats::kfgins::OdometerFileReader;
 use unz_formats::schema::DistanceSource;
 use unz_stages::odo_bridge::{BridgeSample, Reading, WINDOW_S, bridge};
+
+use crate::odometer_stuck::SETTLE_S;
+use crate::standing_motion::{Motion, REFERENCE_S, StandingMotion};
 
 use crate::odometer_bridge::{Given, MAX_BRIDGED_S};
 
@@ -44,6 +52,13 @@ const MAX_WINDOW_READINGS: usize = 100_000;
 /// Gaps bridged at most; beyond, a file with more is counted, its other gaps left to the
 /// trapezoid.
 const MAX_GAPS: usize = 10_000;
+/// Shortest stand judged, s: the file's distance standing over at least this long (its
+/// speeds zero) while the IMU may say the vehicle moved (a logger that writes zero, not
+/// nothing, when it loses the speed).
+pub const STAND_MIN_S: f64 = 3.0;
+/// Least speed before a stand, by the file, whose braking into it the IMU judges, m/s:
+/// slower, a stop and a speed that stood look alike over a second.
+pub const BRAKED_FROM_MPS: f64 = 2.0;
 /// Readings kept around all the gaps at most (32 MB): a file far denser than its gaps'
 /// windows need leaves its later gaps to the trapezoid, counted.
 const MAX_KEPT_READINGS: usize = 2_000_000;
@@ -58,6 +73,11 @@ pub struct Gap {
     /// The readings within [`WINDOW_S`] before it (up to `from_s`) and after it (from
     /// `to_s`, not past the next gap): time, s, and distance as the file gives it, m.
     readings: Vec<(f64, f64)>,
+    /// A stand, not a gap: the file's readings say the vehicle stood from its first
+    /// reading to its last (s; [`STAND_MIN_S`] at least, its readings among `readings`),
+    /// between `from_s` and `to_s`. The IMU judges it ([`stand_failed_from`]); it is a
+    /// failure, bridged, only when the vehicle moved.
+    stand: Option<(f64, f64)>,
 }
 
 impl Gap {
@@ -105,6 +125,100 @@ impl Gap {
     }
 }
 
+impl Gap {
+    /// The stand's failure from `t_s` on: a gap from its last reading at or before then
+    /// (the stand's readings before it are the vehicle's rest) to `to_s`.
+    fn failed_from(self, t_s: f64) -> Gap {
+        let from_s = self
+            .readings
+            .iter()
+            .filter(|r| r.0 <= t_s && r.0 < self.to_s)
+            .map(|r| r.0)
+            .fold(self.from_s, f64::max);
+        let readings = self
+            .readings
+            .into_iter()
+            .filter(|r| r.0 <= from_s || r.0 >= self.to_s)
+            .collect();
+        Gap {
+            from_s,
+            to_s: self.to_s,
+            readings,
+            stand: None,
+        }
+    }
+}
+
+/// When the IMU's `samples` say the vehicle moved while the speed file stood over the
+/// stand `g` (a logger that writes zero when it loses the speed), the time its readings
+/// failed from, s; `None` for a stop. Two judgements:
+/// - *Into the stand*: from at least [`BRAKED_FROM_MPS`] (the file's speed at the reading
+///   before it), a vehicle that stops brakes to rest. Taking the specific force along x
+///   over [`REFERENCE_S`] after [`SETTLE_S`] into the stand as at rest, the IMU's speed
+///   at the reading before it must be the file's, within half of it and 2 m/s; else the
+///   speed stood as the vehicle drove on, and the readings failed from the stand's start.
+/// - *In the stand*: the IMU's watch of a standing count ([`StandingMotion`]) from
+///   [`SETTLE_S`] into the stand to its last reading: a vehicle that drives off while
+///   the file still says zero fails it from the watch's start.
+fn stand_failed_from(g: &Gap, samples: &[ImuSample], g_mps2: f64) -> Option<f64> {
+    let (first_s, last_s) = g.stand?;
+    let t_of = |s: &ImuSample| s.0 as f64 * 1e-9;
+    let period_s = match samples {
+        [a, .., b] => (t_of(b) - t_of(a)) / (samples.len() - 1) as f64,
+        _ => return None,
+    };
+    let d_at = |t: f64| g.readings.iter().find(|r| r.0 == t).map(|r| r.1);
+    let settle_s = first_s + SETTLE_S;
+    if let (Some(d_from), Some(d_first)) = (d_at(g.from_s), d_at(first_s))
+        && first_s > g.from_s
+    {
+        // The trapezoid from the file's speed at `from_s` to zero at `first_s`.
+        let v_from = 2.0 * (d_first - d_from) / (first_s - g.from_s);
+        let (mut force, mut time_s) = (0.0, 0.0);
+        for s in samples {
+            let t = t_of(s);
+            if t > settle_s && t <= settle_s + REFERENCE_S {
+                force += s.2[0];
+                time_s += period_s;
+            }
+        }
+        if v_from >= BRAKED_FROM_MPS && time_s > 0.0 {
+            let f_rest = force / time_s;
+            let dv: f64 = samples
+                .iter()
+                .filter(|s| t_of(s) > g.from_s && t_of(s) <= settle_s)
+                .map(|s| s.2[0] - f_rest * period_s)
+                .sum();
+            // At rest at `settle_s`: the speed at `from_s` is what the braking took off.
+            if (-dv - v_from).abs() > (0.5 * v_from).max(2.0) {
+                return Some(g.from_s);
+            }
+        }
+    }
+    let mut watch = StandingMotion::new(g_mps2, period_s);
+    let watched: Vec<&ImuSample> = samples
+        .iter()
+        .filter(|s| t_of(s) > settle_s && t_of(s) <= last_s)
+        .collect();
+    for (k, s) in watched.iter().enumerate() {
+        if let Motion::Moving { watched: n } = watch.push(t_of(s), s.2, s.1) {
+            return Some(t_of(watched[k.saturating_sub(n)]));
+        }
+    }
+    None
+}
+
+/// A stand of the file's distance going on, as [`find_gaps`] reads it.
+struct OpenStand {
+    /// The reading before its first, s.
+    from_s: f64,
+    /// Its first and last readings, s.
+    first_s: f64,
+    last_s: f64,
+    /// The readings before it (up to `from_s`) and in it.
+    readings: Vec<(f64, f64)>,
+}
+
 /// The gaps of an odometer file (read through `reader` to its end), in order, with the
 /// readings around each. At most 10 000; the count of the others is returned too.
 pub fn find_gaps<R: BufRead>(
@@ -117,9 +231,11 @@ pub fn find_gaps<R: BufRead>(
     let mut intervals: VecDeque<f64> = VecDeque::with_capacity(RECENT);
     // The gap whose readings after it are being collected.
     let mut collecting = false;
+    let mut stand: Option<OpenStand> = None;
     while let Some(s) = reader.next_sample()? {
         let r = (s.t_s, s.distance_m);
-        if let Some(&(t0, _)) = before.back() {
+        let mut gap_here = false;
+        if let Some(&(t0, d0)) = before.back() {
             let dt = r.0 - t0;
             let mut recent: Vec<f64> = intervals.iter().copied().collect();
             recent.sort_by(f64::total_cmp);
@@ -135,6 +251,7 @@ pub fn find_gaps<R: BufRead>(
                         from_s: t0,
                         to_s: r.0,
                         readings: before.iter().copied().collect(),
+                        stand: None,
                     });
                     collecting = true;
                 } else {
@@ -142,11 +259,51 @@ pub fn find_gaps<R: BufRead>(
                     collecting = false;
                 }
                 before.clear();
+                stand = None;
+                gap_here = true;
             } else {
                 if intervals.len() == RECENT {
                     intervals.pop_front();
                 }
                 intervals.push_back(dt);
+            }
+            // A distance that stands (zero speeds at both readings) starts or goes on
+            // with a stand; one that moves ends it, judged by the IMU when long enough.
+            if !gap_here && r.1 == d0 {
+                match &mut stand {
+                    Some(open) => {
+                        open.last_s = r.0;
+                        if open.readings.len() < 2 * MAX_WINDOW_READINGS {
+                            open.readings.push(r);
+                        }
+                    }
+                    None => {
+                        let from_s = before.len().checked_sub(2).map_or(t0, |k| before[k].0);
+                        let mut readings: Vec<(f64, f64)> =
+                            before.iter().copied().filter(|b| b.0 <= from_s).collect();
+                        readings.extend([(t0, d0), r]);
+                        stand = Some(OpenStand {
+                            from_s,
+                            first_s: t0,
+                            last_s: r.0,
+                            readings,
+                        });
+                    }
+                }
+            } else if let Some(open) = stand.take()
+                && open.last_s - open.first_s >= STAND_MIN_S
+                && r.0 - open.from_s <= MAX_BRIDGED_S
+                && gaps.len() < MAX_GAPS
+                && kept + open.readings.len() < MAX_KEPT_READINGS
+            {
+                kept += open.readings.len();
+                gaps.push(Gap {
+                    from_s: open.from_s,
+                    to_s: r.0,
+                    readings: open.readings,
+                    stand: Some((open.first_s, open.last_s)),
+                });
+                collecting = true;
             }
         }
         if collecting && let Some(g) = gaps.last_mut() {
@@ -178,6 +335,9 @@ pub fn tag_ns(t_s: f64) -> i64 {
 /// A gap as bridged.
 #[derive(Debug, Clone, PartialEq)]
 struct BridgedGap {
+    /// The last reading before it, ns ([`tag_ns`]): the file's readings after it and
+    /// before `to_ns` (a stand's) are the bridge's rows' to replace.
+    from_ns: i64,
     /// The first reading after it, ns, tagged as the ingest tags the file's readings
     /// ([`tag_ns`]): it is met by the reading itself, whatever the float rounding.
     to_ns: i64,
@@ -215,8 +375,9 @@ impl GapBridger {
         let (gaps, long): (Vec<Gap>, Vec<Gap>) = gaps
             .into_iter()
             .partition(|g| g.to_s - g.from_s <= MAX_BRIDGED_S);
+        let stands = gaps.iter().filter(|g| g.stand.is_some()).count();
         let failures = OdometerFailures {
-            file_gaps: (gaps.len() + long.len()) as u64 + more_gaps,
+            file_gaps: (gaps.len() + long.len() - stands) as u64 + more_gaps,
             not_bridged: long.len() as u64,
             ..OdometerFailures::default()
         };
@@ -256,8 +417,21 @@ impl GapBridger {
         }
     }
 
-    /// Bridges the gap `g` with the IMU's `samples` over its window.
+    /// Bridges the gap `g` with the IMU's `samples` over its window; a stand, only when
+    /// the vehicle moved ([`stand_failed_from`]), from then on.
     fn close(&mut self, g: Gap, samples: Vec<ImuSample>) {
+        let stuck = g.stand.is_some();
+        let g = match g.stand {
+            None => g,
+            Some(_) => match stand_failed_from(&g, &samples, self.g_mps2) {
+                None => return,
+                Some(t_s) => g.failed_from(t_s),
+            },
+        };
+        let samples: Vec<ImuSample> = samples
+            .into_iter()
+            .filter(|s| s.0 as f64 * 1e-9 >= g.span_s().0)
+            .collect();
         let length_s = g.to_s - g.from_s;
         let window: Vec<BridgeSample> = samples
             .iter()
@@ -276,7 +450,12 @@ impl GapBridger {
             .filter(|s| matches!(s.reading, Reading::Failed))
             .count() as u64;
         let f = &mut self.failures;
-        let Some(b) = bridge(&window, self.g_mps2, self.lag_prior_s) else {
+        if stuck {
+            f.stuck += 1;
+            f.stuck_samples += failed;
+        }
+        let b = bridge(&window, self.g_mps2, self.lag_prior_s);
+        let Some(b) = b else {
             // Left to the trapezoid: nothing to write across it.
             f.not_bridged += 1;
             f.not_bridged_samples += failed;
@@ -293,6 +472,7 @@ impl GapBridger {
             .filter(|(s, _)| matches!(s.reading, Reading::Failed))
             .map(|(_, s)| s.0);
         self.done.push_back(BridgedGap {
+            from_ns: tag_ns(g.from_s),
             to_ns: tag_ns(g.to_s),
             rows: at.zip(b.failed_distance_m).collect(),
             after_offset_m: b.after_offset_m,
@@ -332,6 +512,14 @@ impl BridgedGaps {
     /// Gives the file's reading at `t_ns` (its distance `distance_m`, as the file gives
     /// it) to `out` with the route's distance, after the rows of the gaps that end at it.
     pub fn give(&mut self, t_ns: i64, distance_m: f64, mut out: impl FnMut(i64, Given)) {
+        // A stand's readings are replaced by its bridge.
+        if self
+            .gaps
+            .front()
+            .is_some_and(|g| g.from_ns < t_ns && t_ns < g.to_ns)
+        {
+            return;
+        }
         while self.gaps.front().is_some_and(|g| g.to_ns <= t_ns) {
             let g = self.gaps.pop_front().expect("a gap in front");
             for (t, d) in g.rows {
@@ -351,6 +539,40 @@ mod tests {
     fn gaps_of(text: &str) -> (Vec<Gap>, u64) {
         let mut r = OdometerFileReader::new(text.as_bytes(), OdometerKind::SpeedMps);
         find_gaps(&mut r).unwrap()
+    }
+
+    #[test]
+    fn stands_of_three_seconds_to_two_minutes_are_judged() {
+        // 1 Hz: driving at 10 m/s, zero speed over 40–50 s (eleven readings), driving,
+        // zero over 80–81 s (too short), driving, zero over 100–300 s (too long to
+        // bridge), driving to 310 s.
+        let stood =
+            |t: u32| (40..=50).contains(&t) || (80..=81).contains(&t) || (100..=300).contains(&t);
+        let text: String = (0..=310)
+            .map(|t| format!("{t} {}\n", if stood(t) { 0.0 } else { 10.0 }))
+            .collect();
+        let (gaps, more) = gaps_of(&text);
+        assert_eq!((gaps.len(), more), (1, 0), "{gaps:?}");
+        let g = &gaps[0];
+        // From the reading before its first zero to the first reading after its last.
+        assert_eq!(
+            (g.from_s, g.to_s, g.stand),
+            (39.0, 51.0, Some((40.0, 50.0)))
+        );
+        // Its readings: the window before it, its own, and the window after it.
+        let times: Vec<f64> = g.readings.iter().map(|r| r.0).collect();
+        assert_eq!(times.first(), Some(&30.0));
+        assert_eq!(times.last(), Some(&61.0));
+        assert!((40..=50).all(|t| times.contains(&f64::from(t))));
+        // The file's own distance across it: the half-trapezoids at its ends.
+        let d = |t: f64| g.readings.iter().find(|r| r.0 == t).unwrap().1;
+        assert!((d(51.0) - d(39.0) - 10.0).abs() < 1e-9);
+        // Judged without samples: not a failure.
+        assert_eq!(stand_failed_from(g, &[], 9.81), None);
+        // A failure from 45 s: the gap from the last reading at rest before it.
+        let f = g.clone().failed_from(45.2);
+        assert_eq!((f.from_s, f.to_s, f.stand), (45.0, 51.0, None));
+        assert!(f.readings.iter().all(|r| r.0 <= 45.0 || r.0 >= 51.0));
     }
 
     #[test]
@@ -511,6 +733,7 @@ mod tests {
     fn bridged_rows_come_before_the_reading_that_ends_their_gap() {
         let mut gaps = BridgedGaps {
             gaps: VecDeque::from([BridgedGap {
+                from_ns: 1_000_000_000,
                 to_ns: 2_000_000_000,
                 rows: vec![(1_500_000_000, 15.0)],
                 after_offset_m: -3.0,
@@ -519,7 +742,12 @@ mod tests {
             failures: OdometerFailures::default(),
         };
         let mut out = Vec::new();
-        for (t_ns, d) in [(1_000_000_000, 10.0), (2_000_000_000, 23.0)] {
+        // A stand's reading inside the bridge (1.2 s) is the bridge's to replace.
+        for (t_ns, d) in [
+            (1_000_000_000, 10.0),
+            (1_200_000_000, 10.0),
+            (2_000_000_000, 23.0),
+        ] {
             gaps.give(t_ns, d, |t, given| out.push((t, given)));
         }
         assert_eq!(

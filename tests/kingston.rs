@@ -617,6 +617,104 @@ fn kingston_a_gap_in_the_odometer_file_is_bridged() {
     assert_eq!(blocks, 400, "{blocks} blocks bridged");
 }
 
+/// An OBD-II logger that writes zero, not nothing, when it loses the speed: the file's
+/// distance stands while the car drives, and nothing flags it. Before, the route stopped
+/// there: the joint's control points 190 and 45 m off (speeds zero for 19 s at 11 m/s),
+/// and 12.6 and 5.5 m (the speed zero from the stop at control point 1 through the
+/// drive-off, 14 s), the odometer scale taking 3.7 %. Now each stand of the file's speed
+/// is judged by the IMU (`odometer_gaps::stand_failed_from`): braking into it from the
+/// speed before it, and the watch of a standing count in it. Found, it is bridged by the
+/// inertial along-track speed (195 m, and 87.4 m against the file's own 87.4 m), said as
+/// an odometer that stood while the vehicle moved, and the control points are as with
+/// the file intact (measured 0.77 and 0.29 m, 0.70 and 0.24 m; intact 0.97 and 0.38 m).
+/// The file's real stops (15 and 30 s) are judged stops: nothing reported, the intact
+/// run's outputs unchanged.
+#[test]
+fn kingston_a_speed_stuck_at_zero_is_found_and_bridged() {
+    use unz_formats::IngestReport;
+
+    let tmp = tempfile::tempdir().unwrap();
+    let data = test_data("kingston2008-seg1");
+    let speeds: Vec<(f64, f64)> = std::fs::read_to_string(data.join("odometer.txt"))
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            (v[0], v[1])
+        })
+        .collect();
+    // The file's own distance over [from, to], s: the trapezoid of its speeds.
+    let own_m = |from: f64, to: f64| -> f64 {
+        speeds
+            .windows(2)
+            .filter(|w| from <= w[0].0 && w[1].0 <= to)
+            .map(|w| 0.5 * (w[0].1 + w[1].1) * (w[1].0 - w[0].0))
+            .sum()
+    };
+    // The run with the speeds over `zeroed` (s) written as zero.
+    let with_zeros = |name: &str, zeroed: std::ops::Range<f64>| {
+        let run = tmp.path().join(name).join("kingston");
+        std::fs::create_dir_all(&run).unwrap();
+        for f in ["imu.txt", "run.toml"] {
+            std::fs::copy(data.join(f), run.join(f)).unwrap();
+        }
+        let text: String = speeds
+            .iter()
+            .map(|&(t, v)| format!("{t} {:.5}\n", if zeroed.contains(&t) { 0.0 } else { v }))
+            .collect();
+        std::fs::write(run.join("odometer.txt"), text).unwrap();
+        let out = tmp.path().join(name).join("o");
+        crate::util::run_until(&run, &out, "disupt");
+        let dir = out.join("kingston2008-segment1");
+        let report: IngestReport = read_json(&dir.join("ingest/ingest.json"));
+        let d: unz::disupt_stage::DisuptOut = read_json(&dir.join("disupt/disupt.json"));
+        (
+            report.odometer_failures,
+            worst_control_point_m(&d.methods["joint"]),
+            out,
+        )
+    };
+    let (none, worst_intact, _) = with_zeros("intact", 0.0..0.0);
+    assert_eq!(none, None, "the real stops are stops");
+
+    // Zero while driving at 11 m/s: the braking into the stand is not the IMU's.
+    let (f, worst, out) = with_zeros("driving", 152_761.0..152_780.0);
+    let f = f.expect("the stand reported");
+    eprintln!("stuck while driving: {f:?}; worst control point {worst:.2} m");
+    assert_eq!((f.stuck, f.bridged, f.file_gaps), (1, 1, 0), "{f:?}");
+    let truth_m = own_m(152_760.0, 152_780.0);
+    assert!(
+        (f.bridged_distance_m - truth_m).abs() < 0.02 * truth_m,
+        "{} m against {truth_m} m",
+        f.bridged_distance_m
+    );
+    assert!(
+        worst < worst_intact + 1.0,
+        "{worst} m, intact {worst_intact} m"
+    );
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains("the odometer's count stood while the vehicle moved, unflagged: 1 time"),
+        "{summary}"
+    );
+
+    // Zero from the stop at control point 1 through the drive-off: the watch.
+    let (f, worst, _) = with_zeros("drive-off", 152_842.0..152_856.0);
+    let f = f.expect("the stand reported");
+    eprintln!("stuck through the drive-off: {f:?}; worst control point {worst:.2} m");
+    assert_eq!((f.stuck, f.bridged), (1, 1), "{f:?}");
+    let truth_m = own_m(152_838.0, 152_856.0);
+    assert!(
+        (f.bridged_distance_m - truth_m).abs() < 0.02 * truth_m,
+        "{} m against {truth_m} m",
+        f.bridged_distance_m
+    );
+    assert!(
+        worst < worst_intact + 1.0,
+        "{worst} m, intact {worst_intact} m"
+    );
+}
+
 /// Kingston's control points are the reference's positions at its stops, and the
 /// reference is not the navigated point (the odometer's, an axle's middle). Compared at a
 /// mark 1.5 m ahead of the navigated point (`[vehicle] mark_lever_arm_m`, the best of a
