@@ -677,42 +677,36 @@ fn kingston_a_speed_stuck_at_zero_is_found_and_bridged() {
     let (none, worst_intact, _) = with_zeros("intact", 0.0..0.0);
     assert_eq!(none, None, "the real stops are stops");
 
+    // A stand found moving and bridged over [from, to] (s): one failure, its distance
+    // the file's own there (intact), the control points as intact.
+    let found = |name: &str, zeroed: std::ops::Range<f64>, from: f64, to: f64| {
+        let (f, worst, out) = with_zeros(name, zeroed);
+        let f = f.expect("the stand reported");
+        eprintln!("{name}: {f:?}; worst control point {worst:.2} m");
+        assert_eq!((f.stuck, f.bridged, f.file_gaps), (1, 1, 0), "{f:?}");
+        assert_eq!(f.longest_bridged_s, to - from, "{f:?}");
+        let truth_m = own_m(from, to);
+        assert!(
+            (f.bridged_distance_m - truth_m).abs() < 0.02 * truth_m,
+            "{} m against {truth_m} m",
+            f.bridged_distance_m
+        );
+        assert!(
+            worst < worst_intact + 1.0,
+            "{worst} m, intact {worst_intact} m"
+        );
+        out
+    };
     // Zero while driving at 11 m/s: the braking into the stand is not the IMU's.
-    let (f, worst, out) = with_zeros("driving", 152_761.0..152_780.0);
-    let f = f.expect("the stand reported");
-    eprintln!("stuck while driving: {f:?}; worst control point {worst:.2} m");
-    assert_eq!((f.stuck, f.bridged, f.file_gaps), (1, 1, 0), "{f:?}");
-    let truth_m = own_m(152_760.0, 152_780.0);
-    assert!(
-        (f.bridged_distance_m - truth_m).abs() < 0.02 * truth_m,
-        "{} m against {truth_m} m",
-        f.bridged_distance_m
-    );
-    assert!(
-        worst < worst_intact + 1.0,
-        "{worst} m, intact {worst_intact} m"
-    );
+    let out = found("driving", 152_761.0..152_780.0, 152_760.0, 152_780.0);
     let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
     assert!(
         summary.contains("the odometer's count stood while the vehicle moved, unflagged: 1 time"),
         "{summary}"
     );
-
-    // Zero from the stop at control point 1 through the drive-off: the watch.
-    let (f, worst, _) = with_zeros("drive-off", 152_842.0..152_856.0);
-    let f = f.expect("the stand reported");
-    eprintln!("stuck through the drive-off: {f:?}; worst control point {worst:.2} m");
-    assert_eq!((f.stuck, f.bridged), (1, 1), "{f:?}");
-    let truth_m = own_m(152_838.0, 152_856.0);
-    assert!(
-        (f.bridged_distance_m - truth_m).abs() < 0.02 * truth_m,
-        "{} m against {truth_m} m",
-        f.bridged_distance_m
-    );
-    assert!(
-        worst < worst_intact + 1.0,
-        "{worst} m, intact {worst_intact} m"
-    );
+    // Zero from the stop at control point 1 through the drive-off: the watch, from its
+    // start (the car still at rest).
+    found("drive-off", 152_842.0..152_856.0, 152_838.0, 152_856.0);
 }
 
 /// Kingston's control points are the reference's positions at its stops, and the
