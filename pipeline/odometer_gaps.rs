@@ -33,7 +33,6 @@ use unz_formats::kfgins::OdometerFileReader;
 use unz_formats::schema::DistanceSource;
 use unz_stages::odo_bridge::{BridgeSample, Reading, WINDOW_S, bridge};
 
-use crate::odometer_stuck::SETTLE_S;
 use crate::standing_motion::{Motion, REFERENCE_S, StandingMotion};
 
 use crate::odometer_bridge::{Given, MAX_BRIDGED_S};
@@ -56,6 +55,14 @@ const MAX_GAPS: usize = 10_000;
 /// speeds zero) while the IMU may say the vehicle moved (a logger that writes zero, not
 /// nothing, when it loses the speed).
 pub const STAND_MIN_S: f64 = 3.0;
+/// The IMU takes the vehicle at rest from this long after a stand's first reading, s: a
+/// file read at a hertz, whose clock may run ahead of the IMU's, says zero before the
+/// vehicle stands (a binary count stands within a pulse of it:
+/// [`crate::odometer_stuck::SETTLE_S`], 0.5 s). Measured on Kingston with its file's
+/// clock shifted (beyond a configured odometer time offset, which the judgement takes
+/// out): from 1 s ahead to 2.5 s behind, no stop judged moving (0.5 s: 0.7 s ahead to 3 s
+/// behind; 2 s: 2 s ahead to 1.5 s behind).
+pub const STAND_SETTLE_S: f64 = 1.0;
 /// Least speed before a stand, by the file, whose braking into it the IMU judges, m/s:
 /// slower, a stop and a speed that stood look alike over a second.
 pub const BRAKED_FROM_MPS: f64 = 2.0;
@@ -151,48 +158,70 @@ impl Gap {
 
 /// When the IMU's `samples` say the vehicle moved while the speed file stood over the
 /// stand `g` (a logger that writes zero when it loses the speed), the time its readings
-/// failed from, s; `None` for a stop. Two judgements:
+/// failed from, s; `None` for a stop. The file's readings are taken `lag_prior_s` late
+/// (the configured odometer time offset, negated). Two judgements:
 /// - *Into the stand*: from at least [`BRAKED_FROM_MPS`] (the file's speed at the reading
 ///   before it), a vehicle that stops brakes to rest. Taking the specific force along x
-///   over [`REFERENCE_S`] after [`SETTLE_S`] into the stand as at rest, the IMU's speed
-///   at the reading before it must be the file's, within half of it and 2 m/s; else the
-///   speed stood as the vehicle drove on, and the readings failed from the stand's start.
+///   over [`REFERENCE_S`] after [`STAND_SETTLE_S`] into the stand as at rest, the IMU's speed
+///   at the reading before it must be the file's, within half of it and 2 m/s (or at the
+///   reading before that: a file that lags the car); else the speed stood as the vehicle
+///   drove on, and the readings failed from the stand's start.
 /// - *In the stand*: the IMU's watch of a standing count ([`StandingMotion`]) from
-///   [`SETTLE_S`] into the stand to its last reading: a vehicle that drives off while
+///   [`STAND_SETTLE_S`] into the stand to its last reading: a vehicle that drives off while
 ///   the file still says zero fails it from the watch's start.
-fn stand_failed_from(g: &Gap, samples: &[ImuSample], g_mps2: f64) -> Option<f64> {
+fn stand_failed_from(g: &Gap, samples: &[ImuSample], g_mps2: f64, lag_prior_s: f64) -> Option<f64> {
     let (first_s, last_s) = g.stand?;
-    let t_of = |s: &ImuSample| s.0 as f64 * 1e-9;
+    // The IMU's time in the file's: its readings lag the vehicle by `lag_prior_s`.
+    let t_of = |s: &ImuSample| s.0 as f64 * 1e-9 + lag_prior_s;
     let period_s = match samples {
         [a, .., b] => (t_of(b) - t_of(a)) / (samples.len() - 1) as f64,
         _ => return None,
     };
-    let d_at = |t: f64| g.readings.iter().find(|r| r.0 == t).map(|r| r.1);
-    let settle_s = first_s + SETTLE_S;
-    if let (Some(d_from), Some(d_first)) = (d_at(g.from_s), d_at(first_s))
-        && first_s > g.from_s
-    {
-        // The trapezoid from the file's speed at `from_s` to zero at `first_s`.
-        let v_from = 2.0 * (d_first - d_from) / (first_s - g.from_s);
-        let (mut force, mut time_s) = (0.0, 0.0);
-        for s in samples {
-            let t = t_of(s);
-            if t > settle_s && t <= settle_s + REFERENCE_S {
-                force += s.2[0];
-                time_s += period_s;
-            }
+    let settle_s = first_s + STAND_SETTLE_S;
+    // The x specific force at rest: over REFERENCE_S from STAND_SETTLE_S into the stand.
+    let (mut force, mut time_s) = (0.0, 0.0);
+    for s in samples {
+        if t_of(s) > settle_s && t_of(s) <= settle_s + REFERENCE_S {
+            force += s.2[0];
+            time_s += period_s;
         }
-        if v_from >= BRAKED_FROM_MPS && time_s > 0.0 {
-            let f_rest = force / time_s;
-            let dv: f64 = samples
-                .iter()
-                .filter(|s| t_of(s) > g.from_s && t_of(s) <= settle_s)
-                .map(|s| s.2[0] - f_rest * period_s)
-                .sum();
-            // At rest at `settle_s`: the speed at `from_s` is what the braking took off.
-            if (-dv - v_from).abs() > (0.5 * v_from).max(2.0) {
-                return Some(g.from_s);
-            }
+    }
+    // Whether the IMU braked from `v_mps` at `t_s` to rest by `settle_s`: the speed the
+    // braking took off, at rest then, within half of it and 2 m/s.
+    let braked_from = |t_s: f64, v_mps: f64| {
+        let f_rest = force / time_s;
+        let dv: f64 = samples
+            .iter()
+            .filter(|s| t_of(s) > t_s && t_of(s) <= settle_s)
+            .map(|s| s.2[0] - f_rest * period_s)
+            .sum();
+        (-dv - v_mps).abs() <= (0.5 * v_mps).max(2.0)
+    };
+    // The file's speeds at the two readings before the stand, by its trapezoids (zero at
+    // its first reading).
+    let before: Vec<(f64, f64)> = g
+        .readings
+        .iter()
+        .copied()
+        .filter(|r| r.0 <= g.from_s)
+        .collect();
+    let d_first = g.readings.iter().find(|r| r.0 == first_s).map(|r| r.1);
+    if let (Some(&(t_from, d_from)), Some(d_first)) = (before.last(), d_first)
+        && first_s > t_from
+        && time_s > 0.0
+    {
+        let v_from = 2.0 * (d_first - d_from) / (first_s - t_from);
+        // A file that lags the car may say it moved a reading after it stood: the
+        // reading before is judged too.
+        let v_before = match before.len().checked_sub(2).map(|k| before[k]) {
+            Some((t, d)) if t_from > t => Some((t, 2.0 * (d_from - d) / (t_from - t) - v_from)),
+            _ => None,
+        };
+        if v_from >= BRAKED_FROM_MPS
+            && !braked_from(t_from, v_from)
+            && v_before.is_none_or(|(t, v)| !braked_from(t, v))
+        {
+            return Some(g.from_s);
         }
     }
     let mut watch = StandingMotion::new(g_mps2, period_s);
@@ -423,7 +452,7 @@ impl GapBridger {
         let stuck = g.stand.is_some();
         let g = match g.stand {
             None => g,
-            Some(_) => match stand_failed_from(&g, &samples, self.g_mps2) {
+            Some(_) => match stand_failed_from(&g, &samples, self.g_mps2, self.lag_prior_s) {
                 None => return,
                 Some(t_s) => g.failed_from(t_s),
             },
@@ -568,7 +597,7 @@ mod tests {
         let d = |t: f64| g.readings.iter().find(|r| r.0 == t).unwrap().1;
         assert!((d(51.0) - d(39.0) - 10.0).abs() < 1e-9);
         // Judged without samples: not a failure.
-        assert_eq!(stand_failed_from(g, &[], 9.81), None);
+        assert_eq!(stand_failed_from(g, &[], 9.81, 0.0), None);
         // A failure from 45 s: the gap from the last reading at rest before it.
         let f = g.clone().failed_from(45.2);
         assert_eq!((f.from_s, f.to_s, f.stand), (45.0, 51.0, None));
