@@ -14,9 +14,10 @@
 //! by what the bridge gives across it less the trapezoid.
 //!
 //! A logger that writes zero, not nothing, when it loses the speed leaves no gap but a
-//! stand: the file's distance stands while the car drives. Every stand from
-//! [`STAND_MIN_S`] to the longest bridged is judged by the IMU ([`stand_failed_from`]),
-//! and one the car moved over is bridged as a gap is, from when it failed.
+//! stand: the file's distance stands while the car drives. Every stand of
+//! [`STAND_MIN_S`] or more is judged by the IMU (`stand_failed_from`; one longer than
+//! the longest bridged, over its last such stretch: a long stop whose drive-off the file
+//! missed), and one the car moved over is bridged as a gap is, from when it failed.
 //!
 //! Three passes: the file once to find its gaps ([`find_gaps`]), the IMU's samples as the
 //! ingest streams them ([`GapBridger`]), and the file again as it is written
@@ -244,8 +245,53 @@ struct OpenStand {
     /// Its first and last readings, s.
     first_s: f64,
     last_s: f64,
-    /// The readings before it (up to `from_s`) and in it.
-    readings: Vec<(f64, f64)>,
+    /// The readings before it (up to `from_s`).
+    before: Vec<(f64, f64)>,
+    /// Its readings over its last [`MAX_BRIDGED_S`] and [`WINDOW_S`] (a long stand's
+    /// earlier ones are the car's rest, not judged).
+    zeros: VecDeque<(f64, f64)>,
+}
+
+impl OpenStand {
+    /// Takes the stand's next reading.
+    fn push(&mut self, r: (f64, f64)) {
+        self.last_s = r.0;
+        self.zeros.push_back(r);
+        while self.zeros.len() > 2 * MAX_WINDOW_READINGS
+            || self
+                .zeros
+                .front()
+                .is_some_and(|z| r.0 - z.0 > MAX_BRIDGED_S + WINDOW_S)
+        {
+            self.zeros.pop_front();
+        }
+    }
+
+    /// The stand ended by the reading at `to_s`, as a gap to judge: whole when it is
+    /// bridgeable, else its last [`MAX_BRIDGED_S`] from a reading at rest (a long stop
+    /// whose drive-off the file missed). `None` when shorter than [`STAND_MIN_S`].
+    fn judged(self, to_s: f64) -> Option<Gap> {
+        if to_s - self.from_s <= MAX_BRIDGED_S {
+            let readings = self.before.into_iter().chain(self.zeros).collect();
+            return (self.last_s - self.first_s >= STAND_MIN_S).then_some(Gap {
+                from_s: self.from_s,
+                to_s,
+                readings,
+                stand: Some((self.first_s, self.last_s)),
+            });
+        }
+        let from_s = self.zeros.iter().find(|z| to_s - z.0 <= MAX_BRIDGED_S)?.0;
+        (self.last_s - from_s >= STAND_MIN_S).then(|| Gap {
+            from_s,
+            to_s,
+            readings: self
+                .zeros
+                .into_iter()
+                .filter(|z| z.0 >= from_s - WINDOW_S)
+                .collect(),
+            stand: Some((from_s, self.last_s)),
+        })
+    }
 }
 
 /// The gaps of an odometer file (read through `reader` to its end), in order, with the
@@ -300,38 +346,26 @@ pub fn find_gaps<R: BufRead>(
             // with a stand; one that moves ends it, judged by the IMU when long enough.
             if !gap_here && r.1 == d0 {
                 match &mut stand {
-                    Some(open) => {
-                        open.last_s = r.0;
-                        if open.readings.len() < 2 * MAX_WINDOW_READINGS {
-                            open.readings.push(r);
-                        }
-                    }
+                    Some(open) => open.push(r),
                     None => {
                         let from_s = before.len().checked_sub(2).map_or(t0, |k| before[k].0);
-                        let mut readings: Vec<(f64, f64)> =
-                            before.iter().copied().filter(|b| b.0 <= from_s).collect();
-                        readings.extend([(t0, d0), r]);
-                        stand = Some(OpenStand {
+                        let mut open = OpenStand {
                             from_s,
                             first_s: t0,
-                            last_s: r.0,
-                            readings,
-                        });
+                            last_s: t0,
+                            before: before.iter().copied().filter(|b| b.0 <= from_s).collect(),
+                            zeros: VecDeque::from([(t0, d0)]),
+                        };
+                        open.push(r);
+                        stand = Some(open);
                     }
                 }
-            } else if let Some(open) = stand.take()
-                && open.last_s - open.first_s >= STAND_MIN_S
-                && r.0 - open.from_s <= MAX_BRIDGED_S
+            } else if let Some(g) = stand.take().and_then(|open| open.judged(r.0))
                 && gaps.len() < MAX_GAPS
-                && kept + open.readings.len() < MAX_KEPT_READINGS
+                && kept + g.readings.len() < MAX_KEPT_READINGS
             {
-                kept += open.readings.len();
-                gaps.push(Gap {
-                    from_s: open.from_s,
-                    to_s: r.0,
-                    readings: open.readings,
-                    stand: Some((open.first_s, open.last_s)),
-                });
+                kept += g.readings.len();
+                gaps.push(g);
                 collecting = true;
             }
         }
@@ -571,17 +605,25 @@ mod tests {
     }
 
     #[test]
-    fn stands_of_three_seconds_to_two_minutes_are_judged() {
+    fn stands_of_three_seconds_or_more_are_judged() {
         // 1 Hz: driving at 10 m/s, zero speed over 40–50 s (eleven readings), driving,
         // zero over 80–81 s (too short), driving, zero over 100–300 s (too long to
-        // bridge), driving to 310 s.
+        // bridge whole), driving to 310 s.
         let stood =
             |t: u32| (40..=50).contains(&t) || (80..=81).contains(&t) || (100..=300).contains(&t);
         let text: String = (0..=310)
             .map(|t| format!("{t} {}\n", if stood(t) { 0.0 } else { 10.0 }))
             .collect();
         let (gaps, more) = gaps_of(&text);
-        assert_eq!((gaps.len(), more), (1, 0), "{gaps:?}");
+        assert_eq!((gaps.len(), more), (2, 0), "{gaps:?}");
+        // The long stand's last two minutes, from a reading at rest.
+        let long = &gaps[1];
+        assert_eq!(
+            (long.from_s, long.to_s, long.stand),
+            (181.0, 301.0, Some((181.0, 300.0)))
+        );
+        let times: Vec<f64> = long.readings.iter().map(|r| r.0).collect();
+        assert_eq!((times[0], times[times.len() - 1]), (171.0, 310.0));
         let g = &gaps[0];
         // From the reading before its first zero to the first reading after its last.
         assert_eq!(
