@@ -298,7 +298,7 @@ fn odometer_failure_note(n: &NavigateSummary, failures: Option<&OdometerFailures
     });
     let stuck = failures.filter(|f| f.stuck > 0).map(|f| {
         format!(
-            "the odometer's count stood while the vehicle moved, unflagged: {} \
+            "the odometer's distance stood while the vehicle moved, unflagged: {} \
              time{} ({} samples, {:.1} s)",
             f.stuck,
             if f.stuck == 1 { "" } else { "s" },

@@ -1011,7 +1011,7 @@ fn an_odometer_failure_while_driving_is_bridged_by_the_inertial_speed() {
                 .to_owned()
         } else {
             format!(
-                "the odometer's count stood while the vehicle moved, unflagged: 1 \
+                "the odometer's distance stood while the vehicle moved, unflagged: 1 \
                  time ({} samples, {:.1} s); bridged by the inertial along-track speed: 1 \
                  failure (",
                 f.stuck_samples,

@@ -895,7 +895,7 @@ fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
     let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
     assert!(
         summary.contains(
-            "| the odometer's count stood while the vehicle moved, unflagged: 1 \
+            "| the odometer's distance stood while the vehicle moved, unflagged: 1 \
              time (1500 samples, 15.0 s); bridged by the inertial along-track speed: 1 \
              failure (15.0 s, "
         ),
@@ -943,7 +943,7 @@ fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
     let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
     assert!(
         summary.contains(&format!(
-            "the odometer's count stood while the vehicle moved, unflagged: 1 time \
+            "the odometer's distance stood while the vehicle moved, unflagged: 1 time \
              ({stuck} samples, {:.1} s); 1 failure ({stuck} samples) not bridged (longer than \
              120 s, or without readings around it): the dead reckoning has no distance over \
              them",
@@ -959,7 +959,7 @@ fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
     assert_eq!(code, Some(1), "{text}");
     assert!(
         text.contains(&format!(
-            "the odometer's count stood while the vehicle moved (unflagged) on {} of {n} \
+            "the odometer's distance stood while the vehicle moved (unflagged) on {} of {n} \
              samples",
             n - 1 - k0
         )),

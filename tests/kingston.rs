@@ -701,7 +701,8 @@ fn kingston_a_speed_stuck_at_zero_is_found_and_bridged() {
     let out = found("driving", 152_761.0..152_780.0, 152_760.0, 152_780.0);
     let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
     assert!(
-        summary.contains("the odometer's count stood while the vehicle moved, unflagged: 1 time"),
+        summary
+            .contains("the odometer's distance stood while the vehicle moved, unflagged: 1 time"),
         "{summary}"
     );
     // Zero from the stop at control point 1 through the drive-off: the watch, from its

@@ -93,7 +93,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                     "the odometer is flagged failed (status bit 1) on {flagged} of {n} samples"
                 ),
                 (0, _) => bail!(
-                    "the odometer's count stood while the vehicle moved (unflagged) on {stuck} \
+                    "the odometer's distance stood while the vehicle moved (unflagged) on {stuck} \
                      of {n} samples"
                 ),
                 _ => bail!(
