@@ -517,8 +517,7 @@ impl GapBridger {
             f.stuck += 1;
             f.stuck_samples += failed;
         }
-        let b = bridge(&window, self.g_mps2, self.lag_prior_s);
-        let Some(b) = b else {
+        let Some(b) = bridge(&window, self.g_mps2, self.lag_prior_s) else {
             // Left to the trapezoid: nothing to write across it.
             f.not_bridged += 1;
             f.not_bridged_samples += failed;

@@ -338,10 +338,6 @@ fn kingston_cut_to_begin_while_driving() {
     assert!(cp_max < 2.0, "control points {cp_max} m");
 }
 
-/// What each odometer term of the joint fit buys on the real drive, end to end through
-/// `unz run`: the OBD-II speed's lag and bias (the README's Kingston table). The figures
-/// are the route's heading against the settled reference, the errors at the control
-/// points, and each control point's error when it was left out of the fit.
 /// The shipped Kingston run copied into `run` (created), `extra` added to its manifest.
 fn kingston_with(run: &std::path::Path, extra: &str) -> std::path::PathBuf {
     std::fs::create_dir_all(run).unwrap();
@@ -353,22 +349,33 @@ fn kingston_with(run: &std::path::Path, extra: &str) -> std::path::PathBuf {
     run.to_path_buf()
 }
 
+/// Kingston with `extra` added to its manifest ([`kingston_with`] in `dir/k`), run to
+/// disupt into `dir/o`: its report and its disupt folder.
+fn kingston_disupt(
+    dir: &std::path::Path,
+    extra: &str,
+) -> (unz::disupt_stage::DisuptOut, std::path::PathBuf) {
+    let run = kingston_with(&dir.join("k"), extra);
+    let out = dir.join("o");
+    crate::util::run_until(&run, &out, "disupt");
+    let disupt = out.join("kingston2008-segment1/disupt");
+    (read_json(&disupt.join("disupt.json")), disupt)
+}
+
+/// What each odometer term of the joint fit buys on the real drive, end to end through
+/// `unz run`: the OBD-II speed's lag and bias (the README's Kingston table). The figures
+/// are the route's heading against the settled reference, the errors at the control
+/// points, and each control point's error when it was left out of the fit.
 #[test]
 fn kingston_odometer_terms_through_the_binary() {
-    use unz::disupt_stage::DisuptOut;
-
     let r = reference();
     let tmp = tempfile::tempdir().unwrap();
     let mut rows = Vec::new();
     for (lag, bias) in [(false, false), (true, false), (false, true), (true, true)] {
-        let run = kingston_with(
-            &tmp.path().join(format!("k-{lag}-{bias}")),
+        let (d, dir) = kingston_disupt(
+            &tmp.path().join(format!("{lag}-{bias}")),
             &format!("[params.disupt]\njoint_odo_lag = {lag}\njoint_odo_bias = {bias}\n"),
         );
-        let out = tmp.path().join(format!("o-{lag}-{bias}"));
-        crate::util::run_until(&run, &out, "disupt");
-        let dir = out.join("kingston2008-segment1/disupt");
-        let d: DisuptOut = read_json(&dir.join("disupt.json"));
         let j = &d.methods["joint"];
         // OWPI's vertical drift by Kryt1 runs into its ±5 °/h and is said to (README).
         let owpi_driftz = d.methods["owpi"]
@@ -653,11 +660,7 @@ fn kingston_a_speed_stuck_at_zero_is_found_and_bridged() {
     };
     // The run with the speeds over `zeroed` (s) written as zero.
     let with_zeros = |name: &str, zeroed: std::ops::Range<f64>| {
-        let run = tmp.path().join(name).join("kingston");
-        std::fs::create_dir_all(&run).unwrap();
-        for f in ["imu.txt", "run.toml"] {
-            std::fs::copy(data.join(f), run.join(f)).unwrap();
-        }
+        let run = kingston_with(&tmp.path().join(name).join("kingston"), "");
         let text: String = speeds
             .iter()
             .map(|&(t, v)| format!("{t} {:.5}\n", if zeroed.contains(&t) { 0.0 } else { v }))
@@ -740,20 +743,13 @@ fn kingston_a_speed_stuck_at_zero_is_found_and_bridged() {
 /// estimate the mark, so it is a sweep, not an estimate with a σ.
 #[test]
 fn kingston_control_points_fit_a_reference_point_ahead_of_the_axle() {
-    use unz::disupt_stage::DisuptOut;
-
     let r = reference();
     let tmp = tempfile::tempdir().unwrap();
     let run_with = |forward_m: f64| {
-        let tag = format!("{forward_m}");
-        let run = kingston_with(
-            &tmp.path().join(format!("k{tag}")),
+        let (d, dir) = kingston_disupt(
+            &tmp.path().join(format!("{forward_m}")),
             &format!("[params.vehicle]\nmark_lever_arm_m = [{forward_m}, 0.0, 0.0]\n"),
         );
-        let out = tmp.path().join(format!("o{tag}"));
-        crate::util::run_until(&run, &out, "disupt");
-        let dir = out.join("kingston2008-segment1/disupt");
-        let d: DisuptOut = read_json(&dir.join("disupt.json"));
         let j = &d.methods["joint"];
         let holdout_max = j
             .holdout

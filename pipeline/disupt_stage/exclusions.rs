@@ -1,12 +1,10 @@
 //! Control points inconsistent with the rest of the run, left out of the joint fit one at
 //! a time (a point the route came back to, at every visit).
 
-use std::collections::BTreeSet;
-
 use rayon::prelude::*;
-use unz_stages::criteria::ControlPointFix;
 use unz_stages::disupt::{
-    self, DisuptError, HOLDOUT_MIN_POINTS, Holdout, JointOptions, ProblemSpec,
+    self, DisuptError, HOLDOUT_MIN_POINTS, Holdout, JointOptions, ProblemSpec, points_among,
+    points_of, visits_of,
 };
 
 use super::joint_run::{JointInputs, JointRun, run_joint};
@@ -264,31 +262,6 @@ fn points_within_bounds(x: JointInputs<'_>, base: &[usize]) -> BoundsSearch {
         }
     }
     search
-}
-
-/// Each distinct point's first fix (indices into `fixes`): a point the route came back
-/// to has a fix per visit.
-fn points_of(fixes: &[ControlPointFix]) -> Vec<usize> {
-    let mut seen = BTreeSet::new();
-    (0..fixes.len())
-        .filter(|&i| seen.insert(fixes[i].id))
-        .collect()
-}
-
-/// How many distinct points the fixes `among` (indices into `fixes`) are.
-fn points_among(fixes: &[ControlPointFix], among: &[usize]) -> usize {
-    among
-        .iter()
-        .map(|&i| fixes[i].id)
-        .collect::<BTreeSet<u32>>()
-        .len()
-}
-
-/// Every visit of fix `i`'s point (indices into `fixes`, ascending).
-fn visits_of(fixes: &[ControlPointFix], i: usize) -> Vec<usize> {
-    (0..fixes.len())
-        .filter(|&j| fixes[j].id == fixes[i].id)
-        .collect()
 }
 
 /// Counts `passes` of fits before it in `run`'s (and its one step's).

@@ -42,7 +42,10 @@ pub use joint::{
     JointFit, JointOptions, MARK_ARM_MIN_POINTS, MarkArmSeen, OdoYawSeen, joint, joint_fit,
     within_bounds,
 };
-pub use problem::{Evaluation, LANES, Problem, ProblemSpec, moved_by_steps, observe_each};
+pub use problem::{
+    Evaluation, LANES, Problem, ProblemSpec, moved_by_steps, observe_each, points_among, points_of,
+    visits_of,
+};
 pub use results::{Component, Criterion, MethodResult, Step};
 pub use settings::{DisuptParams, X, params_of, x_of};
 pub use stepwise::{kryt1_with_free_drifts_xy, oepi, owpi};

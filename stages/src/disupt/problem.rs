@@ -100,6 +100,31 @@ impl<'a> ProblemSpec<'a> {
     }
 }
 
+/// Each distinct point's first fix (indices into `fixes`, ascending): a point the route
+/// came back to has a fix per visit.
+pub fn points_of(fixes: &[ControlPointFix]) -> Vec<usize> {
+    let mut seen = std::collections::BTreeSet::new();
+    (0..fixes.len())
+        .filter(|&i| seen.insert(fixes[i].id))
+        .collect()
+}
+
+/// How many distinct points the fixes `among` (indices into `fixes`) are.
+pub fn points_among(fixes: &[ControlPointFix], among: &[usize]) -> usize {
+    among
+        .iter()
+        .map(|&i| fixes[i].id)
+        .collect::<std::collections::BTreeSet<u32>>()
+        .len()
+}
+
+/// Every visit of fix `i`'s point (indices into `fixes`, ascending).
+pub fn visits_of(fixes: &[ControlPointFix], i: usize) -> Vec<usize> {
+    (0..fixes.len())
+        .filter(|&j| fixes[j].id == fixes[i].id)
+        .collect()
+}
+
 /// How many of `fixes` are not among `excluded` (indices into them).
 fn cps_used(fixes: &[ControlPointFix], excluded: &[usize]) -> usize {
     (0..fixes.len()).filter(|i| !excluded.contains(i)).count()
@@ -203,13 +228,8 @@ impl<'a> Problem<'a> {
 
     /// How many distinct points (ids) among them: what judges a point against the others.
     pub fn points_used(&self) -> usize {
-        let mut ids: Vec<u32> = (0..self.fixes.len())
-            .filter(|&i| self.cp_used(i))
-            .map(|i| self.fixes[i].id)
-            .collect();
-        ids.sort_unstable();
-        ids.dedup();
-        ids.len()
+        let used: Vec<usize> = (0..self.fixes.len()).filter(|&i| self.cp_used(i)).collect();
+        points_among(self.fixes, &used)
     }
 
     /// Whether fixes `i` and `j` are visits of the same point (the same id): a point
