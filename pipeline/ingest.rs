@@ -5,7 +5,9 @@
 //! The log is streamed: memory is bounded by the reader's buffer, one batch of rows and
 //! the samples an odometer failure holds back until it is bridged (at most 100 000;
 //! `crate::odometer_bridge`), or for a text log the readings and the IMU's samples around
-//! its odometer file's gaps (`crate::odometer_gaps`), whatever the file size. Bad records
+//! its odometer file's gaps (`crate::odometer_gaps`) or, with an 8th column, the IMU's
+//! samples over the last 141 s and the readings a stand may still replace
+//! (`crate::odometer_column`), whatever the file size. Bad records
 //! never stop the stage; an unreadable file does, with an error naming it.
 
 use std::io::BufReader;
@@ -14,13 +16,14 @@ use std::path::{Path, PathBuf};
 use crate::artifacts::files;
 use crate::flow::site_gravity_mps2;
 use crate::odometer_bridge::{Given, OdometerBridger, OdometerSample};
-use crate::odometer_gaps::{GapBridger, find_gaps, tag_ns};
+use crate::odometer_column::ColumnBridger;
+use crate::odometer_gaps::{GapBridger, file_readings, find_gaps, tag_ns};
 use crate::odometer_range::OdometerRange;
 use crate::raw_mcap::RawMcapWriter;
 use anyhow::Context;
 use serde::Serialize;
 use unz_formats::atomic::write_json_atomic;
-use unz_formats::kfgins::{KfGinsReader, LAND_SPEED_RANGE_MPS, OdometerFileReader};
+use unz_formats::kfgins::{KfGinsReader, LAND_SPEED_RANGE_MPS, OdometerFileReader, TextSample};
 use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_formats::mcap_io::McapCompression;
 use unz_formats::parquet_io::ParquetSink;
@@ -369,36 +372,45 @@ fn ingest_text(
         .period_s()
         .map_err(|e| e.in_file(path))?
         .unwrap_or(0.0);
-    // A speed file's gaps are found first, its readings around them kept, so that the
-    // IMU's samples over them can be kept as they stream by.
-    let speed_file = manifest
-        .odometer
-        .file
-        .as_ref()
-        .filter(|_| manifest.odometer.kind == Some(OdometerKind::SpeedMps));
-    let mut gaps = match speed_file {
-        Some(file) => {
+    // The 8th column, when present, is the odometer; otherwise the manifest's file.
+    let column = reader.columns() == Some(8);
+    let odometer_file = (manifest.odometer.file.as_ref())
+        .zip(manifest.odometer.kind)
+        .filter(|_| !column);
+    // A speed file's gaps and stands are found first, its readings around them kept, so
+    // that the IMU's samples over them can be kept as they stream by; the 8th column's
+    // as the log streams.
+    let found = match odometer_file {
+        Some((file, OdometerKind::SpeedMps)) => {
             let mut odo = OdometerFileReader::new(
                 BufReader::new(open(manifest, file)?),
                 OdometerKind::SpeedMps,
             );
-            let (found, more) = find_gaps(&mut odo).map_err(|e| e.in_file(file))?;
-            (!found.is_empty() || more > 0).then(|| {
-                GapBridger::new(
-                    found,
-                    more,
-                    site_gravity_mps2(manifest),
-                    options.odo_lag_prior_s,
-                )
-            })
+            Some(find_gaps(|| file_readings(&mut odo)).map_err(|e| e.in_file(file))?)
         }
-        None => None,
+        _ => None,
     };
+    let mut gaps = found
+        .filter(|(found, more)| !found.is_empty() || *more > 0)
+        .map(|(found, more)| {
+            GapBridger::new(
+                found,
+                more,
+                site_gravity_mps2(manifest),
+                options.odo_lag_prior_s,
+            )
+        });
     let mut sinks = Sinks::create(dir, None, None, options.mcap)?;
     let mut seq = 0u64;
-    let mut prev: Option<(f64, f64, f64)> = None; // (t, speed, distance) for the 8th column
+    let mut column = column.then(|| {
+        let g_mps2 = site_gravity_mps2(manifest);
+        (
+            SpeedColumn::default(),
+            ColumnBridger::new(g_mps2, options.odo_lag_prior_s),
+        )
+    });
     while let Some(s) = reader.next_sample().map_err(|e| e.in_file(path))? {
-        let t_ns = (s.t_s * 1e9).round() as i64;
+        let t_ns = tag_ns(s.t_s);
         let rows = &mut sinks.imu_rows;
         rows.t_ns.push(t_ns);
         rows.seq.push(seq);
@@ -411,31 +423,18 @@ fn ingest_text(
         if let Some(g) = &mut gaps {
             g.sample(t_ns, s.dtheta_rad, s.dvel_mps);
         }
-        match s.speed_mps {
-            // A corrupt reading: the sample goes on without its speed, counted.
-            Some(v) if v.abs() > LAND_SPEED_RANGE_MPS => sinks.odo_range.out_of_range += 1,
-            Some(v) => {
-                let d = match prev {
-                    Some((t0, v0, d0)) if s.t_s > t0 => d0 + 0.5 * (v0 + v) * (s.t_s - t0),
-                    Some((_, _, d0)) => d0,
-                    None => 0.0,
-                };
-                prev = Some((s.t_s, v, d));
-                let d = sinks.odo_range.step(t_ns, d);
-                sinks.push_odometer(t_ns, (d, DistanceSource::Reading), None);
-            }
-            None => {}
+        if let Some((speed, bridger)) = &mut column {
+            let reading = speed.reading(&s, &mut sinks.odo_range);
+            bridger.sample((t_ns, s.dtheta_rad, s.dvel_mps), reading, |t, given| {
+                sinks.push_odometer(t, given, None)
+            });
         }
         seq += 1;
         sinks.flush(false)?;
     }
-    // The 8th column, when present, is the odometer; otherwise the manifest's file.
-    let mut odometer_file = None;
-    let mut bridged = None;
-    if reader.columns() != Some(8)
-        && let (Some(file), Some(kind)) = (&manifest.odometer.file, manifest.odometer.kind)
-    {
-        let mut gaps = gaps.map(GapBridger::finish);
+    let mut gaps = gaps.map(GapBridger::finish);
+    let mut file_report = None;
+    if let Some((file, kind)) = odometer_file {
         let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind);
         while let Some(o) = odo.next_sample().map_err(|e| e.in_file(file))? {
             let t_ns = tag_ns(o.t_s);
@@ -446,17 +445,19 @@ fn ingest_text(
             }
             sinks.flush(false)?;
         }
-        odometer_file = Some(odo);
-        // Stands the IMU found standing are no failure: nothing to report.
-        bridged = gaps
-            .map(|g| g.failures().clone())
-            .filter(|f| *f != unz_formats::OdometerFailures::default());
+        file_report = Some((odo.report().clone(), odo.faults().0.to_vec()));
     }
+    let failures = match column {
+        Some((_, bridger)) => Some(bridger.finish(|t, given| sinks.push_odometer(t, given, None))),
+        None => gaps.map(|g| g.failures().clone()),
+    };
+    // Stands the IMU found standing are no failure: nothing to report.
+    let bridged = failures.filter(|f| *f != unz_formats::OdometerFailures::default());
     let (odo_rows, odometer_out_of_range) = sinks.finish(dir)?;
     let mut report = reader.report().clone();
     report.odometer_out_of_range = odometer_out_of_range;
     report.odometer_failures = bridged;
-    report.odometer_file = odometer_file.as_ref().map(|o| o.report().clone());
+    report.odometer_file = file_report.as_ref().map(|(r, _)| r.clone());
     let (faults, total) = reader.faults();
     write_json_atomic(
         &dir.join(files::INGEST_EVENTS),
@@ -465,10 +466,46 @@ fn ingest_text(
             events_total: total,
             events: Vec::new(),
             line_faults: faults.to_vec(),
-            odometer_file_faults: odometer_file
-                .as_ref()
-                .map_or(Vec::new(), |o| o.faults().0.to_vec()),
+            odometer_file_faults: file_report.map_or(Vec::new(), |(_, faults)| faults),
         },
     )?;
     Ok((report, odo_rows))
+}
+
+/// A text log's 8th column: the odometer's speed at each IMU sample, integrated into
+/// distance by the trapezoid.
+#[derive(Debug, Default)]
+struct SpeedColumn {
+    /// The last speed taken: its time, s, speed, m/s, and distance, m.
+    prev: Option<(f64, f64, f64)>,
+}
+
+impl SpeedColumn {
+    /// The distance at `t_s` with the speed `v_mps` there; `None` for a speed beyond a
+    /// land vehicle's (a corrupt reading: the sample goes on without its speed). A time
+    /// not after the last speed's adds nothing (the derive repairs and counts those).
+    fn distance_m(&mut self, t_s: f64, v_mps: f64) -> Option<f64> {
+        if v_mps.abs() > LAND_SPEED_RANGE_MPS {
+            return None;
+        }
+        let d = match self.prev {
+            Some((t0, v0, d0)) if t_s > t0 => d0 + 0.5 * (v0 + v_mps) * (t_s - t0),
+            Some((_, _, d0)) => d0,
+            None => 0.0,
+        };
+        self.prev = Some((t_s, v_mps, d));
+        Some(d)
+    }
+
+    /// The sample `s`'s reading: the trapezoid's distance, m, and the distance as
+    /// written (through the odometer's range check, a corrupt speed counted there), m;
+    /// `None` without a speed to write.
+    fn reading(&mut self, s: &TextSample, range: &mut OdometerRange) -> Option<(f64, f64)> {
+        let v_mps = s.speed_mps?;
+        let Some(d) = self.distance_m(s.t_s, v_mps) else {
+            range.out_of_range += 1;
+            return None;
+        };
+        Some((d, range.step(tag_ns(s.t_s), d)))
+    }
 }

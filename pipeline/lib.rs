@@ -23,6 +23,7 @@ pub mod memory;
 pub mod method_tables;
 pub mod nav_writer;
 pub mod odometer_bridge;
+pub mod odometer_column;
 pub mod odometer_gaps;
 pub mod odometer_range;
 pub mod odometer_stuck;

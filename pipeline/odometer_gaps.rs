@@ -19,11 +19,12 @@
 //! the longest bridged, over its last such stretch: a long stop whose drive-off the file
 //! missed), and one the car moved over is bridged as a gap is, from when it failed.
 //!
-//! Three passes: the file once to find its gaps ([`find_gaps`]), the IMU's samples as the
-//! ingest streams them ([`GapBridger`]), and the file again as it is written
-//! ([`BridgedGaps::give`]). Memory: the readings around the gaps (at most 2 000 000), the
-//! IMU's samples over the windows open at a time, and the bridged rows (one per IMU
-//! sample inside a gap).
+//! Three passes: the file once to find its gaps ([`find_gaps`], through a [`GapFinder`]),
+//! the IMU's samples as the ingest streams them ([`GapBridger`]), and the file again as
+//! it is written ([`BridgedGaps::give`]). Memory: the readings around the gaps (at most
+//! 2 000 000), the IMU's samples over the windows open at a time, and the bridged rows
+//! (one per IMU sample inside a gap). A text log's 8th column, whose readings come with
+//! the IMU's samples, is judged the same way in one pass ([`crate::odometer_column`]).
 
 use std::collections::VecDeque;
 use std::io::BufRead;
@@ -89,8 +90,13 @@ pub struct Gap {
 }
 
 impl Gap {
+    /// A stand of the file's distance, judged by the IMU, not a gap between readings.
+    pub(crate) fn is_stand(&self) -> bool {
+        self.stand.is_some()
+    }
+
     /// The window's first and last times, s.
-    fn span_s(&self) -> (f64, f64) {
+    pub(crate) fn span_s(&self) -> (f64, f64) {
         let first = self.readings.first().map_or(self.from_s, |r| r.0);
         let last = self.readings.last().map_or(self.to_s, |r| r.0);
         (first, last)
@@ -294,25 +300,49 @@ impl OpenStand {
     }
 }
 
-/// The gaps of an odometer file (read through `reader` to its end), in order, with the
-/// readings around each. At most 10 000; the count of the others is returned too.
-pub fn find_gaps<R: BufRead>(
-    reader: &mut OdometerFileReader<R>,
-) -> Result<(Vec<Gap>, u64), FormatError> {
-    let mut gaps: Vec<Gap> = Vec::new();
-    let mut more = 0u64;
-    let mut kept = 0usize;
-    let mut before: VecDeque<(f64, f64)> = VecDeque::new();
-    let mut intervals: VecDeque<f64> = VecDeque::with_capacity(RECENT);
-    // The gap whose readings after it are being collected.
-    let mut collecting = false;
-    let mut stand: Option<OpenStand> = None;
-    while let Some(s) = reader.next_sample()? {
-        let r = (s.t_s, s.distance_m);
+/// The gaps of an odometer's speed readings, each its time, s, and the trapezoid's
+/// distance, m (`next` gives them in order, then `None`: a speed file's lines), in order,
+/// with the readings around each. At most 10 000; the count of the others is returned
+/// too.
+pub fn find_gaps<E>(
+    mut next: impl FnMut() -> Result<Option<(f64, f64)>, E>,
+) -> Result<(Vec<Gap>, u64), E> {
+    let mut finder = GapFinder::default();
+    while let Some(r) = next()? {
+        finder.push(r);
+    }
+    Ok(finder.finish())
+}
+
+/// The gaps and stands of an odometer's speed readings, found as the readings are
+/// pushed ([`find_gaps`] for a whole file; the ingest's 8th column as it streams).
+#[derive(Default)]
+pub struct GapFinder {
+    /// The gaps found, the last one still collecting its readings after it when
+    /// `collecting`.
+    gaps: Vec<Gap>,
+    /// Gaps beyond [`MAX_GAPS`] or [`MAX_KEPT_READINGS`], counted only.
+    more: u64,
+    /// Readings kept in `gaps`.
+    kept: usize,
+    /// The readings over the last [`WINDOW_S`].
+    before: VecDeque<(f64, f64)>,
+    /// The file's last intervals between readings, s.
+    intervals: VecDeque<f64>,
+    /// The last gap's readings after it are being collected.
+    collecting: bool,
+    stand: Option<OpenStand>,
+}
+
+impl GapFinder {
+    /// Takes the next reading: its time, s, and distance, m. True when it ends a gap
+    /// kept (not a stand).
+    pub fn push(&mut self, r: (f64, f64)) -> bool {
         let mut gap_here = false;
-        if let Some(&(t0, d0)) = before.back() {
+        let mut kept_here = false;
+        if let Some(&(t0, d0)) = self.before.back() {
             let dt = r.0 - t0;
-            let mut recent: Vec<f64> = intervals.iter().copied().collect();
+            let mut recent: Vec<f64> = self.intervals.iter().copied().collect();
             recent.sort_by(f64::total_cmp);
             // The file's first interval, with no rate to judge it by, is not a gap.
             let typical = recent
@@ -320,34 +350,36 @@ pub fn find_gaps<R: BufRead>(
                 .copied()
                 .unwrap_or(f64::INFINITY);
             if dt > MIN_GAP_S && dt > GAP_PERIODS * typical {
-                if gaps.len() < MAX_GAPS && kept + before.len() < MAX_KEPT_READINGS {
-                    kept += before.len();
-                    gaps.push(Gap {
+                if self.gaps.len() < MAX_GAPS && self.kept + self.before.len() < MAX_KEPT_READINGS {
+                    self.kept += self.before.len();
+                    self.gaps.push(Gap {
                         from_s: t0,
                         to_s: r.0,
-                        readings: before.iter().copied().collect(),
+                        readings: self.before.iter().copied().collect(),
                         stand: None,
                     });
-                    collecting = true;
+                    self.collecting = true;
+                    kept_here = true;
                 } else {
-                    more += 1;
-                    collecting = false;
+                    self.more += 1;
+                    self.collecting = false;
                 }
-                before.clear();
-                stand = None;
+                self.before.clear();
+                self.stand = None;
                 gap_here = true;
             } else {
-                if intervals.len() == RECENT {
-                    intervals.pop_front();
+                if self.intervals.len() == RECENT {
+                    self.intervals.pop_front();
                 }
-                intervals.push_back(dt);
+                self.intervals.push_back(dt);
             }
             // A distance that stands (zero speeds at both readings) starts or goes on
             // with a stand; one that moves ends it, judged by the IMU when long enough.
             if !gap_here && r.1 == d0 {
-                match &mut stand {
+                match &mut self.stand {
                     Some(open) => open.push(r),
                     None => {
+                        let before = &self.before;
                         let from_s = before.len().checked_sub(2).map_or(t0, |k| before[k].0);
                         let mut open = OpenStand {
                             from_s,
@@ -357,37 +389,107 @@ pub fn find_gaps<R: BufRead>(
                             zeros: VecDeque::from([(t0, d0)]),
                         };
                         open.push(r);
-                        stand = Some(open);
+                        self.stand = Some(open);
                     }
                 }
-            } else if let Some(g) = stand.take().and_then(|open| open.judged(r.0))
-                && gaps.len() < MAX_GAPS
-                && kept + g.readings.len() < MAX_KEPT_READINGS
+            } else if let Some(g) = self.stand.take().and_then(|open| open.judged(r.0))
+                && self.gaps.len() < MAX_GAPS
+                && self.kept + g.readings.len() < MAX_KEPT_READINGS
             {
-                kept += g.readings.len();
-                gaps.push(g);
-                collecting = true;
+                self.kept += g.readings.len();
+                self.gaps.push(g);
+                self.collecting = true;
             }
         }
-        if collecting && let Some(g) = gaps.last_mut() {
+        if self.collecting
+            && let Some(g) = self.gaps.last_mut()
+        {
             if r.0 - g.to_s <= WINDOW_S
                 && g.readings.len() < 2 * MAX_WINDOW_READINGS
-                && kept < MAX_KEPT_READINGS
+                && self.kept < MAX_KEPT_READINGS
             {
-                kept += 1;
+                self.kept += 1;
                 g.readings.push(r);
             } else {
-                collecting = false;
+                self.collecting = false;
             }
         }
-        before.push_back(r);
-        while before.len() > MAX_WINDOW_READINGS
-            || before.front().is_some_and(|f| r.0 - f.0 > WINDOW_S)
+        self.before.push_back(r);
+        while self.before.len() > MAX_WINDOW_READINGS
+            || self.before.front().is_some_and(|f| r.0 - f.0 > WINDOW_S)
         {
-            before.pop_front();
+            self.before.pop_front();
+        }
+        kept_here
+    }
+
+    /// The gaps found, in order, and the count of those beyond the caps.
+    pub fn finish(self) -> (Vec<Gap>, u64) {
+        (self.gaps, self.more)
+    }
+
+    /// No reading before `t_s` is to come (a stream whose readings may be missing): a
+    /// gap whose window after it ends before then has all its readings.
+    pub fn read_to(&mut self, t_s: f64) {
+        if self.collecting && self.gaps.last().is_some_and(|g| t_s - g.to_s > WINDOW_S) {
+            self.collecting = false;
         }
     }
-    Ok((gaps, more))
+
+    /// The gaps whose readings after them are all read, in order, taken out.
+    pub fn take_complete(&mut self) -> Vec<Gap> {
+        let n = self.gaps.len() - usize::from(self.collecting && !self.gaps.is_empty());
+        let done: Vec<Gap> = self.gaps.drain(..n).collect();
+        self.kept -= done.iter().map(|g| g.readings.len()).sum::<usize>();
+        done
+    }
+
+    /// The gap the last reading ended ([`GapFinder::push`] true), taken out when it is
+    /// too long to bridge (it needs no readings after it): its first and last times, s.
+    pub fn take_long_gap(&mut self) -> Option<(f64, f64)> {
+        let g = self.gaps.last()?;
+        if !self.collecting || g.is_stand() || g.to_s - g.from_s <= MAX_BRIDGED_S {
+            return None;
+        }
+        let g = self.gaps.pop()?;
+        self.kept -= g.readings.len();
+        self.collecting = false;
+        Some((g.from_s, g.to_s))
+    }
+
+    /// Forgets the gaps and the stand not complete yet (a stream whose time tags stand
+    /// would hold its readings whole); returns the gaps among them (not stands).
+    pub fn forget_unsettled(&mut self) -> u64 {
+        self.stand = None;
+        self.collecting = false;
+        self.kept = 0;
+        self.gaps.drain(..).filter(|g| !g.is_stand()).count() as u64
+    }
+
+    /// The earliest time, s, from which a reading read so far may still be replaced: by
+    /// a gap collecting its readings after it, a stand going on (a long stand's failure
+    /// begins within [`MAX_BRIDGED_S`] of its end), or a stand the next reading may
+    /// begin (from the reading before the last). `None` before the first reading.
+    pub fn unsettled_from_s(&self) -> Option<f64> {
+        let n = self.before.len();
+        let next_stand = self.before.get(n.saturating_sub(2)).map(|r| r.0);
+        let gap = self.gaps.first().map(|g| g.from_s);
+        let stand = self.stand.as_ref().map(|open| {
+            let latest_s = self.before.back().map_or(open.last_s, |r| r.0);
+            open.from_s.max(latest_s - MAX_BRIDGED_S)
+        });
+        [next_stand, gap, stand]
+            .into_iter()
+            .flatten()
+            .reduce(f64::min)
+    }
+}
+
+/// A speed file's next reading, for [`find_gaps`]: its time, s, and distance, m.
+pub fn file_readings<R: BufRead>(
+    reader: &mut OdometerFileReader<R>,
+) -> Result<Option<(f64, f64)>, FormatError> {
+    Ok(reader.next_sample()?.map(|s| (s.t_s, s.distance_m)))
 }
 
 /// A time of the file, s, as the ingest tags it, ns.
@@ -397,7 +499,7 @@ pub fn tag_ns(t_s: f64) -> i64 {
 
 /// A gap as bridged.
 #[derive(Debug, Clone, PartialEq)]
-struct BridgedGap {
+pub(crate) struct BridgedGap {
     /// The last reading before it, ns ([`tag_ns`]): the file's readings after it and
     /// before `to_ns` (a stand's) are the bridge's rows' to replace.
     from_ns: i64,
@@ -413,7 +515,7 @@ struct BridgedGap {
 
 /// An IMU sample: its time tag, ns, its angle and velocity increments (body FRD; rad,
 /// m/s).
-type ImuSample = (i64, [f64; 3], [f64; 3]);
+pub(crate) type ImuSample = (i64, [f64; 3], [f64; 3]);
 
 /// The IMU's samples in the gaps' windows, collected as the ingest streams them, each
 /// gap bridged once its window is whole.
@@ -480,65 +582,16 @@ impl GapBridger {
         }
     }
 
-    /// Bridges the gap `g` with the IMU's `samples` over its window; a stand, only when
-    /// the vehicle moved ([`stand_failed_from`]), from then on.
+    /// Bridges the gap `g` with the IMU's `samples` over its window ([`close`]).
     fn close(&mut self, g: Gap, samples: Vec<ImuSample>) {
-        let stuck = g.stand.is_some();
-        let g = match g.stand {
-            None => g,
-            Some(_) => match stand_failed_from(&g, &samples, self.g_mps2, self.lag_prior_s) {
-                None => return,
-                Some(t_s) => g.failed_from(t_s),
-            },
-        };
-        let samples: Vec<ImuSample> = samples
-            .into_iter()
-            .filter(|s| s.0 as f64 * 1e-9 >= g.span_s().0)
-            .collect();
-        let length_s = g.to_s - g.from_s;
-        let window: Vec<BridgeSample> = samples
-            .iter()
-            .map(|&(t_ns, dtheta_rad, dvel_mps)| {
-                let t_s = t_ns as f64 * 1e-9;
-                BridgeSample {
-                    t_s,
-                    dtheta_rad,
-                    dvel_mps,
-                    reading: g.reading_at(t_s),
-                }
-            })
-            .collect();
-        let failed = window
-            .iter()
-            .filter(|s| matches!(s.reading, Reading::Failed))
-            .count() as u64;
-        let f = &mut self.failures;
-        if stuck {
-            f.stuck += 1;
-            f.stuck_samples += failed;
-        }
-        let Some(b) = bridge(&window, self.g_mps2, self.lag_prior_s) else {
-            // Left to the trapezoid: nothing to write across it.
-            f.not_bridged += 1;
-            f.not_bridged_samples += failed;
-            return;
-        };
-        f.bridged += 1;
-        f.bridged_samples += failed;
-        f.longest_bridged_s = f.longest_bridged_s.max(length_s);
-        f.bridged_distance_m += b.across_m;
-        f.worst_residual_m = f.worst_residual_m.max(b.rms_residual_m);
-        let at = window
-            .iter()
-            .zip(&samples)
-            .filter(|(s, _)| matches!(s.reading, Reading::Failed))
-            .map(|(_, s)| s.0);
-        self.done.push_back(BridgedGap {
-            from_ns: tag_ns(g.from_s),
-            to_ns: tag_ns(g.to_s),
-            rows: at.zip(b.failed_distance_m).collect(),
-            after_offset_m: b.after_offset_m,
-        });
+        let bridged = close(
+            g,
+            samples,
+            self.g_mps2,
+            self.lag_prior_s,
+            &mut self.failures,
+        );
+        self.done.extend(bridged);
     }
 
     /// Bridges the gaps whose windows the IMU's samples ended in (with the samples
@@ -556,8 +609,78 @@ impl GapBridger {
     }
 }
 
+/// Bridges the gap `g` with the IMU's `samples` over its window (at a site where gravity
+/// is `g_mps2`, the odometer's lag searched about `lag_prior_s`), counted in `failures`;
+/// a stand, only when the vehicle moved ([`stand_failed_from`]), from then on. `None`
+/// when there is nothing to write across it: a stop, or a gap left to the trapezoid.
+pub(crate) fn close(
+    g: Gap,
+    samples: Vec<ImuSample>,
+    g_mps2: f64,
+    lag_prior_s: f64,
+    failures: &mut OdometerFailures,
+) -> Option<BridgedGap> {
+    let stuck = g.stand.is_some();
+    let g = match g.stand {
+        None => g,
+        Some(_) => match stand_failed_from(&g, &samples, g_mps2, lag_prior_s) {
+            None => return None,
+            Some(t_s) => g.failed_from(t_s),
+        },
+    };
+    let samples: Vec<ImuSample> = samples
+        .into_iter()
+        .filter(|s| s.0 as f64 * 1e-9 >= g.span_s().0)
+        .collect();
+    let length_s = g.to_s - g.from_s;
+    let window: Vec<BridgeSample> = samples
+        .iter()
+        .map(|&(t_ns, dtheta_rad, dvel_mps)| {
+            let t_s = t_ns as f64 * 1e-9;
+            BridgeSample {
+                t_s,
+                dtheta_rad,
+                dvel_mps,
+                reading: g.reading_at(t_s),
+            }
+        })
+        .collect();
+    let failed = window
+        .iter()
+        .filter(|s| matches!(s.reading, Reading::Failed))
+        .count() as u64;
+    let f = failures;
+    if stuck {
+        f.stuck += 1;
+        f.stuck_samples += failed;
+    }
+    let Some(b) = bridge(&window, g_mps2, lag_prior_s) else {
+        // Left to the trapezoid: nothing to write across it.
+        f.not_bridged += 1;
+        f.not_bridged_samples += failed;
+        return None;
+    };
+    f.bridged += 1;
+    f.bridged_samples += failed;
+    f.longest_bridged_s = f.longest_bridged_s.max(length_s);
+    f.bridged_distance_m += b.across_m;
+    f.worst_residual_m = f.worst_residual_m.max(b.rms_residual_m);
+    let at = window
+        .iter()
+        .zip(&samples)
+        .filter(|(s, _)| matches!(s.reading, Reading::Failed))
+        .map(|(_, s)| s.0);
+    Some(BridgedGap {
+        from_ns: tag_ns(g.from_s),
+        to_ns: tag_ns(g.to_s),
+        rows: at.zip(b.failed_distance_m).collect(),
+        after_offset_m: b.after_offset_m,
+    })
+}
+
 /// The bridged gaps, to write with the file's readings (a gap not bridged keeps the
 /// file's trapezoid: nothing to write).
+#[derive(Default)]
 pub struct BridgedGaps {
     gaps: VecDeque<BridgedGap>,
     /// The earlier gaps' offsets, m.
@@ -569,6 +692,18 @@ impl BridgedGaps {
     /// How the gaps were bridged.
     pub fn failures(&self) -> &OdometerFailures {
         &self.failures
+    }
+
+    /// How the gaps were bridged, to count more in.
+    pub(crate) fn failures_mut(&mut self) -> &mut OdometerFailures {
+        &mut self.failures
+    }
+
+    /// Bridges the gap `g`, found after the gaps bridged so far, with the IMU's
+    /// `samples` over its window ([`close`]).
+    pub(crate) fn close(&mut self, g: Gap, samples: Vec<ImuSample>, g_mps2: f64, lag_prior_s: f64) {
+        let bridged = close(g, samples, g_mps2, lag_prior_s, &mut self.failures);
+        self.gaps.extend(bridged);
     }
 
     /// Gives the file's reading at `t_ns` (its distance `distance_m`, as the file gives
@@ -600,7 +735,7 @@ mod tests {
 
     fn gaps_of(text: &str) -> (Vec<Gap>, u64) {
         let mut r = OdometerFileReader::new(text.as_bytes(), OdometerKind::SpeedMps);
-        find_gaps(&mut r).unwrap()
+        find_gaps(|| file_readings(&mut r)).unwrap()
     }
 
     #[test]

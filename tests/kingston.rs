@@ -733,6 +733,103 @@ fn kingston_a_speed_stuck_at_zero_is_found_and_bridged() {
     assert!(worst < 8.0, "{worst} m");
 }
 
+/// The same faults in a text log's 8th column (the odometer's speed at each IMU sample),
+/// which the ingest judges as it streams: Kingston with its 1-Hz speeds interpolated to
+/// its 10-Hz IMU lines as an 8th column, the speed file left out of the manifest.
+/// Before, zeros for 19 s at 11 m/s put the joint's control points 192 and 45 m off,
+/// unreported; zeros from the stop at control point 1 through its drive-off, 15 and
+/// 6.5 m.
+#[test]
+fn kingston_a_speed_column_stuck_at_zero_is_found_and_bridged() {
+    use unz_formats::IngestReport;
+
+    let tmp = tempfile::tempdir().unwrap();
+    let data = test_data("kingston2008-seg1");
+    let file: Vec<(f64, f64)> = std::fs::read_to_string(data.join("odometer.txt"))
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            (v[0], v[1])
+        })
+        .collect();
+    // The file's speed at `t_s`, linearly between its readings.
+    let speed = |t_s: f64| {
+        let k = file
+            .partition_point(|r| r.0 <= t_s)
+            .clamp(1, file.len() - 1);
+        let ((t0, v0), (t1, v1)) = (file[k - 1], file[k]);
+        (v0 + (v1 - v0) * (t_s - t0) / (t1 - t0)).max(0.0)
+    };
+    let imu = std::fs::read_to_string(data.join("imu.txt")).unwrap();
+    let times: Vec<f64> = (imu.lines())
+        .map(|l| l.split_whitespace().next().unwrap().parse().unwrap())
+        .collect();
+    // The column's own distance over [from, to], s: the trapezoid of its speeds.
+    let own_m = |from: f64, to: f64| -> f64 {
+        (times.windows(2))
+            .filter(|w| from <= w[0] + 1e-6 && w[1] <= to + 1e-6)
+            .map(|w| 0.5 * (speed(w[0]) + speed(w[1])) * (w[1] - w[0]))
+            .sum()
+    };
+    // The run with the column zero over `zeroed` (s).
+    let with_zeros = |name: &str, zeroed: std::ops::Range<f64>| {
+        let run = tmp.path().join(name).join("kingston");
+        std::fs::create_dir_all(&run).unwrap();
+        let text: String = (imu.lines().zip(&times))
+            .map(|(l, &t)| {
+                let v = if zeroed.contains(&t) { 0.0 } else { speed(t) };
+                format!("{l} {v:.5}\n")
+            })
+            .collect();
+        std::fs::write(run.join("imu.txt"), text).unwrap();
+        let manifest = std::fs::read_to_string(data.join("run.toml")).unwrap();
+        let without_file = "[odometer]\nfile = \"odometer.txt\"\nkind = \"speed_mps\"\n";
+        assert!(manifest.contains(without_file));
+        std::fs::write(run.join("run.toml"), manifest.replace(without_file, "")).unwrap();
+        let out = tmp.path().join(name).join("o");
+        crate::util::run_until(&run, &out, "disupt");
+        let dir = out.join("kingston2008-segment1");
+        let report: IngestReport = read_json(&dir.join("ingest/ingest.json"));
+        let d: unz::disupt_stage::DisuptOut = read_json(&dir.join("disupt/disupt.json"));
+        assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
+        (
+            report.odometer_failures,
+            worst_control_point_m(&d.methods["joint"]),
+        )
+    };
+    let (none, worst_intact) = with_zeros("intact", 0.0..0.0);
+    assert_eq!(none, None, "the real stops are stops");
+    assert!(worst_intact < 1.5, "{worst_intact} m");
+
+    // A stand found moving and bridged up to `to` (s): one failure, its distance the
+    // column's own there (intact) within 2 %, the control points as intact.
+    let found = |name: &str, zeroed: std::ops::Range<f64>, to: f64| {
+        let (f, worst) = with_zeros(name, zeroed);
+        let f = f.expect("the stand reported");
+        eprintln!("{name}: {f:?}; worst control point {worst:.2} m");
+        assert_eq!((f.stuck, f.bridged, f.file_gaps), (1, 1, 0), "{f:?}");
+        let truth_m = own_m(to - f.longest_bridged_s, to);
+        assert!(
+            (f.bridged_distance_m - truth_m).abs() < 0.02 * truth_m,
+            "{} m against {truth_m} m",
+            f.bridged_distance_m
+        );
+        assert!(
+            worst < worst_intact + 1.0,
+            "{worst} m, intact {worst_intact} m"
+        );
+        f
+    };
+    // Zero while driving at 11 m/s: the braking into the stand is not the IMU's. The
+    // failure is from the last line before the zeros to the first after them.
+    let f = found("driving", 152_761.0..152_780.0, 152_780.09);
+    assert!((f.longest_bridged_s - 19.1).abs() < 1e-6, "{f:?}");
+    // Zero from the stop at control point 1 through the drive-off: the watch, from its
+    // start (the car still at rest).
+    found("drive-off", 152_838.0..152_856.0, 152_856.09);
+}
+
 /// Kingston's control points are the reference's positions at its stops, and the
 /// reference is not the navigated point (the odometer's, an axle's middle). Compared at a
 /// mark 1.5 m ahead of the navigated point (`[vehicle] mark_lever_arm_m`, the best of a

@@ -34,8 +34,9 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // `distance_source` says which distances are the odometer's readings, bridged or
         // held (the disupt stage bridges again at the lag it estimates). 7: a text log's
         // odometer speed file's gaps are bridged. 8: its stands (zero speeds) the IMU finds
-        // moving are bridged too.
-        version: 8,
+        // moving are bridged too. 9: so are an 8th column's gaps and stands, as the log
+        // streams.
+        version: 9,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
