@@ -65,6 +65,10 @@ pub const STAND_MIN_S: f64 = 3.0;
 /// out): from 1 s ahead to 2.5 s behind, no stop judged moving (0.5 s: 0.7 s ahead to 3 s
 /// behind; 2 s: 2 s ahead to 1.5 s behind).
 pub const STAND_SETTLE_S: f64 = 1.0;
+/// A vehicle that moved into a stand (its distance stepped into it) is at rest within
+/// this long of the stand's first reading, s: slower than [`BRAKED_FROM_MPS`] before it,
+/// at 0.35 m/s² or more.
+const MOVED_IN_REST_BY_S: f64 = 6.0;
 /// Least speed before a stand, by the file, whose braking into it the IMU judges, m/s:
 /// slower, a stop and a speed that stood look alike over a second.
 pub const BRAKED_FROM_MPS: f64 = 2.0;
@@ -175,7 +179,11 @@ impl Gap {
 ///   drove on, and the readings failed from the stand's start.
 /// - *In the stand*: the IMU's watch of a standing count ([`StandingMotion`]) from
 ///   [`STAND_SETTLE_S`] into the stand to its last reading: a vehicle that drives off while
-///   the file still says zero fails it from the watch's start.
+///   the file still says zero fails it from the watch's start. In a stand the vehicle
+///   moved into (its distance stepped from the reading before), a watch whose reference
+///   began within [`MOVED_IN_REST_BY_S`] of the stand's first reading fails it from the
+///   stand's start: that reference, taken as rest, may have been the vehicle creeping or
+///   pulling away as the speed stood, and a bridge from the watch would start it at rest.
 fn stand_failed_from(g: &Gap, samples: &[ImuSample], g_mps2: f64, lag_prior_s: f64) -> Option<f64> {
     let (first_s, last_s) = g.stand?;
     // The IMU's time in the file's: its readings lag the vehicle by `lag_prior_s`.
@@ -231,6 +239,11 @@ fn stand_failed_from(g: &Gap, samples: &[ImuSample], g_mps2: f64, lag_prior_s: f
             return Some(g.from_s);
         }
     }
+    // The vehicle moved into the stand: its distance stepped from the reading before.
+    let stepped_in = match (before.last(), d_first) {
+        (Some(&(_, d_from)), Some(d_first)) => d_first > d_from,
+        _ => false,
+    };
     let mut watch = StandingMotion::new(g_mps2, period_s);
     let watched: Vec<&ImuSample> = samples
         .iter()
@@ -238,7 +251,14 @@ fn stand_failed_from(g: &Gap, samples: &[ImuSample], g_mps2: f64, lag_prior_s: f
         .collect();
     for (k, s) in watched.iter().enumerate() {
         if let Motion::Moving { watched: n } = watch.push(t_of(s), s.2, s.1) {
-            return Some(t_of(watched[k.saturating_sub(n)]));
+            let watch_from_s = t_of(watched[k.saturating_sub(n)]);
+            // In a stand the vehicle moved into, a watch whose reference began before it
+            // was surely at rest may have taken motion for rest (a speed that stood as
+            // the car crept or pulled away): the readings failed from the stand's start.
+            if stepped_in && watch_from_s - REFERENCE_S < first_s + MOVED_IN_REST_BY_S {
+                return Some(g.from_s);
+            }
+            return Some(watch_from_s);
         }
     }
     None

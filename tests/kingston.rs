@@ -711,6 +711,25 @@ fn kingston_a_speed_stuck_at_zero_is_found_and_bridged() {
     // Zero from the stop at control point 1 through the drive-off: the watch, from its
     // start (the car still at rest).
     found("drive-off", 152_842.0..152_856.0, 152_839.0, 152_856.0);
+    // Zero from two seconds after the drive-off, the car at 2 m/s: the watch finds it,
+    // its reference the car pulling away, so from the stand's start (the last reading
+    // before it). From the watch's start, the bridge began at rest and gave 60.7 m of
+    // 85.9, the points 4.7 and 1.9 m.
+    found("pulling away", 152_844.0..152_856.0, 152_843.0, 152_856.0);
+
+    // Zero from 17 s before the stop at control point 2 to the file's end, two seconds
+    // after the stop (its last reading a creep): found by the braking, but bridged from
+    // one side only over 36 s. That fit ran the route 1.7 km backwards; the joint was
+    // refused and OWPI's route taken, 1.1 km off. Such a bridge is refused now, the
+    // stand's zeros kept and counted, the points 9 m off (the 70 m the car drove lost).
+    let (f, worst, out) = with_zeros("to the end", 152_984.0..153_001.0);
+    let f = f.expect("the stand reported");
+    eprintln!("to the end: {f:?}; worst control point {worst:.2} m");
+    assert_eq!((f.stuck, f.bridged, f.not_bridged), (1, 0, 1), "{f:?}");
+    let d: unz::disupt_stage::DisuptOut =
+        read_json(&out.join("kingston2008-segment1/disupt/disupt.json"));
+    assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
+    assert!(worst < 15.0, "{worst} m");
 
     // Zero from the 527-s static start through its drive-off (19 s): a stand too long to
     // bridge whole, judged over its last two minutes. Before, the joint was refused (its
@@ -828,6 +847,11 @@ fn kingston_a_speed_column_stuck_at_zero_is_found_and_bridged() {
     // Zero from the stop at control point 1 through the drive-off: the watch, from its
     // start (the car still at rest).
     found("drive-off", 152_838.0..152_856.0, 152_856.09);
+    // Zero from a second after the drive-off, the car at 0.8 m/s: the watch finds it,
+    // its reference the car pulling away, so from the stand's start. From the watch's
+    // start, the bridge began at rest and gave 58.0 m of 79.8, the points 1.11 and
+    // 0.44 m.
+    found("pulling away", 152_842.0..152_856.0, 152_856.09);
 }
 
 /// Kingston's control points are the reference's positions at its stops, and the

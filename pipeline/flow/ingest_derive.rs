@@ -35,8 +35,10 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // held (the disupt stage bridges again at the lag it estimates). 7: a text log's
         // odometer speed file's gaps are bridged. 8: its stands (zero speeds) the IMU finds
         // moving are bridged too. 9: so are an 8th column's gaps and stands, as the log
-        // streams.
-        version: 9,
+        // streams. 10: a stand the vehicle moved into fails from its start when its
+        // watch's reference may have been motion; a bridge whose speed no land vehicle
+        // has is refused.
+        version: 10,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,

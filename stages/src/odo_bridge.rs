@@ -91,6 +91,13 @@ const PRIOR_SIGMAS: [f64; 6] = [
 const MAX_ITERATIONS: usize = 8;
 /// Iterations of an SVD at most (nine columns converge in a few dozen).
 const SVD_MAX_ITERATIONS: usize = 1000;
+/// Fastest a bridge may say the vehicle drove, m/s (360 km/h, the ingest's range of a
+/// land vehicle's odometer).
+const MAX_SPEED_MPS: f64 = 100.0;
+/// Fastest a bridge may say the vehicle reversed, m/s: a fit that runs the route
+/// backwards faster is no bridge (a failure at a log's end, fitted from one side over
+/// half a minute, ran it back 1.7 km).
+const MAX_REVERSE_MPS: f64 = 10.0;
 /// Readings a fit needs at least.
 const MIN_READINGS: usize = 10;
 /// The odometer's lag is searched over ±this about its prior, s: the joint fit's bound.
@@ -241,7 +248,9 @@ fn across(u: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
 /// before and after them) with the along-track speed the IMU gives; `g_mps2` is gravity
 /// at the site, `lag_prior_s` the odometer's lag as far as it is known (a user's
 /// configured time offset, negated; 0 without), around which the lag is searched.
-/// `None` when the window has fewer than 10 readings, or the fit is not finite.
+/// `None` when the window has fewer than 10 readings, the fit is not finite, or the
+/// speed it gives across the failure is no land vehicle's (beyond 100 m/s ahead or
+/// 10 m/s backwards).
 pub fn bridge(window: &[BridgeSample], g_mps2: f64, lag_prior_s: f64) -> Option<Bridge> {
     let lag_prior_s = if lag_prior_s.is_finite() {
         lag_prior_s
@@ -417,7 +426,18 @@ fn bridge_of(
     let finite = bridge.failed_distance_m.iter().all(|d| d.is_finite())
         && bridge.after_offset_m.is_finite()
         && bridge.rms_residual_m.is_finite();
-    finite.then_some(bridge)
+    // A land vehicle's speed across the failure, into and out of it.
+    let driven = (1..window.len())
+        .filter(|&k| {
+            matches!(window[k].reading, Reading::Failed)
+                || matches!(window[k - 1].reading, Reading::Failed)
+        })
+        .all(|k| {
+            let dt = window[k].t_s - window[k - 1].t_s;
+            let step_m = route[k] - route[k - 1];
+            dt <= 0.0 || (-MAX_REVERSE_MPS * dt..=MAX_SPEED_MPS * dt).contains(&step_m)
+        });
+    (finite && driven).then_some(bridge)
 }
 
 /// A window's fit at one odometer lag.

@@ -267,3 +267,36 @@ fn a_failure_without_readings_is_not_bridged_and_a_held_count_is_offset() {
     w.retain(|s| matches!(s.reading, Reading::Failed));
     assert_eq!(bridge(&w, G_MPS2, 0.0), None);
 }
+
+/// A fit that runs the route backwards faster than a vehicle reverses is no bridge: 10 s
+/// at 5 m/s on level ground, then 36 s failed with the accelerometer saying the vehicle
+/// slowed at 2 m/s² throughout (backwards at 67 m/s by the end). The same window with the
+/// vehicle coming to rest at 0.5 m/s² is bridged.
+#[test]
+fn a_bridge_that_runs_backwards_is_refused() {
+    let window = |decel_mps2: f64, rests: bool| -> Vec<BridgeSample> {
+        let speed = |t_s: f64| {
+            let v = 5.0 - decel_mps2 * (t_s - 10.0).max(0.0);
+            if rests { v.max(0.0) } else { v }
+        };
+        (0..460)
+            .map(|k| {
+                let t_s = f64::from(k) * 0.1;
+                BridgeSample {
+                    t_s,
+                    dtheta_rad: [0.0; 3],
+                    dvel_mps: [speed(t_s) - speed(t_s - 0.1), 0.0, -G_MPS2 * 0.1],
+                    reading: if k < 100 {
+                        Reading::Before(5.0 * t_s)
+                    } else {
+                        Reading::Failed
+                    },
+                }
+            })
+            .collect()
+    };
+    assert_eq!(bridge(&window(2.0, false), G_MPS2, 0.0), None);
+    let stop = bridge(&window(0.5, true), G_MPS2, 0.0).expect("a stop is bridged");
+    // From 5 m/s to rest at 0.5 m/s²: 25 m.
+    assert!((stop.across_m - 25.0).abs() < 1.0, "{stop:?}");
+}
