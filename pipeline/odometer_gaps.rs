@@ -15,9 +15,10 @@
 //!
 //! A logger that writes zero, not nothing, when it loses the speed leaves no gap but a
 //! stand: the file's distance stands while the car drives. Every stand of
-//! [`STAND_MIN_S`] or more is judged by the IMU (`stand_failed_from`; one longer than
+//! [`STAND_MIN_S`] or more is judged by the IMU (`stand_failed`; one longer than
 //! the longest bridged, over its last such stretch: a long stop whose drive-off the file
-//! missed), and one the car moved over is bridged as a gap is, from when it failed.
+//! missed), and one the car moved over is bridged as a gap is, from when it failed to
+//! when the car came to rest in it, if it did (and again from a drive-off it missed).
 //!
 //! Three passes: the file once to find its gaps ([`find_gaps`], through a [`GapFinder`]),
 //! the IMU's samples as the ingest streams them ([`GapBridger`]), and the file again as
@@ -35,7 +36,7 @@ use unz_formats::kfgins::OdometerFileReader;
 use unz_formats::schema::DistanceSource;
 use unz_stages::odo_bridge::{BridgeSample, Reading, WINDOW_S, bridge};
 
-use crate::standing_motion::{Motion, REFERENCE_S, StandingMotion};
+use crate::standing_motion::{Motion, REFERENCE_S, StandingMotion, WATCH_S};
 
 use crate::odometer_bridge::{Given, MAX_BRIDGED_S};
 
@@ -65,6 +66,9 @@ pub const STAND_MIN_S: f64 = 3.0;
 /// out): from 1 s ahead to 2.5 s behind, no stop judged moving (0.5 s: 0.7 s ahead to 3 s
 /// behind; 2 s: 2 s ahead to 1.5 s behind).
 pub const STAND_SETTLE_S: f64 = 1.0;
+/// The IMU's backward watch of a stand begins this long before its last reading, s: a
+/// file whose clock lags the vehicle by up to 2.5 s still says zero as it drives off.
+const END_SETTLE_S: f64 = 3.0;
 /// A vehicle that moved into a stand (its distance stepped into it) is at rest within
 /// this long of the stand's first reading, s: slower than [`BRAKED_FROM_MPS`] before it,
 /// at 0.35 m/s² or more.
@@ -88,7 +92,7 @@ pub struct Gap {
     readings: Vec<(f64, f64)>,
     /// A stand, not a gap: the file's readings say the vehicle stood from its first
     /// reading to its last (s; [`STAND_MIN_S`] at least, its readings among `readings`),
-    /// between `from_s` and `to_s`. The IMU judges it ([`stand_failed_from`]); it is a
+    /// between `from_s` and `to_s`. The IMU judges it ([`stand_failed`]); it is a
     /// failure, bridged, only when the vehicle moved.
     stand: Option<(f64, f64)>,
 }
@@ -144,121 +148,219 @@ impl Gap {
 }
 
 impl Gap {
-    /// The stand's failure from `t_s` on: a gap from its last reading at or before then
-    /// (the stand's readings before it are the vehicle's rest) to `to_s`.
-    fn failed_from(self, t_s: f64) -> Gap {
+    /// The stand's failure `f`: a gap from the stand's last reading at or before its
+    /// start (the readings before are the vehicle's rest) to its first reading at or
+    /// after its end (the readings from there are right again, the vehicle at rest), or
+    /// to `to_s`; the readings after it kept over [`WINDOW_S`].
+    fn failed_between(self, f: StandFailure) -> Gap {
         let from_s = self
             .readings
             .iter()
-            .filter(|r| r.0 <= t_s && r.0 < self.to_s)
+            .filter(|r| r.0 <= f.from_s && r.0 < self.to_s)
             .map(|r| r.0)
             .fold(self.from_s, f64::max);
+        let to_s = f.until_s.map_or(self.to_s, |until_s| {
+            (self.readings.iter())
+                .map(|r| r.0)
+                .filter(|&t| t >= until_s && t > from_s)
+                .fold(self.to_s, f64::min)
+        });
         let readings = self
             .readings
             .into_iter()
-            .filter(|r| r.0 <= from_s || r.0 >= self.to_s)
+            .filter(|r| {
+                (r.0 <= from_s && r.0 >= f.after_s) || (r.0 >= to_s && r.0 - to_s <= WINDOW_S)
+            })
             .collect();
         Gap {
             from_s,
-            to_s: self.to_s,
+            to_s,
             readings,
             stand: None,
         }
     }
 }
 
-/// When the IMU's `samples` say the vehicle moved while the speed file stood over the
-/// stand `g` (a logger that writes zero when it loses the speed), the time its readings
-/// failed from, s; `None` for a stop. The file's readings are taken `lag_prior_s` late
-/// (the configured odometer time offset, negated). Two judgements:
+/// A stand's readings that failed, s: from the last at or before `from_s`, to the first
+/// at or after `until_s` (the vehicle at rest again), or to the stand's end. The readings
+/// before it are taken from `after_s` (a failure before it ended there).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct StandFailure {
+    from_s: f64,
+    until_s: Option<f64>,
+    after_s: f64,
+}
+
+/// The stretches of the stand `g` over which the IMU's `samples` say the vehicle moved
+/// while the speed file stood (a logger that writes zero when it loses the speed), in
+/// order; none for a stop. The file's readings are taken `lag_prior_s` late (the
+/// configured odometer time offset, negated). Judged:
 /// - *Into the stand*: from at least [`BRAKED_FROM_MPS`] (the file's speed at the reading
 ///   before it), a vehicle that stops brakes to rest. Taking the specific force along x
-///   over [`REFERENCE_S`] after [`STAND_SETTLE_S`] into the stand as at rest, the IMU's speed
-///   at the reading before it must be the file's, within half of it and 2 m/s (or at the
-///   reading before that: a file that lags the car); else the speed stood as the vehicle
-///   drove on, and the readings failed from the stand's start.
+///   over [`REFERENCE_S`] after [`STAND_SETTLE_S`] into the stand as at rest, the IMU's
+///   speed at the reading before it must be the file's, within half of it and 2 m/s (or
+///   at the reading before that: a file that lags the car); else the speed stood as the
+///   vehicle drove on, and the readings failed from the stand's start.
 /// - *In the stand*: the IMU's watch of a standing count ([`StandingMotion`]) from
 ///   [`STAND_SETTLE_S`] into the stand to its last reading: a vehicle that drives off while
 ///   the file still says zero fails it from the watch's start. In a stand the vehicle
 ///   moved into (its distance stepped from the reading before), a watch whose reference
 ///   began within [`MOVED_IN_REST_BY_S`] of the stand's first reading fails it from the
-///   stand's start: that reference, taken as rest, may have been the vehicle creeping or
-///   pulling away as the speed stood, and a bridge from the watch would start it at rest.
-fn stand_failed_from(g: &Gap, samples: &[ImuSample], g_mps2: f64, lag_prior_s: f64) -> Option<f64> {
-    let (first_s, last_s) = g.stand?;
+///   stand's start: that reference, taken as rest, may have been the vehicle still
+///   moving as the speed stood, and a bridge from the watch would start it at rest.
+/// - *Out of a failure from the stand's start*: a vehicle that came to rest later in the
+///   stand ([`rest_in`]: it braked there from the speed before the stand, and drove off
+///   from the stand's end to the speed after it) has its readings right again from
+///   there; from that rest, the watch looks for a drive-off the file missed, a second
+///   stretch. Else the failure runs to the stand's end.
+fn stand_failed(
+    g: &Gap,
+    samples: &[ImuSample],
+    g_mps2: f64,
+    lag_prior_s: f64,
+) -> Vec<StandFailure> {
+    let Some((first_s, last_s)) = g.stand else {
+        return Vec::new();
+    };
     // The IMU's time in the file's: its readings lag the vehicle by `lag_prior_s`.
     let t_of = |s: &ImuSample| s.0 as f64 * 1e-9 + lag_prior_s;
     let period_s = match samples {
         [a, .., b] => (t_of(b) - t_of(a)) / (samples.len() - 1) as f64,
-        _ => return None,
+        _ => return Vec::new(),
+    };
+    // The x specific force over REFERENCE_S from `from_s`, m/s².
+    let force_over = |from_s: f64| {
+        let (mut f, mut time_s) = (0.0, 0.0);
+        for s in samples {
+            if t_of(s) > from_s && t_of(s) <= from_s + REFERENCE_S {
+                f += s.2[0];
+                time_s += period_s;
+            }
+        }
+        (time_s > 0.0).then(|| f / time_s)
+    };
+    // The IMU's change of speed along x over (`from_s`, `to_s`], the x specific force at
+    // rest being `f_rest_mps2`, m/s.
+    let speed_change = |from_s: f64, to_s: f64, f_rest_mps2: f64| -> f64 {
+        (samples.iter())
+            .filter(|s| t_of(s) > from_s && t_of(s) <= to_s)
+            .map(|s| s.2[0] - f_rest_mps2 * period_s)
+            .sum()
+    };
+    // Whether the IMU's change of speed is the file's `dv_mps`: within half of it and
+    // 2 m/s.
+    let agrees =
+        |imu_mps: f64, dv_mps: f64| (imu_mps - dv_mps).abs() <= (0.5 * dv_mps.abs()).max(2.0);
+    // The first stretch the watch finds the vehicle moving over, from `from_s` (the
+    // vehicle at rest then) to the stand's last reading: the watch's start.
+    let watch_from = |from_s: f64| {
+        let mut watch = StandingMotion::new(g_mps2, period_s);
+        let watched: Vec<&ImuSample> = (samples.iter())
+            .filter(|s| t_of(s) > from_s && t_of(s) <= last_s)
+            .collect();
+        for (k, s) in watched.iter().enumerate() {
+            if let Motion::Moving { watched: n } = watch.push(t_of(s), s.2, s.1) {
+                return Some(t_of(watched[k.saturating_sub(n)]));
+            }
+        }
+        None
     };
     let settle_s = first_s + STAND_SETTLE_S;
-    // The x specific force at rest: over REFERENCE_S from STAND_SETTLE_S into the stand.
-    let (mut force, mut time_s) = (0.0, 0.0);
-    for s in samples {
-        if t_of(s) > settle_s && t_of(s) <= settle_s + REFERENCE_S {
-            force += s.2[0];
-            time_s += period_s;
-        }
-    }
-    // Whether the IMU braked from `v_mps` at `t_s` to rest by `settle_s`: the speed the
-    // braking took off, at rest then, within half of it and 2 m/s.
-    let braked_from = |t_s: f64, v_mps: f64| {
-        let f_rest = force / time_s;
-        let dv: f64 = samples
-            .iter()
-            .filter(|s| t_of(s) > t_s && t_of(s) <= settle_s)
-            .map(|s| s.2[0] - f_rest * period_s)
-            .sum();
-        (-dv - v_mps).abs() <= (0.5 * v_mps).max(2.0)
-    };
-    // The file's speeds at the two readings before the stand, by its trapezoids (zero at
-    // its first reading).
-    let before: Vec<(f64, f64)> = g
-        .readings
-        .iter()
-        .copied()
+    // The file's speed at the reading before the stand (zero at its first), and at the
+    // reading before that.
+    let before: Vec<(f64, f64)> = (g.readings.iter().copied())
         .filter(|r| r.0 <= g.from_s)
         .collect();
-    let d_first = g.readings.iter().find(|r| r.0 == first_s).map(|r| r.1);
-    if let (Some(&(t_from, d_from)), Some(d_first)) = (before.last(), d_first)
-        && first_s > t_from
-        && time_s > 0.0
-    {
-        let v_from = 2.0 * (d_first - d_from) / (first_s - t_from);
-        // A file that lags the car may say it moved a reading after it stood: the
-        // reading before is judged too.
-        let v_before = match before.len().checked_sub(2).map(|k| before[k]) {
-            Some((t, d)) if t_from > t => Some((t, 2.0 * (d_from - d) / (t_from - t) - v_from)),
-            _ => None,
-        };
-        if v_from >= BRAKED_FROM_MPS
-            && !braked_from(t_from, v_from)
-            && v_before.is_none_or(|(t, v)| !braked_from(t, v))
-        {
-            return Some(g.from_s);
+    let reading = |t_s: f64| g.readings.iter().find(|r| r.0 == t_s).map(|r| r.1);
+    let into = match (before.last(), reading(first_s)) {
+        (Some(&(t_from, d_from)), Some(d_first)) if first_s > t_from => {
+            let v_from = 2.0 * (d_first - d_from) / (first_s - t_from);
+            // A file that lags the car may say it moved a reading after it stood.
+            let v_before = match before.len().checked_sub(2).map(|k| before[k]) {
+                Some((t, d)) if t_from > t => Some((t, 2.0 * (d_from - d) / (t_from - t) - v_from)),
+                _ => None,
+            };
+            Some((t_from, v_from, v_before, d_first > d_from))
         }
-    }
-    // The vehicle moved into the stand: its distance stepped from the reading before.
-    let stepped_in = match (before.last(), d_first) {
-        (Some(&(_, d_from)), Some(d_first)) => d_first > d_from,
+        _ => None,
+    };
+    let braked = |t_s: f64, v_mps: f64| {
+        force_over(settle_s).is_none_or(|f| agrees(speed_change(t_s, settle_s, f), -v_mps))
+    };
+    let drove_on = into.is_some_and(|(t_from, v_from, v_before, _)| {
+        v_from >= BRAKED_FROM_MPS
+            && !braked(t_from, v_from)
+            && v_before.is_none_or(|(t, v)| !braked(t, v))
+    });
+    let watched = if drove_on { None } else { watch_from(settle_s) };
+    let stepped_in = into.is_some_and(|i| i.3);
+    let moved_in = drove_on
+        || (stepped_in && watched.is_some_and(|w| w - REFERENCE_S < first_s + MOVED_IN_REST_BY_S));
+    let Some((t_from, v_from, ..)) = into.filter(|_| moved_in) else {
+        return (watched.into_iter())
+            .map(|from_s| StandFailure {
+                from_s,
+                until_s: None,
+                after_s: f64::NEG_INFINITY,
+            })
+            .collect();
+    };
+    // The speed stood as the vehicle moved into the stand. Where it came to rest later,
+    // its readings are right again: it braked there from the speed before the stand,
+    // and drove off from the rest at the stand's end to the speed after it.
+    let end_rest_s = last_s - END_SETTLE_S - REFERENCE_S;
+    let drove_off = match (reading(last_s), reading(g.to_s), force_over(end_rest_s)) {
+        (Some(d_last), Some(d_to), Some(f_rest)) if g.to_s > last_s => {
+            let v_to = 2.0 * (d_to - d_last) / (g.to_s - last_s);
+            agrees(speed_change(end_rest_s, g.to_s, f_rest), v_to)
+        }
         _ => false,
     };
+    let rest_s = rest_in(samples, first_s, last_s, g_mps2, period_s, &t_of).filter(|&rest_s| {
+        drove_off
+            && rest_s + WATCH_S <= end_rest_s
+            && force_over(rest_s).is_some_and(|f| agrees(speed_change(t_from, rest_s, f), -v_from))
+    });
+    let mut failures = vec![StandFailure {
+        from_s: g.from_s,
+        until_s: rest_s,
+        after_s: f64::NEG_INFINITY,
+    }];
+    // From that rest, a drive-off the file missed.
+    if let Some((rest_s, from_s)) = rest_s.and_then(|r| Some((r, watch_from(r)?))) {
+        failures.push(StandFailure {
+            from_s,
+            until_s: None,
+            after_s: rest_s,
+        });
+    }
+    failures
+}
+
+/// Where the vehicle came to rest in a stand whose readings lie from `first_s` to
+/// `last_s` (the file's times; `t_of` gives a sample's): the IMU's watch of a standing
+/// count run backwards in time, from [`END_SETTLE_S`] before the stand's last reading
+/// (the vehicle at rest there, before it drove off) toward its first. It finds the
+/// vehicle moving where it had not yet stopped; the watch's start there, at rest, is
+/// returned. `None` when the stand's end was no rest, or the vehicle stood throughout.
+fn rest_in(
+    samples: &[ImuSample],
+    first_s: f64,
+    last_s: f64,
+    g_mps2: f64,
+    period_s: f64,
+    t_of: &impl Fn(&ImuSample) -> f64,
+) -> Option<f64> {
     let mut watch = StandingMotion::new(g_mps2, period_s);
-    let watched: Vec<&ImuSample> = samples
-        .iter()
-        .filter(|s| t_of(s) > settle_s && t_of(s) <= last_s)
+    let watched: Vec<&ImuSample> = (samples.iter().rev())
+        .filter(|s| t_of(s) <= last_s - END_SETTLE_S)
         .collect();
+    // Backwards in time: the times and the increments negated, the watch sees the
+    // vehicle's speed, negated, from the rest at the stand's end.
     for (k, s) in watched.iter().enumerate() {
-        if let Motion::Moving { watched: n } = watch.push(t_of(s), s.2, s.1) {
-            let watch_from_s = t_of(watched[k.saturating_sub(n)]);
-            // In a stand the vehicle moved into, a watch whose reference began before it
-            // was surely at rest may have taken motion for rest (a speed that stood as
-            // the car crept or pulled away): the readings failed from the stand's start.
-            if stepped_in && watch_from_s - REFERENCE_S < first_s + MOVED_IN_REST_BY_S {
-                return Some(g.from_s);
-            }
-            return Some(watch_from_s);
+        let (dvel, dtheta) = (s.2.map(|x| -x), s.1.map(|x| -x));
+        if let Motion::Moving { watched: n } = watch.push(-t_of(s), dvel, dtheta) {
+            return Some(t_of(watched[k.saturating_sub(n)])).filter(|&t| t > first_s);
         }
     }
     None
@@ -631,7 +733,7 @@ impl GapBridger {
 
 /// Bridges the gap `g` with the IMU's `samples` over its window (at a site where gravity
 /// is `g_mps2`, the odometer's lag searched about `lag_prior_s`), counted in `failures`;
-/// a stand, only when the vehicle moved ([`stand_failed_from`]), from then on. `None`
+/// a stand, only when the vehicle moved ([`stand_failed`]), from then on. `None`
 /// when there is nothing to write across it: a stop, or a gap left to the trapezoid.
 pub(crate) fn close(
     g: Gap,
@@ -639,23 +741,40 @@ pub(crate) fn close(
     g_mps2: f64,
     lag_prior_s: f64,
     failures: &mut OdometerFailures,
+) -> Vec<BridgedGap> {
+    match g.stand {
+        None => bridge_gap(g, &samples, false, g_mps2, lag_prior_s, failures)
+            .into_iter()
+            .collect(),
+        Some(_) => stand_failed(&g, &samples, g_mps2, lag_prior_s)
+            .into_iter()
+            .filter_map(|f| {
+                let failed = g.clone().failed_between(f);
+                bridge_gap(failed, &samples, true, g_mps2, lag_prior_s, failures)
+            })
+            .collect(),
+    }
+}
+
+/// Bridges the gap `g` (a stand's failure when `stuck`) with the IMU's samples over its
+/// window (among `samples`), counted in `failures`.
+fn bridge_gap(
+    g: Gap,
+    samples: &[ImuSample],
+    stuck: bool,
+    g_mps2: f64,
+    lag_prior_s: f64,
+    failures: &mut OdometerFailures,
 ) -> Option<BridgedGap> {
-    let stuck = g.stand.is_some();
-    let g = match g.stand {
-        None => g,
-        Some(_) => match stand_failed_from(&g, &samples, g_mps2, lag_prior_s) {
-            None => return None,
-            Some(t_s) => g.failed_from(t_s),
-        },
-    };
-    let samples: Vec<ImuSample> = samples
-        .into_iter()
-        .filter(|s| s.0 as f64 * 1e-9 >= g.span_s().0)
+    let (first_s, last_s) = g.span_s();
+    let samples: Vec<&ImuSample> = samples
+        .iter()
+        .filter(|s| (first_s..=last_s).contains(&(s.0 as f64 * 1e-9)))
         .collect();
     let length_s = g.to_s - g.from_s;
     let window: Vec<BridgeSample> = samples
         .iter()
-        .map(|&(t_ns, dtheta_rad, dvel_mps)| {
+        .map(|&&(t_ns, dtheta_rad, dvel_mps)| {
             let t_s = t_ns as f64 * 1e-9;
             BridgeSample {
                 t_s,
@@ -793,11 +912,81 @@ mod tests {
         let d = |t: f64| g.readings.iter().find(|r| r.0 == t).unwrap().1;
         assert!((d(51.0) - d(39.0) - 10.0).abs() < 1e-9);
         // Judged without samples: not a failure.
-        assert_eq!(stand_failed_from(g, &[], 9.81, 0.0), None);
+        assert_eq!(stand_failed(g, &[], 9.81, 0.0), []);
         // A failure from 45 s: the gap from the last reading at rest before it.
-        let f = g.clone().failed_from(45.2);
+        let f = g.clone().failed_between(StandFailure {
+            from_s: 45.2,
+            until_s: None,
+            after_s: f64::NEG_INFINITY,
+        });
         assert_eq!((f.from_s, f.to_s, f.stand), (45.0, 51.0, None));
         assert!(f.readings.iter().all(|r| r.0 <= 45.0 || r.0 >= 51.0));
+        // A failure from its start until 47.5 s: to the first reading at rest after
+        // then, the readings from there kept over a window.
+        let f = g.clone().failed_between(StandFailure {
+            from_s: 39.0,
+            until_s: Some(47.5),
+            after_s: f64::NEG_INFINITY,
+        });
+        assert_eq!((f.from_s, f.to_s, f.stand), (39.0, 48.0, None));
+        let times: Vec<f64> = f.readings.iter().map(|r| r.0).collect();
+        assert_eq!((times[0], times[times.len() - 1]), (30.0, 58.0));
+        assert!(!times.iter().any(|&t| t > 39.0 && t < 48.0));
+    }
+
+    /// A car that brakes from 10 m/s at 1 m/s² to rest at 40 s, stands to 70 s and
+    /// pulls away at 2 m/s² (level ground, a 10-Hz IMU), its 1-Hz speed file zero from
+    /// 32 s to 72 s: two stretches, into the stop (from the last reading before the
+    /// zeros to the rest the backward watch finds) and out of it (from the watch's start
+    /// before the drive-off); the stop's readings between are kept. Bridged, they give the
+    /// route's distance.
+    #[test]
+    fn a_speed_that_stood_into_a_stop_and_out_of_it_fails_twice() {
+        let speed = |t: f64| match t {
+            t if t < 30.0 => 10.0,
+            t if t < 40.0 => 10.0 - (t - 30.0),
+            t if t < 70.0 => 0.0,
+            t if t < 75.0 => 2.0 * (t - 70.0),
+            _ => 10.0,
+        };
+        let text: String = (0..=100)
+            .map(|t| {
+                let v = if (32..=72).contains(&t) {
+                    0.0
+                } else {
+                    speed(f64::from(t))
+                };
+                format!("{t} {v}\n")
+            })
+            .collect();
+        let (gaps, _) = gaps_of(&text);
+        let g = gaps.iter().find(|g| g.is_stand()).expect("the stand");
+        assert_eq!((g.from_s, g.to_s), (31.0, 73.0));
+        let samples: Vec<ImuSample> = (1..=1000)
+            .map(|k| {
+                let t = f64::from(k) * 0.1;
+                let dv = speed(t) - speed(t - 0.1);
+                ((k as i64) * 100_000_000, [0.0; 3], [dv, 0.0, -0.981])
+            })
+            .collect();
+        let f = stand_failed(g, &samples, 9.81, 0.0);
+        assert_eq!(f.len(), 2, "{f:?}");
+        assert_eq!(f[0].from_s, 31.0);
+        let rest_s = f[0].until_s.expect("the rest");
+        assert!((40.0..47.0).contains(&rest_s), "{f:?}");
+        assert!((63.0..70.0).contains(&f[1].from_s), "{f:?}");
+        assert_eq!(f[1].until_s, None);
+        // Bridged: the route's distance across both, as the file's intact trapezoid.
+        let mut failures = OdometerFailures::default();
+        let bridged = close(g.clone(), samples, 9.81, 0.0, &mut failures);
+        assert_eq!((failures.stuck, failures.bridged, bridged.len()), (2, 2, 2));
+        // From 9 m/s at 31 s to rest at 1 m/s²: 40.5 m; from rest at 70 s to 73 s at
+        // 2 m/s²: 9 m.
+        let truth_m = 40.5 + 9.0;
+        assert!(
+            (failures.bridged_distance_m - truth_m).abs() < 1.0,
+            "{failures:?} against {truth_m} m"
+        );
     }
 
     #[test]

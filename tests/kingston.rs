@@ -718,18 +718,38 @@ fn kingston_a_speed_stuck_at_zero_is_found_and_bridged() {
     found("pulling away", 152_844.0..152_856.0, 152_843.0, 152_856.0);
 
     // Zero from 17 s before the stop at control point 2 to the file's end, two seconds
-    // after the stop (its last reading a creep): found by the braking, but bridged from
-    // one side only over 36 s. That fit ran the route 1.7 km backwards; the joint was
-    // refused and OWPI's route taken, 1.1 km off. Such a bridge is refused now, the
-    // stand's zeros kept and counted, the points 9 m off (the 70 m the car drove lost).
-    let (f, worst, out) = with_zeros("to the end", 152_984.0..153_001.0);
+    // after the stop (its last reading a creep): found by the braking. Bridged to the
+    // file's end, from one side only over 36 s, the fit ran the route 1.7 km backwards;
+    // the joint was refused and OWPI's route taken, 1.1 km off (such a bridge is now
+    // refused). The IMU's watch backwards from the stand's end finds where the car came
+    // to rest, and the bridge ends there, its readings at rest after it.
+    let (f, worst, _) = with_zeros("to the end", 152_984.0..153_001.0);
     let f = f.expect("the stand reported");
     eprintln!("to the end: {f:?}; worst control point {worst:.2} m");
-    assert_eq!((f.stuck, f.bridged, f.not_bridged), (1, 0, 1), "{f:?}");
-    let d: unz::disupt_stage::DisuptOut =
-        read_json(&out.join("kingston2008-segment1/disupt/disupt.json"));
-    assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
-    assert!(worst < 15.0, "{worst} m");
+    assert_eq!((f.stuck, f.bridged), (1, 1), "{f:?}");
+    assert!(f.longest_bridged_s < 25.0, "{f:?}");
+    let truth_m = own_m(152_983.0, 153_003.0);
+    assert!(
+        (f.bridged_distance_m - truth_m).abs() < 0.1 * truth_m,
+        "{} m against {truth_m} m",
+        f.bridged_distance_m
+    );
+    assert!(worst < worst_intact + 1.0, "{worst} m");
+    // Zero from 2 s before the car stopped at control point 1 through its drive-off 33 s
+    // later: two stretches, into the stop and out of it, the stop's readings kept (7.3 m
+    // bridged of the file's own 7.5 m). As one, across the stop, the bridge gave −17 m,
+    // and the points were 4.8 m off.
+    let (f, worst, _) = with_zeros("into and out of a stop", 152_807.0..152_844.0);
+    let f = f.expect("the stand reported");
+    eprintln!("into and out of a stop: {f:?}; worst control point {worst:.2} m");
+    assert_eq!((f.stuck, f.bridged), (2, 2), "{f:?}");
+    let truth_m = own_m(152_806.0, 152_844.0);
+    assert!(
+        (f.bridged_distance_m - truth_m).abs() < 0.1 * truth_m,
+        "{} m against {truth_m} m",
+        f.bridged_distance_m
+    );
+    assert!(worst < worst_intact + 1.0, "{worst} m");
 
     // Zero from the 527-s static start through its drive-off (19 s): a stand too long to
     // bridge whole, judged over its last two minutes. Before, the joint was refused (its

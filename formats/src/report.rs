@@ -101,8 +101,10 @@ pub struct OdometerFailures {
     pub not_bridged: u64,
     /// Samples failed in them.
     pub not_bridged_samples: u64,
-    /// Of the failures, those the log does not flag: a count that stood while the vehicle
-    /// moved (`unz::odometer_stuck`), bridged or not like the flagged ones.
+    /// Of the failures, those the log does not flag: a count, or a speed file's or
+    /// column's distance, that stood while the vehicle moved (`unz::odometer_stuck`,
+    /// `unz::odometer_gaps`; a stand may hold two: into a stop and out of it), bridged
+    /// or not like the flagged ones.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub stuck: u64,
     /// Samples of theirs (counted in `bridged_samples` or `not_bridged_samples` too).

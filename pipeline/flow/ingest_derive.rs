@@ -37,8 +37,9 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // moving are bridged too. 9: so are an 8th column's gaps and stands, as the log
         // streams. 10: a stand the vehicle moved into fails from its start when its
         // watch's reference may have been motion; a bridge whose speed no land vehicle
-        // has is refused.
-        version: 10,
+        // has is refused. 11: a stand's failure from its start ends where the vehicle
+        // came to rest in it, and a drive-off from that rest is a failure of its own.
+        version: 11,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
