@@ -283,6 +283,32 @@ mod tests {
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
 
+        /// A hostile log's time tags (steps of −1 to 1 s, repeated, going back) with any
+        /// speeds and increments: no panic, the distances finite, each reading given out
+        /// once at most, and the counts adding up.
+        #[test]
+        fn tags_that_stand_or_go_back_break_nothing(
+            steps in proptest::collection::vec(
+                (proptest::prop_oneof![3 => 0.01f64..0.011, 1 => -1.0f64..1.0], 0.0f64..3.0),
+                1..3000,
+            ),
+        ) {
+            let mut stream = ColumnBridger::new(9.81, 0.0);
+            let mut rows = Vec::new();
+            let (mut t_s, mut d) = (100.0, 0.0);
+            for &(dt, v) in &steps {
+                t_s += dt;
+                d += if dt > 0.0 && v > 1.0 { v * dt } else { 0.0 };
+                let imu = (tag_ns(t_s), [0.0; 3], [0.0, 0.0, -0.0981]);
+                stream.sample(imu, Some((d, d)), |t, g| rows.push((t, g)));
+            }
+            let f = stream.finish(|t, g| rows.push((t, g)));
+            proptest::prop_assert!(rows.iter().all(|r| r.1.0.is_finite()));
+            let given = rows.iter().filter(|r| r.1.1 == DistanceSource::Reading).count();
+            proptest::prop_assert!(given <= steps.len());
+            proptest::prop_assert_eq!(f.bridged + f.not_bridged, f.file_gaps + f.stuck);
+        }
+
         /// Any column (speeds, zeros and missing readings in stretches of up to 200 s)
         /// over any IMU increments: the stream gives the rows and the failures the speed
         /// file's three passes give, in time order, every reading once (or its bridge's

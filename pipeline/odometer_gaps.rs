@@ -342,7 +342,9 @@ fn stand_failed(
 /// count run backwards in time, from [`END_SETTLE_S`] before the stand's last reading
 /// (the vehicle at rest there, before it drove off) toward its first. It finds the
 /// vehicle moving where it had not yet stopped; the watch's start there, at rest, is
-/// returned. `None` when the stand's end was no rest, or the vehicle stood throughout.
+/// returned. `None` when it finds no motion, or the vehicle at rest from before the
+/// stand's first reading. Whether the stand's end was rest at all is the caller's to
+/// judge (a vehicle at a constant speed there looks at rest to the watch).
 fn rest_in(
     samples: &[ImuSample],
     first_s: f64,
@@ -562,7 +564,7 @@ impl GapFinder {
     pub fn take_complete(&mut self) -> Vec<Gap> {
         let n = self.gaps.len() - usize::from(self.collecting && !self.gaps.is_empty());
         let done: Vec<Gap> = self.gaps.drain(..n).collect();
-        self.kept -= done.iter().map(|g| g.readings.len()).sum::<usize>();
+        self.kept = (self.kept).saturating_sub(done.iter().map(|g| g.readings.len()).sum());
         done
     }
 
@@ -574,7 +576,7 @@ impl GapFinder {
             return None;
         }
         let g = self.gaps.pop()?;
-        self.kept -= g.readings.len();
+        self.kept = self.kept.saturating_sub(g.readings.len());
         self.collecting = false;
         Some((g.from_s, g.to_s))
     }

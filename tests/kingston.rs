@@ -338,6 +338,18 @@ fn kingston_cut_to_begin_while_driving() {
     assert!(cp_max < 2.0, "control points {cp_max} m");
 }
 
+/// The shipped Kingston run's OBD-II speeds: time, s, and speed, m/s.
+fn kingston_speeds() -> Vec<(f64, f64)> {
+    std::fs::read_to_string(test_data("kingston2008-seg1").join("odometer.txt"))
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            (v[0], v[1])
+        })
+        .collect()
+}
+
 /// The shipped Kingston run copied into `run` (created), `extra` added to its manifest.
 fn kingston_with(run: &std::path::Path, extra: &str) -> std::path::PathBuf {
     std::fs::create_dir_all(run).unwrap();
@@ -629,7 +641,7 @@ fn kingston_a_gap_in_the_odometer_file_is_bridged() {
 /// there: the joint's control points 190 and 45 m off (speeds zero for 19 s at 11 m/s),
 /// and 12.6 and 5.5 m (the speed zero from the stop at control point 1 through the
 /// drive-off, 14 s), the odometer scale taking 3.7 %. Now each stand of the file's speed
-/// is judged by the IMU (`odometer_gaps::stand_failed_from`): braking into it from the
+/// is judged by the IMU (`odometer_gaps::stand_failed`): braking into it from the
 /// speed before it, and the watch of a standing count in it. Found, it is bridged by the
 /// inertial along-track speed (195 m, and 87.3 m against the file's own 87.4 m), said as
 /// an odometer that stood while the vehicle moved, and the control points are as with
@@ -641,15 +653,7 @@ fn kingston_a_speed_stuck_at_zero_is_found_and_bridged() {
     use unz_formats::IngestReport;
 
     let tmp = tempfile::tempdir().unwrap();
-    let data = test_data("kingston2008-seg1");
-    let speeds: Vec<(f64, f64)> = std::fs::read_to_string(data.join("odometer.txt"))
-        .unwrap()
-        .lines()
-        .map(|l| {
-            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
-            (v[0], v[1])
-        })
-        .collect();
+    let speeds = kingston_speeds();
     // The file's own distance over [from, to], s: the trapezoid of its speeds.
     let own_m = |from: f64, to: f64| -> f64 {
         speeds
@@ -684,20 +688,8 @@ fn kingston_a_speed_stuck_at_zero_is_found_and_bridged() {
     // the file's own there (intact), the control points as intact.
     let found = |name: &str, zeroed: std::ops::Range<f64>, from: f64, to: f64| {
         let (f, worst, out) = with_zeros(name, zeroed);
-        let f = f.expect("the stand reported");
-        eprintln!("{name}: {f:?}; worst control point {worst:.2} m");
-        assert_eq!((f.stuck, f.bridged, f.file_gaps), (1, 1, 0), "{f:?}");
+        let f = one_stand_as_its_own(name, f, worst, worst_intact, |_| own_m(from, to));
         assert_eq!(f.longest_bridged_s, to - from, "{f:?}");
-        let truth_m = own_m(from, to);
-        assert!(
-            (f.bridged_distance_m - truth_m).abs() < 0.02 * truth_m,
-            "{} m against {truth_m} m",
-            f.bridged_distance_m
-        );
-        assert!(
-            worst < worst_intact + 1.0,
-            "{worst} m, intact {worst_intact} m"
-        );
         out
     };
     // Zero while driving at 11 m/s: the braking into the stand is not the IMU's.
@@ -717,37 +709,41 @@ fn kingston_a_speed_stuck_at_zero_is_found_and_bridged() {
     // 85.9, the points 4.7 and 1.9 m.
     found("pulling away", 152_844.0..152_856.0, 152_843.0, 152_856.0);
 
+    // A stand (zeros over `zeroed`, s) found moving: `counts` stretches (stuck,
+    // bridged), bridged as far as the file's own distance from `from` (s, the last
+    // reading before the zeros) to the zeros' end, within 10 %.
+    let stood = |name: &str, zeroed: std::ops::Range<f64>, counts: (u64, u64), from: f64| {
+        let to = zeroed.end;
+        let (f, worst, out) = with_zeros(name, zeroed);
+        let f = f.expect("the stand reported");
+        eprintln!("{name}: {f:?}; worst control point {worst:.2} m");
+        assert_eq!((f.stuck, f.bridged), counts, "{f:?}");
+        let truth_m = own_m(from, to);
+        assert!(
+            (f.bridged_distance_m - truth_m).abs() < 0.1 * truth_m,
+            "{} m against {truth_m} m",
+            f.bridged_distance_m
+        );
+        (f, worst, out)
+    };
     // Zero from 17 s before the stop at control point 2 to the file's end, two seconds
     // after the stop (its last reading a creep): found by the braking. Bridged to the
     // file's end, from one side only over 36 s, the fit ran the route 1.7 km backwards;
     // the joint was refused and OWPI's route taken, 1.1 km off (such a bridge is now
     // refused). The IMU's watch backwards from the stand's end finds where the car came
     // to rest, and the bridge ends there, its readings at rest after it.
-    let (f, worst, _) = with_zeros("to the end", 152_984.0..153_001.0);
-    let f = f.expect("the stand reported");
-    eprintln!("to the end: {f:?}; worst control point {worst:.2} m");
-    assert_eq!((f.stuck, f.bridged), (1, 1), "{f:?}");
+    let (f, worst, _) = stood("to the end", 152_984.0..153_001.0, (1, 1), 152_983.0);
     assert!(f.longest_bridged_s < 25.0, "{f:?}");
-    let truth_m = own_m(152_983.0, 153_003.0);
-    assert!(
-        (f.bridged_distance_m - truth_m).abs() < 0.1 * truth_m,
-        "{} m against {truth_m} m",
-        f.bridged_distance_m
-    );
     assert!(worst < worst_intact + 1.0, "{worst} m");
     // Zero from 2 s before the car stopped at control point 1 through its drive-off 33 s
     // later: two stretches, into the stop and out of it, the stop's readings kept (7.3 m
     // bridged of the file's own 7.5 m). As one, across the stop, the bridge gave −17 m,
     // and the points were 4.8 m off.
-    let (f, worst, _) = with_zeros("into and out of a stop", 152_807.0..152_844.0);
-    let f = f.expect("the stand reported");
-    eprintln!("into and out of a stop: {f:?}; worst control point {worst:.2} m");
-    assert_eq!((f.stuck, f.bridged), (2, 2), "{f:?}");
-    let truth_m = own_m(152_806.0, 152_844.0);
-    assert!(
-        (f.bridged_distance_m - truth_m).abs() < 0.1 * truth_m,
-        "{} m against {truth_m} m",
-        f.bridged_distance_m
+    let (_, worst, _) = stood(
+        "into and out of a stop",
+        152_807.0..152_844.0,
+        (2, 2),
+        152_806.0,
     );
     assert!(worst < worst_intact + 1.0, "{worst} m");
 
@@ -756,20 +752,37 @@ fn kingston_a_speed_stuck_at_zero_is_found_and_bridged() {
     // odometer scale 10 % off) and OEPI's route taken, 56 and 60 m off at the control
     // points. Now found; the bridge from rest gives 51.7 m of the file's own 56.3 m (8 %
     // short, as the bridges of city corners lose 3–14 %), the points 5.9 and 2.4 m.
-    let (f, worst, out) = with_zeros("static-start", 152_671.0..152_690.0);
-    let f = f.expect("the stand reported");
-    eprintln!("static start: {f:?}; worst control point {worst:.2} m");
-    assert_eq!((f.stuck, f.bridged), (1, 1), "{f:?}");
-    let truth_m = own_m(152_670.0, 152_690.0);
-    assert!(
-        (f.bridged_distance_m - truth_m).abs() < 0.1 * truth_m,
-        "{} m against {truth_m} m",
-        f.bridged_distance_m
-    );
+    let (_, worst, out) = stood("static start", 152_671.0..152_690.0, (1, 1), 152_670.0);
     let d: unz::disupt_stage::DisuptOut =
         read_json(&out.join("kingston2008-segment1/disupt/disupt.json"));
     assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
     assert!(worst < 8.0, "{worst} m");
+}
+
+/// Checks a run with one stand of its speeds found moving (`f`, its worst control point
+/// `worst` m): bridged once, as far as the speeds' own distance (`own_m` of the
+/// failures, m) within 2 %, the control points within a metre of the intact run's.
+fn one_stand_as_its_own(
+    name: &str,
+    f: Option<unz_formats::OdometerFailures>,
+    worst: f64,
+    worst_intact: f64,
+    own_m: impl Fn(&unz_formats::OdometerFailures) -> f64,
+) -> unz_formats::OdometerFailures {
+    let f = f.expect("the stand reported");
+    eprintln!("{name}: {f:?}; worst control point {worst:.2} m");
+    assert_eq!((f.stuck, f.bridged, f.file_gaps), (1, 1, 0), "{f:?}");
+    let truth_m = own_m(&f);
+    assert!(
+        (f.bridged_distance_m - truth_m).abs() < 0.02 * truth_m,
+        "{} m against {truth_m} m",
+        f.bridged_distance_m
+    );
+    assert!(
+        worst < worst_intact + 1.0,
+        "{worst} m, intact {worst_intact} m"
+    );
+    f
 }
 
 /// The same faults in a text log's 8th column (the odometer's speed at each IMU sample),
@@ -784,14 +797,7 @@ fn kingston_a_speed_column_stuck_at_zero_is_found_and_bridged() {
 
     let tmp = tempfile::tempdir().unwrap();
     let data = test_data("kingston2008-seg1");
-    let file: Vec<(f64, f64)> = std::fs::read_to_string(data.join("odometer.txt"))
-        .unwrap()
-        .lines()
-        .map(|l| {
-            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
-            (v[0], v[1])
-        })
-        .collect();
+    let file = kingston_speeds();
     // The file's speed at `t_s`, linearly between its readings.
     let speed = |t_s: f64| {
         let k = file
@@ -845,20 +851,9 @@ fn kingston_a_speed_column_stuck_at_zero_is_found_and_bridged() {
     // column's own there (intact) within 2 %, the control points as intact.
     let found = |name: &str, zeroed: std::ops::Range<f64>, to: f64| {
         let (f, worst) = with_zeros(name, zeroed);
-        let f = f.expect("the stand reported");
-        eprintln!("{name}: {f:?}; worst control point {worst:.2} m");
-        assert_eq!((f.stuck, f.bridged, f.file_gaps), (1, 1, 0), "{f:?}");
-        let truth_m = own_m(to - f.longest_bridged_s, to);
-        assert!(
-            (f.bridged_distance_m - truth_m).abs() < 0.02 * truth_m,
-            "{} m against {truth_m} m",
-            f.bridged_distance_m
-        );
-        assert!(
-            worst < worst_intact + 1.0,
-            "{worst} m, intact {worst_intact} m"
-        );
-        f
+        one_stand_as_its_own(name, f, worst, worst_intact, |f| {
+            own_m(to - f.longest_bridged_s, to)
+        })
     };
     // Zero while driving at 11 m/s: the braking into the stand is not the IMU's. The
     // failure is from the last line before the zeros to the first after them.
