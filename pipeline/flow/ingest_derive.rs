@@ -39,7 +39,8 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // watch's reference may have been motion; a bridge whose speed no land vehicle
         // has is refused. 11: a stand's failure from its start ends where the vehicle
         // came to rest in it, and a drive-off from that rest is a failure of its own.
-        version: 11,
+        // 12: that rest judged by the IMU's speed with gravity carried by the gyros.
+        version: 12,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
