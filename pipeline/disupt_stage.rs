@@ -155,7 +155,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         //     the hold-outs carry their stop's time.
         // 15: two points off searched: a pair out of bounds, or one more beside the most
         //     inconsistent when the fit without it leaves its bounds.
-        // 16: a failure bridged again refuses a bridge whose speed no land vehicle has.
+        // 16: a failure bridged again refuses a bridge whose speed no land vehicle has,
+        //     or across IMU samples more than a second apart.
         version: 16,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,

@@ -98,6 +98,8 @@ const MAX_SPEED_MPS: f64 = 100.0;
 /// backwards faster is no bridge (a failure at a log's end, fitted from one side over
 /// half a minute, ran it back 1.7 km).
 const MAX_REVERSE_MPS: f64 = 10.0;
+/// The longest interval between the window's IMU samples bridged across, s.
+const MAX_SAMPLE_INTERVAL_S: f64 = 1.0;
 /// Readings a fit needs at least.
 const MIN_READINGS: usize = 10;
 /// The odometer's lag is searched over ±this about its prior, s: the joint fit's bound.
@@ -248,9 +250,9 @@ fn across(u: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
 /// before and after them) with the along-track speed the IMU gives; `g_mps2` is gravity
 /// at the site, `lag_prior_s` the odometer's lag as far as it is known (a user's
 /// configured time offset, negated; 0 without), around which the lag is searched.
-/// `None` when the window has fewer than 10 readings, the fit is not finite, or the
-/// speed it gives across the failure is no land vehicle's (beyond 100 m/s ahead or
-/// 10 m/s backwards).
+/// `None` when the window has fewer than 10 readings, IMU samples more than a second
+/// apart (samples lost), a fit that is not finite, or a speed across the failure that is
+/// no land vehicle's (beyond 100 m/s ahead or 10 m/s backwards).
 pub fn bridge(window: &[BridgeSample], g_mps2: f64, lag_prior_s: f64) -> Option<Bridge> {
     let lag_prior_s = if lag_prior_s.is_finite() {
         lag_prior_s
@@ -326,13 +328,22 @@ struct Prepared {
 }
 
 impl Prepared {
-    /// `None` when the window has fewer than [`MIN_READINGS`] readings.
+    /// `None` when the window has fewer than [`MIN_READINGS`] readings, or samples
+    /// further apart than [`MAX_SAMPLE_INTERVAL_S`].
     fn of(window: &[BridgeSample]) -> Option<Self> {
         let readings = window
             .iter()
             .filter(|s| !matches!(s.reading, Reading::Failed))
             .count();
         if readings < MIN_READINGS || window.len() < 2 {
+            return None;
+        }
+        // The IMU's increments must cover the window: across samples lost, the inertial
+        // speed is unknown.
+        if window
+            .windows(2)
+            .any(|w| w[1].t_s - w[0].t_s > MAX_SAMPLE_INTERVAL_S)
+        {
             return None;
         }
         let has_before = window

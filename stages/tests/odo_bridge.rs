@@ -271,7 +271,7 @@ fn a_failure_without_readings_is_not_bridged_and_a_held_count_is_offset() {
 /// A fit that runs the route backwards faster than a vehicle reverses is no bridge: 10 s
 /// at 5 m/s on level ground, then 36 s failed with the accelerometer saying the vehicle
 /// slowed at 2 m/s² throughout (backwards at 67 m/s by the end). The same window with the
-/// vehicle coming to rest at 0.5 m/s² is bridged.
+/// vehicle coming to rest at 0.5 m/s² is bridged, but not across IMU samples lost.
 #[test]
 fn a_bridge_that_runs_backwards_is_refused() {
     let window = |decel_mps2: f64, rests: bool| -> Vec<BridgeSample> {
@@ -299,4 +299,9 @@ fn a_bridge_that_runs_backwards_is_refused() {
     let stop = bridge(&window(0.5, true), G_MPS2, 0.0).expect("a stop is bridged");
     // From 5 m/s to rest at 0.5 m/s²: 25 m.
     assert!((stop.across_m - 25.0).abs() < 1.0, "{stop:?}");
+    // With 2 s of its IMU samples lost inside the failure, the inertial speed is
+    // unknown there: no bridge.
+    let mut lost = window(0.5, true);
+    lost.drain(200..220);
+    assert_eq!(bridge(&lost, G_MPS2, 0.0), None);
 }
