@@ -77,9 +77,9 @@ impl ColumnBridger {
         out: impl FnMut(i64, Given),
     ) {
         let origin_ns = *self.origin_ns.get_or_insert(t_ns);
-        let tag_ns = t_ns.saturating_sub(origin_ns);
-        let t_s = tag_ns as f64 * 1e-9;
-        self.recent.push_back((tag_ns, dtheta_rad, dvel_mps));
+        let since_ns = t_ns.saturating_sub(origin_ns);
+        let t_s = since_ns as f64 * 1e-9;
+        self.recent.push_back((since_ns, dtheta_rad, dvel_mps));
         while self.recent.len() > MAX_KEPT_SAMPLES
             || (self.recent.front()).is_some_and(|s| t_s - s.0 as f64 * 1e-9 > KEPT_S)
         {
@@ -101,7 +101,7 @@ impl ColumnBridger {
             f.not_bridged_samples += self.unread;
         }
         self.unread = 0;
-        self.pending.push_back((tag_ns, written_m));
+        self.pending.push_back((since_ns, written_m));
         for g in self.finder.take_complete() {
             self.close(g);
         }
@@ -137,7 +137,7 @@ impl ColumnBridger {
                 break;
             }
             self.pending.pop_front();
-            (self.bridged).give(t_ns, d, |t, given| out(t + origin_ns, given));
+            (self.bridged).give(t_ns, d, |t, given| out(t.saturating_add(origin_ns), given));
         }
     }
 
