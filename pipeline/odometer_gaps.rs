@@ -147,9 +147,7 @@ impl Gap {
             Reading::After(d)
         }
     }
-}
 
-impl Gap {
     /// The stand's failure `f`: a gap from the stand's last reading at or before its
     /// start (the readings before are the vehicle's rest) to its first reading at or
     /// after its end (the readings from there are right again, the vehicle at rest), or
@@ -231,16 +229,7 @@ fn stand_failed(
         _ => return Vec::new(),
     };
     // The x specific force over REFERENCE_S from `from_s`, m/s².
-    let force_over = |from_s: f64| {
-        let (mut f, mut time_s) = (0.0, 0.0);
-        for s in samples {
-            if t_of(s) > from_s && t_of(s) <= from_s + REFERENCE_S {
-                f += s.2[0];
-                time_s += period_s;
-            }
-        }
-        (time_s > 0.0).then(|| f / time_s)
-    };
+    let force_over = |from_s: f64| rest_force(samples, period_s, &t_of, from_s).map(|f| f.x);
     // The IMU's change of speed along x over (`from_s`, `to_s`], the x specific force at
     // rest being `f_rest_mps2`, m/s.
     let speed_change = |from_s: f64, to_s: f64, f_rest_mps2: f64| -> f64 {
@@ -256,16 +245,8 @@ fn stand_failed(
     // The first stretch the watch finds the vehicle moving over, from `from_s` (the
     // vehicle at rest then) to the stand's last reading: the watch's start.
     let watch_from = |from_s: f64| {
-        let mut watch = StandingMotion::new(g_mps2, period_s);
-        let watched: Vec<&ImuSample> = (samples.iter())
-            .filter(|s| t_of(s) > from_s && t_of(s) <= last_s)
-            .collect();
-        for (k, s) in watched.iter().enumerate() {
-            if let Motion::Moving { watched: n } = watch.push(t_of(s), s.2, s.1) {
-                return Some(t_of(watched[k.saturating_sub(n)]));
-            }
-        }
-        None
+        let watched = (samples.iter()).filter(|s| t_of(s) > from_s && t_of(s) <= last_s);
+        first_motion(watched, false, g_mps2, period_s, &t_of)
     };
     let settle_s = first_s + STAND_SETTLE_S;
     // The file's speed at the reading before the stand (zero at its first), and at the
@@ -286,8 +267,9 @@ fn stand_failed(
         }
         _ => None,
     };
+    let f_settle = force_over(settle_s);
     let braked = |t_s: f64, v_mps: f64| {
-        force_over(settle_s).is_none_or(|f| agrees(speed_change(t_s, settle_s, f), -v_mps))
+        f_settle.is_none_or(|f| agrees(speed_change(t_s, settle_s, f), -v_mps))
     };
     let drove_on = into.is_some_and(|(t_from, v_from, v_before, _)| {
         v_from >= BRAKED_FROM_MPS
@@ -344,6 +326,24 @@ fn stand_failed(
     failures
 }
 
+/// The mean specific force over [`REFERENCE_S`] from `from_s` (body FRD, m/s²): gravity
+/// and the accelerometers' biases, the vehicle at rest then. `None` without samples there.
+fn rest_force(
+    samples: &[ImuSample],
+    period_s: f64,
+    t_of: &impl Fn(&ImuSample) -> f64,
+    from_s: f64,
+) -> Option<Vector3<f64>> {
+    let (mut force, mut time_s) = (Vector3::zeros(), 0.0);
+    for s in samples {
+        if t_of(s) > from_s && t_of(s) <= from_s + REFERENCE_S {
+            force += Vector3::from(s.2);
+            time_s += period_s;
+        }
+    }
+    (time_s > 0.0).then(|| force / time_s)
+}
+
 /// The IMU's speed along x at `t_s`, m/s, of a vehicle at rest over [`REFERENCE_S`] from
 /// `rest_s` (before or after `t_s`): its acceleration integrated from the rest, the x
 /// specific force plus gravity's part along x, gravity's direction carried from the rest
@@ -357,14 +357,7 @@ fn speed_from_rest(
     rest_s: f64,
     t_s: f64,
 ) -> Option<f64> {
-    let (mut force, mut time_s) = (Vector3::zeros(), 0.0);
-    for s in samples {
-        if t_of(s) > rest_s && t_of(s) <= rest_s + REFERENCE_S {
-            force += Vector3::from(s.2);
-            time_s += period_s;
-        }
-    }
-    let force_mps2 = (time_s > 0.0).then(|| force / time_s)?;
+    let force_mps2 = rest_force(samples, period_s, t_of, rest_s)?;
     // Gravity's direction in the body's axes at rest; the x accelerometer's bias.
     let down = -force_mps2.try_normalize(f64::MIN_POSITIVE)?;
     let bias_x = force_mps2.x + g_mps2 * down.x;
@@ -412,16 +405,28 @@ fn rest_in(
     period_s: f64,
     t_of: &impl Fn(&ImuSample) -> f64,
 ) -> Option<f64> {
+    let watched = (samples.iter().rev()).filter(|s| t_of(s) <= last_s - END_SETTLE_S);
+    first_motion(watched, true, g_mps2, period_s, t_of).filter(|&t| t > first_s)
+}
+
+/// Where the IMU's watch of a standing count ([`StandingMotion`]) over `watched` (in the
+/// order given) finds the vehicle moving: the watch's start then, s. `backwards` in time,
+/// the times and the increments are negated, and the watch sees the vehicle's speed,
+/// negated, from the rest at the end.
+fn first_motion<'a>(
+    watched: impl Iterator<Item = &'a ImuSample>,
+    backwards: bool,
+    g_mps2: f64,
+    period_s: f64,
+    t_of: &impl Fn(&ImuSample) -> f64,
+) -> Option<f64> {
+    let sign = if backwards { -1.0 } else { 1.0 };
+    let watched: Vec<&ImuSample> = watched.collect();
     let mut watch = StandingMotion::new(g_mps2, period_s);
-    let watched: Vec<&ImuSample> = (samples.iter().rev())
-        .filter(|s| t_of(s) <= last_s - END_SETTLE_S)
-        .collect();
-    // Backwards in time: the times and the increments negated, the watch sees the
-    // vehicle's speed, negated, from the rest at the stand's end.
     for (k, s) in watched.iter().enumerate() {
-        let (dvel, dtheta) = (s.2.map(|x| -x), s.1.map(|x| -x));
-        if let Motion::Moving { watched: n } = watch.push(-t_of(s), dvel, dtheta) {
-            return Some(t_of(watched[k.saturating_sub(n)])).filter(|&t| t > first_s);
+        let (dvel, dtheta) = (s.2.map(|x| sign * x), s.1.map(|x| sign * x));
+        if let Motion::Moving { watched: n } = watch.push(sign * t_of(s), dvel, dtheta) {
+            return Some(t_of(watched[k.saturating_sub(n)]));
         }
     }
     None
@@ -525,13 +530,14 @@ impl GapFinder {
         let mut kept_here = false;
         if let Some(&(t0, d0)) = self.before.back() {
             let dt = r.0 - t0;
-            let mut recent: Vec<f64> = self.intervals.iter().copied().collect();
-            recent.sort_by(f64::total_cmp);
+            // The median of the recent intervals, sorted on the stack (the 8th column
+            // pushes a reading per IMU sample).
+            let mut recent = [0.0; RECENT];
+            let n = self.intervals.len();
+            recent[..n].copy_from_slice(self.intervals.make_contiguous());
+            recent[..n].sort_by(f64::total_cmp);
             // The file's first interval, with no rate to judge it by, is not a gap.
-            let typical = recent
-                .get(recent.len() / 2)
-                .copied()
-                .unwrap_or(f64::INFINITY);
+            let typical = if n > 0 { recent[n / 2] } else { f64::INFINITY };
             if dt > MIN_GAP_S && dt > GAP_PERIODS * typical {
                 if self.gaps.len() < MAX_GAPS && self.kept + self.before.len() < MAX_KEPT_READINGS {
                     self.kept += self.before.len();
