@@ -336,6 +336,24 @@ fn odometer_failure_note(n: &NavigateSummary, failures: Option<&OdometerFailures
             if f.bridged == 1 { "it" } else { "them" },
         )
     });
+    let spikes = failures.filter(|f| f.spikes > 0).map(|f| {
+        format!(
+            "{} odometer speed{} left out as spikes (jumping from the speed faster than a \
+             land vehicle brakes or accelerates, and back)",
+            f.spikes,
+            if f.spikes == 1 { "" } else { "s" },
+        )
+    });
+    let jumps_kept = failures.filter(|f| f.jumps_kept > 0).map(|f| {
+        format!(
+            "the odometer's speed jumped faster than a land vehicle brakes or accelerates \
+             {} time{} without coming back within {:.0} s: kept, unjudged (a fault the speed alone cannot \
+             place, or junk)",
+            f.jumps_kept,
+            if f.jumps_kept == 1 { "" } else { "s" },
+            unz_formats::speed_spikes::MAX_BURST_S
+        )
+    });
     let not_bridged = failures.map_or(0, |f| f.not_bridged);
     let file_gaps = failures.is_some_and(|f| f.file_gaps > 0);
     let trapezoid = (not_bridged > 0 && file_gaps).then(|| {
@@ -366,6 +384,8 @@ fn odometer_failure_note(n: &NavigateSummary, failures: Option<&OdometerFailures
     });
     flagged
         .into_iter()
+        .chain(spikes)
+        .chain(jumps_kept)
         .chain(gaps)
         .chain(stuck)
         .chain(bridged)
@@ -403,7 +423,8 @@ fn run_note(
     let failures = ing.and_then(|i| i.odometer_failures.as_ref());
     let odo_failed = nav
         .filter(|n| {
-            n.odometer_failure_samples > 0 || failures.is_some_and(|f| f.stuck + f.file_gaps > 0)
+            n.odometer_failure_samples > 0
+                || failures.is_some_and(|f| f.stuck + f.file_gaps + f.spikes + f.jumps_kept > 0)
         })
         .map(|n| odometer_failure_note(n, failures));
     let rebridged = d

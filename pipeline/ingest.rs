@@ -29,6 +29,7 @@ use unz_formats::mcap_io::McapCompression;
 use unz_formats::parquet_io::ParquetSink;
 use unz_formats::raw::{Accepted, RawReader};
 use unz_formats::schema::DistanceSource;
+use unz_formats::speed_spikes::{SpeedSpikes, Verdict};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
 use unz_formats::{IngestEvents, IngestReport, schema};
 
@@ -405,6 +406,7 @@ fn ingest_text(
     let mut column = column.then(|| {
         let g_mps2 = site_gravity_mps2(manifest);
         (
+            SpeedSpikes::default(),
             SpeedColumn::default(),
             ColumnBridger::new(g_mps2, options.odo_lag_prior_s),
         )
@@ -423,17 +425,22 @@ fn ingest_text(
         if let Some(g) = &mut gaps {
             g.sample(t_ns, s.dtheta_rad, s.dvel_mps);
         }
-        if let Some((speed, bridger)) = &mut column {
-            let reading = speed.reading(&s, &mut sinks.odo_range);
-            bridger.sample((t_ns, s.dtheta_rad, s.dvel_mps), reading, |t, given| {
-                sinks.push_odometer(t, given, None)
-            });
+        if let Some((spikes, speed, bridger)) = &mut column {
+            // Speeds beyond a land vehicle's are no reading for the spikes' judgement.
+            let v = (s.speed_mps).filter(|v| v.abs() <= LAND_SPEED_RANGE_MPS);
+            spikes.push(v.map(|v| (s.t_s, v)), s);
+            column_readings(spikes, speed, bridger, &mut sinks);
         }
         seq += 1;
         sinks.flush(false)?;
     }
+    if let Some((spikes, speed, bridger)) = &mut column {
+        spikes.finish();
+        column_readings(spikes, speed, bridger, &mut sinks);
+    }
     let mut gaps = gaps.map(GapBridger::finish);
     let mut file_report = None;
+    let mut file_spikes = (0, 0);
     if let Some((file, kind)) = odometer_file {
         let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind);
         while let Some(o) = odo.next_sample().map_err(|e| e.in_file(file))? {
@@ -446,10 +453,20 @@ fn ingest_text(
             sinks.flush(false)?;
         }
         file_report = Some((odo.report().clone(), odo.faults().0.to_vec()));
+        file_spikes = odo.spikes();
     }
     let failures = match column {
-        Some((_, bridger)) => Some(bridger.finish(|t, given| sinks.push_odometer(t, given, None))),
-        None => gaps.map(|g| g.failures().clone()),
+        Some((spikes, _, bridger)) => {
+            let mut f = bridger.finish(|t, given| sinks.push_odometer(t, given, None));
+            (f.spikes, f.jumps_kept) = (spikes.spikes, spikes.jumps_kept);
+            Some(f)
+        }
+        None => {
+            let (spikes, jumps_kept) = file_spikes;
+            let mut f = gaps.map(|g| g.failures().clone()).unwrap_or_default();
+            (f.spikes, f.jumps_kept) = (spikes, jumps_kept);
+            Some(f)
+        }
     };
     // Stands the IMU found standing are no failure: nothing to report.
     let bridged = failures.filter(|f| *f != unz_formats::OdometerFailures::default());
@@ -470,6 +487,26 @@ fn ingest_text(
         },
     )?;
     Ok((report, odo_rows))
+}
+
+/// The 8th column's samples the spikes' judgement has decided, through the trapezoid to
+/// the bridger (a spike's sample goes on without its speed).
+fn column_readings(
+    spikes: &mut SpeedSpikes<TextSample>,
+    speed: &mut SpeedColumn,
+    bridger: &mut ColumnBridger,
+    sinks: &mut Sinks,
+) {
+    while let Some((s, verdict)) = spikes.pop() {
+        let reading = match verdict {
+            Verdict::Spike(_) => None,
+            Verdict::Kept | Verdict::NoSpeed => speed.reading(&s, &mut sinks.odo_range),
+        };
+        let sample = (tag_ns(s.t_s), s.dtheta_rad, s.dvel_mps);
+        bridger.sample(sample, reading, |t, given| {
+            sinks.push_odometer(t, given, None)
+        });
+    }
 }
 
 /// A text log's 8th column: the odometer's speed at each IMU sample, integrated into

@@ -59,7 +59,7 @@ const MAX_GAPS: usize = 10_000;
 /// Shortest stand judged, s: the file's distance standing over at least this long (its
 /// speeds zero) while the IMU may say the vehicle moved (a logger that writes zero, not
 /// nothing, when it loses the speed).
-pub const STAND_MIN_S: f64 = 3.0;
+pub const STAND_MIN_S: f64 = unz_formats::speed_spikes::STAND_MIN_S;
 /// The IMU takes the vehicle at rest from this long after a stand's first reading, s: a
 /// file read at a hertz, whose clock may run ahead of the IMU's, says zero before the
 /// vehicle stands (a binary count stands within a pulse of it:

@@ -11,6 +11,7 @@ use std::io::BufRead;
 use crate::error::FormatError;
 use crate::manifest::OdometerKind;
 use crate::report::{IngestReport, OdometerFileReport};
+use crate::speed_spikes::{MAX_ACCEL_MPS2, MAX_BRAKING_MPS2, SpeedSpikes, Verdict};
 
 /// Longest line accepted; longer lines are malformed (and never buffered whole).
 pub const MAX_LINE_BYTES: usize = 4096;
@@ -348,13 +349,19 @@ pub struct OdometerSample {
 /// is a corrupt reading, and a step of distance beyond it a corrupt count.
 pub const LAND_SPEED_RANGE_MPS: f64 = 100.0;
 
+/// A speed file's line on its way to its verdict: its number, and its time, s, and speed,
+/// m/s, or why it was rejected as it was read.
+type SpeedLine = (u64, Result<(f64, f64), String>);
+
 /// Streaming reader of a two-column odometer file (`t_s value`), giving cumulative
 /// distance, with accounting ([`OdometerFileReport`]).
 ///
 /// Speed is integrated with the trapezoidal rule. Lines that are not two finite numbers,
 /// go back in time or give a speed beyond [`LAND_SPEED_RANGE_MPS`] are rejected, counted
-/// and (the first 1000) returned as faults with their line; the rest is kept. Memory is
-/// bounded by one line, whatever the file.
+/// and (the first 1000) returned as faults with their line; the rest is kept. Speeds that
+/// jump faster than a land vehicle's and come back ([`crate::speed_spikes`]) are rejected
+/// the same way, their reason saying so. Memory is bounded by one line, and by a burst's
+/// readings while one is open, whatever the file.
 pub struct OdometerFileReader<R: BufRead> {
     lines: LineReader<R>,
     kind: OdometerKind,
@@ -362,6 +369,10 @@ pub struct OdometerFileReader<R: BufRead> {
     faults: FaultLog,
     /// Time and value of the last accepted line, and its distance, m.
     prev: Option<(f64, f64, f64)>,
+    /// Time of the last line read with a speed, s (times must advance).
+    last_t_s: Option<f64>,
+    /// A speed file's lines, in order, to their verdicts.
+    spikes: SpeedSpikes<SpeedLine>,
 }
 
 impl<R: BufRead> OdometerFileReader<R> {
@@ -373,6 +384,8 @@ impl<R: BufRead> OdometerFileReader<R> {
             report: OdometerFileReport::default(),
             faults: FaultLog::default(),
             prev: None,
+            last_t_s: None,
+            spikes: SpeedSpikes::default(),
         }
     }
 
@@ -386,13 +399,80 @@ impl<R: BufRead> OdometerFileReader<R> {
         (&self.faults.kept, self.faults.total)
     }
 
-    fn reject(&mut self, reason: String) {
+    /// A speed file's readings left out as spikes, and its jumps kept (the speed did not
+    /// come back), so far.
+    pub fn spikes(&self) -> (u64, u64) {
+        (self.spikes.spikes, self.spikes.jumps_kept)
+    }
+
+    fn reject(&mut self, line: u64, reason: String) {
         self.report.lines_rejected += 1;
-        self.faults.push(self.lines.line_no, reason);
+        self.faults.push(line, reason);
+    }
+
+    /// A line rejected as it was read: at once for distances, in its place among the
+    /// speeds' verdicts.
+    fn reject_read(&mut self, reason: String) {
+        let line = self.lines.line_no;
+        match self.kind {
+            OdometerKind::DistanceM => self.reject(line, reason),
+            OdometerKind::SpeedMps => self.spikes.push(None, (line, Err(reason))),
+        }
+    }
+
+    /// A line kept: its distance, m, from the last kept.
+    fn accept(&mut self, t: f64, v: f64) -> OdometerSample {
+        let distance_m = match (self.kind, self.prev) {
+            (OdometerKind::DistanceM, _) => v,
+            (OdometerKind::SpeedMps, Some((pt, pv, pd))) => pd + 0.5 * (pv + v) * (t - pt),
+            (OdometerKind::SpeedMps, None) => 0.0,
+        };
+        self.prev = Some((t, v, distance_m));
+        self.report.lines_accepted += 1;
+        OdometerSample { t_s: t, distance_m }
     }
 
     /// Returns the next accepted sample, or `None` at the end.
     pub fn next_sample(&mut self) -> Result<Option<OdometerSample>, FormatError> {
+        loop {
+            while let Some(((line, read), verdict)) = self.spikes.pop() {
+                match (read, verdict) {
+                    (Err(reason), _) => self.reject(line, reason),
+                    (Ok((t, v)), Verdict::Spike(from)) => {
+                        let reason = match from {
+                            Some((t0, v0)) => format!(
+                                "speed {v} m/s at {t} s left out: it jumped from {v0} m/s at \
+                                 {t0} s faster than a land vehicle brakes or accelerates \
+                                 ({MAX_BRAKING_MPS2} and {MAX_ACCEL_MPS2} m/s²) and came \
+                                 back (a spike)"
+                            ),
+                            None => format!(
+                                "speed {v} m/s at {t} s left out: the readings after it, the \
+                                 first of the file, jump from it faster than a land vehicle \
+                                 brakes or accelerates (a spike)"
+                            ),
+                        };
+                        self.reject(line, reason);
+                    }
+                    (Ok((t, v)), _) => return Ok(Some(self.accept(t, v))),
+                }
+            }
+            match self.read_line()? {
+                Some((t, v)) if self.kind == OdometerKind::DistanceM => {
+                    return Ok(Some(self.accept(t, v)));
+                }
+                Some((t, v)) => self
+                    .spikes
+                    .push(Some((t, v)), (self.lines.line_no, Ok((t, v)))),
+                None if self.spikes.is_finished() => return Ok(None),
+                None => self.spikes.finish(),
+            }
+        }
+    }
+
+    /// The next line's time and value, its checks passed; lines that fail them are
+    /// rejected on the way. `None` at the end.
+    fn read_line(&mut self) -> Result<Option<(f64, f64)>, FormatError> {
         while let Some(line) = self.lines.next_line()? {
             let Some(record) = line.record() else {
                 continue;
@@ -401,7 +481,7 @@ impl<R: BufRead> OdometerFileReader<R> {
             let text = match record {
                 Ok(text) => text,
                 Err(reason) => {
-                    self.reject(reason);
+                    self.reject_read(reason);
                     continue;
                 }
             };
@@ -422,12 +502,12 @@ impl<R: BufRead> OdometerFileReader<R> {
             }
             if n != 2 || !finite {
                 let reason = format!("expected two numbers `t_s value`, got {text:?}");
-                self.reject(reason);
+                self.reject_read(reason);
                 continue;
             }
             let [t, v] = values;
             if self.kind == OdometerKind::SpeedMps && v.abs() > LAND_SPEED_RANGE_MPS {
-                self.reject(format!(
+                self.reject_read(format!(
                     "speed {} m/s is beyond a land vehicle's ({LAND_SPEED_RANGE_MPS} m/s)",
                     // 1e300 as such, not as 301 digits.
                     if v.abs() < 1e6 {
@@ -438,20 +518,14 @@ impl<R: BufRead> OdometerFileReader<R> {
                 ));
                 continue;
             }
-            if let Some((pt, _, _)) = self.prev
+            if let Some(pt) = self.last_t_s
                 && t <= pt
             {
-                self.reject(format!("time {t} is not after {pt}"));
+                self.reject_read(format!("time {t} is not after {pt}"));
                 continue;
             }
-            let distance_m = match (self.kind, self.prev) {
-                (OdometerKind::DistanceM, _) => v,
-                (OdometerKind::SpeedMps, Some((pt, pv, pd))) => pd + 0.5 * (pv + v) * (t - pt),
-                (OdometerKind::SpeedMps, None) => 0.0,
-            };
-            self.prev = Some((t, v, distance_m));
-            self.report.lines_accepted += 1;
-            return Ok(Some(OdometerSample { t_s: t, distance_m }));
+            self.last_t_s = Some(t);
+            return Ok(Some((t, v)));
         }
         Ok(None)
     }

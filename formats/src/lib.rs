@@ -23,6 +23,7 @@ pub mod raw;
 pub mod report;
 pub mod ros2_msgs;
 pub mod schema;
+pub mod speed_spikes;
 pub mod tables;
 
 pub use error::{FileError, FormatError};

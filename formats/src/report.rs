@@ -115,6 +115,16 @@ pub struct OdometerFailures {
     /// not bridged keeps the trapezoid of the speeds at its ends.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub file_gaps: u64,
+    /// A text log's speeds (its odometer file's or 8th column's) left out as spikes: a
+    /// reading, or a burst of them, that jumped from the speed faster than a land vehicle
+    /// can change it and came back (`unz_formats::speed_spikes`). The trapezoid spans
+    /// them; a burst of 3 s or more leaves a gap, bridged like the others.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub spikes: u64,
+    /// Jumps of a text log's speed faster than a land vehicle's whose speed did not come
+    /// back within a minute: kept, as the speed alone cannot say which side is wrong.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub jumps_kept: u64,
 }
 
 /// Accounting of a separate odometer file: `lines_read == lines_accepted +
@@ -127,7 +137,7 @@ pub struct OdometerFileReport {
     /// Lines kept as odometer samples.
     pub lines_accepted: u64,
     /// Lines not kept: not two finite numbers, time not advancing, a speed beyond a land
-    /// vehicle's (their numbers and reasons are in `ingest_events.json`).
+    /// vehicle's, a spike (their numbers and reasons are in `ingest_events.json`).
     pub lines_rejected: u64,
 }
 

@@ -40,8 +40,9 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // has is refused. 11: a stand's failure from its start ends where the vehicle
         // came to rest in it, and a drive-off from that rest is a failure of its own.
         // 12: that rest judged by the IMU's speed with gravity carried by the gyros.
-        // 13: no bridge across IMU samples more than a second apart.
-        version: 13,
+        // 13: no bridge across IMU samples more than a second apart. 14: a text log's
+        // speeds that jump faster than a land vehicle's and come back are left out.
+        version: 14,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
