@@ -54,6 +54,9 @@ pub const MAX_BURST_S: f64 = 60.0;
 pub const STAND_MIN_S: f64 = 3.0;
 /// Readings held at most, whatever their time tags (a column at 1 kHz over a burst).
 pub const MAX_HELD: usize = 100_000;
+/// Readings without a speed in a row after which no more speeds are waited for: the
+/// held ones are decided on what there is (a column that lost its speeds holds little).
+const MAX_NO_SPEED: usize = 1_000;
 
 /// What became of a reading.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -107,6 +110,8 @@ pub struct SpeedSpikes<P> {
     search_from: usize,
     /// No reading is to come.
     finished: bool,
+    /// Readings without a speed pushed since the last with one.
+    no_speed: usize,
     /// Readings left out.
     pub spikes: u64,
     /// Jumps kept: the speed did not come back within [`MAX_BURST_S`].
@@ -121,6 +126,7 @@ impl<P> Default for SpeedSpikes<P> {
             decided: VecDeque::new(),
             search_from: 1,
             finished: false,
+            no_speed: 0,
             spikes: 0,
             jumps_kept: 0,
         }
@@ -131,6 +137,11 @@ impl<P> SpeedSpikes<P> {
     /// Takes the next reading: its time, s, and speed, m/s (finite), or `None` without
     /// one, with what goes with it.
     pub fn push(&mut self, speed: Option<(f64, f64)>, payload: P) {
+        self.no_speed = if speed.is_some() {
+            0
+        } else {
+            self.no_speed + 1
+        };
         self.held.push_back(Held { speed, payload });
         self.decide();
     }
@@ -188,7 +199,7 @@ impl<P> SpeedSpikes<P> {
                     {
                         self.give(Verdict::Spike(Some(a)));
                     }
-                    None if !self.finished => return,
+                    None if !self.starved() => return,
                     _ => self.give(Verdict::Kept),
                 },
                 Some(a) => match self.exit(a) {
@@ -259,12 +270,24 @@ impl<P> SpeedSpikes<P> {
             }
         }
         self.search_from = self.held.len().max(1);
-        self.finished.then_some(true)
+        self.starved().then_some(true)
     }
 
-    /// The speed of the first reading held after the front that has one.
-    fn next_speed(&self) -> Option<(f64, f64)> {
-        self.held.range(1..).find_map(|h| h.speed)
+    /// No more speeds are waited for: the end, the readings held at their most, or
+    /// [`MAX_NO_SPEED`] without one.
+    fn starved(&self) -> bool {
+        self.finished || self.held.len() >= MAX_HELD || self.no_speed >= MAX_NO_SPEED
+    }
+
+    /// The speed of the first reading held after the front that has one (searched once
+    /// over the readings without one).
+    fn next_speed(&mut self) -> Option<(f64, f64)> {
+        let from = self.search_from.max(1);
+        let found = self.held.range(from..).find_map(|h| h.speed);
+        if found.is_none() {
+            self.search_from = self.held.len().max(1);
+        }
+        found
     }
 
     /// Whether the burst from `a` to the held index `end` is zeros over [`STAND_MIN_S`]
@@ -288,7 +311,7 @@ impl<P> SpeedSpikes<P> {
             match speeds.next() {
                 Some(s) if reaches(last, s) => last = s,
                 Some(_) => return Some(false),
-                None => return self.finished.then_some(true),
+                None => return self.starved().then_some(true),
             }
         }
         Some(true)
@@ -325,7 +348,7 @@ impl<P> SpeedSpikes<P> {
             before = Some(s);
         }
         self.search_from = self.held.len().max(1);
-        if self.finished {
+        if self.starved() {
             Exit::Never
         } else {
             Exit::Wait
@@ -538,6 +561,21 @@ mod tests {
             Verdict::Kept,
         ];
         assert_eq!(got, want.into_iter().enumerate().collect::<Vec<_>>());
+    }
+
+    /// A reading followed by readings without a speed is decided within
+    /// [`MAX_NO_SPEED`] of them, not held with them.
+    #[test]
+    fn readings_without_speeds_do_not_hold_a_reading() {
+        let mut f = SpeedSpikes::default();
+        f.push(Some((0.0, 10.0)), 0);
+        f.push(Some((0.1, 10.0)), 1);
+        for k in 2..(MAX_NO_SPEED + 10) {
+            f.push(None, k);
+            assert!(f.held.len() <= MAX_NO_SPEED + 1, "{k}");
+        }
+        let got: Vec<usize> = std::iter::from_fn(|| f.pop()).map(|(k, _)| k).collect();
+        assert_eq!(got, (0..MAX_NO_SPEED + 10).collect::<Vec<_>>());
     }
 
     /// Time tags that stand or go back hold at most [`MAX_HELD`] readings.
