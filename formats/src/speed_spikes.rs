@@ -13,10 +13,10 @@
 //! dropout is. A jump whose speed does not come back within [`MAX_BURST_S`] is kept and
 //! counted: a speed alone cannot say which side of it is wrong. A burst of zeros over
 //! [`STAND_MIN_S`] or more is kept too: it is a stand, which the IMU judges, and a rise
-//! from zero opens no burst (a stand's end, or a drive-off). A lone
-//! reading the vehicle could brake into but not come out of, the speeds either side of it
-//! agreeing without it (a zero between two readings at 11 m/s a second apart), is a
-//! spike too. The file's
+//! from zero opens no burst (a stand's end, or a drive-off). A short dip or peak (up to
+//! [`MAX_DIP_READINGS`]) that the vehicle could brake into but not come out of, the
+//! speeds either side of it agreeing without it (zeros between two readings at 11 m/s),
+//! is a spike too. The file's
 //! first reading, with no speed before it, is kept when the readings after it agree with
 //! it, or when it reaches the first reading that those after agree with.
 //!
@@ -52,6 +52,9 @@ pub const MAX_BURST_S: f64 = 60.0;
 /// logger that writes zero when it loses the speed leaves a stand, which the IMU judges
 /// (`unz::odometer_gaps`, from this long); shorter, it is a spike.
 pub const STAND_MIN_S: f64 = 3.0;
+/// Readings a short dip or peak holds at most: a 1-Hz file's dropouts written as zero
+/// for up to three readings (four span a stand, which the IMU judges).
+pub const MAX_DIP_READINGS: usize = 3;
 /// Readings held at most, whatever their time tags (a column at 1 kHz over a burst).
 pub const MAX_HELD: usize = 100_000;
 /// Readings without a speed in a row after which no more speeds are waited for: the
@@ -189,18 +192,19 @@ impl<P> SpeedSpikes<P> {
                 },
                 // A rise from zero opens no burst: it is a stand's end, which the IMU
                 // judges, or a drive-off (a lone peak from rest is still a spike).
-                Some(a) if a.1 == 0.0 || reaches(a, c) => match self.next_speed() {
-                    // A lone dip or peak the speeds either side of it agree without: a
-                    // spike the vehicle could brake into but not come out of.
-                    Some(n)
-                        if !reaches(c, n)
-                            && reaches(a, n)
-                            && (c.1 < a.1.min(n.1) || c.1 > a.1.max(n.1)) =>
-                    {
-                        self.give(Verdict::Spike(Some(a)));
+                Some(a) if a.1 == 0.0 || reaches(a, c) => match self.dip_end(a, c) {
+                    Some(Some(end)) => {
+                        for _ in 0..end {
+                            let spike = self.held.front().is_some_and(|h| h.speed.is_some());
+                            self.give(if spike {
+                                Verdict::Spike(Some(a))
+                            } else {
+                                Verdict::NoSpeed
+                            });
+                        }
                     }
-                    None if !self.starved() => return,
-                    _ => self.give(Verdict::Kept),
+                    Some(None) => self.give(Verdict::Kept),
+                    None => return,
                 },
                 Some(a) => match self.exit(a) {
                     Exit::At(end) if self.is_stand(a, end) => {
@@ -279,15 +283,48 @@ impl<P> SpeedSpikes<P> {
         self.finished || self.held.len() >= MAX_HELD || self.no_speed >= MAX_NO_SPEED
     }
 
-    /// The speed of the first reading held after the front that has one (searched once
-    /// over the readings without one).
-    fn next_speed(&mut self) -> Option<(f64, f64)> {
-        let from = self.search_from.max(1);
-        let found = self.held.range(from..).find_map(|h| h.speed);
-        if found.is_none() {
-            self.search_from = self.held.len().max(1);
+    /// Where a short dip or peak that begins at the front reading `c` ends (the held
+    /// index of the reading after it), if it is one: at most [`MAX_DIP_READINGS`]
+    /// readings within [`STAND_MIN_S`] of `c`, all beyond `a` and the reading after them
+    /// on the same side, which jumps back from them to a speed `a` reaches and that the
+    /// readings after it agree with. A vehicle
+    /// can brake into such a dip, but not pull away from it as fast. `Some(None)` when
+    /// it is none; `None` while more readings are needed.
+    fn dip_end(&self, a: (f64, f64), c: (f64, f64)) -> Option<Option<usize>> {
+        let below = c.1 < a.1;
+        if c.1 == a.1 {
+            return Some(None);
         }
-        found
+        let (mut prev, mut extreme, mut readings) = (c, c.1, 1);
+        for j in 1..self.held.len() {
+            let Some(s) = self.held[j].speed else {
+                continue;
+            };
+            if !reaches(prev, s) {
+                let beyond = if below {
+                    extreme < a.1.min(s.1)
+                } else {
+                    extreme > a.1.max(s.1)
+                };
+                if !(beyond && reaches(a, s)) {
+                    return Some(None);
+                }
+                // The speed back is itself confirmed (not the next spike).
+                return self.agree_from(j).map(|agree| agree.then_some(j));
+            }
+            let same_side = if below { s.1 < a.1 } else { s.1 > a.1 };
+            readings += 1;
+            if !same_side || readings > MAX_DIP_READINGS || s.0 - c.0 >= STAND_MIN_S {
+                return Some(None);
+            }
+            extreme = if below {
+                extreme.max(s.1)
+            } else {
+                extreme.min(s.1)
+            };
+            prev = s;
+        }
+        if self.starved() { Some(None) } else { None }
     }
 
     /// Whether the burst from `a` to the held index `end` is zeros over [`STAND_MIN_S`]
@@ -407,6 +444,48 @@ mod tests {
         let mut r: Vec<(f64, f64)> = (0..20).map(|k| (k as f64, 6.0)).collect();
         r[12].1 = 0.0;
         assert_eq!(verdicts(&r), (vec![Verdict::Kept; 20], 0, 0));
+    }
+
+    /// One to three zeros at 1 Hz in a drive at 11 m/s (a logger's dropouts) are left
+    /// out; four are a stand, kept for the IMU; three readings at 6 m/s are a car that
+    /// braked and pulled away, kept.
+    #[test]
+    fn short_dips_are_spikes() {
+        for (zeros, spikes) in [(1, 1), (2, 2), (3, 3), (4, 0)] {
+            let r: Vec<(f64, f64)> = (0..20)
+                .map(|k| {
+                    (
+                        k as f64,
+                        if (10..10 + zeros).contains(&k) {
+                            0.0
+                        } else {
+                            11.0
+                        },
+                    )
+                })
+                .collect();
+            let (v, n, jumps) = verdicts(&r);
+            assert_eq!((n, jumps), (spikes, 0), "{zeros} zeros");
+            assert_eq!(left_out(&v), (10..10 + spikes as usize).collect::<Vec<_>>());
+        }
+        let r: Vec<(f64, f64)> = (0..20)
+            .map(|k| (k as f64, if (10..13).contains(&k) { 6.0 } else { 11.0 }))
+            .collect();
+        assert_eq!(verdicts(&r), (vec![Verdict::Kept; 20], 0, 0));
+        // A car slowing from 11 to 9.5 m/s, then a reading 25 m/s too fast: the spike
+        // alone is left out, not the slowing before it.
+        let r: Vec<(f64, f64)> = (0..20)
+            .map(|k| {
+                let v = if k < 10 {
+                    11.0
+                } else {
+                    11.0 - 0.5 * (k - 9).min(3) as f64
+                };
+                (k as f64, if k == 13 { v + 25.0 } else { v })
+            })
+            .collect();
+        let (v, n, _) = verdicts(&r);
+        assert_eq!((left_out(&v), n), (vec![13], 1));
     }
 
     /// A 10-Hz speed that reads 255 km/h for 5 s while the car brakes from 15 to 5 m/s,
