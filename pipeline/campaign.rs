@@ -347,8 +347,8 @@ fn odometer_failure_note(n: &NavigateSummary, failures: Option<&OdometerFailures
     let jumps_kept = failures.filter(|f| f.jumps_kept > 0).map(|f| {
         format!(
             "the odometer's speed jumped faster than a land vehicle brakes or accelerates \
-             {} time{} without coming back within {:.0} s: kept, unjudged (a fault the speed alone cannot \
-             place, or junk)",
+             {} time{} without coming back within {:.0} s: kept, unjudged (a fault the \
+             speed alone cannot place, or junk)",
             f.jumps_kept,
             if f.jumps_kept == 1 { "" } else { "s" },
             unz_formats::speed_spikes::MAX_BURST_S

@@ -350,8 +350,9 @@ pub struct OdometerSample {
 pub const LAND_SPEED_RANGE_MPS: f64 = 100.0;
 
 /// A speed file's line on its way to its verdict: its number, and its time, s, and speed,
-/// m/s, or why it was rejected as it was read.
-type SpeedLine = (u64, Result<(f64, f64), String>);
+/// m/s, or why it was rejected as it was read (`None` once the faults kept are full: the
+/// reasons held stay within [`FaultLog::KEPT`]).
+type SpeedLine = (u64, Result<(f64, f64), Option<String>>);
 
 /// Streaming reader of a two-column odometer file (`t_s value`), giving cumulative
 /// distance, with accounting ([`OdometerFileReport`]).
@@ -373,6 +374,8 @@ pub struct OdometerFileReader<R: BufRead> {
     last_t_s: Option<f64>,
     /// A speed file's lines, in order, to their verdicts.
     spikes: SpeedSpikes<SpeedLine>,
+    /// Reasons held in `spikes`.
+    held_reasons: usize,
 }
 
 impl<R: BufRead> OdometerFileReader<R> {
@@ -386,6 +389,7 @@ impl<R: BufRead> OdometerFileReader<R> {
             prev: None,
             last_t_s: None,
             spikes: SpeedSpikes::default(),
+            held_reasons: 0,
         }
     }
 
@@ -410,13 +414,23 @@ impl<R: BufRead> OdometerFileReader<R> {
         self.faults.push(line, reason);
     }
 
+    /// A line rejected whose reason was not held (the faults kept were full).
+    fn reject_counted(&mut self) {
+        self.report.lines_rejected += 1;
+        self.faults.total += 1;
+    }
+
     /// A line rejected as it was read: at once for distances, in its place among the
     /// speeds' verdicts.
     fn reject_read(&mut self, reason: String) {
         let line = self.lines.line_no;
         match self.kind {
             OdometerKind::DistanceM => self.reject(line, reason),
-            OdometerKind::SpeedMps => self.spikes.push(None, (line, Err(reason))),
+            OdometerKind::SpeedMps => {
+                let kept = self.faults.kept.len() + self.held_reasons < FaultLog::KEPT;
+                self.held_reasons += usize::from(kept);
+                self.spikes.push(None, (line, Err(kept.then_some(reason))));
+            }
         }
     }
 
@@ -437,7 +451,11 @@ impl<R: BufRead> OdometerFileReader<R> {
         loop {
             while let Some(((line, read), verdict)) = self.spikes.pop() {
                 match (read, verdict) {
-                    (Err(reason), _) => self.reject(line, reason),
+                    (Err(Some(reason)), _) => {
+                        self.held_reasons -= 1;
+                        self.reject(line, reason);
+                    }
+                    (Err(None), _) => self.reject_counted(),
                     (Ok((t, v)), Verdict::Spike(from)) => {
                         let reason = match from {
                             Some((t0, v0)) => format!(
@@ -638,6 +656,28 @@ mod tests {
         assert_eq!(r.report().lines_rejected, 1);
         assert!(r.lines.buf.capacity() <= 2 * MAX_LINE_BYTES);
         assert_eq!(r.faults().1, 1);
+    }
+
+    /// A speed that jumps and comes back is a rejected line with its reason, in its
+    /// place among the other faults; the trapezoid spans it.
+    #[test]
+    fn a_spike_is_a_line_fault_in_its_place() {
+        let text = b"0 10\n1 10\n2 40\nx\n3 10\n4 10\n5 10\n";
+        let (d, rep, lines, total) = read_odometer(text, OdometerKind::SpeedMps);
+        assert_eq!(d, vec![0.0, 10.0, 30.0, 40.0, 50.0]);
+        assert_eq!((lines, total), (vec![3, 4], 2));
+        assert_eq!(
+            (rep.lines_read, rep.lines_accepted, rep.lines_rejected),
+            (7, 5, 2)
+        );
+        let mut r = OdometerFileReader::new(&text[..], OdometerKind::SpeedMps);
+        while r.next_sample().unwrap().is_some() {}
+        assert!(
+            r.faults().0[0].reason.ends_with("(a spike)"),
+            "{:?}",
+            r.faults()
+        );
+        assert_eq!(r.spikes(), (1, 0));
     }
 
     #[test]

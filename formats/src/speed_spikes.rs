@@ -178,6 +178,15 @@ impl<P> SpeedSpikes<P> {
         self.search_from = 1;
     }
 
+    /// The first `n` readings held given `verdict`, those without a speed
+    /// [`Verdict::NoSpeed`].
+    fn give_run(&mut self, n: usize, verdict: Verdict) {
+        for _ in 0..n {
+            let speed = self.held.front().is_some_and(|h| h.speed.is_some());
+            self.give(if speed { verdict } else { Verdict::NoSpeed });
+        }
+    }
+
     fn decide(&mut self) {
         while let Some(front) = self.held.front() {
             let Some(c) = front.speed else {
@@ -193,53 +202,22 @@ impl<P> SpeedSpikes<P> {
                 // A rise from zero opens no burst: it is a stand's end, which the IMU
                 // judges, or a drive-off (a lone peak from rest is still a spike).
                 Some(a) if a.1 == 0.0 || reaches(a, c) => match self.dip_end(a, c) {
-                    Some(Some(end)) => {
-                        for _ in 0..end {
-                            let spike = self.held.front().is_some_and(|h| h.speed.is_some());
-                            self.give(if spike {
-                                Verdict::Spike(Some(a))
-                            } else {
-                                Verdict::NoSpeed
-                            });
-                        }
-                    }
+                    Some(Some(end)) => self.give_run(end, Verdict::Spike(Some(a))),
                     Some(None) => self.give(Verdict::Kept),
                     None => return,
                 },
                 Some(a) => match self.exit(a) {
                     Exit::At(end) if self.is_stand(a, end) => {
-                        for _ in 0..end {
-                            let kept = self.held.front().is_some_and(|h| h.speed.is_some());
-                            self.give(if kept {
-                                Verdict::Kept
-                            } else {
-                                Verdict::NoSpeed
-                            });
-                        }
+                        self.give_run(end, Verdict::Kept);
                         // The speed after the stand is judged from the speed before it.
                         self.anchor = Some(a);
                     }
-                    Exit::At(end) => {
-                        for _ in 0..end {
-                            let spike = self.held.front().is_some_and(|h| h.speed.is_some());
-                            self.give(if spike {
-                                Verdict::Spike(Some(a))
-                            } else {
-                                Verdict::NoSpeed
-                            });
-                        }
-                    }
+                    Exit::At(end) => self.give_run(end, Verdict::Spike(Some(a))),
                     Exit::Never => {
                         // The speed did not come back: the readings held are kept as
                         // they are (each reading is searched over once).
                         self.jumps_kept += 1;
-                        while let Some(h) = self.held.front() {
-                            self.give(if h.speed.is_some() {
-                                Verdict::Kept
-                            } else {
-                                Verdict::NoSpeed
-                            });
-                        }
+                        self.give_run(self.held.len(), Verdict::Kept);
                     }
                     Exit::Wait => return,
                 },
@@ -417,6 +395,16 @@ mod tests {
         (out, f.spikes, f.jumps_kept)
     }
 
+    /// `n` readings `period_s` apart of a drive at 11 m/s, zero over `zeros` (s).
+    fn drive_with_zeros(n: usize, period_s: f64, zeros: std::ops::Range<f64>) -> Vec<(f64, f64)> {
+        (0..n)
+            .map(|k| {
+                let t = k as f64 * period_s;
+                (t, if zeros.contains(&t) { 0.0 } else { 11.0 })
+            })
+            .collect()
+    }
+
     fn left_out(v: &[Verdict]) -> Vec<usize> {
         (v.iter().enumerate())
             .filter(|(_, v)| matches!(v, Verdict::Spike(_)))
@@ -452,18 +440,7 @@ mod tests {
     #[test]
     fn short_dips_are_spikes() {
         for (zeros, spikes) in [(1, 1), (2, 2), (3, 3), (4, 0)] {
-            let r: Vec<(f64, f64)> = (0..20)
-                .map(|k| {
-                    (
-                        k as f64,
-                        if (10..10 + zeros).contains(&k) {
-                            0.0
-                        } else {
-                            11.0
-                        },
-                    )
-                })
-                .collect();
+            let r = drive_with_zeros(20, 1.0, 10.0..10.0 + zeros as f64);
             let (v, n, jumps) = verdicts(&r);
             assert_eq!((n, jumps), (spikes, 0), "{zeros} zeros");
             assert_eq!(left_out(&v), (10..10 + spikes as usize).collect::<Vec<_>>());
@@ -593,19 +570,7 @@ mod tests {
     #[test]
     fn short_zeros_are_a_spike_and_long_ones_a_stand() {
         for (zeros_s, spikes) in [(2.0, 20), (5.0, 0)] {
-            let r: Vec<(f64, f64)> = (0..300)
-                .map(|k| {
-                    let t = k as f64 * 0.1;
-                    (
-                        t,
-                        if (10.0..10.0 + zeros_s).contains(&t) {
-                            0.0
-                        } else {
-                            11.0
-                        },
-                    )
-                })
-                .collect();
+            let r = drive_with_zeros(300, 0.1, 10.0..10.0 + zeros_s);
             let (v, n, jumps) = verdicts(&r);
             assert_eq!((n, jumps), (spikes, 0), "{zeros_s} s");
             assert_eq!(left_out(&v).len(), spikes as usize);
