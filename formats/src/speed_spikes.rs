@@ -215,8 +215,11 @@ impl<P> SpeedSpikes<P> {
                     Exit::At(end) => self.give_run(end, Verdict::Spike(Some(a))),
                     Exit::Never => {
                         // The speed did not come back: the readings held are kept as
-                        // they are (each reading is searched over once).
-                        self.jumps_kept += 1;
+                        // they are (each reading is searched over once). A jump to zero
+                        // is a stand's start, which the IMU judges: not counted.
+                        if c.1 != 0.0 {
+                            self.jumps_kept += 1;
+                        }
                         self.give_run(self.held.len(), Verdict::Kept);
                     }
                     Exit::Wait => return,
@@ -261,16 +264,17 @@ impl<P> SpeedSpikes<P> {
         self.finished || self.held.len() >= MAX_HELD || self.no_speed >= MAX_NO_SPEED
     }
 
-    /// Where a short dip or peak that begins at the front reading `c` ends (the held
-    /// index of the reading after it), if it is one: at most [`MAX_DIP_READINGS`]
-    /// readings within [`STAND_MIN_S`] of `c`, all beyond `a` and the reading after them
-    /// on the same side, which jumps back from them to a speed `a` reaches and that the
-    /// readings after it agree with. A vehicle
-    /// can brake into such a dip, but not pull away from it as fast. `Some(None)` when
-    /// it is none; `None` while more readings are needed.
+    /// Where a short dip that begins at the front reading `c` ends (the held index of
+    /// the reading after it), if it is one: at most [`MAX_DIP_READINGS`] readings within
+    /// [`STAND_MIN_S`] of `c`, all below `a` and the reading after them, which jumps back
+    /// up from them to a speed `a` reaches and that the readings after it agree with. A
+    /// vehicle can brake into such a dip, but not pull away from it as fast. A peak the
+    /// same way, but only one entered by a jump up from rest (no vehicle drives into a
+    /// peak it cannot brake out of but from a speed it could not reach). `Some(None)`
+    /// when it is none; `None` while more readings are needed.
     fn dip_end(&self, a: (f64, f64), c: (f64, f64)) -> Option<Option<usize>> {
         let below = c.1 < a.1;
-        if c.1 == a.1 {
+        if c.1 == a.1 || (!below && reaches(a, c)) {
             return Some(None);
         }
         let (mut prev, mut extreme, mut readings) = (c, c.1, 1);
@@ -279,10 +283,11 @@ impl<P> SpeedSpikes<P> {
                 continue;
             };
             if !reaches(prev, s) {
+                // Back across: up out of a dip, down from a peak.
                 let beyond = if below {
-                    extreme < a.1.min(s.1)
+                    s.1 > prev.1 && extreme < a.1.min(s.1)
                 } else {
-                    extreme > a.1.max(s.1)
+                    s.1 < prev.1 && extreme > a.1.max(s.1)
                 };
                 if !(beyond && reaches(a, s)) {
                     return Some(None);
@@ -463,6 +468,19 @@ mod tests {
             .collect();
         let (v, n, _) = verdicts(&r);
         assert_eq!((left_out(&v), n), (vec![13], 1));
+    }
+
+    /// A car pulling away at 10 Hz whose speed then reads zero for good (a stand's start,
+    /// the IMU's to judge): nothing left out, no jump counted.
+    #[test]
+    fn a_stand_that_starts_while_driving_is_left_to_the_imu() {
+        let r: Vec<(f64, f64)> = (0..1000)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                (t, if t < 10.0 { 3.0 + 0.25 * t } else { 0.0 })
+            })
+            .collect();
+        assert_eq!(verdicts(&r), (vec![Verdict::Kept; 1000], 0, 0));
     }
 
     /// A 10-Hz speed that reads 255 km/h for 5 s while the car brakes from 15 to 5 m/s,
