@@ -3,26 +3,32 @@
 //!
 //! A bus error or a logger that misreads a frame writes one wrong speed, or a run of them
 //! (an OBD-II logger's "invalid" 255 km/h), between good ones. The trapezoid turns each
-//! into distance: a 1-Hz file with one reading 30 m/s too fast puts the route 30 m
-//! ahead, and nothing said so. Here a reading the speed before it cannot reach
-//! ([`MAX_ACCEL_MPS2`] and [`MAX_BRAKING_MPS2`], with a slack for the reading's
-//! resolution and its age) opens a burst; the burst ends at the first reading that the speed before it can reach over
-//! the time between, that jumps back, and that the readings after it agree with in a row
-//! ([`CONFIRM`] and [`CONFIRM_S`] at least: junk agrees with itself by chance only). The burst's readings are left out: the
-//! trapezoid spans them, or, 3 s and longer, the gap they leave is bridged by the IMU as a
-//! dropout is. A jump whose speed does not come back within [`MAX_BURST_S`] is kept and
-//! counted: a speed alone cannot say which side of it is wrong. A burst of zeros over
-//! [`STAND_MIN_S`] or more is kept too: it is a stand, which the IMU judges, and a rise
-//! from zero opens no burst (a stand's end, or a drive-off). A short dip or peak (up to
-//! [`MAX_DIP_READINGS`]) that the vehicle could brake into but not come out of, the
-//! speeds either side of it agreeing without it (zeros between two readings at 11 m/s),
-//! is a spike too. The file's
-//! first reading, with no speed before it, is kept when the readings after it agree with
-//! it, or when it reaches the first reading that those after agree with.
+//! into distance: a 1-Hz file with one reading 30 m/s too fast puts the route 30 m ahead,
+//! and nothing said so.
 //!
-//! Streaming: readings are held only while a burst is open (at most [`MAX_BURST_S`] and
-//! [`MAX_HELD`] readings), then given out in order with their verdict. Readings without
-//! a speed (a line rejected, an IMU sample without a speed) go through in their place.
+//! - **Bursts.** A reading that the speed before it cannot reach ([`MAX_BRAKING_MPS2`],
+//!   [`MAX_ACCEL_MPS2`], with a slack for the reading's resolution and its age) opens a
+//!   burst. The burst ends at the first reading that jumps back to a speed the reading
+//!   before the burst reaches over the time between, and that the readings after it agree
+//!   with in a row ([`CONFIRM`] and [`CONFIRM_S`] at least: junk agrees with itself by
+//!   chance only). The burst's readings are left out: the trapezoid spans them, or, 3 s
+//!   and longer, the gap they leave is bridged by the IMU as a dropout is.
+//! - **Short dips.** Up to [`MAX_DIP_READINGS`] readings that the vehicle could brake
+//!   into but not pull away from, the speeds either side of them agreeing without them
+//!   (zeros between two readings at 11 m/s a second apart), are spikes too; a short peak
+//!   only when it was entered by a jump up from rest.
+//! - **Kept.** A jump whose speed does not come back within [`MAX_BURST_S`] is kept and
+//!   counted: a speed alone cannot say which side of it is wrong. Zeros over
+//!   [`STAND_MIN_S`] or more are a stand, which the IMU judges: a burst of them is kept, a
+//!   rise from zero opens no burst (a stand's end, or a drive-off), and a jump to zero
+//!   that stays is not counted.
+//! - **The first reading**, with no speed before it, is kept when the readings after it
+//!   agree with it, or when it reaches the first reading that those after agree with.
+//!
+//! Streaming: readings are held only while a burst or a dip may be open (at most
+//! [`MAX_BURST_S`] and [`MAX_HELD`] readings), then given out in order with their
+//! verdict. Readings without a speed (a line rejected, an IMU sample without a speed) go
+//! through in their place.
 
 use std::collections::VecDeque;
 
@@ -143,7 +149,7 @@ impl<P> SpeedSpikes<P> {
         self.no_speed = if speed.is_some() {
             0
         } else {
-            self.no_speed + 1
+            self.no_speed.saturating_add(1)
         };
         self.held.push_back(Held { speed, payload });
         self.decide();
