@@ -54,9 +54,17 @@ impl FaultLog {
     const KEPT: usize = 1000;
 
     fn push(&mut self, line: u64, reason: String) {
+        self.push_with(line, || reason);
+    }
+
+    /// As [`FaultLog::push`], the reason written only when it is kept.
+    fn push_with(&mut self, line: u64, reason: impl FnOnce() -> String) {
         self.total += 1;
         if self.kept.len() < Self::KEPT {
-            self.kept.push(LineFault { line, reason });
+            self.kept.push(LineFault {
+                line,
+                reason: reason(),
+            });
         }
     }
 }
@@ -409,15 +417,10 @@ impl<R: BufRead> OdometerFileReader<R> {
         (self.spikes.spikes, self.spikes.jumps_kept)
     }
 
-    fn reject(&mut self, line: u64, reason: String) {
+    /// The line `line` rejected, its reason written only when it is kept.
+    fn reject(&mut self, line: u64, reason: impl FnOnce() -> String) {
         self.report.lines_rejected += 1;
-        self.faults.push(line, reason);
-    }
-
-    /// A line rejected whose reason was not held (the faults kept were full).
-    fn reject_counted(&mut self) {
-        self.report.lines_rejected += 1;
-        self.faults.total += 1;
+        self.faults.push_with(line, reason);
     }
 
     /// A line rejected as it was read: at once for distances, in its place among the
@@ -425,7 +428,7 @@ impl<R: BufRead> OdometerFileReader<R> {
     fn reject_read(&mut self, reason: String) {
         let line = self.lines.line_no;
         match self.kind {
-            OdometerKind::DistanceM => self.reject(line, reason),
+            OdometerKind::DistanceM => self.reject(line, || reason),
             OdometerKind::SpeedMps => {
                 let kept = self.faults.kept.len() + self.held_reasons < FaultLog::KEPT;
                 self.held_reasons += usize::from(kept);
@@ -453,25 +456,23 @@ impl<R: BufRead> OdometerFileReader<R> {
                 match (read, verdict) {
                     (Err(Some(reason)), _) => {
                         self.held_reasons -= 1;
-                        self.reject(line, reason);
+                        self.reject(line, || reason);
                     }
-                    (Err(None), _) => self.reject_counted(),
-                    (Ok((t, v)), Verdict::Spike(from)) => {
-                        let reason = match from {
-                            Some((t0, v0)) => format!(
-                                "speed {v} m/s at {t} s left out: it jumped from {v0} m/s at \
-                                 {t0} s faster than a land vehicle brakes or accelerates \
-                                 ({MAX_BRAKING_MPS2} and {MAX_ACCEL_MPS2} m/s²) and came \
-                                 back (a spike)"
-                            ),
-                            None => format!(
-                                "speed {v} m/s at {t} s left out: the readings after it, the \
-                                 first of the file, jump from it faster than a land vehicle \
-                                 brakes or accelerates (a spike)"
-                            ),
-                        };
-                        self.reject(line, reason);
-                    }
+                    // Not held: the faults kept were full, as they are now.
+                    (Err(None), _) => self.reject(line, String::new),
+                    (Ok((t, v)), Verdict::Spike(from)) => self.reject(line, || match from {
+                        Some((t0, v0)) => format!(
+                            "speed {v} m/s at {t} s left out: it jumped from {v0} m/s at \
+                             {t0} s faster than a land vehicle brakes or accelerates \
+                             ({MAX_BRAKING_MPS2} and {MAX_ACCEL_MPS2} m/s²) and came \
+                             back (a spike)"
+                        ),
+                        None => format!(
+                            "speed {v} m/s at {t} s left out: the readings after it, the \
+                             first of the file, jump from it faster than a land vehicle \
+                             brakes or accelerates (a spike)"
+                        ),
+                    }),
                     (Ok((t, v)), _) => return Ok(Some(self.accept(t, v))),
                 }
             }
