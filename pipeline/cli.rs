@@ -110,6 +110,11 @@ pub struct SimulateArgs {
     /// own. Not with a mark lever arm.
     #[arg(long)]
     pub out_and_back: bool,
+    /// Write the IMU's increments in these axes (where the log's x, y, z point on the
+    /// vehicle: F/B, R/L, D/U; "FLU" for ROS's x forward, y left, z up), as an IMU
+    /// mounted so would log them; the manifest names them in `[params.vehicle] imu_axes`.
+    #[arg(long, default_value = "FRD")]
+    pub imu_axes: unz_stages::imu_axes::ImuAxes,
 }
 
 /// Arguments shared by the stage commands.

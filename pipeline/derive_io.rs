@@ -27,24 +27,32 @@ fn f64s(v: &[f64]) -> Arc<Float64Array> {
 
 /// Writes `derived.parquet`, `epochs.parquet` and `blocks.parquet` into `dir`.
 pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
-    let schema = schema::derived([
-        (derived_meta::BLOCK, d.block.to_string()),
-        (derived_meta::NOMINAL_DT_S, d.nominal_dt_s.to_string()),
-        (derived_meta::REPAIRED_TIMES, d.repaired_times.to_string()),
-        (derived_meta::FILLED_GAPS, d.filled_gaps.to_string()),
-        (
-            derived_meta::IMU_FAILURES,
-            d.imu_failure_samples.to_string(),
-        ),
-        (
-            derived_meta::ODO_FAILURES,
-            d.odometer_failure_samples.to_string(),
-        ),
-        (
-            derived_meta::OUT_OF_RANGE,
-            d.out_of_range_samples.to_string(),
-        ),
-    ]);
+    let axes_check = d
+        .axes_check
+        .map(|c| serde_json::to_string(&c))
+        .transpose()?;
+    let schema = schema::derived(
+        [
+            (derived_meta::BLOCK, d.block.to_string()),
+            (derived_meta::NOMINAL_DT_S, d.nominal_dt_s.to_string()),
+            (derived_meta::REPAIRED_TIMES, d.repaired_times.to_string()),
+            (derived_meta::FILLED_GAPS, d.filled_gaps.to_string()),
+            (
+                derived_meta::IMU_FAILURES,
+                d.imu_failure_samples.to_string(),
+            ),
+            (
+                derived_meta::ODO_FAILURES,
+                d.odometer_failure_samples.to_string(),
+            ),
+            (
+                derived_meta::OUT_OF_RANGE,
+                d.out_of_range_samples.to_string(),
+            ),
+        ]
+        .into_iter()
+        .chain(axes_check.map(|c| (derived_meta::IMU_AXES_CHECK, c))),
+    );
     // In batches of 65 536 rows: the columns of one batch are copied at a time, whatever
     // the run's length.
     const ROWS: usize = 1 << 16;
@@ -280,6 +288,10 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
         imu_failure_samples: meta(derived_meta::IMU_FAILURES)?.parse()?,
         out_of_range_samples: meta(derived_meta::OUT_OF_RANGE)?.parse()?,
         odometer_failure_samples: meta(derived_meta::ODO_FAILURES)?.parse()?,
+        axes_check: (schema.metadata().get(derived_meta::IMU_AXES_CHECK))
+            .map(|c| serde_json::from_str(c))
+            .transpose()
+            .with_context(|| format!("{}: {}", path.display(), derived_meta::IMU_AXES_CHECK))?,
         ..Derived::default()
     };
     let bpath = dir.join(files::BLOCKS);

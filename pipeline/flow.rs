@@ -6,6 +6,7 @@
 //! derive, the control points and the initial settings) and [`marks`] which mark stands
 //! for a control point, then [`navigate`] and [`criteria`] stages 3a and 3b.
 
+pub mod axes;
 pub mod case;
 pub mod criteria;
 pub mod ingest_derive;
@@ -25,7 +26,7 @@ pub use case::{
 pub use criteria::{CriteriaSummary, ensure_criteria, load_criteria};
 pub use ingest_derive::{ensure_derive, ensure_finite, ensure_ingest, site_gravity_mps2};
 pub use ingested::{IngestedSeries, OdometerTags};
-pub use navigate::{NavigateSummary, ensure_navigate};
+pub use navigate::{ImuAxesReport, NavigateSummary, ensure_navigate};
 pub use run_ctx::RunCtx;
 
 /// Parameters of every stage (defaults built in).

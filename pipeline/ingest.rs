@@ -32,6 +32,7 @@ use unz_formats::schema::DistanceSource;
 use unz_formats::speed_spikes::{SpeedSpikes, Verdict};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
 use unz_formats::{IngestEvents, IngestReport, schema};
+use unz_stages::imu_axes::ImuAxes;
 
 /// Rows per Parquet batch.
 const BATCH_ROWS: usize = 1 << 16;
@@ -74,6 +75,10 @@ pub struct IngestOptions {
     /// The odometer's lag as configured, s (the derive's `odo_time_offset_s`, negated):
     /// an odometer failure's bridge searches its lag about it.
     pub odo_lag_prior_s: f64,
+    /// The log's IMU axes on the vehicle (`[vehicle] imu_axes`): each sample's
+    /// increments are turned into the body's FRD as they are read, before anything
+    /// (the odometer's judgements among them) looks at them.
+    pub imu_axes: ImuAxes,
 }
 
 /// The status bit of an odometer failure (the raw-format spec's §1.2).
@@ -299,8 +304,14 @@ fn ingest_binary(
                 let t_ns = i64::try_from(s.raw.t_us)
                     .unwrap_or(i64::MAX / 1000)
                     .saturating_mul(1000);
-                let dtheta_rad = s.raw.dtheta.map(|c| f64::from(c) * header.dtheta_lsb_rad);
-                let dvel_mps = s.raw.dvel.map(|c| f64::from(c) * header.dvel_lsb_mps);
+                // The counts are turned (whole numbers: a zero stays +0.0), then scaled.
+                let axes = options.imu_axes;
+                let dtheta_rad = axes
+                    .to_body(s.raw.dtheta.map(i64::from))
+                    .map(|c| c as f64 * header.dtheta_lsb_rad);
+                let dvel_mps = axes
+                    .to_body(s.raw.dvel.map(i64::from))
+                    .map(|c| c as f64 * header.dvel_lsb_mps);
                 let p0 = *first_pulses.get_or_insert(s.odo_pulses);
                 let failed = s.raw.status & STATUS_ODOMETER_FAILED != 0;
                 // A failed odometer's count is not read, nor judged against a land
@@ -411,7 +422,11 @@ fn ingest_text(
             ColumnBridger::new(g_mps2, options.odo_lag_prior_s),
         )
     });
-    while let Some(s) = reader.next_sample().map_err(|e| e.in_file(path))? {
+    while let Some(mut s) = reader.next_sample().map_err(|e| e.in_file(path))? {
+        if !options.imu_axes.is_frd() {
+            s.dtheta_rad = options.imu_axes.to_body(s.dtheta_rad);
+            s.dvel_mps = options.imu_axes.to_body(s.dvel_mps);
+        }
         let t_ns = tag_ns(s.t_s);
         let rows = &mut sinks.imu_rows;
         rows.t_ns.push(t_ns);

@@ -1047,3 +1047,77 @@ fn kingston_control_points_fit_a_reference_point_ahead_of_the_axle() {
     );
     assert!((ahead.1 - at.1).abs() < 0.02, "{ahead:?} {at:?}");
 }
+
+/// The real log written in an IMU's own axes, as an IMU mounted upside down (ROS's
+/// x forward, y left, z up) or sideways (x right, y forward, z up) logs them. The
+/// previous build took them for the body's axes: the upside-down log's Kryt1 compared
+/// the gyros' roll of 180° with the accelerometers' of 0°, its joint fit left its bounds
+/// (odometer scale +32 %, pitch levelling 95 mrad) and OEPI's route was taken, 12.8 m
+/// off at the last control point (the intact log's joint: 0.4 m); the sideways log's was
+/// 1.37 km off. Now the derive fails each, naming the setting that fixes it; with the
+/// setting, every table from the ingest to the corrected navigation is the intact log's,
+/// byte for byte (the turn only moves and negates numbers).
+#[test]
+fn kingston_logged_in_the_imus_own_axes() {
+    use unz_stages::imu_axes::ImuAxes;
+
+    let tmp = tempfile::tempdir().unwrap();
+    let intact = kingston_with(&tmp.path().join("intact"), "");
+    crate::util::run_until(&intact, &tmp.path().join("intact-o"), "disupt");
+    let imu = std::fs::read_to_string(intact.join("imu.txt")).unwrap();
+    for (axes, words) in [
+        ("FLU", "x forward, y left, z up"),
+        ("RFU", "x right, y forward, z up"),
+    ] {
+        let a: ImuAxes = axes.parse().unwrap();
+        let run = kingston_with(&tmp.path().join(axes), "");
+        // Each increment in the log's axes, written so it reads back exactly.
+        let text: String = imu
+            .lines()
+            .map(|l| {
+                let f: Vec<&str> = l.split_whitespace().collect();
+                let v: Vec<f64> = f[1..7].iter().map(|x| x.parse().unwrap()).collect();
+                let dtheta = a.to_log([v[0], v[1], v[2]]);
+                let dvel = a.to_log([v[3], v[4], v[5]]);
+                let [a0, a1, a2] = dtheta;
+                let [v0, v1, v2] = dvel;
+                format!("{} {a0} {a1} {a2} {v0} {v1} {v2}\n", f[0])
+            })
+            .collect();
+        std::fs::write(run.join("imu.txt"), text).unwrap();
+        let out = tmp.path().join(format!("{axes}-o"));
+        let err = crate::util::stage_fails("derive", &run, &out);
+        assert!(err.contains("stage derive failed"), "{axes}: {err}");
+        assert!(
+            err.contains(&format!("imu_axes = \"{axes}\"")),
+            "{axes}: {err}"
+        );
+        assert!(err.contains(words), "{axes}: {err}");
+
+        let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+        let named = format!("{manifest}\n[params.vehicle]\nimu_axes = \"{axes}\"\n");
+        std::fs::write(run.join("run.toml"), named).unwrap();
+        crate::util::run_until(&run, &out, "disupt");
+        for file in [
+            "ingest/imu.parquet",
+            "ingest/odometer.parquet",
+            "derive/derived.parquet",
+            "derive/epochs.parquet",
+            "navigate/nav.parquet",
+            "disupt/disupt.json",
+            "disupt/corrected_nav.parquet",
+        ] {
+            let at = |o: &str| {
+                let path = tmp.path().join(o).join("kingston2008-segment1").join(file);
+                std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+            };
+            assert!(at("intact-o") == at(&format!("{axes}-o")), "{axes}: {file}");
+        }
+        let nav: unz::flow::NavigateSummary =
+            read_json(&out.join("kingston2008-segment1/navigate/navigate.json"));
+        let report = nav.imu_axes.unwrap();
+        assert_eq!(report.named, a);
+        assert!(report.check.tilt_deg < 2.0, "{report:?}");
+        assert!(report.check.forward_turn_deg.abs() < 5.0, "{report:?}");
+    }
+}

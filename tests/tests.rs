@@ -1,5 +1,6 @@
 //! End-to-end tests of the `unz` binary. One module per area.
 
+mod axes;
 mod campaign;
 mod cli;
 mod damaged;

@@ -120,6 +120,14 @@ pub fn run_until_with(run: &Path, out: &Path, stage: &str, extra: &[&str]) {
     unz_ok(&args);
 }
 
+/// Runs `unz STAGE RUN --out OUT`, which must fail: its standard error.
+pub fn stage_fails(stage: &str, run: &Path, out: &Path) -> String {
+    let o = unz_output(&[stage, run.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(!o.status.success(), "unz {stage} succeeded: {err}");
+    err
+}
+
 /// Every file below `root`, relative to it, sorted.
 pub fn files_below(root: &Path) -> Vec<PathBuf> {
     let mut out = Vec::new();

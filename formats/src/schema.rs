@@ -258,6 +258,9 @@ pub mod derived_meta {
     pub const ODO_FAILURES: &str = "unz.odometer_failure_samples";
     /// Samples whose increments exceeded the IMU's range and were replaced.
     pub const OUT_OF_RANGE: &str = "unz.out_of_range_samples";
+    /// The check of the IMU's axes against the vehicle's (JSON of
+    /// `unz_stages::imu_axes::AxesCheck`).
+    pub const IMU_AXES_CHECK: &str = "unz.imu_axes_check";
 }
 
 fn f64_field(name: &str, unit: &str) -> Field {

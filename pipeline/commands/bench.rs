@@ -67,6 +67,7 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
             IngestOptions {
                 mcap: None,
                 odo_lag_prior_s: 0.0,
+                imu_axes: Default::default(),
             },
         ),
         (
@@ -74,6 +75,7 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
             IngestOptions {
                 mcap: Some(McapCompression::None),
                 odo_lag_prior_s: 0.0,
+                imu_axes: Default::default(),
             },
         ),
         (
@@ -81,6 +83,7 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
             IngestOptions {
                 mcap: Some(McapCompression::Zstd),
                 odo_lag_prior_s: 0.0,
+                imu_axes: Default::default(),
             },
         ),
     ] {

@@ -36,6 +36,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         log_start_s: None,
         mark_lever_arm_m: None,
         out_and_back: false,
+        imu_axes: unz_stages::imu_axes::ImuAxes::FRD,
     };
     let dirs: Vec<PathBuf> = super::simulate::configs(&sim)?
         .par_iter()

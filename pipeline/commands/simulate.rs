@@ -57,7 +57,10 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
         mark_lever_arm_m = a;
         // The range the manifest's `[params.vehicle]` is held to.
         crate::config::validate(&crate::flow::Params {
-            vehicle: crate::flow::VehicleParams { mark_lever_arm_m },
+            vehicle: crate::flow::VehicleParams {
+                mark_lever_arm_m,
+                ..Default::default()
+            },
             ..Default::default()
         })
         .map_err(|e| anyhow::anyhow!("--mark-lever-arm-m: {e}"))?;
@@ -75,6 +78,7 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             c.log_start_s = args.log_start_s;
             c.mark_lever_arm_m = mark_lever_arm_m;
             c.out_and_back = args.out_and_back;
+            c.imu_axes = args.imu_axes;
             c.errors = SensorErrors {
                 noise: !args.no_noise,
                 gyro_drift: !args.no_gyro_drift,

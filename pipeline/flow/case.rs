@@ -15,6 +15,7 @@ use unz_stages::criteria::ControlPointFix;
 use unz_stages::derive::Derived;
 use unz_stages::disupt::ProblemSpec;
 use unz_stages::earth::Geodetic;
+use unz_stages::imu_axes::ImuAxes;
 use unz_stages::in_motion_level::{Free, IN_MOTION_LEVEL_WINDOW_S, level_in_motion};
 use unz_stages::initial::{
     InMotionLevelReport, InitialReport, InitialRequest, Source, initial_settings_with_velocity,
@@ -70,6 +71,11 @@ pub struct VehicleParams {
     /// the wheels' distance along the body's x, so it follows the point that does not
     /// slip sideways (a rigid axle's middle). Every control point's error is the mark's.
     pub mark_lever_arm_m: [f64; 3],
+    /// Where the log's IMU axes point on the vehicle (`"FRD"`, the default: x forward,
+    /// y right, z down; `"FLU"`, `"RFU"`…): the ingest turns the increments into the
+    /// body's FRD, and the derive fails a log whose gravity or odometer says its axes are
+    /// other than the ones named.
+    pub imu_axes: ImuAxes,
 }
 
 impl VehicleParams {

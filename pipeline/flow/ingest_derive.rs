@@ -8,6 +8,7 @@ use unz_formats::IngestReport;
 use unz_formats::manifest::RunManifest;
 use unz_stages::earth;
 
+use super::axes::check_axes;
 use super::{IngestedSeries, Params, RunCtx};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::{as_stored, write_derived};
@@ -47,6 +48,7 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             m.odometer.scale_m_per_pulse,
             params.ingest,
             params.derive.odo_time_offset_s,
+            params.vehicle.imu_axes,
         ))?,
         inputs,
         outputs: &INGEST_OUTPUTS,
@@ -54,6 +56,7 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let options = IngestOptions {
         mcap: Some(params.ingest.raw_mcap_compression),
         odo_lag_prior_s: -params.derive.odo_time_offset_s,
+        imu_axes: params.vehicle.imu_axes,
     };
     ctx.run_stage(&stage, || ingest(m, &dir, options).map(|_| ()))?;
     Ok(dir)
@@ -73,8 +76,8 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         dir: dir.clone(),
         name: "derive",
         // 7: an odometer count that stood while the vehicle moved counts with the
-        // flagged samples against a tenth of the run.
-        version: 7,
+        // flagged samples against a tenth of the run. 8: the IMU's axes checked.
+        version: 8,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
@@ -156,6 +159,11 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ensure_finite("odometer distance", d.odo_dist_m.iter().copied())?;
         ensure_finite("accelerometer pitch", d.epochs.theta_p_rad.iter().copied())?;
         ensure_finite("accelerometer roll", d.epochs.phi_p_rad.iter().copied())?;
+        d.axes_check = Some(check_axes(
+            &d,
+            params.vehicle.imu_axes,
+            site_gravity_mps2(m),
+        )?);
         write_derived(&d, &dir)?;
         let mut d = as_stored(d);
         // Beyond the static start (which the alignment reads from the file), only the

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
 use unz_stages::criteria::{self, Kryt2};
+use unz_stages::imu_axes::{AxesCheck, ImuAxes};
 use unz_stages::initial::InitialReport;
 
 use super::marks::{RepeatedMark, UnknownMarks};
@@ -54,6 +55,21 @@ pub struct NavigateSummary {
     /// sample's rates (a run fails above a hundredth).
     #[serde(default)]
     pub out_of_range_samples: usize,
+    /// The IMU's axes: as named, and what the log's data say of them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub imu_axes: Option<ImuAxesReport>,
+}
+
+/// The log's IMU axes as named (`[vehicle] imu_axes`; the ingest turned the increments
+/// from them into the body's FRD), and the derive's check of the turned increments.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ImuAxesReport {
+    /// The log's axes as named.
+    pub named: ImuAxes,
+    /// What the increments, turned, say of the body's axes: gravity's direction
+    /// (`tilt_deg` from down) and the odometer's accelerations' (`forward_turn_deg` from
+    /// x; judged when `forward_correlation` ≥ 0.5 over enough driving).
+    pub check: AxesCheck,
 }
 
 /// Stage 3a: navigation.
@@ -114,6 +130,10 @@ pub fn ensure_navigate(
             imu_failure_samples: case.derived.imu_failure_samples,
             out_of_range_samples: case.derived.out_of_range_samples,
             odometer_failure_samples: case.derived.odometer_failure_samples,
+            imu_axes: case.derived.axes_check.map(|check| ImuAxesReport {
+                named: params.vehicle.imu_axes,
+                check,
+            }),
         };
         write_json_atomic(&dir.join(files::NAVIGATE_REPORT), &summary)?;
         Ok(())

@@ -164,6 +164,10 @@ pub struct Derived {
     /// [`ACCEL_RANGE_MPS2`]): saturated or corrupt counts, replaced by the previous
     /// sample's rates.
     pub out_of_range_samples: usize,
+    /// What the increments say of the IMU's axes against the vehicle's (gravity's
+    /// direction, the odometer's accelerations): set by the derive stage, which fails a
+    /// log whose axes are not the vehicle's.
+    pub axes_check: Option<crate::imu_axes::AxesCheck>,
 }
 
 /// Eqs 9–11 at one sample ([`Derived::odometer_speeds`]).
@@ -217,6 +221,7 @@ impl Derived {
             imu_failure_samples: self.imu_failure_samples,
             odometer_failure_samples: self.odometer_failure_samples,
             out_of_range_samples: self.out_of_range_samples,
+            axes_check: self.axes_check,
         }
     }
 

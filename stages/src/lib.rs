@@ -20,6 +20,7 @@ pub mod derive;
 pub mod disupt;
 pub mod earth;
 pub mod filter;
+pub mod imu_axes;
 pub mod in_motion_level;
 pub mod initial;
 pub mod linearized;

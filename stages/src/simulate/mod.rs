@@ -19,6 +19,7 @@ use rand_distr::StandardNormal;
 
 use crate::attitude::Euler;
 use crate::earth::{self, Geodetic};
+use crate::imu_axes::ImuAxes;
 use crate::units::{DEG_PER_H, DEG_PER_SQRT_H, MILLI_G};
 pub use sensor::{SensorMark, SensorSample, SensorSpec};
 
@@ -98,6 +99,10 @@ pub struct SimConfig {
     /// vehicle stands level at the start (no constant tilt). The navigated point stops over
     /// the point both ways, so the mark's lever arm must be zero.
     pub out_and_back: bool,
+    /// The IMU's axes on the vehicle, as its log gives them (`"FRD"` by default): the
+    /// counts are written in them, and the manifest names them in `[params.vehicle]
+    /// imu_axes`.
+    pub imu_axes: ImuAxes,
 }
 
 impl SimConfig {
@@ -117,6 +122,7 @@ impl SimConfig {
             log_start_s: None,
             mark_lever_arm_m: [0.0; 3],
             out_and_back: false,
+            imu_axes: ImuAxes::FRD,
         }
     }
 }
@@ -400,8 +406,8 @@ pub fn simulate(config: &SimConfig) -> SimRun {
         records.push(SensorSample {
             seq: k as u32,
             t_us,
-            dtheta_counts: rec_theta,
-            dvel_counts: rec_vel,
+            dtheta_counts: config.imu_axes.to_log(rec_theta),
+            dvel_counts: config.imu_axes.to_log(rec_vel),
             odo_count: 0, // below, from the truth's distance (and the odometer's lag)
             status: 0,
         });
@@ -537,11 +543,15 @@ impl SimRun {
             st = self.manifest_static_s,
         );
         let arm = self.config.mark_lever_arm_m;
+        let axes = self.config.imu_axes;
+        if arm != [0.0; 3] || !axes.is_frd() {
+            s += "\n[params.vehicle]\n";
+        }
         if arm != [0.0; 3] {
-            s += &format!(
-                "\n[params.vehicle]\nmark_lever_arm_m = [{}, {}, {}]\n",
-                arm[0], arm[1], arm[2]
-            );
+            s += &format!("mark_lever_arm_m = [{}, {}, {}]\n", arm[0], arm[1], arm[2]);
+        }
+        if !axes.is_frd() {
+            s += &format!("imu_axes = \"{axes}\"\n");
         }
         let mut listed = std::collections::BTreeSet::new();
         for cp in self.control_points.iter().filter(|c| listed.insert(c.id)) {

@@ -1,0 +1,111 @@
+//! The derive's check of the log's IMU axes against the vehicle's (FRD), with the
+//! setting that fixes a log written in other axes.
+
+use anyhow::bail;
+use unz_stages::derive::Derived;
+use unz_stages::imu_axes::{AxesCheck, AxesVerdict, GRAVITY_TOLERANCE, ImuAxes, MAX_TILT_DEG};
+
+/// Checks `d` (ingested in the `declared` axes) against gravity `g_mps2`: fails, naming
+/// the setting that would fix it, when its gravity or its odometer says its axes are not
+/// the vehicle's. A log shorter than
+/// [`unz_stages::imu_axes::CHECK_MIN_S`] is not judged.
+pub fn check_axes(d: &Derived, declared: ImuAxes, g_mps2: f64) -> anyhow::Result<AxesCheck> {
+    let check = AxesCheck::of(d);
+    let mean = check
+        .mean_specific_force_mps2
+        .map(|v| format!("{v:.2}"))
+        .join(", ");
+    let as_named = if declared.is_frd() {
+        String::new()
+    } else {
+        format!(" as [vehicle] imu_axes = \"{declared}\" turned them")
+    };
+    match check.verdict(g_mps2) {
+        AxesVerdict::Agree | AxesVerdict::TooShort => Ok(check),
+        AxesVerdict::NotGravity => bail!(
+            "the accelerometers' mean over the log is [{mean}] m/s²{as_named}, {:.2} m/s² in \
+             size where gravity is {g_mps2:.2} m/s² (±{:.0} %): the log's velocity \
+             increments are not in m/s (g·s, or rates instead of increments?)",
+            norm(check.mean_specific_force_mps2),
+            GRAVITY_TOLERANCE * 100.0
+        ),
+        AxesVerdict::Tilted => bail!(
+            "the accelerometers' mean over the log, [{mean}] m/s² in the body's axes{as_named}, \
+             is {:.0}° from the body's down and more than {MAX_TILT_DEG}° from every right \
+             angle: the IMU is mounted at an angle [vehicle] imu_axes cannot name (right \
+             angles only), or the log is not a land vehicle's",
+            check.tilt_deg
+        ),
+        AxesVerdict::Other {
+            found,
+            forward_shown,
+        } => {
+            let log_axes = declared.then(found);
+            let down = if check.tilt_deg > MAX_TILT_DEG {
+                format!("({})", down_words(found))
+            } else {
+                "as it should be".to_owned()
+            };
+            let gravity = format!(
+                "its accelerometers' mean over the log, [{mean}] m/s², is {:.0}° from the \
+                 body's down {down}",
+                check.tilt_deg,
+            );
+            let setting = "in the campaign's --config, or the run's [params.vehicle]";
+            if forward_shown {
+                let odometer = if check.tilt_deg <= MAX_TILT_DEG {
+                    // Forward lies the turn from x towards y: to the right when positive.
+                    let side = if check.forward_turn_deg > 0.0 {
+                        "right"
+                    } else {
+                        "left"
+                    };
+                    format!(
+                        "and the odometer's accelerations put the vehicle's forward {:.0}° to \
+                         the {side} of its x (correlation {:.2})",
+                        check.forward_turn_deg.abs(),
+                        check.forward_correlation
+                    )
+                } else {
+                    format!(
+                        "and the odometer's accelerations (correlation {:.2}) place forward",
+                        check.forward_correlation
+                    )
+                };
+                bail!(
+                    "the log's IMU axes{as_named} are not the vehicle's x forward, y right, z \
+                     down: {gravity}, {odometer}. The log's axes are {}: set [vehicle] \
+                     imu_axes = \"{log_axes}\" ({setting})",
+                    log_axes.words()
+                )
+            }
+            bail!(
+                "the log's IMU axes{as_named} are not the vehicle's x forward, y right, z \
+                 down: {gravity}; the drive does not show which way is forward (the \
+                 odometer's accelerations too few or not correlated with the accelerometers'). \
+                 Set [vehicle] imu_axes to the log's axes ({setting}): \"{log_axes}\" if they \
+                 are {}",
+                log_axes.words()
+            )
+        }
+    }
+}
+
+/// "z points up", of the axis that points up or down.
+fn down_words(axes: ImuAxes) -> String {
+    use unz_stages::imu_axes::Direction::{Down, Up};
+    let names = ["x", "y", "z"];
+    axes.directions()
+        .iter()
+        .zip(names)
+        .find_map(|(d, n)| match d {
+            Down => Some(format!("{n} points down")),
+            Up => Some(format!("{n} points up")),
+            _ => None,
+        })
+        .unwrap_or_default()
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}

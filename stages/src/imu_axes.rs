@@ -1,0 +1,559 @@
+//! The IMU's axes on the vehicle.
+//!
+//! The method reads a log's increments in the vehicle's body axes, FRD: x forward, y
+//! right, z down (method.md). Kryt1's accelerometer pitch and roll take the odometer's
+//! acceleration off x and its centripetal term off y, and assume the vehicle upright;
+//! dead reckoning carries the odometer's distance along x. A log written in the IMU's own
+//! axes, with the IMU mounted sideways or upside down (or in ROS's x forward, y left,
+//! z up), breaks all three. [`ImuAxes`] names such a log's axes (`[vehicle] imu_axes`),
+//! and the ingest turns its increments into FRD; [`AxesCheck`] tells from the log's own
+//! data whether the axes it was ingested in are the vehicle's: gravity's direction says
+//! which way is down, and the odometer's accelerations which way is forward.
+
+use std::fmt;
+use std::str::FromStr;
+
+use crate::derive::Derived;
+
+/// A direction on the vehicle, as a log's axis may point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Direction {
+    /// Forward (the body's +x).
+    Forward,
+    /// Backward (−x).
+    Backward,
+    /// Right (+y).
+    Right,
+    /// Left (−y).
+    Left,
+    /// Down (+z).
+    Down,
+    /// Up (−z).
+    Up,
+}
+
+impl Direction {
+    const ALL: [Self; 6] = [
+        Self::Forward,
+        Self::Backward,
+        Self::Right,
+        Self::Left,
+        Self::Down,
+        Self::Up,
+    ];
+
+    /// The body axis (0 x, 1 y, 2 z) and its sign.
+    fn body_axis(self) -> (usize, f64) {
+        match self {
+            Self::Forward => (0, 1.0),
+            Self::Backward => (0, -1.0),
+            Self::Right => (1, 1.0),
+            Self::Left => (1, -1.0),
+            Self::Down => (2, 1.0),
+            Self::Up => (2, -1.0),
+        }
+    }
+
+    fn of(axis: usize, negative: bool) -> Self {
+        let i = 2 * axis + usize::from(negative);
+        Self::ALL[i]
+    }
+
+    fn letter(self) -> char {
+        match self {
+            Self::Forward => 'F',
+            Self::Backward => 'B',
+            Self::Right => 'R',
+            Self::Left => 'L',
+            Self::Down => 'D',
+            Self::Up => 'U',
+        }
+    }
+
+    fn word(self) -> &'static str {
+        match self {
+            Self::Forward => "forward",
+            Self::Backward => "back",
+            Self::Right => "right",
+            Self::Left => "left",
+            Self::Down => "down",
+            Self::Up => "up",
+        }
+    }
+}
+
+/// Where a log's x, y and z axes point on the vehicle, written as three letters (`"FRD"`,
+/// the default and the method's body axes; `"FLU"`, ROS's x forward, y left, z up;
+/// `"RFU"`, x right, y forward, z up): F/B forward/back, R/L right/left, D/U down/up.
+/// Only right angles, and only right-handed axes: a left-handed set is a log with one
+/// axis's sign flipped, which no mounting makes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub struct ImuAxes([Direction; 3]);
+
+impl Default for ImuAxes {
+    fn default() -> Self {
+        Self::FRD
+    }
+}
+
+/// Why three letters name no IMU axes.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum AxesError {
+    /// Not three of F, B, R, L, D, U.
+    #[error(
+        "\"{0}\" is not three of F, B, R, L, D, U (where the log's x, y and z point on the \
+         vehicle: forward/back, right/left, down/up; \"FRD\" is the method's body axes)"
+    )]
+    Letters(String),
+    /// Two axes along the same vehicle direction.
+    #[error("\"{0}\" points two of the log's axes along the same line")]
+    Repeated(String),
+    /// A left-handed set.
+    #[error(
+        "\"{0}\" is left-handed: no mounting gives it (one of the log's axes has its sign \
+         flipped; \"{1}\" is the right-handed set with the same x and y)"
+    )]
+    LeftHanded(String, String),
+}
+
+impl ImuAxes {
+    /// The method's body axes: x forward, y right, z down.
+    pub const FRD: Self = Self([Direction::Forward, Direction::Right, Direction::Down]);
+
+    /// Every right-handed set at right angles (24).
+    pub fn all() -> impl Iterator<Item = Self> {
+        (0..216).filter_map(|k: usize| {
+            let d = [k % 6, k / 6 % 6, k / 36].map(|i| Direction::ALL[i]);
+            Self::new(d).ok()
+        })
+    }
+
+    /// The set `dirs`, if right-handed at right angles.
+    pub fn new(dirs: [Direction; 3]) -> Result<Self, AxesError> {
+        let m = Self(dirs).matrix();
+        let text = || dirs.iter().map(|d| d.letter()).collect::<String>();
+        let axes = dirs.map(|d| d.body_axis().0);
+        if axes[0] == axes[1] || axes[1] == axes[2] || axes[0] == axes[2] {
+            return Err(AxesError::Repeated(text()));
+        }
+        if det(&m) < 0.0 {
+            let (a, s) = dirs[2].body_axis();
+            let flipped = Direction::of(a, s > 0.0);
+            let mut right = dirs;
+            right[2] = flipped;
+            let right = right.iter().map(|d| d.letter()).collect();
+            return Err(AxesError::LeftHanded(text(), right));
+        }
+        Ok(Self(dirs))
+    }
+
+    /// Whether these are the method's body axes (nothing to turn).
+    pub fn is_frd(&self) -> bool {
+        *self == Self::FRD
+    }
+
+    /// The direction each of the log's axes points on the vehicle.
+    pub fn directions(&self) -> [Direction; 3] {
+        self.0
+    }
+
+    /// `v` given in the log's axes, in the body's (FRD): exact, as only signs and places
+    /// change.
+    pub fn to_body<T: Copy + std::ops::Neg<Output = T>>(&self, v: [T; 3]) -> [T; 3] {
+        let mut out = v;
+        for (i, d) in self.0.iter().enumerate() {
+            let (axis, sign) = d.body_axis();
+            out[axis] = if sign > 0.0 { v[i] } else { -v[i] };
+        }
+        out
+    }
+
+    /// `v` given in the body's axes, in the log's ([`Self::to_body`] undone).
+    pub fn to_log<T: Copy + std::ops::Neg<Output = T>>(&self, v: [T; 3]) -> [T; 3] {
+        let mut out = v;
+        for (i, d) in self.0.iter().enumerate() {
+            let (axis, sign) = d.body_axis();
+            out[i] = if sign > 0.0 { v[axis] } else { -v[axis] };
+        }
+        out
+    }
+
+    /// The log's axes when it was ingested in `self` and those axes are `then` on the
+    /// vehicle.
+    pub fn then(&self, then: Self) -> Self {
+        Self(self.0.map(|d| {
+            let (axis, sign) = d.body_axis();
+            let (to, to_sign) = then.0[axis].body_axis();
+            Direction::of(to, sign * to_sign < 0.0)
+        }))
+    }
+
+    /// In words: "x right, y forward, z up".
+    pub fn words(&self) -> String {
+        let [x, y, z] = self.0.map(Direction::word);
+        format!("x {x}, y {y}, z {z}")
+    }
+
+    /// Rows: the body axes; columns: the log's.
+    fn matrix(&self) -> [[f64; 3]; 3] {
+        let mut m = [[0.0; 3]; 3];
+        for (i, d) in self.0.iter().enumerate() {
+            let (axis, sign) = d.body_axis();
+            m[axis][i] = sign;
+        }
+        m
+    }
+}
+
+fn det(m: &[[f64; 3]; 3]) -> f64 {
+    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+}
+
+impl fmt::Display for ImuAxes {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.0.iter().try_for_each(|d| write!(f, "{}", d.letter()))
+    }
+}
+
+impl FromStr for ImuAxes {
+    type Err = AxesError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let letters: Vec<char> = s.trim().chars().collect();
+        let dirs: Option<Vec<Direction>> = letters
+            .iter()
+            .map(|c| {
+                let i = "FBRLDU".find(c.to_ascii_uppercase())?;
+                Some(Direction::ALL[i])
+            })
+            .collect();
+        match dirs.as_deref() {
+            Some(&[x, y, z]) => Self::new([x, y, z]),
+            _ => Err(AxesError::Letters(s.chars().take(16).collect())),
+        }
+    }
+}
+
+impl TryFrom<String> for ImuAxes {
+    type Error = AxesError;
+
+    fn try_from(s: String) -> Result<Self, Self::Error> {
+        s.parse()
+    }
+}
+
+impl From<ImuAxes> for String {
+    fn from(a: ImuAxes) -> Self {
+        a.to_string()
+    }
+}
+
+/// Shortest log the check judges, s: over a minute, the vehicle's own accelerations
+/// average below 0.5 m/s² (30 m/s gained or lost), 3° of the gravity's direction.
+pub const CHECK_MIN_S: f64 = 60.0;
+
+/// Largest angle between the mean specific force and the body's up (−z), degrees: a
+/// whole run's slope (58 %) no road has; an IMU mounted on its side or upside down is
+/// 90° or 180° off.
+pub const MAX_TILT_DEG: f64 = 30.0;
+
+/// The mean specific force's magnitude must be within this fraction of gravity: the
+/// log's increments are then in m/s, not in g·s or ft/s.
+pub const GRAVITY_TOLERANCE: f64 = 0.2;
+
+/// Least correlation between the odometer's and the accelerometers' horizontal
+/// accelerations for the drive to show which way is forward.
+pub const MIN_FORWARD_CORRELATION: f64 = 0.5;
+
+/// Least sum of the odometer's squared horizontal accelerations over 1-s blocks, (m/s²)²:
+/// twenty seconds of 1 m/s² (pulling away, braking, turning).
+pub const MIN_FORWARD_EXCITATION: f64 = 20.0;
+
+/// What a log's data, in the axes it was ingested in, say of those axes.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AxesCheck {
+    /// Length of the log, s.
+    pub duration_s: f64,
+    /// The mean specific force over the log, m/s² (body axes as ingested): gravity's
+    /// opposite, as the vehicle's own accelerations average out.
+    pub mean_specific_force_mps2: [f64; 3],
+    /// Angle between it and the body's up (−z), degrees.
+    pub tilt_deg: f64,
+    /// Turn of the horizontal axes that best carries the odometer's accelerations (u̇
+    /// along, ru across) onto the accelerometers', degrees, positive from x towards y
+    /// (the IMU's x this far to the vehicle's left of forward): about 0 for the
+    /// vehicle's axes. With the log's z not down, taken in the axes turned to have it so.
+    pub forward_turn_deg: f64,
+    /// Correlation of that fit (0–1).
+    pub forward_correlation: f64,
+    /// Sum of the odometer's squared horizontal accelerations over 1-s blocks, (m/s²)².
+    pub forward_excitation: f64,
+}
+
+/// What the check finds wrong.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AxesVerdict {
+    /// The axes are the vehicle's, as far as the data show.
+    Agree,
+    /// Too short a log to tell.
+    TooShort,
+    /// The mean specific force is not gravity's size.
+    NotGravity,
+    /// Gravity or the odometer says the axes are other than the vehicle's: the axes the
+    /// data show, when they show them all (the drive shows forward), else those with
+    /// the right down and x forward as far as known.
+    Other {
+        /// The log's axes as far as the data show them.
+        found: ImuAxes,
+        /// Whether the drive showed which way is forward.
+        forward_shown: bool,
+    },
+    /// The mean specific force is tilted from every right angle beyond
+    /// [`MAX_TILT_DEG`].
+    Tilted,
+}
+
+impl AxesCheck {
+    /// The check of `d`'s increments, with its odometer's distance per sample.
+    pub fn of(d: &Derived) -> Self {
+        let n = d.dt_s.len().min(d.dvel_mps.len()).min(d.dtheta_rad.len());
+        let mut sum_v = [0.0; 3];
+        let mut duration_s = 0.0;
+        for k in 0..n {
+            for (s, v) in sum_v.iter_mut().zip(d.dvel_mps[k]) {
+                *s += v;
+            }
+            duration_s += d.dt_s[k];
+        }
+        let mean = sum_v.map(|s| s / duration_s.max(f64::MIN_POSITIVE));
+        let tilt_deg = angle_deg(mean, [0.0, 0.0, -1.0]);
+        // The horizontal, in the axes turned (a right angle) to have down nearest z.
+        let down = nearest_down(mean);
+        let blocks = Blocks::of(d, n, down);
+        let (p, q, excitation, correlation) = blocks.fit();
+        Self {
+            duration_s,
+            mean_specific_force_mps2: mean,
+            tilt_deg,
+            forward_turn_deg: q.atan2(p).to_degrees(),
+            forward_correlation: correlation,
+            forward_excitation: excitation,
+        }
+    }
+
+    /// Whether the data show the forward direction.
+    pub fn forward_shown(&self) -> bool {
+        self.forward_excitation >= MIN_FORWARD_EXCITATION
+            && self.forward_correlation >= MIN_FORWARD_CORRELATION
+    }
+
+    /// The verdict against gravity `g_mps2`.
+    pub fn verdict(&self, g_mps2: f64) -> AxesVerdict {
+        // NaN is neither long enough nor gravity's size.
+        let long_enough = self.duration_s >= CHECK_MIN_S;
+        if !long_enough {
+            return AxesVerdict::TooShort;
+        }
+        let size = norm(self.mean_specific_force_mps2);
+        let gravity_sized = (size - g_mps2).abs() <= GRAVITY_TOLERANCE * g_mps2;
+        if !gravity_sized {
+            return AxesVerdict::NotGravity;
+        }
+        let down = nearest_down(self.mean_specific_force_mps2);
+        if angle_deg(
+            down.to_body(self.mean_specific_force_mps2),
+            [0.0, 0.0, -1.0],
+        ) > MAX_TILT_DEG
+        {
+            return AxesVerdict::Tilted;
+        }
+        let shown = self.forward_shown();
+        // Quarter turns about the (turned) z that bring x nearest forward.
+        let quarters = if shown {
+            (self.forward_turn_deg / 90.0).round().rem_euclid(4.0) as usize
+        } else {
+            0
+        };
+        let found = down.then(yaw_quarters(quarters));
+        if found.is_frd() {
+            AxesVerdict::Agree
+        } else {
+            AxesVerdict::Other {
+                found,
+                forward_shown: shown,
+            }
+        }
+    }
+}
+
+/// The right-angle turn of the body axes by `k` quarter turns about z, x towards y: the
+/// axes of an IMU whose x points k·90° to the vehicle's left of forward.
+fn yaw_quarters(k: usize) -> ImuAxes {
+    use Direction::*;
+    let dirs = [
+        [Forward, Right, Down],
+        [Left, Forward, Down],
+        [Backward, Left, Down],
+        [Right, Backward, Down],
+    ];
+    ImuAxes(dirs[k % 4])
+}
+
+/// The right-angle axes, among those keeping x where it can, that put the log's axis
+/// nearest to the mean specific force's opposite down.
+fn nearest_down(mean: [f64; 3]) -> ImuAxes {
+    let mut best = (f64::NEG_INFINITY, ImuAxes::FRD);
+    for a in ImuAxes::all() {
+        let b = a.to_body(mean);
+        // Down first; among the four with it, x kept forward (or as near as can be).
+        let score = -b[2] * 1e6
+            + if a.0[0] == Direction::Forward {
+                1.0
+            } else {
+                0.0
+            };
+        let score = score
+            + if a.0[1] == Direction::Forward {
+                0.5
+            } else {
+                0.0
+            };
+        if score > best.0 {
+            best = (score, a);
+        }
+    }
+    best.1
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+fn angle_deg(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let dot: f64 = a.iter().zip(b).map(|(x, y)| x * y).sum();
+    (dot / (norm(a) * norm(b)))
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees()
+}
+
+/// One-second means of the horizontal specific force and of the odometer's horizontal
+/// acceleration (u̇, ru), in axes whose down is the log's as turned.
+struct Blocks {
+    /// Per block: specific force x, y; u̇, ru.
+    rows: Vec<[f64; 4]>,
+}
+
+impl Blocks {
+    fn of(d: &Derived, n: usize, turn: ImuAxes) -> Self {
+        let per = ((1.0 / d.nominal_dt_s).round() as usize).max(1);
+        // Per block: time, Σ dt, Σ specific force x·dt, y·dt, Σ odometer distance, Σ r·dt.
+        let mut sums: Vec<[f64; 6]> = Vec::with_capacity(n / per + 1);
+        for start in (0..n).step_by(per) {
+            let mut s = [0.0; 6];
+            for k in start..(start + per).min(n) {
+                let v = turn.to_body(d.dvel_mps[k]);
+                let w = turn.to_body(d.dtheta_rad[k]);
+                let dist = d.odo_dist_m.get(k).copied().unwrap_or(0.0);
+                s[1] += d.dt_s[k];
+                s[2] += v[0];
+                s[3] += v[1];
+                s[4] += dist;
+                s[5] += w[2];
+            }
+            s[0] = d.t_s.get(start);
+            sums.push(s);
+        }
+        let u = |s: &[f64; 6]| s[4] / s[1];
+        let rows = sums
+            .windows(3)
+            .filter(|w| w.iter().all(|s| s[1] > 0.0))
+            .map(|w| {
+                let c = &w[1];
+                let dt = (w[2][0] - w[0][0]).max(f64::MIN_POSITIVE);
+                let u_dot = (u(&w[2]) - u(&w[0])) / dt;
+                let r = c[5] / c[1];
+                [c[2] / c[1], c[3] / c[1], u_dot, r * u(c)]
+            })
+            .filter(|r| r.iter().all(|v| v.is_finite()))
+            .collect();
+        Self { rows }
+    }
+
+    /// P = Σ f·a, Q = Σ (f_y a_x − f_x a_y) (the turn is atan2(Q, P)), Σ|a|², and the
+    /// correlation of the best turn.
+    fn fit(&self) -> (f64, f64, f64, f64) {
+        let n = self.rows.len().max(1) as f64;
+        let mean_f = [0, 1].map(|i| self.rows.iter().map(|r| r[i]).sum::<f64>() / n);
+        let (mut p, mut q, mut aa, mut ff) = (0.0, 0.0, 0.0, 0.0);
+        for r in &self.rows {
+            let (fx, fy) = (r[0] - mean_f[0], r[1] - mean_f[1]);
+            let (ax, ay) = (r[2], r[3]);
+            p += fx * ax + fy * ay;
+            q += fy * ax - fx * ay;
+            aa += ax * ax + ay * ay;
+            ff += fx * fx + fy * fy;
+        }
+        let corr = p.hypot(q) / (aa * ff).sqrt().max(f64::MIN_POSITIVE);
+        (p, q, aa, corr)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn letters_name_right_handed_right_angles_only() {
+        assert_eq!("FRD".parse::<ImuAxes>(), Ok(ImuAxes::FRD));
+        assert_eq!(ImuAxes::default().to_string(), "FRD");
+        let flu: ImuAxes = "flu".parse().unwrap();
+        assert_eq!(flu.to_string(), "FLU");
+        assert_eq!(flu.words(), "x forward, y left, z up");
+        assert_eq!(ImuAxes::all().count(), 24);
+        assert!(matches!("FRU".parse::<ImuAxes>(), Err(AxesError::LeftHanded(_, r)) if r == "FRD"));
+        assert!(matches!(
+            "FFD".parse::<ImuAxes>(),
+            Err(AxesError::Repeated(_))
+        ));
+        assert!(matches!(
+            "FBD".parse::<ImuAxes>(),
+            Err(AxesError::Repeated(_))
+        ));
+        for bad in ["", "FR", "FRDX", "XYZ", "F R D"] {
+            assert!(
+                matches!(bad.parse::<ImuAxes>(), Err(AxesError::Letters(_))),
+                "{bad}"
+            );
+        }
+        // Every set's text reads back, and its turn is undone exactly.
+        let v = [1.5, -2.25, 9.75];
+        for a in ImuAxes::all() {
+            assert_eq!(a.to_string().parse::<ImuAxes>(), Ok(a));
+            assert_eq!(a.to_log(a.to_body(v)), v);
+            assert_eq!(a.to_body(a.to_log(v)), v);
+        }
+    }
+
+    /// RFU: the log's x is the vehicle's right, y forward, z up.
+    #[test]
+    fn a_vector_turns_into_the_body_axes() {
+        let rfu: ImuAxes = "RFU".parse().unwrap();
+        // Gravity's opposite at rest, level: the body reads (0, 0, −g); this log +g on z.
+        assert_eq!(rfu.to_log([0.0, 0.0, -9.8]), [0.0, 0.0, 9.8]);
+        // Accelerating forward: the body's x, the log's y.
+        assert_eq!(rfu.to_log([2.0, 0.0, 0.0]), [0.0, 2.0, 0.0]);
+        assert_eq!(rfu.to_body([0.0, 2.0, 9.8]), [2.0, 0.0, -9.8]);
+        // Ingested as FLU, found to be "x back, y left, z down" relative to that: the
+        // log itself is x back, y right, z up.
+        let flu: ImuAxes = "FLU".parse().unwrap();
+        let rel: ImuAxes = "BLD".parse().unwrap();
+        let total = flu.then(rel);
+        assert_eq!(total.to_string(), "BRU");
+        let v = [0.5, 1.0, 2.0];
+        assert_eq!(total.to_body(v), rel.to_body(flu.to_body(v)));
+    }
+}
