@@ -1121,3 +1121,28 @@ fn kingston_logged_in_the_imus_own_axes() {
         assert!(report.check.forward_turn_deg.abs() < 5.0, "{report:?}");
     }
 }
+
+/// The OBD-II speeds written in km/h (as OBD-II gives them) or mph where the manifest
+/// says m/s. The previous build integrated them: the joint fit left its bounds (odometer
+/// scale −72 % and −55 %) and OEPI's route was taken, 2.92 km and 1.38 km off at the last
+/// control point, under an "ok". Now the derive fails, naming the unit and the file: the
+/// accelerometers' x follows the odometer's u̇ with a gain of 0.29 and 0.47 (1.04 as
+/// shipped).
+#[test]
+fn kingston_speeds_in_kmh_or_mph_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (unit, factor) in [("km/h", 3.6), ("mph", 2.236_936)] {
+        let run = kingston_with(&tmp.path().join(unit.replace('/', "")), "");
+        let text: String = (kingston_speeds().iter())
+            .map(|(t, v)| format!("{t} {:.5}\n", v * factor))
+            .collect();
+        std::fs::write(run.join("odometer.txt"), text).unwrap();
+        let err = crate::util::stage_fails("derive", &run, &tmp.path().join("o"));
+        assert!(
+            err.contains("the odometer's distance is not in metres"),
+            "{err}"
+        );
+        assert!(err.contains(&format!("(a speed in {unit} is")), "{err}");
+        assert!(err.contains("odometer.txt in m/s"), "{err}");
+    }
+}

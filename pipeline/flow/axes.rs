@@ -1,15 +1,24 @@
 //! The derive's check of the log's IMU axes against the vehicle's (FRD), with the
-//! setting that fixes a log written in other axes.
+//! setting that fixes a log written in other axes, and of the scales the same fit shows
+//! (the odometer's distance in metres, the gyros' increments in radians).
 
 use anyhow::bail;
+use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_stages::derive::Derived;
-use unz_stages::imu_axes::{AxesCheck, AxesVerdict, GRAVITY_TOLERANCE, ImuAxes, MAX_TILT_DEG};
+use unz_stages::imu_axes::{
+    AxesCheck, AxesVerdict, GRAVITY_TOLERANCE, ImuAxes, MAX_TILT_DEG, SCALE_GAIN_RANGE,
+};
 
 /// Checks `d` (ingested in the `declared` axes) against gravity `g_mps2`: fails, naming
 /// the setting that would fix it, when its gravity or its odometer says its axes are not
 /// the vehicle's. A log shorter than
 /// [`unz_stages::imu_axes::CHECK_MIN_S`] is not judged.
-pub fn check_axes(d: &Derived, declared: ImuAxes, g_mps2: f64) -> anyhow::Result<AxesCheck> {
+pub fn check_axes(
+    d: &Derived,
+    declared: ImuAxes,
+    g_mps2: f64,
+    manifest: &RunManifest,
+) -> anyhow::Result<AxesCheck> {
     let check = AxesCheck::of(d);
     let mean = check
         .mean_specific_force_mps2
@@ -22,6 +31,46 @@ pub fn check_axes(d: &Derived, declared: ImuAxes, g_mps2: f64) -> anyhow::Result
     };
     match check.verdict(g_mps2) {
         AxesVerdict::Agree | AxesVerdict::TooShort => Ok(check),
+        AxesVerdict::OdometerScale => {
+            let (along, across) = (check.along, check.across);
+            bail!(
+                "the odometer's accelerations are {:.2} times the accelerometers' along x \
+                 (gain {:.2}, correlation {:.2}; across, with the gyros' rate: {:.2}; \
+                 {:.1}–{:.1} in a log's own units): \
+                 the odometer's distance is not in metres{}. {}",
+                1.0 / along.gain,
+                along.gain,
+                along.correlation,
+                across.gain,
+                SCALE_GAIN_RANGE.start(),
+                SCALE_GAIN_RANGE.end(),
+                // A pulse scale is no unit of speed.
+                if manifest.format == LogFormat::UnzBinary {
+                    ""
+                } else {
+                    known_unit(1.0 / along.gain)
+                },
+                odometer_fix(manifest)
+            )
+        }
+        AxesVerdict::GyroScale => {
+            let (along, across) = (check.along, check.across);
+            bail!(
+                "the accelerometers' y is {:.3} times the odometer's speed times the gyros' \
+                 yaw rate (ru; correlation {:.2}) while along x the odometer's u̇ agrees \
+                 (gain {:.2}): the gyros' rate is {:.1} times the vehicle's turn{}; the log's \
+                 angle increments must be in radians",
+                across.gain,
+                across.correlation,
+                along.gain,
+                1.0 / across.gain,
+                if (1.0 / across.gain / 57.3 - 1.0).abs() < 0.15 {
+                    " (angle increments in degrees are 57.3 times radians)"
+                } else {
+                    ""
+                }
+            )
+        }
         AxesVerdict::NotGravity => bail!(
             "the accelerometers' mean over the log is [{mean}] m/s²{as_named}, {:.2} m/s² in \
              size where gravity is {g_mps2:.2} m/s² (±{:.0} %): the log's velocity \
@@ -88,6 +137,36 @@ pub fn check_axes(d: &Derived, declared: ImuAxes, g_mps2: f64) -> anyhow::Result
                 log_axes.words()
             )
         }
+    }
+}
+
+/// Names the unit a speed in m/s would be `factor` times, when one is near it.
+fn known_unit(factor: f64) -> &'static str {
+    const UNITS: [(f64, &str); 4] = [
+        (3.6, " (a speed in km/h is 3.6 times its m/s)"),
+        (3.281, " (a speed in ft/s is 3.28 times its m/s)"),
+        (2.237, " (a speed in mph is 2.24 times its m/s)"),
+        (1.944, " (a speed in knots is 1.94 times its m/s)"),
+    ];
+    // Within 8 %: the units are 13 % or more apart, and a real gain is within 10 % of 1.
+    (UNITS.iter())
+        .find(|(f, _)| (factor / f - 1.0).abs() < 0.08)
+        .map_or("", |(_, s)| *s)
+}
+
+/// Where the odometer's distance is set or written, and how to fix it.
+fn odometer_fix(m: &RunManifest) -> String {
+    match (m.format, &m.odometer.file, m.odometer.kind) {
+        (LogFormat::UnzBinary, _, _) => "Set the metres per pulse in the manifest's [odometer] \
+             scale_m_per_pulse (it overrides the header's odo_lsb_m)"
+            .to_owned(),
+        (LogFormat::KfGins, Some(file), Some(OdometerKind::DistanceM)) => {
+            format!("Write the distances of {} in metres", file.display())
+        }
+        (LogFormat::KfGins, Some(file), _) => {
+            format!("Write the speeds of {} in m/s", file.display())
+        }
+        (LogFormat::KfGins, None, _) => "Write the log's 8th column's speeds in m/s".to_owned(),
     }
 }
 

@@ -117,7 +117,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         if d.out_of_range_samples * 100 > d.t_s.len() {
             bail!(
                 "{} of {} IMU samples exceed the IMU's range ({:.0} °/s, {:.0} m/s²): saturated \
-                 or corrupt increments",
+                 or corrupt increments, or increments not in radians and m/s (degrees?)",
                 d.out_of_range_samples,
                 d.t_s.len(),
                 unz_stages::derive::GYRO_RANGE_RAD_S.to_degrees(),
@@ -159,11 +159,8 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ensure_finite("odometer distance", d.odo_dist_m.iter().copied())?;
         ensure_finite("accelerometer pitch", d.epochs.theta_p_rad.iter().copied())?;
         ensure_finite("accelerometer roll", d.epochs.phi_p_rad.iter().copied())?;
-        d.axes_check = Some(check_axes(
-            &d,
-            params.vehicle.imu_axes,
-            site_gravity_mps2(m),
-        )?);
+        let g_mps2 = site_gravity_mps2(m);
+        d.axes_check = Some(check_axes(&d, params.vehicle.imu_axes, g_mps2, m)?);
         write_derived(&d, &dir)?;
         let mut d = as_stored(d);
         // Beyond the static start (which the alignment reads from the file), only the

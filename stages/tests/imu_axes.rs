@@ -49,7 +49,8 @@ fn each_mounting_is_found_by_gravity_and_the_odometer() {
     }
 }
 
-/// What the check cannot judge, or finds wrong beyond a right angle.
+/// What the check cannot judge, or finds wrong beyond a right angle: a short log, units
+/// other than m/s, radians and metres, an IMU rolled 45°, a log without odometer.
 #[test]
 fn a_short_log_units_a_tilt_and_a_log_without_odometer() {
     let (d, g) = logged_in(ImuAxes::FRD);
@@ -77,6 +78,33 @@ fn a_short_log_units_a_tilt_and_a_log_without_odometer() {
         d.dt_s = Arc::new(d.dt_s[..n].to_vec());
     };
     assert_eq!(with(&short), AxesVerdict::TooShort);
+
+    // The odometer's distance in other units than metres (a speed file in km/h, a pulse
+    // scale twice the true one): both gains fall by the factor. The gyros' increments in
+    // degrees: the gain across falls by 57.3 while along stays 1.
+    let check = AxesCheck::of(&d);
+    for fit in [check.along, check.across] {
+        assert!((0.95..=1.05).contains(&fit.gain), "{check:?}");
+    }
+    for factor in [3.6, 2.0, 1.0 / 1.6] {
+        let scaled = |d: &mut Derived| d.odo_dist_m.iter_mut().for_each(|x| *x *= factor);
+        assert_eq!(with(&scaled), AxesVerdict::OdometerScale, "×{factor}");
+    }
+    let near = |d: &mut Derived| d.odo_dist_m.iter_mut().for_each(|x| *x *= 1.2);
+    assert_eq!(
+        with(&near),
+        AxesVerdict::Agree,
+        "an odometer 20 % off is the fit's scale"
+    );
+    let degrees = |d: &mut Derived| {
+        d.dtheta_rad = Arc::new(
+            d.dtheta_rad
+                .iter()
+                .map(|v| v.map(f64::to_degrees))
+                .collect(),
+        );
+    };
+    assert_eq!(with(&degrees), AxesVerdict::GyroScale);
 
     // Without the odometer's distance, gravity still finds an upside-down IMU, but not
     // which way is forward; an IMU turned about the vertical alone is not seen.
