@@ -24,7 +24,7 @@ use anyhow::Context;
 use serde::Serialize;
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::kfgins::{KfGinsReader, LAND_SPEED_RANGE_MPS, OdometerFileReader, TextSample};
-use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
+use unz_formats::manifest::{LogFormat, RunManifest};
 use unz_formats::mcap_io::McapCompression;
 use unz_formats::parquet_io::ParquetSink;
 use unz_formats::raw::{Accepted, RawReader};
@@ -393,11 +393,8 @@ fn ingest_text(
     // that the IMU's samples over them can be kept as they stream by; the 8th column's
     // as the log streams.
     let found = match odometer_file {
-        Some((file, OdometerKind::SpeedMps)) => {
-            let mut odo = OdometerFileReader::new(
-                BufReader::new(open(manifest, file)?),
-                OdometerKind::SpeedMps,
-            );
+        Some((file, kind)) if kind.is_speed() => {
+            let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind);
             Some(find_gaps(|| file_readings(&mut odo)).map_err(|e| e.in_file(file))?)
         }
         _ => None,

@@ -1127,10 +1127,21 @@ fn kingston_logged_in_the_imus_own_axes() {
 /// scale −72 % and −55 %) and OEPI's route was taken, 2.92 km and 1.38 km off at the last
 /// control point, under an "ok". Now the derive fails, naming the unit and the file: the
 /// accelerometers' x follows the odometer's u̇ with a gain of 0.29 and 0.47 (1.04 as
-/// shipped).
+/// shipped). Named in the manifest (`kind = "speed_kmh"`), the km/h file gives the
+/// shipped file's route (within 1 cm at the control points: its speeds were written to
+/// 1e-5 km/h).
 #[test]
 fn kingston_speeds_in_kmh_or_mph_are_named() {
     let tmp = tempfile::tempdir().unwrap();
+    let worst = |out: &std::path::Path| {
+        let d: unz::disupt_stage::DisuptOut =
+            read_json(&out.join("kingston2008-segment1/disupt/disupt.json"));
+        assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
+        worst_control_point_m(&d.methods["joint"])
+    };
+    let intact = kingston_with(&tmp.path().join("intact"), "");
+    crate::util::run_until(&intact, &tmp.path().join("intact-o"), "disupt");
+    let worst_intact = worst(&tmp.path().join("intact-o"));
     for (unit, factor) in [("km/h", 3.6), ("mph", 2.236_936)] {
         let run = kingston_with(&tmp.path().join(unit.replace('/', "")), "");
         let text: String = (kingston_speeds().iter())
@@ -1144,5 +1155,18 @@ fn kingston_speeds_in_kmh_or_mph_are_named() {
         );
         assert!(err.contains(&format!("(a speed in {unit} is")), "{err}");
         assert!(err.contains("odometer.txt in m/s"), "{err}");
+        if unit == "km/h" {
+            let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+            assert!(manifest.contains("kind = \"speed_mps\""));
+            let named = manifest.replace("kind = \"speed_mps\"", "kind = \"speed_kmh\"");
+            std::fs::write(run.join("run.toml"), named).unwrap();
+            let out = tmp.path().join("kmh-o");
+            crate::util::run_until(&run, &out, "disupt");
+            let w = worst(&out);
+            assert!(
+                (w - worst_intact).abs() < 0.01,
+                "{w} m, shipped {worst_intact} m"
+            );
+        }
     }
 }

@@ -429,7 +429,7 @@ impl<R: BufRead> OdometerFileReader<R> {
         let line = self.lines.line_no;
         match self.kind {
             OdometerKind::DistanceM => self.reject(line, || reason),
-            OdometerKind::SpeedMps => {
+            OdometerKind::SpeedMps | OdometerKind::SpeedKmh => {
                 let kept = self.faults.kept.len() + self.held_reasons < FaultLog::KEPT;
                 self.held_reasons += usize::from(kept);
                 self.spikes.push(None, (line, Err(kept.then_some(reason))));
@@ -439,10 +439,10 @@ impl<R: BufRead> OdometerFileReader<R> {
 
     /// A line kept: its distance, m, from the last kept.
     fn accept(&mut self, t: f64, v: f64) -> OdometerSample {
-        let distance_m = match (self.kind, self.prev) {
-            (OdometerKind::DistanceM, _) => v,
-            (OdometerKind::SpeedMps, Some((pt, pv, pd))) => pd + 0.5 * (pv + v) * (t - pt),
-            (OdometerKind::SpeedMps, None) => 0.0,
+        let distance_m = match (self.kind.is_speed(), self.prev) {
+            (false, _) => v,
+            (true, Some((pt, pv, pd))) => pd + 0.5 * (pv + v) * (t - pt),
+            (true, None) => 0.0,
         };
         self.prev = Some((t, v, distance_m));
         self.report.lines_accepted += 1;
@@ -524,15 +524,21 @@ impl<R: BufRead> OdometerFileReader<R> {
                 self.reject_read(reason);
                 continue;
             }
-            let [t, v] = values;
-            if self.kind == OdometerKind::SpeedMps && v.abs() > LAND_SPEED_RANGE_MPS {
+            let [t, given] = values;
+            // m/s or m from here on.
+            let v = self.kind.si(given);
+            if self.kind.is_speed() && v.abs() > LAND_SPEED_RANGE_MPS {
+                let unit = match self.kind {
+                    OdometerKind::SpeedKmh => "km/h",
+                    _ => "m/s",
+                };
                 self.reject_read(format!(
-                    "speed {} m/s is beyond a land vehicle's ({LAND_SPEED_RANGE_MPS} m/s)",
+                    "speed {} {unit} is beyond a land vehicle's ({LAND_SPEED_RANGE_MPS} m/s)",
                     // 1e300 as such, not as 301 digits.
-                    if v.abs() < 1e6 {
-                        format!("{v}")
+                    if given.abs() < 1e6 {
+                        format!("{given}")
                     } else {
-                        format!("{v:e}")
+                        format!("{given:e}")
                     }
                 ));
                 continue;
@@ -615,6 +621,21 @@ mod tests {
                 lines_rejected: 1
             }
         );
+    }
+
+    /// OBD-II's km/h (`kind = "speed_kmh"`) are read as m/s: the same distances as the
+    /// speeds in m/s give, and a speed beyond 100 m/s named in the file's unit.
+    #[test]
+    fn speeds_in_km_h_are_read_as_m_s() {
+        let (d, _, faults, _) =
+            read_odometer(b"0 0\n1 7.2\n2 7.2\n3 400\n4 0\n", OdometerKind::SpeedKmh);
+        // 7.2 km/h = 2 m/s; the line at 400 km/h rejected, the trapezoid spans it.
+        assert_eq!(faults, vec![4]);
+        assert_eq!(d, vec![0.0, 1.0, 3.0, 5.0]);
+        let mut r = OdometerFileReader::new(&b"0 0\n1 400\n"[..], OdometerKind::SpeedKmh);
+        while r.next_sample().unwrap().is_some() {}
+        let reason = &r.faults().0[0].reason;
+        assert!(reason.starts_with("speed 400 km/h is beyond"), "{reason}");
     }
 
     #[test]

@@ -35,6 +35,23 @@ pub enum OdometerKind {
     SpeedMps,
     /// Cumulative travelled distance, m.
     DistanceM,
+    /// Speed, km/h (as OBD-II gives it): read as m/s, divided by 3.6.
+    SpeedKmh,
+}
+
+impl OdometerKind {
+    /// Whether the file holds speeds (integrated into distance), not distances.
+    pub fn is_speed(self) -> bool {
+        self != Self::DistanceM
+    }
+
+    /// The file's value in SI units (m/s or m).
+    pub fn si(self, value: f64) -> f64 {
+        match self {
+            Self::SpeedKmh => value / 3.6,
+            Self::SpeedMps | Self::DistanceM => value,
+        }
+    }
 }
 
 /// A geodetic position on WGS-84.
@@ -390,7 +407,8 @@ impl RunManifest {
         if let (Some(f), None) = (&o.file, o.kind) {
             return c.err(
                 f.span(),
-                "odometer.file needs odometer.kind (\"speed_mps\" or \"distance_m\")".into(),
+                "odometer.file needs odometer.kind (\"speed_mps\", \"speed_kmh\" or \"distance_m\")"
+                    .into(),
             );
         }
 

@@ -2,6 +2,8 @@
 //! setting that fixes a log written in other axes, and of the scales the same fit shows
 //! (the odometer's distance in metres, the gyros' increments in radians).
 
+use std::path::Path;
+
 use anyhow::bail;
 use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_stages::derive::Derived;
@@ -9,15 +11,17 @@ use unz_stages::imu_axes::{
     AxesCheck, AxesVerdict, GRAVITY_TOLERANCE, ImuAxes, MAX_TILT_DEG, SCALE_GAIN_RANGE,
 };
 
-/// Checks `d` (ingested in the `declared` axes) against gravity `g_mps2`: fails, naming
-/// the setting that would fix it, when its gravity or its odometer says its axes are not
-/// the vehicle's. A log shorter than
-/// [`unz_stages::imu_axes::CHECK_MIN_S`] is not judged.
+/// Checks `d` (ingested in the `declared` axes, from the run `manifest` with its
+/// `odometer_file` when the ingest read one) against gravity `g_mps2`: fails when its gravity or its odometer says its axes are not the vehicle's,
+/// naming the setting that fixes it, or its units are not metres, seconds and radians,
+/// naming where to fix them. A log shorter than [`unz_stages::imu_axes::CHECK_MIN_S`]
+/// is not judged.
 pub fn check_axes(
     d: &Derived,
     declared: ImuAxes,
     g_mps2: f64,
     manifest: &RunManifest,
+    odometer_file: Option<&Path>,
 ) -> anyhow::Result<AxesCheck> {
     let check = AxesCheck::of(d);
     let mean = check
@@ -50,7 +54,7 @@ pub fn check_axes(
                 } else {
                     known_unit(1.0 / along.gain)
                 },
-                odometer_fix(manifest)
+                odometer_fix(manifest, odometer_file)
             )
         }
         AxesVerdict::GyroScale => {
@@ -154,18 +158,25 @@ fn known_unit(factor: f64) -> &'static str {
         .map_or("", |(_, s)| *s)
 }
 
-/// Where the odometer's distance is set or written, and how to fix it.
-fn odometer_fix(m: &RunManifest) -> String {
-    match (m.format, &m.odometer.file, m.odometer.kind) {
+/// Where the odometer's distance is set or written, and how to fix it: `file` is the
+/// odometer file the ingest read (none for a binary log or an 8th column).
+fn odometer_fix(m: &RunManifest, file: Option<&Path>) -> String {
+    match (m.format, file, m.odometer.kind) {
         (LogFormat::UnzBinary, _, _) => "Set the metres per pulse in the manifest's [odometer] \
              scale_m_per_pulse (it overrides the header's odo_lsb_m)"
             .to_owned(),
         (LogFormat::KfGins, Some(file), Some(OdometerKind::DistanceM)) => {
             format!("Write the distances of {} in metres", file.display())
         }
-        (LogFormat::KfGins, Some(file), _) => {
-            format!("Write the speeds of {} in m/s", file.display())
-        }
+        (LogFormat::KfGins, Some(file), Some(OdometerKind::SpeedKmh)) => format!(
+            "Check the speeds of {} (read as km/h: [odometer] kind = \"speed_kmh\")",
+            file.display()
+        ),
+        (LogFormat::KfGins, Some(file), _) => format!(
+            "Write the speeds of {} in m/s, or name their unit in the manifest's [odometer] \
+             kind (\"speed_kmh\" for km/h)",
+            file.display()
+        ),
         (LogFormat::KfGins, None, _) => "Write the log's 8th column's speeds in m/s".to_owned(),
     }
 }

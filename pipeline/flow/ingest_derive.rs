@@ -160,7 +160,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ensure_finite("accelerometer pitch", d.epochs.theta_p_rad.iter().copied())?;
         ensure_finite("accelerometer roll", d.epochs.phi_p_rad.iter().copied())?;
         let g_mps2 = site_gravity_mps2(m);
-        d.axes_check = Some(check_axes(&d, params.vehicle.imu_axes, g_mps2, m)?);
+        let odometer_file = (report.odometer_file.as_ref()).and(m.odometer.file.as_deref());
+        let axes = check_axes(&d, params.vehicle.imu_axes, g_mps2, m, odometer_file)?;
+        d.axes_check = Some(axes);
         write_derived(&d, &dir)?;
         let mut d = as_stored(d);
         // Beyond the static start (which the alignment reads from the file), only the

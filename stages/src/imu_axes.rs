@@ -102,6 +102,7 @@ impl Default for ImuAxes {
 
 /// Why three letters name no IMU axes.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
 pub enum AxesError {
     /// Not three of F, B, R, L, D, U.
     #[error(
@@ -140,7 +141,7 @@ impl ImuAxes {
         if axes[0] == axes[1] || axes[1] == axes[2] || axes[0] == axes[2] {
             return Err(AxesError::Repeated(text()));
         }
-        if det(&m) < 0.0 {
+        if m.determinant() < 0.0 {
             let (a, s) = dirs[2].body_axis();
             let flipped = Direction::of(a, s > 0.0);
             let mut right = dirs;
@@ -199,20 +200,12 @@ impl ImuAxes {
     }
 
     /// Rows: the body axes; columns: the log's.
-    fn matrix(&self) -> [[f64; 3]; 3] {
-        let mut m = [[0.0; 3]; 3];
-        for (i, d) in self.0.iter().enumerate() {
-            let (axis, sign) = d.body_axis();
-            m[axis][i] = sign;
-        }
-        m
+    fn matrix(&self) -> nalgebra::Matrix3<f64> {
+        nalgebra::Matrix3::from_fn(|row, i| {
+            let (axis, sign) = self.0[i].body_axis();
+            if axis == row { sign } else { 0.0 }
+        })
     }
-}
-
-fn det(m: &[[f64; 3]; 3]) -> f64 {
-    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
 }
 
 impl fmt::Display for ImuAxes {
@@ -225,7 +218,8 @@ impl FromStr for ImuAxes {
     type Err = AxesError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let letters: Vec<char> = s.trim().chars().collect();
+        // Four at most: enough to tell three from more.
+        let letters: Vec<char> = s.trim().chars().take(4).collect();
         let dirs: Option<Vec<Direction>> = letters
             .iter()
             .map(|c| {
@@ -319,7 +313,8 @@ pub struct AxesCheck {
 }
 
 /// One of the accelerometers' horizontal axes against the odometer's acceleration along
-/// it (the axes as ingested, 1-s means).
+/// it (1-s means, in the axes [`AxesCheck::forward_turn_deg`] is taken in: those
+/// ingested, when their z is down).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ScaleFit {
     /// Least-squares gain of the accelerometer on the odometer's acceleration (slopes'
