@@ -61,14 +61,17 @@ pub struct NavigateSummary {
 }
 
 /// The log's IMU axes as named (`[vehicle] imu_axes`; the ingest turned the increments
-/// from them into the body's FRD), and the derive's check of the turned increments.
+/// from them into the body's FRD), and the derive's check of the turned increments and
+/// of the log's scales.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ImuAxesReport {
     /// The log's axes as named.
     pub named: ImuAxes,
     /// What the increments, turned, say of the body's axes: gravity's direction
     /// (`tilt_deg` from down) and the odometer's accelerations' (`forward_turn_deg` from
-    /// x; judged when `forward_correlation` ≥ 0.5 over enough driving).
+    /// x; judged when `forward_correlation` ≥ 0.5 over enough driving); and of the
+    /// scales: the accelerometers' gains on the odometer's u̇ (`along`) and ru
+    /// (`across`), 1 in SI units.
     pub check: AxesCheck,
 }
 

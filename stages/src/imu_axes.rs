@@ -13,6 +13,7 @@
 //! odometer's accelerations against the accelerometers' those of the odometer's distance
 //! and of the gyros' rate (a speed file in km/h, angle increments in degrees).
 
+use std::cmp::Ordering;
 use std::fmt;
 use std::str::FromStr;
 
@@ -475,27 +476,19 @@ fn yaw_quarters(k: usize) -> ImuAxes {
 /// The right-angle axes, among those keeping x where it can, that put the log's axis
 /// nearest to the mean specific force's opposite down.
 fn nearest_down(mean: [f64; 3]) -> ImuAxes {
-    let mut best = (f64::NEG_INFINITY, ImuAxes::FRD);
-    for a in ImuAxes::all() {
+    // Down first (the body's z along the mean's opposite); among the four sets with it,
+    // the one with x forward, else the one with y forward.
+    let key = |a: &ImuAxes| {
         let b = a.to_body(mean);
-        // Down first; among the four with it, x kept forward (or as near as can be).
-        let score = -b[2] * 1e6
-            + if a.0[0] == Direction::Forward {
-                1.0
-            } else {
-                0.0
-            };
-        let score = score
-            + if a.0[1] == Direction::Forward {
-                0.5
-            } else {
-                0.0
-            };
-        if score > best.0 {
-            best = (score, a);
-        }
-    }
-    best.1
+        (
+            -b[2],
+            a.0[0] == Direction::Forward,
+            a.0[1] == Direction::Forward,
+        )
+    };
+    ImuAxes::all()
+        .max_by(|a, b| key(a).partial_cmp(&key(b)).unwrap_or(Ordering::Equal))
+        .unwrap_or(ImuAxes::FRD)
 }
 
 fn norm(v: [f64; 3]) -> f64 {
