@@ -24,7 +24,7 @@ use anyhow::Context;
 use serde::Serialize;
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::kfgins::{KfGinsReader, LAND_SPEED_RANGE_MPS, OdometerFileReader, TextSample};
-use unz_formats::manifest::{LogFormat, RunManifest};
+use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_formats::mcap_io::McapCompression;
 use unz_formats::parquet_io::ParquetSink;
 use unz_formats::raw::{Accepted, RawReader};
@@ -389,6 +389,21 @@ fn ingest_text(
     let odometer_file = (manifest.odometer.file.as_ref())
         .zip(manifest.odometer.kind)
         .filter(|_| !column);
+    // Without a file, `[odometer] kind` names the 8th column's unit (m/s by default).
+    let column_kind = match manifest.odometer.kind {
+        Some(kind) if column && manifest.odometer.file.is_none() => {
+            if !kind.is_speed() {
+                anyhow::bail!(
+                    "[odometer] kind = \"distance_m\" without a file names the 8th column's \
+                     unit, and the 8th column is a speed (\"speed_mps\" or \"speed_kmh\") \
+                     (in {})",
+                    manifest.path.display()
+                );
+            }
+            kind
+        }
+        _ => OdometerKind::SpeedMps,
+    };
     // A speed file's gaps and stands are found first, its readings around them kept, so
     // that the IMU's samples over them can be kept as they stream by; the 8th column's
     // as the log streams.
@@ -438,6 +453,7 @@ fn ingest_text(
             g.sample(t_ns, s.dtheta_rad, s.dvel_mps);
         }
         if let Some((spikes, speed, bridger)) = &mut column {
+            s.speed_mps = s.speed_mps.map(|v| column_kind.si(v));
             // Speeds beyond a land vehicle's are no reading for the spikes' judgement.
             let v = (s.speed_mps).filter(|v| v.abs() <= LAND_SPEED_RANGE_MPS);
             spikes.push(v.map(|v| (s.t_s, v)), s);

@@ -1122,6 +1122,15 @@ fn kingston_logged_in_the_imus_own_axes() {
     }
 }
 
+/// The joint fit's worst control point of the Kingston run disupt put in `out`, m (the
+/// joint corrected it).
+fn joint_worst_control_point_m(out: &std::path::Path) -> f64 {
+    let d: unz::disupt_stage::DisuptOut =
+        read_json(&out.join("kingston2008-segment1/disupt/disupt.json"));
+    assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
+    worst_control_point_m(&d.methods["joint"])
+}
+
 /// The OBD-II speeds written in km/h (as OBD-II gives them) or mph where the manifest
 /// says m/s. The previous build integrated them: the joint fit left its bounds (odometer
 /// scale −72 % and −55 %) and OEPI's route was taken, 2.92 km and 1.38 km off at the last
@@ -1133,12 +1142,7 @@ fn kingston_logged_in_the_imus_own_axes() {
 #[test]
 fn kingston_speeds_in_kmh_or_mph_are_named() {
     let tmp = tempfile::tempdir().unwrap();
-    let worst = |out: &std::path::Path| {
-        let d: unz::disupt_stage::DisuptOut =
-            read_json(&out.join("kingston2008-segment1/disupt/disupt.json"));
-        assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
-        worst_control_point_m(&d.methods["joint"])
-    };
+    let worst = joint_worst_control_point_m;
     let intact = kingston_with(&tmp.path().join("intact"), "");
     crate::util::run_until(&intact, &tmp.path().join("intact-o"), "disupt");
     let worst_intact = worst(&tmp.path().join("intact-o"));
@@ -1169,4 +1173,32 @@ fn kingston_speeds_in_kmh_or_mph_are_named() {
             );
         }
     }
+}
+
+/// The speeds as an 8th column in km/h: the derive fails naming the unit and the column;
+/// named in the manifest (`[odometer] kind = "speed_kmh"` without a file), the route is
+/// the column in m/s's (within 1 cm at the control points). `distance_m` names no column.
+#[test]
+fn kingston_a_speed_column_in_kmh_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let worst = joint_worst_control_point_m;
+    let mps = tmp.path().join("mps");
+    kingston_column(&mps, |_, v| v);
+    crate::util::run_until(&mps, &tmp.path().join("mps-o"), "disupt");
+    let worst_mps = worst(&tmp.path().join("mps-o"));
+
+    let kmh = tmp.path().join("kmh");
+    kingston_column(&kmh, |_, v| v * 3.6);
+    let err = crate::util::stage_fails("derive", &kmh, &tmp.path().join("kmh-o"));
+    assert!(err.contains("(a speed in km/h is"), "{err}");
+    assert!(err.contains("8th column's speeds in m/s"), "{err}");
+    let manifest = std::fs::read_to_string(kmh.join("run.toml")).unwrap();
+    let with = |kind: &str| format!("{manifest}\n[odometer]\nkind = \"{kind}\"\n");
+    std::fs::write(kmh.join("run.toml"), with("distance_m")).unwrap();
+    let err = crate::util::stage_fails("ingest", &kmh, &tmp.path().join("kmh-o"));
+    assert!(err.contains("the 8th column is a speed"), "{err}");
+    std::fs::write(kmh.join("run.toml"), with("speed_kmh")).unwrap();
+    crate::util::run_until(&kmh, &tmp.path().join("kmh-o"), "disupt");
+    let w = worst(&tmp.path().join("kmh-o"));
+    assert!((w - worst_mps).abs() < 0.01, "{w} m, in m/s {worst_mps} m");
 }

@@ -177,7 +177,20 @@ fn odometer_fix(m: &RunManifest, file: Option<&Path>) -> String {
              kind (\"speed_kmh\" for km/h)",
             file.display()
         ),
-        (LogFormat::KfGins, None, _) => "Write the log's 8th column's speeds in m/s".to_owned(),
+        // The column read over the manifest's file: its kind is the file's.
+        (LogFormat::KfGins, None, _) if m.odometer.file.is_some() => {
+            "Write the log's 8th column's speeds in m/s (the column is read, not the \
+             manifest's [odometer] file)"
+                .to_owned()
+        }
+        (LogFormat::KfGins, None, Some(OdometerKind::SpeedKmh)) => {
+            "Check the log's 8th column's speeds (read as km/h: [odometer] kind = \
+             \"speed_kmh\")"
+                .to_owned()
+        }
+        (LogFormat::KfGins, None, _) => "Write the log's 8th column's speeds in m/s, or name \
+             their unit in the manifest's [odometer] kind (\"speed_kmh\" for km/h)"
+            .to_owned(),
     }
 }
 
