@@ -435,10 +435,8 @@ fn ingest_text(
         )
     });
     while let Some(mut s) = reader.next_sample().map_err(|e| e.in_file(path))? {
-        if !options.imu_axes.is_frd() {
-            s.dtheta_rad = options.imu_axes.to_body(s.dtheta_rad);
-            s.dvel_mps = options.imu_axes.to_body(s.dvel_mps);
-        }
+        s.dtheta_rad = options.imu_axes.to_body(s.dtheta_rad);
+        s.dvel_mps = options.imu_axes.to_body(s.dvel_mps);
         let t_ns = tag_ns(s.t_s);
         let rows = &mut sinks.imu_rows;
         rows.t_ns.push(t_ns);

@@ -427,13 +427,12 @@ impl<R: BufRead> OdometerFileReader<R> {
     /// speeds' verdicts.
     fn reject_read(&mut self, reason: String) {
         let line = self.lines.line_no;
-        match self.kind {
-            OdometerKind::DistanceM => self.reject(line, || reason),
-            OdometerKind::SpeedMps | OdometerKind::SpeedKmh => {
-                let kept = self.faults.kept.len() + self.held_reasons < FaultLog::KEPT;
-                self.held_reasons += usize::from(kept);
-                self.spikes.push(None, (line, Err(kept.then_some(reason))));
-            }
+        if self.kind.is_speed() {
+            let kept = self.faults.kept.len() + self.held_reasons < FaultLog::KEPT;
+            self.held_reasons += usize::from(kept);
+            self.spikes.push(None, (line, Err(kept.then_some(reason))));
+        } else {
+            self.reject(line, || reason);
         }
     }
 
@@ -477,7 +476,7 @@ impl<R: BufRead> OdometerFileReader<R> {
                 }
             }
             match self.read_line()? {
-                Some((t, v)) if self.kind == OdometerKind::DistanceM => {
+                Some((t, v)) if !self.kind.is_speed() => {
                     return Ok(Some(self.accept(t, v)));
                 }
                 Some((t, v)) => self
@@ -528,10 +527,7 @@ impl<R: BufRead> OdometerFileReader<R> {
             // m/s or m from here on.
             let v = self.kind.si(given);
             if self.kind.is_speed() && v.abs() > LAND_SPEED_RANGE_MPS {
-                let unit = match self.kind {
-                    OdometerKind::SpeedKmh => "km/h",
-                    _ => "m/s",
-                };
+                let unit = self.kind.unit();
                 self.reject_read(format!(
                     "speed {} {unit} is beyond a land vehicle's ({LAND_SPEED_RANGE_MPS} m/s)",
                     // 1e300 as such, not as 301 digits.

@@ -45,6 +45,15 @@ impl OdometerKind {
         self != Self::DistanceM
     }
 
+    /// The unit of the file's values.
+    pub fn unit(self) -> &'static str {
+        match self {
+            Self::SpeedMps => "m/s",
+            Self::SpeedKmh => "km/h",
+            Self::DistanceM => "m",
+        }
+    }
+
     /// The file's value in SI units (m/s or m).
     pub fn si(self, value: f64) -> f64 {
         match self {

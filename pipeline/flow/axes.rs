@@ -79,7 +79,7 @@ pub fn check_axes(
             "the accelerometers' mean over the log is [{mean}] m/s²{as_named}, {:.2} m/s² in \
              size where gravity is {g_mps2:.2} m/s² (±{:.0} %): the log's velocity \
              increments are not in m/s (g·s, or rates instead of increments?)",
-            norm(check.mean_specific_force_mps2),
+            check.mean_specific_force_size_mps2(),
             GRAVITY_TOLERANCE * 100.0
         ),
         AxesVerdict::Tilted => bail!(
@@ -207,8 +207,4 @@ fn down_words(axes: ImuAxes) -> String {
             _ => None,
         })
         .unwrap_or_default()
-}
-
-fn norm(v: [f64; 3]) -> f64 {
-    v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }

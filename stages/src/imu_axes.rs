@@ -176,12 +176,17 @@ impl ImuAxes {
 
     /// `v` given in the body's axes, in the log's ([`Self::to_body`] undone).
     pub fn to_log<T: Copy + std::ops::Neg<Output = T>>(&self, v: [T; 3]) -> [T; 3] {
-        let mut out = v;
+        self.inverse().to_body(v)
+    }
+
+    /// Where the body's x, y and z point in the log's axes.
+    fn inverse(&self) -> Self {
+        let mut dirs = self.0;
         for (i, d) in self.0.iter().enumerate() {
             let (axis, sign) = d.body_axis();
-            out[i] = if sign > 0.0 { v[axis] } else { -v[axis] };
+            dirs[axis] = Direction::of(i, sign < 0.0);
         }
-        out
+        Self(dirs)
     }
 
     /// The log's axes when it was ingested in `self` and those axes are `then` on the
@@ -373,21 +378,13 @@ pub enum AxesVerdict {
 impl AxesCheck {
     /// The check of `d`'s increments, with its odometer's distance per sample.
     pub fn of(d: &Derived) -> Self {
-        let n = d.dt_s.len().min(d.dvel_mps.len()).min(d.dtheta_rad.len());
-        let mut sum_v = [0.0; 3];
-        let mut duration_s = 0.0;
-        for k in 0..n {
-            for (s, v) in sum_v.iter_mut().zip(d.dvel_mps[k]) {
-                *s += v;
-            }
-            duration_s += d.dt_s[k];
-        }
+        let sums = BlockSums::of(d);
+        let (sum_v, duration_s) = (sums.dvel_mps, sums.duration_s);
         let mean = sum_v.map(|s| s / duration_s.max(f64::MIN_POSITIVE));
         let tilt_deg = angle_deg(mean, [0.0, 0.0, -1.0]);
         // The horizontal, in the axes turned (a right angle) to have down nearest z.
         let down = nearest_down(mean);
-        let blocks = Blocks::of(d, n, down);
-        let fit = blocks.fit();
+        let fit = Blocks::of(&sums.blocks, down).fit();
         Self {
             duration_s,
             mean_specific_force_mps2: mean,
@@ -398,6 +395,11 @@ impl AxesCheck {
             along: fit.along,
             across: fit.across,
         }
+    }
+
+    /// The mean specific force's size, m/s²: gravity's, in a log in m/s.
+    pub fn mean_specific_force_size_mps2(&self) -> f64 {
+        norm(self.mean_specific_force_mps2)
     }
 
     /// Whether the data show the forward direction.
@@ -413,7 +415,7 @@ impl AxesCheck {
         if !long_enough {
             return AxesVerdict::TooShort;
         }
-        let size = norm(self.mean_specific_force_mps2);
+        let size = self.mean_specific_force_size_mps2();
         let gravity_sized = (size - g_mps2).abs() <= GRAVITY_TOLERANCE * g_mps2;
         if !gravity_sized {
             return AxesVerdict::NotGravity;
@@ -503,6 +505,56 @@ fn angle_deg(a: [f64; 3], b: [f64; 3]) -> f64 {
         .to_degrees()
 }
 
+/// The sums of one second of samples.
+#[derive(Default)]
+struct BlockSum {
+    /// Time of its first sample, s.
+    t_s: f64,
+    dt_s: f64,
+    dvel_mps: [f64; 3],
+    dtheta_rad: [f64; 3],
+    /// The odometer's distance over it, m.
+    distance_m: f64,
+}
+
+/// One pass over a derive's samples: the sums of each second, and of the whole log.
+struct BlockSums {
+    blocks: Vec<BlockSum>,
+    /// Σ of the velocity increments, m/s (sample by sample, in order).
+    dvel_mps: [f64; 3],
+    duration_s: f64,
+}
+
+impl BlockSums {
+    fn of(d: &Derived) -> Self {
+        let n = d.dt_s.len().min(d.dvel_mps.len()).min(d.dtheta_rad.len());
+        let per = ((1.0 / d.nominal_dt_s).round() as usize).max(1);
+        let mut out = Self {
+            blocks: Vec::with_capacity(n / per + 1),
+            dvel_mps: [0.0; 3],
+            duration_s: 0.0,
+        };
+        for start in (0..n).step_by(per) {
+            let mut b = BlockSum {
+                t_s: d.t_s.get(start),
+                ..BlockSum::default()
+            };
+            for k in start..(start + per).min(n) {
+                for i in 0..3 {
+                    b.dvel_mps[i] += d.dvel_mps[k][i];
+                    b.dtheta_rad[i] += d.dtheta_rad[k][i];
+                    out.dvel_mps[i] += d.dvel_mps[k][i];
+                }
+                b.dt_s += d.dt_s[k];
+                out.duration_s += d.dt_s[k];
+                b.distance_m += d.odo_dist_m.get(k).copied().unwrap_or(0.0);
+            }
+            out.blocks.push(b);
+        }
+        out
+    }
+}
+
 /// The horizontal fit of [`Blocks`].
 struct Fit {
     /// Σ f·a and Σ (f_y a_x − f_x a_y): the turn is atan2(q, p).
@@ -525,35 +577,20 @@ struct Blocks {
 }
 
 impl Blocks {
-    fn of(d: &Derived, n: usize, turn: ImuAxes) -> Self {
-        let per = ((1.0 / d.nominal_dt_s).round() as usize).max(1);
-        // Per block: time, Σ dt, Σ specific force x·dt, y·dt, Σ odometer distance, Σ r·dt.
-        let mut sums: Vec<[f64; 6]> = Vec::with_capacity(n / per + 1);
-        for start in (0..n).step_by(per) {
-            let mut s = [0.0; 6];
-            for k in start..(start + per).min(n) {
-                let v = turn.to_body(d.dvel_mps[k]);
-                let w = turn.to_body(d.dtheta_rad[k]);
-                let dist = d.odo_dist_m.get(k).copied().unwrap_or(0.0);
-                s[1] += d.dt_s[k];
-                s[2] += v[0];
-                s[3] += v[1];
-                s[4] += dist;
-                s[5] += w[2];
-            }
-            s[0] = d.t_s.get(start);
-            sums.push(s);
-        }
-        let u = |s: &[f64; 6]| s[4] / s[1];
-        let rows = sums
+    /// The rows of the 1-s `blocks` (in the log's axes as ingested), their increments
+    /// turned by `turn` (exact: a block's sum turned is its samples' turned, summed).
+    fn of(blocks: &[BlockSum], turn: ImuAxes) -> Self {
+        let u = |b: &BlockSum| b.distance_m / b.dt_s;
+        let rows = blocks
             .windows(3)
-            .filter(|w| w.iter().all(|s| s[1] > 0.0))
+            .filter(|w| w.iter().all(|b| b.dt_s > 0.0))
             .map(|w| {
                 let c = &w[1];
-                let dt = (w[2][0] - w[0][0]).max(f64::MIN_POSITIVE);
+                let (v, theta) = (turn.to_body(c.dvel_mps), turn.to_body(c.dtheta_rad));
+                let dt = (w[2].t_s - w[0].t_s).max(f64::MIN_POSITIVE);
                 let u_dot = (u(&w[2]) - u(&w[0])) / dt;
-                let r = c[5] / c[1];
-                [c[2] / c[1], c[3] / c[1], u_dot, r * u(c)]
+                let r = theta[2] / c.dt_s;
+                [v[0] / c.dt_s, v[1] / c.dt_s, u_dot, r * u(c)]
             })
             .filter(|r| r.iter().all(|v| v.is_finite()))
             .collect();
