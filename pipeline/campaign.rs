@@ -557,6 +557,13 @@ struct SummaryValues {
     joint_mark_right_m: Option<f64>,
     /// Its 1σ, m.
     joint_mark_right_sigma_m: Option<f64>,
+    /// The odometer pitch boresight the control points' heights showed, deg (whether the
+    /// corrected navigation took it or not).
+    odo_pitch_deg: Option<f64>,
+    /// 1 when the corrected navigation took it, 0 when it was refused.
+    odo_pitch_applied: Option<f64>,
+    /// The corrected navigation's height error at the last control point the fit read, m.
+    corrected_dh_m: Option<f64>,
     /// Wall time of the run, s.
     wall_s: Option<f64>,
 }
@@ -571,6 +578,7 @@ impl SummaryValues {
         let sd = |f: fn(&SigmaOut) -> f64| joint.and_then(|j| j.outcome.x.sigma.as_ref()).map(f);
         let holdout = joint.and_then(holdout_stats);
         let mark = d.and_then(mark_estimate);
+        let pitch = d.and_then(|d| d.odo_pitch.as_ref());
         Self {
             distance_m: d.map(|d| d.distance_m),
             imu_accepted: ing.map(|i| i.imu_accepted as f64),
@@ -612,12 +620,15 @@ impl SummaryValues {
             joint_mark_forward_sigma_m: mark.map(|m| m.forward_m.1),
             joint_mark_right_m: mark.map(|m| m.right_m.0),
             joint_mark_right_sigma_m: mark.map(|m| m.right_m.1),
+            odo_pitch_deg: pitch.map(|p| p.odo_pitch_deg),
+            odo_pitch_applied: pitch.map(|p| f64::from(u8::from(p.applied))),
+            corrected_dh_m: pitch.and_then(|p| p.points.last()).map(|p| p.dh_m),
             wall_s: Some(wall_s),
         }
     }
 
     /// (column name, value) in the file's order.
-    fn columns(&self) -> [(&'static str, Option<f64>); 34] {
+    fn columns(&self) -> [(&'static str, Option<f64>); 37] {
         [
             ("distance_m", self.distance_m),
             ("imu_accepted", self.imu_accepted),
@@ -655,6 +666,9 @@ impl SummaryValues {
             ),
             ("joint_mark_right_m", self.joint_mark_right_m),
             ("joint_mark_right_sigma_m", self.joint_mark_right_sigma_m),
+            ("odo_pitch_deg", self.odo_pitch_deg),
+            ("odo_pitch_applied", self.odo_pitch_applied),
+            ("corrected_dh_m", self.corrected_dh_m),
             ("wall_s", self.wall_s),
         ]
     }

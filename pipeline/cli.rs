@@ -89,6 +89,10 @@ pub struct SimulateArgs {
     /// IMU's x axis turned by it (what `[disupt] joint_odo_yaw` estimates).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub odo_boresight_deg: f64,
+    /// Pitch of the vehicle's path above the IMU's x axis, degrees (an IMU pitched nose
+    /// down on its mount by it): what the disupt stage fits to the control points' heights.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub odo_pitch_deg: f64,
     /// Odometer lag, s: the count logged with IMU time t is the distance at t − lag
     /// (derive's `odo_time_offset_s` = −lag undoes it).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]

@@ -12,7 +12,7 @@ use std::path::PathBuf;
 use serde::Serialize;
 use unz_formats::atomic::{write_atomic, write_json_atomic};
 use unz_formats::manifest::{LogFormat, OdometerKind};
-use unz_stages::disupt::{self, Problem, ProblemSpec, X};
+use unz_stages::disupt::{self, HeightError, Problem, ProblemSpec, X};
 use unz_stages::odo_lag::Rederive;
 use unz_stages::odo_rebridge::Rebridges;
 use unz_stages::route_sigma::RouteBase;
@@ -23,8 +23,8 @@ pub use coarse_azimuth::{Coarse, CoarseRefused, coarse_azimuth, coarse_refused_n
 use joint_run::{JointInputs, joint_route_sigma, route_stride, run_methods};
 pub use report::{
     DisuptOut, MARK_ARM_REFIT_SIGMA, MARK_ARM_SIGMA, MarkArmCheck, MethodOut, ODO_YAW_REFIT_Z,
-    OdoYawCheck, Outcome, SettingsOut, SigmaOut, joint_mark_arm_note, mark_arm_note, odo_yaw_note,
-    rebridged_note,
+    OdoYawCheck, Outcome, SettingsOut, SigmaOut, joint_mark_arm_note, mark_arm_note,
+    odo_pitch_note, odo_yaw_note, rebridged_note,
 };
 use report::{Lag, markdown, method_out, settings_out};
 use reviews::{Reviewed, review_passes};
@@ -157,7 +157,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         //     inconsistent when the fit without it leaves its bounds.
         // 16: a failure bridged again refuses a bridge whose speed no land vehicle has,
         //     or across IMU samples more than a second apart.
-        version: 16,
+        // 17: the corrected route's odometer pitch boresight, from the control points'
+        //     heights.
+        version: 17,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[
@@ -371,8 +373,10 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let mut cps_of = std::collections::BTreeMap::new();
         let mut before = (f64::NAN, Vec::new());
         let mut kryt1_of_lane = Vec::with_capacity(reviewed.len());
+        let mut heights_of_lane = Vec::with_capacity(reviewed.len());
         for (lane, o) in reviewed.iter().zip(outcomes) {
             kryt1_of_lane.push(o.kryt1_rad);
+            heights_of_lane.push(o.heights);
             tracks.push(o.track);
             kryt1s.push(o.kryt1_series);
             if lane.name == "initial" {
@@ -397,6 +401,23 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             corrected_lane -= 1;
         }
         let corrected_by = (corrected_lane > 0).then(|| reviewed[corrected_lane].name.to_owned());
+        // The corrected route's heights at the control points (those the joint fit kept,
+        // when it is the joint's) give its odometer pitch boresight.
+        let left_out = |h: &HeightError| {
+            reviewed[corrected_lane].name == "joint"
+                && excluded
+                    .iter()
+                    .any(|&i| case.fixes[i].id == h.id && case.fixes[i].t_s == h.t_s)
+        };
+        let fit_heights: Vec<HeightError> = if corrected_lane > 0 {
+            std::mem::take(&mut heights_of_lane[corrected_lane])
+                .into_iter()
+                .filter(|h| !left_out(h))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let mut odo_pitch = disupt::fit_odo_pitch(&fit_heights);
         for (name, r) in &classic_ok {
             let cps = cps_of.remove(name).unwrap_or_default();
             methods.insert(
@@ -450,24 +471,58 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // The corrected navigation (the best method's, else the initial settings') written
         // as its pass runs.
         let corrected = &reviewed[corrected_lane];
-        let last_fix: Vec<usize> = case.fixes.last().map(|f| f.sample).into_iter().collect();
+        let fix_samples: Vec<usize> = case.fixes.iter().map(|f| f.sample).collect();
         let mut nav = NavWriter::create(
             &dir.join(files::CORRECTED_NAV),
             &case.derived,
             start,
             route_sigma.as_ref(),
-            &last_fix,
+            &fix_samples,
         )?;
         let inputs = NavInputs {
             odo_dist_m: &corrected.derived.odo_dist_m,
             ..case.derived.nav_inputs()
         };
-        strapdown::run(&inputs, &problem.settings(&corrected.x), &mut nav);
+        let mut settings = problem.settings(&corrected.x);
+        // The fit took each point's height to move by its distance per tan β; a probe pass
+        // at the fitted angle measures how far it does move (less, by the cosine of an IMU
+        // pitched on its mount), and the angle is fitted again on what it measured.
+        if let Some(fit) = odo_pitch.as_mut().filter(|f| f.applied) {
+            let mut probe = [strapdown::CriteriaSink::default()];
+            let tan_probe = fit.applied_rad().tan();
+            strapdown::run_criteria(
+                &inputs,
+                &[NavSettings {
+                    odo_pitch_rad: fit.applied_rad(),
+                    ..settings
+                }],
+                problem.lp.block,
+                &fix_samples,
+                &mut probe,
+            );
+            let probed = disupt::height_errors_at(&case.fixes, |k| probe[0].position_at(k));
+            if let Some(refit) =
+                disupt::fit_odo_pitch(&disupt::with_slopes(&fit_heights, &probed, tan_probe))
+            {
+                *fit = refit;
+            }
+        }
+        settings.odo_pitch_rad = odo_pitch.as_ref().map_or(0.0, |f| f.applied_rad());
+        if let Some(fit) = &odo_pitch {
+            ctx.say("disupt", &odo_pitch_note(fit));
+        }
+        strapdown::run(&inputs, &settings, &mut nav);
         let nav = nav.finish("corrected")?;
-        let distance_m = last_fix
-            .first()
-            .and_then(|&k| nav.at(k))
-            .map_or(nav.distance_m, |s| s.distance_m);
+        if let Some(fit) = odo_pitch.as_mut().filter(|f| f.applied) {
+            fit.measured(&disupt::height_errors_at(&case.fixes, |k| {
+                nav.at(k).map(|s| s.pose)
+            }));
+        }
+        let distance_m = case
+            .fixes
+            .last()
+            .and_then(|f| nav.at(f.sample))
+            .map_or(nav.distance_m, |s| s.pose.distance_m);
         let (dx, dy) = before_cps
             .last()
             .map_or((f64::NAN, f64::NAN), |k| (k.dx_m, k.dy_m));
@@ -490,6 +545,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             shared_passes: problem.base_passes(),
             mark_lever_arm_m: params.vehicle.mark_arm(),
             joint_mark_arm_check: joint_run.and_then(|r| r.mark_arm.clone()),
+            odo_pitch,
         };
         let md = markdown(&m.name, &out, &dparams);
         write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;

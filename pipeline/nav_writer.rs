@@ -44,15 +44,13 @@ pub struct NavWriter<'a> {
     last_distance_m: f64,
 }
 
-/// A sample's pose and distance, kept for the stage's report.
+/// A sample's pose (with its height and distance), kept for the stage's report.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KeptSample {
     /// Sample index.
     pub sample: usize,
-    /// Position and attitude.
+    /// Position, attitude and distance travelled.
     pub pose: FixPose,
-    /// Travelled distance, m.
-    pub distance_m: f64,
 }
 
 /// What a [`NavWriter`] saw of its pass.
@@ -190,9 +188,10 @@ impl PassSink for NavWriter<'_> {
                 pose: FixPose {
                     lat_rad: lat,
                     lon_rad: lon,
+                    h_m: h,
+                    distance_m,
                     q_b_to_n: *q,
                 },
-                distance_m,
             });
         }
         self.samples = k + 1;
@@ -301,7 +300,7 @@ mod tests {
         // Kept in sample order; a sample the pass never reached is not there.
         let kept: Vec<usize> = written.kept.iter().map(|s| s.sample).collect();
         assert_eq!(kept, vec![3, n - 1]);
-        assert_eq!(written.at(3).unwrap().distance_m, 3.0 * 0.1);
+        assert_eq!(written.at(3).unwrap().pose.distance_m, 3.0 * 0.1);
         let (_, t) = read_table(&path).unwrap();
         assert_eq!(t.num_rows(), n);
         let t_ns = i64_column(&t, schema::T_NS).unwrap();

@@ -29,6 +29,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         no_gyro_drift: false,
         no_odo_scale_error: false,
         odo_boresight_deg: 0.0,
+        odo_pitch_deg: 0.0,
         // An odometer that reports 0.2 s late, and every stop on a control point: the
         // joint fit estimates the lag, and each point's hold-out error is reported.
         odo_lag_s: 0.2,

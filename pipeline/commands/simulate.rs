@@ -17,6 +17,12 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             args.odo_boresight_deg
         );
     }
+    if args.odo_pitch_deg.is_nan() || args.odo_pitch_deg.abs() > 10.0 {
+        bail!(
+            "--odo-pitch-deg {} is not a mounting error (at most 10°)",
+            args.odo_pitch_deg
+        );
+    }
     if args.odo_lag_s.is_nan() || args.odo_lag_s.abs() > 5.0 {
         bail!(
             "--odo-lag-s {} is not an odometer's lag (at most 5 s)",
@@ -73,6 +79,7 @@ pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
             c.static_s = args.static_s;
             c.azimuth_error_deg = args.azimuth_error_deg;
             c.odo_boresight_deg = args.odo_boresight_deg;
+            c.odo_pitch_deg = args.odo_pitch_deg;
             c.odo_lag_s = args.odo_lag_s;
             c.cp_at_every_stop = args.cp_at_every_stop;
             c.log_start_s = args.log_start_s;

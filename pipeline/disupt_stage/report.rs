@@ -161,6 +161,11 @@ pub struct DisuptOut {
     /// fit was redone estimating it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub joint_mark_arm_check: Option<MarkArmCheck>,
+    /// The corrected route's odometer pitch boresight, fitted to the control points'
+    /// heights, and whether `corrected_nav.parquet` took it (absent when no method
+    /// corrected the run, or no control point was reached).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub odo_pitch: Option<disupt::OdoPitchFit>,
 }
 
 /// A mark's lever arm the joint fit's control points show, and whether the fit was redone
@@ -497,6 +502,55 @@ fn table(name: &str, r: &MethodOut, bounds: &disupt::DisuptParams) -> String {
     s
 }
 
+/// `disupt.md`'s section on the corrected route's heights at the control points and the
+/// odometer pitch boresight they show.
+fn heights_table(fit: &disupt::OdoPitchFit) -> String {
+    let mut s = String::from(
+        "## Heights
+
+",
+    );
+    let _ = writeln!(
+        s,
+        "{}
+",
+        odo_pitch_note(fit)
+    );
+    s += "| point | distance [m] | Δh without [m] | Δh [m] | Δh held out [m] |\n|---|---|---|---|---|\n";
+    for p in &fit.points {
+        let held = p
+            .holdout_dh_m
+            .map_or_else(|| "–".to_owned(), |h| format!("{h:.2}"));
+        let _ = writeln!(
+            s,
+            "| {} | {:.0} | {:.2} | {:.2} | {held} |",
+            p.id, p.distance_m, p.dh_before_m, p.dh_m
+        );
+    }
+    s + "\n"
+}
+
+/// What the corrected route's heights showed, in a sentence.
+pub fn odo_pitch_note(fit: &disupt::OdoPitchFit) -> String {
+    match &fit.refused {
+        None => format!(
+            "The control points' heights show the path {:.3}° {} the IMU's x (an odometer \
+             pitch boresight): the corrected navigation is written with it",
+            fit.odo_pitch_deg.abs(),
+            if fit.odo_pitch_deg >= 0.0 {
+                "above"
+            } else {
+                "below"
+            }
+        ),
+        Some(why) => format!(
+            "The control points' heights were not fitted with an odometer pitch boresight \
+             ({:.3}°): {why}",
+            fit.odo_pitch_deg
+        ),
+    }
+}
+
 /// `disupt.md`: the paper's tables per method (the steps a search left at the edge of its
 /// range, `bounds`, said below them), then the errors before DISUPT.
 pub(super) fn markdown(run: &str, out: &DisuptOut, bounds: &disupt::DisuptParams) -> String {
@@ -530,6 +584,9 @@ pub(super) fn markdown(run: &str, out: &DisuptOut, bounds: &disupt::DisuptParams
              (`[vehicle] mark_lever_arm_m`); the corrected navigation is the navigated \
              point's.\n\n"
         );
+    }
+    if let Some(fit) = &out.odo_pitch {
+        md += &heights_table(fit);
     }
     let (dx, dy) = (out.before.dx_m, out.before.dy_m);
     md + &format!(

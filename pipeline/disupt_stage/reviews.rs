@@ -4,7 +4,7 @@
 use rayon::prelude::*;
 use unz_stages::criteria::{self, ControlPointFix, Kryt1Series, Kryt2};
 use unz_stages::derive::Derived;
-use unz_stages::disupt::{Problem, X};
+use unz_stages::disupt::{HeightError, Problem, X, height_errors_at};
 use unz_stages::strapdown::{self, LaneBatch, PassSink, ReviewPass};
 
 use crate::method_tables::{KeptTrack, MethodKryt1, TrackBuilder, method_kryt1};
@@ -17,10 +17,12 @@ pub(super) struct Reviewed<'d> {
     pub(super) derived: &'d Derived,
 }
 
-/// What a review pass gives of one set of settings.
+/// What a review pass gives of one set of settings (the control points' horizontal and
+/// height errors among it).
 pub(super) struct ReviewOutcome {
     pub(super) kryt1_rad: f64,
     pub(super) cps: Vec<Kryt2>,
+    pub(super) heights: Vec<HeightError>,
     pub(super) track: KeptTrack,
     pub(super) kryt1_series: MethodKryt1,
 }
@@ -61,9 +63,11 @@ pub(super) fn review_passes(
                 Some(&mut series),
             );
             let cps = criteria::kryt2_at(fixes, |k| pass.criteria.position_at(k));
+            let heights = height_errors_at(fixes, |k| pass.criteria.position_at(k));
             ReviewOutcome {
                 kryt1_rad,
                 cps,
+                heights,
                 track: pass.rows.map(TrackBuilder::finish).unwrap_or_default(),
                 kryt1_series: method_kryt1(r.name, d, &series),
             }

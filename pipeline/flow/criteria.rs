@@ -56,8 +56,17 @@ fn read_nav_for_criteria(
     let mut blocks = Row3Blocks::for_samples(samples, block);
     let mut positions = Vec::new();
     let mut k0 = 0;
-    use unz_formats::schema::nav_cols::{HEADING_DEG, LAT_DEG, LON_DEG, PITCH_DEG, ROLL_DEG};
-    let columns = [LAT_DEG, LON_DEG, ROLL_DEG, PITCH_DEG, HEADING_DEG];
+    use unz_formats::schema::DISTANCE_M;
+    use unz_formats::schema::nav_cols::{H_M, HEADING_DEG, LAT_DEG, LON_DEG, PITCH_DEG, ROLL_DEG};
+    let columns = [
+        LAT_DEG,
+        LON_DEG,
+        H_M,
+        ROLL_DEG,
+        PITCH_DEG,
+        HEADING_DEG,
+        DISTANCE_M,
+    ];
     for_each_batch_of(path, &columns, |b| {
         let rad = |n: &str| -> Result<Vec<f64>, unz_formats::FormatError> {
             Ok(f64_column(b, n)?.into_iter().map(f64::to_radians).collect())
@@ -83,10 +92,13 @@ fn read_nav_for_criteria(
             .collect();
         if !here.is_empty() {
             let (lat, lon) = (rad(LAT_DEG)?, rad(LON_DEG)?);
+            let (h, distance) = (f64_column(b, H_M)?, f64_column(b, DISTANCE_M)?);
             positions.extend(here.iter().map(|&s| {
                 let pose = FixPose {
                     lat_rad: lat[s - k0],
                     lon_rad: lon[s - k0],
+                    h_m: h[s - k0],
+                    distance_m: distance[s - k0],
                     q_b_to_n: q_at(s - k0),
                 };
                 (s, pose)

@@ -378,6 +378,10 @@ pub struct FixPose {
     pub lat_rad: f64,
     /// Longitude, rad.
     pub lon_rad: f64,
+    /// Height, m.
+    pub h_m: f64,
+    /// Travelled distance (scaled odometer), m.
+    pub distance_m: f64,
     /// Attitude `C_b^n` (w, x, y, z).
     pub q_b_to_n: [f64; 4],
 }
@@ -421,6 +425,14 @@ impl ControlPointFix {
         let north = n[0] * a[0] + n[1] * a[1] + n[2] * a[2];
         let east = e[0] * a[0] + e[1] * a[1] + e[2] * a[2];
         (dx + north, dy + east)
+    }
+
+    /// Height of the vehicle's mark at the navigated `pose` minus the surveyed height, m
+    /// (the mark's arm, turned by the attitude, moves it along the down axis).
+    pub fn height_error_m(&self, pose: &FixPose) -> f64 {
+        let a = self.mark_lever_arm_m;
+        let [c31, c32, c33] = crate::strapdown::dcm_row3(&pose.q_b_to_n);
+        pose.h_m - (c31 * a[0] + c32 * a[1] + c33 * a[2]) - self.h_m
     }
 }
 
@@ -466,6 +478,8 @@ pub fn kryt2(track: &NavTrack, fixes: &[ControlPointFix]) -> Vec<Kryt2> {
         (k < track.len()).then(|| FixPose {
             lat_rad: track.lat_rad[k],
             lon_rad: track.lon_rad[k],
+            h_m: track.h_m[k],
+            distance_m: track.distance_m[k],
             q_b_to_n: track.q_b_to_n[k],
         })
     })
@@ -509,10 +523,18 @@ mod tests {
             FixPose {
                 lat_rad: 0.9 + 2e-7,
                 lon_rad: 0.3 - 1e-7,
+                h_m: 101.0,
+                distance_m: 500.0,
                 q_b_to_n: [q.w, q.i, q.j, q.k],
             }
         };
         let p = pose(3.0, -2.0, 57.0);
+        // The mark's height: 1 m above the surveyed one without an arm, and 0.5·cos
+        // (roll)·cos(pitch) m higher with the mark 0.5 m above the navigated point.
+        assert_eq!(fix([0.0; 3]).height_error_m(&p), 1.0);
+        let up = fix([0.0, 0.0, -0.5]).height_error_m(&p);
+        let tilt = 3f64.to_radians().cos() * 2f64.to_radians().cos();
+        assert!((up - (1.0 + 0.5 * tilt)).abs() < 1e-12, "{up}");
         let bare = earth::local_offset_m(p.lat_rad, p.lon_rad, 0.9, 0.3, 100.0);
         assert_eq!(fix([0.0; 3]).offset_m(&p), bare);
         let moved = |arm: [f64; 3], p: &FixPose| {

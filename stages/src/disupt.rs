@@ -23,10 +23,12 @@
 //!
 //! Modules: `settings` (what is corrected, in the optimisers' units, and the methods'
 //! bounds), `problem` (a run's exact passes and linearisations), `stepwise` (OEPI and
-//! OWPI), `joint`, `holdout`, and `results` (the tables' rows and each method's result).
+//! OWPI), `joint`, `holdout`, `odo_pitch` (the corrected route's pitch boresight from the
+//! control points' heights) and `results` (the tables' rows and each method's result).
 
 mod holdout;
 mod joint;
+mod odo_pitch;
 mod problem;
 mod results;
 mod settings;
@@ -41,6 +43,10 @@ pub use holdout::{
 pub use joint::{
     JointFit, JointOptions, MARK_ARM_MIN_POINTS, MarkArmSeen, OdoYawSeen, joint, joint_fit,
     within_bounds,
+};
+pub use odo_pitch::{
+    HeightError, MAX_ODO_PITCH_DEG, MIN_DISTANCE_M, OdoPitchFit, OdoPitchPoint, fit_odo_pitch,
+    height_errors_at, with_slopes,
 };
 pub use problem::{
     Evaluation, LANES, Problem, ProblemSpec, moved_by_steps, observe_each, points_among, points_of,

@@ -230,6 +230,7 @@ pub fn initial_settings_with_velocity(
         drift_rad_s: drift,
         odo_scale: req.odo_scale,
         odo_yaw_rad: 0.0,
+        odo_pitch_rad: 0.0,
         odo_bias_mps: 0.0,
         lat0_rad: lat0,
         lon0_rad: lon0,

@@ -420,6 +420,7 @@ mod tests {
             drift_rad_s: [1e-6 * f, -2e-7, 3e-6 + 1e-8 * f],
             odo_scale: 1.0 + 1e-5 * f,
             odo_yaw_rad: if j == 4 { 1e-3 } else { 0.0 },
+            odo_pitch_rad: 0.0,
             odo_bias_mps: if j == 6 { -0.01 } else { 0.0 },
             lat0_rad: 0.78,
             lon0_rad: -1.33,

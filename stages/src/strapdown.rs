@@ -8,8 +8,9 @@
 //! 1. body rotation vector `φ = Δθ' + (Δθ'_{k−1} × Δθ'_k)/12` with `Δθ' = Δθ − drift·Δt`
 //!    (the drift is subtracted from the measured rate; the coning term is exact for a
 //!    linearly varying rate);
-//! 2. the odometer increment, times the scale setting, is resolved along body x with the
-//!    attitude at the middle of the interval and accumulated on WGS-84 (lat, lon, h);
+//! 2. the odometer increment, times the scale setting, is resolved along body x (turned
+//!    by the odometer's boresights, when set) with the attitude at the middle of the
+//!    interval and accumulated on WGS-84 (lat, lon, h);
 //! 3. the navigation frame's rotation `ζ = (ω_ie^n + ω_en^n)·Δt` at the mid-interval
 //!    position is removed: `q ← q(ζ)* ⊗ q ⊗ q(φ)`.
 //!
@@ -76,6 +77,12 @@ pub struct NavSettings {
     pub odo_scale: f64,
     /// Odometer-to-body yaw boresight, rad: the odometer direction is body x turned by it.
     pub odo_yaw_rad: f64,
+    /// Odometer-to-body pitch boresight, rad: the path climbs above the body's x by this
+    /// angle (positive: up, towards −z). Each metre of the odometer's distance also moves
+    /// the height by tan(angle) along body −z (the cosine of the body's pitch and roll).
+    /// It moves the height alone: its horizontal part, of the order of the angle times
+    /// the body's pitch, is the odometer scale's, which the horizontal fit took.
+    pub odo_pitch_rad: f64,
     /// Odometer speed bias, m/s: added to the speed over every sample in which the
     /// odometer moved (an OBD-II speed's offset; a stopped car still reads zero).
     pub odo_bias_mps: f64,
@@ -641,6 +648,8 @@ impl<const N: usize> Emit<N> for CriteriaLanes<'_, N> {
                 let pose = FixPose {
                     lat_rad: lanes.lat_rad[l],
                     lon_rad: lanes.lon_rad[l],
+                    h_m: lanes.h_m[l],
+                    distance_m: lanes.distance_m[l],
                     q_b_to_n: lanes.q_of(l),
                 };
                 sink.positions.push((k, pose));

@@ -42,6 +42,7 @@ fn true_settings(run: &SimRun) -> NavSettings {
         drift_rad_s: run.settings.drift_rad_s,
         odo_scale: 1.0,
         odo_yaw_rad: 0.0,
+        odo_pitch_rad: 0.0,
         odo_bias_mps: 0.0,
         lat0_rad: run.site.lat_rad,
         lon0_rad: run.site.lon_rad,

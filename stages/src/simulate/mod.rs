@@ -79,6 +79,10 @@ pub struct SimConfig {
     /// IMU's x axis turned by it (clockwise seen from above), so the IMU's heading is the
     /// vehicle's minus it. Zero by default.
     pub odo_boresight_deg: f64,
+    /// Pitch of the vehicle's path above the IMU's x axis, degrees (an IMU pitched nose
+    /// down on its mount by it): what the disupt stage fits to the control points'
+    /// heights. Zero by default.
+    pub odo_pitch_deg: f64,
     /// Odometer lag, s: the count logged with IMU time t is the distance at t − lag (so
     /// derive's `odo_time_offset_s` should be −lag). Zero by default.
     pub odo_lag_s: f64,
@@ -117,6 +121,7 @@ impl SimConfig {
             azimuth_error_deg: None,
             substeps: 10,
             odo_boresight_deg: 0.0,
+            odo_pitch_deg: 0.0,
             odo_lag_s: 0.0,
             cp_at_every_stop: false,
             log_start_s: None,
@@ -149,6 +154,9 @@ pub struct TrueSettings {
     /// Odometer yaw boresight, degrees (see [`SimConfig::odo_boresight_deg`]).
     #[serde(default)]
     pub odo_boresight_deg: f64,
+    /// Odometer pitch boresight, degrees (see [`SimConfig::odo_pitch_deg`]).
+    #[serde(default)]
+    pub odo_pitch_deg: f64,
     /// Odometer lag, s (see [`SimConfig::odo_lag_s`]).
     #[serde(default)]
     pub odo_lag_s: f64,
@@ -355,8 +363,11 @@ pub fn simulate(config: &SimConfig) -> SimRun {
     let mut records = Vec::with_capacity(n);
     let mut truth = Truth::default();
     let motion = &plan.motion;
-    let c_v_b = (config.odo_boresight_deg != 0.0).then(|| {
+    // The vehicle's x seen from the IMU: turned by the yaw boresight, climbing by the
+    // pitch one ((cos p cos y, cos p sin y, −sin p)).
+    let c_v_b = (config.odo_boresight_deg != 0.0 || config.odo_pitch_deg != 0.0).then(|| {
         UnitQuaternion::from_axis_angle(&Vector3::z_axis(), config.odo_boresight_deg.to_radians())
+            * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), config.odo_pitch_deg.to_radians())
     });
     for k in 0..n {
         let t_start = k as f64 * dt;
@@ -515,6 +526,7 @@ pub fn simulate(config: &SimConfig) -> SimRun {
             odo_scale_m_per_pulse: true_m_per_pulse,
             nominal_odo_m_per_pulse: 0.0125,
             odo_boresight_deg: config.odo_boresight_deg,
+            odo_pitch_deg: config.odo_pitch_deg,
             odo_lag_s: config.odo_lag_s,
             arw_rad_sqrt_s: if e.noise { LN200_ARW_RAD_SQRT_S } else { 0.0 },
             vrw_mps_sqrt_s: if e.noise { LN200_VRW_MPS_SQRT_S } else { 0.0 },

@@ -86,7 +86,9 @@ pub(super) struct Lanes<const N: usize> {
     odo_bias_mps: [f64; N],
     odo_sin: [f64; N],
     odo_cos: [f64; N],
-    /// Whether any lane has an odometer boresight.
+    /// tan of the odometer's pitch boresight.
+    odo_tan_pitch: [f64; N],
+    /// Whether any lane has an odometer boresight (yaw or pitch).
     boresight: bool,
     /// Attitude quaternion `C_b^n` (w, x, y, z).
     pub q: [[f64; N]; 4],
@@ -144,12 +146,15 @@ fn lat_terms(lat: f64) -> [f64; 6] {
     [rm, rn, 1.0 / lat.cos(), lat.tan(), w_ie.x, w_ie.z]
 }
 
-/// Direction of the odometer axis (body x turned by the boresight, `sin`/`cos` of it) in
-/// NED: the first two columns of `C_b^n` of (w, x, y, z), without a full rotation. With
-/// no boresight in any lane (`boresight` false) the first column alone, which is what
-/// the full formula gives with sin 0 and cos 1.
+/// Direction of the odometer axis in NED, per metre of the odometer's distance: body x
+/// turned by the yaw boresight (`sin`/`cos` of it), from the columns of `C_b^n` of
+/// (w, x, y, z), without a full rotation; its down component also climbs `tan_pitch`
+/// along body −z (the pitch boresight moves the height alone: its horizontal part, of
+/// the order of the angle times the body's pitch, is the odometer scale's, which the
+/// horizontal fit took). With no boresight in any lane (`boresight` false) the first
+/// column alone, which is what the full formula gives with sin 0, cos 1 and tan 0.
 #[inline(always)]
-fn odo_dir_n(q: [f64; 4], sin: f64, cos: f64, boresight: bool) -> [f64; 3] {
+fn odo_dir_n(q: [f64; 4], sin: f64, cos: f64, tan_pitch: f64, boresight: bool) -> [f64; 3] {
     let [w, x, y, z] = q;
     let c1 = [
         1.0 - 2.0 * (y * y + z * z),
@@ -164,10 +169,11 @@ fn odo_dir_n(q: [f64; 4], sin: f64, cos: f64, boresight: bool) -> [f64; 3] {
         1.0 - 2.0 * (x * x + z * z),
         2.0 * (y * z + w * x),
     ];
+    let c33 = 1.0 - 2.0 * (x * x + y * y);
     [
         c1[0] * cos + c2[0] * sin,
         c1[1] * cos + c2[1] * sin,
-        c1[2] * cos + c2[2] * sin,
+        c1[2] * cos + c2[2] * sin - c33 * tan_pitch,
     ]
 }
 
@@ -180,7 +186,10 @@ impl<const N: usize> Lanes<N> {
             odo_bias_mps: [0.0; N],
             odo_sin: [0.0; N],
             odo_cos: [0.0; N],
-            boresight: settings.iter().any(|s| s.odo_yaw_rad != 0.0),
+            odo_tan_pitch: [0.0; N],
+            boresight: settings
+                .iter()
+                .any(|s| s.odo_yaw_rad != 0.0 || s.odo_pitch_rad != 0.0),
             q: [[0.0; N]; 4],
             lat_rad: [0.0; N],
             lon_rad: [0.0; N],
@@ -205,6 +214,7 @@ impl<const N: usize> Lanes<N> {
             lanes.odo_scale[l] = s.odo_scale;
             lanes.odo_bias_mps[l] = s.odo_bias_mps;
             (lanes.odo_sin[l], lanes.odo_cos[l]) = s.odo_yaw_rad.sin_cos();
+            lanes.odo_tan_pitch[l] = s.odo_pitch_rad.tan();
             let q = s.initial.to_quat_b_to_n().into_inner();
             let (w, x, y, z) = (q.w, q.i, q.j, q.k);
             lanes.q[0][l] = w;
@@ -219,6 +229,7 @@ impl<const N: usize> Lanes<N> {
                 [w, x, y, z],
                 lanes.odo_sin[l],
                 lanes.odo_cos[l],
+                lanes.odo_tan_pitch[l],
                 lanes.boresight,
             );
             for i in 0..3 {
@@ -358,7 +369,13 @@ impl<const N: usize> Lanes<N> {
 
             // Odometer dead reckoning along the mid-interval direction of travel.
             let ds = self.odo_scale[l] * odo_m[l] + self.odo_bias_mps[l] * moving_s;
-            let dir_end = odo_dir_n([w, x, y, z], self.odo_sin[l], self.odo_cos[l], BORESIGHT);
+            let dir_end = odo_dir_n(
+                [w, x, y, z],
+                self.odo_sin[l],
+                self.odo_cos[l],
+                self.odo_tan_pitch[l],
+                BORESIGHT,
+            );
             let half = 0.5 * ds;
             let dp = [
                 (self.dir_start[0][l] + dir_end[0]) * half,
@@ -486,6 +503,7 @@ mod tests {
             odo_scale: 1.0 + 1e-4 * l as f64,
             // Lanes 5 and 6 have a boresight, so the 8-lane batch takes that loop.
             odo_yaw_rad: if l == 5 || l == 6 { 0.01 } else { 0.0 },
+            odo_pitch_rad: if l == 6 { 0.02 } else { 0.0 },
             odo_bias_mps: if l == 3 { -0.08 } else { 0.0 },
             lat0_rad: 0.78,
             lon0_rad: -1.33,
@@ -519,6 +537,98 @@ mod tests {
         let mut four = Last(None);
         Lanes::new(&plain).run(&inputs, &mut four);
         assert_eq!(final_state(&four.0.unwrap())[..], batch[..4]);
+    }
+
+    /// A drive straight north, level, with the Earth's rate taken out of the gyros: the
+    /// odometer's pitch boresight climbs tan(angle) per metre of distance and leaves the
+    /// horizontal route as it is (its distance is the horizontal one); a yaw boresight
+    /// beside it turns the route and leaves the height.
+    #[test]
+    fn the_pitch_boresight_climbs_by_its_tangent_per_metre() {
+        let n = 10_000;
+        let lat0 = 0.78;
+        let w_ie = earth::earth_rate_ned(lat0);
+        let dt = vec![0.01; n];
+        let odo = vec![0.1; n]; // 10 m/s: 1 km
+        // The body's rate is the navigation frame's (Earth's and the transport rate going
+        // north), so the body stays level and heading north.
+        let rm = earth::radii_m(lat0).0;
+        let dth = vec![[w_ie.x * 0.01, -(10.0 / rm) * 0.01, w_ie.z * 0.01]; n];
+        let inputs = NavInputs {
+            dt_s: &dt,
+            dtheta_rad: &dth,
+            odo_dist_m: &odo,
+        };
+        let base = NavSettings {
+            initial: Euler {
+                roll_rad: 0.0,
+                pitch_rad: 0.0,
+                heading_rad: 0.0,
+            },
+            drift_rad_s: [0.0; 3],
+            odo_scale: 1.0,
+            odo_yaw_rad: 0.0,
+            odo_pitch_rad: 0.0,
+            odo_bias_mps: 0.0,
+            lat0_rad: lat0,
+            lon0_rad: -1.33,
+            h0_m: 90.0,
+        };
+        let pitch = 1f64.to_radians();
+        let nose_down = Euler {
+            pitch_rad: -2f64.to_radians(),
+            ..base.initial
+        };
+        let all = [
+            base,
+            NavSettings {
+                odo_pitch_rad: pitch,
+                ..base
+            },
+            NavSettings {
+                odo_pitch_rad: pitch,
+                odo_yaw_rad: 0.02,
+                ..base
+            },
+            // The body pitched 2° nose down, without and with the boresight.
+            NavSettings {
+                initial: nose_down,
+                ..base
+            },
+            NavSettings {
+                initial: nose_down,
+                odo_pitch_rad: pitch,
+                ..base
+            },
+        ];
+        let mut last = Last(None);
+        Lanes::new(&all).run(&inputs, &mut last);
+        let l = last.0.unwrap();
+        // Without a boresight: level, north only.
+        assert!((l.h_m[0] - 90.0).abs() < 1e-3, "{}", l.h_m[0]);
+        // Climbing tan(1°) per metre: 17.455 m over 1 km, with the same latitude and
+        // longitude (but for the millimetres a metre of distance spans less latitude
+        // higher up: 1 km × 9 m / 6.4e6 m).
+        let climb = l.h_m[1] - l.h_m[0];
+        assert!((climb - 1e3 * pitch.tan()).abs() < 1e-3, "{climb}");
+        assert!((l.lat_rad[1] - l.lat_rad[0]).abs() * rm < 3e-3);
+        assert!((l.lon_rad[1] - l.lon_rad[0]).abs() * rm < 1e-3);
+        // The yaw boresight turns the route 0.02 rad east (20 m) and climbs the same.
+        let east = (l.lon_rad[2] - l.lon_rad[0]) * earth::radii_m(lat0).1 * lat0.cos();
+        assert!((east - 1e3 * 0.02f64.sin()).abs() < 0.05, "{east}");
+        assert!(
+            (l.h_m[2] - l.h_m[1]).abs() < 1e-3,
+            "{}",
+            l.h_m[2] - l.h_m[1]
+        );
+        assert_eq!(l.distance_m[1], l.distance_m[0]);
+        // A pitched body: the boresight climbs by the cosine of the pitch more, and its
+        // horizontal route is the one without it (but for the Earth's radii).
+        let climb = l.h_m[4] - l.h_m[3];
+        let want = 1e3 * pitch.tan() * 2f64.to_radians().cos();
+        assert!((climb - want).abs() < 1e-3, "{climb} {want}");
+        assert!((l.lat_rad[4] - l.lat_rad[3]).abs() * rm < 3e-3);
+        assert!((l.lon_rad[4] - l.lon_rad[3]).abs() * rm < 1e-3);
     }
 
     #[test]

@@ -1,0 +1,357 @@
+//! The odometer's pitch boresight, fitted to the control points' surveyed heights.
+//!
+//! Dead reckoning carries the odometer's distance along the body's x axis. When the
+//! vehicle's path does not run along the IMU's x but climbs above it by an angle β (an
+//! IMU pitched on its mount, a body that sits nose-down at speed), every metre of
+//! distance moves the height by tan β that the route leaves out, and the error grows with
+//! distance: on the Kingston log (real), the path runs 0.95° above the IMU's x while
+//! driving (the reference INS's pitch against its velocity's), and the corrected route
+//! ends 38 m below the last control point after 2.4 km.
+//!
+//! The horizontal criteria cannot see β: it moves the horizontal route by 1 − cos β (1.5e-4
+//! at 1°, which the odometer scale takes), and the pitch the gyros carry is the IMU's, so
+//! Kryt1 is blind to it. The control points' heights see it whole: a route's height error
+//! at a point `distance_m` along it changes by `tan β · distance_m` (to the cosine of the
+//! road's slope), so β is the linear least-squares fit of the height errors on distance
+//! through the start (whose height is the manifest's). Whatever else grows in proportion
+//! to distance (a levelling pitch error the pitch and roll left) is taken with it.
+//!
+//! What guards it:
+//! - a point at least [`MIN_DISTANCE_M`] along the route;
+//! - with two or more such points, each one's height predicted by the others' fit must be
+//!   nearer than without any: the points must show one angle (a datum offset does not
+//!   grow with distance, and fails it);
+//! - |β| at most [`MAX_ODO_PITCH_DEG`] from a single such point (a height in another datum
+//!   than the start's shows as an angle: the geoid lies 20–50 m from the ellipsoid), or
+//!   [`MAX_AGREED_ODO_PITCH_DEG`] when two or more agree (an IMU pitched on its mount).
+
+use serde::{Deserialize, Serialize};
+
+use crate::criteria::{ControlPointFix, FixPose};
+
+/// The nearest a control point must lie along the route (m) for its height to speak of the
+/// angle: at 200 m, a 1-m height error is 0.3°.
+pub const MIN_DISTANCE_M: f64 = 200.0;
+
+/// The largest pitch boresight taken from a single point, deg: a body's attitude at speed
+/// is a degree or two (Kingston: 0.95°), and a point in another datum than the start's
+/// shows as an angle too (30 m at 300 m: 5.7°).
+pub const MAX_ODO_PITCH_DEG: f64 = 5.0;
+
+/// The largest pitch boresight taken when two or more points agree on it (each predicted
+/// by the others better than without any), deg: an IMU pitched on its mount, up to the
+/// axes check's tilt limit ([`crate::imu_axes::MAX_TILT_DEG`]).
+pub const MAX_AGREED_ODO_PITCH_DEG: f64 = crate::imu_axes::MAX_TILT_DEG;
+
+/// A route's height error at one control point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeightError {
+    /// Control-point id.
+    pub id: u32,
+    /// Time of the stop, s in the log's time base.
+    pub t_s: f64,
+    /// Distance travelled to it along the route, m.
+    pub distance_m: f64,
+    /// Navigated height of the vehicle's mark minus the surveyed height, m.
+    pub dh_m: f64,
+    /// How far the height there moves per unit of tan β, m: the distance, to the cosine of
+    /// the IMU's pitch and roll along the way, until a pass with the angle measures it
+    /// ([`with_slopes`]).
+    pub slope_m: f64,
+}
+
+impl HeightError {
+    /// The height error at `fix` of the navigated `pose` there.
+    pub fn at(fix: &ControlPointFix, pose: &FixPose) -> Self {
+        Self {
+            id: fix.id,
+            t_s: fix.t_s,
+            distance_m: pose.distance_m,
+            dh_m: fix.height_error_m(pose),
+            slope_m: pose.distance_m,
+        }
+    }
+}
+
+/// `errors` with each point's slope measured: `probe` holds the height errors of the same
+/// route with tan β = `tan_probe` (≠ 0), and the height moves exactly in proportion to
+/// tan β (the angle moves no attitude; the height's effect on the Earth's radii is a
+/// millionth). An IMU pitched 20° on its mount climbs 6 % less per metre than its
+/// distance says.
+pub fn with_slopes(
+    errors: &[HeightError],
+    probe: &[HeightError],
+    tan_probe: f64,
+) -> Vec<HeightError> {
+    errors
+        .iter()
+        .map(|e| {
+            let slope_m = probe
+                .iter()
+                .find(|p| p.id == e.id && p.t_s == e.t_s)
+                .map_or(e.slope_m, |p| (p.dh_m - e.dh_m) / tan_probe);
+            HeightError { slope_m, ..*e }
+        })
+        .collect()
+}
+
+/// Height errors at every control point whose sample `pose` gives.
+pub fn height_errors_at(
+    fixes: &[ControlPointFix],
+    pose: impl Fn(usize) -> Option<FixPose>,
+) -> Vec<HeightError> {
+    fixes
+        .iter()
+        .filter_map(|f| Some(HeightError::at(f, &pose(f.sample)?)))
+        .collect()
+}
+
+/// One control point of the fit.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct OdoPitchPoint {
+    /// Control-point id.
+    pub id: u32,
+    /// Time of the stop, s in the log's time base.
+    pub t_s: f64,
+    /// Distance travelled to it, m.
+    pub distance_m: f64,
+    /// Height error of the route without the angle, m (navigated minus surveyed).
+    pub dh_before_m: f64,
+    /// Height error of the corrected navigation, m: with the angle when it was taken (as
+    /// its pass measured it), else as before.
+    pub dh_m: f64,
+    /// Height error with the angle fitted to the other points alone, m (the point held
+    /// out): with two or more points at [`MIN_DISTANCE_M`] or more.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub holdout_dh_m: Option<f64>,
+}
+
+/// The odometer's pitch boresight the control points' heights show, and whether the
+/// corrected navigation took it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OdoPitchFit {
+    /// The angle, deg: positive, the path climbs above the body's x.
+    pub odo_pitch_deg: f64,
+    /// Whether the corrected navigation was written with it.
+    pub applied: bool,
+    /// Why it was not, when not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refused: Option<String>,
+    /// The points it was fitted to, in the order of the route.
+    pub points: Vec<OdoPitchPoint>,
+}
+
+impl OdoPitchFit {
+    /// The angle the corrected navigation takes, rad (0 when refused).
+    pub fn applied_rad(&self) -> f64 {
+        if self.applied {
+            self.odo_pitch_deg.to_radians()
+        } else {
+            0.0
+        }
+    }
+
+    /// Records the corrected navigation's height errors (`after`, by id and time), as its
+    /// pass measured them.
+    pub fn measured(&mut self, after: &[HeightError]) {
+        for p in &mut self.points {
+            if let Some(a) = after.iter().find(|a| a.id == p.id && a.t_s == p.t_s) {
+                p.dh_m = a.dh_m;
+            }
+        }
+    }
+}
+
+/// tan β of the least-squares fit of `errors` (height error against its slope, through
+/// the start): the angle that takes the errors away, None without a point along the route.
+fn tan_fit<'a>(errors: impl Iterator<Item = &'a HeightError>) -> Option<f64> {
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for e in errors {
+        sxy += e.dh_m * e.slope_m;
+        sxx += e.slope_m * e.slope_m;
+    }
+    (sxx > 0.0).then(|| -sxy / sxx)
+}
+
+/// Fits the pitch boresight to a route's height errors at its control points, and judges
+/// it (see the module's doc). None without any point.
+pub fn fit_odo_pitch(errors: &[HeightError]) -> Option<OdoPitchFit> {
+    if errors.is_empty() {
+        return None;
+    }
+    let far = |e: &&HeightError| e.distance_m >= MIN_DISTANCE_M;
+    let tan = tan_fit(errors.iter()).unwrap_or(0.0);
+    let far_count = errors.iter().filter(far).count();
+    let points: Vec<OdoPitchPoint> = errors
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let holdout_dh_m = (far_count >= 2 && far(&e))
+                .then(|| {
+                    let others = errors
+                        .iter()
+                        .enumerate()
+                        .filter(|&(j, o)| j != i && far(&o))
+                        .map(|(_, o)| o);
+                    tan_fit(others).map(|t| e.dh_m + t * e.slope_m)
+                })
+                .flatten();
+            OdoPitchPoint {
+                id: e.id,
+                t_s: e.t_s,
+                distance_m: e.distance_m,
+                dh_before_m: e.dh_m,
+                dh_m: e.dh_m,
+                holdout_dh_m,
+            }
+        })
+        .collect();
+    let odo_pitch_deg = tan.atan().to_degrees();
+    let refused = if far_count == 0 {
+        Some(format!(
+            "no control point lies {MIN_DISTANCE_M:.0} m or more along the route"
+        ))
+    } else if let Some(p) = points.iter().find(|p| {
+        p.holdout_dh_m
+            .is_some_and(|h| h.abs() >= p.dh_before_m.abs())
+    }) {
+        Some(format!(
+            "the heights do not show one angle: point {}'s, fitted from the others, is \
+             {:+.2} m off against {:+.2} m without any (are the control points' heights \
+             in the start's datum?)",
+            p.id,
+            p.holdout_dh_m.unwrap_or(f64::NAN),
+            p.dh_before_m
+        ))
+    } else {
+        let (limit, why) = if far_count >= 2 {
+            (MAX_AGREED_ODO_PITCH_DEG, "the axes check's tilt limit")
+        } else {
+            (MAX_ODO_PITCH_DEG, "a single point is taken for")
+        };
+        (odo_pitch_deg.abs() > limit).then(|| {
+            let last = errors
+                .iter()
+                .filter(far)
+                .max_by(|a, b| a.distance_m.total_cmp(&b.distance_m))
+                .expect("a far point");
+            format!(
+                "the heights need {odo_pitch_deg:.1}°, more than the {limit}° {why} (point \
+                 {}: {:+.1} m after {:.0} m): are the control points' heights in the \
+                 start's datum (ellipsoidal or above the geoid, which lie 20–50 m apart)?",
+                last.id, last.dh_m, last.distance_m
+            )
+        })
+    };
+    Some(OdoPitchFit {
+        odo_pitch_deg,
+        applied: refused.is_none(),
+        refused,
+        points,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn err(id: u32, distance_m: f64, dh_m: f64) -> HeightError {
+        HeightError {
+            id,
+            t_s: f64::from(id),
+            distance_m,
+            dh_m,
+            slope_m: distance_m,
+        }
+    }
+
+    /// The slopes a probe pass measures: a point's height moving by `slope` per tan β.
+    #[test]
+    fn slopes_are_measured_by_a_probe() {
+        let errors = [err(1, 805.0, 125.26), err(2, 2397.0, 377.74)];
+        let tan = 0.1;
+        let probe = [
+            err(1, 805.0, 125.26 + 0.1 * 760.0),
+            err(2, 2397.0, 377.74 + 0.1 * 2250.0),
+        ];
+        let measured = with_slopes(&errors, &probe, tan);
+        assert!((measured[0].slope_m - 760.0).abs() < 1e-9);
+        assert!((measured[1].slope_m - 2250.0).abs() < 1e-9);
+        // Fitted on those slopes, the errors go as the probe says they would.
+        let fit = fit_odo_pitch(&measured).unwrap();
+        let t = fit.odo_pitch_deg.to_radians().tan();
+        let sxy = 125.26 * 760.0 + 377.74 * 2250.0;
+        assert!((t + sxy / (760.0f64.powi(2) + 2250.0f64.powi(2))).abs() < 1e-12);
+    }
+
+    /// Kingston's two points (the joint fit's route): 14.36 m low after 792 m, 38.38 m
+    /// low after 2363 m: 0.94°, each point predicted by the other within 1.5 and 4.5 m.
+    #[test]
+    fn kingstons_heights_show_one_angle() {
+        let fit = fit_odo_pitch(&[err(1, 792.3, -14.36), err(2, 2363.3, -38.38)]).unwrap();
+        assert!(fit.applied, "{fit:?}");
+        assert!((fit.odo_pitch_deg - 0.9415).abs() < 1e-3, "{fit:?}");
+        let h: Vec<f64> = fit.points.iter().map(|p| p.holdout_dh_m.unwrap()).collect();
+        assert!(
+            (h[0] + 1.49).abs() < 0.02 && (h[1] - 4.47).abs() < 0.02,
+            "{h:?}"
+        );
+        assert_eq!(fit.applied_rad(), fit.odo_pitch_deg.to_radians());
+    }
+
+    /// One point: its angle, taken, with nothing to hold out.
+    #[test]
+    fn one_point_gives_its_angle() {
+        let fit = fit_odo_pitch(&[err(1, 1000.0, 10.0)]).unwrap();
+        assert!(fit.applied);
+        assert!((fit.odo_pitch_deg + 0.01f64.atan().to_degrees()).abs() < 1e-12);
+        assert_eq!(fit.points[0].holdout_dh_m, None);
+    }
+
+    /// A datum 30 m off at both points does not grow with distance: the points do not
+    /// show one angle. At one point it is more than a single point is taken for; two
+    /// points agreeing on 8.9° (an IMU pitched 10° on its mount) are taken.
+    #[test]
+    fn a_datum_offset_is_refused() {
+        let fit = fit_odo_pitch(&[err(1, 792.3, 15.64), err(2, 2363.3, -8.38)]).unwrap();
+        assert!(!fit.applied);
+        assert_eq!(fit.applied_rad(), 0.0);
+        assert!(fit.refused.unwrap().contains("do not show one angle"));
+        let fit = fit_odo_pitch(&[err(1, 300.0, -35.0)]).unwrap();
+        assert!(!fit.applied);
+        assert!(
+            fit.refused.unwrap().contains("datum"),
+            "{:?}",
+            fit.odo_pitch_deg
+        );
+        let fit = fit_odo_pitch(&[err(1, 805.0, 125.26), err(2, 2397.0, 377.74)]).unwrap();
+        assert!(
+            fit.applied && (fit.odo_pitch_deg + 8.94).abs() < 0.01,
+            "{fit:?}"
+        );
+        let fit = fit_odo_pitch(&[err(1, 805.0, 600.0), err(2, 2397.0, 1790.0)]).unwrap();
+        assert!(!fit.applied && fit.refused.unwrap().contains("tilt limit"));
+    }
+
+    /// Points near the start say nothing of an angle: refused, and not held out.
+    #[test]
+    fn points_near_the_start_are_not_judged() {
+        let fit = fit_odo_pitch(&[err(1, 50.0, -1.0)]).unwrap();
+        assert!(!fit.applied);
+        assert!(fit.refused.unwrap().contains("200 m"));
+        let fit = fit_odo_pitch(&[err(1, 50.0, 0.3), err(2, 2000.0, -20.0)]).unwrap();
+        assert!(fit.applied, "{fit:?}");
+        assert_eq!(fit.points[0].holdout_dh_m, None);
+        assert_eq!(fit.points[1].holdout_dh_m, None);
+        assert!(fit_odo_pitch(&[]).is_none());
+    }
+
+    /// The corrected pass's own errors replace the fit's, point by point.
+    #[test]
+    fn measured_errors_are_recorded() {
+        let mut fit = fit_odo_pitch(&[err(1, 792.3, -14.36), err(2, 2363.3, -38.38)]).unwrap();
+        fit.measured(&[err(2, 2363.3, 0.44)]);
+        assert_eq!(fit.points[0].dh_m, -14.36);
+        assert_eq!(fit.points[1].dh_m, 0.44);
+    }
+}
