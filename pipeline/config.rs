@@ -141,7 +141,15 @@ pub fn validate(p: &Params) -> anyhow::Result<()> {
         ("vehicle.mark_lever_arm_m[2]", arm[2]),
     ]
     .map(|(name, v)| (name, v, -MARK_LEVER_ARM_MAX_M, MARK_LEVER_ARM_MAX_M));
-    for (name, v, lo, hi) in checks.into_iter().chain(arm_checks) {
+    let mount = p.vehicle.imu_mounting_deg;
+    let max = unz_stages::imu_mounting::MAX_MOUNTING_DEG;
+    let mount_checks = [
+        ("vehicle.imu_mounting_deg[0] (roll)", mount[0]),
+        ("vehicle.imu_mounting_deg[1] (pitch)", mount[1]),
+        ("vehicle.imu_mounting_deg[2] (yaw)", mount[2]),
+    ]
+    .map(|(name, v)| (name, v, -max, max));
+    for (name, v, lo, hi) in checks.into_iter().chain(arm_checks).chain(mount_checks) {
         if !(v.is_finite() && (lo..=hi).contains(&v)) {
             anyhow::bail!("{name} = {v} is outside [{lo}, {hi}]");
         }
@@ -211,6 +219,15 @@ mod tests {
             (
                 "[vehicle]\nmark_lever_arm_m = [1.0, 0.0]\n",
                 "mark_lever_arm_m",
+            ),
+            // A mounting a right angle of imu_axes is nearer.
+            (
+                "[vehicle]\nimu_mounting_deg = [0.0, 0.0, 60.0]\n",
+                "vehicle.imu_mounting_deg[2] (yaw) = 60 is outside [-45, 45]",
+            ),
+            (
+                "[vehicle]\nimu_mounting_deg = [nan, 0.0, 0.0]\n",
+                "vehicle.imu_mounting_deg[0] (roll)",
             ),
         ] {
             let t: toml::Table = toml::from_str(text).unwrap();

@@ -33,6 +33,7 @@ use unz_formats::speed_spikes::{SpeedSpikes, Verdict};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
 use unz_formats::{IngestEvents, IngestReport, schema};
 use unz_stages::imu_axes::ImuAxes;
+use unz_stages::imu_mounting;
 
 /// Rows per Parquet batch.
 const BATCH_ROWS: usize = 1 << 16;
@@ -79,6 +80,10 @@ pub struct IngestOptions {
     /// increments are turned into the body's FRD as they are read, before anything
     /// (the odometer's judgements among them) looks at them.
     pub imu_axes: ImuAxes,
+    /// The IMU's mounting beyond those axes (`[vehicle] imu_mounting_deg`): the turn
+    /// from them into the body's, after the axes' ([`unz_stages::imu_mounting`]); None
+    /// for none.
+    pub imu_mounting: Option<nalgebra::Rotation3<f64>>,
 }
 
 /// The status bit of an odometer failure (the raw-format spec's §1.2).
@@ -305,13 +310,20 @@ fn ingest_binary(
                     .unwrap_or(i64::MAX / 1000)
                     .saturating_mul(1000);
                 // The counts are turned (whole numbers: a zero stays +0.0), then scaled.
+                // A mounting turns the scaled increments.
                 let axes = options.imu_axes;
-                let dtheta_rad = axes
-                    .to_body(s.raw.dtheta.map(i64::from))
-                    .map(|c| c as f64 * header.dtheta_lsb_rad);
-                let dvel_mps = axes
-                    .to_body(s.raw.dvel.map(i64::from))
-                    .map(|c| c as f64 * header.dvel_lsb_mps);
+                let mount = |v: [f64; 3]| match &options.imu_mounting {
+                    Some(r) => imu_mounting::to_body(r, v),
+                    None => v,
+                };
+                let dtheta_rad = mount(
+                    axes.to_body(s.raw.dtheta.map(i64::from))
+                        .map(|c| c as f64 * header.dtheta_lsb_rad),
+                );
+                let dvel_mps = mount(
+                    axes.to_body(s.raw.dvel.map(i64::from))
+                        .map(|c| c as f64 * header.dvel_lsb_mps),
+                );
                 let p0 = *first_pulses.get_or_insert(s.odo_pulses);
                 let failed = s.raw.status & STATUS_ODOMETER_FAILED != 0;
                 // A failed odometer's count is not read, nor judged against a land
@@ -437,6 +449,10 @@ fn ingest_text(
     while let Some(mut s) = reader.next_sample().map_err(|e| e.in_file(path))? {
         s.dtheta_rad = options.imu_axes.to_body(s.dtheta_rad);
         s.dvel_mps = options.imu_axes.to_body(s.dvel_mps);
+        if let Some(r) = &options.imu_mounting {
+            s.dtheta_rad = imu_mounting::to_body(r, s.dtheta_rad);
+            s.dvel_mps = imu_mounting::to_body(r, s.dvel_mps);
+        }
         let t_ns = tag_ns(s.t_s);
         let rows = &mut sinks.imu_rows;
         rows.t_ns.push(t_ns);

@@ -1,6 +1,6 @@
 //! The IMU's axes on the vehicle (`[vehicle] imu_axes`), end to end on simulated runs.
 
-use crate::util::{read_json, run_until, simulated_run, stage_fails};
+use crate::util::{read_json, run_until, simulated_run, stage_fails, vehicle_settings_named};
 
 /// An IMU mounted facing backwards (x back, y left, z down), as `unz simulate
 /// --imu-axes BLD` logs it: gravity cannot tell its axes from the body's, the odometer's
@@ -58,4 +58,40 @@ fn an_imu_facing_backwards_is_named_and_turned_exactly() {
     // Measured within 3.3° of forward on 38 runs (the verdict rounds to 90°).
     assert!(report.check.forward_turn_deg.abs() < 5.0, "{report:?}");
     assert!(report.check.forward_correlation > 0.8, "{report:?}");
+}
+
+/// A binary log from an IMU yawed 20° on its mount (`--odo-boresight-deg 20`: the
+/// vehicle's forward is the IMU's x turned 20° clockwise): the derive fails it, naming
+/// the mounting the drive shows (the IMU's x about 20° to the left of forward); named
+/// so, the ingest turns the counts as scaled and the joint fit's route meets the control
+/// points within a metre (the simulated route's own: 0.1–0.5 m).
+#[test]
+fn an_imu_yawed_on_its_mount_is_measured_and_turned() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = simulated_run(
+        tmp.path(),
+        41,
+        &["--duration-s", "900", "--odo-boresight-deg", "20"],
+    );
+    let out = tmp.path().join("o");
+    let err = stage_fails("derive", &run, &out);
+    assert!(err.contains("to the left of forward"), "{err}");
+    let settings = vehicle_settings_named(&err);
+    let yaw: f64 = settings
+        .rsplit(", ")
+        .next()
+        .and_then(|y| y.trim_end_matches("]\n").parse().ok())
+        .unwrap_or_else(|| panic!("{settings}"));
+    assert!((yaw + 20.0).abs() < 5.0, "{settings}");
+    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+    std::fs::write(
+        run.join("run.toml"),
+        format!("{manifest}\n[params.vehicle]\n{settings}"),
+    )
+    .unwrap();
+    run_until(&run, &out, "disupt");
+    let d: unz::disupt_stage::DisuptOut = read_json(&out.join("sim-0041/disupt/disupt.json"));
+    assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
+    let worst = crate::kingston::worst_control_point_m(&d.methods["joint"]);
+    assert!(worst < 1.0, "{worst} m");
 }

@@ -283,6 +283,7 @@ fn raw_mcap_compression_changes_the_size_not_the_messages() {
             mcap: Some(compression),
             odo_lag_prior_s: 0.0,
             imu_axes: Default::default(),
+            imu_mounting: None,
         };
         ingest(&manifest, &dir, options).unwrap();
         let path = dir.join("raw.mcap");

@@ -257,7 +257,7 @@ fn corrected_heading_error_deg(dir: &std::path::Path, r: &Reference) -> f64 {
 }
 
 /// The largest horizontal error of a method at the control points, m.
-fn worst_control_point_m(m: &unz::disupt_stage::MethodOut) -> f64 {
+pub(crate) fn worst_control_point_m(m: &unz::disupt_stage::MethodOut) -> f64 {
     m.outcome
         .control_points
         .iter()
@@ -1179,23 +1179,8 @@ fn kingston_heights_give_the_odometers_pitch() {
     );
     assert!(rms(&e) < 2.0 && max < 5.0, "RMS {} m, max {max} m", rms(&e));
 
-    // The IMU pitched 10° nose up on its mount: each increment turned into its axes.
-    let run = kingston_with(&tmp.path().join("pitched/k"), "");
-    let (s, c) = 10f64.to_radians().sin_cos();
-    let imu = std::fs::read_to_string(run.join("imu.txt")).unwrap();
-    let text: String = imu
-        .lines()
-        .map(|l| {
-            let f: Vec<&str> = l.split_whitespace().collect();
-            let v: Vec<f64> = f[1..7].iter().map(|x| x.parse().unwrap()).collect();
-            // Body to IMU: a turn of −10° about y (x up out of the body's x–y plane).
-            let turn = |x: f64, z: f64| (c * x - s * z, s * x + c * z);
-            let (a0, a2) = turn(v[0], v[2]);
-            let (v0, v2) = turn(v[3], v[5]);
-            format!("{} {a0:e} {} {a2:e} {v0:e} {} {v2:e}\n", f[0], v[1], v[4])
-        })
-        .collect();
-    std::fs::write(run.join("imu.txt"), text).unwrap();
+    // The IMU pitched 10° nose up on its mount.
+    let run = kingston_mounted(&tmp.path().join("pitched/k"), [0.0, 10.0, 0.0]);
     let out = tmp.path().join("pitched/o");
     crate::util::run_until(&run, &out, "disupt");
     let disupt = out.join("kingston2008-segment1/disupt");
@@ -1205,6 +1190,73 @@ fn kingston_heights_give_the_odometers_pitch() {
     assert!((fit.odo_pitch_deg + 10.0 - 0.94).abs() < 0.3, "{fit:?}");
     let pitched = corrected_height_errors_m(&disupt, &r);
     assert!(rms(&pitched) < 2.0, "RMS {} m", rms(&pitched));
+}
+
+/// Kingston as logged by an IMU mounted at `mounting_deg` (roll, pitch, yaw: its axes
+/// the body's turned by them, as `[vehicle] imu_mounting_deg` names them), in `run`.
+fn kingston_mounted(run: &std::path::Path, mounting_deg: [f64; 3]) -> std::path::PathBuf {
+    let run = kingston_with(run, "");
+    let [r, p, y] = mounting_deg.map(f64::to_radians);
+    let imu_from_body = nalgebra::Rotation3::from_euler_angles(r, p, y).inverse();
+    let imu = std::fs::read_to_string(run.join("imu.txt")).unwrap();
+    let text: String = imu
+        .lines()
+        .map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            let v: Vec<f64> = f[1..7].iter().map(|x| x.parse().unwrap()).collect();
+            let turn = |i: usize| imu_from_body * nalgebra::Vector3::new(v[i], v[i + 1], v[i + 2]);
+            let (a, w) = (turn(0), turn(3));
+            format!(
+                "{} {:e} {:e} {:e} {:e} {:e} {:e}\n",
+                f[0], a.x, a.y, a.z, w.x, w.y, w.z
+            )
+        })
+        .collect();
+    std::fs::write(run.join("imu.txt"), text).unwrap();
+    run
+}
+
+/// Kingston as logged by an IMU yawed 20° on its mount, and one rolled 45°. The previous
+/// build took the yawed log's axes for the body's: the joint fit left its bounds (its
+/// azimuth takes a yaw, linearised) and OWPI's route was taken, 442 m off at the last
+/// control point (15°: 323 m; 12° and 10° were within 0.9 m); the rolled one failed as
+/// tilted, with no setting to fix it. Now the derive fails each naming the setting the
+/// drive shows (yaw 19.4°; roll 45.3°, the nearest right angle's axes turned back
+/// 44.7°), and with the setting as named, the joint fit's route is within 0.3 m of the
+/// last point (as shipped: 0.4 m) and its heights within 1.0 m RMS of the reference's.
+#[test]
+fn kingston_an_imu_mounted_at_an_angle_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let r = reference();
+    for (name, mounting) in [("yawed", [0.0, 0.0, 20.0]), ("rolled", [45.0, 0.0, 0.0])] {
+        let run = kingston_mounted(&tmp.path().join(name).join("k"), mounting);
+        let out = tmp.path().join(name).join("o");
+        let err = crate::util::stage_fails("derive", &run, &out);
+        let settings = crate::util::vehicle_settings_named(&err);
+        assert!(settings.contains("imu_mounting_deg = ["), "{name}: {err}");
+        if name == "yawed" {
+            assert!(
+                err.contains("yawed 19.") && !settings.contains("imu_axes"),
+                "{err}"
+            );
+        } else {
+            assert!(err.contains("45° from the body's down"), "{err}");
+        }
+        let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+        let named = format!("{manifest}\n[params.vehicle]\n{settings}");
+        std::fs::write(run.join("run.toml"), named).unwrap();
+        crate::util::run_until(&run, &out, "disupt");
+        assert!(joint_worst_control_point_m(&out) < 1.0, "{name}");
+        let heights = corrected_height_errors_m(&out.join("kingston2008-segment1/disupt"), &r);
+        let rms = (heights.iter().map(|e| e * e).sum::<f64>() / heights.len() as f64).sqrt();
+        assert!(rms < 2.0, "{name}: {rms} m");
+        let nav: unz::flow::NavigateSummary =
+            read_json(&out.join("kingston2008-segment1/navigate/navigate.json"));
+        let report = nav.imu_axes.unwrap();
+        assert!(report.named_mounting_deg.is_some(), "{report:?}");
+        let left = report.check.mounting_deg.unwrap();
+        assert!(left.iter().all(|a| a.abs() < 0.5), "{name}: {left:?}");
+    }
 }
 
 /// The joint fit's worst control point of the Kingston run disupt put in `out`, m (the

@@ -216,3 +216,22 @@ pub fn hold_count(raw: &Path, k0: usize, len: usize, flagged: bool) {
     }
     write_log(raw, &log);
 }
+
+/// The `[vehicle]` settings a failure message `err` names ("set [vehicle] imu_axes =
+/// "FDL" and [vehicle] imu_mounting_deg = [a, b, c]"), as TOML lines for a run's
+/// `[params.vehicle]`.
+pub fn vehicle_settings_named(err: &str) -> String {
+    let setting = |key: &str| {
+        let at = err.find(&format!("[vehicle] {key} = "))? + "[vehicle] ".len() + key.len() + 3;
+        let end = if key == "imu_axes" {
+            at + 1 + err[at + 1..].find('"')? + 1
+        } else {
+            at + err[at..].find(']')? + 1
+        };
+        Some(format!("{key} = {}\n", &err[at..end]))
+    };
+    ["imu_axes", "imu_mounting_deg"]
+        .iter()
+        .filter_map(|k| setting(k))
+        .collect()
+}

@@ -68,6 +68,7 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
                 mcap: None,
                 odo_lag_prior_s: 0.0,
                 imu_axes: Default::default(),
+                imu_mounting: None,
             },
         ),
         (
@@ -76,6 +77,7 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
                 mcap: Some(McapCompression::None),
                 odo_lag_prior_s: 0.0,
                 imu_axes: Default::default(),
+                imu_mounting: None,
             },
         ),
         (
@@ -84,6 +86,7 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
                 mcap: Some(McapCompression::Zstd),
                 odo_lag_prior_s: 0.0,
                 imu_axes: Default::default(),
+                imu_mounting: None,
             },
         ),
     ] {

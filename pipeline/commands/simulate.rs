@@ -11,17 +11,15 @@ use crate::simulate_io::{write_faulty_copy, write_run};
 
 /// The configurations `args` asks for.
 pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
-    if args.odo_boresight_deg.is_nan() || args.odo_boresight_deg.abs() > 10.0 {
-        bail!(
-            "--odo-boresight-deg {} is not a mounting error (at most 10°)",
-            args.odo_boresight_deg
-        );
-    }
-    if args.odo_pitch_deg.is_nan() || args.odo_pitch_deg.abs() > 10.0 {
-        bail!(
-            "--odo-pitch-deg {} is not a mounting error (at most 10°)",
-            args.odo_pitch_deg
-        );
+    // Beyond, a right angle of --imu-axes is nearer.
+    let max = unz_stages::imu_mounting::MAX_MOUNTING_DEG;
+    for (flag, deg) in [
+        ("--odo-boresight-deg", args.odo_boresight_deg),
+        ("--odo-pitch-deg", args.odo_pitch_deg),
+    ] {
+        if deg.is_nan() || deg.abs() > max {
+            bail!("{flag} {deg} is not a mounting error (at most {max}°)");
+        }
     }
     if args.odo_lag_s.is_nan() || args.odo_lag_s.abs() > 5.0 {
         bail!(

@@ -10,20 +10,44 @@ use unz_stages::derive::Derived;
 use unz_stages::imu_axes::{
     AxesCheck, AxesVerdict, GRAVITY_TOLERANCE, ImuAxes, MAX_TILT_DEG, SCALE_GAIN_RANGE,
 };
+use unz_stages::imu_mounting::{self, MAX_MOUNTING_DEG, MAX_MOUNTING_YAW_DEG};
 
-/// Checks `d` (ingested in the `declared` axes, from the run `manifest` with its
-/// `odometer_file` when the ingest read one) against gravity `g_mps2`: fails when its gravity or its odometer says its axes are not the vehicle's,
-/// naming the setting that fixes it, or its units are not metres, seconds and radians,
-/// naming where to fix them. A log shorter than [`unz_stages::imu_axes::CHECK_MIN_S`]
-/// is not judged.
+use crate::flow::VehicleParams;
+
+/// Checks `d` (ingested in the axes and mounting `vehicle` names, from the run
+/// `manifest` with its `odometer_file` when the ingest read one) against gravity
+/// `g_mps2`: fails when its gravity or its odometer says its axes are not the vehicle's,
+/// or its IMU is yawed on its mount more than the joint fit takes, naming the setting
+/// that fixes it, or its units are not metres, seconds and radians, naming where to fix
+/// them. A log shorter than [`unz_stages::imu_axes::CHECK_MIN_S`] is not judged.
 pub fn check_axes(
     d: &Derived,
-    declared: ImuAxes,
+    vehicle: &VehicleParams,
     g_mps2: f64,
     manifest: &RunManifest,
     odometer_file: Option<&Path>,
 ) -> anyhow::Result<AxesCheck> {
+    let declared = vehicle.imu_axes;
     let check = AxesCheck::of(d);
+    // The settings that would take what the drive shows: the turn the increments still
+    // show, after the mounting and the axes named.
+    let settings = check.mounting_deg.map(|seen| {
+        let named = imu_mounting::rotation(vehicle.imu_mounting_deg).unwrap_or_default();
+        let seen = imu_mounting::rotation(seen).unwrap_or_default();
+        settings_for(seen * named * declared.body_from_log())
+    });
+    let mounting_setting = |(axes, m): (ImuAxes, [f64; 3])| {
+        let axes = if axes == declared {
+            String::new()
+        } else {
+            format!("[vehicle] imu_axes = \"{axes}\" and ")
+        };
+        format!(
+            "{axes}[vehicle] imu_mounting_deg = [{:.1}, {:.1}, {:.1}] (roll, pitch, yaw; in \
+             the campaign's --config, or the run's [params.vehicle])",
+            m[0], m[1], m[2]
+        )
+    };
     let mean = check
         .mean_specific_force_mps2
         .map(|v| format!("{v:.2}"))
@@ -35,6 +59,20 @@ pub fn check_axes(
     };
     match check.verdict(g_mps2) {
         AxesVerdict::Agree | AxesVerdict::TooShort => Ok(check),
+        AxesVerdict::Mounted => {
+            let setting = settings.unwrap_or((declared, [0.0; 3]));
+            let seen = check.mounting_deg.unwrap_or_default();
+            let side = if seen[2] > 0.0 { "right" } else { "left" };
+            bail!(
+                "the odometer's accelerations show the IMU{as_named} yawed {:.1}° on the \
+                 vehicle (its x that far to the {side} of forward; rolled {:.1}°, pitched \
+                 {:.1}°), more than the {MAX_MOUNTING_YAW_DEG}° the joint fit takes: set {}",
+                seen[2].abs(),
+                seen[0],
+                seen[1],
+                mounting_setting(setting)
+            )
+        }
         AxesVerdict::OdometerScale => {
             let (along, across) = (check.along, check.across);
             bail!(
@@ -82,13 +120,28 @@ pub fn check_axes(
             check.mean_specific_force_size_mps2(),
             GRAVITY_TOLERANCE * 100.0
         ),
-        AxesVerdict::Tilted => bail!(
-            "the accelerometers' mean over the log, [{mean}] m/s² in the body's axes{as_named}, \
-             is {:.0}° from the body's down and more than {MAX_TILT_DEG}° from every right \
-             angle: the IMU is mounted at an angle [vehicle] imu_axes cannot name (right \
-             angles only), or the log is not a land vehicle's",
-            check.tilt_deg
-        ),
+        AxesVerdict::Tilted => {
+            let fix = match (settings, check.mounting_deg) {
+                (Some(setting), Some(m)) => format!(
+                    ": the odometer's accelerations show the IMU turned by [{:.1}, {:.1}, \
+                     {:.1}]° (roll, pitch, yaw); set {}",
+                    m[0],
+                    m[1],
+                    m[2],
+                    mounting_setting(setting)
+                ),
+                _ => ": the IMU is mounted at an angle [vehicle] imu_axes cannot name (right \
+                      angles only) and the drive does not show its mounting, or the log is not \
+                      a land vehicle's"
+                    .to_owned(),
+            };
+            bail!(
+                "the accelerometers' mean over the log, [{mean}] m/s² in the body's \
+                 axes{as_named}, is {:.0}° from the body's down and more than \
+                 {MAX_TILT_DEG}° from every right angle{fix}",
+                check.tilt_deg
+            )
+        }
         AxesVerdict::Other {
             found,
             forward_shown,
@@ -142,6 +195,21 @@ pub fn check_axes(
             )
         }
     }
+}
+
+/// The settings that turn a log by `body_from_log`: the right-angle axes nearest it, and
+/// the mounting (roll, pitch, yaw, degrees) the rest is.
+fn settings_for(body_from_log: nalgebra::Rotation3<f64>) -> (ImuAxes, [f64; 3]) {
+    let (axes, rest) = ImuAxes::all()
+        .map(|a| (a, body_from_log * a.body_from_log().inverse()))
+        .min_by(|x, y| x.1.angle().total_cmp(&y.1.angle()))
+        .unwrap_or((ImuAxes::FRD, body_from_log));
+    let m = imu_mounting::angles_deg(&rest);
+    debug_assert!(
+        m.iter().all(|a| a.abs() <= MAX_MOUNTING_DEG + 10.0),
+        "{m:?}"
+    );
+    (axes, m)
 }
 
 /// Names the unit a speed in m/s would be `factor` times, when one is near it.

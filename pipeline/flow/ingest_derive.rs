@@ -49,6 +49,7 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             params.ingest,
             params.derive.odo_time_offset_s,
             params.vehicle.imu_axes,
+            params.vehicle.imu_mounting_deg,
         ))?,
         inputs,
         outputs: &INGEST_OUTPUTS,
@@ -57,6 +58,7 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         mcap: Some(params.ingest.raw_mcap_compression),
         odo_lag_prior_s: -params.derive.odo_time_offset_s,
         imu_axes: params.vehicle.imu_axes,
+        imu_mounting: unz_stages::imu_mounting::rotation(params.vehicle.imu_mounting_deg),
     };
     ctx.run_stage(&stage, || ingest(m, &dir, options).map(|_| ()))?;
     Ok(dir)
@@ -76,8 +78,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         dir: dir.clone(),
         name: "derive",
         // 7: an odometer count that stood while the vehicle moved counts with the
-        // flagged samples against a tenth of the run. 8: the IMU's axes checked.
-        version: 8,
+        // flagged samples against a tenth of the run. 8: the IMU's axes checked. 9: the
+        // IMU's mounting measured, a yaw beyond 10° failed.
+        version: 9,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
@@ -161,7 +164,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ensure_finite("accelerometer roll", d.epochs.phi_p_rad.iter().copied())?;
         let g_mps2 = site_gravity_mps2(m);
         let odometer_file = (report.odometer_file.as_ref()).and(m.odometer.file.as_deref());
-        let axes = check_axes(&d, params.vehicle.imu_axes, g_mps2, m, odometer_file)?;
+        let axes = check_axes(&d, &params.vehicle, g_mps2, m, odometer_file)?;
         d.axes_check = Some(axes);
         write_derived(&d, &dir)?;
         let mut d = as_stored(d);

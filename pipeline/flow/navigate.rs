@@ -60,18 +60,21 @@ pub struct NavigateSummary {
     pub imu_axes: Option<ImuAxesReport>,
 }
 
-/// The log's IMU axes as named (`[vehicle] imu_axes`; the ingest turned the increments
-/// from them into the body's FRD), and the derive's check of the turned increments and
-/// of the log's scales.
+/// The log's IMU axes and mounting as named (`[vehicle] imu_axes`, `imu_mounting_deg`;
+/// the ingest turned the increments from them into the body's FRD), and the derive's
+/// check of the turned increments and of the log's scales.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ImuAxesReport {
     /// The log's axes as named.
     pub named: ImuAxes,
+    /// The IMU's mounting as named (roll, pitch, yaw, degrees); absent when none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub named_mounting_deg: Option<[f64; 3]>,
     /// What the increments, turned, say of the body's axes: gravity's direction
     /// (`tilt_deg` from down) and the odometer's accelerations' (`forward_turn_deg` from
-    /// x; judged when `forward_correlation` ≥ 0.5 over enough driving); and of the
-    /// scales: the accelerometers' gains on the odometer's u̇ (`along`) and ru
-    /// (`across`), 1 in SI units.
+    /// x; judged when `forward_correlation` ≥ 0.5 over enough driving), the mounting
+    /// they still show (`mounting_deg`); and of the scales: the accelerometers' gains on
+    /// the odometer's u̇ (`along`) and ru (`across`), 1 in SI units.
     pub check: AxesCheck,
 }
 
@@ -135,6 +138,8 @@ pub fn ensure_navigate(
             odometer_failure_samples: case.derived.odometer_failure_samples,
             imu_axes: case.derived.axes_check.map(|check| ImuAxesReport {
                 named: params.vehicle.imu_axes,
+                named_mounting_deg: Some(params.vehicle.imu_mounting_deg)
+                    .filter(|m| *m != [0.0; 3]),
                 check,
             }),
         };

@@ -205,6 +205,11 @@ impl ImuAxes {
         format!("x {x}, y {y}, z {z}")
     }
 
+    /// The turn from the log's axes into the body's.
+    pub fn body_from_log(&self) -> nalgebra::Rotation3<f64> {
+        nalgebra::Rotation3::from_matrix_unchecked(self.matrix())
+    }
+
     /// Rows: the body axes; columns: the log's.
     fn matrix(&self) -> nalgebra::Matrix3<f64> {
         nalgebra::Matrix3::from_fn(|row, i| {
@@ -316,6 +321,11 @@ pub struct AxesCheck {
     /// The accelerometers' y against ru: 1 when the odometer's distance is in metres and
     /// the gyros' increments in radians.
     pub across: ScaleFit,
+    /// The IMU's mounting the drive shows, as `[vehicle] imu_mounting_deg` would set it
+    /// (roll, pitch, yaw, degrees, of the axes as ingested;
+    /// [`crate::imu_mounting::seen`]): when the drive shows forward and both gains.
+    #[serde(default)]
+    pub mounting_deg: Option<[f64; 3]>,
 }
 
 /// One of the accelerometers' horizontal axes against the odometer's acceleration along
@@ -373,6 +383,10 @@ pub enum AxesVerdict {
     /// The accelerometers' y does not follow ru while x follows u̇: the gyros' rate is
     /// not in radians.
     GyroScale,
+    /// The drive shows the IMU yawed on its mount beyond
+    /// [`crate::imu_mounting::MAX_MOUNTING_YAW_DEG`] (a right angle from the axes named
+    /// would be nearer forward): [`AxesCheck::mounting_deg`] gives the setting.
+    Mounted,
 }
 
 impl AxesCheck {
@@ -384,7 +398,17 @@ impl AxesCheck {
         let tilt_deg = angle_deg(mean, [0.0, 0.0, -1.0]);
         // The horizontal, in the axes turned (a right angle) to have down nearest z.
         let down = nearest_down(mean);
-        let fit = Blocks::of(&sums.blocks, down).fit();
+        let blocks = Blocks::of(&sums.blocks, down, mean);
+        let fit = blocks.fit();
+        // The mounting of the axes as ingested, when the drive shows it (accelerations
+        // along and across, correlated): the blocks' axes are those turned by `down`
+        // (v_blocks = D·v_ingested), so body ← ingested is body ← blocks times D.
+        let mounting_deg = crate::imu_mounting::seen(&blocks.mounting_rows)
+            .filter(|s| {
+                s.correlation >= MIN_FORWARD_CORRELATION
+                    && s.excitation.iter().all(|&e| e >= MIN_SCALE_EXCITATION)
+            })
+            .map(|s| crate::imu_mounting::angles_deg(&(s.body_from_imu * down.body_from_log())));
         Self {
             duration_s,
             mean_specific_force_mps2: mean,
@@ -394,6 +418,7 @@ impl AxesCheck {
             forward_excitation: fit.excitation,
             along: fit.along,
             across: fit.across,
+            mounting_deg,
         }
     }
 
@@ -456,6 +481,11 @@ impl AxesCheck {
             AxesVerdict::OdometerScale
         } else if across.wrong() && !along.wrong() {
             AxesVerdict::GyroScale
+        } else if self
+            .mounting_deg
+            .is_some_and(|[_, _, yaw]| yaw.abs() > crate::imu_mounting::MAX_MOUNTING_YAW_DEG)
+        {
+            AxesVerdict::Mounted
         } else {
             AxesVerdict::Agree
         }
@@ -569,19 +599,27 @@ struct Fit {
     across: ScaleFit,
 }
 
-/// One-second means of the horizontal specific force and of the odometer's horizontal
-/// acceleration (u̇, ru), in axes whose down is the log's as turned.
+/// One-second means of the specific force and of the odometer's horizontal acceleration
+/// (u̇, ru), in axes whose down is the log's as turned.
 struct Blocks {
-    /// Per block: specific force x, y; u̇, ru.
-    rows: Vec<[f64; 4]>,
+    /// Per block: specific force x, y, z; u̇, ru (r: the rate about the turned z).
+    rows: Vec<[f64; 5]>,
+    /// The same with r the rate about gravity's direction, wherever the IMU's z points
+    /// (the mounting's fit).
+    mounting_rows: Vec<[f64; 5]>,
 }
 
 impl Blocks {
     /// The rows of the 1-s `blocks` (in the log's axes as ingested), their increments
     /// turned by `turn` (exact: a block's sum turned is its samples' turned, summed).
-    fn of(blocks: &[BlockSum], turn: ImuAxes) -> Self {
+    /// `mean` is the log's mean specific force as ingested (gravity's opposite).
+    fn of(blocks: &[BlockSum], turn: ImuAxes, mean: [f64; 3]) -> Self {
         let u = |b: &BlockSum| b.distance_m / b.dt_s;
-        let rows = blocks
+        // Down (gravity's direction) in the turned axes: the mean specific force's
+        // opposite.
+        let size = norm(mean).max(f64::MIN_POSITIVE);
+        let down = turn.to_body(mean).map(|x| -x / size);
+        let (rows, mounting_rows) = blocks
             .windows(3)
             .filter(|w| w.iter().all(|b| b.dt_s > 0.0))
             .map(|w| {
@@ -590,11 +628,19 @@ impl Blocks {
                 let dt = (w[2].t_s - w[0].t_s).max(f64::MIN_POSITIVE);
                 let u_dot = (u(&w[2]) - u(&w[0])) / dt;
                 let r = theta[2] / c.dt_s;
-                [v[0] / c.dt_s, v[1] / c.dt_s, u_dot, r * u(c)]
+                let r_down = (0..3).map(|i| theta[i] * down[i]).sum::<f64>() / c.dt_s;
+                let f = [v[0] / c.dt_s, v[1] / c.dt_s, v[2] / c.dt_s];
+                (
+                    [f[0], f[1], f[2], u_dot, r * u(c)],
+                    [f[0], f[1], f[2], u_dot, r_down * u(c)],
+                )
             })
-            .filter(|r| r.iter().all(|v| v.is_finite()))
-            .collect();
-        Self { rows }
+            .filter(|(r, m)| r.iter().chain(m).all(|v| v.is_finite()))
+            .unzip();
+        Self {
+            rows,
+            mounting_rows,
+        }
     }
 
     /// P = Σ f·a, Q = Σ (f_y a_x − f_x a_y) (the turn is atan2(Q, P)), Σ|a|², and the
@@ -607,7 +653,7 @@ impl Blocks {
         let mut sums = [[0.0; 3]; 2];
         for r in &self.rows {
             let f = [r[0] - mean_f[0], r[1] - mean_f[1]];
-            let a = [r[2], r[3]];
+            let a = [r[3], r[4]];
             p += f[0] * a[0] + f[1] * a[1];
             q += f[1] * a[0] - f[0] * a[1];
             for i in 0..2 {
