@@ -142,13 +142,13 @@ pub fn validate(p: &Params) -> anyhow::Result<()> {
     ]
     .map(|(name, v)| (name, v, -MARK_LEVER_ARM_MAX_M, MARK_LEVER_ARM_MAX_M));
     let mount = p.vehicle.imu_mounting_deg;
-    let max = unz_stages::imu_mounting::MAX_MOUNTING_DEG;
+    let range = unz_stages::imu_mounting::MOUNTING_RANGE_DEG;
     let mount_checks = [
-        ("vehicle.imu_mounting_deg[0] (roll)", mount[0]),
-        ("vehicle.imu_mounting_deg[1] (pitch)", mount[1]),
-        ("vehicle.imu_mounting_deg[2] (yaw)", mount[2]),
+        ("vehicle.imu_mounting_deg[0] (roll)", mount[0], range[0]),
+        ("vehicle.imu_mounting_deg[1] (pitch)", mount[1], range[1]),
+        ("vehicle.imu_mounting_deg[2] (yaw)", mount[2], range[2]),
     ]
-    .map(|(name, v)| (name, v, -max, max));
+    .map(|(name, v, max)| (name, v, -max, max));
     for (name, v, lo, hi) in checks.into_iter().chain(arm_checks).chain(mount_checks) {
         if !(v.is_finite() && (lo..=hi).contains(&v)) {
             anyhow::bail!("{name} = {v} is outside [{lo}, {hi}]");
@@ -220,10 +220,9 @@ mod tests {
                 "[vehicle]\nmark_lever_arm_m = [1.0, 0.0]\n",
                 "mark_lever_arm_m",
             ),
-            // A mounting a right angle of imu_axes is nearer.
             (
-                "[vehicle]\nimu_mounting_deg = [0.0, 0.0, 60.0]\n",
-                "vehicle.imu_mounting_deg[2] (yaw) = 60 is outside [-45, 45]",
+                "[vehicle]\nimu_mounting_deg = [0.0, 95.0, 0.0]\n",
+                "vehicle.imu_mounting_deg[1] (pitch) = 95 is outside [-90, 90]",
             ),
             (
                 "[vehicle]\nimu_mounting_deg = [nan, 0.0, 0.0]\n",

@@ -3,6 +3,7 @@
 
 mod coarse_azimuth;
 mod exclusions;
+mod heights;
 mod joint_run;
 mod report;
 mod reviews;
@@ -401,23 +402,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             corrected_lane -= 1;
         }
         let corrected_by = (corrected_lane > 0).then(|| reviewed[corrected_lane].name.to_owned());
-        // The corrected route's heights at the control points (those the joint fit kept,
-        // when it is the joint's) give its odometer pitch boresight.
-        let left_out = |h: &HeightError| {
-            reviewed[corrected_lane].name == "joint"
-                && excluded
-                    .iter()
-                    .any(|&i| case.fixes[i].id == h.id && case.fixes[i].t_s == h.t_s)
-        };
-        let fit_heights: Vec<HeightError> = if corrected_lane > 0 {
-            std::mem::take(&mut heights_of_lane[corrected_lane])
-                .into_iter()
-                .filter(|h| !left_out(h))
-                .collect()
-        } else {
-            Vec::new()
-        };
-        let mut odo_pitch = disupt::fit_odo_pitch(&fit_heights);
         for (name, r) in &classic_ok {
             let cps = cps_of.remove(name).unwrap_or_default();
             methods.insert(
@@ -484,29 +468,27 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             ..case.derived.nav_inputs()
         };
         let mut settings = problem.settings(&corrected.x);
-        // The fit took each point's height to move by its distance per tan β; a probe pass
-        // at the fitted angle measures how far it does move (less, by the cosine of an IMU
-        // pitched on its mount), and the angle is fitted again on what it measured.
-        if let Some(fit) = odo_pitch.as_mut().filter(|f| f.applied) {
-            let mut probe = [strapdown::CriteriaSink::default()];
-            let tan_probe = fit.applied_rad().tan();
-            strapdown::run_criteria(
-                &inputs,
-                &[NavSettings {
-                    odo_pitch_rad: fit.applied_rad(),
-                    ..settings
-                }],
-                problem.lp.block,
-                &fix_samples,
-                &mut probe,
-            );
-            let probed = disupt::height_errors_at(&case.fixes, |k| probe[0].position_at(k));
-            if let Some(refit) =
-                disupt::fit_odo_pitch(&disupt::with_slopes(&fit_heights, &probed, tan_probe))
-            {
-                *fit = refit;
-            }
-        }
+        // The corrected route's heights at the control points (those the joint fit kept,
+        // when it is the joint's) give its odometer pitch boresight; the initial settings
+        // correct nothing.
+        let mut odo_pitch = (corrected_lane > 0)
+            .then(|| {
+                heights::odo_pitch_of(
+                    std::mem::take(&mut heights_of_lane[corrected_lane]),
+                    |h: &HeightError| {
+                        corrected.name == "joint"
+                            && excluded
+                                .iter()
+                                .any(|&i| case.fixes[i].id == h.id && case.fixes[i].t_s == h.t_s)
+                    },
+                    &inputs,
+                    settings,
+                    &case.fixes,
+                    &fix_samples,
+                    problem.lp.block,
+                )
+            })
+            .flatten();
         settings.odo_pitch_rad = odo_pitch.as_ref().map_or(0.0, |f| f.applied_rad());
         if let Some(fit) = &odo_pitch {
             ctx.say("disupt", &odo_pitch_note(fit));

@@ -12,7 +12,7 @@ use crate::simulate_io::{write_faulty_copy, write_run};
 /// The configurations `args` asks for.
 pub fn configs(args: &SimulateArgs) -> anyhow::Result<Vec<SimConfig>> {
     // Beyond, a right angle of --imu-axes is nearer.
-    let max = unz_stages::imu_mounting::MAX_MOUNTING_DEG;
+    let max = unz_stages::imu_mounting::MAX_SIMULATED_MOUNTING_DEG;
     for (flag, deg) in [
         ("--odo-boresight-deg", args.odo_boresight_deg),
         ("--odo-pitch-deg", args.odo_pitch_deg),

@@ -10,7 +10,7 @@ use unz_stages::derive::Derived;
 use unz_stages::imu_axes::{
     AxesCheck, AxesVerdict, GRAVITY_TOLERANCE, ImuAxes, MAX_TILT_DEG, SCALE_GAIN_RANGE,
 };
-use unz_stages::imu_mounting::{self, MAX_MOUNTING_DEG, MAX_MOUNTING_YAW_DEG};
+use unz_stages::imu_mounting::{self, MAX_MOUNTING_YAW_DEG};
 
 use crate::flow::VehicleParams;
 
@@ -60,17 +60,17 @@ pub fn check_axes(
     match check.verdict(g_mps2) {
         AxesVerdict::Agree | AxesVerdict::TooShort => Ok(check),
         AxesVerdict::Mounted => {
-            let setting = settings.unwrap_or((declared, [0.0; 3]));
             let seen = check.mounting_deg.unwrap_or_default();
             let side = if seen[2] > 0.0 { "right" } else { "left" };
+            let fix =
+                settings.map_or_else(String::new, |s| format!(": set {}", mounting_setting(s)));
             bail!(
                 "the odometer's accelerations show the IMU{as_named} yawed {:.1}° on the \
                  vehicle (its x that far to the {side} of forward; rolled {:.1}°, pitched \
-                 {:.1}°), more than the {MAX_MOUNTING_YAW_DEG}° the joint fit takes: set {}",
+                 {:.1}°), more than the {MAX_MOUNTING_YAW_DEG}° the joint fit takes{fix}",
                 seen[2].abs(),
                 seen[0],
                 seen[1],
-                mounting_setting(setting)
             )
         }
         AxesVerdict::OdometerScale => {
@@ -198,18 +198,14 @@ pub fn check_axes(
 }
 
 /// The settings that turn a log by `body_from_log`: the right-angle axes nearest it, and
-/// the mounting (roll, pitch, yaw, degrees) the rest is.
+/// the mounting (roll, pitch, yaw, degrees) the rest is (up to 63° about a diagonal: so
+/// far from every right angle a turn can be).
 fn settings_for(body_from_log: nalgebra::Rotation3<f64>) -> (ImuAxes, [f64; 3]) {
     let (axes, rest) = ImuAxes::all()
         .map(|a| (a, body_from_log * a.body_from_log().inverse()))
         .min_by(|x, y| x.1.angle().total_cmp(&y.1.angle()))
         .unwrap_or((ImuAxes::FRD, body_from_log));
-    let m = imu_mounting::angles_deg(&rest);
-    debug_assert!(
-        m.iter().all(|a| a.abs() <= MAX_MOUNTING_DEG + 10.0),
-        "{m:?}"
-    );
-    (axes, m)
+    (axes, imu_mounting::angles_deg(&rest))
 }
 
 /// Names the unit a speed in m/s would be `factor` times, when one is near it.
@@ -275,4 +271,33 @@ fn down_words(axes: ImuAxes) -> String {
             _ => None,
         })
         .unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Rotation3, Vector3};
+
+    /// The settings that name a turn: a yaw within 45° is a mounting of the axes as they
+    /// are; a roll of 50° is a right angle's axes and the 40° back; a turn 60° about a
+    /// diagonal, far from every right angle, the nearest one's and the rest.
+    #[test]
+    fn the_nearest_right_angle_and_the_rest() {
+        let yaw = Rotation3::from_euler_angles(0.0, 0.0, 20f64.to_radians());
+        let (axes, m) = settings_for(yaw);
+        assert_eq!(axes, ImuAxes::FRD);
+        assert!((m[2] - 20.0).abs() < 1e-9 && m[0].abs() < 1e-9 && m[1].abs() < 1e-9);
+        let roll = Rotation3::from_euler_angles(50f64.to_radians(), 0.0, 0.0);
+        let (axes, m) = settings_for(roll);
+        assert_eq!(axes.to_string(), "FDL");
+        assert!((m[0] + 40.0).abs() < 1e-9, "{m:?}");
+        // The named axes, then the mounting: the whole turn.
+        let whole = imu_mounting::rotation(m).unwrap() * axes.body_from_log();
+        assert!((whole.angle_to(&roll)).abs() < 1e-12);
+        let diagonal = Vector3::new(1.0, 1.0, 1.0).normalize();
+        let far = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(diagonal), 1.05);
+        let (axes, m) = settings_for(far);
+        let whole = imu_mounting::rotation(m).unwrap() * axes.body_from_log();
+        assert!((whole.angle_to(&far)).abs() < 1e-12);
+    }
 }

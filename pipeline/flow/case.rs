@@ -77,7 +77,8 @@ pub struct VehicleParams {
     /// other than the ones named.
     pub imu_axes: ImuAxes,
     /// The IMU's mounting beyond those right angles, `[roll, pitch, yaw]` in degrees
-    /// (each within ±45°): its axes are the body's turned by the yaw, then the pitch,
+    /// (roll and yaw within ±180°, pitch within ±90°; the right angles are best named by
+    /// `imu_axes`): its axes are the body's turned by the yaw, then the pitch,
     /// then the roll; the ingest turns the increments back. The derive's check of the
     /// axes measures it (`navigate.json`'s `imu_axes.check.mounting_deg`) and fails a
     /// yaw beyond 10°, which the joint fit cannot take, naming the setting.

@@ -323,7 +323,9 @@ pub struct AxesCheck {
     pub across: ScaleFit,
     /// The IMU's mounting the drive shows, as `[vehicle] imu_mounting_deg` would set it
     /// (roll, pitch, yaw, degrees, of the axes as ingested;
-    /// [`crate::imu_mounting::seen`]): when the drive shows forward and both gains.
+    /// [`crate::imu_mounting::seen`]): when the odometer's accelerations along and
+    /// across are each [`MIN_SCALE_EXCITATION`] or more and the fit's correlation
+    /// [`MIN_FORWARD_CORRELATION`] or more.
     #[serde(default)]
     pub mounting_deg: Option<[f64; 3]>,
 }
@@ -384,8 +386,9 @@ pub enum AxesVerdict {
     /// not in radians.
     GyroScale,
     /// The drive shows the IMU yawed on its mount beyond
-    /// [`crate::imu_mounting::MAX_MOUNTING_YAW_DEG`] (a right angle from the axes named
-    /// would be nearer forward): [`AxesCheck::mounting_deg`] gives the setting.
+    /// [`crate::imu_mounting::MAX_MOUNTING_YAW_DEG`] (and less than 45°: beyond, another
+    /// right angle is nearer forward, [`AxesVerdict::Other`]):
+    /// [`AxesCheck::mounting_deg`] gives the setting.
     Mounted,
 }
 

@@ -20,9 +20,13 @@
 
 use nalgebra::{Matrix3, Rotation3};
 
-/// The largest angle of the setting, degrees: beyond, a right angle of `imu_axes` is
-/// nearer.
-pub const MAX_MOUNTING_DEG: f64 = 45.0;
+/// The setting's ranges, degrees: roll and yaw within ±180°, pitch within ±90° (every
+/// turn has such angles, whatever `imu_axes` names).
+pub const MOUNTING_RANGE_DEG: [f64; 3] = [180.0, 90.0, 180.0];
+
+/// The largest simulated mounting error, degrees: beyond, a right angle of `imu_axes`
+/// is nearer.
+pub const MAX_SIMULATED_MOUNTING_DEG: f64 = 45.0;
 
 /// The largest yaw the axes check lets pass, degrees. On the Kingston log (real) rewritten
 /// as from an IMU yawed on its mount, the joint fit's route was within 0.9 m at the last
