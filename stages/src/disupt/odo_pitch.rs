@@ -217,8 +217,7 @@ pub fn fit_odo_pitch(errors: &[HeightError]) -> Option<OdoPitchFit> {
     }) {
         Some(format!(
             "the heights do not show one angle: point {}'s, fitted from the others, is \
-             {:+.2} m off against {:+.2} m without any (are the control points' heights \
-             in the start's datum?)",
+             {:+.2} m off against {:+.2} m without any",
             p.id,
             p.holdout_dh_m.unwrap_or(f64::NAN),
             p.dh_before_m
