@@ -459,19 +459,26 @@ impl<R: BufRead> OdometerFileReader<R> {
                     }
                     // Not held: the faults kept were full, as they are now.
                     (Err(None), _) => self.reject(line, String::new),
-                    (Ok((t, v)), Verdict::Spike(from)) => self.reject(line, || match from {
-                        Some((t0, v0)) => format!(
-                            "speed {v} m/s at {t} s left out: it jumped from {v0} m/s at \
-                             {t0} s faster than a land vehicle brakes or accelerates \
-                             ({MAX_BRAKING_MPS2} and {MAX_ACCEL_MPS2} m/s²) and came \
-                             back (a spike)"
-                        ),
-                        None => format!(
-                            "speed {v} m/s at {t} s left out: the readings after it, the \
-                             first of the file, jump from it faster than a land vehicle \
-                             brakes or accelerates (a spike)"
-                        ),
-                    }),
+                    (Ok((t, v)), Verdict::Spike(from)) => {
+                        // In the file's unit.
+                        let kind = self.kind;
+                        self.reject(line, || match from {
+                            Some((t0, v0)) => format!(
+                                "speed {} at {t} s left out: it jumped from {} at {t0} s \
+                                 faster than a land vehicle brakes or accelerates \
+                                 ({MAX_BRAKING_MPS2} and {MAX_ACCEL_MPS2} m/s²) and came \
+                                 back (a spike)",
+                                kind.as_written(v),
+                                kind.as_written(v0)
+                            ),
+                            None => format!(
+                                "speed {} at {t} s left out: the readings after it, the \
+                                 first of the file, jump from it faster than a land vehicle \
+                                 brakes or accelerates (a spike)",
+                                kind.as_written(v)
+                            ),
+                        })
+                    }
                     (Ok((t, v)), _) => return Ok(Some(self.accept(t, v))),
                 }
             }
@@ -632,6 +639,15 @@ mod tests {
         while r.next_sample().unwrap().is_some() {}
         let reason = &r.faults().0[0].reason;
         assert!(reason.starts_with("speed 400 km/h is beyond"), "{reason}");
+        // A spike, in km/h as the file writes it.
+        let text = b"0 36\n1 36\n2 36\n3 144\n4 36\n5 36\n6 36\n";
+        let mut r = OdometerFileReader::new(&text[..], OdometerKind::SpeedKmh);
+        while r.next_sample().unwrap().is_some() {}
+        let reason = &r.faults().0[0].reason;
+        assert!(
+            reason.starts_with("speed 144 km/h at 3 s left out: it jumped from 36 km/h at 2 s"),
+            "{reason}"
+        );
     }
 
     #[test]

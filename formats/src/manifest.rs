@@ -61,6 +61,20 @@ impl OdometerKind {
             Self::SpeedMps | Self::DistanceM => value,
         }
     }
+
+    /// An SI value (m/s or m) as the file writes it, with its unit: "100 km/h" of
+    /// 27.78 m/s (to a millionth: the file's own digits, not the division's residue); in
+    /// m/s or m the value as it is.
+    pub fn as_written(self, si: f64) -> String {
+        match self {
+            Self::SpeedKmh => {
+                let text = format!("{:.6}", si * 3.6);
+                let trimmed = text.trim_end_matches('0').trim_end_matches('.');
+                format!("{trimmed} km/h")
+            }
+            Self::SpeedMps | Self::DistanceM => format!("{si} {}", self.unit()),
+        }
+    }
 }
 
 /// A geodetic position on WGS-84.
