@@ -1152,8 +1152,9 @@ fn corrected_height_errors_m(disupt: &std::path::Path, r: &Reference) -> Vec<f64
 /// reference's height. The two control points' heights fit 0.94° (each predicted by the
 /// other within 1.5 and 4.5 m), and the corrected route's height is within 1.0 m RMS of
 /// the reference's over the whole log (at most 3.6 m; the reference is SPAN's real-time
-/// INS/GPS, good to a few metres). The same log rotated as from an IMU pitched 10° up on
-/// its mount fits 9.07° the other way and gives the same heights (0.98 m RMS).
+/// INS/GPS, good to a few metres). Its control points' heights 35 m off in datum are
+/// refused. The same log rotated as from an IMU pitched 10° up on its mount fits 9.07°
+/// the other way and gives the same heights (0.98 m RMS).
 #[test]
 fn kingston_heights_give_the_odometers_pitch() {
     let tmp = tempfile::tempdir().unwrap();
@@ -1178,6 +1179,32 @@ fn kingston_heights_give_the_odometers_pitch() {
         rms(&e)
     );
     assert!(rms(&e) < 2.0 && max < 5.0, "RMS {} m, max {max} m", rms(&e));
+
+    // The control points' heights 35 m lower (above the geoid, where the start's is
+    // ellipsoidal): a datum's offset does not grow with distance, and each point held out
+    // is further than with no angle. Not fitted: the route's heights are as without it.
+    let run = kingston_with(&tmp.path().join("datum/k"), "");
+    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+    let lowered = manifest
+        .replace("height_m = 44.419", "height_m = 9.419")
+        .replace("height_m = 48.135", "height_m = 13.135");
+    assert_ne!(lowered, manifest);
+    std::fs::write(run.join("run.toml"), lowered).unwrap();
+    let out = tmp.path().join("datum/o");
+    crate::util::run_until(&run, &out, "disupt");
+    let d: unz::disupt_stage::DisuptOut =
+        read_json(&out.join("kingston2008-segment1/disupt/disupt.json"));
+    let fit = d.odo_pitch.expect("fitted");
+    assert!(!fit.applied, "{fit:?}");
+    assert!(
+        fit.refused
+            .as_deref()
+            .unwrap_or_default()
+            .contains("do not show one angle")
+    );
+    for p in &fit.points {
+        assert_eq!(p.dh_m, p.dh_before_m, "{p:?}");
+    }
 
     // The IMU pitched 10° nose up on its mount.
     let run = kingston_mounted(&tmp.path().join("pitched/k"), [0.0, 10.0, 0.0]);
