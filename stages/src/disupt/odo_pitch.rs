@@ -9,12 +9,15 @@
 //! ends 38 m below the last control point after 2.4 km.
 //!
 //! The horizontal criteria cannot see β: it moves the horizontal route by 1 − cos β (1.5e-4
-//! at 1°, which the odometer scale takes), and the pitch the gyros carry is the IMU's, so
-//! Kryt1 is blind to it. The control points' heights see it whole: a route's height error
-//! at a point `distance_m` along it changes by `tan β · distance_m` (to the cosine of the
-//! road's slope), so β is the linear least-squares fit of the height errors on distance
-//! through the start (whose height is the manifest's). Whatever else grows in proportion
-//! to distance (a levelling pitch error the pitch and roll left) is taken with it.
+//! at 1°) and by β times the body's pitch, which the odometer scale takes, and the pitch
+//! the gyros carry is the IMU's, so Kryt1 is blind to it. The control points' heights see
+//! it whole: a route's height error at a point `distance_m` along it changes by
+//! `tan β · distance_m` (to the cosine of the IMU's pitch and roll), so β is the linear
+//! least-squares fit of the height errors on distance through the start (whose height is
+//! the manifest's). Whatever else grows in proportion to distance (a levelling pitch error
+//! the pitch and roll left) is taken with it. The corrected navigation takes β in its
+//! height alone ([`crate::strapdown::NavSettings::odo_pitch_rad`]): its horizontal route
+//! stays the one the horizontal fit made.
 //!
 //! What guards it:
 //! - a point at least [`MIN_DISTANCE_M`] along the route;
