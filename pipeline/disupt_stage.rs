@@ -410,6 +410,35 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             );
         }
         let joint_cps = cps_of.remove("joint").unwrap_or_default();
+        // The corrected route's heights at the control points (those the joint fit kept,
+        // when it is the joint's) give its odometer pitch boresight, which its kept track
+        // takes too; the initial settings correct nothing.
+        let corrected = &reviewed[corrected_lane];
+        let pass = heights::CorrectedPass {
+            inputs: NavInputs {
+                odo_dist_m: &corrected.derived.odo_dist_m,
+                ..case.derived.nav_inputs()
+            },
+            settings: problem.settings(&corrected.x),
+            fixes: &case.fixes,
+            block: problem.lp.block,
+            kept_samples: &kept_samples,
+        };
+        let odo_pitch = (corrected_lane > 0)
+            .then(|| {
+                heights::odo_pitch_of(
+                    std::mem::take(&mut heights_of_lane[corrected_lane]),
+                    |h: &HeightError| {
+                        corrected.name == "joint"
+                            && excluded
+                                .iter()
+                                .any(|&i| case.fixes[i].id == h.id && case.fixes[i].t_s == h.t_s)
+                    },
+                    &pass,
+                    &mut tracks[corrected_lane],
+                )
+            })
+            .flatten();
         // The methods' tracks and Kryt1 series are written and let go first, so that the
         // hold-out's and the route σ's work never holds memory beside them.
         let (tracks_path, kryt1s_path) = (dir.join(TRACKS), dir.join(KRYT1_SERIES));
@@ -454,7 +483,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         lap("hold-out and route sigma");
         // The corrected navigation (the best method's, else the initial settings') written
         // as its pass runs.
-        let corrected = &reviewed[corrected_lane];
         let fix_samples: Vec<usize> = case.fixes.iter().map(|f| f.sample).collect();
         let mut nav = NavWriter::create(
             &dir.join(files::CORRECTED_NAV),
@@ -463,37 +491,15 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             route_sigma.as_ref(),
             &fix_samples,
         )?;
-        let inputs = NavInputs {
-            odo_dist_m: &corrected.derived.odo_dist_m,
-            ..case.derived.nav_inputs()
+        let settings = NavSettings {
+            odo_pitch_rad: odo_pitch.as_ref().map_or(0.0, |f| f.applied_rad()),
+            ..pass.settings
         };
-        let mut settings = problem.settings(&corrected.x);
-        // The corrected route's heights at the control points (those the joint fit kept,
-        // when it is the joint's) give its odometer pitch boresight; the initial settings
-        // correct nothing.
-        let mut odo_pitch = (corrected_lane > 0)
-            .then(|| {
-                heights::odo_pitch_of(
-                    std::mem::take(&mut heights_of_lane[corrected_lane]),
-                    |h: &HeightError| {
-                        corrected.name == "joint"
-                            && excluded
-                                .iter()
-                                .any(|&i| case.fixes[i].id == h.id && case.fixes[i].t_s == h.t_s)
-                    },
-                    &inputs,
-                    settings,
-                    &case.fixes,
-                    &fix_samples,
-                    problem.lp.block,
-                )
-            })
-            .flatten();
-        settings.odo_pitch_rad = odo_pitch.as_ref().map_or(0.0, |f| f.applied_rad());
+        let mut odo_pitch = odo_pitch;
         if let Some(fit) = &odo_pitch {
             ctx.say("disupt", &odo_pitch_note(fit));
         }
-        strapdown::run(&inputs, &settings, &mut nav);
+        strapdown::run(&pass.inputs, &settings, &mut nav);
         let nav = nav.finish("corrected")?;
         if let Some(fit) = odo_pitch.as_mut().filter(|f| f.applied) {
             fit.measured(&disupt::height_errors_at(&case.fixes, |k| {

@@ -5,22 +5,33 @@ use unz_stages::criteria::ControlPointFix;
 use unz_stages::disupt::{self, HeightError, OdoPitchFit};
 use unz_stages::strapdown::{self, CriteriaSink, NavInputs, NavSettings};
 
-/// The odometer pitch boresight of the corrected route: fitted to its height errors at
-/// the control points (`heights`, of its pass without one; the points `left_out` of its
-/// fit not among them), then, when taken, fitted again on the slopes a probe pass at the
-/// fitted angle measures (the fit took each point's height to move by its distance per
-/// tan β; an IMU pitched on its mount moves it less, by the cosine). `settings` and
-/// `inputs` are the corrected pass's; `fix_samples` the points' samples, `block` the
-/// criteria's block (the probe keeps what the criteria read). None without a point.
-#[allow(clippy::too_many_arguments)]
+use crate::method_tables::KeptTrack;
+
+/// The corrected route's pass: its inputs and settings (without a pitch boresight), and
+/// the samples of its control points and of its kept track.
+pub(super) struct CorrectedPass<'a> {
+    pub(super) inputs: NavInputs<'a>,
+    pub(super) settings: NavSettings,
+    pub(super) fixes: &'a [ControlPointFix],
+    /// The criteria's block (the probe keeps what the criteria read).
+    pub(super) block: usize,
+    /// The samples `tracks.parquet` keeps.
+    pub(super) kept_samples: &'a [usize],
+}
+
+/// The odometer pitch boresight of the corrected route, and its kept track's heights
+/// with it. Fitted to the route's height errors at the control points (`heights`, of its
+/// pass without one; the points `left_out` of its fit not among them), then, when taken,
+/// fitted again on the slopes a probe pass at the fitted angle measures (the fit took
+/// each point's height to move by its distance per tan β; an IMU pitched on its mount
+/// moves it less, by the cosine). The same probe gives the height's move at each of the
+/// track's samples, which moves in proportion to tan β: `track`'s heights take it for
+/// the angle taken. None without a point.
 pub(super) fn odo_pitch_of(
     heights: Vec<HeightError>,
     left_out: impl Fn(&HeightError) -> bool,
-    inputs: &NavInputs<'_>,
-    settings: NavSettings,
-    fixes: &[ControlPointFix],
-    fix_samples: &[usize],
-    block: usize,
+    pass: &CorrectedPass<'_>,
+    track: &mut KeptTrack,
 ) -> Option<OdoPitchFit> {
     let heights: Vec<HeightError> = heights.into_iter().filter(|h| !left_out(h)).collect();
     let fit = disupt::fit_odo_pitch(&heights)?;
@@ -29,16 +40,29 @@ pub(super) fn odo_pitch_of(
     }
     let mut probe = [CriteriaSink::default()];
     let tan_probe = fit.applied_rad().tan();
+    let fix_samples = pass.fixes.iter().map(|f| f.sample);
     strapdown::run_criteria(
-        inputs,
+        &pass.inputs,
         &[NavSettings {
             odo_pitch_rad: fit.applied_rad(),
-            ..settings
+            ..pass.settings
         }],
-        block,
-        fix_samples,
+        pass.block,
+        &fix_samples
+            .chain(pass.kept_samples.iter().copied())
+            .collect::<Vec<_>>(),
         &mut probe,
     );
-    let probed = disupt::height_errors_at(fixes, |k| probe[0].position_at(k));
-    disupt::fit_odo_pitch(&disupt::with_slopes(&heights, &probed, tan_probe)).or(Some(fit))
+    let probed = disupt::height_errors_at(pass.fixes, |k| probe[0].position_at(k));
+    let fit =
+        disupt::fit_odo_pitch(&disupt::with_slopes(&heights, &probed, tan_probe)).unwrap_or(fit);
+    // The track's rows are its kept samples the pass reached, in order.
+    let ratio = fit.applied_rad().tan() / tan_probe;
+    for (h, &k) in track.h_m.iter_mut().zip(pass.kept_samples) {
+        if let Some(p) = probe[0].position_at(k) {
+            let without = f64::from(*h);
+            *h = (without + (p.h_m - without) * ratio) as f32;
+        }
+    }
+    Some(fit)
 }
