@@ -1171,6 +1171,19 @@ fn kingston_heights_give_the_odometers_pitch() {
         assert!(p.dh_m.abs() < 2.0, "{p:?}");
         assert!(p.holdout_dh_m.is_some_and(|h| h.abs() < 6.0), "{p:?}");
     }
+    // The joint's track in tracks.parquet takes the angle too: one line in the review.
+    let (t_s, h) = corrected_series(&disupt, "h_m");
+    let tracks = unz::method_tables::read_tracks(&disupt.join("tracks.parquet")).unwrap();
+    let joint = tracks.iter().find(|t| t.method == "joint").unwrap();
+    assert!(joint.t_ns.len() > 800);
+    for (t, th) in joint.t_ns.iter().zip(&joint.h_m) {
+        let k = t_s.partition_point(|&x| x < *t as f64 * 1e-9 - 1e-6);
+        assert!(
+            (f64::from(*th) - h[k]).abs() < 1e-3,
+            "{t}: {th} against {}",
+            h[k]
+        );
+    }
     let e = corrected_height_errors_m(&disupt, &r);
     assert!(e.len() > 800, "{}", e.len());
     let max = e.iter().fold(0.0f64, |m, e| m.max(e.abs()));
