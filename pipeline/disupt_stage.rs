@@ -432,7 +432,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                         corrected.name == "joint"
                             && excluded
                                 .iter()
-                                .any(|&i| case.fixes[i].id == h.id && case.fixes[i].t_s == h.t_s)
+                                .any(|&i| h.is_at(case.fixes[i].id, case.fixes[i].t_s))
                     },
                     &pass,
                     &mut tracks[corrected_lane],

@@ -610,6 +610,13 @@ mod tests {
         (d, r.report().clone(), lines, total)
     }
 
+    /// The reason of the first line `text` rejects, as `kind`.
+    fn first_fault(text: &[u8], kind: OdometerKind) -> String {
+        let mut r = OdometerFileReader::new(text, kind);
+        while r.next_sample().unwrap().is_some() {}
+        r.faults().0[0].reason.clone()
+    }
+
     #[test]
     fn speed_integrates_to_distance() {
         let (d, rep, faults, _) =
@@ -635,15 +642,11 @@ mod tests {
         // 7.2 km/h = 2 m/s; the line at 400 km/h rejected, the trapezoid spans it.
         assert_eq!(faults, vec![4]);
         assert_eq!(d, vec![0.0, 1.0, 3.0, 5.0]);
-        let mut r = OdometerFileReader::new(&b"0 0\n1 400\n"[..], OdometerKind::SpeedKmh);
-        while r.next_sample().unwrap().is_some() {}
-        let reason = &r.faults().0[0].reason;
+        let reason = first_fault(b"0 0\n1 400\n", OdometerKind::SpeedKmh);
         assert!(reason.starts_with("speed 400 km/h is beyond"), "{reason}");
         // A spike, in km/h as the file writes it.
         let text = b"0 36\n1 36\n2 36\n3 144\n4 36\n5 36\n6 36\n";
-        let mut r = OdometerFileReader::new(&text[..], OdometerKind::SpeedKmh);
-        while r.next_sample().unwrap().is_some() {}
-        let reason = &r.faults().0[0].reason;
+        let reason = first_fault(text, OdometerKind::SpeedKmh);
         assert!(
             reason.starts_with("speed 144 km/h at 3 s left out: it jumped from 36 km/h at 2 s"),
             "{reason}"

@@ -64,6 +64,12 @@ pub struct HeightError {
 }
 
 impl HeightError {
+    /// Whether this is the error at the stop of control point `id` at `t_s` (a point
+    /// visited twice has a stop per visit).
+    pub fn is_at(&self, id: u32, t_s: f64) -> bool {
+        self.id == id && self.t_s == t_s
+    }
+
     /// The height error at `fix` of the navigated `pose` there.
     pub fn at(fix: &ControlPointFix, pose: &FixPose) -> Self {
         Self {
@@ -91,7 +97,7 @@ pub fn with_slopes(
         .map(|e| {
             let slope_m = probe
                 .iter()
-                .find(|p| p.id == e.id && p.t_s == e.t_s)
+                .find(|p| p.is_at(e.id, e.t_s))
                 .map_or(e.slope_m, |p| (p.dh_m - e.dh_m) / tan_probe);
             HeightError { slope_m, ..*e }
         })
@@ -158,22 +164,41 @@ impl OdoPitchFit {
     /// pass measured them.
     pub fn measured(&mut self, after: &[HeightError]) {
         for p in &mut self.points {
-            if let Some(a) = after.iter().find(|a| a.id == p.id && a.t_s == p.t_s) {
+            if let Some(a) = after.iter().find(|a| a.is_at(p.id, p.t_s)) {
                 p.dh_m = a.dh_m;
             }
         }
     }
 }
 
-/// tan β of the least-squares fit of `errors` (height error against its slope, through
-/// the start): the angle that takes the errors away, None without a point along the route.
-fn tan_fit<'a>(errors: impl Iterator<Item = &'a HeightError>) -> Option<f64> {
-    let (mut sxy, mut sxx) = (0.0, 0.0);
-    for e in errors {
-        sxy += e.dh_m * e.slope_m;
-        sxx += e.slope_m * e.slope_m;
+/// The sums of the least-squares fit of height errors against their slopes, through the
+/// start: Σ dh·slope and Σ slope².
+#[derive(Clone, Copy, Default)]
+struct Sums {
+    dh_slope: f64,
+    slope2: f64,
+}
+
+impl Sums {
+    fn of<'a>(errors: impl Iterator<Item = &'a HeightError>) -> Self {
+        errors.fold(Self::default(), |s, e| Self {
+            dh_slope: s.dh_slope + e.dh_m * e.slope_m,
+            slope2: s.slope2 + e.slope_m * e.slope_m,
+        })
     }
-    (sxx > 0.0).then(|| -sxy / sxx)
+
+    /// The sums without `e` (one of them).
+    fn without(self, e: &HeightError) -> Self {
+        Self {
+            dh_slope: self.dh_slope - e.dh_m * e.slope_m,
+            slope2: self.slope2 - e.slope_m * e.slope_m,
+        }
+    }
+
+    /// tan β: the angle that takes the errors away, None without a point along the route.
+    fn tan(self) -> Option<f64> {
+        (self.slope2 > 0.0).then(|| -self.dh_slope / self.slope2)
+    }
 }
 
 /// Fits the pitch boresight to a route's height errors at its control points, and judges
@@ -183,21 +208,15 @@ pub fn fit_odo_pitch(errors: &[HeightError]) -> Option<OdoPitchFit> {
         return None;
     }
     let far = |e: &&HeightError| e.distance_m >= MIN_DISTANCE_M;
-    let tan = tan_fit(errors.iter()).unwrap_or(0.0);
+    let tan = Sums::of(errors.iter()).tan().unwrap_or(0.0);
     let far_count = errors.iter().filter(far).count();
+    // A far point held out: the far points' sums without it.
+    let far_sums = Sums::of(errors.iter().filter(far));
     let points: Vec<OdoPitchPoint> = errors
         .iter()
-        .enumerate()
-        .map(|(i, e)| {
+        .map(|e| {
             let holdout_dh_m = (far_count >= 2 && far(&e))
-                .then(|| {
-                    let others = errors
-                        .iter()
-                        .enumerate()
-                        .filter(|&(j, o)| j != i && far(&o))
-                        .map(|(_, o)| o);
-                    tan_fit(others).map(|t| e.dh_m + t * e.slope_m)
-                })
+                .then(|| far_sums.without(e).tan().map(|t| e.dh_m + t * e.slope_m))
                 .flatten();
             OdoPitchPoint {
                 id: e.id,
