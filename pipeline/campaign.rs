@@ -420,6 +420,9 @@ fn run_note(
         .and_then(|d| d.joint_odo_yaw_check.as_ref())
         .and_then(crate::disupt_stage::odo_yaw_note);
     let mark_arm = d.and_then(crate::disupt_stage::joint_mark_arm_note);
+    let heights = d
+        .and_then(|d| d.odo_pitch.as_ref())
+        .and_then(crate::campaign_pitch::heights_note);
     let failures = ing.and_then(|i| i.odometer_failures.as_ref());
     let odo_failed = nav
         .filter(|n| {
@@ -449,6 +452,7 @@ fn run_note(
         .chain(coarse_refused)
         .chain(odo_yaw)
         .chain(mark_arm)
+        .chain(heights)
         .chain(
             d.into_iter()
                 .flat_map(|d| &d.not_used)
@@ -704,6 +708,7 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
     let mut rows: Vec<ReportRow> = Vec::with_capacity(outcomes.len());
     let mut points = crate::campaign_points::PointsAcross::default();
     let mut marks = MarkAcross::default();
+    let mut pitches = crate::campaign_pitch::PitchAcross::default();
     for o in outcomes {
         let layout = RunLayout::new(out, &o.name);
         let ing: Option<IngestReport> =
@@ -720,6 +725,9 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
             && let Ok(m) = RunManifest::load(&o.manifest)
         {
             points.add(&m.control_points, h);
+        }
+        if let Some(fit) = d.as_ref().and_then(|d| d.odo_pitch.as_ref()) {
+            pitches.add(&o.name, fit);
         }
         if let Some(d) = &d {
             let estimate = mark_estimate(d);
@@ -830,6 +838,9 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         md += &section;
     }
     if let Some(section) = marks.markdown() {
+        md += &section;
+    }
+    if let Some(section) = pitches.markdown() {
         md += &section;
     }
     write_atomic(&out.join("campaign.md"), md.as_bytes())?;

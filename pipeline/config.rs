@@ -149,7 +149,19 @@ pub fn validate(p: &Params) -> anyhow::Result<()> {
         ("vehicle.imu_mounting_deg[2] (yaw)", mount[2], range[2]),
     ]
     .map(|(name, v, max)| (name, v, -max, max));
-    for (name, v, lo, hi) in checks.into_iter().chain(arm_checks).chain(mount_checks) {
+    let pitch_max = unz_stages::disupt::MAX_AGREED_ODO_PITCH_DEG;
+    let pitch_check = (
+        "vehicle.odo_pitch_deg",
+        p.vehicle.odo_pitch_deg,
+        -pitch_max,
+        pitch_max,
+    );
+    for (name, v, lo, hi) in checks
+        .into_iter()
+        .chain(arm_checks)
+        .chain(mount_checks)
+        .chain([pitch_check])
+    {
         if !(v.is_finite() && (lo..=hi).contains(&v)) {
             anyhow::bail!("{name} = {v} is outside [{lo}, {hi}]");
         }
@@ -223,6 +235,10 @@ mod tests {
             (
                 "[vehicle]\nimu_mounting_deg = [0.0, 95.0, 0.0]\n",
                 "vehicle.imu_mounting_deg[1] (pitch) = 95 is outside [-90, 90]",
+            ),
+            (
+                "[vehicle]\nodo_pitch_deg = 31.0\n",
+                "vehicle.odo_pitch_deg = 31 is outside [-30, 30]",
             ),
             (
                 "[vehicle]\nimu_mounting_deg = [nan, 0.0, 0.0]\n",

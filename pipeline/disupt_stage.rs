@@ -160,7 +160,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         //     or across IMU samples more than a second apart.
         // 17: the corrected route's odometer pitch boresight, from the control points'
         //     heights.
-        version: 17,
+        // 18: the heights' fit starts from the vehicle's configured angle; each point's
+        //     slope reported.
+        version: 18,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[
@@ -420,6 +422,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 ..case.derived.nav_inputs()
             },
             settings: problem.settings(&corrected.x),
+            odo_pitch_deg: params.vehicle.odo_pitch_deg,
             fixes: &case.fixes,
             block: problem.lp.block,
             kept_samples: &kept_samples,
@@ -492,7 +495,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             &fix_samples,
         )?;
         let settings = NavSettings {
-            odo_pitch_rad: odo_pitch.as_ref().map_or(0.0, |f| f.applied_rad()),
+            odo_pitch_rad: odo_pitch
+                .as_ref()
+                .map_or(pass.settings.odo_pitch_rad, |f| f.applied_rad()),
             ..pass.settings
         };
         let mut odo_pitch = odo_pitch;

@@ -7,6 +7,7 @@
 pub mod artifacts;
 pub mod campaign;
 pub mod campaign_mark;
+pub mod campaign_pitch;
 pub mod campaign_points;
 pub mod cli;
 pub mod commands;

@@ -7,11 +7,13 @@ use unz_stages::strapdown::{self, CriteriaSink, NavInputs, NavSettings};
 
 use crate::method_tables::KeptTrack;
 
-/// The corrected route's pass: its inputs and settings (without a pitch boresight), and
-/// the samples of its control points and of its kept track.
+/// The corrected route's pass: its inputs and settings (with the vehicle's configured
+/// pitch boresight, if any), and the samples of its control points and of its kept track.
 pub(super) struct CorrectedPass<'a> {
     pub(super) inputs: NavInputs<'a>,
     pub(super) settings: NavSettings,
+    /// The vehicle's configured pitch boresight, deg (`settings` have it).
+    pub(super) odo_pitch_deg: f64,
     pub(super) fixes: &'a [ControlPointFix],
     /// The criteria's block (the probe keeps what the criteria read).
     pub(super) block: usize,
@@ -21,7 +23,7 @@ pub(super) struct CorrectedPass<'a> {
 
 /// The odometer pitch boresight of the corrected route, and its kept track's heights
 /// with it. Fitted to the route's height errors at the control points (`heights`, of its
-/// pass without one; the points `left_out` of its fit not among them), then, when taken,
+/// pass with the configured one; the points `left_out` of its fit not among them), then, when taken,
 /// fitted again on the slopes a probe pass at the fitted angle measures (the fit took
 /// each point's height to move by its distance per tan β; an IMU pitched on its mount
 /// moves it less, by the cosine). The same probe gives the height's move at each of the
@@ -34,12 +36,13 @@ pub(super) fn odo_pitch_of(
     track: &mut KeptTrack,
 ) -> Option<OdoPitchFit> {
     let heights: Vec<HeightError> = heights.into_iter().filter(|h| !left_out(h)).collect();
-    let fit = disupt::fit_odo_pitch(&heights)?;
+    let tan_base = pass.settings.odo_pitch_rad.tan();
+    let fit = disupt::fit_odo_pitch(&heights, pass.odo_pitch_deg)?;
     if !fit.applied {
         return Some(fit);
     }
     let mut probe = [CriteriaSink::default()];
-    let tan_probe = fit.applied_rad().tan();
+    let tan_step = fit.applied_rad().tan() - tan_base;
     let fix_samples = pass.fixes.iter().map(|f| f.sample);
     strapdown::run_criteria(
         &pass.inputs,
@@ -54,10 +57,13 @@ pub(super) fn odo_pitch_of(
         &mut probe,
     );
     let probed = disupt::height_errors_at(pass.fixes, |k| probe[0].position_at(k));
-    let fit =
-        disupt::fit_odo_pitch(&disupt::with_slopes(&heights, &probed, tan_probe)).unwrap_or(fit);
+    let fit = disupt::fit_odo_pitch(
+        &disupt::with_slopes(&heights, &probed, tan_step),
+        pass.odo_pitch_deg,
+    )
+    .unwrap_or(fit);
     // The track's rows are its kept samples the pass reached, in order.
-    let ratio = fit.applied_rad().tan() / tan_probe;
+    let ratio = (fit.applied_rad().tan() - tan_base) / tan_step;
     for (h, &k) in track.h_m.iter_mut().zip(pass.kept_samples) {
         if let Some(p) = probe[0].position_at(k) {
             let without = f64::from(*h);

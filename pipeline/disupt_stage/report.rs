@@ -516,7 +516,12 @@ fn heights_table(fit: &disupt::OdoPitchFit) -> String {
 ",
         odo_pitch_note(fit)
     );
-    s += "| point | distance [m] | Δh without [m] | Δh [m] | Δh held out [m] |\n|---|---|---|---|---|\n";
+    s += if fit.configured_deg == 0.0 {
+        "| point | distance [m] | Δh without [m] | Δh [m] | Δh held out [m] |\n"
+    } else {
+        "| point | distance [m] | Δh configured [m] | Δh [m] | Δh held out [m] |\n"
+    };
+    s += "|---|---|---|---|---|\n";
     for p in &fit.points {
         let held = p
             .holdout_dh_m
@@ -532,21 +537,35 @@ fn heights_table(fit: &disupt::OdoPitchFit) -> String {
 
 /// What the corrected route's heights showed, in a sentence.
 pub fn odo_pitch_note(fit: &disupt::OdoPitchFit) -> String {
+    let configured = fit.configured_deg;
     match &fit.refused {
         None => format!(
             "The control points' heights show the path {:.3}° {} the IMU's x (an odometer \
-             pitch boresight): the corrected navigation is written with it",
+             pitch boresight{}): the corrected navigation is written with it",
             fit.odo_pitch_deg.abs(),
             if fit.odo_pitch_deg >= 0.0 {
                 "above"
             } else {
                 "below"
+            },
+            if configured == 0.0 {
+                String::new()
+            } else {
+                format!(
+                    "; configured {configured:.3}°, {:+.3}° from it",
+                    fit.change_deg()
+                )
             }
         ),
         Some(why) => format!(
             "The control points' heights were not fitted with an odometer pitch boresight \
-             ({:.3}°): {why}",
-            fit.odo_pitch_deg
+             ({:.3}°): {why}{}",
+            fit.odo_pitch_deg,
+            if configured == 0.0 {
+                String::new()
+            } else {
+                format!("; the corrected navigation keeps the configured {configured:.3}°")
+            }
         ),
     }
 }

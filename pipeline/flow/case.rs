@@ -83,6 +83,13 @@ pub struct VehicleParams {
     /// axes measures it (`navigate.json`'s `imu_axes.check.mounting_deg`) and fails a
     /// yaw beyond 10°, which the joint fit cannot take, naming the setting.
     pub imu_mounting_deg: [f64; 3],
+    /// The odometer's pitch boresight, deg: how far the vehicle's path climbs above the
+    /// IMU's x while driving (positive: up). Dead reckoning climbs by its tangent per
+    /// metre of distance, in height alone. The disupt stage fits it to the control
+    /// points' heights where a run has a point 200 m or more along its route, starting
+    /// from this value; `campaign.md` pools the runs' fits into the value to set here, so
+    /// that a run without such a point gets its heights right too.
+    pub odo_pitch_deg: f64,
 }
 
 impl VehicleParams {
@@ -293,6 +300,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
     let (mut settings, mut initial) =
         initial_settings_with_velocity(&derived, dvel_mps, &req, &params.align, start_position(m));
     level_in_motion_over_window(&derived, params, &mut settings, &mut initial);
+    settings.odo_pitch_rad = params.vehicle.odo_pitch_deg.to_radians();
     let inputs = NavInputs {
         dt_s: &derived.dt_s,
         dtheta_rad: &derived.dtheta_rad,

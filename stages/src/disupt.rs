@@ -45,8 +45,8 @@ pub use joint::{
     within_bounds,
 };
 pub use odo_pitch::{
-    HeightError, MAX_ODO_PITCH_DEG, MIN_DISTANCE_M, OdoPitchFit, OdoPitchPoint, fit_odo_pitch,
-    height_errors_at, with_slopes,
+    HeightError, MAX_AGREED_ODO_PITCH_DEG, MAX_ODO_PITCH_DEG, MIN_DISTANCE_M, OdoPitchFit,
+    OdoPitchPoint, OdoPitchRefusal, fit_odo_pitch, height_errors_at, with_slopes,
 };
 pub use problem::{
     Evaluation, LANES, Problem, ProblemSpec, moved_by_steps, observe_each, points_among, points_of,
