@@ -480,6 +480,17 @@ fn mark_estimate(d: &DisuptOut) -> Option<MarkEstimate> {
     })
 }
 
+/// The odometer's lag in all (the configured offset's and the joint's), when the joint
+/// fit estimated it.
+fn lag_estimate(d: &DisuptOut) -> Option<crate::campaign_lag::LagEstimate> {
+    let x = &d.methods.get("joint")?.outcome.x;
+    Some(crate::campaign_lag::LagEstimate {
+        lag_s: x.odo_lag_s - d.odo_time_offset_s,
+        sigma_s: x.sigma.as_ref()?.odo_lag_s,
+        offset_s: d.odo_time_offset_s,
+    })
+}
+
 /// Median and largest horizontal hold-out error of the joint fit, m.
 fn holdout_stats(j: &MethodOut) -> Option<(f64, f64)> {
     unz_stages::disupt::holdout_median_max_m(j.holdout.as_ref()?)
@@ -709,6 +720,7 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
     let mut points = crate::campaign_points::PointsAcross::default();
     let mut marks = MarkAcross::default();
     let mut pitches = crate::campaign_pitch::PitchAcross::default();
+    let mut lags = crate::campaign_lag::LagAcross::default();
     for o in outcomes {
         let layout = RunLayout::new(out, &o.name);
         let ing: Option<IngestReport> =
@@ -728,6 +740,9 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         }
         if let Some(fit) = d.as_ref().and_then(|d| d.odo_pitch.as_ref()) {
             pitches.add(&o.name, fit);
+        }
+        if let Some(lag) = d.as_ref().and_then(lag_estimate) {
+            lags.add(&o.name, lag);
         }
         if let Some(d) = &d {
             let estimate = mark_estimate(d);
@@ -841,6 +856,9 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         md += &section;
     }
     if let Some(section) = pitches.markdown() {
+        md += &section;
+    }
+    if let Some(section) = lags.markdown() {
         md += &section;
     }
     write_atomic(&out.join("campaign.md"), md.as_bytes())?;

@@ -26,7 +26,9 @@ pub struct MarkAcross {
 
 /// The inverse-variance mean of `(value, σ)`, its σ, and the χ² per degree of freedom of
 /// the values about it (`None` with fewer than two).
-fn weighted_mean(v: impl Iterator<Item = (f64, f64)> + Clone) -> (f64, f64, Option<f64>) {
+pub(crate) fn weighted_mean(
+    v: impl Iterator<Item = (f64, f64)> + Clone,
+) -> (f64, f64, Option<f64>) {
     let w_sum: f64 = v.clone().map(|(_, s)| 1.0 / (s * s)).sum();
     let mean = v.clone().map(|(x, s)| x / (s * s)).sum::<f64>() / w_sum;
     let n = v.clone().count();
@@ -38,7 +40,7 @@ fn weighted_mean(v: impl Iterator<Item = (f64, f64)> + Clone) -> (f64, f64, Opti
 /// χ² per degree of freedom beyond which the runs' estimates disagree: about the 99.7 %
 /// point for a few runs (for one degree of freedom it is 8.8, for ten 2.6; 3 is a
 /// middle that flags a second vehicle without flagging the spread of one).
-const DISAGREE_CHI2_PER_DOF: f64 = 3.0;
+pub(crate) const DISAGREE_CHI2_PER_DOF: f64 = 3.0;
 
 impl MarkAcross {
     /// Adds the run `name`: whether its joint fit was checked for a mark (or estimated

@@ -539,6 +539,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             mark_lever_arm_m: params.vehicle.mark_arm(),
             joint_mark_arm_check: joint_run.and_then(|r| r.mark_arm.clone()),
             odo_pitch,
+            odo_time_offset_s: params.derive.odo_time_offset_s,
         };
         let md = markdown(&m.name, &out, &dparams);
         write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;

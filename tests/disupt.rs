@@ -185,12 +185,13 @@ fn height_rms_m(nav: &Path, truth: &Path) -> f64 {
     (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt()
 }
 
-/// Three simulated runs of one vehicle whose path climbs 1.5° above the IMU's x: the
-/// campaign pools their heights' fits into the angle to configure, and with it set, the
-/// navigate stage's route (before any control point is used) has the right heights, and
-/// the disupt stage's fit moves it by no more than its points show.
+/// Three simulated runs of one vehicle whose path climbs 1.5° above the IMU's x and whose
+/// odometer reports 0.4 s late: the campaign pools their heights' fits into the angle to
+/// configure, and their joint fits' lags into the offset; with them set, the navigate
+/// stage's route (before any control point is used) has the right heights, and the disupt
+/// stage's fits move them by no more than their points show.
 #[test]
-fn a_campaign_pools_the_odometers_pitch_and_the_setting_gives_the_heights() {
+fn a_campaign_pools_the_odometers_pitch_and_lag_and_the_settings_give_the_heights() {
     let tmp = tempfile::tempdir().unwrap();
     let campaign = tmp.path().join("c");
     unz_ok(&[
@@ -203,16 +204,29 @@ fn a_campaign_pools_the_odometers_pitch_and_the_setting_gives_the_heights() {
         "3",
         "--odo-pitch-deg",
         "1.5",
+        "--odo-lag-s",
+        "0.4",
     ]);
     let out = tmp.path().join("o");
     run_until(&campaign, &out, "disupt");
     let md = std::fs::read_to_string(out.join("campaign.md")).unwrap();
-    let setting = md
-        .split("set `[vehicle] odo_pitch_deg = ")
-        .nth(1)
-        .and_then(|s| s.split('`').next())
-        .unwrap_or_else(|| panic!("no setting in {md}"));
+    let after = |what: &str| -> &str {
+        md.split(what)
+            .nth(1)
+            .and_then(|s| s.split(['`', ' ', '*']).next())
+            .unwrap_or_else(|| panic!("no {what} in {md}"))
+    };
+    let setting = after("set `[vehicle] odo_pitch_deg = ");
     let pooled_deg: f64 = setting.parse().unwrap();
+    // The lag: the runs' 0.17–0.45 s (σ 0.12–0.22 s) pool within their mean's 3σ.
+    let offset = after("set `[derive] odo_time_offset_s = ");
+    let lag_s: f64 = after("inverse-variance mean: **").parse().unwrap();
+    let lag_sigma_s: f64 = after(&format!("**{lag_s:.3} ± ")).parse().unwrap();
+    assert!(
+        (lag_s - 0.4).abs() < 3.0 * lag_sigma_s && lag_sigma_s < 0.15,
+        "{md}"
+    );
+    assert_eq!(offset.parse::<f64>().unwrap(), -lag_s);
     // The runs fit 1.488–1.507° (each within 0.015° of the truth: a point's 0.2 m of
     // height after 13 km, and the start's levelling); their mean is nearer.
     assert!((pooled_deg - 1.5).abs() < 0.01, "{md}");
@@ -222,7 +236,11 @@ fn a_campaign_pools_the_odometers_pitch_and_the_setting_gives_the_heights() {
     // with the initial settings (its gyro drifts not yet corrected: 4–10 m RMS on seeds
     // 70–72 with the true angle), where without it they are 180 m off.
     let config = tmp.path().join("vehicle.toml");
-    std::fs::write(&config, format!("[vehicle]\nodo_pitch_deg = {setting}\n")).unwrap();
+    std::fs::write(
+        &config,
+        format!("[vehicle]\nodo_pitch_deg = {setting}\n[derive]\nodo_time_offset_s = {offset}\n"),
+    )
+    .unwrap();
     let configured = tmp.path().join("oc");
     let run = campaign.join("sim-0071");
     run_until_with(
@@ -242,6 +260,11 @@ fn a_campaign_pools_the_odometers_pitch_and_the_setting_gives_the_heights() {
     // The disupt stage starts from it: what its points show beyond it is a hundredth of a
     // degree (taken or not), and the corrected heights stay within a metre.
     let d: DisuptOut = read_json(&configured.join("sim-0071/disupt/disupt.json"));
+    // Its joint fit's lag is beyond the offset: 0.4 s in all within its 3σ.
+    assert_eq!(d.odo_time_offset_s, -lag_s);
+    let x = &d.methods["joint"].outcome.x;
+    let sigma_s = x.sigma.as_ref().unwrap().odo_lag_s;
+    assert!((x.odo_lag_s + lag_s - 0.4).abs() < 3.0 * sigma_s, "{x:?}");
     let fit = d.odo_pitch.expect("fitted");
     assert_eq!(fit.configured_deg, pooled_deg);
     assert!((fit.odo_pitch_deg - 1.5).abs() < 0.03, "{fit:?}");

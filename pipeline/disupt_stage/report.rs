@@ -166,6 +166,14 @@ pub struct DisuptOut {
     /// corrected the run, or no control point was reached).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub odo_pitch: Option<disupt::OdoPitchFit>,
+    /// The derive's `odo_time_offset_s` the run was configured with, s: the joint's
+    /// `odo_lag_s` is the odometer's lag beyond it (absent when zero).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub odo_time_offset_s: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// A mark's lever arm the joint fit's control points show, and whether the fit was redone

@@ -1,0 +1,108 @@
+//! The odometer's lag across a campaign's runs. The lag is the vehicle's odometer and its
+//! logger's (an OBD-II speed read over a bus, a pulse counter's latch), not a run's:
+//! where the joint fits of several runs estimated it, their inverse-variance mean is the
+//! derive's offset to configure (`campaign.md`). Configured, the ingest's bridges of the
+//! odometer's failures are centred on it, a run whose joint fit cannot estimate the lag
+//! (fewer than two control points) is derived with it, and each fit searches about it.
+
+use std::fmt::Write as _;
+
+use crate::campaign_mark::{DISAGREE_CHI2_PER_DOF, weighted_mean};
+
+/// One run's odometer lag: in all (the configured offset's and the joint's beyond it), s,
+/// and its 1σ.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LagEstimate {
+    /// The lag in all, s (positive: the odometer reports late).
+    pub lag_s: f64,
+    /// Its 1σ, s.
+    pub sigma_s: f64,
+    /// The derive's `odo_time_offset_s` the run was configured with, s.
+    pub offset_s: f64,
+}
+
+/// The runs' estimates of the odometer's lag, gathered run by run.
+#[derive(Debug, Default)]
+pub struct LagAcross {
+    estimates: Vec<(String, LagEstimate)>,
+}
+
+impl LagAcross {
+    /// Adds the run `name`'s estimate (when its joint fit estimated the lag: σ > 0).
+    pub fn add(&mut self, name: &str, estimate: LagEstimate) {
+        if estimate.sigma_s > 0.0 && estimate.sigma_s.is_finite() && estimate.lag_s.is_finite() {
+            self.estimates.push((name.to_owned(), estimate));
+        }
+    }
+
+    /// `campaign.md`'s section, when two or more runs estimated the lag (one run's is in
+    /// its own row).
+    pub fn markdown(&self) -> Option<String> {
+        let e = &self.estimates;
+        if e.len() < 2 {
+            return None;
+        }
+        let (lag, sigma, chi2) = weighted_mean(e.iter().map(|(_, l)| (l.lag_s, l.sigma_s)));
+        let offset = -lag;
+        let mut md = format!(
+            "\n## The odometer's lag\n\n{} runs' joint fits estimated the odometer's lag \
+             (the configured `[derive] odo_time_offset_s`'s and the fit's beyond it). Their \
+             inverse-variance mean: **{lag:.3} ± {sigma:.3} s** (positive: the odometer \
+             reports late). If the runs share one odometer and its logger, set `[derive] \
+             odo_time_offset_s = {offset:.3}`: the ingest then bridges the odometer's \
+             failures about it, a run the joint fit cannot estimate the lag of (fewer than \
+             two control points) is derived with it, and each fit searches about it.\n",
+            e.len()
+        );
+        if let Some(c) = chi2.filter(|c| *c > DISAGREE_CHI2_PER_DOF) {
+            let _ = writeln!(
+                md,
+                "\nThe runs' lags disagree beyond their σ (χ² per degree of freedom {c:.1}): \
+                 more than one odometer or logger, or a logger whose delay changed?"
+            );
+        }
+        md += "\n| run | configured offset [s] | lag in all [s] |\n|---|---|---|\n";
+        for (name, l) in e {
+            let _ = writeln!(
+                md,
+                "| {name} | {:.3} | {:.3} ± {:.3} |",
+                l.offset_s, l.lag_s, l.sigma_s
+            );
+        }
+        Some(md)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lag(lag_s: f64, sigma_s: f64, offset_s: f64) -> LagEstimate {
+        LagEstimate {
+            lag_s,
+            sigma_s,
+            offset_s,
+        }
+    }
+
+    #[test]
+    fn the_runs_lags_are_pooled_by_their_sigma() {
+        let mut l = LagAcross::default();
+        // Not estimated (σ 0): left out.
+        l.add("a", lag(0.0, 0.0, 0.0));
+        l.add("b", lag(0.38, 0.1, 0.0));
+        assert_eq!(l.markdown(), None);
+        // Weights 1:1:4.
+        l.add("c", lag(0.42, 0.1, -0.3));
+        l.add("d", lag(0.40, 0.05, 0.0));
+        let md = l.markdown().unwrap();
+        assert!(md.contains("3 runs' joint fits"), "{md}");
+        assert!(md.contains("**0.400 ± 0.041 s**"), "{md}");
+        assert!(md.contains("odo_time_offset_s = -0.400`"), "{md}");
+        assert!(md.contains("| c | -0.300 | 0.420 ± 0.100 |"), "{md}");
+        assert!(!md.contains("disagree"), "{md}");
+        // A logger 1 s late, 10σ from the others.
+        l.add("e", lag(1.4, 0.1, 0.0));
+        assert!(l.markdown().unwrap().contains("disagree beyond their σ"));
+    }
+}
