@@ -423,6 +423,13 @@ fn run_note(
     let heights = d
         .and_then(|d| d.odo_pitch.as_ref())
         .and_then(crate::campaign_pitch::heights_note);
+    let lag_at_bound = d.and_then(|d| d.joint_odo_lag_at_bound_s).map(|lag| {
+        format!(
+            "the joint fit's odometer lag stopped at its search's bound ({lag:+.3} s beyond \
+             the configured offset): it may lie beyond; widen `[disupt] odo_lag_bound_s` or \
+             set `[derive] odo_time_offset_s`"
+        )
+    });
     let failures = ing.and_then(|i| i.odometer_failures.as_ref());
     let odo_failed = nav
         .filter(|n| {
@@ -453,6 +460,7 @@ fn run_note(
         .chain(odo_yaw)
         .chain(mark_arm)
         .chain(heights)
+        .chain(lag_at_bound)
         .chain(
             d.into_iter()
                 .flat_map(|d| &d.not_used)
@@ -488,6 +496,7 @@ fn lag_estimate(d: &DisuptOut) -> Option<crate::campaign_lag::LagEstimate> {
         lag_s: x.odo_lag_s - d.odo_time_offset_s,
         sigma_s: x.sigma.as_ref()?.odo_lag_s,
         offset_s: d.odo_time_offset_s,
+        at_bound: d.joint_odo_lag_at_bound_s.is_some(),
     })
 }
 

@@ -19,18 +19,28 @@ pub struct LagEstimate {
     pub sigma_s: f64,
     /// The derive's `odo_time_offset_s` the run was configured with, s.
     pub offset_s: f64,
+    /// Whether the fit's lag stopped at its search's bound (its σ then says nothing).
+    pub at_bound: bool,
 }
 
 /// The runs' estimates of the odometer's lag, gathered run by run.
 #[derive(Debug, Default)]
 pub struct LagAcross {
     estimates: Vec<(String, LagEstimate)>,
+    /// Runs whose lag stopped at the search's bound, and their lag in all, s.
+    at_bound: Vec<(String, f64)>,
 }
 
 impl LagAcross {
-    /// Adds the run `name`'s estimate (when its joint fit estimated the lag: σ > 0).
+    /// Adds the run `name`'s estimate (when its joint fit estimated the lag: σ > 0; one
+    /// at the search's bound is listed apart).
     pub fn add(&mut self, name: &str, estimate: LagEstimate) {
-        if estimate.sigma_s > 0.0 && estimate.sigma_s.is_finite() && estimate.lag_s.is_finite() {
+        if estimate.at_bound {
+            self.at_bound.push((name.to_owned(), estimate.lag_s));
+        } else if estimate.sigma_s > 0.0
+            && estimate.sigma_s.is_finite()
+            && estimate.lag_s.is_finite()
+        {
             self.estimates.push((name.to_owned(), estimate));
         }
     }
@@ -69,6 +79,19 @@ impl LagAcross {
                 l.offset_s, l.lag_s, l.sigma_s
             );
         }
+        if !self.at_bound.is_empty() {
+            let listed: Vec<String> = self
+                .at_bound
+                .iter()
+                .map(|(name, lag)| format!("{name} ({lag:.3} s)"))
+                .collect();
+            let _ = writeln!(
+                md,
+                "\nLeft out, their lag at the search's bound (`[disupt] odo_lag_bound_s` about \
+                 the configured offset): {}.",
+                listed.join(", ")
+            );
+        }
         Some(md)
     }
 }
@@ -82,6 +105,7 @@ mod tests {
             lag_s,
             sigma_s,
             offset_s,
+            at_bound: false,
         }
     }
 
@@ -101,6 +125,17 @@ mod tests {
         assert!(md.contains("odo_time_offset_s = -0.400`"), "{md}");
         assert!(md.contains("| c | -0.300 | 0.420 ± 0.100 |"), "{md}");
         assert!(!md.contains("disagree"), "{md}");
+        // A lag at the search's bound is listed apart, not pooled.
+        l.add(
+            "f",
+            LagEstimate {
+                at_bound: true,
+                ..lag(-1.0, 0.1, 0.0)
+            },
+        );
+        let md = l.markdown().unwrap();
+        assert!(md.contains("**0.400 ± 0.041 s**"), "{md}");
+        assert!(md.contains("configured offset): f (-1.000 s)."), "{md}");
         // A logger 1 s late, 10σ from the others.
         l.add("e", lag(1.4, 0.1, 0.0));
         assert!(l.markdown().unwrap().contains("disagree beyond their σ"));

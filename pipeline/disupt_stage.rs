@@ -540,6 +540,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             joint_mark_arm_check: joint_run.and_then(|r| r.mark_arm.clone()),
             odo_pitch,
             odo_time_offset_s: params.derive.odo_time_offset_s,
+            joint_odo_lag_at_bound_s: joint_run
+                .map(|r| r.lag.lag_s)
+                .filter(|l| l.abs() >= dparams.odo_lag_bound_s * (1.0 - 1e-9)),
         };
         let md = markdown(&m.name, &out, &dparams);
         write_atomic(&dir.join(files::DISUPT_TABLES), md.as_bytes())?;

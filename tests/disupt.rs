@@ -272,6 +272,32 @@ fn a_campaign_pools_the_odometers_pitch_and_lag_and_the_settings_give_the_height
     let corrected = configured.join("sim-0071/disupt/corrected_nav.parquet");
     let rms = height_rms_m(&corrected, &truth);
     assert!(rms < 1.0, "corrected heights {rms} m RMS");
+
+    // A search too narrow for the lag stops at its bound: said, and not pooled.
+    let narrow = tmp.path().join("narrow.toml");
+    std::fs::write(&narrow, "[disupt]\nodo_lag_bound_s = 0.1\n").unwrap();
+    let bounded = tmp.path().join("ob");
+    run_until_with(
+        &campaign,
+        &bounded,
+        "disupt",
+        &["--config", narrow.to_str().unwrap()],
+    );
+    let md = std::fs::read_to_string(bounded.join("campaign.md")).unwrap();
+    let d: DisuptOut = read_json(&bounded.join("sim-0071/disupt/disupt.json"));
+    assert_eq!(d.joint_odo_lag_at_bound_s, Some(0.1), "{md}");
+    assert!(
+        md.contains("sim-0071 | ok")
+            && md.contains("odometer lag stopped at its search's bound (+0.100 s beyond"),
+        "{md}"
+    );
+    // All three runs' lags (0.17–0.45 s) lie beyond 0.1 s: none is pooled.
+    assert_eq!(
+        md.matches("stopped at its search's bound").count(),
+        3,
+        "{md}"
+    );
+    assert!(!md.contains("## The odometer's lag"), "{md}");
 }
 
 #[test]

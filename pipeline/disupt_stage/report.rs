@@ -170,6 +170,11 @@ pub struct DisuptOut {
     /// `odo_lag_s` is the odometer's lag beyond it (absent when zero).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub odo_time_offset_s: f64,
+    /// The joint fit's odometer lag stopped at the search's bound (`[disupt]
+    /// odo_lag_bound_s` about the configured offset): the lag may lie beyond, and its σ
+    /// says nothing of it (absent when not).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_odo_lag_at_bound_s: Option<f64>,
 }
 
 fn is_zero(x: &f64) -> bool {
