@@ -21,7 +21,7 @@ use unz_stages::disupt::{OdoPitchFit, OdoPitchRefusal};
 pub const HEIGHT_NOTE_M: f64 = 10.0;
 
 /// How many σ a run's angle may lie from the others' before it is named as disagreeing.
-const DISAGREE_SIGMA: f64 = 3.0;
+pub const DISAGREE_SIGMA: f64 = 3.0;
 
 /// The levelling error a run's angle carries beside its points', rad: a tactical
 /// accelerometer's bias, 1 mg (the HG1700 of the Kingston log; an LN-200's is 0.3 mg),
