@@ -23,11 +23,11 @@ pub(super) struct CorrectedPass<'a> {
 
 /// The odometer pitch boresight of the corrected route, and its kept track's heights
 /// with it. Fitted to the route's height errors at the control points (`heights`, of its
-/// pass with the configured one; the points `left_out` of its fit not among them), then, when taken,
-/// fitted again on the slopes a probe pass at the fitted angle measures (the fit took
-/// each point's height to move by its distance per tan β; an IMU pitched on its mount
-/// moves it less, by the cosine). The same probe gives the height's move at each of the
-/// track's samples, which moves in proportion to tan β: `track`'s heights take it for
+/// pass with the configured one; the points `left_out` of its fit not among them), then,
+/// when taken, fitted again on the slopes a probe pass at the fitted angle measures (the
+/// fit took each point's height to move by its distance per tan β; an IMU pitched on its
+/// mount moves it less, by the cosine). The same probe gives the height's move at each of
+/// the track's samples, which moves in proportion to tan β: `track`'s heights take it for
 /// the angle taken. None without a point.
 pub(super) fn odo_pitch_of(
     heights: Vec<HeightError>,
