@@ -66,6 +66,16 @@ impl RunFit {
     fn variance(&self, point_sigma_m: f64) -> f64 {
         point_sigma_m.powi(2) / self.slope2 + LEVELLING_SIGMA_RAD.powi(2)
     }
+
+    /// Its inverse-variance sums.
+    fn weighted(&self, point_sigma_m: f64) -> Weighted {
+        let w = 1.0 / self.variance(point_sigma_m);
+        Weighted {
+            runs: 1,
+            w,
+            w_tan: w * self.tan,
+        }
+    }
 }
 
 /// The runs' pitch boresight fits, gathered run by run.
@@ -76,6 +86,34 @@ pub struct PitchAcross {
     runs: Vec<RunFit>,
     /// Runs with a fit (taken or refused).
     fitted: usize,
+}
+
+/// Inverse-variance sums of runs' tan β: how many runs, Σ w and Σ w·tan β.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Weighted {
+    runs: i64,
+    w: f64,
+    w_tan: f64,
+}
+
+impl Weighted {
+    /// These sums with `o`'s, times `sign` (−1 takes them out).
+    fn plus(self, o: Self, sign: i8) -> Self {
+        let s = f64::from(sign);
+        Self {
+            runs: self.runs + i64::from(sign) * o.runs,
+            w: self.w + s * o.w,
+            w_tan: self.w_tan + s * o.w_tan,
+        }
+    }
+
+    /// Their mean, None without a run.
+    fn mean(self) -> Option<Mean> {
+        (self.runs > 0 && self.w > 0.0).then(|| Mean {
+            tan: self.w_tan / self.w,
+            variance: 1.0 / self.w,
+        })
+    }
 }
 
 /// An inverse-variance mean of tan β: the mean and its variance.
@@ -140,28 +178,37 @@ impl PitchAcross {
         }
     }
 
-    /// The inverse-variance mean of the runs `pooled` marks, but `but` (None when no
-    /// run is left).
-    fn mean(&self, pooled: &[bool], but: Option<usize>, point_sigma_m: f64) -> Option<Mean> {
-        let (w, wt) = self
-            .runs
+    /// The inverse-variance sums (Σ w, Σ w·tan β) of the runs `pooled` marks.
+    fn sums(&self, pooled: &[bool], point_sigma_m: f64) -> Weighted {
+        self.runs
             .iter()
-            .enumerate()
-            .filter(|&(i, _)| pooled[i] && Some(i) != but)
-            .fold((0.0, 0.0), |(w, wt), (_, r)| {
-                let wi = 1.0 / r.variance(point_sigma_m);
-                (w + wi, wt + wi * r.tan)
-            });
-        (w > 0.0).then(|| Mean {
-            tan: wt / w,
-            variance: 1.0 / w,
-        })
+            .zip(pooled)
+            .filter(|&(_, &p)| p)
+            .fold(Weighted::default(), |s, (r, _)| {
+                s.plus(r.weighted(point_sigma_m), 1)
+            })
     }
 
-    /// How many σ run `i`'s angle lies from the other pooled runs'.
-    fn sigmas_off(&self, i: usize, pooled: &[bool], point_sigma_m: f64) -> Option<f64> {
+    /// The mean of the pooled runs (`all`, their sums) but run `i`, in one step.
+    fn others(&self, i: usize, pooled: &[bool], all: Weighted, point_sigma_m: f64) -> Option<Mean> {
+        if pooled[i] {
+            all.plus(self.runs[i].weighted(point_sigma_m), -1)
+        } else {
+            all
+        }
+        .mean()
+    }
+
+    /// How many σ run `i`'s angle lies from the other pooled runs' (`all`, their sums).
+    fn sigmas_off(
+        &self,
+        i: usize,
+        pooled: &[bool],
+        all: Weighted,
+        point_sigma_m: f64,
+    ) -> Option<f64> {
         let run = &self.runs[i];
-        let others = self.mean(pooled, Some(i), point_sigma_m)?;
+        let others = self.others(i, pooled, all, point_sigma_m)?;
         Some((run.tan - others.tan).abs() / (run.variance(point_sigma_m) + others.variance).sqrt())
     }
 
@@ -173,9 +220,10 @@ impl PitchAcross {
         let n = self.runs.len();
         let mut pooled = vec![true; n];
         loop {
+            let all = self.sums(&pooled, point_sigma_m);
             let beyond: Vec<(usize, f64)> = (0..n)
                 .filter(|&i| pooled[i])
-                .filter_map(|i| Some((i, self.sigmas_off(i, &pooled, point_sigma_m)?)))
+                .filter_map(|i| Some((i, self.sigmas_off(i, &pooled, all, point_sigma_m)?)))
                 .filter(|(_, z)| *z > DISAGREE_SIGMA)
                 .collect();
             let Some(&(worst, _)) = beyond.iter().max_by(|a, b| a.1.total_cmp(&b.1)) else {
@@ -202,7 +250,8 @@ impl PitchAcross {
         }
         let point_sigma_m = self.point_sigma_m();
         let (pooled, named) = self.consistent(point_sigma_m);
-        let mean = self.mean(&pooled, None, point_sigma_m)?;
+        let all = self.sums(&pooled, point_sigma_m);
+        let mean = all.mean()?;
         // Runs of a vehicle without an angle take their levelling's few hundredths of a
         // degree now and then: nothing to set unless the mean stands out of its σ (or an
         // angle is configured, which the section then checks).
@@ -271,7 +320,7 @@ impl PitchAcross {
         md += "\n| run | configured [°] | fitted [°] | taken | the others' [°] | Δh with the \
                others' (RMS) [m] | pooled |\n|---|---|---|---|---|---|---|\n";
         for (i, run) in self.runs.iter().enumerate() {
-            let others = self.mean(&pooled, Some(i), point_sigma_m);
+            let others = self.others(i, &pooled, all, point_sigma_m);
             let _ = writeln!(
                 md,
                 "| {} | {:.3} | {:.3} | {} | {} | {} | {} |",
@@ -341,7 +390,7 @@ mod tests {
         let sigma_m = p.point_sigma_m();
         // Two points a run, each 0.5 m off: about 0.66 m about each run's own angle.
         assert!((sigma_m - 0.66).abs() < 0.01, "{sigma_m}");
-        let mean = p.mean(&[true; 3], None, sigma_m).unwrap();
+        let mean = p.sums(&[true; 3], sigma_m).mean().unwrap();
         assert!((deg(mean.tan) - 1.5).abs() < 0.01, "{mean:?}");
         // Three runs, each with the levelling's 1 mrad and its points' σ: a little over
         // 1/√3 mrad.
