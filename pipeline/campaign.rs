@@ -500,6 +500,29 @@ fn lag_estimate(d: &DisuptOut) -> Option<crate::campaign_lag::LagEstimate> {
     })
 }
 
+/// The odometer yaw boresight the joint fit estimated, else the one its residuals showed
+/// below the refit's threshold, with the mounting the run was ingested with (`nav`'s).
+fn yaw_estimate(
+    d: &DisuptOut,
+    nav: Option<&NavigateSummary>,
+) -> Option<crate::campaign_yaw::YawEstimate> {
+    let x = &d.methods.get("joint")?.outcome.x;
+    let estimated = x.sigma.as_ref().map(|s| s.odo_yaw_deg).filter(|s| *s > 0.0);
+    let (boresight_deg, sigma_deg) = match (estimated, &d.joint_odo_yaw_check) {
+        (Some(s), _) => (x.odo_yaw_deg, s),
+        (None, Some(check)) => (check.seen.odo_yaw_deg, check.seen.sigma_deg),
+        (None, None) => return None,
+    };
+    Some(crate::campaign_yaw::YawEstimate {
+        boresight_deg,
+        sigma_deg,
+        estimated: estimated.is_some(),
+        mounting_deg: nav
+            .and_then(|n| n.imu_axes.as_ref()?.named_mounting_deg)
+            .unwrap_or_default(),
+    })
+}
+
 /// Median and largest horizontal hold-out error of the joint fit, m.
 fn holdout_stats(j: &MethodOut) -> Option<(f64, f64)> {
     unz_stages::disupt::holdout_median_max_m(j.holdout.as_ref()?)
@@ -730,6 +753,7 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
     let mut marks = MarkAcross::default();
     let mut pitches = crate::campaign_pitch::PitchAcross::default();
     let mut lags = crate::campaign_lag::LagAcross::default();
+    let mut yaws = crate::campaign_yaw::YawAcross::default();
     for o in outcomes {
         let layout = RunLayout::new(out, &o.name);
         let ing: Option<IngestReport> =
@@ -752,6 +776,9 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         }
         if let Some(lag) = d.as_ref().and_then(lag_estimate) {
             lags.add(&o.name, lag);
+        }
+        if let Some(yaw) = d.as_ref().and_then(|d| yaw_estimate(d, nav.as_ref())) {
+            yaws.add(&o.name, yaw);
         }
         if let Some(d) = &d {
             let estimate = mark_estimate(d);
@@ -868,6 +895,9 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         md += &section;
     }
     if let Some(section) = lags.markdown() {
+        md += &section;
+    }
+    if let Some(section) = yaws.markdown() {
         md += &section;
     }
     write_atomic(&out.join("campaign.md"), md.as_bytes())?;
