@@ -1,6 +1,6 @@
 //! DISUPT and sweeps end to end through the binary on a short simulated run.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use unz::disupt_stage::DisuptOut;
 use unz_stages::simulate::TrueSettings;
@@ -114,15 +114,11 @@ fn joint_estimates_an_odometer_boresight_when_configured() {
     assert_eq!(d.before.x.odo_yaw_deg, 0.0);
 }
 
-/// Three simulated runs of an IMU turned on the vehicle (the odometer 2° right of its x):
-/// each joint fit estimates the boresight (1.75–2.08°, σ 0.19–0.29°), the campaign pools
-/// them into the IMU's yaw to configure, and with it the increments are the vehicle's:
-/// the residuals then show no boresight.
-#[test]
-fn a_campaign_pools_the_imus_yaw_on_the_vehicle() {
-    let tmp = tempfile::tempdir().unwrap();
-    let campaign = tmp.path().join("c");
-    unz_ok(&[
+/// Three simulated runs (seeds 70–72, `options` added) in `dir/c`, run to disupt into
+/// `dir/o`: the campaign folder, the output folder and its `campaign.md`.
+fn pooled_campaign(dir: &Path, options: &[&str]) -> (PathBuf, PathBuf, String) {
+    let campaign = dir.join("c");
+    let mut args = vec![
         "simulate",
         "--out",
         campaign.to_str().unwrap(),
@@ -130,12 +126,46 @@ fn a_campaign_pools_the_imus_yaw_on_the_vehicle() {
         "70",
         "--runs",
         "3",
-        "--odo-boresight-deg",
-        "2",
-    ]);
-    let out = tmp.path().join("o");
+    ];
+    args.extend_from_slice(options);
+    unz_ok(&args);
+    let out = dir.join("o");
     run_until(&campaign, &out, "disupt");
     let md = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    (campaign, out, md)
+}
+
+/// The campaign's run sim-0071 run to disupt with the config `text` (in `dir/vehicle.toml`)
+/// into `dir/oc`: that output folder.
+fn configured_run(dir: &Path, campaign: &Path, text: &str) -> PathBuf {
+    let config = dir.join("vehicle.toml");
+    std::fs::write(&config, text).unwrap();
+    let out = dir.join("oc");
+    run_until_with(
+        &campaign.join("sim-0071"),
+        &out,
+        "disupt",
+        &["--config", config.to_str().unwrap()],
+    );
+    out
+}
+
+/// The word after `what` in `md` (up to a backtick, a space or an asterisk).
+fn after<'a>(md: &'a str, what: &str) -> &'a str {
+    md.split(what)
+        .nth(1)
+        .and_then(|s| s.split(['`', ' ', '*']).next())
+        .unwrap_or_else(|| panic!("no {what} in {md}"))
+}
+
+/// Three simulated runs of an IMU turned on the vehicle (the odometer 2° right of its x):
+/// each joint fit estimates the boresight (1.75–2.08°, σ 0.19–0.29°), the campaign pools
+/// them into the IMU's yaw to configure, and with it the increments are the vehicle's:
+/// the residuals then show no boresight.
+#[test]
+fn a_campaign_pools_the_imus_yaw_on_the_vehicle() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (campaign, _, md) = pooled_campaign(tmp.path(), &["--odo-boresight-deg", "2"]);
     let setting = md
         .split("set `[vehicle] imu_mounting_deg = ")
         .nth(1)
@@ -154,19 +184,10 @@ fn a_campaign_pools_the_imus_yaw_on_the_vehicle() {
         md.contains("3 runs' joint fits") && !md.contains("disagree"),
         "{md}"
     );
-    let config = tmp.path().join("vehicle.toml");
-    std::fs::write(
-        &config,
-        format!("[vehicle]\nimu_mounting_deg = {setting}\n"),
-    )
-    .unwrap();
-    let configured = tmp.path().join("oc");
-    let run = campaign.join("sim-0071");
-    run_until_with(
-        &run,
-        &configured,
-        "disupt",
-        &["--config", config.to_str().unwrap()],
+    let configured = configured_run(
+        tmp.path(),
+        &campaign,
+        &format!("[vehicle]\nimu_mounting_deg = {setting}\n"),
     );
     let d: DisuptOut = read_json(&configured.join("sim-0071/disupt/disupt.json"));
     let check = d.joint_odo_yaw_check.expect("checked");
@@ -253,35 +274,16 @@ fn height_rms_m(nav: &Path, truth: &Path) -> f64 {
 #[test]
 fn a_campaign_pools_the_odometers_pitch_and_lag_and_the_settings_give_the_heights() {
     let tmp = tempfile::tempdir().unwrap();
-    let campaign = tmp.path().join("c");
-    unz_ok(&[
-        "simulate",
-        "--out",
-        campaign.to_str().unwrap(),
-        "--seed",
-        "70",
-        "--runs",
-        "3",
-        "--odo-pitch-deg",
-        "1.5",
-        "--odo-lag-s",
-        "0.4",
-    ]);
-    let out = tmp.path().join("o");
-    run_until(&campaign, &out, "disupt");
-    let md = std::fs::read_to_string(out.join("campaign.md")).unwrap();
-    let after = |what: &str| -> &str {
-        md.split(what)
-            .nth(1)
-            .and_then(|s| s.split(['`', ' ', '*']).next())
-            .unwrap_or_else(|| panic!("no {what} in {md}"))
-    };
-    let setting = after("set `[vehicle] odo_pitch_deg = ");
+    let (campaign, out, md) = pooled_campaign(
+        tmp.path(),
+        &["--odo-pitch-deg", "1.5", "--odo-lag-s", "0.4"],
+    );
+    let setting = after(&md, "set `[vehicle] odo_pitch_deg = ");
     let pooled_deg: f64 = setting.parse().unwrap();
     // The lag: the runs' 0.17–0.45 s (σ 0.12–0.22 s) pool within their mean's 3σ.
-    let offset = after("set `[derive] odo_time_offset_s = ");
-    let lag_s: f64 = after("inverse-variance mean: **").parse().unwrap();
-    let lag_sigma_s: f64 = after(&format!("**{lag_s:.3} ± ")).parse().unwrap();
+    let offset = after(&md, "set `[derive] odo_time_offset_s = ");
+    let lag_s: f64 = after(&md, "inverse-variance mean: **").parse().unwrap();
+    let lag_sigma_s: f64 = after(&md, &format!("**{lag_s:.3} ± ")).parse().unwrap();
     assert!(
         (lag_s - 0.4).abs() < 3.0 * lag_sigma_s && lag_sigma_s < 0.15,
         "{md}"
@@ -295,20 +297,12 @@ fn a_campaign_pools_the_odometers_pitch_and_lag_and_the_settings_give_the_height
     // angle's error over the route (0.01° is 2.3 m at 13 km) and the dead reckoning's own
     // with the initial settings (its gyro drifts not yet corrected: 4–10 m RMS on seeds
     // 70–72 with the true angle), where without it they are 180 m off.
-    let config = tmp.path().join("vehicle.toml");
-    std::fs::write(
-        &config,
-        format!("[vehicle]\nodo_pitch_deg = {setting}\n[derive]\nodo_time_offset_s = {offset}\n"),
-    )
-    .unwrap();
-    let configured = tmp.path().join("oc");
-    let run = campaign.join("sim-0071");
-    run_until_with(
-        &run,
-        &configured,
-        "disupt",
-        &["--config", config.to_str().unwrap()],
+    let configured = configured_run(
+        tmp.path(),
+        &campaign,
+        &format!("[vehicle]\nodo_pitch_deg = {setting}\n[derive]\nodo_time_offset_s = {offset}\n"),
     );
+    let run = campaign.join("sim-0071");
     let truth = run.join("truth.parquet");
     let nav = |out: &Path| out.join("sim-0071/navigate/nav.parquet");
     let (without, with) = (
