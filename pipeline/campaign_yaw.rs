@@ -73,13 +73,14 @@ impl YawAcross {
         let estimated = e.iter().filter(|(_, y)| y.estimated).count();
         let mut md = format!(
             "\n## The IMU's yaw on the vehicle\n\n{} runs' joint fits showed an odometer yaw \
-             boresight ({estimated} estimated it; the others' residuals showed it below the \
+             boresight ({estimated} estimated it, {} showed it in their residuals below the \
              refit's threshold). With the mounting each was ingested with, their \
              inverse-variance mean of the IMU's yaw on the vehicle: **{yaw:.2}° ± \
              {sigma:.2}°**. If the runs share one vehicle and its installation, set \
              `[vehicle] imu_mounting_deg = [{roll}, {pitch}, {yaw:.2}]`: the increments are \
              then the vehicle's, and no run's azimuth takes the turn.\n",
-            e.len()
+            e.len(),
+            e.len() - estimated
         );
         if !same_tilt {
             md += "\nThe runs' configured mountings differ in roll or pitch: the roll and \
