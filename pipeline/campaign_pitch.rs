@@ -35,11 +35,9 @@ struct RunFit {
     name: String,
     /// The angle configured for the run, deg.
     configured_deg: f64,
-    /// Its own fitted angle, deg.
-    fitted_deg: f64,
     /// Whether its corrected navigation took it.
     taken: bool,
-    /// tan of its own angle, from its points' least squares through its start.
+    /// tan of its own fitted angle: its points' least squares through its start.
     tan: f64,
     /// Σ slope² over its points, m².
     slope2: f64,
@@ -138,24 +136,20 @@ impl PitchAcross {
         if !(fit.applied || no_change) {
             return;
         }
-        let tan_configured = fit.configured_deg.to_radians().tan();
         let points: Vec<(f64, f64)> = fit
             .points
             .iter()
             .map(|p| (p.slope_m, p.dh_before_m))
             .collect();
         let slope2: f64 = points.iter().map(|(s, _)| s * s).sum();
-        let target_slope: f64 = points
-            .iter()
-            .map(|(s, dh)| (tan_configured * s - dh) * s)
-            .sum();
         if slope2 > 0.0 {
+            // The fit's angle is its points' least squares through the start (their slopes
+            // and their errors with the configured angle), taken or refused.
             self.runs.push(RunFit {
                 name: name.to_owned(),
                 configured_deg: fit.configured_deg,
-                fitted_deg: fit.odo_pitch_deg,
                 taken: fit.applied,
-                tan: target_slope / slope2,
+                tan: fit.odo_pitch_deg.to_radians().tan(),
                 slope2,
                 points,
             });
@@ -326,7 +320,7 @@ impl PitchAcross {
                 "| {} | {:.3} | {:.3} | {} | {} | {} | {} |",
                 run.name,
                 run.configured_deg,
-                run.fitted_deg,
+                deg(run.tan),
                 if run.taken { "yes" } else { "no" },
                 others.map_or("–".to_owned(), |m| format!("{:.3}", deg(m.tan))),
                 others.map_or("–".to_owned(), |m| format!("{:.2}", run.rms_at(m.tan))),
