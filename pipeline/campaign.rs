@@ -721,7 +721,8 @@ impl SummaryValues {
     }
 }
 
-/// Removes the temporary files of the summaries (`.campaign.<ext>.<random>.tmp`) that a
+/// Removes the temporary files of the summaries (`.campaign.<ext>.<random>.tmp`, and
+/// `.campaign-settings.toml.<random>.tmp`) that a
 /// run killed while writing them left in `out` (the output folder is this process's
 /// alone: see [`crate::lock`]).
 fn remove_stale_summary_temps(out: &Path) {
@@ -730,14 +731,22 @@ fn remove_stale_summary_temps(out: &Path) {
     };
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
-        if name.starts_with(".campaign.") && name.ends_with(".tmp") {
+        if (name.starts_with(".campaign.") || name.starts_with(".campaign-settings.toml."))
+            && name.ends_with(".tmp")
+        {
             let _ = std::fs::remove_file(e.path());
         }
     }
 }
 
-/// Writes `campaign.parquet`, `campaign.md` and `campaign.html` into `out`.
-pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> {
+/// Writes `campaign.parquet`, `campaign.md` and `campaign.html` into `out`, and
+/// `campaign-settings.toml` (`config`, the campaign's, with the vehicle's settings the
+/// runs pooled) when they pooled one.
+pub fn write_summary(
+    out: &Path,
+    outcomes: &[RunOutcome],
+    config: &toml::Table,
+) -> anyhow::Result<()> {
     remove_stale_summary_temps(out);
     let mut cols: Vec<(&str, Vec<Option<f64>>)> = SummaryValues::default()
         .columns()
@@ -754,8 +763,13 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
     let mut pitches = crate::campaign_pitch::PitchAcross::default();
     let mut lags = crate::campaign_lag::LagAcross::default();
     let mut yaws = crate::campaign_yaw::YawAcross::default();
+    let mut runs_params: Vec<(String, toml::Table)> = Vec::new();
     for o in outcomes {
         let layout = RunLayout::new(out, &o.name);
+        let manifest = RunManifest::load(&o.manifest).ok();
+        if let Some(params) = manifest.as_ref().and_then(|m| m.params.clone()) {
+            runs_params.push((o.name.clone(), params));
+        }
         let ing: Option<IngestReport> =
             read_report(&layout.file(StageName::Ingest, files::INGEST_REPORT));
         let d: Option<DisuptOut> =
@@ -767,7 +781,7 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
         if let Some(h) = d
             .as_ref()
             .and_then(|d| d.methods.get("joint")?.holdout.as_ref())
-            && let Ok(m) = RunManifest::load(&o.manifest)
+            && let Some(m) = &manifest
         {
             points.add(&m.control_points, h);
         }
@@ -900,6 +914,24 @@ pub fn write_summary(out: &Path, outcomes: &[RunOutcome]) -> anyhow::Result<()> 
     if let Some(section) = yaws.markdown() {
         md += &section;
     }
+    let settings = crate::campaign_settings::PooledSettings {
+        odo_pitch_deg: pitches.setting(),
+        odo_time_offset_s: lags.setting(),
+        imu_mounting_yaw_deg: yaws.setting(),
+    };
+    let settings_text = crate::campaign_settings::text(config, &settings, &runs_params)?;
+    if settings_text.is_some() {
+        let _ = writeln!(
+            md,
+            "\n## The settings to configure\n\nThe settings above that differ from what the \
+             runs were configured with, and that the runs agree on, are in `{}` in this \
+             folder, with the campaign's config: if the runs share one vehicle, its \
+             installation and its odometer's logger, run the campaign again with `--config` \
+             that file.",
+            crate::campaign_settings::FILE
+        );
+    }
+    crate::campaign_settings::write(out, settings_text.as_deref())?;
     write_atomic(&out.join("campaign.md"), md.as_bytes())?;
     let html = unz_viz::report::campaign_html(&format!("Campaign {}", out.display()), &rows);
     write_atomic(&out.join("campaign.html"), html.as_bytes())?;
@@ -1058,6 +1090,7 @@ mod tests {
         let names = [
             ".campaign.md.5GrxMU.tmp",
             ".campaign.parquet.x1.tmp",
+            ".campaign-settings.toml.x1.tmp",
             ".other.md.x1.tmp",
             "campaign.md",
             "unz.lock",

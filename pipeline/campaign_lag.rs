@@ -8,6 +8,7 @@
 use std::fmt::Write as _;
 
 use crate::campaign_mark::{DISAGREE_CHI2_PER_DOF, weighted_mean};
+use crate::campaign_settings::Pooled;
 
 /// One run's odometer lag: in all (the configured offset's and the joint's beyond it), s,
 /// and its 1σ.
@@ -45,14 +46,28 @@ impl LagAcross {
         }
     }
 
-    /// `campaign.md`'s section, when two or more runs estimated the lag (one run's is in
-    /// its own row).
+    /// The runs' inverse-variance mean lag, its σ and their χ² per degree of freedom about
+    /// it, when two or more runs estimated the lag (one run's is in its own row).
+    fn mean(&self) -> Option<(f64, f64, Option<f64>)> {
+        let e = &self.estimates;
+        (e.len() >= 2).then(|| weighted_mean(e.iter().map(|(_, l)| (l.lag_s, l.sigma_s))))
+    }
+
+    /// The derive's `odo_time_offset_s` to configure (the mean lag, negated, as the
+    /// section writes it), when the runs' lags agree and a run's configured offset lies
+    /// beyond its σ.
+    pub fn setting(&self) -> Option<Pooled> {
+        let (lag, sigma, chi2) = self.mean()?;
+        let e = &self.estimates;
+        Pooled::rounded(-lag, sigma, e.len(), 3)
+            .if_a_change(e.iter().map(|(_, l)| l.offset_s))
+            .filter(|_| chi2.is_none_or(|c| c <= DISAGREE_CHI2_PER_DOF))
+    }
+
+    /// `campaign.md`'s section, when two or more runs estimated the lag.
     pub fn markdown(&self) -> Option<String> {
         let e = &self.estimates;
-        if e.len() < 2 {
-            return None;
-        }
-        let (lag, sigma, chi2) = weighted_mean(e.iter().map(|(_, l)| (l.lag_s, l.sigma_s)));
+        let (lag, sigma, chi2) = self.mean()?;
         let offset = -lag;
         let mut md = format!(
             "\n## The odometer's lag\n\n{} runs' joint fits estimated the odometer's lag \
@@ -125,6 +140,16 @@ mod tests {
         assert!(md.contains("odo_time_offset_s = -0.400`"), "{md}");
         assert!(md.contains("| c | -0.300 | 0.420 ± 0.100 |"), "{md}");
         assert!(!md.contains("disagree"), "{md}");
+        // The offset as the section writes it; σ = 1/√(100 + 100 + 400).
+        let s = l.setting().unwrap();
+        assert_eq!((s.value, s.runs), (-0.4, 3));
+        assert!((s.sigma - 600f64.sqrt().recip()).abs() < 1e-12, "{s:?}");
+        // Runs configured with the offset they show: nothing to change.
+        let mut configured = LagAcross::default();
+        configured.add("a", lag(0.41, 0.1, -0.4));
+        configured.add("b", lag(0.38, 0.1, -0.4));
+        assert!(configured.markdown().is_some());
+        assert_eq!(configured.setting(), None);
         // A lag at the search's bound is listed apart, not pooled.
         l.add(
             "f",
@@ -139,5 +164,6 @@ mod tests {
         // A logger 1 s late, 10σ from the others.
         l.add("e", lag(1.4, 0.1, 0.0));
         assert!(l.markdown().unwrap().contains("disagree beyond their σ"));
+        assert_eq!(l.setting(), None);
     }
 }

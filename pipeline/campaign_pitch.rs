@@ -15,6 +15,8 @@ use std::fmt::Write as _;
 
 use unz_stages::disupt::{OdoPitchFit, OdoPitchRefusal};
 
+use crate::campaign_settings::Pooled;
+
 /// Height error of a refused fit's point beyond which a run's note says so, m: dead
 /// reckoning's own vertical error at the control points of a simulated 40-minute run is
 /// 0.1–3 m; a datum or an angle left out is tens of metres (Kingston: 38 m after 2.4 km).
@@ -119,6 +121,24 @@ impl Weighted {
 struct Mean {
     tan: f64,
     variance: f64,
+}
+
+impl Mean {
+    /// The σ of its angle, degrees.
+    fn sigma_deg(&self) -> f64 {
+        (self.variance.sqrt() / (1.0 + self.tan * self.tan)).to_degrees()
+    }
+}
+
+/// The runs' pool: which are pooled and which named as disagreeing (see
+/// [`PitchAcross::consistent`]), the pooled sums and their mean, and the points' σ within
+/// a run it weighed them by, m.
+struct Pool {
+    point_sigma_m: f64,
+    pooled: Vec<bool>,
+    named: Vec<bool>,
+    all: Weighted,
+    mean: Mean,
 }
 
 fn deg(tan: f64) -> f64 {
@@ -236,10 +256,10 @@ impl PitchAcross {
         (pooled, named)
     }
 
-    /// `campaign.md`'s section, when a run's fit was taken.
-    pub fn markdown(&self) -> Option<String> {
-        let taken = self.runs.iter().filter(|r| r.taken).count();
-        if taken == 0 {
+    /// The pool the section shows, when a run's fit was taken and the mean stands out of
+    /// its σ or an angle is configured.
+    fn pool(&self) -> Option<Pool> {
+        if !self.runs.iter().any(|r| r.taken) {
             return None;
         }
         let point_sigma_m = self.point_sigma_m();
@@ -253,8 +273,45 @@ impl PitchAcross {
         if !configured && mean.tan.abs() <= DISAGREE_SIGMA * mean.variance.sqrt() {
             return None;
         }
+        Some(Pool {
+            point_sigma_m,
+            pooled,
+            named,
+            all,
+            mean,
+        })
+    }
+
+    /// The angle to configure (`[vehicle] odo_pitch_deg`, as the section writes it), when
+    /// the section is shown, no pooled run disagrees with the others and a pooled run's
+    /// configured angle lies beyond its σ.
+    pub fn setting(&self) -> Option<Pooled> {
+        let pool = self.pool()?;
+        let disagreeing = pool.pooled.iter().zip(&pool.named).any(|(p, n)| *p && *n);
+        let in_pool = || self.runs.iter().zip(&pool.pooled).filter(|(_, p)| **p);
+        Pooled::rounded(
+            deg(pool.mean.tan),
+            pool.mean.sigma_deg(),
+            in_pool().count(),
+            3,
+        )
+        .if_a_change(in_pool().map(|(r, _)| r.configured_deg))
+        .filter(|_| !disagreeing)
+    }
+
+    /// `campaign.md`'s section, when a run's fit was taken and the mean stands out of its
+    /// σ or an angle is configured.
+    pub fn markdown(&self) -> Option<String> {
+        let taken = self.runs.iter().filter(|r| r.taken).count();
+        let Pool {
+            point_sigma_m,
+            pooled,
+            named,
+            all,
+            mean,
+        } = self.pool()?;
         let angle = deg(mean.tan);
-        let sigma_deg = (mean.variance.sqrt() / (1.0 + mean.tan * mean.tan)).to_degrees();
+        let sigma_deg = mean.sigma_deg();
         let in_pool: Vec<&RunFit> = self
             .runs
             .iter()
@@ -395,6 +452,9 @@ mod tests {
         assert!(md.contains("`[vehicle] odo_pitch_deg = 1.50"), "{md}");
         assert!(!md.contains("more than 3σ"), "{md}");
         assert!(md.contains("| c | 1.400 | 1.50"), "{md}");
+        let s = p.setting().unwrap();
+        assert!((s.value - 1.5).abs() < 0.01 && s.runs == 3, "{s:?}");
+        assert_eq!(format!("{:.3}", s.value), after(&md, "odo_pitch_deg = "));
         // A configured run whose points show no change is pooled, not taken.
         let mut p2 = PitchAcross::default();
         p2.add("f", &run(1.5, 1.5, &[3000.0, 6000.0], 0.5));
@@ -414,6 +474,7 @@ mod tests {
         level.add("z1", &run(0.0, 0.03, &[3000.0, 6000.0], 0.0));
         level.add("z2", &run(0.0, -0.01, &[3000.0, 6000.0], 0.0));
         assert!(level.runs.len() == 2 && level.markdown().is_none());
+        assert_eq!(level.setting(), None);
         // A run of another vehicle, at 3°, is named and left out.
         p.add("e", &run(0.0, 3.0, &[3000.0, 6000.0], 0.5));
         let md = p.markdown().unwrap();
@@ -425,6 +486,13 @@ mod tests {
             md.contains("more than 3σ from the others', left out of the mean: e: "),
             "{md}"
         );
+        // The others agree: their angle is the setting.
+        assert_eq!(p.setting().map(|s| s.runs), Some(3));
+    }
+
+    /// The word after `what` in `md`, up to a backtick.
+    fn after<'a>(md: &'a str, what: &str) -> &'a str {
+        md.split(what).nth(1).unwrap().split('`').next().unwrap()
     }
 
     /// Of two runs that disagree, neither can be told wrong: both are pooled and named.
@@ -439,11 +507,13 @@ mod tests {
             md.contains("from the others': a, b: another vehicle"),
             "{md}"
         );
+        assert_eq!(p.setting(), None);
         // Within the levelling's σ of each other, they agree.
         let mut p = PitchAcross::default();
         p.add("a", &run(0.0, 1.5, &[3000.0, 6000.0], 0.5));
         p.add("b", &run(0.0, 1.6, &[3000.0, 6000.0], 0.5));
         assert!(!p.markdown().unwrap().contains("3σ"));
+        assert_eq!(p.setting().map(|s| s.runs), Some(2));
     }
 
     #[test]

@@ -9,6 +9,7 @@
 use std::fmt::Write as _;
 
 use crate::campaign_mark::{DISAGREE_CHI2_PER_DOF, weighted_mean};
+use crate::campaign_settings::Pooled;
 
 /// How many σ from none the runs' mean boresight must lie for the section to advise a
 /// mounting (without a mounting configured, which the section then checks).
@@ -53,9 +54,9 @@ impl YawAcross {
         }
     }
 
-    /// `campaign.md`'s section, when the runs' mean mounting yaw lies beyond its 3σ from
-    /// none, or a mounting is configured.
-    pub fn markdown(&self) -> Option<String> {
+    /// The runs' inverse-variance mean mounting yaw, its σ and their χ² per degree of
+    /// freedom about it, when it lies beyond its 3σ from none or a mounting is configured.
+    fn mean(&self) -> Option<(f64, f64, Option<f64>)> {
         let e = &self.estimates;
         if e.is_empty() {
             return None;
@@ -63,9 +64,25 @@ impl YawAcross {
         let (yaw, sigma, chi2) =
             weighted_mean(e.iter().map(|(_, y)| (y.mounting_yaw_deg(), y.sigma_deg)));
         let configured = e.iter().any(|(_, y)| y.mounting_deg != [0.0; 3]);
-        if !configured && yaw.abs() <= SHOWN_SIGMA * sigma {
-            return None;
-        }
+        (configured || yaw.abs() > SHOWN_SIGMA * sigma).then_some((yaw, sigma, chi2))
+    }
+
+    /// The mounting's yaw to configure (`[vehicle] imu_mounting_deg`'s third, as the
+    /// section writes it), when the runs' yaws agree and a run's configured yaw lies
+    /// beyond its σ.
+    pub fn setting(&self) -> Option<Pooled> {
+        let (yaw, sigma, chi2) = self.mean()?;
+        let e = &self.estimates;
+        Pooled::rounded(yaw, sigma, e.len(), 2)
+            .if_a_change(e.iter().map(|(_, y)| y.mounting_deg[2]))
+            .filter(|_| chi2.is_none_or(|c| c <= DISAGREE_CHI2_PER_DOF))
+    }
+
+    /// `campaign.md`'s section, when the runs' mean mounting yaw lies beyond its 3σ from
+    /// none, or a mounting is configured.
+    pub fn markdown(&self) -> Option<String> {
+        let e = &self.estimates;
+        let (yaw, sigma, chi2) = self.mean()?;
         let [roll, pitch, _] = e[0].1.mounting_deg;
         let same_tilt = e
             .iter()
@@ -130,6 +147,7 @@ mod tests {
         y.add("a", yaw(0.1, 0.25, [0.0; 3]));
         y.add("b", yaw(-0.2, 0.25, [0.0; 3]));
         assert_eq!(y.markdown(), None);
+        assert_eq!(y.setting(), None);
         // Four runs of an IMU turned 0.6° to the left, none beyond the refit's 3σ alone
         // (0.5–0.7° ± 0.25°), pool to 6σ.
         let mut y = YawAcross::default();
@@ -143,6 +161,8 @@ mod tests {
         assert!(md.contains("**-0.60° ± 0.12°**"), "{md}");
         assert!(md.contains("imu_mounting_deg = [0, 0, -0.60]"), "{md}");
         assert!(!md.contains("disagree"), "{md}");
+        let s = y.setting().unwrap();
+        assert_eq!((s.value, s.runs), (-0.6, 4));
         // Configured: the yaw in all is the configured one less the boresight left.
         let mut y = YawAcross::default();
         y.add("a", yaw(0.05, 0.2, [0.0, 1.0, -0.6]));
@@ -150,8 +170,11 @@ mod tests {
         let md = y.markdown().unwrap();
         assert!(md.contains("**-0.60° ± 0.14°**"), "{md}");
         assert!(md.contains("imu_mounting_deg = [0, 1, -0.60]"), "{md}");
+        // That is what the runs show: nothing to change.
+        assert_eq!(y.setting(), None);
         // Another installation, 3° off.
         y.add("c", yaw(3.0, 0.2, [0.0, 1.0, -0.6]));
         assert!(y.markdown().unwrap().contains("disagree beyond their σ"));
+        assert_eq!(y.setting(), None);
     }
 }

@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use unz::disupt_stage::DisuptOut;
+use unz::flow::Params;
 use unz_stages::simulate::TrueSettings;
 
 use crate::util::{
@@ -135,11 +136,9 @@ fn pooled_campaign(dir: &Path, options: &[&str]) -> (PathBuf, PathBuf, String) {
     (campaign, out, md)
 }
 
-/// The campaign's run sim-0071 run to disupt with the config `text` (in `dir/vehicle.toml`)
-/// into `dir/oc`: that output folder.
-fn configured_run(dir: &Path, campaign: &Path, text: &str) -> PathBuf {
-    let config = dir.join("vehicle.toml");
-    std::fs::write(&config, text).unwrap();
+/// The campaign's run sim-0071 run to disupt with the config file `config` into `dir/oc`:
+/// that output folder.
+fn configured_run(dir: &Path, campaign: &Path, config: &Path) -> PathBuf {
     let out = dir.join("oc");
     run_until_with(
         &campaign.join("sim-0071"),
@@ -148,6 +147,15 @@ fn configured_run(dir: &Path, campaign: &Path, text: &str) -> PathBuf {
         &["--config", config.to_str().unwrap()],
     );
     out
+}
+
+/// The campaign's settings file in `out` (`campaign-settings.toml`), as the config's
+/// parser reads it: its path and its parameters.
+fn campaign_settings(out: &Path) -> (PathBuf, Params) {
+    let file = out.join(unz::campaign_settings::FILE);
+    let table = unz::config::load(Some(&file)).unwrap();
+    let params = unz::config::effective(&table, None).unwrap();
+    (file, params)
 }
 
 /// The word after `what` in `md` (up to a backtick, a space or an asterisk).
@@ -165,30 +173,24 @@ fn after<'a>(md: &'a str, what: &str) -> &'a str {
 #[test]
 fn a_campaign_pools_the_imus_yaw_on_the_vehicle() {
     let tmp = tempfile::tempdir().unwrap();
-    let (campaign, _, md) = pooled_campaign(tmp.path(), &["--odo-boresight-deg", "2"]);
-    let setting = md
-        .split("set `[vehicle] imu_mounting_deg = ")
-        .nth(1)
-        .and_then(|s| s.split('`').next())
-        .unwrap_or_else(|| panic!("no setting in {md}"));
-    let yaw: f64 = setting
-        .trim_matches(['[', ']'])
-        .split(", ")
-        .nth(2)
-        .unwrap()
-        .parse()
-        .unwrap();
+    let (campaign, out, md) = pooled_campaign(tmp.path(), &["--odo-boresight-deg", "2"]);
+    // The settings file: the pooled yaw in the campaign's (default) mounting, and nothing
+    // else the runs do not show (their lags are none within their σ).
+    let (file, settings) = campaign_settings(&out);
+    let [roll, pitch, yaw] = settings.vehicle.imu_mounting_deg;
     // The mean of three runs' σ 0.19–0.29°: 0.13°; the IMU is turned 2° to the left.
     assert!((yaw + 2.0).abs() < 0.4, "{md}");
+    assert_eq!((roll, pitch), (0.0, 0.0));
+    assert_eq!(settings.derive.odo_time_offset_s, 0.0, "{md}");
+    assert_eq!(settings.vehicle.odo_pitch_deg, 0.0, "{md}");
     assert!(
-        md.contains("3 runs' joint fits") && !md.contains("disagree"),
+        md.contains(&format!(
+            "set `[vehicle] imu_mounting_deg = [0, 0, {yaw:.2}]`"
+        )) && md.contains("3 runs' joint fits")
+            && !md.contains("disagree"),
         "{md}"
     );
-    let configured = configured_run(
-        tmp.path(),
-        &campaign,
-        &format!("[vehicle]\nimu_mounting_deg = {setting}\n"),
-    );
+    let configured = configured_run(tmp.path(), &campaign, &file);
     let d: DisuptOut = read_json(&configured.join("sim-0071/disupt/disupt.json"));
     let check = d.joint_odo_yaw_check.expect("checked");
     assert!(!check.refit && check.seen.z() < 3.0, "{check:?}");
@@ -278,17 +280,26 @@ fn a_campaign_pools_the_odometers_pitch_and_lag_and_the_settings_give_the_height
         tmp.path(),
         &["--odo-pitch-deg", "1.5", "--odo-lag-s", "0.4"],
     );
-    let setting = after(&md, "set `[vehicle] odo_pitch_deg = ");
-    let pooled_deg: f64 = setting.parse().unwrap();
+    // The settings file holds both, as the sections write them.
+    let (file, settings) = campaign_settings(&out);
+    let pooled_deg = settings.vehicle.odo_pitch_deg;
+    let offset = settings.derive.odo_time_offset_s;
+    assert_eq!(
+        after(&md, "set `[vehicle] odo_pitch_deg = "),
+        format!("{pooled_deg:.3}")
+    );
+    assert_eq!(
+        after(&md, "set `[derive] odo_time_offset_s = "),
+        format!("{offset:.3}")
+    );
     // The lag: the runs' 0.17–0.45 s (σ 0.12–0.22 s) pool within their mean's 3σ.
-    let offset = after(&md, "set `[derive] odo_time_offset_s = ");
     let lag_s: f64 = after(&md, "inverse-variance mean: **").parse().unwrap();
     let lag_sigma_s: f64 = after(&md, &format!("**{lag_s:.3} ± ")).parse().unwrap();
     assert!(
         (lag_s - 0.4).abs() < 3.0 * lag_sigma_s && lag_sigma_s < 0.15,
         "{md}"
     );
-    assert_eq!(offset.parse::<f64>().unwrap(), -lag_s);
+    assert_eq!(offset, -lag_s);
     // The runs fit 1.488–1.507° (each within 0.015° of the truth: a point's 0.2 m of
     // height after 13 km, and the start's levelling); their mean is nearer.
     assert!((pooled_deg - 1.5).abs() < 0.01, "{md}");
@@ -297,11 +308,7 @@ fn a_campaign_pools_the_odometers_pitch_and_lag_and_the_settings_give_the_height
     // angle's error over the route (0.01° is 2.3 m at 13 km) and the dead reckoning's own
     // with the initial settings (its gyro drifts not yet corrected: 4–10 m RMS on seeds
     // 70–72 with the true angle), where without it they are 182–216 m RMS off.
-    let configured = configured_run(
-        tmp.path(),
-        &campaign,
-        &format!("[vehicle]\nodo_pitch_deg = {setting}\n[derive]\nodo_time_offset_s = {offset}\n"),
-    );
+    let configured = configured_run(tmp.path(), &campaign, &file);
     let run = campaign.join("sim-0071");
     let truth = run.join("truth.parquet");
     let nav = |out: &Path| out.join("sim-0071/navigate/nav.parquet");
@@ -352,6 +359,11 @@ fn a_campaign_pools_the_odometers_pitch_and_lag_and_the_settings_give_the_height
         "{md}"
     );
     assert!(!md.contains("## The odometer's lag"), "{md}");
+    // The settings file keeps the campaign's config and has no lag to set.
+    let (_, settings) = campaign_settings(&bounded);
+    assert_eq!(settings.disupt.odo_lag_bound_s, 0.1);
+    assert_eq!(settings.derive.odo_time_offset_s, 0.0);
+    assert!((settings.vehicle.odo_pitch_deg - 1.5).abs() < 0.01, "{md}");
 }
 
 #[test]

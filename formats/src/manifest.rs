@@ -246,10 +246,11 @@ impl Checker<'_> {
 }
 
 /// Names an output folder holds beside the runs' folders: no run may take them.
-pub const RESERVED_NAMES: [&str; 5] = [
+pub const RESERVED_NAMES: [&str; 6] = [
     "campaign.parquet",
     "campaign.md",
     "campaign.html",
+    "campaign-settings.toml",
     "unz.lock",
     "unz.hashes",
 ];

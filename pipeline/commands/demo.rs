@@ -59,7 +59,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<ExitCode> {
     let manifests: Vec<PathBuf> = dirs.iter().map(|d| d.join("run.toml")).collect();
     let plan = Plan::every_stage(results.clone());
     let outcomes = run_campaign(&manifests, &plan);
-    write_summary(&results, &outcomes)?;
+    write_summary(&results, &outcomes, &plan.config)?;
 
     println!(
         "{:<16} {:>7} {:>8} {:>9} {:>10} {:>10} {:>10} {:>10} {:>12} {:>13} {:>12}",

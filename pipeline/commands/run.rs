@@ -49,7 +49,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<ExitCode> {
         .build()?;
     let t0 = std::time::Instant::now();
     let outcomes = pool.install(|| run_campaign(&manifests, &plan));
-    write_summary(&args.out, &outcomes)?;
+    write_summary(&args.out, &outcomes, &plan.config)?;
     let failed: Vec<_> = outcomes.iter().filter(|o| o.error.is_some()).collect();
     let cached = outcomes
         .iter()
