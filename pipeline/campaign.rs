@@ -19,7 +19,7 @@ use unz_formats::schema;
 use unz_viz::report::{JointEstimate, ReportRow};
 
 use crate::artifacts::{RunLayout, StageName, files};
-use crate::campaign_mark::{MarkAcross, MarkEstimate};
+use crate::campaign_pools::Pools;
 use crate::disupt_stage::{DisuptOut, Method, MethodOut, SettingsOut, SigmaOut, ensure_disupt};
 use crate::flow::marks::RepeatedMark;
 use crate::flow::{
@@ -476,53 +476,6 @@ fn run_note(
         .join("; ")
 }
 
-/// The vehicle's mark from the navigated point (the configured arm and the joint fit's
-/// move of it), when the joint fit estimated it.
-fn mark_estimate(d: &DisuptOut) -> Option<MarkEstimate> {
-    let ([f, r, z], s) = d.joint_mark()?;
-    let s = s?;
-    Some(MarkEstimate {
-        forward_m: (f, s[0]),
-        right_m: (r, s[1]),
-        down_m: z,
-    })
-}
-
-/// The odometer's lag in all (the configured offset's and the joint's), when the joint
-/// fit estimated it.
-fn lag_estimate(d: &DisuptOut) -> Option<crate::campaign_lag::LagEstimate> {
-    let x = &d.methods.get("joint")?.outcome.x;
-    Some(crate::campaign_lag::LagEstimate {
-        lag_s: x.odo_lag_s - d.odo_time_offset_s,
-        sigma_s: x.sigma.as_ref()?.odo_lag_s,
-        offset_s: d.odo_time_offset_s,
-        at_bound: d.joint_odo_lag_at_bound_s.is_some(),
-    })
-}
-
-/// The odometer yaw boresight the joint fit estimated, else the one its residuals showed
-/// below the refit's threshold, with the mounting the run was ingested with (`nav`'s).
-fn yaw_estimate(
-    d: &DisuptOut,
-    nav: Option<&NavigateSummary>,
-) -> Option<crate::campaign_yaw::YawEstimate> {
-    let x = &d.methods.get("joint")?.outcome.x;
-    let estimated = x.sigma.as_ref().map(|s| s.odo_yaw_deg).filter(|s| *s > 0.0);
-    let (boresight_deg, sigma_deg) = match (estimated, &d.joint_odo_yaw_check) {
-        (Some(s), _) => (x.odo_yaw_deg, s),
-        (None, Some(check)) => (check.seen.odo_yaw_deg, check.seen.sigma_deg),
-        (None, None) => return None,
-    };
-    Some(crate::campaign_yaw::YawEstimate {
-        boresight_deg,
-        sigma_deg,
-        estimated: estimated.is_some(),
-        mounting_deg: nav
-            .and_then(|n| n.imu_axes.as_ref()?.named_mounting_deg)
-            .unwrap_or_default(),
-    })
-}
-
 /// Median and largest horizontal hold-out error of the joint fit, m.
 fn holdout_stats(j: &MethodOut) -> Option<(f64, f64)> {
     unz_stages::disupt::holdout_median_max_m(j.holdout.as_ref()?)
@@ -624,7 +577,7 @@ impl SummaryValues {
         let x = |f: fn(&SettingsOut) -> f64| joint.map(|j| f(&j.outcome.x));
         let sd = |f: fn(&SigmaOut) -> f64| joint.and_then(|j| j.outcome.x.sigma.as_ref()).map(f);
         let holdout = joint.and_then(holdout_stats);
-        let mark = d.and_then(mark_estimate);
+        let mark = d.and_then(crate::campaign_pools::mark_estimate);
         let pitch = d.and_then(|d| d.odo_pitch.as_ref());
         Self {
             distance_m: d.map(|d| d.distance_m),
@@ -758,50 +711,17 @@ pub fn write_summary(
     );
     let mut notes: Vec<Option<String>> = Vec::with_capacity(outcomes.len());
     let mut rows: Vec<ReportRow> = Vec::with_capacity(outcomes.len());
-    let mut points = crate::campaign_points::PointsAcross::default();
-    let mut marks = MarkAcross::default();
-    let mut pitches = crate::campaign_pitch::PitchAcross::default();
-    let mut lags = crate::campaign_lag::LagAcross::default();
-    let mut yaws = crate::campaign_yaw::YawAcross::default();
-    let mut runs_params: Vec<(String, toml::Table)> = Vec::new();
+    let mut pools = Pools::default();
     for o in outcomes {
         let layout = RunLayout::new(out, &o.name);
         let manifest = RunManifest::load(&o.manifest).ok();
-        if let Some(params) = manifest.as_ref().and_then(|m| m.params.clone()) {
-            runs_params.push((o.name.clone(), params));
-        }
         let ing: Option<IngestReport> =
             read_report(&layout.file(StageName::Ingest, files::INGEST_REPORT));
         let d: Option<DisuptOut> =
             read_report(&layout.file(StageName::Disupt, files::DISUPT_REPORT));
         let nav: Option<NavigateSummary> =
             read_report(&layout.file(StageName::Navigate, files::NAVIGATE_REPORT));
-        // The runs' control points, by their surveyed positions (the manifest is read
-        // again only for a run whose joint fit has a hold-out).
-        if let Some(h) = d
-            .as_ref()
-            .and_then(|d| d.methods.get("joint")?.holdout.as_ref())
-            && let Some(m) = &manifest
-        {
-            points.add(&m.control_points, h);
-        }
-        if let Some(fit) = d.as_ref().and_then(|d| d.odo_pitch.as_ref()) {
-            pitches.add(&o.name, fit);
-        }
-        if let Some(lag) = d.as_ref().and_then(lag_estimate) {
-            lags.add(&o.name, lag);
-        }
-        if let Some(yaw) = d.as_ref().and_then(|d| yaw_estimate(d, nav.as_ref())) {
-            yaws.add(&o.name, yaw);
-        }
-        if let Some(d) = &d {
-            let estimate = mark_estimate(d);
-            marks.add(
-                &o.name,
-                d.joint_mark_arm_check.is_some() || estimate.is_some(),
-                estimate,
-            );
-        }
+        pools.add(&o.name, manifest.as_ref(), d.as_ref(), nav.as_ref());
         let v = SummaryValues::of(ing.as_ref(), d.as_ref(), o.wall_s);
         let note = Some(run_note(d.as_ref(), nav.as_ref(), ing.as_ref()))
             .filter(|n| o.error.is_none() && !n.is_empty());
@@ -899,39 +819,12 @@ pub fn write_summary(
         &out.join("campaign.parquet"),
         &RecordBatch::try_new(schema, arrays)?,
     )?;
-    if let Some(section) = points.markdown() {
-        md += &section;
-    }
-    if let Some(section) = marks.markdown() {
-        md += &section;
-    }
-    if let Some(section) = pitches.markdown() {
-        md += &section;
-    }
-    if let Some(section) = lags.markdown() {
-        md += &section;
-    }
-    if let Some(section) = yaws.markdown() {
-        md += &section;
-    }
-    let settings = crate::campaign_settings::PooledSettings {
-        odo_pitch_deg: pitches.setting(),
-        odo_time_offset_s: lags.setting(),
-        imu_mounting_yaw_deg: yaws.setting(),
-    };
-    let settings_text = crate::campaign_settings::text(config, &settings, &runs_params)?;
-    if settings_text.is_some() {
-        let _ = writeln!(
-            md,
-            "\n## The settings to configure\n\nThe settings above that differ from what the \
-             runs were configured with, and that the runs agree on, are in `{}` in this \
-             folder, with the campaign's config: if the runs share one vehicle, its \
-             installation and its odometer's logger, run the campaign again with `--config` \
-             that file.",
-            crate::campaign_settings::FILE
-        );
-    }
-    crate::campaign_settings::write(out, settings_text.as_deref())?;
+    let pooled = pools.finish(config, crate::campaign_settings::FILE)?;
+    md += &pooled.markdown;
+    crate::campaign_settings::write(
+        &out.join(crate::campaign_settings::FILE),
+        pooled.settings.as_deref(),
+    )?;
     write_atomic(&out.join("campaign.md"), md.as_bytes())?;
     let html = unz_viz::report::campaign_html(&format!("Campaign {}", out.display()), &rows);
     write_atomic(&out.join("campaign.html"), html.as_bytes())?;
@@ -1022,11 +915,20 @@ pub fn parse_shard(s: &str) -> anyhow::Result<(u64, u64)> {
 }
 
 /// Merges the `campaign.parquet` of several output folders (shards) into `dest`, refusing
-/// a run that appears in two of them.
-pub fn merge_summaries(outs: &[PathBuf], dest: &Path) -> anyhow::Result<usize> {
+/// a run that appears in two of them, and pools the runs of all of them as one campaign
+/// would: their sections go to `dest`'s markdown beside it (`all.parquet` → `all.md`) and
+/// the settings they agree on, with `config`, to `all-settings.toml` (removed when none).
+/// Returns how many runs were merged.
+pub fn merge_summaries(
+    outs: &[PathBuf],
+    dest: &Path,
+    config: &toml::Table,
+) -> anyhow::Result<usize> {
     let mut batches = Vec::new();
     let mut schema = None;
     let mut seen = std::collections::HashMap::new();
+    // Each run's shard folder, name and manifest, in the shards' order.
+    let mut runs: Vec<(&Path, String, String)> = Vec::new();
     for out in outs {
         let path = out.join("campaign.parquet");
         let (s, bs) = unz_formats::parquet_io::read_batches(&path)?;
@@ -1041,11 +943,15 @@ pub fn merge_summaries(outs: &[PathBuf], dest: &Path) -> anyhow::Result<usize> {
             );
         }
         for b in &bs {
-            let runs = b
-                .column_by_name(unz_formats::schema::CAMPAIGN_RUN)
-                .and_then(|c| c.as_any().downcast_ref::<StringArray>())
-                .with_context(|| format!("{}: no run column", path.display()))?;
-            for r in runs.iter().flatten() {
+            let column = |name: &str| {
+                b.column_by_name(name)
+                    .and_then(|c| c.as_any().downcast_ref::<StringArray>())
+                    .with_context(|| format!("{}: no {name} column", path.display()))
+            };
+            let names = column(schema::CAMPAIGN_RUN)?;
+            let manifests = column(schema::CAMPAIGN_MANIFEST)?;
+            for (r, m) in names.iter().zip(manifests) {
+                let Some(r) = r else { continue };
                 if let Some(other) = seen.insert(r.to_owned(), path.clone()) {
                     bail!(
                         "run {r:?} is in both {} and {}",
@@ -1053,6 +959,7 @@ pub fn merge_summaries(outs: &[PathBuf], dest: &Path) -> anyhow::Result<usize> {
                         path.display()
                     );
                 }
+                runs.push((out, r.to_owned(), m.unwrap_or_default().to_owned()));
             }
         }
         schema.get_or_insert(s);
@@ -1061,6 +968,43 @@ pub fn merge_summaries(outs: &[PathBuf], dest: &Path) -> anyhow::Result<usize> {
     let schema = schema.context("nothing to merge")?;
     let merged = arrow::compute::concat_batches(&schema, &batches)?;
     write_batch(dest, &merged)?;
+    // In a single campaign's order (its manifests sorted), so that the sections are the
+    // ones it would write.
+    runs.sort_by(|a, b| (&a.2, &a.1).cmp(&(&b.2, &b.1)));
+    let mut pools = Pools::default();
+    // A name that is not a plain run name names no folder of a shard's (a summary is
+    // read, not trusted).
+    for (out, name, manifest) in runs
+        .iter()
+        .filter(|r| unz_formats::manifest::is_plain_name(&r.1))
+    {
+        let layout = RunLayout::new(out, name);
+        let manifest = RunManifest::load(Path::new(manifest)).ok();
+        let d: Option<DisuptOut> =
+            read_report(&layout.file(StageName::Disupt, files::DISUPT_REPORT));
+        let nav: Option<NavigateSummary> =
+            read_report(&layout.file(StageName::Navigate, files::NAVIGATE_REPORT));
+        pools.add(name, manifest.as_ref(), d.as_ref(), nav.as_ref());
+    }
+    let (settings_path, md_path) = crate::campaign_pools::merged_names(dest);
+    let settings_name = settings_path
+        .file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let pooled = pools.finish(config, &settings_name)?;
+    crate::campaign_settings::write(&settings_path, pooled.settings.as_deref())?;
+    let md = format!(
+        "# {} runs of {} shards\n\nThe runs' rows are in `{}`; pooled across all of them:\n{}",
+        merged.num_rows(),
+        outs.len(),
+        dest.file_name()
+            .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+        if pooled.markdown.is_empty() {
+            "\nnothing: no run's reports show a point, mark, angle, lag or yaw to pool.\n"
+        } else {
+            &pooled.markdown
+        }
+    );
+    write_atomic(&md_path, md.as_bytes())?;
     Ok(merged.num_rows())
 }
 

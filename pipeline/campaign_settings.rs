@@ -180,13 +180,12 @@ pub fn text(
     Ok(Some(format!("{head}\n{}", toml::to_string(&table)?)))
 }
 
-/// Writes the file into `out` (atomically), or removes an earlier campaign's when there
+/// Writes the file at `path` (atomically), or removes an earlier campaign's when there
 /// is nothing to write (a stale file would advise what these runs no longer show).
-pub fn write(out: &Path, text: Option<&str>) -> anyhow::Result<()> {
-    let path = out.join(FILE);
+pub fn write(path: &Path, text: Option<&str>) -> anyhow::Result<()> {
     match text {
-        Some(t) => Ok(write_atomic(&path, t.as_bytes())?),
-        None => match std::fs::remove_file(&path) {
+        Some(t) => Ok(write_atomic(path, t.as_bytes())?),
+        None => match std::fs::remove_file(path) {
             Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
                 Err(anyhow::anyhow!("cannot remove {}: {e}", path.display()))
             }
@@ -231,7 +230,7 @@ mod tests {
         ];
         let text = text(&config, &settings, &runs).unwrap().unwrap();
         let dir = tempfile::tempdir().unwrap();
-        write(dir.path(), Some(&text)).unwrap();
+        write(&dir.path().join(FILE), Some(&text)).unwrap();
         let read = config::load(Some(&dir.path().join(FILE))).unwrap();
         let p = config::effective(&read, None).unwrap();
         assert_eq!(p.vehicle.odo_pitch_deg, 1.498);
@@ -246,9 +245,9 @@ mod tests {
         assert_eq!(text.matches("own [params]").count(), 1, "{text}");
         // Nothing pooled: no file, and an earlier one goes.
         assert_eq!(text_of(&PooledSettings::default()), None);
-        write(dir.path(), None).unwrap();
+        write(&dir.path().join(FILE), None).unwrap();
         assert!(!dir.path().join(FILE).exists());
-        write(dir.path(), None).unwrap();
+        write(&dir.path().join(FILE), None).unwrap();
     }
 
     fn text_of(s: &PooledSettings) -> Option<String> {

@@ -250,7 +250,9 @@ pub struct CampaignArgs {
 /// `unz campaign` subcommands.
 #[derive(Debug, Subcommand)]
 pub enum CampaignCommand {
-    /// Merge the campaign.parquet of shard output folders into one file.
+    /// Merge the campaign.parquet of shard output folders into one file, and pool their
+    /// runs as one campaign: the sections beside it (`all.parquet` → `all.md`) and the
+    /// vehicle's settings they agree on (`all-settings.toml`).
     Merge {
         /// Output folders of the shards.
         #[arg(required = true)]
@@ -258,6 +260,10 @@ pub enum CampaignCommand {
         /// Merged summary to write.
         #[arg(long)]
         into: PathBuf,
+        /// The config the shards ran with: the settings file is it with the pooled
+        /// settings.
+        #[arg(long)]
+        config: Option<PathBuf>,
     },
 }
 

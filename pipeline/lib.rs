@@ -10,6 +10,7 @@ pub mod campaign_lag;
 pub mod campaign_mark;
 pub mod campaign_pitch;
 pub mod campaign_points;
+pub mod campaign_pools;
 pub mod campaign_settings;
 pub mod campaign_yaw;
 pub mod cli;

@@ -3,7 +3,8 @@
 # slurm-wlm: munged, slurmctld and slurmd), submits a simulated campaign as an array job
 # with `unz run --shard I/N`, waits for it, merges the shards' summaries with
 # `unz campaign merge`, and checks that the merged summary equals one plain `unz run`
-# (every column but the wall times). Needs root (it installs slurm-wlm when missing and
+# (every column but the wall times), and the runs pooled across the shards (sections and
+# settings) the plain run's. Needs root (it installs slurm-wlm when missing and
 # runs the daemons); everything it writes is under WORK (default: target/slurm-check).
 #
 #   bash scripts/slurm_check.sh [SHARDS]        # SHARDS array tasks, default 3
@@ -77,8 +78,10 @@ for _ in $(seq 60); do
 done
 sinfo
 
-# A small campaign: 6 simulated runs of 5 minutes.
-"$unz" simulate --out "$work/campaign" --seed 300 --runs 6 --duration-s 300 > /dev/null
+# A small campaign: 6 simulated runs of 5 minutes, of a vehicle whose path climbs 1.5°
+# above its IMU's x (the runs pool the angle to configure).
+"$unz" simulate --out "$work/campaign" --seed 300 --runs 6 --duration-s 300 \
+  --odo-pitch-deg 1.5 --odo-lag-s 0.4 > /dev/null
 
 t0=$(date +%s.%N)
 job=$(sbatch --parsable --wait --array=0-$((shards - 1)) --cpus-per-task=1 \
@@ -113,3 +116,21 @@ for x, y in zip(a, b):
 print(f"merged summary of {len(a)} runs equals a single unz run "
       f"({len(common)} columns; the {len(timing)} wall-time columns left out)")
 EOF
+
+# The runs pooled across the shards (merged.md's sections, merged-settings.toml) are the
+# single run's (campaign.md's sections, campaign-settings.toml).
+"$py" - "$work" <<'EOF2'
+import os, sys
+work = sys.argv[1]
+def read(p):
+    return open(p).read() if os.path.exists(p) else None
+def sections(md, settings_name):
+    i = md.find("\n## ")
+    return md[i:].replace(settings_name, "SETTINGS") if i >= 0 else ""
+merged = sections(read(f"{work}/merged.md"), "merged-settings.toml")
+single = sections(read(f"{work}/single/campaign.md"), "campaign-settings.toml")
+assert merged == single, f"merged pools {merged!r} != single {single!r}"
+assert "## The vehicle's odometer pitch" in single, single
+assert read(f"{work}/merged-settings.toml") == read(f"{work}/single/campaign-settings.toml")
+print(f"merged pools equal a single unz run's ({merged.count(chr(10) + '## ')} sections)")
+EOF2

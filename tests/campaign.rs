@@ -163,6 +163,13 @@ fn shards_partition_the_campaign() {
     assert!(m.status.success(), "{}", String::from_utf8_lossy(&m.stderr));
     let (_, batches) = unz_formats::parquet_io::read_batches(&merged).unwrap();
     assert_eq!(batches.iter().map(|b| b.num_rows()).sum::<usize>(), 7);
+    // Ingested only: nothing to pool, and no settings.
+    let pooled = std::fs::read_to_string(tmp.path().join("all.md")).unwrap();
+    assert!(
+        pooled.contains("nothing: no run's reports show"),
+        "{pooled}"
+    );
+    assert!(!tmp.path().join("all-settings.toml").exists());
     // The README's DuckDB query over the shards' summaries runs as documented.
     if let Some(py) = crate::util::python() {
         let readme =

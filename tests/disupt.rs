@@ -366,6 +366,60 @@ fn a_campaign_pools_the_odometers_pitch_and_lag_and_the_settings_give_the_height
     assert!((settings.vehicle.odo_pitch_deg - 1.5).abs() < 0.01, "{md}");
 }
 
+/// A campaign run in shards (`--shard I/3`, as on a cluster) and merged pools its runs as
+/// the whole campaign does: `unz campaign merge` writes the same sections beside the
+/// merged summary, and the same settings on the config it is given.
+#[test]
+fn a_sharded_campaign_pools_its_runs_as_one() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (campaign, out, md) = pooled_campaign(
+        tmp.path(),
+        &["--odo-pitch-deg", "1.5", "--odo-lag-s", "0.4"],
+    );
+    let mut outs = Vec::new();
+    for i in 0..3 {
+        let shard = tmp.path().join(format!("s{i}"));
+        run_until_with(&campaign, &shard, "disupt", &["--shard", &format!("{i}/3")]);
+        outs.extend(
+            Some(shard)
+                .filter(|s| s.join("campaign.parquet").exists())
+                .map(|s| s.display().to_string()),
+        );
+    }
+    // No shard holds all three runs.
+    for shard in &outs {
+        let summary = Path::new(shard).join("campaign.parquet");
+        let (_, batches) = unz_formats::parquet_io::read_batches(&summary).unwrap();
+        assert!(batches.iter().map(|b| b.num_rows()).sum::<usize>() < 3);
+    }
+    let config = tmp.path().join("shared.toml");
+    std::fs::write(&config, "[disupt]\nazimuth_bound_deg = 20.0\n").unwrap();
+    let into = tmp.path().join("all.parquet");
+    let mut args = vec!["campaign", "merge"];
+    args.extend(outs.iter().map(String::as_str));
+    args.extend(["--into", into.to_str().unwrap()]);
+    args.extend(["--config", config.to_str().unwrap()]);
+    unz_ok(&args);
+    let merged = std::fs::read_to_string(tmp.path().join("all.md")).unwrap();
+    let sections = |md: &str| md[md.find("\n## ").expect("sections")..].to_owned();
+    assert!(merged.starts_with("# 3 runs of "), "{merged}");
+    assert_eq!(
+        sections(&merged),
+        sections(&md).replace("campaign-settings.toml", "all-settings.toml")
+    );
+    // The pooled angle and offset as the whole campaign's, on the config given.
+    let (_, whole) = campaign_settings(&out);
+    let table = unz::config::load(Some(&tmp.path().join("all-settings.toml"))).unwrap();
+    let pooled = unz::config::effective(&table, None).unwrap();
+    assert_eq!(pooled.vehicle, whole.vehicle);
+    assert_eq!(
+        pooled.derive.odo_time_offset_s,
+        whole.derive.odo_time_offset_s
+    );
+    assert_ne!(pooled.derive.odo_time_offset_s, 0.0);
+    assert_eq!(pooled.disupt.azimuth_bound_deg, 20.0);
+}
+
 #[test]
 fn export_writes_foxglove_channels() {
     let tmp = tempfile::tempdir().unwrap();

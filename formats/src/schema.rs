@@ -525,6 +525,8 @@ pub fn sweep(axes: &[&str]) -> SchemaRef {
 
 /// Column of [`campaign`]: the run's name.
 pub const CAMPAIGN_RUN: &str = "run";
+/// Column of [`campaign`]: the run's manifest, as the campaign was given it.
+pub const CAMPAIGN_MANIFEST: &str = "manifest";
 /// Column of [`campaign`]: what the reports of a run that did not fail flag (an odometer
 /// flagged failed on some samples, methods not run or not used, a coarse azimuth turn
 /// refused, an odometer boresight estimated, control points inconsistent with the rest or
@@ -536,7 +538,7 @@ pub const CAMPAIGN_NOTE: &str = "note";
 pub fn campaign(stage_seconds: &[String], values: &[&str]) -> SchemaRef {
     let mut fields = vec![
         Field::new(CAMPAIGN_RUN, DataType::Utf8, false),
-        Field::new("manifest", DataType::Utf8, false),
+        Field::new(CAMPAIGN_MANIFEST, DataType::Utf8, false),
         Field::new("ok", DataType::Boolean, false),
         Field::new("error", DataType::Utf8, true),
         Field::new(CAMPAIGN_NOTE, DataType::Utf8, true),

@@ -8,12 +8,20 @@ use crate::cli::{CampaignArgs, CampaignCommand};
 /// Runs the command.
 pub fn run(args: &CampaignArgs) -> anyhow::Result<ExitCode> {
     match &args.command {
-        CampaignCommand::Merge { outs, into } => {
-            let rows = merge_summaries(outs, into)?;
+        CampaignCommand::Merge { outs, into, config } => {
+            let config = crate::config::load(config.as_deref())?;
+            let rows = merge_summaries(outs, into, &config)?;
+            let (settings, md) = crate::campaign_pools::merged_names(into);
             println!(
-                "{rows} runs from {} summaries → {}",
+                "{rows} runs from {} summaries → {}, pooled in {}{}",
                 outs.len(),
-                into.display()
+                into.display(),
+                md.display(),
+                if settings.exists() {
+                    format!(", settings to change in {}", settings.display())
+                } else {
+                    String::new()
+                }
             );
         }
     }
