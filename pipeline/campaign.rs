@@ -826,7 +826,11 @@ pub fn write_summary(
         pooled.settings.as_deref(),
     )?;
     write_atomic(&out.join("campaign.md"), md.as_bytes())?;
-    let html = unz_viz::report::campaign_html(&format!("Campaign {}", out.display()), &rows);
+    let html = unz_viz::report::campaign_html(
+        &format!("Campaign {}", out.display()),
+        &rows,
+        &pooled.markdown,
+    );
     write_atomic(&out.join("campaign.html"), html.as_bytes())?;
     Ok(())
 }

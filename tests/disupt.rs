@@ -304,6 +304,21 @@ fn a_campaign_pools_the_odometers_pitch_and_lag_and_the_settings_give_the_height
     // height after 13 km, and the start's levelling); their mean is nearer.
     assert!((pooled_deg - 1.5).abs() < 0.01, "{md}");
     assert!(md.contains("3 of the 3 runs") && !md.contains("3σ"), "{md}");
+    // The report shows the sections too.
+    let html = std::fs::read_to_string(out.join("campaign.html")).unwrap();
+    for heading in [
+        "The vehicle's odometer pitch",
+        "The odometer's lag",
+        "The settings to configure",
+    ] {
+        assert!(html.contains(&format!("<h2>{heading}</h2>")), "{html}");
+    }
+    assert!(
+        html.contains(&format!(
+            "<code>[vehicle] odo_pitch_deg = {pooled_deg:.3}</code>"
+        )),
+        "{html}"
+    );
     // The angle as configured: the navigate stage's heights are the truth's within the
     // angle's error over the route (0.01° is 2.3 m at 13 km) and the dead reckoning's own
     // with the initial settings (its gyro drifts not yet corrected: 4–10 m RMS on seeds

@@ -277,7 +277,7 @@ fn cell(v: Option<f64>, digits: usize) -> String {
 }
 
 /// The whole report as HTML.
-pub fn campaign_html(title: &str, rows: &[ReportRow]) -> String {
+pub fn campaign_html(title: &str, rows: &[ReportRow], pooled_markdown: &str) -> String {
     let ok = rows.iter().filter(|r| r.error.is_none()).count();
     let mut h = format!(
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
@@ -399,8 +399,24 @@ tr.failed{{background:#fde8e8}}figure{{display:inline-block;margin:0 1em 1em 0}}
         );
     }
     h += "</table>\n<p>Errors are horizontal, navigated minus surveyed, at the control points' stops. \
-Open a recording with <code>rerun FILE.rrd</code>.</p>\n</body></html>\n";
+Open a recording with <code>rerun FILE.rrd</code>.</p>\n";
+    h += &markdown_html(pooled_markdown);
+    h += "</body></html>\n";
     h
+}
+
+/// `markdown` (CommonMark with tables: `campaign.md`'s pooled sections) as HTML. Any HTML
+/// it holds is shown as text, not passed through: the page stays static whatever a run's
+/// name or a note says.
+fn markdown_html(markdown: &str) -> String {
+    use pulldown_cmark::{Event, Options, Parser};
+    let events = Parser::new_ext(markdown, Options::ENABLE_TABLES).map(|e| match e {
+        Event::Html(raw) | Event::InlineHtml(raw) => Event::Text(raw),
+        other => other,
+    });
+    let mut html = String::new();
+    pulldown_cmark::html::push_html(&mut html, events);
+    html
 }
 
 #[cfg(test)]
@@ -427,7 +443,7 @@ mod tests {
     fn report_has_a_row_per_run_and_escapes_errors() {
         let mut bad = row("bad<run>", 1.0, 1.0);
         bad.error = Some("broken <manifest> & more".into());
-        let html = campaign_html("Campaign", &[row("a", 1500.0, 3.0), bad]);
+        let html = campaign_html("Campaign", &[row("a", 1500.0, 3.0), bad], "");
         assert_eq!(html.matches("<tr class=").count(), 2);
         assert!(html.contains("broken &lt;manifest&gt; &amp; more"));
         assert!(!html.contains("<run>"));
@@ -443,16 +459,35 @@ mod tests {
         let mut failed = row("failed", 1.0, 1.0);
         failed.error = Some("broken".into());
         failed.note = Some("never shown".into());
-        let html = campaign_html("Campaign", &[noted, failed]);
+        let html = campaign_html("Campaign", &[noted, failed], "");
         assert!(html.contains(
             "noted/review/noted.rrd</a><br><span class=\"note\">control point 6 inconsistent &lt;check&gt;</span>"
         ));
         assert!(!html.contains("never shown"));
     }
 
+    /// The pooled sections: headings, emphasis, code and tables as HTML; HTML in them as
+    /// text.
+    #[test]
+    fn the_pooled_sections_are_rendered_and_their_html_is_text() {
+        let md = "\n## The odometer's lag\n\nTheir mean: **0.400 ± 0.041 s**. Set \
+                  `[derive] odo_time_offset_s = -0.400`.\n\n| run | lag [s] |\n|---|---|\n\
+                  | a<script>x</script> | 0.410 |\n";
+        let html = campaign_html("Campaign", &[row("a", 1500.0, 3.0)], md);
+        assert!(html.contains("<h2>The odometer's lag</h2>"), "{html}");
+        assert!(html.contains("<strong>0.400 ± 0.041 s</strong>"), "{html}");
+        assert!(
+            html.contains("<code>[derive] odo_time_offset_s = -0.400</code>"),
+            "{html}"
+        );
+        assert!(html.contains("<td>0.410</td>"), "{html}");
+        assert!(!html.contains("<script"), "{html}");
+        assert!(html.contains("&lt;script&gt;"), "{html}");
+    }
+
     #[test]
     fn an_empty_campaign_still_renders() {
-        let html = campaign_html("Empty", &[]);
+        let html = campaign_html("Empty", &[], "");
         assert!(html.contains("0 runs"));
         assert!(!html.contains("cannot draw"), "{html}");
     }
