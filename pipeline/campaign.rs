@@ -1,7 +1,8 @@
 //! Whole campaigns: every run under a folder, processed in parallel, each run's stages in
 //! order; a failing run is recorded with its error and never stops the others; one
-//! summary row per run in `OUT/campaign.parquet` and `OUT/campaign.md`, and the report
-//! `OUT/campaign.html` with its plots.
+//! summary row per run in `OUT/campaign.parquet` and `OUT/campaign.md`, the report
+//! `OUT/campaign.html` with its plots, and what the runs pool (`crate::campaign_pools`):
+//! `campaign.md`'s sections below the runs and `OUT/campaign-settings.toml`.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -675,9 +676,8 @@ impl SummaryValues {
 }
 
 /// Removes the temporary files of the summaries (`.campaign.<ext>.<random>.tmp`, and
-/// `.campaign-settings.toml.<random>.tmp`) that a
-/// run killed while writing them left in `out` (the output folder is this process's
-/// alone: see [`crate::lock`]).
+/// `.campaign-settings.toml.<random>.tmp`) that a run killed while writing them left in
+/// `out` (the output folder is this process's alone: see [`crate::lock`]).
 fn remove_stale_summary_temps(out: &Path) {
     let Ok(entries) = std::fs::read_dir(out) else {
         return;
