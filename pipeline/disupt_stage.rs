@@ -162,7 +162,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         //     heights.
         // 18: the heights' fit starts from the vehicle's configured angle; each point's
         //     slope reported.
-        version: 18,
+        // 19: a mounted unit's manifest angles and drifts are turned into the body's.
+        version: 19,
         params_hash: params_hash(&(params, method, dparams))?,
         inputs,
         outputs: &[

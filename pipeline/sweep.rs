@@ -180,7 +180,8 @@ pub fn ensure_sweep(ctx: &RunCtx, params: &Params, axes: &[Axis]) -> anyhow::Res
     let stage = Stage {
         dir: dir.clone(),
         name: "sweep",
-        version: 1,
+        // 2: a mounted unit's manifest angles and drifts are turned into the body's.
+        version: 2,
         params_hash: params_hash(&(params, axes))?,
         inputs,
         outputs: &["sweep.parquet", "sweep.json"],

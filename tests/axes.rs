@@ -94,4 +94,23 @@ fn an_imu_yawed_on_its_mount_is_measured_and_turned() {
     assert_eq!(d.corrected_by.as_deref(), Some("joint"), "{:?}", d.skipped);
     let worst = crate::kingston::worst_control_point_m(&d.methods["joint"]);
     assert!(worst < 1.0, "{worst} m");
+    // The manifest's azimuth is the unit's (its alignment's, of the IMU's x): the body's
+    // initial azimuth is it turned by the mounting, so that its error from the body's true
+    // heading (the IMU's less the yaw named) is the manifest's alone, not the mounting's
+    // (a level vehicle: the tilts' share is hundredths of a degree).
+    let nav: unz::flow::NavigateSummary = read_json(&out.join("sim-0041/navigate/navigate.json"));
+    let truth: unz_stages::simulate::TrueSettings = read_json(&run.join("truth.json"));
+    let initial = nav.initial;
+    // The manifest's six decimals.
+    let unit_deg = initial.unit_azimuth_deg.expect("the unit's azimuth turned");
+    assert!(
+        (unit_deg - truth.manifest_azimuth_deg).abs() < 1e-6,
+        "{initial:?}"
+    );
+    let manifest_error = unit_deg - truth.azimuth_deg;
+    let body_error = initial.azimuth_deg - (truth.azimuth_deg - yaw);
+    assert!(
+        (body_error - manifest_error).abs() < 0.05,
+        "{initial:?}: {body_error}° off the body's heading, the manifest {manifest_error}°"
+    );
 }

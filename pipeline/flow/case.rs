@@ -287,6 +287,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
             .or(i.drift_rad_s.map(|v| (v, Source::Manifest))),
         static_s: i.static_s,
         odo_scale,
+        body_from_unit: unz_stages::imu_mounting::rotation(params.vehicle.imu_mounting_deg),
     };
     // The alignment reads the velocity increments of the static start only: read apart
     // when the derive was loaded without them.

@@ -103,7 +103,8 @@ pub fn ensure_navigate(
         // 7: control points compared at the vehicle's mark; marks of ids no control point
         //    has are said.
         // 8: a point the route comes back to is compared at each visit.
-        version: 8,
+        // 9: a mounted unit's manifest angles and drifts are turned into the body's.
+        version: 9,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],

@@ -18,7 +18,9 @@
 //! [`MAX_MOUNTING_YAW_DEG`] breaks the joint fit (its azimuth takes the yaw, linearised),
 //! so the axes check fails it, naming the setting.
 
-use nalgebra::{Matrix3, Rotation3};
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion};
+
+use crate::attitude::Euler;
 
 /// The setting's ranges, degrees: roll and yaw within ±180°, pitch within ±90° (every
 /// turn has such angles, whatever `imu_axes` names).
@@ -58,6 +60,19 @@ pub fn angles_deg(r: &Rotation3<f64>) -> [f64; 3] {
 /// `v` in the IMU's axes turned into the body's by `r`.
 pub fn to_body(r: &Rotation3<f64>, v: [f64; 3]) -> [f64; 3] {
     (r * nalgebra::Vector3::from(v)).into()
+}
+
+/// The body's attitude of a unit's (`unit`: its own alignment's, in its axes), the unit's
+/// axes turned into the body's by `body_from_imu`: `C_b^n = C_u^n · C_b^u`.
+pub fn body_attitude(unit: Euler, body_from_imu: &Rotation3<f64>) -> Euler {
+    let turn = UnitQuaternion::from_rotation_matrix(body_from_imu);
+    Euler::from_quat_b_to_n(&(unit.to_quat_b_to_n() * turn.inverse()))
+}
+
+/// The unit's attitude of the body's `body` (the reverse of [`body_attitude`]).
+pub fn unit_attitude(body: Euler, body_from_imu: &Rotation3<f64>) -> Euler {
+    let turn = UnitQuaternion::from_rotation_matrix(body_from_imu);
+    Euler::from_quat_b_to_n(&(body.to_quat_b_to_n() * turn))
 }
 
 /// A turn the drive shows, and how well.
@@ -134,6 +149,43 @@ fn high_passed(rows: &[[f64; 5]]) -> Vec<[f64; 5]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An IMU yawed 20° to the left on a level vehicle heads 20° left of it; a tilted
+    /// mounting's turn is undone exactly.
+    #[test]
+    fn a_units_attitude_turns_into_the_bodys() {
+        let yawed = rotation([0.0, 0.0, -20.0]).unwrap();
+        let unit = Euler {
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            heading_rad: 100f64.to_radians(),
+        };
+        let body = body_attitude(unit, &yawed);
+        assert!(
+            (body.heading_rad.to_degrees() - 120.0).abs() < 1e-9,
+            "{body:?}"
+        );
+        assert!(body.roll_rad.abs() < 1e-12 && body.pitch_rad.abs() < 1e-12);
+        // The IMU's x, as the body's axes see it, points where the unit's heading says.
+        let tilted = rotation([3.0, -2.0, 15.0]).unwrap();
+        let body = Euler {
+            roll_rad: 0.02,
+            pitch_rad: -0.03,
+            heading_rad: 4.0,
+        };
+        let unit = unit_attitude(body, &tilted);
+        let x_unit_n = unit.to_quat_b_to_n() * nalgebra::Vector3::x();
+        let x_unit_from_body_n = body.to_quat_b_to_n() * (tilted * nalgebra::Vector3::x());
+        assert!((x_unit_n - x_unit_from_body_n).norm() < 1e-12);
+        let back = body_attitude(unit, &tilted);
+        for (a, b) in [
+            (back.roll_rad, body.roll_rad),
+            (back.pitch_rad, body.pitch_rad),
+            (back.heading_rad, body.heading_rad),
+        ] {
+            assert!((a - b).abs() < 1e-12, "{back:?} {body:?}");
+        }
+    }
 
     /// The setting's angles read back from its turn, and a turn undone.
     #[test]

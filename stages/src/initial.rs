@@ -7,6 +7,7 @@ use crate::align;
 use crate::attitude::Euler;
 use crate::derive::Derived;
 use crate::earth::Geodetic;
+use crate::imu_mounting;
 use crate::strapdown::NavSettings;
 
 /// Where a setting came from.
@@ -42,6 +43,11 @@ pub struct InitialRequest {
     pub static_s: Option<f64>,
     /// Multiplier on the odometer distance.
     pub odo_scale: f64,
+    /// The turn from the unit's axes into the body's (`[vehicle] imu_mounting_deg`), when
+    /// the IMU is mounted at an angle: the manifest's angles and drifts
+    /// ([`Source::Manifest`]) are then the unit's own, its alignment's in its axes, and
+    /// are turned into the body's.
+    pub body_from_unit: Option<nalgebra::Rotation3<f64>>,
 }
 
 /// Parameters of the alignment.
@@ -93,6 +99,11 @@ pub struct InitialReport {
     pub azimuth_deg: f64,
     /// Its source.
     pub azimuth_source: Source,
+    /// The manifest's azimuth as given, degrees, when it was a unit's mounted at an angle
+    /// (`[vehicle] imu_mounting_deg`): its own x's heading, which `azimuth_deg` is the
+    /// body's of.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unit_azimuth_deg: Option<f64>,
     /// Gyrocompass heading, degrees (computed whenever there is a static start).
     pub gyrocompass_deg: Option<f64>,
     /// Why there is no gyrocompass heading, when there is none.
@@ -182,18 +193,51 @@ pub fn initial_settings_with_velocity(
     // first epoch (the filter's delay is zero; the joint fit's levelling corrections take
     // what the first second's motion leaves).
     let in_motion = d.epochs.theta_p_rad.first().zip(d.epochs.phi_p_rad.first());
-    let (roll, roll_source) = match (req.roll_deg, in_motion) {
-        (Some((v, s)), _) => (v.to_radians(), s),
-        (None, _) if has_static => (lev_roll, Source::Static),
-        (None, Some((_, &phi))) => (phi, Source::InMotion),
-        (None, None) => (0.0, Source::Default),
+    let levelled_roll = match in_motion {
+        _ if has_static => (lev_roll, Source::Static),
+        Some((_, &phi)) => (phi, Source::InMotion),
+        None => (0.0, Source::Default),
     };
-    let (pitch, pitch_source) = match (req.pitch_deg, in_motion) {
-        (Some((v, s)), _) => (v.to_radians(), s),
-        (None, _) if has_static => (lev_pitch, Source::Static),
-        (None, Some((&theta, _))) => (theta, Source::InMotion),
-        (None, None) => (0.0, Source::Default),
+    let levelled_pitch = match in_motion {
+        _ if has_static => (lev_pitch, Source::Static),
+        Some((&theta, _)) => (theta, Source::InMotion),
+        None => (0.0, Source::Default),
     };
+    let given = |v: Option<(f64, Source)>| v.map(|(v, s)| (v.to_radians(), s));
+    let (mut roll, roll_source) = given(req.roll_deg).unwrap_or(levelled_roll);
+    let (mut pitch, pitch_source) = given(req.pitch_deg).unwrap_or(levelled_pitch);
+    // A unit mounted at an angle: the manifest's roll and pitch are its own. The body's
+    // tilt is the unit's (the manifest's where given, else the levelled body's turned into
+    // the unit's axes) turned back.
+    let manifest = |v: Option<(f64, Source)>| {
+        v.filter(|(_, s)| *s == Source::Manifest)
+            .map(|(v, _)| v.to_radians())
+    };
+    let turn = req.body_from_unit.as_ref();
+    let (unit_roll, unit_pitch) = (manifest(req.roll_deg), manifest(req.pitch_deg));
+    if let Some(turn) = turn.filter(|_| unit_roll.is_some() || unit_pitch.is_some()) {
+        let body = Euler {
+            roll_rad: if unit_roll.is_some() {
+                levelled_roll.0
+            } else {
+                roll
+            },
+            pitch_rad: if unit_pitch.is_some() {
+                levelled_pitch.0
+            } else {
+                pitch
+            },
+            heading_rad: 0.0,
+        };
+        let levelled_unit = imu_mounting::unit_attitude(body, turn);
+        let unit = Euler {
+            roll_rad: unit_roll.unwrap_or(levelled_unit.roll_rad),
+            pitch_rad: unit_pitch.unwrap_or(levelled_unit.pitch_rad),
+            heading_rad: 0.0,
+        };
+        let body = imu_mounting::body_attitude(unit, turn);
+        (roll, pitch) = (body.roll_rad, body.pitch_rad);
+    }
     let guess = req.drift_rad_s.map_or([0.0; 3], |(v, _)| v);
     let (gc, gc_sigma) = if has_static {
         let w = means.w_b_rad_s - nalgebra::Vector3::from(guess);
@@ -209,11 +253,26 @@ pub fn initial_settings_with_velocity(
     } else {
         (None, None)
     };
-    let (heading, azimuth_source) = match (req.azimuth_deg, gc) {
+    let (mut heading, azimuth_source) = match (req.azimuth_deg, gc) {
         (Some((v, s)), _) => (v.to_radians(), s),
         (None, Some(h)) => (h, Source::Static),
         (None, None) => (0.0, Source::Default),
     };
+    // The manifest's azimuth of a unit mounted at an angle is its own x's heading: the
+    // body's is where the unit's attitude with it, turned back, heads.
+    let unit_azimuth = turn.zip(manifest(req.azimuth_deg));
+    if let Some((turn, unit_heading)) = unit_azimuth {
+        let body = Euler {
+            roll_rad: roll,
+            pitch_rad: pitch,
+            heading_rad: 0.0,
+        };
+        let unit = Euler {
+            heading_rad: unit_heading,
+            ..imu_mounting::unit_attitude(body, turn)
+        };
+        heading = imu_mounting::body_attitude(unit, turn).heading_rad;
+    }
     let attitude = Euler {
         roll_rad: roll,
         pitch_rad: pitch,
@@ -221,6 +280,11 @@ pub fn initial_settings_with_velocity(
     };
     let dz = has_static.then(|| align::drift_z_at_rest(&means.w_b_rad_s, attitude, lat0));
     let (drift, drift_source) = match (req.drift_rad_s, dz) {
+        // A unit's drifts, per its gyros, in the body's axes.
+        (Some((v, Source::Manifest)), _) if turn.is_some() => (
+            turn.map_or(v, |t| imu_mounting::to_body(t, v)),
+            Source::Manifest,
+        ),
         (Some((v, s)), _) => (v, s),
         (None, Some(z)) if p.drift_z_from_static => ([0.0, 0.0, z], Source::Static),
         _ => ([0.0; 3], Source::Default),
@@ -244,6 +308,7 @@ pub fn initial_settings_with_velocity(
         pitch_source,
         azimuth_deg: heading.to_degrees().rem_euclid(360.0),
         azimuth_source,
+        unit_azimuth_deg: unit_azimuth.map(|(_, h)| h.to_degrees().rem_euclid(360.0)),
         gyrocompass_deg: gc.map(f64::to_degrees),
         gyrocompass_skipped: (!has_static).then_some(Skipped::NoStaticStart),
         gyrocompass_sigma_deg: gc_sigma.map(f64::to_degrees),

@@ -227,3 +227,64 @@ fn the_odometer_time_offset_undoes_a_lagging_odometer() {
     assert!(rms_lagging > 1.1 * rms_on_time);
     assert!((rms_corrected / rms_on_time - 1.0).abs() < 0.05);
 }
+
+/// A unit mounted at an angle (`body_from_unit`): the manifest's roll, pitch, azimuth and
+/// drifts are its own, turned into the body's; an override (the optimiser's) is the
+/// body's already, and without a manifest value the levelled body's stays.
+#[test]
+fn a_mounted_units_manifest_settings_are_turned_into_the_bodys() {
+    use unz_stages::attitude::Euler;
+    use unz_stages::imu_mounting::{body_attitude, rotation, to_body};
+    use unz_stages::initial::{InitialRequest, Source};
+    let c = case(31, SensorErrors::ALL);
+    let turn = rotation([1.0, -2.0, 12.0]).unwrap();
+    let unit = Euler {
+        roll_rad: 0.01,
+        pitch_rad: -0.02,
+        heading_rad: 1.5,
+    };
+    let drift = [1e-6, -2e-6, 3e-6];
+    let manifest = InitialRequest {
+        azimuth_deg: Some((unit.heading_rad.to_degrees(), Source::Manifest)),
+        roll_deg: Some((unit.roll_rad.to_degrees(), Source::Manifest)),
+        pitch_deg: Some((unit.pitch_rad.to_degrees(), Source::Manifest)),
+        drift_rad_s: Some((drift, Source::Manifest)),
+        static_s: Some(c.run.manifest_static_s),
+        odo_scale: 1.0,
+        body_from_unit: Some(turn),
+    };
+    let s = c.settings_for(&manifest);
+    let body = body_attitude(unit, &turn);
+    let close = |a: f64, b: f64| (wrap_pi(a - b)).abs() < 1e-9;
+    assert!(close(s.initial.roll_rad, body.roll_rad), "{s:?} {body:?}");
+    assert!(close(s.initial.pitch_rad, body.pitch_rad), "{s:?} {body:?}");
+    assert!(
+        close(s.initial.heading_rad, body.heading_rad),
+        "{s:?} {body:?}"
+    );
+    assert_eq!(s.drift_rad_s, to_body(&turn, drift));
+    // Overridden: the body's, untouched.
+    let overridden = InitialRequest {
+        azimuth_deg: Some((80.0, Source::Override)),
+        drift_rad_s: Some((drift, Source::Override)),
+        ..manifest
+    };
+    let s = c.settings_for(&overridden);
+    assert!(close(s.initial.heading_rad, 80f64.to_radians()), "{s:?}");
+    assert_eq!(s.drift_rad_s, drift);
+    // The levelled tilt without the manifest's is the same with a mounting or without.
+    let levelled = InitialRequest {
+        roll_deg: None,
+        pitch_deg: None,
+        ..overridden
+    };
+    let without = c.settings_for(&InitialRequest {
+        body_from_unit: None,
+        ..levelled
+    });
+    let s = c.settings_for(&levelled);
+    assert_eq!(
+        (s.initial.roll_rad, s.initial.pitch_rad),
+        (without.initial.roll_rad, without.initial.pitch_rad)
+    );
+}
