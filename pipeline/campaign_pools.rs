@@ -32,7 +32,7 @@ pub struct Pools {
 /// The pools' sections of `campaign.md` and the settings file's text (None when the runs
 /// show no setting to change).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Pooled {
+pub struct PoolsText {
     /// The sections, each starting with its `## ` heading.
     pub markdown: String,
     /// `campaign-settings.toml`'s text.
@@ -78,7 +78,7 @@ impl Pools {
 
     /// The sections and the settings file's text: `config` (the campaign's) with the
     /// settings the runs agree on; `settings_file` is the name the sections give it.
-    pub fn finish(&self, config: &toml::Table, settings_file: &str) -> anyhow::Result<Pooled> {
+    pub fn finish(&self, config: &toml::Table, settings_file: &str) -> anyhow::Result<PoolsText> {
         let mut markdown: String = [
             self.points.markdown(),
             self.marks.markdown(),
@@ -104,7 +104,7 @@ impl Pools {
                  campaign again with `--config` that file.\n"
             );
         }
-        Ok(Pooled { markdown, settings })
+        Ok(PoolsText { markdown, settings })
     }
 }
 

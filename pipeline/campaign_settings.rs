@@ -20,6 +20,9 @@ use crate::config;
 /// The file's name in the output folder.
 pub const FILE: &str = "campaign-settings.toml";
 
+/// How many runs that keep their own setting the header names (the rest are counted).
+const NAMED_RUNS: usize = 10;
+
 /// A setting the campaign's runs pooled.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pooled {
@@ -170,10 +173,15 @@ pub fn text(
             .map(|(name, _)| name.as_str())
             .collect();
         if !keeping.is_empty() {
+            let named = keeping.len().min(NAMED_RUNS);
             let _ = writeln!(
                 head,
-                "#     kept by the runs that set it in their own [params]: {}",
-                keeping.join(", ")
+                "#     kept by the runs that set it in their own [params]: {}{}",
+                keeping[..named].join(", "),
+                match keeping.len() - named {
+                    0 => String::new(),
+                    more => format!(" and {more} more"),
+                }
             );
         }
     }
@@ -243,6 +251,15 @@ mod tests {
         );
         assert!(text.contains("their own [params]: r2\n"), "{text}");
         assert_eq!(text.matches("own [params]").count(), 1, "{text}");
+        // Hundreds of runs keeping their own: ten named, the rest counted.
+        let many: Vec<(String, toml::Table)> = (0..25)
+            .map(|i| (format!("r{i:02}"), runs[1].1.clone()))
+            .collect();
+        let text_many = super::text(&config, &settings, &many).unwrap().unwrap();
+        assert!(
+            text_many.contains(": r00, r01, r02, r03, r04, r05, r06, r07, r08, r09 and 15 more\n"),
+            "{text_many}"
+        );
         // Nothing pooled: no file, and an earlier one goes.
         assert_eq!(text_of(&PooledSettings::default()), None);
         write(&dir.path().join(FILE), None).unwrap();

@@ -238,7 +238,12 @@ pub fn initial_settings_with_velocity(
         let body = imu_mounting::body_attitude(unit, turn);
         (roll, pitch) = (body.roll_rad, body.pitch_rad);
     }
-    let guess = req.drift_rad_s.map_or([0.0; 3], |(v, _)| v);
+    // A unit's drifts, per its gyros, in the body's axes (the gyrocompass's guess too).
+    let req_drift = req.drift_rad_s.map(|(v, s)| match turn {
+        Some(t) if s == Source::Manifest => (imu_mounting::to_body(t, v), s),
+        _ => (v, s),
+    });
+    let guess = req_drift.map_or([0.0; 3], |(v, _)| v);
     let (gc, gc_sigma) = if has_static {
         let w = means.w_b_rad_s - nalgebra::Vector3::from(guess);
         (
@@ -279,12 +284,7 @@ pub fn initial_settings_with_velocity(
         heading_rad: heading,
     };
     let dz = has_static.then(|| align::drift_z_at_rest(&means.w_b_rad_s, attitude, lat0));
-    let (drift, drift_source) = match (req.drift_rad_s, dz) {
-        // A unit's drifts, per its gyros, in the body's axes.
-        (Some((v, Source::Manifest)), _) if turn.is_some() => (
-            turn.map_or(v, |t| imu_mounting::to_body(t, v)),
-            Source::Manifest,
-        ),
+    let (drift, drift_source) = match (req_drift, dz) {
         (Some((v, s)), _) => (v, s),
         (None, Some(z)) if p.drift_z_from_static => ([0.0, 0.0, z], Source::Static),
         _ => ([0.0; 3], Source::Default),

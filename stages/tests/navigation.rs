@@ -272,6 +272,20 @@ fn a_mounted_units_manifest_settings_are_turned_into_the_bodys() {
     let s = c.settings_for(&overridden);
     assert!(close(s.initial.heading_rad, 80f64.to_radians()), "{s:?}");
     assert_eq!(s.drift_rad_s, drift);
+    // Gyrocompassed (no azimuth given), the manifest's drifts are the guess in the body's
+    // axes, as the same drifts given there.
+    let gyrocompassed = InitialRequest {
+        azimuth_deg: None,
+        ..manifest
+    };
+    let in_body = InitialRequest {
+        drift_rad_s: Some((to_body(&turn, drift), Source::Override)),
+        ..gyrocompassed
+    };
+    assert_eq!(
+        c.settings_for(&gyrocompassed).initial.heading_rad,
+        c.settings_for(&in_body).initial.heading_rad
+    );
     // The levelled tilt without the manifest's is the same with a mounting or without.
     let levelled = InitialRequest {
         roll_deg: None,
