@@ -7,7 +7,8 @@
 
 use std::fmt::Write as _;
 
-use crate::campaign_mark::{DISAGREE_CHI2_PER_DOF, weighted_mean};
+use crate::campaign_mark::DISAGREE_CHI2_PER_DOF;
+use crate::campaign_outliers::{SigmaPool, pooled_by_sigma};
 use crate::campaign_settings::Pooled;
 
 /// One run's odometer lag: in all (the configured offset's and the joint's beyond it), s,
@@ -46,28 +47,40 @@ impl LagAcross {
         }
     }
 
-    /// The runs' inverse-variance mean lag, its σ and their χ² per degree of freedom about
-    /// it, when two or more runs estimated the lag (one run's is in its own row).
-    fn mean(&self) -> Option<(f64, f64, Option<f64>)> {
+    /// The runs' lags pooled by their σ, with those that disagree set aside, when two or
+    /// more runs estimated the lag (one run's is in its own row).
+    fn pool(&self) -> Option<SigmaPool> {
         let e = &self.estimates;
-        (e.len() >= 2).then(|| weighted_mean(e.iter().map(|(_, l)| (l.lag_s, l.sigma_s))))
+        (e.len() >= 2).then(|| {
+            pooled_by_sigma(
+                &e.iter()
+                    .map(|(_, l)| (l.lag_s, l.sigma_s))
+                    .collect::<Vec<_>>(),
+            )
+        })
     }
 
     /// The derive's `odo_time_offset_s` to configure (the mean lag, negated, as the
-    /// section writes it), when the runs' lags agree and a run's configured offset lies
-    /// beyond its σ.
+    /// section writes it), when the pooled runs' lags agree and a pooled run's configured
+    /// offset lies beyond its σ.
     pub fn setting(&self) -> Option<Pooled> {
-        let (lag, sigma, chi2) = self.mean()?;
-        let e = &self.estimates;
-        Pooled::rounded(-lag, sigma, e.len(), 3)
-            .if_a_change(e.iter().map(|(_, l)| l.offset_s))
-            .filter(|_| chi2.is_none_or(|c| c <= DISAGREE_CHI2_PER_DOF))
+        let pool = self.pool()?;
+        let in_pool = || {
+            self.estimates
+                .iter()
+                .zip(&pool.verdict.pooled)
+                .filter(|(_, p)| **p)
+        };
+        Pooled::rounded(-pool.mean, pool.sigma, in_pool().count(), 3)
+            .if_a_change(in_pool().map(|((_, l), _)| l.offset_s))
+            .filter(|_| pool.agree())
     }
 
     /// `campaign.md`'s section, when two or more runs estimated the lag.
     pub fn markdown(&self) -> Option<String> {
         let e = &self.estimates;
-        let (lag, sigma, chi2) = self.mean()?;
+        let pool = self.pool()?;
+        let (lag, sigma) = (pool.mean, pool.sigma);
         let offset = -lag;
         let mut md = format!(
             "\n## The odometer's lag\n\n{} runs' joint fits estimated the odometer's lag \
@@ -79,19 +92,25 @@ impl LagAcross {
              two control points) is derived with it, and each fit searches about it.\n",
             e.len()
         );
-        if let Some(c) = chi2.filter(|c| *c > DISAGREE_CHI2_PER_DOF) {
+        md += &pool
+            .set_aside_sentence("lag", e.iter().map(|(n, _)| n.as_str()))
+            .unwrap_or_default();
+        if let Some(c) = pool.chi2.filter(|c| *c > DISAGREE_CHI2_PER_DOF) {
             let _ = writeln!(
                 md,
                 "\nThe runs' lags disagree beyond their σ (χ² per degree of freedom {c:.1}): \
                  more than one odometer or logger, or a logger whose delay changed?"
             );
         }
-        md += "\n| run | configured offset [s] | lag in all [s] |\n|---|---|---|\n";
-        for (name, l) in e {
+        md += "\n| run | configured offset [s] | lag in all [s] | pooled |\n|---|---|---|---|\n";
+        for ((name, l), pooled) in e.iter().zip(&pool.verdict.pooled) {
             let _ = writeln!(
                 md,
-                "| {name} | {:.3} | {:.3} ± {:.3} |",
-                l.offset_s, l.lag_s, l.sigma_s
+                "| {name} | {:.3} | {:.3} ± {:.3} | {} |",
+                l.offset_s,
+                l.lag_s,
+                l.sigma_s,
+                if *pooled { "yes" } else { "no" }
             );
         }
         if !self.at_bound.is_empty() {
@@ -138,7 +157,7 @@ mod tests {
         assert!(md.contains("3 runs' joint fits"), "{md}");
         assert!(md.contains("**0.400 ± 0.041 s**"), "{md}");
         assert!(md.contains("odo_time_offset_s = -0.400`"), "{md}");
-        assert!(md.contains("| c | -0.300 | 0.420 ± 0.100 |"), "{md}");
+        assert!(md.contains("| c | -0.300 | 0.420 ± 0.100 | yes |"), "{md}");
         assert!(!md.contains("disagree"), "{md}");
         // The offset as the section writes it; σ = 1/√(100 + 100 + 400).
         let s = l.setting().unwrap();
@@ -161,9 +180,19 @@ mod tests {
         let md = l.markdown().unwrap();
         assert!(md.contains("**0.400 ± 0.041 s**"), "{md}");
         assert!(md.contains("configured offset): f (-1.000 s)."), "{md}");
-        // A logger 1 s late, 10σ from the others.
+        // A logger 1 s late, 10σ from the others: set aside, the others' mean kept.
         l.add("e", lag(1.4, 0.1, 0.0));
-        assert!(l.markdown().unwrap().contains("disagree beyond their σ"));
-        assert_eq!(l.setting(), None);
+        let md = l.markdown().unwrap();
+        assert!(md.contains("**0.400 ± 0.041 s**"), "{md}");
+        assert!(md.contains("others', left out of the mean: e.\n"), "{md}");
+        assert!(md.contains("| e | 0.000 | 1.400 ± 0.100 | no |"), "{md}");
+        assert!(!md.contains("disagree beyond their σ"), "{md}");
+        assert_eq!(l.setting().map(|s| (s.value, s.runs)), Some((-0.4, 3)));
+        // Two that disagree: neither can be told wrong, and nothing is set.
+        let mut two = LagAcross::default();
+        two.add("a", lag(0.4, 0.05, 0.0));
+        two.add("b", lag(1.0, 0.05, 0.0));
+        assert!(two.markdown().unwrap().contains("disagree beyond their σ"));
+        assert_eq!(two.setting(), None);
     }
 }

@@ -15,6 +15,7 @@ use std::fmt::Write as _;
 
 use unz_stages::disupt::{OdoPitchFit, OdoPitchRefusal};
 
+use crate::campaign_outliers::{Mean, Verdict, consistent};
 use crate::campaign_settings::Pooled;
 
 /// Height error of a refused fit's point beyond which a run's note says so, m: dead
@@ -22,8 +23,7 @@ use crate::campaign_settings::Pooled;
 /// 0.1–3 m; a datum or an angle left out is tens of metres (Kingston: 38 m after 2.4 km).
 pub const HEIGHT_NOTE_M: f64 = 10.0;
 
-/// How many σ a run's angle may lie from the others' before it is named as disagreeing.
-pub const DISAGREE_SIGMA: f64 = 3.0;
+pub use crate::campaign_outliers::DISAGREE_SIGMA;
 
 /// The levelling error a run's angle carries beside its points', rad: a tactical
 /// accelerometer's bias, 1 mg (the HG1700 of the Kingston log; an LN-200's is 0.3 mg),
@@ -66,16 +66,6 @@ impl RunFit {
     fn variance(&self, point_sigma_m: f64) -> f64 {
         point_sigma_m.powi(2) / self.slope2 + LEVELLING_SIGMA_RAD.powi(2)
     }
-
-    /// Its inverse-variance sums.
-    fn weighted(&self, point_sigma_m: f64) -> Weighted {
-        let w = 1.0 / self.variance(point_sigma_m);
-        Weighted {
-            runs: 1,
-            w,
-            w_tan: w * self.tan,
-        }
-    }
 }
 
 /// The runs' pitch boresight fits, gathered run by run.
@@ -88,56 +78,17 @@ pub struct PitchAcross {
     fitted: usize,
 }
 
-/// Inverse-variance sums of runs' tan β: how many runs, Σ w and Σ w·tan β.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-struct Weighted {
-    runs: i64,
-    w: f64,
-    w_tan: f64,
+/// The σ of the angle of a mean of tan β, degrees.
+fn sigma_deg(mean: &Mean) -> f64 {
+    (mean.variance.sqrt() / (1.0 + mean.x * mean.x)).to_degrees()
 }
 
-impl Weighted {
-    /// These sums with `o`'s, times `sign` (−1 takes them out).
-    fn plus(self, o: Self, sign: i8) -> Self {
-        let s = f64::from(sign);
-        Self {
-            runs: self.runs + i64::from(sign) * o.runs,
-            w: self.w + s * o.w,
-            w_tan: self.w_tan + s * o.w_tan,
-        }
-    }
-
-    /// Their mean, None without a run.
-    fn mean(self) -> Option<Mean> {
-        (self.runs > 0 && self.w > 0.0).then(|| Mean {
-            tan: self.w_tan / self.w,
-            variance: 1.0 / self.w,
-        })
-    }
-}
-
-/// An inverse-variance mean of tan β: the mean and its variance.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Mean {
-    tan: f64,
-    variance: f64,
-}
-
-impl Mean {
-    /// The σ of its angle, degrees.
-    fn sigma_deg(&self) -> f64 {
-        (self.variance.sqrt() / (1.0 + self.tan * self.tan)).to_degrees()
-    }
-}
-
-/// The runs' pool: which are pooled and which named as disagreeing (see
-/// [`PitchAcross::consistent`]), the pooled sums and their mean, and the points' σ within
-/// a run it weighed them by, m.
+/// The runs' pool: each run's tan β and its variance, the verdict on them, their mean,
+/// and the points' σ within a run they were weighed by, m.
 struct Pool {
     point_sigma_m: f64,
-    pooled: Vec<bool>,
-    named: Vec<bool>,
-    all: Weighted,
+    estimates: Vec<(f64, f64)>,
+    verdict: Verdict,
     mean: Mean,
 }
 
@@ -192,68 +143,13 @@ impl PitchAcross {
         }
     }
 
-    /// The inverse-variance sums (Σ w, Σ w·tan β) of the runs `pooled` marks.
-    fn sums(&self, pooled: &[bool], point_sigma_m: f64) -> Weighted {
+    /// Each run's tan β and its variance (its points', `point_sigma_m` each, and the
+    /// levelling's).
+    fn estimates(&self, point_sigma_m: f64) -> Vec<(f64, f64)> {
         self.runs
             .iter()
-            .zip(pooled)
-            .filter(|&(_, &p)| p)
-            .fold(Weighted::default(), |s, (r, _)| {
-                s.plus(r.weighted(point_sigma_m), 1)
-            })
-    }
-
-    /// The mean of the pooled runs (`all`, their sums) but run `i`, in one step.
-    fn others(&self, i: usize, pooled: &[bool], all: Weighted, point_sigma_m: f64) -> Option<Mean> {
-        if pooled[i] {
-            all.plus(self.runs[i].weighted(point_sigma_m), -1)
-        } else {
-            all
-        }
-        .mean()
-    }
-
-    /// How many σ run `i`'s angle lies from the other pooled runs' (`all`, their sums).
-    fn sigmas_off(
-        &self,
-        i: usize,
-        pooled: &[bool],
-        all: Weighted,
-        point_sigma_m: f64,
-    ) -> Option<f64> {
-        let run = &self.runs[i];
-        let others = self.others(i, pooled, all, point_sigma_m)?;
-        Some((run.tan - others.tan).abs() / (run.variance(point_sigma_m) + others.variance).sqrt())
-    }
-
-    /// Which runs are pooled, and which are named as disagreeing: all pooled, but the
-    /// one farthest from the others beyond [`DISAGREE_SIGMA`] set aside, again and again
-    /// while three or more remain (of two that disagree, neither can be told wrong: both
-    /// stay, and both are named).
-    fn consistent(&self, point_sigma_m: f64) -> (Vec<bool>, Vec<bool>) {
-        let n = self.runs.len();
-        let mut pooled = vec![true; n];
-        loop {
-            let all = self.sums(&pooled, point_sigma_m);
-            let beyond: Vec<(usize, f64)> = (0..n)
-                .filter(|&i| pooled[i])
-                .filter_map(|i| Some((i, self.sigmas_off(i, &pooled, all, point_sigma_m)?)))
-                .filter(|(_, z)| *z > DISAGREE_SIGMA)
-                .collect();
-            let Some(&(worst, _)) = beyond.iter().max_by(|a, b| a.1.total_cmp(&b.1)) else {
-                break;
-            };
-            if pooled.iter().filter(|p| **p).count() < 3 {
-                let mut named: Vec<bool> = pooled.iter().map(|p| !p).collect();
-                for (i, _) in beyond {
-                    named[i] = true;
-                }
-                return (pooled, named);
-            }
-            pooled[worst] = false;
-        }
-        let named = pooled.iter().map(|p| !p).collect();
-        (pooled, named)
+            .map(|r| (r.tan, r.variance(point_sigma_m)))
+            .collect()
     }
 
     /// The pool the section shows, when a run's fit was taken and the mean stands out of
@@ -263,21 +159,20 @@ impl PitchAcross {
             return None;
         }
         let point_sigma_m = self.point_sigma_m();
-        let (pooled, named) = self.consistent(point_sigma_m);
-        let all = self.sums(&pooled, point_sigma_m);
-        let mean = all.mean()?;
+        let estimates = self.estimates(point_sigma_m);
+        let verdict = consistent(&estimates);
+        let mean = verdict.all.mean()?;
         // Runs of a vehicle without an angle take their levelling's few hundredths of a
         // degree now and then: nothing to set unless the mean stands out of its σ (or an
         // angle is configured, which the section then checks).
         let configured = self.runs.iter().any(|r| r.configured_deg != 0.0);
-        if !configured && mean.tan.abs() <= DISAGREE_SIGMA * mean.variance.sqrt() {
+        if !configured && mean.x.abs() <= DISAGREE_SIGMA * mean.variance.sqrt() {
             return None;
         }
         Some(Pool {
             point_sigma_m,
-            pooled,
-            named,
-            all,
+            estimates,
+            verdict,
             mean,
         })
     }
@@ -287,16 +182,16 @@ impl PitchAcross {
     /// configured angle lies beyond its σ.
     pub fn setting(&self) -> Option<Pooled> {
         let pool = self.pool()?;
-        let disagreeing = pool.pooled.iter().zip(&pool.named).any(|(p, n)| *p && *n);
-        let in_pool = || self.runs.iter().zip(&pool.pooled).filter(|(_, p)| **p);
+        let pooled = &pool.verdict.pooled;
+        let in_pool = || self.runs.iter().zip(pooled).filter(|(_, p)| **p);
         Pooled::rounded(
-            deg(pool.mean.tan),
-            pool.mean.sigma_deg(),
+            deg(pool.mean.x),
+            sigma_deg(&pool.mean),
             in_pool().count(),
             3,
         )
         .if_a_change(in_pool().map(|(r, _)| r.configured_deg))
-        .filter(|_| !disagreeing)
+        .filter(|_| !pool.verdict.pooled_disagree())
     }
 
     /// `campaign.md`'s section, when a run's fit was taken and the mean stands out of its
@@ -305,24 +200,24 @@ impl PitchAcross {
         let taken = self.runs.iter().filter(|r| r.taken).count();
         let Pool {
             point_sigma_m,
-            pooled,
-            named,
-            all,
+            estimates,
+            verdict,
             mean,
         } = self.pool()?;
-        let angle = deg(mean.tan);
-        let sigma_deg = mean.sigma_deg();
+        let pooled = &verdict.pooled;
+        let angle = deg(mean.x);
+        let sigma_deg = sigma_deg(&mean);
         let in_pool: Vec<&RunFit> = self
             .runs
             .iter()
-            .zip(&pooled)
+            .zip(pooled)
             .filter(|(_, p)| **p)
             .map(|(r, _)| r)
             .collect();
         let n_points: usize = in_pool.iter().map(|r| r.points.len()).sum();
         let sum2: f64 = in_pool
             .iter()
-            .flat_map(|r| r.errors_at(mean.tan))
+            .flat_map(|r| r.errors_at(mean.x))
             .map(|e| e * e)
             .sum();
         let mut md = format!(
@@ -351,7 +246,7 @@ impl PitchAcross {
             (sum2 / n_points as f64).sqrt(),
         );
         let disagreeing: Vec<&str> = (0..self.runs.len())
-            .filter(|&i| named[i])
+            .filter(|&i| verdict.named[i])
             .map(|i| self.runs[i].name.as_str())
             .collect();
         if !disagreeing.is_empty() {
@@ -371,7 +266,7 @@ impl PitchAcross {
         md += "\n| run | configured [°] | fitted [°] | taken | the others' [°] | Δh with the \
                others' (RMS) [m] | pooled |\n|---|---|---|---|---|---|---|\n";
         for (i, run) in self.runs.iter().enumerate() {
-            let others = self.others(i, &pooled, all, point_sigma_m);
+            let others = verdict.others(i, &estimates);
             let _ = writeln!(
                 md,
                 "| {} | {:.3} | {:.3} | {} | {} | {} | {} |",
@@ -379,8 +274,8 @@ impl PitchAcross {
                 run.configured_deg,
                 deg(run.tan),
                 if run.taken { "yes" } else { "no" },
-                others.map_or("–".to_owned(), |m| format!("{:.3}", deg(m.tan))),
-                others.map_or("–".to_owned(), |m| format!("{:.2}", run.rms_at(m.tan))),
+                others.map_or("–".to_owned(), |m| format!("{:.3}", deg(m.x))),
+                others.map_or("–".to_owned(), |m| format!("{:.2}", run.rms_at(m.x))),
                 if pooled[i] { "yes" } else { "no" },
             );
         }
@@ -441,8 +336,8 @@ mod tests {
         let sigma_m = p.point_sigma_m();
         // Two points a run, each 0.5 m off: about 0.66 m about each run's own angle.
         assert!((sigma_m - 0.66).abs() < 0.01, "{sigma_m}");
-        let mean = p.sums(&[true; 3], sigma_m).mean().unwrap();
-        assert!((deg(mean.tan) - 1.5).abs() < 0.01, "{mean:?}");
+        let mean = consistent(&p.estimates(sigma_m)).all.mean().unwrap();
+        assert!((deg(mean.x) - 1.5).abs() < 0.01, "{mean:?}");
         // Three runs, each with the levelling's 1 mrad and its points' σ: a little over
         // 1/√3 mrad.
         let sigma_rad = mean.variance.sqrt();

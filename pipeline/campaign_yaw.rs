@@ -8,7 +8,8 @@
 
 use std::fmt::Write as _;
 
-use crate::campaign_mark::{DISAGREE_CHI2_PER_DOF, weighted_mean};
+use crate::campaign_mark::DISAGREE_CHI2_PER_DOF;
+use crate::campaign_outliers::{SigmaPool, pooled_by_sigma};
 use crate::campaign_settings::Pooled;
 
 /// How many σ from none the runs' mean boresight must lie for the section to advise a
@@ -54,35 +55,44 @@ impl YawAcross {
         }
     }
 
-    /// The runs' inverse-variance mean mounting yaw, its σ and their χ² per degree of
-    /// freedom about it, when it lies beyond its 3σ from none or a mounting is configured.
-    fn mean(&self) -> Option<(f64, f64, Option<f64>)> {
+    /// The runs' mounting yaws pooled by their σ, with those that disagree set aside, when
+    /// the mean lies beyond its 3σ from none or a mounting is configured.
+    fn pool(&self) -> Option<SigmaPool> {
         let e = &self.estimates;
         if e.is_empty() {
             return None;
         }
-        let (yaw, sigma, chi2) =
-            weighted_mean(e.iter().map(|(_, y)| (y.mounting_yaw_deg(), y.sigma_deg)));
+        let pool = pooled_by_sigma(
+            &e.iter()
+                .map(|(_, y)| (y.mounting_yaw_deg(), y.sigma_deg))
+                .collect::<Vec<_>>(),
+        );
         let configured = e.iter().any(|(_, y)| y.mounting_deg != [0.0; 3]);
-        (configured || yaw.abs() > SHOWN_SIGMA * sigma).then_some((yaw, sigma, chi2))
+        (configured || pool.mean.abs() > SHOWN_SIGMA * pool.sigma).then_some(pool)
     }
 
     /// The mounting's yaw to configure (`[vehicle] imu_mounting_deg`'s third, as the
-    /// section writes it), when the runs' yaws agree and a run's configured yaw lies
-    /// beyond its σ.
+    /// section writes it), when the pooled runs' yaws agree and a pooled run's configured
+    /// yaw lies beyond its σ.
     pub fn setting(&self) -> Option<Pooled> {
-        let (yaw, sigma, chi2) = self.mean()?;
-        let e = &self.estimates;
-        Pooled::rounded(yaw, sigma, e.len(), 2)
-            .if_a_change(e.iter().map(|(_, y)| y.mounting_deg[2]))
-            .filter(|_| chi2.is_none_or(|c| c <= DISAGREE_CHI2_PER_DOF))
+        let pool = self.pool()?;
+        let in_pool = || {
+            self.estimates
+                .iter()
+                .zip(&pool.verdict.pooled)
+                .filter(|(_, p)| **p)
+        };
+        Pooled::rounded(pool.mean, pool.sigma, in_pool().count(), 2)
+            .if_a_change(in_pool().map(|((_, y), _)| y.mounting_deg[2]))
+            .filter(|_| pool.agree())
     }
 
     /// `campaign.md`'s section, when the runs' mean mounting yaw lies beyond its 3σ from
     /// none, or a mounting is configured.
     pub fn markdown(&self) -> Option<String> {
         let e = &self.estimates;
-        let (yaw, sigma, chi2) = self.mean()?;
+        let pool = self.pool()?;
+        let (yaw, sigma, chi2) = (pool.mean, pool.sigma, pool.chi2);
         let [roll, pitch, _] = e[0].1.mounting_deg;
         let same_tilt = e
             .iter()
@@ -103,6 +113,9 @@ impl YawAcross {
             md += "\nThe runs' configured mountings differ in roll or pitch: the roll and \
                    pitch above are the first run's.\n";
         }
+        md += &pool
+            .set_aside_sentence("yaw", e.iter().map(|(n, _)| n.as_str()))
+            .unwrap_or_default();
         if let Some(c) = chi2.filter(|c| *c > DISAGREE_CHI2_PER_DOF) {
             let _ = writeln!(
                 md,
@@ -110,17 +123,18 @@ impl YawAcross {
                  more than one vehicle or installation, or an IMU moved between runs?"
             );
         }
-        md += "\n| run | configured yaw [°] | boresight [°] | estimated | yaw in all [°] |\n\
-               |---|---|---|---|---|\n";
-        for (name, y) in e {
+        md += "\n| run | configured yaw [°] | boresight [°] | estimated | yaw in all [°] | pooled \
+               |\n|---|---|---|---|---|---|\n";
+        for ((name, y), pooled) in e.iter().zip(&pool.verdict.pooled) {
             let _ = writeln!(
                 md,
-                "| {name} | {:.2} | {:.2} ± {:.2} | {} | {:.2} |",
+                "| {name} | {:.2} | {:.2} ± {:.2} | {} | {:.2} | {} |",
                 y.mounting_deg[2],
                 y.boresight_deg,
                 y.sigma_deg,
                 if y.estimated { "yes" } else { "no" },
-                y.mounting_yaw_deg()
+                y.mounting_yaw_deg(),
+                if *pooled { "yes" } else { "no" }
             );
         }
         Some(md)
@@ -172,9 +186,18 @@ mod tests {
         assert!(md.contains("imu_mounting_deg = [0, 1, -0.60]"), "{md}");
         // That is what the runs show: nothing to change.
         assert_eq!(y.setting(), None);
-        // Another installation, 3° off.
+        // Another installation, 3° off: set aside (the others' mean kept).
         y.add("c", yaw(3.0, 0.2, [0.0, 1.0, -0.6]));
-        assert!(y.markdown().unwrap().contains("disagree beyond their σ"));
+        let md = y.markdown().unwrap();
+        assert!(md.contains("**-0.60° ± 0.14°**"), "{md}");
+        assert!(md.contains("left out of the mean: c.\n"), "{md}");
+        assert!(md.contains("| -3.60 | no |"), "{md}");
         assert_eq!(y.setting(), None);
+        // Two that disagree: named by their χ², nothing set.
+        let mut two = YawAcross::default();
+        two.add("a", yaw(0.5, 0.2, [0.0; 3]));
+        two.add("b", yaw(3.0, 0.2, [0.0; 3]));
+        assert!(two.markdown().unwrap().contains("disagree beyond their σ"));
+        assert_eq!(two.setting(), None);
     }
 }

@@ -8,6 +8,7 @@ pub mod artifacts;
 pub mod campaign;
 pub mod campaign_lag;
 pub mod campaign_mark;
+pub mod campaign_outliers;
 pub mod campaign_pitch;
 pub mod campaign_points;
 pub mod campaign_pools;
