@@ -65,15 +65,11 @@ impl LagAcross {
     /// offset lies beyond its σ.
     pub fn setting(&self) -> Option<Pooled> {
         let pool = self.pool()?;
-        let in_pool = || {
-            self.estimates
-                .iter()
-                .zip(&pool.verdict.pooled)
-                .filter(|(_, p)| **p)
-        };
-        Pooled::rounded(-pool.mean, pool.sigma, in_pool().count(), 3)
-            .if_a_change(in_pool().map(|((_, l), _)| l.offset_s))
-            .filter(|_| pool.agree())
+        pool.setting(
+            -pool.mean,
+            3,
+            self.estimates.iter().map(|(_, l)| l.offset_s),
+        )
     }
 
     /// `campaign.md`'s section, when two or more runs estimated the lag.

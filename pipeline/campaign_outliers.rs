@@ -6,6 +6,7 @@
 //! the runs.
 
 use crate::campaign_mark::{DISAGREE_CHI2_PER_DOF, weighted_mean};
+use crate::campaign_settings::Pooled;
 
 /// How many σ a run's estimate may lie from the others' before it is named as
 /// disagreeing.
@@ -102,6 +103,23 @@ impl SigmaPool {
     /// [`DISAGREE_CHI2_PER_DOF`].
     pub(crate) fn agree(&self) -> bool {
         !self.verdict.pooled_disagree() && self.chi2.is_none_or(|c| c <= DISAGREE_CHI2_PER_DOF)
+    }
+
+    /// The setting `value` (the pooled mean, or what it gives), rounded to `decimals` as
+    /// a section writes it, when the pooled runs agree and a pooled run's `configured`
+    /// value (one per run, in order) lies beyond [`crate::campaign_settings::CHANGE_SIGMA`]
+    /// of the mean's σ from it.
+    pub(crate) fn setting(
+        &self,
+        value: f64,
+        decimals: usize,
+        configured: impl Iterator<Item = f64>,
+    ) -> Option<Pooled> {
+        let pooled = &self.verdict.pooled;
+        let runs = pooled.iter().filter(|p| **p).count();
+        Pooled::rounded(value, self.sigma, runs, decimals)
+            .if_a_change(configured.zip(pooled).filter(|(_, p)| **p).map(|(c, _)| c))
+            .filter(|_| self.agree())
     }
 
     /// The sentence naming the runs set aside (`names`, the runs' in order), saying what

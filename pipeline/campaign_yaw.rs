@@ -76,15 +76,11 @@ impl YawAcross {
     /// yaw lies beyond its σ.
     pub fn setting(&self) -> Option<Pooled> {
         let pool = self.pool()?;
-        let in_pool = || {
-            self.estimates
-                .iter()
-                .zip(&pool.verdict.pooled)
-                .filter(|(_, p)| **p)
-        };
-        Pooled::rounded(pool.mean, pool.sigma, in_pool().count(), 2)
-            .if_a_change(in_pool().map(|((_, y), _)| y.mounting_deg[2]))
-            .filter(|_| pool.agree())
+        pool.setting(
+            pool.mean,
+            2,
+            self.estimates.iter().map(|(_, y)| y.mounting_deg[2]),
+        )
     }
 
     /// `campaign.md`'s section, when the runs' mean mounting yaw lies beyond its 3σ from
