@@ -20,7 +20,7 @@ use unz_formats::schema;
 use unz_viz::report::{JointEstimate, ReportRow};
 
 use crate::artifacts::{RunLayout, StageName, files};
-use crate::campaign_pools::Pools;
+use crate::campaign_pools::{Pools, RunReports};
 use crate::disupt_stage::{DisuptOut, Method, MethodOut, SettingsOut, SigmaOut, ensure_disupt};
 use crate::flow::marks::RepeatedMark;
 use crate::flow::{
@@ -278,7 +278,7 @@ fn guarded<R>(f: impl FnOnce() -> R) -> anyhow::Result<R> {
 }
 
 /// A run's report, read through its type; `None` when the run did not get that far.
-fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
+pub(crate) fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Option<T> {
     serde_json::from_slice(&std::fs::read(path).ok()?).ok()
 }
 
@@ -714,14 +714,15 @@ pub fn write_summary(
     let mut pools = Pools::default();
     for o in outcomes {
         let layout = RunLayout::new(out, &o.name);
-        let manifest = RunManifest::load(&o.manifest).ok();
         let ing: Option<IngestReport> =
             read_report(&layout.file(StageName::Ingest, files::INGEST_REPORT));
-        let d: Option<DisuptOut> =
-            read_report(&layout.file(StageName::Disupt, files::DISUPT_REPORT));
-        let nav: Option<NavigateSummary> =
-            read_report(&layout.file(StageName::Navigate, files::NAVIGATE_REPORT));
-        pools.add(&o.name, manifest.as_ref(), d.as_ref(), nav.as_ref());
+        let reports = RunReports::read(out, &o.name, &o.manifest);
+        pools.add(&o.name, &reports);
+        let RunReports {
+            disupt: d,
+            navigate: nav,
+            ..
+        } = reports;
         let v = SummaryValues::of(ing.as_ref(), d.as_ref(), o.wall_s);
         let note = Some(run_note(d.as_ref(), nav.as_ref(), ing.as_ref()))
             .filter(|n| o.error.is_none() && !n.is_empty());
@@ -982,13 +983,7 @@ pub fn merge_summaries(
         .iter()
         .filter(|r| unz_formats::manifest::is_plain_name(&r.1))
     {
-        let layout = RunLayout::new(out, name);
-        let manifest = RunManifest::load(Path::new(manifest)).ok();
-        let d: Option<DisuptOut> =
-            read_report(&layout.file(StageName::Disupt, files::DISUPT_REPORT));
-        let nav: Option<NavigateSummary> =
-            read_report(&layout.file(StageName::Navigate, files::NAVIGATE_REPORT));
-        pools.add(name, manifest.as_ref(), d.as_ref(), nav.as_ref());
+        pools.add(name, &RunReports::read(out, name, Path::new(manifest)));
     }
     let (settings_path, md_path) = crate::campaign_pools::merged_names(dest);
     let settings_name = settings_path

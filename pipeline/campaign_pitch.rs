@@ -41,8 +41,6 @@ struct RunFit {
     taken: bool,
     /// tan of its own fitted angle: its points' least squares through its start.
     tan: f64,
-    /// Σ slope² over its points, m².
-    slope2: f64,
     /// Its points: (slope m per tan β, height error with the configured angle, m).
     points: Vec<(f64, f64)>,
 }
@@ -62,9 +60,14 @@ impl RunFit {
         (sum2 / self.points.len() as f64).sqrt()
     }
 
+    /// Σ slope² over its points, m².
+    fn slope2(&self) -> f64 {
+        self.points.iter().map(|(s, _)| s * s).sum()
+    }
+
     /// The variance of its tan β: its points' (`point_sigma_m` each) and the levelling's.
     fn variance(&self, point_sigma_m: f64) -> f64 {
-        point_sigma_m.powi(2) / self.slope2 + LEVELLING_SIGMA_RAD.powi(2)
+        point_sigma_m.powi(2) / self.slope2() + LEVELLING_SIGMA_RAD.powi(2)
     }
 }
 
@@ -107,23 +110,21 @@ impl PitchAcross {
         if !(fit.applied || no_change) {
             return;
         }
-        let points: Vec<(f64, f64)> = fit
-            .points
-            .iter()
-            .map(|p| (p.slope_m, p.dh_before_m))
-            .collect();
-        let slope2: f64 = points.iter().map(|(s, _)| s * s).sum();
-        if slope2 > 0.0 {
-            // The fit's angle is its points' least squares through the start (their slopes
-            // and their errors with the configured angle), taken or refused.
-            self.runs.push(RunFit {
-                name: name.to_owned(),
-                configured_deg: fit.configured_deg,
-                taken: fit.applied,
-                tan: fit.odo_pitch_deg.to_radians().tan(),
-                slope2,
-                points,
-            });
+        // The fit's angle is its points' least squares through the start (their slopes
+        // and their errors with the configured angle), taken or refused.
+        let run = RunFit {
+            name: name.to_owned(),
+            configured_deg: fit.configured_deg,
+            taken: fit.applied,
+            tan: fit.odo_pitch_deg.to_radians().tan(),
+            points: fit
+                .points
+                .iter()
+                .map(|p| (p.slope_m, p.dh_before_m))
+                .collect(),
+        };
+        if run.slope2() > 0.0 {
+            self.runs.push(run);
         }
     }
 

@@ -8,6 +8,8 @@ use std::path::Path;
 
 use unz_formats::manifest::RunManifest;
 
+use crate::artifacts::{RunLayout, StageName, files};
+use crate::campaign::read_report;
 use crate::campaign_lag::{LagAcross, LagEstimate};
 use crate::campaign_mark::{MarkAcross, MarkEstimate};
 use crate::campaign_pitch::PitchAcross;
@@ -39,20 +41,40 @@ pub struct PoolsText {
     pub settings: Option<String>,
 }
 
+/// What the pools read of a run: its manifest (when readable), its `disupt.json` and its
+/// `navigate.json` (when written and readable).
+#[derive(Debug, Default)]
+pub struct RunReports {
+    /// The run's manifest.
+    pub manifest: Option<RunManifest>,
+    /// Its disupt stage's report.
+    pub disupt: Option<DisuptOut>,
+    /// Its navigate stage's report.
+    pub navigate: Option<NavigateSummary>,
+}
+
+impl RunReports {
+    /// The run `name`'s reports in the output folder `out`, and its manifest at
+    /// `manifest`.
+    pub fn read(out: &Path, name: &str, manifest: &Path) -> Self {
+        let layout = RunLayout::new(out, name);
+        Self {
+            manifest: RunManifest::load(manifest).ok(),
+            disupt: read_report(&layout.file(StageName::Disupt, files::DISUPT_REPORT)),
+            navigate: read_report(&layout.file(StageName::Navigate, files::NAVIGATE_REPORT)),
+        }
+    }
+}
+
 impl Pools {
-    /// Adds the run `name`: its manifest (when readable), its `disupt.json` and its
-    /// `navigate.json` (when written).
-    pub fn add(
-        &mut self,
-        name: &str,
-        manifest: Option<&RunManifest>,
-        d: Option<&DisuptOut>,
-        nav: Option<&NavigateSummary>,
-    ) {
+    /// Adds the run `name` with its reports.
+    pub fn add(&mut self, name: &str, reports: &RunReports) {
+        let manifest = reports.manifest.as_ref();
         if let Some(params) = manifest.and_then(|m| m.params.clone()) {
             self.runs_params.push((name.to_owned(), params));
         }
-        let Some(d) = d else { return };
+        let Some(d) = &reports.disupt else { return };
+        let nav = reports.navigate.as_ref();
         // The runs' control points, by their surveyed positions.
         if let Some(h) = d.methods.get("joint").and_then(|j| j.holdout.as_ref())
             && let Some(m) = manifest

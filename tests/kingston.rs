@@ -1165,8 +1165,9 @@ fn height_errors_m(nav: &std::path::Path, r: &Reference) -> Vec<f64> {
 /// the reference's over the whole log (at most 3.6 m; the reference is SPAN's real-time
 /// INS/GPS, good to a few metres). Configured as the vehicle's angle, it gives the drive
 /// without its control points the same heights (1.05 m RMS, from 13.4). Its control
-/// points' heights 35 m off in datum are refused. The same log rotated as from an IMU pitched 10° up on its mount fits 9.07°
-/// the other way and gives the same heights (0.98 m RMS).
+/// points' heights 35 m off in datum are refused. The same log rotated as from an IMU
+/// pitched 10° up on its mount fits 9.07° the other way and gives the same heights
+/// (0.98 m RMS).
 #[test]
 fn kingston_heights_give_the_odometers_pitch() {
     let tmp = tempfile::tempdir().unwrap();
