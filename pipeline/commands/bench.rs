@@ -227,6 +227,38 @@ fn bench_navigate(args: &BenchArgs) -> anyhow::Result<ExitCode> {
             four * 1e3 / 4.0,
             eight * 1e3 / 8.0
         );
+        // The same over segments (what the methods run), and the segments' integration.
+        use unz_stages::strapdown::run_criteria_segments;
+        use unz_stages::strapdown::segments::{SegmentPlan, integrate};
+        let plan = SegmentPlan::new(n, lp.block, [n / 2]);
+        let mut segments = None;
+        let integrate_s = best_of(args.repeat * 4, || {
+            segments = Some(integrate(
+                inputs.dt_s,
+                inputs.dtheta_rad,
+                &plan,
+                true,
+                &mut [inputs.odo_dist_m.iter().copied()],
+                false,
+            ));
+        });
+        let (imu, odo) = segments.expect("integrated");
+        let (imu, odo) = (imu.expect("the IMU's segments"), &odo[0]);
+        let seg_one = best_of(args.repeat * 4, || {
+            let [sink, ..] = &mut sinks;
+            run_criteria_segments(&imu, [odo], &[case.settings], std::array::from_mut(sink));
+            std::hint::black_box(&sinks);
+        });
+        let seg_four = best_of(args.repeat * 4, || {
+            run_criteria_segments(&imu, [odo; 4], &[case.settings; 4], &mut sinks);
+            std::hint::black_box(&sinks);
+        });
+        println!(
+            "track-free pass over 0.1-s segments (one core): {:.2} ms alone, {:.2} ms per pass four side by side; the segments integrated once in {:.2} ms",
+            seg_one * 1e3,
+            seg_four * 1e3 / 4.0,
+            integrate_s * 1e3
+        );
     }
     println!(
         "navigate kernel: {n} samples in {:.2} ms = {:.1} M samples/s (one core)",

@@ -85,6 +85,12 @@ impl BlockAttitude {
         self.pitch_rad.push(pitch);
     }
 
+    /// Appends a block of roll `roll_rad` and pitch `pitch_rad`.
+    pub fn push(&mut self, roll_rad: f64, pitch_rad: f64) {
+        self.roll_rad.push(roll_rad);
+        self.pitch_rad.push(pitch_rad);
+    }
+
     /// Blocks so far.
     pub fn len(&self) -> usize {
         self.roll_rad.len()
@@ -389,19 +395,8 @@ pub struct FixPose {
 impl FixPose {
     /// The first two rows of `C_b^n`: how a body-axes vector moves north and east.
     pub fn body_to_ne(&self) -> [[f64; 3]; 2] {
-        let [w, x, y, z] = self.q_b_to_n;
-        [
-            [
-                1.0 - 2.0 * (y * y + z * z),
-                2.0 * (x * y - w * z),
-                2.0 * (x * z + w * y),
-            ],
-            [
-                2.0 * (x * y + w * z),
-                1.0 - 2.0 * (x * x + z * z),
-                2.0 * (y * z - w * x),
-            ],
-        ]
+        let [north, east, _] = crate::strapdown::dcm_rows(self.q_b_to_n);
+        [north, east]
     }
 }
 

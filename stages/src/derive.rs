@@ -168,6 +168,9 @@ pub struct Derived {
     /// direction, the odometer's accelerations): set by the derive stage, which fails a
     /// log whose axes are not the vehicle's.
     pub axes_check: Option<crate::imu_axes::AxesCheck>,
+    /// The segments the optimisers' passes read, integrated from these series on first
+    /// use and kept (a memo: not part of the derive's value).
+    pub segments: crate::strapdown::segments::SegmentMemo,
 }
 
 /// Eqs 9–11 at one sample ([`Derived::odometer_speeds`]).
@@ -222,6 +225,7 @@ impl Derived {
             odometer_failure_samples: self.odometer_failure_samples,
             out_of_range_samples: self.out_of_range_samples,
             axes_check: self.axes_check,
+            segments: self.segments.for_other_odometer(),
         }
     }
 

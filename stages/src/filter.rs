@@ -112,21 +112,28 @@ impl LowPass {
     ) -> [Vec<f64>; N] {
         let blocks = self.blocks(x.size_hint().0);
         let mut out: [Vec<f64>; N] = std::array::from_fn(|_| Vec::with_capacity(blocks));
-        let mut chunk: Vec<[f64; N]> = Vec::with_capacity(self.block);
-        let close = |chunk: &mut Vec<[f64; N]>, out: &mut [Vec<f64>; N]| {
-            for (q, means) in out.iter_mut().enumerate() {
-                means.push(chunk.iter().map(|v| v[q]).sum::<f64>() / chunk.len() as f64);
+        // Running sums from −0.0 in the samples' order: what `Iterator::sum` of the
+        // block's values gives, bit for bit.
+        let mut sums = [-0.0; N];
+        let mut count = 0usize;
+        let close = |sums: &mut [f64; N], count: usize, out: &mut [Vec<f64>; N]| {
+            for (means, sum) in out.iter_mut().zip(sums.iter_mut()) {
+                means.push(*sum / count as f64);
+                *sum = -0.0;
             }
-            chunk.clear();
         };
         for v in x {
-            chunk.push(v);
-            if chunk.len() == self.block {
-                close(&mut chunk, &mut out);
+            for (sum, v) in sums.iter_mut().zip(v) {
+                *sum += v;
+            }
+            count += 1;
+            if count == self.block {
+                close(&mut sums, count, &mut out);
+                count = 0;
             }
         }
-        if !chunk.is_empty() {
-            close(&mut chunk, &mut out);
+        if count > 0 {
+            close(&mut sums, count, &mut out);
         }
         out
     }

@@ -22,6 +22,12 @@
 //! read, and gives each exactly what it would give alone.
 
 mod lanes;
+mod segment_lanes;
+pub mod segments;
+#[cfg(test)]
+mod test_drive;
+
+pub use segment_lanes::run_criteria_segments;
 
 use nalgebra::UnitQuaternion;
 
@@ -137,6 +143,29 @@ pub fn dcm_row3(q: &[f64; 4]) -> [f64; 3] {
         2.0 * (x * z - w * y),
         2.0 * (y * z + w * x),
         w * w - x * x - y * y + z * z,
+    ]
+}
+
+/// The rows of `C_b^n` of a unit quaternion (w, x, y, z).
+#[inline(always)]
+pub fn dcm_rows(q: [f64; 4]) -> [[f64; 3]; 3] {
+    let [w, x, y, z] = q;
+    [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
     ]
 }
 

@@ -152,8 +152,10 @@ fn methods_recover_the_settings_of_paper_like_runs() {
     }
 }
 
-/// The optimisers' passes keep no track (they sum what the criteria need as they go):
-/// their criteria must equal those of a stored track, bit for bit.
+/// The optimisers' passes keep no track and step over 0.1-s segments (they sum what the
+/// criteria need as they go): their criteria are those of a stored track navigated sample
+/// by sample, to within what the segments change (block attitudes under 1e-6 rad, so each
+/// epoch's Kryt1 term by at most √2 × 1e-6; stops under 1 cm: `strapdown::segment_lanes`).
 #[test]
 fn track_free_passes_give_the_criteria_of_a_stored_track() {
     use unz_stages::criteria::{self, Kryt1Scratch};
@@ -174,9 +176,22 @@ fn track_free_passes_give_the_criteria_of_a_stored_track() {
         &mut Kryt1Scratch::default(),
         None,
     );
-    assert_eq!(e.kryt1.to_bits(), k1.to_bits(), "{} vs {k1}", e.kryt1);
-    assert_eq!(e.kryt2, criteria::kryt2(&track, &c.fixes));
+    let epochs = c.derived.epochs.valid.iter().filter(|v| **v).count() as f64;
+    let kryt1_bound = std::f64::consts::SQRT_2 * 1e-6 * epochs;
+    assert!(
+        (e.kryt1 - k1).abs() < kryt1_bound,
+        "Kryt1 {} vs {k1} (bound {kryt1_bound})",
+        e.kryt1
+    );
+    let want = criteria::kryt2(&track, &c.fixes);
+    assert_eq!(e.kryt2.len(), want.len());
     assert!(!e.kryt2.is_empty());
+    for (got, want) in e.kryt2.iter().zip(&want) {
+        assert!(
+            (got.dx_m - want.dx_m).hypot(got.dy_m - want.dy_m) < 0.01,
+            "{got:?} vs {want:?}"
+        );
+    }
 
     // Passes side by side in vector lanes (batches of 8 and of 4 padded, here) observe
     // what each pass alone does.

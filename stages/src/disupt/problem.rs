@@ -2,6 +2,7 @@
 //! vector lanes, and the linearisations the searches run on.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 
 use either::Either;
 use rayon::prelude::*;
@@ -11,6 +12,7 @@ use crate::criteria::{self, ControlPointFix, KalmanParams, Kryt2};
 use crate::derive::{Epochs, MovedOdometer, OdoIncrements};
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
+use crate::strapdown::segments::{ImuSegments, OdoSegments, SegmentMemo, SegmentPlan, integrate};
 use crate::strapdown::{self, CriteriaSink, LaneBatch, NavInputs, NavSettings, in_lanes};
 use crate::units::DEG_PER_H;
 
@@ -38,6 +40,10 @@ pub struct Problem<'a> {
     /// The odometer increments, when they are read as a pass goes instead of from
     /// `inputs` (a derive at another odometer timing: [`ProblemSpec::on_moved`]).
     moved_odometer: Option<MovedOdometer<'a>>,
+    /// The segments the passes run over: the derive's memo (the IMU's, and its stored
+    /// odometer's), and those of the moved odometer, integrated on first use.
+    segments: SegmentMemo,
+    moved_segments: Arc<Mutex<Option<Arc<OdoSegments>>>>,
     passes: AtomicUsize,
     base_lin: std::sync::OnceLock<Linearization>,
 }
@@ -81,6 +87,7 @@ impl<'a> ProblemSpec<'a> {
         );
         p.drift_z_prior_deg_h = self.drift_z_prior_deg_h;
         p.excluded_cps = self.excluded_cps;
+        p.segments = d.segments.clone();
         p
     }
 
@@ -176,6 +183,8 @@ impl<'a> Problem<'a> {
             excluded_cps: &[],
             drift_z_prior_deg_h: None,
             moved_odometer: None,
+            segments: SegmentMemo::default(),
+            moved_segments: Arc::default(),
             passes: AtomicUsize::new(0),
             base_lin: std::sync::OnceLock::new(),
         }
@@ -202,9 +211,41 @@ impl<'a> Problem<'a> {
             excluded_cps: excluded,
             drift_z_prior_deg_h: self.drift_z_prior_deg_h,
             moved_odometer: self.moved_odometer.clone(),
+            segments: self.segments.clone(),
+            moved_segments: Arc::clone(&self.moved_segments),
             passes: AtomicUsize::new(0),
             base_lin,
         }
+    }
+
+    /// The segments of this problem's passes: blocks of F cut after the control points'
+    /// samples, over the samples its odometer covers.
+    fn segment_plan(&self) -> SegmentPlan {
+        let mut n = self.inputs.dt_s.len().min(self.inputs.dtheta_rad.len());
+        if self.moved_odometer.is_none() {
+            n = n.min(self.inputs.odo_dist_m.len());
+        }
+        SegmentPlan::new(n, self.lp.block, self.fixes.iter().map(|f| f.sample))
+    }
+
+    /// The IMU's segments, and this problem's odometer's (with its moving time when
+    /// `moving`), integrated on first use: the derive's own through its memo, a moved
+    /// odometer's here.
+    fn segments_of(&self, moving: bool) -> (Arc<ImuSegments>, Arc<OdoSegments>) {
+        let plan = self.segment_plan();
+        let stored = self.moved_odometer.is_none();
+        let (imu, odo) = self.segments.segments(&self.inputs, &plan, stored, moving);
+        if let Some(odo) = odo {
+            return (imu, odo);
+        }
+        ensure_moved_segments(&[self], moving);
+        let odo = self
+            .moved_segments
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+            .expect("integrated just now");
+        (imu, odo)
     }
 
     /// The odometer increments a pass of this problem reads, sample by sample.
@@ -483,37 +524,60 @@ impl LaneBatch for OnDerives<'_, '_> {
     type Out = Observation;
 
     fn run<const N: usize>(&mut self, points: [usize; N]) -> [Observation; N] {
-        let first = self.problems[0];
         let settings = points.map(|i| self.problem(i).settings(&self.xs[i]));
-        let n = first.inputs.len();
-        let at: Vec<usize> = first
-            .fixes
-            .iter()
-            .map(|f| f.sample)
-            .filter(|&k| k < n)
-            .collect();
+        // A speed bias reads the odometers' moving time.
+        let moving = settings.iter().any(|s| s.odo_bias_mps != 0.0);
+        ensure_moved_segments(self.problems, moving);
+        let segments = points.map(|i| self.problem(i).segments_of(moving));
         // The sinks live for this batch only: each holds its pass's blocks (a run's
         // length), so none is kept once the observations are taken.
         let mut sinks: [CriteriaSink; N] = std::array::from_fn(|_| CriteriaSink::default());
-        if self.problems.len() == 1 && first.moved_odometer.is_none() {
-            strapdown::run_criteria(&first.inputs, &settings, first.lp.block, &at, &mut sinks);
-        } else {
-            let odometers = points.map(|i| self.problem(i).odometer_increments());
-            strapdown::run_criteria_streams(
-                &first.inputs,
-                odometers,
-                &settings,
-                first.lp.block,
-                &at,
-                &mut sinks,
-            );
-        }
+        strapdown::run_criteria_segments(
+            &segments[0].0,
+            std::array::from_fn(|l| &*segments[l].1),
+            &settings,
+            &mut sinks,
+        );
         let mut sinks = sinks.into_iter();
         std::array::from_fn(|l| {
             let sink = sinks.next().expect("one sink per lane");
             self.problem(points[l])
                 .observation_of_sink(sink, &self.xs[points[l]])
         })
+    }
+}
+
+/// Integrates the moved odometers of `problems` that have no segments yet (or none with
+/// the moving time, when `moving`), in one walk over the IMU's samples for all of them.
+fn ensure_moved_segments(problems: &[&Problem<'_>], moving: bool) {
+    let lacking = |p: &&&Problem<'_>| {
+        p.moved_odometer.is_some()
+            && !p
+                .moved_segments
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .as_ref()
+                .is_some_and(|s| s.has_moving() || !moving)
+    };
+    let mut todo: Vec<&&Problem<'_>> = problems.iter().filter(lacking).collect();
+    // A problem given twice is integrated once.
+    todo.dedup_by(|a, b| std::ptr::eq(**a, **b));
+    let Some(first) = todo.first() else {
+        return;
+    };
+    let plan = first.segment_plan();
+    let mut odometers: Vec<LaneIncrements<'_>> =
+        todo.iter().map(|p| p.odometer_increments()).collect();
+    let (_, odo) = integrate(
+        first.inputs.dt_s,
+        first.inputs.dtheta_rad,
+        &plan,
+        false,
+        &mut odometers,
+        moving,
+    );
+    for (p, segs) in todo.iter().zip(odo) {
+        *p.moved_segments.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(segs));
     }
 }
 

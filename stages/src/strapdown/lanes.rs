@@ -110,22 +110,33 @@ pub(super) struct Lanes<const N: usize> {
 /// Latitude-dependent terms per lane, refreshed when the lane's latitude moves by more
 /// than [`LAT_REFRESH_RAD`].
 #[derive(Clone, Copy)]
-struct LatTerms<const N: usize> {
-    lat_rad: [f64; N],
-    rm_m: [f64; N],
-    rn_m: [f64; N],
-    inv_cos: [f64; N],
-    tan: [f64; N],
+pub(super) struct LatTerms<const N: usize> {
+    pub(super) lat_rad: [f64; N],
+    pub(super) rm_m: [f64; N],
+    pub(super) rn_m: [f64; N],
+    pub(super) inv_cos: [f64; N],
+    pub(super) tan: [f64; N],
     /// Earth rate, north and down components (east is zero), rad/s.
-    w_ie_north_rad_s: [f64; N],
-    w_ie_down_rad_s: [f64; N],
+    pub(super) w_ie_north_rad_s: [f64; N],
+    pub(super) w_ie_down_rad_s: [f64; N],
 }
 
 impl<const N: usize> LatTerms<N> {
+    /// Terms not set yet (zero).
+    pub(super) const ZERO: Self = Self {
+        lat_rad: [0.0; N],
+        rm_m: [0.0; N],
+        rn_m: [0.0; N],
+        inv_cos: [0.0; N],
+        tan: [0.0; N],
+        w_ie_north_rad_s: [0.0; N],
+        w_ie_down_rad_s: [0.0; N],
+    };
+
     /// Sets lane `l` at latitude `lat`. The terms are computed out of line and returned
     /// by value, so that the state never escapes to memory in the hot loop.
     #[inline(always)]
-    fn set(&mut self, l: usize, lat: f64) {
+    pub(super) fn set(&mut self, l: usize, lat: f64) {
         let [rm, rn, inv_cos, tan, w_north, w_down] = lat_terms(lat);
         self.lat_rad[l] = lat;
         self.rm_m[l] = rm;
@@ -197,15 +208,7 @@ impl<const N: usize> Lanes<N> {
             distance_m: [0.0; N],
             prev_rad: [[0.0; N]; 3],
             dir_start: [[0.0; N]; 3],
-            terms: LatTerms {
-                lat_rad: [0.0; N],
-                rm_m: [0.0; N],
-                rn_m: [0.0; N],
-                inv_cos: [0.0; N],
-                tan: [0.0; N],
-                w_ie_north_rad_s: [0.0; N],
-                w_ie_down_rad_s: [0.0; N],
-            },
+            terms: LatTerms::ZERO,
         };
         for (l, s) in settings.iter().enumerate() {
             for i in 0..3 {
@@ -476,40 +479,11 @@ mod tests {
     /// A turning, bumping drive with one violent sample (beyond the series).
     fn inputs() -> (Vec<f64>, Vec<[f64; 3]>, Vec<f64>) {
         let n = 5000;
-        let dtheta = (0..n)
-            .map(|k| {
-                let t = k as f64 * 0.01;
-                if k == 2500 {
-                    return [0.2, -0.1, 0.3];
-                }
-                [
-                    1e-4 * (t * 3.0).sin(),
-                    2e-4 * (t * 2.0).cos(),
-                    3e-3 * (t * 0.5).sin(),
-                ]
-            })
-            .collect();
+        let dtheta = super::super::test_drive::turning_dtheta(n);
         (vec![0.01; n], dtheta, vec![0.2; n])
     }
 
-    fn settings(l: usize) -> NavSettings {
-        NavSettings {
-            initial: Euler {
-                roll_rad: 0.01,
-                pitch_rad: -0.02,
-                heading_rad: 0.3 * l as f64,
-            },
-            drift_rad_s: [1e-6 * l as f64, -2e-7, 3e-6],
-            odo_scale: 1.0 + 1e-4 * l as f64,
-            // Lanes 5 and 6 have a boresight, so the 8-lane batch takes that loop.
-            odo_yaw_rad: if l == 5 || l == 6 { 0.01 } else { 0.0 },
-            odo_pitch_rad: if l == 6 { 0.02 } else { 0.0 },
-            odo_bias_mps: if l == 3 { -0.08 } else { 0.0 },
-            lat0_rad: 0.78,
-            lon0_rad: -1.33,
-            h0_m: 90.0,
-        }
-    }
+    use super::super::test_drive::lane_settings as settings;
 
     #[test]
     fn a_batch_of_lanes_is_each_pass_alone_bit_for_bit() {
