@@ -695,27 +695,68 @@ pub fn odometer_blocks(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64, lp
 /// [`Derived::odometer_speeds`]). Block means are taken as the samples come, without
 /// per-sample series of the run's length.
 pub fn odometer_blocks_of(out: &mut Derived, increments: impl Iterator<Item = f64>, lp: &LowPass) {
-    let d = &*out;
-    // u and "moving" of the sample before.
-    let mut prev = (0.0, 0.0);
-    let samples = increments.take(d.t_s.len()).enumerate().map(|(k, dd)| {
-        let dt = d.dt_s[k];
+    let mut blocks = OdometerBlocks::new(out, lp);
+    for dd in increments.take(out.t_s.len()) {
+        blocks.push(dd);
+    }
+    [out.u_dot_f, out.ru_f, out.r_moving_f, out.moving_dot_f] = blocks.finish(lp);
+}
+
+/// [`odometer_blocks_of`] as the odometer's increments come, one sample at a time (beside
+/// other work on the same increments).
+#[derive(Debug, Clone)]
+pub struct OdometerBlocks<'d> {
+    dt_s: &'d [f64],
+    dtheta_rad: &'d [[f64; 3]],
+    /// The next sample.
+    k: usize,
+    /// u and "moving" of the sample before.
+    prev: (f64, f64),
+    means: crate::filter::BlockMeans<4>,
+}
+
+impl<'d> OdometerBlocks<'d> {
+    /// The blocks of `d`'s odometer part, from its IMU's intervals and yaw rates.
+    pub fn new(d: &'d Derived, lp: &LowPass) -> Self {
+        Self {
+            dt_s: &d.dt_s,
+            dtheta_rad: &d.dtheta_rad,
+            k: 0,
+            prev: (0.0, 0.0),
+            means: crate::filter::BlockMeans::new(lp.block, lp.blocks(d.t_s.len())),
+        }
+    }
+
+    /// The odometer's increment `dd` over the next sample, m (samples past the IMU's
+    /// are left out).
+    #[inline]
+    pub fn push(&mut self, dd: f64) {
+        let k = self.k;
+        let (Some(&dt), Some(dtheta)) = (self.dt_s.get(k), self.dtheta_rad.get(k)) else {
+            return;
+        };
+        self.k += 1;
         let u_mps = dd / dt;
         let moving = f64::from(u8::from(dd != 0.0));
         let (u_dot_mps2, moving_dot) = if k == 0 {
             (0.0, 0.0)
         } else {
-            ((u_mps - prev.0) / dt, (moving - prev.1) / dt)
+            ((u_mps - self.prev.0) / dt, (moving - self.prev.1) / dt)
         };
-        prev = (u_mps, moving);
-        let r = d.r_rad_s(k);
-        [u_dot_mps2, r * u_mps, r * moving, moving_dot]
-    });
-    let mut means = lp.block_means_of(samples);
-    for m in &mut means {
-        lp.filter_blocks(m);
+        self.prev = (u_mps, moving);
+        let r = dtheta[2] / dt;
+        self.means
+            .push([u_dot_mps2, r * u_mps, r * moving, moving_dot]);
     }
-    [out.u_dot_f, out.ru_f, out.r_moving_f, out.moving_dot_f] = means;
+
+    /// F(u̇), F(ru), F(r while moving) and F(d moving/dt) per block.
+    pub fn finish(self, lp: &LowPass) -> [Vec<f64>; 4] {
+        let mut means = self.means.finish();
+        for m in &mut means {
+            lp.filter_blocks(m);
+        }
+        means
+    }
 }
 
 /// Eqs 7–8 at the epochs (one every ΔTg), from the filtered block series of `d`.

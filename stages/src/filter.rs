@@ -110,37 +110,67 @@ impl LowPass {
         &self,
         x: impl Iterator<Item = [f64; N]>,
     ) -> [Vec<f64>; N] {
-        let blocks = self.blocks(x.size_hint().0);
-        let mut out: [Vec<f64>; N] = std::array::from_fn(|_| Vec::with_capacity(blocks));
-        // Running sums from −0.0 in the samples' order: what `Iterator::sum` of the
-        // block's values gives, bit for bit.
-        let mut sums = [-0.0; N];
-        let mut count = 0usize;
-        let close = |sums: &mut [f64; N], count: usize, out: &mut [Vec<f64>; N]| {
-            for (means, sum) in out.iter_mut().zip(sums.iter_mut()) {
-                means.push(*sum / count as f64);
-                *sum = -0.0;
-            }
-        };
+        let mut means = BlockMeans::new(self.block, self.blocks(x.size_hint().0));
         for v in x {
-            for (sum, v) in sums.iter_mut().zip(v) {
-                *sum += v;
-            }
-            count += 1;
-            if count == self.block {
-                close(&mut sums, count, &mut out);
-                count = 0;
-            }
+            means.push(v);
         }
-        if count > 0 {
-            close(&mut sums, count, &mut out);
-        }
-        out
+        means.finish()
     }
 
     /// Filters a series already reduced to block means.
     pub fn filter_blocks(&self, blocks: &mut [f64]) {
         self.biquad.filtfilt(blocks);
+    }
+}
+
+/// Block means of `N` series whose values come together, taken as they come: running
+/// sums from −0.0 in the values' order, so that each mean is what `Iterator::sum` of its
+/// block's values over their count gives, bit for bit.
+#[derive(Debug, Clone)]
+pub struct BlockMeans<const N: usize> {
+    block: usize,
+    sums: [f64; N],
+    count: usize,
+    means: [Vec<f64>; N],
+}
+
+impl<const N: usize> BlockMeans<N> {
+    /// Means over blocks of `block` values (at least one), with room for `blocks` of them.
+    pub fn new(block: usize, blocks: usize) -> Self {
+        Self {
+            block: block.max(1),
+            sums: [-0.0; N],
+            count: 0,
+            means: std::array::from_fn(|_| Vec::with_capacity(blocks)),
+        }
+    }
+
+    /// The next values.
+    #[inline]
+    pub fn push(&mut self, v: [f64; N]) {
+        for (sum, v) in self.sums.iter_mut().zip(v) {
+            *sum += v;
+        }
+        self.count += 1;
+        if self.count == self.block {
+            self.close();
+        }
+    }
+
+    fn close(&mut self) {
+        for (means, sum) in self.means.iter_mut().zip(self.sums.iter_mut()) {
+            means.push(*sum / self.count as f64);
+            *sum = -0.0;
+        }
+        self.count = 0;
+    }
+
+    /// The means, the last (shorter) block's included.
+    pub fn finish(mut self) -> [Vec<f64>; N] {
+        if self.count > 0 {
+            self.close();
+        }
+        self.means
     }
 }
 

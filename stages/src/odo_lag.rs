@@ -33,7 +33,7 @@ use std::cell::RefCell;
 use std::sync::OnceLock;
 
 use crate::derive::{
-    DeriveParams, Derived, MovedOdometer, OdoTimes, RawSeries, derive, epochs_of,
+    DeriveParams, Derived, MovedOdometer, OdoTimes, OdometerBlocks, RawSeries, derive, epochs_of,
     odometer_blocks_of, shifted_blocks,
 };
 use crate::disupt::{
@@ -43,6 +43,7 @@ use crate::disupt::{
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, Setting};
 use crate::odo_rebridge::Rebridges;
+use crate::strapdown::segments::{OdoSegments, SegmentPlan, integrate};
 
 /// Half-width of the parabolas around the current vertex (and of the curvature), s.
 const CURVATURE_STEP_S: f64 = 0.05;
@@ -197,6 +198,58 @@ impl<'a> Rederive<'a> {
         (d, odometer)
     }
 
+    /// [`Rederive::at_moved`] at each of `lags`, with each odometer's segments over `plan`
+    /// (its moving time too when `moving`): each odometer's increments are read once for
+    /// both, all of them in one walk over the IMU's samples.
+    pub fn at_moved_with_segments(
+        &self,
+        lags: &[f64],
+        plan: &SegmentPlan,
+        moving: bool,
+    ) -> Vec<(Derived, MovedOdometer<'_>, OdoSegments)> {
+        let base = self.configured();
+        let lp = LowPass::new(&self.params.filter, base.nominal_dt_s);
+        let odometers: Vec<MovedOdometer<'_>> =
+            lags.iter().map(|&lag| self.odometer_at(lag)).collect();
+        let mut blocks: Vec<OdometerBlocks<'_>> = lags
+            .iter()
+            .map(|_| OdometerBlocks::new(base, &lp))
+            .collect();
+        let mut increments: Vec<_> = odometers
+            .iter()
+            .zip(blocks.iter_mut())
+            .map(|(odometer, blocks)| odometer.increments().inspect(move |&dd| blocks.push(dd)))
+            .collect();
+        let (_, segments) = integrate(
+            &base.dt_s,
+            &base.dtheta_rad,
+            plan,
+            false,
+            &mut increments,
+            moving,
+        );
+        // The derive's samples past the plan's, if any, for its blocks.
+        for increments in &mut increments {
+            increments
+                .take(base.t_s.len().saturating_sub(plan.samples))
+                .for_each(drop);
+        }
+        drop(increments);
+        let block_s = lp.block as f64 * base.nominal_dt_s;
+        lags.iter()
+            .zip(blocks)
+            .zip(odometers)
+            .zip(segments)
+            .map(|(((&lag_s, blocks), odometer), segments)| {
+                let mut d = base.without_odometer_series();
+                [d.u_dot_f, d.ru_f, d.r_moving_f, d.moving_dot_f] = blocks.finish(&lp);
+                d.u_dot_f = shifted_blocks(&base.u_dot_f, block_s, lag_s);
+                d.epochs = epochs_of(&d, &lp, &self.params, self.g_mps2);
+                (d, odometer, segments)
+            })
+            .collect()
+    }
+
     /// The odometer `lag_s` later than the configured offset says, over the configured
     /// derive's samples: its increments read as a pass goes (its failures bridged at
     /// that lag).
@@ -238,11 +291,17 @@ impl Profile<'_> {
                 new.push(lag);
             }
         }
-        // Each trial's odometer increments are read as its pass goes, not stored.
-        let derives: Vec<(Derived, MovedOdometer<'_>)> = new
-            .iter()
-            .map(|&lag| {
-                let (mut d, odometer) = self.rederive.at_moved(lag);
+        // Each trial's odometer increments are read once, for its blocks and segments
+        // (all the trials' in one walk), not stored.
+        let warm = self.fit0.linearization();
+        let x = x_of(&warm.p_ref);
+        let moving = self.spec.settings_of(&x).odo_bias_mps != 0.0;
+        let plan = self.spec.moved_segment_plan(self.rederive.configured());
+        let (derives, segments): (Vec<(Derived, MovedOdometer<'_>)>, Vec<OdoSegments>) = self
+            .rederive
+            .at_moved_with_segments(&new, &plan, moving)
+            .into_iter()
+            .map(|(mut d, odometer, segments)| {
                 // The same epochs at every trial: the gate moves with the lag, and an
                 // epoch entering or leaving would make the costs incomparable.
                 d.epochs.valid.clone_from(&self.valid);
@@ -256,17 +315,21 @@ impl Profile<'_> {
                 ] {
                     *v = Vec::new();
                 }
-                (d, odometer)
+                ((d, odometer), segments)
             })
-            .collect();
+            .unzip();
         let problems: Vec<Problem<'_>> = derives
             .iter()
-            .map(|(d, odometer)| self.spec.on_moved(d, odometer.clone()))
+            .zip(segments)
+            .map(|((d, odometer), segments)| {
+                self.spec
+                    .on_moved(d, odometer.clone())
+                    .with_moved_segments(segments)
+            })
             .collect();
         let refs: Vec<&Problem<'_>> = problems.iter().collect();
-        let warm = self.fit0.linearization();
         let tally = std::sync::atomic::AtomicUsize::new(0);
-        let ys = observe_each(&refs, &x_of(&warm.p_ref), &tally);
+        let ys = observe_each(&refs, &x, &tally);
         for ((lag, problem), y) in new.iter().zip(&problems).zip(ys) {
             let lin = Linearization {
                 p_ref: warm.p_ref,

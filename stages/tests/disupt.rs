@@ -375,6 +375,24 @@ fn a_problem_reading_its_odometer_as_it_goes_observes_what_the_stored_derive_giv
         ] {
             assert_eq!(bits(a), bits(b), "lag {lag_s}");
         }
+        // With its segments integrated beside its blocks, in one walk with another lag's:
+        // the same derive, and passes observing the same.
+        let plan = spec.moved_segment_plan(&stored);
+        let mut both = rederive.at_moved_with_segments(&[lag_s, 0.1], &plan, false);
+        let (walked, walked_odometer, segments) = both.swap_remove(0);
+        for (a, b) in [
+            (&moved.u_dot_f, &walked.u_dot_f),
+            (&moved.ru_f, &walked.ru_f),
+            (&moved.r_moving_f, &walked.r_moving_f),
+            (&moved.moving_dot_f, &walked.moving_dot_f),
+            (&moved.epochs.theta_p_rad, &walked.epochs.theta_p_rad),
+            (&moved.epochs.phi_p_rad, &walked.epochs.phi_p_rad),
+        ] {
+            assert_eq!(bits(a), bits(b), "lag {lag_s}");
+        }
+        let on_walked = spec
+            .on_moved(&walked, walked_odometer)
+            .with_moved_segments(segments);
         let on_stored = spec.on(&stored);
         let on_moved = spec.on_moved(&moved, odometer);
         let x = X {
@@ -385,7 +403,9 @@ fn a_problem_reading_its_odometer_as_it_goes_observes_what_the_stored_derive_giv
         let alone = observe_each(&[&on_moved], &x, &tally);
         let side_by_side = observe_each(&[&on_stored, &on_moved, &on_stored], &x, &tally);
         let want = on_stored.observe(&x);
+        let walked = on_walked.observe(&x);
         for y in [
+            &walked,
             &alone[0],
             &side_by_side[0],
             &side_by_side[1],

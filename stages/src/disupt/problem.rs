@@ -91,6 +91,17 @@ impl<'a> ProblemSpec<'a> {
         p
     }
 
+    /// The navigation settings of `x` in this problem (what [`Problem::settings`] gives).
+    pub fn settings_of(&self, x: &X) -> NavSettings {
+        settings_of(&self.settings, x)
+    }
+
+    /// The segments the passes of [`Self::on_moved`]`(d, …)` run over.
+    pub fn moved_segment_plan(&self, d: &crate::derive::Derived) -> SegmentPlan {
+        let lp = LowPass::new(&self.filter, d.nominal_dt_s);
+        segment_plan_of(&d.nav_inputs(), true, lp.block, self.fixes)
+    }
+
     /// The problem on the derive `d` whose odometer increments are not stored but read
     /// from `odometer` as each pass goes (the odometer-lag search's trials).
     pub fn on_moved<'b>(
@@ -105,6 +116,35 @@ impl<'a> ProblemSpec<'a> {
         p.moved_odometer = Some(odometer);
         p
     }
+}
+
+/// The navigation settings of `x` around `base` (the settings before DISUPT).
+fn settings_of(base: &NavSettings, x: &X) -> NavSettings {
+    let mut s = *base;
+    s.initial.heading_rad = x.azimuth_deg.to_radians();
+    s.drift_rad_s = x.drift_deg_h.map(|d| d * DEG_PER_H);
+    s.odo_scale = base.odo_scale * (1.0 + x.odo_ppm * 1e-6);
+    s.odo_yaw_rad = base.odo_yaw_rad + x.odo_yaw_deg.to_radians();
+    s.odo_bias_mps = base.odo_bias_mps + x.odo_bias_mps;
+    s.initial.pitch_rad -= x.tilt_mrad[0] * 1e-3;
+    s.initial.roll_rad -= x.tilt_mrad[1] * 1e-3;
+    s
+}
+
+/// The segments of passes over `inputs` (blocks of `block` samples, cut after the fixes'
+/// samples), over the samples its odometer covers: the IMU's alone when the odometer is
+/// `moved` (read as the passes go), else its stored increments' too.
+fn segment_plan_of(
+    inputs: &NavInputs<'_>,
+    moved: bool,
+    block: usize,
+    fixes: &[ControlPointFix],
+) -> SegmentPlan {
+    let mut n = inputs.dt_s.len().min(inputs.dtheta_rad.len());
+    if !moved {
+        n = n.min(inputs.odo_dist_m.len());
+    }
+    SegmentPlan::new(n, block, fixes.iter().map(|f| f.sample))
 }
 
 /// Each distinct point's first fix (indices into `fixes`, ascending): a point the route
@@ -221,11 +261,22 @@ impl<'a> Problem<'a> {
     /// The segments of this problem's passes: blocks of F cut after the control points'
     /// samples, over the samples its odometer covers.
     fn segment_plan(&self) -> SegmentPlan {
-        let mut n = self.inputs.dt_s.len().min(self.inputs.dtheta_rad.len());
-        if self.moved_odometer.is_none() {
-            n = n.min(self.inputs.odo_dist_m.len());
-        }
-        SegmentPlan::new(n, self.lp.block, self.fixes.iter().map(|f| f.sample))
+        segment_plan_of(
+            &self.inputs,
+            self.moved_odometer.is_some(),
+            self.lp.block,
+            self.fixes,
+        )
+    }
+
+    /// This problem with its moved odometer's segments given (integrated beside other
+    /// work on its increments: [`ProblemSpec::moved_segment_plan`]'s).
+    pub fn with_moved_segments(self, segments: OdoSegments) -> Self {
+        *self
+            .moved_segments
+            .lock()
+            .unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(segments));
+        self
     }
 
     /// The IMU's segments, and this problem's odometer's (with its moving time when
@@ -306,15 +357,7 @@ impl<'a> Problem<'a> {
 
     /// Navigation settings of `x`.
     pub fn settings(&self, x: &X) -> NavSettings {
-        let mut s = self.base;
-        s.initial.heading_rad = x.azimuth_deg.to_radians();
-        s.drift_rad_s = x.drift_deg_h.map(|d| d * DEG_PER_H);
-        s.odo_scale = self.base.odo_scale * (1.0 + x.odo_ppm * 1e-6);
-        s.odo_yaw_rad = self.base.odo_yaw_rad + x.odo_yaw_deg.to_radians();
-        s.odo_bias_mps = self.base.odo_bias_mps + x.odo_bias_mps;
-        s.initial.pitch_rad -= x.tilt_mrad[0] * 1e-3;
-        s.initial.roll_rad -= x.tilt_mrad[1] * 1e-3;
-        s
+        settings_of(&self.base, x)
     }
 
     /// Kryt1 and Kryt2 of `x` (one exact pass).
