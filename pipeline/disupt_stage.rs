@@ -308,6 +308,16 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             ..spec
         };
         let joint_problem = joint_spec.on(joint_derived);
+        // The joint fit's hold-out (unless the exclusions' search left it): the last work
+        // on the segments, which are let go before the review passes (at 12 hours 50 MB
+        // beside the reviews' tracks).
+        let holdout = joint_run.map(|run| match found.holdout.take() {
+            Some(h) => Ok(h),
+            None => disupt::holdout(&joint_problem, &run.fit, &run.params),
+        });
+        case.derived.segments.clear();
+        joint_derived.segments.clear();
+        lap("hold-out");
 
         let start = case.settings.start();
         // One exact pass per method's settings, side by side (the joint's on its own
@@ -443,70 +453,68 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 )
             })
             .flatten();
-        // The methods' tracks and Kryt1 series are written and let go first, so that the
-        // hold-out's and the route σ's work never holds memory beside them.
+        // The methods' tracks and Kryt1 series are written beside the route's σ and the
+        // corrected navigation (which read none of them).
         let (tracks_path, kryt1s_path) = (dir.join(TRACKS), dir.join(KRYT1_SERIES));
-        let (tracks_written, kryt1s_written) = rayon::join(
-            || {
-                let d = &case.derived;
-                let t_ns: Vec<i64> = kept_samples
-                    .iter()
-                    .map(|&k| d.ns_of(d.t_s.get(k)))
-                    .collect();
-                write_tracks(&tracks_path, &t_ns, start, tracks)
-            },
-            move || write_kryt1_series(&kryt1s_path, &kryt1s),
-        );
-        tracks_written?;
-        kryt1s_written?;
-        lap("tables");
-        let mut route_sigma = None;
-        if let Some(Ok(run)) = &joint_result {
-            let mut out = method_out(&run.fit.result, &case.settings, run.lag, joint_cps);
-            // The hold-out's fits (unless the exclusions' search left them) and the route's
-            // σ are independent: side by side.
-            let (holdout, sigma) = rayon::join(
-                || match found.holdout.take() {
-                    Some(h) => Ok(h),
-                    None => disupt::holdout(&joint_problem, &run.fit, &run.params),
-                },
+        let write_tables = || -> anyhow::Result<()> {
+            let (tracks_written, kryt1s_written) = rayon::join(
                 || {
-                    route_base
-                        .as_ref()
-                        .and_then(|base| joint_route_sigma(&joint_problem, run, base))
+                    let d = &case.derived;
+                    let t_ns: Vec<i64> = kept_samples
+                        .iter()
+                        .map(|&k| d.ns_of(d.t_s.get(k)))
+                        .collect();
+                    write_tracks(&tracks_path, &t_ns, start, tracks)
                 },
+                move || write_kryt1_series(&kryt1s_path, &kryt1s),
             );
-            out.holdout = Some(holdout?);
-            out.exclusion_error = found.refit_error.take();
-            out.refused_with_all_points = found.refused_with_all.take();
-            out.lag_profile = run.profile.clone();
-            out.rebridged = run.rebridged;
-            methods.insert("joint".to_owned(), out);
-            route_sigma = sigma;
-        }
-        lap("hold-out and route sigma");
+            tracks_written?;
+            kryt1s_written?;
+            lap("tables");
+            Ok(())
+        };
         // The corrected navigation (the best method's, else the initial settings') written
-        // as its pass runs.
-        let fix_samples: Vec<usize> = case.fixes.iter().map(|f| f.sample).collect();
-        let mut nav = NavWriter::create(
-            &dir.join(files::CORRECTED_NAV),
-            &case.derived,
-            start,
-            route_sigma.as_ref(),
-            &fix_samples,
-        )?;
+        // as its pass runs, with the route's σ when the joint fit's it is.
         let settings = NavSettings {
             odo_pitch_rad: odo_pitch
                 .as_ref()
                 .map_or(pass.settings.odo_pitch_rad, |f| f.applied_rad()),
             ..pass.settings
         };
-        let mut odo_pitch = odo_pitch;
         if let Some(fit) = &odo_pitch {
             ctx.say("disupt", &odo_pitch_note(fit));
         }
-        strapdown::run(&pass.inputs, &settings, &mut nav);
-        let nav = nav.finish("corrected")?;
+        let write_corrected = || {
+            let route_sigma = joint_run.and_then(|run| {
+                route_base
+                    .as_ref()
+                    .and_then(|base| joint_route_sigma(&joint_problem, run, base))
+            });
+            lap("route sigma");
+            let fix_samples: Vec<usize> = case.fixes.iter().map(|f| f.sample).collect();
+            let mut nav = NavWriter::create(
+                &dir.join(files::CORRECTED_NAV),
+                &case.derived,
+                start,
+                route_sigma.as_ref(),
+                &fix_samples,
+            )?;
+            strapdown::run(&pass.inputs, &settings, &mut nav);
+            nav.finish("corrected")
+        };
+        let (tables, nav) = rayon::join(write_tables, write_corrected);
+        tables?;
+        let nav = nav?;
+        if let Some(Ok(run)) = &joint_result {
+            let mut out = method_out(&run.fit.result, &case.settings, run.lag, joint_cps);
+            out.holdout = holdout.transpose()?;
+            out.exclusion_error = found.refit_error.take();
+            out.refused_with_all_points = found.refused_with_all.take();
+            out.lag_profile = run.profile.clone();
+            out.rebridged = run.rebridged;
+            methods.insert("joint".to_owned(), out);
+        }
+        let mut odo_pitch = odo_pitch;
         if let Some(fit) = odo_pitch.as_mut().filter(|f| f.applied) {
             fit.measured(&disupt::height_errors_at(&case.fixes, |k| {
                 nav.at(k).map(|s| s.pose)

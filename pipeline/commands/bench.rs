@@ -229,7 +229,7 @@ fn bench_navigate(args: &BenchArgs) -> anyhow::Result<ExitCode> {
         );
         // The same over segments (what the methods run), and the segments' integration.
         use unz_stages::strapdown::run_criteria_segments;
-        use unz_stages::strapdown::segments::{SegmentPlan, integrate};
+        use unz_stages::strapdown::segments::{OdoColumns, SegmentPlan, integrate};
         let plan = SegmentPlan::new(n, lp.block, [n / 2]);
         let mut segments = None;
         let integrate_s = best_of(args.repeat * 4, || {
@@ -239,18 +239,24 @@ fn bench_navigate(args: &BenchArgs) -> anyhow::Result<ExitCode> {
                 &plan,
                 true,
                 &mut [inputs.odo_dist_m.iter().copied()],
-                false,
+                OdoColumns::read_by(&[case.settings]),
             ));
         });
         let (imu, odo) = segments.expect("integrated");
         let (imu, odo) = (imu.expect("the IMU's segments"), &odo[0]);
         let seg_one = best_of(args.repeat * 4, || {
             let [sink, ..] = &mut sinks;
-            run_criteria_segments(&imu, [odo], &[case.settings], std::array::from_mut(sink));
+            run_criteria_segments(
+                &imu,
+                [odo],
+                &[case.settings],
+                &[n / 2],
+                std::array::from_mut(sink),
+            );
             std::hint::black_box(&sinks);
         });
         let seg_four = best_of(args.repeat * 4, || {
-            run_criteria_segments(&imu, [odo; 4], &[case.settings; 4], &mut sinks);
+            run_criteria_segments(&imu, [odo; 4], &[case.settings; 4], &[n / 2], &mut sinks);
             std::hint::black_box(&sinks);
         });
         println!(

@@ -203,6 +203,8 @@ pub(super) fn run_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptEr
             joint_mark_arm: Some(true),
             ..run.params
         };
+        // As for the boresight's refit: the fit's derive is let go meanwhile.
+        let lag_derive = run.derived.take().map(|_| run.lag.lag_s);
         match run_joint_yaw_checked(JointInputs {
             dparams: &with_arm,
             ..x
@@ -220,6 +222,9 @@ pub(super) fn run_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptEr
                 }
             }
             Err(e) => check.refit_error = Some(e.to_string()),
+        }
+        if !check.refit {
+            run.derived = lag_derive.map(|lag_s| derive_at_lag(x.rederive, lag_s));
         }
     }
     run.mark_arm = Some(check);
@@ -252,6 +257,10 @@ fn run_joint_yaw_checked(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptE
             joint_odo_yaw: true,
             ..*dparams
         };
+        // The fit's derive at its lag is let go while the refit runs (its odometer's
+        // increments, 35 MB at 12 hours, beside the refit's own), and derived again
+        // should the refit fail.
+        let lag_derive = run.derived.take().map(|_| run.lag.lag_s);
         match fit_joint(JointInputs {
             dparams: &with_yaw,
             ..x
@@ -260,11 +269,20 @@ fn run_joint_yaw_checked(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptE
                 check.refit = true;
                 run = refit;
             }
-            Err(e) => check.refit_error = Some(e.to_string()),
+            Err(e) => {
+                check.refit_error = Some(e.to_string());
+                run.derived = lag_derive.map(|lag_s| derive_at_lag(x.rederive, lag_s));
+            }
         }
     }
     run.odo_yaw = Some(check);
     Ok(run)
+}
+
+/// The derive at the odometer lag `lag_s` a joint fit was fitted on
+/// ([`joint_with_lag`]'s, the same bit for bit).
+fn derive_at_lag(rederive: &Rederive<'_>, lag_s: f64) -> Derived {
+    rederive.at(lag_s).without_block_series()
 }
 
 /// `f` of the problem `run`'s fit was fitted on: the stage's, or the one on the derive at

@@ -118,8 +118,7 @@ impl BlockAttitude {
 
     /// Filters both series with F, in place: they become F(Φ_N) and F(Θ_N).
     fn filter(&mut self, lp: &LowPass) {
-        lp.filter_blocks(&mut self.pitch_rad);
-        lp.filter_blocks(&mut self.roll_rad);
+        lp.filter_blocks_each(&mut [&mut self.pitch_rad, &mut self.roll_rad]);
     }
 
     /// The filtered blocks' (Θ, Φ) at each epoch into `theta` and `phi`.

@@ -199,9 +199,9 @@ pub fn increments_in_range(dtheta_rad: [f64; 3], dvel_mps: [f64; 3], dt_s: f64) 
 }
 
 impl Derived {
-    /// This derive without its odometer's increments (left empty) — what a re-derive at
-    /// another odometer timing starts from, without copying the series it replaces. The
-    /// IMU's series and blocks are shared, the rest copied.
+    /// This derive without its odometer's part (its increments, block series and epochs
+    /// left empty) — what a re-derive at another odometer timing starts from and fills,
+    /// without copying the series it replaces. The IMU's series and blocks are shared.
     pub fn without_odometer_series(&self) -> Derived {
         Derived {
             t0_ns: self.t0_ns,
@@ -213,12 +213,12 @@ impl Derived {
             odo_dist_m: Vec::new(),
             ax_f: self.ax_f.clone(),
             ay_f: self.ay_f.clone(),
-            u_dot_f: self.u_dot_f.clone(),
-            ru_f: self.ru_f.clone(),
-            r_moving_f: self.r_moving_f.clone(),
-            moving_dot_f: self.moving_dot_f.clone(),
+            u_dot_f: Vec::new(),
+            ru_f: Vec::new(),
+            r_moving_f: Vec::new(),
+            moving_dot_f: Vec::new(),
             block: self.block,
-            epochs: self.epochs.clone(),
+            epochs: Epochs::default(),
             repaired_times: self.repaired_times,
             filled_gaps: self.filled_gaps,
             imu_failure_samples: self.imu_failure_samples,
@@ -227,6 +227,20 @@ impl Derived {
             axes_check: self.axes_check,
             segments: self.segments.for_other_odometer(),
         }
+    }
+
+    /// This derive without the odometer's block series (u̇, ru, r while moving, the rate
+    /// of change of "moving"): what passes over it read is its epochs, made of them.
+    pub fn without_block_series(mut self) -> Derived {
+        for v in [
+            &mut self.u_dot_f,
+            &mut self.ru_f,
+            &mut self.r_moving_f,
+            &mut self.moving_dot_f,
+        ] {
+            *v = Vec::new();
+        }
+        self
     }
 
     /// Yaw rate r of sample `k`, rad/s (body z gyro: the angle increment over the
@@ -712,18 +726,41 @@ pub struct OdometerBlocks<'d> {
     k: usize,
     /// u and "moving" of the sample before.
     prev: (f64, f64),
-    means: crate::filter::BlockMeans<4>,
+    /// u̇'s, unless left out.
+    u_dot: Option<crate::filter::BlockMeans<1>>,
+    /// ru's, r while moving's and the rate of change of "moving"'s.
+    rest: crate::filter::BlockMeans<3>,
 }
 
 impl<'d> OdometerBlocks<'d> {
     /// The blocks of `d`'s odometer part, from its IMU's intervals and yaw rates.
     pub fn new(d: &'d Derived, lp: &LowPass) -> Self {
         Self {
+            u_dot: Some(crate::filter::BlockMeans::new(
+                lp.block,
+                lp.blocks(d.t_s.len()),
+            )),
+            ..Self::new_empty(d, lp)
+        }
+    }
+
+    /// [`Self::new`] without u̇'s blocks (left empty: a re-derive takes the configured
+    /// derive's, moved in time).
+    pub fn without_u_dot(d: &'d Derived, lp: &LowPass) -> Self {
+        Self {
+            u_dot: None,
+            ..Self::new_empty(d, lp)
+        }
+    }
+
+    fn new_empty(d: &'d Derived, lp: &LowPass) -> Self {
+        Self {
             dt_s: &d.dt_s,
             dtheta_rad: &d.dtheta_rad,
             k: 0,
             prev: (0.0, 0.0),
-            means: crate::filter::BlockMeans::new(lp.block, lp.blocks(d.t_s.len())),
+            u_dot: None,
+            rest: crate::filter::BlockMeans::new(lp.block, lp.blocks(d.t_s.len())),
         }
     }
 
@@ -745,17 +782,23 @@ impl<'d> OdometerBlocks<'d> {
         };
         self.prev = (u_mps, moving);
         let r = dtheta[2] / dt;
-        self.means
-            .push([u_dot_mps2, r * u_mps, r * moving, moving_dot]);
+        if let Some(u_dot) = self.u_dot.as_mut() {
+            u_dot.push([u_dot_mps2]);
+        }
+        self.rest.push([r * u_mps, r * moving, moving_dot]);
     }
 
-    /// F(u̇), F(ru), F(r while moving) and F(d moving/dt) per block.
+    /// F(u̇) (empty when left out), F(ru), F(r while moving) and F(d moving/dt) per
+    /// block.
     pub fn finish(self, lp: &LowPass) -> [Vec<f64>; 4] {
-        let mut means = self.means.finish();
-        for m in &mut means {
-            lp.filter_blocks(m);
+        let [mut u_dot] = self.u_dot.map_or_else(|| [Vec::new()], |m| m.finish());
+        let [mut ru, mut r_moving, mut moving_dot] = self.rest.finish();
+        let mut series: Vec<&mut [f64]> = vec![&mut ru, &mut r_moving, &mut moving_dot];
+        if !u_dot.is_empty() {
+            series.insert(0, &mut u_dot);
         }
-        means
+        lp.filter_blocks_each(&mut series);
+        [u_dot, ru, r_moving, moving_dot]
     }
 }
 

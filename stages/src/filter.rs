@@ -37,6 +37,56 @@ impl Biquad {
         self.pass(x.iter_mut().rev());
     }
 
+    /// [`Self::filtfilt`] of each of `xs`, side by side in fours where their lengths
+    /// agree: the recursions of four series overlap in the CPU where one alone waits on
+    /// its own (the same operations on each series: bit for bit each alone).
+    pub fn filtfilt_each(&self, xs: &mut [&mut [f64]]) {
+        let mut rest = xs;
+        while !rest.is_empty() {
+            let len = rest[0].len();
+            let same = rest.iter().take(4).take_while(|x| x.len() == len).count();
+            let (group, tail) = rest.split_at_mut(same);
+            match group {
+                [a, b, c, d] => self.filtfilt_together([&mut **a, &mut **b, &mut **c, &mut **d]),
+                [a, b, c] => self.filtfilt_together([&mut **a, &mut **b, &mut **c]),
+                [a, b] => self.filtfilt_together([&mut **a, &mut **b]),
+                [a] => self.filtfilt(a),
+                _ => unreachable!("one to four series at a time"),
+            }
+            rest = tail;
+        }
+    }
+
+    /// [`Self::filtfilt`] of `K` series of one length, step by step together.
+    fn filtfilt_together<const K: usize>(&self, mut xs: [&mut [f64]; K]) {
+        let n = xs[0].len();
+        if n == 0 {
+            return;
+        }
+        let [b0, b1, b2] = self.b;
+        let [a0, a1] = self.a;
+        let step = |xs: &mut [&mut [f64]; K], order: &mut dyn Iterator<Item = usize>| {
+            // x1, x2, y1, y2 of each series, from steady state on its first value.
+            let mut state = [[0.0; 4]; K];
+            let mut first = true;
+            for i in order {
+                for (x, st) in xs.iter_mut().zip(state.iter_mut()) {
+                    let v = x[i];
+                    if first {
+                        *st = [v; 4];
+                    }
+                    let [x1, x2, y1, y2] = *st;
+                    let y = b0 * v + b1 * x1 + b2 * x2 - a0 * y1 - a1 * y2;
+                    *st = [v, x1, y, y1];
+                    x[i] = y;
+                }
+                first = false;
+            }
+        };
+        step(&mut xs, &mut (0..n));
+        step(&mut xs, &mut (0..n).rev());
+    }
+
     fn pass<'a>(&self, xs: impl Iterator<Item = &'a mut f64>) {
         let mut state: Option<(f64, f64, f64, f64)> = None; // x1, x2, y1, y2
         for x in xs {
@@ -121,6 +171,12 @@ impl LowPass {
     pub fn filter_blocks(&self, blocks: &mut [f64]) {
         self.biquad.filtfilt(blocks);
     }
+
+    /// [`Self::filter_blocks`] of each of `series`, several side by side (bit for bit each
+    /// alone: [`Biquad::filtfilt_each`]).
+    pub fn filter_blocks_each(&self, series: &mut [&mut [f64]]) {
+        self.biquad.filtfilt_each(series);
+    }
 }
 
 /// Block means of `N` series whose values come together, taken as they come: running
@@ -192,6 +248,28 @@ mod tests {
             let t_mid = (j as f64 * 10.0 + 4.5) * 0.01;
             let want = 3.0 + (t_mid * 0.02 * std::f64::consts::TAU).sin();
             assert!((v - want).abs() < 2e-3, "block {j}: {v} vs {want}");
+        }
+    }
+
+    #[test]
+    fn series_filtered_side_by_side_are_each_alone_bit_for_bit() {
+        let lp = LowPass::new(&FilterParams::default(), 0.01);
+        let series: Vec<Vec<f64>> = (0..7)
+            .map(|s| {
+                let n = if s == 5 { 900 } else { 1000 };
+                (0..n)
+                    .map(|k| ((k * (s + 3)) as f64 * 0.013).sin() + 0.1 * s as f64)
+                    .collect()
+            })
+            .collect();
+        let mut together = series.clone();
+        let mut refs: Vec<&mut [f64]> = together.iter_mut().map(|v| v.as_mut_slice()).collect();
+        lp.filter_blocks_each(&mut refs);
+        for (alone, got) in series.into_iter().zip(&together) {
+            let mut alone = alone;
+            lp.filter_blocks(&mut alone);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&alone), bits(got));
         }
     }
 

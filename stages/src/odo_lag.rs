@@ -34,7 +34,7 @@ use std::sync::OnceLock;
 
 use crate::derive::{
     DeriveParams, Derived, MovedOdometer, OdoTimes, OdometerBlocks, RawSeries, derive, epochs_of,
-    odometer_blocks_of, shifted_blocks,
+    shifted_blocks,
 };
 use crate::disupt::{
     DisuptError, DisuptParams, JointFit, JointOptions, Problem, ProblemSpec, joint_fit,
@@ -43,7 +43,7 @@ use crate::disupt::{
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, Setting};
 use crate::odo_rebridge::Rebridges;
-use crate::strapdown::segments::{OdoSegments, SegmentPlan, integrate};
+use crate::strapdown::segments::{OdoColumns, OdoSegments, SegmentPlan, integrate};
 
 /// Half-width of the parabolas around the current vertex (and of the curvature), s.
 const CURVATURE_STEP_S: f64 = 0.05;
@@ -186,67 +186,63 @@ impl<'a> Rederive<'a> {
     /// [`Rederive::at`] without the odometer's increments (left empty): they are read
     /// from the returned odometer as a pass goes.
     pub fn at_moved(&self, lag_s: f64) -> (Derived, MovedOdometer<'_>) {
+        let odometer = self.odometer_at(lag_s);
+        (self.moved_derive(lag_s, &odometer), odometer)
+    }
+
+    /// The derive at `lag_s` (its block series and epochs) of `odometer`, the odometer
+    /// `lag_s` later: [`Rederive::at_moved`]'s.
+    fn moved_derive(&self, lag_s: f64, odometer: &MovedOdometer<'_>) -> Derived {
         let base = self.configured();
-        // The IMU's part is the configured derive's; the odometer's is derived anew.
+        // The IMU's part is the configured derive's; the odometer's is derived anew, but
+        // for u̇'s blocks: the configured derive's, moved in time.
         let mut d = base.without_odometer_series();
         let lp = LowPass::new(&self.params.filter, d.nominal_dt_s);
-        let odometer = self.odometer_at(lag_s);
-        odometer_blocks_of(&mut d, odometer.increments(), &lp);
+        let mut blocks = OdometerBlocks::without_u_dot(base, &lp);
+        for dd in odometer.increments().take(base.t_s.len()) {
+            blocks.push(dd);
+        }
+        [d.u_dot_f, d.ru_f, d.r_moving_f, d.moving_dot_f] = blocks.finish(&lp);
         let block_s = lp.block as f64 * d.nominal_dt_s;
         d.u_dot_f = shifted_blocks(&base.u_dot_f, block_s, lag_s);
         d.epochs = epochs_of(&d, &lp, &self.params, self.g_mps2);
-        (d, odometer)
+        d
     }
 
-    /// [`Rederive::at_moved`] at each of `lags`, with each odometer's segments over `plan`
-    /// (its moving time too when `moving`): each odometer's increments are read once for
-    /// both, all of them in one walk over the IMU's samples.
+    /// [`Rederive::at_moved`] at each of `lags` but for its block series (a trial's
+    /// problem reads the epochs they make; 14 MB a trial at 12 hours, taken and let go
+    /// trial by trial), with each odometer's segments over `plan` (the sums `columns` asks
+    /// for), all of them in one walk over the IMU's samples.
     pub fn at_moved_with_segments(
         &self,
         lags: &[f64],
         plan: &SegmentPlan,
-        moving: bool,
+        columns: OdoColumns,
     ) -> Vec<(Derived, MovedOdometer<'_>, OdoSegments)> {
         let base = self.configured();
-        let lp = LowPass::new(&self.params.filter, base.nominal_dt_s);
-        let odometers: Vec<MovedOdometer<'_>> =
-            lags.iter().map(|&lag| self.odometer_at(lag)).collect();
-        let mut blocks: Vec<OdometerBlocks<'_>> = lags
+        let (derives, odometers): (Vec<Derived>, Vec<MovedOdometer<'_>>) = lags
             .iter()
-            .map(|_| OdometerBlocks::new(base, &lp))
-            .collect();
-        let mut increments: Vec<_> = odometers
-            .iter()
-            .zip(blocks.iter_mut())
-            .map(|(odometer, blocks)| odometer.increments().inspect(move |&dd| blocks.push(dd)))
-            .collect();
+            .map(|&lag_s| {
+                let odometer = self.odometer_at(lag_s);
+                let d = self.moved_derive(lag_s, &odometer).without_block_series();
+                (d, odometer)
+            })
+            .unzip();
+        let mut increments: Vec<_> = odometers.iter().map(|o| o.increments()).collect();
         let (_, segments) = integrate(
             &base.dt_s,
             &base.dtheta_rad,
             plan,
             false,
             &mut increments,
-            moving,
+            columns,
         );
-        // The derive's samples past the plan's, if any, for its blocks.
-        for increments in &mut increments {
-            increments
-                .take(base.t_s.len().saturating_sub(plan.samples))
-                .for_each(drop);
-        }
         drop(increments);
-        let block_s = lp.block as f64 * base.nominal_dt_s;
-        lags.iter()
-            .zip(blocks)
+        derives
+            .into_iter()
             .zip(odometers)
             .zip(segments)
-            .map(|(((&lag_s, blocks), odometer), segments)| {
-                let mut d = base.without_odometer_series();
-                [d.u_dot_f, d.ru_f, d.r_moving_f, d.moving_dot_f] = blocks.finish(&lp);
-                d.u_dot_f = shifted_blocks(&base.u_dot_f, block_s, lag_s);
-                d.epochs = epochs_of(&d, &lp, &self.params, self.g_mps2);
-                (d, odometer, segments)
-            })
+            .map(|((d, odometer), segments)| (d, odometer, segments))
             .collect()
     }
 
@@ -291,30 +287,20 @@ impl Profile<'_> {
                 new.push(lag);
             }
         }
-        // Each trial's odometer increments are read once, for its blocks and segments
-        // (all the trials' in one walk), not stored.
+        // Each trial's odometer increments are read as they are needed, not stored: for
+        // its blocks, then for its segments (all the trials' in one walk).
         let warm = self.fit0.linearization();
         let x = x_of(&warm.p_ref);
-        let moving = self.spec.settings_of(&x).odo_bias_mps != 0.0;
+        let columns = OdoColumns::read_by(&[self.spec.settings_of(&x)]);
         let plan = self.spec.moved_segment_plan(self.rederive.configured());
         let (derives, segments): (Vec<(Derived, MovedOdometer<'_>)>, Vec<OdoSegments>) = self
             .rederive
-            .at_moved_with_segments(&new, &plan, moving)
+            .at_moved_with_segments(&new, &plan, columns)
             .into_iter()
             .map(|(mut d, odometer, segments)| {
                 // The same epochs at every trial: the gate moves with the lag, and an
                 // epoch entering or leaving would make the costs incomparable.
                 d.epochs.valid.clone_from(&self.valid);
-                // A trial's problem reads its epochs, not the block series they were
-                // made of: those go now (the run's length per series).
-                for v in [
-                    &mut d.u_dot_f,
-                    &mut d.ru_f,
-                    &mut d.r_moving_f,
-                    &mut d.moving_dot_f,
-                ] {
-                    *v = Vec::new();
-                }
                 ((d, odometer), segments)
             })
             .unzip();
@@ -407,7 +393,8 @@ pub fn joint_with_lag(
         // The next parabola about the vertex: its three trials side by side.
         points = [lag_s - CURVATURE_STEP_S, lag_s, lag_s + CURVATURE_STEP_S];
     }
-    let derived = rederive.at(lag_s);
+    // The fit and the passes after it read the derive's epochs, not its block series.
+    let derived = rederive.at(lag_s).without_block_series();
     let mut fit = joint_fit(
         &spec.on(&derived),
         params,

@@ -334,14 +334,18 @@ fn passes_over_segments_agree_with_passes_sample_by_sample() {
         &plan,
         true,
         &mut [inputs.odo_dist_m.iter().copied()],
-        true,
+        unz_stages::strapdown::segments::OdoColumns {
+            yaw: true,
+            pitch: true,
+            moving: true,
+        },
     );
     let (imu, odo) = (imu.unwrap(), &odo[0]);
     for (v, s) in variants.iter().enumerate() {
         let mut exact = [CriteriaSink::default()];
         run_criteria(&inputs, &[*s], block, &reports, &mut exact);
         let mut fast = [CriteriaSink::default()];
-        run_criteria_segments(&imu, [odo], &[*s], &mut fast);
+        run_criteria_segments(&imu, [odo], &[*s], &reports, &mut fast);
         let (e, f) = (&exact[0], &fast[0]);
         assert_eq!(e.blocks.len(), f.blocks.len());
         let worst_att = e

@@ -12,7 +12,9 @@ use crate::criteria::{self, ControlPointFix, KalmanParams, Kryt2};
 use crate::derive::{Epochs, MovedOdometer, OdoIncrements};
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
-use crate::strapdown::segments::{ImuSegments, OdoSegments, SegmentMemo, SegmentPlan, integrate};
+use crate::strapdown::segments::{
+    ImuSegments, OdoColumns, OdoSegments, SegmentMemo, SegmentPlan, integrate,
+};
 use crate::strapdown::{self, CriteriaSink, LaneBatch, NavInputs, NavSettings, in_lanes};
 use crate::units::DEG_PER_H;
 
@@ -200,8 +202,10 @@ impl Evaluation {
     }
 }
 
-/// Most passes stepped side by side in vector lanes by [`Problem::observe_many_by`].
-pub const LANES: usize = strapdown::MAX_LANES;
+/// Most passes stepped side by side in vector lanes by [`Problem::observe_many_by`]: one
+/// AVX2 register's four (a segment pass keeps its blocks, 6.9 MB a lane at 12 hours, while
+/// its batch runs: eight lanes on each of two threads held 55 MB more).
+pub const LANES: usize = 4;
 
 impl<'a> Problem<'a> {
     /// A problem around `base`.
@@ -279,17 +283,17 @@ impl<'a> Problem<'a> {
         self
     }
 
-    /// The IMU's segments, and this problem's odometer's (with its moving time when
-    /// `moving`), integrated on first use: the derive's own through its memo, a moved
-    /// odometer's here.
-    fn segments_of(&self, moving: bool) -> (Arc<ImuSegments>, Arc<OdoSegments>) {
+    /// The IMU's segments, and this problem's odometer's (with at least `columns`),
+    /// integrated on first use: the derive's own through its memo, a moved odometer's
+    /// here.
+    fn segments_of(&self, columns: OdoColumns) -> (Arc<ImuSegments>, Arc<OdoSegments>) {
         let plan = self.segment_plan();
         let stored = self.moved_odometer.is_none();
-        let (imu, odo) = self.segments.segments(&self.inputs, &plan, stored, moving);
+        let (imu, odo) = self.segments.segments(&self.inputs, &plan, stored, columns);
         if let Some(odo) = odo {
             return (imu, odo);
         }
-        ensure_moved_segments(&[self], moving);
+        ensure_moved_segments(&[self], columns);
         let odo = self
             .moved_segments
             .lock()
@@ -568,10 +572,11 @@ impl LaneBatch for OnDerives<'_, '_> {
 
     fn run<const N: usize>(&mut self, points: [usize; N]) -> [Observation; N] {
         let settings = points.map(|i| self.problem(i).settings(&self.xs[i]));
-        // A speed bias reads the odometers' moving time.
-        let moving = settings.iter().any(|s| s.odo_bias_mps != 0.0);
-        ensure_moved_segments(self.problems, moving);
-        let segments = points.map(|i| self.problem(i).segments_of(moving));
+        // The odometers' sums the passes read (boresights, a speed bias).
+        let columns = OdoColumns::read_by(&settings);
+        ensure_moved_segments(self.problems, columns);
+        let segments = points.map(|i| self.problem(i).segments_of(columns));
+        let at: Vec<usize> = self.problems[0].fixes.iter().map(|f| f.sample).collect();
         // The sinks live for this batch only: each holds its pass's blocks (a run's
         // length), so none is kept once the observations are taken.
         let mut sinks: [CriteriaSink; N] = std::array::from_fn(|_| CriteriaSink::default());
@@ -579,6 +584,7 @@ impl LaneBatch for OnDerives<'_, '_> {
             &segments[0].0,
             std::array::from_fn(|l| &*segments[l].1),
             &settings,
+            &at,
             &mut sinks,
         );
         let mut sinks = sinks.into_iter();
@@ -591,8 +597,8 @@ impl LaneBatch for OnDerives<'_, '_> {
 }
 
 /// Integrates the moved odometers of `problems` that have no segments yet (or none with
-/// the moving time, when `moving`), in one walk over the IMU's samples for all of them.
-fn ensure_moved_segments(problems: &[&Problem<'_>], moving: bool) {
+/// `columns`), in one walk over the IMU's samples for all of them.
+fn ensure_moved_segments(problems: &[&Problem<'_>], columns: OdoColumns) {
     let lacking = |p: &&&Problem<'_>| {
         p.moved_odometer.is_some()
             && !p
@@ -600,7 +606,7 @@ fn ensure_moved_segments(problems: &[&Problem<'_>], moving: bool) {
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .as_ref()
-                .is_some_and(|s| s.has_moving() || !moving)
+                .is_some_and(|s| s.columns.cover(&columns))
     };
     let mut todo: Vec<&&Problem<'_>> = problems.iter().filter(lacking).collect();
     // A problem given twice is integrated once.
@@ -617,7 +623,7 @@ fn ensure_moved_segments(problems: &[&Problem<'_>], moving: bool) {
         &plan,
         false,
         &mut odometers,
-        moving,
+        columns,
     );
     for (p, segs) in todo.iter().zip(odo) {
         *p.moved_segments.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(segs));

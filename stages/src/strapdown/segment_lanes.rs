@@ -30,7 +30,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::lanes::LatTerms;
-use super::segments::{ImuSegment, ImuSegments, OdoSegment, OdoSegments, qmul, turns};
+use super::segments::{ImuSegment, ImuSegments, OdoColumns, OdoSegments, OdoSums, qmul, turns};
 use super::{CriteriaSink, NavSettings, dcm_rows};
 use crate::criteria::FixPose;
 use crate::earth::{A_M, E2, OMEGA_IE_RAD_S};
@@ -192,16 +192,15 @@ impl<const N: usize> SegmentLanes<N> {
         lanes
     }
 
-    /// Advances every lane over one segment; `BORESIGHT` is whether any lane has an
-    /// odometer boresight, `BIAS` whether any has a speed bias (then `mov` is read).
+    /// Advances every lane over one segment, with its odometer sums `sums`; `BORESIGHT`
+    /// is whether any lane has an odometer boresight, `BIAS` whether any has a speed bias.
     /// Written as a few loops over the lanes, each straight-line arithmetic over
     /// `[f64; N]`, so that they run in vector registers.
     #[inline(always)]
     fn step<const BORESIGHT: bool, const BIAS: bool>(
         &mut self,
         seg: &ImuSegment,
-        odo: [&OdoSegment; N],
-        mov: [&OdoSegment; N],
+        sums: &LaneSums<N>,
         update_terms: bool,
     ) {
         if update_terms {
@@ -212,47 +211,39 @@ impl<const N: usize> SegmentLanes<N> {
         let m = seg.m.map(f64::from);
 
         // Each lane's odometer sums along its direction of travel (u), and the third
-        // column's (w3) for the pitch boresight: κ s + β s_mov.
+        // column's (w3) for the pitch boresight: κ S + β S_mov.
         let mut u = [[0.0; N]; 3];
         let mut w3 = [[0.0; N]; 3];
         let mut ds = [0.0; N];
         for l in 0..N {
-            let (o, k) = (&odo[l].s, self.odo_scale[l]);
+            let k = self.odo_scale[l];
             let (sc, ss) = (self.odo_cos[l], self.odo_sin[l]);
             for i in 0..3 {
-                let (x, y, z) = (
-                    f64::from(o[3 * i]),
-                    f64::from(o[3 * i + 1]),
-                    f64::from(o[3 * i + 2]),
-                );
+                let (x, y) = (sums.x[i][l], sums.y[i][l]);
                 u[i][l] = if BORESIGHT {
                     k * (x * sc + y * ss)
                 } else {
                     k * x
                 };
                 if BORESIGHT {
-                    w3[i][l] = k * z;
+                    w3[i][l] = k * sums.z[i][l];
                 }
             }
-            ds[l] = k * f64::from(odo[l].dist);
+            ds[l] = k * sums.x[3][l];
             if BIAS {
-                let (o, b) = (&mov[l].s, self.odo_bias_mps[l]);
+                let b = self.odo_bias_mps[l];
                 for i in 0..3 {
-                    let (x, y, z) = (
-                        f64::from(o[3 * i]),
-                        f64::from(o[3 * i + 1]),
-                        f64::from(o[3 * i + 2]),
-                    );
+                    let (x, y) = (sums.mx[i][l], sums.my[i][l]);
                     u[i][l] += if BORESIGHT {
                         b * (x * sc + y * ss)
                     } else {
                         b * x
                     };
                     if BORESIGHT {
-                        w3[i][l] += b * z;
+                        w3[i][l] += b * sums.mz[i][l];
                     }
                 }
-                ds[l] += b * f64::from(mov[l].dist);
+                ds[l] += b * sums.mx[3][l];
             }
         }
 
@@ -357,16 +348,23 @@ impl<const N: usize> SegmentLanes<N> {
         [self.q[0][l], self.q[1][l], self.q[2][l], self.q[3][l]]
     }
 
-    /// Steps every lane over all segments, handing each sink its blocks and reported
-    /// states. On x86-64 CPUs with AVX2 the loop runs in its vector registers.
-    fn run(self, imu: &ImuSegments, odometers: [&OdoSegments; N], sinks: &mut [CriteriaSink; N]) {
+    /// Steps every lane over all segments, handing `emit` the blocks and the states
+    /// after the samples `reports` (increasing, each a segment's last). On x86-64 CPUs
+    /// with AVX2 the loop runs in its vector registers.
+    fn run(
+        self,
+        imu: &ImuSegments,
+        odometers: [&OdoSegments; N],
+        reports: &[usize],
+        emit: &mut impl SegmentEmit<N>,
+    ) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             #[allow(unsafe_code)]
             // SAFETY: `run_avx2` only needs AVX2, and this CPU has it (checked above).
-            return unsafe { self.run_avx2(imu, odometers, sinks) };
+            return unsafe { self.run_avx2(imu, odometers, reports, emit) };
         }
-        self.run_portable(imu, odometers, sinks)
+        self.run_portable(imu, odometers, reports, emit)
     }
 
     /// [`Self::run_portable`] compiled for AVX2.
@@ -376,9 +374,10 @@ impl<const N: usize> SegmentLanes<N> {
         self,
         imu: &ImuSegments,
         odometers: [&OdoSegments; N],
-        sinks: &mut [CriteriaSink; N],
+        reports: &[usize],
+        emit: &mut impl SegmentEmit<N>,
     ) {
-        self.run_portable(imu, odometers, sinks)
+        self.run_portable(imu, odometers, reports, emit)
     }
 
     #[inline(always)]
@@ -386,15 +385,16 @@ impl<const N: usize> SegmentLanes<N> {
         self,
         imu: &ImuSegments,
         odometers: [&OdoSegments; N],
-        sinks: &mut [CriteriaSink; N],
+        reports: &[usize],
+        emit: &mut impl SegmentEmit<N>,
     ) {
         let boresight = (0..N).any(|l| self.odo_sin[l] != 0.0 || self.odo_tan_pitch[l] != 0.0);
         let bias = (0..N).any(|l| self.odo_bias_mps[l] != 0.0);
         match (boresight, bias) {
-            (false, false) => self.run_with::<false, false>(imu, odometers, sinks),
-            (true, false) => self.run_with::<true, false>(imu, odometers, sinks),
-            (false, true) => self.run_with::<false, true>(imu, odometers, sinks),
-            (true, true) => self.run_with::<true, true>(imu, odometers, sinks),
+            (false, false) => self.run_with::<false, false>(imu, odometers, reports, emit),
+            (true, false) => self.run_with::<true, false>(imu, odometers, reports, emit),
+            (false, true) => self.run_with::<false, true>(imu, odometers, reports, emit),
+            (true, true) => self.run_with::<true, true>(imu, odometers, reports, emit),
         }
     }
 
@@ -403,47 +403,164 @@ impl<const N: usize> SegmentLanes<N> {
         mut self,
         imu: &ImuSegments,
         odometers: [&OdoSegments; N],
-        sinks: &mut [CriteriaSink; N],
+        reports: &[usize],
+        emit: &mut impl SegmentEmit<N>,
     ) {
-        let moving: [&[OdoSegment]; N] = std::array::from_fn(|l| {
+        let distance: [&OdoSums; N] = std::array::from_fn(|l| &odometers[l].distance);
+        let moving: [&OdoSums; N] = std::array::from_fn(|l| {
             if BIAS {
                 odometers[l]
                     .moving
-                    .as_deref()
-                    .expect("a speed bias needs the odometer's moving time")
+                    .as_ref()
+                    .expect("a speed bias reads the odometer's moving time")
             } else {
-                &odometers[l].segments[..]
+                &odometers[l].distance
             }
         });
-        let mut angles = BlockAngles::new();
-        for (i, (seg, end)) in imu.segments.iter().zip(&imu.ends).enumerate() {
-            let odo = std::array::from_fn(|l| &odometers[l].segments[i]);
-            let mov = std::array::from_fn(|l| &moving[l][i]);
-            self.step::<BORESIGHT, BIAS>(seg, odo, mov, i % LAT_UPDATE_EVERY == 0);
-            if i % RENORMALISE_EVERY == RENORMALISE_EVERY - 1 || end.report {
+        let mut sums = LaneSums::ZERO;
+        let mut next_report = reports.iter().peekable();
+        for (i, (seg, end)) in imu.segments.iter().zip(imu.plan.ends()).enumerate() {
+            sums.gather::<BORESIGHT, BIAS>(i, &distance, &moving);
+            self.step::<BORESIGHT, BIAS>(seg, &sums, i % LAT_UPDATE_EVERY == 0);
+            let report = next_report.next_if(|&&k| k + 1 == end.end).is_some();
+            if i % RENORMALISE_EVERY == RENORMALISE_EVERY - 1 || report {
                 self.renormalise();
             }
             if end.closes_block {
-                angles.push(&self.acc, sinks);
+                emit.block(&self.acc);
                 self.acc = [[0.0; N]; 3];
             }
-            if end.report {
-                for (l, sink) in sinks.iter_mut().enumerate() {
-                    sink.wanted.pop();
-                    sink.positions.push((
-                        end.end - 1,
-                        FixPose {
-                            lat_rad: self.lat_rad[l],
-                            lon_rad: self.lon_rad[l],
-                            h_m: self.h_m[l],
-                            distance_m: self.distance_m[l],
-                            q_b_to_n: self.q_of(l),
-                        },
-                    ));
+            if report {
+                emit.report(end.end - 1, &self);
+            }
+        }
+        emit.finish();
+    }
+
+    /// Lane `l`'s pose.
+    #[inline(always)]
+    fn pose(&self, l: usize) -> FixPose {
+        FixPose {
+            lat_rad: self.lat_rad[l],
+            lon_rad: self.lon_rad[l],
+            h_m: self.h_m[l],
+            distance_m: self.distance_m[l],
+            q_b_to_n: self.q_of(l),
+        }
+    }
+}
+
+/// Each lane's odometer sums over one segment, as [`SegmentLanes::step`] reads them.
+struct LaneSums<const N: usize> {
+    /// `S`'s first column and the distance.
+    x: [[f64; N]; 4],
+    /// `S`'s second column (zero where not integrated).
+    y: [[f64; N]; 3],
+    /// `S`'s third column (zero where not integrated).
+    z: [[f64; N]; 3],
+    /// The same over the moving time.
+    mx: [[f64; N]; 4],
+    my: [[f64; N]; 3],
+    mz: [[f64; N]; 3],
+}
+
+impl<const N: usize> LaneSums<N> {
+    const ZERO: Self = Self {
+        x: [[0.0; N]; 4],
+        y: [[0.0; N]; 3],
+        z: [[0.0; N]; 3],
+        mx: [[0.0; N]; 4],
+        my: [[0.0; N]; 3],
+        mz: [[0.0; N]; 3],
+    };
+
+    /// Segment `i`'s sums of each lane's odometer: the columns the step reads (a
+    /// column an odometer lacks is read as zero, as its lane's settings never weigh it).
+    #[inline(always)]
+    fn gather<const BORESIGHT: bool, const BIAS: bool>(
+        &mut self,
+        i: usize,
+        distance: &[&OdoSums; N],
+        moving: &[&OdoSums; N],
+    ) {
+        fn read<const N: usize>(
+            sums: &OdoSums,
+            i: usize,
+            l: usize,
+            x: &mut [[f64; N]; 4],
+            y: &mut [[f64; N]; 3],
+            z: &mut [[f64; N]; 3],
+            boresight: bool,
+        ) {
+            let c = sums.x[i];
+            for r in 0..4 {
+                x[r][l] = f64::from(c[r]);
+            }
+            if boresight {
+                let cy = sums.y.get(i).copied().unwrap_or_default();
+                let cz = sums.z.get(i).copied().unwrap_or_default();
+                for r in 0..3 {
+                    y[r][l] = f64::from(cy[r]);
+                    z[r][l] = f64::from(cz[r]);
                 }
             }
         }
-        angles.flush(sinks);
+        for l in 0..N {
+            read(
+                distance[l],
+                i,
+                l,
+                &mut self.x,
+                &mut self.y,
+                &mut self.z,
+                BORESIGHT,
+            );
+            if BIAS {
+                read(
+                    moving[l],
+                    i,
+                    l,
+                    &mut self.mx,
+                    &mut self.my,
+                    &mut self.mz,
+                    BORESIGHT,
+                );
+            }
+        }
+    }
+}
+
+/// What a run over segments does with the lanes' blocks and reported states.
+trait SegmentEmit<const N: usize> {
+    /// A block of F closed: each lane's sum of `C_b^n`'s third row over it.
+    fn block(&mut self, row3: &[[f64; N]; 3]);
+    /// The lanes' states after sample `k`.
+    fn report(&mut self, k: usize, lanes: &SegmentLanes<N>);
+    /// The run ended.
+    fn finish(&mut self);
+}
+
+/// What the criteria read, into each lane's sink.
+struct CriteriaEmit<'s, const N: usize> {
+    angles: BlockAngles<N>,
+    sinks: &'s mut [CriteriaSink; N],
+}
+
+impl<const N: usize> SegmentEmit<N> for CriteriaEmit<'_, N> {
+    #[inline(always)]
+    fn block(&mut self, row3: &[[f64; N]; 3]) {
+        self.angles.push(row3, self.sinks);
+    }
+
+    fn report(&mut self, k: usize, lanes: &SegmentLanes<N>) {
+        for (l, sink) in self.sinks.iter_mut().enumerate() {
+            sink.wanted.pop();
+            sink.positions.push((k, lanes.pose(l)));
+        }
+    }
+
+    fn finish(&mut self) {
+        self.angles.flush(self.sinks);
     }
 }
 
@@ -507,35 +624,62 @@ impl<const N: usize> BlockAngles<N> {
 }
 
 /// Runs `N` passes side by side over a run's segments (`imu`, and each lane's odometer
-/// `odometers[l]` over the same segments, with its moving time when a lane has a speed
-/// bias) into `sinks`, each reset first: the blocks of F's sums of `C_b^n`'s third row
-/// and the states after the plan's reported samples, what [`super::run_criteria`] gives
-/// to within what the criteria resolve (the module's documentation), at a tenth of its
-/// cost.
+/// `odometers[l]` over the same segments, with the columns its lane's settings read)
+/// into `sinks`, each reset first: the blocks of F's sums of `C_b^n`'s third row and the
+/// states after the samples `reports` (each a segment's last; any order, repeats left
+/// out), what [`super::run_criteria`] gives to within what the criteria resolve (the
+/// module's documentation), at a tenth of its cost.
 ///
 /// # Panics
-/// If an odometer has another number of segments than `imu`, or a lane has a speed bias
-/// and an odometer no moving time.
+/// If an odometer has another number of segments than `imu` or lacks a column its lane
+/// reads ([`OdoColumns::read_by`]), or a report is not a segment's last sample.
 pub fn run_criteria_segments<const N: usize>(
     imu: &ImuSegments,
     odometers: [&OdoSegments; N],
     settings: &[NavSettings; N],
+    reports: &[usize],
     sinks: &mut [CriteriaSink; N],
 ) {
-    assert!(
-        odometers
-            .iter()
-            .all(|o| o.segments.len() == imu.segments.len()),
-        "odometer segments of another plan"
-    );
+    check_odometers(imu, &odometers, settings);
     for sink in sinks.iter_mut() {
-        sink.reset(
-            imu.plan.samples,
-            imu.plan.block,
-            imu.plan.reports.iter().copied(),
+        sink.reset(imu.plan.samples, imu.plan.block, reports.iter().copied());
+    }
+    let mut reports: Vec<usize> = reports
+        .iter()
+        .copied()
+        .filter(|&k| k < imu.plan.samples)
+        .collect();
+    reports.sort_unstable();
+    reports.dedup();
+    assert!(
+        reports.iter().all(|&k| imu.plan.ends_after(k)),
+        "a report within a segment"
+    );
+    let mut emit = CriteriaEmit {
+        angles: BlockAngles::new(),
+        sinks,
+    };
+    SegmentLanes::new(settings).run(imu, odometers, &reports, &mut emit);
+}
+
+/// Panics unless every odometer has `imu`'s segments and the columns its lane reads.
+fn check_odometers<const N: usize>(
+    imu: &ImuSegments,
+    odometers: &[&OdoSegments; N],
+    settings: &[NavSettings; N],
+) {
+    for (o, s) in odometers.iter().zip(settings) {
+        assert_eq!(
+            o.distance.x.len(),
+            imu.segments.len(),
+            "odometer segments of another plan"
+        );
+        assert!(
+            o.columns
+                .cover(&OdoColumns::read_by(std::slice::from_ref(s))),
+            "an odometer without the columns its pass reads"
         );
     }
-    SegmentLanes::new(settings).run(imu, odometers, sinks);
 }
 
 #[cfg(test)]
@@ -584,28 +728,45 @@ mod tests {
     #[test]
     fn a_batch_of_segment_lanes_is_each_pass_alone_bit_for_bit() {
         let (dt, dth, odo) = inputs();
-        let plan = SegmentPlan::new(dt.len(), 10, [1200, 4000, 5002]);
-        let (imu, odos) = integrate(&dt, &dth, &plan, true, &mut [odo.iter().copied()], true);
+        let reports = [1200, 4000, 5002];
+        let plan = SegmentPlan::new(dt.len(), 10, reports);
+        let all_columns = OdoColumns {
+            yaw: true,
+            pitch: true,
+            moving: true,
+        };
+        let (imu, odos) = integrate(
+            &dt,
+            &dth,
+            &plan,
+            true,
+            &mut [odo.iter().copied()],
+            all_columns,
+        );
         let (imu, odo) = (imu.unwrap(), &odos[0]);
         let all: [NavSettings; 8] = std::array::from_fn(settings);
         let mut batch: [CriteriaSink; 8] = Default::default();
-        run_criteria_segments(&imu, [odo; 8], &all, &mut batch);
+        run_criteria_segments(&imu, [odo; 8], &all, &reports, &mut batch);
         for (l, s) in all.iter().enumerate() {
             let mut alone = [CriteriaSink::default()];
-            run_criteria_segments(&imu, [odo], &[*s], &mut alone);
+            run_criteria_segments(&imu, [odo], &[*s], &reports, &mut alone);
             assert_eq!(bits(&alone[0]), bits(&batch[l]), "lane {l}");
             // Four lanes beside it, without a boresight or bias elsewhere.
             let mut four: [CriteriaSink; 4] = Default::default();
             let beside = [*s, settings(0), settings(1), settings(2)];
-            run_criteria_segments(&imu, [odo; 4], &beside, &mut four);
+            run_criteria_segments(&imu, [odo; 4], &beside, &reports, &mut four);
             assert_eq!(bits(&four[0]), bits(&batch[l]), "lane {l} among four");
         }
         // The vector loop the CPU supports and the portable one agree too.
         let mut portable: [CriteriaSink; 8] = Default::default();
         for sink in portable.iter_mut() {
-            sink.reset(plan.samples, plan.block, plan.reports.iter().copied());
+            sink.reset(plan.samples, plan.block, reports);
         }
-        SegmentLanes::new(&all).run_portable(&imu, [odo; 8], &mut portable);
+        let mut emit = CriteriaEmit {
+            angles: BlockAngles::new(),
+            sinks: &mut portable,
+        };
+        SegmentLanes::new(&all).run_portable(&imu, [odo; 8], &reports, &mut emit);
         for l in 0..8 {
             assert_eq!(bits(&portable[l]), bits(&batch[l]), "portable lane {l}");
         }

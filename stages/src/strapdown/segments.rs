@@ -3,7 +3,7 @@
 //! of once per sample ([`super::run_criteria_segments`]).
 //!
 //! A segment is a block of F (`block` samples: 0.1 s at 100 Hz), cut after each sample
-//! a pass reports (a control point's stop). With `R_k` the body's turn from the
+//! a pass must report that is not a block's last (a control point's stop). With `R_k` the body's turn from the
 //! segment's start to the end of its `k`-th sample (`R_0 = I`: the product of the
 //! kernel's rotation vectors, coning term included, at zero drift), a segment keeps
 //! - `q`: `R_K`, the body's turn over the whole segment, as a quaternion;
@@ -12,15 +12,18 @@
 //! - `t_s`: its length;
 //!
 //! and, of an odometer with increments `d_k`,
-//! - `s`: `Σ_k d_k (R_{k−1} + R_k)/2`: the increments in the start's body axes, each
+//! - `S = Σ_k d_k (R_{k−1} + R_k)/2`: the increments in the start's body axes, each
 //!   resolved with the attitude at the middle of its interval as the kernel resolves it;
-//!   the route moves by `C_b^n · s · (the odometer's direction in the body)`;
-//! - `dist_m`: `Σ_k d_k`;
+//!   the route moves by `C_b^n · S · (the odometer's direction in the body)`. Its first
+//!   column (along the body's x) always, with `Σ_k d_k`; its second (y) when a yaw
+//!   boresight turns the odometer towards it, its third (z) when a pitch boresight
+//!   climbs by it ([`OdoColumns`]: a pass reads no more, and a 12-hour run keeps 7 MB
+//!   where the whole matrix took 17 MB);
 //! - for an odometer speed bias, the same with `dt_k` for `d_k` over the samples in
-//!   which the odometer moved (`mov`).
+//!   which the odometer moved.
 //!
 //! None of these depends on a pass's settings (azimuth, drifts, odometer scale, bias and
-//! boresights), which act on them as `block_lanes` says. `m` and `s` are kept in f32:
+//! boresights), which act on them as `segment_lanes` says. `m` and `S` are kept in f32:
 //! their rounding (6e-8 of a block's sums) moves a block's attitude by under 1e-7 rad and
 //! the route by under a micrometre a segment, far below what the criteria resolve.
 
@@ -31,16 +34,16 @@ use std::sync::{Arc, Mutex};
 
 use crate::attitude::{HALF_ANGLE_SERIES_LIMIT_RAD2, half_angle_exact, half_angle_series};
 
-/// Where a run's segments end: blocks of `block` samples, cut after each reported sample.
+/// Where a run's segments end: blocks of `block` samples, cut after each of `cuts`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SegmentPlan {
     /// Samples the segments cover.
     pub samples: usize,
     /// Samples per block of F (at least one).
     pub block: usize,
-    /// The samples after which a pass reports its state (increasing, each below
-    /// `samples`).
-    pub reports: Vec<usize>,
+    /// The samples after which a segment ends besides the blocks' last (increasing, each
+    /// below `samples`).
+    pub cuts: Vec<usize>,
 }
 
 /// The end of one segment.
@@ -50,50 +53,61 @@ pub struct SegmentEnd {
     pub end: usize,
     /// Whether it closes a block of F.
     pub closes_block: bool,
-    /// Whether the pass reports its state there (after sample `end − 1`).
-    pub report: bool,
 }
 
 impl SegmentPlan {
-    /// Segments over `samples` samples in blocks of `block`, cut after each of `reports`
-    /// (any order; repeats and samples past the end are left out).
-    pub fn new(samples: usize, block: usize, reports: impl IntoIterator<Item = usize>) -> Self {
-        let mut reports: Vec<usize> = reports.into_iter().filter(|&k| k < samples).collect();
-        reports.sort_unstable();
-        reports.dedup();
+    /// Segments over `samples` samples in blocks of `block`, cut after each of `cuts` (any
+    /// order; repeats, blocks' last samples and samples past the end are left out).
+    pub fn new(samples: usize, block: usize, cuts: impl IntoIterator<Item = usize>) -> Self {
+        let block = block.max(1);
+        let mut cuts: Vec<usize> = cuts
+            .into_iter()
+            .filter(|&k| k + 1 < samples && !(k + 1).is_multiple_of(block))
+            .collect();
+        cuts.sort_unstable();
+        cuts.dedup();
         Self {
             samples,
-            block: block.max(1),
-            reports,
+            block,
+            cuts,
         }
     }
 
     /// The segments' ends, in order.
-    pub fn ends(&self) -> Vec<SegmentEnd> {
+    pub fn ends(&self) -> impl Iterator<Item = SegmentEnd> + '_ {
         let n = self.samples;
-        let mut out = Vec::with_capacity(n.div_ceil(self.block) + self.reports.len());
         let mut block_end = self.block.min(n);
-        let mut reports = self.reports.iter().map(|k| k + 1).peekable();
+        let mut cuts = self.cuts.iter().map(|k| k + 1).peekable();
         let mut at = 0;
-        while at < n {
-            let report_end = reports.peek().copied().unwrap_or(usize::MAX);
-            let end = block_end.min(report_end);
-            let closes_block = end == block_end;
-            let report = end == report_end;
-            if report {
-                reports.next();
+        std::iter::from_fn(move || {
+            if at >= n {
+                return None;
             }
+            let cut = cuts.peek().copied().unwrap_or(usize::MAX);
+            let end = block_end.min(cut);
+            if end == cut {
+                cuts.next();
+            }
+            let closes_block = end == block_end;
             if closes_block {
                 block_end = (block_end + self.block).min(n);
             }
-            out.push(SegmentEnd {
-                end,
-                closes_block,
-                report,
-            });
             at = end;
-        }
-        out
+            Some(SegmentEnd { end, closes_block })
+        })
+    }
+
+    /// How many segments.
+    pub fn count(&self) -> usize {
+        self.samples.div_ceil(self.block) + self.cuts.len()
+    }
+
+    /// Whether a pass can report its state after sample `k` (a segment ends there).
+    pub fn ends_after(&self, k: usize) -> bool {
+        k < self.samples
+            && ((k + 1).is_multiple_of(self.block)
+                || k + 1 == self.samples
+                || self.cuts.binary_search(&k).is_ok())
     }
 }
 
@@ -108,40 +122,94 @@ pub struct ImuSegment {
     pub t_s: f32,
 }
 
-/// One segment of an odometer's increments.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OdoSegment {
-    /// `Σ_k d_k (R_{k−1} + R_k)/2`, row-major, m (or s, for the moving time).
-    pub s: [f32; 9],
-    /// `Σ_k d_k`, m (or s).
-    pub dist: f32,
-}
-
 /// A run's IMU increments over its segments.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImuSegments {
     /// The plan they follow.
     pub plan: SegmentPlan,
-    /// Each segment's end.
-    pub ends: Vec<SegmentEnd>,
     /// Each segment.
     pub segments: Vec<ImuSegment>,
+}
+
+/// Which of an odometer's sums are integrated beyond its first column and distance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct OdoColumns {
+    /// The second column (along the body's y): a yaw boresight reads it.
+    pub yaw: bool,
+    /// The third column (along the body's z): a pitch boresight reads it.
+    pub pitch: bool,
+    /// The same over the moving time: a speed bias reads it.
+    pub moving: bool,
+}
+
+impl OdoColumns {
+    /// What passes with `settings` read.
+    pub fn read_by(settings: &[super::NavSettings]) -> Self {
+        Self {
+            yaw: settings.iter().any(|s| s.odo_yaw_rad != 0.0),
+            pitch: settings.iter().any(|s| s.odo_pitch_rad != 0.0),
+            moving: settings.iter().any(|s| s.odo_bias_mps != 0.0),
+        }
+    }
+
+    /// Whether these hold all of `other`.
+    pub fn cover(&self, other: &Self) -> bool {
+        (self.yaw || !other.yaw) && (self.pitch || !other.pitch) && (self.moving || !other.moving)
+    }
+
+    /// Both's.
+    pub fn union(&self, other: &Self) -> Self {
+        Self {
+            yaw: self.yaw || other.yaw,
+            pitch: self.pitch || other.pitch,
+            moving: self.moving || other.moving,
+        }
+    }
+}
+
+/// One odometer series' sums over each segment: `S`'s columns (f32).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct OdoSums {
+    /// `S`'s first column, and `Σ_k d_k`: m (s for the moving time).
+    pub x: Vec<[f32; 4]>,
+    /// `S`'s second column, when integrated (else empty).
+    pub y: Vec<[f32; 3]>,
+    /// `S`'s third column, when integrated (else empty).
+    pub z: Vec<[f32; 3]>,
+}
+
+impl OdoSums {
+    fn with_capacity(count: usize, columns: &OdoColumns) -> Self {
+        Self {
+            x: Vec::with_capacity(count),
+            y: Vec::with_capacity(if columns.yaw { count } else { 0 }),
+            z: Vec::with_capacity(if columns.pitch { count } else { 0 }),
+        }
+    }
+
+    /// Appends a segment's sums (`s` row-major, `dist`), the columns asked for.
+    fn push(&mut self, s: &[f64; 9], dist: f64, columns: &OdoColumns) {
+        let column = |j: usize| [s[j] as f32, s[3 + j] as f32, s[6 + j] as f32];
+        let [x0, x1, x2] = column(0);
+        self.x.push([x0, x1, x2, dist as f32]);
+        if columns.yaw {
+            self.y.push(column(1));
+        }
+        if columns.pitch {
+            self.z.push(column(2));
+        }
+    }
 }
 
 /// An odometer's increments over a run's segments.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OdoSegments {
-    /// Each segment's distances.
-    pub segments: Vec<OdoSegment>,
-    /// Each segment's moving time, when integrated (for an odometer speed bias).
-    pub moving: Option<Vec<OdoSegment>>,
-}
-
-impl OdoSegments {
-    /// Whether the moving time was integrated.
-    pub fn has_moving(&self) -> bool {
-        self.moving.is_some()
-    }
+    /// The columns integrated.
+    pub columns: OdoColumns,
+    /// The distances' sums.
+    pub distance: OdoSums,
+    /// The moving time's sums, when integrated (`columns.moving`).
+    pub moving: Option<OdoSums>,
 }
 
 /// The rotation matrix (row-major) of a unit quaternion (w, x, y, z).
@@ -197,8 +265,8 @@ const WIDTH: usize = 4;
 
 /// Integrates the IMU's increments (`dt_s`, `dtheta_rad`) over `plan`'s segments when
 /// `imu` is set, and each of `odometers` (increments per sample, at least
-/// `plan.samples` of them; missing ones count as 0), with its moving time when
-/// `moving` is set: one walk over the samples for all of them.
+/// `plan.samples` of them; missing ones count as 0), the sums `columns` asks for: one walk
+/// over the samples for all of them.
 ///
 /// [`WIDTH`] consecutive segments are integrated side by side in vector lanes (each
 /// segment's products are a chain of dependent operations; four chains keep the CPU's
@@ -209,29 +277,36 @@ pub fn integrate<I: Iterator<Item = f64>>(
     plan: &SegmentPlan,
     imu: bool,
     odometers: &mut [I],
-    moving: bool,
+    columns: OdoColumns,
 ) -> (Option<ImuSegments>, Vec<OdoSegments>) {
-    let ends = plan.ends();
-    let count = ends.len();
+    let count = plan.count();
     let n = plan.samples.min(dt_s.len()).min(dtheta_rad.len());
     let mut imu_out = imu.then(|| Vec::with_capacity(count));
     let mut odo_out: Vec<OdoSegments> = odometers
         .iter()
         .map(|_| OdoSegments {
-            segments: Vec::with_capacity(count),
-            moving: moving.then(|| Vec::with_capacity(count)),
+            columns,
+            distance: OdoSums::with_capacity(count, &columns),
+            moving: columns
+                .moving
+                .then(|| OdoSums::with_capacity(count, &columns)),
         })
         .collect();
     let mut buffers: Vec<Vec<f64>> = vec![Vec::new(); odometers.len()];
     let mut group = Group::<WIDTH>::new(odometers.len());
+    let mut ends = plan.ends().peekable();
     let mut start = 0;
-    for first in (0..count).step_by(WIDTH) {
-        let lanes = WIDTH.min(count - first);
+    while ends.peek().is_some() {
         let mut bounds = [(0, 0); WIDTH];
-        for (l, b) in bounds.iter_mut().enumerate().take(lanes) {
-            let end = ends[first + l].end.min(n);
+        let mut lanes = 0;
+        for b in bounds.iter_mut() {
+            let Some(e) = ends.next() else {
+                break;
+            };
+            let end = e.end.min(n);
             *b = (start.min(end), end);
-            start = ends[first + l].end;
+            start = e.end;
+            lanes += 1;
         }
         // Each odometer's increments over the group's samples, read in order.
         let (span_from, span_to) = (bounds[0].0, bounds[lanes - 1].1);
@@ -245,24 +320,19 @@ pub fn integrate<I: Iterator<Item = f64>>(
             bounds: &bounds,
             span: span_from,
             buffers: &buffers,
-            moving,
+            moving: columns.moving,
         });
         for l in 0..lanes {
             if let Some(out) = imu_out.as_mut() {
                 out.push(group.imu_segment(l));
             }
             for (v, out) in odo_out.iter_mut().enumerate() {
-                let (segment, mov) = group.odo_segments(v, l);
-                out.segments.push(segment);
-                if let Some(m) = out.moving.as_mut() {
-                    m.push(mov);
-                }
+                group.push_odo(v, l, out);
             }
         }
     }
     let imu = imu_out.map(|segments| ImuSegments {
         plan: plan.clone(),
-        ends,
         segments,
     });
     (imu, odo_out)
@@ -450,18 +520,15 @@ impl<const W: usize> Group<W> {
         }
     }
 
-    /// Lane `l`'s segment of odometer `v`, and of its moving time.
-    fn odo_segments(&self, v: usize, l: usize) -> (OdoSegment, OdoSegment) {
-        (
-            OdoSegment {
-                s: std::array::from_fn(|i| self.s[v][i][l] as f32),
-                dist: self.dist[v][l] as f32,
-            },
-            OdoSegment {
-                s: std::array::from_fn(|i| self.s_mov[v][i][l] as f32),
-                dist: self.t_mov[v][l] as f32,
-            },
-        )
+    /// Appends lane `l`'s sums of odometer `v` to `out`.
+    fn push_odo(&self, v: usize, l: usize, out: &mut OdoSegments) {
+        let columns = out.columns;
+        let s: [f64; 9] = std::array::from_fn(|i| self.s[v][i][l]);
+        out.distance.push(&s, self.dist[v][l], &columns);
+        if let Some(moving) = out.moving.as_mut() {
+            let s: [f64; 9] = std::array::from_fn(|i| self.s_mov[v][i][l]);
+            moving.push(&s, self.t_mov[v][l], &columns);
+        }
     }
 }
 
@@ -497,6 +564,13 @@ impl PartialEq for SegmentMemo {
 }
 
 impl SegmentMemo {
+    /// Lets the segments go (those shared with re-derives too): passes after this
+    /// integrate them again.
+    pub fn clear(&self) {
+        *self.imu.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        *self.odo.lock().unwrap_or_else(|e| e.into_inner()) = None;
+    }
+
     /// The memo of a re-derive at another odometer timing: the IMU's segments shared,
     /// the odometer's its own.
     pub fn for_other_odometer(&self) -> Self {
@@ -506,15 +580,16 @@ impl SegmentMemo {
         }
     }
 
-    /// The IMU's segments of `inputs` over `plan`, and those of its stored odometer when
-    /// `stored_odometer` is set (with the moving time when `moving` is): integrated on
-    /// first use (in one walk for both), then kept.
+    /// The IMU's segments of `inputs` over `plan`, and those of its stored odometer with
+    /// (at least) `columns` when `stored_odometer` is set: integrated on first use (in one
+    /// walk for both), then kept; an odometer's kept with fewer columns is integrated again
+    /// with theirs and these.
     pub fn segments(
         &self,
         inputs: &super::NavInputs<'_>,
         plan: &SegmentPlan,
         stored_odometer: bool,
-        moving: bool,
+        columns: OdoColumns,
     ) -> (Arc<ImuSegments>, Option<Arc<OdoSegments>>) {
         let imu_key = SeriesKey {
             dt: inputs.dt_s.as_ptr() as usize,
@@ -534,55 +609,45 @@ impl SegmentMemo {
             .as_ref()
             .filter(|(key, segs)| *key == imu_key && segs.plan == *plan)
             .map(|(_, segs)| Arc::clone(segs));
-        let odo_cached = odo_memo
+        let odo_same = odo_memo
             .as_ref()
-            .filter(|(key, p, segs)| *key == odo_key && p == plan && (segs.has_moving() || !moving))
+            .filter(|(key, p, _)| *key == odo_key && p == plan);
+        let odo_cached = odo_same
+            .filter(|(_, _, segs)| segs.columns.cover(&columns))
             .map(|(_, _, segs)| Arc::clone(segs));
+        // Integrated again, the odometer keeps the columns it had.
+        let columns = odo_same.map_or(columns, |(_, _, segs)| segs.columns.union(&columns));
         let need_odo = stored_odometer && odo_cached.is_none();
+        if let (Some(imu), false) = (&imu_cached, need_odo) {
+            return (Arc::clone(imu), odo_cached.filter(|_| stored_odometer));
+        }
         let mut odometers: Vec<_> = if need_odo {
             vec![inputs.odo_dist_m.iter().copied()]
         } else {
             Vec::new()
         };
-        let imu = match imu_cached {
-            Some(cached) if !need_odo => {
-                return (cached, odo_cached.filter(|_| stored_odometer));
-            }
-            Some(cached) => {
-                let (_, mut odo) = integrate(
-                    inputs.dt_s,
-                    inputs.dtheta_rad,
-                    plan,
-                    false,
-                    &mut odometers,
-                    moving,
-                );
-                let fresh = Arc::new(odo.pop().expect("one odometer integrated"));
-                *odo_memo = Some((odo_key, plan.clone(), Arc::clone(&fresh)));
-                return (cached, Some(fresh));
-            }
-            None => {
-                let (imu, mut odo) = integrate(
-                    inputs.dt_s,
-                    inputs.dtheta_rad,
-                    plan,
-                    true,
-                    &mut odometers,
-                    moving,
-                );
-                if need_odo {
-                    let fresh = Arc::new(odo.pop().expect("one odometer integrated"));
-                    *odo_memo = Some((odo_key, plan.clone(), Arc::clone(&fresh)));
-                }
-                let fresh = Arc::new(imu.expect("the IMU's segments integrated"));
+        let (imu, mut odo) = integrate(
+            inputs.dt_s,
+            inputs.dtheta_rad,
+            plan,
+            imu_cached.is_none(),
+            &mut odometers,
+            columns,
+        );
+        let imu = match (imu_cached, imu) {
+            (Some(cached), _) => cached,
+            (None, fresh) => {
+                let fresh = Arc::new(fresh.expect("the IMU's segments integrated"));
                 *imu_memo = Some((imu_key, Arc::clone(&fresh)));
                 fresh
             }
         };
-        let odo = if stored_odometer {
-            odo_memo.as_ref().map(|(_, _, segs)| Arc::clone(segs))
+        let odo = if need_odo {
+            let fresh = Arc::new(odo.pop().expect("one odometer integrated"));
+            *odo_memo = Some((odo_key, plan.clone(), Arc::clone(&fresh)));
+            Some(fresh)
         } else {
-            None
+            odo_cached.filter(|_| stored_odometer)
         };
         (imu, odo)
     }
@@ -592,14 +657,21 @@ impl SegmentMemo {
 mod tests {
     use super::*;
 
-    /// The segments one at a time, sample by sample: what the lanes must give.
+    const ALL: OdoColumns = OdoColumns {
+        yaw: true,
+        pitch: true,
+        moving: true,
+    };
+
+    /// The segments one at a time, sample by sample: what the lanes must give (every
+    /// column of the odometer's sums, and of its moving time's).
     fn integrate_one_by_one(
         dt_s: &[f64],
         dtheta_rad: &[[f64; 3]],
         plan: &SegmentPlan,
         odometer: &[f64],
-    ) -> (Vec<ImuSegment>, Vec<OdoSegment>, Vec<OdoSegment>) {
-        let (mut imu, mut odo, mut mov) = (Vec::new(), Vec::new(), Vec::new());
+    ) -> (Vec<ImuSegment>, OdoSums, OdoSums) {
+        let (mut imu, mut odo, mut mov) = (Vec::new(), OdoSums::default(), OdoSums::default());
         let mut prev = [0.0; 3];
         let mut k = 0;
         for end in plan.ends() {
@@ -647,14 +719,8 @@ mod tests {
                 m: m.map(|v| v as f32),
                 t_s: t as f32,
             });
-            odo.push(OdoSegment {
-                s: s.map(|v| v as f32),
-                dist: dist as f32,
-            });
-            mov.push(OdoSegment {
-                s: s_mov.map(|v| v as f32),
-                dist: t_mov as f32,
-            });
+            odo.push(&s, dist, &ALL);
+            mov.push(&s_mov, t_mov, &ALL);
         }
         (imu, odo, mov)
     }
@@ -662,7 +728,7 @@ mod tests {
     #[test]
     fn segments_side_by_side_are_each_segment_alone_bit_for_bit() {
         // A turning, bumping drive with a violent sample (beyond the series), stops, and
-        // segments cut short by reports.
+        // segments cut short.
         let n = 5003;
         let dt: Vec<f64> = (0..n).map(|k| 0.01 + 1e-5 * (k % 7) as f64).collect();
         let dth: Vec<[f64; 3]> = super::super::test_drive::turning_dtheta(n);
@@ -683,36 +749,46 @@ mod tests {
             &plan,
             true,
             &mut [odo.iter().copied(), doubled.iter().copied()],
-            true,
+            ALL,
         );
         let (want_imu, want_odo, want_mov) = integrate_one_by_one(&dt, &dth, &plan, &odo);
         assert_eq!(imu.unwrap().segments, want_imu);
-        assert_eq!(odos[0].segments, want_odo);
+        assert_eq!(odos[0].distance, want_odo);
         assert_eq!(odos[0].moving.as_ref().unwrap(), &want_mov);
         let (_, want_doubled, _) = integrate_one_by_one(&dt, &dth, &plan, &doubled);
-        assert_eq!(odos[1].segments, want_doubled);
+        assert_eq!(odos[1].distance, want_doubled);
+        // Without the columns no pass reads: the first column alone, the same.
+        let (_, plain) = integrate(
+            &dt,
+            &dth,
+            &plan,
+            false,
+            &mut [odo.iter().copied()],
+            OdoColumns::default(),
+        );
+        assert_eq!(plain[0].distance.x, want_odo.x);
+        assert!(plain[0].distance.y.is_empty() && plain[0].distance.z.is_empty());
+        assert!(plain[0].moving.is_none());
     }
 
     #[test]
-    fn segments_are_blocks_cut_after_the_reported_samples() {
+    fn segments_are_blocks_cut_after_the_samples_asked() {
         let plan = SegmentPlan::new(25, 10, [9, 3, 3, 14, 40, 24]);
-        assert_eq!(plan.reports, vec![3, 9, 14, 24]);
-        let ends: Vec<(usize, bool, bool)> = plan
-            .ends()
-            .iter()
-            .map(|e| (e.end, e.closes_block, e.report))
-            .collect();
+        // A block's last sample and the run's are ends already.
+        assert_eq!(plan.cuts, vec![3, 14]);
+        let ends: Vec<(usize, bool)> = plan.ends().map(|e| (e.end, e.closes_block)).collect();
         assert_eq!(
             ends,
-            vec![
-                (4, false, true),
-                (10, true, true),
-                (15, false, true),
-                (20, true, false),
-                (25, true, true),
-            ]
+            vec![(4, false), (10, true), (15, false), (20, true), (25, true)]
         );
-        assert!(SegmentPlan::new(0, 10, [0]).ends().is_empty());
+        assert_eq!(plan.count(), ends.len());
+        for k in [3, 9, 14, 19, 24] {
+            assert!(plan.ends_after(k), "{k}");
+        }
+        for k in [0, 4, 10, 25] {
+            assert!(!plan.ends_after(k), "{k}");
+        }
+        assert_eq!(SegmentPlan::new(0, 10, [0]).ends().count(), 0);
     }
 
     #[test]
@@ -727,7 +803,7 @@ mod tests {
             &plan,
             true,
             &mut [std::iter::repeat_n(0.5, 10)],
-            true,
+            ALL,
         );
         let imu = imu.unwrap();
         let seg = imu.segments[0];
@@ -740,13 +816,13 @@ mod tests {
         assert!((seg.m[0] as f64 - sum_cos).abs() < 1e-5);
         assert!((seg.m[8] - 10.0).abs() < 1e-6);
         // The distance resolved at each interval's middle: x forward by Σ 0.5 cos.
-        let o = odo[0].segments[0];
-        assert!((o.dist - 5.0).abs() < 1e-6);
+        let x = odo[0].distance.x[0];
+        assert!((x[3] - 5.0).abs() < 1e-6);
         let want_x: f64 = (1..=10)
             .map(|k| 0.25 * ((0.01 * (k - 1) as f64).cos() + (0.01 * k as f64).cos()))
             .sum();
-        assert!((o.s[0] as f64 - want_x).abs() < 1e-5);
-        let mov = odo[0].moving.as_ref().unwrap()[0];
-        assert!((mov.dist - 0.1).abs() < 1e-7);
+        assert!((x[0] as f64 - want_x).abs() < 1e-5);
+        let mov = odo[0].moving.as_ref().unwrap().x[0];
+        assert!((mov[3] - 0.1).abs() < 1e-7);
     }
 }
