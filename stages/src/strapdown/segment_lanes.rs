@@ -564,63 +564,117 @@ impl<const N: usize> SegmentEmit<N> for CriteriaEmit<'_, N> {
     }
 }
 
-/// Blocks whose angles are taken together, in one vector.
-const ANGLE_BLOCKS: usize = 4;
+/// Blocks between angles taken anew from their sums (libm's atan2) rather than turned
+/// from the block before's.
+const ANGLE_ANCHOR_EVERY: usize = 256;
 
-/// Each lane's blocks' sums of `C_b^n`'s third row, turned into roll and pitch
-/// [`ANGLE_BLOCKS`] blocks of a lane at a time, in vector registers (wide's atan2, within
-/// an ulp or two of libm's): every lane's angles are the same whatever lanes run beside
-/// it, and whatever their number.
+/// Angle steps beyond which a block's angle is taken anew (libm's atan2) rather than by
+/// the step's series, rad (a block's roll or pitch moves by some 1e-3 rad).
+const ANGLE_STEP_SERIES_LIMIT: f64 = 0.1;
+
+/// atan(δ) for |δ| ≤ [`ANGLE_STEP_SERIES_LIMIT`] by its series (the first term left out,
+/// δ¹⁹/19, is under 6e-21).
+#[inline(always)]
+fn atan_small(d: f64) -> f64 {
+    let d2 = d * d;
+    d * (1.0
+        + d2 * (-1.0 / 3.0
+            + d2 * (1.0 / 5.0
+                + d2 * (-1.0 / 7.0
+                    + d2 * (1.0 / 9.0
+                        + d2 * (-1.0 / 11.0
+                            + d2 * (1.0 / 13.0 + d2 * (-1.0 / 15.0 + d2 * (1.0 / 17.0)))))))))
+}
+
+/// `a` wrapped into (−π, π], for an angle at most a step beyond it.
+#[inline(always)]
+fn wrap_step(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    if a > PI {
+        a - TAU
+    } else if a <= -PI {
+        a + TAU
+    } else {
+        a
+    }
+}
+
+/// Each lane's roll (atan2(C32, C33)) and pitch (atan2(−C31, √(C32² + C33²))) of its
+/// blocks' sums of `C_b^n`'s third row, into its sink. A block's angle is the block
+/// before's turned by the angle between their (x, y): atan((y x′ − x y′)/(x x′ + y y′)),
+/// a step of some 1e-3 rad, by its series — a division and a few multiplications in
+/// vector registers where libm's atan2 takes most of a pass's time. The first block, one
+/// in [`ANGLE_ANCHOR_EVERY`] and any whose step exceeds [`ANGLE_STEP_SERIES_LIMIT`] are
+/// taken by libm's atan2. Rounding adds about an ulp a block between anchors (under 1e-13
+/// rad). Every decision is the lane's own or the block's index: a lane's angles are the
+/// same whatever lanes run beside it.
 struct BlockAngles<const N: usize> {
-    /// Per lane: the pending blocks' c31, c32, c33.
-    pending: [[[f64; ANGLE_BLOCKS]; 3]; N],
-    count: usize,
+    /// The previous block's (x, y) of the roll and of the pitch, and its angles.
+    roll_xy: [[f64; N]; 2],
+    pitch_xy: [[f64; N]; 2],
+    roll: [f64; N],
+    pitch: [f64; N],
+    blocks: usize,
 }
 
 impl<const N: usize> BlockAngles<N> {
     fn new() -> Self {
         Self {
-            pending: [[[0.0; ANGLE_BLOCKS]; 3]; N],
-            count: 0,
+            roll_xy: [[0.0; N]; 2],
+            pitch_xy: [[0.0; N]; 2],
+            roll: [0.0; N],
+            pitch: [0.0; N],
+            blocks: 0,
         }
     }
 
-    /// Adds each lane's next block (its sum of third rows, `row3[.][l]`).
+    /// Each lane's next block (its sum of third rows, `row3[.][l]`), into its sink.
     #[inline(always)]
     fn push(&mut self, row3: &[[f64; N]; 3], sinks: &mut [CriteriaSink; N]) {
+        let anchor = self.blocks.is_multiple_of(ANGLE_ANCHOR_EVERY);
+        self.blocks += 1;
+        let mut xy = [[[0.0; N]; 2]; 2];
+        let mut step = [[0.0; N]; 2];
+        let mut exact = [[false; N]; 2];
         for l in 0..N {
-            for i in 0..3 {
-                self.pending[l][i][self.count] = row3[i][l];
+            let (c31, c32, c33) = (row3[0][l], row3[1][l], row3[2][l]);
+            xy[0][0][l] = c33;
+            xy[0][1][l] = c32;
+            xy[1][0][l] = (c32 * c32 + c33 * c33).sqrt();
+            xy[1][1][l] = -c31;
+            for (a, prev) in [&self.roll_xy, &self.pitch_xy].into_iter().enumerate() {
+                let (x, y) = (xy[a][0][l], xy[a][1][l]);
+                let (xp, yp) = (prev[0][l], prev[1][l]);
+                let d = (y * xp - x * yp) / (x * xp + y * yp);
+                step[a][l] = atan_small(d);
+                // Past the limit, or not a number (a zero sum).
+                exact[a][l] = !matches!(
+                    d.abs().partial_cmp(&ANGLE_STEP_SERIES_LIMIT),
+                    Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+                );
             }
         }
-        self.count += 1;
-        if self.count == ANGLE_BLOCKS {
-            self.flush(sinks);
+        for l in 0..N {
+            self.roll[l] = wrap_step(self.roll[l] + step[0][l]);
+            self.pitch[l] = wrap_step(self.pitch[l] + step[1][l]);
+        }
+        for l in 0..N {
+            if anchor || exact[0][l] {
+                self.roll[l] = xy[0][1][l].atan2(xy[0][0][l]);
+            }
+            if anchor || exact[1][l] {
+                self.pitch[l] = xy[1][1][l].atan2(xy[1][0][l]);
+            }
+        }
+        self.roll_xy = xy[0];
+        self.pitch_xy = xy[1];
+        for (l, sink) in sinks.iter_mut().enumerate() {
+            sink.blocks.push(self.roll[l], self.pitch[l]);
         }
     }
 
-    /// Hands the pending blocks' angles to the sinks.
-    fn flush(&mut self, sinks: &mut [CriteriaSink; N]) {
-        use wide::f64x4;
-        if self.count == 0 {
-            return;
-        }
-        for (pending, sink) in self.pending.iter_mut().zip(sinks.iter_mut()) {
-            // Unused slots repeat the last block (their angles are dropped).
-            for row in pending.iter_mut() {
-                for b in self.count..ANGLE_BLOCKS {
-                    row[b] = row[self.count - 1];
-                }
-            }
-            let [c31, c32, c33] = pending.map(f64x4::from);
-            let roll = c32.atan2(c33).to_array();
-            let pitch = (-c31).atan2((c32 * c32 + c33 * c33).sqrt()).to_array();
-            for b in 0..self.count {
-                sink.blocks.push(roll[b], pitch[b]);
-            }
-        }
-        self.count = 0;
-    }
+    /// Nothing is held back.
+    fn flush(&mut self, _sinks: &mut [CriteriaSink; N]) {}
 }
 
 /// Runs `N` passes side by side over a run's segments (`imu`, and each lane's odometer
@@ -773,5 +827,60 @@ mod tests {
         assert_eq!(batch[0].blocks.len(), dt.len().div_ceil(10));
         assert_eq!(batch[0].positions.len(), 3);
         assert_ne!(bits(&batch[0]), bits(&batch[1]));
+    }
+}
+
+#[cfg(test)]
+mod angle_tests {
+    use super::*;
+
+    /// The blocks' angles turned step by step stay within 1e-13 rad of libm's atan2 of
+    /// each block's sums, through steps past the series' limit, a roll through ±π and
+    /// the anchors.
+    #[test]
+    fn block_angles_are_each_blocks_atan2() {
+        let n = 3000;
+        let mut sinks: [CriteriaSink; 2] = Default::default();
+        let mut angles = BlockAngles::<2>::new();
+        let mut want = [Vec::new(), Vec::new()];
+        for j in 0..n {
+            let t = j as f64 * 0.1;
+            // Lane 0: a vehicle's few degrees; lane 1: rolling over through ±π, with a
+            // jump past the series' limit.
+            let rolls = [
+                0.05 * (0.3 * t).sin(),
+                3.0 + 0.01 * t + if j == 1500 { 0.5 } else { 0.0 },
+            ];
+            let pitches = [0.03 * (0.2 * t).cos(), -0.4 + 0.0005 * t];
+            let mut row3 = [[0.0; 2]; 3];
+            for l in 0..2 {
+                // Ten samples' third rows summed: the row times ten, the norm slightly
+                // less than ten.
+                let (r, p) = (rolls[l], pitches[l]);
+                let scale = 9.99;
+                row3[0][l] = -p.sin() * scale;
+                row3[1][l] = p.cos() * r.sin() * scale;
+                row3[2][l] = p.cos() * r.cos() * scale;
+                want[l].push((
+                    row3[1][l].atan2(row3[2][l]),
+                    (-row3[0][l]).atan2(row3[1][l].hypot(row3[2][l])),
+                ));
+            }
+            angles.push(&row3, &mut sinks);
+        }
+        for l in 0..2 {
+            let blocks = &sinks[l].blocks;
+            assert_eq!(blocks.len(), n);
+            for (j, (r, p)) in want[l].iter().enumerate() {
+                assert!(
+                    (blocks.roll_rad[j] - r).abs() < 1e-13,
+                    "lane {l} block {j} roll"
+                );
+                assert!(
+                    (blocks.pitch_rad[j] - p).abs() < 1e-13,
+                    "lane {l} block {j} pitch"
+                );
+            }
+        }
     }
 }
