@@ -229,44 +229,58 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
     let rows = row_capacity_hint(&path)?;
     let per_sample = |wanted: bool| if wanted { rows } else { 0 };
     let (with_nav, with_velocity) = (columns != Columns::Times, columns == Columns::All);
-    let mut t0_ns: Option<i64> = None;
-    let mut t_s = NanoTimes::builder().with_room_for(rows);
-    let mut dt_s = Vec::with_capacity(per_sample(with_nav));
-    let mut odo_dist_m = Vec::with_capacity(per_sample(with_nav));
-    let mut dtheta_rad: Vec<[f64; 3]> = Vec::with_capacity(per_sample(with_nav));
-    let mut dvel_mps: Vec<[f64; 3]> = Vec::with_capacity(per_sample(with_velocity));
-    let names: &[&str] = match columns {
-        Columns::All => &[
-            T_NS,
-            derived_cols::DT_S,
-            DTHETA_RAD,
-            DVEL_MPS,
-            derived_cols::ODO_DIST_M,
-        ],
-        Columns::WithoutVelocity => &[
-            T_NS,
-            derived_cols::DT_S,
-            DTHETA_RAD,
-            derived_cols::ODO_DIST_M,
-        ],
-        Columns::Times => &[T_NS],
+    // Two readers side by side: the times and scalars, and the vectors (the larger
+    // part), each decoding its own columns.
+    let scalars = || -> anyhow::Result<_> {
+        let mut t0_ns: Option<i64> = None;
+        let mut t_s = NanoTimes::builder().with_room_for(rows);
+        let mut dt_s = Vec::with_capacity(per_sample(with_nav));
+        let mut odo_dist_m = Vec::with_capacity(per_sample(with_nav));
+        let names: &[&str] = if with_nav {
+            &[T_NS, derived_cols::DT_S, derived_cols::ODO_DIST_M]
+        } else {
+            &[T_NS]
+        };
+        let schema = for_each_batch_of(&path, names, |b| {
+            let t_ns = i64_column(b, T_NS)?;
+            let t0 = *t0_ns.get_or_insert(t_ns.first().copied().unwrap_or(0));
+            for t in t_ns.iter() {
+                t_s.push(t - t0);
+            }
+            if with_nav {
+                dt_s.extend(f64_column(b, derived_cols::DT_S)?);
+                odo_dist_m.extend(f64_column(b, derived_cols::ODO_DIST_M)?);
+            }
+            Ok(())
+        })?;
+        Ok((schema, t0_ns, t_s, dt_s, odo_dist_m))
     };
-    let schema = for_each_batch_of(&path, names, |b| {
-        let t_ns = i64_column(b, T_NS)?;
-        let t0 = *t0_ns.get_or_insert(t_ns.first().copied().unwrap_or(0));
-        for t in t_ns.iter() {
-            t_s.push(t - t0);
-        }
-        if with_nav {
-            dt_s.extend(f64_column(b, derived_cols::DT_S)?);
-            dtheta_rad.extend(vec3_column(b, DTHETA_RAD)?);
-            odo_dist_m.extend(f64_column(b, derived_cols::ODO_DIST_M)?);
-        }
-        if with_velocity {
-            dvel_mps.extend(vec3_column(b, DVEL_MPS)?);
-        }
-        Ok(())
-    })?;
+    let vectors = || -> anyhow::Result<_> {
+        let mut dtheta_rad: Vec<[f64; 3]> = Vec::with_capacity(per_sample(with_nav));
+        let mut dvel_mps: Vec<[f64; 3]> = Vec::with_capacity(per_sample(with_velocity));
+        let names: &[&str] = match (with_nav, with_velocity) {
+            (_, true) => &[DTHETA_RAD, DVEL_MPS],
+            (true, false) => &[DTHETA_RAD],
+            (false, false) => return Ok((dtheta_rad, dvel_mps)),
+        };
+        for_each_batch_of(&path, names, |b| {
+            if with_nav {
+                dtheta_rad.extend(vec3_column(b, DTHETA_RAD)?);
+            }
+            if with_velocity {
+                dvel_mps.extend(vec3_column(b, DVEL_MPS)?);
+            }
+            Ok(())
+        })?;
+        Ok((dtheta_rad, dvel_mps))
+    };
+    let (scalars, vectors) = rayon::join(scalars, vectors);
+    let ((schema, t0_ns, t_s, dt_s, odo_dist_m), (dtheta_rad, dvel_mps)) = (scalars?, vectors?);
+    anyhow::ensure!(
+        !with_nav || dtheta_rad.len() == dt_s.len(),
+        "{} has columns of different lengths",
+        path.display()
+    );
     let meta = |k: &str| -> anyhow::Result<String> {
         schema
             .metadata()

@@ -775,16 +775,23 @@ impl<'d> OdometerBlocks<'d> {
         self.k += 1;
         let u_mps = dd / dt;
         let moving = f64::from(u8::from(dd != 0.0));
-        let (u_dot_mps2, moving_dot) = if k == 0 {
-            (0.0, 0.0)
+        // "Moving" changes at a start or a stop: elsewhere its rate is (m − m)/dt = 0,
+        // without the division.
+        let moving_dot = if k == 0 || moving == self.prev.1 {
+            0.0
         } else {
-            ((u_mps - self.prev.0) / dt, (moving - self.prev.1) / dt)
+            (moving - self.prev.1) / dt
         };
-        self.prev = (u_mps, moving);
-        let r = dtheta[2] / dt;
         if let Some(u_dot) = self.u_dot.as_mut() {
+            let u_dot_mps2 = if k == 0 {
+                0.0
+            } else {
+                (u_mps - self.prev.0) / dt
+            };
             u_dot.push([u_dot_mps2]);
         }
+        self.prev = (u_mps, moving);
+        let r = dtheta[2] / dt;
         self.rest.push([r * u_mps, r * moving, moving_dot]);
     }
 
