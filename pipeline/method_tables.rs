@@ -188,12 +188,13 @@ pub fn write_tracks(
             t.method,
             t_ns.len()
         );
+        let frame = start.local_frame();
         let (north_m, east_m): (Vec<f32>, Vec<f32>) = t
             .lat_rad
             .iter()
             .zip(&t.lon_rad)
             .map(|(&lat, &lon)| {
-                let (n, e) = start.offset_m(lat, lon);
+                let (n, e) = frame.offset_m(lat, lon);
                 (n as f32, e as f32)
             })
             .unzip();

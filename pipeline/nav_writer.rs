@@ -222,9 +222,10 @@ fn nav_batch(
     let (euler, ne): (Vec<Euler>, Vec<(f64, f64)>) = rayon::join(
         || (0..t.len()).into_par_iter().map(|j| t.euler(j)).collect(),
         || {
+            let frame = start.local_frame();
             (0..t.len())
                 .into_par_iter()
-                .map(|j| start.offset_m(t.lat_rad[j], t.lon_rad[j]))
+                .map(|j| frame.offset_m(t.lat_rad[j], t.lon_rad[j]))
                 .collect()
         },
     );

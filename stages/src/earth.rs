@@ -92,6 +92,56 @@ impl Geodetic {
     pub fn offset_m(&self, lat_rad: f64, lon_rad: f64) -> (f64, f64) {
         local_offset_m(lat_rad, lon_rad, self.lat_rad, self.lon_rad, self.h_m)
     }
+
+    /// This origin's local frame, for many offsets from it: [`Self::offset_m`], bit for
+    /// bit, with the radii and the cosine taken once.
+    pub fn local_frame(&self) -> LocalFrame {
+        let (rm, rn) = radii_m(self.lat_rad);
+        LocalFrame {
+            lat0_rad: self.lat_rad,
+            lon0_rad: self.lon_rad,
+            rm_h_m: rm + self.h_m,
+            rn_h_m: rn + self.h_m,
+            cos_lat0: self.lat_rad.cos(),
+        }
+    }
+}
+
+/// North and east offsets from an origin ([`Geodetic::local_frame`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocalFrame {
+    lat0_rad: f64,
+    lon0_rad: f64,
+    rm_h_m: f64,
+    rn_h_m: f64,
+    cos_lat0: f64,
+}
+
+impl LocalFrame {
+    /// North and east offsets (m) of `(lat_rad, lon_rad)` from the origin: what
+    /// [`local_offset_m`] gives, bit for bit.
+    #[inline]
+    pub fn offset_m(&self, lat_rad: f64, lon_rad: f64) -> (f64, f64) {
+        (
+            (lat_rad - self.lat0_rad) * self.rm_h_m,
+            wrapped_dlon(lon_rad, self.lon0_rad) * self.rn_h_m * self.cos_lat0,
+        )
+    }
+}
+
+/// `lon − lon0` in [−π, π): `(lon − lon0 + π) mod 2π − π`, the remainder taken only when
+/// it is not the value itself (a floating-point remainder is costly; within one turn it
+/// is the identity, bit for bit).
+#[inline]
+fn wrapped_dlon(lon_rad: f64, lon0_rad: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let x = lon_rad - lon0_rad + PI;
+    let x = if (0.0..TAU).contains(&x) {
+        x
+    } else {
+        x.rem_euclid(TAU)
+    };
+    x - PI
 }
 
 /// North and east offsets (m) of `(lat, lon)` from a reference, scaled by the WGS-84
@@ -104,8 +154,7 @@ pub fn local_offset_m(
     h0_m: f64,
 ) -> (f64, f64) {
     let (rm, rn) = radii_m(lat0_rad);
-    let dlon = (lon_rad - lon0_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
-        - std::f64::consts::PI;
+    let dlon = wrapped_dlon(lon_rad, lon0_rad);
     (
         (lat_rad - lat0_rad) * (rm + h0_m),
         dlon * (rn + h0_m) * lat0_rad.cos(),
@@ -115,6 +164,33 @@ pub fn local_offset_m(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_local_frame_gives_the_offsets_bit_for_bit() {
+        let origin = Geodetic {
+            lat_rad: 0.78,
+            lon_rad: 3.1,
+            h_m: 93.0,
+        };
+        let frame = origin.local_frame();
+        for (lat, lon) in [
+            (0.78, 3.1),
+            (0.7801, 3.1002),
+            (0.77, -3.0),
+            (0.79, 3.2),
+            (-0.5, 10.0),
+            (0.78, 3.1 - std::f64::consts::PI),
+        ] {
+            let (a, b) = (origin.offset_m(lat, lon), frame.offset_m(lat, lon));
+            assert_eq!(a.0.to_bits(), b.0.to_bits(), "{lat} {lon}");
+            assert_eq!(a.1.to_bits(), b.1.to_bits(), "{lat} {lon}");
+            // And the remainder, taken always, as before.
+            let dlon = (lon - origin.lon_rad + std::f64::consts::PI)
+                .rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+            assert_eq!(wrapped_dlon(lon, origin.lon_rad).to_bits(), dlon.to_bits());
+        }
+    }
 
     #[test]
     fn normal_gravity_matches_published_values() {

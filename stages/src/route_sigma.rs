@@ -249,7 +249,7 @@ pub struct Moved<'a> {
 #[derive(Debug, Clone)]
 pub struct RouteBase<'a> {
     settings: NavSettings,
-    start: crate::earth::Geodetic,
+    start: crate::earth::LocalFrame,
     dt_s: &'a [f64],
     arw_q: f64,
     samples: Vec<usize>,
@@ -272,7 +272,7 @@ impl<'a> RouteBase<'a> {
         let samples = route_samples(dt_s.len(), stride);
         Self {
             settings: *settings,
-            start: settings.start(),
+            start: settings.start().local_frame(),
             dt_s,
             arw_q: arw_rad_sqrt_s * arw_rad_sqrt_s,
             y0: Vec::with_capacity(samples.len()),
