@@ -10,6 +10,7 @@ use arrow::array::{Float32Array, Float64Array, Int64Array, RecordBatch, StringAr
 use unz_formats::parquet_io::{ParquetSink, read_table, write_batch};
 use unz_formats::schema::{self, criteria_cols};
 use unz_formats::tables::{f32_column, f64_column, i64_column};
+use unz_stages::attitude::rem_euclid_turn;
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
@@ -139,7 +140,7 @@ impl KeepRows for TrackBuilder {
         m.roll_deg.push(att.roll_rad.to_degrees() as f32);
         m.pitch_deg.push(att.pitch_rad.to_degrees() as f32);
         m.heading_deg
-            .push(att.heading_rad.to_degrees().rem_euclid(360.0) as f32);
+            .push(rem_euclid_turn(att.heading_rad.to_degrees(), 360.0) as f32);
     }
 }
 

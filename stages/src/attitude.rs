@@ -27,7 +27,7 @@ impl Euler {
         Self {
             roll_rad,
             pitch_rad,
-            heading_rad: heading_rad.rem_euclid(std::f64::consts::TAU),
+            heading_rad: rem_euclid_turn(heading_rad, std::f64::consts::TAU),
         }
     }
 
@@ -87,9 +87,23 @@ pub fn quat_from_rotation_vector(phi: &Vector3<f64>) -> UnitQuaternion<f64> {
     UnitQuaternion::new_unchecked(Quaternion::new(c, s * phi.x, s * phi.y, s * phi.z))
 }
 
+/// `a.rem_euclid(m)` (`m` > 0), bit for bit, without the floating-point remainder (costly)
+/// when `a` lies within one `m` of zero, where it is `a` or `a + m`: angles per row and per
+/// epoch are.
+#[inline]
+pub fn rem_euclid_turn(a: f64, m: f64) -> f64 {
+    if (0.0..m).contains(&a) {
+        a
+    } else if a < 0.0 && a > -m {
+        a + m
+    } else {
+        a.rem_euclid(m)
+    }
+}
+
 /// Smallest signed difference of two angles, rad, in (−π, π].
 pub fn wrap_pi(a: f64) -> f64 {
-    let w = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+    let w = rem_euclid_turn(a + std::f64::consts::PI, std::f64::consts::TAU) - std::f64::consts::PI;
     if w == -std::f64::consts::PI {
         std::f64::consts::PI
     } else {
@@ -105,6 +119,37 @@ pub fn dcm(q: &UnitQuaternion<f64>) -> Rotation3<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_remainder_within_a_turn_is_rem_euclids_bit_for_bit() {
+        use std::f64::consts::{PI, TAU};
+        for a in [
+            0.0,
+            -0.0,
+            1e-300,
+            -1e-300,
+            -1e-17,
+            PI,
+            -PI,
+            TAU,
+            -TAU,
+            TAU - 1e-15,
+            -TAU + 1e-15,
+            7.0,
+            -7.0,
+            1e6,
+            f64::NAN,
+            f64::INFINITY,
+        ] {
+            for m in [TAU, 360.0] {
+                let (got, want) = (rem_euclid_turn(a, m), a.rem_euclid(m));
+                assert!(
+                    got.to_bits() == want.to_bits(),
+                    "{a} mod {m}: {got} vs {want}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn euler_round_trip_and_conventions() {

@@ -129,19 +129,12 @@ impl LocalFrame {
     }
 }
 
-/// `lon − lon0` in [−π, π): `(lon − lon0 + π) mod 2π − π`, the remainder taken only when
-/// it is not the value itself (a floating-point remainder is costly; within one turn it
-/// is the identity, bit for bit).
+/// `lon − lon0` in [−π, π): `(lon − lon0 + π) mod 2π − π`
+/// ([`crate::attitude::rem_euclid_turn`]: the remainder taken only when needed).
 #[inline]
 fn wrapped_dlon(lon_rad: f64, lon0_rad: f64) -> f64 {
     use std::f64::consts::{PI, TAU};
-    let x = lon_rad - lon0_rad + PI;
-    let x = if (0.0..TAU).contains(&x) {
-        x
-    } else {
-        x.rem_euclid(TAU)
-    };
-    x - PI
+    crate::attitude::rem_euclid_turn(lon_rad - lon0_rad + PI, TAU) - PI
 }
 
 /// North and east offsets (m) of `(lat, lon)` from a reference, scaled by the WGS-84
