@@ -268,7 +268,7 @@ const WIDTH: usize = 4;
 /// `plan.samples` of them; missing ones count as 0), the sums `columns` asks for: one walk
 /// over the samples for all of them.
 ///
-/// [`WIDTH`] consecutive segments are integrated side by side in vector lanes (each
+/// Four consecutive segments are integrated side by side in vector lanes (each
 /// segment's products are a chain of dependent operations; four chains keep the CPU's
 /// units busy), each lane exactly as a segment alone would be.
 pub fn integrate<I: Iterator<Item = f64>>(
