@@ -614,6 +614,14 @@ fn ensure_moved_segments(problems: &[&Problem<'_>], columns: OdoColumns) {
     let Some(first) = todo.first() else {
         return;
     };
+    // Integrated again, an odometer keeps the columns it had.
+    let columns = todo.iter().fold(columns, |c, p| {
+        p.moved_segments
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .as_ref()
+            .map_or(c, |s| c.union(&s.columns))
+    });
     let plan = first.segment_plan();
     let mut odometers: Vec<LaneIncrements<'_>> =
         todo.iter().map(|p| p.odometer_increments()).collect();

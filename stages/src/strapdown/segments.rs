@@ -601,14 +601,20 @@ impl SegmentMemo {
             dtheta: 0,
             len: inputs.odo_dist_m.len(),
         };
-        // Both held while integrating: a second caller waits for the first's segments
-        // instead of integrating them again.
-        let mut imu_memo = self.imu.lock().unwrap_or_else(|e| e.into_inner());
-        let mut odo_memo = self.odo.lock().unwrap_or_else(|e| e.into_inner());
+        // The IMU's lock is held while its segments are integrated (a second caller
+        // waits for them rather than integrating them again), and always taken before
+        // the odometer's; it is let go while a stored odometer alone is integrated (the
+        // IMU's segments are shared with the re-derives, whose passes go on meanwhile).
+        let mut imu_memo = Some(self.imu.lock().unwrap_or_else(|e| e.into_inner()));
         let imu_cached = imu_memo
             .as_ref()
+            .and_then(|m| m.as_ref())
             .filter(|(key, segs)| *key == imu_key && segs.plan == *plan)
             .map(|(_, segs)| Arc::clone(segs));
+        if imu_cached.is_some() {
+            imu_memo = None;
+        }
+        let mut odo_memo = self.odo.lock().unwrap_or_else(|e| e.into_inner());
         let odo_same = odo_memo
             .as_ref()
             .filter(|(key, p, _)| *key == odo_key && p == plan);
@@ -618,28 +624,38 @@ impl SegmentMemo {
         // Integrated again, the odometer keeps the columns it had.
         let columns = odo_same.map_or(columns, |(_, _, segs)| segs.columns.union(&columns));
         let need_odo = stored_odometer && odo_cached.is_none();
-        if let (Some(imu), false) = (&imu_cached, need_odo) {
-            return (Arc::clone(imu), odo_cached.filter(|_| stored_odometer));
-        }
         let mut odometers: Vec<_> = if need_odo {
             vec![inputs.odo_dist_m.iter().copied()]
         } else {
             Vec::new()
         };
-        let (imu, mut odo) = integrate(
-            inputs.dt_s,
-            inputs.dtheta_rad,
-            plan,
-            imu_cached.is_none(),
-            &mut odometers,
-            columns,
-        );
-        let imu = match (imu_cached, imu) {
-            (Some(cached), _) => cached,
-            (None, fresh) => {
-                let fresh = Arc::new(fresh.expect("the IMU's segments integrated"));
-                *imu_memo = Some((imu_key, Arc::clone(&fresh)));
-                fresh
+        let (imu, mut odo) = match imu_cached {
+            Some(imu) if !need_odo => return (imu, odo_cached.filter(|_| stored_odometer)),
+            Some(imu) => {
+                let (_, odo) = integrate(
+                    inputs.dt_s,
+                    inputs.dtheta_rad,
+                    plan,
+                    false,
+                    &mut odometers,
+                    columns,
+                );
+                (imu, odo)
+            }
+            None => {
+                let (imu, odo) = integrate(
+                    inputs.dt_s,
+                    inputs.dtheta_rad,
+                    plan,
+                    true,
+                    &mut odometers,
+                    columns,
+                );
+                let imu = Arc::new(imu.expect("the IMU's segments integrated"));
+                if let Some(memo) = imu_memo.as_mut() {
+                    **memo = Some((imu_key, Arc::clone(&imu)));
+                }
+                (imu, odo)
             }
         };
         let odo = if need_odo {
