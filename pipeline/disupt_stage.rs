@@ -21,7 +21,7 @@ use unz_stages::strapdown::{self, NavInputs, NavSettings};
 use unz_stages::units::DEG_PER_H;
 
 pub use coarse_azimuth::{Coarse, CoarseRefused, coarse_azimuth, coarse_refused_note};
-use joint_run::{JointInputs, joint_route_sigma, route_stride, run_methods};
+use joint_run::{JointInputs, joint_route_sigma, lag_states, route_stride, run_methods};
 pub use report::{
     DisuptOut, MARK_ARM_REFIT_SIGMA, MARK_ARM_SIGMA, MarkArmCheck, MethodOut, ODO_YAW_REFIT_Z,
     OdoYawCheck, Outcome, SettingsOut, SigmaOut, joint_mark_arm_note, mark_arm_note,
@@ -286,8 +286,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         if let Some(e) = &found.refit_error {
             ctx.say("disupt", e);
         }
-        // The ingested odometer and its re-derives go before the review passes (the route
-        // σ's pass at the moved lag ran with the joint).
+        // The ingested odometer and its re-derives go before the review passes, once the
+        // route σ's pass at the moved lag has read it (below).
         let joint_run = joint_result.as_ref().and_then(|r| r.as_ref().ok());
         if let Some(note) = joint_run.and_then(|r| r.odo_yaw.as_ref().and_then(odo_yaw_note)) {
             ctx.say("disupt", &note);
@@ -298,8 +298,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         {
             ctx.say("disupt", &note);
         }
-        drop(rederive);
-        drop(odometer);
         let joint_derived = joint_run
             .and_then(|r| r.derived.as_ref())
             .unwrap_or(&case.derived);
@@ -310,11 +308,20 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let joint_problem = joint_spec.on(joint_derived);
         // The joint fit's hold-out (unless the exclusions' search left it): the last work
         // on the segments, which are let go before the review passes (at 12 hours 50 MB
-        // beside the reviews' tracks).
-        let holdout = joint_run.map(|run| match found.holdout.take() {
-            Some(h) => Ok(h),
-            None => disupt::holdout(&joint_problem, &run.fit, &run.params),
-        });
+        // beside the reviews' tracks); beside it, the route σ's pass at the moved lag, the
+        // last to read the ingested odometer.
+        let found_holdout = found.holdout.take();
+        let (holdout, lag_states) = rayon::join(
+            || {
+                joint_run.map(|run| match found_holdout {
+                    Some(h) => Ok(h),
+                    None => disupt::holdout(&joint_problem, &run.fit, &run.params),
+                })
+            },
+            || joint_run.and_then(|run| lag_states(run, &problem, &rederive, &case)),
+        );
+        drop(rederive);
+        drop(odometer);
         case.derived.segments.clear();
         joint_derived.segments.clear();
         lap("hold-out");
@@ -486,9 +493,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         }
         let write_corrected = || {
             let route_sigma = joint_run.and_then(|run| {
-                route_base
-                    .as_ref()
-                    .and_then(|base| joint_route_sigma(&joint_problem, run, base))
+                route_base.as_ref().and_then(|base| {
+                    joint_route_sigma(&joint_problem, run, lag_states.as_deref(), base)
+                })
             });
             lap("route sigma");
             let fix_samples: Vec<usize> = case.fixes.iter().map(|f| f.sample).collect();

@@ -26,10 +26,6 @@ pub(super) struct JointRun {
     pub(super) lag: Lag,
     pub(super) profile: Option<Vec<[f64; 2]>>,
     pub(super) derived: Option<Derived>,
-    /// The route σ's pass at the lag moved by [`LAG_STEP_S`], run where the ingested
-    /// odometer is at hand: its states at the route's samples (when
-    /// [`route_sigma_has_lag`]).
-    pub(super) lag_states: Option<Vec<[f64; 3]>>,
     /// The parameters of the fit (the stage's, with `joint_odo_yaw` on when the check
     /// below redid the fit): the hold-out's fits take them.
     pub(super) params: disupt::DisuptParams,
@@ -52,13 +48,37 @@ fn route_sigma_has_lag(run: &JointRun) -> bool {
     run.fit.covariance.is_some() && run.profile.is_some() && run.lag.sigma_s > 0.0
 }
 
+/// The route σ's pass at the joint fit's lag moved by [`LAG_STEP_S`] (when
+/// [`route_sigma_has_lag`]), run while the ingested odometer is at hand: its states at
+/// the route's samples only, not its odometer increments. Run for the fit the stage
+/// keeps only (a fit redone for a boresight, an arm or a point left out had its own).
+pub(super) fn lag_states(
+    run: &JointRun,
+    problem: &Problem<'_>,
+    rederive: &Rederive<'_>,
+    case: &NavCase,
+) -> Option<Vec<[f64; 3]>> {
+    route_sigma_has_lag(run).then(|| {
+        let d = &case.derived;
+        let samples = route_samples(d.dt_s.len(), route_stride(&d.dt_s));
+        let odometer = rederive.odometer_at(run.lag.lag_s + LAG_STEP_S);
+        states_along(
+            &d.nav_inputs(),
+            odometer.increments(),
+            &problem.settings(&run.fit.result.x),
+            &samples,
+        )
+    })
+}
+
 /// σ of the joint's corrected route (`base`, taken from the pass at its settings): the fit's
 /// covariance through one moved pass per estimated setting, and the lag's variance
-/// through the pass at the moved lag (its states, `run.lag_states`, when
+/// through the pass at the moved lag (its states, [`lag_states`], when
 /// [`route_sigma_has_lag`]).
 pub(super) fn joint_route_sigma(
     problem: &Problem<'_>,
     run: &JointRun,
+    lag_states: Option<&[[f64; 3]]>,
     base: &RouteBase<'_>,
 ) -> Option<RouteSigma> {
     let fit = &run.fit;
@@ -86,8 +106,8 @@ pub(super) fn joint_route_sigma(
         cov.select_rows(&kept).select_columns(&kept)
     };
     let mut ran = Vec::new();
-    // Present only when the route σ has a lag part (see `run_joint`).
-    if let Some(states) = run.lag_states.as_deref() {
+    // Present only when the route σ has a lag part.
+    if let Some(states) = lag_states {
         ran.push(Ran {
             states,
             step: LAG_STEP_S,
@@ -305,14 +325,14 @@ fn fit_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptError> {
         problem,
         spec,
         rederive,
-        case,
         dparams,
+        ..
     } = x;
     if dparams.joint_odo_lag && problem.cps_used() >= 2 {
         // On the methods' shared problem: the lag-free fit starts from the same first
         // linearisation as OEPI and OWPI, built once.
         let f = joint_with_lag(rederive, problem, spec, dparams)?;
-        let mut run = JointRun {
+        let run = JointRun {
             lag: Lag {
                 lag_s: f.lag_s,
                 sigma_s: f.sigma_s.unwrap_or(0.0),
@@ -320,27 +340,12 @@ fn fit_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptError> {
             profile: Some(f.profile),
             derived: Some(f.derived),
             fit: f.fit,
-            lag_states: None,
             params: *dparams,
             odo_yaw: None,
             mark_arm: None,
             rebridged: rederive.rebridges().map(|r| r.changes_at(f.lag_s)),
         };
         disupt::within_bounds(&run.fit, &problem.x0(), dparams)?;
-        if route_sigma_has_lag(&run) {
-            // The route σ's pass at the moved lag, now that the ingested odometer is at
-            // hand (beside OEPI and OWPI when they still run): only its states at the
-            // route's samples are kept, not its odometer increments.
-            let d = &case.derived;
-            let samples = route_samples(d.dt_s.len(), route_stride(&d.dt_s));
-            let odometer = rederive.odometer_at(run.lag.lag_s + LAG_STEP_S);
-            run.lag_states = Some(states_along(
-                &d.nav_inputs(),
-                odometer.increments(),
-                &problem.settings(&run.fit.result.x),
-                &samples,
-            ));
-        }
         return Ok(run);
     }
     let fit = joint_fit(problem, dparams, &JointOptions::default())?;
@@ -350,7 +355,6 @@ fn fit_joint(x: JointInputs<'_>) -> Result<JointRun, disupt::DisuptError> {
         lag: Lag::default(),
         profile: None,
         derived: None,
-        lag_states: None,
         params: *dparams,
         odo_yaw: None,
         mark_arm: None,

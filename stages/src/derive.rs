@@ -650,6 +650,13 @@ impl<'a> MovedOdometer<'a> {
 
     /// The increments, m, one per sample from the first.
     pub fn increments(&self) -> OdoIncrements<'a> {
+        self.increments_from(0)
+    }
+
+    /// The increments from sample `k` on (none past the last sample): those of
+    /// [`Self::increments`] from its `k`-th, bit for bit (the interpolation's place in the
+    /// odometer's rows depends on the time asked only).
+    pub fn increments_from(&self, k: usize) -> OdoIncrements<'a> {
         let mut odo = OdoInterp::new(
             self.odo_t_ns,
             self.odo_distance_m,
@@ -657,13 +664,17 @@ impl<'a> MovedOdometer<'a> {
             self.t0_ns,
             self.offset_s,
         );
-        let prev_m = self
-            .t_s
-            .first()
-            .map_or(0.0, |t| odo.at(t - self.first_dt_s));
+        let k = k.min(self.t_s.len());
+        let prev_m = match k {
+            0 => self
+                .t_s
+                .first()
+                .map_or(0.0, |t| odo.at(t - self.first_dt_s)),
+            _ => odo.at(self.t_s.get(k - 1)),
+        };
         OdoIncrements {
             odo,
-            t_s: self.t_s.iter(),
+            t_s: self.t_s.range(k..self.t_s.len()),
             prev_m,
         }
     }
@@ -700,7 +711,10 @@ impl ExactSizeIterator for OdoIncrements<'_> {}
 /// the rate of change of "moving"): [`odometer_blocks_of`].
 pub fn odometer_blocks(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64, lp: &LowPass) {
     let increments = odometer_increments(out, raw, offset_s);
-    odometer_blocks_of(out, increments.iter().copied(), lp);
+    [out.u_dot_f, out.ru_f, out.r_moving_f, out.moving_dot_f] =
+        odometer_blocks_split(out, lp, true, |k| {
+            increments[k.min(increments.len())..].iter().copied()
+        });
     out.odo_dist_m = increments;
 }
 
@@ -714,6 +728,80 @@ pub fn odometer_blocks_of(out: &mut Derived, increments: impl Iterator<Item = f6
         blocks.push(dd);
     }
     [out.u_dot_f, out.ru_f, out.r_moving_f, out.moving_dot_f] = blocks.finish(lp);
+}
+
+/// Blocks of F a run must have before [`odometer_blocks_split`] splits it between threads
+/// (about 14 minutes at 100 Hz).
+pub const SPLIT_BLOCKS: usize = 8192;
+
+/// F's block series of the odometer's part of `d` ([`odometer_blocks_of`]'s, u̇'s left
+/// empty unless `u_dot`), the increments from sample `k` on given by `increments_from(k)`:
+/// the run is split into stretches of whole blocks taken side by side on rayon's threads
+/// (each stretch resumes from the increment before its first sample), the same, bit for
+/// bit, as one walk.
+pub fn odometer_blocks_split<I, F>(
+    d: &Derived,
+    lp: &LowPass,
+    u_dot: bool,
+    increments_from: F,
+) -> [Vec<f64>; 4]
+where
+    I: Iterator<Item = f64>,
+    F: Fn(usize) -> I + Sync,
+{
+    let blocks = lp.blocks(d.t_s.len());
+    let parts = rayon::current_num_threads().min(blocks / SPLIT_BLOCKS);
+    odometer_blocks_in_parts(d, lp, u_dot, increments_from, parts)
+}
+
+/// [`odometer_blocks_split`] in `parts` stretches (at least one, at most one a block).
+fn odometer_blocks_in_parts<I, F>(
+    d: &Derived,
+    lp: &LowPass,
+    u_dot: bool,
+    increments_from: F,
+    parts: usize,
+) -> [Vec<f64>; 4]
+where
+    I: Iterator<Item = f64>,
+    F: Fn(usize) -> I + Sync,
+{
+    use rayon::prelude::*;
+    let n = d.t_s.len();
+    let blocks = lp.blocks(n);
+    let parts = parts.min(blocks).max(1);
+    let stretches: Vec<[Vec<f64>; 4]> = (0..parts)
+        .into_par_iter()
+        .map(|p| {
+            let (first, last) = (blocks * p / parts, blocks * (p + 1) / parts);
+            let (from, to) = (first * lp.block, (last * lp.block).min(n));
+            // The first stretch is sized for all of them: the others are appended to it.
+            let room = if p == 0 { blocks } else { last - first };
+            let mut b = OdometerBlocks::sized(d, lp, u_dot, room);
+            let mut increments = increments_from(from.saturating_sub(1));
+            if from > 0 {
+                b.resume_after(from, increments.next().unwrap_or(0.0));
+            }
+            for dd in increments.take(to - from) {
+                b.push(dd);
+            }
+            b.means()
+        })
+        .collect();
+    let mut stretches = stretches.into_iter();
+    let mut all = stretches.next().expect("one stretch at least");
+    for more in stretches {
+        for (all, mut more) in all.iter_mut().zip(more) {
+            all.append(&mut more);
+        }
+    }
+    let [u_dot_f, ru, r_moving, moving_dot] = &mut all;
+    let mut series: Vec<&mut [f64]> = vec![ru, r_moving, moving_dot];
+    if u_dot {
+        series.insert(0, u_dot_f);
+    }
+    lp.filter_blocks_each(&mut series);
+    all
 }
 
 /// [`odometer_blocks_of`] as the odometer's increments come, one sample at a time (beside
@@ -735,33 +823,31 @@ pub struct OdometerBlocks<'d> {
 impl<'d> OdometerBlocks<'d> {
     /// The blocks of `d`'s odometer part, from its IMU's intervals and yaw rates.
     pub fn new(d: &'d Derived, lp: &LowPass) -> Self {
-        Self {
-            u_dot: Some(crate::filter::BlockMeans::new(
-                lp.block,
-                lp.blocks(d.t_s.len()),
-            )),
-            ..Self::new_empty(d, lp)
-        }
+        Self::sized(d, lp, true, lp.blocks(d.t_s.len()))
     }
 
-    /// [`Self::new`] without u̇'s blocks (left empty: a re-derive takes the configured
-    /// derive's, moved in time).
-    pub fn without_u_dot(d: &'d Derived, lp: &LowPass) -> Self {
-        Self {
-            u_dot: None,
-            ..Self::new_empty(d, lp)
-        }
-    }
-
-    fn new_empty(d: &'d Derived, lp: &LowPass) -> Self {
+    /// [`Self::new`] (u̇'s blocks only when `u_dot`) with room for `blocks` blocks.
+    fn sized(d: &'d Derived, lp: &LowPass, u_dot: bool, blocks: usize) -> Self {
         Self {
             dt_s: &d.dt_s,
             dtheta_rad: &d.dtheta_rad,
             k: 0,
             prev: (0.0, 0.0),
-            u_dot: None,
-            rest: crate::filter::BlockMeans::new(lp.block, lp.blocks(d.t_s.len())),
+            u_dot: u_dot.then(|| crate::filter::BlockMeans::new(lp.block, blocks)),
+            rest: crate::filter::BlockMeans::new(lp.block, blocks),
         }
+    }
+
+    /// Starts at sample `k` (a block's first, above 0), the odometer's increment over
+    /// the sample before being `dd_before`: the blocks from there on are those a walk
+    /// from the start gives.
+    fn resume_after(&mut self, k: usize, dd_before: f64) {
+        let Some(&dt) = self.dt_s.get(k - 1) else {
+            self.k = k;
+            return;
+        };
+        self.k = k;
+        self.prev = (dd_before / dt, f64::from(u8::from(dd_before != 0.0)));
     }
 
     /// The odometer's increment `dd` over the next sample, m (samples past the IMU's
@@ -797,9 +883,15 @@ impl<'d> OdometerBlocks<'d> {
 
     /// F(u̇) (empty when left out), F(ru), F(r while moving) and F(d moving/dt) per
     /// block.
+    /// The block means, unfiltered (u̇'s empty when left out).
+    fn means(self) -> [Vec<f64>; 4] {
+        let [u_dot] = self.u_dot.map_or_else(|| [Vec::new()], |m| m.finish());
+        let [ru, r_moving, moving_dot] = self.rest.finish();
+        [u_dot, ru, r_moving, moving_dot]
+    }
+
     pub fn finish(self, lp: &LowPass) -> [Vec<f64>; 4] {
-        let [mut u_dot] = self.u_dot.map_or_else(|| [Vec::new()], |m| m.finish());
-        let [mut ru, mut r_moving, mut moving_dot] = self.rest.finish();
+        let [mut u_dot, mut ru, mut r_moving, mut moving_dot] = self.means();
         let mut series: Vec<&mut [f64]> = vec![&mut ru, &mut r_moving, &mut moving_dot];
         if !u_dot.is_empty() {
             series.insert(0, &mut u_dot);
@@ -1082,6 +1174,42 @@ mod tests {
             assert_eq!(bits(&moved.ax_f), bits(&filtered(&ax)));
             assert!(moving_dot.iter().any(|&v| v != 0.0), "the drive stops");
         }
+    }
+
+    /// The run split into stretches of blocks (each resumed from the increment before
+    /// it) gives one walk's block series, bit for bit: with u̇ and without, on the
+    /// odometer stored and read moved from the ingested one, in more stretches than the
+    /// pool has threads.
+    #[test]
+    fn block_series_in_stretches_are_one_walks_bit_for_bit() {
+        let columns = drive();
+        let raw = series(&columns);
+        let params = DeriveParams::default();
+        let d = derive(&raw, &params, 9.81);
+        let lp = LowPass::new(&params.filter, d.nominal_dt_s);
+        let whole = |d: &Derived, increments: &[f64]| {
+            let mut out = d.without_odometer_series();
+            odometer_blocks_of(&mut out, increments.iter().copied(), &lp);
+            [out.u_dot_f, out.ru_f, out.r_moving_f, out.moving_dot_f]
+        };
+        let stored = whole(&d, &d.odo_dist_m);
+        let from = |k: usize| d.odo_dist_m[k.min(d.odo_dist_m.len())..].iter().copied();
+        let moved = MovedOdometer::new(&d, &raw, 0.237);
+        let moved_increments: Vec<f64> = moved.increments().collect();
+        let moved_whole = whole(&d, &moved_increments);
+        for parts in [1, 2, 3, 7] {
+            let split = odometer_blocks_in_parts(&d, &lp, true, from, parts);
+            for (a, b) in split.iter().zip(&stored) {
+                assert_eq!(bits(a), bits(b), "{parts} stretches");
+            }
+            let split =
+                odometer_blocks_in_parts(&d, &lp, false, |k| moved.increments_from(k), parts);
+            assert!(split[0].is_empty());
+            for (a, b) in split.iter().zip(&moved_whole).skip(1) {
+                assert_eq!(bits(a), bits(b), "{parts} stretches, moved");
+            }
+        }
+        assert!(stored[3].iter().any(|&v| v != 0.0), "the drive stops");
     }
 
     #[test]

@@ -33,8 +33,8 @@ use std::cell::RefCell;
 use std::sync::OnceLock;
 
 use crate::derive::{
-    DeriveParams, Derived, MovedOdometer, OdoTimes, OdometerBlocks, RawSeries, derive, epochs_of,
-    shifted_blocks,
+    DeriveParams, Derived, MovedOdometer, OdoTimes, RawSeries, derive, epochs_of,
+    odometer_blocks_split, shifted_blocks,
 };
 use crate::disupt::{
     DisuptError, DisuptParams, JointFit, JointOptions, Problem, ProblemSpec, joint_fit,
@@ -43,7 +43,7 @@ use crate::disupt::{
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, Setting};
 use crate::odo_rebridge::Rebridges;
-use crate::strapdown::segments::{OdoColumns, OdoSegments, SegmentPlan, integrate};
+use crate::strapdown::segments::{OdoColumns, OdoSegments, SegmentPlan, integrate_split};
 
 /// Half-width of the parabolas around the current vertex (and of the curvature), s.
 const CURVATURE_STEP_S: f64 = 0.05;
@@ -198,11 +198,8 @@ impl<'a> Rederive<'a> {
         // for u̇'s blocks: the configured derive's, moved in time.
         let mut d = base.without_odometer_series();
         let lp = LowPass::new(&self.params.filter, d.nominal_dt_s);
-        let mut blocks = OdometerBlocks::without_u_dot(base, &lp);
-        for dd in odometer.increments().take(base.t_s.len()) {
-            blocks.push(dd);
-        }
-        [d.u_dot_f, d.ru_f, d.r_moving_f, d.moving_dot_f] = blocks.finish(&lp);
+        [d.u_dot_f, d.ru_f, d.r_moving_f, d.moving_dot_f] =
+            odometer_blocks_split(base, &lp, false, |k| odometer.increments_from(k));
         let block_s = lp.block as f64 * d.nominal_dt_s;
         d.u_dot_f = shifted_blocks(&base.u_dot_f, block_s, lag_s);
         d.epochs = epochs_of(&d, &lp, &self.params, self.g_mps2);
@@ -228,16 +225,15 @@ impl<'a> Rederive<'a> {
                 (d, odometer)
             })
             .unzip();
-        let mut increments: Vec<_> = odometers.iter().map(|o| o.increments()).collect();
-        let (_, segments) = integrate(
+        let (_, segments) = integrate_split(
             &base.dt_s,
             &base.dtheta_rad,
             plan,
             false,
-            &mut increments,
+            odometers.len(),
+            |v, k| odometers[v].increments_from(k),
             columns,
         );
-        drop(increments);
         derives
             .into_iter()
             .zip(odometers)

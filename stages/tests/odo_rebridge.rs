@@ -159,6 +159,7 @@ fn a_failure_from_a_stop_is_bridged_at_the_lag_given() {
         odo_t_ns: OdoTimes::Slice(&drive.tags_ns),
         odo_distance_m: &odo,
     };
+    let patch_first = patch.spans[0].first;
     let moved = MovedOdometer::new(&drive.derived, &raw, -lag_s).patched(Some(patch));
     let mut d_m = 0.0;
     for (k, dd) in moved.increments().enumerate() {
@@ -173,6 +174,16 @@ fn a_failure_from_a_stop_is_bridged_at_the_lag_given() {
             );
         }
     }
+    // Read from any sample on (a run's stretches integrated side by side), the
+    // increments are the same, bit for bit: inside the patch's span, around it, at the
+    // ends and past them.
+    let all: Vec<u64> = moved.increments().map(f64::to_bits).collect();
+    let p = patch_first;
+    for k in [0, 1, 777, p - 1, p, p + 3, 9_999, all.len() - 1, all.len()] {
+        let from: Vec<u64> = moved.increments_from(k).map(f64::to_bits).collect();
+        assert!(from == all[k..], "from sample {k}");
+    }
+    assert_eq!(moved.increments_from(all.len() + 5).count(), 0);
     // Without the patch, the ingest's 20 m stay in the route.
     let unpatched: f64 = MovedOdometer::new(&drive.derived, &raw, -lag_s)
         .increments()

@@ -13,7 +13,7 @@ use crate::derive::{Epochs, MovedOdometer, OdoIncrements};
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
 use crate::strapdown::segments::{
-    ImuSegments, OdoColumns, OdoSegments, SegmentMemo, SegmentPlan, integrate,
+    ImuSegments, OdoColumns, OdoSegments, SegmentMemo, SegmentPlan, integrate_split,
 };
 use crate::strapdown::{self, CriteriaSink, LaneBatch, NavInputs, NavSettings, in_lanes};
 use crate::units::DEG_PER_H;
@@ -303,11 +303,15 @@ impl<'a> Problem<'a> {
         (imu, odo)
     }
 
-    /// The odometer increments a pass of this problem reads, sample by sample.
-    fn odometer_increments(&self) -> LaneIncrements<'a> {
+    /// The odometer increments a pass of this problem reads, sample by sample, from
+    /// sample `k` on.
+    fn odometer_increments_from(&self, k: usize) -> LaneIncrements<'a> {
         match &self.moved_odometer {
-            Some(moved) => Either::Right(moved.increments()),
-            None => Either::Left(self.inputs.odo_dist_m.iter().copied()),
+            Some(moved) => Either::Right(moved.increments_from(k)),
+            None => {
+                let d = self.inputs.odo_dist_m;
+                Either::Left(d[k.min(d.len())..].iter().copied())
+            }
         }
     }
 
@@ -623,14 +627,13 @@ fn ensure_moved_segments(problems: &[&Problem<'_>], columns: OdoColumns) {
             .map_or(c, |s| c.union(&s.columns))
     });
     let plan = first.segment_plan();
-    let mut odometers: Vec<LaneIncrements<'_>> =
-        todo.iter().map(|p| p.odometer_increments()).collect();
-    let (_, odo) = integrate(
+    let (_, odo) = integrate_split(
         first.inputs.dt_s,
         first.inputs.dtheta_rad,
         &plan,
         false,
-        &mut odometers,
+        todo.len(),
+        |v, k| todo[v].odometer_increments_from(k),
         columns,
     );
     for (p, segs) in todo.iter().zip(odo) {

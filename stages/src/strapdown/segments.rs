@@ -32,6 +32,8 @@
 
 use std::sync::{Arc, Mutex};
 
+use rayon::prelude::*;
+
 use crate::attitude::{HALF_ANGLE_SERIES_LIMIT_RAD2, half_angle_exact, half_angle_series};
 
 /// Where a run's segments end: blocks of `block` samples, cut after each of `cuts`.
@@ -187,6 +189,13 @@ impl OdoSums {
         }
     }
 
+    /// Appends `more`'s segments (the same columns).
+    fn append(&mut self, mut more: OdoSums) {
+        self.x.append(&mut more.x);
+        self.y.append(&mut more.y);
+        self.z.append(&mut more.z);
+    }
+
     /// Appends a segment's sums (`s` row-major, `dist`), the columns asked for.
     fn push(&mut self, s: &[f64; 9], dist: f64, columns: &OdoColumns) {
         let column = |j: usize| [s[j] as f32, s[3 + j] as f32, s[6 + j] as f32];
@@ -210,6 +219,16 @@ pub struct OdoSegments {
     pub distance: OdoSums,
     /// The moving time's sums, when integrated (`columns.moving`).
     pub moving: Option<OdoSums>,
+}
+
+impl OdoSegments {
+    /// Appends `more`'s segments (the same columns).
+    fn append(&mut self, more: OdoSegments) {
+        self.distance.append(more.distance);
+        if let (Some(all), Some(more)) = (self.moving.as_mut(), more.moving) {
+            all.append(more);
+        }
+    }
 }
 
 /// The rotation matrix (row-major) of a unit quaternion (w, x, y, z).
@@ -279,63 +298,192 @@ pub fn integrate<I: Iterator<Item = f64>>(
     odometers: &mut [I],
     columns: OdoColumns,
 ) -> (Option<ImuSegments>, Vec<OdoSegments>) {
-    let count = plan.count();
     let n = plan.samples.min(dt_s.len()).min(dtheta_rad.len());
-    let mut imu_out = imu.then(|| Vec::with_capacity(count));
-    let mut odo_out: Vec<OdoSegments> = odometers
-        .iter()
-        .map(|_| OdoSegments {
-            columns,
-            distance: OdoSums::with_capacity(count, &columns),
-            moving: columns
-                .moving
-                .then(|| OdoSums::with_capacity(count, &columns)),
-        })
-        .collect();
-    let mut buffers: Vec<Vec<f64>> = vec![Vec::new(); odometers.len()];
-    let mut group = Group::<WIDTH>::new(odometers.len());
-    let mut ends = plan.ends().peekable();
-    let mut start = 0;
-    while ends.peek().is_some() {
-        let mut bounds = [(0, 0); WIDTH];
-        let mut lanes = 0;
-        for b in bounds.iter_mut() {
-            let Some(e) = ends.next() else {
-                break;
-            };
-            let end = e.end.min(n);
-            *b = (start.min(end), end);
-            start = e.end;
-            lanes += 1;
+    let part = Part {
+        dt_s,
+        dtheta_rad,
+        n,
+        imu,
+        columns,
+    };
+    let (imu, odo) = part.integrate(plan.ends(), 0, odometers, plan.count());
+    (imu.map(|segments| imu_segments(plan, segments)), odo)
+}
+
+/// Segments a run must have before [`integrate_split`] splits it between threads (about
+/// 14 minutes at 100 Hz): below, one walk costs less than a millisecond or two.
+pub const SPLIT_SEGMENTS: usize = 8192;
+
+/// [`integrate`], the run split into consecutive stretches of segments integrated side by
+/// side on rayon's threads (a segment's sums depend on its own samples and the one
+/// before only, so the result is the same, bit for bit). Odometer `v`'s increments from
+/// sample `k` on are `odometer(v, k)`.
+pub fn integrate_split<I, F>(
+    dt_s: &[f64],
+    dtheta_rad: &[[f64; 3]],
+    plan: &SegmentPlan,
+    imu: bool,
+    odometers: usize,
+    odometer: F,
+    columns: OdoColumns,
+) -> (Option<ImuSegments>, Vec<OdoSegments>)
+where
+    I: Iterator<Item = f64>,
+    F: Fn(usize, usize) -> I + Sync,
+{
+    let parts = rayon::current_num_threads().min(plan.count() / SPLIT_SEGMENTS);
+    integrate_in_parts(
+        dt_s, dtheta_rad, plan, imu, odometers, odometer, columns, parts,
+    )
+}
+
+/// [`integrate_split`] in `parts` stretches (at least one, at most one a segment).
+#[allow(clippy::too_many_arguments)]
+fn integrate_in_parts<I, F>(
+    dt_s: &[f64],
+    dtheta_rad: &[[f64; 3]],
+    plan: &SegmentPlan,
+    imu: bool,
+    odometers: usize,
+    odometer: F,
+    columns: OdoColumns,
+    parts: usize,
+) -> (Option<ImuSegments>, Vec<OdoSegments>)
+where
+    I: Iterator<Item = f64>,
+    F: Fn(usize, usize) -> I + Sync,
+{
+    let n = plan.samples.min(dt_s.len()).min(dtheta_rad.len());
+    let part = Part {
+        dt_s,
+        dtheta_rad,
+        n,
+        imu,
+        columns,
+    };
+    let count = plan.count();
+    let parts = parts.min(count).max(1);
+    // Each stretch's first segment and the sample it starts at.
+    let mut starts = vec![(0, 0)];
+    for (i, e) in plan.ends().enumerate() {
+        if starts.len() == parts {
+            break;
         }
-        // Each odometer's increments over the group's samples, read in order.
-        let (span_from, span_to) = (bounds[0].0, bounds[lanes - 1].1);
-        for (buffer, odometer) in buffers.iter_mut().zip(odometers.iter_mut()) {
-            buffer.clear();
-            buffer.extend((span_from..span_to).map(|_| odometer.next().unwrap_or(0.0)));
-        }
-        group.run(&GroupInputs {
-            dt_s,
-            dtheta_rad,
-            bounds: &bounds,
-            span: span_from,
-            buffers: &buffers,
-            moving: columns.moving,
-        });
-        for l in 0..lanes {
-            if let Some(out) = imu_out.as_mut() {
-                out.push(group.imu_segment(l));
-            }
-            for (v, out) in odo_out.iter_mut().enumerate() {
-                group.push_odo(v, l, out);
-            }
+        if i + 1 == count * starts.len() / parts {
+            starts.push((i + 1, e.end));
         }
     }
-    let imu = imu_out.map(|segments| ImuSegments {
+    let mut stretches = starts
+        .par_iter()
+        .enumerate()
+        .map(|(p, &(first, sample))| {
+            let segments = starts.get(p + 1).map_or(count, |s| s.0) - first;
+            let mut odos: Vec<I> = (0..odometers).map(|v| odometer(v, sample)).collect();
+            let ends = plan.ends().skip(first).take(segments);
+            // The first stretch is sized for all of them: the others are appended to it.
+            let room = if p == 0 { count } else { segments };
+            part.integrate(ends, sample, &mut odos, room)
+        })
+        .collect::<Vec<_>>()
+        .into_iter();
+    let (mut imu, mut odo) = stretches.next().expect("one stretch at least");
+    for (more_imu, more_odo) in stretches {
+        if let (Some(all), Some(more)) = (imu.as_mut(), more_imu) {
+            all.extend_from_slice(&more);
+        }
+        for (all, more) in odo.iter_mut().zip(more_odo) {
+            all.append(more);
+        }
+    }
+    (imu.map(|segments| imu_segments(plan, segments)), odo)
+}
+
+fn imu_segments(plan: &SegmentPlan, segments: Vec<ImuSegment>) -> ImuSegments {
+    ImuSegments {
         plan: plan.clone(),
         segments,
-    });
-    (imu, odo_out)
+    }
+}
+
+/// What every stretch of a run's segments is integrated from.
+#[derive(Clone, Copy)]
+struct Part<'a> {
+    dt_s: &'a [f64],
+    dtheta_rad: &'a [[f64; 3]],
+    /// Samples there are increments for.
+    n: usize,
+    imu: bool,
+    columns: OdoColumns,
+}
+
+impl Part<'_> {
+    /// The segments `ends`, the first starting at sample `start` (where `odometers`
+    /// start), in vectors with room for `room` segments.
+    fn integrate<I: Iterator<Item = f64>>(
+        &self,
+        ends: impl Iterator<Item = SegmentEnd>,
+        mut start: usize,
+        odometers: &mut [I],
+        room: usize,
+    ) -> (Option<Vec<ImuSegment>>, Vec<OdoSegments>) {
+        let Self {
+            dt_s,
+            dtheta_rad,
+            n,
+            imu,
+            columns,
+        } = *self;
+        let mut imu_out = imu.then(|| Vec::with_capacity(room));
+        let mut odo_out: Vec<OdoSegments> = odometers
+            .iter()
+            .map(|_| OdoSegments {
+                columns,
+                distance: OdoSums::with_capacity(room, &columns),
+                moving: columns
+                    .moving
+                    .then(|| OdoSums::with_capacity(room, &columns)),
+            })
+            .collect();
+        let mut buffers: Vec<Vec<f64>> = vec![Vec::new(); odometers.len()];
+        let mut group = Group::<WIDTH>::new(odometers.len());
+        let mut ends = ends.peekable();
+        while ends.peek().is_some() {
+            let mut bounds = [(0, 0); WIDTH];
+            let mut lanes = 0;
+            for b in bounds.iter_mut() {
+                let Some(e) = ends.next() else {
+                    break;
+                };
+                let end = e.end.min(n);
+                *b = (start.min(end), end);
+                start = e.end;
+                lanes += 1;
+            }
+            // Each odometer's increments over the group's samples, read in order.
+            let (span_from, span_to) = (bounds[0].0, bounds[lanes - 1].1);
+            for (buffer, odometer) in buffers.iter_mut().zip(odometers.iter_mut()) {
+                buffer.clear();
+                buffer.extend((span_from..span_to).map(|_| odometer.next().unwrap_or(0.0)));
+            }
+            group.run(&GroupInputs {
+                dt_s,
+                dtheta_rad,
+                bounds: &bounds,
+                span: span_from,
+                buffers: &buffers,
+                moving: columns.moving,
+            });
+            for l in 0..lanes {
+                if let Some(out) = imu_out.as_mut() {
+                    out.push(group.imu_segment(l));
+                }
+                for (v, out) in odo_out.iter_mut().enumerate() {
+                    group.push_odo(v, l, out);
+                }
+            }
+        }
+        (imu_out, odo_out)
+    }
 }
 
 /// What a group of `W` segments is integrated from.
@@ -624,31 +772,33 @@ impl SegmentMemo {
         // Integrated again, the odometer keeps the columns it had.
         let columns = odo_same.map_or(columns, |(_, _, segs)| segs.columns.union(&columns));
         let need_odo = stored_odometer && odo_cached.is_none();
-        let mut odometers: Vec<_> = if need_odo {
-            vec![inputs.odo_dist_m.iter().copied()]
-        } else {
-            Vec::new()
+        let odometers = usize::from(need_odo);
+        let odometer = |_: usize, k: usize| {
+            let d = inputs.odo_dist_m;
+            d[k.min(d.len())..].iter().copied()
         };
         let (imu, mut odo) = match imu_cached {
             Some(imu) if !need_odo => return (imu, odo_cached.filter(|_| stored_odometer)),
             Some(imu) => {
-                let (_, odo) = integrate(
+                let (_, odo) = integrate_split(
                     inputs.dt_s,
                     inputs.dtheta_rad,
                     plan,
                     false,
-                    &mut odometers,
+                    odometers,
+                    odometer,
                     columns,
                 );
                 (imu, odo)
             }
             None => {
-                let (imu, odo) = integrate(
+                let (imu, odo) = integrate_split(
                     inputs.dt_s,
                     inputs.dtheta_rad,
                     plan,
                     true,
-                    &mut odometers,
+                    odometers,
+                    odometer,
                     columns,
                 );
                 let imu = Arc::new(imu.expect("the IMU's segments integrated"));
@@ -739,6 +889,76 @@ mod tests {
             mov.push(&s_mov, t_mov, &ALL);
         }
         (imu, odo, mov)
+    }
+
+    /// A run split into stretches integrated on their own (each odometer read from the
+    /// stretch's first sample) gives the whole walk's segments, bit for bit: stretches
+    /// starting at a cut, inside a stop, with every column, and more stretches than the
+    /// pool has threads; the IMU's segments alone, and odometers alone.
+    #[test]
+    fn stretches_of_a_run_are_the_whole_walk_bit_for_bit() {
+        let n = 20_011;
+        let dt: Vec<f64> = (0..n).map(|k| 0.01 + 1e-5 * (k % 7) as f64).collect();
+        let dth: Vec<[f64; 3]> = super::super::test_drive::turning_dtheta(n);
+        let odo = |scale: f64| -> Vec<f64> {
+            (0..n)
+                .map(|k| {
+                    if (6000..7300).contains(&k) {
+                        0.0
+                    } else {
+                        scale * (0.2 + 0.01 * (k % 3) as f64)
+                    }
+                })
+                .collect()
+        };
+        let (a, b) = (odo(1.0), odo(1.3));
+        let plan = SegmentPlan::new(n, 10, [5_003, 6_668, 13_337, 19_999]);
+        let whole = integrate(
+            &dt,
+            &dth,
+            &plan,
+            true,
+            &mut [a.iter().copied(), b.iter().copied()],
+            ALL,
+        );
+        let from = |v: usize, k: usize| {
+            let d = if v == 0 { &a } else { &b };
+            d[k.min(n)..].iter().copied()
+        };
+        for parts in [1, 2, 3, 7] {
+            let split = integrate_in_parts(&dt, &dth, &plan, true, 2, from, ALL, parts);
+            assert!(split == whole, "{parts} stretches");
+            let (imu, none) = integrate_in_parts(&dt, &dth, &plan, true, 0, from, ALL, parts);
+            assert!(imu == whole.0 && none.is_empty(), "{parts} stretches, IMU");
+            let (no_imu, odos) = integrate_in_parts(
+                &dt,
+                &dth,
+                &plan,
+                false,
+                2,
+                from,
+                OdoColumns::default(),
+                parts,
+            );
+            let plain = integrate(
+                &dt,
+                &dth,
+                &plan,
+                false,
+                &mut [a.iter().copied(), b.iter().copied()],
+                OdoColumns::default(),
+            );
+            assert!(
+                no_imu.is_none() && odos == plain.1,
+                "{parts} stretches, plain"
+            );
+        }
+        assert_eq!(whole.0.expect("IMU").segments.len(), plan.count());
+        // The public entry splits by the pool's threads beyond its size, the same.
+        let long = SegmentPlan::new(n, 2, []);
+        assert!(long.count() >= SPLIT_SEGMENTS);
+        let whole = integrate(&dt, &dth, &long, true, &mut [a.iter().copied()], ALL);
+        assert!(integrate_split(&dt, &dth, &long, true, 1, from, ALL) == whole);
     }
 
     #[test]
