@@ -298,14 +298,7 @@ pub fn integrate<I: Iterator<Item = f64>>(
     odometers: &mut [I],
     columns: OdoColumns,
 ) -> (Option<ImuSegments>, Vec<OdoSegments>) {
-    let n = plan.samples.min(dt_s.len()).min(dtheta_rad.len());
-    let part = Part {
-        dt_s,
-        dtheta_rad,
-        n,
-        imu,
-        columns,
-    };
+    let part = Part::new(dt_s, dtheta_rad, plan, imu, columns);
     let (imu, odo) = part.integrate(plan.ends(), 0, odometers, plan.count());
     (imu.map(|segments| imu_segments(plan, segments)), odo)
 }
@@ -353,14 +346,7 @@ where
     I: Iterator<Item = f64>,
     F: Fn(usize, usize) -> I + Sync,
 {
-    let n = plan.samples.min(dt_s.len()).min(dtheta_rad.len());
-    let part = Part {
-        dt_s,
-        dtheta_rad,
-        n,
-        imu,
-        columns,
-    };
+    let part = Part::new(dt_s, dtheta_rad, plan, imu, columns);
     let count = plan.count();
     let parts = parts.min(count).max(1);
     // Each stretch's first segment and the sample it starts at.
@@ -416,7 +402,23 @@ struct Part<'a> {
     columns: OdoColumns,
 }
 
-impl Part<'_> {
+impl<'a> Part<'a> {
+    fn new(
+        dt_s: &'a [f64],
+        dtheta_rad: &'a [[f64; 3]],
+        plan: &SegmentPlan,
+        imu: bool,
+        columns: OdoColumns,
+    ) -> Self {
+        Self {
+            dt_s,
+            dtheta_rad,
+            n: plan.samples.min(dt_s.len()).min(dtheta_rad.len()),
+            imu,
+            columns,
+        }
+    }
+
     /// The segments `ends`, the first starting at sample `start` (where `odometers`
     /// start), in vectors with room for `room` segments.
     fn integrate<I: Iterator<Item = f64>>(
