@@ -93,6 +93,11 @@ pub fn case_inputs(ctx: &RunCtx, params: &Params) -> anyhow::Result<Vec<PathBuf>
     ])
 }
 
+/// Samples of a run up to which its review passes run beside the joint fit's hold-out
+/// (two hours at 100 Hz: its segments, about 11 MB, and the ingested odometer, about
+/// 10 MB, are then held through the reviews; a longer run lets them go first).
+pub const REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES: usize = 720_000;
+
 /// How many times OWPI's Kryt1 OEPI's may be before its settings are not used: over 21
 /// runs (17 simulated, Kingston, logs begun while driving) OEPI's was at most 1.36 times
 /// OWPI's (OEPI within 0.3° of the truth); on 24 routes looping back to within 10–70 m of
@@ -306,26 +311,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             ..spec
         };
         let joint_problem = joint_spec.on(joint_derived);
-        // The joint fit's hold-out (unless the exclusions' search left it): the last work
-        // on the segments, which are let go before the review passes (at 12 hours 50 MB
-        // beside the reviews' tracks); beside it, the route σ's pass at the moved lag, the
-        // last to read the ingested odometer.
-        let found_holdout = found.holdout.take();
-        let (holdout, lag_states) = rayon::join(
-            || {
-                joint_run.map(|run| match found_holdout {
-                    Some(h) => Ok(h),
-                    None => disupt::holdout(&joint_problem, &run.fit, &run.params),
-                })
-            },
-            || joint_run.and_then(|run| lag_states(run, &problem, &rederive, &case)),
-        );
-        drop(rederive);
-        drop(odometer);
-        case.derived.segments.clear();
-        joint_derived.segments.clear();
-        lap("hold-out");
-
         let start = case.settings.start();
         // One exact pass per method's settings, side by side (the joint's on its own
         // derive's odometer): its trajectory, Kryt1 series and control-point errors, for
@@ -365,30 +350,70 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             }
             None => {}
         }
-        // The last review pass is the corrected navigation's. When it is the joint's with a
-        // covariance, the route's σ reads it as it runs; corrected_nav.parquet is written by
-        // a pass of its own once the σ is known (no track of the run's length is kept).
-        let mut route_base = joint_run
-            .filter(|run| run.fit.covariance.is_some())
-            .map(|run| {
-                let dt_s = joint_problem.inputs.dt_s;
-                RouteBase::new(
-                    &joint_problem.settings(&run.fit.result.x),
-                    dt_s,
-                    params.align.arw_rad_sqrt_s,
-                    route_stride(dt_s),
-                )
-            });
-        // The samples every method's track keeps; `tracks.parquet` takes their times.
-        let kept_samples = track_samples(&case.derived);
-        let outcomes = review_passes(
-            &problem,
-            &reviewed,
-            &case.fixes,
-            &kept_samples,
-            &mut route_base,
-        );
-        lap("reviews");
+        // The joint fit's hold-out (unless the exclusions' search left it): the last work
+        // on the segments; beside it, the route σ's pass at the moved lag, the last to read
+        // the ingested odometer. A short run's review passes (one batch of lanes, one core)
+        // run beside both; a long run's after them, once the segments and the ingested
+        // odometer are let go (at 12 hours 50 MB and more beside the reviews' tracks).
+        let found_holdout = found.holdout.take();
+        let holdout_and_lag = || {
+            rayon::join(
+                || {
+                    joint_run.map(|run| match found_holdout {
+                        Some(h) => Ok(h),
+                        None => disupt::holdout(&joint_problem, &run.fit, &run.params),
+                    })
+                },
+                || joint_run.and_then(|run| lag_states(run, &problem, &rederive, &case)),
+            )
+        };
+        let reviews = || {
+            // The last review pass is the corrected navigation's. When it is the joint's
+            // with a covariance, the route's σ reads it as it runs; corrected_nav.parquet is
+            // written by a pass of its own once the σ is known (no track of the run's
+            // length is kept).
+            let mut route_base = joint_run
+                .filter(|run| run.fit.covariance.is_some())
+                .map(|run| {
+                    let dt_s = joint_problem.inputs.dt_s;
+                    RouteBase::new(
+                        &joint_problem.settings(&run.fit.result.x),
+                        dt_s,
+                        params.align.arw_rad_sqrt_s,
+                        route_stride(dt_s),
+                    )
+                });
+            // The samples every method's track keeps; `tracks.parquet` takes their times.
+            let kept_samples = track_samples(&case.derived);
+            let outcomes = review_passes(
+                &problem,
+                &reviewed,
+                &case.fixes,
+                &kept_samples,
+                &mut route_base,
+            );
+            (outcomes, route_base, kept_samples)
+        };
+        let ((holdout, lag_states), (outcomes, route_base, kept_samples)) =
+            if case.derived.t_s.len() <= REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES {
+                let (both, outcomes) = rayon::join(holdout_and_lag, reviews);
+                drop(rederive);
+                drop(odometer);
+                lap("hold-out and reviews");
+                (both, outcomes)
+            } else {
+                let both = holdout_and_lag();
+                drop(rederive);
+                drop(odometer);
+                case.derived.segments.clear();
+                joint_derived.segments.clear();
+                lap("hold-out");
+                let outcomes = reviews();
+                lap("reviews");
+                (both, outcomes)
+            };
+        case.derived.segments.clear();
+        joint_derived.segments.clear();
         let mut tracks: Vec<KeptTrack> = Vec::new();
         let mut kryt1s: Vec<MethodKryt1> = Vec::new();
         let mut cps_of = std::collections::BTreeMap::new();
