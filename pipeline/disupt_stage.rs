@@ -291,8 +291,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         if let Some(e) = &found.refit_error {
             ctx.say("disupt", e);
         }
-        // The ingested odometer and its re-derives go before the review passes, once the
-        // route σ's pass at the moved lag has read it (below).
         let joint_run = joint_result.as_ref().and_then(|r| r.as_ref().ok());
         if let Some(note) = joint_run.and_then(|r| r.odo_yaw.as_ref().and_then(odo_yaw_note)) {
             ctx.say("disupt", &note);
@@ -399,6 +397,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 let (both, outcomes) = rayon::join(holdout_and_lag, reviews);
                 drop(rederive);
                 drop(odometer);
+                case.derived.segments.clear();
+                joint_derived.segments.clear();
                 lap("hold-out and reviews");
                 (both, outcomes)
             } else {
@@ -412,8 +412,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 lap("reviews");
                 (both, outcomes)
             };
-        case.derived.segments.clear();
-        joint_derived.segments.clear();
         let mut tracks: Vec<KeptTrack> = Vec::new();
         let mut kryt1s: Vec<MethodKryt1> = Vec::new();
         let mut cps_of = std::collections::BTreeMap::new();

@@ -795,13 +795,7 @@ where
             all.append(&mut more);
         }
     }
-    let [u_dot_f, ru, r_moving, moving_dot] = &mut all;
-    let mut series: Vec<&mut [f64]> = vec![ru, r_moving, moving_dot];
-    if u_dot {
-        series.insert(0, u_dot_f);
-    }
-    lp.filter_blocks_each(&mut series);
-    all
+    filtered(all, lp)
 }
 
 /// [`odometer_blocks_of`] as the odometer's increments come, one sample at a time (beside
@@ -842,12 +836,10 @@ impl<'d> OdometerBlocks<'d> {
     /// the sample before being `dd_before`: the blocks from there on are those a walk
     /// from the start gives.
     fn resume_after(&mut self, k: usize, dd_before: f64) {
-        let Some(&dt) = self.dt_s.get(k - 1) else {
-            self.k = k;
-            return;
-        };
         self.k = k;
-        self.prev = (dd_before / dt, f64::from(u8::from(dd_before != 0.0)));
+        if let Some(&dt) = self.dt_s.get(k - 1) {
+            self.prev = (dd_before / dt, f64::from(u8::from(dd_before != 0.0)));
+        }
     }
 
     /// The odometer's increment `dd` over the next sample, m (samples past the IMU's
@@ -881,8 +873,6 @@ impl<'d> OdometerBlocks<'d> {
         self.rest.push([r * u_mps, r * moving, moving_dot]);
     }
 
-    /// F(u̇) (empty when left out), F(ru), F(r while moving) and F(d moving/dt) per
-    /// block.
     /// The block means, unfiltered (u̇'s empty when left out).
     fn means(self) -> [Vec<f64>; 4] {
         let [u_dot] = self.u_dot.map_or_else(|| [Vec::new()], |m| m.finish());
@@ -890,15 +880,23 @@ impl<'d> OdometerBlocks<'d> {
         [u_dot, ru, r_moving, moving_dot]
     }
 
+    /// F(u̇) (empty when left out), F(ru), F(r while moving) and F(d moving/dt) per
+    /// block.
     pub fn finish(self, lp: &LowPass) -> [Vec<f64>; 4] {
-        let [mut u_dot, mut ru, mut r_moving, mut moving_dot] = self.means();
-        let mut series: Vec<&mut [f64]> = vec![&mut ru, &mut r_moving, &mut moving_dot];
-        if !u_dot.is_empty() {
-            series.insert(0, &mut u_dot);
-        }
-        lp.filter_blocks_each(&mut series);
-        [u_dot, ru, r_moving, moving_dot]
+        filtered(self.means(), lp)
     }
+}
+
+/// `means` (u̇'s, ru's, r while moving's, d moving/dt's; u̇'s possibly empty) filtered by
+/// F, side by side.
+fn filtered(mut means: [Vec<f64>; 4], lp: &LowPass) -> [Vec<f64>; 4] {
+    let mut series: Vec<&mut [f64]> = means
+        .iter_mut()
+        .filter(|m| !m.is_empty())
+        .map(|m| m.as_mut_slice())
+        .collect();
+    lp.filter_blocks_each(&mut series);
+    means
 }
 
 /// Eqs 7–8 at the epochs (one every ΔTg), from the filtered block series of `d`.

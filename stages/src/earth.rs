@@ -118,8 +118,8 @@ pub struct LocalFrame {
 }
 
 impl LocalFrame {
-    /// North and east offsets (m) of `(lat_rad, lon_rad)` from the origin: what
-    /// [`local_offset_m`] gives, bit for bit.
+    /// North and east offsets (m) of `(lat_rad, lon_rad)` from the origin
+    /// ([`local_offset_m`]).
     #[inline]
     pub fn offset_m(&self, lat_rad: f64, lon_rad: f64) -> (f64, f64) {
         (
@@ -146,12 +146,13 @@ pub fn local_offset_m(
     lon0_rad: f64,
     h0_m: f64,
 ) -> (f64, f64) {
-    let (rm, rn) = radii_m(lat0_rad);
-    let dlon = wrapped_dlon(lon_rad, lon0_rad);
-    (
-        (lat_rad - lat0_rad) * (rm + h0_m),
-        dlon * (rn + h0_m) * lat0_rad.cos(),
-    )
+    Geodetic {
+        lat_rad: lat0_rad,
+        lon_rad: lon0_rad,
+        h_m: h0_m,
+    }
+    .local_frame()
+    .offset_m(lat_rad, lon_rad)
 }
 
 #[cfg(test)]

@@ -30,11 +30,7 @@ impl Biquad {
     /// Filters `x` in place, forward then backward, starting from steady state on the
     /// first (resp. last) value so the ends do not ring.
     pub fn filtfilt(&self, x: &mut [f64]) {
-        if x.is_empty() {
-            return;
-        }
-        self.pass(x.iter_mut());
-        self.pass(x.iter_mut().rev());
+        self.filtfilt_together([x]);
     }
 
     /// [`Self::filtfilt`] of each of `xs`, side by side in fours where their lengths
@@ -50,7 +46,7 @@ impl Biquad {
                 [a, b, c, d] => self.filtfilt_together([&mut **a, &mut **b, &mut **c, &mut **d]),
                 [a, b, c] => self.filtfilt_together([&mut **a, &mut **b, &mut **c]),
                 [a, b] => self.filtfilt_together([&mut **a, &mut **b]),
-                [a] => self.filtfilt(a),
+                [a] => self.filtfilt_together([&mut **a]),
                 _ => unreachable!("one to four series at a time"),
             }
             rest = tail;
@@ -60,41 +56,34 @@ impl Biquad {
     /// [`Self::filtfilt`] of `K` series of one length, step by step together.
     fn filtfilt_together<const K: usize>(&self, mut xs: [&mut [f64]; K]) {
         let n = xs[0].len();
-        if n == 0 {
-            return;
-        }
-        let [b0, b1, b2] = self.b;
-        let [a0, a1] = self.a;
-        let step = |xs: &mut [&mut [f64]; K], order: &mut dyn Iterator<Item = usize>| {
-            // x1, x2, y1, y2 of each series, from steady state on its first value.
-            let mut state = [[0.0; 4]; K];
-            let mut first = true;
-            for i in order {
-                for (x, st) in xs.iter_mut().zip(state.iter_mut()) {
-                    let v = x[i];
-                    if first {
-                        *st = [v; 4];
-                    }
-                    let [x1, x2, y1, y2] = *st;
-                    let y = b0 * v + b1 * x1 + b2 * x2 - a0 * y1 - a1 * y2;
-                    *st = [v, x1, y, y1];
-                    x[i] = y;
-                }
-                first = false;
-            }
-        };
-        step(&mut xs, &mut (0..n));
-        step(&mut xs, &mut (0..n).rev());
+        self.pass_together(&mut xs, 0..n);
+        self.pass_together(&mut xs, (0..n).rev());
     }
 
-    fn pass<'a>(&self, xs: impl Iterator<Item = &'a mut f64>) {
-        let mut state: Option<(f64, f64, f64, f64)> = None; // x1, x2, y1, y2
-        for x in xs {
-            let (x1, x2, y1, y2) = *state.get_or_insert((*x, *x, *x, *x));
-            let y =
-                self.b[0] * *x + self.b[1] * x1 + self.b[2] * x2 - self.a[0] * y1 - self.a[1] * y2;
-            state = Some((*x, x1, y, y1));
-            *x = y;
+    /// One pass of the recursion over the samples `order` of each of `xs`, from steady
+    /// state on the first sample taken.
+    fn pass_together<const K: usize>(
+        &self,
+        xs: &mut [&mut [f64]; K],
+        order: impl Iterator<Item = usize>,
+    ) {
+        let [b0, b1, b2] = self.b;
+        let [a0, a1] = self.a;
+        // x1, x2, y1, y2 of each series.
+        let mut state = [[0.0; 4]; K];
+        let mut first = true;
+        for i in order {
+            for (x, st) in xs.iter_mut().zip(state.iter_mut()) {
+                let v = x[i];
+                if first {
+                    *st = [v; 4];
+                }
+                let [x1, x2, y1, y2] = *st;
+                let y = b0 * v + b1 * x1 + b2 * x2 - a0 * y1 - a1 * y2;
+                *st = [v, x1, y, y1];
+                x[i] = y;
+            }
+            first = false;
         }
     }
 }

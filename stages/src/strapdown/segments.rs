@@ -325,63 +325,7 @@ where
     F: Fn(usize, usize) -> I + Sync,
 {
     let parts = rayon::current_num_threads().min(plan.count() / SPLIT_SEGMENTS);
-    integrate_in_parts(
-        dt_s, dtheta_rad, plan, imu, odometers, odometer, columns, parts,
-    )
-}
-
-/// [`integrate_split`] in `parts` stretches (at least one, at most one a segment).
-#[allow(clippy::too_many_arguments)]
-fn integrate_in_parts<I, F>(
-    dt_s: &[f64],
-    dtheta_rad: &[[f64; 3]],
-    plan: &SegmentPlan,
-    imu: bool,
-    odometers: usize,
-    odometer: F,
-    columns: OdoColumns,
-    parts: usize,
-) -> (Option<ImuSegments>, Vec<OdoSegments>)
-where
-    I: Iterator<Item = f64>,
-    F: Fn(usize, usize) -> I + Sync,
-{
-    let part = Part::new(dt_s, dtheta_rad, plan, imu, columns);
-    let count = plan.count();
-    let parts = parts.min(count).max(1);
-    // Each stretch's first segment and the sample it starts at.
-    let mut starts = vec![(0, 0)];
-    for (i, e) in plan.ends().enumerate() {
-        if starts.len() == parts {
-            break;
-        }
-        if i + 1 == count * starts.len() / parts {
-            starts.push((i + 1, e.end));
-        }
-    }
-    let mut stretches = starts
-        .par_iter()
-        .enumerate()
-        .map(|(p, &(first, sample))| {
-            let segments = starts.get(p + 1).map_or(count, |s| s.0) - first;
-            let mut odos: Vec<I> = (0..odometers).map(|v| odometer(v, sample)).collect();
-            let ends = plan.ends().skip(first).take(segments);
-            // The first stretch is sized for all of them: the others are appended to it.
-            let room = if p == 0 { count } else { segments };
-            part.integrate(ends, sample, &mut odos, room)
-        })
-        .collect::<Vec<_>>()
-        .into_iter();
-    let (mut imu, mut odo) = stretches.next().expect("one stretch at least");
-    for (more_imu, more_odo) in stretches {
-        if let (Some(all), Some(more)) = (imu.as_mut(), more_imu) {
-            all.extend_from_slice(&more);
-        }
-        for (all, more) in odo.iter_mut().zip(more_odo) {
-            all.append(more);
-        }
-    }
-    (imu.map(|segments| imu_segments(plan, segments)), odo)
+    Part::new(dt_s, dtheta_rad, plan, imu, columns).in_stretches(plan, odometers, odometer, parts)
 }
 
 fn imu_segments(plan: &SegmentPlan, segments: Vec<ImuSegment>) -> ImuSegments {
@@ -417,6 +361,56 @@ impl<'a> Part<'a> {
             imu,
             columns,
         }
+    }
+
+    /// [`integrate_split`] of `plan` in `parts` stretches (at least one, at most one a
+    /// segment).
+    fn in_stretches<I, F>(
+        &self,
+        plan: &SegmentPlan,
+        odometers: usize,
+        odometer: F,
+        parts: usize,
+    ) -> (Option<ImuSegments>, Vec<OdoSegments>)
+    where
+        I: Iterator<Item = f64>,
+        F: Fn(usize, usize) -> I + Sync,
+    {
+        let count = plan.count();
+        let parts = parts.min(count).max(1);
+        // Each stretch's first segment and the sample it starts at.
+        let mut starts = vec![(0, 0)];
+        for (i, e) in plan.ends().enumerate() {
+            if starts.len() == parts {
+                break;
+            }
+            if i + 1 == count * starts.len() / parts {
+                starts.push((i + 1, e.end));
+            }
+        }
+        let mut stretches = starts
+            .par_iter()
+            .enumerate()
+            .map(|(p, &(first, sample))| {
+                let segments = starts.get(p + 1).map_or(count, |s| s.0) - first;
+                let mut odos: Vec<I> = (0..odometers).map(|v| odometer(v, sample)).collect();
+                let ends = plan.ends().skip(first).take(segments);
+                // The first stretch is sized for all of them: the others are appended to it.
+                let room = if p == 0 { count } else { segments };
+                self.integrate(ends, sample, &mut odos, room)
+            })
+            .collect::<Vec<_>>()
+            .into_iter();
+        let (mut imu, mut odo) = stretches.next().expect("one stretch at least");
+        for (more_imu, more_odo) in stretches {
+            if let (Some(all), Some(more)) = (imu.as_mut(), more_imu) {
+                all.extend_from_slice(&more);
+            }
+            for (all, more) in odo.iter_mut().zip(more_odo) {
+                all.append(more);
+            }
+        }
+        (imu.map(|segments| imu_segments(plan, segments)), odo)
     }
 
     /// The segments `ends`, the first starting at sample `start` (where `odometers`
@@ -927,21 +921,15 @@ mod tests {
             let d = if v == 0 { &a } else { &b };
             d[k.min(n)..].iter().copied()
         };
+        let in_parts = |imu: bool, odometers: usize, columns: OdoColumns, parts: usize| {
+            Part::new(&dt, &dth, &plan, imu, columns).in_stretches(&plan, odometers, from, parts)
+        };
         for parts in [1, 2, 3, 7] {
-            let split = integrate_in_parts(&dt, &dth, &plan, true, 2, from, ALL, parts);
+            let split = in_parts(true, 2, ALL, parts);
             assert!(split == whole, "{parts} stretches");
-            let (imu, none) = integrate_in_parts(&dt, &dth, &plan, true, 0, from, ALL, parts);
+            let (imu, none) = in_parts(true, 0, ALL, parts);
             assert!(imu == whole.0 && none.is_empty(), "{parts} stretches, IMU");
-            let (no_imu, odos) = integrate_in_parts(
-                &dt,
-                &dth,
-                &plan,
-                false,
-                2,
-                from,
-                OdoColumns::default(),
-                parts,
-            );
+            let (no_imu, odos) = in_parts(false, 2, OdoColumns::default(), parts);
             let plain = integrate(
                 &dt,
                 &dth,
