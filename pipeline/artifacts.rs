@@ -58,8 +58,10 @@ pub mod files {
     pub const INGEST_REPORT: &str = "ingest.json";
     /// ingest: the first faults, located ([`unz_formats::IngestEvents`]).
     pub const INGEST_EVENTS: &str = "ingest_events.json";
-    /// derive: per-sample series.
+    /// derive: per-sample series (the time base and the odometer's terms).
     pub const DERIVED: &str = "derived.parquet";
+    /// derive: the IMU samples whose increments it replaced, with their replacements.
+    pub const IMU_REPAIRS: &str = "imu_repairs.parquet";
     /// derive: per-epoch series.
     pub const EPOCHS: &str = "epochs.parquet";
     /// derive: the filtered series per block of F.

@@ -1,9 +1,14 @@
-//! Parquet form of the derive stage's outputs: `derived.parquet` (per IMU sample),
-//! `epochs.parquet` (per ΔTg epoch) and `blocks.parquet` (the filtered series per block of
-//! F), and loading them back whole.
+//! Parquet form of the derive stage's outputs: `derived.parquet` (per IMU sample: the
+//! repaired time base and the odometer's terms), `imu_repairs.parquet` (the IMU samples
+//! whose increments the derive replaced), `epochs.parquet` (per ΔTg epoch) and
+//! `blocks.parquet` (the filtered series per block of F), and loading them back whole.
+//!
+//! The IMU's increments are not stored again: every sample's are the ingest's
+//! `imu.parquet`'s but for the few in `imu_repairs.parquet`, so a load reads them there
+//! (the derive's largest columns, which it wrote a second time and hashed for the cache).
 
-use crate::artifacts::files;
-use std::path::Path;
+use crate::artifacts::{RunLayout, StageName, files};
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use anyhow::{Context, bail};
@@ -14,7 +19,8 @@ use unz_formats::parquet_io::{
     write_batch,
 };
 use unz_formats::schema::{
-    self, DTHETA_RAD, DVEL_MPS, T_NS, VALID, derived_cols, derived_meta, epochs_cols, filtered_cols,
+    self, DTHETA_RAD, DVEL_MPS, T_NS, VALID, derived_cols, derived_meta, epochs_cols,
+    filtered_cols, imu_repairs_cols,
 };
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, Epochs, OdometerSpeed, ns_since};
@@ -25,7 +31,8 @@ fn f64s(v: &[f64]) -> Arc<Float64Array> {
     Arc::new(Float64Array::from(v.to_vec()))
 }
 
-/// Writes `derived.parquet`, `epochs.parquet` and `blocks.parquet` into `dir`.
+/// Writes `derived.parquet`, `imu_repairs.parquet`, `epochs.parquet` and
+/// `blocks.parquet` into `dir`.
 pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
     let axes_check = d
         .axes_check
@@ -60,7 +67,7 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
     let n = d.t_s.len();
     for lo in (0..n).step_by(ROWS) {
         let r = lo..(lo + ROWS).min(n);
-        // u, u̇, ru and r are computed for the file, not kept by the derive.
+        // u, u̇ and ru are computed for the file, not kept by the derive.
         let speeds: Vec<OdometerSpeed> = d.odometer_speeds(r.clone()).collect();
         let speed = |f: fn(&OdometerSpeed) -> f64| {
             Arc::new(Float64Array::from_iter_values(speeds.iter().map(f)))
@@ -70,18 +77,36 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
             vec![
                 Arc::new(Int64Array::from_iter_values(d.t_ns(r.clone()))),
                 f64s(&d.dt_s[r.clone()]),
-                vec3_to_array(&d.dtheta_rad[r.clone()]),
-                vec3_to_array(&d.dvel_mps[r.clone()]),
                 f64s(&d.odo_dist_m[r.clone()]),
                 speed(|s| s.u_mps),
                 speed(|s| s.u_dot_mps2),
-                Arc::new(Float64Array::from_iter_values(r.map(|k| d.r_rad_s(k)))),
                 speed(|s| s.ru_mps2),
             ],
         )?;
         sink.write(&batch)?;
     }
     sink.finish()?;
+
+    let replaced = &d.replaced_increments;
+    let batch = RecordBatch::try_new(
+        schema::imu_repairs(),
+        vec![
+            Arc::new(UInt64Array::from_iter_values(
+                replaced.iter().map(|&k| k as u64),
+            )),
+            Arc::new(Int64Array::from_iter_values(
+                replaced.iter().flat_map(|&k| d.t_ns(k..k + 1)),
+            )),
+            vec3_to_array(
+                &replaced
+                    .iter()
+                    .map(|&k| d.dtheta_rad[k])
+                    .collect::<Vec<_>>(),
+            ),
+            vec3_to_array(&replaced.iter().map(|&k| d.dvel_mps[k]).collect::<Vec<_>>()),
+        ],
+    )?;
+    write_batch(&dir.join(files::IMU_REPAIRS), &batch)?;
 
     let e = &d.epochs;
     let at = |v: &[f64]| f64s(&e.block.iter().map(|&j| v[j]).collect::<Vec<_>>());
@@ -142,53 +167,84 @@ pub fn as_stored(mut d: Derived) -> Derived {
     d
 }
 
+/// Where a stored derive is read: its folder, and the ingest's, whose `imu.parquet` holds
+/// the increments of every sample the derive did not replace.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StoredDerive {
+    /// The derive stage's folder.
+    pub derive_dir: PathBuf,
+    /// The ingest stage's folder.
+    pub ingest_dir: PathBuf,
+}
+
+impl StoredDerive {
+    /// The stored derive of a run.
+    pub fn of(layout: &RunLayout) -> Self {
+        Self {
+            derive_dir: layout.dir(StageName::Derive),
+            ingest_dir: layout.dir(StageName::Ingest),
+        }
+    }
+}
+
 /// Loads what [`write_derived`] wrote: the derive whole, counts and filtered series
-/// included (u, u̇, ru and r, which the derive computes where it reads them, are not
-/// read back).
-pub fn load_derived(dir: &Path) -> anyhow::Result<Derived> {
-    load_derived_of(dir, Columns::All)
+/// included (u, u̇ and ru, which the derive computes where it reads them, are not read
+/// back).
+pub fn load_derived(at: &StoredDerive) -> anyhow::Result<Derived> {
+    load_derived_of(&at.derive_dir, Some(&at.ingest_dir), Columns::All)
 }
 
 /// [`load_derived`] without the velocity increments (left empty): what navigation passes
 /// read; the alignment reads the static start's ([`read_velocity_prefix`]).
-pub fn load_derived_for_navigation(dir: &Path) -> anyhow::Result<Derived> {
-    load_derived_of(dir, Columns::WithoutVelocity)
+pub fn load_derived_for_navigation(at: &StoredDerive) -> anyhow::Result<Derived> {
+    load_derived_of(
+        &at.derive_dir,
+        Some(&at.ingest_dir),
+        Columns::WithoutVelocity,
+    )
 }
 
 /// [`load_derived`] without the per-sample increments and intervals (left empty): the
-/// times, the filtered block series and the epochs, all the criteria read.
-pub fn load_derived_times(dir: &Path) -> anyhow::Result<Derived> {
-    load_derived_of(dir, Columns::Times)
+/// times, the filtered block series and the epochs, all the criteria read (the derive's
+/// folder alone).
+pub fn load_derived_times(derive_dir: &Path) -> anyhow::Result<Derived> {
+    load_derived_of(derive_dir, None, Columns::Times)
 }
 
-/// The velocity increments of the first `n` samples of `derived.parquet` in `dir` (the
-/// batches after them are not decoded).
-pub fn read_velocity_prefix(dir: &Path, n: usize) -> anyhow::Result<Vec<[f64; 3]>> {
-    let mut out: Vec<[f64; 3]> = Vec::new();
-    if n == 0 {
-        return Ok(out);
-    }
-    for_each_batch_of_while(&dir.join(files::DERIVED), &[DVEL_MPS], |b| {
-        let v = vec3_column(b, DVEL_MPS)?;
-        let take = (n - out.len()).min(v.len());
-        out.extend_from_slice(&v[..take]);
-        Ok(out.len() < n)
-    })?;
+/// The velocity increments of the first `n` samples of the stored derive (all of them
+/// when it has fewer; the ingest's batches after them are not decoded).
+pub fn read_velocity_prefix(at: &StoredDerive, n: usize) -> anyhow::Result<Vec<[f64; 3]>> {
+    let mut prefix = velocities_over(at, std::slice::from_ref(&(0..n)))?;
+    Ok(prefix.pop().unwrap_or_default())
+}
+
+/// The velocity increments of the stored derive over each of `ranges` (sample indices,
+/// in order and not overlapping; the ingest's batches after the last are not decoded).
+pub fn read_velocity_ranges(
+    at: &StoredDerive,
+    ranges: &[std::ops::Range<usize>],
+) -> anyhow::Result<WindowVelocities> {
+    let out = velocities_over(at, ranges)?;
+    anyhow::ensure!(
+        out.iter().zip(ranges).all(|(o, r)| o.len() == r.len()),
+        "{} has fewer rows than the derive's samples",
+        at.ingest_dir.join(files::IMU).display()
+    );
     Ok(out)
 }
 
-/// The velocity increments of `derived.parquet` in `dir` over each of `ranges` (sample
-/// indices, in order and not overlapping; the batches after the last are not decoded).
-pub fn read_velocity_ranges(
-    dir: &Path,
+/// The velocity increments of the stored derive over each of `ranges` (sample indices,
+/// in order and not overlapping), each cut short where the samples end.
+fn velocities_over(
+    at: &StoredDerive,
     ranges: &[std::ops::Range<usize>],
 ) -> anyhow::Result<WindowVelocities> {
     let mut out: WindowVelocities = ranges.iter().map(|r| Vec::with_capacity(r.len())).collect();
-    let Some(end) = ranges.iter().map(|r| r.end).max() else {
+    let Some(end) = ranges.iter().map(|r| r.end).max().filter(|&e| e > 0) else {
         return Ok(out);
     };
     let mut first_row = 0;
-    for_each_batch_of_while(&dir.join(files::DERIVED), &[DVEL_MPS], |b| {
+    for_each_batch_of_while(&at.ingest_dir.join(files::IMU), &[DVEL_MPS], |b| {
         let rows = first_row..first_row + b.num_rows();
         if ranges
             .iter()
@@ -205,15 +261,80 @@ pub fn read_velocity_ranges(
         first_row = rows.end;
         Ok(first_row < end)
     })?;
-    anyhow::ensure!(
-        out.iter().zip(ranges).all(|(o, r)| o.len() == r.len()),
-        "{} has fewer rows than the derive's samples",
-        dir.join(files::DERIVED).display()
-    );
+    let repairs = ImuRepairs::read(&at.derive_dir)?;
+    for (r, o) in ranges.iter().zip(&mut out) {
+        repairs.apply(Increment::Velocity, r.start..r.start + o.len(), o);
+    }
     Ok(out)
 }
 
-/// Which per-sample columns of `derived.parquet` a load reads.
+/// Which increments of a sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Increment {
+    Angle,
+    Velocity,
+}
+
+/// What `imu_repairs.parquet` holds: the samples whose increments the derive replaced,
+/// in order, and the increments it uses there.
+#[derive(Debug, Default)]
+struct ImuRepairs {
+    sample: Vec<usize>,
+    dtheta_rad: Vec<[f64; 3]>,
+    dvel_mps: Vec<[f64; 3]>,
+}
+
+impl ImuRepairs {
+    /// Reads the table of `derive_dir`.
+    fn read(derive_dir: &Path) -> anyhow::Result<Self> {
+        let path = derive_dir.join(files::IMU_REPAIRS);
+        let (_, t) = read_table(&path)?;
+        let sample = t
+            .column_by_name(imu_repairs_cols::SAMPLE)
+            .and_then(|c| c.as_primitive_opt::<UInt64Type>())
+            .with_context(|| {
+                format!(
+                    "{}: no UInt64 column {:?}",
+                    path.display(),
+                    imu_repairs_cols::SAMPLE
+                )
+            })?;
+        let sample: Vec<usize> = sample.values().iter().map(|&k| k as usize).collect();
+        let repairs = Self {
+            dtheta_rad: vec3_column(&t, DTHETA_RAD)?,
+            dvel_mps: vec3_column(&t, DVEL_MPS)?,
+            sample,
+        };
+        // The derive's own file, but read with care all the same: in order, in range.
+        if let Some(w) = repairs.sample.windows(2).find(|w| w[1] <= w[0]) {
+            bail!(
+                "{}: samples not in increasing order ({} then {})",
+                path.display(),
+                w[0],
+                w[1]
+            );
+        }
+        Ok(repairs)
+    }
+
+    /// Writes the repairs of `which` increments over the samples `rows` into `out`, their
+    /// increments as ingested (`out[i]` is sample `rows.start + i`'s).
+    fn apply(&self, which: Increment, rows: std::ops::Range<usize>, out: &mut [[f64; 3]]) {
+        let values = match which {
+            Increment::Angle => &self.dtheta_rad,
+            Increment::Velocity => &self.dvel_mps,
+        };
+        let first = self.sample.partition_point(|&k| k < rows.start);
+        for (&k, v) in self.sample[first..].iter().zip(&values[first..]) {
+            if k >= rows.end {
+                break;
+            }
+            out[k - rows.start] = *v;
+        }
+    }
+}
+
+/// Which per-sample columns of the stored derive a load reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Columns {
     All,
@@ -221,7 +342,13 @@ enum Columns {
     Times,
 }
 
-fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
+/// Loads the stored derive in `dir`; the IMU's increments (which `columns` asks for)
+/// from the ingest's `imu.parquet` in `ingest_dir`, repaired.
+fn load_derived_of(
+    dir: &Path,
+    ingest_dir: Option<&Path>,
+    columns: Columns,
+) -> anyhow::Result<Derived> {
     let path = dir.join(files::DERIVED);
     // Column by column, batch by batch, each column sized to the file's rows once: the
     // run's series without the file's batches beside them, nor a column grown twice
@@ -229,8 +356,13 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
     let rows = row_capacity_hint(&path)?;
     let per_sample = |wanted: bool| if wanted { rows } else { 0 };
     let (with_nav, with_velocity) = (columns != Columns::Times, columns == Columns::All);
-    // Two readers side by side: the times and scalars, and the vectors (the larger
-    // part), each decoding its own columns.
+    let imu = match ingest_dir {
+        Some(ingest) => Some(ingest.join(files::IMU)),
+        None if with_nav => bail!("the derive's increments are read with the ingest's"),
+        None => None,
+    };
+    // Two readers side by side: the derive's times and scalars, and the ingest's
+    // increments (the larger part), each decoding its own columns.
     let scalars = || -> anyhow::Result<_> {
         let mut t0_ns: Option<i64> = None;
         let mut t_s = NanoTimes::builder().with_room_for(rows);
@@ -261,9 +393,12 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
         let names: &[&str] = match (with_nav, with_velocity) {
             (_, true) => &[DTHETA_RAD, DVEL_MPS],
             (true, false) => &[DTHETA_RAD],
-            (false, false) => return Ok((dtheta_rad, dvel_mps)),
+            (false, false) => return Ok((dtheta_rad, dvel_mps, Vec::new())),
         };
-        for_each_batch_of(&path, names, |b| {
+        let Some(imu) = &imu else {
+            return Ok((dtheta_rad, dvel_mps, Vec::new()));
+        };
+        for_each_batch_of(imu, names, |b| {
             if with_nav {
                 dtheta_rad.extend(vec3_column(b, DTHETA_RAD)?);
             }
@@ -272,14 +407,31 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
             }
             Ok(())
         })?;
-        Ok((dtheta_rad, dvel_mps))
+        let repairs = ImuRepairs::read(dir)?;
+        if let Some(&k) = repairs.sample.last().filter(|&&k| k >= dtheta_rad.len()) {
+            bail!(
+                "{}: sample {k} repaired, of {} samples",
+                dir.join(files::IMU_REPAIRS).display(),
+                dtheta_rad.len()
+            );
+        }
+        let all = 0..dtheta_rad.len();
+        repairs.apply(Increment::Angle, all.clone(), &mut dtheta_rad);
+        if with_velocity {
+            repairs.apply(Increment::Velocity, all, &mut dvel_mps);
+        }
+        Ok((dtheta_rad, dvel_mps, repairs.sample))
     };
     let (scalars, vectors) = rayon::join(scalars, vectors);
-    let ((schema, t0_ns, t_s, dt_s, odo_dist_m), (dtheta_rad, dvel_mps)) = (scalars?, vectors?);
+    let ((schema, t0_ns, t_s, dt_s, odo_dist_m), (dtheta_rad, dvel_mps, replaced)) =
+        (scalars?, vectors?);
     anyhow::ensure!(
         !with_nav || dtheta_rad.len() == dt_s.len(),
-        "{} has columns of different lengths",
-        path.display()
+        "{} has {} rows, {} {} (the ingest it was derived from: derive again)",
+        path.display(),
+        dt_s.len(),
+        imu.as_deref().unwrap_or(Path::new("")).display(),
+        dtheta_rad.len()
     );
     let meta = |k: &str| -> anyhow::Result<String> {
         schema
@@ -295,6 +447,7 @@ fn load_derived_of(dir: &Path, columns: Columns) -> anyhow::Result<Derived> {
         dt_s: dt_s.into(),
         dtheta_rad: dtheta_rad.into(),
         dvel_mps: dvel_mps.into(),
+        replaced_increments: replaced,
         odo_dist_m,
         block: meta(derived_meta::BLOCK)?.parse()?,
         repaired_times: meta(derived_meta::REPAIRED_TIMES)?.parse()?,
@@ -401,11 +554,14 @@ mod tests {
     /// distances.
     type Columns = (Vec<i64>, Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<i64>, Vec<f64>);
 
-    /// A drive with turns and speed changes, the odometer at its own rate, and one time
-    /// tag that goes back (repaired by derive).
+    /// A drive with turns and speed changes, the odometer at its own rate, one time tag
+    /// that goes back (repaired by derive), a gap of 4 samples before sample 20 000 and
+    /// a saturated accelerometer count at 25 000 (their increments replaced).
     fn raw() -> Columns {
         let n = 30_000;
-        let mut t: Vec<i64> = (0..n).map(|k| 1_000_000_000 + k * 10_000_000).collect();
+        let mut t: Vec<i64> = (0..n)
+            .map(|k| 1_000_000_000 + k * 10_000_000 + 40_000_000 * i64::from(k >= 20_000))
+            .collect();
         t[12_345] = t[12_344] - 1;
         let dtheta = (0..n)
             .map(|k| {
@@ -432,24 +588,53 @@ mod tests {
                 8.0 * s + 30.0 * (s * 0.01).sin()
             })
             .collect();
+        let mut dvel: Vec<[f64; 3]> = dvel;
+        dvel[25_000][1] = 1e3;
         (t, dtheta, dvel, odo_t, odo_d)
+    }
+
+    /// Writes the ingest's IMU table of `c` into `dir`, as the ingest stores it.
+    fn write_imu(c: &Columns, dir: &Path) {
+        let n = c.0.len();
+        let table = unz_formats::tables::ImuTable {
+            t_ns: c.0.clone(),
+            seq: (0..n as u64).collect(),
+            dtheta_rad: c.1.clone(),
+            dvel_mps: c.2.clone(),
+            status: vec![0; n],
+        };
+        let batch = table.to_batch(schema::imu(None)).unwrap();
+        write_batch(&dir.join(files::IMU), &batch).unwrap();
     }
 
     #[test]
     fn the_derive_loads_back_whole() {
-        let (t, dth, dv, ot, od) = raw();
+        let columns = raw();
+        let (t, dth, dv, ot, od) = &columns;
         let series = RawSeries {
-            imu_t_ns: &t,
-            dtheta_rad: &dth,
-            dvel_mps: &dv,
-            odo_t_ns: (&ot).into(),
-            odo_distance_m: &od,
+            imu_t_ns: t,
+            dtheta_rad: dth,
+            dvel_mps: dv,
+            odo_t_ns: ot.into(),
+            odo_distance_m: od,
         };
         let d = derive(&series, &DeriveParams::default(), 9.81);
         assert!(d.repaired_times == 1 && !d.u_dot_f.is_empty());
+        assert_eq!(d.replaced_increments, [20_000, 25_000]);
         let tmp = tempfile::tempdir().unwrap();
-        write_derived(&d, tmp.path()).unwrap();
-        let loaded = load_derived(tmp.path()).unwrap();
+        let stored = StoredDerive {
+            derive_dir: tmp.path().join("derive"),
+            ingest_dir: tmp.path().join("ingest"),
+        };
+        std::fs::create_dir_all(&stored.derive_dir).unwrap();
+        std::fs::create_dir_all(&stored.ingest_dir).unwrap();
+        write_imu(&columns, &stored.ingest_dir);
+        write_derived(&d, &stored.derive_dir).unwrap();
+        // The derive stores its two replaced samples' increments only.
+        let (_, repairs) = read_table(&stored.derive_dir.join(files::IMU_REPAIRS)).unwrap();
+        assert_eq!(repairs.num_rows(), 2);
+        assert_eq!(i64_column(&repairs, T_NS).unwrap(), [t[20_000], t[25_000]]);
+        let loaded = load_derived(&stored).unwrap();
         // Every series bit for bit, but the times that are not whole nanoseconds (the
         // repaired sample's, the epochs'): stored in nanoseconds, they come back within
         // half of one.
@@ -478,6 +663,7 @@ mod tests {
         same!(dt_s);
         same!(dtheta_rad);
         same!(dvel_mps);
+        same!(replaced_increments);
         same!(odo_dist_m);
         same!(ax_f);
         same!(ay_f);
@@ -497,7 +683,7 @@ mod tests {
         same!(epochs.valid);
         assert!(same_times == d);
         // The file's u, u̇, ru and r are eqs 9–11 and the yaw rate of the derive.
-        let (_, table) = read_table(&tmp.path().join(files::DERIVED)).unwrap();
+        let (_, table) = read_table(&stored.derive_dir.join(files::DERIVED)).unwrap();
         let column = |name: &str| f64_column(&table, name).unwrap();
         let n = d.t_s.len();
         let speeds: Vec<_> = d.odometer_speeds(0..n).collect();
@@ -513,13 +699,9 @@ mod tests {
             column(derived_cols::RU_MPS2),
             speeds.iter().map(|s| s.ru_mps2).collect::<Vec<_>>()
         );
-        assert_eq!(
-            column(derived_cols::R_RAD_S),
-            (0..n).map(|k| d.r_rad_s(k)).collect::<Vec<_>>()
-        );
         assert!(speeds.iter().any(|s| s.u_mps > 1.0 && s.ru_mps2 != 0.0));
         // The epochs' filtered terms (what the review reads) are the blocks' at the epochs.
-        let terms = read_epoch_terms(tmp.path()).unwrap();
+        let terms = read_epoch_terms(&stored.derive_dir).unwrap();
         let at = |v: &[f64]| d.epochs.block.iter().map(|&j| v[j]).collect::<Vec<_>>();
         assert_eq!(terms.ax_f_mps2, at(&d.ax_f));
         assert_eq!(terms.ay_f_mps2, at(&d.ay_f));
@@ -527,7 +709,7 @@ mod tests {
         assert_eq!(terms.ru_f_mps2, at(&d.ru_f));
         assert!(terms.ax_f_mps2.len() > 10 && terms.ru_f_mps2.iter().any(|&v| v != 0.0));
         // The times-only load is the whole one without the per-sample increments.
-        let times = load_derived_times(tmp.path()).unwrap();
+        let times = load_derived_times(&stored.derive_dir).unwrap();
         assert!(times.dtheta_rad.is_empty() && times.odo_dist_m.is_empty());
         assert!(
             times
@@ -535,13 +717,14 @@ mod tests {
                     dt_s: Default::default(),
                     dtheta_rad: Default::default(),
                     dvel_mps: Default::default(),
+                    replaced_increments: Vec::new(),
                     odo_dist_m: Vec::new(),
                     ..loaded.clone()
                 }
         );
         // The navigation load is the whole one without the velocity increments, whose
         // first samples come apart (asking for more than the run gives the run's).
-        let nav = load_derived_for_navigation(tmp.path()).unwrap();
+        let nav = load_derived_for_navigation(&stored).unwrap();
         assert!(
             nav == Derived {
                 dvel_mps: Default::default(),
@@ -549,18 +732,33 @@ mod tests {
             }
         );
         for n in [0, 1, 100, 70_000, 1 << 20] {
-            let prefix = read_velocity_prefix(tmp.path(), n).unwrap();
+            let prefix = read_velocity_prefix(&stored, n).unwrap();
             assert_eq!(prefix[..], loaded.dvel_mps[..n.min(loaded.dvel_mps.len())]);
         }
-        // So do stretches of them, across batches; beyond the run, an error.
+        // So do stretches of them, across batches and repaired samples (one the last of
+        // its stretch, one the first); beyond the run, an error.
         let n = loaded.dvel_mps.len();
-        let ranges = [0..3, 100..100, 1000..25_000, n - 5..n];
-        let stretches = read_velocity_ranges(tmp.path(), &ranges).unwrap();
+        let ranges = [0..3, 100..100, 1000..20_001, 25_000..25_010, n - 5..n];
+        let stretches = read_velocity_ranges(&stored, &ranges).unwrap();
         for (r, v) in ranges.iter().zip(&stretches) {
             assert_eq!(v[..], loaded.dvel_mps[r.clone()], "{r:?}");
         }
         let beyond = [0..1, n - 5..n + 1];
-        assert!(read_velocity_ranges(tmp.path(), &beyond).is_err());
+        assert!(read_velocity_ranges(&stored, &beyond).is_err());
+        // The repaired samples' are the derive's, not the ingest's.
+        assert_ne!(dv[25_000], loaded.dvel_mps[25_000]);
+        assert_eq!(stretches[3][0], d.dvel_mps[25_000]);
+        // A derive of another ingest (more rows than it has) is no derive of this one.
+        let shorter: Columns = (
+            t[..29_000].to_vec(),
+            dth[..29_000].to_vec(),
+            dv[..29_000].to_vec(),
+            ot.clone(),
+            od.clone(),
+        );
+        write_imu(&shorter, &stored.ingest_dir);
+        let err = load_derived(&stored).unwrap_err().to_string();
+        assert!(err.contains("derive again"), "{err}");
         // What a stage is handed in memory is what it would load, bit for bit.
         assert!(
             as_stored(d) == loaded,

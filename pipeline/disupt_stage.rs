@@ -31,7 +31,7 @@ use report::{Lag, markdown, method_out, settings_out};
 use reviews::{Reviewed, review_passes};
 
 use crate::artifacts::{StageName, files};
-use crate::derive_io::read_velocity_ranges;
+use crate::derive_io::{StoredDerive, read_velocity_ranges};
 use crate::flow::{
     IngestedSeries, NavCase, Overrides, Params, RunCtx, ensure_derive, load_case, site_gravity_mps2,
 };
@@ -79,15 +79,18 @@ pub fn spec_of<'a>(case: &'a NavCase, settings: NavSettings, params: &Params) ->
 }
 
 /// Brings derive up to date and returns the files a whole-run optimisation reads: the
-/// manifest, the derived series and epochs, and the control-point marks.
+/// manifest, the derived series (the increments the ingest's IMU table's, repaired) and
+/// epochs, the control-point marks and the odometer.
 pub fn case_inputs(ctx: &RunCtx, params: &Params) -> anyhow::Result<Vec<PathBuf>> {
     let derive_dir = ensure_derive(ctx, params)?;
     let ingest_dir = ctx.layout().dir(StageName::Ingest);
     Ok(vec![
         ctx.manifest.path.clone(),
         derive_dir.join(files::DERIVED),
+        derive_dir.join(files::IMU_REPAIRS),
         derive_dir.join(files::EPOCHS),
         derive_dir.join(files::BLOCKS),
+        ingest_dir.join(files::IMU),
         ingest_dir.join(files::MARKS),
         ingest_dir.join(files::ODOMETER),
     ])
@@ -206,7 +209,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             &odometer.failed,
             site_gravity_mps2(m),
             -params.derive.odo_time_offset_s,
-            |rows| read_velocity_ranges(&ctx.layout().dir(StageName::Derive), rows),
+            |rows| read_velocity_ranges(&StoredDerive::of(&ctx.layout()), rows),
         )?;
         // The derive stage's output is the configured derive, whole: re-derives at other
         // odometer timings start from it and move the odometer's part only.

@@ -195,7 +195,7 @@ mod tests {
     }
 
     /// The derive stage's `sensors.parquet` holds the blocks of the derive as it is stored
-    /// (read back whole from `derived.parquet`), bit for bit, with its time base; the chain
+    /// (read back whole from the derive's and the ingest's files), bit for bit, with its time base; the chain
     /// keeps the derive without the velocity increments.
     #[test]
     fn the_sensor_file_holds_the_blocks_of_the_stored_derive() {
@@ -214,7 +214,9 @@ mod tests {
             kept.dvel_mps.is_empty(),
             "kept without the velocity increments"
         );
-        let stored = crate::derive_io::load_derived(&derive_dir).unwrap();
+        let stored =
+            crate::derive_io::load_derived(&crate::derive_io::StoredDerive::of(&chain.layout()))
+                .unwrap();
         let want = review_sensors(&stored);
         let got = read_review_sensors(&derive_dir.join(files::SENSORS)).unwrap();
         assert!(

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use unz::flow::NavigateSummary;
 use unz_formats::IngestReport;
 
-use crate::util::{files_below, hold_count, read_json, read_log, unz, unz_output};
+use crate::util::{files_below, hold_count, parquet_rows, read_json, read_log, unz, unz_output};
 
 /// A campaign of two simulated 200 s runs; returns the campaign folder.
 fn campaign(dir: &Path) -> PathBuf {
@@ -425,6 +425,27 @@ fn saturated_increments_are_replaced_or_fail_their_run() {
     let end = |s: &NavigateSummary| s.control_points.last().map(|c| (c.dx_m, c.dy_m)).unwrap();
     let (a, b) = (end(&patched), end(&reference));
     assert!((a.0 - b.0).hypot(a.1 - b.1) < 0.5, "{a:?} vs {b:?}");
+    // The derive stores the five replaced samples' increments alone (the others are the
+    // ingest's): navigated in a process of its own, from the cache, the run gives the
+    // chain's files byte for byte.
+    let derive_dir = out.join("sim-0080/derive");
+    let repairs = parquet_rows(&derive_dir.join("imu_repairs.parquet"));
+    assert_eq!(repairs, 5);
+    let alone = tmp.path().join("alone");
+    let run_dir = camp.join("sim-0080");
+    for stage in ["derive", "navigate"] {
+        let o = unz_output(&[
+            stage,
+            run_dir.to_str().unwrap(),
+            "--out",
+            alone.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{o:?}");
+    }
+    for file in ["navigate/nav.parquet", "navigate/navigate.json"] {
+        let read = |o: &Path| std::fs::read(o.join("sim-0080").join(file)).unwrap();
+        assert!(read(&out) == read(&alone), "{file} differs");
+    }
 }
 
 /// Moves the first control point of the manifest `run_toml` by `north_m` and `east_m`.

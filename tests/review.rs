@@ -4,17 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use crate::util::{python, python_json, unz_ok, unz_output};
-
-fn parquet_rows(path: &Path) -> i64 {
-    use parquet::file::reader::{FileReader, SerializedFileReader};
-    let f = std::fs::File::open(path).unwrap();
-    SerializedFileReader::new(f)
-        .unwrap()
-        .metadata()
-        .file_metadata()
-        .num_rows()
-}
+use crate::util::{parquet_rows, python, python_json, unz_ok, unz_output};
 
 #[test]
 fn review_recording_reads_back_with_the_pinned_rerun() {

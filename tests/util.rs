@@ -39,6 +39,17 @@ pub fn simulated_run(dir: &Path, seed: u32, options: &[&str]) -> PathBuf {
     campaign.join(format!("sim-{seed:04}"))
 }
 
+/// The rows of a Parquet file (from its footer).
+pub fn parquet_rows(path: &Path) -> i64 {
+    use parquet::file::reader::{FileReader, SerializedFileReader};
+    let f = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    SerializedFileReader::new(f)
+        .unwrap()
+        .metadata()
+        .file_metadata()
+        .num_rows()
+}
+
 /// A JSON artifact read back through its one typed definition (the type the pipeline
 /// writes it with); a missing or mistyped field fails the test here.
 pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> T {

@@ -275,7 +275,7 @@ fn table_meta(table: &str) -> HashMap<String, String> {
     HashMap::from([(META_TABLE.to_owned(), table.to_owned())])
 }
 
-/// Columns of [`derived`] beyond [`T_NS`], [`DTHETA_RAD`] and [`DVEL_MPS`].
+/// Columns of [`derived`] beyond [`T_NS`].
 pub mod derived_cols {
     /// The sample's interval, s.
     pub const DT_S: &str = "dt_s";
@@ -285,14 +285,14 @@ pub mod derived_cols {
     pub const U_MPS: &str = "u_mps";
     /// Odometer acceleration u̇, m/s² (eq 10).
     pub const U_DOT_MPS2: &str = "u_dot_mps2";
-    /// Yaw rate r, rad/s.
-    pub const R_RAD_S: &str = "r_rad_s";
     /// Centripetal term ru, m/s² (eq 11).
     pub const RU_MPS2: &str = "ru_mps2";
 }
 
-/// `derived`: the derive stage's per-sample series. `meta` holds the
-/// [`derived_meta`] keys with their values.
+/// `derived`: the derive stage's per-sample series: the repaired time base and the
+/// odometer's terms (one row per row of the ingest's `imu`). The IMU's increments are
+/// `imu`'s but for the samples in [`imu_repairs`]. `meta` holds the [`derived_meta`]
+/// keys with their values.
 pub fn derived(meta: impl IntoIterator<Item = (&'static str, String)>) -> SchemaRef {
     let mut m = table_meta("derived");
     m.extend(meta.into_iter().map(|(k, v)| (k.to_owned(), v)));
@@ -300,15 +300,34 @@ pub fn derived(meta: impl IntoIterator<Item = (&'static str, String)>) -> Schema
         vec![
             time_field(),
             f64_field(derived_cols::DT_S, "s"),
-            vec3(DTHETA_RAD, "rad", FRAME_BODY),
-            vec3(DVEL_MPS, "m/s", FRAME_BODY),
             f64_field(derived_cols::ODO_DIST_M, "m"),
             f64_field(derived_cols::U_MPS, "m/s"),
             f64_field(derived_cols::U_DOT_MPS2, "m/s^2"),
-            f64_field(derived_cols::R_RAD_S, "rad/s"),
             f64_field(derived_cols::RU_MPS2, "m/s^2"),
         ],
         m,
+    ))
+}
+
+/// Columns of [`imu_repairs`] beyond [`T_NS`], [`DTHETA_RAD`] and [`DVEL_MPS`].
+pub mod imu_repairs_cols {
+    /// The sample: its row in the ingest's `imu` and in `derived`.
+    pub const SAMPLE: &str = "sample";
+}
+
+/// `imu_repairs` (`derive/imu_repairs.parquet`): the IMU samples whose increments the
+/// derive replaced (scaled over a gap they close, or held at the rates before where they
+/// exceed the instrument's range), in order, with the increments it uses and the
+/// sample's repaired time; every other sample's increments are the ingest's `imu`'s.
+pub fn imu_repairs() -> SchemaRef {
+    Arc::new(Schema::new_with_metadata(
+        vec![
+            scalar(imu_repairs_cols::SAMPLE, DataType::UInt64, false, ""),
+            time_field(),
+            vec3(DTHETA_RAD, "rad", FRAME_BODY),
+            vec3(DVEL_MPS, "m/s", FRAME_BODY),
+        ],
+        table_meta("imu_repairs"),
     ))
 }
 

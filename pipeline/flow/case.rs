@@ -27,7 +27,7 @@ use super::ingested::load_table;
 use super::marks::{RepeatedMark, UnknownMarks, choose_marks};
 use super::{Overrides, Params, RunCtx, ensure_derive};
 use crate::artifacts::{StageName, files};
-use crate::derive_io::read_velocity_prefix;
+use crate::derive_io::{StoredDerive, read_velocity_prefix};
 
 /// Everything a navigation pass needs, loaded once.
 pub struct NavCase {
@@ -255,10 +255,10 @@ pub fn start_position(m: &RunManifest) -> Geodetic {
 
 /// Loads a navigation case of the run with `overrides` (derive must be up to date).
 pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow::Result<NavCase> {
-    let derive_dir = ensure_derive(ctx, params)?;
+    ensure_derive(ctx, params)?;
     let m = &ctx.manifest;
     let ingest_dir = ctx.layout().dir(StageName::Ingest);
-    let derived = ctx.derived(&derive_dir)?;
+    let derived = ctx.derived()?;
     let (marks, _) = load_table::<MarksTable>(
         &ingest_dir.join(files::MARKS),
         MarksTable::extend_from_batch,
@@ -295,7 +295,10 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
     let dvel_mps: &[[f64; 3]] = if derived.dvel_mps.len() == derived.t_s.len() {
         &derived.dvel_mps
     } else {
-        prefix = read_velocity_prefix(&derive_dir, static_samples(&derived, &req))?;
+        prefix = read_velocity_prefix(
+            &StoredDerive::of(&ctx.layout()),
+            static_samples(&derived, &req),
+        )?;
         &prefix
     };
     let (mut settings, mut initial) =

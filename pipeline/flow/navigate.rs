@@ -88,9 +88,12 @@ pub fn ensure_navigate(
     let m = &ctx.manifest;
     let dir = ctx.layout().create(StageName::Navigate)?;
     let ingest_dir = ctx.layout().dir(StageName::Ingest);
+    // The derive's increments are the ingest's IMU table's, repaired.
     let inputs = vec![
         m.path.clone(),
         derive_dir.join(files::DERIVED),
+        derive_dir.join(files::IMU_REPAIRS),
+        ingest_dir.join(files::IMU),
         ingest_dir.join(files::MARKS),
         ingest_dir.join(files::ODOMETER),
     ];

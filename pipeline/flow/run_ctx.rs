@@ -1,7 +1,7 @@
 //! One run being processed: its manifest, where it writes, what each stage did, and the
 //! derive the chain shares in memory.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use anyhow::Context;
@@ -9,7 +9,7 @@ use unz_formats::manifest::RunManifest;
 use unz_stages::derive::Derived;
 
 use crate::artifacts::RunLayout;
-use crate::derive_io::load_derived_for_navigation;
+use crate::derive_io::{StoredDerive, load_derived_for_navigation};
 use crate::stage::Stage;
 
 /// One run being processed.
@@ -46,15 +46,17 @@ impl RunCtx {
         }
     }
 
-    /// The derive in `derive_dir` (brought up to date by the caller): the one in memory,
-    /// else loaded without its velocity increments and kept. Its `dvel_mps` is then empty:
+    /// The run's derive (brought up to date by the caller): the one in memory, else
+    /// loaded without its velocity increments and kept. Its `dvel_mps` is then empty:
     /// [`load_case`](super::load_case) reads the static start's apart.
-    pub fn derived(&self, derive_dir: &Path) -> anyhow::Result<Arc<Derived>> {
+    pub fn derived(&self) -> anyhow::Result<Arc<Derived>> {
         let mut memo = self.derived.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(d) = memo.as_ref() {
             return Ok(d.clone());
         }
-        let d = Arc::new(load_derived_for_navigation(derive_dir)?);
+        let d = Arc::new(load_derived_for_navigation(&StoredDerive::of(
+            &self.layout(),
+        ))?);
         *memo = Some(d.clone());
         Ok(d)
     }

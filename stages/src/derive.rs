@@ -131,6 +131,10 @@ pub struct Derived {
     pub dtheta_rad: Arc<Vec<[f64; 3]>>,
     /// Per sample: velocity increments, m/s (likewise).
     pub dvel_mps: Arc<Vec<[f64; 3]>>,
+    /// Samples whose increments are not the ingested ones, in order: scaled over a gap
+    /// they close, or replaced beyond the instrument's range. Every other sample's are the
+    /// ingest's, bit for bit (what lets the stored derive keep only these).
+    pub replaced_increments: Vec<usize>,
     /// Per sample: odometer distance over the interval, m.
     pub odo_dist_m: Vec<f64>,
     /// Per block: filtered a_x, m/s² (shared with the re-derives at other odometer
@@ -210,6 +214,7 @@ impl Derived {
             dt_s: self.dt_s.clone(),
             dtheta_rad: self.dtheta_rad.clone(),
             dvel_mps: self.dvel_mps.clone(),
+            replaced_increments: self.replaced_increments.clone(),
             odo_dist_m: Vec::new(),
             ax_f: self.ax_f.clone(),
             ay_f: self.ay_f.clone(),
@@ -572,12 +577,17 @@ pub fn derive_owned(
         };
         let mut dth = dtheta_rad[k].map(|v| v * scale);
         let mut dv = dvel_mps[k].map(|v| v * scale);
-        if !increments_in_range(dth, dv, dt) {
+        let replaced = if !increments_in_range(dth, dv, dt) {
             out.out_of_range_samples += 1;
             dth = prev_rates.0.map(|w| w * dt);
             dv = prev_rates.1.map(|a| a * dt);
+            true
         } else {
             prev_rates = (dth.map(|v| v / dt), dv.map(|v| v / dt));
+            scale != 1.0
+        };
+        if replaced {
+            out.replaced_increments.push(k);
         }
         t_s.push(t);
         dt_s.push(dt);
@@ -1143,6 +1153,51 @@ mod tests {
     /// Bits, not values: -0.0 and 0.0 would pass `==`.
     fn bits(v: &[f64]) -> Vec<u64> {
         v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    /// The samples the derive lists as replaced are exactly those whose increments are
+    /// not the ingested ones, bit for bit: a gap closed (scaled), a saturated gyro and a
+    /// NaN accelerometer count (held at the rates before), a tag going back (its time
+    /// repaired, its increments kept), and zero increments across a gap (scaled, the same
+    /// values: listed all the same).
+    #[test]
+    fn the_replaced_increments_are_exactly_those_not_ingested() {
+        let (mut t, mut dtheta, mut dvel, odo_t, odo_d) = drive();
+        // A gap of 5 samples before 5 000, zero increments closing one of 3 before 9 000.
+        for (k, tk) in t.iter_mut().enumerate() {
+            *tk += 50_000_000 * i64::from(k >= 5_000) + 30_000_000 * i64::from(k >= 9_000);
+        }
+        (dtheta[9_000], dvel[9_000]) = ([0.0; 3], [0.0; 3]);
+        dtheta[12_000][1] = 1.0; // 100 rad/s over 10 ms: beyond 1000 °/s.
+        dvel[15_000][0] = f64::NAN;
+        t[17_000] = t[16_999] - 1;
+        let columns = (t, dtheta, dvel, odo_t, odo_d);
+        let raw = series(&columns);
+        let d = derive(&raw, &DeriveParams::default(), 9.81);
+        assert_eq!(d.replaced_increments, [5_000, 9_000, 12_000, 15_000]);
+        assert_eq!(
+            (d.filled_gaps, d.out_of_range_samples, d.repaired_times),
+            (2, 2, 1)
+        );
+        let differs: Vec<usize> = (0..d.t_s.len())
+            .filter(|&k| {
+                let same = |a: &[f64; 3], b: &[f64; 3]| {
+                    a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+                };
+                !same(&d.dtheta_rad[k], &columns.1[k]) || !same(&d.dvel_mps[k], &columns.2[k])
+            })
+            .collect();
+        // Every listed sample but the zero one scaled to itself differs.
+        assert_eq!(differs, [5_000, 12_000, 15_000]);
+        assert_eq!(
+            (d.dtheta_rad[9_000], d.dvel_mps[9_000]),
+            ([0.0; 3], [0.0; 3])
+        );
+        // A re-derive at another odometer timing keeps the IMU's list.
+        assert_eq!(
+            d.without_odometer_series().replaced_increments,
+            d.replaced_increments
+        );
     }
 
     #[test]
