@@ -27,7 +27,7 @@ use unz_formats::kfgins::{KfGinsReader, LAND_SPEED_RANGE_MPS, OdometerFileReader
 use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_formats::mcap_io::McapCompression;
 use unz_formats::parquet_io::ParquetSink;
-use unz_formats::raw::{Accepted, RawReader};
+use unz_formats::raw::{Accepted, IMU_PAYLOAD_LEN, RawReader, frame_len};
 use unz_formats::schema::DistanceSource;
 use unz_formats::speed_spikes::{SpeedSpikes, Verdict};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
@@ -57,6 +57,44 @@ pub struct IngestOutcome {
     pub report: IngestReport,
     /// Odometer rows written.
     pub odometer_rows: usize,
+    /// The tables' series as written, when [`IngestOptions::keep_series`] asked for them.
+    pub series: Option<WrittenSeries>,
+}
+
+/// The columns of `imu.parquet` and `odometer.parquet` a derive reads
+/// ([`ImuTable::SERIES_COLUMNS`], [`OdometerTable::SERIES_COLUMNS`]), as written: what
+/// reading them back gives, bit for bit, without the files' decoding.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct WrittenSeries {
+    /// The IMU's series (`seq` left empty).
+    pub imu: ImuTable,
+    /// The odometer's series (`pulses` and `source` left empty).
+    pub odometer: OdometerTable,
+}
+
+impl WrittenSeries {
+    /// Empty, with room for `rows` rows of each table: kept whole beside the ingest's
+    /// buffers, the series are allocated once instead of grown in steps among them.
+    fn with_room_for(rows: usize) -> Self {
+        Self {
+            imu: ImuTable::with_series_capacity(rows),
+            odometer: OdometerTable::with_series_capacity(rows),
+        }
+    }
+
+    /// Appends the series columns of IMU rows about to be written.
+    fn extend_imu(&mut self, rows: &ImuTable) {
+        self.imu.t_ns.extend_from_slice(&rows.t_ns);
+        self.imu.dtheta_rad.extend_from_slice(&rows.dtheta_rad);
+        self.imu.dvel_mps.extend_from_slice(&rows.dvel_mps);
+        self.imu.status.extend_from_slice(&rows.status);
+    }
+
+    /// Appends the series columns of odometer rows about to be written.
+    fn extend_odometer(&mut self, rows: &OdometerTable) {
+        self.odometer.t_ns.extend_from_slice(&rows.t_ns);
+        self.odometer.distance_m.extend_from_slice(&rows.distance_m);
+    }
 }
 
 /// Parameters of the ingest stage (`[ingest]` in a config file or a run's `[params]`).
@@ -84,6 +122,9 @@ pub struct IngestOptions {
     /// from them into the body's, after the axes' ([`unz_stages::imu_mounting`]); None
     /// for none.
     pub imu_mounting: Option<nalgebra::Rotation3<f64>>,
+    /// Keep the series a derive reads in memory as they are written
+    /// ([`IngestOutcome::series`]): for a derive that follows in the same process.
+    pub keep_series: bool,
 }
 
 /// The status bit of an odometer failure (the raw-format spec's §1.2).
@@ -118,6 +159,8 @@ struct Sinks {
     mcap: Option<RawMcapWriter>,
     /// The odometer's steps against a land vehicle's speed.
     odo_range: OdometerRange,
+    /// The series written so far, when kept.
+    kept: Option<WrittenSeries>,
 }
 
 impl Sinks {
@@ -125,8 +168,10 @@ impl Sinks {
         dir: &Path,
         origin_ns: Option<i64>,
         odo_m_per_pulse: Option<f64>,
-        mcap: Option<McapCompression>,
+        options: &IngestOptions,
+        rows_hint: usize,
     ) -> anyhow::Result<Self> {
+        let mcap = options.mcap;
         let imu_schema = schema::imu(origin_ns);
         let odo_schema = schema::odometer_scaled(origin_ns, odo_m_per_pulse);
         // With `raw.mcap` on its own thread, the tables' columns are encoded on the
@@ -159,15 +204,25 @@ impl Sinks {
                 None => None,
             },
             odo_range: OdometerRange::default(),
+            kept: options
+                .keep_series
+                .then(|| WrittenSeries::with_room_for(rows_hint)),
         })
     }
 
     fn flush(&mut self, force: bool) -> anyhow::Result<()> {
-        if !self.imu_rows.is_empty() && (force || self.imu_rows.len() >= BATCH_ROWS) {
+        let due = |rows: usize| rows > 0 && (force || rows >= BATCH_ROWS);
+        if due(self.imu_rows.len()) {
+            if let Some(kept) = &mut self.kept {
+                kept.extend_imu(&self.imu_rows);
+            }
             self.imu
                 .write(&self.imu_rows.take_batch(self.imu_schema.clone())?)?;
         }
-        if !self.odo_rows.is_empty() && (force || self.odo_rows.len() >= BATCH_ROWS) {
+        if due(self.odo_rows.len()) {
+            if let Some(kept) = &mut self.kept {
+                kept.extend_odometer(&self.odo_rows);
+            }
             self.odo
                 .write(&self.odo_rows.take_batch(self.odo_schema.clone())?)?;
         }
@@ -220,8 +275,8 @@ impl Sinks {
     }
 
     /// Writes the marks and closes every file (renaming them into place); returns the
-    /// odometer's rows and its steps replaced for their speed.
-    fn finish(mut self, dir: &Path) -> anyhow::Result<(usize, u64)> {
+    /// odometer's rows, its steps replaced for their speed, and the series kept.
+    fn finish(mut self, dir: &Path) -> anyhow::Result<(usize, u64, Option<WrittenSeries>)> {
         self.flush(true)?;
         let odo_rows = self.odo.rows();
         self.imu.finish()?;
@@ -233,7 +288,7 @@ impl Sinks {
         if let Some(m) = self.mcap {
             m.finish()?;
         }
-        Ok((odo_rows, self.odo_range.out_of_range))
+        Ok((odo_rows, self.odo_range.out_of_range, self.kept))
     }
 }
 
@@ -244,7 +299,7 @@ pub fn ingest(
     options: IngestOptions,
 ) -> anyhow::Result<IngestOutcome> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let (report, odometer_rows) = match manifest.format {
+    let (report, odometer_rows, series) = match manifest.format {
         LogFormat::UnzBinary => ingest_binary(manifest, dir, options)?,
         LogFormat::KfGins => ingest_text(manifest, dir, options)?,
     };
@@ -263,6 +318,7 @@ pub fn ingest(
         dir: dir.to_path_buf(),
         report,
         odometer_rows,
+        series,
     })
 }
 
@@ -277,7 +333,7 @@ fn ingest_binary(
     manifest: &RunManifest,
     dir: &Path,
     options: IngestOptions,
-) -> anyhow::Result<(IngestReport, usize)> {
+) -> anyhow::Result<(IngestReport, usize, Option<WrittenSeries>)> {
     let path = &manifest.raw;
     let mut reader = RawReader::new(open(manifest, path)?).map_err(|e| e.in_file(path))?;
     let header = reader.header().clone();
@@ -287,7 +343,12 @@ fn ingest_binary(
         .scale_m_per_pulse
         .unwrap_or(header.odo_lsb_m);
     let nominal_dt_s = header.sample_period_s();
-    let mut sinks = Sinks::create(dir, origin_ns, Some(scale), options.mcap)?;
+    // Room for as many samples as the log's bytes can hold (its length, not a field of
+    // it: no more than the file's size says).
+    let rows_hint = std::fs::metadata(path).map_or(0, |m| {
+        usize::try_from(m.len()).unwrap_or(usize::MAX) / frame_len(IMU_PAYLOAD_LEN)
+    });
+    let mut sinks = Sinks::create(dir, origin_ns, Some(scale), &options, rows_hint)?;
     let mut first_pulses = None;
     // The odometer's failures (status bit 1) are bridged: their samples, and the marks
     // among them, are held back until they are.
@@ -368,7 +429,7 @@ fn ingest_binary(
     }
     bridger.finish();
     give(&mut sinks, &mut bridger)?;
-    let (odo_rows, odometer_out_of_range) = sinks.finish(dir)?;
+    let (odo_rows, odometer_out_of_range, series) = sinks.finish(dir)?;
     let (mut report, events, events_total) = reader.into_report();
     report.odometer_out_of_range = odometer_out_of_range;
     report.odometer_failures = bridger.failures().cloned();
@@ -382,14 +443,14 @@ fn ingest_binary(
             odometer_file_faults: Vec::new(),
         },
     )?;
-    Ok((report, odo_rows))
+    Ok((report, odo_rows, series))
 }
 
 fn ingest_text(
     manifest: &RunManifest,
     dir: &Path,
     options: IngestOptions,
-) -> anyhow::Result<(IngestReport, usize)> {
+) -> anyhow::Result<(IngestReport, usize, Option<WrittenSeries>)> {
     let path = &manifest.raw;
     let mut reader = KfGinsReader::new(BufReader::with_capacity(1 << 16, open(manifest, path)?));
     let period = reader
@@ -436,7 +497,7 @@ fn ingest_text(
                 options.odo_lag_prior_s,
             )
         });
-    let mut sinks = Sinks::create(dir, None, None, options.mcap)?;
+    let mut sinks = Sinks::create(dir, None, None, &options, 0)?;
     let mut seq = 0u64;
     let mut column = column.then(|| {
         let g_mps2 = site_gravity_mps2(manifest);
@@ -512,7 +573,7 @@ fn ingest_text(
     };
     // Stands the IMU found standing are no failure: nothing to report.
     let bridged = failures.filter(|f| *f != unz_formats::OdometerFailures::default());
-    let (odo_rows, odometer_out_of_range) = sinks.finish(dir)?;
+    let (odo_rows, odometer_out_of_range, series) = sinks.finish(dir)?;
     let mut report = reader.report().clone();
     report.odometer_out_of_range = odometer_out_of_range;
     report.odometer_failures = bridged;
@@ -528,7 +589,7 @@ fn ingest_text(
             odometer_file_faults: file_report.map_or(Vec::new(), |(_, faults)| faults),
         },
     )?;
-    Ok((report, odo_rows))
+    Ok((report, odo_rows, series))
 }
 
 /// The 8th column's samples the spikes' judgement has decided, through the trapezoid to

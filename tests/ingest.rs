@@ -284,6 +284,7 @@ fn raw_mcap_compression_changes_the_size_not_the_messages() {
             odo_lag_prior_s: 0.0,
             imu_axes: Default::default(),
             imu_mounting: None,
+            keep_series: false,
         };
         ingest(&manifest, &dir, options).unwrap();
         let path = dir.join("raw.mcap");
@@ -307,4 +308,69 @@ fn raw_mcap_compression_changes_the_size_not_the_messages() {
         (sizes[1] as f64) < 0.75 * sizes[0] as f64,
         "sizes none/zstd: {sizes:?}"
     );
+}
+
+/// The series an ingest keeps for the derive that follows are what its files give back,
+/// bit for bit: a binary log over several batches, its damaged copy (records lost, and an
+/// odometer failure made, bridged), and the Kingston text log with its odometer file.
+#[test]
+fn the_series_kept_for_the_derive_are_the_files() {
+    use unz::ingest::{IngestOptions, ingest};
+    use unz_formats::parquet_io::for_each_batch_of;
+    use unz_formats::tables::{ImuTable, OdometerTable};
+    let tmp = tempfile::tempdir().unwrap();
+    let run = crate::util::simulated_run(tmp.path(), 43, &["--duration-s", "900", "--faults"]);
+    let faulty = run.with_file_name("sim-0043-faulty");
+    // The damaged copy's odometer fails (flagged) for 15 s while driving: bridged.
+    crate::util::hold_count(&faulty.join("sim-0043-faulty.unz"), 40_000, 1500, true);
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let bits3 = |v: &[[f64; 3]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for run in [run.clone(), faulty, test_data("kingston2008-seg1")] {
+        let manifest = unz::runs::load_run(&run).unwrap();
+        let dir = tmp.path().join("out").join(&manifest.name);
+        let options = IngestOptions {
+            mcap: None,
+            odo_lag_prior_s: 0.0,
+            imu_axes: Default::default(),
+            imu_mounting: None,
+            keep_series: true,
+        };
+        let kept = ingest(&manifest, &dir, options).unwrap().series.unwrap();
+        let mut imu = ImuTable::default();
+        for_each_batch_of(&dir.join("imu.parquet"), &ImuTable::SERIES_COLUMNS, |b| {
+            imu.extend_series_from_batch(b)
+        })
+        .unwrap();
+        let mut odometer = OdometerTable::default();
+        for_each_batch_of(
+            &dir.join("odometer.parquet"),
+            &OdometerTable::SERIES_COLUMNS,
+            |b| odometer.extend_series_from_batch(b),
+        )
+        .unwrap();
+        let name = &manifest.name;
+        assert!(kept.imu.t_ns.len() > 5_000, "{name}");
+        assert_eq!(kept.imu.t_ns, imu.t_ns, "{name}");
+        assert_eq!(
+            bits3(&kept.imu.dtheta_rad),
+            bits3(&imu.dtheta_rad),
+            "{name}"
+        );
+        assert_eq!(bits3(&kept.imu.dvel_mps), bits3(&imu.dvel_mps), "{name}");
+        assert_eq!(kept.imu.status, imu.status, "{name}");
+        assert!(kept.imu.seq.is_empty(), "{name}");
+        assert_eq!(kept.odometer.t_ns, odometer.t_ns, "{name}");
+        assert_eq!(
+            bits(&kept.odometer.distance_m),
+            bits(&odometer.distance_m),
+            "{name}"
+        );
+        if name.starts_with("sim") {
+            assert!(kept.imu.t_ns.len() > 1 << 16, "{name}: several batches");
+        }
+        if name.ends_with("faulty") {
+            let report = report(&dir.join("ingest.json"));
+            assert!(report.odometer_failures.is_some(), "{name}: {report:?}");
+        }
+    }
 }

@@ -69,6 +69,8 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
                 odo_lag_prior_s: 0.0,
                 imu_axes: Default::default(),
                 imu_mounting: None,
+                // As the stage does: the derive that follows takes the series.
+                keep_series: true,
             },
         ),
         (
@@ -78,6 +80,8 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
                 odo_lag_prior_s: 0.0,
                 imu_axes: Default::default(),
                 imu_mounting: None,
+                // As the stage does: the derive that follows takes the series.
+                keep_series: true,
             },
         ),
         (
@@ -87,6 +91,8 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
                 odo_lag_prior_s: 0.0,
                 imu_axes: Default::default(),
                 imu_mounting: None,
+                // As the stage does: the derive that follows takes the series.
+                keep_series: true,
             },
         ),
     ] {

@@ -59,8 +59,21 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         odo_lag_prior_s: -params.derive.odo_time_offset_s,
         imu_axes: params.vehicle.imu_axes,
         imu_mounting: unz_stages::imu_mounting::rotation(params.vehicle.imu_mounting_deg),
+        // The derive, which follows in this process whenever the ingest runs, takes the
+        // series as they were written instead of decoding the files again.
+        keep_series: true,
     };
-    ctx.run_stage(&stage, || ingest(m, &dir, options).map(|_| ()))?;
+    ctx.run_stage(&stage, || {
+        ctx.set_ingested(None);
+        let outcome = ingest(m, &dir, options)?;
+        ctx.set_ingested(
+            outcome
+                .series
+                .map(IngestedSeries::from_written)
+                .transpose()?,
+        );
+        Ok(())
+    })?;
     Ok(dir)
 }
 
@@ -93,9 +106,14 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             files::SENSORS,
         ],
     };
+    // What the ingest kept goes now, whether the derive runs or is up to date.
+    let written = ctx.take_ingested();
     ctx.run_stage(&stage, || {
         ctx.set_derived(None);
-        let raw = IngestedSeries::load(&ingest_dir)?;
+        let raw = match written {
+            Some(series) => series,
+            None => IngestedSeries::load(&ingest_dir)?,
+        };
         let counts = raw.failure_counts();
         let mut d = raw.derive(&params.derive, site_gravity_mps2(m));
         (d.imu_failure_samples, d.odometer_failure_samples) = counts;

@@ -14,6 +14,7 @@ use unz_stages::odo_rebridge::FailedRows;
 use unz_stages::time_base::TagTimes;
 
 use crate::artifacts::files;
+use crate::ingest::WrittenSeries;
 
 pub(super) fn load_table<T: Default>(
     path: &Path,
@@ -110,10 +111,23 @@ impl IngestedSeries {
             ImuTable::with_series_capacity,
             ImuTable::extend_series_from_batch,
         )?;
+        Self::checked(imu, Self::load_odometer(ingest_dir)?)
+    }
+
+    /// The series an ingest kept as it wrote them ([`WrittenSeries`]): what
+    /// [`Self::load`] reads back from its files, without decoding them.
+    pub fn from_written(written: WrittenSeries) -> anyhow::Result<Self> {
+        if written.odometer.is_empty() {
+            bail!(NO_ODOMETER);
+        }
+        Self::checked(written.imu, written.odometer)
+    }
+
+    /// The tables, unless the IMU's is empty.
+    fn checked(imu: ImuTable, odo: OdometerTable) -> anyhow::Result<Self> {
         if imu.is_empty() {
             bail!("the raw log has no IMU record");
         }
-        let odo = Self::load_odometer(ingest_dir)?;
         Ok(Self { imu, odo })
     }
 

@@ -1,5 +1,6 @@
-//! One run being processed: its manifest, where it writes, what each stage did, and the
-//! derive the chain shares in memory.
+//! One run being processed: its manifest, where it writes, what each stage did, and what
+//! the chain hands on in memory (the ingest's series to the derive, the derive to the
+//! stages after it).
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -11,6 +12,8 @@ use unz_stages::derive::Derived;
 use crate::artifacts::RunLayout;
 use crate::derive_io::{StoredDerive, load_derived_for_navigation};
 use crate::stage::Stage;
+
+use super::IngestedSeries;
 
 /// One run being processed.
 pub struct RunCtx {
@@ -31,6 +34,9 @@ pub struct RunCtx {
     /// and the review's sensor blocks, taken by the derive stage into `sensors.parquet`);
     /// cleared when it is recomputed.
     derived: std::sync::Mutex<Option<Arc<Derived>>>,
+    /// The series the ingest wrote, when it ran in this process: the derive takes them
+    /// instead of reading its files back.
+    ingested: std::sync::Mutex<Option<IngestedSeries>>,
 }
 
 impl RunCtx {
@@ -43,6 +49,7 @@ impl RunCtx {
             log: std::sync::Mutex::new(Vec::new()),
             progress: None,
             derived: std::sync::Mutex::new(None),
+            ingested: std::sync::Mutex::new(None),
         }
     }
 
@@ -80,6 +87,19 @@ impl RunCtx {
 
     pub(super) fn set_derived(&self, d: Option<Arc<Derived>>) {
         *self.derived.lock().unwrap_or_else(|e| e.into_inner()) = d;
+    }
+
+    /// Keeps the series the ingest just wrote for the derive (none: forgets any kept).
+    pub(super) fn set_ingested(&self, series: Option<IngestedSeries>) {
+        *self.ingested.lock().unwrap_or_else(|e| e.into_inner()) = series;
+    }
+
+    /// Takes the series the ingest wrote in this process, if it did.
+    pub(super) fn take_ingested(&self) -> Option<IngestedSeries> {
+        self.ingested
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take()
     }
 
     fn record(&self, stage: &str, computed: bool, wall_s: f64) {
