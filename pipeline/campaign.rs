@@ -25,7 +25,7 @@ use crate::disupt_stage::{DisuptOut, Method, MethodOut, SettingsOut, SigmaOut, e
 use crate::flow::marks::RepeatedMark;
 use crate::flow::{
     NavigateSummary, Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest,
-    ensure_navigate,
+    ensure_ingest_before_derive, ensure_navigate,
 };
 
 /// The stages of `unz run`, in order.
@@ -156,6 +156,8 @@ fn process(
         let none = Overrides::default();
         for stage in &STAGES[..=plan.until] {
             match *stage {
+                // The derive, when it follows, takes the series the ingest writes.
+                "ingest" if plan.until > 0 => drop(ensure_ingest_before_derive(&ctx, p)?),
                 "ingest" => drop(ensure_ingest(&ctx, p)?),
                 "derive" => drop(ensure_derive(&ctx, p)?),
                 "navigate" => drop(ensure_navigate(&ctx, p, &none)?),

@@ -24,7 +24,9 @@ pub use case::{
     MatchedPoints, NavCase, VehicleParams, load_case, match_control_points, start_position,
 };
 pub use criteria::{CriteriaSummary, ensure_criteria, load_criteria};
-pub use ingest_derive::{ensure_derive, ensure_finite, ensure_ingest, site_gravity_mps2};
+pub use ingest_derive::{
+    ensure_derive, ensure_finite, ensure_ingest, ensure_ingest_before_derive, site_gravity_mps2,
+};
 pub use ingested::{IngestedSeries, OdometerTags};
 pub use navigate::{ImuAxesReport, NavigateSummary, ensure_navigate};
 pub use run_ctx::RunCtx;

@@ -18,6 +18,17 @@ use crate::stage::{Stage, params_hash};
 
 /// Stage 1.
 pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
+    ingest_keeping(ctx, params, false)
+}
+
+/// Stage 1 when the derive follows in this process: the series the ingest writes, if it
+/// runs, are kept for it ([`ensure_derive`] takes them instead of reading the files).
+pub fn ensure_ingest_before_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
+    ingest_keeping(ctx, params, true)
+}
+
+/// Stage 1, its series kept in `ctx` for the derive when it runs and `for_derive`.
+fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Result<PathBuf> {
     let m = &ctx.manifest;
     let dir = ctx.layout().create(StageName::Ingest)?;
     let mut inputs = vec![m.path.clone(), m.raw.clone()];
@@ -59,9 +70,9 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         odo_lag_prior_s: -params.derive.odo_time_offset_s,
         imu_axes: params.vehicle.imu_axes,
         imu_mounting: unz_stages::imu_mounting::rotation(params.vehicle.imu_mounting_deg),
-        // The derive, which follows in this process whenever the ingest runs, takes the
-        // series as they were written instead of decoding the files again.
-        keep_series: true,
+        // The derive that follows takes the series as they were written instead of
+        // decoding the files again.
+        keep_series: for_derive,
     };
     ctx.run_stage(&stage, || {
         ctx.set_ingested(None);
@@ -79,7 +90,7 @@ pub fn ensure_ingest(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
 
 /// Stage 2.
 pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
-    let ingest_dir = ensure_ingest(ctx, params)?;
+    let ingest_dir = ensure_ingest_before_derive(ctx, params)?;
     let m = &ctx.manifest;
     let dir = ctx.layout().create(StageName::Derive)?;
     let inputs = vec![
