@@ -52,7 +52,7 @@ pub struct MarksTable {
 }
 
 fn vec3_array(v: &[[f64; 3]]) -> ArrayRef {
-    vec3_array_of(v.iter().flatten().copied().collect())
+    vec3_array_of(v.as_flattened().to_vec())
 }
 
 /// A `FixedSizeList<Float64, 3>` of flat x, y, z values.
@@ -100,13 +100,14 @@ fn vec3_values(b: &RecordBatch, name: &str) -> Result<Vec<[f64; 3]>, FormatError
         .ok_or_else(|| FormatError::Invalid(format!("column {name:?} is not Float64")))?;
     let start = list.offset() * 3;
     let v = &values.values()[start..start + list.len() * 3];
-    Ok(v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+    Ok(v.as_chunks::<3>().0.to_vec())
 }
 
 impl ImuTable {
-    /// Converts to a record batch, moving the columns out (the table is left empty).
+    /// Converts to a record batch, moving the columns out (the table is left empty; the
+    /// vectors' x, y, z become the arrays' values without a copy).
     pub fn take_batch(&mut self, schema: SchemaRef) -> Result<RecordBatch, FormatError> {
-        let flat = |v: Vec<[f64; 3]>| vec3_array_of(v.into_iter().flatten().collect());
+        let flat = |v: Vec<[f64; 3]>| vec3_array_of(v.into_flattened());
         batch(
             schema,
             vec![
