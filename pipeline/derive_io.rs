@@ -13,7 +13,6 @@ use std::sync::Arc;
 
 use anyhow::{Context, bail};
 use arrow::array::{AsArray, BooleanArray, Float64Array, Int64Array, RecordBatch, UInt64Array};
-use arrow::datatypes::UInt64Type;
 use unz_formats::parquet_io::{
     ParquetSink, for_each_batch_of, for_each_batch_of_while, read_table, row_capacity_hint,
     write_batch,
@@ -22,7 +21,7 @@ use unz_formats::schema::{
     self, DTHETA_RAD, DVEL_MPS, T_NS, VALID, derived_cols, derived_meta, epochs_cols,
     filtered_cols, imu_repairs_cols,
 };
-use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
+use unz_formats::tables::{f64_column, i64_column, u64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, Epochs, OdometerSpeed, ns_since};
 use unz_stages::odo_rebridge::WindowVelocities;
 use unz_stages::time_base::{NanoTimes, TimeBase};
@@ -289,22 +288,16 @@ impl ImuRepairs {
     fn read(derive_dir: &Path) -> anyhow::Result<Self> {
         let path = derive_dir.join(files::IMU_REPAIRS);
         let (_, t) = read_table(&path)?;
-        let sample = t
-            .column_by_name(imu_repairs_cols::SAMPLE)
-            .and_then(|c| c.as_primitive_opt::<UInt64Type>())
-            .with_context(|| {
-                format!(
-                    "{}: no UInt64 column {:?}",
-                    path.display(),
-                    imu_repairs_cols::SAMPLE
-                )
-            })?;
-        let sample: Vec<usize> = sample.values().iter().map(|&k| k as usize).collect();
-        let repairs = Self {
-            dtheta_rad: vec3_column(&t, DTHETA_RAD)?,
-            dvel_mps: vec3_column(&t, DVEL_MPS)?,
-            sample,
+        let read = || -> Result<Self, unz_formats::FormatError> {
+            Ok(Self {
+                sample: (u64_column(&t, imu_repairs_cols::SAMPLE)?.into_iter())
+                    .map(|k| k as usize)
+                    .collect(),
+                dtheta_rad: vec3_column(&t, DTHETA_RAD)?,
+                dvel_mps: vec3_column(&t, DVEL_MPS)?,
+            })
         };
+        let repairs = read().map_err(|e| e.in_file(&path))?;
         // The derive's own file, but read with care all the same: in order, in range.
         if let Some(w) = repairs.sample.windows(2).find(|w| w[1] <= w[0]) {
             bail!(
@@ -471,22 +464,13 @@ fn load_derived_of(
     d.moving_dot_f = f64_column(&bl, filtered_cols::MOVING_DOT_F_PER_S)?;
     let epath = dir.join(files::EPOCHS);
     let (_, e) = read_table(&epath)?;
-    let blocks = e
-        .column_by_name(epochs_cols::BLOCK)
-        .and_then(|c| c.as_primitive_opt::<UInt64Type>())
-        .with_context(|| {
-            format!(
-                "{}: no UInt64 column {:?}",
-                epath.display(),
-                epochs_cols::BLOCK
-            )
-        })?;
+    let blocks = u64_column(&e, epochs_cols::BLOCK).map_err(|err| err.in_file(&epath))?;
     let valid = e
         .column_by_name(VALID)
         .and_then(|c| c.as_boolean_opt())
         .with_context(|| format!("{}: no Boolean column {VALID:?}", epath.display()))?;
     d.epochs = Epochs {
-        block: blocks.values().iter().map(|&b| b as usize).collect(),
+        block: blocks.into_iter().map(|b| b as usize).collect(),
         t_s: i64_column(&e, T_NS)?
             .iter()
             .map(|t| (t - d.t0_ns) as f64 * 1e-9)

@@ -409,6 +409,11 @@ pub fn i64_column(b: &RecordBatch, name: &str) -> Result<Vec<i64>, FormatError> 
     Ok(prim::<Int64Type>(b, name)?.values().to_vec())
 }
 
+/// Reads a `UInt64` column of a batch.
+pub fn u64_column(b: &RecordBatch, name: &str) -> Result<Vec<u64>, FormatError> {
+    Ok(prim::<UInt64Type>(b, name)?.values().to_vec())
+}
+
 /// Reads a `UInt8` column of a batch.
 pub fn u8_column(b: &RecordBatch, name: &str) -> Result<Vec<u8>, FormatError> {
     Ok(prim::<UInt8Type>(b, name)?.values().to_vec())
