@@ -118,8 +118,11 @@ impl Stage<'_> {
         Ok(())
     }
 
-    /// Removes the record, so a stage that starts over is never taken as done, and the
-    /// temporary files (`.<name>.<random>.tmp`) a killed run may have left.
+    /// Removes the record, so a stage that starts over is never taken as done, then its
+    /// outputs (stale without it; a file renamed over an old one has its pages written
+    /// out in the rename, 15 ms for `raw.mcap` on ext4, where a removed one's are
+    /// dropped) and the temporary files (`.<name>.<random>.tmp`) a killed run may have
+    /// left.
     pub fn invalidate(&self) -> anyhow::Result<()> {
         if let Ok(entries) = std::fs::read_dir(&self.dir) {
             for e in entries.flatten() {
@@ -129,13 +132,16 @@ impl Stage<'_> {
                 }
             }
         }
-        match std::fs::remove_file(self.dir.join(RECORD)) {
+        let remove = |path: &Path| match std::fs::remove_file(path) {
             Ok(()) => Ok(()),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
-            Err(e) => {
-                Err(e).with_context(|| format!("cannot remove {}", self.dir.join(RECORD).display()))
-            }
+            Err(e) => Err(e).with_context(|| format!("cannot remove {}", path.display())),
+        };
+        remove(&self.dir.join(RECORD))?;
+        for name in self.outputs {
+            remove(&self.dir.join(name))?;
         }
+        Ok(())
     }
 }
 
@@ -186,9 +192,15 @@ mod tests {
     #[test]
     fn invalidate_clears_what_a_killed_stage_left() {
         let dir = tempfile::tempdir().unwrap();
-        for leftover in [".nav.parquet.123.tmp", ".run.rrd.77.tmp", RECORD] {
+        for leftover in [
+            ".nav.parquet.123.tmp",
+            ".run.rrd.77.tmp",
+            RECORD,
+            "old.parquet",
+        ] {
             std::fs::write(dir.path().join(leftover), b"x").unwrap();
         }
+        // Another stage's output in the same folder stays.
         std::fs::write(dir.path().join("nav.parquet"), b"kept").unwrap();
         let stage = Stage {
             dir: dir.path().to_path_buf(),
@@ -196,7 +208,8 @@ mod tests {
             version: 1,
             params_hash: String::new(),
             inputs: vec![],
-            outputs: &[],
+            // An output not written yet is no error.
+            outputs: &["old.parquet", "never.json"],
         };
         stage.invalidate().unwrap();
         let left: Vec<String> = std::fs::read_dir(dir.path())

@@ -19,6 +19,7 @@ pub mod kfgins;
 pub mod manifest;
 pub mod mcap_io;
 pub mod parquet_io;
+pub mod parquet_thread;
 pub mod raw;
 pub mod report;
 pub mod ros2_msgs;

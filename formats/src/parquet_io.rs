@@ -252,6 +252,11 @@ impl ParquetSink {
         Ok(())
     }
 
+    /// The file's final name.
+    pub fn dest(&self) -> &Path {
+        self.file.dest()
+    }
+
     /// Rows written so far.
     pub fn rows(&self) -> usize {
         self.rows
