@@ -207,10 +207,11 @@ impl Sinks {
         let imu_schema = schema::imu(origin_ns);
         let odo_schema = schema::odometer_scaled(origin_ns, odo_m_per_pulse);
         // With `raw.mcap` on its own thread, the IMU table's columns are encoded on the
-        // reading thread and the odometer's on a thread of their own, while the reading
-        // goes on (with both on the reading thread the full ingest's median was 146 MB/s,
-        // 162 so, 151 with both tables on threads of their own; spread over the pool
-        // batch by batch, they contended with the MCAP writer); without, side by side.
+        // reading thread and the odometer's on a thread of their own while the reading
+        // goes on: the full ingest's median 147 MB/s with both on the reading thread, 161
+        // so, 151 with both tables on threads of their own (12 alternations); spread over
+        // the pool batch by batch, they contended with the MCAP writer. Without `raw.mcap`,
+        // side by side.
         let imu = ParquetSink::create(&dir.join(files::IMU), imu_schema.clone())?;
         let odo = ParquetSink::create(&dir.join(files::ODOMETER), odo_schema.clone())?;
         let (imu, odo) = match mcap {
