@@ -2,8 +2,10 @@
 //!
 //! A file is known by its identity: device, inode, size, modification and status-change
 //! times. Every output is written to a new file and renamed into place, so a rewritten
-//! file has a new inode, and any write to a file moves its status-change time (`ctime`,
-//! which no user call can set back). A hash is remembered for the process, and saved in
+//! file has a new inode (or, when a re-running stage removed the old one first, through
+//! [`remove_file`], which forgets its hash, perhaps the old one's number), and any write
+//! to a file moves its status-change time (`ctime`, which no user call can set back). A
+//! hash is remembered for the process, and saved in
 //! the output folder (`OUT/unz.hashes`, read back by the next process holding the
 //! folder's lock), so a fully cached campaign stats its files instead of reading them.
 //!
@@ -38,7 +40,7 @@ pub const SETTLED: Duration = Duration::from_millis(20);
 /// What identifies a file's content without reading it. Not its name: the same file
 /// named two ways (`o/r/x` from the campaign's folder, `../o/r/x` from another) is one.
 #[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
-struct FileId {
+pub(crate) struct FileId {
     dev: u64,
     ino: u64,
     len: u64,
@@ -138,6 +140,37 @@ pub fn forget_hashes() {
     known().clear();
 }
 
+/// Removes the file `path` (none there is no error), forgetting its hash first: a file
+/// written after it may be given its inode, and one written in the same clock tick with
+/// the same length would have its identity.
+pub fn remove_file(path: &Path) -> std::io::Result<()> {
+    if let Some(id) = FileId::of(path) {
+        known().remove(&id);
+    }
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
+        _ => Ok(()),
+    }
+}
+
+/// Whether this process remembers a hash for `path` as it is now (no read).
+#[cfg(test)]
+pub(crate) fn remembered(path: &Path) -> Option<String> {
+    known().get(&FileId::of(path)?).map(|k| k.blake3.clone())
+}
+
+/// `path`'s identity as it is now.
+#[cfg(test)]
+pub(crate) fn identity(path: &Path) -> Option<FileId> {
+    FileId::of(path)
+}
+
+/// Whether this process remembers a hash for a file of identity `id`.
+#[cfg(test)]
+pub(crate) fn knows(id: &FileId) -> bool {
+    known().contains_key(id)
+}
+
 /// [`MEMO_FILE`]'s content.
 #[derive(Debug, Serialize, Deserialize)]
 struct Memo {
@@ -217,11 +250,6 @@ mod tests {
         blake3::hash(bytes).to_hex().to_string()
     }
 
-    /// Whether this process remembers a hash for `path` as it is now (no read).
-    fn remembered(path: &Path) -> Option<String> {
-        known().get(&FileId::of(path)?).map(|k| k.blake3.clone())
-    }
-
     #[test]
     fn a_file_named_another_way_is_known() {
         let dir = tempfile::tempdir().unwrap();
@@ -235,6 +263,21 @@ mod tests {
         assert_eq!(remembered(&alias), Some(hex(b"named twice")));
         assert_eq!(file_hash(&alias).unwrap(), hex(b"named twice"));
         assert_eq!(known()[&FileId::of(&p).unwrap()].path, alias);
+    }
+
+    #[test]
+    fn a_removed_file_is_forgotten() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.bin");
+        std::fs::write(&p, b"to go").unwrap();
+        file_hash(&p).unwrap();
+        let id = FileId::of(&p).unwrap();
+        assert!(known().contains_key(&id));
+        remove_file(&p).unwrap();
+        assert!(!p.exists());
+        assert!(!known().contains_key(&id), "a new file may take its inode");
+        // Gone already: no error.
+        remove_file(&p).unwrap();
     }
 
     #[test]

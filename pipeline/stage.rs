@@ -121,8 +121,8 @@ impl Stage<'_> {
     /// Removes the record, so a stage that starts over is never taken as done, then its
     /// outputs (stale without it; a file renamed over an old one has its pages written
     /// out in the rename, 15 ms for `raw.mcap` on ext4, where a removed one's are
-    /// dropped) and the temporary files (`.<name>.<random>.tmp`) a killed run may have
-    /// left.
+    /// dropped; their hashes are forgotten, as their inodes may be reused) and the
+    /// temporary files (`.<name>.<random>.tmp`) a killed run may have left.
     pub fn invalidate(&self) -> anyhow::Result<()> {
         if let Ok(entries) = std::fs::read_dir(&self.dir) {
             for e in entries.flatten() {
@@ -132,10 +132,9 @@ impl Stage<'_> {
                 }
             }
         }
-        let remove = |path: &Path| match std::fs::remove_file(path) {
-            Ok(()) => Ok(()),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
-            Err(e) => Err(e).with_context(|| format!("cannot remove {}", path.display())),
+        let remove = |path: &Path| {
+            crate::file_hashes::remove_file(path)
+                .with_context(|| format!("cannot remove {}", path.display()))
         };
         remove(&self.dir.join(RECORD))?;
         for name in self.outputs {
@@ -211,7 +210,13 @@ mod tests {
             // An output not written yet is no error.
             outputs: &["old.parquet", "never.json"],
         };
+        // The removed output's hash is forgotten: a file written next may take its inode.
+        let old = dir.path().join("old.parquet");
+        crate::file_hashes::file_hash(&old).unwrap();
+        let old_id = crate::file_hashes::identity(&old).unwrap();
+        assert!(crate::file_hashes::knows(&old_id));
         stage.invalidate().unwrap();
+        assert!(!crate::file_hashes::knows(&old_id));
         let left: Vec<String> = std::fs::read_dir(dir.path())
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
