@@ -831,7 +831,7 @@ impl<'d> OdometerBlocks<'d> {
     }
 
     /// [`Self::new`] (u̇'s blocks only when `u_dot`) with room for `blocks` blocks.
-    fn sized(d: &'d Derived, lp: &LowPass, u_dot: bool, blocks: usize) -> Self {
+    pub(crate) fn sized(d: &'d Derived, lp: &LowPass, u_dot: bool, blocks: usize) -> Self {
         Self {
             dt_s: &d.dt_s,
             dtheta_rad: &d.dtheta_rad,
@@ -845,7 +845,7 @@ impl<'d> OdometerBlocks<'d> {
     /// Starts at sample `k` (a block's first, above 0), the odometer's increment over
     /// the sample before being `dd_before`: the blocks from there on are those a walk
     /// from the start gives.
-    fn resume_after(&mut self, k: usize, dd_before: f64) {
+    pub(crate) fn resume_after(&mut self, k: usize, dd_before: f64) {
         self.k = k;
         if let Some(&dt) = self.dt_s.get(k - 1) {
             self.prev = (dd_before / dt, f64::from(u8::from(dd_before != 0.0)));
@@ -883,8 +883,13 @@ impl<'d> OdometerBlocks<'d> {
         self.rest.push([r * u_mps, r * moving, moving_dot]);
     }
 
+    /// The next sample it takes.
+    pub(crate) fn next_sample(&self) -> usize {
+        self.k
+    }
+
     /// The block means, unfiltered (u̇'s empty when left out).
-    fn means(self) -> [Vec<f64>; 4] {
+    pub(crate) fn means(self) -> [Vec<f64>; 4] {
         let [u_dot] = self.u_dot.map_or_else(|| [Vec::new()], |m| m.finish());
         let [ru, r_moving, moving_dot] = self.rest.finish();
         [u_dot, ru, r_moving, moving_dot]
@@ -899,7 +904,7 @@ impl<'d> OdometerBlocks<'d> {
 
 /// `means` (u̇'s, ru's, r while moving's, d moving/dt's; u̇'s possibly empty) filtered by
 /// F, side by side.
-fn filtered(mut means: [Vec<f64>; 4], lp: &LowPass) -> [Vec<f64>; 4] {
+pub(crate) fn filtered(mut means: [Vec<f64>; 4], lp: &LowPass) -> [Vec<f64>; 4] {
     let mut series: Vec<&mut [f64]> = means
         .iter_mut()
         .filter(|m| !m.is_empty())

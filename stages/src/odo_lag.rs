@@ -30,11 +30,11 @@
 //! by the lag.
 
 use std::cell::RefCell;
-use std::sync::OnceLock;
+use std::sync::{Mutex, OnceLock};
 
 use crate::derive::{
-    DeriveParams, Derived, MovedOdometer, OdoTimes, RawSeries, derive, epochs_of,
-    odometer_blocks_split, shifted_blocks,
+    DeriveParams, Derived, MovedOdometer, OdoIncrements, OdoTimes, OdometerBlocks, RawSeries,
+    derive, epochs_of, filtered, odometer_blocks_split, shifted_blocks,
 };
 use crate::disupt::{
     DisuptError, DisuptParams, JointFit, JointOptions, Problem, ProblemSpec, joint_fit,
@@ -43,7 +43,9 @@ use crate::disupt::{
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, Setting};
 use crate::odo_rebridge::Rebridges;
-use crate::strapdown::segments::{OdoColumns, OdoSegments, SegmentPlan, integrate_split};
+use crate::strapdown::segments::{
+    OdoColumns, OdoSegments, SegmentPlan, integrate_split, integrate_split_aligned,
+};
 
 /// Half-width of the parabolas around the current vertex (and of the curvature), s.
 const CURVATURE_STEP_S: f64 = 0.05;
@@ -193,13 +195,27 @@ impl<'a> Rederive<'a> {
     /// The derive at `lag_s` (its block series and epochs) of `odometer`, the odometer
     /// `lag_s` later: [`Rederive::at_moved`]'s.
     fn moved_derive(&self, lag_s: f64, odometer: &MovedOdometer<'_>) -> Derived {
+        let lp = self.low_pass();
+        let blocks = odometer_blocks_split(self.configured(), &lp, false, |k| {
+            odometer.increments_from(k)
+        });
+        self.moved_derive_of(lag_s, blocks)
+    }
+
+    /// F of the configured derive.
+    fn low_pass(&self) -> LowPass {
+        LowPass::new(&self.params.filter, self.configured().nominal_dt_s)
+    }
+
+    /// [`Rederive::moved_derive`] of the odometer's filtered block series `blocks`
+    /// ([`odometer_blocks_split`]'s without u̇'s).
+    fn moved_derive_of(&self, lag_s: f64, blocks: [Vec<f64>; 4]) -> Derived {
         let base = self.configured();
         // The IMU's part is the configured derive's; the odometer's is derived anew, but
         // for u̇'s blocks: the configured derive's, moved in time.
         let mut d = base.without_odometer_series();
-        let lp = LowPass::new(&self.params.filter, d.nominal_dt_s);
-        [d.u_dot_f, d.ru_f, d.r_moving_f, d.moving_dot_f] =
-            odometer_blocks_split(base, &lp, false, |k| odometer.increments_from(k));
+        let lp = self.low_pass();
+        [d.u_dot_f, d.ru_f, d.r_moving_f, d.moving_dot_f] = blocks;
         let block_s = lp.block as f64 * d.nominal_dt_s;
         d.u_dot_f = shifted_blocks(&base.u_dot_f, block_s, lag_s);
         d.epochs = epochs_of(&d, &lp, &self.params, self.g_mps2);
@@ -207,10 +223,63 @@ impl<'a> Rederive<'a> {
     }
 
     /// [`Rederive::at_moved`] at each of `lags` but for its block series (a trial's
-    /// problem reads the epochs they make; 14 MB a trial at 12 hours, taken and let go
-    /// trial by trial), with each odometer's segments over `plan` (the sums `columns` asks
-    /// for), all of them in one walk over the IMU's samples.
+    /// problem reads the epochs they make), with each odometer's segments over `plan`
+    /// (the sums `columns` asks for), all of them in one walk over the IMU's samples.
+    /// With [`TrialWalks::Fused`], each odometer's increments, read once, feed its
+    /// segments and its blocks (the walk's stretches start at block boundaries; should one
+    /// not, or a stretch not follow on from the one before, that odometer's blocks are read
+    /// in a walk of their own); with [`TrialWalks::Apart`], each trial's blocks are read in
+    /// a walk of their own first. The same, bit for bit.
     pub fn at_moved_with_segments(
+        &self,
+        lags: &[f64],
+        plan: &SegmentPlan,
+        columns: OdoColumns,
+        walks: TrialWalks,
+    ) -> Vec<(Derived, MovedOdometer<'_>, OdoSegments)> {
+        if walks == TrialWalks::Apart {
+            return self.at_moved_apart(lags, plan, columns);
+        }
+        let base = self.configured();
+        let lp = self.low_pass();
+        let n = base.t_s.len();
+        let odometers: Vec<MovedOdometer<'_>> =
+            lags.iter().map(|&lag_s| self.odometer_at(lag_s)).collect();
+        let stretches: Vec<Mutex<Vec<BlockStretch<'_>>>> =
+            odometers.iter().map(|_| Mutex::new(Vec::new())).collect();
+        let (_, segments) = integrate_split_aligned(
+            &base.dt_s,
+            &base.dtheta_rad,
+            plan,
+            false,
+            odometers.len(),
+            |v, k| Tee::new(base, &lp, &odometers[v], k, &stretches[v]),
+            columns,
+            lp.block,
+        );
+        lags.iter()
+            .zip(odometers)
+            .zip(stretches)
+            .zip(segments)
+            .map(|(((&lag_s, odometer), stretches), segments)| {
+                let stretches = stretches.into_inner().unwrap_or_else(|e| e.into_inner());
+                let blocks = match joined_blocks(stretches, lp.block, n) {
+                    Some(means) => filtered(means, &lp),
+                    None => {
+                        odometer_blocks_split(base, &lp, false, |k| odometer.increments_from(k))
+                    }
+                };
+                // A trial's problem reads the epochs, not the block series (14 MB a
+                // trial at 12 hours, let go trial by trial).
+                let d = self.moved_derive_of(lag_s, blocks).without_block_series();
+                (d, odometer, segments)
+            })
+            .collect()
+    }
+
+    /// [`Rederive::at_moved_with_segments`] with [`TrialWalks::Apart`]: each trial's block
+    /// series derived, and let go once its epochs are made, one trial after the other.
+    fn at_moved_apart(
         &self,
         lags: &[f64],
         plan: &SegmentPlan,
@@ -255,6 +324,149 @@ impl<'a> Rederive<'a> {
     }
 }
 
+/// How the trials of a lag search read their odometers
+/// ([`Rederive::at_moved_with_segments`]); the same derives and segments either way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TrialWalks {
+    /// Once, for their segments and their blocks together: every trial's unfiltered block
+    /// series are held through the walk.
+    Fused,
+    /// Once for each trial's blocks, one trial after the other, then once more for the
+    /// segments: a trial's block series at a time.
+    Apart,
+}
+
+/// Samples of a run up to which the lag search's trials read their odometers once
+/// ([`TrialWalks::Fused`]: two hours at 100 Hz, where the trials' block series held
+/// together are about 5 MB; at 12 hours they added 28 MiB to `unz run`'s peak).
+pub const FUSED_WALK_MAX_SAMPLES: usize = 720_000;
+
+impl TrialWalks {
+    /// The walks for a run of `samples` samples ([`FUSED_WALK_MAX_SAMPLES`]).
+    pub fn for_samples(samples: usize) -> Self {
+        if samples <= FUSED_WALK_MAX_SAMPLES {
+            TrialWalks::Fused
+        } else {
+            TrialWalks::Apart
+        }
+    }
+}
+
+/// One trial's odometer increments over one stretch of the segments' walk, also pushed
+/// into the blocks of that stretch; on drop, the blocks and the rest of the increments go
+/// to the trial's list.
+struct Tee<'s, 'a> {
+    increments: Option<OdoIncrements<'a>>,
+    blocks: Option<OdometerBlocks<'a>>,
+    start: usize,
+    out: &'s Mutex<Vec<BlockStretch<'a>>>,
+}
+
+/// The blocks of one stretch from sample `start` on, and the increments after it.
+struct BlockStretch<'a> {
+    start: usize,
+    blocks: OdometerBlocks<'a>,
+    rest: OdoIncrements<'a>,
+}
+
+impl<'s, 'a> Tee<'s, 'a> {
+    /// `odometer`'s increments from sample `start` on, for the blocks of `base`'s IMU
+    /// (F `lp`) and `out`.
+    fn new(
+        base: &'a Derived,
+        lp: &LowPass,
+        odometer: &MovedOdometer<'a>,
+        start: usize,
+        out: &'s Mutex<Vec<BlockStretch<'a>>>,
+    ) -> Self {
+        let mut blocks = OdometerBlocks::sized(base, lp, false, lp.blocks(base.t_s.len()));
+        // From the sample before, as the derive's stretches resume (the same increments,
+        // bit for bit, from wherever they are read).
+        let mut increments = odometer.increments_from(start.saturating_sub(1));
+        if start > 0 {
+            blocks.resume_after(start, increments.next().unwrap_or(0.0));
+        }
+        Self {
+            increments: Some(increments),
+            blocks: Some(blocks),
+            start,
+            out,
+        }
+    }
+}
+
+impl Iterator for Tee<'_, '_> {
+    type Item = f64;
+
+    #[inline]
+    fn next(&mut self) -> Option<f64> {
+        let dd = self.increments.as_mut()?.next()?;
+        if let Some(blocks) = self.blocks.as_mut() {
+            blocks.push(dd);
+        }
+        Some(dd)
+    }
+}
+
+impl Drop for Tee<'_, '_> {
+    fn drop(&mut self) {
+        if let (Some(blocks), Some(rest)) = (self.blocks.take(), self.increments.take()) {
+            self.out
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push(BlockStretch {
+                    start: self.start,
+                    blocks,
+                    rest,
+                });
+        }
+    }
+}
+
+/// The unfiltered block means of a run of `n` samples from its stretches: each starting at
+/// a block boundary where the one before stopped, the last read on to the end. None when
+/// they do not so follow on.
+fn joined_blocks(
+    mut stretches: Vec<BlockStretch<'_>>,
+    block: usize,
+    n: usize,
+) -> Option<[Vec<f64>; 4]> {
+    stretches.sort_by_key(|s| s.start);
+    let mut next = 0;
+    for s in &stretches {
+        if s.start != next || s.start % block.max(1) != 0 {
+            return None;
+        }
+        next = s.blocks.next_sample();
+    }
+    let mut stretches = stretches.into_iter();
+    let mut last = stretches.next_back()?;
+    for dd in last.rest.by_ref() {
+        if last.blocks.next_sample() >= n {
+            break;
+        }
+        last.blocks.push(dd);
+    }
+    if last.blocks.next_sample() < n {
+        return None;
+    }
+    let mut all: Option<[Vec<f64>; 4]> = None;
+    for means in stretches
+        .map(|s| s.blocks.means())
+        .chain([last.blocks.means()])
+    {
+        match all.as_mut() {
+            None => all = Some(means),
+            Some(all) => {
+                for (all, mut more) in all.iter_mut().zip(means) {
+                    all.append(&mut more);
+                }
+            }
+        }
+    }
+    all
+}
+
 struct Profile<'r> {
     rederive: &'r Rederive<'r>,
     valid: Vec<bool>,
@@ -291,7 +503,12 @@ impl Profile<'_> {
         let plan = self.spec.moved_segment_plan(self.rederive.configured());
         let (derives, segments): (Vec<(Derived, MovedOdometer<'_>)>, Vec<OdoSegments>) = self
             .rederive
-            .at_moved_with_segments(&new, &plan, columns)
+            .at_moved_with_segments(
+                &new,
+                &plan,
+                columns,
+                TrialWalks::for_samples(self.rederive.configured().t_s.len()),
+            )
             .into_iter()
             .map(|(mut d, odometer, segments)| {
                 // The same epochs at every trial: the gate moves with the lag, and an

@@ -11,7 +11,7 @@ use unz_stages::disupt::{
     kryt1_with_free_drifts_xy, observe_each, oepi, owpi,
 };
 use unz_stages::linearized::Observation;
-use unz_stages::odo_lag::Rederive;
+use unz_stages::odo_lag::{Rederive, TrialWalks};
 use unz_stages::simulate::{SensorErrors, SimConfig};
 use unz_stages::units::DEG_PER_H;
 
@@ -379,12 +379,51 @@ fn a_problem_reading_its_odometer_as_it_goes_observes_what_the_stored_derive_giv
         // (its block series let go), and passes observing the same.
         let plan = spec.moved_segment_plan(&stored);
         let columns = unz_stages::strapdown::segments::OdoColumns::default();
-        let mut both = rederive.at_moved_with_segments(&[lag_s, 0.1], &plan, columns);
+        // Each trial's blocks read in the segments' walk (in one stretch, and in two side
+        // by side: the 40-minute run has segments enough), or in walks of their own: the
+        // same epochs and segments.
+        let walk = |walks: TrialWalks, threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| rederive.at_moved_with_segments(&[lag_s, 0.1], &plan, columns, walks))
+        };
+        let mut both = walk(TrialWalks::Apart, 2);
+        for (walks, threads) in [(TrialWalks::Fused, 1), (TrialWalks::Fused, 2)] {
+            let other = walk(walks, threads);
+            for ((a, _, sa), (b, _, sb)) in both.iter().zip(&other) {
+                assert!(
+                    sa == sb,
+                    "lag {lag_s}: {walks:?} on {threads} threads, segments"
+                );
+                for (x, y) in [
+                    (&a.epochs.theta_p_rad, &b.epochs.theta_p_rad),
+                    (&a.epochs.phi_p_rad, &b.epochs.phi_p_rad),
+                    (&a.epochs.theta_p_per_bias, &b.epochs.theta_p_per_bias),
+                    (&a.epochs.phi_p_per_bias, &b.epochs.phi_p_per_bias),
+                    (&a.epochs.theta_p_per_yaw, &b.epochs.theta_p_per_yaw),
+                    (&a.epochs.phi_p_per_yaw, &b.epochs.phi_p_per_yaw),
+                ] {
+                    assert_eq!(
+                        bits(x),
+                        bits(y),
+                        "lag {lag_s}: {walks:?} on {threads} threads"
+                    );
+                }
+                assert_eq!(a.epochs.valid, b.epochs.valid);
+            }
+        }
         let (walked, walked_odometer, segments) = both.swap_remove(0);
         for (a, b) in [
             (&moved.epochs.theta_p_rad, &walked.epochs.theta_p_rad),
             (&moved.epochs.phi_p_rad, &walked.epochs.phi_p_rad),
             (&moved.epochs.t_s, &walked.epochs.t_s),
+            (
+                &moved.epochs.theta_p_per_bias,
+                &walked.epochs.theta_p_per_bias,
+            ),
+            (&moved.epochs.phi_p_per_bias, &walked.epochs.phi_p_per_bias),
         ] {
             assert_eq!(bits(a), bits(b), "lag {lag_s}");
         }

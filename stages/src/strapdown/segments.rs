@@ -324,8 +324,36 @@ where
     I: Iterator<Item = f64>,
     F: Fn(usize, usize) -> I + Sync,
 {
+    integrate_split_aligned(dt_s, dtheta_rad, plan, imu, odometers, odometer, columns, 1)
+}
+
+/// [`integrate_split`] with every stretch but the first starting at a multiple of
+/// `align` samples (the first segment end from each even share on that is one; fewer
+/// stretches when none is): for a walk whose odometer increments also feed series of
+/// `align`-sample blocks, each stretch then holds whole blocks.
+#[allow(clippy::too_many_arguments)]
+pub fn integrate_split_aligned<I, F>(
+    dt_s: &[f64],
+    dtheta_rad: &[[f64; 3]],
+    plan: &SegmentPlan,
+    imu: bool,
+    odometers: usize,
+    odometer: F,
+    columns: OdoColumns,
+    align: usize,
+) -> (Option<ImuSegments>, Vec<OdoSegments>)
+where
+    I: Iterator<Item = f64>,
+    F: Fn(usize, usize) -> I + Sync,
+{
     let parts = rayon::current_num_threads().min(plan.count() / SPLIT_SEGMENTS);
-    Part::new(dt_s, dtheta_rad, plan, imu, columns).in_stretches(plan, odometers, odometer, parts)
+    Part::new(dt_s, dtheta_rad, plan, imu, columns).in_stretches(
+        plan,
+        odometers,
+        odometer,
+        parts,
+        align.max(1),
+    )
 }
 
 fn imu_segments(plan: &SegmentPlan, segments: Vec<ImuSegment>) -> ImuSegments {
@@ -364,13 +392,14 @@ impl<'a> Part<'a> {
     }
 
     /// [`integrate_split`] of `plan` in `parts` stretches (at least one, at most one a
-    /// segment).
+    /// segment), each but the first starting at a multiple of `align` samples.
     fn in_stretches<I, F>(
         &self,
         plan: &SegmentPlan,
         odometers: usize,
         odometer: F,
         parts: usize,
+        align: usize,
     ) -> (Option<ImuSegments>, Vec<OdoSegments>)
     where
         I: Iterator<Item = f64>,
@@ -384,7 +413,9 @@ impl<'a> Part<'a> {
             if starts.len() == parts {
                 break;
             }
-            if i + 1 == count * starts.len() / parts {
+            // The first end from this stretch's share on at a multiple of `align` (with
+            // `align` 1, the share's own).
+            if i + 1 >= count * starts.len() / parts && i + 1 < count && e.end % align == 0 {
                 starts.push((i + 1, e.end));
             }
         }
@@ -922,11 +953,35 @@ mod tests {
             d[k.min(n)..].iter().copied()
         };
         let in_parts = |imu: bool, odometers: usize, columns: OdoColumns, parts: usize| {
-            Part::new(&dt, &dth, &plan, imu, columns).in_stretches(&plan, odometers, from, parts)
+            Part::new(&dt, &dth, &plan, imu, columns).in_stretches(&plan, odometers, from, parts, 1)
         };
         for parts in [1, 2, 3, 7] {
             let split = in_parts(true, 2, ALL, parts);
             assert!(split == whole, "{parts} stretches");
+            // Stretches starting at multiples of 50 samples only (the plan's ends around
+            // its control points are not), and of a length no end is a multiple of.
+            for align in [50, 7_000_000] {
+                let starts = std::sync::Mutex::new(Vec::new());
+                let aligned = Part::new(&dt, &dth, &plan, true, ALL).in_stretches(
+                    &plan,
+                    2,
+                    |v, k| {
+                        starts.lock().unwrap().push(k);
+                        from(v, k)
+                    },
+                    parts,
+                    align,
+                );
+                assert!(
+                    aligned == whole,
+                    "{parts} stretches at multiples of {align}"
+                );
+                let starts = starts.into_inner().unwrap();
+                assert!(starts.iter().all(|&k| k % align == 0), "{starts:?}");
+                if align == 50 {
+                    assert_eq!(starts.len(), 2 * parts, "{starts:?}");
+                }
+            }
             let (imu, none) = in_parts(true, 0, ALL, parts);
             assert!(imu == whole.0 && none.is_empty(), "{parts} stretches, IMU");
             let (no_imu, odos) = in_parts(false, 2, OdoColumns::default(), parts);
