@@ -180,8 +180,13 @@ impl<'a> Rederive<'a> {
     /// quantisation for every lag (derived anew, each fraction of a sample would draw
     /// another, and the fit's cost would be rough in the lag).
     pub fn at(&self, lag_s: f64) -> Derived {
-        let (mut d, odometer) = self.at_moved(lag_s);
-        d.odo_dist_m = odometer.increments().collect();
+        // The increments, kept, are read once: the blocks take them from memory.
+        let odo_dist_m: Vec<f64> = self.odometer_at(lag_s).increments().collect();
+        let blocks = odometer_blocks_split(self.configured(), &self.low_pass(), false, |k| {
+            odo_dist_m.get(k..).unwrap_or_default().iter().copied()
+        });
+        let mut d = self.moved_derive_of(lag_s, blocks);
+        d.odo_dist_m = odo_dist_m;
         d
     }
 
