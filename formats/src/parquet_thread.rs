@@ -105,9 +105,7 @@ impl Drop for ParquetThread {
     /// Without [`ParquetThread::finish`], the thread ends without committing the file.
     fn drop(&mut self) {
         self.orders = None;
-        if let Some(thread) = self.thread.take() {
-            let _ = thread.join();
-        }
+        let _ = self.join();
     }
 }
 
@@ -162,13 +160,17 @@ mod tests {
         );
     }
 
+    /// A writer thread on `dir/t.parquet` for batches like `b`.
+    fn thread_in(dir: &std::path::Path, b: &RecordBatch) -> ParquetThread {
+        let sink = ParquetSink::create(&dir.join("t.parquet"), b.schema()).unwrap();
+        ParquetThread::spawn(sink, "test").unwrap()
+    }
+
     #[test]
     fn a_writer_dropped_unfinished_leaves_no_file() {
         let dir = tempfile::tempdir().unwrap();
-        let dest = dir.path().join("t.parquet");
         let b = batch(0, 10);
-        let mut thread =
-            ParquetThread::spawn(ParquetSink::create(&dest, b.schema()).unwrap(), "test").unwrap();
+        let mut thread = thread_in(dir.path(), &b);
         thread.write(b).unwrap();
         drop(thread);
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
@@ -177,11 +179,8 @@ mod tests {
     #[test]
     fn a_batch_the_sink_refuses_is_reported_with_the_file() {
         let dir = tempfile::tempdir().unwrap();
-        let dest = dir.path().join("t.parquet");
         let good = batch(0, 10);
-        let mut thread =
-            ParquetThread::spawn(ParquetSink::create(&dest, good.schema()).unwrap(), "test")
-                .unwrap();
+        let mut thread = thread_in(dir.path(), &good);
         // A batch of one column for a table of two: the thread stops on it.
         let bad = good.project(&[0]).unwrap();
         let mut error = None;

@@ -798,8 +798,17 @@ where
             b.means()
         })
         .collect();
+    filtered_stretches(stretches, lp)
+}
+
+/// The block means of consecutive stretches of a run (each [`OdometerBlocks::means`]),
+/// joined in order (the first's vectors, sized for all, take the others) and filtered by F.
+pub(crate) fn filtered_stretches(
+    stretches: impl IntoIterator<Item = [Vec<f64>; 4]>,
+    lp: &LowPass,
+) -> [Vec<f64>; 4] {
     let mut stretches = stretches.into_iter();
-    let mut all = stretches.next().expect("one stretch at least");
+    let mut all = stretches.next().unwrap_or_default();
     for more in stretches {
         for (all, mut more) in all.iter_mut().zip(more) {
             all.append(&mut more);
@@ -904,7 +913,7 @@ impl<'d> OdometerBlocks<'d> {
 
 /// `means` (u̇'s, ru's, r while moving's, d moving/dt's; u̇'s possibly empty) filtered by
 /// F, side by side.
-pub(crate) fn filtered(mut means: [Vec<f64>; 4], lp: &LowPass) -> [Vec<f64>; 4] {
+fn filtered(mut means: [Vec<f64>; 4], lp: &LowPass) -> [Vec<f64>; 4] {
     let mut series: Vec<&mut [f64]> = means
         .iter_mut()
         .filter(|m| !m.is_empty())

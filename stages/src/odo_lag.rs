@@ -34,7 +34,7 @@ use std::sync::{Mutex, OnceLock};
 
 use crate::derive::{
     DeriveParams, Derived, MovedOdometer, OdoIncrements, OdoTimes, OdometerBlocks, RawSeries,
-    derive, epochs_of, filtered, odometer_blocks_split, shifted_blocks,
+    derive, epochs_of, filtered_stretches, odometer_blocks_split, shifted_blocks,
 };
 use crate::disupt::{
     DisuptError, DisuptParams, JointFit, JointOptions, Problem, ProblemSpec, joint_fit,
@@ -182,10 +182,11 @@ impl<'a> Rederive<'a> {
     pub fn at(&self, lag_s: f64) -> Derived {
         // The increments, kept, are read once: the blocks take them from memory.
         let odo_dist_m: Vec<f64> = self.odometer_at(lag_s).increments().collect();
-        let blocks = odometer_blocks_split(self.configured(), &self.low_pass(), false, |k| {
+        let lp = self.low_pass();
+        let blocks = odometer_blocks_split(self.configured(), &lp, false, |k| {
             odo_dist_m.get(k..).unwrap_or_default().iter().copied()
         });
-        let mut d = self.moved_derive_of(lag_s, blocks);
+        let mut d = self.moved_derive_of(lag_s, blocks, &lp);
         d.odo_dist_m = odo_dist_m;
         d
     }
@@ -204,7 +205,7 @@ impl<'a> Rederive<'a> {
         let blocks = odometer_blocks_split(self.configured(), &lp, false, |k| {
             odometer.increments_from(k)
         });
-        self.moved_derive_of(lag_s, blocks)
+        self.moved_derive_of(lag_s, blocks, &lp)
     }
 
     /// F of the configured derive.
@@ -212,18 +213,17 @@ impl<'a> Rederive<'a> {
         LowPass::new(&self.params.filter, self.configured().nominal_dt_s)
     }
 
-    /// [`Rederive::moved_derive`] of the odometer's filtered block series `blocks`
-    /// ([`odometer_blocks_split`]'s without u̇'s).
-    fn moved_derive_of(&self, lag_s: f64, blocks: [Vec<f64>; 4]) -> Derived {
+    /// [`Rederive::moved_derive`] of the odometer's block series `blocks` filtered by
+    /// `lp` ([`Rederive::low_pass`]; [`odometer_blocks_split`]'s without u̇'s).
+    fn moved_derive_of(&self, lag_s: f64, blocks: [Vec<f64>; 4], lp: &LowPass) -> Derived {
         let base = self.configured();
         // The IMU's part is the configured derive's; the odometer's is derived anew, but
         // for u̇'s blocks: the configured derive's, moved in time.
         let mut d = base.without_odometer_series();
-        let lp = self.low_pass();
         [d.u_dot_f, d.ru_f, d.r_moving_f, d.moving_dot_f] = blocks;
         let block_s = lp.block as f64 * d.nominal_dt_s;
         d.u_dot_f = shifted_blocks(&base.u_dot_f, block_s, lag_s);
-        d.epochs = epochs_of(&d, &lp, &self.params, self.g_mps2);
+        d.epochs = epochs_of(&d, lp, &self.params, self.g_mps2);
         d
     }
 
@@ -268,15 +268,19 @@ impl<'a> Rederive<'a> {
             .zip(segments)
             .map(|(((&lag_s, odometer), stretches), segments)| {
                 let stretches = stretches.into_inner().unwrap_or_else(|e| e.into_inner());
-                let blocks = match joined_blocks(stretches, lp.block, n) {
-                    Some(means) => filtered(means, &lp),
+                let blocks = match whole_blocks(stretches, lp.block, n) {
+                    Some(blocks) => {
+                        filtered_stretches(blocks.into_iter().map(OdometerBlocks::means), &lp)
+                    }
                     None => {
                         odometer_blocks_split(base, &lp, false, |k| odometer.increments_from(k))
                     }
                 };
                 // A trial's problem reads the epochs, not the block series (14 MB a
                 // trial at 12 hours, let go trial by trial).
-                let d = self.moved_derive_of(lag_s, blocks).without_block_series();
+                let d = self
+                    .moved_derive_of(lag_s, blocks, &lp)
+                    .without_block_series();
                 (d, odometer, segments)
             })
             .collect()
@@ -357,21 +361,19 @@ impl TrialWalks {
     }
 }
 
-/// One trial's odometer increments over one stretch of the segments' walk, also pushed
-/// into the blocks of that stretch; on drop, the blocks and the rest of the increments go
-/// to the trial's list.
-struct Tee<'s, 'a> {
-    increments: Option<OdoIncrements<'a>>,
-    blocks: Option<OdometerBlocks<'a>>,
-    start: usize,
-    out: &'s Mutex<Vec<BlockStretch<'a>>>,
-}
-
-/// The blocks of one stretch from sample `start` on, and the increments after it.
+/// The blocks of one stretch of the segments' walk from sample `start` on, and the
+/// increments after what the walk read.
 struct BlockStretch<'a> {
     start: usize,
     blocks: OdometerBlocks<'a>,
     rest: OdoIncrements<'a>,
+}
+
+/// One trial's odometer increments over one stretch of the segments' walk, each also
+/// pushed into the stretch's blocks; on drop, the stretch goes to the trial's list.
+struct Tee<'s, 'a> {
+    stretch: Option<BlockStretch<'a>>,
+    out: &'s Mutex<Vec<BlockStretch<'a>>>,
 }
 
 impl<'s, 'a> Tee<'s, 'a> {
@@ -387,14 +389,16 @@ impl<'s, 'a> Tee<'s, 'a> {
         let mut blocks = OdometerBlocks::sized(base, lp, false, lp.blocks(base.t_s.len()));
         // From the sample before, as the derive's stretches resume (the same increments,
         // bit for bit, from wherever they are read).
-        let mut increments = odometer.increments_from(start.saturating_sub(1));
+        let mut rest = odometer.increments_from(start.saturating_sub(1));
         if start > 0 {
-            blocks.resume_after(start, increments.next().unwrap_or(0.0));
+            blocks.resume_after(start, rest.next().unwrap_or(0.0));
         }
         Self {
-            increments: Some(increments),
-            blocks: Some(blocks),
-            start,
+            stretch: Some(BlockStretch {
+                start,
+                blocks,
+                rest,
+            }),
             out,
         }
     }
@@ -405,37 +409,32 @@ impl Iterator for Tee<'_, '_> {
 
     #[inline]
     fn next(&mut self) -> Option<f64> {
-        let dd = self.increments.as_mut()?.next()?;
-        if let Some(blocks) = self.blocks.as_mut() {
-            blocks.push(dd);
-        }
+        let stretch = self.stretch.as_mut()?;
+        let dd = stretch.rest.next()?;
+        stretch.blocks.push(dd);
         Some(dd)
     }
 }
 
 impl Drop for Tee<'_, '_> {
     fn drop(&mut self) {
-        if let (Some(blocks), Some(rest)) = (self.blocks.take(), self.increments.take()) {
+        if let Some(stretch) = self.stretch.take() {
             self.out
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
-                .push(BlockStretch {
-                    start: self.start,
-                    blocks,
-                    rest,
-                });
+                .push(stretch);
         }
     }
 }
 
-/// The unfiltered block means of a run of `n` samples from its stretches: each starting at
-/// a block boundary where the one before stopped, the last read on to the end. None when
+/// The blocks of a run of `n` samples from its stretches, in order: each starting at a
+/// block boundary where the one before stopped, the last read on to the end. None when
 /// they do not so follow on.
-fn joined_blocks(
+fn whole_blocks(
     mut stretches: Vec<BlockStretch<'_>>,
     block: usize,
     n: usize,
-) -> Option<[Vec<f64>; 4]> {
+) -> Option<Vec<OdometerBlocks<'_>>> {
     stretches.sort_by_key(|s| s.start);
     let mut next = 0;
     for s in &stretches {
@@ -444,32 +443,12 @@ fn joined_blocks(
         }
         next = s.blocks.next_sample();
     }
-    let mut stretches = stretches.into_iter();
-    let mut last = stretches.next_back()?;
-    for dd in last.rest.by_ref() {
-        if last.blocks.next_sample() >= n {
-            break;
-        }
+    let last = stretches.last_mut()?;
+    let left = n.saturating_sub(last.blocks.next_sample());
+    for dd in last.rest.by_ref().take(left) {
         last.blocks.push(dd);
     }
-    if last.blocks.next_sample() < n {
-        return None;
-    }
-    let mut all: Option<[Vec<f64>; 4]> = None;
-    for means in stretches
-        .map(|s| s.blocks.means())
-        .chain([last.blocks.means()])
-    {
-        match all.as_mut() {
-            None => all = Some(means),
-            Some(all) => {
-                for (all, mut more) in all.iter_mut().zip(means) {
-                    all.append(&mut more);
-                }
-            }
-        }
-    }
-    all
+    (last.blocks.next_sample() >= n).then(|| stretches.into_iter().map(|s| s.blocks).collect())
 }
 
 struct Profile<'r> {
