@@ -6,10 +6,12 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use arrow::array::{Float32Array, Float64Array, Int64Array, RecordBatch, StringArray};
-use unz_formats::parquet_io::{ParquetSink, read_table, write_batch};
+use arrow::array::{Array, Float32Array, Float64Array, Int64Array, RecordBatch, StringArray};
+use arrow::datatypes::{Float32Type, Float64Type, Int64Type};
+use unz_formats::FormatError;
+use unz_formats::parquet_io::{ParquetSink, for_each_batch_of, write_batch};
 use unz_formats::schema::{self, criteria_cols};
-use unz_formats::tables::{f32_column, f64_column, i64_column};
+use unz_formats::tables::values_of;
 use unz_stages::attitude::rem_euclid_turn;
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
@@ -247,72 +249,103 @@ pub fn write_kryt1_series(path: &Path, series: &[MethodKryt1]) -> anyhow::Result
     Ok(())
 }
 
-/// Row ranges of each method, in file order.
-fn method_ranges(
-    b: &RecordBatch,
+/// Reads the columns `names` (and `method`) of `path` batch by batch and hands each run of
+/// rows of one method to `each` (`started`: the method's first run, its first rows); a
+/// method's rows are consecutive, its runs follow on across batches.
+fn for_each_method_run(
     path: &Path,
-) -> anyhow::Result<Vec<(String, std::ops::Range<usize>)>> {
-    let methods = b
-        .column_by_name(schema::METHOD)
-        .and_then(|c| c.as_any().downcast_ref::<StringArray>())
-        .ok_or_else(|| anyhow::anyhow!("{}: no string column \"method\"", path.display()))?;
-    let mut ranges: Vec<(String, std::ops::Range<usize>)> = Vec::new();
-    for (k, m) in methods.iter().enumerate() {
-        let m = m.unwrap_or_default();
-        match ranges.last_mut() {
-            Some((name, r)) if name == m => r.end = k + 1,
-            _ => ranges.push((m.to_owned(), k..k + 1)),
+    names: &[&str],
+    mut each: impl FnMut(&str, bool, &RecordBatch, std::ops::Range<usize>) -> Result<(), FormatError>,
+) -> anyhow::Result<()> {
+    let mut columns = vec![schema::METHOD];
+    columns.extend_from_slice(names);
+    let mut current: Option<String> = None;
+    for_each_batch_of(path, &columns, |b| {
+        let methods = b
+            .column_by_name(schema::METHOD)
+            .and_then(|c| c.as_any().downcast_ref::<StringArray>())
+            .ok_or_else(|| FormatError::Invalid("no string column \"method\"".into()))?;
+        let mut from = 0;
+        for k in 0..=methods.len() {
+            let at = (k < methods.len()).then(|| methods.value(k));
+            if k > from && at != Some(methods.value(from)) {
+                let m = methods.value(from);
+                let started = current.as_deref() != Some(m);
+                if started {
+                    current = Some(m.to_owned());
+                }
+                each(m, started, b, from..k)?;
+                from = k;
+            }
         }
-    }
-    Ok(ranges)
+        Ok(())
+    })?;
+    Ok(())
 }
 
-/// Reads `tracks.parquet`.
+/// Reads `tracks.parquet`, batch by batch into each method's columns.
 pub fn read_tracks(path: &Path) -> anyhow::Result<Vec<MethodTrack>> {
-    let (_, b) = read_table(path)?;
-    let t = i64_column(&b, schema::T_NS)?;
-    let [lat, lon, rest @ ..] = schema::NAV_STATE;
-    let (lat, lon) = (f64_column(&b, lat)?, f64_column(&b, lon)?);
-    let cols: Vec<Vec<f32>> = rest
-        .iter()
-        .map(|n| f32_column(&b, n))
-        .collect::<Result<_, _>>()?;
-    Ok(method_ranges(&b, path)?
-        .into_iter()
-        .map(|(method, r)| MethodTrack {
-            method,
-            t_ns: t[r.clone()].to_vec(),
-            lat_deg: lat[r.clone()].to_vec(),
-            lon_deg: lon[r.clone()].to_vec(),
-            h_m: cols[0][r.clone()].to_vec(),
-            north_m: cols[1][r.clone()].to_vec(),
-            east_m: cols[2][r.clone()].to_vec(),
-            roll_deg: cols[3][r.clone()].to_vec(),
-            pitch_deg: cols[4][r.clone()].to_vec(),
-            heading_deg: cols[5][r].to_vec(),
-        })
-        .collect())
+    let [lat, lon, h, north, east, roll, pitch, heading] = schema::NAV_STATE;
+    let mut tracks: Vec<MethodTrack> = Vec::new();
+    let names = [schema::T_NS, lat, lon, h, north, east, roll, pitch, heading];
+    for_each_method_run(path, &names, |method, started, b, r| {
+        if started {
+            tracks.push(MethodTrack {
+                method: method.to_owned(),
+                ..MethodTrack::default()
+            });
+        }
+        let t = tracks.last_mut().expect("a track was started");
+        t.t_ns
+            .extend_from_slice(&values_of::<Int64Type>(b, schema::T_NS)?[r.clone()]);
+        t.lat_deg
+            .extend_from_slice(&values_of::<Float64Type>(b, lat)?[r.clone()]);
+        t.lon_deg
+            .extend_from_slice(&values_of::<Float64Type>(b, lon)?[r.clone()]);
+        for (v, name) in [
+            (&mut t.h_m, h),
+            (&mut t.north_m, north),
+            (&mut t.east_m, east),
+            (&mut t.roll_deg, roll),
+            (&mut t.pitch_deg, pitch),
+            (&mut t.heading_deg, heading),
+        ] {
+            v.extend_from_slice(&values_of::<Float32Type>(b, name)?[r.clone()]);
+        }
+        Ok(())
+    })?;
+    Ok(tracks)
 }
 
-/// Reads `kryt1_series.parquet`.
+/// Reads `kryt1_series.parquet`, batch by batch into each method's series.
 pub fn read_kryt1_series(path: &Path) -> anyhow::Result<Vec<MethodKryt1>> {
-    let (_, b) = read_table(path)?;
-    let t = i64_column(&b, schema::T_NS)?;
-    let (k, th, ph) = (
-        f64_column(&b, criteria_cols::KRYT1_CUM)?,
-        f64_column(&b, criteria_cols::KF_D_THETA_RAD)?,
-        f64_column(&b, criteria_cols::KF_D_PHI_RAD)?,
-    );
-    Ok(method_ranges(&b, path)?
-        .into_iter()
-        .map(|(method, r)| MethodKryt1 {
-            method,
-            t_ns: t[r.clone()].to_vec(),
-            kryt1_cum: k[r.clone()].to_vec(),
-            kf_d_theta_rad: th[r.clone()].to_vec(),
-            kf_d_phi_rad: ph[r].to_vec(),
-        })
-        .collect())
+    let mut series: Vec<MethodKryt1> = Vec::new();
+    let names = [
+        schema::T_NS,
+        criteria_cols::KRYT1_CUM,
+        criteria_cols::KF_D_THETA_RAD,
+        criteria_cols::KF_D_PHI_RAD,
+    ];
+    for_each_method_run(path, &names, |method, started, b, r| {
+        if started {
+            series.push(MethodKryt1 {
+                method: method.to_owned(),
+                ..MethodKryt1::default()
+            });
+        }
+        let s = series.last_mut().expect("a series was started");
+        s.t_ns
+            .extend_from_slice(&values_of::<Int64Type>(b, schema::T_NS)?[r.clone()]);
+        for (v, name) in [
+            (&mut s.kryt1_cum, criteria_cols::KRYT1_CUM),
+            (&mut s.kf_d_theta_rad, criteria_cols::KF_D_THETA_RAD),
+            (&mut s.kf_d_phi_rad, criteria_cols::KF_D_PHI_RAD),
+        ] {
+            v.extend_from_slice(&values_of::<Float64Type>(b, name)?[r.clone()]);
+        }
+        Ok(())
+    })?;
+    Ok(series)
 }
 
 #[cfg(test)]
@@ -388,5 +421,70 @@ mod tests {
         let p = dir.path().join(KRYT1_SERIES);
         write_kryt1_series(&p, &series).unwrap();
         assert_eq!(read_kryt1_series(&p).unwrap(), series);
+    }
+
+    #[test]
+    fn methods_are_read_whole_across_the_readers_batches() {
+        // Each method longer than a reader's batch (65536 rows), the second one starting
+        // within a batch: every row comes back in its method, in order.
+        let dir = tempfile::tempdir().unwrap();
+        let start = Geodetic {
+            lat_rad: 0.78,
+            lon_rad: -1.33,
+            h_m: 90.0,
+        };
+        let n = 70_001;
+        let kept = |m: &str, off: f64| KeptTrack {
+            method: m.to_owned(),
+            lat_rad: (0..n).map(|k| 0.78 + off * 1e-9 * k as f64).collect(),
+            lon_rad: (0..n).map(|k| -1.33 - off * 2e-9 * k as f64).collect(),
+            h_m: (0..n).map(|k| k as f32 * 0.5).collect(),
+            roll_deg: (0..n).map(|k| (k % 360) as f32).collect(),
+            pitch_deg: vec![6.0; n],
+            heading_deg: (0..n).map(|k| (k % 7) as f32).collect(),
+        };
+        let tracks = vec![kept("initial", 0.5), kept("owpi", 1.0), kept("joint", 1.5)];
+        let t_ns: Vec<i64> = (0..n as i64).map(|k| 1_000 + 10 * k).collect();
+        let p = dir.path().join(TRACKS);
+        write_tracks(&p, &t_ns, start, tracks.clone()).unwrap();
+        let read = read_tracks(&p).unwrap();
+        let methods: Vec<&str> = read.iter().map(|t| t.method.as_str()).collect();
+        assert_eq!(methods, ["initial", "owpi", "joint"]);
+        for (t, k) in read.iter().zip(&tracks) {
+            assert_eq!(t.t_ns, t_ns);
+            assert_eq!(t.h_m, k.h_m);
+            assert_eq!(t.roll_deg, k.roll_deg);
+            assert_eq!(t.heading_deg, k.heading_deg);
+            let lat: Vec<f64> = k.lat_rad.iter().map(|x| x.to_degrees()).collect();
+            assert_eq!(t.lat_deg, lat);
+        }
+        let series: Vec<MethodKryt1> = ["oepi", "joint"]
+            .iter()
+            .enumerate()
+            .map(|(i, m)| MethodKryt1 {
+                method: (*m).into(),
+                t_ns: (0..n as i64).collect(),
+                kryt1_cum: (0..n).map(|k| (k + i) as f64).collect(),
+                kf_d_theta_rad: vec![0.1; n],
+                kf_d_phi_rad: (0..n).map(|k| -(k as f64)).collect(),
+            })
+            .collect();
+        let p = dir.path().join(KRYT1_SERIES);
+        write_kryt1_series(&p, &series).unwrap();
+        assert_eq!(read_kryt1_series(&p).unwrap(), series);
+    }
+
+    #[test]
+    fn a_table_without_methods_is_refused_naming_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join(TRACKS);
+        let schema = Arc::new(arrow::datatypes::Schema::new(vec![
+            arrow::datatypes::Field::new(schema::T_NS, arrow::datatypes::DataType::Int64, false),
+        ]));
+        let b =
+            RecordBatch::try_new(schema, vec![Arc::new(Int64Array::from(vec![1_i64]))]).unwrap();
+        write_batch(&p, &b).unwrap();
+        let err = format!("{:#}", read_tracks(&p).unwrap_err());
+        assert!(err.contains("tracks.parquet"), "{err}");
     }
 }

@@ -392,6 +392,15 @@ impl CriteriaTable {
     }
 }
 
+/// The values of a primitive column of a batch, borrowed (no copy): for readers that
+/// gather a table's rows batch by batch.
+pub fn values_of<'a, T: arrow::datatypes::ArrowPrimitiveType>(
+    b: &'a RecordBatch,
+    name: &str,
+) -> Result<&'a [T::Native], FormatError> {
+    Ok(prim::<T>(b, name)?.values())
+}
+
 /// Reads a `Float32` column of a batch.
 pub fn f32_column(b: &RecordBatch, name: &str) -> Result<Vec<f32>, FormatError> {
     Ok(prim::<Float32Type>(b, name)?.values().to_vec())
