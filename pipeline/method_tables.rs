@@ -249,59 +249,49 @@ pub fn write_kryt1_series(path: &Path, series: &[MethodKryt1]) -> anyhow::Result
     Ok(())
 }
 
-/// Reads the columns `names` (and `method`) of `path` batch by batch and hands each run of
-/// rows of one method to `each` (`started`: the method's first run, its first rows); a
-/// method's rows are consecutive, its runs follow on across batches.
-fn for_each_method_run(
+/// The rows of each method in `path` (its `method` column and the columns `names`), read
+/// batch by batch: a method's rows are consecutive, and `extend` adds each run of them in
+/// a batch to the method's value. Each method's name and value, in file order.
+fn read_per_method<T: Default>(
     path: &Path,
     names: &[&str],
-    mut each: impl FnMut(&str, bool, &RecordBatch, std::ops::Range<usize>) -> Result<(), FormatError>,
-) -> anyhow::Result<()> {
+    mut extend: impl FnMut(&mut T, &RecordBatch, std::ops::Range<usize>) -> Result<(), FormatError>,
+) -> anyhow::Result<Vec<(String, T)>> {
     let mut columns = vec![schema::METHOD];
     columns.extend_from_slice(names);
-    let mut current: Option<String> = None;
+    let mut out: Vec<(String, T)> = Vec::new();
     for_each_batch_of(path, &columns, |b| {
         let methods = b
             .column_by_name(schema::METHOD)
             .and_then(|c| c.as_any().downcast_ref::<StringArray>())
             .ok_or_else(|| FormatError::Invalid("no string column \"method\"".into()))?;
+        let n = methods.len();
         let mut from = 0;
-        for k in 0..=methods.len() {
-            let at = (k < methods.len()).then(|| methods.value(k));
-            if k > from && at != Some(methods.value(from)) {
-                let m = methods.value(from);
-                let started = current.as_deref() != Some(m);
-                if started {
-                    current = Some(m.to_owned());
-                }
-                each(m, started, b, from..k)?;
-                from = k;
+        while from < n {
+            let m = methods.value(from);
+            let to = (from..n).find(|&k| methods.value(k) != m).unwrap_or(n);
+            if out.last().is_none_or(|(last, _)| last != m) {
+                out.push((m.to_owned(), T::default()));
             }
+            let (_, value) = out.last_mut().expect("a method was started");
+            extend(value, b, from..to)?;
+            from = to;
         }
         Ok(())
     })?;
-    Ok(())
+    Ok(out)
 }
 
 /// Reads `tracks.parquet`, batch by batch into each method's columns.
 pub fn read_tracks(path: &Path) -> anyhow::Result<Vec<MethodTrack>> {
     let [lat, lon, h, north, east, roll, pitch, heading] = schema::NAV_STATE;
-    let mut tracks: Vec<MethodTrack> = Vec::new();
     let names = [schema::T_NS, lat, lon, h, north, east, roll, pitch, heading];
-    for_each_method_run(path, &names, |method, started, b, r| {
-        if started {
-            tracks.push(MethodTrack {
-                method: method.to_owned(),
-                ..MethodTrack::default()
-            });
-        }
-        let t = tracks.last_mut().expect("a track was started");
+    let tracks = read_per_method(path, &names, |t: &mut MethodTrack, b, r| {
         t.t_ns
             .extend_from_slice(&values_of::<Int64Type>(b, schema::T_NS)?[r.clone()]);
-        t.lat_deg
-            .extend_from_slice(&values_of::<Float64Type>(b, lat)?[r.clone()]);
-        t.lon_deg
-            .extend_from_slice(&values_of::<Float64Type>(b, lon)?[r.clone()]);
+        for (v, name) in [(&mut t.lat_deg, lat), (&mut t.lon_deg, lon)] {
+            v.extend_from_slice(&values_of::<Float64Type>(b, name)?[r.clone()]);
+        }
         for (v, name) in [
             (&mut t.h_m, h),
             (&mut t.north_m, north),
@@ -314,38 +304,39 @@ pub fn read_tracks(path: &Path) -> anyhow::Result<Vec<MethodTrack>> {
         }
         Ok(())
     })?;
-    Ok(tracks)
+    Ok(tracks
+        .into_iter()
+        .map(|(method, t)| MethodTrack { method, ..t })
+        .collect())
 }
 
 /// Reads `kryt1_series.parquet`, batch by batch into each method's series.
 pub fn read_kryt1_series(path: &Path) -> anyhow::Result<Vec<MethodKryt1>> {
-    let mut series: Vec<MethodKryt1> = Vec::new();
-    let names = [
-        schema::T_NS,
+    let [kryt1, theta, phi] = [
         criteria_cols::KRYT1_CUM,
         criteria_cols::KF_D_THETA_RAD,
         criteria_cols::KF_D_PHI_RAD,
     ];
-    for_each_method_run(path, &names, |method, started, b, r| {
-        if started {
-            series.push(MethodKryt1 {
-                method: method.to_owned(),
-                ..MethodKryt1::default()
-            });
-        }
-        let s = series.last_mut().expect("a series was started");
-        s.t_ns
-            .extend_from_slice(&values_of::<Int64Type>(b, schema::T_NS)?[r.clone()]);
-        for (v, name) in [
-            (&mut s.kryt1_cum, criteria_cols::KRYT1_CUM),
-            (&mut s.kf_d_theta_rad, criteria_cols::KF_D_THETA_RAD),
-            (&mut s.kf_d_phi_rad, criteria_cols::KF_D_PHI_RAD),
-        ] {
-            v.extend_from_slice(&values_of::<Float64Type>(b, name)?[r.clone()]);
-        }
-        Ok(())
-    })?;
-    Ok(series)
+    let series = read_per_method(
+        path,
+        &[schema::T_NS, kryt1, theta, phi],
+        |s: &mut MethodKryt1, b, r| {
+            s.t_ns
+                .extend_from_slice(&values_of::<Int64Type>(b, schema::T_NS)?[r.clone()]);
+            for (v, name) in [
+                (&mut s.kryt1_cum, kryt1),
+                (&mut s.kf_d_theta_rad, theta),
+                (&mut s.kf_d_phi_rad, phi),
+            ] {
+                v.extend_from_slice(&values_of::<Float64Type>(b, name)?[r.clone()]);
+            }
+            Ok(())
+        },
+    )?;
+    Ok(series
+        .into_iter()
+        .map(|(method, s)| MethodKryt1 { method, ..s })
+        .collect())
 }
 
 #[cfg(test)]
