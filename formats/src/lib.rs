@@ -18,6 +18,7 @@ pub mod error;
 pub mod kfgins;
 pub mod manifest;
 pub mod mcap_io;
+mod parquet_columns;
 pub mod parquet_io;
 pub mod parquet_thread;
 pub mod raw;

@@ -7,9 +7,7 @@ use arrow::array::RecordBatch;
 use arrow::datatypes::{DataType, FieldRef, Schema, SchemaRef};
 use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
-use parquet::arrow::arrow_writer::{
-    ArrowColumnChunk, ArrowColumnWriter, ArrowRowGroupWriterFactory, compute_leaves,
-};
+use parquet::arrow::arrow_writer::{ArrowRowGroupWriterFactory, compute_leaves};
 use parquet::basic::{Compression, Encoding, ZstdLevel};
 use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use parquet::file::writer::SerializedFileWriter;
@@ -18,11 +16,13 @@ use rayon::prelude::*;
 
 use crate::atomic::AtomicFile;
 use crate::error::{FileError, FormatError, io_in_file};
+use crate::parquet_columns::{DirectColumn, DirectShape, LeafChunk, LeafWriter, direct_shape};
 
 /// A Parquet file being written; it appears under its name only on [`ParquetSink::finish`].
 ///
 /// Its columns are encoded and compressed side by side (on rayon's pool) by the column
-/// writers `ArrowWriter` itself uses, in the same row groups, so the file is the one
+/// writers `ArrowWriter` itself uses (a column without nulls handed its values as they
+/// lie, see [`crate::parquet_columns`]), in the same row groups, so the file is the one
 /// `ArrowWriter` writes, byte for byte.
 pub struct ParquetSink {
     writer: SerializedFileWriter<std::fs::File>,
@@ -30,9 +30,11 @@ pub struct ParquetSink {
     schema: SchemaRef,
     /// The column writers of the row group being filled (none between row groups), one
     /// per leaf column.
-    columns: Vec<ArrowColumnWriter>,
+    columns: Vec<LeafWriter>,
     /// Leaf columns of each of the schema's fields, in order.
     leaves_per_field: Vec<usize>,
+    /// Each field's shape when its values can go to its one leaf's writer directly.
+    direct: Vec<Option<DirectShape>>,
     /// Rows in that row group.
     group_rows: usize,
     /// Rows per row group at most.
@@ -120,12 +122,19 @@ impl ParquetSink {
                 *n += 1;
             }
         }
+        let direct = schema
+            .fields()
+            .iter()
+            .zip(&leaves_per_field)
+            .map(|(f, &n)| direct_shape(f).filter(|_| n == 1))
+            .collect();
         Ok(Self {
             writer,
             factory,
             schema,
             columns: Vec::new(),
             leaves_per_field,
+            direct,
             group_rows: 0,
             max_group_rows: rows.max(1),
             side_by_side: true,
@@ -159,11 +168,7 @@ impl ParquetSink {
         let mut at = 0;
         while at < n {
             if self.columns.is_empty() {
-                let index = self.writer.flushed_row_groups().len();
-                self.columns = self
-                    .factory
-                    .create_column_writers(index)
-                    .map_err(|e| parquet_err(self.file.dest(), e))?;
+                self.columns = self.column_writers()?;
             }
             let take = (self.max_group_rows - self.group_rows).min(n - at);
             let part = if take == n {
@@ -180,6 +185,34 @@ impl ParquetSink {
             }
         }
         Ok(())
+    }
+
+    /// The next row group's column writers: the Arrow writer's, but a direct one for each
+    /// field [`direct_shape`] allows.
+    fn column_writers(&self) -> Result<Vec<LeafWriter>, FileError> {
+        let index = self.writer.flushed_row_groups().len();
+        let arrow = self
+            .factory
+            .create_column_writers(index)
+            .map_err(|e| parquet_err(self.file.dest(), e))?;
+        let descr = self.writer.schema_descr();
+        let props = self.writer.properties();
+        let mut field_of_leaf = self
+            .leaves_per_field
+            .iter()
+            .enumerate()
+            .flat_map(|(field, &n)| std::iter::repeat_n(field, n));
+        Ok(arrow
+            .into_iter()
+            .enumerate()
+            .map(|(leaf, w)| {
+                let shape = field_of_leaf.next().and_then(|f| self.direct[f]);
+                match shape.and_then(|s| DirectColumn::new(descr.column(leaf), props.clone(), s)) {
+                    Some(d) => LeafWriter::Direct(Box::new(d)),
+                    None => LeafWriter::Arrow(Box::new(w)),
+                }
+            })
+            .collect())
     }
 
     /// Encodes `batch` into the row group's column writers, side by side when it is
@@ -201,7 +234,10 @@ impl ParquetSink {
             fields.push((field, column, writers));
             rest = after;
         }
-        let write = |(field, column, writers): (&FieldRef, &ArrayRef, &mut [ArrowColumnWriter])| {
+        let write = |(field, column, writers): (&FieldRef, &ArrayRef, &mut [LeafWriter])| {
+            if let [LeafWriter::Direct(w)] = writers {
+                return w.write(column);
+            }
             let leaves = compute_leaves(field, column)?;
             if leaves.len() != writers.len() {
                 return Err(parquet::errors::ParquetError::General(format!(
@@ -214,7 +250,13 @@ impl ParquetSink {
             writers
                 .iter_mut()
                 .zip(&leaves)
-                .try_for_each(|(w, leaf)| w.write(leaf))
+                .try_for_each(|(w, leaf)| match w {
+                    LeafWriter::Arrow(w) => w.write(leaf),
+                    LeafWriter::Direct(_) => Err(parquet::errors::ParquetError::General(format!(
+                        "column {:?}: a direct writer among leaves",
+                        field.name()
+                    ))),
+                })
         };
         let written = if self.side_by_side && batch.num_rows() >= PARALLEL_ROWS {
             fields.into_par_iter().try_for_each(write)
@@ -232,7 +274,7 @@ impl ParquetSink {
         }
         let dest = self.file.dest();
         let columns = std::mem::take(&mut self.columns);
-        let chunks: Result<Vec<ArrowColumnChunk>, _> = if self.side_by_side {
+        let chunks: Result<Vec<LeafChunk>, _> = if self.side_by_side {
             columns.into_par_iter().map(|w| w.close()).collect()
         } else {
             columns.into_iter().map(|w| w.close()).collect()
@@ -250,6 +292,15 @@ impl ParquetSink {
         group.close().map_err(|e| parquet_err(dest, e))?;
         self.group_rows = 0;
         Ok(())
+    }
+
+    /// Leaf columns of the row group being filled that are written directly.
+    #[cfg(test)]
+    fn direct_leaves(&self) -> usize {
+        self.columns
+            .iter()
+            .filter(|c| matches!(c, LeafWriter::Direct(_)))
+            .count()
     }
 
     /// The file's final name.
@@ -439,15 +490,26 @@ mod tests {
     /// row groups by the sink, make the file `ArrowWriter` makes with the same settings,
     /// byte for byte: batches
     /// long and short (either side of [`PARALLEL_ROWS`]), row groups filled exactly and
-    /// split mid-batch, a 3-vector column, a nullable one and an empty batch.
+    /// split mid-batch, an empty batch; columns written directly (i64, u64 past i64's
+    /// range, f64, f32, a 3-vector of f64 and a pair of f32) beside the Arrow writer's
+    /// (nullable i64 and f64, booleans, strings).
     #[test]
     fn the_sink_writes_what_arrow_writer_writes_byte_for_byte() {
         use arrow::array::{ArrayRef, Int64Array};
+        use arrow::array::{BooleanArray, Float32Array, StringArray};
+        use arrow::array::{UInt64Array, builder::Float32Builder};
+        let pair_item = Arc::new(Field::new("item", DataType::Float32, false));
         let schema = Arc::new(Schema::new(vec![
             Field::new("t_ns", DataType::Int64, false),
             Field::new("x", DataType::Float64, false),
             Field::new("v", crate::schema::vec3_type(), false),
             Field::new("maybe", DataType::Int64, true),
+            Field::new("h", DataType::Float32, false),
+            Field::new("count", DataType::UInt64, false),
+            Field::new("pair", DataType::FixedSizeList(pair_item.clone(), 2), false),
+            Field::new("ok", DataType::Boolean, false),
+            Field::new("name", DataType::Utf8, false),
+            Field::new("maybe_x", DataType::Float64, true),
         ]));
         let batch = |lo: usize, n: usize| {
             let x: Vec<f64> = (lo..lo + n).map(|k| (k as f64 * 0.37).sin()).collect();
@@ -456,10 +518,34 @@ mod tests {
                 Arc::new(Int64Array::from_iter_values(
                     (lo..lo + n).map(|k| k as i64 * 10_000_000),
                 )),
-                Arc::new(Float64Array::from(x)),
+                Arc::new(Float64Array::from(x.clone())),
                 crate::tables::vec3_to_array(&v),
                 Arc::new(Int64Array::from_iter(
                     (lo..lo + n).map(|k| (k % 3 != 0).then_some(k as i64)),
+                )),
+                Arc::new(Float32Array::from_iter_values(x.iter().map(|&x| x as f32))),
+                // Past i64::MAX too: stored as the u64's bits.
+                Arc::new(UInt64Array::from_iter_values(
+                    (lo..lo + n).map(|k| u64::MAX - 7 * k as u64),
+                )),
+                {
+                    let mut pairs =
+                        arrow::array::FixedSizeListBuilder::new(Float32Builder::new(), 2)
+                            .with_field(pair_item.clone());
+                    for &x in &x {
+                        pairs.values().append_slice(&[x as f32, -(x as f32)]);
+                        pairs.append(true);
+                    }
+                    Arc::new(pairs.finish()) as ArrayRef
+                },
+                Arc::new(BooleanArray::from_iter(
+                    (lo..lo + n).map(|k| Some(k % 5 == 0)),
+                )),
+                Arc::new(StringArray::from_iter_values(
+                    (lo..lo + n).map(|k| format!("r{}", k % 11)),
+                )),
+                Arc::new(Float64Array::from_iter(
+                    x.iter().map(|&x| (x > 0.0).then_some(x)),
                 )),
             ];
             RecordBatch::try_new(schema.clone(), columns).expect("batch")
@@ -482,8 +568,13 @@ mod tests {
             if !side_by_side {
                 sink = sink.on_this_thread();
             }
-            for b in &batches {
+            for (i, b) in batches.iter().enumerate() {
                 sink.write(b).expect("written");
+                if i == 0 {
+                    // The plain columns without nulls are written directly: t_ns, x, v, h,
+                    // count, pair.
+                    assert_eq!(sink.direct_leaves(), 6);
+                }
             }
             assert_eq!(sink.rows(), lo);
             sink.finish().expect("finished");

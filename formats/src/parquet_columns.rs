@@ -1,0 +1,238 @@
+//! The column writers of a [`crate::parquet_io::ParquetSink`]'s row group.
+//!
+//! The Arrow writer's own column writer (`ArrowColumnWriter`) first computes each leaf's
+//! levels and the indices of its non-null values (8 bytes a value), then gathers the
+//! values by those indices into a copy, and only then encodes them. A column that cannot
+//! hold a null has nothing to gather: a required `Int64`, `UInt64`, `Float32` or
+//! `Float64` column, or a required fixed-size list of such required values (a 3-vector).
+//! Its values go to the same typed column writer as they lie in the array, with the levels
+//! such a column always has (none when flat; in a list, every value defined and each
+//! list's first value starting a record). The pages, the column chunk and its metadata
+//! are the Arrow writer's, byte for byte (`parquet_io`'s tests compare whole files).
+
+use std::sync::{Arc, Mutex};
+
+use arrow::array::{Array, ArrayRef, AsArray};
+use arrow::datatypes::{DataType, Field, Float32Type, Float64Type, Int64Type, UInt64Type};
+use bytes::Bytes;
+use parquet::arrow::arrow_writer::{ArrowColumnChunk, ArrowColumnWriter};
+use parquet::column::page::{CompressedPage, PageWriteSpec, PageWriter};
+use parquet::column::writer::{ColumnCloseResult, ColumnWriter, get_column_writer};
+use parquet::errors::ParquetError;
+use parquet::file::properties::WriterPropertiesPtr;
+use parquet::file::writer::{SerializedPageWriter, SerializedRowGroupWriter, TrackedWrite};
+use parquet::schema::types::ColumnDescPtr;
+
+/// How a column's values lie when it is written directly (see the module's notes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum DirectShape {
+    /// One value a row.
+    Flat,
+    /// `len` values a row, in a required fixed-size list.
+    List { len: usize },
+}
+
+/// Whether `field`'s values can go to its column writer directly, and how they lie.
+pub(crate) fn direct_shape(field: &Field) -> Option<DirectShape> {
+    let plain = |t: &DataType| {
+        matches!(
+            t,
+            DataType::Int64 | DataType::UInt64 | DataType::Float32 | DataType::Float64
+        )
+    };
+    if field.is_nullable() {
+        return None;
+    }
+    match field.data_type() {
+        t if plain(t) => Some(DirectShape::Flat),
+        DataType::FixedSizeList(item, len)
+            if !item.is_nullable() && plain(item.data_type()) && *len > 0 =>
+        {
+            Some(DirectShape::List {
+                len: usize::try_from(*len).ok()?,
+            })
+        }
+        _ => None,
+    }
+}
+
+/// The writer of one leaf column in a row group.
+pub(crate) enum LeafWriter {
+    /// The Arrow writer's (any column).
+    Arrow(Box<ArrowColumnWriter>),
+    /// A column without nulls, written from its values as they lie.
+    Direct(Box<DirectColumn>),
+}
+
+/// A leaf column's encoded chunk, ready to be appended to its row group.
+pub(crate) enum LeafChunk {
+    Arrow(ArrowColumnChunk),
+    Direct {
+        pages: Bytes,
+        close: ColumnCloseResult,
+    },
+}
+
+impl LeafWriter {
+    /// Encodes what is left of the column and returns its chunk.
+    pub(crate) fn close(self) -> Result<LeafChunk, ParquetError> {
+        match self {
+            LeafWriter::Arrow(w) => (*w).close().map(LeafChunk::Arrow),
+            LeafWriter::Direct(w) => (*w).close(),
+        }
+    }
+}
+
+impl LeafChunk {
+    /// Appends the chunk to `group` (its next column).
+    pub(crate) fn append_to_row_group<W: std::io::Write + Send>(
+        self,
+        group: &mut SerializedRowGroupWriter<'_, W>,
+    ) -> Result<(), ParquetError> {
+        match self {
+            LeafChunk::Arrow(chunk) => chunk.append_to_row_group(group),
+            LeafChunk::Direct { pages, close } => group.append_column(&pages, close),
+        }
+    }
+}
+
+/// A column chunk's pages as the column writer emits them, shared with the writer that
+/// takes them out on close.
+type SharedPages = Arc<Mutex<TrackedWrite<Vec<u8>>>>;
+
+/// Writes each page (its Thrift header, then its bytes) as a file's page writer does,
+/// into memory.
+struct MemoryPages(SharedPages);
+
+impl PageWriter for MemoryPages {
+    fn write_page(&mut self, page: CompressedPage) -> Result<PageWriteSpec, ParquetError> {
+        let mut sink = self
+            .0
+            .lock()
+            .map_err(|_| ParquetError::General("a column's pages were poisoned".into()))?;
+        SerializedPageWriter::new(&mut sink).write_page(page)
+    }
+
+    fn close(&mut self) -> Result<(), ParquetError> {
+        Ok(())
+    }
+}
+
+/// A column without nulls written from its values as they lie (see the module's notes).
+pub(crate) struct DirectColumn {
+    writer: ColumnWriter<'static>,
+    pages: SharedPages,
+    shape: DirectShape,
+    max_def_level: i16,
+    /// A list column's levels for the longest batch so far (its prefix serves shorter
+    /// ones).
+    def_levels: Vec<i16>,
+    rep_levels: Vec<i16>,
+}
+
+impl DirectColumn {
+    /// A writer of the leaf `descr` with the file's `props`, or `None` when the leaf is not
+    /// the plain one `shape` needs (a list's leaf repeated once, a flat one not at all).
+    pub(crate) fn new(
+        descr: ColumnDescPtr,
+        props: WriterPropertiesPtr,
+        shape: DirectShape,
+    ) -> Option<Self> {
+        let levels_fit = match shape {
+            DirectShape::Flat => descr.max_def_level() == 0 && descr.max_rep_level() == 0,
+            DirectShape::List { .. } => descr.max_rep_level() == 1,
+        };
+        if !levels_fit {
+            return None;
+        }
+        let max_def_level = descr.max_def_level();
+        let pages: SharedPages = Arc::new(Mutex::new(TrackedWrite::new(Vec::new())));
+        let writer = get_column_writer(descr, props, Box::new(MemoryPages(pages.clone())));
+        Some(Self {
+            writer,
+            pages,
+            shape,
+            max_def_level,
+            def_levels: Vec::new(),
+            rep_levels: Vec::new(),
+        })
+    }
+
+    /// Encodes `column`'s rows.
+    pub(crate) fn write(&mut self, column: &ArrayRef) -> Result<(), ParquetError> {
+        let values: &dyn Array = match self.shape {
+            DirectShape::Flat => column.as_ref(),
+            DirectShape::List { len } => {
+                let list = column.as_fixed_size_list_opt().ok_or_else(|| {
+                    ParquetError::General(format!("a {} for a list column", column.data_type()))
+                })?;
+                if list.null_count() != 0 || list.values().len() != list.len() * len {
+                    return Err(ParquetError::General(
+                        "a list column with nulls or of another length".into(),
+                    ));
+                }
+                list.values().as_ref()
+            }
+        };
+        if values.null_count() != 0 {
+            return Err(ParquetError::General(
+                "nulls in a column that holds none".into(),
+            ));
+        }
+        let n = values.len();
+        let (def, rep) = match self.shape {
+            DirectShape::Flat => (None, None),
+            DirectShape::List { len } => {
+                if self.def_levels.len() < n {
+                    self.def_levels = vec![self.max_def_level; n];
+                    self.rep_levels = (0..n).map(|k| i16::from(k % len != 0)).collect();
+                }
+                (Some(&self.def_levels[..n]), Some(&self.rep_levels[..n]))
+            }
+        };
+        let written = match (&mut self.writer, values.data_type()) {
+            (ColumnWriter::Int64ColumnWriter(w), DataType::Int64) => {
+                w.write_batch(values.as_primitive::<Int64Type>().values(), def, rep)
+            }
+            // As the Arrow writer stores them: the bits of each u64 as an i64.
+            (ColumnWriter::Int64ColumnWriter(w), DataType::UInt64) => w.write_batch(
+                values
+                    .as_primitive::<UInt64Type>()
+                    .values()
+                    .inner()
+                    .typed_data::<i64>(),
+                def,
+                rep,
+            ),
+            (ColumnWriter::FloatColumnWriter(w), DataType::Float32) => {
+                w.write_batch(values.as_primitive::<Float32Type>().values(), def, rep)
+            }
+            (ColumnWriter::DoubleColumnWriter(w), DataType::Float64) => {
+                w.write_batch(values.as_primitive::<Float64Type>().values(), def, rep)
+            }
+            (_, t) => Err(ParquetError::General(format!(
+                "a {t} column for another physical type"
+            ))),
+        }?;
+        if written != n {
+            return Err(ParquetError::General(format!(
+                "{written} values of {n} written"
+            )));
+        }
+        Ok(())
+    }
+
+    /// Closes the column: its pages and what the row group records of them.
+    fn close(self) -> Result<LeafChunk, ParquetError> {
+        let Self { writer, pages, .. } = self;
+        let close = writer.close()?;
+        let sink = Arc::try_unwrap(pages)
+            .map_err(|_| ParquetError::General("a column's pages still shared".into()))?
+            .into_inner()
+            .map_err(|_| ParquetError::General("a column's pages were poisoned".into()))?;
+        Ok(LeafChunk::Direct {
+            pages: Bytes::from(sink.into_inner()?),
+            close,
+        })
+    }
+}
