@@ -28,7 +28,7 @@ pub use report::{
     odo_pitch_note, odo_yaw_note, rebridged_note,
 };
 use report::{Lag, markdown, method_out, settings_out};
-use reviews::{Reviewed, review_passes};
+use reviews::{ReviewBatches, Reviewed, review_passes};
 
 use crate::artifacts::{StageName, files};
 use crate::derive_io::{StoredDerive, read_velocity_ranges};
@@ -96,9 +96,10 @@ pub fn case_inputs(ctx: &RunCtx, params: &Params) -> anyhow::Result<Vec<PathBuf>
     ])
 }
 
-/// Samples of a run up to which its review passes run beside the joint fit's hold-out
-/// (two hours at 100 Hz: its segments, about 11 MB, and the ingested odometer, about
-/// 10 MB, are then held through the reviews; a longer run lets them go first).
+/// Samples of a run up to which its review passes run beside the joint fit's hold-out,
+/// in one batch of lanes (two hours at 100 Hz: its segments, about 11 MB, and the
+/// ingested odometer, about 10 MB, are then held through the reviews; a longer run lets
+/// them go first, then runs its reviews in two batches side by side).
 pub const REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES: usize = 720_000;
 
 /// Samples of a run up to which the corrected route's boresight probe and the tables run
@@ -375,6 +376,12 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 || joint_run.and_then(|run| lag_states(run, &problem, &rederive, &case)),
             )
         };
+        let beside_holdout = case.derived.t_s.len() <= REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES;
+        let review_batches = if beside_holdout {
+            ReviewBatches::One
+        } else {
+            ReviewBatches::TrackedApart
+        };
         let reviews = || {
             // The last review pass is the corrected navigation's. When it is the joint's
             // with a covariance, the route's σ reads it as it runs; corrected_nav.parquet is
@@ -399,29 +406,29 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 &case.fixes,
                 &kept_samples,
                 &mut route_base,
+                review_batches,
             );
             (outcomes, route_base, kept_samples)
         };
-        let ((holdout, lag_states), (outcomes, route_base, kept_samples)) =
-            if case.derived.t_s.len() <= REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES {
-                let (both, outcomes) = rayon::join(holdout_and_lag, reviews);
-                drop(rederive);
-                drop(odometer);
-                case.derived.segments.clear();
-                joint_derived.segments.clear();
-                lap("hold-out and reviews");
-                (both, outcomes)
-            } else {
-                let both = holdout_and_lag();
-                drop(rederive);
-                drop(odometer);
-                case.derived.segments.clear();
-                joint_derived.segments.clear();
-                lap("hold-out");
-                let outcomes = reviews();
-                lap("reviews");
-                (both, outcomes)
-            };
+        let ((holdout, lag_states), (outcomes, route_base, kept_samples)) = if beside_holdout {
+            let (both, outcomes) = rayon::join(holdout_and_lag, reviews);
+            drop(rederive);
+            drop(odometer);
+            case.derived.segments.clear();
+            joint_derived.segments.clear();
+            lap("hold-out and reviews");
+            (both, outcomes)
+        } else {
+            let both = holdout_and_lag();
+            drop(rederive);
+            drop(odometer);
+            case.derived.segments.clear();
+            joint_derived.segments.clear();
+            lap("hold-out");
+            let outcomes = reviews();
+            lap("reviews");
+            (both, outcomes)
+        };
         let mut tracks: Vec<KeptTrack> = Vec::new();
         let mut kryt1s: Vec<MethodKryt1> = Vec::new();
         let mut cps_of = std::collections::BTreeMap::new();
