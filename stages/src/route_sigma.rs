@@ -50,31 +50,28 @@ impl RouteSigma {
             .sample
             .partition_point(|&s| s <= range.start)
             .saturating_sub(1);
-        let interp = |v: &[f64]| -> Vec<f64> {
-            let mut out = Vec::with_capacity(range.len());
-            let mut j = first;
-            for k in range.clone() {
-                while j + 1 < self.sample.len() && self.sample[j + 1] <= k {
-                    j += 1;
-                }
-                let (a, b) = (
-                    self.sample[j],
-                    self.sample[(j + 1).min(self.sample.len() - 1)],
-                );
-                let w = if b > a {
-                    ((k as f64 - a as f64) / (b - a) as f64).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                out.push(v[j] + w * (v[(j + 1).min(v.len() - 1)] - v[j]));
+        // Each sample's value before it and weight, taken once for the three σ.
+        let last = self.sample.len() - 1;
+        let mut out: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(range.len()));
+        let mut j = first;
+        for k in range {
+            while j < last && self.sample[j + 1] <= k {
+                j += 1;
             }
-            out
-        };
-        [
-            interp(&self.north_m),
-            interp(&self.east_m),
-            interp(&self.heading_rad),
-        ]
+            let (a, b) = (self.sample[j], self.sample[(j + 1).min(last)]);
+            let w = if b > a {
+                ((k as f64 - a as f64) / (b - a) as f64).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            for (o, v) in out
+                .iter_mut()
+                .zip([&self.north_m, &self.east_m, &self.heading_rad])
+            {
+                o.push(v[j] + w * (v[(j + 1).min(v.len() - 1)] - v[j]));
+            }
+        }
+        out
     }
 }
 
@@ -545,6 +542,10 @@ mod tests {
         // Values between the samples, and held after the last.
         assert_eq!(whole[0][5], 1.5);
         assert_eq!(whole[0][26], 8.0);
+        // Each σ with its own values, at the same weights.
+        assert_eq!(whole[1][15], 1.625);
+        assert_eq!(whole[2][10], 0.1);
+        assert_eq!(whole[2][26], 0.3);
         for lo in 0..27 {
             for hi in lo..=27 {
                 let part = sigma.at_samples(lo..hi);
