@@ -8,13 +8,14 @@
 
 use std::path::PathBuf;
 
+use arrow::datatypes::Int64Type;
 use unz_formats::mcap_io::{McapCompression, Ros2Mcap};
 use unz_formats::parquet_io::{for_each_batch_of, read_schema};
 use unz_formats::ros2_msgs::{
     Attitude, Criteria, Header, NavSatFix, NavSatStatus, Point, Pose, PoseStamped, Quaternion, Time,
 };
 use unz_formats::schema::{self, META_TIME_ORIGIN, NAV_STATE};
-use unz_formats::tables::{f64_column, i64_column};
+use unz_formats::tables::{float_values, values_of};
 use unz_stages::attitude::Euler;
 use unz_viz::frames::enu_flu;
 
@@ -63,20 +64,21 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         let mut h0: Option<f64> = None;
         let mut next: Option<i64> = None;
         for_each_batch_of(&nav_path, &wanted, |b| {
-            let tb = i64_column(b, schema::T_NS)?;
+            // The batch's columns where they lie: only the kept rows are copied.
+            let tb = values_of::<Int64Type>(b, schema::T_NS)?;
             let cols = names
                 .iter()
-                .map(|n| f64_column(b, n))
+                .map(|n| float_values(b, n))
                 .collect::<Result<Vec<_>, _>>()?;
             for (k, &tk) in tb.iter().enumerate() {
-                h0.get_or_insert(cols[2][k]);
+                h0.get_or_insert(cols[2].get(k));
                 if next.is_some_and(|n| tk < n) {
                     continue;
                 }
                 next = Some(tk + step_ns);
                 t.push(tk);
                 for (out, col) in kept.iter_mut().zip(&cols) {
-                    out.push(col[k]);
+                    out.push(col.get(k));
                 }
             }
             Ok(())

@@ -8,9 +8,10 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use arrow::datatypes::Int64Type;
 use unz_formats::parquet_io::{for_each_batch_of, read_schema, read_table};
 use unz_formats::schema::{T_NS, nav_cols, sweep_cols};
-use unz_formats::tables::{f64_column, i64_column};
+use unz_formats::tables::{f64_column, float_values, values_of};
 use unz_stages::criteria::Kryt2;
 use unz_stages::earth::Geodetic;
 use unz_viz::review::{
@@ -356,19 +357,20 @@ fn decimated_columns(
     let mut rows = 0;
     let mut last: Option<(usize, i64, Vec<f64>)> = None;
     for_each_batch_of(path, &wanted, |b| {
-        let tb = i64_column(b, T_NS)?;
+        // The batch's columns where they lie: only the kept rows are copied.
+        let tb = values_of::<Int64Type>(b, T_NS)?;
         let vb = names
             .iter()
-            .map(|n| f64_column(b, n))
+            .map(|n| float_values(b, n))
             .collect::<Result<Vec<_>, _>>()?;
         for k in (0..tb.len()).filter(|k| (rows + k) % step == 0) {
             t.push(tb[k]);
             for (o, v) in out.iter_mut().zip(&vb) {
-                o.push(v[k]);
+                o.push(v.get(k));
             }
         }
         if let Some(k) = tb.len().checked_sub(1) {
-            last = Some((rows + k, tb[k], vb.iter().map(|v| v[k]).collect()));
+            last = Some((rows + k, tb[k], vb.iter().map(|v| v.get(k)).collect()));
         }
         rows += tb.len();
         Ok(())

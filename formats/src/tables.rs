@@ -296,6 +296,48 @@ impl MarksTable {
     }
 }
 
+/// A batch's `Float64` or `Float32` column where it lies, each value widened to f64 as it
+/// is read ([`f64_column`] without copying the column: for a reader that keeps a few of
+/// its rows).
+#[derive(Debug, Clone, Copy)]
+pub enum FloatValues<'a> {
+    /// A `Float64` column's values.
+    F64(&'a [f64]),
+    /// A `Float32` column's values.
+    F32(&'a [f32]),
+}
+
+impl FloatValues<'_> {
+    /// Row `k`'s value (exactly, from either width).
+    pub fn get(&self, k: usize) -> f64 {
+        match self {
+            FloatValues::F64(v) => v[k],
+            FloatValues::F32(v) => f64::from(v[k]),
+        }
+    }
+
+    /// Rows.
+    pub fn len(&self) -> usize {
+        match self {
+            FloatValues::F64(v) => v.len(),
+            FloatValues::F32(v) => v.len(),
+        }
+    }
+
+    /// Whether there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// The `Float64` or `Float32` column `name` of a batch, in place.
+pub fn float_values<'a>(b: &'a RecordBatch, name: &str) -> Result<FloatValues<'a>, FormatError> {
+    if let Some(c) = column(b, name)?.as_primitive_opt::<Float32Type>() {
+        return Ok(FloatValues::F32(c.values()));
+    }
+    Ok(FloatValues::F64(prim::<Float64Type>(b, name)?.values()))
+}
+
 /// Reads a `Float64` column of a batch.
 pub fn f64_column(b: &RecordBatch, name: &str) -> Result<Vec<f64>, FormatError> {
     // Single-precision columns (the navigation's attitude, local positions, σ) widen
