@@ -484,6 +484,41 @@ pub fn vec3_to_array(v: &[[f64; 3]]) -> ArrayRef {
 mod tests {
     use super::*;
 
+    /// A float column read in place gives what the copying reader gives, f32 widened
+    /// exactly; another type is refused, naming it.
+    #[test]
+    fn float_values_in_place_are_the_copied_column() {
+        use arrow::array::{Float32Array, Float64Array, Int64Array};
+        use arrow::datatypes::{DataType, Field, Schema};
+        let schema = Arc::new(Schema::new(vec![
+            Field::new("a", DataType::Float64, false),
+            Field::new("b", DataType::Float32, false),
+            Field::new("n", DataType::Int64, false),
+        ]));
+        let b = RecordBatch::try_new(
+            schema,
+            vec![
+                Arc::new(Float64Array::from(vec![0.1, -2.5e300, f64::NAN])),
+                Arc::new(Float32Array::from(vec![0.1f32, -3.0e38, f32::MIN_POSITIVE])),
+                Arc::new(Int64Array::from(vec![1, 2, 3])),
+            ],
+        )
+        .unwrap();
+        for name in ["a", "b"] {
+            let v = float_values(&b, name).unwrap();
+            let copied = f64_column(&b, name).unwrap();
+            assert_eq!(v.len(), copied.len());
+            assert!(!v.is_empty());
+            for (k, c) in copied.iter().enumerate() {
+                assert_eq!(v.get(k).to_bits(), c.to_bits(), "{name}[{k}]");
+            }
+        }
+        assert_eq!(float_values(&b, "b").unwrap().get(0), f64::from(0.1f32));
+        let err = float_values(&b, "n").unwrap_err().to_string();
+        assert!(err.contains("Int64"), "{err}");
+        assert!(float_values(&b, "none").is_err());
+    }
+
     #[test]
     fn the_criteria_table_reads_back_what_it_wrote() {
         let v = |k: f64| vec![k, -k, 0.5 * k];
