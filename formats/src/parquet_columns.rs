@@ -10,6 +10,7 @@
 //! list's first value starting a record). The pages, the column chunk and its metadata
 //! are the Arrow writer's, byte for byte (`parquet_io`'s tests compare whole files).
 
+use std::io::Read;
 use std::sync::{Arc, Mutex};
 
 use arrow::array::{Array, ArrayRef, AsArray};
@@ -20,6 +21,7 @@ use parquet::column::page::{CompressedPage, PageWriteSpec, PageWriter};
 use parquet::column::writer::{ColumnCloseResult, ColumnWriter, get_column_writer};
 use parquet::errors::ParquetError;
 use parquet::file::properties::WriterPropertiesPtr;
+use parquet::file::reader::{ChunkReader, Length};
 use parquet::file::writer::{SerializedPageWriter, SerializedRowGroupWriter, TrackedWrite};
 use parquet::schema::types::ColumnDescPtr;
 
@@ -68,7 +70,7 @@ pub(crate) enum LeafWriter {
 pub(crate) enum LeafChunk {
     Arrow(ArrowColumnChunk),
     Direct {
-        pages: Bytes,
+        pages: ChunkPages,
         close: ColumnCloseResult,
     },
 }
@@ -96,25 +98,93 @@ impl LeafChunk {
     }
 }
 
-/// A column chunk's pages as the column writer emits them, shared with the writer that
-/// takes them out on close.
-type SharedPages = Arc<Mutex<TrackedWrite<Vec<u8>>>>;
+/// A column chunk's pages as the column writer emits them, each in a buffer of its own
+/// (a page's header, then its bytes; one growing buffer for the whole chunk would hold up
+/// to twice the chunk while it grows), in order.
+#[derive(Debug, Default)]
+pub(crate) struct ChunkPages {
+    pieces: Vec<Bytes>,
+    len: u64,
+}
 
-/// Writes each page (its Thrift header, then its bytes) as a file's page writer does,
-/// into memory.
+/// [`ChunkPages`] shared by the column's page writer and the writer that takes them out
+/// on close.
+type SharedPages = Arc<Mutex<ChunkPages>>;
+
+/// Writes each page as a file's page writer does (`SerializedPageWriter`: the same header,
+/// the same bytes, the same offsets within the chunk), into memory.
 struct MemoryPages(SharedPages);
 
 impl PageWriter for MemoryPages {
     fn write_page(&mut self, page: CompressedPage) -> Result<PageWriteSpec, ParquetError> {
-        let mut sink = self
+        // Room for the page and its header (a few dozen bytes: no page statistics).
+        let mut sink = TrackedWrite::new(Vec::with_capacity(page.data().len() + 256));
+        let mut spec = SerializedPageWriter::new(&mut sink).write_page(page)?;
+        let piece = Bytes::from(sink.into_inner()?);
+        let mut pages = self
             .0
             .lock()
             .map_err(|_| ParquetError::General("a column's pages were poisoned".into()))?;
-        SerializedPageWriter::new(&mut sink).write_page(page)
+        spec.offset += pages.len;
+        pages.len += piece.len() as u64;
+        pages.pieces.push(piece);
+        Ok(spec)
     }
 
     fn close(&mut self) -> Result<(), ParquetError> {
         Ok(())
+    }
+}
+
+impl Length for ChunkPages {
+    fn len(&self) -> u64 {
+        self.len
+    }
+}
+
+impl ChunkReader for ChunkPages {
+    type T = PagesReader;
+
+    fn get_read(&self, start: u64) -> Result<PagesReader, ParquetError> {
+        let mut skip = start;
+        let mut pieces = self.pieces.clone().into_iter();
+        let mut current = Bytes::new();
+        for piece in pieces.by_ref() {
+            let n = piece.len() as u64;
+            if skip < n {
+                current = piece.slice(usize::try_from(skip).unwrap_or(usize::MAX)..);
+                break;
+            }
+            skip -= n;
+        }
+        Ok(PagesReader { pieces, current })
+    }
+
+    fn get_bytes(&self, start: u64, length: usize) -> Result<Bytes, ParquetError> {
+        let mut out = vec![0; length];
+        self.get_read(start)?.read_exact(&mut out)?;
+        Ok(out.into())
+    }
+}
+
+/// Reads a [`ChunkPages`] from an offset on, piece after piece.
+pub(crate) struct PagesReader {
+    pieces: std::vec::IntoIter<Bytes>,
+    current: Bytes,
+}
+
+impl Read for PagesReader {
+    fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+        while self.current.is_empty() {
+            match self.pieces.next() {
+                Some(piece) => self.current = piece,
+                None => return Ok(0),
+            }
+        }
+        let n = out.len().min(self.current.len());
+        out[..n].copy_from_slice(&self.current[..n]);
+        self.current = self.current.slice(n..);
+        Ok(n)
     }
 }
 
@@ -146,7 +216,7 @@ impl DirectColumn {
             return None;
         }
         let max_def_level = descr.max_def_level();
-        let pages: SharedPages = Arc::new(Mutex::new(TrackedWrite::new(Vec::new())));
+        let pages: SharedPages = Arc::new(Mutex::new(ChunkPages::default()));
         let writer = get_column_writer(descr, props, Box::new(MemoryPages(pages.clone())));
         Some(Self {
             writer,
@@ -226,13 +296,42 @@ impl DirectColumn {
     fn close(self) -> Result<LeafChunk, ParquetError> {
         let Self { writer, pages, .. } = self;
         let close = writer.close()?;
-        let sink = Arc::try_unwrap(pages)
+        let pages = Arc::try_unwrap(pages)
             .map_err(|_| ParquetError::General("a column's pages still shared".into()))?
             .into_inner()
             .map_err(|_| ParquetError::General("a column's pages were poisoned".into()))?;
-        Ok(LeafChunk::Direct {
-            pages: Bytes::from(sink.into_inner()?),
-            close,
-        })
+        Ok(LeafChunk::Direct { pages, close })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Pages read back from any offset, across pieces, as one buffer would be.
+    #[test]
+    fn chunk_pages_read_from_any_offset_across_pieces() {
+        let whole: Vec<u8> = (0..50u8).collect();
+        let pages = ChunkPages {
+            pieces: vec![
+                Bytes::copy_from_slice(&whole[..7]),
+                Bytes::new(),
+                Bytes::copy_from_slice(&whole[7..30]),
+                Bytes::copy_from_slice(&whole[30..]),
+            ],
+            len: 50,
+        };
+        assert_eq!(Length::len(&pages), 50);
+        for start in 0..=50 {
+            let mut read = Vec::new();
+            pages
+                .get_read(start)
+                .unwrap()
+                .read_to_end(&mut read)
+                .unwrap();
+            assert_eq!(read, whole[start as usize..], "from {start}");
+        }
+        assert_eq!(pages.get_bytes(5, 30).unwrap(), whole[5..35]);
+        assert!(pages.get_bytes(45, 10).is_err(), "past the end");
     }
 }

@@ -619,6 +619,51 @@ mod tests {
         assert!(ParquetSink::create(&dir.path().join("none.parquet"), empty).is_err());
     }
 
+    /// A row group whose columns take several pages each (a page holds about 1 MB) is
+    /// the one `ArrowWriter` writes, byte for byte.
+    #[test]
+    fn columns_of_several_pages_are_written_as_arrow_writer_writes_them() {
+        use arrow::array::{ArrayRef, Float32Array, Int64Array};
+        let schema = Arc::new(Schema::new(vec![
+            Field::new("t_ns", DataType::Int64, false),
+            Field::new("x", DataType::Float64, false),
+            Field::new("v", crate::schema::vec3_type(), false),
+            Field::new("h", DataType::Float32, false),
+        ]));
+        let n = 400_000;
+        let x: Vec<f64> = (0..n).map(|k| (k as f64 * 0.013).sin() * 1e3).collect();
+        let v: Vec<[f64; 3]> = x.iter().map(|&x| [x, x.cos(), -x]).collect();
+        let columns: Vec<ArrayRef> = vec![
+            Arc::new(Int64Array::from_iter_values((0..n).map(|k| k as i64 * 7))),
+            Arc::new(Float64Array::from(x.clone())),
+            crate::tables::vec3_to_array(&v),
+            Arc::new(Float32Array::from_iter_values(x.iter().map(|&x| x as f32))),
+        ];
+        let batch = RecordBatch::try_new(schema.clone(), columns).expect("batch");
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("pages.parquet");
+        let mut sink = ParquetSink::create(&path, schema.clone()).expect("sink");
+        sink.write(&batch).expect("written");
+        sink.finish().expect("finished");
+        let mut plain = Vec::new();
+        let props = writer_properties(&schema, 1 << 20).expect("settings");
+        let mut writer =
+            ArrowWriter::try_new(&mut plain, schema.clone(), Some(props)).expect("arrow writer");
+        writer.write(&batch).expect("written");
+        writer.close().expect("closed");
+        let meta = ParquetRecordBatchReaderBuilder::try_new(std::fs::File::open(&path).unwrap())
+            .expect("reader")
+            .metadata()
+            .clone();
+        let x_chunk = meta.row_group(0).column(1);
+        assert!(
+            x_chunk.compressed_size() > 1 << 20,
+            "x's chunk spans pages: {} bytes",
+            x_chunk.compressed_size()
+        );
+        assert!(std::fs::read(&path).expect("read") == plain, "differs");
+    }
+
     /// Floats (f32, f64, in lists too) are byte-stream-split and 64-bit integers
     /// delta-encoded (nullable ones as well), every other column plain; the values read
     /// back are the ones written, bit for bit (NaN, infinities, signed zeros, extremes);
