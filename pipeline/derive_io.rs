@@ -343,6 +343,7 @@ fn load_derived_of(
     columns: Columns,
 ) -> anyhow::Result<Derived> {
     let path = dir.join(files::DERIVED);
+    let (bpath, epath) = (dir.join(files::BLOCKS), dir.join(files::EPOCHS));
     // Column by column, batch by batch, each column sized to the file's rows once: the
     // run's series without the file's batches beside them, nor a column grown twice
     // over. Times go to seconds from the first as they are read.
@@ -378,7 +379,11 @@ fn load_derived_of(
             }
             Ok(())
         })?;
-        Ok((schema, t0_ns, t_s, dt_s, odo_dist_m))
+        // The filter's blocks and the epochs too, while the increments (the longer read)
+        // are decoded beside.
+        let (_, blocks) = read_table(&bpath)?;
+        let (_, epochs) = read_table(&epath)?;
+        Ok((schema, t0_ns, t_s, dt_s, odo_dist_m, blocks, epochs))
     };
     let vectors = || -> anyhow::Result<_> {
         let mut dtheta_rad: Vec<[f64; 3]> = Vec::with_capacity(per_sample(with_nav));
@@ -416,7 +421,7 @@ fn load_derived_of(
         Ok((dtheta_rad, dvel_mps, repairs.sample))
     };
     let (scalars, vectors) = rayon::join(scalars, vectors);
-    let ((schema, t0_ns, t_s, dt_s, odo_dist_m), (dtheta_rad, dvel_mps, replaced)) =
+    let ((schema, t0_ns, t_s, dt_s, odo_dist_m, bl, e), (dtheta_rad, dvel_mps, replaced)) =
         (scalars?, vectors?);
     anyhow::ensure!(
         !with_nav || dtheta_rad.len() == dt_s.len(),
@@ -454,16 +459,12 @@ fn load_derived_of(
             .with_context(|| format!("{}: {}", path.display(), derived_meta::IMU_AXES_CHECK))?,
         ..Derived::default()
     };
-    let bpath = dir.join(files::BLOCKS);
-    let (_, bl) = read_table(&bpath)?;
     d.ax_f = f64_column(&bl, filtered_cols::AX_F_MPS2)?.into();
     d.ay_f = f64_column(&bl, filtered_cols::AY_F_MPS2)?.into();
     d.u_dot_f = f64_column(&bl, filtered_cols::U_DOT_F_MPS2)?;
     d.ru_f = f64_column(&bl, filtered_cols::RU_F_MPS2)?;
     d.r_moving_f = f64_column(&bl, filtered_cols::R_MOVING_F_RAD_S)?;
     d.moving_dot_f = f64_column(&bl, filtered_cols::MOVING_DOT_F_PER_S)?;
-    let epath = dir.join(files::EPOCHS);
-    let (_, e) = read_table(&epath)?;
     let blocks = u64_column(&e, epochs_cols::BLOCK).map_err(|err| err.in_file(&epath))?;
     let valid = e
         .column_by_name(VALID)
