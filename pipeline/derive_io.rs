@@ -14,7 +14,7 @@ use std::sync::Arc;
 use anyhow::{Context, bail};
 use arrow::array::{AsArray, BooleanArray, Float64Array, Int64Array, RecordBatch, UInt64Array};
 use unz_formats::parquet_io::{
-    ParquetSink, for_each_batch_of, for_each_batch_of_while, read_table, row_capacity_hint,
+    ParquetSink, for_each_batch_of, for_each_batch_of_first, read_table, row_capacity_hint,
     write_batch,
 };
 use unz_formats::schema::{
@@ -243,7 +243,8 @@ fn velocities_over(
         return Ok(out);
     };
     let mut first_row = 0;
-    for_each_batch_of_while(&at.ingest_dir.join(files::IMU), &[DVEL_MPS], |b| {
+    // No row past the last range's end is decoded.
+    for_each_batch_of_first(&at.ingest_dir.join(files::IMU), &[DVEL_MPS], end, |b| {
         let rows = first_row..first_row + b.num_rows();
         if ranges
             .iter()
@@ -258,7 +259,7 @@ fn velocities_over(
             }
         }
         first_row = rows.end;
-        Ok(first_row < end)
+        Ok(())
     })?;
     let repairs = ImuRepairs::read(&at.derive_dir)?;
     for (r, o) in ranges.iter().zip(&mut out) {

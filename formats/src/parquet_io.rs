@@ -357,6 +357,15 @@ fn batch_reader(
     path: &Path,
     columns: Option<&[&str]>,
 ) -> Result<(SchemaRef, BatchReader), FileError> {
+    batch_reader_limited(path, columns, None)
+}
+
+/// [`batch_reader`] over the first `limit` rows only, when given.
+fn batch_reader_limited(
+    path: &Path,
+    columns: Option<&[&str]>,
+    limit: Option<usize>,
+) -> Result<(SchemaRef, BatchReader), FileError> {
     let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
     let mut builder =
         ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| parquet_err(path, e))?;
@@ -368,8 +377,13 @@ fn batch_reader(
         );
         builder = builder.with_projection(mask);
     }
+    let mut batch = 1 << 16;
+    if let Some(rows) = limit {
+        builder = builder.with_limit(rows);
+        batch = batch.min(rows.max(1));
+    }
     let reader = builder
-        .with_batch_size(1 << 16)
+        .with_batch_size(batch)
         .build()
         .map_err(|e| parquet_err(path, e))?;
     Ok((schema, reader))
@@ -383,35 +397,37 @@ type BatchReader = parquet::arrow::arrow_reader::ParquetRecordBatchReader;
 pub fn for_each_batch_of(
     path: &Path,
     columns: &[&str],
-    mut each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
-) -> Result<SchemaRef, FileError> {
-    for_each_batch_of_while(path, columns, |b| each(b).map(|()| true))
-}
-
-/// [`for_each_batch_of`] that stops, without decoding the rest, after the batch for
-/// which `each` returns `false`.
-pub fn for_each_batch_of_while(
-    path: &Path,
-    columns: &[&str],
-    each: impl FnMut(&RecordBatch) -> Result<bool, FormatError>,
+    each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
 ) -> Result<SchemaRef, FileError> {
     let (schema, reader) = batch_reader(path, Some(columns))?;
     feed(path, schema, reader, each)
 }
 
-/// Hands the batches of `reader` (reading `path`) to `each` until it returns `false`;
-/// returns `schema`.
+/// [`for_each_batch_of`] over the file's first `rows` rows only: the reader decodes no
+/// row past them (a page holding one is decompressed, its later values not decoded).
+pub fn for_each_batch_of_first(
+    path: &Path,
+    columns: &[&str],
+    rows: usize,
+    each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
+) -> Result<SchemaRef, FileError> {
+    if rows == 0 {
+        return read_schema(path);
+    }
+    let (schema, reader) = batch_reader_limited(path, Some(columns), Some(rows))?;
+    feed(path, schema, reader, each)
+}
+
+/// Hands the batches of `reader` (reading `path`) to `each`; returns `schema`.
 fn feed(
     path: &Path,
     schema: SchemaRef,
     reader: BatchReader,
-    mut each: impl FnMut(&RecordBatch) -> Result<bool, FormatError>,
+    mut each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
 ) -> Result<SchemaRef, FileError> {
     for batch in reader {
         let batch = batch.map_err(|e| parquet_err(path, e))?;
-        if !each(&batch).map_err(|e| e.in_file(path))? {
-            break;
-        }
+        each(&batch).map_err(|e| e.in_file(path))?;
     }
     Ok(schema)
 }
@@ -420,10 +436,10 @@ fn feed(
 /// are built without the file's batches held beside them. Returns the schema.
 pub fn for_each_batch(
     path: &Path,
-    mut each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
+    each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
 ) -> Result<SchemaRef, FileError> {
     let (schema, reader) = batch_reader(path, None)?;
-    feed(path, schema, reader, |b| each(b).map(|()| true))
+    feed(path, schema, reader, each)
 }
 
 /// Reads a whole Parquet file: its schema and batches.
@@ -617,6 +633,45 @@ mod tests {
         );
         let empty = Arc::new(Schema::empty());
         assert!(ParquetSink::create(&dir.path().join("none.parquet"), empty).is_err());
+    }
+
+    /// Only a file's first rows are handed over, in order, whatever their count: none,
+    /// within the first batch, across batches, past the end.
+    #[test]
+    fn the_first_rows_are_read_and_no_more() {
+        use arrow::array::Int64Array;
+        let schema = Arc::new(Schema::new(vec![
+            Field::new("t_ns", DataType::Int64, false),
+            Field::new("x", DataType::Float64, false),
+        ]));
+        let n = 150_000;
+        let batch = RecordBatch::try_new(
+            schema.clone(),
+            vec![
+                Arc::new(Int64Array::from_iter_values(0..n as i64)),
+                Arc::new(Float64Array::from_iter_values(
+                    (0..n).map(|k| k as f64 * 0.5),
+                )),
+            ],
+        )
+        .expect("batch");
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("first.parquet");
+        write_batch(&path, &batch).expect("written");
+        for rows in [0, 1, 3_000, 65_536, 70_001, n, n + 10] {
+            let mut got = Vec::new();
+            let schema_read = for_each_batch_of_first(&path, &["x"], rows, |b| {
+                got.extend(crate::tables::f64_column(b, "x")?);
+                Ok(())
+            })
+            .expect("read");
+            assert_eq!(schema_read.fields().len(), 2, "the whole schema");
+            let want: Vec<f64> = (0..rows.min(n)).map(|k| k as f64 * 0.5).collect();
+            assert_eq!(got, want, "{rows} rows");
+        }
+        let err = for_each_batch_of_first(&dir.path().join("none.parquet"), &["x"], 5, |_| Ok(()))
+            .expect_err("missing");
+        assert!(err.to_string().contains("none.parquet"), "{err}");
     }
 
     /// A row group whose columns take several pages each (a page holds about 1 MB) is
