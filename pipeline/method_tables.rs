@@ -343,6 +343,13 @@ pub fn read_kryt1_series(path: &Path) -> anyhow::Result<Vec<MethodKryt1>> {
 mod tests {
     use super::*;
 
+    /// The tracks' start in the tests.
+    const START: Geodetic = Geodetic {
+        lat_rad: 0.78,
+        lon_rad: -1.33,
+        h_m: 90.0,
+    };
+
     #[test]
     fn decimation_keeps_the_rate_and_the_last_sample() {
         assert_eq!(decimation_indices(25, 0.01, 10.0), vec![0, 10, 20, 24]);
@@ -354,11 +361,7 @@ mod tests {
     #[test]
     fn tables_round_trip_per_method() {
         let dir = tempfile::tempdir().unwrap();
-        let start = Geodetic {
-            lat_rad: 0.78,
-            lon_rad: -1.33,
-            h_m: 90.0,
-        };
+        let start = START;
         let kept = |m: &str, n: usize, off: f64| KeptTrack {
             method: m.to_owned(),
             lat_rad: (0..n).map(|k| 0.78 + off * 1e-5 * k as f64).collect(),
@@ -419,11 +422,7 @@ mod tests {
         // Each method longer than a reader's batch (65536 rows), the second one starting
         // within a batch: every row comes back in its method, in order.
         let dir = tempfile::tempdir().unwrap();
-        let start = Geodetic {
-            lat_rad: 0.78,
-            lon_rad: -1.33,
-            h_m: 90.0,
-        };
+        let start = START;
         let n = 70_001;
         let kept = |m: &str, off: f64| KeptTrack {
             method: m.to_owned(),

@@ -190,29 +190,44 @@ impl ParquetSink {
     /// The next row group's column writers: the Arrow writer's, but a direct one for each
     /// field [`direct_shape`] allows.
     fn column_writers(&self) -> Result<Vec<LeafWriter>, FileError> {
-        let index = self.writer.flushed_row_groups().len();
-        let arrow = self
-            .factory
-            .create_column_writers(index)
-            .map_err(|e| parquet_err(self.file.dest(), e))?;
         let descr = self.writer.schema_descr();
         let props = self.writer.properties();
-        let mut field_of_leaf = self
+        let direct: Vec<Option<DirectColumn>> = self
             .leaves_per_field
             .iter()
             .enumerate()
-            .flat_map(|(field, &n)| std::iter::repeat_n(field, n));
-        Ok(arrow
-            .into_iter()
+            .flat_map(|(field, &n)| std::iter::repeat_n(field, n))
             .enumerate()
-            .map(|(leaf, w)| {
-                let shape = field_of_leaf.next().and_then(|f| self.direct[f]);
-                match shape.and_then(|s| DirectColumn::new(descr.column(leaf), props.clone(), s)) {
-                    Some(d) => LeafWriter::Direct(Box::new(d)),
-                    None => LeafWriter::Arrow(Box::new(w)),
+            .map(|(leaf, field)| {
+                self.direct[field]
+                    .and_then(|s| DirectColumn::new(descr.column(leaf), props.clone(), s))
+            })
+            .collect();
+        // The Arrow writer's come for every column at once, each with its own codec (a
+        // zstd compressor and decompressor): made only when a column needs one.
+        let mut arrow = if direct.iter().all(Option::is_some) {
+            Vec::new()
+        } else {
+            let index = self.writer.flushed_row_groups().len();
+            self.factory
+                .create_column_writers(index)
+                .map_err(|e| parquet_err(self.file.dest(), e))?
+        }
+        .into_iter();
+        direct
+            .into_iter()
+            .map(|d| {
+                let arrow = arrow.next();
+                match (d, arrow) {
+                    (Some(d), _) => Ok(LeafWriter::Direct(Box::new(d))),
+                    (None, Some(w)) => Ok(LeafWriter::Arrow(Box::new(w))),
+                    (None, None) => Err(parquet_err(
+                        self.file.dest(),
+                        FormatError::Invalid("fewer column writers than leaf columns".into()),
+                    )),
                 }
             })
-            .collect())
+            .collect()
     }
 
     /// Encodes `batch` into the row group's column writers, side by side when it is
@@ -352,16 +367,9 @@ pub fn row_capacity_hint(path: &Path) -> Result<usize, FileError> {
 }
 
 /// A reader of a Parquet file's batches (of 65 536 rows), and its schema; only the
-/// top-level `columns` named, when given (a name the file lacks is left out).
+/// top-level `columns` named, when given (a name the file lacks is left out), and only
+/// the first `limit` rows, when given.
 fn batch_reader(
-    path: &Path,
-    columns: Option<&[&str]>,
-) -> Result<(SchemaRef, BatchReader), FileError> {
-    batch_reader_limited(path, columns, None)
-}
-
-/// [`batch_reader`] over the first `limit` rows only, when given.
-fn batch_reader_limited(
     path: &Path,
     columns: Option<&[&str]>,
     limit: Option<usize>,
@@ -399,7 +407,7 @@ pub fn for_each_batch_of(
     columns: &[&str],
     each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
 ) -> Result<SchemaRef, FileError> {
-    let (schema, reader) = batch_reader(path, Some(columns))?;
+    let (schema, reader) = batch_reader(path, Some(columns), None)?;
     feed(path, schema, reader, each)
 }
 
@@ -414,7 +422,7 @@ pub fn for_each_batch_of_first(
     if rows == 0 {
         return read_schema(path);
     }
-    let (schema, reader) = batch_reader_limited(path, Some(columns), Some(rows))?;
+    let (schema, reader) = batch_reader(path, Some(columns), Some(rows))?;
     feed(path, schema, reader, each)
 }
 
@@ -438,13 +446,13 @@ pub fn for_each_batch(
     path: &Path,
     each: impl FnMut(&RecordBatch) -> Result<(), FormatError>,
 ) -> Result<SchemaRef, FileError> {
-    let (schema, reader) = batch_reader(path, None)?;
+    let (schema, reader) = batch_reader(path, None, None)?;
     feed(path, schema, reader, each)
 }
 
 /// Reads a whole Parquet file: its schema and batches.
 pub fn read_batches(path: &Path) -> Result<(SchemaRef, Vec<RecordBatch>), FileError> {
-    let (schema, reader) = batch_reader(path, None)?;
+    let (schema, reader) = batch_reader(path, None, None)?;
     let batches = reader
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| parquet_err(path, e))?;
@@ -500,6 +508,20 @@ mod tests {
         // A missing file is an error naming it.
         let err = row_capacity_hint(&dir.path().join("none.parquet")).expect_err("missing");
         assert!(err.to_string().contains("none.parquet"), "{err}");
+    }
+
+    /// The file `ArrowWriter` writes of `batches` with the sink's settings, in row groups
+    /// of at most `rows` rows.
+    fn arrow_writer_bytes(schema: &SchemaRef, rows: usize, batches: &[RecordBatch]) -> Vec<u8> {
+        let mut plain = Vec::new();
+        let props = writer_properties(schema, rows).expect("settings");
+        let mut writer =
+            ArrowWriter::try_new(&mut plain, schema.clone(), Some(props)).expect("arrow writer");
+        for b in batches {
+            writer.write(b).expect("written");
+        }
+        writer.close().expect("closed");
+        plain
     }
 
     /// The sink's columns, encoded side by side (or on the calling thread) and split into
@@ -599,14 +621,7 @@ mod tests {
         let path = write("sink.parquet", true);
         let one_thread = write("one_thread.parquet", false);
 
-        let mut plain = Vec::new();
-        let props = writer_properties(&schema, group_rows).expect("settings");
-        let mut writer =
-            ArrowWriter::try_new(&mut plain, schema.clone(), Some(props)).expect("arrow writer");
-        for b in &batches {
-            writer.write(b).expect("written");
-        }
-        writer.close().expect("closed");
+        let plain = arrow_writer_bytes(&schema, group_rows, &batches);
 
         for p in [&path, &one_thread] {
             let ours = std::fs::read(p).expect("read");
@@ -700,12 +715,7 @@ mod tests {
         let mut sink = ParquetSink::create(&path, schema.clone()).expect("sink");
         sink.write(&batch).expect("written");
         sink.finish().expect("finished");
-        let mut plain = Vec::new();
-        let props = writer_properties(&schema, 1 << 20).expect("settings");
-        let mut writer =
-            ArrowWriter::try_new(&mut plain, schema.clone(), Some(props)).expect("arrow writer");
-        writer.write(&batch).expect("written");
-        writer.close().expect("closed");
+        let plain = arrow_writer_bytes(&schema, 1 << 20, std::slice::from_ref(&batch));
         let meta = ParquetRecordBatchReaderBuilder::try_new(std::fs::File::open(&path).unwrap())
             .expect("reader")
             .metadata()
