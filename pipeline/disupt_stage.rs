@@ -8,12 +8,14 @@ mod joint_run;
 mod report;
 mod reviews;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 use unz_formats::atomic::{write_atomic, write_json_atomic};
 use unz_formats::manifest::{LogFormat, OdometerKind};
+use unz_stages::derive::Derived;
 use unz_stages::disupt::{self, HeightError, OdoPitchFit, Problem, ProblemSpec, X};
+use unz_stages::earth::Geodetic;
 use unz_stages::odo_lag::Rederive;
 use unz_stages::odo_rebridge::Rebridges;
 use unz_stages::route_sigma::{RouteBase, RouteSigma};
@@ -38,7 +40,7 @@ use crate::flow::{
 use crate::method_tables::{
     KRYT1_SERIES, KeptTrack, MethodKryt1, TRACKS, track_samples, write_kryt1_series, write_tracks,
 };
-use crate::nav_writer::NavWriter;
+use crate::nav_writer::{NavWriter, SigmaColumns};
 use crate::stage::{Stage, params_hash};
 
 /// Which methods to run.
@@ -536,23 +538,23 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             sigma
         };
         // The corrected navigation (the best method's, else the initial settings'), written
-        // as its pass runs, with its odometer pitch boresight and the route's σ.
+        // as its pass runs, with its odometer pitch boresight and the route's σ (`sigma`:
+        // given, none, or to come at its end).
+        let fix_samples: Vec<usize> = case.fixes.iter().map(|f| f.sample).collect();
+        let corrected_path = dir.join(files::CORRECTED_NAV);
+        let corrected = CorrectedNav {
+            path: &corrected_path,
+            derived: &case.derived,
+            start,
+            fix_samples: &fix_samples,
+            pass: &pass,
+        };
         let write_corrected = |odo_pitch: &Option<OdoPitchFit>, sigma: Option<RouteSigma>| {
-            let settings = NavSettings {
-                odo_pitch_rad: odo_pitch
-                    .as_ref()
-                    .map_or(pass.settings.odo_pitch_rad, |f| f.applied_rad()),
-                ..pass.settings
-            };
-            let fix_samples: Vec<usize> = case.fixes.iter().map(|f| f.sample).collect();
-            let mut nav = NavWriter::create(
-                &dir.join(files::CORRECTED_NAV),
-                &case.derived,
-                start,
-                sigma.as_ref(),
-                &fix_samples,
-            )?;
-            strapdown::run(&pass.inputs, &settings, &mut nav);
+            let columns = sigma
+                .as_ref()
+                .map_or(SigmaColumns::Without, SigmaColumns::With);
+            let mut nav = corrected.create(columns)?;
+            corrected.run(odo_pitch, &mut nav);
             nav.finish("corrected")
         };
         let say_pitch = |odo_pitch: &Option<OdoPitchFit>| {
@@ -560,21 +562,56 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 ctx.say("disupt", &odo_pitch_note(fit));
             }
         };
-        // A short run's boresight probe and tables run beside the route's σ (each about a
-        // pass's time on one core); a long run's probe first, then the tables beside the σ
-        // and the corrected navigation (at 12 hours the first order is slower).
+        // A short run's boresight probe runs beside the route's σ, then its corrected
+        // navigation's pass and tables (each about a pass's time on one core): the σ
+        // columns are encoded beside the pass, the others as the pass goes; a long run's
+        // probe first, then the tables beside the σ and the corrected navigation (at 12
+        // hours the first order is slower, and the held row groups would grow).
         let (odo_pitch, nav) = if case.derived.t_s.len() <= TAIL_BESIDE_SIGMA_MAX_SAMPLES {
-            let ((odo_pitch, tables), sigma) = rayon::join(
+            let later = route_base.is_some();
+            let mut nav = corrected.create(if later {
+                SigmaColumns::Later
+            } else {
+                SigmaColumns::Without
+            })?;
+            let apart = nav.take_sigma_apart();
+            let samples = case.derived.t_s.len();
+            let ((odo_pitch, nav, tables), (sigma, apart)) = rayon::join(
                 || {
                     let mut tracks = tracks;
                     let odo_pitch = probe_pitch(&mut tracks[corrected_lane]);
-                    (odo_pitch, write_tables(tracks))
+                    let (nav, tables) = rayon::join(
+                        || {
+                            corrected.run(&odo_pitch, &mut nav);
+                            nav
+                        },
+                        || write_tables(tracks),
+                    );
+                    (odo_pitch, nav, tables)
                 },
-                route_sigma,
+                || {
+                    let sigma = route_sigma();
+                    let apart = match (apart, &sigma) {
+                        (Some(mut apart), Some(sigma)) => {
+                            Some(apart.write(sigma, samples).map(|()| apart))
+                        }
+                        _ => None,
+                    };
+                    (sigma, apart)
+                },
             );
             tables?;
             say_pitch(&odo_pitch);
-            let nav = write_corrected(&odo_pitch, sigma)?;
+            let nav = match apart {
+                Some(apart) => nav.finish_with_sigma("corrected", apart?)?,
+                // The σ asked for but not made, or made unasked (neither expected): written
+                // again.
+                None if later || sigma.is_some() => {
+                    drop(nav);
+                    write_corrected(&odo_pitch, sigma)?
+                }
+                None => nav.finish("corrected")?,
+            };
             (odo_pitch, nav)
         } else {
             let mut tracks = tracks;
@@ -642,6 +679,43 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         Ok(())
     })?;
     Ok(dir)
+}
+
+/// The corrected navigation's pass and where it goes.
+struct CorrectedNav<'c, 'a> {
+    path: &'c Path,
+    derived: &'a Derived,
+    start: Geodetic,
+    fix_samples: &'c [usize],
+    pass: &'c heights::CorrectedPass<'a>,
+}
+
+impl<'a> CorrectedNav<'_, 'a> {
+    /// Its file's writer, with the route's σ columns `sigma`.
+    fn create<'s>(&self, sigma: SigmaColumns<'s>) -> anyhow::Result<NavWriter<'s>>
+    where
+        'a: 's,
+    {
+        Ok(NavWriter::create(
+            self.path,
+            self.derived,
+            self.start,
+            sigma,
+            self.fix_samples,
+        )?)
+    }
+
+    /// Runs the pass with the odometer pitch boresight `odo_pitch` (else the configured
+    /// one) into `nav`.
+    fn run(&self, odo_pitch: &Option<OdoPitchFit>, nav: &mut NavWriter<'_>) {
+        let settings = NavSettings {
+            odo_pitch_rad: odo_pitch
+                .as_ref()
+                .map_or(self.pass.settings.odo_pitch_rad, |f| f.applied_rad()),
+            ..self.pass.settings
+        };
+        strapdown::run(&self.pass.inputs, &settings, nav);
+    }
 }
 
 #[cfg(test)]

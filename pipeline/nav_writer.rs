@@ -8,7 +8,7 @@ use arrow::array::{ArrayRef, Float64Array, Int64Array, RecordBatch};
 use arrow::datatypes::SchemaRef;
 use rayon::prelude::*;
 use unz_formats::error::{FileError, FormatError};
-use unz_formats::parquet_io::ParquetSink;
+use unz_formats::parquet_io::{ParquetSink, TrailingColumns};
 use unz_formats::schema;
 use unz_formats::tables::f32_array;
 use unz_stages::attitude::Euler;
@@ -28,10 +28,14 @@ pub struct NavWriter<'a> {
     path: PathBuf,
     file: Option<ParquetSink>,
     error: Option<FileError>,
+    /// The schema of the batches written as the pass goes (the file's, or its columns
+    /// before the route's σ when that comes later).
     schema: SchemaRef,
     derived: &'a Derived,
     start: Geodetic,
-    sigma: Option<&'a RouteSigma>,
+    sigma: SigmaColumns<'a>,
+    /// The σ columns' encoder, until taken ([`SigmaColumns::Later`]).
+    sigma_apart: Option<SigmaApart>,
     /// The samples of the batch being filled, from sample `lo` on.
     rows: NavTrack,
     lo: usize,
@@ -42,6 +46,42 @@ pub struct NavWriter<'a> {
     kept: Vec<KeptSample>,
     samples: usize,
     last_distance_m: f64,
+}
+
+/// The route's 1σ columns of a navigation table (`sigma_north_m`, `sigma_east_m`,
+/// `sigma_heading_deg`).
+#[derive(Debug, Clone, Copy)]
+pub enum SigmaColumns<'a> {
+    /// None (`nav.parquet`).
+    Without,
+    /// Written with the other columns, from this σ.
+    With(&'a RouteSigma),
+    /// Encoded apart from the pass ([`NavWriter::take_sigma_apart`], then
+    /// [`NavWriter::finish_with_sigma`]): the pass need not wait for the σ (the other
+    /// columns are encoded as it runs, and their row groups wait for the σ's).
+    Later,
+}
+
+/// The route's σ columns of a navigation table, encoded apart from its pass (on another
+/// thread, while it runs) for [`NavWriter::finish_with_sigma`].
+pub struct SigmaApart {
+    columns: TrailingColumns,
+    schema: SchemaRef,
+}
+
+impl SigmaApart {
+    /// Encodes `sigma` at samples `0..samples` (every sample the pass writes), in the
+    /// batches the pass's rows go in (the file is then the one written with the σ known
+    /// from the start, byte for byte).
+    pub fn write(&mut self, sigma: &RouteSigma, samples: usize) -> Result<(), FileError> {
+        for lo in (0..samples).step_by(ROWS) {
+            let columns = sigma_columns(sigma, lo..(lo + ROWS).min(samples));
+            let batch = RecordBatch::try_new(self.schema.clone(), columns.to_vec())
+                .map_err(|e| FormatError::from(e).in_file(self.columns.dest()))?;
+            self.columns.write(&batch)?;
+        }
+        Ok(())
+    }
 }
 
 /// A sample's pose (with its height and distance), kept for the stage's report.
@@ -76,18 +116,31 @@ impl NavWritten {
 
 impl<'a> NavWriter<'a> {
     /// Starts `path` (`nav.parquet`, or `corrected_nav.parquet` with the route's 1σ north,
-    /// east and heading per sample when `sigma` is given: `sigma_north_m`,
-    /// `sigma_east_m`, `sigma_heading_deg`) for a pass over `derived`'s samples from
-    /// `start`, keeping the position and distance at the samples `keep`.
+    /// east and heading per sample, see [`SigmaColumns`]) for a pass over `derived`'s
+    /// samples from `start`, keeping the position and distance at the samples `keep`.
     pub fn create(
         path: &Path,
         derived: &'a Derived,
         start: Geodetic,
-        sigma: Option<&'a RouteSigma>,
+        sigma: SigmaColumns<'a>,
         keep: &[usize],
     ) -> Result<Self, FileError> {
-        let schema = schema::nav(sigma.is_some());
-        let file = ParquetSink::create(path, schema.clone())?;
+        let with_sigma = !matches!(sigma, SigmaColumns::Without);
+        let all = schema::nav(with_sigma);
+        let mut file = ParquetSink::create(path, all.clone())?;
+        let schema = schema::nav(matches!(sigma, SigmaColumns::With(_)));
+        let mut sigma_apart = None;
+        if matches!(sigma, SigmaColumns::Later) {
+            let first = schema.fields().len();
+            let (sink, columns) = file.deferring_from(first)?;
+            let trailing: Vec<usize> = (first..all.fields().len()).collect();
+            let schema = Arc::new(
+                all.project(&trailing)
+                    .map_err(|e| FormatError::from(e).in_file(path))?,
+            );
+            file = sink;
+            sigma_apart = Some(SigmaApart { columns, schema });
+        }
         let mut wanted = keep.to_vec();
         wanted.sort_unstable();
         wanted.dedup();
@@ -100,6 +153,7 @@ impl<'a> NavWriter<'a> {
             derived,
             start,
             sigma,
+            sigma_apart,
             rows: NavTrack::default(),
             lo: 0,
             first_bad: [None; 4],
@@ -123,7 +177,10 @@ impl<'a> NavWriter<'a> {
                 self.lo,
                 &self.rows,
                 self.start,
-                self.sigma,
+                match self.sigma {
+                    SigmaColumns::With(s) => Some(s),
+                    SigmaColumns::Without | SigmaColumns::Later => None,
+                },
             )
             .map_err(|e| FormatError::from(e).in_file(&self.path))
             .and_then(|b| file.write(&b));
@@ -146,7 +203,29 @@ impl<'a> NavWriter<'a> {
 
     /// Writes the last rows and puts the file in place. `what` names the pass in the
     /// error when a sample was not finite (the file is then not written).
-    pub fn finish(mut self, what: &str) -> anyhow::Result<NavWritten> {
+    pub fn finish(self, what: &str) -> anyhow::Result<NavWritten> {
+        if matches!(self.sigma, SigmaColumns::Later) {
+            anyhow::bail!("{what}: the route's σ was not given to the navigation's writer");
+        }
+        self.close(what, None)
+    }
+
+    /// The σ columns' encoder of a writer created with [`SigmaColumns::Later`] (once).
+    pub fn take_sigma_apart(&mut self) -> Option<SigmaApart> {
+        self.sigma_apart.take()
+    }
+
+    /// [`NavWriter::finish`] of a writer created with [`SigmaColumns::Later`]: its rows
+    /// with the route's σ columns `sigma` encoded, then the file put in place.
+    pub fn finish_with_sigma(self, what: &str, sigma: SigmaApart) -> anyhow::Result<NavWritten> {
+        if !matches!(self.sigma, SigmaColumns::Later) {
+            anyhow::bail!("{what}: the navigation's writer takes no σ at its end");
+        }
+        self.close(what, Some(sigma))
+    }
+
+    /// Writes the last rows (with the σ columns, when given) and puts the file in place.
+    fn close(mut self, what: &str, sigma: Option<SigmaApart>) -> anyhow::Result<NavWritten> {
         self.flush();
         let names = ["latitude", "longitude", "height", "attitude"];
         for (name, bad) in names.iter().zip(self.first_bad) {
@@ -161,7 +240,10 @@ impl<'a> NavWriter<'a> {
             return Err(e.into());
         }
         if let Some(file) = self.file {
-            file.finish()?;
+            match sigma {
+                Some(sigma) => file.finish_with(sigma.columns)?,
+                None => file.finish()?,
+            }
         }
         Ok(NavWritten {
             samples: self.samples,
@@ -246,12 +328,20 @@ fn nav_batch(
         f32_array(euler.iter().map(|e| e.heading_rad.to_degrees())),
         f32_array(t.distance_m.iter().copied()),
     ];
-    if let Some([n, e, h]) = sigma.map(|s| s.at_samples(r)) {
-        columns.push(f32_array(n));
-        columns.push(f32_array(e));
-        columns.push(f32_array(h.iter().map(|x| x.to_degrees())));
+    if let Some(s) = sigma {
+        columns.extend(sigma_columns(s, r));
     }
     RecordBatch::try_new(schema.clone(), columns)
+}
+
+/// The route's σ columns of samples `r` (north and east, m; heading, deg).
+fn sigma_columns(sigma: &RouteSigma, r: std::ops::Range<usize>) -> [ArrayRef; 3] {
+    let [n, e, h] = sigma.at_samples(r);
+    [
+        f32_array(n),
+        f32_array(e),
+        f32_array(h.iter().map(|x| x.to_degrees())),
+    ]
 }
 
 #[cfg(test)]
@@ -293,7 +383,8 @@ mod tests {
             lon_rad: 0.5,
             h_m: 100.0,
         };
-        let mut w = NavWriter::create(&path, &d, start, None, &[n - 1, 3, n + 10]).unwrap();
+        let mut w = NavWriter::create(&path, &d, start, SigmaColumns::Without, &[n - 1, 3, n + 10])
+            .unwrap();
         feed(&mut w, n, None);
         let written = w.finish("navigated").unwrap();
         assert_eq!(written.samples, n);
@@ -313,12 +404,86 @@ mod tests {
         assert_eq!(lat[ROWS + 2], (0.8 + (ROWS + 2) as f64 * 1e-9).to_degrees());
     }
 
+    /// The route's σ columns encoded apart, on another thread while the pass runs
+    /// ([`SigmaColumns::Later`]), make the file the σ known from the start makes, byte
+    /// for byte (rows over several batches); the σ is given to a writer that asked for
+    /// it only, and one that asked for it cannot be finished without it.
+    #[test]
+    fn the_sigma_encoded_apart_makes_the_same_file() {
+        let n = 2 * ROWS + 77;
+        let d = derive_of(n);
+        let tmp = tempfile::tempdir().unwrap();
+        let start = Geodetic {
+            lat_rad: 0.8,
+            lon_rad: 0.5,
+            h_m: 100.0,
+        };
+        let sigma = RouteSigma {
+            sample: (0..n).step_by(100).collect(),
+            north_m: (0..n).step_by(100).map(|k| 1.0 + k as f64 * 1e-3).collect(),
+            east_m: (0..n).step_by(100).map(|k| 2.0 + k as f64 * 2e-3).collect(),
+            heading_rad: (0..n)
+                .step_by(100)
+                .map(|k| 1e-3 + k as f64 * 1e-8)
+                .collect(),
+        };
+        let known = tmp.path().join("known.parquet");
+        let mut w = NavWriter::create(&known, &d, start, SigmaColumns::With(&sigma), &[5]).unwrap();
+        feed(&mut w, n, None);
+        let from_start = w.finish("corrected").unwrap();
+
+        let apart_path = tmp.path().join("apart.parquet");
+        let mut w = NavWriter::create(&apart_path, &d, start, SigmaColumns::Later, &[5]).unwrap();
+        let mut apart = w.take_sigma_apart().expect("asked for");
+        assert!(w.take_sigma_apart().is_none(), "taken once");
+        let (written, ()) = rayon::join(
+            || {
+                feed(&mut w, n, None);
+                w
+            },
+            || apart.write(&sigma, n).unwrap(),
+        );
+        let later = written.finish_with_sigma("corrected", apart).unwrap();
+        assert_eq!(later, from_start);
+        assert!(std::fs::read(&apart_path).unwrap() == std::fs::read(&known).unwrap());
+
+        // Misuse.
+        let mut w = NavWriter::create(
+            &tmp.path().join("a.parquet"),
+            &d,
+            start,
+            SigmaColumns::Later,
+            &[],
+        )
+        .unwrap();
+        let apart = w.take_sigma_apart().unwrap();
+        feed(&mut w, n, None);
+        let e = w.finish("corrected").unwrap_err().to_string();
+        assert!(e.contains("σ was not given"), "{e}");
+        let mut w = NavWriter::create(
+            &tmp.path().join("b.parquet"),
+            &d,
+            start,
+            SigmaColumns::Without,
+            &[],
+        )
+        .unwrap();
+        assert!(w.take_sigma_apart().is_none());
+        feed(&mut w, n, None);
+        let e = w
+            .finish_with_sigma("corrected", apart)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("takes no σ"), "{e}");
+    }
+
     #[test]
     fn a_non_finite_sample_is_named_and_leaves_no_file() {
         let d = derive_of(100);
         let tmp = tempfile::tempdir().unwrap();
         let path = tmp.path().join("corrected_nav.parquet");
-        let mut w = NavWriter::create(&path, &d, Geodetic::default(), None, &[]).unwrap();
+        let mut w =
+            NavWriter::create(&path, &d, Geodetic::default(), SigmaColumns::Without, &[]).unwrap();
         feed(&mut w, 100, Some(7));
         let e = w.finish("corrected").unwrap_err().to_string();
         assert!(e.contains("corrected latitude is NaN at sample 7"), "{e}");

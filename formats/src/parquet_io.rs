@@ -41,8 +41,119 @@ pub struct ParquetSink {
     max_group_rows: usize,
     /// Whether long batches' columns are encoded side by side.
     side_by_side: bool,
+    /// The trailing fields written after all the others' rows, when asked
+    /// ([`ParquetSink::deferring_from`]).
+    deferred: Option<Deferred>,
+    /// Row groups begun.
+    groups: usize,
     file: AtomicFile,
     rows: usize,
+}
+
+/// The trailing fields of a [`ParquetSink`] whose columns are encoded apart
+/// ([`TrailingColumns`]): the row groups wait for them, their leading columns encoded.
+struct Deferred {
+    /// The first trailing field.
+    field: usize,
+    /// Row groups whose leading columns are closed, in order: their chunks and rows.
+    waiting: Vec<(Vec<LeafChunk>, usize)>,
+}
+
+/// The trailing fields' columns of a [`ParquetSink`] ([`ParquetSink::deferring_from`]),
+/// encoded apart from the others (on another thread, at another time) in the same row
+/// groups, and handed to [`ParquetSink::finish_with`].
+pub struct TrailingColumns {
+    dest: std::path::PathBuf,
+    /// Each trailing leaf's descriptor and how its values lie.
+    leaves: Vec<(parquet::schema::types::ColumnDescPtr, DirectShape)>,
+    props: parquet::file::properties::WriterPropertiesPtr,
+    max_group_rows: usize,
+    side_by_side: bool,
+    /// The writers of the row group being filled (none between row groups) and its rows.
+    writers: Vec<LeafWriter>,
+    group_rows: usize,
+    /// Row groups encoded: their chunks and rows.
+    done: Vec<(Vec<LeafChunk>, usize)>,
+}
+
+impl TrailingColumns {
+    /// The file's final name.
+    pub fn dest(&self) -> &Path {
+        &self.dest
+    }
+
+    /// Encodes the next rows of the trailing fields (a batch of those fields only). The
+    /// file is the one whole batches make, byte for byte, when these come in the batches
+    /// the leading fields came in.
+    pub fn write(&mut self, batch: &RecordBatch) -> Result<(), FileError> {
+        if batch.num_columns() != self.leaves.len() {
+            return Err(parquet_err(
+                &self.dest,
+                FormatError::Invalid(format!(
+                    "a batch of {} trailing columns for {}",
+                    batch.num_columns(),
+                    self.leaves.len()
+                )),
+            ));
+        }
+        let n = batch.num_rows();
+        let mut at = 0;
+        while at < n {
+            if self.writers.is_empty() {
+                self.writers = self
+                    .leaves
+                    .iter()
+                    .map(|(descr, shape)| {
+                        DirectColumn::new(descr.clone(), self.props.clone(), *shape)
+                            .map(|d| LeafWriter::Direct(Box::new(d)))
+                            .ok_or_else(|| {
+                                parquet_err(
+                                    &self.dest,
+                                    FormatError::Invalid(
+                                        "a trailing column not written directly".into(),
+                                    ),
+                                )
+                            })
+                    })
+                    .collect::<Result<_, _>>()?;
+            }
+            let take = (self.max_group_rows - self.group_rows).min(n - at);
+            let part = if take == n {
+                batch.clone()
+            } else {
+                batch.slice(at, take)
+            };
+            let ones = vec![1; self.leaves.len()];
+            let schema = part.schema();
+            encode(
+                schema.fields(),
+                &ones,
+                &part,
+                &mut self.writers,
+                self.side_by_side,
+            )
+            .map_err(|e| parquet_err(&self.dest, e))?;
+            self.group_rows += take;
+            at += take;
+            if self.group_rows >= self.max_group_rows {
+                self.close_group()?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Closes the row group being filled.
+    fn close_group(&mut self) -> Result<(), FileError> {
+        if self.writers.is_empty() {
+            return Ok(());
+        }
+        let writers = std::mem::take(&mut self.writers);
+        let chunks =
+            close_all(writers, self.side_by_side).map_err(|e| parquet_err(&self.dest, e))?;
+        self.done
+            .push((chunks, std::mem::take(&mut self.group_rows)));
+        Ok(())
+    }
 }
 
 /// Rows of a batch below which its columns are encoded one after the other: spreading
@@ -138,9 +249,61 @@ impl ParquetSink {
             group_rows: 0,
             max_group_rows: rows.max(1),
             side_by_side: true,
+            deferred: None,
+            groups: 0,
             file,
             rows: 0,
         })
+    }
+
+    /// Has the fields from `field` on encoded apart, by the returned [`TrailingColumns`]
+    /// (which may run on another thread beside this sink's writes):
+    /// [`ParquetSink::write`] then takes batches of the leading fields only, the row
+    /// groups are held (their leading columns encoded and compressed) until
+    /// [`ParquetSink::finish_with`] is given the trailing ones. The trailing fields must
+    /// be of the kinds written directly (required numbers, or fixed-size lists of them).
+    pub fn deferring_from(mut self, field: usize) -> Result<(Self, TrailingColumns), FileError> {
+        let fields = self.schema.fields().len();
+        if field == 0 || field >= fields || self.direct[field..].iter().any(Option::is_none) {
+            return Err(self.invalid(format!(
+                "fields {field}.. of {fields} cannot be written after the others"
+            )));
+        }
+        let descr = self.writer.schema_descr();
+        let first_leaf: usize = self.leaves_per_field[..field].iter().sum();
+        let leaves = self.direct[field..]
+            .iter()
+            .zip(first_leaf..)
+            .filter_map(|(shape, leaf)| shape.map(|s| (descr.column(leaf), s)))
+            .collect();
+        let trailing = TrailingColumns {
+            dest: self.file.dest().to_path_buf(),
+            leaves,
+            props: self.writer.properties().clone(),
+            max_group_rows: self.max_group_rows,
+            side_by_side: self.side_by_side,
+            writers: Vec::new(),
+            group_rows: 0,
+            done: Vec::new(),
+        };
+        self.deferred = Some(Deferred {
+            field,
+            waiting: Vec::new(),
+        });
+        Ok((self, trailing))
+    }
+
+    /// The fields written by [`ParquetSink::write`]: all, or the leading ones when some
+    /// are deferred.
+    fn leading_fields(&self) -> usize {
+        self.deferred
+            .as_ref()
+            .map_or(self.schema.fields().len(), |d| d.field)
+    }
+
+    /// An error naming the file.
+    fn invalid(&self, why: String) -> FileError {
+        parquet_err(self.file.dest(), FormatError::Invalid(why))
     }
 
     /// Encodes the columns one after the other on the calling thread (the same file):
@@ -154,21 +317,19 @@ impl ParquetSink {
 
     /// Writes one batch, split where a row group fills (as `ArrowWriter::write` does).
     pub fn write(&mut self, batch: &RecordBatch) -> Result<(), FileError> {
-        if batch.num_columns() != self.schema.fields().len() {
-            return Err(parquet_err(
-                self.file.dest(),
-                FormatError::Invalid(format!(
-                    "a batch of {} columns for a table of {}",
-                    batch.num_columns(),
-                    self.schema.fields().len()
-                )),
-            ));
+        let fields = self.leading_fields();
+        if batch.num_columns() != fields {
+            return Err(self.invalid(format!(
+                "a batch of {} columns for a table of {fields}",
+                batch.num_columns(),
+            )));
         }
         let n = batch.num_rows();
         let mut at = 0;
         while at < n {
             if self.columns.is_empty() {
-                self.columns = self.column_writers()?;
+                self.columns = self.column_writers(0..fields, self.groups)?;
+                self.groups += 1;
             }
             let take = (self.max_group_rows - self.group_rows).min(n - at);
             let part = if take == n {
@@ -176,7 +337,14 @@ impl ParquetSink {
             } else {
                 batch.slice(at, take)
             };
-            self.encode(&part)?;
+            let written = encode(
+                &self.schema.fields()[..fields],
+                &self.leaves_per_field,
+                &part,
+                &mut self.columns,
+                self.side_by_side,
+            );
+            written.map_err(|e| parquet_err(self.file.dest(), e))?;
             self.group_rows += take;
             self.rows += take;
             at += take;
@@ -187,18 +355,22 @@ impl ParquetSink {
         Ok(())
     }
 
-    /// The next row group's column writers: the Arrow writer's, but a direct one for each
-    /// field [`direct_shape`] allows.
-    fn column_writers(&self) -> Result<Vec<LeafWriter>, FileError> {
+    /// The column writers of `fields` for row group `index`: the Arrow writer's, but a
+    /// direct one for each field [`direct_shape`] allows.
+    fn column_writers(
+        &self,
+        fields: std::ops::Range<usize>,
+        index: usize,
+    ) -> Result<Vec<LeafWriter>, FileError> {
         let descr = self.writer.schema_descr();
         let props = self.writer.properties();
-        let direct: Vec<Option<DirectColumn>> = self
-            .leaves_per_field
+        let first_leaf: usize = self.leaves_per_field[..fields.start].iter().sum();
+        let direct: Vec<Option<DirectColumn>> = self.leaves_per_field[fields.clone()]
             .iter()
-            .enumerate()
-            .flat_map(|(field, &n)| std::iter::repeat_n(field, n))
-            .enumerate()
-            .map(|(leaf, field)| {
+            .zip(fields)
+            .flat_map(|(&n, field)| std::iter::repeat_n(field, n))
+            .zip(first_leaf..)
+            .map(|(field, leaf)| {
                 self.direct[field]
                     .and_then(|s| DirectColumn::new(descr.column(leaf), props.clone(), s))
             })
@@ -208,12 +380,12 @@ impl ParquetSink {
         let mut arrow = if direct.iter().all(Option::is_some) {
             Vec::new()
         } else {
-            let index = self.writer.flushed_row_groups().len();
             self.factory
                 .create_column_writers(index)
                 .map_err(|e| parquet_err(self.file.dest(), e))?
         }
-        .into_iter();
+        .into_iter()
+        .skip(first_leaf);
         direct
             .into_iter()
             .map(|d| {
@@ -230,71 +402,28 @@ impl ParquetSink {
             .collect()
     }
 
-    /// Encodes `batch` into the row group's column writers, side by side when it is
-    /// long enough.
-    fn encode(&mut self, batch: &RecordBatch) -> Result<(), FileError> {
-        let dest = self.file.dest();
-        // Each field's writers, taking its leaves (computed in its own task: a column's
-        // levels, up to 8 bytes a value, are held while that column is written only).
-        let mut fields = Vec::with_capacity(self.leaves_per_field.len());
-        let mut rest = self.columns.as_mut_slice();
-        for ((field, column), &n) in self
-            .schema
-            .fields()
-            .iter()
-            .zip(batch.columns())
-            .zip(&self.leaves_per_field)
-        {
-            let (writers, after) = rest.split_at_mut(n.min(rest.len()));
-            fields.push((field, column, writers));
-            rest = after;
-        }
-        let write = |(field, column, writers): (&FieldRef, &ArrayRef, &mut [LeafWriter])| {
-            if let [LeafWriter::Direct(w)] = writers {
-                return w.write(column);
-            }
-            let leaves = compute_leaves(field, column)?;
-            if leaves.len() != writers.len() {
-                return Err(parquet::errors::ParquetError::General(format!(
-                    "column {:?}: {} leaf columns for {} writers",
-                    field.name(),
-                    leaves.len(),
-                    writers.len()
-                )));
-            }
-            writers
-                .iter_mut()
-                .zip(&leaves)
-                .try_for_each(|(w, leaf)| match w {
-                    LeafWriter::Arrow(w) => w.write(leaf),
-                    LeafWriter::Direct(_) => Err(parquet::errors::ParquetError::General(format!(
-                        "column {:?}: a direct writer among leaves",
-                        field.name()
-                    ))),
-                })
-        };
-        let written = if self.side_by_side && batch.num_rows() >= PARALLEL_ROWS {
-            fields.into_par_iter().try_for_each(write)
-        } else {
-            fields.into_iter().try_for_each(write)
-        };
-        written.map_err(|e| parquet_err(dest, e))
-    }
-
     /// Closes the row group being filled (its columns' last pages side by side) and
-    /// appends it to the file.
+    /// appends it to the file; or, while trailing fields wait, has it wait with them.
     fn flush_row_group(&mut self) -> Result<(), FileError> {
         if self.columns.is_empty() {
             return Ok(());
         }
-        let dest = self.file.dest();
         let columns = std::mem::take(&mut self.columns);
-        let chunks: Result<Vec<LeafChunk>, _> = if self.side_by_side {
-            columns.into_par_iter().map(|w| w.close()).collect()
-        } else {
-            columns.into_iter().map(|w| w.close()).collect()
-        };
-        let chunks = chunks.map_err(|e| parquet_err(dest, e))?;
+        let rows = std::mem::take(&mut self.group_rows);
+        let chunks =
+            close_all(columns, self.side_by_side).map_err(|e| parquet_err(self.file.dest(), e))?;
+        match self.deferred.as_mut() {
+            Some(d) => {
+                d.waiting.push((chunks, rows));
+                Ok(())
+            }
+            None => self.append_row_group(chunks),
+        }
+    }
+
+    /// Appends a row group of `chunks`, every leaf's in order.
+    fn append_row_group(&mut self, chunks: Vec<LeafChunk>) -> Result<(), FileError> {
+        let dest = self.file.dest();
         let mut group = self
             .writer
             .next_row_group()
@@ -305,7 +434,6 @@ impl ParquetSink {
                 .map_err(|e| parquet_err(dest, e))?;
         }
         group.close().map_err(|e| parquet_err(dest, e))?;
-        self.group_rows = 0;
         Ok(())
     }
 
@@ -329,11 +457,108 @@ impl ParquetSink {
     }
 
     /// Closes the Parquet file and renames it into place.
-    pub fn finish(mut self) -> Result<(), FileError> {
+    pub fn finish(self) -> Result<(), FileError> {
+        if self.deferred.is_some() {
+            return Err(self.invalid("finished without its trailing columns".into()));
+        }
+        self.close_file()
+    }
+
+    /// [`ParquetSink::finish`] of a sink [`ParquetSink::deferring_from`] made: each row
+    /// group of the leading columns with `trailing`'s, which must hold the same rows in
+    /// the same groups.
+    pub fn finish_with(mut self, mut trailing: TrailingColumns) -> Result<(), FileError> {
+        self.flush_row_group()?;
+        trailing.close_group()?;
+        let Some(deferred) = self.deferred.take() else {
+            return Err(self.invalid("trailing columns for a sink without them".into()));
+        };
+        let rows = |g: &[(Vec<LeafChunk>, usize)]| g.iter().map(|(_, n)| *n).collect::<Vec<_>>();
+        let (lead, trail) = (rows(&deferred.waiting), rows(&trailing.done));
+        if lead != trail {
+            return Err(self.invalid(format!(
+                "trailing columns of {} rows in {} row groups for {} rows in {}",
+                trail.iter().sum::<usize>(),
+                trail.len(),
+                lead.iter().sum::<usize>(),
+                lead.len()
+            )));
+        }
+        for ((mut chunks, _), (rest, _)) in deferred.waiting.into_iter().zip(trailing.done) {
+            chunks.extend(rest);
+            self.append_row_group(chunks)?;
+        }
+        self.close_file()
+    }
+
+    /// Writes the last row group and the footer, and renames the file into place.
+    fn close_file(mut self) -> Result<(), FileError> {
         self.flush_row_group()?;
         let dest = self.file.dest().to_path_buf();
         self.writer.close().map_err(|e| parquet_err(&dest, e))?;
         self.file.commit()
+    }
+}
+
+/// Encodes `batch` (the columns of `fields`, of `leaves_per_field` leaves each) into
+/// `writers` (theirs, in order), side by side when it is long enough and `side_by_side`.
+fn encode(
+    fields: &[FieldRef],
+    leaves_per_field: &[usize],
+    batch: &RecordBatch,
+    writers: &mut [LeafWriter],
+    side_by_side: bool,
+) -> Result<(), parquet::errors::ParquetError> {
+    // Each field's writers, taking its leaves (computed in its own task: a column's
+    // levels, up to 8 bytes a value, are held while that column is written only).
+    let mut each = Vec::with_capacity(fields.len());
+    let mut rest = writers;
+    for ((field, column), &n) in fields.iter().zip(batch.columns()).zip(leaves_per_field) {
+        let (writers, after) = rest.split_at_mut(n.min(rest.len()));
+        each.push((field, column, writers));
+        rest = after;
+    }
+    let write = |(field, column, writers): (&FieldRef, &ArrayRef, &mut [LeafWriter])| {
+        if let [LeafWriter::Direct(w)] = writers {
+            return w.write(column);
+        }
+        let leaves = compute_leaves(field, column)?;
+        if leaves.len() != writers.len() {
+            return Err(parquet::errors::ParquetError::General(format!(
+                "column {:?}: {} leaf columns for {} writers",
+                field.name(),
+                leaves.len(),
+                writers.len()
+            )));
+        }
+        writers
+            .iter_mut()
+            .zip(&leaves)
+            .try_for_each(|(w, leaf)| match w {
+                LeafWriter::Arrow(w) => w.write(leaf),
+                LeafWriter::Direct(_) => Err(parquet::errors::ParquetError::General(format!(
+                    "column {:?}: a direct writer among leaves",
+                    field.name()
+                ))),
+            })
+    };
+    if side_by_side && batch.num_rows() >= PARALLEL_ROWS {
+        each.into_par_iter().try_for_each(write)
+    } else {
+        each.into_iter().try_for_each(write)
+    }
+}
+
+/// Closes `writers` (their last pages side by side when `side_by_side`): their chunks,
+/// in order.
+fn close_all(
+    writers: Vec<LeafWriter>,
+    side_by_side: bool,
+) -> Result<Vec<LeafChunk>, parquet::errors::ParquetError> {
+    if side_by_side {
+        writers.into_par_iter().map(|w| w.close()).collect()
+    } else {
+        writers.into_iter().map(|w| w.close()).collect()
     }
 }
 
@@ -524,6 +749,22 @@ mod tests {
         plain
     }
 
+    /// Rows per row group of the tests' sinks.
+    const GROUP_ROWS: usize = 10_000;
+
+    /// Batches of `batch(first row, rows)` in [`GROUP_ROWS`]' groups: 7000 + 3000 fill
+    /// the first group exactly, 25 000 splits across three, then short batches and an
+    /// empty one. Returns them and their rows.
+    fn batches_of(batch: impl Fn(usize, usize) -> RecordBatch) -> (Vec<RecordBatch>, usize) {
+        let mut batches = Vec::new();
+        let mut lo = 0;
+        for n in [7000, 3000, 25_000, 100, 0, 4999] {
+            batches.push(batch(lo, n));
+            lo += n;
+        }
+        (batches, lo)
+    }
+
     /// The sink's columns, encoded side by side (or on the calling thread) and split into
     /// row groups by the sink, make the file `ArrowWriter` makes with the same settings,
     /// byte for byte: batches
@@ -588,16 +829,8 @@ mod tests {
             ];
             RecordBatch::try_new(schema.clone(), columns).expect("batch")
         };
-        let group_rows = 10_000;
-        // 7000 + 3000 fill the first group exactly; 25 000 splits across three; then
-        // short batches and an empty one.
-        let sizes = [7000, 3000, 25_000, 100, 0, 4999];
-        let mut batches = Vec::new();
-        let mut lo = 0;
-        for n in sizes {
-            batches.push(batch(lo, n));
-            lo += n;
-        }
+        let group_rows = GROUP_ROWS;
+        let (batches, lo) = batches_of(batch);
         let dir = tempfile::tempdir().expect("temp dir");
         let write = |name: &str, side_by_side: bool| {
             let path = dir.path().join(name);
@@ -727,6 +960,127 @@ mod tests {
             x_chunk.compressed_size()
         );
         assert!(std::fs::read(&path).expect("read") == plain, "differs");
+    }
+
+    /// Trailing fields encoded apart ([`ParquetSink::deferring_from`], on another thread
+    /// beside the leading ones) make the file whole batches make, byte for byte, when
+    /// they come in the same batches (row groups filled exactly, split mid-batch, an empty
+    /// batch; a leading field the Arrow writer writes); in other batches, the same table.
+    /// Misuse is an error naming the file: trailing rows missing or too many, a trailing
+    /// field that is not written directly, finishing without them or with them unasked.
+    #[test]
+    fn trailing_fields_encoded_apart_make_the_same_file() {
+        use arrow::array::{ArrayRef, Float32Array, Int64Array, UInt64Array};
+        let schema = Arc::new(Schema::new(vec![
+            Field::new("t_ns", DataType::Int64, false),
+            Field::new("maybe", DataType::Int64, true),
+            Field::new("v", crate::schema::vec3_type(), false),
+            Field::new("h", DataType::Float32, false),
+            Field::new("count", DataType::UInt64, false),
+        ]));
+        let lead = 2;
+        let batch = |lo: usize, n: usize| {
+            let x: Vec<f64> = (lo..lo + n).map(|k| (k as f64 * 0.37).sin()).collect();
+            let v: Vec<[f64; 3]> = x.iter().map(|&x| [x, -2.0 * x, x * x]).collect();
+            let columns: Vec<ArrayRef> = vec![
+                Arc::new(Int64Array::from_iter_values((lo..lo + n).map(|k| k as i64))),
+                Arc::new(Int64Array::from_iter(
+                    (lo..lo + n).map(|k| (k % 3 != 0).then_some(k as i64)),
+                )),
+                crate::tables::vec3_to_array(&v),
+                Arc::new(Float32Array::from_iter_values(x.iter().map(|&x| x as f32))),
+                Arc::new(UInt64Array::from_iter_values(
+                    (lo..lo + n).map(|k| 3 * k as u64),
+                )),
+            ];
+            RecordBatch::try_new(schema.clone(), columns).expect("batch")
+        };
+        let group_rows = GROUP_ROWS;
+        let (batches, lo) = batches_of(batch);
+        let leading: Vec<usize> = (0..lead).collect();
+        let trailing: Vec<usize> = (lead..schema.fields().len()).collect();
+        let dir = tempfile::tempdir().expect("temp dir");
+        let deferred_sink = |name: &str| {
+            ParquetSink::create_in_row_groups(&dir.path().join(name), schema.clone(), group_rows)
+                .expect("sink")
+                .deferring_from(lead)
+                .expect("deferring")
+        };
+        let (mut sink, mut rest) = deferred_sink("deferred.parquet");
+        rayon::join(
+            || {
+                for b in &batches {
+                    sink.write(&b.project(&leading).expect("leading"))
+                        .expect("written");
+                }
+            },
+            || {
+                for b in &batches {
+                    rest.write(&b.project(&trailing).expect("trailing"))
+                        .expect("written");
+                }
+            },
+        );
+        sink.finish_with(rest).expect("finished");
+        let ours = std::fs::read(dir.path().join("deferred.parquet")).expect("read");
+        assert!(ours == arrow_writer_bytes(&schema, group_rows, &batches));
+
+        // The trailing rows in other batches: the same table.
+        let whole = arrow::compute::concat_batches(&schema, &batches).expect("whole");
+        let (mut sink, mut rest) = deferred_sink("other_batches.parquet");
+        let trailing_rows = whole.project(&trailing).expect("trailing");
+        rest.write(&trailing_rows.slice(0, 12_345))
+            .expect("written");
+        for b in &batches {
+            sink.write(&b.project(&leading).expect("leading"))
+                .expect("written");
+        }
+        rest.write(&trailing_rows.slice(12_345, lo - 12_345))
+            .expect("written");
+        sink.finish_with(rest).expect("finished");
+        let (_, back) = read_table(&dir.path().join("other_batches.parquet")).expect("read");
+        assert_eq!(back, whole);
+
+        // Misuse.
+        let (mut sink, mut rest) = deferred_sink("missing.parquet");
+        sink.write(&batches[0].project(&leading).expect("leading"))
+            .expect("written");
+        rest.write(&trailing_rows.slice(0, 10)).expect("written");
+        let err = sink
+            .finish_with(rest)
+            .expect_err("rows missing")
+            .to_string();
+        assert!(
+            err.contains("missing.parquet")
+                && err.contains("of 10 rows in 1 row groups for 7000 rows in 1"),
+            "{err}"
+        );
+        assert!(!dir.path().join("missing.parquet").exists());
+        let (mut sink, mut rest) = deferred_sink("too_many.parquet");
+        sink.write(&batches[0].project(&leading).expect("leading"))
+            .expect("written");
+        rest.write(&trailing_rows.slice(0, 10_001))
+            .expect("written");
+        let err = sink.finish_with(rest).expect_err("too many").to_string();
+        assert!(err.contains("10001 rows in 2 row groups for 7000"), "{err}");
+        let (sink, _) = deferred_sink("unfinished.parquet");
+        let err = sink.finish().expect_err("no trailing").to_string();
+        assert!(err.contains("without its trailing columns"), "{err}");
+        let err = ParquetSink::create(&dir.path().join("odd.parquet"), schema.clone())
+            .expect("sink")
+            .deferring_from(1)
+            .err()
+            .expect("a nullable trailing field")
+            .to_string();
+        assert!(err.contains("fields 1.. of 5"), "{err}");
+        let (_, rest) = deferred_sink("other.parquet");
+        let plain =
+            ParquetSink::create(&dir.path().join("plain.parquet"), schema.clone()).expect("sink");
+        let err = plain.finish_with(rest).expect_err("unasked").to_string();
+        assert!(
+            err.contains("plain.parquet") && err.contains("without them"),
+            "{err}"
+        );
     }
 
     /// Floats (f32, f64, in lists too) are byte-stream-split and 64-bit integers

@@ -12,7 +12,7 @@ use unz_stages::initial::InitialReport;
 use super::marks::{RepeatedMark, UnknownMarks};
 use super::{Overrides, Params, RunCtx, ensure_derive, load_case};
 use crate::artifacts::{StageName, files};
-use crate::nav_writer::NavWriter;
+use crate::nav_writer::{NavWriter, SigmaColumns};
 use crate::stage::{Stage, params_hash};
 
 /// Summary of a navigation pass (`navigate.json`).
@@ -121,7 +121,7 @@ pub fn ensure_navigate(
             &dir.join(files::NAV),
             &case.derived,
             case.settings.start(),
-            None,
+            SigmaColumns::Without,
             &fix_samples,
         )?;
         unz_stages::strapdown::run(&case.inputs(), &case.settings, &mut nav);
