@@ -12,11 +12,11 @@ use unz_formats::FormatError;
 use unz_formats::parquet_io::{ParquetSink, for_each_batch_of, write_batch};
 use unz_formats::schema::{self, criteria_cols};
 use unz_formats::tables::values_of;
-use unz_stages::attitude::rem_euclid_turn;
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
-use unz_stages::strapdown::{KeepRows, TrackRow, euler_of, samples_every};
+use unz_stages::euler_f32::{HeadingDeg, euler_deg_f32};
+use unz_stages::strapdown::{KeepRows, TrackRow, samples_every};
 
 /// File name of the per-method trajectories.
 pub const TRACKS: &str = "tracks.parquet";
@@ -135,14 +135,13 @@ impl TrackBuilder {
 impl KeepRows for TrackBuilder {
     fn keep(&mut self, _k: usize, (lat, lon, h, q): TrackRow) {
         let m = &mut self.track;
-        let att = euler_of(&q);
+        let [roll, pitch, heading] = euler_deg_f32(&q, HeadingDeg::Wrapped);
         m.lat_rad.push(lat);
         m.lon_rad.push(lon);
         m.h_m.push(h as f32);
-        m.roll_deg.push(att.roll_rad.to_degrees() as f32);
-        m.pitch_deg.push(att.pitch_rad.to_degrees() as f32);
-        m.heading_deg
-            .push(rem_euclid_turn(att.heading_rad.to_degrees(), 360.0) as f32);
+        m.roll_deg.push(roll);
+        m.pitch_deg.push(pitch);
+        m.heading_deg.push(heading);
     }
 }
 

@@ -4,17 +4,17 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use arrow::array::{ArrayRef, Float64Array, Int64Array, RecordBatch};
+use arrow::array::{ArrayRef, Float32Array, Float64Array, Int64Array, RecordBatch};
 use arrow::datatypes::SchemaRef;
 use rayon::prelude::*;
 use unz_formats::error::{FileError, FormatError};
 use unz_formats::parquet_io::{ParquetSink, TrailingColumns};
 use unz_formats::schema;
 use unz_formats::tables::f32_array;
-use unz_stages::attitude::Euler;
 use unz_stages::criteria::FixPose;
 use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
+use unz_stages::euler_f32::{HeadingDeg, euler_deg_f32};
 use unz_stages::route_sigma::RouteSigma;
 use unz_stages::strapdown::{NavTrack, PassSink};
 
@@ -301,8 +301,13 @@ fn nav_batch(
 ) -> Result<RecordBatch, arrow::error::ArrowError> {
     let r = lo..lo + t.len();
     // The angles and the local offsets (trigonometry per row) side by side.
-    let (euler, ne): (Vec<Euler>, Vec<(f64, f64)>) = rayon::join(
-        || (0..t.len()).into_par_iter().map(|j| t.euler(j)).collect(),
+    let (euler, ne): (Vec<[f32; 3]>, Vec<(f64, f64)>) = rayon::join(
+        || {
+            t.q_b_to_n
+                .par_iter()
+                .map(|q| euler_deg_f32(q, HeadingDeg::AsIs))
+                .collect()
+        },
         || {
             let frame = start.local_frame();
             (0..t.len())
@@ -323,15 +328,20 @@ fn nav_batch(
         f32_array(t.h_m.iter().copied()),
         f32_array(ne.iter().map(|p| p.0)),
         f32_array(ne.iter().map(|p| p.1)),
-        f32_array(euler.iter().map(|e| e.roll_rad.to_degrees())),
-        f32_array(euler.iter().map(|e| e.pitch_rad.to_degrees())),
-        f32_array(euler.iter().map(|e| e.heading_rad.to_degrees())),
+        f32_column(euler.iter().map(|e| e[0])),
+        f32_column(euler.iter().map(|e| e[1])),
+        f32_column(euler.iter().map(|e| e[2])),
         f32_array(t.distance_m.iter().copied()),
     ];
     if let Some(s) = sigma {
         columns.extend(sigma_columns(s, r));
     }
     RecordBatch::try_new(schema.clone(), columns)
+}
+
+/// A column of f32 values.
+fn f32_column(values: impl Iterator<Item = f32>) -> ArrayRef {
+    Arc::new(Float32Array::from_iter_values(values))
 }
 
 /// The route's σ columns of samples `r` (north and east, m; heading, deg).

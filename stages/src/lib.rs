@@ -19,6 +19,7 @@ pub mod criteria;
 pub mod derive;
 pub mod disupt;
 pub mod earth;
+pub mod euler_f32;
 pub mod filter;
 pub mod imu_axes;
 pub mod imu_mounting;
