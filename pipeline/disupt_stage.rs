@@ -23,14 +23,18 @@ use unz_stages::strapdown::{self, NavInputs, NavSettings};
 use unz_stages::units::DEG_PER_H;
 
 pub use coarse_azimuth::{Coarse, CoarseRefused, coarse_azimuth, coarse_refused_note};
-use joint_run::{JointInputs, joint_route_sigma, lag_states, route_stride, run_methods};
+use joint_run::{
+    ClassicResult, JointInputs, joint_route_sigma, lag_states, route_stride, run_methods,
+};
 pub use report::{
     DisuptOut, MARK_ARM_REFIT_SIGMA, MARK_ARM_SIGMA, MarkArmCheck, MethodOut, ODO_YAW_REFIT_Z,
     OdoYawCheck, Outcome, SettingsOut, SigmaOut, joint_mark_arm_note, mark_arm_note,
     odo_pitch_note, odo_yaw_note, rebridged_note,
 };
 use report::{Lag, markdown, method_out, settings_out};
-use reviews::{ReviewBatches, Reviewed, review_passes};
+use reviews::{
+    ReviewBatches, Reviewed, classic_reviewed, review_batch, review_passes, untracked_reviews,
+};
 
 use crate::artifacts::{StageName, files};
 use crate::derive_io::{StoredDerive, read_velocity_ranges};
@@ -259,8 +263,20 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         dparams.joint_odo_bias = Some(dparams.joint_odo_bias.unwrap_or(
             m.format == LogFormat::KfGins && m.odometer.kind != Some(OdometerKind::DistanceM),
         ));
+        // The samples every method's track keeps; `tracks.parquet` takes their times.
+        let kept_samples = track_samples(&case.derived);
+        // A short run's review passes of the initial settings, OWPI's and OEPI's (those
+        // that ran) follow OEPI and OWPI on their core, while the joint fit (the longer
+        // work) ends; a long run's wait until the hold-out is done (see below).
+        let beside_holdout = case.derived.t_s.len() <= REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES;
+        let early_reviews = |classic: &[ClassicResult]| {
+            beside_holdout.then(|| {
+                let lanes = classic_reviewed(x_before, &case.derived, classic);
+                untracked_reviews(&problem, &lanes, &case.fixes, &kept_samples)
+            })
+        };
         let t_methods = std::time::Instant::now();
-        let (classic_results, joint_result) = run_methods(
+        let (classic_results, early_outcomes, joint_result) = run_methods(
             method,
             JointInputs {
                 problem: &problem,
@@ -269,6 +285,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 case: &case,
                 dparams: &dparams,
             },
+            early_reviews,
         );
         ctx.say(
             "disupt",
@@ -329,22 +346,11 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // settings, OWPI, OEPI, then joint): the last one is the corrected navigation.
         let mut methods = std::collections::BTreeMap::new();
         let mut skipped = std::collections::BTreeMap::new();
-        let mut reviewed: Vec<Reviewed<'_>> = vec![Reviewed {
-            name: "initial",
-            x: x_before,
-            derived: &case.derived,
-        }];
+        let mut reviewed = classic_reviewed(x_before, &case.derived, &classic_results);
         let mut classic_ok = Vec::new();
         for (name, result) in classic_results.into_iter().rev() {
             match result {
-                Ok(r) => {
-                    reviewed.push(Reviewed {
-                        name,
-                        x: r.x,
-                        derived: &case.derived,
-                    });
-                    classic_ok.push((name, r));
-                }
+                Ok(r) => classic_ok.push((name, r)),
                 Err(e) => {
                     skipped.insert(name.to_owned(), e.to_string());
                 }
@@ -378,7 +384,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 || joint_run.and_then(|run| lag_states(run, &problem, &rederive, &case)),
             )
         };
-        let beside_holdout = case.derived.t_s.len() <= REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES;
         let review_batches = if beside_holdout {
             ReviewBatches::One
         } else {
@@ -400,19 +405,31 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                         route_stride(dt_s),
                     )
                 });
-            // The samples every method's track keeps; `tracks.parquet` takes their times.
-            let kept_samples = track_samples(&case.derived);
-            let outcomes = review_passes(
-                &problem,
-                &reviewed,
-                &case.fixes,
-                &kept_samples,
-                &mut route_base,
-                review_batches,
-            );
-            (outcomes, route_base, kept_samples)
+            let outcomes = match early_outcomes {
+                // The joint's alone, after the others'.
+                Some(mut outcomes) => {
+                    let joint = &reviewed[outcomes.len()..];
+                    outcomes.extend(review_batch(
+                        &problem,
+                        joint,
+                        &case.fixes,
+                        &kept_samples,
+                        &mut route_base,
+                    ));
+                    outcomes
+                }
+                None => review_passes(
+                    &problem,
+                    &reviewed,
+                    &case.fixes,
+                    &kept_samples,
+                    &mut route_base,
+                    review_batches,
+                ),
+            };
+            (outcomes, route_base)
         };
-        let ((holdout, lag_states), (outcomes, route_base, kept_samples)) = if beside_holdout {
+        let ((holdout, lag_states), (outcomes, route_base)) = if beside_holdout {
             let (both, outcomes) = rayon::join(holdout_and_lag, reviews);
             drop(rederive);
             drop(odometer);

@@ -142,12 +142,15 @@ pub(super) type ClassicResult = (&'static str, Result<MethodResult, disupt::Disu
 /// problem's first linearisation). The joint fit estimates the odometer's lag when asked
 /// and the run has two control points or more, and is redone without the control points
 /// inconsistent with the rest ([`exclude_inconsistent`]; its hold-out's passes beside
-/// OEPI's and OWPI's).
-pub(super) fn run_methods(
+/// OEPI's and OWPI's). `after_classic` runs on OEPI's and OWPI's results as soon as they
+/// are known, beside the joint fit (which takes longer).
+pub(super) fn run_methods<T: Send>(
     method: Method,
     joint: JointInputs<'_>,
+    after_classic: impl FnOnce(&[ClassicResult]) -> T + Send,
 ) -> (
     Vec<ClassicResult>,
+    T,
     Option<Result<Excluding, disupt::DisuptError>>,
 ) {
     let classic: Vec<Method> = [Method::Oepi, Method::Owpi]
@@ -168,20 +171,21 @@ pub(super) fn run_methods(
             Method::Oepi => "oepi",
             _ => "owpi",
         });
-        return (
-            names.map(|name| (name, Err(refused()))).collect(),
-            want_joint.then(|| Err(refused())),
-        );
+        let classic: Vec<ClassicResult> = names.map(|name| (name, Err(refused()))).collect();
+        let after = after_classic(&classic);
+        return (classic, after, want_joint.then(|| Err(refused())));
     }
-    rayon::join(
+    let ((classic, after), joint) = rayon::join(
         || {
-            classic
+            let classic = classic
                 .par_iter()
                 .map(|&w| match w {
                     Method::Oepi => ("oepi", disupt::oepi(problem, dparams)),
                     _ => ("owpi", disupt::owpi(problem, dparams)),
                 })
-                .collect::<Vec<_>>()
+                .collect::<Vec<_>>();
+            let after = after_classic(&classic);
+            (classic, after)
         },
         || {
             want_joint.then(|| {
@@ -195,7 +199,8 @@ pub(super) fn run_methods(
                 exclude_inconsistent(joint, start)
             })
         },
-    )
+    );
+    (classic, after, joint)
 }
 
 /// The joint fit checked for a boresight ([`run_joint_yaw_checked`]), then, when it held the

@@ -7,6 +7,7 @@ use unz_stages::derive::Derived;
 use unz_stages::disupt::{HeightError, Problem, X, height_errors_at};
 use unz_stages::strapdown::{self, LaneBatch, PassSink, ReviewPass};
 
+use super::joint_run::ClassicResult;
 use crate::method_tables::{KeptTrack, MethodKryt1, TrackBuilder, method_kryt1};
 
 /// One set of settings to review: a method's (or the initial ones) and the derive its
@@ -15,6 +16,28 @@ pub(super) struct Reviewed<'d> {
     pub(super) name: &'static str,
     pub(super) x: X,
     pub(super) derived: &'d Derived,
+}
+
+/// The settings reviewed before the joint fit's: the initial ones (`x_before`), then
+/// OWPI's and OEPI's, those of `classic` that ran, all on `derived`.
+pub(super) fn classic_reviewed<'d>(
+    x_before: X,
+    derived: &'d Derived,
+    classic: &[ClassicResult],
+) -> Vec<Reviewed<'d>> {
+    let initial = Reviewed {
+        name: "initial",
+        x: x_before,
+        derived,
+    };
+    let ran = classic.iter().rev().filter_map(|(name, result)| {
+        result.as_ref().ok().map(|r| Reviewed {
+            name,
+            x: r.x,
+            derived,
+        })
+    });
+    std::iter::once(initial).chain(ran).collect()
 }
 
 /// What a review pass gives of one set of settings (the control points' horizontal and
@@ -55,20 +78,51 @@ pub(super) fn review_passes(
     track: &mut (impl PassSink + Send),
     batches: ReviewBatches,
 ) -> Vec<ReviewOutcome> {
-    let n = reviewed[0].derived.nav_inputs().len();
-    let at: Vec<usize> = fixes.iter().map(|f| f.sample).filter(|&k| k < n).collect();
-    let passes = match batches {
-        ReviewBatches::One => review_lanes(problem, reviewed, keep, &at, track),
+    match batches {
+        ReviewBatches::One => review_batch(problem, reviewed, fixes, keep, track),
         ReviewBatches::TrackedApart => {
             let (first, rest) = reviewed.split_at(reviewed.len() - 1);
-            let (mut passes, rest) = rayon::join(
-                || review_lanes(problem, first, keep, &at, &mut None::<strapdown::NavTrack>),
-                || review_lanes(problem, rest, keep, &at, track),
+            let (mut outcomes, rest) = rayon::join(
+                || untracked_reviews(problem, first, fixes, keep),
+                || review_batch(problem, rest, fixes, keep, track),
             );
-            passes.extend(rest);
-            passes
+            outcomes.extend(rest);
+            outcomes
         }
+    }
+}
+
+/// [`review_batch`] without a track: reviews that feed no route σ.
+pub(super) fn untracked_reviews(
+    problem: &Problem<'_>,
+    reviewed: &[Reviewed<'_>],
+    fixes: &[ControlPointFix],
+    keep: &[usize],
+) -> Vec<ReviewOutcome> {
+    review_batch(
+        problem,
+        reviewed,
+        fixes,
+        keep,
+        &mut None::<strapdown::NavTrack>,
+    )
+}
+
+/// The review passes of `reviewed` (at most [`strapdown::MAX_LANES`]) in one batch of
+/// lanes, the last one's every sample into `track` ([`review_passes`]).
+pub(super) fn review_batch(
+    problem: &Problem<'_>,
+    reviewed: &[Reviewed<'_>],
+    fixes: &[ControlPointFix],
+    keep: &[usize],
+    track: &mut (impl PassSink + Send),
+) -> Vec<ReviewOutcome> {
+    let Some(first) = reviewed.first() else {
+        return Vec::new();
     };
+    let n = first.derived.nav_inputs().len();
+    let at: Vec<usize> = fixes.iter().map(|f| f.sample).filter(|&k| k < n).collect();
+    let passes = review_lanes(problem, reviewed, keep, &at, track);
     reviewed
         .par_iter()
         .zip(passes)
