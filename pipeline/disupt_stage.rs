@@ -32,9 +32,7 @@ pub use report::{
     odo_pitch_note, odo_yaw_note, rebridged_note,
 };
 use report::{Lag, markdown, method_out, settings_out};
-use reviews::{
-    ReviewBatches, Reviewed, classic_reviewed, review_batch, review_passes, untracked_reviews,
-};
+use reviews::{Reviewed, classic_reviewed, review_batch, review_passes, untracked_reviews};
 
 use crate::artifacts::{StageName, files};
 use crate::derive_io::{StoredDerive, read_velocity_ranges};
@@ -102,9 +100,11 @@ pub fn case_inputs(ctx: &RunCtx, params: &Params) -> anyhow::Result<Vec<PathBuf>
     ])
 }
 
-/// Samples of a run up to which its review passes run beside the joint fit's hold-out,
-/// in one batch of lanes (two hours at 100 Hz: its segments, about 11 MB, and the
-/// ingested odometer, about 10 MB, are then held through the reviews; a longer run lets
+/// Samples of a run up to which its review passes run before the joint fit's hold-out
+/// is done: the initial settings', OWPI's and OEPI's in one batch of lanes after OEPI
+/// and OWPI, while the joint fit ends; the joint's beside its hold-out (two hours at
+/// 100 Hz: their tracks are then held through the joint fit, and its segments, about 11
+/// MB, and the ingested odometer, about 10 MB, through the reviews; a longer run lets
 /// them go first, then runs its reviews in two batches side by side).
 pub const REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES: usize = 720_000;
 
@@ -208,13 +208,17 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 ),
             )
         };
-        // The derive's output and the ingested odometer (the lag's re-derives read it) are
-        // read side by side.
-        let (case, odometer) = rayon::join(
-            || load_case(ctx, params, &Overrides::default()),
+        // The derive's output first (its own reads side by side), then the coarse search
+        // of the azimuth (mostly one core's passes) beside the reading of the ingested
+        // odometer (the lag's re-derives read it).
+        let case = load_case(ctx, params, &Overrides::default())?;
+        // A coarse search over ±180° of azimuth by the control points first: the run's
+        // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).
+        let (coarse, odometer) = rayon::join(
+            || coarse_azimuth(&problem_of(&case, params), &dparams),
             || IngestedSeries::load_odometer_tags(&ctx.layout().dir(StageName::Ingest)),
         );
-        let (case, odometer) = (case?, odometer?);
+        let odometer = odometer?;
         // The odometer's bridged failures are bridged again at each lag the joint fit
         // tries (the ingest's bridges took the lag their readings showed).
         let rebridges = Rebridges::new(
@@ -235,11 +239,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             site_gravity_mps2(m),
         )
         .with_rebridges(rebridges);
-        lap("loaded");
-        // A coarse search over ±180° of azimuth by the control points first: the run's
-        // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).
-        let coarse = coarse_azimuth(&problem_of(&case, params), &dparams);
-        lap("coarse");
+        lap("loaded and coarse");
         let mut start = case.settings;
         match coarse {
             Coarse::Taken(az) => {
@@ -369,9 +369,10 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         }
         // The joint fit's hold-out (unless the exclusions' search left it): the last work
         // on the segments; beside it, the route σ's pass at the moved lag, the last to read
-        // the ingested odometer. A short run's review passes (one batch of lanes, one core)
-        // run beside both; a long run's after them, once the segments and the ingested
-        // odometer are let go (at 12 hours 50 MB and more beside the reviews' tracks).
+        // the ingested odometer. A short run's joint review pass (the others' are done)
+        // runs beside both; a long run's review passes after them, once the segments and
+        // the ingested odometer are let go (at 12 hours 50 MB and more beside the reviews'
+        // tracks).
         let found_holdout = found.holdout.take();
         let holdout_and_lag = || {
             rayon::join(
@@ -383,11 +384,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 },
                 || joint_run.and_then(|run| lag_states(run, &problem, &rederive, &case)),
             )
-        };
-        let review_batches = if beside_holdout {
-            ReviewBatches::One
-        } else {
-            ReviewBatches::TrackedApart
         };
         let reviews = || {
             // The last review pass is the corrected navigation's. When it is the joint's
@@ -424,7 +420,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                     &case.fixes,
                     &kept_samples,
                     &mut route_base,
-                    review_batches,
                 ),
             };
             (outcomes, route_base)

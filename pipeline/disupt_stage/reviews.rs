@@ -50,46 +50,27 @@ pub(super) struct ReviewOutcome {
     pub(super) kryt1_series: MethodKryt1,
 }
 
-/// How the review passes share the cores.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum ReviewBatches {
-    /// Every method in one batch of lanes, for reviews that run beside other work (the
-    /// hold-out): one pass's time on one core, where the tracked method's batch of its own
-    /// waited for a core (40 minutes: hold-out and reviews 39 → 32.5 ms, median of 12;
-    /// 28 ms less CPU). A lane is its pass alone bit for bit, the tracked one too
-    /// (`strapdown::lanes`' tests), so the outcomes are the same.
-    One,
-    /// Two batches side by side, for reviews that have both cores: the tracked (last)
-    /// method alone, as it also feeds every sample to `track` (the route σ's states: the
-    /// longer work per sample), and the others (at 12 h: 0.38-0.40 s against 0.48-0.51 in
-    /// one batch, 0.42-0.44 in halves).
-    TrackedApart,
-}
-
-/// The review passes of `reviewed` (at most [`strapdown::MAX_LANES`]), side by side,
-/// each on its own derive's odometer (the derives share their IMU series), their tracks
-/// at the samples `keep`; the last one's every sample into `track`. Each outcome is what
-/// the pass alone gives, whatever `batches`.
+/// The review passes of `reviewed` in two batches side by side, each at most
+/// [`strapdown::MAX_LANES`] lanes, each on its own derive's odometer (the derives share
+/// their IMU series), their tracks at the samples `keep`: the last one alone, as it also
+/// feeds every sample to `track` (the route σ's states: the longer work per sample), and
+/// the others (at 12 h: 0.38-0.40 s against 0.48-0.51 in one batch, 0.42-0.44 in halves).
+/// Each outcome is what the pass alone gives (a lane is its pass alone bit for bit, the
+/// tracked one too: `strapdown::lanes`' tests).
 pub(super) fn review_passes(
     problem: &Problem<'_>,
     reviewed: &[Reviewed<'_>],
     fixes: &[ControlPointFix],
     keep: &[usize],
     track: &mut (impl PassSink + Send),
-    batches: ReviewBatches,
 ) -> Vec<ReviewOutcome> {
-    match batches {
-        ReviewBatches::One => review_batch(problem, reviewed, fixes, keep, track),
-        ReviewBatches::TrackedApart => {
-            let (first, rest) = reviewed.split_at(reviewed.len() - 1);
-            let (mut outcomes, rest) = rayon::join(
-                || untracked_reviews(problem, first, fixes, keep),
-                || review_batch(problem, rest, fixes, keep, track),
-            );
-            outcomes.extend(rest);
-            outcomes
-        }
-    }
+    let (first, rest) = reviewed.split_at(reviewed.len().saturating_sub(1));
+    let (mut outcomes, rest) = rayon::join(
+        || untracked_reviews(problem, first, fixes, keep),
+        || review_batch(problem, rest, fixes, keep, track),
+    );
+    outcomes.extend(rest);
+    outcomes
 }
 
 /// [`review_batch`] without a track: reviews that feed no route σ.
