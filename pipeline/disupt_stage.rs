@@ -263,16 +263,17 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         dparams.joint_odo_bias = Some(dparams.joint_odo_bias.unwrap_or(
             m.format == LogFormat::KfGins && m.odometer.kind != Some(OdometerKind::DistanceM),
         ));
-        // The samples every method's track keeps; `tracks.parquet` takes their times.
-        let kept_samples = track_samples(&case.derived);
         // A short run's review passes of the initial settings, OWPI's and OEPI's (those
         // that ran) follow OEPI and OWPI on their core, while the joint fit (the longer
-        // work) ends; a long run's wait until the hold-out is done (see below).
+        // work) ends; a long run's wait until the hold-out is done (see below). The
+        // samples every method's track keeps (`tracks.parquet` takes their times): a long
+        // run's are not held through the methods.
         let beside_holdout = case.derived.t_s.len() <= REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES;
+        let early_kept = beside_holdout.then(|| track_samples(&case.derived));
         let early_reviews = |classic: &[ClassicResult]| {
-            beside_holdout.then(|| {
+            early_kept.as_ref().map(|keep| {
                 let lanes = classic_reviewed(x_before, &case.derived, classic);
-                untracked_reviews(&problem, &lanes, &case.fixes, &kept_samples)
+                untracked_reviews(&problem, &lanes, &case.fixes, keep)
             })
         };
         let t_methods = std::time::Instant::now();
@@ -321,6 +322,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         if let Some(e) = &found.refit_error {
             ctx.say("disupt", e);
         }
+        let kept_samples = early_kept.unwrap_or_else(|| track_samples(&case.derived));
         let joint_run = joint_result.as_ref().and_then(|r| r.as_ref().ok());
         if let Some(note) = joint_run.and_then(|r| r.odo_yaw.as_ref().and_then(odo_yaw_note)) {
             ctx.say("disupt", &note);
