@@ -108,11 +108,14 @@ pub fn case_inputs(ctx: &RunCtx, params: &Params) -> anyhow::Result<Vec<PathBuf>
 /// them go first, then runs its reviews in two batches side by side).
 pub const REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES: usize = 720_000;
 
-/// Samples of a run up to which the corrected route's boresight probe and the tables run
-/// beside the route's σ (about four hours at 100 Hz; a longer run probes first, then
+/// Samples of a run up to which the corrected route's boresight probe, then its pass and
+/// the tables, run beside the route's σ, whose columns of `corrected_nav.parquet` are
+/// encoded apart once it is known (about four hours at 100 Hz: the file's first row group,
+/// about 20 MB encoded, is then held until the σ's; a longer run probes first, then
 /// writes the tables beside the σ and the corrected navigation). Measured: the 40-minute
-/// disupt process 10 ms faster (of 0.25 s), four hours 0.1 s (of 2.3 s), but twelve hours
-/// about 0.1 s slower.
+/// disupt process 10 ms faster with the probe beside the σ (of 0.25 s) and 21 ms more with
+/// the pass beside it, four hours 0.1 s and 0.3 s (of 2.5 s), but twelve hours about 0.1
+/// s slower with the probe beside the σ.
 pub const TAIL_BESIDE_SIGMA_MAX_SAMPLES: usize = 1_500_000;
 
 /// How many times OWPI's Kryt1 OEPI's may be before its settings are not used: over 21
@@ -589,7 +592,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 SigmaColumns::Without
             })?;
             let apart = nav.take_sigma_apart();
-            let samples = case.derived.t_s.len();
+            let samples = pass.inputs.pass_samples();
             let ((odo_pitch, nav, tables), (sigma, apart)) = rayon::join(
                 || {
                     let mut tracks = tracks;

@@ -70,6 +70,15 @@ impl NavInputs<'_> {
     pub fn is_empty(&self) -> bool {
         self.dt_s.is_empty()
     }
+
+    /// The samples [`run`] steps over (and hands its sink): those with an interval, an
+    /// angle increment and an odometer increment.
+    pub fn pass_samples(&self) -> usize {
+        self.dt_s
+            .len()
+            .min(self.dtheta_rad.len())
+            .min(self.odo_dist_m.len())
+    }
 }
 
 /// Initial settings and constants of one navigation pass.

@@ -33,7 +33,7 @@ pub(super) struct SharedOdometer;
 
 impl<const N: usize> OdometerLanes<N> for SharedOdometer {
     fn samples(&self, inputs: &NavInputs<'_>) -> usize {
-        imu_samples(inputs).min(inputs.odo_dist_m.len())
+        inputs.pass_samples()
     }
 
     #[inline(always)]
