@@ -300,7 +300,7 @@ fn nav_batch(
     sigma: Option<&RouteSigma>,
 ) -> Result<RecordBatch, arrow::error::ArrowError> {
     let r = lo..lo + t.len();
-    // The angles and the local offsets (trigonometry per row) side by side.
+    // The angles and the local offsets side by side.
     let (euler, ne): (Vec<[f32; 3]>, Vec<(f64, f64)>) = rayon::join(
         || {
             t.q_b_to_n
@@ -316,6 +316,9 @@ fn nav_batch(
                 .collect()
         },
     );
+    let angle = |i: usize| -> ArrayRef {
+        Arc::new(Float32Array::from_iter_values(euler.iter().map(|e| e[i])))
+    };
     let deg = |v: &[f64]| {
         Arc::new(Float64Array::from_iter_values(
             v.iter().map(|x| x.to_degrees()),
@@ -328,20 +331,15 @@ fn nav_batch(
         f32_array(t.h_m.iter().copied()),
         f32_array(ne.iter().map(|p| p.0)),
         f32_array(ne.iter().map(|p| p.1)),
-        f32_column(euler.iter().map(|e| e[0])),
-        f32_column(euler.iter().map(|e| e[1])),
-        f32_column(euler.iter().map(|e| e[2])),
+        angle(0),
+        angle(1),
+        angle(2),
         f32_array(t.distance_m.iter().copied()),
     ];
     if let Some(s) = sigma {
         columns.extend(sigma_columns(s, r));
     }
     RecordBatch::try_new(schema.clone(), columns)
-}
-
-/// A column of f32 values.
-fn f32_column(values: impl Iterator<Item = f32>) -> ArrayRef {
-    Arc::new(Float32Array::from_iter_values(values))
 }
 
 /// The route's σ columns of samples `r` (north and east, m; heading, deg).

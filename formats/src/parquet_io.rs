@@ -1,5 +1,6 @@
 //! Parquet output (zstd, atomic) and input of whole tables.
 
+use std::ops::Range;
 use std::path::Path;
 
 use arrow::array::ArrayRef;
@@ -9,9 +10,9 @@ use parquet::arrow::ArrowWriter;
 use parquet::arrow::arrow_reader::ParquetRecordBatchReaderBuilder;
 use parquet::arrow::arrow_writer::{ArrowRowGroupWriterFactory, compute_leaves};
 use parquet::basic::{Compression, Encoding, ZstdLevel};
-use parquet::file::properties::{EnabledStatistics, WriterProperties};
+use parquet::file::properties::{EnabledStatistics, WriterProperties, WriterPropertiesPtr};
 use parquet::file::writer::SerializedFileWriter;
-use parquet::schema::types::ColumnPath;
+use parquet::schema::types::{ColumnDescPtr, ColumnPath};
 use rayon::prelude::*;
 
 use crate::atomic::AtomicFile;
@@ -28,26 +29,159 @@ pub struct ParquetSink {
     writer: SerializedFileWriter<std::fs::File>,
     factory: ArrowRowGroupWriterFactory,
     schema: SchemaRef,
-    /// The column writers of the row group being filled (none between row groups), one
-    /// per leaf column.
-    columns: Vec<LeafWriter>,
-    /// Leaf columns of each of the schema's fields, in order.
-    leaves_per_field: Vec<usize>,
-    /// Each field's shape when its values can go to its one leaf's writer directly.
-    direct: Vec<Option<DirectShape>>,
-    /// Rows in that row group.
-    group_rows: usize,
-    /// Rows per row group at most.
-    max_group_rows: usize,
-    /// Whether long batches' columns are encoded side by side.
-    side_by_side: bool,
-    /// The trailing fields written after all the others' rows, when asked
-    /// ([`ParquetSink::deferring_from`]).
+    /// The table's leaf columns, and how a row group's writers of them are made.
+    leaves: Leaves,
+    /// The row group being filled.
+    groups: Groups,
+    /// The trailing fields encoded apart, when asked ([`ParquetSink::deferring_from`]).
     deferred: Option<Deferred>,
-    /// Row groups begun.
-    groups: usize,
     file: AtomicFile,
     rows: usize,
+}
+
+/// A table's leaf columns, and how a row group's writers of them are made.
+#[derive(Clone)]
+struct Leaves {
+    /// Each leaf's descriptor.
+    descr: Vec<ColumnDescPtr>,
+    /// Leaf columns of each of the schema's fields, in order.
+    per_field: Vec<usize>,
+    /// Each field's shape when its values can go to its one leaf's writer directly.
+    direct: Vec<Option<DirectShape>>,
+    props: WriterPropertiesPtr,
+}
+
+impl Leaves {
+    /// The writers of the leaves of `fields` for row group `index`: a direct one for each
+    /// field [`direct_shape`] allows, else the Arrow writer's from `factory` (which makes
+    /// them for every column at once, each with its own codec, a zstd compressor and
+    /// decompressor: asked only when a column needs one).
+    fn writers(
+        &self,
+        fields: Range<usize>,
+        index: usize,
+        factory: Option<&ArrowRowGroupWriterFactory>,
+        dest: &Path,
+    ) -> Result<Vec<LeafWriter>, FileError> {
+        let first_leaf: usize = self.per_field[..fields.start].iter().sum();
+        let direct: Vec<Option<DirectColumn>> = self.per_field[fields.clone()]
+            .iter()
+            .zip(fields)
+            .flat_map(|(&n, field)| std::iter::repeat_n((n, field), n))
+            .zip(first_leaf..)
+            .map(|((n, field), leaf)| {
+                self.direct[field].filter(|_| n == 1).and_then(|s| {
+                    DirectColumn::new(self.descr[leaf].clone(), self.props.clone(), s)
+                })
+            })
+            .collect();
+        let mut arrow = match factory {
+            Some(factory) if direct.iter().any(Option::is_none) => factory
+                .create_column_writers(index)
+                .map_err(|e| parquet_err(dest, e))?,
+            _ => Vec::new(),
+        }
+        .into_iter()
+        .skip(first_leaf);
+        direct
+            .into_iter()
+            .map(|d| match (d, arrow.next()) {
+                (Some(d), _) => Ok(LeafWriter::Direct(Box::new(d))),
+                (None, Some(w)) => Ok(LeafWriter::Arrow(Box::new(w))),
+                (None, None) => Err(parquet_err(
+                    dest,
+                    FormatError::Invalid("fewer column writers than leaf columns".into()),
+                )),
+            })
+            .collect()
+    }
+}
+
+/// Leaf columns filled row group by row group (a sink's, or its trailing fields').
+struct Groups {
+    /// The writers of the row group being filled (none between row groups).
+    writers: Vec<LeafWriter>,
+    /// Rows in that row group.
+    rows: usize,
+    /// Rows per row group at most.
+    max_rows: usize,
+    /// Whether long batches' columns are encoded side by side.
+    side_by_side: bool,
+    /// Row groups begun.
+    begun: usize,
+}
+
+/// Row groups whose columns are closed: their chunks (every leaf's, in order) and rows.
+type Filled = Vec<(Vec<LeafChunk>, usize)>;
+
+impl Groups {
+    fn new(max_rows: usize) -> Self {
+        Self {
+            writers: Vec::new(),
+            rows: 0,
+            max_rows: max_rows.max(1),
+            side_by_side: true,
+            begun: 0,
+        }
+    }
+
+    /// Encodes `batch` (the columns of `fields`, of `leaves_per_field` leaves each), split
+    /// where a row group fills (as `ArrowWriter::write` does); `make(index)` gives row
+    /// group `index`'s writers at its first rows. Returns the row groups it filled.
+    fn write(
+        &mut self,
+        batch: &RecordBatch,
+        fields: &[FieldRef],
+        leaves_per_field: &[usize],
+        dest: &Path,
+        mut make: impl FnMut(usize) -> Result<Vec<LeafWriter>, FileError>,
+    ) -> Result<Filled, FileError> {
+        let mut filled = Vec::new();
+        let n = batch.num_rows();
+        let mut at = 0;
+        while at < n {
+            if self.writers.is_empty() {
+                self.writers = make(self.begun)?;
+                self.begun += 1;
+            }
+            let take = (self.max_rows - self.rows).min(n - at);
+            let part = if take == n {
+                batch.clone()
+            } else {
+                batch.slice(at, take)
+            };
+            let written = encode(
+                fields,
+                leaves_per_field,
+                &part,
+                &mut self.writers,
+                self.side_by_side,
+            );
+            written.map_err(|e| parquet_err(dest, e))?;
+            self.rows += take;
+            at += take;
+            if self.rows >= self.max_rows {
+                filled.extend(self.close(dest)?);
+            }
+        }
+        Ok(filled)
+    }
+
+    /// Closes the row group being filled (its columns' last pages side by side): its
+    /// chunks and rows; none between row groups.
+    fn close(&mut self, dest: &Path) -> Result<Option<(Vec<LeafChunk>, usize)>, FileError> {
+        if self.writers.is_empty() {
+            return Ok(None);
+        }
+        let writers = std::mem::take(&mut self.writers);
+        let chunks: Result<Vec<LeafChunk>, _> = if self.side_by_side {
+            writers.into_par_iter().map(|w| w.close()).collect()
+        } else {
+            writers.into_iter().map(|w| w.close()).collect()
+        };
+        let chunks = chunks.map_err(|e| parquet_err(dest, e))?;
+        Ok(Some((chunks, std::mem::take(&mut self.rows))))
+    }
 }
 
 /// The trailing fields of a [`ParquetSink`] whose columns are encoded apart
@@ -55,8 +189,8 @@ pub struct ParquetSink {
 struct Deferred {
     /// The first trailing field.
     field: usize,
-    /// Row groups whose leading columns are closed, in order: their chunks and rows.
-    waiting: Vec<(Vec<LeafChunk>, usize)>,
+    /// Row groups whose leading columns are closed, in order.
+    waiting: Filled,
 }
 
 /// The trailing fields' columns of a [`ParquetSink`] ([`ParquetSink::deferring_from`]),
@@ -64,16 +198,13 @@ struct Deferred {
 /// groups, and handed to [`ParquetSink::finish_with`].
 pub struct TrailingColumns {
     dest: std::path::PathBuf,
-    /// Each trailing leaf's descriptor and how its values lie.
-    leaves: Vec<(parquet::schema::types::ColumnDescPtr, DirectShape)>,
-    props: parquet::file::properties::WriterPropertiesPtr,
-    max_group_rows: usize,
-    side_by_side: bool,
-    /// The writers of the row group being filled (none between row groups) and its rows.
-    writers: Vec<LeafWriter>,
-    group_rows: usize,
-    /// Row groups encoded: their chunks and rows.
-    done: Vec<(Vec<LeafChunk>, usize)>,
+    /// The trailing fields, from the table's field `first` on.
+    fields: Vec<FieldRef>,
+    first: usize,
+    leaves: Leaves,
+    groups: Groups,
+    /// Row groups encoded.
+    done: Filled,
 }
 
 impl TrailingColumns {
@@ -86,72 +217,26 @@ impl TrailingColumns {
     /// file is the one whole batches make, byte for byte, when these come in the batches
     /// the leading fields came in.
     pub fn write(&mut self, batch: &RecordBatch) -> Result<(), FileError> {
-        if batch.num_columns() != self.leaves.len() {
+        if batch.num_columns() != self.fields.len() {
             return Err(parquet_err(
                 &self.dest,
                 FormatError::Invalid(format!(
                     "a batch of {} trailing columns for {}",
                     batch.num_columns(),
-                    self.leaves.len()
+                    self.fields.len()
                 )),
             ));
         }
-        let n = batch.num_rows();
-        let mut at = 0;
-        while at < n {
-            if self.writers.is_empty() {
-                self.writers = self
-                    .leaves
-                    .iter()
-                    .map(|(descr, shape)| {
-                        DirectColumn::new(descr.clone(), self.props.clone(), *shape)
-                            .map(|d| LeafWriter::Direct(Box::new(d)))
-                            .ok_or_else(|| {
-                                parquet_err(
-                                    &self.dest,
-                                    FormatError::Invalid(
-                                        "a trailing column not written directly".into(),
-                                    ),
-                                )
-                            })
-                    })
-                    .collect::<Result<_, _>>()?;
-            }
-            let take = (self.max_group_rows - self.group_rows).min(n - at);
-            let part = if take == n {
-                batch.clone()
-            } else {
-                batch.slice(at, take)
-            };
-            let ones = vec![1; self.leaves.len()];
-            let schema = part.schema();
-            encode(
-                schema.fields(),
-                &ones,
-                &part,
-                &mut self.writers,
-                self.side_by_side,
-            )
-            .map_err(|e| parquet_err(&self.dest, e))?;
-            self.group_rows += take;
-            at += take;
-            if self.group_rows >= self.max_group_rows {
-                self.close_group()?;
-            }
-        }
-        Ok(())
-    }
-
-    /// Closes the row group being filled.
-    fn close_group(&mut self) -> Result<(), FileError> {
-        if self.writers.is_empty() {
-            return Ok(());
-        }
-        let writers = std::mem::take(&mut self.writers);
-        let chunks =
-            close_all(writers, self.side_by_side).map_err(|e| parquet_err(&self.dest, e))?;
-        self.done
-            .push((chunks, std::mem::take(&mut self.group_rows)));
+        let (leaves, dest) = (&self.leaves, self.dest.as_path());
+        let fields = self.first..self.first + self.fields.len();
+        let filled = self.groups.write(
+            batch,
+            &self.fields,
+            &leaves.per_field[fields.clone()],
+            dest,
+            |index| leaves.writers(fields.clone(), index, None, dest),
+        )?;
+        self.done.extend(filled);
         Ok(())
     }
 }
@@ -227,30 +312,25 @@ impl ParquetSink {
             .and_then(|w| w.into_serialized_writer())
             .map_err(|e| parquet_err(dest, e))?;
         let descr = writer.schema_descr();
-        let mut leaves_per_field = vec![0; schema.fields().len()];
+        let mut per_field = vec![0; schema.fields().len()];
         for leaf in 0..descr.num_columns() {
-            if let Some(n) = leaves_per_field.get_mut(descr.get_column_root_idx(leaf)) {
+            if let Some(n) = per_field.get_mut(descr.get_column_root_idx(leaf)) {
                 *n += 1;
             }
         }
-        let direct = schema
-            .fields()
-            .iter()
-            .zip(&leaves_per_field)
-            .map(|(f, &n)| direct_shape(f).filter(|_| n == 1))
-            .collect();
+        let leaves = Leaves {
+            descr: (0..descr.num_columns()).map(|l| descr.column(l)).collect(),
+            direct: schema.fields().iter().map(|f| direct_shape(f)).collect(),
+            per_field,
+            props: writer.properties().clone(),
+        };
         Ok(Self {
             writer,
             factory,
             schema,
-            columns: Vec::new(),
-            leaves_per_field,
-            direct,
-            group_rows: 0,
-            max_group_rows: rows.max(1),
-            side_by_side: true,
+            leaves,
+            groups: Groups::new(rows),
             deferred: None,
-            groups: 0,
             file,
             rows: 0,
         })
@@ -264,26 +344,20 @@ impl ParquetSink {
     /// be of the kinds written directly (required numbers, or fixed-size lists of them).
     pub fn deferring_from(mut self, field: usize) -> Result<(Self, TrailingColumns), FileError> {
         let fields = self.schema.fields().len();
-        if field == 0 || field >= fields || self.direct[field..].iter().any(Option::is_none) {
+        let direct = |f: usize| self.leaves.direct[f].is_some() && self.leaves.per_field[f] == 1;
+        if field == 0 || field >= fields || !(field..fields).all(direct) {
             return Err(self.invalid(format!(
                 "fields {field}.. of {fields} cannot be written after the others"
             )));
         }
-        let descr = self.writer.schema_descr();
-        let first_leaf: usize = self.leaves_per_field[..field].iter().sum();
-        let leaves = self.direct[field..]
-            .iter()
-            .zip(first_leaf..)
-            .filter_map(|(shape, leaf)| shape.map(|s| (descr.column(leaf), s)))
-            .collect();
+        let mut groups = Groups::new(self.groups.max_rows);
+        groups.side_by_side = self.groups.side_by_side;
         let trailing = TrailingColumns {
             dest: self.file.dest().to_path_buf(),
-            leaves,
-            props: self.writer.properties().clone(),
-            max_group_rows: self.max_group_rows,
-            side_by_side: self.side_by_side,
-            writers: Vec::new(),
-            group_rows: 0,
+            fields: self.schema.fields()[field..].to_vec(),
+            first: field,
+            leaves: self.leaves.clone(),
+            groups,
             done: Vec::new(),
         };
         self.deferred = Some(Deferred {
@@ -311,7 +385,7 @@ impl ParquetSink {
     /// MCAP writer thread, where spreading the columns over the pool only contends with
     /// that work.
     pub fn on_this_thread(mut self) -> Self {
-        self.side_by_side = false;
+        self.groups.side_by_side = false;
         self
     }
 
@@ -324,101 +398,36 @@ impl ParquetSink {
                 batch.num_columns(),
             )));
         }
-        let n = batch.num_rows();
-        let mut at = 0;
-        while at < n {
-            if self.columns.is_empty() {
-                self.columns = self.column_writers(0..fields, self.groups)?;
-                self.groups += 1;
-            }
-            let take = (self.max_group_rows - self.group_rows).min(n - at);
-            let part = if take == n {
-                batch.clone()
-            } else {
-                batch.slice(at, take)
-            };
-            let written = encode(
-                &self.schema.fields()[..fields],
-                &self.leaves_per_field,
-                &part,
-                &mut self.columns,
-                self.side_by_side,
-            );
-            written.map_err(|e| parquet_err(self.file.dest(), e))?;
-            self.group_rows += take;
-            self.rows += take;
-            at += take;
-            if self.group_rows >= self.max_group_rows {
-                self.flush_row_group()?;
-            }
-        }
-        Ok(())
+        let (leaves, factory, dest) = (&self.leaves, &self.factory, self.file.dest());
+        let filled = self.groups.write(
+            batch,
+            &self.schema.fields()[..fields],
+            &leaves.per_field[..fields],
+            dest,
+            |index| leaves.writers(0..fields, index, Some(factory), dest),
+        )?;
+        self.rows += batch.num_rows();
+        self.take_filled(filled)
     }
 
-    /// The column writers of `fields` for row group `index`: the Arrow writer's, but a
-    /// direct one for each field [`direct_shape`] allows.
-    fn column_writers(
-        &self,
-        fields: std::ops::Range<usize>,
-        index: usize,
-    ) -> Result<Vec<LeafWriter>, FileError> {
-        let descr = self.writer.schema_descr();
-        let props = self.writer.properties();
-        let first_leaf: usize = self.leaves_per_field[..fields.start].iter().sum();
-        let direct: Vec<Option<DirectColumn>> = self.leaves_per_field[fields.clone()]
-            .iter()
-            .zip(fields)
-            .flat_map(|(&n, field)| std::iter::repeat_n(field, n))
-            .zip(first_leaf..)
-            .map(|(field, leaf)| {
-                self.direct[field]
-                    .and_then(|s| DirectColumn::new(descr.column(leaf), props.clone(), s))
-            })
-            .collect();
-        // The Arrow writer's come for every column at once, each with its own codec (a
-        // zstd compressor and decompressor): made only when a column needs one.
-        let mut arrow = if direct.iter().all(Option::is_some) {
-            Vec::new()
-        } else {
-            self.factory
-                .create_column_writers(index)
-                .map_err(|e| parquet_err(self.file.dest(), e))?
-        }
-        .into_iter()
-        .skip(first_leaf);
-        direct
-            .into_iter()
-            .map(|d| {
-                let arrow = arrow.next();
-                match (d, arrow) {
-                    (Some(d), _) => Ok(LeafWriter::Direct(Box::new(d))),
-                    (None, Some(w)) => Ok(LeafWriter::Arrow(Box::new(w))),
-                    (None, None) => Err(parquet_err(
-                        self.file.dest(),
-                        FormatError::Invalid("fewer column writers than leaf columns".into()),
-                    )),
-                }
-            })
-            .collect()
-    }
-
-    /// Closes the row group being filled (its columns' last pages side by side) and
-    /// appends it to the file; or, while trailing fields wait, has it wait with them.
-    fn flush_row_group(&mut self) -> Result<(), FileError> {
-        if self.columns.is_empty() {
-            return Ok(());
-        }
-        let columns = std::mem::take(&mut self.columns);
-        let rows = std::mem::take(&mut self.group_rows);
-        let chunks =
-            close_all(columns, self.side_by_side).map_err(|e| parquet_err(self.file.dest(), e))?;
+    /// Appends the row groups `filled` to the file; or, while trailing fields wait, has
+    /// them wait with them.
+    fn take_filled(&mut self, filled: Filled) -> Result<(), FileError> {
         match self.deferred.as_mut() {
             Some(d) => {
-                d.waiting.push((chunks, rows));
+                d.waiting.extend(filled);
                 Ok(())
             }
-            None => self.append_row_group(chunks),
+            None => filled
+                .into_iter()
+                .try_for_each(|(chunks, _)| self.append_row_group(chunks)),
         }
+    }
+
+    /// Closes the row group being filled and takes it ([`Self::take_filled`]).
+    fn flush_row_group(&mut self) -> Result<(), FileError> {
+        let filled = self.groups.close(self.file.dest())?;
+        self.take_filled(filled.into_iter().collect())
     }
 
     /// Appends a row group of `chunks`, every leaf's in order.
@@ -440,7 +449,8 @@ impl ParquetSink {
     /// Leaf columns of the row group being filled that are written directly.
     #[cfg(test)]
     fn direct_leaves(&self) -> usize {
-        self.columns
+        self.groups
+            .writers
             .iter()
             .filter(|c| matches!(c, LeafWriter::Direct(_)))
             .count()
@@ -469,11 +479,11 @@ impl ParquetSink {
     /// the same groups.
     pub fn finish_with(mut self, mut trailing: TrailingColumns) -> Result<(), FileError> {
         self.flush_row_group()?;
-        trailing.close_group()?;
+        trailing.done.extend(trailing.groups.close(&trailing.dest)?);
         let Some(deferred) = self.deferred.take() else {
             return Err(self.invalid("trailing columns for a sink without them".into()));
         };
-        let rows = |g: &[(Vec<LeafChunk>, usize)]| g.iter().map(|(_, n)| *n).collect::<Vec<_>>();
+        let rows = |g: &Filled| g.iter().map(|(_, n)| *n).collect::<Vec<_>>();
         let (lead, trail) = (rows(&deferred.waiting), rows(&trailing.done));
         if lead != trail {
             return Err(self.invalid(format!(
@@ -546,19 +556,6 @@ fn encode(
         each.into_par_iter().try_for_each(write)
     } else {
         each.into_iter().try_for_each(write)
-    }
-}
-
-/// Closes `writers` (their last pages side by side when `side_by_side`): their chunks,
-/// in order.
-fn close_all(
-    writers: Vec<LeafWriter>,
-    side_by_side: bool,
-) -> Result<Vec<LeafChunk>, parquet::errors::ParquetError> {
-    if side_by_side {
-        writers.into_par_iter().map(|w| w.close()).collect()
-    } else {
-        writers.into_iter().map(|w| w.close()).collect()
     }
 }
 
