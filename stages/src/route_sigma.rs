@@ -19,6 +19,7 @@
 use rayon::prelude::*;
 
 use crate::attitude::wrap_pi;
+use crate::earth::LocalFrame;
 use crate::strapdown::{
     LaneBatch, MAX_LANES, NavInputs, NavSettings, PassSink, StateAt, in_lanes, run_states_at,
     run_states_each, samples_every,
@@ -81,16 +82,19 @@ fn heading_of(q: &[f64; 4]) -> f64 {
     (2.0 * (x * y + w * z)).atan2(w * w + x * x - y * y - z * z)
 }
 
-/// (north m, east m from the start of `s`, heading rad) of a pass's state.
-fn state(s: &NavSettings, lat_rad: f64, lon_rad: f64, q: &[f64; 4]) -> [f64; 3] {
-    let (n, e) = s.start().offset_m(lat_rad, lon_rad);
+/// (north m, east m in `frame`, the local frame of a pass's start, heading rad) of a
+/// pass's state. The frame is taken once per pass, not per sample (its radii and
+/// cosine cost more than the offsets): the same values, bit for bit
+/// ([`crate::earth::Geodetic::local_frame`]).
+fn state(frame: &LocalFrame, lat_rad: f64, lon_rad: f64, q: &[f64; 4]) -> [f64; 3] {
+    let (n, e) = frame.offset_m(lat_rad, lon_rad);
     [n, e, heading_of(q)]
 }
 
-/// A moved pass's sensitivity at one sample: its (north, east, heading) in `state` minus
-/// the corrected pass's `y0` there, over its step.
-fn sensitivity(mv: &Moved<'_>, y0: &[f64; 3], (lat, lon, q): StateAt) -> [f64; 3] {
-    sensitivity_of(&state(&mv.settings, lat, lon, &q), y0, mv.step)
+/// A moved pass's sensitivity at one sample: its (north, east, heading) in `state` (in
+/// `frame`, its start's local frame) minus the corrected pass's `y0` there, over its step.
+fn sensitivity(mv: &Moved<'_>, frame: &LocalFrame, y0: &[f64; 3], (lat, lon, q): StateAt) -> [f64; 3] {
+    sensitivity_of(&state(frame, lat, lon, &q), y0, mv.step)
 }
 
 /// A moved pass's sensitivity from its (north, east, heading) `y` at a sample, the
@@ -134,9 +138,10 @@ impl LaneBatch for SensitivitiesOf<'_, '_> {
 
     fn run<const N: usize>(&mut self, points: [usize; N]) -> [Vec<[f64; 3]>; N] {
         let settings = points.map(|i| self.batch[i].settings);
+        let frames = settings.map(|s| s.start().local_frame());
         let (batch, y0) = (self.batch, self.y0);
         run_states_at(&self.batch[0].inputs, &settings, self.samples, |l, i, s| {
-            sensitivity(&batch[points[l]], &y0[i], s)
+            sensitivity(&batch[points[l]], &frames[l], &y0[i], s)
         })
     }
 }
@@ -157,6 +162,7 @@ impl LaneBatch for SigmaInOneBatch<'_, '_> {
 
     fn run<const N: usize>(&mut self, points: [usize; N]) -> [(); N] {
         let settings = points.map(|i| self.moved[i].settings);
+        let frames = settings.map(|s| s.start().local_frame());
         let odometers = points.map(|i| self.moved[i].inputs.odo_dist_m.iter().copied());
         let (moved, ran, base, covariance) = (self.moved, self.ran, self.base, self.covariance);
         let samples = &base.samples[..base.y0.len()];
@@ -173,7 +179,9 @@ impl LaneBatch for SigmaInOneBatch<'_, '_> {
             |i, states| {
                 let y0 = &base.y0[i];
                 g.clear();
-                g.extend((0..m).map(|a| sensitivity(&moved[points[a]], y0, states[a])));
+                g.extend(
+                    (0..m).map(|a| sensitivity(&moved[points[a]], &frames[a], y0, states[a])),
+                );
                 g.extend(ran.iter().map(|r| r.sensitivity(i, y0)));
                 out.push(&base.walk[i], covariance, &g);
             },
@@ -217,13 +225,14 @@ pub fn states_along(
     samples: &[usize],
 ) -> Vec<[f64; 3]> {
     let mut out = Vec::with_capacity(samples.len());
+    let frame = settings.start().local_frame();
     run_states_each(
         inputs,
         [odometer],
         &[*settings],
         samples,
         |_, [(lat, lon, q)]| {
-            out.push(state(settings, lat, lon, &q));
+            out.push(state(&frame, lat, lon, &q));
         },
     );
     out
@@ -245,8 +254,8 @@ pub struct Moved<'a> {
 /// walk's variances at every `stride`-th sample and the last.
 #[derive(Debug, Clone)]
 pub struct RouteBase<'a> {
-    settings: NavSettings,
-    start: crate::earth::LocalFrame,
+    /// The local frame of the pass's start.
+    start: LocalFrame,
     dt_s: &'a [f64],
     arw_q: f64,
     samples: Vec<usize>,
@@ -268,7 +277,6 @@ impl<'a> RouteBase<'a> {
     ) -> Self {
         let samples = route_samples(dt_s.len(), stride);
         Self {
-            settings: *settings,
             start: settings.start().local_frame(),
             dt_s,
             arw_q: arw_rad_sqrt_s * arw_rad_sqrt_s,
@@ -300,7 +308,7 @@ impl PassSink for RouteBase<'_> {
             let q2 = self.arw_q;
             self.walk
                 .push([q2 * north.max(0.0), q2 * east.max(0.0), q2 * sums[0]]);
-            self.y0.push(state(&self.settings, lat, lon, q));
+            self.y0.push(state(&self.start, lat, lon, q));
         }
     }
 }
@@ -309,18 +317,26 @@ impl RouteSigma {
     /// Appends the σ at one sample: `g[a]` is moved pass `a`'s sensitivity there, `walk`
     /// the random walk's variances.
     fn push(&mut self, walk: &[f64; 3], covariance: &nalgebra::DMatrix<f64>, g: &[[f64; 3]]) {
-        let sd = |q: usize| {
-            let mut v = 0.0;
-            for (a, ga) in g.iter().enumerate() {
-                for (b, gb) in g.iter().enumerate() {
-                    v += ga[q] * covariance[(a, b)] * gb[q];
+        // gᵀ C g of the three quantities, each summed over (a, b) in the same order, the
+        // three side by side (three chains of additions where one at a time waited on each).
+        let n = g.len();
+        assert!(
+            covariance.nrows() >= n && covariance.ncols() >= n,
+            "a covariance smaller than the sensitivities"
+        );
+        let mut v = [0.0; 3];
+        for (a, ga) in g.iter().enumerate() {
+            for (b, gb) in g.iter().enumerate() {
+                let c = covariance[(a, b)];
+                for q in 0..3 {
+                    v[q] += ga[q] * c * gb[q];
                 }
             }
-            v.max(0.0)
-        };
-        self.north_m.push((sd(0) + walk[0]).sqrt());
-        self.east_m.push((sd(1) + walk[1]).sqrt());
-        self.heading_rad.push((sd(2) + walk[2]).sqrt());
+        }
+        let [n, e, h] = v.map(|v: f64| v.max(0.0));
+        self.north_m.push((n + walk[0]).sqrt());
+        self.east_m.push((e + walk[1]).sqrt());
+        self.heading_rad.push((h + walk[2]).sqrt());
     }
 }
 
@@ -444,8 +460,10 @@ mod tests {
             strapdown::run(inputs, s, &mut t);
             t
         };
+        // The offsets from the start itself (not a local frame taken once).
         let y = |t: &NavTrack, s: &NavSettings, k: usize| {
-            state(s, t.lat_rad[k], t.lon_rad[k], &t.q_b_to_n[k])
+            let (n, e) = s.start().offset_m(t.lat_rad[k], t.lon_rad[k]);
+            [n, e, heading_of(&t.q_b_to_n[k])]
         };
         let t0 = track(base.0, base.1);
         let tracks: Vec<NavTrack> = moved
