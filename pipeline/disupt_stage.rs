@@ -24,7 +24,7 @@ use unz_stages::units::DEG_PER_H;
 
 pub use coarse_azimuth::{Coarse, CoarseRefused, coarse_azimuth, coarse_refused_note};
 use joint_run::{
-    ClassicResult, JointInputs, joint_route_sigma, lag_states, route_stride, run_methods,
+    ClassicResult, JointInputs, joint_route_sigma, lag_pass, route_stride, run_methods,
 };
 pub use report::{
     DisuptOut, MARK_ARM_REFIT_SIGMA, MARK_ARM_SIGMA, MarkArmCheck, MethodOut, ODO_YAW_REFIT_Z,
@@ -374,7 +374,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         }
         // The joint fit's hold-out (unless the exclusions' search left it): the last work
         // on the segments; beside it, the route σ's pass at the moved lag, the last to read
-        // the ingested odometer. A short run's joint review pass (the others' are done)
+        // the ingested odometer (a short run's: its increments only, its pass a lane of the
+        // σ's batch; a long run's: the pass). A short run's joint review pass (the others' are done)
         // runs beside both; a long run's review passes after them, once the segments and
         // the ingested odometer are let go (at 12 hours 50 MB and more beside the reviews'
         // tracks).
@@ -387,7 +388,17 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                         None => disupt::holdout(&joint_problem, &run.fit, &run.params),
                     })
                 },
-                || joint_run.and_then(|run| lag_states(run, &problem, &rederive, &case)),
+                || {
+                    joint_run.and_then(|run| {
+                        lag_pass(
+                            run,
+                            &problem,
+                            &rederive,
+                            &case,
+                            REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES,
+                        )
+                    })
+                },
             )
         };
         let reviews = || {
@@ -429,7 +440,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             };
             (outcomes, route_base)
         };
-        let ((holdout, lag_states), (outcomes, route_base)) = if beside_holdout {
+        let ((holdout, lag_pass), (outcomes, route_base)) = if beside_holdout {
             let (both, outcomes) = rayon::join(holdout_and_lag, reviews);
             drop(rederive);
             drop(odometer);
@@ -548,7 +559,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let route_sigma = || {
             let sigma = joint_run.and_then(|run| {
                 route_base.as_ref().and_then(|base| {
-                    joint_route_sigma(&joint_problem, run, lag_states.as_deref(), base)
+                    joint_route_sigma(&joint_problem, run, lag_pass.as_ref(), base)
                 })
             });
             lap("route sigma");

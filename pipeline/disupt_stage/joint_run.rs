@@ -11,6 +11,7 @@ use unz_stages::odo_rebridge::Rebridged;
 use unz_stages::route_sigma::{
     Moved, Ran, RouteBase, RouteSigma, route_samples, route_sigma, states_along,
 };
+use unz_stages::strapdown::{NavInputs, NavSettings};
 
 use super::Method;
 use super::exclusions::{Excluding, exclude_inconsistent, without_the_point_out_of_bounds};
@@ -49,36 +50,61 @@ fn route_sigma_has_lag(run: &JointRun) -> bool {
 }
 
 /// The route σ's pass at the joint fit's lag moved by [`LAG_STEP_S`] (when
-/// [`route_sigma_has_lag`]), run while the ingested odometer is at hand: its states at
-/// the route's samples only, not its odometer increments. Run for the fit the stage
-/// keeps only (a fit redone for a boresight, an arm or a point left out had its own).
-pub(super) fn lag_states(
+/// [`route_sigma_has_lag`]), as the ingested odometer leaves it: its states at the
+/// route's samples (a long run's, whose odometer increments are not kept), or its
+/// odometer increments, with which it runs as one more lane of the σ's batch of passes
+/// (a run of up to `increments_max_samples` samples: a lane there costs less than a pass
+/// of its own, and the increments, 8 bytes a sample, are held until then).
+pub(super) enum LagPass {
+    /// Its (north, east, heading) at the route's samples.
+    States(Vec<[f64; 3]>),
+    /// Its odometer's increments, m, and its settings.
+    Increments {
+        odo_dist_m: Vec<f64>,
+        settings: NavSettings,
+    },
+}
+
+/// [`LagPass`] of the joint fit's lag moved by [`LAG_STEP_S`] (when
+/// [`route_sigma_has_lag`]), taken while the ingested odometer is at hand: the pass's
+/// increments for a run of up to `increments_max_samples` samples, else its states. Taken
+/// for the fit the stage keeps only (a fit redone for a boresight, an arm or a point left
+/// out had its own).
+pub(super) fn lag_pass(
     run: &JointRun,
     problem: &Problem<'_>,
     rederive: &Rederive<'_>,
     case: &NavCase,
-) -> Option<Vec<[f64; 3]>> {
+    increments_max_samples: usize,
+) -> Option<LagPass> {
     route_sigma_has_lag(run).then(|| {
         let d = &case.derived;
-        let samples = route_samples(d.dt_s.len(), route_stride(&d.dt_s));
         let odometer = rederive.odometer_at(run.lag.lag_s + LAG_STEP_S);
-        states_along(
+        let settings = problem.settings(&run.fit.result.x);
+        if d.dt_s.len() <= increments_max_samples {
+            return LagPass::Increments {
+                odo_dist_m: odometer.increments().collect(),
+                settings,
+            };
+        }
+        let samples = route_samples(d.dt_s.len(), route_stride(&d.dt_s));
+        LagPass::States(states_along(
             &d.nav_inputs(),
             odometer.increments(),
-            &problem.settings(&run.fit.result.x),
+            &settings,
             &samples,
-        )
+        ))
     })
 }
 
 /// σ of the joint's corrected route (`base`, taken from the pass at its settings): the fit's
 /// covariance through one moved pass per estimated setting, and the lag's variance
-/// through the pass at the moved lag (its states, [`lag_states`], when
-/// [`route_sigma_has_lag`]).
+/// through the pass at the moved lag (`lag`, [`lag_pass`], when [`route_sigma_has_lag`]):
+/// its states, or a lane beside the moved passes on its increments.
 pub(super) fn joint_route_sigma(
     problem: &Problem<'_>,
     run: &JointRun,
-    lag_states: Option<&[[f64; 3]]>,
+    lag: Option<&LagPass>,
     base: &RouteBase<'_>,
 ) -> Option<RouteSigma> {
     let fit = &run.fit;
@@ -90,7 +116,7 @@ pub(super) fn joint_route_sigma(
         .filter(|&i| !fit.free[i].is_mark_arm())
         .collect();
     let free: Vec<_> = kept.iter().map(|&i| fit.free[i]).collect();
-    let moved: Vec<Moved<'_>> = disupt::moved_by_steps(&x, &free)
+    let mut moved: Vec<Moved<'_>> = disupt::moved_by_steps(&x, &free)
         .iter()
         .zip(&free)
         .map(|(xs, s)| Moved {
@@ -106,12 +132,25 @@ pub(super) fn joint_route_sigma(
         cov.select_rows(&kept).select_columns(&kept)
     };
     let mut ran = Vec::new();
-    // Present only when the route σ has a lag part.
-    if let Some(states) = lag_states {
-        ran.push(Ran {
-            states,
-            step: LAG_STEP_S,
-        });
+    // Present only when the route σ has a lag part: the last parameter either way.
+    if let Some(lag) = lag {
+        match lag {
+            LagPass::States(states) => ran.push(Ran {
+                states,
+                step: LAG_STEP_S,
+            }),
+            LagPass::Increments {
+                odo_dist_m,
+                settings,
+            } => moved.push(Moved {
+                inputs: NavInputs {
+                    odo_dist_m,
+                    ..problem.inputs
+                },
+                settings: *settings,
+                step: LAG_STEP_S,
+            }),
+        }
         c = c.resize(m + 1, m + 1, 0.0);
         c[(m, m)] = run.lag.sigma_s * run.lag.sigma_s;
     }

@@ -93,7 +93,12 @@ fn state(frame: &LocalFrame, lat_rad: f64, lon_rad: f64, q: &[f64; 4]) -> [f64; 
 
 /// A moved pass's sensitivity at one sample: its (north, east, heading) in `state` (in
 /// `frame`, its start's local frame) minus the corrected pass's `y0` there, over its step.
-fn sensitivity(mv: &Moved<'_>, frame: &LocalFrame, y0: &[f64; 3], (lat, lon, q): StateAt) -> [f64; 3] {
+fn sensitivity(
+    mv: &Moved<'_>,
+    frame: &LocalFrame,
+    y0: &[f64; 3],
+    (lat, lon, q): StateAt,
+) -> [f64; 3] {
     sensitivity_of(&state(frame, lat, lon, &q), y0, mv.step)
 }
 
@@ -179,9 +184,7 @@ impl LaneBatch for SigmaInOneBatch<'_, '_> {
             |i, states| {
                 let y0 = &base.y0[i];
                 g.clear();
-                g.extend(
-                    (0..m).map(|a| sensitivity(&moved[points[a]], &frames[a], y0, states[a])),
-                );
+                g.extend((0..m).map(|a| sensitivity(&moved[points[a]], &frames[a], y0, states[a])));
                 g.extend(ran.iter().map(|r| r.sensitivity(i, y0)));
                 out.push(&base.walk[i], covariance, &g);
             },
