@@ -24,7 +24,7 @@ use crate::campaign_pools::{Pools, RunReports};
 use crate::disupt_stage::{DisuptOut, Method, MethodOut, SettingsOut, SigmaOut, ensure_disupt};
 use crate::flow::marks::RepeatedMark;
 use crate::flow::{
-    NavigateSummary, Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest,
+    Cores, NavigateSummary, Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest,
     ensure_ingest_before_derive, ensure_navigate,
 };
 
@@ -130,9 +130,11 @@ fn process(
     manifest: &RunManifest,
     plan: &Plan,
     bar: Option<indicatif::ProgressBar>,
+    cores: Cores,
 ) -> (anyhow::Result<()>, Vec<(String, bool, f64)>) {
     let mut ctx = RunCtx::new(manifest.clone(), plan.out.clone(), plan.verbose);
     ctx.progress = bar;
+    ctx.cores = cores;
     let result = (|| -> anyhow::Result<()> {
         if let Some(from) = plan.from {
             for stage in &STAGES[from..] {
@@ -217,6 +219,12 @@ pub fn run_campaign(manifests: &[PathBuf], plan: &Plan) -> Vec<RunOutcome> {
         (multi, total)
     });
     let counts = std::sync::Mutex::new((0usize, 0usize)); // failed, cached
+    // Runs side by side share the cores (a campaign of one has them).
+    let cores = if checked.len() > 1 {
+        Cores::Shared
+    } else {
+        Cores::Own
+    };
     let outcomes = checked
         .into_par_iter()
         .map(|(path, name, m)| {
@@ -228,7 +236,7 @@ pub fn run_campaign(manifests: &[PathBuf], plan: &Plan) -> Vec<RunOutcome> {
                 b
             });
             let (result, stages) = match m {
-                Ok(m) => guarded(|| process(&m, plan, bar.clone()))
+                Ok(m) => guarded(|| process(&m, plan, bar.clone(), cores))
                     .unwrap_or_else(|e| (Err(e), Vec::new())),
                 Err(e) => (Err(e), Vec::new()),
             };

@@ -37,7 +37,8 @@ use reviews::{Reviewed, classic_reviewed, review_batch, review_passes, untracked
 use crate::artifacts::{StageName, files};
 use crate::derive_io::{StoredDerive, read_velocity_ranges};
 use crate::flow::{
-    IngestedSeries, NavCase, Overrides, Params, RunCtx, ensure_derive, load_case, site_gravity_mps2,
+    Cores, IngestedSeries, NavCase, Overrides, Params, RunCtx, ensure_derive, load_case,
+    site_gravity_mps2,
 };
 use crate::method_tables::{
     KRYT1_SERIES, KeptTrack, MethodKryt1, TRACKS, track_samples, write_kryt1_series, write_tracks,
@@ -268,13 +269,17 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         ));
         // A short run's review passes of the initial settings, OWPI's and OEPI's (those
         // that ran) follow OEPI and OWPI on their core, while the joint fit (the longer
-        // work) ends; a long run's wait until the hold-out is done (see below). The
-        // samples every method's track keeps (`tracks.parquet` takes their times): a long
-        // run's are not held through the methods.
+        // work) ends; a long run's wait until the hold-out is done (see below). With the
+        // cores shared with other runs (which use that gap), a short run's review passes
+        // all run in one batch of lanes beside the hold-out: the joint's lane is then
+        // one more lane in a batch, not a batch of its own (the same files). The samples
+        // every method's track keeps (`tracks.parquet` takes their times): a long run's
+        // are not held through the methods.
         let beside_holdout = case.derived.t_s.len() <= REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES;
         let early_kept = beside_holdout.then(|| track_samples(&case.derived));
+        let reviews_early = beside_holdout && ctx.cores == Cores::Own;
         let early_reviews = |classic: &[ClassicResult]| {
-            early_kept.as_ref().map(|keep| {
+            early_kept.as_ref().filter(|_| reviews_early).map(|keep| {
                 let lanes = classic_reviewed(x_before, &case.derived, classic);
                 untracked_reviews(&problem, &lanes, &case.fixes, keep)
             })
@@ -430,6 +435,14 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                     ));
                     outcomes
                 }
+                // A short run's in one batch (the cores shared).
+                None if beside_holdout => review_batch(
+                    &problem,
+                    &reviewed,
+                    &case.fixes,
+                    &kept_samples,
+                    &mut route_base,
+                ),
                 None => review_passes(
                     &problem,
                     &reviewed,

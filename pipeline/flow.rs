@@ -29,7 +29,7 @@ pub use ingest_derive::{
 };
 pub use ingested::{IngestedSeries, OdometerTags};
 pub use navigate::{ImuAxesReport, NavigateSummary, ensure_navigate};
-pub use run_ctx::RunCtx;
+pub use run_ctx::{Cores, RunCtx};
 
 /// Parameters of every stage (defaults built in).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]

@@ -127,3 +127,51 @@ fn a_campaign_run_from_elsewhere_or_moved_is_taken_from_the_cache() {
     .unwrap();
     assert!(stderr.contains("ingest: up to date, skipped"), "{stderr}");
 }
+
+/// A run processed in a campaign of several (whose runs share the cores: the disupt
+/// stage then orders its review passes for the least CPU, in one batch of lanes) gives
+/// the files it gives processed alone (its review passes ordered for the shortest time,
+/// in two batches), byte for byte.
+#[test]
+fn a_run_in_a_campaign_of_several_gives_the_files_it_gives_alone() {
+    let tmp = tempfile::tempdir().unwrap();
+    let c = tmp.path().join("c");
+    unz_ok(&[
+        "simulate",
+        "--out",
+        c.to_str().unwrap(),
+        "--seed",
+        "75",
+        "--runs",
+        "2",
+        "--duration-s",
+        "600",
+    ]);
+    let (shared, own) = (tmp.path().join("shared"), tmp.path().join("own"));
+    let summary = unz_ok(&[
+        "run",
+        c.to_str().unwrap(),
+        "--out",
+        shared.to_str().unwrap(),
+    ]);
+    assert!(summary.contains("2 ok (0 fully cached)"), "{summary}");
+    unz_ok(&[
+        "run",
+        c.join("sim-0075").to_str().unwrap(),
+        "--out",
+        own.to_str().unwrap(),
+    ]);
+    let (a, b) = (shared.join("sim-0075"), own.join("sim-0075"));
+    // The joint fit ran: its review pass is the one the two orders place apart.
+    let report: serde_json::Value = crate::util::read_json(&a.join("disupt/disupt.json"));
+    assert!(report["methods"]["joint"].is_object(), "{report}");
+    let (fa, fb) = (files(&a), files(&b));
+    assert_eq!(fa, fb);
+    for f in &fa {
+        let (x, y) = (
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+        );
+        assert!(x == y, "{} differs between the two", f.display());
+    }
+}

@@ -27,6 +27,10 @@ pub struct RunCtx {
     pub log: std::sync::Mutex<Vec<(String, bool, f64)>>,
     /// A progress line showing the stage being worked on (campaigns on a terminal).
     pub progress: Option<indicatif::ProgressBar>,
+    /// Whether the run has the machine's cores to itself or shares them with other runs
+    /// (a campaign's): where a stage can order its work either for the shortest time or
+    /// for the least CPU, the same files either way.
+    pub cores: Cores,
     /// The derive stage's output in memory: the stages after it in the same process share
     /// it instead of each decoding `derived.parquet`. Set when the derive is computed or
     /// first loaded, as [`crate::derive_io::load_derived`] gives it back but without the
@@ -39,6 +43,17 @@ pub struct RunCtx {
     ingested: std::sync::Mutex<Option<IngestedSeries>>,
 }
 
+/// Whom a run's process shares the cores with ([`RunCtx::cores`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cores {
+    /// The run alone: a core idle while another works is time lost, so work may be
+    /// ordered to keep both busy even where that costs some CPU.
+    Own,
+    /// Other runs side by side (a campaign of several): they keep every core busy, so the
+    /// work is ordered for the least CPU.
+    Shared,
+}
+
 impl RunCtx {
     /// A context for the run described by `manifest`, writing under `out`.
     pub fn new(manifest: RunManifest, out: PathBuf, verbose: bool) -> Self {
@@ -48,6 +63,7 @@ impl RunCtx {
             verbose,
             log: std::sync::Mutex::new(Vec::new()),
             progress: None,
+            cores: Cores::Own,
             derived: std::sync::Mutex::new(None),
             ingested: std::sync::Mutex::new(None),
         }
