@@ -15,7 +15,7 @@ use unz_formats::tables::values_of;
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
-use unz_stages::euler_f32::{HeadingDeg, euler_deg_f32};
+use unz_stages::euler_f32::{HeadingDeg, euler_deg_f32_into};
 use unz_stages::strapdown::{KeepRows, TrackRow, samples_every};
 
 /// File name of the per-method trajectories.
@@ -108,7 +108,14 @@ pub struct KeptTrack {
 /// [`track_samples`]; a [`KeepRows`]): no state of the pass is stored beside it.
 pub struct TrackBuilder {
     track: KeptTrack,
+    /// Attitudes whose angles are not taken yet: they are taken four at a time, side by
+    /// side ([`euler_deg_f32_into`]).
+    pending: [[f64; 4]; ANGLES_AT_ONCE],
+    pending_rows: usize,
 }
+
+/// Attitudes a [`TrackBuilder`] turns into angles at once.
+const ANGLES_AT_ONCE: usize = 4;
 
 impl TrackBuilder {
     /// For `method`'s pass, keeping `rows` samples.
@@ -123,25 +130,43 @@ impl TrackBuilder {
                 pitch_deg: Vec::with_capacity(rows),
                 heading_deg: Vec::with_capacity(rows),
             },
+            pending: [[0.0; 4]; ANGLES_AT_ONCE],
+            pending_rows: 0,
         }
     }
 
     /// The trajectory.
-    pub fn finish(self) -> KeptTrack {
+    pub fn finish(mut self) -> KeptTrack {
+        self.take_angles();
         self.track
+    }
+
+    /// The pending attitudes' angles, into the track.
+    fn take_angles(&mut self) {
+        let n = self.pending_rows;
+        let mut rows = [[0.0; 3]; ANGLES_AT_ONCE];
+        euler_deg_f32_into(&self.pending[..n], HeadingDeg::Wrapped, &mut rows[..n]);
+        let m = &mut self.track;
+        for [roll, pitch, heading] in &rows[..n] {
+            m.roll_deg.push(*roll);
+            m.pitch_deg.push(*pitch);
+            m.heading_deg.push(*heading);
+        }
+        self.pending_rows = 0;
     }
 }
 
 impl KeepRows for TrackBuilder {
     fn keep(&mut self, _k: usize, (lat, lon, h, q): TrackRow) {
         let m = &mut self.track;
-        let [roll, pitch, heading] = euler_deg_f32(&q, HeadingDeg::Wrapped);
         m.lat_rad.push(lat);
         m.lon_rad.push(lon);
         m.h_m.push(h as f32);
-        m.roll_deg.push(roll);
-        m.pitch_deg.push(pitch);
-        m.heading_deg.push(heading);
+        self.pending[self.pending_rows] = q;
+        self.pending_rows += 1;
+        if self.pending_rows == ANGLES_AT_ONCE {
+            self.take_angles();
+        }
     }
 }
 
@@ -348,6 +373,49 @@ mod tests {
         lon_rad: -1.33,
         h_m: 90.0,
     };
+
+    /// A track built row by row holds each row's angles as `euler_deg_f32` gives them
+    /// (taken four at a time, the last ones at its end), and its positions as they came.
+    #[test]
+    fn a_track_built_row_by_row_holds_each_rows_angles() {
+        use unz_stages::euler_f32::euler_deg_f32;
+        for rows in [0, 1, 3, 4, 5, 8, 11] {
+            let mut b = TrackBuilder::new("joint", rows);
+            let row = |i: usize| {
+                let e = unz_stages::attitude::Euler {
+                    roll_rad: 0.01 * i as f64 - 0.02,
+                    pitch_rad: -0.003 * i as f64,
+                    // Across north: headings on both sides of the wrap.
+                    heading_rad: 0.3 * i as f64 - 1.0,
+                };
+                let q = e.to_quat_b_to_n();
+                (
+                    0.8 + 1e-6 * i as f64,
+                    0.5,
+                    100.0 + i as f64,
+                    [q.w, q.i, q.j, q.k],
+                )
+            };
+            for i in 0..rows {
+                b.keep(i, row(i));
+            }
+            let t = b.finish();
+            assert_eq!(t.lat_rad.len(), rows);
+            assert_eq!(t.roll_deg.len(), rows);
+            for i in 0..rows {
+                let (lat, _, h, q) = row(i);
+                let [roll, pitch, heading] = euler_deg_f32(&q, HeadingDeg::Wrapped);
+                assert_eq!(t.lat_rad[i], lat);
+                assert_eq!(t.h_m[i], h as f32);
+                assert_eq!(
+                    [t.roll_deg[i], t.pitch_deg[i], t.heading_deg[i]].map(f32::to_bits),
+                    [roll, pitch, heading].map(f32::to_bits),
+                    "row {i} of {rows}"
+                );
+                assert!((0.0..360.0).contains(&t.heading_deg[i]));
+            }
+        }
+    }
 
     #[test]
     fn decimation_keeps_the_rate_and_the_last_sample() {

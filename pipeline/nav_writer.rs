@@ -14,7 +14,7 @@ use unz_formats::tables::f32_array;
 use unz_stages::criteria::FixPose;
 use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
-use unz_stages::euler_f32::{HeadingDeg, euler_deg_f32};
+use unz_stages::euler_f32::{HeadingDeg, euler_deg_f32_into};
 use unz_stages::route_sigma::RouteSigma;
 use unz_stages::strapdown::{NavTrack, PassSink};
 
@@ -290,6 +290,9 @@ impl PassSink for NavWriter<'_> {
     }
 }
 
+/// Rows of a batch whose angles one task computes.
+const EULER_CHUNK_ROWS: usize = 4096;
+
 /// The rows `t` of samples `lo..` as a batch of `schema` (from [`schema::nav`]).
 fn nav_batch(
     schema: &SchemaRef,
@@ -303,10 +306,12 @@ fn nav_batch(
     // The angles and the local offsets side by side.
     let (euler, ne): (Vec<[f32; 3]>, Vec<(f64, f64)>) = rayon::join(
         || {
-            t.q_b_to_n
-                .par_iter()
-                .map(|q| euler_deg_f32(q, HeadingDeg::AsIs))
-                .collect()
+            let mut euler = vec![[0.0f32; 3]; t.q_b_to_n.len()];
+            euler
+                .par_chunks_mut(EULER_CHUNK_ROWS)
+                .zip(t.q_b_to_n.par_chunks(EULER_CHUNK_ROWS))
+                .for_each(|(out, q)| euler_deg_f32_into(q, HeadingDeg::AsIs, out));
+            euler
         },
         || {
             let frame = start.local_frame();

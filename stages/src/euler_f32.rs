@@ -183,6 +183,174 @@ fn fast(q: &[f64; 4], heading: HeadingDeg) -> Option<[f32; 3]> {
     ])
 }
 
+/// Attitudes side by side in [`euler_deg_f32_into`]: one vector register of f64 on AVX2.
+const WIDTH: usize = 4;
+
+/// [`euler_deg_f32`] of each of `q` into `out` (as long): the series of [`WIDTH`]
+/// attitudes side by side, in vector registers on x86-64 CPUs with AVX2 (a table's rows
+/// are independent: its divisions, square roots and polynomials then take a quarter of the
+/// instructions), each lane with exactly its attitude's operations. The same f32, bit for
+/// bit, as [`euler_deg_f32`] one at a time.
+///
+/// # Panics
+/// If `out` is not as long as `q`.
+pub fn euler_deg_f32_into(q: &[[f64; 4]], heading: HeadingDeg, out: &mut [[f32; 3]]) {
+    assert_eq!(q.len(), out.len(), "attitudes and rows");
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        #[allow(unsafe_code)]
+        // SAFETY: `into_avx2` only needs AVX2, and this CPU has it (checked above).
+        return unsafe { into_avx2(q, heading, out) };
+    }
+    into_portable(q, heading, out)
+}
+
+/// [`into_portable`] compiled for AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn into_avx2(q: &[[f64; 4]], heading: HeadingDeg, out: &mut [[f32; 3]]) {
+    into_portable(q, heading, out)
+}
+
+#[inline(always)]
+fn into_portable(q: &[[f64; 4]], heading: HeadingDeg, out: &mut [[f32; 3]]) {
+    let mut groups = q.chunks_exact(WIDTH);
+    let mut rows = out.chunks_exact_mut(WIDTH);
+    for (q, rows) in (&mut groups).zip(&mut rows) {
+        let q: &[[f64; 4]; WIDTH] = q.try_into().expect("a whole group");
+        let angles = fast_lanes(q);
+        for (l, row) in rows.iter_mut().enumerate() {
+            *row = certain_row(angles.map(|a| a[l]), heading)
+                .unwrap_or_else(|| euler_deg_f32(&q[l], heading));
+        }
+    }
+    for (q, row) in groups.remainder().iter().zip(rows.into_remainder()) {
+        *row = euler_deg_f32(q, heading);
+    }
+}
+
+/// [`atan_unit`] of each lane (each `t` in [0, 1]; any value in a lane left out).
+#[inline(always)]
+fn atan_unit_lanes(t: [f64; WIDTH]) -> [f64; WIDTH] {
+    let mut r = [0.0; WIDTH];
+    for l in 0..WIDTH {
+        // `as i32` truncates as `as usize` does over [0.5, 32.5]; a lane left out (NaN,
+        // out of range) saturates, and is clamped to the table.
+        let k = (t[l] * 32.0 + 0.5) as i32;
+        let c = f64::from(k) / 32.0;
+        let u = (t[l] - c) / (1.0 + t[l] * c);
+        let u2 = u * u;
+        let series =
+            u + u * u2 * (-1.0 / 3.0 + u2 * (1.0 / 5.0 + u2 * (-1.0 / 7.0 + u2 * (1.0 / 9.0))));
+        r[l] = ATAN_K32[k.clamp(0, 32) as usize] + series;
+    }
+    r
+}
+
+/// [`atan2_fast`] of each lane, NaN where it gives none.
+#[inline(always)]
+fn atan2_lanes(y: [f64; WIDTH], x: [f64; WIDTH]) -> [f64; WIDTH] {
+    let mut ratio = [0.0; WIDTH];
+    for l in 0..WIDTH {
+        let (ay, ax) = (y[l].abs(), x[l].abs());
+        ratio[l] = if ay <= ax { ay / ax } else { ax / ay };
+    }
+    let a = atan_unit_lanes(ratio);
+    let mut out = [0.0; WIDTH];
+    for l in 0..WIDTH {
+        let (ay, ax) = (y[l].abs(), x[l].abs());
+        let r = if ay <= ax {
+            a[l]
+        } else {
+            std::f64::consts::FRAC_PI_2 - a[l]
+        };
+        let r = if x[l] < 0.0 {
+            std::f64::consts::PI - r
+        } else {
+            r
+        };
+        let valid = ay > 0.0 && ax > 0.0 && ay.is_finite() && ax.is_finite();
+        out[l] = if valid { r.copysign(y[l]) } else { f64::NAN };
+    }
+    out
+}
+
+/// [`asin_fast`] of each lane, NaN where it gives none.
+#[inline(always)]
+fn asin_lanes(x: [f64; WIDTH]) -> [f64; WIDTH] {
+    let mut t = [0.0; WIDTH];
+    let mut unit = [0.0; WIDTH];
+    for l in 0..WIDTH {
+        t[l] = x[l].abs() / ((1.0 - x[l]) * (1.0 + x[l])).sqrt();
+        unit[l] = if t[l] <= 1.0 { t[l] } else { 1.0 / t[l] };
+    }
+    let a = atan_unit_lanes(unit);
+    let mut out = [0.0; WIDTH];
+    for l in 0..WIDTH {
+        let r = if t[l] <= 1.0 {
+            a[l]
+        } else {
+            std::f64::consts::FRAC_PI_2 - a[l]
+        };
+        let valid = !x[l].is_nan() && x[l].abs() <= 0.99 && x[l] != 0.0;
+        out[l] = if valid { r.copysign(x[l]) } else { f64::NAN };
+    }
+    out
+}
+
+/// [`fast`]'s f64 angles in degrees (roll, pitch, heading in [0, 360) before `heading`'s
+/// storage) of each lane, NaN where it gives none.
+#[inline(always)]
+fn fast_lanes(q: &[[f64; 4]; WIDTH]) -> [[f64; WIDTH]; 3] {
+    let mut m = [[0.0; WIDTH]; 5];
+    for l in 0..WIDTH {
+        let [w, i, j, k] = q[l];
+        let (ww, ii, jj, kk) = (w * w, i * i, j * j, k * k);
+        let ij = i * j * 2.0;
+        let wk = w * k * 2.0;
+        let wj = w * j * 2.0;
+        let ik = i * k * 2.0;
+        let jk = j * k * 2.0;
+        let wi = w * i * 2.0;
+        m[0][l] = ww + ii - jj - kk;
+        m[1][l] = wk + ij;
+        m[2][l] = ik - wj;
+        m[3][l] = wi + jk;
+        m[4][l] = ww - ii - jj + kk;
+    }
+    let [m00, m10, m20, m21, m22] = m;
+    let pitch = asin_lanes(m20);
+    let roll = atan2_lanes(m21, m22);
+    let yaw = atan2_lanes(m10, m00);
+    let mut out = [[0.0; WIDTH]; 3];
+    for l in 0..WIDTH {
+        // `rem_euclid_turn` of an atan2 in (−π, π] (NaN stays NaN).
+        let y = if yaw[l] < 0.0 {
+            yaw[l] + std::f64::consts::TAU
+        } else {
+            yaw[l]
+        };
+        out[0][l] = roll[l].to_degrees();
+        out[1][l] = (-pitch[l]).to_degrees();
+        out[2][l] = y.to_degrees();
+    }
+    out
+}
+
+/// [`fast`]'s certainty step on one attitude's angles in degrees ([`fast_lanes`]), None
+/// when an angle is not a number or not certain.
+#[inline(always)]
+fn certain_row([roll, pitch, yaw]: [f64; 3], heading: HeadingDeg) -> Option<[f32; 3]> {
+    if roll.is_nan() || pitch.is_nan() || yaw.is_nan() {
+        return None;
+    }
+    Some([
+        certain(roll, |d| d)?,
+        certain(pitch, |d| d)?,
+        certain(yaw, |d| heading.apply(d))?,
+    ])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -302,6 +470,68 @@ mod tests {
             for heading in [HeadingDeg::AsIs, HeadingDeg::Wrapped] {
                 let (got, want) = (euler_deg_f32(&q, heading), reference(&q, heading));
                 assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits), "{q:?}");
+            }
+        }
+    }
+
+    /// Attitudes side by side give each one's angles, bit for bit: vehicle-like and
+    /// uniform ones, those left to libm among them (pitches beyond 82°, zeros, a NaN), in
+    /// lists of every length about a group's (the last attitudes one at a time).
+    #[test]
+    fn attitudes_side_by_side_are_each_ones_bit_for_bit() {
+        let mut u = Uniform(12);
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let mut q: Vec<[f64; 4]> = vec![
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [h, 0.0, h, 0.0],
+            [h, 0.0, -h, 0.0],
+            [0.5, 0.5, 0.5, 0.5],
+            [h, h, 0.0, 0.0],
+            [f64::NAN, 0.0, 0.0, 0.0],
+            [1e-300, 1.0, 0.0, 1e-300],
+            [0.0, 0.0, 0.0, 0.0],
+            [f64::INFINITY, 0.0, 1.0, 0.0],
+        ];
+        for i in 0..400_000 {
+            q.push(if i % 2 == 0 {
+                let e = crate::attitude::Euler {
+                    roll_rad: (u.next() - 0.5) * 0.7,
+                    pitch_rad: (u.next() - 0.5) * 0.7,
+                    heading_rad: u.next() * std::f64::consts::TAU,
+                };
+                let q = e.to_quat_b_to_n();
+                [q.w, q.i, q.j, q.k]
+            } else {
+                let v = [u.next(), u.next(), u.next(), u.next()].map(|c| c - 0.5);
+                let norm = v.iter().map(|c| c * c).sum::<f64>().sqrt();
+                v.map(|c| c / norm)
+            });
+        }
+        let bits = |rows: &[[f32; 3]]| -> Vec<[u32; 3]> {
+            rows.iter().map(|r| r.map(f32::to_bits)).collect()
+        };
+        for heading in [HeadingDeg::AsIs, HeadingDeg::Wrapped] {
+            let one_by_one: Vec<[f32; 3]> = q.iter().map(|q| euler_deg_f32(q, heading)).collect();
+            let mut side_by_side = vec![[0.0; 3]; q.len()];
+            euler_deg_f32_into(&q, heading, &mut side_by_side);
+            assert_eq!(bits(&side_by_side), bits(&one_by_one), "{heading:?}");
+            // The portable build of the lanes too (on an AVX2 CPU the call above took
+            // the vector build).
+            let mut portable = vec![[0.0; 3]; q.len()];
+            into_portable(&q, heading, &mut portable);
+            assert_eq!(bits(&portable), bits(&one_by_one), "{heading:?}");
+            for n in 0..=13 {
+                for from in [0, 1, 3, 6] {
+                    let part = &q[from..from + n];
+                    let mut rows = vec![[0.0; 3]; n];
+                    euler_deg_f32_into(part, heading, &mut rows);
+                    assert_eq!(
+                        bits(&rows),
+                        bits(&one_by_one[from..from + n]),
+                        "{n} from {from}"
+                    );
+                }
             }
         }
     }
