@@ -21,6 +21,7 @@ use unz_formats::schema::{
     self, DTHETA_RAD, DVEL_MPS, T_NS, VALID, derived_cols, derived_meta, epochs_cols,
     filtered_cols, imu_repairs_cols,
 };
+use unz_formats::split_doubles::read_split_vec3;
 use unz_formats::tables::{f64_column, i64_column, u64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, Epochs, OdometerSpeed, ns_since};
 use unz_stages::odo_rebridge::WindowVelocities;
@@ -397,15 +398,28 @@ fn load_derived_of(
         let Some(imu) = &imu else {
             return Ok((dtheta_rad, dvel_mps, Vec::new()));
         };
-        for_each_batch_of(imu, names, |b| {
-            if with_nav {
-                dtheta_rad.extend(vec3_column(b, DTHETA_RAD)?);
+        // Each column's byte streams joined here (split_doubles), else through Arrow.
+        let fast = |name: &str, wanted: bool| -> anyhow::Result<Option<Vec<[f64; 3]>>> {
+            Ok(if wanted {
+                read_split_vec3(imu, name)?
+            } else {
+                Some(Vec::new())
+            })
+        };
+        match (fast(DTHETA_RAD, with_nav)?, fast(DVEL_MPS, with_velocity)?) {
+            (Some(angles), Some(velocities)) => (dtheta_rad, dvel_mps) = (angles, velocities),
+            _ => {
+                for_each_batch_of(imu, names, |b| {
+                    if with_nav {
+                        dtheta_rad.extend(vec3_column(b, DTHETA_RAD)?);
+                    }
+                    if with_velocity {
+                        dvel_mps.extend(vec3_column(b, DVEL_MPS)?);
+                    }
+                    Ok(())
+                })?;
             }
-            if with_velocity {
-                dvel_mps.extend(vec3_column(b, DVEL_MPS)?);
-            }
-            Ok(())
-        })?;
+        }
         let repairs = ImuRepairs::read(dir)?;
         if let Some(&k) = repairs.sample.last().filter(|&&k| k >= dtheta_rad.len()) {
             bail!(

@@ -26,6 +26,7 @@ pub mod report;
 pub mod ros2_msgs;
 pub mod schema;
 pub mod speed_spikes;
+pub mod split_doubles;
 pub mod tables;
 
 pub use error::{FileError, FormatError};
