@@ -21,7 +21,7 @@ use unz_formats::schema::{
     self, DTHETA_RAD, DVEL_MPS, T_NS, VALID, derived_cols, derived_meta, epochs_cols,
     filtered_cols, imu_repairs_cols,
 };
-use unz_formats::split_doubles::read_split_vec3;
+use unz_formats::split_doubles::{read_split_doubles, read_split_vec3};
 use unz_formats::tables::{f64_column, i64_column, u64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, Epochs, OdometerSpeed, ns_since};
 use unz_stages::odo_rebridge::WindowVelocities;
@@ -362,9 +362,21 @@ fn load_derived_of(
     let scalars = || -> anyhow::Result<_> {
         let mut t0_ns: Option<i64> = None;
         let mut t_s = NanoTimes::builder().with_room_for(rows);
-        let mut dt_s = Vec::with_capacity(per_sample(with_nav));
-        let mut odo_dist_m = Vec::with_capacity(per_sample(with_nav));
-        let names: &[&str] = if with_nav {
+        // The intervals and the odometer's increments by split_doubles, else through
+        // Arrow with the times.
+        let fast = if with_nav {
+            let read = |name: &str| read_split_doubles(&path, name, 1);
+            match (read(derived_cols::DT_S)?, read(derived_cols::ODO_DIST_M)?) {
+                (Some(dt_s), Some(odo_dist_m)) => Some((dt_s, odo_dist_m)),
+                _ => None,
+            }
+        } else {
+            Some((Vec::new(), Vec::new()))
+        };
+        let through_arrow = fast.is_none();
+        let mut dt_s = Vec::with_capacity(if through_arrow { rows } else { 0 });
+        let mut odo_dist_m = Vec::with_capacity(if through_arrow { rows } else { 0 });
+        let names: &[&str] = if through_arrow {
             &[T_NS, derived_cols::DT_S, derived_cols::ODO_DIST_M]
         } else {
             &[T_NS]
@@ -375,12 +387,13 @@ fn load_derived_of(
             for t in t_ns.iter() {
                 t_s.push(t - t0);
             }
-            if with_nav {
+            if through_arrow {
                 dt_s.extend(f64_column(b, derived_cols::DT_S)?);
                 odo_dist_m.extend(f64_column(b, derived_cols::ODO_DIST_M)?);
             }
             Ok(())
         })?;
+        let (dt_s, odo_dist_m) = fast.unwrap_or((dt_s, odo_dist_m));
         // The filter's blocks and the epochs too, while the increments (the longer read)
         // are decoded beside.
         let (_, blocks) = read_table(&bpath)?;
