@@ -11,6 +11,7 @@ use anyhow::Context;
 use arrow::datatypes::Int64Type;
 use unz_formats::parquet_io::{for_each_batch_of, read_schema, read_table};
 use unz_formats::schema::{T_NS, nav_cols, sweep_cols};
+use unz_formats::split_doubles::for_each_split_page;
 use unz_formats::tables::{f64_column, float_values, values_of};
 use unz_stages::criteria::Kryt2;
 use unz_stages::earth::Geodetic;
@@ -350,6 +351,19 @@ fn decimated_columns(
     step: usize,
     with_last: bool,
 ) -> anyhow::Result<(Vec<i64>, Vec<Vec<f64>>)> {
+    match decimated_split_columns(path, names, step, with_last)? {
+        Some(split) => Ok(split),
+        None => decimated_arrow_columns(path, names, step, with_last),
+    }
+}
+
+/// [`decimated_columns`] through Arrow, batch by batch.
+fn decimated_arrow_columns(
+    path: &Path,
+    names: &[&str],
+    step: usize,
+    with_last: bool,
+) -> anyhow::Result<(Vec<i64>, Vec<Vec<f64>>)> {
     let step = step.max(1);
     let mut wanted = vec![T_NS];
     wanted.extend_from_slice(names);
@@ -383,6 +397,61 @@ fn decimated_columns(
         }
     }
     Ok((t, out))
+}
+
+/// [`decimated_columns`] with the float columns' byte streams joined page by page
+/// (split_doubles; the kept rows only are widened and copied), the times through Arrow.
+/// `None` when a column is not of that layout: then read through Arrow.
+fn decimated_split_columns(
+    path: &Path,
+    names: &[&str],
+    step: usize,
+    with_last: bool,
+) -> anyhow::Result<Option<(Vec<i64>, Vec<Vec<f64>>)>> {
+    use arrow::datatypes::DataType;
+    let step = step.max(1);
+    let (mut t, mut rows, mut last_t) = (Vec::new(), 0usize, None);
+    let schema = for_each_batch_of(path, &[T_NS], |b| {
+        let tb = values_of::<Int64Type>(b, T_NS)?;
+        t.extend(
+            (0..tb.len())
+                .filter(|k| (rows + k) % step == 0)
+                .map(|k| tb[k]),
+        );
+        last_t = tb.last().copied().or(last_t);
+        rows += tb.len();
+        Ok(())
+    })?;
+    // The last row too, when asked and not kept already.
+    let last = rows.checked_sub(1).filter(|&l| with_last && l % step != 0);
+    if let (Some(_), Some(tl)) = (last, last_t) {
+        t.push(tl);
+    }
+    let mut out = Vec::with_capacity(names.len());
+    for name in names {
+        let mut column = Vec::with_capacity(t.len());
+        let mut keep = |first: usize, n: usize, value: &dyn Fn(usize) -> f64| {
+            let from = first.div_ceil(step) * step;
+            column.extend((from..first + n).step_by(step).map(|k| value(k - first)));
+            if let Some(l) = last.filter(|l| (first..first + n).contains(l)) {
+                column.push(value(l - first));
+            }
+        };
+        let whole = match schema.field_with_name(name).map(|f| f.data_type()) {
+            Ok(DataType::Float64) => for_each_split_page::<f64>(path, name, |first, v| {
+                keep(first, v.len(), &|i| v[i]);
+            })?,
+            Ok(DataType::Float32) => for_each_split_page::<f32>(path, name, |first, v| {
+                keep(first, v.len(), &|i| f64::from(v[i]));
+            })?,
+            _ => false,
+        };
+        if !whole || column.len() != t.len() {
+            return Ok(None);
+        }
+        out.push(column);
+    }
+    Ok(Some((t, out)))
 }
 
 /// `sweep.parquet`: axis columns first (the first varies slowest), then `kryt1_rad`,
@@ -470,10 +539,12 @@ mod tests {
             Field::new("a", DataType::Float64, false),
             Field::new("skipped", DataType::Float64, false),
             Field::new("b", DataType::Float64, false),
+            Field::new("h", DataType::Float32, false),
         ]));
         let t: Vec<i64> = (0..n).map(|k| 1_000 + 10 * k as i64).collect();
         let a: Vec<f64> = (0..n).map(|k| (k as f64).sqrt()).collect();
         let b: Vec<f64> = (0..n).map(|k| -(k as f64) * 0.5).collect();
+        let h: Vec<f32> = (0..n).map(|k| (k as f32).cbrt() - 9.0).collect();
         let batch = RecordBatch::try_new(
             schema,
             vec![
@@ -481,6 +552,7 @@ mod tests {
                 Arc::new(Float64Array::from(a.clone())),
                 Arc::new(Float64Array::from(b.clone())),
                 Arc::new(Float64Array::from(b.clone())),
+                Arc::new(arrow::array::Float32Array::from(h.clone())),
             ],
         )
         .unwrap();
@@ -496,6 +568,18 @@ mod tests {
             assert_eq!(got_t, idx.iter().map(|&k| t[k]).collect::<Vec<_>>());
             assert_eq!(got[0], idx.iter().map(|&k| a[k]).collect::<Vec<_>>());
             assert_eq!(got[1], idx.iter().map(|&k| b[k]).collect::<Vec<_>>());
+            // The byte streams joined here (the tables' layout: taken) and through Arrow
+            // give the same rows, the f32 column widened alike.
+            let names = ["a", "h", "b"];
+            let split = decimated_split_columns(&path, &names, step, with_last)
+                .unwrap()
+                .expect("the tables' layout");
+            let arrow = decimated_arrow_columns(&path, &names, step, with_last).unwrap();
+            assert_eq!(split, arrow, "step {step}, last {with_last}");
+            assert_eq!(
+                split.1[1],
+                idx.iter().map(|&k| f64::from(h[k])).collect::<Vec<_>>()
+            );
         }
     }
 }

@@ -20,6 +20,34 @@ use parquet::file::reader::{FileReader, SerializedFileReader};
 
 use crate::error::{FileError, FormatError, io_in_file};
 
+/// A float type the tables store BYTE_STREAM_SPLIT: its Parquet and Arrow types, and how
+/// a page's byte streams join back into values.
+pub trait SplitFloat: Copy + Default {
+    /// Its Parquet physical type.
+    const PHYSICAL: PhysicalType;
+    /// Its Arrow type.
+    const ARROW: arrow::datatypes::DataType;
+    /// The values of one page's byte streams `src` (`size_of::<Self>() × out.len()`
+    /// bytes), into `out`.
+    fn join(src: &[u8], out: &mut [Self]);
+}
+
+impl SplitFloat for f64 {
+    const PHYSICAL: PhysicalType = PhysicalType::DOUBLE;
+    const ARROW: arrow::datatypes::DataType = arrow::datatypes::DataType::Float64;
+    fn join(src: &[u8], out: &mut [f64]) {
+        join_streams(src, out);
+    }
+}
+
+impl SplitFloat for f32 {
+    const PHYSICAL: PhysicalType = PhysicalType::FLOAT;
+    const ARROW: arrow::datatypes::DataType = arrow::datatypes::DataType::Float32;
+    fn join(src: &[u8], out: &mut [f32]) {
+        join_streams_f32(src, out);
+    }
+}
+
 /// The values of the leaf column `leaf` (its dotted path, e.g. `x` or `v.list.item`) of
 /// the Parquet file `path`, when it holds `per_row` doubles in every row with no nulls,
 /// stored BYTE_STREAM_SPLIT in every page: all of them, in order (`per_row` a row).
@@ -47,6 +75,31 @@ pub fn read_split_vec3(path: &Path, name: &str) -> Result<Option<Vec<[f64; 3]>>,
     )
 }
 
+/// The values of the column `name` (of `F` a row, no nulls, BYTE_STREAM_SPLIT: the
+/// layout [`read_split_doubles`] takes) page by page: `each(first, values)` with each
+/// page's values, `first` the index of its first. `Ok(false)` for any other layout, which
+/// may have been found after some pages were handed over: the caller then drops what it
+/// took and reads the column through Arrow.
+///
+/// # Errors
+/// If the file cannot be read or is not Parquet.
+pub fn for_each_split_page<F: SplitFloat>(
+    path: &Path,
+    name: &str,
+    mut each: impl FnMut(usize, &[F]),
+) -> Result<bool, FileError> {
+    let Some(pages) = Pages::open::<F>(path, name, 1)? else {
+        return Ok(false);
+    };
+    let mut scratch: Vec<F> = Vec::new();
+    pages.walk::<F>(path, |values, first| {
+        let n = values.len() / std::mem::size_of::<F>();
+        scratch.resize(n, F::default());
+        F::join(values, &mut scratch);
+        each(first, &scratch);
+    })
+}
+
 /// [`read_split_doubles`] into what `make(values)` gives, whose doubles (`flat` of it,
 /// in order, as many as the values) take them: the values joined straight into the
 /// caller's rows.
@@ -57,132 +110,178 @@ fn read_into<T>(
     make: impl FnOnce(usize) -> T,
     flat: impl FnOnce(&mut T) -> &mut [f64],
 ) -> Result<Option<T>, FileError> {
-    let err = |e: parquet::errors::ParquetError| FormatError::from(e).in_file(path);
-    let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
-    let reader = SerializedFileReader::new(file).map_err(err)?;
-    let meta = reader.metadata();
-    let schema = meta.file_metadata().schema_descr();
-    // The Arrow type the file was written with: a double, or a list of `per_row` of them,
-    // with no nulls (the list's rows are then of that length, which its levels are not
-    // read again to check).
-    let Ok(arrow) =
-        parquet::arrow::parquet_to_arrow_schema(schema, meta.file_metadata().key_value_metadata())
-    else {
+    let Some(pages) = Pages::open::<f64>(path, leaf, per_row)? else {
         return Ok(None);
     };
-    let top = leaf.split('.').next().unwrap_or(leaf);
-    let typed = arrow.field_with_name(top).ok().is_some_and(|f| {
-        !f.is_nullable()
-            && match f.data_type() {
-                arrow::datatypes::DataType::Float64 => per_row == 1 && top == leaf,
-                arrow::datatypes::DataType::FixedSizeList(item, n) => {
-                    usize::try_from(*n).ok() == Some(per_row)
-                        && !item.is_nullable()
-                        && *item.data_type() == arrow::datatypes::DataType::Float64
-                }
-                _ => false,
-            }
-    });
-    if !typed {
-        return Ok(None);
-    }
-    let Some(column) =
-        (0..schema.num_columns()).find(|&i| schema.column(i).path().string() == leaf)
-    else {
-        return Ok(None);
-    };
-    let descr = schema.column(column);
-    // A double with no nulls: at most one repeated level (a list) whose entries are all
-    // defined.
-    if descr.physical_type() != PhysicalType::DOUBLE
-        || descr.max_rep_level() > 1
-        || (descr.max_rep_level() == 0) != (per_row == 1)
-        || per_row == 0
-    {
-        return Ok(None);
-    }
-    let rows: i64 = meta.row_groups().iter().map(|g| g.num_rows()).sum();
-    let Some(total) = usize::try_from(rows)
-        .ok()
-        .and_then(|r| r.checked_mul(per_row))
-    else {
-        return Ok(None);
-    };
-    // The values the metadata announces: no more is allocated.
-    let stored: i64 = meta
-        .row_groups()
-        .iter()
-        .map(|g| g.column(column).num_values())
-        .sum();
-    if usize::try_from(stored).ok() != Some(total) {
-        return Ok(None);
-    }
-    let levels = |present: bool| usize::from(present);
-    let (rep, def) = (
-        levels(descr.max_rep_level() > 0),
-        levels(descr.max_def_level() > 0),
-    );
-    let mut rows = make(total);
+    let mut rows = make(pages.total);
     let out = flat(&mut rows);
-    if out.len() != total {
+    if out.len() != pages.total {
         return Ok(None);
     }
-    let mut at = 0;
-    for g in 0..meta.num_row_groups() {
-        let group = reader.get_row_group(g).map_err(err)?;
-        let pages = group.get_column_page_reader(column).map_err(err)?;
-        for page in pages {
-            let (values, num_values, encoding) = match page.map_err(err)? {
-                Page::DataPage {
-                    buf,
-                    num_values,
-                    encoding,
-                    ..
-                } => {
-                    // Version 1: each level's run, after its four-byte length, then the
-                    // values.
-                    let mut rest: &[u8] = &buf;
-                    for _ in 0..rep + def {
-                        let Some((len, after)) = rest.split_first_chunk::<4>() else {
-                            return Ok(None);
-                        };
-                        let Some(after) = usize::try_from(u32::from_le_bytes(*len))
-                            .ok()
-                            .and_then(|n| after.get(n..))
-                        else {
-                            return Ok(None);
-                        };
-                        rest = after;
+    let whole = pages.walk::<f64>(path, |values, first| {
+        let n = values.len() / 8;
+        f64::join(values, &mut out[first..first + n]);
+    })?;
+    Ok(whole.then_some(rows))
+}
+
+/// A column of the tables' layout, its pages to read.
+struct Pages {
+    reader: SerializedFileReader<std::fs::File>,
+    column: usize,
+    /// Its values.
+    total: usize,
+    /// Level runs before a version-1 page's values (repetition, definition).
+    level_runs: usize,
+}
+
+impl Pages {
+    /// The leaf column `leaf` of `path`, when it holds `per_row` values of `F` in every
+    /// row with no nulls ([`read_split_doubles`]); `None` for another layout.
+    fn open<F: SplitFloat>(
+        path: &Path,
+        leaf: &str,
+        per_row: usize,
+    ) -> Result<Option<Self>, FileError> {
+        let err = |e: parquet::errors::ParquetError| FormatError::from(e).in_file(path);
+        let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
+        let reader = SerializedFileReader::new(file).map_err(err)?;
+        let meta = reader.metadata();
+        let schema = meta.file_metadata().schema_descr();
+        // The Arrow type the file was written with: the float, or a list of `per_row` of
+        // them, with no nulls (the list's rows are then of that length, which its levels
+        // are not read again to check).
+        let Ok(arrow) = parquet::arrow::parquet_to_arrow_schema(
+            schema,
+            meta.file_metadata().key_value_metadata(),
+        ) else {
+            return Ok(None);
+        };
+        let top = leaf.split('.').next().unwrap_or(leaf);
+        let typed = arrow.field_with_name(top).ok().is_some_and(|f| {
+            !f.is_nullable()
+                && match f.data_type() {
+                    arrow::datatypes::DataType::FixedSizeList(item, n) => {
+                        usize::try_from(*n).ok() == Some(per_row)
+                            && !item.is_nullable()
+                            && *item.data_type() == F::ARROW
                     }
-                    (buf.slice_ref(rest), num_values, encoding)
+                    t => *t == F::ARROW && per_row == 1 && top == leaf,
                 }
-                Page::DataPageV2 {
-                    buf,
-                    num_values,
-                    encoding,
-                    num_nulls,
-                    def_levels_byte_len,
-                    rep_levels_byte_len,
-                    ..
-                } => {
-                    let skip = def_levels_byte_len as usize + rep_levels_byte_len as usize;
-                    if num_nulls != 0 || skip > buf.len() {
-                        return Ok(None);
-                    }
-                    (buf.slice(skip..), num_values, encoding)
-                }
-                _ => return Ok(None),
-            };
-            let n = num_values as usize;
-            // Every level a value (a null or an empty list has none: fewer bytes).
-            if encoding != Encoding::BYTE_STREAM_SPLIT || values.len() != n * 8 || at + n > total {
-                return Ok(None);
-            }
-            join_streams(&values, &mut out[at..at + n]);
-            at += n;
+        });
+        if !typed {
+            return Ok(None);
         }
+        let Some(column) =
+            (0..schema.num_columns()).find(|&i| schema.column(i).path().string() == leaf)
+        else {
+            return Ok(None);
+        };
+        let descr = schema.column(column);
+        // No nulls: at most one repeated level (a list) whose entries are all defined.
+        if descr.physical_type() != F::PHYSICAL
+            || descr.max_rep_level() > 1
+            || (descr.max_rep_level() == 0) != (per_row == 1)
+            || per_row == 0
+        {
+            return Ok(None);
+        }
+        let rows: i64 = meta.row_groups().iter().map(|g| g.num_rows()).sum();
+        let Some(total) = usize::try_from(rows)
+            .ok()
+            .and_then(|r| r.checked_mul(per_row))
+        else {
+            return Ok(None);
+        };
+        // The values the metadata announces: no more is allocated.
+        let stored: i64 = meta
+            .row_groups()
+            .iter()
+            .map(|g| g.column(column).num_values())
+            .sum();
+        if usize::try_from(stored).ok() != Some(total) {
+            return Ok(None);
+        }
+        let level_runs =
+            usize::from(descr.max_rep_level() > 0) + usize::from(descr.max_def_level() > 0);
+        Ok(Some(Self {
+            reader,
+            column,
+            total,
+            level_runs,
+        }))
     }
-    Ok((at == total).then_some(rows))
+
+    /// `page(streams, first)` with each page's byte streams of `F` values (their first
+    /// index `first`), in order; `false` when a page is not of the layout or the values
+    /// are not all there.
+    fn walk<F: SplitFloat>(
+        &self,
+        path: &Path,
+        mut page: impl FnMut(&[u8], usize),
+    ) -> Result<bool, FileError> {
+        let err = |e: parquet::errors::ParquetError| FormatError::from(e).in_file(path);
+        let size = std::mem::size_of::<F>();
+        let mut at = 0;
+        for g in 0..self.reader.metadata().num_row_groups() {
+            let group = self.reader.get_row_group(g).map_err(err)?;
+            let pages = group.get_column_page_reader(self.column).map_err(err)?;
+            for p in pages {
+                let (values, num_values, encoding) = match p.map_err(err)? {
+                    Page::DataPage {
+                        buf,
+                        num_values,
+                        encoding,
+                        ..
+                    } => {
+                        // Version 1: each level's run, after its four-byte length, then
+                        // the values.
+                        let mut rest: &[u8] = &buf;
+                        for _ in 0..self.level_runs {
+                            let Some((len, after)) = rest.split_first_chunk::<4>() else {
+                                return Ok(false);
+                            };
+                            let Some(after) = usize::try_from(u32::from_le_bytes(*len))
+                                .ok()
+                                .and_then(|n| after.get(n..))
+                            else {
+                                return Ok(false);
+                            };
+                            rest = after;
+                        }
+                        (buf.slice_ref(rest), num_values, encoding)
+                    }
+                    Page::DataPageV2 {
+                        buf,
+                        num_values,
+                        encoding,
+                        num_nulls,
+                        def_levels_byte_len,
+                        rep_levels_byte_len,
+                        ..
+                    } => {
+                        let skip = def_levels_byte_len as usize + rep_levels_byte_len as usize;
+                        if num_nulls != 0 || skip > buf.len() {
+                            return Ok(false);
+                        }
+                        (buf.slice(skip..), num_values, encoding)
+                    }
+                    _ => return Ok(false),
+                };
+                let n = num_values as usize;
+                // Every level a value (a null or an empty list has none: fewer bytes).
+                if encoding != Encoding::BYTE_STREAM_SPLIT
+                    || values.len() != n * size
+                    || at + n > self.total
+                {
+                    return Ok(false);
+                }
+                page(&values, at);
+                at += n;
+            }
+        }
+        Ok(at == self.total)
+    }
 }
 
 /// The doubles of one page's eight byte streams `src` (`8 × out.len()` bytes), into `out`.
@@ -258,6 +357,61 @@ fn join_sixteen_at_a_time(src: &[u8], out: &mut [f64]) -> usize {
     whole
 }
 
+/// The floats of one page's four byte streams `src` (`4 × out.len()` bytes), into `out`:
+/// [`join_streams`] for f32.
+fn join_streams_f32(src: &[u8], out: &mut [f32]) {
+    let n = out.len();
+    assert_eq!(src.len(), 4 * n, "four streams of the values' length");
+    #[cfg(target_arch = "x86_64")]
+    let done = join_sixteen_f32_at_a_time(src, out);
+    #[cfg(not(target_arch = "x86_64"))]
+    let done = 0;
+    for (i, v) in out.iter_mut().enumerate().skip(done) {
+        *v = f32::from_le_bytes(std::array::from_fn(|j| src[j * n + i]));
+    }
+}
+
+/// [`join_streams_f32`] sixteen values at a time (SSE2): two rounds of unpacking (bytes,
+/// then pairs). Returns how many it joined (a multiple of 16).
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+fn join_sixteen_f32_at_a_time(src: &[u8], out: &mut [f32]) -> usize {
+    use std::arch::x86_64::{
+        __m128i, _mm_loadu_si128, _mm_storeu_si128, _mm_unpackhi_epi8, _mm_unpackhi_epi16,
+        _mm_unpacklo_epi8, _mm_unpacklo_epi16,
+    };
+    let n = out.len();
+    assert_eq!(src.len(), 4 * n, "four streams of the values' length");
+    let whole = n - n % 16;
+    let mut i = 0;
+    while i < whole {
+        // SAFETY: SSE2 is in every x86-64 CPU. Each load reads bytes `j n + i` to
+        // `j n + i + 15` of `src` (4 n long), within it as `i + 16 ≤ n`; each store writes
+        // four of `out`'s values `i..i + 16`, within it; unaligned loads and stores.
+        unsafe {
+            let r: [__m128i; 4] =
+                std::array::from_fn(|j| _mm_loadu_si128(src.as_ptr().add(j * n + i).cast()));
+            // Bytes 0 and 1, 2 and 3 of values 0–7 (lo) and 8–15 (hi).
+            let a0 = _mm_unpacklo_epi8(r[0], r[1]);
+            let a1 = _mm_unpackhi_epi8(r[0], r[1]);
+            let a2 = _mm_unpacklo_epi8(r[2], r[3]);
+            let a3 = _mm_unpackhi_epi8(r[2], r[3]);
+            // Values 0–3, 4–7, 8–11, 12–15 whole.
+            let c = [
+                _mm_unpacklo_epi16(a0, a2),
+                _mm_unpackhi_epi16(a0, a2),
+                _mm_unpacklo_epi16(a1, a3),
+                _mm_unpackhi_epi16(a1, a3),
+            ];
+            for (k, v) in c.iter().enumerate() {
+                _mm_storeu_si128(out.as_mut_ptr().add(i + 4 * k).cast(), *v);
+            }
+        }
+        i += 16;
+    }
+    whole
+}
+
 #[cfg(test)]
 mod tests {
     use std::sync::Arc;
@@ -305,6 +459,21 @@ mod tests {
             join_streams(&src, &mut out);
             let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits(&out), bits(&v), "{n}");
+            // The same values' f32 bits as floats of four streams.
+            let w: Vec<f32> = v
+                .iter()
+                .map(|x| f32::from_bits(x.to_bits() as u32))
+                .collect();
+            let mut src = vec![0u8; 4 * n];
+            for (i, x) in w.iter().enumerate() {
+                for (j, b) in x.to_le_bytes().into_iter().enumerate() {
+                    src[j * n + i] = b;
+                }
+            }
+            let mut out = vec![0.0f32; n];
+            join_streams_f32(&src, &mut out);
+            let bits32 = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits32(&out), bits32(&w), "{n} f32");
         }
     }
 
@@ -370,6 +539,16 @@ mod tests {
             bits(arrow_v.as_flattened()),
             "the lists"
         );
+        // Page by page, the doubles and (below) floats.
+        let mut paged = Vec::new();
+        let whole = for_each_split_page::<f64>(&path, "x", |first, values| {
+            assert_eq!(first, paged.len());
+            paged.extend_from_slice(values);
+        })
+        .unwrap();
+        assert!(whole);
+        assert_eq!(bits(&paged), bits(&arrow_x));
+        assert!(!for_each_split_page::<f32>(&path, "x", |_, _| {}).unwrap());
         // Not this layout: an integer column, a nullable one, a list read as scalars or
         // with another length, a column not there.
         assert_eq!(read_split_doubles(&path, "t", 1).unwrap(), None);
@@ -387,6 +566,49 @@ mod tests {
         std::fs::write(&junk, b"not parquet at all").unwrap();
         let e = read_split_doubles(&junk, "x", 1).unwrap_err();
         assert!(e.to_string().contains("junk.parquet"), "{e}");
+    }
+
+    /// A table's f32 column read page by page is what Arrow reads, bit for bit.
+    #[test]
+    fn float_columns_page_by_page_are_arrows() {
+        use arrow::array::Float32Array;
+        let dir = tempfile::tempdir().unwrap();
+        let schema = Arc::new(Schema::new(vec![
+            Field::new("h", DataType::Float32, false),
+            Field::new("maybe", DataType::Float32, true),
+        ]));
+        let path = dir.path().join("f.parquet");
+        let mut sink = ParquetSink::create_in_row_groups(&path, schema.clone(), 300_000).unwrap();
+        let h: Vec<f32> = values(700_001, 5)
+            .iter()
+            .map(|x| f32::from_bits((x.to_bits() >> 17) as u32))
+            .collect();
+        let maybe: Float32Array = (0..h.len()).map(|k| (k % 3 == 0).then_some(1.0)).collect();
+        let batch = RecordBatch::try_new(
+            schema,
+            vec![
+                Arc::new(Float32Array::from(h.clone())) as ArrayRef,
+                Arc::new(maybe),
+            ],
+        )
+        .unwrap();
+        sink.write(&batch).unwrap();
+        sink.finish().unwrap();
+        let mut paged: Vec<f32> = Vec::new();
+        let mut pages = 0;
+        assert!(
+            for_each_split_page::<f32>(&path, "h", |first, values| {
+                assert_eq!(first, paged.len());
+                paged.extend_from_slice(values);
+                pages += 1;
+            })
+            .unwrap()
+        );
+        assert!(pages > 3, "{pages} pages");
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&paged), bits(&h));
+        assert!(!for_each_split_page::<f32>(&path, "maybe", |_, _| {}).unwrap());
+        assert!(!for_each_split_page::<f64>(&path, "h", |_, _| {}).unwrap());
     }
 
     /// `batch` written by Arrow's writer with its default (dictionary, PLAIN) encodings.
