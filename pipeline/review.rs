@@ -343,6 +343,9 @@ fn truth_track(
     })
 }
 
+/// A table's kept rows: their times (ns) and each column's values.
+type Decimated = (Vec<i64>, Vec<Vec<f64>>);
+
 /// Every `step`-th row (the last one too when `with_last`) of a table's `t_ns` and of the
 /// f64 columns `names`, read batch by batch without the table's other columns.
 fn decimated_columns(
@@ -350,7 +353,7 @@ fn decimated_columns(
     names: &[&str],
     step: usize,
     with_last: bool,
-) -> anyhow::Result<(Vec<i64>, Vec<Vec<f64>>)> {
+) -> anyhow::Result<Decimated> {
     match decimated_split_columns(path, names, step, with_last)? {
         Some(split) => Ok(split),
         None => decimated_arrow_columns(path, names, step, with_last),
@@ -363,7 +366,7 @@ fn decimated_arrow_columns(
     names: &[&str],
     step: usize,
     with_last: bool,
-) -> anyhow::Result<(Vec<i64>, Vec<Vec<f64>>)> {
+) -> anyhow::Result<Decimated> {
     let step = step.max(1);
     let mut wanted = vec![T_NS];
     wanted.extend_from_slice(names);
@@ -407,7 +410,7 @@ fn decimated_split_columns(
     names: &[&str],
     step: usize,
     with_last: bool,
-) -> anyhow::Result<Option<(Vec<i64>, Vec<Vec<f64>>)>> {
+) -> anyhow::Result<Option<Decimated>> {
     use arrow::datatypes::DataType;
     let step = step.max(1);
     let (mut t, mut rows, mut last_t) = (Vec::new(), 0usize, None);
