@@ -420,6 +420,24 @@ mod tests {
         assert_eq!(asin_fast(f64::NAN), None);
     }
 
+    /// A random attitude (w, x, y, z): a vehicle's (roll and pitch within 20°, any
+    /// heading), or any (uniform over the unit quaternions' directions).
+    fn attitude(u: &mut Uniform, vehicle: bool) -> [f64; 4] {
+        if vehicle {
+            let e = crate::attitude::Euler {
+                roll_rad: (u.next() - 0.5) * 0.7,
+                pitch_rad: (u.next() - 0.5) * 0.7,
+                heading_rad: u.next() * std::f64::consts::TAU,
+            };
+            let q = e.to_quat_b_to_n();
+            [q.w, q.i, q.j, q.k]
+        } else {
+            let v = [u.next(), u.next(), u.next(), u.next()].map(|c| c - 0.5);
+            let norm = v.iter().map(|c| c * c).sum::<f64>().sqrt();
+            v.map(|c| c / norm)
+        }
+    }
+
     /// The f32 angles are the libm route's, bit for bit: random attitudes of every kind
     /// (a land vehicle's, and any), headings as stored in both ways, and the attitudes
     /// the fast route must leave to libm (level, north, gimbal lock, zeros, a NaN).
@@ -430,20 +448,7 @@ mod tests {
         let mut fell_back = [0usize; 2];
         let n = 2_000_000;
         for i in 0..n {
-            let q = if i % 2 == 0 {
-                // A vehicle's: roll and pitch within 20°, any heading.
-                let e = crate::attitude::Euler {
-                    roll_rad: (u.next() - 0.5) * 0.7,
-                    pitch_rad: (u.next() - 0.5) * 0.7,
-                    heading_rad: u.next() * std::f64::consts::TAU,
-                };
-                let q = e.to_quat_b_to_n();
-                [q.w, q.i, q.j, q.k]
-            } else {
-                let v = [u.next(), u.next(), u.next(), u.next()].map(|c| c - 0.5);
-                let norm = v.iter().map(|c| c * c).sum::<f64>().sqrt();
-                v.map(|c| c / norm)
-            };
+            let q = attitude(&mut u, i % 2 == 0);
             for heading in [HeadingDeg::AsIs, HeadingDeg::Wrapped] {
                 let (got, want) = (euler_deg_f32(&q, heading), reference(&q, heading));
                 assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits), "{q:?}");
@@ -494,19 +499,7 @@ mod tests {
             [f64::INFINITY, 0.0, 1.0, 0.0],
         ];
         for i in 0..400_000 {
-            q.push(if i % 2 == 0 {
-                let e = crate::attitude::Euler {
-                    roll_rad: (u.next() - 0.5) * 0.7,
-                    pitch_rad: (u.next() - 0.5) * 0.7,
-                    heading_rad: u.next() * std::f64::consts::TAU,
-                };
-                let q = e.to_quat_b_to_n();
-                [q.w, q.i, q.j, q.k]
-            } else {
-                let v = [u.next(), u.next(), u.next(), u.next()].map(|c| c - 0.5);
-                let norm = v.iter().map(|c| c * c).sum::<f64>().sqrt();
-                v.map(|c| c / norm)
-            });
+            q.push(attitude(&mut u, i % 2 == 0));
         }
         let bits = |rows: &[[f32; 3]]| -> Vec<[u32; 3]> {
             rows.iter().map(|r| r.map(f32::to_bits)).collect()
