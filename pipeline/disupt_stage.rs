@@ -436,7 +436,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                     outcomes
                 }
                 // A short run's in one batch (the cores shared).
-                None if beside_holdout => review_batch(
+                None if beside_holdout && ctx.cores == Cores::Shared => review_batch(
                     &problem,
                     &reviewed,
                     &case.fixes,
