@@ -61,18 +61,15 @@ pub fn read_split_doubles(
     leaf: &str,
     per_row: usize,
 ) -> Result<Option<Vec<f64>>, FileError> {
-    read_into(path, leaf, per_row, |total| vec![0.0; total], |v| v)
+    if per_row == 1 {
+        return Ok(read_rows::<1>(path, leaf)?.map(|rows| rows.into_iter().map(|[v]| v).collect()));
+    }
+    read_rows_flat(path, leaf, per_row)
 }
 
 /// [`read_split_doubles`] of a list column `name` of three doubles a row, a row each.
 pub fn read_split_vec3(path: &Path, name: &str) -> Result<Option<Vec<[f64; 3]>>, FileError> {
-    read_into(
-        path,
-        &format!("{name}.list.item"),
-        3,
-        |total| vec![[0.0; 3]; total / 3],
-        |rows| rows.as_flattened_mut(),
-    )
+    read_rows::<3>(path, &format!("{name}.list.item"))
 }
 
 /// The values of the column `name` (of `F` a row, no nulls, BYTE_STREAM_SPLIT: the
@@ -100,37 +97,92 @@ pub fn for_each_split_page<F: SplitFloat>(
     })
 }
 
-/// [`read_split_doubles`] into what `make(values)` gives, whose doubles (`flat` of it,
-/// in order, as many as the values) take them: the values joined straight into the
-/// caller's rows.
-fn read_into<T>(
-    path: &Path,
-    leaf: &str,
-    per_row: usize,
-    make: impl FnOnce(usize) -> T,
-    flat: impl FnOnce(&mut T) -> &mut [f64],
-) -> Result<Option<T>, FileError> {
+/// The rows of `N` doubles of the leaf column `leaf` ([`read_split_doubles`]), grown as
+/// the pages are read: no more is allocated up front than the file's length in rows
+/// (its metadata's counts are the file's word, not a bound), and each page's values are
+/// joined into a buffer of the page's size, then taken row by row ([`Rows`]).
+fn read_rows<const N: usize>(path: &Path, leaf: &str) -> Result<Option<Vec<[f64; N]>>, FileError> {
+    let Some(pages) = Pages::open::<f64>(path, leaf, N)? else {
+        return Ok(None);
+    };
+    let mut rows = Rows::<N>::with_capacity((pages.total / N).min(pages.file_bytes));
+    let mut page: Vec<f64> = Vec::new();
+    let whole = pages.walk::<f64>(path, |values, _| {
+        page.resize(values.len() / 8, 0.0);
+        f64::join(values, &mut page);
+        rows.take(&page);
+    })?;
+    Ok(rows.finish().filter(|_| whole))
+}
+
+/// Rows of `N` values from series of values that may end mid-row (a page's).
+struct Rows<const N: usize> {
+    rows: Vec<[f64; N]>,
+    /// The row the values so far left open, and how much of it they gave.
+    open: [f64; N],
+    held: usize,
+}
+
+impl<const N: usize> Rows<N> {
+    fn with_capacity(rows: usize) -> Self {
+        Self {
+            rows: Vec::with_capacity(rows),
+            open: [0.0; N],
+            held: 0,
+        }
+    }
+
+    /// The next values, in order.
+    fn take(&mut self, mut values: &[f64]) {
+        // The open row first, then the whole rows, then the new open one.
+        if self.held > 0 {
+            let n = (N - self.held).min(values.len());
+            self.open[self.held..self.held + n].copy_from_slice(&values[..n]);
+            self.held += n;
+            values = &values[n..];
+            if self.held < N {
+                return;
+            }
+            self.rows.push(self.open);
+            self.held = 0;
+        }
+        let whole = values.chunks_exact(N);
+        let rest = whole.remainder();
+        self.rows
+            .extend(whole.map(|r| std::array::from_fn(|i| r[i])));
+        self.open[..rest.len()].copy_from_slice(rest);
+        self.held = rest.len();
+    }
+
+    /// The rows, unless one is left open.
+    fn finish(self) -> Option<Vec<[f64; N]>> {
+        (self.held == 0).then_some(self.rows)
+    }
+}
+
+/// [`read_rows`] of rows of `per_row` doubles, their values in one series.
+fn read_rows_flat(path: &Path, leaf: &str, per_row: usize) -> Result<Option<Vec<f64>>, FileError> {
     let Some(pages) = Pages::open::<f64>(path, leaf, per_row)? else {
         return Ok(None);
     };
-    let mut rows = make(pages.total);
-    let out = flat(&mut rows);
-    if out.len() != pages.total {
-        return Ok(None);
-    }
-    let whole = pages.walk::<f64>(path, |values, first| {
-        let n = values.len() / 8;
-        f64::join(values, &mut out[first..first + n]);
+    let mut values: Vec<f64> = Vec::with_capacity(pages.total.min(pages.file_bytes));
+    let whole = pages.walk::<f64>(path, |streams, at| {
+        let n = streams.len() / 8;
+        values.resize(at + n, 0.0);
+        f64::join(streams, &mut values[at..]);
     })?;
-    Ok(whole.then_some(rows))
+    Ok(whole.then_some(values))
 }
 
 /// A column of the tables' layout, its pages to read.
 struct Pages {
     reader: SerializedFileReader<std::fs::File>,
     column: usize,
-    /// Its values.
+    /// Its values, as the metadata says.
     total: usize,
+    /// The file's length, bytes: what is allocated before the values are read is
+    /// bounded by it.
+    file_bytes: usize,
     /// Level runs before a version-1 page's values (repetition, definition).
     level_runs: usize,
 }
@@ -145,6 +197,10 @@ impl Pages {
     ) -> Result<Option<Self>, FileError> {
         let err = |e: parquet::errors::ParquetError| FormatError::from(e).in_file(path);
         let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
+        let file_bytes = file
+            .metadata()
+            .map_err(|e| io_in_file(path, e))
+            .map(|m| usize::try_from(m.len()).unwrap_or(usize::MAX))?;
         let reader = SerializedFileReader::new(file).map_err(err)?;
         let meta = reader.metadata();
         let schema = meta.file_metadata().schema_descr();
@@ -208,6 +264,7 @@ impl Pages {
             reader,
             column,
             total,
+            file_bytes,
             level_runs,
         }))
     }
@@ -475,6 +532,33 @@ mod tests {
             let bits32 = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert_eq!(bits32(&out), bits32(&w), "{n} f32");
         }
+    }
+
+    /// Rows taken from values cut anywhere (a page shorter than a row, pages ending
+    /// mid-row) are the values' rows; a row left open gives none.
+    #[test]
+    fn rows_are_taken_across_any_cuts() {
+        let v: Vec<f64> = (0..30).map(f64::from).collect();
+        let want: Vec<[f64; 3]> = v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        for cuts in [
+            vec![30],
+            vec![1, 29],
+            vec![2, 2, 2, 24],
+            vec![4, 1, 1, 0, 7, 17],
+            vec![3, 3, 24],
+            vec![29, 1],
+        ] {
+            let mut rows = Rows::<3>::with_capacity(0);
+            let mut at = 0;
+            for n in &cuts {
+                rows.take(&v[at..at + n]);
+                at += n;
+            }
+            assert_eq!(rows.finish(), Some(want.clone()), "{cuts:?}");
+        }
+        let mut open = Rows::<3>::with_capacity(0);
+        open.take(&v[..29]);
+        assert_eq!(open.finish(), None);
     }
 
     /// A table's double column and list of three, over several pages and row groups, read
