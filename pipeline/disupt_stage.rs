@@ -277,7 +277,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // are not held through the methods.
         let beside_holdout = case.derived.t_s.len() <= REVIEWS_BESIDE_HOLDOUT_MAX_SAMPLES;
         let early_kept = beside_holdout.then(|| track_samples(&case.derived));
-        let reviews_early = beside_holdout && ctx.cores == Cores::Own;
+        let shared = ctx.cores == Cores::Shared;
+        let reviews_early = beside_holdout && !shared;
         let early_reviews = |classic: &[ClassicResult]| {
             early_kept.as_ref().filter(|_| reviews_early).map(|keep| {
                 let lanes = classic_reviewed(x_before, &case.derived, classic);
@@ -380,10 +381,10 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // The joint fit's hold-out (unless the exclusions' search left it): the last work
         // on the segments; beside it, the route σ's pass at the moved lag, the last to read
         // the ingested odometer (a short run's: its increments only, its pass a lane of the
-        // σ's batch; a long run's: the pass). A short run's joint review pass (the others' are done)
-        // runs beside both; a long run's review passes after them, once the segments and
-        // the ingested odometer are let go (at 12 hours 50 MB and more beside the reviews'
-        // tracks).
+        // σ's batch; a long run's: the pass). A short run's review passes still to run (the
+        // joint's alone, or all of them with the cores shared) run beside both; a long
+        // run's after them, once the segments and the ingested odometer are let go (at 12
+        // hours 50 MB and more beside the reviews' tracks).
         let found_holdout = found.holdout.take();
         let holdout_and_lag = || {
             rayon::join(
@@ -436,7 +437,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                     outcomes
                 }
                 // A short run's in one batch (the cores shared).
-                None if beside_holdout && ctx.cores == Cores::Shared => review_batch(
+                None if beside_holdout && shared => review_batch(
                     &problem,
                     &reviewed,
                     &case.fixes,

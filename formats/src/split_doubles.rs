@@ -1,14 +1,14 @@
-//! A fast read of the tables' double columns stored as Parquet's BYTE_STREAM_SPLIT.
+//! A fast read of the tables' float columns stored as Parquet's BYTE_STREAM_SPLIT.
 //!
-//! Every float column the tables write is BYTE_STREAM_SPLIT (each value's eight bytes in
-//! eight streams: byte 0 of every value, then byte 1, …), which compresses well; the
+//! Every float column the tables write is BYTE_STREAM_SPLIT (each value's bytes in as
+//! many streams: byte 0 of every value, then byte 1, …), which compresses well; the
 //! parquet crate joins the streams back one byte at a time, a quarter of what reading a
 //! run's angle increments costs. Here a column's pages are read as they are stored
 //! (decompressed by the crate's page reader) and their streams joined sixteen values at
 //! a time by SSE2's byte unpacking (x86-64's baseline), into the caller's values.
 //!
-//! Only the layout the tables write is taken: a double column with no nulls, or a list
-//! of them with a fixed number per row and no nulls (levels skipped, their count checked
+//! Only the layout the tables write is taken: an f64 or f32 column with no nulls, or a
+//! list of f64 with a fixed number per row and no nulls (levels skipped, their count checked
 //! against the values'), every page BYTE_STREAM_SPLIT. Any other file gives `None`, and
 //! the caller reads it through Arrow: the same values either way.
 
@@ -61,10 +61,17 @@ pub fn read_split_doubles(
     leaf: &str,
     per_row: usize,
 ) -> Result<Option<Vec<f64>>, FileError> {
-    if per_row == 1 {
-        return Ok(read_rows::<1>(path, leaf)?.map(|rows| rows.into_iter().map(|[v]| v).collect()));
-    }
-    read_rows_flat(path, leaf, per_row)
+    let Some(pages) = Pages::open::<f64>(path, leaf, per_row)? else {
+        return Ok(None);
+    };
+    // No more allocated up front than the file's length in values (its metadata's
+    // counts are the file's word, not a bound); each page joined where it lands.
+    let mut values: Vec<f64> = Vec::with_capacity(pages.total.min(pages.file_bytes));
+    let whole = pages.walk::<f64>(path, |streams, at| {
+        values.resize(at + streams.len() / 8, 0.0);
+        f64::join(streams, &mut values[at..]);
+    })?;
+    Ok(whole.then_some(values))
 }
 
 /// [`read_split_doubles`] of a list column `name` of three doubles a row, a row each.
@@ -158,20 +165,6 @@ impl<const N: usize> Rows<N> {
     fn finish(self) -> Option<Vec<[f64; N]>> {
         (self.held == 0).then_some(self.rows)
     }
-}
-
-/// [`read_rows`] of rows of `per_row` doubles, their values in one series.
-fn read_rows_flat(path: &Path, leaf: &str, per_row: usize) -> Result<Option<Vec<f64>>, FileError> {
-    let Some(pages) = Pages::open::<f64>(path, leaf, per_row)? else {
-        return Ok(None);
-    };
-    let mut values: Vec<f64> = Vec::with_capacity(pages.total.min(pages.file_bytes));
-    let whole = pages.walk::<f64>(path, |streams, at| {
-        let n = streams.len() / 8;
-        values.resize(at + n, 0.0);
-        f64::join(streams, &mut values[at..]);
-    })?;
-    Ok(whole.then_some(values))
 }
 
 /// A column of the tables' layout, its pages to read.

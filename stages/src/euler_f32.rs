@@ -155,8 +155,23 @@ pub fn euler_deg_f32(q: &[f64; 4], heading: HeadingDeg) -> [f32; 3] {
 /// [`euler_deg_f32`] without libm, when each f32 is certain.
 #[inline(always)]
 fn fast(q: &[f64; 4], heading: HeadingDeg) -> Option<[f32; 3]> {
-    // The rotation matrix's entries as nalgebra's `to_rotation_matrix` forms them (i, j,
-    // k the vector part).
+    let [m00, m10, m20, m21, m22] = matrix_entries(q);
+    // nalgebra's: pitch −asin(m20), then roll and yaw from the atan2 of entries divided
+    // by cos(pitch) > 0, which moves neither angle by more than two units of the last
+    // place (relative).
+    let pitch = -asin_fast(m20)?;
+    let roll = atan2_fast(m21, m22)?;
+    let yaw = rem_euclid_turn(atan2_fast(m10, m00)?, std::f64::consts::TAU);
+    certain_row(
+        [roll.to_degrees(), pitch.to_degrees(), yaw.to_degrees()],
+        heading,
+    )
+}
+
+/// The rotation matrix's entries (m00, m10, m20, m21, m22) of `q` (w, x, y, z) that the
+/// angles read, as nalgebra's `to_rotation_matrix` forms them (i, j, k the vector part).
+#[inline(always)]
+fn matrix_entries(q: &[f64; 4]) -> [f64; 5] {
     let [w, i, j, k] = *q;
     let (ww, ii, jj, kk) = (w * w, i * i, j * j, k * k);
     let ij = i * j * 2.0;
@@ -165,22 +180,13 @@ fn fast(q: &[f64; 4], heading: HeadingDeg) -> Option<[f32; 3]> {
     let ik = i * k * 2.0;
     let jk = j * k * 2.0;
     let wi = w * i * 2.0;
-    let m00 = ww + ii - jj - kk;
-    let m10 = wk + ij;
-    let m20 = ik - wj;
-    let m21 = wi + jk;
-    let m22 = ww - ii - jj + kk;
-    // nalgebra's: pitch −asin(m20), then roll and yaw from the atan2 of entries divided
-    // by cos(pitch) > 0, which moves neither angle by more than two units of the last
-    // place (relative).
-    let pitch = -asin_fast(m20)?;
-    let roll = atan2_fast(m21, m22)?;
-    let yaw = rem_euclid_turn(atan2_fast(m10, m00)?, std::f64::consts::TAU);
-    Some([
-        certain(roll.to_degrees(), |d| d)?,
-        certain(pitch.to_degrees(), |d| d)?,
-        certain(yaw.to_degrees(), |d| heading.apply(d))?,
-    ])
+    [
+        ww + ii - jj - kk,
+        wk + ij,
+        ik - wj,
+        wi + jk,
+        ww - ii - jj + kk,
+    ]
 }
 
 /// Attitudes side by side in [`euler_deg_f32_into`]: one vector register of f64 on AVX2.
@@ -304,19 +310,9 @@ fn asin_lanes(x: [f64; WIDTH]) -> [f64; WIDTH] {
 fn fast_lanes(q: &[[f64; 4]; WIDTH]) -> [[f64; WIDTH]; 3] {
     let mut m = [[0.0; WIDTH]; 5];
     for l in 0..WIDTH {
-        let [w, i, j, k] = q[l];
-        let (ww, ii, jj, kk) = (w * w, i * i, j * j, k * k);
-        let ij = i * j * 2.0;
-        let wk = w * k * 2.0;
-        let wj = w * j * 2.0;
-        let ik = i * k * 2.0;
-        let jk = j * k * 2.0;
-        let wi = w * i * 2.0;
-        m[0][l] = ww + ii - jj - kk;
-        m[1][l] = wk + ij;
-        m[2][l] = ik - wj;
-        m[3][l] = wi + jk;
-        m[4][l] = ww - ii - jj + kk;
+        for (e, v) in matrix_entries(&q[l]).into_iter().enumerate() {
+            m[e][l] = v;
+        }
     }
     let [m00, m10, m20, m21, m22] = m;
     let pitch = asin_lanes(m20);
@@ -337,8 +333,9 @@ fn fast_lanes(q: &[[f64; 4]; WIDTH]) -> [[f64; WIDTH]; 3] {
     out
 }
 
-/// [`fast`]'s certainty step on one attitude's angles in degrees ([`fast_lanes`]), None
-/// when an angle is not a number or not certain.
+/// The certainty step on one attitude's angles in degrees (roll, pitch, heading in
+/// [0, 360) before `heading`'s storage; [`fast`]'s, [`fast_lanes`]'), None when an angle
+/// is not a number or not certain.
 #[inline(always)]
 fn certain_row([roll, pitch, yaw]: [f64; 3], heading: HeadingDeg) -> Option<[f32; 3]> {
     if roll.is_nan() || pitch.is_nan() || yaw.is_nan() {
@@ -420,6 +417,22 @@ mod tests {
         assert_eq!(asin_fast(f64::NAN), None);
     }
 
+    /// Attitudes the fast route must leave to libm, or at an edge of it: level, north,
+    /// gimbal lock both ways, a quarter turn, NaN, a tiny w.
+    const DEGENERATE: [[f64; 4]; 8] = {
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        [
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [h, 0.0, h, 0.0],
+            [h, 0.0, -h, 0.0],
+            [0.5, 0.5, 0.5, 0.5],
+            [h, h, 0.0, 0.0],
+            [f64::NAN, 0.0, 0.0, 0.0],
+            [1e-300, 1.0, 0.0, 1e-300],
+        ]
+    };
+
     /// A random attitude (w, x, y, z): a vehicle's (roll and pitch within 20°, any
     /// heading), or any (uniform over the unit quaternions' directions).
     fn attitude(u: &mut Uniform, vehicle: bool) -> [f64; 4] {
@@ -461,17 +474,7 @@ mod tests {
         // heading's way).
         assert!(fell_back[0] < n / 1000, "{fell_back:?} of {n}");
         assert!(fell_back[1] < n * 3 / 100, "{fell_back:?} of {n}");
-        let h = std::f64::consts::FRAC_1_SQRT_2;
-        for q in [
-            [1.0, 0.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-            [h, 0.0, h, 0.0],
-            [h, 0.0, -h, 0.0],
-            [0.5, 0.5, 0.5, 0.5],
-            [h, h, 0.0, 0.0],
-            [f64::NAN, 0.0, 0.0, 0.0],
-            [1e-300, 1.0, 0.0, 1e-300],
-        ] {
+        for q in DEGENERATE {
             for heading in [HeadingDeg::AsIs, HeadingDeg::Wrapped] {
                 let (got, want) = (euler_deg_f32(&q, heading), reference(&q, heading));
                 assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits), "{q:?}");
@@ -485,19 +488,8 @@ mod tests {
     #[test]
     fn attitudes_side_by_side_are_each_ones_bit_for_bit() {
         let mut u = Uniform(12);
-        let h = std::f64::consts::FRAC_1_SQRT_2;
-        let mut q: Vec<[f64; 4]> = vec![
-            [1.0, 0.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-            [h, 0.0, h, 0.0],
-            [h, 0.0, -h, 0.0],
-            [0.5, 0.5, 0.5, 0.5],
-            [h, h, 0.0, 0.0],
-            [f64::NAN, 0.0, 0.0, 0.0],
-            [1e-300, 1.0, 0.0, 1e-300],
-            [0.0, 0.0, 0.0, 0.0],
-            [f64::INFINITY, 0.0, 1.0, 0.0],
-        ];
+        let mut q: Vec<[f64; 4]> = DEGENERATE.to_vec();
+        q.extend([[0.0, 0.0, 0.0, 0.0], [f64::INFINITY, 0.0, 1.0, 0.0]]);
         for i in 0..400_000 {
             q.push(attitude(&mut u, i % 2 == 0));
         }
