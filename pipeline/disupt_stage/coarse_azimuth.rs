@@ -162,7 +162,7 @@ pub fn coarse_azimuth(problem: &Problem<'_>, dparams: &DisuptParams) -> Coarse {
     // values (none from a log without valid epochs, nor from an optimiser's failure: the
     // control points then decide, as before).
     let worse = |turned: f64, start: f64| turned.is_finite() && start.is_finite() && turned > start;
-    let kryt1 = |y: &Observation| y.kryt1(problem.epochs, &problem.kalman);
+    let kryt1 = |y: &Observation| problem.kryt1(y);
     let refused = worse(kryt1(&ys[best]), kryt1(&y0)).then(|| {
         match kryt1_with_free_drifts_xy(
             problem,

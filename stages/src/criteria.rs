@@ -134,55 +134,111 @@ impl BlockAttitude {
     }
 }
 
-/// One axis's Kalman filter.
-#[derive(Debug, Clone, Copy)]
+/// One axis's Kalman filter: its state (the error and its rate), which its steps' gains
+/// ([`Kryt1Gains`]) update.
+#[derive(Debug, Clone, Copy, Default)]
 struct Kf2 {
     x: [f64; 2],
-    p: [[f64; 2]; 2],
-    started: bool,
 }
 
 impl Kf2 {
-    fn new() -> Self {
+    /// Starts at the measurement `z`, at rest.
+    fn start(z: f64) -> Self {
+        Self { x: [z, 0.0] }
+    }
+
+    /// Predicts over `dt` and, with `gain`, updates by `z`; returns the error estimate.
+    #[inline(always)]
+    fn step(&mut self, dt: f64, update: Option<([f64; 2], f64)>) -> f64 {
+        let [x0, x1] = self.x;
+        self.x = [x0 + dt * x1, x1];
+        if let Some((k, z)) = update {
+            let innov = z - self.x[0];
+            self.x = [self.x[0] + k[0] * innov, self.x[1] + k[1] * innov];
+        }
+        self.x[0]
+    }
+}
+
+/// The covariance of one axis's filter, which depends on the epochs' times and validity
+/// and on the filter's parameters only, not on what it filters.
+#[derive(Debug, Clone, Copy)]
+struct Kf2Cov {
+    p: [[f64; 2]; 2],
+}
+
+impl Kf2Cov {
+    /// At the filter's start.
+    fn start(kp: &KalmanParams) -> Self {
         Self {
-            x: [0.0; 2],
-            p: [[0.0; 2]; 2],
-            started: false,
+            p: [[kp.r_rad * kp.r_rad, 0.0], [0.0, 1e-8]],
         }
     }
 
-    /// Predicts over `dt` and, when `z` is given, updates; returns the error estimate.
-    fn step(&mut self, dt: f64, z: Option<f64>, kp: &KalmanParams) -> f64 {
+    /// Predicts over `dt` and, when the epoch is measured, updates; returns the update's
+    /// gain.
+    fn step(&mut self, dt: f64, measured: bool, kp: &KalmanParams) -> Option<[f64; 2]> {
         let r2 = kp.r_rad * kp.r_rad;
-        if !self.started {
-            if let Some(z) = z {
-                self.x = [z, 0.0];
-                self.p = [[r2, 0.0], [0.0, 1e-8]];
-                self.started = true;
-            }
-            return self.x[0];
-        }
         let q = kp.rate_walk_rad_s_sqrt_s * kp.rate_walk_rad_s_sqrt_s;
-        let [x0, x1] = self.x;
-        self.x = [x0 + dt * x1, x1];
         let [[p00, p01], [p10, p11]] = self.p;
         let p00n = p00 + dt * (p01 + p10) + dt * dt * p11 + q * dt * dt * dt / 3.0;
         let p01n = p01 + dt * p11 + q * dt * dt / 2.0;
         let p11n = p11 + q * dt;
         self.p = [[p00n, p01n], [p01n, p11n]];
-        let _ = p10;
-        if let Some(z) = z {
-            let s = self.p[0][0] + r2;
-            let k = [self.p[0][0] / s, self.p[1][0] / s];
-            let innov = z - self.x[0];
-            self.x = [self.x[0] + k[0] * innov, self.x[1] + k[1] * innov];
-            let [[a, b], [_, d]] = self.p;
-            self.p = [
-                [(1.0 - k[0]) * a, (1.0 - k[0]) * b],
-                [(1.0 - k[0]) * b, d - k[1] * b],
-            ];
+        if !measured {
+            return None;
         }
-        self.x[0]
+        let s = self.p[0][0] + r2;
+        let k = [self.p[0][0] / s, self.p[1][0] / s];
+        let [[a, b], [_, d]] = self.p;
+        self.p = [
+            [(1.0 - k[0]) * a, (1.0 - k[0]) * b],
+            [(1.0 - k[0]) * b, d - k[1] * b],
+        ];
+        Some(k)
+    }
+}
+
+/// The gains of Kryt1's Kalman filters at each epoch of `epochs`.
+///
+/// A filter's covariance, hence its gains, depends on the epochs' times and validity and
+/// on [`KalmanParams`] only: both axes' filters have the same gains, and so does every
+/// pass over the same epochs. Computed once, they leave each evaluation of Kryt1 the
+/// filters' states alone (the covariance's chain of dependent divisions set the pace of
+/// an evaluation), with the same numbers, bit for bit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Kryt1Gains {
+    /// The first valid epoch, where the filters start (the epochs' count when none is).
+    start: usize,
+    /// The update's gain at each epoch from `start` on (zero where the epoch is not valid,
+    /// which the filters do not update at; the first is the start's, not used).
+    k: Vec<[f64; 2]>,
+}
+
+impl Kryt1Gains {
+    /// The gains over `epochs` of filters with parameters `kp`.
+    pub fn new(epochs: &Epochs, kp: &KalmanParams) -> Self {
+        let n = epochs
+            .block
+            .len()
+            .min(epochs.t_s.len())
+            .min(epochs.valid.len());
+        let start = epochs.valid[..n].iter().position(|&v| v).unwrap_or(n);
+        let mut k = Vec::with_capacity(n - start);
+        if start < n {
+            k.push([0.0; 2]);
+            let mut cov = Kf2Cov::start(kp);
+            for e in start + 1..n {
+                let dt = epochs.t_s[e] - epochs.t_s[e - 1];
+                k.push(cov.step(dt, epochs.valid[e], kp).unwrap_or([0.0; 2]));
+            }
+        }
+        Self { start, k }
+    }
+
+    /// Epochs these gains are for.
+    fn epochs(&self) -> usize {
+        self.start + self.k.len()
     }
 }
 
@@ -257,29 +313,64 @@ pub fn epoch_attitude_from_blocks(
 }
 
 /// Kryt1 from the filtered gyro (pitch, roll) of each epoch, given by `attitude(e)`;
-/// fills `series` when given.
+/// fills `series` when given. Its filters' gains are computed for the call: a caller
+/// evaluating Kryt1 over the same epochs again keeps them ([`kryt1_with`]).
 pub fn kryt1_of(
     epochs: &Epochs,
     kp: &KalmanParams,
+    attitude: impl FnMut(usize) -> (f64, f64),
+    series: Option<&mut Kryt1Series>,
+) -> f64 {
+    kryt1_with(epochs, &Kryt1Gains::new(epochs, kp), attitude, series)
+}
+
+/// [`kryt1_of`] with the filters' gains at hand (`gains`, of `epochs`).
+///
+/// # Panics
+/// If `gains` are not of as many epochs as `epochs` has.
+pub fn kryt1_with(
+    epochs: &Epochs,
+    gains: &Kryt1Gains,
     mut attitude: impl FnMut(usize) -> (f64, f64),
     mut series: Option<&mut Kryt1Series>,
 ) -> f64 {
     if let Some(s) = series.as_deref_mut() {
         *s = Kryt1Series::default();
     }
-    let (mut kf_t, mut kf_p) = (Kf2::new(), Kf2::new());
+    let n = gains.epochs();
+    assert_eq!(
+        n,
+        epochs
+            .block
+            .len()
+            .min(epochs.t_s.len())
+            .min(epochs.valid.len()),
+        "Kryt1's gains are of other epochs"
+    );
+    let (mut kf_t, mut kf_p) = (Kf2::default(), Kf2::default());
     let mut sum = 0.0;
-    let mut prev_t = epochs.t_s.first().copied().unwrap_or(0.0);
-    for e in 0..epochs.block.len() {
+    for e in 0..n {
         let (th, ph) = attitude(e);
         let d_th = th - epochs.theta_p_rad[e];
         let d_ph = crate::attitude::wrap_pi(ph - epochs.phi_p_rad[e]);
-        let dt = epochs.t_s[e] - prev_t;
-        prev_t = epochs.t_s[e];
         let valid = epochs.valid[e];
-        let est_t = kf_t.step(dt, valid.then_some(d_th), kp);
-        let est_p = kf_p.step(dt, valid.then_some(d_ph), kp);
-        if valid && kf_t.started {
+        let (est_t, est_p) = match e.cmp(&gains.start) {
+            // Before the first valid epoch the filters have not started: no estimate.
+            std::cmp::Ordering::Less => (0.0, 0.0),
+            std::cmp::Ordering::Equal => {
+                (kf_t, kf_p) = (Kf2::start(d_th), Kf2::start(d_ph));
+                (d_th, d_ph)
+            }
+            std::cmp::Ordering::Greater => {
+                let dt = epochs.t_s[e] - epochs.t_s[e - 1];
+                let k = gains.k[e - gains.start];
+                (
+                    kf_t.step(dt, valid.then_some((k, d_th))),
+                    kf_p.step(dt, valid.then_some((k, d_ph))),
+                )
+            }
+        };
+        if valid {
             sum += est_t.hypot(est_p);
         }
         if let Some(s) = series.as_deref_mut() {
@@ -493,6 +584,125 @@ pub fn kryt2_at(fixes: &[ControlPointFix], pose: impl Fn(usize) -> Option<FixPos
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Kryt1 as the paper's filters run it: each axis's filter with its own covariance,
+    /// predicted at every epoch after its start and updated at the valid ones.
+    fn kryt1_two_full_filters(
+        epochs: &Epochs,
+        kp: &KalmanParams,
+        attitude: impl Fn(usize) -> (f64, f64),
+    ) -> (f64, Vec<[f64; 3]>) {
+        #[derive(Clone, Copy)]
+        struct Full {
+            x: [f64; 2],
+            p: [[f64; 2]; 2],
+            started: bool,
+        }
+        let step = |f: &mut Full, dt: f64, z: Option<f64>| -> f64 {
+            let r2 = kp.r_rad * kp.r_rad;
+            if !f.started {
+                if let Some(z) = z {
+                    f.x = [z, 0.0];
+                    f.p = [[r2, 0.0], [0.0, 1e-8]];
+                    f.started = true;
+                }
+                return f.x[0];
+            }
+            let q = kp.rate_walk_rad_s_sqrt_s * kp.rate_walk_rad_s_sqrt_s;
+            f.x = [f.x[0] + dt * f.x[1], f.x[1]];
+            let [[p00, p01], [p10, p11]] = f.p;
+            let p00n = p00 + dt * (p01 + p10) + dt * dt * p11 + q * dt * dt * dt / 3.0;
+            let p01n = p01 + dt * p11 + q * dt * dt / 2.0;
+            f.p = [[p00n, p01n], [p01n, p11 + q * dt]];
+            if let Some(z) = z {
+                let s = f.p[0][0] + r2;
+                let k = [f.p[0][0] / s, f.p[1][0] / s];
+                let innov = z - f.x[0];
+                f.x = [f.x[0] + k[0] * innov, f.x[1] + k[1] * innov];
+                let [[a, b], [_, d]] = f.p;
+                f.p = [
+                    [(1.0 - k[0]) * a, (1.0 - k[0]) * b],
+                    [(1.0 - k[0]) * b, d - k[1] * b],
+                ];
+            }
+            f.x[0]
+        };
+        let mut filters = [Full {
+            x: [0.0; 2],
+            p: [[0.0; 2]; 2],
+            started: false,
+        }; 2];
+        let (mut sum, mut rows) = (0.0, Vec::new());
+        let mut prev_t = epochs.t_s[0];
+        for e in 0..epochs.block.len() {
+            let (th, ph) = attitude(e);
+            let d = [
+                th - epochs.theta_p_rad[e],
+                crate::attitude::wrap_pi(ph - epochs.phi_p_rad[e]),
+            ];
+            let dt = epochs.t_s[e] - prev_t;
+            prev_t = epochs.t_s[e];
+            let valid = epochs.valid[e];
+            let est = [0, 1].map(|a| step(&mut filters[a], dt, valid.then_some(d[a])));
+            if valid && filters[0].started {
+                sum += est[0].hypot(est[1]);
+            }
+            rows.push([est[0], est[1], sum]);
+        }
+        (sum, rows)
+    }
+
+    /// Kryt1 with its gains computed once is the two filters run in full, bit for bit:
+    /// over epochs that start invalid, with invalid stretches and uneven intervals, and
+    /// none valid at all; its series too.
+    #[test]
+    fn kryt1_with_shared_gains_is_both_full_filters_bit_for_bit() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(14);
+        let kp = KalmanParams {
+            r_rad: 2e-3,
+            rate_walk_rad_s_sqrt_s: 3e-6,
+        };
+        for (n, first_valid, none_valid) in [(5000, 37, false), (300, 0, false), (50, 0, true)] {
+            let mut t = 0.05;
+            let epochs = Epochs {
+                block: (0..n).collect(),
+                t_s: (0..n)
+                    .map(|_| {
+                        t += if rng.random_bool(0.1) { 0.3 } else { 0.1 };
+                        t
+                    })
+                    .collect(),
+                theta_p_rad: (0..n).map(|_| rng.random_range(-0.02..0.02)).collect(),
+                phi_p_rad: (0..n).map(|_| rng.random_range(-3.2..3.2)).collect(),
+                valid: (0..n)
+                    .map(|e| !none_valid && e >= first_valid && !rng.random_bool(0.2))
+                    .collect(),
+                ..Epochs::default()
+            };
+            let att: Vec<(f64, f64)> = (0..n)
+                .map(|_| (rng.random_range(-0.03..0.03), rng.random_range(-3.2..3.2)))
+                .collect();
+            let (want, rows) = kryt1_two_full_filters(&epochs, &kp, |e| att[e]);
+            let gains = Kryt1Gains::new(&epochs, &kp);
+            let mut series = Kryt1Series::default();
+            let got = kryt1_with(&epochs, &gains, |e| att[e], Some(&mut series));
+            assert_eq!(got.to_bits(), want.to_bits(), "{n} epochs");
+            assert_eq!(
+                kryt1_of(&epochs, &kp, |e| att[e], None).to_bits(),
+                want.to_bits()
+            );
+            for (e, row) in rows.iter().enumerate() {
+                let have = [
+                    series.kf_theta_rad[e],
+                    series.kf_phi_rad[e],
+                    series.kryt1_cum[e],
+                ];
+                assert_eq!(have.map(f64::to_bits), row.map(f64::to_bits), "epoch {e}");
+            }
+            assert_eq!(want == 0.0, none_valid);
+        }
+    }
 
     /// The mark's arm, turned by the attitude, moves the compared point north and east;
     /// without an arm the offset is the navigated point's, bit for bit.

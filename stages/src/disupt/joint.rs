@@ -470,7 +470,7 @@ pub fn joint_fit(
         sigma,
         dx_m,
         dy_m,
-        kryt1: y.kryt1(problem.epochs, &problem.kalman),
+        kryt1: problem.kryt1(&y),
         steps: vec![step],
         evaluations,
         wall_s: t0.elapsed().as_secs_f64(),

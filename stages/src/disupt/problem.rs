@@ -8,7 +8,7 @@ use either::Either;
 use rayon::prelude::*;
 
 use super::settings::{BASE_SETTINGS, X, params_of, x_of};
-use crate::criteria::{self, ControlPointFix, KalmanParams, Kryt2};
+use crate::criteria::{self, ControlPointFix, KalmanParams, Kryt1Gains, Kryt2};
 use crate::derive::{Epochs, MovedOdometer, OdoIncrements};
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
@@ -48,6 +48,8 @@ pub struct Problem<'a> {
     moved_segments: Arc<Mutex<Option<Arc<OdoSegments>>>>,
     passes: AtomicUsize,
     base_lin: std::sync::OnceLock<Linearization>,
+    /// Kryt1's filter gains over `epochs` with `kalman`, computed on first use.
+    kryt1_gains: std::sync::OnceLock<Arc<Kryt1Gains>>,
 }
 
 /// Everything of a DISUPT problem but the derive it runs on, so that the same problem
@@ -231,6 +233,7 @@ impl<'a> Problem<'a> {
             moved_segments: Arc::default(),
             passes: AtomicUsize::new(0),
             base_lin: std::sync::OnceLock::new(),
+            kryt1_gains: std::sync::OnceLock::new(),
         }
     }
 
@@ -244,6 +247,10 @@ impl<'a> Problem<'a> {
         let base_lin = std::sync::OnceLock::new();
         if let Some(lin) = self.base_lin.get() {
             let _ = base_lin.set(lin.clone());
+        }
+        let kryt1_gains = std::sync::OnceLock::new();
+        if let Some(gains) = self.kryt1_gains.get() {
+            let _ = kryt1_gains.set(Arc::clone(gains));
         }
         Problem {
             inputs: self.inputs,
@@ -259,6 +266,7 @@ impl<'a> Problem<'a> {
             moved_segments: Arc::clone(&self.moved_segments),
             passes: AtomicUsize::new(0),
             base_lin,
+            kryt1_gains,
         }
     }
 
@@ -454,7 +462,7 @@ impl<'a> Problem<'a> {
     /// The criteria of an observation.
     pub fn evaluation_of(&self, y: &Observation) -> Evaluation {
         Evaluation {
-            kryt1: y.kryt1(self.epochs, &self.kalman),
+            kryt1: self.kryt1(y),
             kryt2: y.kryt2(self.fixes),
         }
     }
@@ -481,6 +489,15 @@ impl<'a> Problem<'a> {
         self.base_lin
             .get()
             .map_or(0, |l| 1 + l.slopes.iter().flatten().count())
+    }
+
+    /// Kryt1 of an observation of this problem's passes (its filters' gains computed once
+    /// for all of them).
+    pub fn kryt1(&self, y: &Observation) -> f64 {
+        let gains = self
+            .kryt1_gains
+            .get_or_init(|| Arc::new(Kryt1Gains::new(self.epochs, &self.kalman)));
+        y.kryt1_with(self.epochs, gains)
     }
 
     /// The linearisation around `x0` in every parameter but the odometer boresight,

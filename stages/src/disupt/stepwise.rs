@@ -52,7 +52,7 @@ impl Objective<'_, '_> {
     fn at(&self, values: &[f64]) -> f64 {
         let p = self.params_at(values);
         let value = |y: &Observation| match self.criterion {
-            Criterion::Kryt1 => y.kryt1(self.problem.epochs, &self.problem.kalman),
+            Criterion::Kryt1 => self.problem.kryt1(y),
             Criterion::Kryt2 | Criterion::LeastSquares => y.kryt2_rms(),
         };
         match self.lin {
@@ -272,7 +272,7 @@ fn run_steps(
         sigma: None,
         dx_m,
         dy_m,
-        kryt1: y.kryt1(problem.epochs, &problem.kalman),
+        kryt1: problem.kryt1(&y),
         steps,
         evaluations: passes(),
         wall_s: t0.elapsed().as_secs_f64(),
@@ -324,9 +324,7 @@ pub fn kryt1_with_free_drifts_xy(
                 true,
                 tally,
             )?;
-            Ok(lin
-                .predict(&params_of(&best))
-                .kryt1(problem.epochs, &problem.kalman))
+            Ok(problem.kryt1(&lin.predict(&params_of(&best))))
         })
         .collect()
 }
