@@ -190,7 +190,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         //     slope reported.
         // 19: a mounted unit's manifest angles and drifts are turned into the body's.
         version: 19,
-        params_hash: params_hash(&(params, method, dparams))?,
+        params_hash: params_hash(&(params.before_export(), method, dparams))?,
         inputs,
         outputs: &[
             files::DISUPT_REPORT,

@@ -47,6 +47,44 @@ pub struct Params {
     pub disupt: unz_stages::disupt::DisuptParams,
     /// The vehicle's installation.
     pub vehicle: VehicleParams,
+    /// export.
+    pub export: crate::export::ExportParams,
+}
+
+/// Every parameter of [`Params`] but the export's, serialised as `Params` is (the same
+/// names, in the same order): what the records of the stages that read them all (disupt,
+/// sweep) hash, so that an export setting re-runs the export alone.
+#[derive(Serialize)]
+pub struct BeforeExport<'p> {
+    ingest: &'p crate::ingest::IngestParams,
+    derive: &'p DeriveParams,
+    align: &'p AlignParams,
+    kalman: &'p KalmanParams,
+    disupt: &'p unz_stages::disupt::DisuptParams,
+    vehicle: &'p VehicleParams,
+}
+
+impl Params {
+    /// The parameters but the export's ([`BeforeExport`]).
+    pub fn before_export(&self) -> BeforeExport<'_> {
+        let Self {
+            ingest,
+            derive,
+            align,
+            kalman,
+            disupt,
+            vehicle,
+            export: _,
+        } = self;
+        BeforeExport {
+            ingest,
+            derive,
+            align,
+            kalman,
+            disupt,
+            vehicle,
+        }
+    }
 }
 
 /// Initial settings forced on the command line.
@@ -58,4 +96,35 @@ pub struct Overrides {
     pub drift_rad_s: Option<[f64; 3]>,
     /// Metres per odometer pulse.
     pub odo_scale_m_per_pulse: Option<f64>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The parameters but the export's are the parameters' own JSON less the export's
+    /// key, byte for byte (the disupt stage's records made before `[export]` existed keep
+    /// their hash), whatever the export's setting.
+    #[test]
+    fn before_export_is_the_params_json_less_the_export() {
+        let mut params = Params::default();
+        params.disupt.azimuth_bound_deg = 7.5;
+        for compression in [
+            unz_formats::mcap_io::McapCompression::None,
+            unz_formats::mcap_io::McapCompression::Zstd,
+            unz_formats::mcap_io::McapCompression::Lz4,
+        ] {
+            params.export.mcap_compression = compression;
+            let whole = serde_json::to_string(&params).unwrap();
+            let export = format!(
+                ",\"export\":{}}}",
+                serde_json::to_string(&params.export).unwrap()
+            );
+            let want = format!("{}}}", whole.strip_suffix(&export).expect("export last"));
+            assert_eq!(
+                serde_json::to_string(&params.before_export()).unwrap(),
+                want
+            );
+        }
+    }
 }

@@ -104,8 +104,8 @@ impl WrittenSeries {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct IngestParams {
-    /// Compression of `raw.mcap`'s chunks: `none` (default, the fastest ingest) or `zstd`
-    /// (about half the size).
+    /// Compression of `raw.mcap`'s chunks: `none` (default, the fastest ingest), `lz4`
+    /// (two thirds of the size) or `zstd` (about half).
     pub raw_mcap_compression: McapCompression,
 }
 

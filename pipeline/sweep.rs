@@ -182,7 +182,7 @@ pub fn ensure_sweep(ctx: &RunCtx, params: &Params, axes: &[Axis]) -> anyhow::Res
         name: "sweep",
         // 2: a mounted unit's manifest angles and drifts are turned into the body's.
         version: 2,
-        params_hash: params_hash(&(params, axes))?,
+        params_hash: params_hash(&(params.before_export(), axes))?,
         inputs,
         outputs: &["sweep.parquet", "sweep.json"],
     };

@@ -80,6 +80,11 @@ fn config_show_prints_the_effective_parameters() {
         Some("none"),
         "{shown}"
     );
+    assert_eq!(
+        t["export"]["mcap_compression"].as_str(),
+        Some("lz4"),
+        "{shown}"
+    );
     std::fs::write(&cfg, "[ingest]\nraw_mcap_compression = \"zstd\"\n").unwrap();
     let shown = unz_ok(&["config", "--show", "--config", cfg.to_str().unwrap()]);
     let t: toml::Table = toml::from_str(&shown).unwrap();

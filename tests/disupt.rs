@@ -7,7 +7,8 @@ use unz::flow::Params;
 use unz_stages::simulate::TrueSettings;
 
 use crate::util::{
-    python, python_json, read_json, run_until, run_until_with, simulated_run, unz_ok,
+    mcap_chunk_compressions, mcap_messages, python, python_json, read_json, run_until,
+    run_until_with, simulated_run, unz_ok, unz_output,
 };
 
 #[test]
@@ -446,6 +447,48 @@ fn export_writes_foxglove_channels() {
     assert!(!dir.join("corrected_nav.parquet").exists());
     let nav_path = out.join("sim-0078/disupt/corrected_nav.parquet");
     assert!(nav_path.is_file());
+    // lz4 chunks by default; `[export] mcap_compression` re-runs the export alone, the same
+    // messages in zstd chunks, smaller.
+    let lz4_path = dir.join("corrected.mcap");
+    let chunks = mcap_chunk_compressions(&lz4_path);
+    assert!(
+        !chunks.is_empty() && chunks.iter().all(|c| c == "lz4"),
+        "{chunks:?}"
+    );
+    let lz4 = (
+        mcap_messages(&lz4_path),
+        std::fs::metadata(&lz4_path).unwrap().len(),
+    );
+    let cfg = tmp.path().join("zstd.toml");
+    std::fs::write(&cfg, "[export]\nmcap_compression = \"zstd\"\n").unwrap();
+    let zstd_run = unz_output(&[
+        "run",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--config",
+        cfg.to_str().unwrap(),
+    ]);
+    assert!(zstd_run.status.success());
+    let said = String::from_utf8_lossy(&zstd_run.stderr);
+    for stage in ["ingest", "derive", "navigate", "criteria", "disupt"] {
+        assert!(
+            said.contains(&format!("{stage}: up to date")),
+            "{stage}: {said}"
+        );
+    }
+    assert!(!said.contains("export: up to date"), "{said}");
+    let zstd_path = dir.join("corrected.mcap");
+    let chunks = mcap_chunk_compressions(&zstd_path);
+    assert!(chunks.iter().all(|c| c == "zstd"), "{chunks:?}");
+    assert!(mcap_messages(&zstd_path) == lz4.0, "the same messages");
+    assert!(std::fs::metadata(&zstd_path).unwrap().len() < lz4.1);
+    unz_ok(&[
+        "export",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     let Some(py) = python() else { return };
     let topics = ["/corrected/fix", "/corrected/pose", "/criteria"].map(Path::new);
     let mcap = dir.join("corrected.mcap");

@@ -8,7 +8,9 @@ use unz_formats::IngestReport;
 
 use unz::flow::NavigateSummary;
 
-use crate::util::{python, python_json, read_json, test_data, unz_ok};
+use crate::util::{
+    mcap_chunk_compressions, mcap_messages, python, python_json, read_json, test_data, unz_ok,
+};
 
 fn report(path: &Path) -> IngestReport {
     read_json(path)
@@ -231,31 +233,6 @@ fn kingston_text_log_ingests_with_aligned_odometer() {
     }
 }
 
-/// Every message of an MCAP file: (topic, log time, data), in file order, read with the
-/// mcap crate's own reader (chunk CRCs checked).
-fn mcap_messages(path: &Path) -> Vec<(String, u64, Vec<u8>)> {
-    let bytes = std::fs::read(path).unwrap();
-    mcap::MessageStream::new(&bytes)
-        .unwrap()
-        .map(|m| {
-            let m = m.unwrap();
-            (m.channel.topic.clone(), m.log_time, m.data.into_owned())
-        })
-        .collect()
-}
-
-/// The chunks' compression names of an MCAP file.
-fn mcap_chunk_compressions(path: &Path) -> Vec<String> {
-    let bytes = std::fs::read(path).unwrap();
-    mcap::read::LinearReader::new(&bytes)
-        .unwrap()
-        .filter_map(|r| match r.unwrap() {
-            mcap::records::Record::Chunk { header, .. } => Some(header.compression),
-            _ => None,
-        })
-        .collect()
-}
-
 #[test]
 fn raw_mcap_compression_changes_the_size_not_the_messages() {
     use unz::ingest::{IngestOptions, ingest};
@@ -277,6 +254,7 @@ fn raw_mcap_compression_changes_the_size_not_the_messages() {
     for (name, compression) in [
         ("none", McapCompression::None),
         ("zstd", McapCompression::Zstd),
+        ("lz4", McapCompression::Lz4),
     ] {
         let dir = tmp.path().join(name);
         let options = IngestOptions {
@@ -290,10 +268,10 @@ fn raw_mcap_compression_changes_the_size_not_the_messages() {
         let path = dir.join("raw.mcap");
         let chunks = mcap_chunk_compressions(&path);
         assert!(!chunks.is_empty());
-        let want = if compression == McapCompression::Zstd {
-            "zstd"
-        } else {
-            ""
+        let want = match compression {
+            McapCompression::None => "",
+            McapCompression::Zstd => "zstd",
+            McapCompression::Lz4 => "lz4",
         };
         assert!(chunks.iter().all(|c| c == want), "{name}: {chunks:?}");
         sizes.push(std::fs::metadata(&path).unwrap().len());
@@ -302,11 +280,17 @@ fn raw_mcap_compression_changes_the_size_not_the_messages() {
     // 30 000 IMU samples, the odometer at 10 Hz, the marks.
     let imu = messages[0].iter().filter(|m| m.0 == "/imu").count();
     assert_eq!(imu, 30_000);
-    assert!(messages[0] == messages[1], "the same messages either way");
-    // zstd takes the CDR's constant bytes and slow counters out: well under 3/4.
+    assert!(messages[0] == messages[1], "the same messages with zstd");
+    assert!(messages[0] == messages[2], "the same messages with lz4");
+    // zstd takes the CDR's constant bytes and slow counters out: well under 3/4; lz4,
+    // the repeated bytes, less of them.
     assert!(
         (sizes[1] as f64) < 0.75 * sizes[0] as f64,
-        "sizes none/zstd: {sizes:?}"
+        "sizes none/zstd/lz4: {sizes:?}"
+    );
+    assert!(
+        sizes[1] < sizes[2] && (sizes[2] as f64) < 0.9 * sizes[0] as f64,
+        "sizes none/zstd/lz4: {sizes:?}"
     );
 }
 

@@ -246,3 +246,28 @@ pub fn vehicle_settings_named(err: &str) -> String {
         .filter_map(|k| setting(k))
         .collect()
 }
+
+/// Every message of an MCAP file: (topic, log time, data), in file order, read with the
+/// mcap crate's own reader (chunk CRCs checked).
+pub fn mcap_messages(path: &Path) -> Vec<(String, u64, Vec<u8>)> {
+    let bytes = std::fs::read(path).unwrap();
+    mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| {
+            let m = m.unwrap();
+            (m.channel.topic.clone(), m.log_time, m.data.into_owned())
+        })
+        .collect()
+}
+
+/// The chunks' compression names of an MCAP file.
+pub fn mcap_chunk_compressions(path: &Path) -> Vec<String> {
+    let bytes = std::fs::read(path).unwrap();
+    mcap::read::LinearReader::new(&bytes)
+        .unwrap()
+        .filter_map(|r| match r.unwrap() {
+            mcap::records::Record::Chunk { header, .. } => Some(header.compression),
+            _ => None,
+        })
+        .collect()
+}

@@ -23,10 +23,13 @@ pub struct Channel<M> {
 
 /// How an MCAP file's chunks are compressed.
 ///
-/// The mcap crate feeds its zstd stream one small write per record field, about seven per
-/// message, so with ~240 000 messages per 40-min run zstd costs more than the rest of the
-/// ingest: uncompressed chunks ingest at ~165 MB/s of raw log, zstd ones at ~110 MB/s
-/// and about half the size (rosbag2 records uncompressed by default for the same reason).
+/// The mcap crate feeds its compressor one small write per record field, about seven per
+/// message. zstd's stream takes each as a call of its own: with ~240 000 messages per
+/// 40-min run it costs more than the rest of the ingest (uncompressed chunks ingest at
+/// ~165 MB/s of raw log, zstd ones at ~110 MB/s, about half the size; rosbag2 records
+/// uncompressed by default for the same reason). lz4's frame encoder gathers the small
+/// writes into its block before compressing: the export's `corrected.mcap` (96 000
+/// messages a 40-min run) takes 11 ms less CPU than with zstd, 20 % larger.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum McapCompression {
@@ -35,6 +38,9 @@ pub enum McapCompression {
     None,
     /// zstd (level 1) chunks: about half the size.
     Zstd,
+    /// lz4 (fast level) chunks: a 40-min run's `raw.mcap` 14.9 MB against 12.0 with
+    /// zstd and 22.5 uncompressed, its ingest's CPU between the two.
+    Lz4,
 }
 
 /// An MCAP file of ROS 2 channels being written.
@@ -57,6 +63,7 @@ impl Ros2Mcap {
             .compression(match compression {
                 McapCompression::None => None,
                 McapCompression::Zstd => Some(mcap::Compression::Zstd),
+                McapCompression::Lz4 => Some(mcap::Compression::Lz4),
             })
             .compression_level(1)
             .compression_threads(0)
