@@ -8,20 +8,19 @@
 
 use std::path::PathBuf;
 
-use arrow::datatypes::Int64Type;
 use unz_formats::mcap_io::{McapCompression, Ros2Mcap};
-use unz_formats::parquet_io::{for_each_batch_of, read_schema};
+use unz_formats::parquet_io::read_schema;
 use unz_formats::ros2_msgs::{
     Attitude, Criteria, Header, NavSatFix, NavSatStatus, Point, Pose, PoseStamped, Quaternion, Time,
 };
-use unz_formats::schema::{self, META_TIME_ORIGIN, NAV_STATE};
-use unz_formats::tables::{float_values, values_of};
+use unz_formats::schema::{META_TIME_ORIGIN, NAV_STATE};
 use unz_stages::attitude::Euler;
 use unz_viz::frames::enu_flu;
 
 use crate::artifacts::{StageName, files};
 use crate::disupt_stage::{Method, ensure_disupt};
 use crate::flow::{Overrides, Params, RunCtx, ensure_criteria, load_criteria};
+use crate::picked_rows::{picked_columns, picked_times};
 use crate::stage::{Stage, params_hash};
 
 /// Output rate of the navigation channels, Hz.
@@ -70,38 +69,23 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             .and_then(|v| v.parse().ok())
             .unwrap_or(0);
         let log_time_of = |t_ns: i64| u64::try_from(origin_ns.saturating_add(t_ns)).unwrap_or(0);
-        // The corrected navigation at NAV_RATE_HZ, read batch by batch: only the columns
-        // the messages carry, and only the rows they keep.
+        // The corrected navigation at NAV_RATE_HZ: the first row at or after each step, and
+        // of those rows only the columns the messages carry.
         let step_ns = (1e9 / NAV_RATE_HZ) as i64;
-        let names = NAV_STATE;
-        let mut wanted = vec![schema::T_NS];
-        wanted.extend(names);
-        let mut t: Vec<i64> = Vec::new();
-        let mut kept: [Vec<f64>; 8] = Default::default();
-        let mut h0: Option<f64> = None;
         let mut next: Option<i64> = None;
-        for_each_batch_of(&nav_path, &wanted, |b| {
-            // The batch's columns where they lie: only the kept rows are copied.
-            let tb = values_of::<Int64Type>(b, schema::T_NS)?;
-            let cols = names
-                .iter()
-                .map(|n| float_values(b, n))
-                .collect::<Result<Vec<_>, _>>()?;
-            for (k, &tk) in tb.iter().enumerate() {
-                h0.get_or_insert(cols[2].get(k));
-                if next.is_some_and(|n| tk < n) {
-                    continue;
-                }
-                next = Some(tk + step_ns);
-                t.push(tk);
-                for (out, col) in kept.iter_mut().zip(&cols) {
-                    out.push(col.get(k));
-                }
+        let (t, rows, _) = picked_times(&nav_path, |_, tk| {
+            if next.is_some_and(|n| tk < n) {
+                return false;
             }
-            Ok(())
+            next = Some(tk + step_ns);
+            true
         })?;
-        let [lat, lon, h, north, east, roll, pitch, heading] = kept;
-        let h0 = h0.unwrap_or(0.0);
+        let columns: [Vec<f64>; 8] = picked_columns(&nav_path, &NAV_STATE, &rows)?
+            .try_into()
+            .map_err(|_| anyhow::anyhow!("{}: a column missing", nav_path.display()))?;
+        let [lat, lon, h, north, east, roll, pitch, heading] = columns;
+        // The heights from the route's first row (always kept).
+        let h0 = h.first().copied().unwrap_or(0.0);
         let mut mcap =
             Ros2Mcap::create(&dir.join("corrected.mcap"), params.export.mcap_compression)?;
         let mut fix = mcap.add_channel::<NavSatFix>("/corrected/fix")?;

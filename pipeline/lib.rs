@@ -33,6 +33,7 @@ pub mod odometer_column;
 pub mod odometer_gaps;
 pub mod odometer_range;
 pub mod odometer_stuck;
+pub mod picked_rows;
 pub mod raw_mcap;
 pub mod review;
 pub mod review_sensors;

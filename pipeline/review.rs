@@ -8,11 +8,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use arrow::datatypes::Int64Type;
-use unz_formats::parquet_io::{for_each_batch_of, read_schema, read_table};
-use unz_formats::schema::{T_NS, nav_cols, sweep_cols};
-use unz_formats::split_doubles::for_each_split_page;
-use unz_formats::tables::{f64_column, float_values, values_of};
+use unz_formats::parquet_io::{read_schema, read_table};
+use unz_formats::schema::{nav_cols, sweep_cols};
+use unz_formats::tables::f64_column;
 use unz_stages::criteria::Kryt2;
 use unz_stages::earth::Geodetic;
 use unz_viz::review::{
@@ -30,6 +28,7 @@ use crate::method_tables::{
     KRYT1_SERIES, MethodTrack, TRACK_RATE_HZ, TRACKS, decimation_step, read_kryt1_series,
     read_tracks,
 };
+use crate::picked_rows::{picked_columns, picked_times};
 use crate::review_sensors::{RunTimes, read_review_sensors};
 use crate::stage::{Stage, params_hash};
 
@@ -347,114 +346,28 @@ fn truth_track(
 type Decimated = (Vec<i64>, Vec<Vec<f64>>);
 
 /// Every `step`-th row (the last one too when `with_last`) of a table's `t_ns` and of the
-/// f64 columns `names`, read batch by batch without the table's other columns.
+/// float columns `names` ([`picked_columns`]: only the rows kept are widened and copied).
 fn decimated_columns(
     path: &Path,
     names: &[&str],
     step: usize,
     with_last: bool,
 ) -> anyhow::Result<Decimated> {
-    match decimated_split_columns(path, names, step, with_last)? {
-        Some(split) => Ok(split),
-        None => decimated_arrow_columns(path, names, step, with_last),
-    }
-}
-
-/// [`decimated_columns`] through Arrow, batch by batch.
-fn decimated_arrow_columns(
-    path: &Path,
-    names: &[&str],
-    step: usize,
-    with_last: bool,
-) -> anyhow::Result<Decimated> {
     let step = step.max(1);
-    let mut wanted = vec![T_NS];
-    wanted.extend_from_slice(names);
-    let (mut t, mut out) = (Vec::new(), vec![Vec::new(); names.len()]);
-    let mut rows = 0;
-    let mut last: Option<(usize, i64, Vec<f64>)> = None;
-    for_each_batch_of(path, &wanted, |b| {
-        // The batch's columns where they lie: only the kept rows are copied.
-        let tb = values_of::<Int64Type>(b, T_NS)?;
-        let vb = names
-            .iter()
-            .map(|n| float_values(b, n))
-            .collect::<Result<Vec<_>, _>>()?;
-        for k in (0..tb.len()).filter(|k| (rows + k) % step == 0) {
-            t.push(tb[k]);
-            for (o, v) in out.iter_mut().zip(&vb) {
-                o.push(v.get(k));
-            }
-        }
-        if let Some(k) = tb.len().checked_sub(1) {
-            last = Some((rows + k, tb[k], vb.iter().map(|v| v.get(k)).collect()));
-        }
-        rows += tb.len();
-        Ok(())
-    })?;
-    if let Some((i, tl, vl)) = last.filter(|l| with_last && l.0 % step != 0) {
-        debug_assert_eq!(i + 1, rows);
-        t.push(tl);
-        for (o, v) in out.iter_mut().zip(vl) {
-            o.push(v);
-        }
-    }
-    Ok((t, out))
-}
-
-/// [`decimated_columns`] with the float columns' byte streams joined page by page
-/// (split_doubles; the kept rows only are widened and copied), the times through Arrow.
-/// `None` when a column is not of that layout: then read through Arrow.
-fn decimated_split_columns(
-    path: &Path,
-    names: &[&str],
-    step: usize,
-    with_last: bool,
-) -> anyhow::Result<Option<Decimated>> {
-    use arrow::datatypes::DataType;
-    let step = step.max(1);
-    let (mut t, mut rows, mut last_t) = (Vec::new(), 0usize, None);
-    let schema = for_each_batch_of(path, &[T_NS], |b| {
-        let tb = values_of::<Int64Type>(b, T_NS)?;
-        t.extend(
-            (0..tb.len())
-                .filter(|k| (rows + k) % step == 0)
-                .map(|k| tb[k]),
-        );
-        last_t = tb.last().copied().or(last_t);
-        rows += tb.len();
-        Ok(())
+    let mut last = None;
+    let (mut t, mut rows, n) = picked_times(path, |k, tk| {
+        last = Some(tk);
+        k % step == 0
     })?;
     // The last row too, when asked and not kept already.
-    let last = rows.checked_sub(1).filter(|&l| with_last && l % step != 0);
-    if let (Some(_), Some(tl)) = (last, last_t) {
+    if let (Some(l), Some(tl)) = (
+        n.checked_sub(1).filter(|l| with_last && l % step != 0),
+        last,
+    ) {
+        rows.push(l);
         t.push(tl);
     }
-    let mut out = Vec::with_capacity(names.len());
-    for name in names {
-        let mut column = Vec::with_capacity(t.len());
-        let mut keep = |first: usize, n: usize, value: &dyn Fn(usize) -> f64| {
-            let from = first.div_ceil(step) * step;
-            column.extend((from..first + n).step_by(step).map(|k| value(k - first)));
-            if let Some(l) = last.filter(|l| (first..first + n).contains(l)) {
-                column.push(value(l - first));
-            }
-        };
-        let whole = match schema.field_with_name(name).map(|f| f.data_type()) {
-            Ok(DataType::Float64) => for_each_split_page::<f64>(path, name, |first, v| {
-                keep(first, v.len(), &|i| v[i]);
-            })?,
-            Ok(DataType::Float32) => for_each_split_page::<f32>(path, name, |first, v| {
-                keep(first, v.len(), &|i| f64::from(v[i]));
-            })?,
-            _ => false,
-        };
-        if !whole || column.len() != t.len() {
-            return Ok(None);
-        }
-        out.push(column);
-    }
-    Ok(Some((t, out)))
+    Ok((t, picked_columns(path, names, &rows)?))
 }
 
 /// `sweep.parquet`: axis columns first (the first varies slowest), then `kryt1_rad`,
@@ -571,16 +484,10 @@ mod tests {
             assert_eq!(got_t, idx.iter().map(|&k| t[k]).collect::<Vec<_>>());
             assert_eq!(got[0], idx.iter().map(|&k| a[k]).collect::<Vec<_>>());
             assert_eq!(got[1], idx.iter().map(|&k| b[k]).collect::<Vec<_>>());
-            // The byte streams joined here (the tables' layout: taken) and through Arrow
-            // give the same rows, the f32 column widened alike.
-            let names = ["a", "h", "b"];
-            let split = decimated_split_columns(&path, &names, step, with_last)
-                .unwrap()
-                .expect("the tables' layout");
-            let arrow = decimated_arrow_columns(&path, &names, step, with_last).unwrap();
-            assert_eq!(split, arrow, "step {step}, last {with_last}");
+            // The f32 column widened (both reading routes: `picked_rows`' tests).
+            let (_, with_h) = decimated_columns(&path, &["h"], step, with_last).unwrap();
             assert_eq!(
-                split.1[1],
+                with_h[0],
                 idx.iter().map(|&k| f64::from(h[k])).collect::<Vec<_>>()
             );
         }
