@@ -8,6 +8,8 @@ use anyhow::Context;
 use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
 use unz_formats::parquet_io::{for_each_batch_of, write_batch};
+
+use crate::picked_rows::{picked_columns, picked_times};
 use unz_formats::schema;
 use unz_formats::tables::{CriteriaTable, MarksTable, f64_column};
 use unz_stages::criteria::{self, BlockAttitude, FixPose, Kryt1Series, Kryt2, Row3Blocks};
@@ -44,96 +46,97 @@ pub struct CriteriaSummary {
 /// A sample and its pose.
 type Position = (usize, FixPose);
 
-/// What the criteria read of `nav.parquet` (`samples` rows), batch by batch (the track is
-/// never held whole): the attitude per block of `block` samples, and the poses at the
-/// samples `at`.
+/// The attitude `C_b^n` of a navigation table's roll, pitch and heading (degrees, as
+/// stored), as (w, x, y, z).
+fn q_of_degrees(roll_deg: f64, pitch_deg: f64, heading_deg: f64) -> [f64; 4] {
+    let q = unz_stages::attitude::Euler {
+        roll_rad: roll_deg.to_radians(),
+        pitch_rad: pitch_deg.to_radians(),
+        heading_rad: heading_deg.to_radians(),
+    }
+    .to_quat_b_to_n();
+    [q.w, q.i, q.j, q.k]
+}
+
+/// What the criteria read of `nav.parquet` (`samples` rows): the attitude per block of
+/// `block` samples, batch by batch (the track is never held whole), and the poses at the
+/// samples `at`, of their rows alone ([`picked_columns`]).
 fn read_nav_for_criteria(
     path: &Path,
     samples: usize,
     block: usize,
     at: &[usize],
 ) -> anyhow::Result<(BlockAttitude, Vec<Position>)> {
-    let mut blocks = Row3Blocks::for_samples(samples, block);
-    let mut positions = Vec::new();
-    let mut k0 = 0;
     use unz_formats::schema::DISTANCE_M;
     use unz_formats::schema::nav_cols::{H_M, HEADING_DEG, LAT_DEG, LON_DEG, PITCH_DEG, ROLL_DEG};
+    let mut blocks = Row3Blocks::for_samples(samples, block);
+    let mut rows = 0;
+    for_each_batch_of(path, &[ROLL_DEG, PITCH_DEG, HEADING_DEG], |b| {
+        let (roll, pitch, heading) = (
+            f64_column(b, ROLL_DEG)?,
+            f64_column(b, PITCH_DEG)?,
+            f64_column(b, HEADING_DEG)?,
+        );
+        for k in 0..roll.len() {
+            blocks.push(&q_of_degrees(roll[k], pitch[k], heading[k]));
+        }
+        rows += roll.len();
+        Ok(())
+    })?;
+    let mut picked: Vec<usize> = at.iter().copied().filter(|&s| s < rows).collect();
+    picked.sort_unstable();
+    picked.dedup();
     let columns = [
         LAT_DEG,
         LON_DEG,
         H_M,
+        DISTANCE_M,
         ROLL_DEG,
         PITCH_DEG,
         HEADING_DEG,
-        DISTANCE_M,
     ];
-    for_each_batch_of(path, &columns, |b| {
-        let rad = |n: &str| -> Result<Vec<f64>, unz_formats::FormatError> {
-            Ok(f64_column(b, n)?.into_iter().map(f64::to_radians).collect())
-        };
-        let (roll, pitch, heading) = (rad(ROLL_DEG)?, rad(PITCH_DEG)?, rad(HEADING_DEG)?);
-        let q_at = |k: usize| {
-            let q = unz_stages::attitude::Euler {
-                roll_rad: roll[k],
-                pitch_rad: pitch[k],
-                heading_rad: heading[k],
-            }
-            .to_quat_b_to_n();
-            [q.w, q.i, q.j, q.k]
-        };
-        for k in 0..roll.len() {
-            blocks.push(&q_at(k));
-        }
-        let n = roll.len();
-        let here: Vec<usize> = at
-            .iter()
-            .copied()
-            .filter(|&s| (k0..k0 + n).contains(&s))
-            .collect();
-        if !here.is_empty() {
-            let (lat, lon) = (rad(LAT_DEG)?, rad(LON_DEG)?);
-            let (h, distance) = (f64_column(b, H_M)?, f64_column(b, DISTANCE_M)?);
-            positions.extend(here.iter().map(|&s| {
-                let pose = FixPose {
-                    lat_rad: lat[s - k0],
-                    lon_rad: lon[s - k0],
-                    h_m: h[s - k0],
-                    distance_m: distance[s - k0],
-                    q_b_to_n: q_at(s - k0),
-                };
-                (s, pose)
-            }));
-        }
-        k0 += n;
-        Ok(())
-    })?;
+    let c = picked_columns(path, &columns, &picked)?;
+    let positions = picked
+        .iter()
+        .enumerate()
+        .map(|(i, &s)| {
+            let pose = FixPose {
+                lat_rad: c[0][i].to_radians(),
+                lon_rad: c[1][i].to_radians(),
+                h_m: c[2][i],
+                distance_m: c[3][i],
+                q_b_to_n: q_of_degrees(c[4][i], c[5][i], c[6][i]),
+            };
+            (s, pose)
+        })
+        .collect();
     Ok((blocks.finish(), positions))
 }
 
-/// The navigated north and east (m, from `origin`) at each of `samples`, read from
-/// `nav.parquet` batch by batch.
+/// The navigated north and east (m, from `origin`) at each of `samples`, of their rows
+/// of `nav.parquet` alone (NaN past its end).
 fn read_nav_places(
     path: &Path,
     origin: Geodetic,
     samples: &[usize],
 ) -> anyhow::Result<Vec<[f64; 2]>> {
     use unz_formats::schema::nav_cols::{LAT_DEG, LON_DEG};
-    let mut places = vec![[f64::NAN; 2]; samples.len()];
-    let mut k0 = 0;
-    for_each_batch_of(path, &[LAT_DEG, LON_DEG], |b| {
-        let (lat, lon) = (f64_column(b, LAT_DEG)?, f64_column(b, LON_DEG)?);
-        let n = lat.len();
-        for (place, &s) in places.iter_mut().zip(samples) {
-            if (k0..k0 + n).contains(&s) {
-                let (north_m, east_m) =
-                    origin.offset_m(lat[s - k0].to_radians(), lon[s - k0].to_radians());
-                *place = [north_m, east_m];
+    // The table's rows, counted by its times.
+    let (_, _, rows) = picked_times(path, |_, _| false)?;
+    let mut picked: Vec<usize> = samples.iter().copied().filter(|&s| s < rows).collect();
+    picked.sort_unstable();
+    picked.dedup();
+    let c = picked_columns(path, &[LAT_DEG, LON_DEG], &picked)?;
+    Ok(samples
+        .iter()
+        .map(|s| match picked.binary_search(s) {
+            Ok(i) => {
+                let (north_m, east_m) = origin.offset_m(c[0][i].to_radians(), c[1][i].to_radians());
+                [north_m, east_m]
             }
-        }
-        k0 += n;
-        Ok(())
-    })?;
-    Ok(places)
+            Err(_) => [f64::NAN; 2],
+        })
+        .collect())
 }
 
 /// Stage 3b: the criteria of the navigated track.
