@@ -7,10 +7,11 @@ use std::path::Path;
 use std::sync::Arc;
 
 use arrow::array::{Array, Float32Array, Float64Array, Int64Array, RecordBatch, StringArray};
-use arrow::datatypes::{Float32Type, Float64Type, Int64Type};
+use arrow::datatypes::{DataType, Float32Type, Float64Type, Int64Type};
 use unz_formats::FormatError;
 use unz_formats::parquet_io::{ParquetSink, for_each_batch_of, write_batch};
 use unz_formats::schema::{self, criteria_cols};
+use unz_formats::split_doubles::for_each_split_page;
 use unz_formats::tables::values_of;
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
@@ -306,8 +307,124 @@ fn read_per_method<T: Default>(
     Ok(out)
 }
 
-/// Reads `tracks.parquet`, batch by batch into each method's columns.
+/// Reads `tracks.parquet` into each method's columns: the methods and times through
+/// Arrow, the float columns page by page with their byte streams joined
+/// ([`for_each_split_page`]) where their layout is the tables', else batch by batch
+/// through Arrow.
 pub fn read_tracks(path: &Path) -> anyhow::Result<Vec<MethodTrack>> {
+    match read_tracks_split(path)? {
+        Some(tracks) => Ok(tracks),
+        None => read_tracks_arrow(path),
+    }
+}
+
+/// A float column of [`MethodTrack`]: its name and where a method's values go.
+enum TrackColumn {
+    F64(&'static str, fn(&mut MethodTrack) -> &mut Vec<f64>),
+    F32(&'static str, fn(&mut MethodTrack) -> &mut Vec<f32>),
+}
+
+/// [`MethodTrack`]'s float columns, in the table's order.
+fn track_columns() -> [TrackColumn; 8] {
+    let [lat, lon, h, north, east, roll, pitch, heading] = schema::NAV_STATE;
+    [
+        TrackColumn::F64(lat, |t| &mut t.lat_deg),
+        TrackColumn::F64(lon, |t| &mut t.lon_deg),
+        TrackColumn::F32(h, |t| &mut t.h_m),
+        TrackColumn::F32(north, |t| &mut t.north_m),
+        TrackColumn::F32(east, |t| &mut t.east_m),
+        TrackColumn::F32(roll, |t| &mut t.roll_deg),
+        TrackColumn::F32(pitch, |t| &mut t.pitch_deg),
+        TrackColumn::F32(heading, |t| &mut t.heading_deg),
+    ]
+}
+
+/// Hands each method's part of a page's values (rows `first..`) to `put`: the methods'
+/// rows end at `ends` (increasing), `method` the one the page's first row is in.
+fn per_method_rows<F>(
+    ends: &[usize],
+    method: &mut usize,
+    first: usize,
+    values: &[F],
+    mut put: impl FnMut(usize, &[F]),
+) {
+    let mut at = 0;
+    while at < values.len() && *method < ends.len() {
+        let row = first + at;
+        if row >= ends[*method] {
+            *method += 1;
+            continue;
+        }
+        let take = (ends[*method] - row).min(values.len() - at);
+        put(*method, &values[at..at + take]);
+        at += take;
+    }
+}
+
+/// [`read_tracks`] with the floats' pages joined; `None` when a column is not of the
+/// tables' layout.
+fn read_tracks_split(path: &Path) -> anyhow::Result<Option<Vec<MethodTrack>>> {
+    let mut tracks: Vec<MethodTrack> =
+        read_per_method(path, &[schema::T_NS], |t: &mut MethodTrack, b, r| {
+            t.t_ns
+                .extend_from_slice(&values_of::<Int64Type>(b, schema::T_NS)?[r]);
+            Ok(())
+        })?
+        .into_iter()
+        .map(|(method, t)| MethodTrack { method, ..t })
+        .collect();
+    let ends: Vec<usize> = tracks
+        .iter()
+        .scan(0, |end, t| {
+            *end += t.t_ns.len();
+            Some(*end)
+        })
+        .collect();
+    let schema = unz_formats::parquet_io::read_schema(path)?;
+    for column in track_columns() {
+        let mut method = 0;
+        let whole = match column {
+            TrackColumn::F64(name, field) => {
+                schema.field_with_name(name).ok().map(|f| f.data_type()) == Some(&DataType::Float64)
+                    && for_each_split_page::<f64>(path, name, |first, v| {
+                        per_method_rows(&ends, &mut method, first, v, |m, part| {
+                            field(&mut tracks[m]).extend_from_slice(part);
+                        });
+                    })?
+            }
+            TrackColumn::F32(name, field) => {
+                schema.field_with_name(name).ok().map(|f| f.data_type()) == Some(&DataType::Float32)
+                    && for_each_split_page::<f32>(path, name, |first, v| {
+                        per_method_rows(&ends, &mut method, first, v, |m, part| {
+                            field(&mut tracks[m]).extend_from_slice(part);
+                        });
+                    })?
+            }
+        };
+        if !whole {
+            return Ok(None);
+        }
+    }
+    for t in &mut tracks {
+        let rows = t.t_ns.len();
+        for column in track_columns() {
+            let (name, len) = match column {
+                TrackColumn::F64(name, field) => (name, field(t).len()),
+                TrackColumn::F32(name, field) => (name, field(t).len()),
+            };
+            anyhow::ensure!(
+                len == rows,
+                "{}: {name} has {len} rows of {} for {rows}",
+                path.display(),
+                t.method
+            );
+        }
+    }
+    Ok(Some(tracks))
+}
+
+/// [`read_tracks`] through Arrow, batch by batch into each method's columns.
+fn read_tracks_arrow(path: &Path) -> anyhow::Result<Vec<MethodTrack>> {
     let [lat, lon, h, north, east, roll, pitch, heading] = schema::NAV_STATE;
     let names = [schema::T_NS, lat, lon, h, north, east, roll, pitch, heading];
     let tracks = read_per_method(path, &names, |t: &mut MethodTrack, b, r| {
@@ -505,6 +622,24 @@ mod tests {
         let p = dir.path().join(TRACKS);
         write_tracks(&p, &t_ns, start, tracks.clone()).unwrap();
         let read = read_tracks(&p).unwrap();
+        // Page by page (taken: the tables' layout) and through Arrow, the same tracks.
+        assert_eq!(read_tracks_split(&p).unwrap().as_ref(), Some(&read));
+        assert_eq!(read_tracks_arrow(&p).unwrap(), read);
+        // The same table in Arrow's plain encodings: read through Arrow, the same tracks.
+        let (schema, batches) = unz_formats::parquet_io::read_batches(&p).unwrap();
+        let plain = dir.path().join("plain.parquet");
+        let mut w = parquet::arrow::ArrowWriter::try_new(
+            std::fs::File::create(&plain).unwrap(),
+            schema,
+            None,
+        )
+        .unwrap();
+        for b in &batches {
+            w.write(b).unwrap();
+        }
+        w.close().unwrap();
+        assert_eq!(read_tracks_split(&plain).unwrap(), None);
+        assert_eq!(read_tracks(&plain).unwrap(), read);
         let methods: Vec<&str> = read.iter().map(|t| t.method.as_str()).collect();
         assert_eq!(methods, ["initial", "owpi", "joint"]);
         for (t, k) in read.iter().zip(&tracks) {

@@ -9,8 +9,11 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use arrow::array::{Float64Array, Int64Array, RecordBatch};
-use unz_formats::parquet_io::{ParquetSink, for_each_batch, read_schema, row_capacity_hint};
+use unz_formats::parquet_io::{
+    ParquetSink, for_each_batch, for_each_batch_of, read_schema, row_capacity_hint,
+};
 use unz_formats::schema::{self, derived_cols, sensors_cols, sensors_meta};
+use unz_formats::split_doubles::{read_split_doubles, read_split_vec3};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, ns_since};
 use unz_viz::review::{SensorBlocks, SensorBlocksBuilder, SensorSample};
@@ -114,23 +117,52 @@ fn write_in_batches(s: &ReviewSensors, path: &Path, rows: usize) -> anyhow::Resu
     Ok(())
 }
 
-/// Reads what [`write_review_sensors`] wrote.
+/// Reads what [`write_review_sensors`] wrote: the float columns with their byte streams
+/// joined ([`read_split_doubles`], [`read_split_vec3`]) where their layout is the tables',
+/// else every column through Arrow, batch by batch.
 pub fn read_review_sensors(path: &Path) -> anyhow::Result<ReviewSensors> {
-    let rows = row_capacity_hint(path)?;
-    let mut blocks = SensorBlocks::default();
-    blocks.reserve_exact(rows);
     let schema = read_schema(path)?;
     let m = schema.metadata();
     let t0_ns: i64 = meta(m, sensors_meta::T0_NS, path)?;
+    let mut blocks = match read_blocks_split(path, t0_ns)? {
+        Some(blocks) => blocks,
+        None => read_blocks_arrow(path, t0_ns)?,
+    };
+    blocks.step = meta(m, sensors_meta::STEP, path)?;
+    Ok(ReviewSensors {
+        blocks,
+        times: RunTimes {
+            t0_ns,
+            nominal_dt_s: meta(m, sensors_meta::NOMINAL_DT_S, path)?,
+            duration_s: meta(m, sensors_meta::DURATION_S, path)?,
+            samples: meta(m, sensors_meta::SAMPLES, path)?,
+        },
+    })
+}
+
+/// The blocks' times (s since `t0_ns`) and first samples of a batch, appended.
+fn extend_times(
+    blocks: &mut SensorBlocks,
+    batch: &RecordBatch,
+    t0_ns: i64,
+) -> Result<(), unz_formats::FormatError> {
+    blocks.t_s.extend(
+        i64_column(batch, schema::T_NS)?
+            .iter()
+            .map(|&t| (t - t0_ns) as f64 * 1e-9),
+    );
+    blocks
+        .sample
+        .extend(i64_column(batch, sensors_cols::SAMPLE)?);
+    Ok(())
+}
+
+/// [`read_review_sensors`]' blocks through Arrow.
+fn read_blocks_arrow(path: &Path, t0_ns: i64) -> anyhow::Result<SensorBlocks> {
+    let mut blocks = SensorBlocks::default();
+    blocks.reserve_exact(row_capacity_hint(path)?);
     for_each_batch(path, |batch| {
-        blocks.t_s.extend(
-            i64_column(batch, schema::T_NS)?
-                .iter()
-                .map(|&t| (t - t0_ns) as f64 * 1e-9),
-        );
-        blocks
-            .sample
-            .extend(i64_column(batch, sensors_cols::SAMPLE)?);
+        extend_times(&mut blocks, batch, t0_ns)?;
         blocks.u_mps.extend(f64_column(batch, derived_cols::U_MPS)?);
         blocks
             .u_dot_mps2
@@ -150,16 +182,51 @@ pub fn read_review_sensors(path: &Path) -> anyhow::Result<ReviewSensors> {
         }
         Ok(())
     })?;
-    blocks.step = meta(m, sensors_meta::STEP, path)?;
-    Ok(ReviewSensors {
-        blocks,
-        times: RunTimes {
-            t0_ns,
-            nominal_dt_s: meta(m, sensors_meta::NOMINAL_DT_S, path)?,
-            duration_s: meta(m, sensors_meta::DURATION_S, path)?,
-            samples: meta(m, sensors_meta::SAMPLES, path)?,
-        },
-    })
+    Ok(blocks)
+}
+
+/// [`read_review_sensors`]' blocks with the floats' byte streams joined, the times and
+/// samples through Arrow; `None` when a float column is not of the tables' layout.
+fn read_blocks_split(path: &Path, t0_ns: i64) -> anyhow::Result<Option<SensorBlocks>> {
+    let mut blocks = SensorBlocks::default();
+    for (name, out) in [
+        (derived_cols::U_MPS, &mut blocks.u_mps),
+        (derived_cols::U_DOT_MPS2, &mut blocks.u_dot_mps2),
+        (derived_cols::RU_MPS2, &mut blocks.ru_mps2),
+    ] {
+        match read_split_doubles(path, name, 1)? {
+            Some(v) => *out = v,
+            None => return Ok(None),
+        }
+    }
+    for (name, out) in [
+        (sensors_cols::GYRO_DEG_S, &mut blocks.gyro_deg_s),
+        (sensors_cols::ACCEL_MPS2, &mut blocks.accel_mps2),
+    ] {
+        let Some(rows) = read_split_vec3(path, name)? else {
+            return Ok(None);
+        };
+        for (i, axis) in out.iter_mut().enumerate() {
+            *axis = rows.iter().map(|v| v[i]).collect();
+        }
+    }
+    for_each_batch_of(path, &[schema::T_NS, sensors_cols::SAMPLE], |batch| {
+        extend_times(&mut blocks, batch, t0_ns)
+    })?;
+    let rows = blocks.t_s.len();
+    let lengths = [
+        blocks.u_mps.len(),
+        blocks.u_dot_mps2.len(),
+        blocks.ru_mps2.len(),
+        blocks.gyro_deg_s[0].len(),
+        blocks.accel_mps2[0].len(),
+    ];
+    anyhow::ensure!(
+        lengths.iter().all(|&n| n == rows),
+        "{}: columns of {lengths:?} rows for {rows} times",
+        path.display()
+    );
+    Ok(Some(blocks))
 }
 
 /// The schema metadata `key` of `path`, parsed.
@@ -230,6 +297,15 @@ mod tests {
         let path = tmp.path().join("batches.parquet");
         write_in_batches(&want, &path, 999).unwrap();
         assert_eq!(read_review_sensors(&path).unwrap(), got);
+        // Page by page (taken: the tables' layout) and through Arrow, the same blocks.
+        let t0 = got.times.t0_ns;
+        for file in [derive_dir.join(files::SENSORS), path.clone()] {
+            let split = read_blocks_split(&file, t0)
+                .unwrap()
+                .expect("the tables' layout");
+            assert_eq!(bits(&split), bits(&read_blocks_arrow(&file, t0).unwrap()));
+            assert_eq!(bits(&split), bits(&got.blocks));
+        }
         assert_eq!(got.times.t0_ns, want.times.t0_ns);
         assert_eq!(got.times.samples, want.times.samples);
         assert_eq!(
