@@ -5,10 +5,12 @@ use std::path::Path;
 
 use anyhow::bail;
 use arrow::array::RecordBatch;
+use arrow::datatypes::UInt16Type;
 use unz_formats::parquet_io::{for_each_batch, for_each_batch_of, row_capacity_hint};
 use unz_formats::schema;
 use unz_formats::schema::DistanceSource;
-use unz_formats::tables::{ImuTable, OdometerTable, f64_column, i64_column, u8_column};
+use unz_formats::split_doubles::read_split_vec3;
+use unz_formats::tables::{ImuTable, OdometerTable, f64_column, i64_column, u8_column, values_of};
 use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive_owned};
 use unz_stages::odo_rebridge::FailedRows;
 use unz_stages::time_base::TagTimes;
@@ -37,6 +39,43 @@ fn load_columns<T>(
     let mut t = with_capacity(row_capacity_hint(path)?);
     for_each_batch_of(path, columns, |b| extend(&mut t, b))?;
     Ok(t)
+}
+
+/// [`ImuTable::SERIES_COLUMNS`] of `imu.parquet` with the increments' byte streams joined
+/// ([`read_split_vec3`]: the columns a page at a time into the run's series, where
+/// Arrow's list reader copies them twice over), the times and status through Arrow;
+/// `None` when an increment column is not of the tables' layout.
+fn load_imu_split(path: &Path) -> anyhow::Result<Option<ImuTable>> {
+    let (Some(dtheta_rad), Some(dvel_mps)) = (
+        read_split_vec3(path, schema::DTHETA_RAD)?,
+        read_split_vec3(path, schema::DVEL_MPS)?,
+    ) else {
+        return Ok(None);
+    };
+    let mut imu = ImuTable {
+        dtheta_rad,
+        dvel_mps,
+        ..ImuTable::default()
+    };
+    imu.t_ns.reserve_exact(imu.dtheta_rad.len());
+    imu.status.reserve_exact(imu.dtheta_rad.len());
+    for_each_batch_of(path, &[schema::T_NS, schema::STATUS], |b| {
+        imu.t_ns.extend(i64_column(b, schema::T_NS)?);
+        imu.status
+            .extend_from_slice(values_of::<UInt16Type>(b, schema::STATUS)?);
+        Ok(())
+    })?;
+    let rows = imu.t_ns.len();
+    anyhow::ensure!(
+        imu.dtheta_rad.len() == rows && imu.dvel_mps.len() == rows && imu.status.len() == rows,
+        "{}: {} times, {} and {} increments, {} status",
+        path.display(),
+        rows,
+        imu.dtheta_rad.len(),
+        imu.dvel_mps.len(),
+        imu.status.len()
+    );
+    Ok(Some(imu))
 }
 
 /// Why a run without an odometer table cannot be derived.
@@ -105,12 +144,16 @@ impl IngestedSeries {
     /// Loads `imu.parquet` and `odometer.parquet` of an ingest folder: the columns derive
     /// reads (not the IMU's sequence numbers nor the odometer's pulse counts).
     pub fn load(ingest_dir: &Path) -> anyhow::Result<Self> {
-        let imu = load_columns(
-            &ingest_dir.join(files::IMU),
-            &ImuTable::SERIES_COLUMNS,
-            ImuTable::with_series_capacity,
-            ImuTable::extend_series_from_batch,
-        )?;
+        let path = ingest_dir.join(files::IMU);
+        let imu = match load_imu_split(&path)? {
+            Some(imu) => imu,
+            None => load_columns(
+                &path,
+                &ImuTable::SERIES_COLUMNS,
+                ImuTable::with_series_capacity,
+                ImuTable::extend_series_from_batch,
+            )?,
+        };
         Self::checked(imu, Self::load_odometer(ingest_dir)?)
     }
 
@@ -246,6 +289,51 @@ impl IngestedSeries {
 mod tests {
     use super::*;
     use unz_formats::parquet_io::write_batch;
+
+    /// An ingested IMU table read with its increments' byte streams joined is the one
+    /// Arrow reads, bit for bit (a run over several of the reader's batches); a table of
+    /// another layout goes through Arrow.
+    #[test]
+    fn the_imu_read_page_by_page_is_arrows() {
+        use unz_stages::simulate::{SimConfig, simulate};
+        let tmp = tempfile::tempdir().unwrap();
+        let mut config = SimConfig::new("imu", 9);
+        config.duration_s = 900.0;
+        let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path()).unwrap();
+        let manifest = crate::runs::load_run(&run_dir).unwrap();
+        let ctx = crate::flow::RunCtx::new(manifest, tmp.path().join("out"), false);
+        let dir = crate::flow::ensure_ingest(&ctx, &crate::flow::Params::default()).unwrap();
+        let path = dir.join(files::IMU);
+        let arrow = load_columns(
+            &path,
+            &ImuTable::SERIES_COLUMNS,
+            ImuTable::with_series_capacity,
+            ImuTable::extend_series_from_batch,
+        )
+        .unwrap();
+        assert_eq!(arrow.t_ns.len(), 90_000);
+        let split = load_imu_split(&path).unwrap().expect("the tables' layout");
+        let bits = |v: &[[f64; 3]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(split.t_ns, arrow.t_ns);
+        assert_eq!(split.status, arrow.status);
+        assert_eq!(bits(&split.dtheta_rad), bits(&arrow.dtheta_rad));
+        assert_eq!(bits(&split.dvel_mps), bits(&arrow.dvel_mps));
+        assert!(split.seq.is_empty() && arrow.seq.is_empty());
+        // The same rows in Arrow's plain encodings.
+        let (schema, batches) = unz_formats::parquet_io::read_batches(&path).unwrap();
+        let plain = tmp.path().join("plain.parquet");
+        let mut w = parquet::arrow::ArrowWriter::try_new(
+            std::fs::File::create(&plain).unwrap(),
+            schema,
+            None,
+        )
+        .unwrap();
+        for b in &batches {
+            w.write(b).unwrap();
+        }
+        w.close().unwrap();
+        assert!(load_imu_split(&plain).unwrap().is_none());
+    }
 
     /// The compact load gives the tags and distances the plain one gives, across the
     /// reader's batches, a gap and a tag going back; an odometer-less run is refused.
