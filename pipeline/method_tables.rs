@@ -380,6 +380,17 @@ fn read_tracks_split(path: &Path) -> anyhow::Result<Option<Vec<MethodTrack>>> {
             Some(*end)
         })
         .collect();
+    // Each method's columns sized for its rows: filled page by page, none grows twice
+    // over.
+    for t in &mut tracks {
+        let rows = t.t_ns.len();
+        for column in track_columns() {
+            match column {
+                TrackColumn::F64(_, field) => field(t).reserve_exact(rows),
+                TrackColumn::F32(_, field) => field(t).reserve_exact(rows),
+            }
+        }
+    }
     let schema = unz_formats::parquet_io::read_schema(path)?;
     for column in track_columns() {
         let mut method = 0;

@@ -13,7 +13,7 @@ use unz_formats::parquet_io::{
     ParquetSink, for_each_batch, for_each_batch_of, read_schema, row_capacity_hint,
 };
 use unz_formats::schema::{self, derived_cols, sensors_cols, sensors_meta};
-use unz_formats::split_doubles::{read_split_doubles, read_split_vec3};
+use unz_formats::split_doubles::{for_each_split_values, read_split_doubles};
 use unz_formats::tables::{f64_column, i64_column, vec3_column, vec3_to_array};
 use unz_stages::derive::{Derived, ns_since};
 use unz_viz::review::{SensorBlocks, SensorBlocksBuilder, SensorSample};
@@ -185,10 +185,18 @@ fn read_blocks_arrow(path: &Path, t0_ns: i64) -> anyhow::Result<SensorBlocks> {
     Ok(blocks)
 }
 
-/// [`read_review_sensors`]' blocks with the floats' byte streams joined, the times and
-/// samples through Arrow; `None` when a float column is not of the tables' layout.
+/// [`read_review_sensors`]' blocks with the floats' byte streams joined (each page's
+/// values straight into their series), the times and samples through Arrow; `None` when
+/// a float column is not of the tables' layout.
 fn read_blocks_split(path: &Path, t0_ns: i64) -> anyhow::Result<Option<SensorBlocks>> {
     let mut blocks = SensorBlocks::default();
+    // Room for the file's rows in the series filled as the pages come.
+    let rows = row_capacity_hint(path)?;
+    for series in blocks.gyro_deg_s.iter_mut().chain(&mut blocks.accel_mps2) {
+        series.reserve_exact(rows);
+    }
+    blocks.t_s.reserve_exact(rows);
+    blocks.sample.reserve_exact(rows);
     for (name, out) in [
         (derived_cols::U_MPS, &mut blocks.u_mps),
         (derived_cols::U_DOT_MPS2, &mut blocks.u_dot_mps2),
@@ -199,27 +207,35 @@ fn read_blocks_split(path: &Path, t0_ns: i64) -> anyhow::Result<Option<SensorBlo
             None => return Ok(None),
         }
     }
+    // A vector column's values page by page, each row's three to the three axes.
     for (name, out) in [
         (sensors_cols::GYRO_DEG_S, &mut blocks.gyro_deg_s),
         (sensors_cols::ACCEL_MPS2, &mut blocks.accel_mps2),
     ] {
-        let Some(rows) = read_split_vec3(path, name)? else {
+        let leaf = format!("{name}.list.item");
+        let whole = for_each_split_values::<f64>(path, &leaf, 3, |first, values| {
+            for (i, &v) in values.iter().enumerate() {
+                out[(first + i) % 3].push(v);
+            }
+        })?;
+        if !whole {
             return Ok(None);
-        };
-        for (i, axis) in out.iter_mut().enumerate() {
-            *axis = rows.iter().map(|v| v[i]).collect();
         }
     }
     for_each_batch_of(path, &[schema::T_NS, sensors_cols::SAMPLE], |batch| {
         extend_times(&mut blocks, batch, t0_ns)
     })?;
     let rows = blocks.t_s.len();
-    let lengths = [
+    let lengths: [usize; 9] = [
         blocks.u_mps.len(),
         blocks.u_dot_mps2.len(),
         blocks.ru_mps2.len(),
         blocks.gyro_deg_s[0].len(),
+        blocks.gyro_deg_s[1].len(),
+        blocks.gyro_deg_s[2].len(),
         blocks.accel_mps2[0].len(),
+        blocks.accel_mps2[1].len(),
+        blocks.accel_mps2[2].len(),
     ];
     anyhow::ensure!(
         lengths.iter().all(|&n| n == rows),

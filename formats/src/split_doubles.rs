@@ -90,9 +90,24 @@ pub fn read_split_vec3(path: &Path, name: &str) -> Result<Option<Vec<[f64; 3]>>,
 pub fn for_each_split_page<F: SplitFloat>(
     path: &Path,
     name: &str,
+    each: impl FnMut(usize, &[F]),
+) -> Result<bool, FileError> {
+    for_each_split_values(path, name, 1, each)
+}
+
+/// [`for_each_split_page`] of the leaf column `leaf` of `per_row` values a row (a list
+/// column's `name.list.item`, of lists of `per_row`; the column itself for one): `first`
+/// counts values, the rows' `per_row` values one after the other.
+///
+/// # Errors
+/// If the file cannot be read or is not Parquet.
+pub fn for_each_split_values<F: SplitFloat>(
+    path: &Path,
+    leaf: &str,
+    per_row: usize,
     mut each: impl FnMut(usize, &[F]),
 ) -> Result<bool, FileError> {
-    let Some(pages) = Pages::open::<F>(path, name, 1)? else {
+    let Some(pages) = Pages::open::<F>(path, leaf, per_row)? else {
         return Ok(false);
     };
     let mut scratch: Vec<F> = Vec::new();
