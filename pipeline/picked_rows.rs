@@ -124,6 +124,19 @@ pub fn picked_times(
     Ok((t, rows, n))
 }
 
+/// A copy at `dest` of the table at `path` in Arrow's default encodings (plain and
+/// dictionary, no byte-stream split): a table the split readers leave to Arrow.
+#[cfg(test)]
+pub(crate) fn plain_copy(path: &Path, dest: &Path) {
+    let (schema, batches) = unz_formats::parquet_io::read_batches(path).unwrap();
+    let file = std::fs::File::create(dest).unwrap();
+    let mut w = parquet::arrow::ArrowWriter::try_new(file, schema, None).unwrap();
+    for b in &batches {
+        w.write(b).unwrap();
+    }
+    w.close().unwrap();
+}
+
 #[cfg(test)]
 mod tests {
     use std::sync::Arc;
