@@ -9,7 +9,7 @@ use arrow::datatypes::UInt16Type;
 use unz_formats::parquet_io::{for_each_batch, for_each_batch_of, row_capacity_hint};
 use unz_formats::schema;
 use unz_formats::schema::DistanceSource;
-use unz_formats::split_doubles::read_split_vec3;
+use unz_formats::split_doubles::{read_split_doubles, read_split_vec3};
 use unz_formats::tables::{ImuTable, OdometerTable, f64_column, i64_column, u8_column, values_of};
 use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive_owned};
 use unz_stages::odo_rebridge::FailedRows;
@@ -192,22 +192,41 @@ impl IngestedSeries {
     /// [`Self::load_odometer`] with the time tags compact ([`TagTimes`]: half the
     /// memory), for the disupt stage, which holds the ingested odometer while the methods
     /// run (35 → 17 MB of times at 12 h at 100 Hz).
+    /// The distances are read with their byte streams joined ([`read_split_doubles`])
+    /// where their layout is the tables', else with the times through Arrow.
     pub fn load_odometer_tags(ingest_dir: &Path) -> anyhow::Result<OdometerTags> {
         let path = ingest_dir.join(files::ODOMETER);
         let rows = row_capacity_hint(&path)?;
+        let split = read_split_doubles(&path, schema::DISTANCE_M, 1)?;
         let mut odo = OdometerTags {
             t_ns: TagTimes::with_room_for(rows),
-            distance_m: Vec::with_capacity(rows),
+            distance_m: Vec::with_capacity(if split.is_some() { 0 } else { rows }),
             failed: Vec::new(),
         };
-        let columns = [schema::T_NS, schema::DISTANCE_M, schema::DISTANCE_SOURCE];
-        for_each_batch_of(&path, &columns, |b| {
-            // Columns of one batch: as many times as distances and sources.
-            let first_row = odo.distance_m.len();
+        let columns: &[&str] = if split.is_some() {
+            &[schema::T_NS, schema::DISTANCE_SOURCE]
+        } else {
+            &[schema::T_NS, schema::DISTANCE_M, schema::DISTANCE_SOURCE]
+        };
+        let mut read = 0;
+        for_each_batch_of(&path, columns, |b| {
             odo.t_ns.extend(i64_column(b, schema::T_NS)?);
-            odo.distance_m.extend(f64_column(b, schema::DISTANCE_M)?);
-            extend_failed(&mut odo.failed, first_row, b)
+            if split.is_none() {
+                odo.distance_m.extend(f64_column(b, schema::DISTANCE_M)?);
+            }
+            extend_failed(&mut odo.failed, read, b)?;
+            read += b.num_rows();
+            Ok(())
         })?;
+        if let Some(distance_m) = split {
+            anyhow::ensure!(
+                distance_m.len() == read,
+                "{}: {} distances for {read} times",
+                path.display(),
+                distance_m.len()
+            );
+            odo.distance_m = distance_m;
+        }
         if odo.distance_m.is_empty() {
             bail!(NO_ODOMETER);
         }
@@ -360,7 +379,15 @@ mod tests {
         assert_eq!(tags.t_ns.len(), table.t_ns.len());
         assert_eq!(tags.t_ns.iter().collect::<Vec<_>>(), plain.t_ns);
         assert_eq!(tags.distance_m, plain.distance_m);
+        assert_eq!(plain.distance_m, table.distance_m);
         assert_eq!(plain.t_ns, table.t_ns);
+        // The same table in Arrow's plain encodings: the distances through Arrow, alike.
+        let plain_dir = tempfile::tempdir().unwrap();
+        crate::picked_rows::plain_copy(&path, &plain_dir.path().join(files::ODOMETER));
+        assert_eq!(
+            IngestedSeries::load_odometer_tags(plain_dir.path()).unwrap(),
+            tags
+        );
         let failed = |first, len, bridged| FailedRows {
             first,
             len,
