@@ -147,7 +147,8 @@ impl Kf2 {
         Self { x: [z, 0.0] }
     }
 
-    /// Predicts over `dt` and, with `gain`, updates by `z`; returns the error estimate.
+    /// Predicts over `dt` and, given `update` (the gain and the measurement `z`), updates
+    /// by `z`; returns the error estimate.
     #[inline(always)]
     fn step(&mut self, dt: f64, update: Option<([f64; 2], f64)>) -> f64 {
         let [x0, x1] = self.x;
