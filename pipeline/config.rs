@@ -12,6 +12,8 @@
 //! r_rad = 1e-3
 //! [disupt]
 //! azimuth_bound_deg = 15.0
+//! [export]
+//! mcap_compression = "zstd"
 //! ```
 
 use std::path::Path;
