@@ -7,11 +7,11 @@ use std::path::Path;
 use std::sync::Arc;
 
 use arrow::array::{Array, Float32Array, Float64Array, Int64Array, RecordBatch, StringArray};
-use arrow::datatypes::{DataType, Float32Type, Float64Type, Int64Type};
+use arrow::datatypes::{Float32Type, Float64Type, Int64Type};
 use unz_formats::FormatError;
 use unz_formats::parquet_io::{ParquetSink, for_each_batch_of, write_batch};
 use unz_formats::schema::{self, criteria_cols};
-use unz_formats::split_doubles::for_each_split_page;
+use unz_formats::split_doubles::{SplitFloat, for_each_split_page};
 use unz_formats::tables::values_of;
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
@@ -319,24 +319,58 @@ pub fn read_tracks(path: &Path) -> anyhow::Result<Vec<MethodTrack>> {
 }
 
 /// A float column of [`MethodTrack`]: its name and where a method's values go.
-enum TrackColumn {
-    F64(&'static str, fn(&mut MethodTrack) -> &mut Vec<f64>),
-    F32(&'static str, fn(&mut MethodTrack) -> &mut Vec<f32>),
+type TrackColumn<F> = (&'static str, fn(&mut MethodTrack) -> &mut Vec<F>);
+
+/// [`MethodTrack`]'s f64 columns, then its f32 ones, in the table's order.
+fn track_columns() -> ([TrackColumn<f64>; 2], [TrackColumn<f32>; 6]) {
+    let [lat, lon, h, north, east, roll, pitch, heading] = schema::NAV_STATE;
+    (
+        [(lat, |t| &mut t.lat_deg), (lon, |t| &mut t.lon_deg)],
+        [
+            (h, |t| &mut t.h_m),
+            (north, |t| &mut t.north_m),
+            (east, |t| &mut t.east_m),
+            (roll, |t| &mut t.roll_deg),
+            (pitch, |t| &mut t.pitch_deg),
+            (heading, |t| &mut t.heading_deg),
+        ],
+    )
 }
 
-/// [`MethodTrack`]'s float columns, in the table's order.
-fn track_columns() -> [TrackColumn; 8] {
-    let [lat, lon, h, north, east, roll, pitch, heading] = schema::NAV_STATE;
-    [
-        TrackColumn::F64(lat, |t| &mut t.lat_deg),
-        TrackColumn::F64(lon, |t| &mut t.lon_deg),
-        TrackColumn::F32(h, |t| &mut t.h_m),
-        TrackColumn::F32(north, |t| &mut t.north_m),
-        TrackColumn::F32(east, |t| &mut t.east_m),
-        TrackColumn::F32(roll, |t| &mut t.roll_deg),
-        TrackColumn::F32(pitch, |t| &mut t.pitch_deg),
-        TrackColumn::F32(heading, |t| &mut t.heading_deg),
-    ]
+/// Each of `columns` of the tracks (their methods' rows ending at `ends`) filled page by
+/// page, each method's column sized for its rows first; `false` when a column is not of
+/// the tables' layout (its type among them: the pages' reader checks it).
+fn split_track_columns<F: SplitFloat>(
+    path: &Path,
+    columns: &[TrackColumn<F>],
+    ends: &[usize],
+    tracks: &mut [MethodTrack],
+) -> anyhow::Result<bool> {
+    for &(name, field) in columns {
+        for t in tracks.iter_mut() {
+            let rows = t.t_ns.len();
+            field(t).reserve_exact(rows);
+        }
+        let mut method = 0;
+        let whole = for_each_split_page::<F>(path, name, |first, v| {
+            per_method_rows(ends, &mut method, first, v, |m, part| {
+                field(&mut tracks[m]).extend_from_slice(part);
+            });
+        })?;
+        if !whole {
+            return Ok(false);
+        }
+        for t in tracks.iter_mut() {
+            let (rows, len) = (t.t_ns.len(), field(t).len());
+            anyhow::ensure!(
+                len == rows,
+                "{}: {name} has {len} rows of {} for {rows}",
+                path.display(),
+                t.method
+            );
+        }
+    }
+    Ok(true)
 }
 
 /// Hands each method's part of a page's values (rows `first..`) to `put`: the methods'
@@ -380,58 +414,10 @@ fn read_tracks_split(path: &Path) -> anyhow::Result<Option<Vec<MethodTrack>>> {
             Some(*end)
         })
         .collect();
-    // Each method's columns sized for its rows: filled page by page, none grows twice
-    // over.
-    for t in &mut tracks {
-        let rows = t.t_ns.len();
-        for column in track_columns() {
-            match column {
-                TrackColumn::F64(_, field) => field(t).reserve_exact(rows),
-                TrackColumn::F32(_, field) => field(t).reserve_exact(rows),
-            }
-        }
-    }
-    let schema = unz_formats::parquet_io::read_schema(path)?;
-    for column in track_columns() {
-        let mut method = 0;
-        let whole = match column {
-            TrackColumn::F64(name, field) => {
-                schema.field_with_name(name).ok().map(|f| f.data_type()) == Some(&DataType::Float64)
-                    && for_each_split_page::<f64>(path, name, |first, v| {
-                        per_method_rows(&ends, &mut method, first, v, |m, part| {
-                            field(&mut tracks[m]).extend_from_slice(part);
-                        });
-                    })?
-            }
-            TrackColumn::F32(name, field) => {
-                schema.field_with_name(name).ok().map(|f| f.data_type()) == Some(&DataType::Float32)
-                    && for_each_split_page::<f32>(path, name, |first, v| {
-                        per_method_rows(&ends, &mut method, first, v, |m, part| {
-                            field(&mut tracks[m]).extend_from_slice(part);
-                        });
-                    })?
-            }
-        };
-        if !whole {
-            return Ok(None);
-        }
-    }
-    for t in &mut tracks {
-        let rows = t.t_ns.len();
-        for column in track_columns() {
-            let (name, len) = match column {
-                TrackColumn::F64(name, field) => (name, field(t).len()),
-                TrackColumn::F32(name, field) => (name, field(t).len()),
-            };
-            anyhow::ensure!(
-                len == rows,
-                "{}: {name} has {len} rows of {} for {rows}",
-                path.display(),
-                t.method
-            );
-        }
-    }
-    Ok(Some(tracks))
+    let (f64_columns, f32_columns) = track_columns();
+    let whole = split_track_columns(path, &f64_columns, &ends, &mut tracks)?
+        && split_track_columns(path, &f32_columns, &ends, &mut tracks)?;
+    Ok(whole.then_some(tracks))
 }
 
 /// [`read_tracks`] through Arrow, batch by batch into each method's columns.

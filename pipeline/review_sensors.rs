@@ -118,7 +118,8 @@ fn write_in_batches(s: &ReviewSensors, path: &Path, rows: usize) -> anyhow::Resu
 }
 
 /// Reads what [`write_review_sensors`] wrote: the float columns with their byte streams
-/// joined ([`read_split_doubles`], [`read_split_vec3`]) where their layout is the tables',
+/// joined ([`read_split_doubles`], [`for_each_split_values`]) where their layout is the
+/// tables',
 /// else every column through Arrow, batch by batch.
 pub fn read_review_sensors(path: &Path) -> anyhow::Result<ReviewSensors> {
     let schema = read_schema(path)?;

@@ -107,16 +107,10 @@ pub fn for_each_split_values<F: SplitFloat>(
     per_row: usize,
     mut each: impl FnMut(usize, &[F]),
 ) -> Result<bool, FileError> {
-    let Some(pages) = Pages::open::<F>(path, leaf, per_row)? else {
-        return Ok(false);
-    };
-    let mut scratch: Vec<F> = Vec::new();
-    pages.walk::<F>(path, |values, first| {
-        let n = values.len() / std::mem::size_of::<F>();
-        scratch.resize(n, F::default());
-        F::join(values, &mut scratch);
-        each(first, &scratch);
-    })
+    match Pages::open::<F>(path, leaf, per_row)? {
+        Some(pages) => pages.values(path, &mut each),
+        None => Ok(false),
+    }
 }
 
 /// The rows of `N` doubles of the leaf column `leaf` ([`read_split_doubles`]), grown as
@@ -128,12 +122,7 @@ fn read_rows<const N: usize>(path: &Path, leaf: &str) -> Result<Option<Vec<[f64;
         return Ok(None);
     };
     let mut rows = Rows::<N>::with_capacity((pages.total / N).min(pages.file_bytes));
-    let mut page: Vec<f64> = Vec::new();
-    let whole = pages.walk::<f64>(path, |values, _| {
-        page.resize(values.len() / 8, 0.0);
-        f64::join(values, &mut page);
-        rows.take(&page);
-    })?;
+    let whole = pages.values::<f64>(path, |_, values| rows.take(values))?;
     Ok(rows.finish().filter(|_| whole))
 }
 
@@ -275,6 +264,21 @@ impl Pages {
             file_bytes,
             level_runs,
         }))
+    }
+
+    /// `each(first, values)` with each page's values joined into a buffer of the page's
+    /// size ([`Self::walk`]).
+    fn values<F: SplitFloat>(
+        &self,
+        path: &Path,
+        mut each: impl FnMut(usize, &[F]),
+    ) -> Result<bool, FileError> {
+        let mut scratch: Vec<F> = Vec::new();
+        self.walk::<F>(path, |streams, first| {
+            scratch.resize(streams.len() / std::mem::size_of::<F>(), F::default());
+            F::join(streams, &mut scratch);
+            each(first, &scratch);
+        })
     }
 
     /// `page(streams, first)` with each page's byte streams of `F` values (their first

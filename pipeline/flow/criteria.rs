@@ -7,9 +7,7 @@ use std::sync::Arc;
 use anyhow::Context;
 use serde::{Deserialize, Serialize};
 use unz_formats::atomic::write_json_atomic;
-use unz_formats::parquet_io::{for_each_batch_of, write_batch};
-
-use crate::picked_rows::{picked_columns, picked_times};
+use unz_formats::parquet_io::{for_each_batch_of, row_capacity_hint, write_batch};
 use unz_formats::schema;
 use unz_formats::tables::{CriteriaTable, MarksTable, f64_column};
 use unz_stages::criteria::{self, BlockAttitude, FixPose, Kryt1Series, Kryt2, Row3Blocks};
@@ -21,6 +19,7 @@ use super::ingested::load_table;
 use super::{Overrides, Params, RunCtx, ensure_navigate, match_control_points, start_position};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::load_derived_times;
+use crate::picked_rows::picked_columns;
 use crate::stage::{Stage, params_hash};
 
 /// `criteria.json`.
@@ -121,8 +120,8 @@ fn read_nav_places(
     samples: &[usize],
 ) -> anyhow::Result<Vec<[f64; 2]>> {
     use unz_formats::schema::nav_cols::{LAT_DEG, LON_DEG};
-    // The table's rows, counted by its times.
-    let (_, _, rows) = picked_times(path, |_, _| false)?;
+    // The rows its footer states (one that lies fails the pick, naming the file).
+    let rows = row_capacity_hint(path)?;
     let mut picked: Vec<usize> = samples.iter().copied().filter(|&s| s < rows).collect();
     picked.sort_unstable();
     picked.dedup();

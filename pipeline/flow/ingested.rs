@@ -192,41 +192,40 @@ impl IngestedSeries {
     /// [`Self::load_odometer`] with the time tags compact ([`TagTimes`]: half the
     /// memory), for the disupt stage, which holds the ingested odometer while the methods
     /// run (35 → 17 MB of times at 12 h at 100 Hz).
+    ///
     /// The distances are read with their byte streams joined ([`read_split_doubles`])
     /// where their layout is the tables', else with the times through Arrow.
     pub fn load_odometer_tags(ingest_dir: &Path) -> anyhow::Result<OdometerTags> {
         let path = ingest_dir.join(files::ODOMETER);
         let rows = row_capacity_hint(&path)?;
         let split = read_split_doubles(&path, schema::DISTANCE_M, 1)?;
+        let by_arrow = split.is_none();
         let mut odo = OdometerTags {
             t_ns: TagTimes::with_room_for(rows),
-            distance_m: Vec::with_capacity(if split.is_some() { 0 } else { rows }),
+            distance_m: split.unwrap_or_else(|| Vec::with_capacity(rows)),
             failed: Vec::new(),
         };
-        let columns: &[&str] = if split.is_some() {
-            &[schema::T_NS, schema::DISTANCE_SOURCE]
-        } else {
+        let columns: &[&str] = if by_arrow {
             &[schema::T_NS, schema::DISTANCE_M, schema::DISTANCE_SOURCE]
+        } else {
+            &[schema::T_NS, schema::DISTANCE_SOURCE]
         };
         let mut read = 0;
         for_each_batch_of(&path, columns, |b| {
             odo.t_ns.extend(i64_column(b, schema::T_NS)?);
-            if split.is_none() {
+            if by_arrow {
                 odo.distance_m.extend(f64_column(b, schema::DISTANCE_M)?);
             }
             extend_failed(&mut odo.failed, read, b)?;
             read += b.num_rows();
             Ok(())
         })?;
-        if let Some(distance_m) = split {
-            anyhow::ensure!(
-                distance_m.len() == read,
-                "{}: {} distances for {read} times",
-                path.display(),
-                distance_m.len()
-            );
-            odo.distance_m = distance_m;
-        }
+        anyhow::ensure!(
+            odo.distance_m.len() == read,
+            "{}: {} distances for {read} times",
+            path.display(),
+            odo.distance_m.len()
+        );
         if odo.distance_m.is_empty() {
             bail!(NO_ODOMETER);
         }

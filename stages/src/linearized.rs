@@ -8,7 +8,7 @@
 //! evaluation instead of a navigation pass), an exact pass checks the optimum it finds,
 //! and where the two disagree the model is rebuilt there, until an exact pass agrees.
 
-use crate::criteria::{ControlPointFix, KalmanParams, Kryt1Gains, Kryt2, kryt1_of, kryt1_with};
+use crate::criteria::{ControlPointFix, Kryt1Gains, Kryt2, kryt1_with};
 use crate::derive::Epochs;
 
 /// The settings a linearisation can move, by name; their order is that of the parameter
@@ -163,11 +163,6 @@ impl Observation {
     pub fn agrees_with(&self, exact: &Self) -> bool {
         let (att, pos) = self.max_diff(exact);
         att <= AGREE_ATTITUDE_RAD && pos <= AGREE_POSITION_M
-    }
-
-    /// Kryt1 of these series.
-    pub fn kryt1(&self, epochs: &Epochs, kp: &KalmanParams) -> f64 {
-        kryt1_of(epochs, kp, |e| (self.theta_rad[e], self.phi_rad[e]), None)
     }
 
     /// [`Self::kryt1`] with the filters' gains over `epochs` at hand.

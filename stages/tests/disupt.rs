@@ -488,10 +488,7 @@ fn kryt1_with_free_horizontal_drifts_tells_the_azimuth_from_the_drifts() {
         })
         .collect();
     let ys = problem.observe_many_by(&xs, &tally);
-    let fixed: Vec<f64> = ys
-        .iter()
-        .map(|y| y.kryt1(problem.epochs, &problem.kalman))
-        .collect();
+    let fixed: Vec<f64> = ys.iter().map(|y| problem.kryt1(y)).collect();
     let points: Vec<(X, &Observation)> = xs.iter().copied().zip(&ys).collect();
     let free = kryt1_with_free_drifts_xy(&problem, &points, &p, &tally).unwrap();
     eprintln!(
