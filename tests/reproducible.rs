@@ -131,7 +131,8 @@ fn a_campaign_run_from_elsewhere_or_moved_is_taken_from_the_cache() {
 /// A run processed in a campaign of several (whose runs share the cores: the disupt
 /// stage then orders its review passes for the least CPU, in one batch of lanes) gives
 /// the files it gives processed alone (its review passes ordered for the shortest time,
-/// in two batches), byte for byte.
+/// in two batches), byte for byte: a run whose heights refuse an odometer pitch
+/// boresight and one that takes it (its probe pass and the kept track's heights).
 #[test]
 fn a_run_in_a_campaign_of_several_gives_the_files_it_gives_alone() {
     let tmp = tempfile::tempdir().unwrap();
@@ -155,23 +156,28 @@ fn a_run_in_a_campaign_of_several_gives_the_files_it_gives_alone() {
         shared.to_str().unwrap(),
     ]);
     assert!(summary.contains("2 ok (0 fully cached)"), "{summary}");
-    unz_ok(&[
-        "run",
-        c.join("sim-0075").to_str().unwrap(),
-        "--out",
-        own.to_str().unwrap(),
-    ]);
-    let (a, b) = (shared.join("sim-0075"), own.join("sim-0075"));
-    // The joint fit ran: its review pass is the one the two orders place apart.
-    let report: serde_json::Value = crate::util::read_json(&a.join("disupt/disupt.json"));
-    assert!(report["methods"]["joint"].is_object(), "{report}");
-    let (fa, fb) = (files(&a), files(&b));
-    assert_eq!(fa, fb);
-    for f in &fa {
-        let (x, y) = (
-            std::fs::read(a.join(f)).unwrap(),
-            std::fs::read(b.join(f)).unwrap(),
-        );
-        assert!(x == y, "{} differs between the two", f.display());
+    let mut boresights = 0;
+    for run in ["sim-0075", "sim-0076"] {
+        unz_ok(&[
+            "run",
+            c.join(run).to_str().unwrap(),
+            "--out",
+            own.to_str().unwrap(),
+        ]);
+        let (a, b) = (shared.join(run), own.join(run));
+        // The joint fit ran: its review pass is the one the two orders place apart.
+        let report: serde_json::Value = crate::util::read_json(&a.join("disupt/disupt.json"));
+        assert!(report["methods"]["joint"].is_object(), "{report}");
+        boresights += usize::from(report["odo_pitch"]["applied"] == true);
+        let (fa, fb) = (files(&a), files(&b));
+        assert_eq!(fa, fb);
+        for f in &fa {
+            let (x, y) = (
+                std::fs::read(a.join(f)).unwrap(),
+                std::fs::read(b.join(f)).unwrap(),
+            );
+            assert!(x == y, "{run}: {} differs between the two", f.display());
+        }
     }
+    assert_eq!(boresights, 1, "one run of the two takes its boresight");
 }

@@ -665,19 +665,18 @@ impl<const W: usize> Group<W> {
                 }
                 self.t[l] += dt[l];
             }
-            for v in 0..odometers {
+            // Lane by lane within each sum (the lanes side by side in vector registers).
+            for (v, dv) in d.iter().enumerate() {
+                accumulate(&mut self.s[v], dv, &mid);
                 for l in 0..W {
-                    let dv = d[v][l];
-                    for i in 0..9 {
-                        self.s[v][i][l] += dv * mid[i][l];
-                    }
-                    self.dist[v][l] += dv;
-                    if moving {
-                        let mv = if dv != 0.0 { dt[l] } else { 0.0 };
-                        for i in 0..9 {
-                            self.s_mov[v][i][l] += mv * mid[i][l];
-                        }
-                        self.t_mov[v][l] += mv;
+                    self.dist[v][l] += dv[l];
+                }
+                if moving {
+                    let mv: [f64; W] =
+                        std::array::from_fn(|l| if dv[l] != 0.0 { dt[l] } else { 0.0 });
+                    accumulate(&mut self.s_mov[v], &mv, &mid);
+                    for l in 0..W {
+                        self.t_mov[v][l] += mv[l];
                     }
                 }
             }
@@ -704,6 +703,15 @@ impl<const W: usize> Group<W> {
             let s: [f64; 9] = std::array::from_fn(|i| self.s_mov[v][i][l]);
             moving.push(&s, self.t_mov[v][l], &columns);
         }
+    }
+}
+
+/// `sums[i][l] += weight[l] · mid[i][l]` for the nine entries of each lane.
+#[inline(always)]
+fn accumulate<const W: usize>(sums: &mut [[f64; W]; 9], weight: &[f64; W], mid: &[[f64; W]; 9]) {
+    for (sum, m) in sums.iter_mut().zip(mid) {
+        let s = *sum;
+        *sum = std::array::from_fn(|l| s[l] + weight[l] * m[l]);
     }
 }
 
