@@ -334,7 +334,61 @@ fn bench_disupt(args: &BenchArgs) -> anyhow::Result<ExitCode> {
         args.duration_s,
         rayon::current_num_threads()
     );
+    bench_lag_trials(args, &ctx, &case, &params)?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// One round of the joint fit's odometer lag search: three trials' re-derives and
+/// segments in one walk over the run (as the search runs them).
+fn bench_lag_trials(
+    args: &BenchArgs,
+    ctx: &crate::flow::RunCtx,
+    case: &crate::flow::NavCase,
+    params: &crate::flow::Params,
+) -> anyhow::Result<()> {
+    use unz_stages::odo_lag::{Rederive, TrialWalks};
+    use unz_stages::strapdown::segments::OdoColumns;
+
+    use crate::artifacts::StageName;
+    use crate::disupt_stage::spec_of;
+    use crate::flow::IngestedSeries;
+
+    let odometer = IngestedSeries::load_odometer_tags(&ctx.layout().dir(StageName::Ingest))?;
+    let g_mps2 = crate::flow::site_gravity_mps2(&ctx.manifest);
+    let rederive = Rederive::of_odometer(
+        &case.derived,
+        &odometer.t_ns,
+        &odometer.distance_m,
+        params.derive,
+        g_mps2,
+    );
+    let spec = spec_of(case, case.settings, params);
+    let plan = spec.moved_segment_plan(&case.derived);
+    let columns = OdoColumns::read_by(&[case.settings]);
+    let lags_s = [-0.1, 0.0, 0.1];
+    let cpu0 = process_cpu_s();
+    let wall_s = best_of(args.repeat, || {
+        std::hint::black_box(rederive.at_moved_with_segments(
+            &lags_s,
+            &plan,
+            columns,
+            TrialWalks::Fused,
+        ));
+    });
+    let cpu = cpu_s_since(cpu0).map_or(String::new(), |s| {
+        format!(
+            "; {:.2} ms CPU on average",
+            s * 1e3 / f64::from(args.repeat.max(1))
+        )
+    });
+    println!(
+        "lag trials: {} re-derives with their segments in one walk over a {:.0} s run in {:.2} ms (best of {}{cpu})",
+        lags_s.len(),
+        args.duration_s,
+        wall_s * 1e3,
+        args.repeat.max(1),
+    );
+    Ok(())
 }
 
 fn bench_review(args: &BenchArgs) -> anyhow::Result<ExitCode> {

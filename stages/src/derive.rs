@@ -885,8 +885,46 @@ impl<'d> OdometerBlocks<'d> {
         let (Some(&dt), Some(dtheta)) = (self.dt_s.get(k), self.dtheta_rad.get(k)) else {
             return;
         };
+        self.push_at(dd, dt, dd / dt, dtheta[2] / dt);
+    }
+
+    /// [`Self::push`] of each of `dd` in turn (those past the IMU's samples left out): the
+    /// speeds and yaw rates of a few samples at a time first, side by side.
+    pub(crate) fn push_slice(&mut self, dd: &[f64]) {
+        const CHUNK: usize = 16;
+        let k = self.k.min(self.dt_s.len()).min(self.dtheta_rad.len());
+        let n = dd
+            .len()
+            .min(self.dt_s.len() - k)
+            .min(self.dtheta_rad.len() - k);
+        let (dd, dt_s, dtheta) = (&dd[..n], &self.dt_s[k..k + n], &self.dtheta_rad[k..k + n]);
+        let (mut u_mps, mut r_rad_s) = ([0.0; CHUNK], [0.0; CHUNK]);
+        for ((dd, dt_s), dtheta) in dd
+            .chunks(CHUNK)
+            .zip(dt_s.chunks(CHUNK))
+            .zip(dtheta.chunks(CHUNK))
+        {
+            for (i, ((u, r), (dd, dt))) in u_mps
+                .iter_mut()
+                .zip(&mut r_rad_s)
+                .zip(dd.iter().zip(dt_s))
+                .enumerate()
+            {
+                *u = dd / dt;
+                *r = dtheta[i][2] / dt;
+            }
+            for (i, (&dd, &dt)) in dd.iter().zip(dt_s).enumerate() {
+                self.push_at(dd, dt, u_mps[i], r_rad_s[i]);
+            }
+        }
+    }
+
+    /// The next sample's increment `dd` over its interval `dt`, with its speed `u_mps`
+    /// (dd / dt) and yaw rate `r_rad_s` (its yaw increment / dt).
+    #[inline(always)]
+    fn push_at(&mut self, dd: f64, dt: f64, u_mps: f64, r_rad_s: f64) {
+        let k = self.k;
         self.k += 1;
-        let u_mps = dd / dt;
         let moving = f64::from(u8::from(dd != 0.0));
         // "Moving" changes at a start or a stop: elsewhere its rate is (m − m)/dt = 0,
         // without the division.
@@ -904,7 +942,7 @@ impl<'d> OdometerBlocks<'d> {
             u_dot.push([u_dot_mps2]);
         }
         self.prev = (u_mps, moving);
-        let r = dtheta[2] / dt;
+        let r = r_rad_s;
         self.rest.push([r * u_mps, r * moving, moving_dot]);
     }
 

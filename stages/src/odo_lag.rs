@@ -44,7 +44,7 @@ use crate::filter::LowPass;
 use crate::linearized::{Linearization, Setting};
 use crate::odo_rebridge::Rebridges;
 use crate::strapdown::segments::{
-    OdoColumns, OdoSegments, SegmentPlan, integrate_split, integrate_split_aligned,
+    IncrementSource, OdoColumns, OdoSegments, SegmentPlan, integrate_split, integrate_split_aligned,
 };
 
 /// Half-width of the parabolas around the current vertex (and of the curvature), s.
@@ -404,15 +404,15 @@ impl<'s, 'a> Tee<'s, 'a> {
     }
 }
 
-impl Iterator for Tee<'_, '_> {
-    type Item = f64;
-
-    #[inline]
-    fn next(&mut self) -> Option<f64> {
-        let stretch = self.stretch.as_mut()?;
-        let dd = stretch.rest.next()?;
-        stretch.blocks.push(dd);
-        Some(dd)
+impl IncrementSource for Tee<'_, '_> {
+    /// The increments, each taken by the blocks too (the zeros past the end not).
+    fn fill(&mut self, out: &mut Vec<f64>, n: usize) {
+        let from = out.len();
+        if let Some(stretch) = self.stretch.as_mut() {
+            stretch.rest.fill(out, n.min(stretch.rest.len()));
+            stretch.blocks.push_slice(&out[from..]);
+        }
+        out.resize(from + n, 0.0);
     }
 }
 

@@ -303,6 +303,20 @@ pub fn integrate<I: Iterator<Item = f64>>(
     (imu.map(|segments| imu_segments(plan, segments)), odo)
 }
 
+/// Where a walk's odometer increments come from, a span of samples at a time: any
+/// iterator of them, or a source that also takes them for other sums as they are read.
+pub trait IncrementSource {
+    /// Appends the next `n` increments to `out` (zeros past the source's end).
+    fn fill(&mut self, out: &mut Vec<f64>, n: usize);
+}
+
+impl<I: Iterator<Item = f64>> IncrementSource for I {
+    #[inline]
+    fn fill(&mut self, out: &mut Vec<f64>, n: usize) {
+        out.extend((0..n).map(|_| self.next().unwrap_or(0.0)));
+    }
+}
+
 /// Segments a run must have before [`integrate_split`] splits it between threads (about
 /// 14 minutes at 100 Hz): below, one walk costs less than a millisecond or two.
 pub const SPLIT_SEGMENTS: usize = 8192;
@@ -343,7 +357,7 @@ pub fn integrate_split_aligned<I, F>(
     align: usize,
 ) -> (Option<ImuSegments>, Vec<OdoSegments>)
 where
-    I: Iterator<Item = f64>,
+    I: IncrementSource,
     F: Fn(usize, usize) -> I + Sync,
 {
     let parts = rayon::current_num_threads().min(plan.count() / SPLIT_SEGMENTS);
@@ -402,7 +416,7 @@ impl<'a> Part<'a> {
         align: usize,
     ) -> (Option<ImuSegments>, Vec<OdoSegments>)
     where
-        I: Iterator<Item = f64>,
+        I: IncrementSource,
         F: Fn(usize, usize) -> I + Sync,
     {
         let count = plan.count();
@@ -446,7 +460,7 @@ impl<'a> Part<'a> {
 
     /// The segments `ends`, the first starting at sample `start` (where `odometers`
     /// start), in vectors with room for `room` segments.
-    fn integrate<I: Iterator<Item = f64>>(
+    fn integrate<I: IncrementSource>(
         &self,
         ends: impl Iterator<Item = SegmentEnd>,
         mut start: usize,
@@ -490,7 +504,7 @@ impl<'a> Part<'a> {
             let (span_from, span_to) = (bounds[0].0, bounds[lanes - 1].1);
             for (buffer, odometer) in buffers.iter_mut().zip(odometers.iter_mut()) {
                 buffer.clear();
-                buffer.extend((span_from..span_to).map(|_| odometer.next().unwrap_or(0.0)));
+                odometer.fill(buffer, span_to - span_from);
             }
             group.run(&GroupInputs {
                 dt_s,
