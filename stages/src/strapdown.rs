@@ -341,8 +341,11 @@ pub trait LaneBatch {
     fn run<const N: usize>(&mut self, points: [usize; N]) -> [Self::Out; N];
 }
 
-/// The `n` ≤ [`MAX_LANES`] points of `batch` in one batch of 1, 2, 4 or 8 lanes (a
-/// partial batch repeats its last point), their results in order.
+/// The `n` ≤ [`MAX_LANES`] points of `batch` in one batch of 1, 4 or 8 lanes (a partial
+/// batch repeats its last point), their results in order. Two points run in four lanes:
+/// two lanes cost more than four (`unz bench navigate`: a 100-Hz pass 8.5 ms a lane two
+/// side by side against 3.5–4 four side by side, a segment pass 1.63–1.68 ms against
+/// 0.65–0.68).
 ///
 /// # Panics
 /// If `n` exceeds [`MAX_LANES`].
@@ -354,8 +357,7 @@ pub fn in_lanes<B: LaneBatch>(n: usize, batch: &mut B) -> Vec<B::Out> {
     let out: Vec<B::Out> = match n {
         0 => return Vec::new(),
         1 => batch.run::<1>(points(n)).into(),
-        2 => batch.run::<2>(points(n)).into(),
-        3 | 4 => batch.run::<4>(points(n)).into(),
+        2..=4 => batch.run::<4>(points(n)).into(),
         _ => batch.run::<8>(points(n)).into(),
     };
     out.into_iter().take(n).collect()

@@ -193,8 +193,8 @@ fn track_free_passes_give_the_criteria_of_a_stored_track() {
         );
     }
 
-    // Passes side by side in vector lanes (batches of 8 and of 4 padded, here) observe
-    // what each pass alone does.
+    // Passes side by side in vector lanes (full batches, a padded one, one a thread)
+    // observe what each pass alone does, however many there are.
     let xs: Vec<_> = (0..11)
         .map(|i| {
             let mut xi = x;
@@ -203,12 +203,15 @@ fn track_free_passes_give_the_criteria_of_a_stored_track() {
             xi
         })
         .collect();
-    let tally = std::sync::atomic::AtomicUsize::new(0);
-    let batched = problem.observe_many_by(&xs, &tally);
-    assert_eq!(tally.into_inner(), xs.len());
-    assert_eq!(batched.len(), xs.len());
-    for (xi, yi) in xs.iter().zip(&batched) {
-        assert_eq!(*yi, problem.observe(xi), "{xi:?}");
+    let alone: Vec<_> = xs.iter().map(|xi| problem.observe(xi)).collect();
+    for n in [1, 2, 3, 5, 11] {
+        let tally = std::sync::atomic::AtomicUsize::new(0);
+        let batched = problem.observe_many_by(&xs[..n], &tally);
+        assert_eq!(tally.into_inner(), n);
+        assert_eq!(batched.len(), n);
+        for (xi, (yi, want)) in xs.iter().zip(batched.iter().zip(&alone)) {
+            assert_eq!(yi, want, "{n} points: {xi:?}");
+        }
     }
 
     // Derives at other odometer timings (the IMU's series shared, each its own odometer

@@ -395,12 +395,17 @@ impl<'a> Problem<'a> {
 
     /// The observations of several settings (in their order), each what
     /// [`Self::observe`] gives, bit for bit; counted in `tally` too. Up to [`LANES`]
-    /// passes run side by side in vector lanes, and the batches in parallel: the points
-    /// are shared evenly between rayon's threads first, so that a few points still use
-    /// every core.
+    /// passes run side by side in vector lanes, and the batches in parallel: points few
+    /// enough for one each go one to a thread (two points on two cores), else in full
+    /// batches (a batch of two to four lanes costs about what one of four does, in CPU and
+    /// in time: three or four points in one batch, not two half-empty ones side by side).
     pub fn observe_many_by(&self, xs: &[X], tally: &AtomicUsize) -> Vec<Observation> {
         let threads = rayon::current_num_threads().max(1);
-        let chunk = xs.len().div_ceil(threads).clamp(1, LANES);
+        let chunk = if xs.len().div_ceil(threads) > 1 {
+            LANES
+        } else {
+            1
+        };
         xs.par_chunks(chunk)
             .flat_map_iter(|chunk| self.observe_batch(chunk, tally))
             .collect()
