@@ -188,6 +188,69 @@ fn odo_dir_n(q: [f64; 4], sin: f64, cos: f64, tan_pitch: f64, boresight: bool) -
     ]
 }
 
+/// Samples whose turns a single pass takes together, ahead of its steps.
+const AHEAD: usize = 4;
+
+/// One pass's turns over [`AHEAD`] consecutive samples, one sample a lane: what
+/// [`Lanes::turn`] gives at each, in turn.
+struct TurnsAhead {
+    phi: [[f64; AHEAD]; 3],
+    s: [f64; AHEAD],
+    c: [f64; AHEAD],
+    /// The drift-corrected increments.
+    d: [[f64; AHEAD]; 3],
+}
+
+/// One sample's turn of a single pass, taken ahead: its rotation vector, sin(a/2)/a and
+/// cos(a/2) of it, and the drift-corrected increment (the next sample's coning reads).
+#[derive(Clone, Copy)]
+struct Turn {
+    phi: [f64; 3],
+    s: f64,
+    c: f64,
+    d: [f64; 3],
+}
+
+/// The turns of one pass with gyro drift `drift` (rad/s) over the samples of intervals
+/// `dt_s` and angle increments `dtheta_rad` ([`AHEAD`] of each), the drift-corrected
+/// increment of the sample before them being `prev`, which is left at their last's.
+#[inline(always)]
+fn turns_ahead(
+    drift: &[f64; 3],
+    prev: &mut [f64; 3],
+    dt_s: &[f64],
+    dtheta_rad: &[[f64; 3]],
+) -> TurnsAhead {
+    let d: [[f64; AHEAD]; 3] =
+        std::array::from_fn(|i| std::array::from_fn(|j| dtheta_rad[j][i] - drift[i] * dt_s[j]));
+    // The increment before each: the last one's before the first.
+    let p: [[f64; AHEAD]; 3] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| if j == 0 { prev[i] } else { d[i][j - 1] })
+    });
+    *prev = [0, 1, 2].map(|i| d[i][AHEAD - 1]);
+    let coning: [[f64; AHEAD]; 3] = [
+        std::array::from_fn(|j| p[1][j] * d[2][j] - p[2][j] * d[1][j]),
+        std::array::from_fn(|j| p[2][j] * d[0][j] - p[0][j] * d[2][j]),
+        std::array::from_fn(|j| p[0][j] * d[1][j] - p[1][j] * d[0][j]),
+    ];
+    let phi: [[f64; AHEAD]; 3] =
+        std::array::from_fn(|i| std::array::from_fn(|j| d[i][j] + coning[i][j] * (1.0 / 12.0)));
+    let a2: [f64; AHEAD] = std::array::from_fn(|j| {
+        phi[0][j] * phi[0][j] + phi[1][j] * phi[1][j] + phi[2][j] * phi[2][j]
+    });
+    let mut s = [0.0; AHEAD];
+    let mut c = [0.0; AHEAD];
+    for j in 0..AHEAD {
+        (s[j], c[j]) = half_angle_series(a2[j]);
+    }
+    for j in 0..AHEAD {
+        if a2[j] >= HALF_ANGLE_SERIES_LIMIT_RAD2 {
+            (s[j], c[j]) = half_angle_exact(a2[j]);
+        }
+    }
+    TurnsAhead { phi, s, c, d }
+}
+
 impl<const N: usize> Lanes<N> {
     /// The start of `N` passes.
     pub fn new(settings: &[NavSettings; N]) -> Self {
@@ -289,21 +352,65 @@ impl<const N: usize> Lanes<N> {
         emit: &mut impl Emit<N>,
     ) {
         let n = odometer.samples(inputs);
+        let mut from = 0;
+        if N == 1 {
+            from = if self.boresight {
+                self.run_one_ahead::<true>(inputs, n, odometer, emit)
+            } else {
+                self.run_one_ahead::<false>(inputs, n, odometer, emit)
+            };
+        }
         let samples = inputs.dt_s[..n]
             .iter()
             .zip(&inputs.dtheta_rad[..n])
-            .enumerate();
+            .enumerate()
+            .skip(from);
         if self.boresight {
             for (k, (&dt, dtheta)) in samples {
-                self.step::<true>(k, dt, dtheta, odometer.at(k, inputs));
+                self.step::<true>(k, dt, dtheta, odometer.at(k, inputs), None);
                 emit.emit(k, &self);
             }
         } else {
             for (k, (&dt, dtheta)) in samples {
-                self.step::<false>(k, dt, dtheta, odometer.at(k, inputs));
+                self.step::<false>(k, dt, dtheta, odometer.at(k, inputs), None);
                 emit.emit(k, &self);
             }
         }
+    }
+
+    /// A single pass over the first `n` samples' whole groups of [`AHEAD`]: their turns
+    /// (which read the inputs alone) side by side in vector lanes, ahead of the state's
+    /// steps, whose chain of dependent operations they no longer lengthen. The same
+    /// operations on each sample. The samples stepped.
+    #[inline(always)]
+    fn run_one_ahead<const BORESIGHT: bool>(
+        &mut self,
+        inputs: &NavInputs<'_>,
+        n: usize,
+        odometer: &mut impl OdometerLanes<N>,
+        emit: &mut impl Emit<N>,
+    ) -> usize {
+        let drift = [0, 1, 2].map(|i| self.drift_rad_s[i][0]);
+        let mut prev = [0, 1, 2].map(|i| self.prev_rad[i][0]);
+        let mut k = 0;
+        for (dt4, dth4) in inputs.dt_s[..n]
+            .chunks_exact(AHEAD)
+            .zip(inputs.dtheta_rad[..n].chunks_exact(AHEAD))
+        {
+            let turns = turns_ahead(&drift, &mut prev, dt4, dth4);
+            for (j, (&dt, dtheta)) in dt4.iter().zip(dth4).enumerate() {
+                let turn = Turn {
+                    phi: [0, 1, 2].map(|i| turns.phi[i][j]),
+                    s: turns.s[j],
+                    c: turns.c[j],
+                    d: [0, 1, 2].map(|i| turns.d[i][j]),
+                };
+                self.step::<BORESIGHT>(k, dt, dtheta, odometer.at(k, inputs), Some(turn));
+                emit.emit(k, self);
+                k += 1;
+            }
+        }
+        k
     }
 
     /// Advances every lane over sample `k` (interval `dt_s`, measured angle increments,
@@ -316,6 +423,7 @@ impl<const N: usize> Lanes<N> {
         dt_s: f64,
         dtheta_rad: &[f64; 3],
         odo_m: [f64; N],
+        ahead: Option<Turn>,
     ) {
         for l in 0..N {
             if (self.lat_rad[l] - self.terms.lat_rad[l]).abs() > LAT_REFRESH_RAD {
@@ -323,12 +431,23 @@ impl<const N: usize> Lanes<N> {
             }
         }
 
-        // 1. Body rotation vector with the coning term, and sin(a/2)/a, cos(a/2).
+        // 1. Body rotation vector with the coning term, and sin(a/2)/a, cos(a/2): taken
+        // ahead (a single pass), or here.
         let mut phi = [[0.0; N]; 3];
         let mut a2 = [0.0; N];
         let mut s = [0.0; N];
         let mut c = [0.0; N];
+        if let Some(t) = ahead {
+            for i in 0..3 {
+                phi[i] = [t.phi[i]; N];
+                self.prev_rad[i] = [t.d[i]; N];
+            }
+            (s, c) = ([t.s; N], [t.c; N]);
+        }
         for l in 0..N {
+            if ahead.is_some() {
+                break;
+            }
             let d = [
                 dtheta_rad[0] - self.drift_rad_s[0][l] * dt_s,
                 dtheta_rad[1] - self.drift_rad_s[1][l] * dt_s,
@@ -353,7 +472,7 @@ impl<const N: usize> Lanes<N> {
             (s[l], c[l]) = half_angle_series(r2);
         }
         for l in 0..N {
-            if a2[l] >= HALF_ANGLE_SERIES_LIMIT_RAD2 {
+            if ahead.is_none() && a2[l] >= HALF_ANGLE_SERIES_LIMIT_RAD2 {
                 (s[l], c[l]) = half_angle_exact(a2[l]);
             }
         }
@@ -485,6 +604,15 @@ mod tests {
 
     use super::super::test_drive::lane_settings as settings;
 
+    /// Every lane's state after every sample, bit for bit.
+    struct Every<const N: usize>(Vec<Vec<[u64; 8]>>);
+
+    impl<const N: usize> Emit<N> for Every<N> {
+        fn emit(&mut self, _k: usize, lanes: &Lanes<N>) {
+            self.0.push(final_state(lanes));
+        }
+    }
+
     #[test]
     fn a_batch_of_lanes_is_each_pass_alone_bit_for_bit() {
         let (dt, dth, odo) = inputs();
@@ -501,6 +629,25 @@ mod tests {
             let mut alone = Last(None);
             Lanes::new(&[*s]).run(&inputs, &mut alone);
             assert_eq!(final_state(&alone.0.unwrap())[0], batch[l], "lane {l}");
+        }
+        // A pass alone (its turns taken four samples ahead, the last few one by one) at
+        // every sample, whatever its length: what its lane in a batch gives.
+        for n in [4999, 4998, 4997, 3, 0] {
+            let short = NavInputs {
+                dt_s: &dt[..n],
+                dtheta_rad: &dth[..n],
+                odo_dist_m: &odo[..n],
+            };
+            let mut batch = Every::<8>(Vec::new());
+            Lanes::new(&all).run(&short, &mut batch);
+            assert_eq!(batch.0.len(), n);
+            for (l, s) in all.iter().enumerate() {
+                let mut alone = Every::<1>(Vec::new());
+                Lanes::new(&[*s]).run(&short, &mut alone);
+                let want: Vec<[u64; 8]> = batch.0.iter().map(|lanes| lanes[l]).collect();
+                let got: Vec<[u64; 8]> = alone.0.iter().map(|lanes| lanes[0]).collect();
+                assert!(got == want, "lane {l}, {n} samples");
+            }
         }
         // The vector loop the CPU supports and the portable one agree too.
         let mut portable = Last(None);
