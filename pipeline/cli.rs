@@ -303,7 +303,8 @@ pub enum BenchTarget {
     Campaign,
     /// Writing one run's Rerun recording from its cached tables, and its size.
     Review,
-    /// OEPI, OWPI and joint on one run (derive done once), with passes per method.
+    /// OEPI, OWPI and joint on one run (derive done once), with passes per method; then one
+    /// round of the joint fit's odometer lag search (three trials in one walk).
     Disupt,
     /// A 41 × 41 sweep (azimuth × driftz) on one run (derive done once).
     Sweep,

@@ -942,8 +942,8 @@ impl<'d> OdometerBlocks<'d> {
             u_dot.push([u_dot_mps2]);
         }
         self.prev = (u_mps, moving);
-        let r = r_rad_s;
-        self.rest.push([r * u_mps, r * moving, moving_dot]);
+        self.rest
+            .push([r_rad_s * u_mps, r_rad_s * moving, moving_dot]);
     }
 
     /// The next sample it takes.
