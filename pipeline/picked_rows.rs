@@ -103,6 +103,15 @@ fn picked_split_columns(
     Ok(Some(out))
 }
 
+/// The rows of `samples` (any order, repeats allowed) below `rows`, increasing and each
+/// once: what [`picked_columns`] takes of a table of `rows` rows.
+pub fn rows_among(samples: &[usize], rows: usize) -> Vec<usize> {
+    let mut picked: Vec<usize> = samples.iter().copied().filter(|&s| s < rows).collect();
+    picked.sort_unstable();
+    picked.dedup();
+    picked
+}
+
 /// The `t_ns` of the rows of the table at `path` that `keep(row, t_ns)` takes (asked of
 /// every row in turn), their indices, and the table's rows.
 pub fn picked_times(

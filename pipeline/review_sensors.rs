@@ -119,8 +119,7 @@ fn write_in_batches(s: &ReviewSensors, path: &Path, rows: usize) -> anyhow::Resu
 
 /// Reads what [`write_review_sensors`] wrote: the float columns with their byte streams
 /// joined ([`read_split_doubles`], [`for_each_split_values`]) where their layout is the
-/// tables',
-/// else every column through Arrow, batch by batch.
+/// tables', else every column through Arrow, batch by batch.
 pub fn read_review_sensors(path: &Path) -> anyhow::Result<ReviewSensors> {
     let schema = read_schema(path)?;
     let m = schema.metadata();
@@ -283,14 +282,8 @@ mod tests {
     /// keeps the derive without the velocity increments.
     #[test]
     fn the_sensor_file_holds_the_blocks_of_the_stored_derive() {
-        use unz_stages::simulate::{SimConfig, simulate};
-
         let tmp = tempfile::tempdir().unwrap();
-        let mut config = SimConfig::new("sensors", 5);
-        config.duration_s = 700.0;
-        let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path()).unwrap();
-        let manifest = crate::runs::load_run(&run_dir).unwrap();
-        let chain = crate::flow::RunCtx::new(manifest, tmp.path().join("out"), false);
+        let chain = crate::simulate_io::simulated_ctx(tmp.path(), "sensors", 5, 700.0).unwrap();
         let params = crate::flow::Params::default();
         let derive_dir = crate::flow::ensure_derive(&chain, &params).unwrap();
         let kept = chain.kept_derived().expect("the chain's derive");

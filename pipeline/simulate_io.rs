@@ -56,6 +56,24 @@ fn mark_simulated(run: &SimRun, faulty: bool, run_dir: &Path) -> anyhow::Result<
     Ok(())
 }
 
+/// A run simulated with `seed` over `duration_s` into `dir/<name>/`, to be processed into
+/// `dir/out` (what the benchmarks and the stages' own tests run on).
+pub fn simulated_ctx(
+    dir: &Path,
+    name: &str,
+    seed: u64,
+    duration_s: f64,
+) -> anyhow::Result<crate::flow::RunCtx> {
+    let mut config = unz_stages::simulate::SimConfig::new(name, seed);
+    config.duration_s = duration_s;
+    let run_dir = write_run(&unz_stages::simulate::simulate(&config), dir)?;
+    Ok(crate::flow::RunCtx::new(
+        crate::runs::load_run(&run_dir)?,
+        dir.join("out"),
+        false,
+    ))
+}
+
 /// Writes one simulated run into `dir/<name>/`; returns the run folder.
 pub fn write_run(run: &SimRun, dir: &Path) -> anyhow::Result<PathBuf> {
     let name = &run.config.name;

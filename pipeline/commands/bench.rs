@@ -148,14 +148,7 @@ fn simulated_run(
     seed: u64,
 ) -> anyhow::Result<(tempfile::TempDir, crate::flow::RunCtx)> {
     let tmp = tempfile::tempdir()?;
-    let mut config = SimConfig::new("bench", seed);
-    config.duration_s = args.duration_s;
-    let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path())?;
-    let ctx = crate::flow::RunCtx::new(
-        crate::runs::load_run(&run_dir)?,
-        tmp.path().join("out"),
-        false,
-    );
+    let ctx = crate::simulate_io::simulated_ctx(tmp.path(), "bench", seed, args.duration_s)?;
     Ok((tmp, ctx))
 }
 

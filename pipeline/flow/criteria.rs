@@ -19,7 +19,7 @@ use super::ingested::load_table;
 use super::{Overrides, Params, RunCtx, ensure_navigate, match_control_points, start_position};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::load_derived_times;
-use crate::picked_rows::picked_columns;
+use crate::picked_rows::{picked_columns, rows_among};
 use crate::stage::{Stage, params_hash};
 
 /// `criteria.json`.
@@ -82,9 +82,7 @@ fn read_nav_for_criteria(
         rows += roll.len();
         Ok(())
     })?;
-    let mut picked: Vec<usize> = at.iter().copied().filter(|&s| s < rows).collect();
-    picked.sort_unstable();
-    picked.dedup();
+    let picked = rows_among(at, rows);
     let columns = [
         LAT_DEG,
         LON_DEG,
@@ -121,10 +119,7 @@ fn read_nav_places(
 ) -> anyhow::Result<Vec<[f64; 2]>> {
     use unz_formats::schema::nav_cols::{LAT_DEG, LON_DEG};
     // The rows its footer states (one that lies fails the pick, naming the file).
-    let rows = row_capacity_hint(path)?;
-    let mut picked: Vec<usize> = samples.iter().copied().filter(|&s| s < rows).collect();
-    picked.sort_unstable();
-    picked.dedup();
+    let picked = rows_among(samples, row_capacity_hint(path)?);
     let c = picked_columns(path, &[LAT_DEG, LON_DEG], &picked)?;
     Ok(samples
         .iter()

@@ -313,13 +313,8 @@ mod tests {
     /// another layout goes through Arrow.
     #[test]
     fn the_imu_read_page_by_page_is_arrows() {
-        use unz_stages::simulate::{SimConfig, simulate};
         let tmp = tempfile::tempdir().unwrap();
-        let mut config = SimConfig::new("imu", 9);
-        config.duration_s = 900.0;
-        let run_dir = crate::simulate_io::write_run(&simulate(&config), tmp.path()).unwrap();
-        let manifest = crate::runs::load_run(&run_dir).unwrap();
-        let ctx = crate::flow::RunCtx::new(manifest, tmp.path().join("out"), false);
+        let ctx = crate::simulate_io::simulated_ctx(tmp.path(), "imu", 9, 900.0).unwrap();
         let dir = crate::flow::ensure_ingest(&ctx, &crate::flow::Params::default()).unwrap();
         let path = dir.join(files::IMU);
         let arrow = load_columns(

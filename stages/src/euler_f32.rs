@@ -192,7 +192,7 @@ fn matrix_entries(q: &[f64; 4]) -> [f64; 5] {
 /// Attitudes side by side in [`euler_deg_f32_into`]: one vector register of f64 on AVX2.
 const WIDTH: usize = 4;
 
-/// [`euler_deg_f32`] of each of `q` into `out` (as long): the series of [`WIDTH`]
+/// [`euler_deg_f32`] of each of `q` into `out` (as long): the series of `WIDTH`
 /// attitudes side by side, in vector registers on x86-64 CPUs with AVX2 (a table's rows
 /// are independent: its divisions, square roots and polynomials then take a quarter of the
 /// instructions), each lane with exactly its attitude's operations. The same f32, bit for

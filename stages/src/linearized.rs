@@ -165,7 +165,7 @@ impl Observation {
         att <= AGREE_ATTITUDE_RAD && pos <= AGREE_POSITION_M
     }
 
-    /// [`Self::kryt1`] with the filters' gains over `epochs` at hand.
+    /// Kryt1 of these series, with the filters' gains over `epochs` at hand.
     pub fn kryt1_with(&self, epochs: &Epochs, gains: &Kryt1Gains) -> f64 {
         kryt1_with(
             epochs,
