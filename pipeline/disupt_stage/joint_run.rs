@@ -214,6 +214,14 @@ pub(super) fn run_methods<T: Send>(
         let after = after_classic(&classic);
         return (classic, after, want_joint.then(|| Err(refused())));
     }
+    // Every method starts from the problem's first linearisation (OEPI and OWPI at their
+    // first step, the joint fit and its lag search at theirs). Built here, before them,
+    // its two batches of passes run side by side; built by the first method to ask for
+    // it, they ran one after the other on its core while the other methods waited (the
+    // other core idle).
+    if !classic.is_empty() || want_joint {
+        problem.base_linearization();
+    }
     let ((classic, after), joint) = rayon::join(
         || {
             let classic = classic
