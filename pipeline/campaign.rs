@@ -41,8 +41,8 @@ pub fn find_runs(path: &Path, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
     if path.is_file() {
         return Ok(vec![path.to_path_buf()]);
     }
-    if path.join("run.toml").is_file() {
-        return Ok(vec![path.join("run.toml")]);
+    if path.join(crate::runs::MANIFEST).is_file() {
+        return Ok(vec![path.join(crate::runs::MANIFEST)]);
     }
     let out_real = out.canonicalize().ok();
     let mut found = Vec::new();
@@ -61,7 +61,7 @@ pub fn find_runs(path: &Path, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
                 && out_real.as_deref() != p.canonicalize().ok().as_deref()
             {
                 stack.push((p, depth + 1));
-            } else if meta.is_file() && e.file_name() == "run.toml" {
+            } else if meta.is_file() && e.file_name() == crate::runs::MANIFEST {
                 found.push(p);
             }
         }

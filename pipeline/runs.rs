@@ -5,10 +5,13 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use unz_formats::manifest::{RunManifest, is_plain_name};
 
+/// A run's manifest, in its folder.
+pub const MANIFEST: &str = "run.toml";
+
 /// Resolves a run argument (a run folder or its `run.toml`) and loads the manifest.
 pub fn load_run(path: &Path) -> anyhow::Result<RunManifest> {
     let manifest = if path.is_dir() {
-        path.join("run.toml")
+        path.join(MANIFEST)
     } else {
         path.to_path_buf()
     };

@@ -181,3 +181,52 @@ fn a_run_in_a_campaign_of_several_gives_the_files_it_gives_alone() {
     }
     assert_eq!(boresights, 1, "one run of the two takes its boresight");
 }
+
+/// A process that works on one run starts again with its heap in transparent huge pages
+/// where the machine has them (glibc, the kernel's THP on), and says so in its log; its
+/// files are those of 4-KiB pages (`GLIBC_TUNABLES=glibc.malloc.hugetlb=0` keeps them),
+/// byte for byte. A campaign's process is not started again.
+#[test]
+fn a_run_in_huge_pages_gives_the_files_it_gives_in_small_pages() {
+    const SAID: &str = "unz: the heap in transparent huge pages";
+    let thp =
+        cfg!(all(target_os = "linux", target_env = "gnu")) && unz::memory::transparent_huge_pages();
+    let tmp = tempfile::tempdir().unwrap();
+    let run = simulated_run(tmp.path(), 84, &["--duration-s", "600"]);
+    let (huge, small) = (tmp.path().join("huge"), tmp.path().join("small"));
+    let run_into = |path: &Path, out: &Path, tunables: Option<&str>| {
+        let mut cmd = unz();
+        cmd.args([
+            "run",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        match tunables {
+            Some(t) => cmd.env("GLIBC_TUNABLES", t),
+            None => cmd.env_remove("GLIBC_TUNABLES"),
+        };
+        let o = cmd.output().unwrap();
+        let log = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{log}");
+        log
+    };
+    assert_eq!(run_into(&run, &huge, None).contains(SAID), thp);
+    assert!(!run_into(&run, &small, Some("glibc.malloc.hugetlb=0")).contains(SAID));
+    let (fa, fb) = (
+        files(&huge.join("sim-0084")),
+        files(&small.join("sim-0084")),
+    );
+    assert_eq!(fa, fb);
+    assert!(fa.len() >= 26, "{fa:?}");
+    for f in &fa {
+        let (x, y) = (
+            std::fs::read(huge.join("sim-0084").join(f)).unwrap(),
+            std::fs::read(small.join("sim-0084").join(f)).unwrap(),
+        );
+        assert!(x == y, "{} differs between the two", f.display());
+    }
+    // The campaign's folder (one run in it): not started again.
+    let campaign = run_into(run.parent().unwrap(), &tmp.path().join("campaign"), None);
+    assert!(!campaign.contains(SAID), "{campaign}");
+}

@@ -19,6 +19,31 @@ use std::process::ExitCode;
 
 use crate::cli::{Cli, Command};
 
+/// Whether `command` is one stage's (ingest to review): it works on one run.
+fn is_stage(command: &Command) -> bool {
+    matches!(
+        command,
+        Command::Ingest(_)
+            | Command::Derive(_)
+            | Command::Navigate(_)
+            | Command::Criteria(_)
+            | Command::Disupt(_)
+            | Command::Sweep(_)
+            | Command::Export(_)
+            | Command::Review(_)
+    )
+}
+
+/// Whether `command` works on one run, and so gains from its heap in huge pages
+/// ([`crate::memory::with_huge_pages`]): a stage's, or `unz run` of a run folder or its
+/// run.toml (not a campaign's folder, whose process reuses its heap run after run).
+pub fn works_on_one_run(command: &Command) -> bool {
+    match command {
+        Command::Run(a) => a.path.is_file() || a.path.join(crate::runs::MANIFEST).is_file(),
+        c => is_stage(c),
+    }
+}
+
 /// Runs a parsed command line; the exit code says whether everything succeeded. A
 /// command that writes into an output folder holds its lock while it runs.
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -36,17 +61,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     let _lock = out.as_deref().map(crate::lock::lock_output).transpose()?;
     // A stage command works on one run: its threads share one malloc arena (`unz run`
     // decides once it knows how many runs it has).
-    if matches!(
-        cli.command,
-        Command::Ingest(_)
-            | Command::Derive(_)
-            | Command::Navigate(_)
-            | Command::Criteria(_)
-            | Command::Disupt(_)
-            | Command::Sweep(_)
-            | Command::Export(_)
-            | Command::Review(_)
-    ) {
+    if is_stage(&cli.command) {
         crate::memory::one_malloc_arena();
     }
     if let Some(out) = &out {
@@ -76,4 +91,48 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         eprintln!("warning: {e:#}");
     }
     code
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    fn command(args: &[&str]) -> Command {
+        Cli::try_parse_from(args).unwrap().command
+    }
+
+    /// A stage works on one run; `unz run` does when given a run's folder or its
+    /// run.toml, not a campaign's folder; the other commands do not.
+    #[test]
+    fn what_works_on_one_run() {
+        for stage in [
+            "ingest", "derive", "navigate", "criteria", "disupt", "export", "review",
+        ] {
+            assert!(
+                works_on_one_run(&command(&["unz", stage, "r", "--out", "o"])),
+                "{stage}"
+            );
+        }
+        let sweep = ["unz", "sweep", "r", "--out", "o", "--over", "azimuth"];
+        assert!(works_on_one_run(&command(&sweep)));
+        let tmp = tempfile::tempdir().unwrap();
+        let run = tmp.path().join("r");
+        std::fs::create_dir_all(&run).unwrap();
+        std::fs::write(run.join(crate::runs::MANIFEST), "").unwrap();
+        let manifest = run.join(crate::runs::MANIFEST);
+        for (path, one) in [
+            (&run, true),
+            (&manifest, true),
+            (&tmp.path().to_path_buf(), false),
+        ] {
+            let c = command(&["unz", "run", path.to_str().unwrap(), "--out", "o"]);
+            assert_eq!(works_on_one_run(&c), one, "{}", path.display());
+        }
+        assert!(!works_on_one_run(&command(&[
+            "unz", "simulate", "--out", "o"
+        ])));
+        assert!(!works_on_one_run(&command(&["unz", "bench", "disupt"])));
+    }
 }
