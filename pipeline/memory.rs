@@ -45,11 +45,11 @@ const HUGETLB_TUNABLE: &str = "glibc.malloc.hugetlb";
 ///
 /// Why: such a process fills vectors of its run's length that it has just allocated (the
 /// derive's increments, the passes' series, the tables' column buffers), and every 4-KiB
-/// page costs a page fault on first touch: about 14 000 in a 40-minute disupt process, 3
-/// 000 with the tunable; its CPU median 384 → 359 ms, a 12-hour `unz run` 12.9–13.0 → 11.6–
-/// 12.0 s at the same peak (measured alternately, docs/performance.md, session 43).
-/// Starting again costs about 2 ms. A campaign's process reuses its heap run after run
-/// (no gain measured): it is not started again.
+/// page costs a page fault on first touch. A 40-minute disupt process took 14 200 of
+/// them, 3 200 with the tunable, and its `written` lap 181 → 171 ms (medians of 12,
+/// alternately; docs/performance.md, session 43); a 12-hour `unz run` keeps its peak
+/// (432–437 MiB). Starting again costs about 2 ms. A campaign's process reuses its heap
+/// run after run (no gain measured): it is not started again.
 pub fn with_huge_pages() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     {
