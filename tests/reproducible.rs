@@ -7,6 +7,21 @@ use std::path::{Path, PathBuf};
 
 use crate::util::{files_below as files, simulated_run, unz, unz_ok};
 
+/// The files below `a` and below `b`, asserted the same names and bytes (`what` names the
+/// case); the names.
+fn same_files(a: &Path, b: &Path, what: &str) -> Vec<PathBuf> {
+    let (fa, fb) = (files(a), files(b));
+    assert_eq!(fa, fb, "{what}");
+    for f in &fa {
+        let (x, y) = (
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+        );
+        assert!(x == y, "{what}: {} differs between the two", f.display());
+    }
+    fa
+}
+
 #[test]
 fn a_run_processed_twice_gives_identical_files() {
     let tmp = tempfile::tempdir().unwrap();
@@ -18,8 +33,7 @@ fn a_run_processed_twice_gives_identical_files() {
     ] {
         unz_ok(&[stage, run.to_str().unwrap(), "--out", b.to_str().unwrap()]);
     }
-    let (fa, fb) = (files(&a.join("sim-0071")), files(&b.join("sim-0071")));
-    assert_eq!(fa, fb);
+    let fa = same_files(&a.join("sim-0071"), &b.join("sim-0071"), "sim-0071");
     assert!(fa.len() >= 26, "{fa:?}");
     // Every file, the Rerun recording and the review's stage record (which hashes it)
     // included: rerun's time-based ids, its batching and its footer's hash-map orders are
@@ -28,13 +42,6 @@ fn a_run_processed_twice_gives_identical_files() {
         fa.iter().any(|f| f == Path::new("review/sim-0071.rrd")),
         "{fa:?}"
     );
-    for f in &fa {
-        let (x, y) = (
-            std::fs::read(a.join("sim-0071").join(f)).unwrap(),
-            std::fs::read(b.join("sim-0071").join(f)).unwrap(),
-        );
-        assert!(x == y, "{} differs between the two", f.display());
-    }
 }
 
 /// The stage records name a run's own files relative to its folder, and the outputs
@@ -169,15 +176,7 @@ fn a_run_in_a_campaign_of_several_gives_the_files_it_gives_alone() {
         let report: serde_json::Value = crate::util::read_json(&a.join("disupt/disupt.json"));
         assert!(report["methods"]["joint"].is_object(), "{report}");
         boresights += usize::from(report["odo_pitch"]["applied"] == true);
-        let (fa, fb) = (files(&a), files(&b));
-        assert_eq!(fa, fb);
-        for f in &fa {
-            let (x, y) = (
-                std::fs::read(a.join(f)).unwrap(),
-                std::fs::read(b.join(f)).unwrap(),
-            );
-            assert!(x == y, "{run}: {} differs between the two", f.display());
-        }
+        same_files(&a, &b, run);
     }
     assert_eq!(boresights, 1, "one run of the two takes its boresight");
 }
@@ -213,19 +212,8 @@ fn a_run_in_huge_pages_gives_the_files_it_gives_in_small_pages() {
     };
     assert_eq!(run_into(&run, &huge, None).contains(SAID), thp);
     assert!(!run_into(&run, &small, Some("glibc.malloc.hugetlb=0")).contains(SAID));
-    let (fa, fb) = (
-        files(&huge.join("sim-0084")),
-        files(&small.join("sim-0084")),
-    );
-    assert_eq!(fa, fb);
+    let fa = same_files(&huge.join("sim-0084"), &small.join("sim-0084"), "sim-0084");
     assert!(fa.len() >= 26, "{fa:?}");
-    for f in &fa {
-        let (x, y) = (
-            std::fs::read(huge.join("sim-0084").join(f)).unwrap(),
-            std::fs::read(small.join("sim-0084").join(f)).unwrap(),
-        );
-        assert!(x == y, "{} differs between the two", f.display());
-    }
     // The campaign's folder (one run in it): not started again.
     let campaign = run_into(run.parent().unwrap(), &tmp.path().join("campaign"), None);
     assert!(!campaign.contains(SAID), "{campaign}");
