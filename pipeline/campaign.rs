@@ -38,11 +38,8 @@ const MAX_DEPTH: usize = 8;
 /// Every `run.toml` under `path` (or `path` itself), sorted; `out` is never searched and
 /// symlinks are not followed.
 pub fn find_runs(path: &Path, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    if path.is_file() {
-        return Ok(vec![path.to_path_buf()]);
-    }
-    if path.join(crate::runs::MANIFEST).is_file() {
-        return Ok(vec![path.join(crate::runs::MANIFEST)]);
+    if let Some(manifest) = crate::runs::one_run_manifest(path) {
+        return Ok(vec![manifest]);
     }
     let out_real = out.canonicalize().ok();
     let mut found = Vec::new();

@@ -8,6 +8,16 @@ use unz_formats::manifest::{RunManifest, is_plain_name};
 /// A run's manifest, in its folder.
 pub const MANIFEST: &str = "run.toml";
 
+/// The manifest of the one run `path` names (a run.toml file, or a folder holding one);
+/// `None` for anything else (a campaign's folder, whose runs lie below it).
+pub fn one_run_manifest(path: &Path) -> Option<PathBuf> {
+    if path.is_file() {
+        Some(path.to_path_buf())
+    } else {
+        Some(path.join(MANIFEST)).filter(|m| m.is_file())
+    }
+}
+
 /// Resolves a run argument (a run folder or its `run.toml`) and loads the manifest.
 pub fn load_run(path: &Path) -> anyhow::Result<RunManifest> {
     let manifest = if path.is_dir() {

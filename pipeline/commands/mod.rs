@@ -39,7 +39,7 @@ fn is_stage(command: &Command) -> bool {
 /// run.toml (not a campaign's folder, whose process reuses its heap run after run).
 pub fn works_on_one_run(command: &Command) -> bool {
     match command {
-        Command::Run(a) => a.path.is_file() || a.path.join(crate::runs::MANIFEST).is_file(),
+        Command::Run(a) => crate::runs::one_run_manifest(&a.path).is_some(),
         c => is_stage(c),
     }
 }
