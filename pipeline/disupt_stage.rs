@@ -5,6 +5,7 @@ mod coarse_azimuth;
 mod exclusions;
 mod heights;
 mod joint_run;
+mod meeting;
 mod report;
 mod reviews;
 
@@ -26,6 +27,7 @@ pub use coarse_azimuth::{Coarse, CoarseRefused, coarse_azimuth, coarse_refused_n
 use joint_run::{
     ClassicResult, JointInputs, joint_route_sigma, lag_pass, route_stride, run_methods,
 };
+use meeting::Meeting;
 pub use report::{
     DisuptOut, MARK_ARM_REFIT_SIGMA, MARK_ARM_SIGMA, MarkArmCheck, MethodOut, ODO_YAW_REFIT_Z,
     OdoYawCheck, Outcome, SettingsOut, SigmaOut, joint_mark_arm_note, mark_arm_note,
@@ -43,7 +45,7 @@ use crate::flow::{
 use crate::method_tables::{
     KRYT1_SERIES, KeptTrack, MethodKryt1, TRACKS, track_samples, write_kryt1_series, write_tracks,
 };
-use crate::nav_writer::{NavWriter, SigmaColumns};
+use crate::nav_writer::{NavWriter, NavWritten, SigmaApart, SigmaColumns};
 use crate::stage::{Stage, params_hash};
 
 /// Which methods to run.
@@ -618,18 +620,32 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             })?;
             let apart = nav.take_sigma_apart();
             let samples = pass.inputs.pass_samples();
-            let ((odo_pitch, nav, tables), (sigma, apart)) = rayon::join(
+            // The file is finished by whichever comes second, the pass or the σ's columns,
+            // while the other core writes the tables.
+            let meeting = Meeting::new();
+            let finish = |(nav, (sigma, apart)): (NavWriter<'_>, SigmaDone)| match apart {
+                Some(apart) => Finished::Written(
+                    apart
+                        .map_err(Into::into)
+                        .and_then(|apart| nav.finish_with_sigma("corrected", apart)),
+                ),
+                // The σ asked for but not made, or made unasked (neither expected): written
+                // again.
+                None if later || sigma.is_some() => Finished::Again(sigma),
+                None => Finished::Written(nav.finish("corrected")),
+            };
+            let ((odo_pitch, tables, finished), finished_by_sigma) = rayon::join(
                 || {
                     let mut tracks = tracks;
                     let odo_pitch = probe_pitch(&mut tracks[corrected_lane]);
-                    let (nav, tables) = rayon::join(
+                    let (finished, tables) = rayon::join(
                         || {
                             corrected.run(&odo_pitch, &mut nav);
-                            nav
+                            meeting.bring_a(nav).map(finish)
                         },
                         || write_tables(tracks),
                     );
-                    (odo_pitch, nav, tables)
+                    (odo_pitch, tables, finished)
                 },
                 || {
                     let sigma = route_sigma();
@@ -639,20 +655,15 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                         }
                         _ => None,
                     };
-                    (sigma, apart)
+                    meeting.bring_b((sigma, apart)).map(finish)
                 },
             );
             tables?;
             say_pitch(&odo_pitch);
-            let nav = match apart {
-                Some(apart) => nav.finish_with_sigma("corrected", apart?)?,
-                // The σ asked for but not made, or made unasked (neither expected): written
-                // again.
-                None if later || sigma.is_some() => {
-                    drop(nav);
-                    write_corrected(&odo_pitch, sigma)?
-                }
-                None => nav.finish("corrected")?,
+            let nav = match finished.or(finished_by_sigma) {
+                Some(Finished::Written(nav)) => nav?,
+                Some(Finished::Again(sigma)) => write_corrected(&odo_pitch, sigma)?,
+                None => anyhow::bail!("the corrected navigation's pass and its σ never met"),
             };
             (odo_pitch, nav)
         } else {
@@ -721,6 +732,21 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         Ok(())
     })?;
     Ok(dir)
+}
+
+/// The route's σ as its side of the stage's tail leaves it: the σ (if made) and its columns
+/// encoded for the corrected navigation's file (when that waits for them).
+type SigmaDone = (
+    Option<RouteSigma>,
+    Option<Result<SigmaApart, unz_formats::FileError>>,
+);
+
+/// The corrected navigation's file once its pass and its σ met.
+enum Finished {
+    /// Put in place (or not, with the error).
+    Written(anyhow::Result<NavWritten>),
+    /// To be written again with this σ (its columns were not made as the writer expected).
+    Again(Option<RouteSigma>),
 }
 
 /// The corrected navigation's pass and where it goes.
