@@ -43,7 +43,8 @@ use crate::flow::{
     site_gravity_mps2,
 };
 use crate::method_tables::{
-    KRYT1_SERIES, KeptTrack, MethodKryt1, TRACKS, track_samples, write_kryt1_series, write_tracks,
+    KRYT1_SERIES, KeptTrack, MethodKryt1, TRACKS, TracksWriter, track_samples, track_times,
+    write_kryt1_series,
 };
 use crate::nav_writer::{NavWriter, NavWritten, SigmaApart, SigmaColumns};
 use crate::stage::{Stage, params_hash};
@@ -281,14 +282,31 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let early_kept = beside_holdout.then(|| track_samples(&case.derived));
         let shared = ctx.cores == Cores::Shared;
         let reviews_early = beside_holdout && !shared;
+        // Their tracks go into `tracks.parquet` at once, while the joint fit ends (its
+        // file is written again should one of them be the corrected route, whose heights
+        // its boresight moves).
+        let start = case.settings.start();
+        let (tracks_path, kryt1s_path) = (dir.join(TRACKS), dir.join(KRYT1_SERIES));
+        let early_times = early_kept
+            .as_ref()
+            .filter(|_| reviews_early)
+            .map(|keep| track_times(&case.derived, keep));
         let early_reviews = |classic: &[ClassicResult]| {
             early_kept.as_ref().filter(|_| reviews_early).map(|keep| {
                 let lanes = classic_reviewed(x_before, &case.derived, classic);
-                untracked_reviews(&problem, &lanes, &case.fixes, keep)
+                let outcomes = untracked_reviews(&problem, &lanes, &case.fixes, keep);
+                let tracks = early_times.as_deref().and_then(|t_ns| {
+                    let mut file = TracksWriter::create(&tracks_path, t_ns, start).ok()?;
+                    for o in &outcomes {
+                        file.push(o.track.clone()).ok()?;
+                    }
+                    Some(file)
+                });
+                (outcomes, tracks)
             })
         };
         let t_methods = std::time::Instant::now();
-        let (classic_results, early_outcomes, joint_result) = run_methods(
+        let (classic_results, early, joint_result) = run_methods(
             method,
             JointInputs {
                 problem: &problem,
@@ -307,6 +325,10 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 crate::memory::rss_suffix()
             ),
         );
+        let (early_outcomes, early_tracks) = match early {
+            Some((outcomes, tracks)) => (Some(outcomes), tracks),
+            None => (None, None),
+        };
         // The joint fit without the control points it left out, and its hold-out when the
         // search for them computed it.
         let mut found = exclusions::Exclusions::default();
@@ -352,7 +374,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             ..spec
         };
         let joint_problem = joint_spec.on(joint_derived);
-        let start = case.settings.start();
         // One exact pass per method's settings, side by side (the joint's on its own
         // derive's odometer): its trajectory, Kryt1 series and control-point errors, for
         // review. In order of preference for the corrected navigation (the initial
@@ -553,16 +574,31 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         };
         // The methods' tracks and Kryt1 series (the corrected one's heights with its
         // boresight).
-        let (tracks_path, kryt1s_path) = (dir.join(TRACKS), dir.join(KRYT1_SERIES));
         let write_tables = |tracks: Vec<KeptTrack>| -> anyhow::Result<()> {
             let (tracks_written, kryt1s_written) = rayon::join(
                 || {
-                    let d = &case.derived;
-                    let t_ns: Vec<i64> = kept_samples
-                        .iter()
-                        .map(|&k| d.ns_of(d.t_s.get(k)))
-                        .collect();
-                    write_tracks(&tracks_path, &t_ns, start, tracks)
+                    // Those written while the joint fit ended stand, unless the corrected
+                    // route (whose heights its boresight moved) is among them.
+                    let early = early_tracks
+                        .filter(|file| corrected_lane == 0 || corrected_lane >= file.methods());
+                    let kept_times;
+                    let mut file = match early {
+                        Some(file) => file,
+                        None => {
+                            let t_ns = match early_times.as_deref() {
+                                Some(t_ns) => t_ns,
+                                None => {
+                                    kept_times = track_times(&case.derived, &kept_samples);
+                                    &kept_times
+                                }
+                            };
+                            TracksWriter::create(&tracks_path, t_ns, start)?
+                        }
+                    };
+                    for t in tracks.into_iter().skip(file.methods()) {
+                        file.push(t)?;
+                    }
+                    file.finish()
                 },
                 move || write_kryt1_series(&kryt1s_path, &kryt1s),
             );

@@ -7,7 +7,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use arrow::array::{Array, Float32Array, Float64Array, Int64Array, RecordBatch, StringArray};
-use arrow::datatypes::{Float32Type, Float64Type, Int64Type};
+use arrow::datatypes::{Float32Type, Float64Type, Int64Type, SchemaRef};
 use unz_formats::FormatError;
 use unz_formats::parquet_io::{ParquetSink, for_each_batch_of, write_batch};
 use unz_formats::schema::{self, criteria_cols};
@@ -81,6 +81,12 @@ pub fn decimation_indices(len: usize, nominal_dt_s: f64, rate_hz: f64) -> Vec<us
 /// The samples of `d` the methods' trajectories keep (at [`TRACK_RATE_HZ`]).
 pub fn track_samples(d: &Derived) -> Vec<usize> {
     decimation_indices(d.nav_inputs().len(), d.nominal_dt_s, TRACK_RATE_HZ)
+}
+
+/// The times of the kept samples `keep` of `d` (ns in the log's time base): the rows of
+/// each track in `tracks.parquet`.
+pub fn track_times(d: &Derived, keep: &[usize]) -> Vec<i64> {
+    keep.iter().map(|&k| d.ns_of(d.t_s.get(k))).collect()
 }
 
 /// One method's trajectory as its review pass keeps it, at [`track_samples`]: what
@@ -203,12 +209,51 @@ pub fn write_tracks(
     start: Geodetic,
     tracks: Vec<KeptTrack>,
 ) -> anyhow::Result<()> {
-    let schema = schema::tracks();
-    // Row groups of 65 536 rows: the writer holds that many encoded rows, not a
-    // method's whole track.
-    let mut sink = ParquetSink::create_in_row_groups(path, schema.clone(), 1 << 16)?;
-    // Each track's kept columns become the batch's (no copy) and go once written.
+    let mut file = TracksWriter::create(path, t_ns, start)?;
     for t in tracks {
+        file.push(t)?;
+    }
+    file.finish()
+}
+
+/// `tracks.parquet` as it is written, method by method ([`write_tracks`]): the rows of
+/// the tracks given so far are encoded (those of each full row group in the file), so
+/// that the methods known first are written while the others are still worked out.
+pub struct TracksWriter<'t> {
+    sink: ParquetSink,
+    schema: SchemaRef,
+    t_ns: &'t [i64],
+    start: Geodetic,
+    /// The methods written so far.
+    methods: usize,
+}
+
+impl<'t> TracksWriter<'t> {
+    /// The file at `path` (put in place by [`Self::finish`]), of the tracks kept at
+    /// times `t_ns`, north and east of `start`.
+    pub fn create(path: &Path, t_ns: &'t [i64], start: Geodetic) -> anyhow::Result<Self> {
+        let schema = schema::tracks();
+        // Row groups of 65 536 rows: the writer holds that many encoded rows, not a
+        // method's whole track.
+        let sink = ParquetSink::create_in_row_groups(path, schema.clone(), 1 << 16)?;
+        Ok(Self {
+            sink,
+            schema,
+            t_ns,
+            start,
+            methods: 0,
+        })
+    }
+
+    /// The methods' tracks written so far.
+    pub fn methods(&self) -> usize {
+        self.methods
+    }
+
+    /// Writes the rows of the next method's track `t`: its kept columns become the
+    /// batch's (no copy) and go once written.
+    pub fn push(&mut self, t: KeptTrack) -> anyhow::Result<()> {
+        let t_ns = self.t_ns;
         let rows = t.lat_rad.len();
         anyhow::ensure!(
             rows <= t_ns.len(),
@@ -216,7 +261,7 @@ pub fn write_tracks(
             t.method,
             t_ns.len()
         );
-        let frame = start.local_frame();
+        let frame = self.start.local_frame();
         let (north_m, east_m): (Vec<f32>, Vec<f32>) = t
             .lat_rad
             .iter()
@@ -232,7 +277,7 @@ pub fn write_tracks(
             ))
         };
         let batch = RecordBatch::try_new(
-            schema.clone(),
+            self.schema.clone(),
             vec![
                 method_column(std::iter::once((t.method.as_str(), rows))),
                 Arc::new(Int64Array::from(t_ns[..rows].to_vec())),
@@ -246,10 +291,16 @@ pub fn write_tracks(
                 Arc::new(Float32Array::from(t.heading_deg)),
             ],
         )?;
-        sink.write(&batch)?;
+        self.sink.write(&batch)?;
+        self.methods += 1;
+        Ok(())
     }
-    sink.finish()?;
-    Ok(())
+
+    /// Writes the last rows and the footer, and puts the file in place.
+    pub fn finish(self) -> anyhow::Result<()> {
+        self.sink.finish()?;
+        Ok(())
+    }
 }
 
 /// Writes `kryt1_series.parquet`.

@@ -238,6 +238,70 @@ fn the_control_points_heights_give_the_odometers_pitch() {
     assert!(rms < 1.0, "height RMS {rms} m");
 }
 
+/// The corrected route's kept track (`tracks.parquet`) has its corrected navigation's
+/// heights, its odometer pitch boresight in them, whichever method corrects it: the joint
+/// fit (its track written after the others', which the stage writes while the joint fit
+/// ends) or OWPI (one of those: its file written again). The other methods' tracks keep
+/// their own heights: the boresight (1.5° here) moves the route's by tens of metres.
+#[test]
+fn the_corrected_routes_kept_track_takes_its_boresight() {
+    use unz::method_tables::read_tracks;
+    use unz_formats::parquet_io::read_batches;
+    use unz_formats::tables::{f32_column, i64_column};
+
+    let tmp = tempfile::tempdir().unwrap();
+    let run = simulated_run(
+        tmp.path(),
+        71,
+        &["--odo-pitch-deg", "1.5", "--duration-s", "900"],
+    );
+    for (method, corrector) in [("owpi", "owpi"), ("all", "joint")] {
+        let out = tmp.path().join(method);
+        unz_ok(&[
+            "disupt",
+            run.to_str().unwrap(),
+            "--method",
+            method,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let dir = out.join("sim-0071/disupt");
+        let d: DisuptOut = read_json(&dir.join("disupt.json"));
+        assert_eq!(d.corrected_by.as_deref(), Some(corrector));
+        assert!(d.odo_pitch.as_ref().is_some_and(|f| f.applied), "{d:?}");
+        let (_, nav) = read_batches(&dir.join("corrected_nav.parquet")).unwrap();
+        let t_nav: Vec<i64> = nav
+            .iter()
+            .flat_map(|b| i64_column(b, "t_ns").unwrap())
+            .collect();
+        let h_nav: Vec<f32> = nav
+            .iter()
+            .flat_map(|b| f32_column(b, "h_m").unwrap())
+            .collect();
+        let tracks = read_tracks(&dir.join("tracks.parquet")).unwrap();
+        assert_eq!(tracks.len(), if method == "all" { 4 } else { 2 });
+        for t in &tracks {
+            let worst_m = t
+                .t_ns
+                .iter()
+                .zip(&t.h_m)
+                .map(|(k, h)| {
+                    let i = t_nav.binary_search(k).expect("a kept sample's time");
+                    f64::from((h - h_nav[i]).abs())
+                })
+                .fold(0.0, f64::max);
+            assert_eq!(t.t_ns.len(), 9001, "{}", t.method);
+            // The track's heights extrapolate its probe pass's to the angle fitted last:
+            // within a few f32 steps of the pass at that angle (1.5e-5 m at 100 m).
+            if t.method == corrector {
+                assert!(worst_m < 1e-3, "{method}: {} {worst_m} m", t.method);
+            } else {
+                assert!(worst_m > 50.0, "{method}: {} {worst_m} m", t.method);
+            }
+        }
+    }
+}
+
 /// RMS of a navigation's heights (`h_m`) against the truth's at the truth's times, m.
 fn height_rms_m(nav: &Path, truth: &Path) -> f64 {
     use unz_formats::parquet_io::read_batches;
