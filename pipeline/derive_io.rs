@@ -357,8 +357,8 @@ fn load_derived_of(
         None if with_nav => bail!("the derive's increments are read with the ingest's"),
         None => None,
     };
-    // Two readers side by side: the derive's times and scalars, and the ingest's
-    // increments (the larger part), each decoding its own columns.
+    // Three readers side by side, as the cores take them: the derive's times and scalars,
+    // the ingest's increments (the larger part), the filter's blocks and the epochs.
     let scalars = || -> anyhow::Result<_> {
         let mut t0_ns: Option<i64> = None;
         let mut t_s = NanoTimes::builder().with_room_for(rows);
@@ -394,11 +394,12 @@ fn load_derived_of(
             Ok(())
         })?;
         let (dt_s, odo_dist_m) = fast.unwrap_or((dt_s, odo_dist_m));
-        // The filter's blocks and the epochs too, while the increments (the longer read)
-        // are decoded beside.
+        Ok((schema, t0_ns, t_s, dt_s, odo_dist_m))
+    };
+    let tables = || -> anyhow::Result<_> {
         let (_, blocks) = read_table(&bpath)?;
         let (_, epochs) = read_table(&epath)?;
-        Ok((schema, t0_ns, t_s, dt_s, odo_dist_m, blocks, epochs))
+        Ok((blocks, epochs))
     };
     let vectors = || -> anyhow::Result<_> {
         let mut dtheta_rad: Vec<[f64; 3]> = Vec::with_capacity(per_sample(with_nav));
@@ -448,9 +449,9 @@ fn load_derived_of(
         }
         Ok((dtheta_rad, dvel_mps, repairs.sample))
     };
-    let (scalars, vectors) = rayon::join(scalars, vectors);
-    let ((schema, t0_ns, t_s, dt_s, odo_dist_m, bl, e), (dtheta_rad, dvel_mps, replaced)) =
-        (scalars?, vectors?);
+    let (scalars, (vectors, tables)) = rayon::join(scalars, || rayon::join(vectors, tables));
+    let ((schema, t0_ns, t_s, dt_s, odo_dist_m), (dtheta_rad, dvel_mps, replaced), (bl, e)) =
+        (scalars?, vectors?, tables?);
     anyhow::ensure!(
         !with_nav || dtheta_rad.len() == dt_s.len(),
         "{} has {} rows, {} {} (the ingest it was derived from: derive again)",
