@@ -34,16 +34,6 @@ fn is_stage(command: &Command) -> bool {
     )
 }
 
-/// Whether `command` works on one run, and so gains from its heap in huge pages
-/// ([`crate::memory::with_huge_pages`]): a stage's, or `unz run` of a run folder or its
-/// run.toml (not a campaign's folder, whose process reuses its heap run after run).
-pub fn works_on_one_run(command: &Command) -> bool {
-    match command {
-        Command::Run(a) => crate::runs::one_run_manifest(&a.path).is_some(),
-        c => is_stage(c),
-    }
-}
-
 /// Runs a parsed command line; the exit code says whether everything succeeded. A
 /// command that writes into an output folder holds its lock while it runs.
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -59,10 +49,10 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         _ => None,
     };
     let _lock = out.as_deref().map(crate::lock::lock_output).transpose()?;
-    // A stage command works on one run: its threads share one malloc arena (`unz run`
-    // decides once it knows how many runs it has).
+    // A stage command works on one run: its threads share one malloc arena, which keeps
+    // what is freed (`unz run` decides once it knows how many runs it has).
     if is_stage(&cli.command) {
-        crate::memory::one_malloc_arena();
+        crate::memory::one_run_at_a_time();
     }
     if let Some(out) = &out {
         crate::file_hashes::load(out);
@@ -103,36 +93,22 @@ mod tests {
         Cli::try_parse_from(args).unwrap().command
     }
 
-    /// A stage works on one run; `unz run` does when given a run's folder or its
-    /// run.toml, not a campaign's folder; the other commands do not.
+    /// A stage's command (and a sweep's) works on one run; `unz run` decides once it
+    /// has found its runs; the other commands work on none.
     #[test]
     fn what_works_on_one_run() {
         for stage in [
             "ingest", "derive", "navigate", "criteria", "disupt", "export", "review",
         ] {
             assert!(
-                works_on_one_run(&command(&["unz", stage, "r", "--out", "o"])),
+                is_stage(&command(&["unz", stage, "r", "--out", "o"])),
                 "{stage}"
             );
         }
         let sweep = ["unz", "sweep", "r", "--out", "o", "--over", "azimuth"];
-        assert!(works_on_one_run(&command(&sweep)));
-        let tmp = tempfile::tempdir().unwrap();
-        let run = tmp.path().join("r");
-        std::fs::create_dir_all(&run).unwrap();
-        std::fs::write(run.join(crate::runs::MANIFEST), "").unwrap();
-        let manifest = run.join(crate::runs::MANIFEST);
-        for (path, one) in [
-            (&run, true),
-            (&manifest, true),
-            (&tmp.path().to_path_buf(), false),
-        ] {
-            let c = command(&["unz", "run", path.to_str().unwrap(), "--out", "o"]);
-            assert_eq!(works_on_one_run(&c), one, "{}", path.display());
-        }
-        assert!(!works_on_one_run(&command(&[
-            "unz", "simulate", "--out", "o"
-        ])));
-        assert!(!works_on_one_run(&command(&["unz", "bench", "disupt"])));
+        assert!(is_stage(&command(&sweep)));
+        assert!(!is_stage(&command(&["unz", "run", "r", "--out", "o"])));
+        assert!(!is_stage(&command(&["unz", "simulate", "--out", "o"])));
+        assert!(!is_stage(&command(&["unz", "bench", "disupt"])));
     }
 }

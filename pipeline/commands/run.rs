@@ -39,10 +39,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<ExitCode> {
     if manifests.is_empty() {
         bail!("no run.toml under {}", args.path.display());
     }
-    // One run at a time: its threads share one malloc arena (before the pool's threads
-    // take arenas of their own).
+    // One run at a time: its threads share one malloc arena, which keeps what is freed
+    // (before the pool's threads take arenas of their own).
     if manifests.len() == 1 || args.jobs == Some(1) {
-        crate::memory::one_malloc_arena();
+        crate::memory::one_run_at_a_time();
     }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.jobs.unwrap_or(0))
