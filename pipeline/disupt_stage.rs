@@ -9,6 +9,7 @@ mod meeting;
 mod report;
 mod reviews;
 
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 
 use serde::Serialize;
@@ -325,10 +326,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 crate::memory::rss_suffix()
             ),
         );
-        let (early_outcomes, early_tracks) = match early {
-            Some((outcomes, tracks)) => (Some(outcomes), tracks),
-            None => (None, None),
-        };
+        let (early_outcomes, early_tracks) =
+            early.map_or((None, None), |(outcomes, tracks)| (Some(outcomes), tracks));
         // The joint fit without the control points it left out, and its hold-out when the
         // search for them computed it.
         let mut found = exclusions::Exclusions::default();
@@ -581,19 +580,13 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                     // route (whose heights its boresight moved) is among them.
                     let early = early_tracks
                         .filter(|file| corrected_lane == 0 || corrected_lane >= file.methods());
-                    let kept_times;
+                    let t_ns: Cow<'_, [i64]> = early_times.as_deref().map_or_else(
+                        || track_times(&case.derived, &kept_samples).into(),
+                        Cow::Borrowed,
+                    );
                     let mut file = match early {
                         Some(file) => file,
-                        None => {
-                            let t_ns = match early_times.as_deref() {
-                                Some(t_ns) => t_ns,
-                                None => {
-                                    kept_times = track_times(&case.derived, &kept_samples);
-                                    &kept_times
-                                }
-                            };
-                            TracksWriter::create(&tracks_path, t_ns, start)?
-                        }
+                        None => TracksWriter::create(&tracks_path, &t_ns, start)?,
                     };
                     for t in tracks.into_iter().skip(file.methods()) {
                         file.push(t)?;

@@ -15,7 +15,7 @@ use unz_formats::split_doubles::{SplitFloat, for_each_split_page};
 use unz_formats::tables::values_of;
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
-use unz_stages::earth::Geodetic;
+use unz_stages::earth::{Geodetic, LocalFrame};
 use unz_stages::euler_f32::{HeadingDeg, euler_deg_f32_into};
 use unz_stages::strapdown::{KeepRows, TrackRow, samples_every};
 
@@ -223,7 +223,8 @@ pub struct TracksWriter<'t> {
     sink: ParquetSink,
     schema: SchemaRef,
     t_ns: &'t [i64],
-    start: Geodetic,
+    /// North and east are taken in it.
+    frame: LocalFrame,
     /// The methods written so far.
     methods: usize,
 }
@@ -240,7 +241,7 @@ impl<'t> TracksWriter<'t> {
             sink,
             schema,
             t_ns,
-            start,
+            frame: start.local_frame(),
             methods: 0,
         })
     }
@@ -261,7 +262,7 @@ impl<'t> TracksWriter<'t> {
             t.method,
             t_ns.len()
         );
-        let frame = self.start.local_frame();
+        let frame = &self.frame;
         let (north_m, east_m): (Vec<f32>, Vec<f32>) = t
             .lat_rad
             .iter()
