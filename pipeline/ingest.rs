@@ -230,8 +230,9 @@ impl Sinks {
         Ok(Self {
             imu,
             odo,
-            imu_rows: ImuTable::default(),
-            odo_rows: OdometerTable::default(),
+            // A batch's rows, taken with room for the next ([`ImuTable::take_batch`]).
+            imu_rows: ImuTable::with_room(BATCH_ROWS.min(rows_hint)),
+            odo_rows: OdometerTable::with_room(BATCH_ROWS.min(rows_hint)),
             marks: MarksTable::default(),
             imu_schema,
             odo_schema,

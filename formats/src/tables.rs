@@ -103,19 +103,39 @@ fn vec3_values(b: &RecordBatch, name: &str) -> Result<Vec<[f64; 3]>, FormatError
     Ok(v.as_chunks::<3>().0.to_vec())
 }
 
+/// Moves `v`'s values out, leaving it empty with room for as many: a table filled and
+/// taken batch by batch then fills its next batch without growing (each doubling of a
+/// 64-k-row column copied what it held: 0.5 % of a campaign's CPU in the ingest).
+fn take_with_room<T>(v: &mut Vec<T>) -> Vec<T> {
+    let room = v.capacity();
+    std::mem::replace(v, Vec::with_capacity(room))
+}
+
 impl ImuTable {
-    /// Converts to a record batch, moving the columns out (the table is left empty; the
-    /// vectors' x, y, z become the arrays' values without a copy).
+    /// Empty, with room for `rows` rows.
+    pub fn with_room(rows: usize) -> Self {
+        Self {
+            t_ns: Vec::with_capacity(rows),
+            seq: Vec::with_capacity(rows),
+            dtheta_rad: Vec::with_capacity(rows),
+            dvel_mps: Vec::with_capacity(rows),
+            status: Vec::with_capacity(rows),
+        }
+    }
+
+    /// Converts to a record batch, moving the columns out (the table is left empty, with
+    /// room for as many rows; the vectors' x, y, z become the arrays' values without a
+    /// copy).
     pub fn take_batch(&mut self, schema: SchemaRef) -> Result<RecordBatch, FormatError> {
         let flat = |v: Vec<[f64; 3]>| vec3_array_of(v.into_flattened());
         batch(
             schema,
             vec![
-                Arc::new(Int64Array::from(std::mem::take(&mut self.t_ns))),
-                Arc::new(UInt64Array::from(std::mem::take(&mut self.seq))),
-                flat(std::mem::take(&mut self.dtheta_rad)),
-                flat(std::mem::take(&mut self.dvel_mps)),
-                Arc::new(UInt16Array::from(std::mem::take(&mut self.status))),
+                Arc::new(Int64Array::from(take_with_room(&mut self.t_ns))),
+                Arc::new(UInt64Array::from(take_with_room(&mut self.seq))),
+                flat(take_with_room(&mut self.dtheta_rad)),
+                flat(take_with_room(&mut self.dvel_mps)),
+                Arc::new(UInt16Array::from(take_with_room(&mut self.status))),
             ],
         )
     }
@@ -193,15 +213,26 @@ impl ImuTable {
 }
 
 impl OdometerTable {
-    /// Converts to a record batch, moving the columns out (the table is left empty).
+    /// Empty, with room for `rows` rows.
+    pub fn with_room(rows: usize) -> Self {
+        Self {
+            t_ns: Vec::with_capacity(rows),
+            distance_m: Vec::with_capacity(rows),
+            pulses: Vec::with_capacity(rows),
+            source: Vec::with_capacity(rows),
+        }
+    }
+
+    /// Converts to a record batch, moving the columns out (the table is left empty, with
+    /// room for as many rows).
     pub fn take_batch(&mut self, schema: SchemaRef) -> Result<RecordBatch, FormatError> {
         batch(
             schema,
             vec![
-                Arc::new(Int64Array::from(std::mem::take(&mut self.t_ns))),
-                Arc::new(Float64Array::from(std::mem::take(&mut self.distance_m))),
-                Arc::new(Int64Array::from(std::mem::take(&mut self.pulses))),
-                Arc::new(UInt8Array::from(std::mem::take(&mut self.source))),
+                Arc::new(Int64Array::from(take_with_room(&mut self.t_ns))),
+                Arc::new(Float64Array::from(take_with_room(&mut self.distance_m))),
+                Arc::new(Int64Array::from(take_with_room(&mut self.pulses))),
+                Arc::new(UInt8Array::from(take_with_room(&mut self.source))),
             ],
         )
     }
