@@ -542,6 +542,11 @@ fn export_writes_foxglove_channels() {
         );
     }
     assert!(!said.contains("export: up to date"), "{said}");
+    // Each stage after them asks for the ingest and the derive; one run checks them once.
+    for stage in ["ingest", "derive"] {
+        let checks = said.matches(&format!("{stage}: up to date")).count();
+        assert_eq!(checks, 1, "{stage} checked {checks} times: {said}");
+    }
     let zstd_path = dir.join("corrected.mcap");
     let chunks = mcap_chunk_compressions(&zstd_path);
     assert!(chunks.iter().all(|c| c == "zstd"), "{chunks:?}");

@@ -27,8 +27,13 @@ pub fn ensure_ingest_before_derive(ctx: &RunCtx, params: &Params) -> anyhow::Res
     ingest_keeping(ctx, params, true)
 }
 
-/// Stage 1, its series kept in `ctx` for the derive when it runs and `for_derive`.
+/// Stage 1, its series kept in `ctx` for the derive when it runs and `for_derive`;
+/// checked once per context and parameters ([`RunCtx::ensured_with`]).
 fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Result<PathBuf> {
+    let ensured_with = params_hash(params)?;
+    if ctx.ensured_with("ingest", &ensured_with) {
+        return Ok(ctx.layout().dir(StageName::Ingest));
+    }
     let m = &ctx.manifest;
     let dir = ctx.layout().create(StageName::Ingest)?;
     let mut inputs = vec![m.path.clone(), m.raw.clone()];
@@ -85,11 +90,17 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         );
         Ok(())
     })?;
+    ctx.set_ensured("ingest", ensured_with);
     Ok(dir)
 }
 
-/// Stage 2.
+/// Stage 2, checked once per context and parameters ([`RunCtx::ensured_with`]; a derive
+/// that failed is asked again).
 pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
+    let ensured_with = params_hash(params)?;
+    if ctx.ensured_with("derive", &ensured_with) {
+        return Ok(ctx.layout().dir(StageName::Derive));
+    }
     let ingest_dir = ensure_ingest_before_derive(ctx, params)?;
     let m = &ctx.manifest;
     let dir = ctx.layout().create(StageName::Derive)?;
@@ -212,6 +223,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ctx.set_derived(Some(Arc::new(d)));
         Ok(())
     })?;
+    ctx.set_ensured("derive", ensured_with);
     Ok(dir)
 }
 
@@ -227,4 +239,44 @@ pub fn ensure_finite(what: &str, values: impl IntoIterator<Item = f64>) -> anyho
 /// Normal gravity at the run's site, m/s² (derive's g).
 pub fn site_gravity_mps2(m: &RunManifest) -> f64 {
     earth::normal_gravity_mps2(m.site.latitude_deg.to_radians(), m.site.height_m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The stages of a chain each ask for the derive: one context checks it once for the
+    /// same parameters, and again for others.
+    #[test]
+    fn the_derive_is_checked_once_per_context_and_parameters() {
+        let tmp = tempfile::tempdir().unwrap();
+        let ctx = crate::simulate_io::simulated_ctx(tmp.path(), "once", 5, 300.0).unwrap();
+        let stages = |ctx: &RunCtx| -> Vec<(String, bool)> {
+            let log = ctx.log.lock().unwrap();
+            log.iter()
+                .map(|(s, computed, _)| (s.clone(), *computed))
+                .collect()
+        };
+        let params = Params::default();
+        ensure_derive(&ctx, &params).unwrap();
+        ensure_derive(&ctx, &params).unwrap();
+        ensure_ingest(&ctx, &params).unwrap();
+        let computed = vec![("ingest".to_owned(), true), ("derive".to_owned(), true)];
+        assert_eq!(stages(&ctx), computed);
+        // Other derive parameters: the derive again (the ingest's are the same, but it is
+        // asked for the derive's new parameters).
+        let mut other = params;
+        other.derive.gate_long_mps2 *= 2.0;
+        ensure_derive(&ctx, &other).unwrap();
+        let log = stages(&ctx);
+        assert_eq!(log.len(), 4, "{log:?}");
+        assert_eq!(log[3], ("derive".to_owned(), true));
+        // A new context (another process) checks the records again.
+        let again = RunCtx::new(ctx.manifest.clone(), ctx.out.clone(), false);
+        ensure_derive(&again, &other).unwrap();
+        assert_eq!(
+            stages(&again),
+            vec![("ingest".to_owned(), false), ("derive".to_owned(), false)]
+        );
+    }
 }

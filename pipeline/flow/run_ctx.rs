@@ -41,6 +41,9 @@ pub struct RunCtx {
     /// The series the ingest wrote, when it ran in this process: the derive takes them
     /// instead of reading its files back.
     ingested: std::sync::Mutex<Option<IngestedSeries>>,
+    /// The stages brought up to date in this context (ingest, derive), each with the hash
+    /// of the parameters it was last brought up to date with ([`Self::ensured_with`]).
+    ensured: std::sync::Mutex<Vec<(&'static str, String)>>,
 }
 
 /// Whom a run's process shares the cores with ([`RunCtx::cores`]).
@@ -66,6 +69,7 @@ impl RunCtx {
             cores: Cores::Own,
             derived: std::sync::Mutex::new(None),
             ingested: std::sync::Mutex::new(None),
+            ensured: std::sync::Mutex::new(Vec::new()),
         }
     }
 
@@ -116,6 +120,28 @@ impl RunCtx {
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .take()
+    }
+
+    /// Whether `stage` was brought up to date in this context with the parameters whose
+    /// hash is `params_hash`. The stages of a chain each ask for the ones they read (a
+    /// `unz run` of a cached run checked the derive's record 8 times, the ingest's 9):
+    /// with this, once. Only this process writes the output folder (under its lock), and
+    /// only its stage's own `ensure_` function writes a stage's files, so a stage up to
+    /// date with the same parameters stays so for the context's life.
+    pub(super) fn ensured_with(&self, stage: &str, params_hash: &str) -> bool {
+        self.ensured
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .iter()
+            .any(|(s, h)| *s == stage && h == params_hash)
+    }
+
+    /// Notes that `stage` was brought up to date (computed, or found up to date) with the
+    /// parameters whose hash is `params_hash`.
+    pub(super) fn set_ensured(&self, stage: &'static str, params_hash: String) {
+        let mut ensured = self.ensured.lock().unwrap_or_else(|e| e.into_inner());
+        ensured.retain(|(s, _)| *s != stage);
+        ensured.push((stage, params_hash));
     }
 
     fn record(&self, stage: &str, computed: bool, wall_s: f64) {
