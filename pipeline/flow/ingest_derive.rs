@@ -34,6 +34,8 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
     if ctx.ensured_with("ingest", &ensured_with) {
         return Ok(ctx.layout().dir(StageName::Ingest));
     }
+    // Asked with other parameters, the ingest may run again: the derive read the old one.
+    ctx.forget_ensured("derive");
     let m = &ctx.manifest;
     let dir = ctx.layout().create(StageName::Ingest)?;
     let mut inputs = vec![m.path.clone(), m.raw.clone()];
@@ -271,6 +273,23 @@ mod tests {
         let log = stages(&ctx);
         assert_eq!(log.len(), 4, "{log:?}");
         assert_eq!(log[3], ("derive".to_owned(), true));
+        // The ingest asked for with other parameters of its own runs again: the derive
+        // after it is checked again (up to date: `raw.mcap`'s compression leaves the
+        // tables it reads as they were).
+        let mut zstd = other;
+        zstd.ingest.raw_mcap_compression = unz_formats::mcap_io::McapCompression::Zstd;
+        ensure_ingest(&ctx, &zstd).unwrap();
+        ensure_derive(&ctx, &other).unwrap();
+        let log = stages(&ctx);
+        assert_eq!(
+            log[4..],
+            [
+                ("ingest".to_owned(), true),
+                ("ingest".to_owned(), true),
+                ("derive".to_owned(), false)
+            ],
+            "{log:?}"
+        );
         // A new context (another process) checks the records again.
         let again = RunCtx::new(ctx.manifest.clone(), ctx.out.clone(), false);
         ensure_derive(&again, &other).unwrap();

@@ -136,6 +136,13 @@ impl RunCtx {
             .any(|(s, h)| *s == stage && h == params_hash)
     }
 
+    /// Forgets that `stage` was brought up to date (a stage before it is asked for again:
+    /// it may change what `stage` read).
+    pub(super) fn forget_ensured(&self, stage: &str) {
+        let mut ensured = self.ensured.lock().unwrap_or_else(|e| e.into_inner());
+        ensured.retain(|(s, _)| *s != stage);
+    }
+
     /// Notes that `stage` was brought up to date (computed, or found up to date) with the
     /// parameters whose hash is `params_hash`.
     pub(super) fn set_ensured(&self, stage: &'static str, params_hash: String) {
