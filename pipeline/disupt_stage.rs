@@ -296,6 +296,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             early_kept.as_ref().filter(|_| reviews_early).map(|keep| {
                 let lanes = classic_reviewed(x_before, &case.derived, classic);
                 let outcomes = untracked_reviews(&problem, &lanes, &case.fixes, keep);
+                // Each track cloned: a corrected route among them takes its boresight and
+                // is written again. A file that fails here is written at the end, which
+                // says why.
                 let tracks = early_times.as_deref().and_then(|t_ns| {
                     let mut file = TracksWriter::create(&tracks_path, t_ns, start).ok()?;
                     for o in &outcomes {

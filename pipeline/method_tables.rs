@@ -90,7 +90,7 @@ pub fn track_times(d: &Derived, keep: &[usize]) -> Vec<i64> {
 }
 
 /// One method's trajectory as its review pass keeps it, at [`track_samples`]: what
-/// [`MethodTrack`] holds but its times and local offsets, which [`write_tracks`] makes
+/// [`MethodTrack`] holds but its times and local offsets, which [`TracksWriter`] makes
 /// from the samples and the positions as it writes (16 of a row's 48 bytes fewer held
 /// beside the review lanes: 28 MB for four methods at 12 h).
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -199,26 +199,10 @@ fn cat<T: Copy>(parts: impl Iterator<Item = Vec<T>>) -> Vec<T> {
     parts.flatten().collect()
 }
 
-/// Writes `tracks.parquet`, one method's rows at a time (the methods' columns are not
-/// concatenated in memory first), each track let go once written. `t_ns` is the time of
-/// each kept sample (ns in the log's time base), and north and east are taken from
-/// `start`.
-pub fn write_tracks(
-    path: &Path,
-    t_ns: &[i64],
-    start: Geodetic,
-    tracks: Vec<KeptTrack>,
-) -> anyhow::Result<()> {
-    let mut file = TracksWriter::create(path, t_ns, start)?;
-    for t in tracks {
-        file.push(t)?;
-    }
-    file.finish()
-}
-
-/// `tracks.parquet` as it is written, method by method ([`write_tracks`]): the rows of
-/// the tracks given so far are encoded (those of each full row group in the file), so
-/// that the methods known first are written while the others are still worked out.
+/// `tracks.parquet` as it is written, method by method (the methods' columns are not
+/// concatenated in memory first, each track let go once written): the rows of the
+/// tracks given so far are encoded (those of each full row group in the file), so that
+/// the methods known first are written while the others are still worked out.
 pub struct TracksWriter<'t> {
     sink: ParquetSink,
     schema: SchemaRef,
@@ -532,6 +516,20 @@ pub fn read_kryt1_series(path: &Path) -> anyhow::Result<Vec<MethodKryt1>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `tracks` written to `path` by a [`TracksWriter`] in one go.
+    fn write_tracks(
+        path: &Path,
+        t_ns: &[i64],
+        start: Geodetic,
+        tracks: Vec<KeptTrack>,
+    ) -> anyhow::Result<()> {
+        let mut file = TracksWriter::create(path, t_ns, start)?;
+        for t in tracks {
+            file.push(t)?;
+        }
+        file.finish()
+    }
 
     /// The tracks' start in the tests.
     const START: Geodetic = Geodetic {
