@@ -11,7 +11,7 @@ use unz_formats::schema;
 use unz_formats::schema::DistanceSource;
 use unz_formats::split_doubles::{read_split_doubles, read_split_vec3};
 use unz_formats::tables::{ImuTable, OdometerTable, f64_column, i64_column, u8_column, values_of};
-use unz_stages::derive::{DeriveParams, Derived, RawSeries, derive_owned};
+use unz_stages::derive::{DeriveParams, Derived, IncrementTimes, RawSeries, derive_owned};
 use unz_stages::odo_rebridge::FailedRows;
 use unz_stages::time_base::TagTimes;
 
@@ -272,6 +272,11 @@ impl IngestedSeries {
         Ok((spans, rows))
     }
 
+    /// The IMU's samples.
+    pub fn samples(&self) -> usize {
+        self.imu.t_ns.len()
+    }
+
     /// Samples whose status flags an IMU built-in-test failure (bit 0) and an odometer
     /// failure (bit 1).
     pub fn failure_counts(&self) -> (usize, usize) {
@@ -279,11 +284,12 @@ impl IngestedSeries {
         (count(1), count(2))
     }
 
-    /// Derives the run, the IMU's increments repaired in place (no copy of the run's
-    /// length): [`derive_owned`].
+    /// Derives the run, the IMU's increments repaired in place and its time tags made its
+    /// times in place (no copy of the run's length): [`derive_owned`]. The odometer's
+    /// table goes once its increments are taken, before the samples' intervals are made.
     pub fn derive(self, params: &DeriveParams, g_mps2: f64) -> Derived {
         // The status flags are counted already (failure_counts), the sequence numbers not
-        // read: they go now, and the time tags once the time base is made.
+        // read: they go now.
         let ImuTable {
             t_ns,
             seq,
@@ -292,14 +298,24 @@ impl IngestedSeries {
             status,
         } = self.imu;
         drop((seq, status));
-        let odometer = RawSeries {
-            imu_t_ns: &[],
-            dtheta_rad: &[],
-            dvel_mps: &[],
-            odo_t_ns: (&self.odo.t_ns).into(),
-            odo_distance_m: &self.odo.distance_m,
+        let odo = self.odo;
+        let increments = move |at: IncrementTimes<'_>| {
+            at.of(&RawSeries {
+                imu_t_ns: &[],
+                dtheta_rad: &[],
+                dvel_mps: &[],
+                odo_t_ns: (&odo.t_ns).into(),
+                odo_distance_m: &odo.distance_m,
+            })
         };
-        derive_owned(t_ns.into(), dtheta_rad, dvel_mps, &odometer, params, g_mps2)
+        derive_owned(
+            t_ns.into(),
+            dtheta_rad,
+            dvel_mps,
+            increments,
+            params,
+            g_mps2,
+        )
     }
 }
 

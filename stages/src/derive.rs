@@ -532,7 +532,7 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
         raw.imu_t_ns.into(),
         raw.dtheta_rad.to_vec(),
         raw.dvel_mps.to_vec(),
-        raw,
+        |at| at.of(raw),
         params,
         g_mps2,
     )
@@ -540,13 +540,14 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
 
 /// [`derive()`] of the IMU's increments given by value: they are repaired in place and
 /// become the derive's, without a copy of the run's length. The IMU's time tags, when
-/// given by value too, go once the time base is made. The odometer is `raw`'s (its IMU
-/// columns are not read).
+/// given by value too, become its times in place. The odometer is read once, by
+/// `odometer_increments` (its increments over the samples: [`IncrementTimes::of`]), before
+/// the samples' intervals are made: an odometer it owns goes when it returns.
 pub fn derive_owned(
     imu_t_ns: std::borrow::Cow<'_, [i64]>,
     mut dtheta_rad: Vec<[f64; 3]>,
     mut dvel_mps: Vec<[f64; 3]>,
-    raw: &RawSeries<'_>,
+    odometer_increments: impl FnOnce(IncrementTimes<'_>) -> Vec<f64>,
     params: &DeriveParams,
     g_mps2: f64,
 ) -> Derived {
@@ -573,17 +574,39 @@ pub fn derive_owned(
     out.t0_ns = t0;
     out.nominal_dt_s = nominal;
 
-    // Time base, repaired; lost stretches filled by holding the rate; increments beyond
-    // the instrument's range replaced by the previous sample's rates.
+    // Time base, repaired: each tag becomes its time where it was stored (the same
+    // bytes, an i64 read as its bits and overwritten by an f64).
+    let mut t_s: Vec<f64> = bytemuck::cast_vec(imu_t_ns.into_owned());
+    t_s.truncate(n);
     let mut prev_t = -nominal;
-    let mut prev_rates = ([0.0; 3], [0.0; 3]);
-    let (mut t_s, mut dt_s) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    for k in 0..n {
-        let mut t = (imu_t_ns[k] - t0) as f64 * 1e-9;
+    for (k, slot) in t_s.iter_mut().enumerate() {
+        let mut t = (slot.to_bits() as i64 - t0) as f64 * 1e-9;
         if k > 0 && t <= prev_t {
             t = prev_t + nominal;
             out.repaired_times += 1;
         }
+        *slot = t;
+        prev_t = t;
+    }
+    let t_s = Arc::new(t_s);
+    out.t_s = TimeBase::Seconds(Arc::clone(&t_s));
+    // The first sample's interval: from the time one nominal interval before it.
+    let first_dt_s = t_s[0] - (-nominal);
+    // The odometer's increments over the samples: the odometer is read once, and an
+    // odometer given by value goes before the intervals are made.
+    let increments = odometer_increments(IncrementTimes {
+        t_s: &out.t_s,
+        first_dt_s,
+        t0_ns: t0,
+        offset_s: params.odo_time_offset_s,
+    });
+
+    // Lost stretches filled by holding the rate; increments beyond the instrument's range
+    // replaced by the previous sample's rates.
+    let mut prev_t = -nominal;
+    let mut prev_rates = ([0.0; 3], [0.0; 3]);
+    let mut dt_s = Vec::with_capacity(n);
+    for (k, &t) in t_s.iter().enumerate() {
         let dt = t - prev_t;
         let scale = if dt > 1.5 * nominal {
             out.filled_gaps += 1;
@@ -605,15 +628,13 @@ pub fn derive_owned(
         if replaced {
             out.replaced_increments.push(k);
         }
-        t_s.push(t);
         dt_s.push(dt);
         dtheta_rad[k] = dth;
         dvel_mps[k] = dv;
         prev_t = t;
     }
-    drop(imu_t_ns);
-    (out.t_s, out.dt_s, out.dtheta_rad, out.dvel_mps) =
-        (t_s.into(), dt_s.into(), dtheta_rad.into(), dvel_mps.into());
+    drop(t_s);
+    (out.dt_s, out.dtheta_rad, out.dvel_mps) = (dt_s.into(), dtheta_rad.into(), dvel_mps.into());
 
     // The filter F, then eqs 7–8 at the epochs.
     let lp = LowPass::new(&params.filter, nominal);
@@ -629,9 +650,41 @@ pub fn derive_owned(
         f
     };
     (out.ax_f, out.ay_f) = (accel(0).into(), accel(1).into());
-    odometer_blocks(&mut out, raw, params.odo_time_offset_s, &lp);
+    odometer_blocks_from(&mut out, increments, &lp);
     out.epochs = epochs_of(&out, &lp, params, g_mps2);
     out
+}
+
+/// Where an odometer's increments are taken ([`derive_owned`]'s): over the IMU's samples,
+/// with the odometer's time tags moved by an offset.
+#[derive(Debug, Clone, Copy)]
+pub struct IncrementTimes<'a> {
+    /// The samples' times, s since `t0_ns`.
+    pub t_s: &'a TimeBase,
+    /// The first sample's interval, s.
+    pub first_dt_s: f64,
+    /// The IMU's time of the first sample, ns.
+    pub t0_ns: i64,
+    /// Added to the odometer's times, s.
+    pub offset_s: f64,
+}
+
+impl IncrementTimes<'_> {
+    /// The odometer distance of `raw` over each sample's interval, m
+    /// ([`odometer_increments`]).
+    pub fn of(self, raw: &RawSeries<'_>) -> Vec<f64> {
+        MovedOdometer {
+            t_s: self.t_s,
+            first_dt_s: self.first_dt_s,
+            t0_ns: self.t0_ns,
+            odo_t_ns: raw.odo_t_ns,
+            odo_distance_m: raw.odo_distance_m,
+            offset_s: self.offset_s,
+            patch: None,
+        }
+        .increments()
+        .collect()
+    }
 }
 
 /// The odometer's distance over each sample's interval of `d` with the odometer's time
@@ -736,7 +789,11 @@ impl ExactSizeIterator for OdoIncrements<'_> {}
 /// and F's block series of u̇, ru and the odometer-bias sensitivities (r while moving,
 /// the rate of change of "moving"): [`odometer_blocks_of`].
 pub fn odometer_blocks(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64, lp: &LowPass) {
-    let increments = odometer_increments(out, raw, offset_s);
+    odometer_blocks_from(out, odometer_increments(out, raw, offset_s), lp);
+}
+
+/// [`odometer_blocks`] of the odometer's `increments` over each sample, m.
+fn odometer_blocks_from(out: &mut Derived, increments: Vec<f64>, lp: &LowPass) {
     [out.u_dot_f, out.ru_f, out.r_moving_f, out.moving_dot_f] =
         odometer_blocks_split(out, lp, true, |k| {
             increments[k.min(increments.len())..].iter().copied()
@@ -1320,6 +1377,57 @@ mod tests {
             d.without_odometer_series().replaced_increments,
             d.replaced_increments
         );
+    }
+
+    /// The IMU's time tags given by value become the derive's times where they were
+    /// stored (no second vector of the run's length), repaired as given by reference;
+    /// every series is the borrowed derive's, bit for bit, with a gap and a tag going
+    /// back among them.
+    #[test]
+    fn tags_given_by_value_become_the_times_in_place() {
+        let (mut t, dtheta, dvel, odo_t, odo_d) = drive();
+        for (k, tk) in t.iter_mut().enumerate() {
+            *tk += 50_000_000 * i64::from(k >= 5_000);
+        }
+        t[17_000] = t[16_999] - 1;
+        let columns = (t, dtheta, dvel, odo_t, odo_d);
+        let params = DeriveParams::default();
+        let borrowed = derive(&series(&columns), &params, 9.81);
+        let tags = columns.0.clone();
+        let tags_at = tags.as_ptr() as usize;
+        let mut odometer_reads = 0;
+        let owned = derive_owned(
+            tags.into(),
+            columns.1.clone(),
+            columns.2.clone(),
+            |at| {
+                odometer_reads += 1;
+                at.of(&series(&columns))
+            },
+            &params,
+            9.81,
+        );
+        assert_eq!(odometer_reads, 1);
+        let TimeBase::Seconds(times) = &owned.t_s else {
+            panic!("a derive's own times are seconds");
+        };
+        assert_eq!(times.as_ptr() as usize, tags_at, "the tags' vector reused");
+        assert_eq!(owned.repaired_times, 1);
+        let t0 = columns.0[0];
+        for (k, &t) in times.iter().enumerate() {
+            let given = (columns.0[k] - t0) as f64 * 1e-9;
+            let want = if k == 17_000 {
+                times[k - 1] + owned.nominal_dt_s
+            } else {
+                given
+            };
+            assert_eq!(t.to_bits(), want.to_bits(), "sample {k}");
+        }
+        assert_eq!(owned, borrowed);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&owned.dt_s), bits(&borrowed.dt_s));
+        assert_eq!(bits(&owned.odo_dist_m), bits(&borrowed.odo_dist_m));
+        assert_eq!(bits(&owned.u_dot_f), bits(&borrowed.u_dot_f));
     }
 
     #[test]
