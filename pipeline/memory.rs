@@ -73,50 +73,7 @@ pub fn keep_freed_memory() -> bool {
             libc::mallopt(libc::M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES) == 1
                 && libc::mallopt(libc::M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES) == 1
         };
-        KEEPING_FREED_MEMORY.store(ok, std::sync::atomic::Ordering::Relaxed);
         ok
-    }
-    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-    {
-        false
-    }
-}
-
-/// Whether [`keep_freed_memory`]'s settings took in this process.
-static KEEPING_FREED_MEMORY: std::sync::atomic::AtomicBool =
-    std::sync::atomic::AtomicBool::new(false);
-
-/// Samples from which a run's per-sample `f64` columns are each larger than
-/// [`MMAP_THRESHOLD_BYTES`]: glibc maps them apart, even in a process that keeps what it
-/// frees (at 100 Hz, 11.7 hours).
-pub const MAPPED_COLUMN_SAMPLES: usize = MMAP_THRESHOLD_BYTES as usize / 8;
-
-/// Gives what glibc's heap holds free back to the kernel (`malloc_trim`) before a stage
-/// of a run of `samples` samples, in a process that keeps what it frees
-/// ([`keep_freed_memory`]), when the run's columns are mapped apart
-/// ([`MAPPED_COLUMN_SAMPLES`]). Returns whether it did.
-///
-/// Why: the heap's free blocks are what the stages before left (their blocks below
-/// 32 MiB: block series, encoders' buffers), kept for reuse. A shorter run's next stage
-/// reuses them for its columns; a long run's columns come from mappings of their own,
-/// and those blocks only sit resident beside them. In a 12-hour `unz run` they were
-/// 40–90 MB when the derive and the disupt stages began: its peak 444–448 → 432–435 MiB
-/// (`docs/performance.md`, session 46).
-pub fn give_back_freed_memory_before_stage(samples: usize) -> bool {
-    if samples < MAPPED_COLUMN_SAMPLES
-        || !KEEPING_FREED_MEMORY.load(std::sync::atomic::Ordering::Relaxed)
-    {
-        return false;
-    }
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    {
-        // SAFETY: `malloc_trim` takes no pointers; it releases free memory of glibc's
-        // arenas under their own locks (malloc_trim(3)), and live blocks are untouched.
-        #[allow(unsafe_code)]
-        unsafe {
-            libc::malloc_trim(0);
-        }
-        true
     }
     #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
     {
@@ -157,23 +114,6 @@ mod tests {
             keep_freed_memory(),
             cfg!(all(target_os = "linux", target_env = "gnu"))
         );
-    }
-
-    /// Only a process that keeps what it frees gives it back, and only before the stages
-    /// of a run whose columns are mapped apart.
-    #[test]
-    fn the_heap_is_given_back_only_for_runs_whose_columns_are_mapped_apart() {
-        let glibc = keep_freed_memory();
-        assert!(!give_back_freed_memory_before_stage(0));
-        assert!(!give_back_freed_memory_before_stage(
-            MAPPED_COLUMN_SAMPLES - 1
-        ));
-        assert_eq!(
-            give_back_freed_memory_before_stage(MAPPED_COLUMN_SAMPLES),
-            glibc
-        );
-        // 12 hours at 100 Hz.
-        assert_eq!(give_back_freed_memory_before_stage(4_320_000), glibc);
     }
 
     #[test]

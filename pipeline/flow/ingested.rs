@@ -272,11 +272,6 @@ impl IngestedSeries {
         Ok((spans, rows))
     }
 
-    /// The IMU's samples.
-    pub fn samples(&self) -> usize {
-        self.imu.t_ns.len()
-    }
-
     /// Samples whose status flags an IMU built-in-test failure (bit 0) and an odometer
     /// failure (bit 1).
     pub fn failure_counts(&self) -> (usize, usize) {

@@ -44,10 +44,6 @@ pub struct RunCtx {
     /// The stages brought up to date in this context (ingest, derive), each with the hash
     /// of the parameters it was last brought up to date with ([`Self::ensured_with`]).
     ensured: std::sync::Mutex<Vec<(&'static str, String)>>,
-    /// The run's samples, once the chain has held its series in memory (the ingest's or
-    /// the derive's), else 0: how long the run is, for the heap's keeping
-    /// ([`crate::memory::give_back_freed_memory_before_stage`]).
-    samples_seen: std::sync::atomic::AtomicUsize,
 }
 
 /// Whom a run's process shares the cores with ([`RunCtx::cores`]).
@@ -74,7 +70,6 @@ impl RunCtx {
             derived: std::sync::Mutex::new(None),
             ingested: std::sync::Mutex::new(None),
             ensured: std::sync::Mutex::new(Vec::new()),
-            samples_seen: std::sync::atomic::AtomicUsize::new(0),
         }
     }
 
@@ -89,7 +84,6 @@ impl RunCtx {
         let d = Arc::new(load_derived_for_navigation(&StoredDerive::of(
             &self.layout(),
         ))?);
-        self.saw_samples(d.t_s.len());
         *memo = Some(d.clone());
         Ok(d)
     }
@@ -112,17 +106,11 @@ impl RunCtx {
     }
 
     pub(super) fn set_derived(&self, d: Option<Arc<Derived>>) {
-        if let Some(d) = &d {
-            self.saw_samples(d.t_s.len());
-        }
         *self.derived.lock().unwrap_or_else(|e| e.into_inner()) = d;
     }
 
     /// Keeps the series the ingest just wrote for the derive (none: forgets any kept).
     pub(super) fn set_ingested(&self, series: Option<IngestedSeries>) {
-        if let Some(series) = &series {
-            self.saw_samples(series.samples());
-        }
         *self.ingested.lock().unwrap_or_else(|e| e.into_inner()) = series;
     }
 
@@ -163,11 +151,6 @@ impl RunCtx {
         ensured.push((stage, params_hash));
     }
 
-    fn saw_samples(&self, samples: usize) {
-        self.samples_seen
-            .store(samples, std::sync::atomic::Ordering::Relaxed);
-    }
-
     fn record(&self, stage: &str, computed: bool, wall_s: f64) {
         if let Ok(mut log) = self.log.lock() {
             log.push((stage.to_owned(), computed, wall_s));
@@ -204,17 +187,6 @@ impl RunCtx {
             return Ok(());
         }
         stage.invalidate()?;
-        if crate::memory::give_back_freed_memory_before_stage(
-            self.samples_seen.load(std::sync::atomic::Ordering::Relaxed),
-        ) {
-            self.say(
-                stage.name,
-                &format!(
-                    "gave the heap's free memory back{}",
-                    crate::memory::rss_suffix()
-                ),
-            );
-        }
         body().with_context(|| format!("{}: stage {} failed", self.manifest.name, stage.name))?;
         stage.commit(self.manifest.dir())?;
         let wall_s = t0.elapsed().as_secs_f64();
