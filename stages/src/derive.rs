@@ -574,21 +574,21 @@ pub fn derive_owned(
     out.t0_ns = t0;
     out.nominal_dt_s = nominal;
 
-    // Time base, repaired: each tag becomes its time where it was stored (the same
-    // bytes, an i64 read as its bits and overwritten by an f64).
-    let mut t_s: Vec<f64> = bytemuck::cast_vec(imu_t_ns.into_owned());
-    t_s.truncate(n);
+    // Time base, repaired: each tag becomes its time where it was stored (the f64's
+    // bits written over the i64's, then the vector taken as the f64s it holds).
+    let mut tags = imu_t_ns.into_owned();
+    tags.truncate(n);
     let mut prev_t = -nominal;
-    for (k, slot) in t_s.iter_mut().enumerate() {
-        let mut t = (slot.to_bits() as i64 - t0) as f64 * 1e-9;
+    for (k, slot) in tags.iter_mut().enumerate() {
+        let mut t = (*slot - t0) as f64 * 1e-9;
         if k > 0 && t <= prev_t {
             t = prev_t + nominal;
             out.repaired_times += 1;
         }
-        *slot = t;
+        *slot = t.to_bits() as i64;
         prev_t = t;
     }
-    let t_s = Arc::new(t_s);
+    let t_s: Arc<Vec<f64>> = Arc::new(bytemuck::cast_vec(tags));
     out.t_s = TimeBase::Seconds(Arc::clone(&t_s));
     // The first sample's interval: from the time one nominal interval before it.
     let first_dt_s = t_s[0] - (-nominal);
@@ -669,10 +669,15 @@ pub struct IncrementTimes<'a> {
     pub offset_s: f64,
 }
 
-impl IncrementTimes<'_> {
+impl<'a> IncrementTimes<'a> {
     /// The odometer distance of `raw` over each sample's interval, m
     /// ([`odometer_increments`]).
-    pub fn of(self, raw: &RawSeries<'_>) -> Vec<f64> {
+    pub fn of(self, raw: &RawSeries<'a>) -> Vec<f64> {
+        self.moved(raw).increments().collect()
+    }
+
+    /// `raw`'s odometer over these samples, its increments read as a pass goes.
+    fn moved(self, raw: &RawSeries<'a>) -> MovedOdometer<'a> {
         MovedOdometer {
             t_s: self.t_s,
             first_dt_s: self.first_dt_s,
@@ -682,8 +687,6 @@ impl IncrementTimes<'_> {
             offset_s: self.offset_s,
             patch: None,
         }
-        .increments()
-        .collect()
     }
 }
 
@@ -711,15 +714,13 @@ pub struct MovedOdometer<'a> {
 impl<'a> MovedOdometer<'a> {
     /// The increments over the samples of `d` of `raw`'s odometer moved by `offset_s`.
     pub fn new(d: &'a Derived, raw: &RawSeries<'a>, offset_s: f64) -> Self {
-        Self {
+        IncrementTimes {
             t_s: &d.t_s,
             first_dt_s: d.dt_s.first().copied().unwrap_or(0.0),
             t0_ns: d.t0_ns,
-            odo_t_ns: raw.odo_t_ns,
-            odo_distance_m: raw.odo_distance_m,
             offset_s,
-            patch: None,
         }
+        .moved(raw)
     }
 
     /// This odometer with `patch`'s distances over some of its rows.
@@ -1428,6 +1429,28 @@ mod tests {
         assert_eq!(bits(&owned.dt_s), bits(&borrowed.dt_s));
         assert_eq!(bits(&owned.odo_dist_m), bits(&borrowed.odo_dist_m));
         assert_eq!(bits(&owned.u_dot_f), bits(&borrowed.u_dot_f));
+        // A clock that counts up to its epoch: every tag negative (as an f64's bits, a
+        // NaN's), the odometer's moved alike. The same times, counted from the first.
+        let before_epoch_ns = 1_000_000_000_000;
+        let earlier = |t: &[i64]| t.iter().map(|t| t - before_epoch_ns).collect::<Vec<_>>();
+        let shifted = (
+            earlier(&columns.0),
+            columns.1.clone(),
+            columns.2.clone(),
+            earlier(&columns.3),
+            columns.4.clone(),
+        );
+        let negative = derive_owned(
+            earlier(&columns.0).into(),
+            columns.1.clone(),
+            columns.2.clone(),
+            |at| at.of(&series(&shifted)),
+            &params,
+            9.81,
+        );
+        assert_eq!(bits(&negative.t_s.to_vec()), bits(times));
+        assert_eq!(negative.t0_ns, owned.t0_ns - before_epoch_ns);
+        assert_eq!(bits(&negative.odo_dist_m), bits(&owned.odo_dist_m));
     }
 
     #[test]
