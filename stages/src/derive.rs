@@ -541,13 +541,13 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
 /// [`derive()`] of the IMU's increments given by value: they are repaired in place and
 /// become the derive's, without a copy of the run's length. The IMU's time tags, when
 /// given by value too, become its times in place. The odometer is read once, by
-/// `odometer_increments` (its increments over the samples: [`IncrementTimes::of`]), before
+/// `increments_over` (its increments over the samples: [`IncrementTimes::of`]), before
 /// the samples' intervals are made: an odometer it owns goes when it returns.
 pub fn derive_owned(
     imu_t_ns: std::borrow::Cow<'_, [i64]>,
     mut dtheta_rad: Vec<[f64; 3]>,
     mut dvel_mps: Vec<[f64; 3]>,
-    odometer_increments: impl FnOnce(IncrementTimes<'_>) -> Vec<f64>,
+    increments_over: impl FnOnce(IncrementTimes<'_>) -> Vec<f64>,
     params: &DeriveParams,
     g_mps2: f64,
 ) -> Derived {
@@ -594,7 +594,7 @@ pub fn derive_owned(
     let first_dt_s = t_s[0] - (-nominal);
     // The odometer's increments over the samples: the odometer is read once, and an
     // odometer given by value goes before the intervals are made.
-    let increments = odometer_increments(IncrementTimes {
+    let increments = increments_over(IncrementTimes {
         t_s: &out.t_s,
         first_dt_s,
         t0_ns: t0,
