@@ -49,7 +49,8 @@ def write_kf_gins_inputs(run: Path, ingest: Path, out: Path) -> Path:
                     "%.9f %.11f %.11f %.4f 0.02 0.02 0.04\n"
                     % (T0_S + t * 1e-9, truth["lat_deg"][i], truth["lon_deg"][i], truth["h_m"][i])
                 )
-    k = truth["t_ns"].index(imu["t_ns"][0])
+    first_ns = imu["t_ns"][0]
+    k = truth["t_ns"].index(first_ns)
     config = out / "kf-gins.yaml"
     config.write_text(
         f"""imupath: "{out / 'imu.txt'}"
@@ -57,7 +58,7 @@ gnsspath: "{out / 'gnss.txt'}"
 outputpath: "{out}"
 imudatalen: 7
 imudatarate: 100
-starttime: {T0_S + imu['t_ns'][0] * 1e-9:.9f}
+starttime: {T0_S + first_ns * 1e-9:.9f}
 endtime: -1
 initpos: [ {truth['lat_deg'][k]!r}, {truth['lon_deg'][k]!r}, {truth['h_m'][k]!r} ]
 initvel: [ 0.0, 0.0, 0.0 ]
@@ -111,14 +112,14 @@ def main() -> None:
     kf_dir.mkdir(exist_ok=True)
     config = write_kf_gins_inputs(run, out / "sim-0041" / "ingest", kf_dir)
 
-    passes, disupts, firsts, campaigns = [], [], [], []
+    passes, back_to_back, firsts, campaigns = [], [], [], []
     for _ in range(a.rounds):
         passes.append(timed([a.kf_gins, str(config)]))
         for i in range(a.per_round):
             shutil.rmtree(out / "sim-0041" / "disupt", ignore_errors=True)
             # The first after a KF-GINS pass starts, as a user's would, seconds after the
             # process before it; the others back to back.
-            (firsts if i == 0 else disupts).append(timed([unz, "disupt", str(run), "--out", str(out)]))
+            (firsts if i == 0 else back_to_back).append(timed([unz, "disupt", str(run), "--out", str(out)]))
     for _ in range(a.campaigns):
         passes.append(timed([a.kf_gins, str(config)]))
         os.sync()
@@ -129,7 +130,7 @@ def main() -> None:
 
     k = statistics.median(passes)
     print(f"KF-GINS pass: median {k:.3f} s of {len(passes)} ({' '.join(f'{x:.2f}' for x in passes)})")
-    for what, ds in [("back to back", disupts), ("each first after a KF-GINS pass", firsts)]:
+    for what, ds in [("back to back", back_to_back), ("each first after a KF-GINS pass", firsts)]:
         if not ds:
             continue
         d, q = statistics.median(ds), sorted(ds)
