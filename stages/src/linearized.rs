@@ -126,7 +126,7 @@ pub const AGREE_ATTITUDE_RAD: f64 = 1e-5;
 pub const AGREE_POSITION_M: f64 = 0.1;
 
 /// What the criteria read from one navigation pass.
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Default, PartialEq)]
 pub struct Observation {
     /// Filtered gyro pitch Θ_N at every epoch, rad.
     pub theta_rad: Vec<f64>,
@@ -138,6 +138,27 @@ pub struct Observation {
     /// (north, east): the first two rows and columns of `C_b^n` at its stop (an exact
     /// pass's; a prediction keeps its reference's).
     pub cp_arm_ne: Vec<[[f64; 2]; 2]>,
+}
+
+/// Written out for `clone_from`, which the derived `Clone` would make a fresh clone: a
+/// prediction into a kept observation ([`Linearization::predict_into`], at every
+/// evaluation of the methods' searches) reuses its buffers instead of allocating four.
+impl Clone for Observation {
+    fn clone(&self) -> Self {
+        Self {
+            theta_rad: self.theta_rad.clone(),
+            phi_rad: self.phi_rad.clone(),
+            cp_m: self.cp_m.clone(),
+            cp_arm_ne: self.cp_arm_ne.clone(),
+        }
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        self.theta_rad.clone_from(&source.theta_rad);
+        self.phi_rad.clone_from(&source.phi_rad);
+        self.cp_m.clone_from(&source.cp_m);
+        self.cp_arm_ne.clone_from(&source.cp_arm_ne);
+    }
 }
 
 impl Observation {
@@ -287,6 +308,36 @@ mod tests {
             cp_m: vec![[a, 3.0 * a]],
             cp_arm_ne: Vec::new(),
         }
+    }
+
+    #[test]
+    fn a_prediction_into_a_kept_observation_reuses_its_buffers() {
+        let mut slopes: [Option<Observation>; N_PARAMS] = Default::default();
+        slopes[0] = Some(obs(1.0));
+        let mut y_ref = obs(0.5);
+        y_ref.cp_arm_ne = vec![[[1.0, 0.0], [0.0, 1.0]]];
+        let lin = Linearization {
+            p_ref: [0.0; N_PARAMS],
+            y_ref,
+            slopes,
+        };
+        let mut out = lin.predict(&[0.0; N_PARAMS]);
+        let buffers = |o: &Observation| {
+            (
+                o.theta_rad.as_ptr(),
+                o.phi_rad.as_ptr(),
+                o.cp_m.as_ptr(),
+                o.cp_arm_ne.as_ptr(),
+            )
+        };
+        let before = buffers(&out);
+        let mut p = [0.0; N_PARAMS];
+        p[0] = 2.0;
+        lin.predict_into(&p, &mut out);
+        assert_eq!(buffers(&out), before);
+        assert_eq!(out, lin.predict(&p));
+        assert_eq!(out.theta_rad, vec![2.5, 5.0]);
+        assert_eq!(out.cp_arm_ne, lin.y_ref.cp_arm_ne);
     }
 
     #[test]

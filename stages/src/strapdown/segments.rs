@@ -553,6 +553,10 @@ struct Group<const W: usize> {
     dist: Vec<[f64; W]>,
     s_mov: Vec<[[f64; W]; 9]>,
     t_mov: Vec<[f64; W]>,
+    /// Per odometer: the current step's increments in each lane (scratch, kept between
+    /// groups: allocated per group, it made the walk's threads wait on the allocator's
+    /// lock).
+    step_d: Vec<[f64; W]>,
 }
 
 impl<const W: usize> Group<W> {
@@ -565,6 +569,7 @@ impl<const W: usize> Group<W> {
             dist: vec![[0.0; W]; odometers],
             s_mov: vec![[[0.0; W]; 9]; odometers],
             t_mov: vec![[0.0; W]; odometers],
+            step_d: vec![[0.0; W]; odometers],
         }
     }
 
@@ -622,7 +627,9 @@ impl<const W: usize> Group<W> {
             }
         }
         let longest = len.iter().copied().max().unwrap_or(0);
-        let mut d = vec![[0.0; W]; odometers];
+        let mut d = std::mem::take(&mut self.step_d);
+        d.clear();
+        d.resize(odometers, [0.0; W]);
         for j in 0..longest {
             // This step's samples, zero past a lane's segment (no turn, no time, no
             // distance: its sums stay as they are).
@@ -695,6 +702,7 @@ impl<const W: usize> Group<W> {
                 }
             }
         }
+        self.step_d = d;
     }
 
     /// Lane `l`'s IMU segment.
