@@ -49,6 +49,22 @@ pub struct Kryt1Series {
     pub kryt1_cum: Vec<f64>,
 }
 
+impl Kryt1Series {
+    /// Empty series with room for `n` epochs each.
+    fn with_capacity(n: usize) -> Self {
+        let v = || Vec::with_capacity(n);
+        Self {
+            theta_n_rad: v(),
+            phi_n_rad: v(),
+            d_theta_rad: v(),
+            d_phi_rad: v(),
+            kf_theta_rad: v(),
+            kf_phi_rad: v(),
+            kryt1_cum: v(),
+        }
+    }
+}
+
 /// Reusable buffers of [`kryt1`] and [`epoch_attitude`], so repeated evaluations of
 /// stored tracks allocate nothing.
 #[derive(Debug, Clone, Default)]
@@ -335,10 +351,12 @@ pub fn kryt1_with(
     mut attitude: impl FnMut(usize) -> (f64, f64),
     mut series: Option<&mut Kryt1Series>,
 ) -> f64 {
-    if let Some(s) = series.as_deref_mut() {
-        *s = Kryt1Series::default();
-    }
     let n = gains.epochs();
+    if let Some(s) = series.as_deref_mut() {
+        // Room for each series' values made once: grown value by value, each doubling
+        // copied them under the allocator's lock, which the other core's work waited on.
+        *s = Kryt1Series::with_capacity(n);
+    }
     assert_eq!(
         n,
         epochs
