@@ -553,7 +553,7 @@ struct Group<const W: usize> {
     dist: Vec<[f64; W]>,
     s_mov: Vec<[[f64; W]; 9]>,
     t_mov: Vec<[f64; W]>,
-    /// Per odometer: the current step's increments in each lane (scratch, kept between
+    /// Per odometer: the current step's increments in each lane (scratch kept between
     /// groups: allocated per group, it made the walk's threads wait on the allocator's
     /// lock).
     step_d: Vec<[f64; W]>,
@@ -627,9 +627,9 @@ impl<const W: usize> Group<W> {
             }
         }
         let longest = len.iter().copied().max().unwrap_or(0);
-        let mut d = std::mem::take(&mut self.step_d);
-        d.clear();
-        d.resize(odometers, [0.0; W]);
+        // Every lane of every odometer is written at each step before it is read.
+        let d = &mut self.step_d;
+        debug_assert_eq!(d.len(), odometers);
         for j in 0..longest {
             // This step's samples, zero past a lane's segment (no turn, no time, no
             // distance: its sums stay as they are).
@@ -702,7 +702,6 @@ impl<const W: usize> Group<W> {
                 }
             }
         }
-        self.step_d = d;
     }
 
     /// Lane `l`'s IMU segment.
