@@ -27,6 +27,7 @@ pub mod ros2_msgs;
 pub mod schema;
 pub mod speed_spikes;
 pub mod split_doubles;
+mod split_pages;
 pub mod tables;
 
 pub use error::{FileError, FormatError};

@@ -25,6 +25,8 @@ use parquet::file::reader::{ChunkReader, Length};
 use parquet::file::writer::{SerializedPageWriter, SerializedRowGroupWriter, TrackedWrite};
 use parquet::schema::types::ColumnDescPtr;
 
+use crate::split_pages::SplitColumn;
+
 /// How a column's values lie when it is written directly (see the module's notes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum DirectShape {
@@ -117,22 +119,29 @@ struct MemoryPages(SharedPages);
 
 impl PageWriter for MemoryPages {
     fn write_page(&mut self, page: CompressedPage) -> Result<PageWriteSpec, ParquetError> {
-        // Room for the page and its header (a few dozen bytes: no page statistics).
-        let mut sink = TrackedWrite::new(Vec::with_capacity(page.data().len() + 256));
-        let mut spec = SerializedPageWriter::new(&mut sink).write_page(page)?;
-        let piece = Bytes::from(sink.into_inner()?);
-        let mut pages = self
-            .0
+        self.0
             .lock()
-            .map_err(|_| ParquetError::General("a column's pages were poisoned".into()))?;
-        spec.offset += pages.len;
-        pages.len += piece.len() as u64;
-        pages.pieces.push(piece);
-        Ok(spec)
+            .map_err(|_| ParquetError::General("a column's pages were poisoned".into()))?
+            .push(page)
     }
 
     fn close(&mut self) -> Result<(), ParquetError> {
         Ok(())
+    }
+}
+
+impl ChunkPages {
+    /// Appends `page` as a file's page writer writes it (`SerializedPageWriter`: the same
+    /// header, the same bytes), at the chunk's end: its spec, offset within the chunk.
+    pub(crate) fn push(&mut self, page: CompressedPage) -> Result<PageWriteSpec, ParquetError> {
+        // Room for the page and its header (a few dozen bytes: no page statistics).
+        let mut sink = TrackedWrite::new(Vec::with_capacity(page.data().len() + 256));
+        let mut spec = SerializedPageWriter::new(&mut sink).write_page(page)?;
+        let piece = Bytes::from(sink.into_inner()?);
+        spec.offset += self.len;
+        self.len += piece.len() as u64;
+        self.pieces.push(piece);
+        Ok(spec)
     }
 }
 
@@ -188,16 +197,13 @@ impl Read for PagesReader {
     }
 }
 
-/// A column without nulls written from its values as they lie (see the module's notes).
-pub(crate) struct DirectColumn {
-    writer: ColumnWriter<'static>,
-    pages: SharedPages,
-    shape: DirectShape,
-    max_def_level: i16,
-    /// A list column's levels for the longest batch so far (its prefix serves shorter
-    /// ones).
-    def_levels: Vec<i16>,
-    rep_levels: Vec<i16>,
+/// A column without nulls written from its values as they lie (see the module's notes):
+/// a flat float column by [`SplitColumn`] when the file's settings allow, else by the
+/// crate's typed column writer.
+pub(crate) enum DirectColumn {
+    SplitF64(SplitColumn<f64>),
+    SplitF32(SplitColumn<f32>),
+    Typed(Box<TypedColumn>),
 }
 
 impl DirectColumn {
@@ -208,6 +214,80 @@ impl DirectColumn {
         props: WriterPropertiesPtr,
         shape: DirectShape,
     ) -> Option<Self> {
+        if shape == DirectShape::Flat {
+            if let Some(c) = SplitColumn::new(descr.clone(), props.clone()) {
+                return Some(Self::SplitF64(c));
+            }
+            if let Some(c) = SplitColumn::new(descr.clone(), props.clone()) {
+                return Some(Self::SplitF32(c));
+            }
+        }
+        TypedColumn::new(descr, props, shape).map(|c| Self::Typed(Box::new(c)))
+    }
+
+    /// Whether the column is written as split float pages.
+    #[cfg(test)]
+    pub(crate) fn is_split(&self) -> bool {
+        !matches!(self, Self::Typed(_))
+    }
+
+    /// Encodes `column`'s rows.
+    pub(crate) fn write(&mut self, column: &ArrayRef) -> Result<(), ParquetError> {
+        let no_nulls = |a: &dyn Array| {
+            if a.null_count() == 0 {
+                Ok(())
+            } else {
+                Err(ParquetError::General(
+                    "nulls in a column that holds none".into(),
+                ))
+            }
+        };
+        match self {
+            Self::SplitF64(w) => {
+                no_nulls(column.as_ref())?;
+                let values = column.as_primitive_opt::<Float64Type>().ok_or_else(|| {
+                    ParquetError::General(format!("a {} column for f64", column.data_type()))
+                })?;
+                w.write(values.values())
+            }
+            Self::SplitF32(w) => {
+                no_nulls(column.as_ref())?;
+                let values = column.as_primitive_opt::<Float32Type>().ok_or_else(|| {
+                    ParquetError::General(format!("a {} column for f32", column.data_type()))
+                })?;
+                w.write(values.values())
+            }
+            Self::Typed(w) => w.write(column),
+        }
+    }
+
+    /// Closes the column: its pages and what the row group records of them.
+    fn close(self) -> Result<LeafChunk, ParquetError> {
+        let (pages, close) = match self {
+            Self::SplitF64(w) => w.close()?,
+            Self::SplitF32(w) => w.close()?,
+            Self::Typed(w) => w.close()?,
+        };
+        Ok(LeafChunk::Direct { pages, close })
+    }
+}
+
+/// A column without nulls written by the crate's typed column writer.
+pub(crate) struct TypedColumn {
+    writer: ColumnWriter<'static>,
+    pages: SharedPages,
+    shape: DirectShape,
+    max_def_level: i16,
+    /// A list column's levels for the longest batch so far (its prefix serves shorter
+    /// ones).
+    def_levels: Vec<i16>,
+    rep_levels: Vec<i16>,
+}
+
+impl TypedColumn {
+    /// A writer of the leaf `descr` with the file's `props`, or `None` when the leaf is not
+    /// the plain one `shape` needs (a list's leaf repeated once, a flat one not at all).
+    fn new(descr: ColumnDescPtr, props: WriterPropertiesPtr, shape: DirectShape) -> Option<Self> {
         let levels_fit = match shape {
             DirectShape::Flat => descr.max_def_level() == 0 && descr.max_rep_level() == 0,
             DirectShape::List { .. } => descr.max_rep_level() == 1,
@@ -229,7 +309,7 @@ impl DirectColumn {
     }
 
     /// Encodes `column`'s rows.
-    pub(crate) fn write(&mut self, column: &ArrayRef) -> Result<(), ParquetError> {
+    fn write(&mut self, column: &ArrayRef) -> Result<(), ParquetError> {
         let values: &dyn Array = match self.shape {
             DirectShape::Flat => column.as_ref(),
             DirectShape::List { len } => {
@@ -293,14 +373,14 @@ impl DirectColumn {
     }
 
     /// Closes the column: its pages and what the row group records of them.
-    fn close(self) -> Result<LeafChunk, ParquetError> {
+    fn close(self) -> Result<(ChunkPages, ColumnCloseResult), ParquetError> {
         let Self { writer, pages, .. } = self;
         let close = writer.close()?;
         let pages = Arc::try_unwrap(pages)
             .map_err(|_| ParquetError::General("a column's pages still shared".into()))?
             .into_inner()
             .map_err(|_| ParquetError::General("a column's pages were poisoned".into()))?;
-        Ok(LeafChunk::Direct { pages, close })
+        Ok((pages, close))
     }
 }
 

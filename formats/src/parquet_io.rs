@@ -463,6 +463,16 @@ impl ParquetSink {
             .count()
     }
 
+    /// Leaf columns of the row group being filled that are written as split float pages.
+    #[cfg(test)]
+    fn split_leaves(&self) -> usize {
+        self.groups
+            .writers
+            .iter()
+            .filter(|c| matches!(c, LeafWriter::Direct(d) if d.is_split()))
+            .count()
+    }
+
     /// The file's final name.
     pub fn dest(&self) -> &Path {
         self.file.dest()
@@ -847,8 +857,9 @@ mod tests {
                 sink.write(b).expect("written");
                 if i == 0 {
                     // The plain columns without nulls are written directly: t_ns, x, v, h,
-                    // count, pair.
+                    // count, pair; the flat floats x and h as split pages.
                     assert_eq!(sink.direct_leaves(), 6);
+                    assert_eq!(sink.split_leaves(), 2);
                 }
             }
             assert_eq!(sink.rows(), lo);
@@ -1085,6 +1096,95 @@ mod tests {
             err.contains("plain.parquet") && err.contains("without them"),
             "{err}"
         );
+    }
+
+    /// Flat float columns written as split pages make `ArrowWriter`'s file byte for byte
+    /// whatever their values and however they come: NaNs first, in runs and alone, a
+    /// column of NaNs only (no bounds), zeros of both signs at either bound, infinities,
+    /// subnormals; batches of one value, of a write batch and one either side, and long
+    /// ones (one of exactly a page's rows), so pages are cut within a batch, across
+    /// batches, at a row group's end.
+    #[test]
+    fn split_float_pages_are_arrow_writers_whatever_the_values_and_batches() {
+        use arrow::array::{ArrayRef, Float32Array};
+        let schema = Arc::new(Schema::new(vec![
+            Field::new("x", DataType::Float64, false),
+            Field::new("h", DataType::Float32, false),
+            Field::new("nan", DataType::Float32, false),
+            Field::new("zero", DataType::Float64, false),
+        ]));
+        let x_of = |k: usize| match k % 9973 {
+            0..=2 => f64::NAN,
+            100 => f64::INFINITY,
+            101 => -f64::MIN_POSITIVE / 4.0,
+            _ => ((k as f64) * 0.011).sin() * 1e4,
+        };
+        let zero_of = |k: usize| match k % 3 {
+            0 => 0.0,
+            1 => -0.0,
+            _ => -((k % 5) as f64),
+        };
+        let batch = |lo: usize, n: usize| {
+            let rows = lo..lo + n;
+            let columns: Vec<ArrayRef> = vec![
+                Arc::new(Float64Array::from_iter_values(rows.clone().map(x_of))),
+                Arc::new(Float32Array::from_iter_values(
+                    rows.clone().map(|k| x_of(k + 7) as f32),
+                )),
+                Arc::new(Float32Array::from_iter_values(
+                    rows.clone().map(|_| f32::NAN),
+                )),
+                Arc::new(Float64Array::from_iter_values(rows.map(zero_of))),
+            ];
+            RecordBatch::try_new(schema.clone(), columns).expect("batch")
+        };
+        let mut batches = Vec::new();
+        let mut lo = 0;
+        for n in [
+            20_000, 1, 1023, 1024, 1025, 0, 7, 30_000, 2, 41_000, 5, 20_480, 333,
+        ] {
+            batches.push(batch(lo, n));
+            lo += n;
+        }
+        let group_rows = 50_000;
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("split.parquet");
+        let mut sink =
+            ParquetSink::create_in_row_groups(&path, schema.clone(), group_rows).expect("sink");
+        for b in &batches {
+            sink.write(b).expect("written");
+        }
+        assert_eq!(sink.split_leaves(), 4);
+        sink.finish().expect("finished");
+        let plain = arrow_writer_bytes(&schema, group_rows, &batches);
+        assert!(std::fs::read(&path).expect("read") == plain, "differs");
+        // What the file states: x's bounds leave its NaNs out, the NaN column has none,
+        // and the zeros' column's maximum is +0.
+        let meta = ParquetRecordBatchReaderBuilder::try_new(std::fs::File::open(&path).unwrap())
+            .expect("reader")
+            .metadata()
+            .clone();
+        let stats = |c: usize| meta.row_group(0).column(c).statistics().cloned();
+        match stats(0) {
+            Some(parquet::file::statistics::Statistics::Double(s)) => {
+                assert_eq!(s.max_opt(), Some(&f64::INFINITY));
+                assert!(s.min_opt().is_some_and(|m| m.is_finite()));
+            }
+            other => panic!("x's statistics: {other:?}"),
+        }
+        match stats(2) {
+            Some(parquet::file::statistics::Statistics::Float(s)) => {
+                assert_eq!((s.min_opt(), s.max_opt()), (None, None));
+            }
+            other => panic!("nan's statistics: {other:?}"),
+        }
+        match stats(3) {
+            Some(parquet::file::statistics::Statistics::Double(s)) => {
+                assert_eq!(s.max_opt().map(|m| m.to_bits()), Some(0.0f64.to_bits()));
+                assert_eq!(s.min_opt(), Some(&-4.0));
+            }
+            other => panic!("zero's statistics: {other:?}"),
+        }
     }
 
     /// Floats (f32, f64, in lists too) are byte-stream-split and 64-bit integers
