@@ -198,8 +198,8 @@ impl Read for PagesReader {
 }
 
 /// A column without nulls written from its values as they lie (see the module's notes):
-/// a flat float column by [`SplitColumn`] when the file's settings allow, else by the
-/// crate's typed column writer.
+/// a float column (flat or lists) by [`SplitColumn`] when the file's settings allow, else
+/// by the crate's typed column writer.
 pub(crate) enum DirectColumn {
     SplitF64(SplitColumn<f64>),
     SplitF32(SplitColumn<f32>),
@@ -214,13 +214,11 @@ impl DirectColumn {
         props: WriterPropertiesPtr,
         shape: DirectShape,
     ) -> Option<Self> {
-        if shape == DirectShape::Flat {
-            if let Some(c) = SplitColumn::new(descr.clone(), props.clone()) {
-                return Some(Self::SplitF64(c));
-            }
-            if let Some(c) = SplitColumn::new(descr.clone(), props.clone()) {
-                return Some(Self::SplitF32(c));
-            }
+        if let Some(c) = SplitColumn::new(descr.clone(), props.clone(), shape) {
+            return Some(Self::SplitF64(c));
+        }
+        if let Some(c) = SplitColumn::new(descr.clone(), props.clone(), shape) {
+            return Some(Self::SplitF32(c));
         }
         TypedColumn::new(descr, props, shape).map(|c| Self::Typed(Box::new(c)))
     }
@@ -233,27 +231,18 @@ impl DirectColumn {
 
     /// Encodes `column`'s rows.
     pub(crate) fn write(&mut self, column: &ArrayRef) -> Result<(), ParquetError> {
-        let no_nulls = |a: &dyn Array| {
-            if a.null_count() == 0 {
-                Ok(())
-            } else {
-                Err(ParquetError::General(
-                    "nulls in a column that holds none".into(),
-                ))
-            }
-        };
         match self {
             Self::SplitF64(w) => {
-                no_nulls(column.as_ref())?;
-                let values = column.as_primitive_opt::<Float64Type>().ok_or_else(|| {
-                    ParquetError::General(format!("a {} column for f64", column.data_type()))
+                let values = plain_values(column, w.shape())?;
+                let values = values.as_primitive_opt::<Float64Type>().ok_or_else(|| {
+                    ParquetError::General(format!("{} values for f64", values.data_type()))
                 })?;
                 w.write(values.values())
             }
             Self::SplitF32(w) => {
-                no_nulls(column.as_ref())?;
-                let values = column.as_primitive_opt::<Float32Type>().ok_or_else(|| {
-                    ParquetError::General(format!("a {} column for f32", column.data_type()))
+                let values = plain_values(column, w.shape())?;
+                let values = values.as_primitive_opt::<Float32Type>().ok_or_else(|| {
+                    ParquetError::General(format!("{} values for f32", values.data_type()))
                 })?;
                 w.write(values.values())
             }
@@ -270,6 +259,31 @@ impl DirectColumn {
         };
         Ok(LeafChunk::Direct { pages, close })
     }
+}
+
+/// The values of `column` laid out as `shape` says, without nulls: the column itself
+/// (flat), or a fixed-size list's values (`len` a row).
+fn plain_values(column: &ArrayRef, shape: DirectShape) -> Result<&dyn Array, ParquetError> {
+    let values: &dyn Array = match shape {
+        DirectShape::Flat => column.as_ref(),
+        DirectShape::List { len } => {
+            let list = column.as_fixed_size_list_opt().ok_or_else(|| {
+                ParquetError::General(format!("a {} for a list column", column.data_type()))
+            })?;
+            if list.null_count() != 0 || list.values().len() != list.len() * len {
+                return Err(ParquetError::General(
+                    "a list column with nulls or of another length".into(),
+                ));
+            }
+            list.values().as_ref()
+        }
+    };
+    if values.null_count() != 0 {
+        return Err(ParquetError::General(
+            "nulls in a column that holds none".into(),
+        ));
+    }
+    Ok(values)
 }
 
 /// A column without nulls written by the crate's typed column writer.
@@ -310,25 +324,7 @@ impl TypedColumn {
 
     /// Encodes `column`'s rows.
     fn write(&mut self, column: &ArrayRef) -> Result<(), ParquetError> {
-        let values: &dyn Array = match self.shape {
-            DirectShape::Flat => column.as_ref(),
-            DirectShape::List { len } => {
-                let list = column.as_fixed_size_list_opt().ok_or_else(|| {
-                    ParquetError::General(format!("a {} for a list column", column.data_type()))
-                })?;
-                if list.null_count() != 0 || list.values().len() != list.len() * len {
-                    return Err(ParquetError::General(
-                        "a list column with nulls or of another length".into(),
-                    ));
-                }
-                list.values().as_ref()
-            }
-        };
-        if values.null_count() != 0 {
-            return Err(ParquetError::General(
-                "nulls in a column that holds none".into(),
-            ));
-        }
+        let values = plain_values(column, self.shape)?;
         let n = values.len();
         let (def, rep) = match self.shape {
             DirectShape::Flat => (None, None),

@@ -857,9 +857,9 @@ mod tests {
                 sink.write(b).expect("written");
                 if i == 0 {
                     // The plain columns without nulls are written directly: t_ns, x, v, h,
-                    // count, pair; the flat floats x and h as split pages.
+                    // count, pair; the floats x, v, h and pair as split pages.
                     assert_eq!(sink.direct_leaves(), 6);
-                    assert_eq!(sink.split_leaves(), 2);
+                    assert_eq!(sink.split_leaves(), 4);
                 }
             }
             assert_eq!(sink.rows(), lo);
@@ -1098,20 +1098,50 @@ mod tests {
         );
     }
 
-    /// Flat float columns written as split pages make `ArrowWriter`'s file byte for byte
+    /// A required fixed-size list of `len` required values of `item`.
+    fn list_of(item: DataType, len: i32) -> Field {
+        let item = Arc::new(Field::new("item", item, false));
+        Field::new(
+            format!("list{len}"),
+            DataType::FixedSizeList(item, len),
+            false,
+        )
+    }
+
+    /// [`list_of`]'s column of `values`, `len` a row.
+    fn list_column<T: arrow::datatypes::ArrowPrimitiveType>(
+        len: i32,
+        values: impl Iterator<Item = T::Native>,
+    ) -> ArrayRef {
+        let values = arrow::array::PrimitiveArray::<T>::from_iter_values(values);
+        let item = Arc::new(Field::new("item", T::DATA_TYPE, false));
+        Arc::new(arrow::array::FixedSizeListArray::new(
+            item,
+            len,
+            Arc::new(values),
+            None,
+        ))
+    }
+
+    /// Float columns written as split pages make `ArrowWriter`'s file byte for byte
     /// whatever their values and however they come: NaNs first, in runs and alone, a
     /// column of NaNs only (no bounds), zeros of both signs at either bound, infinities,
     /// subnormals; batches of one value, of a write batch and one either side, and long
     /// ones (one of exactly a page's rows), so pages are cut within a batch, across
-    /// batches, at a row group's end.
+    /// batches, at a row group's end; flat, and in lists of 1 (repetition levels all 0),
+    /// 9 and 17 values (runs of equal levels, pages cut by their bytes).
     #[test]
     fn split_float_pages_are_arrow_writers_whatever_the_values_and_batches() {
-        use arrow::array::{ArrayRef, Float32Array};
+        use arrow::array::Float32Array;
+        use arrow::datatypes::{Float32Type, Float64Type};
         let schema = Arc::new(Schema::new(vec![
             Field::new("x", DataType::Float64, false),
             Field::new("h", DataType::Float32, false),
             Field::new("nan", DataType::Float32, false),
             Field::new("zero", DataType::Float64, false),
+            list_of(DataType::Float64, 1),
+            list_of(DataType::Float32, 9),
+            list_of(DataType::Float64, 17),
         ]));
         let x_of = |k: usize| match k % 9973 {
             0..=2 => f64::NAN,
@@ -1134,7 +1164,17 @@ mod tests {
                 Arc::new(Float32Array::from_iter_values(
                     rows.clone().map(|_| f32::NAN),
                 )),
-                Arc::new(Float64Array::from_iter_values(rows.map(zero_of))),
+                Arc::new(Float64Array::from_iter_values(rows.clone().map(zero_of))),
+                list_column::<Float64Type>(1, rows.clone().flat_map(|k| [x_of(k)])),
+                list_column::<Float32Type>(
+                    9,
+                    rows.clone()
+                        .flat_map(|k| (0..9).map(move |j| x_of(k * 9 + j) as f32)),
+                ),
+                list_column::<Float64Type>(
+                    17,
+                    rows.flat_map(|k| (0..17).map(move |j| zero_of(k + j))),
+                ),
             ];
             RecordBatch::try_new(schema.clone(), columns).expect("batch")
         };
@@ -1154,7 +1194,7 @@ mod tests {
         for b in &batches {
             sink.write(b).expect("written");
         }
-        assert_eq!(sink.split_leaves(), 4);
+        assert_eq!(sink.split_leaves(), 7);
         sink.finish().expect("finished");
         let plain = arrow_writer_bytes(&schema, group_rows, &batches);
         assert!(std::fs::read(&path).expect("read") == plain, "differs");

@@ -1,23 +1,26 @@
-//! Required flat float columns written as BYTE_STREAM_SPLIT pages: the pages, the chunk
-//! and its metadata parquet-rs's column writer makes with the tables' settings, byte for
-//! byte, in a fraction of its time.
+//! Float columns without nulls (flat, or in lists of a fixed length) written as
+//! BYTE_STREAM_SPLIT pages: the pages, the chunk and its metadata parquet-rs's column
+//! writer makes with the tables' settings, byte for byte, in a fraction of its time.
 //!
 //! The crate's writer copies every value into its encoder, finds the bounds of each batch
 //! of 1 024 values one value at a time (a NaN test and two comparisons, each dispatched on
-//! the column's type), splits each page's bytes into streams one byte at a time (a bounds
-//! check on each), and copies the compressed page twice more. Here a page's values are
-//! split straight from the caller's array when a page lies within it (else from the
-//! values kept since the last page), sixteen at a time by SSE2's byte unpacking (the
-//! inverse of [`crate::split_doubles`]' join); the bounds are kept in eight lanes; the
+//! the column's type), encodes a list's levels one at a time, splits each page's bytes
+//! into streams one byte at a time (a bounds check on each), and copies the compressed
+//! page twice more. Here a page's values are split straight from the caller's array when
+//! a page lies within it (else from the values kept since the last page), sixteen at a
+//! time by SSE2's byte unpacking (the inverse of [`crate::split_doubles`]' join); the
+//! bounds are kept in eight lanes; a list's levels, which depend on a page's count of
+//! values only, are encoded once per count (by a port of the crate's RLE encoder); the
 //! pages are compressed by a zstd context the thread keeps (the same library and level:
 //! the same bytes).
 //!
-//! What stays the crate's: where pages are cut (after each batch of
-//! `write_batch_size` values, once the page holds `data_page_row_count_limit` rows or
-//! `data_page_size_limit` bytes), each page's header and offset in the chunk, the chunk's
-//! metadata and offset index, all built by its public types. Only the settings the tables
-//! use are taken ([`SplitColumn::new`]); any other column goes to the crate's writer.
-//! `parquet_io`'s tests compare whole files with `ArrowWriter`'s.
+//! What stays the crate's: where pages are cut (after each batch of `write_batch_size`
+//! values carried to a row's end, once the page holds `data_page_row_count_limit` rows
+//! or `data_page_size_limit` bytes of values), each page's header and offset in the
+//! chunk, the chunk's metadata, histograms and offset index, all built by its public
+//! types. Only the settings the tables use are taken ([`SplitColumn::new`]); any other
+//! column goes to the crate's writer. `parquet_io`'s tests compare whole files with
+//! `ArrowWriter`'s.
 
 use std::cell::RefCell;
 
@@ -26,12 +29,14 @@ use parquet::basic::{Compression, Encoding, EncodingMask, PageType, Type as Phys
 use parquet::column::page::{CompressedPage, Page};
 use parquet::column::writer::ColumnCloseResult;
 use parquet::errors::ParquetError;
-use parquet::file::metadata::{ColumnChunkMetaData, OffsetIndexBuilder, PageEncodingStats};
+use parquet::file::metadata::{
+    ColumnChunkMetaData, LevelHistogram, OffsetIndexBuilder, PageEncodingStats,
+};
 use parquet::file::properties::{EnabledStatistics, WriterPropertiesPtr, WriterVersion};
 use parquet::file::statistics::{Statistics, ValueStatistics};
 use parquet::schema::types::ColumnDescPtr;
 
-use crate::parquet_columns::ChunkPages;
+use crate::parquet_columns::{ChunkPages, DirectShape};
 
 /// A float type written BYTE_STREAM_SPLIT: its Parquet type, its statistics, and how a
 /// page's values split into byte streams.
@@ -238,11 +243,11 @@ fn zstd_compress(level: i32, src: &[u8], out: &mut Vec<u8>) -> Result<(), Parque
 /// The writer settings a [`SplitColumn`] takes from the file's.
 #[derive(Debug, Clone, Copy)]
 struct Settings {
-    /// Values encoded between checks of the page's size.
+    /// Values encoded between checks of the page's size (then up to a row's end).
     batch: usize,
     /// A page is cut once it holds this many rows…
     page_rows: usize,
-    /// … or this many bytes.
+    /// … or this many bytes of values.
     page_bytes: usize,
     /// Zstd, at `zstd_level`.
     codec: Compression,
@@ -250,23 +255,29 @@ struct Settings {
     offset_index: bool,
 }
 
-/// A required flat float column written as BYTE_STREAM_SPLIT pages (see the module's
-/// notes).
+/// A float column without nulls, flat or in lists of a fixed length, written as
+/// BYTE_STREAM_SPLIT pages (see the module's notes).
 pub(crate) struct SplitColumn<T> {
     descr: ColumnDescPtr,
+    shape: DirectShape,
+    /// Values a row: 1, or the lists' length.
+    per_row: usize,
+    /// A list's levels, encoded for a page of the last count of values asked.
+    levels: Option<ListLevels>,
     settings: Settings,
     /// Values of the page being filled that came in an earlier batch.
     kept: Vec<T>,
     /// Values in the page being filled.
     page_len: usize,
     bounds: Bounds<T>,
-    /// A page's streams, then its compressed bytes.
-    streams: Vec<u8>,
+    /// A page's levels and streams, then its compressed bytes.
+    uncompressed: Vec<u8>,
     compressed: Vec<u8>,
     pages: ChunkPages,
     offset_index: Option<OffsetIndexBuilder>,
     page_count: i32,
     rows: u64,
+    values: u64,
     uncompressed_bytes: u64,
     compressed_bytes: u64,
     bytes_written: u64,
@@ -275,17 +286,29 @@ pub(crate) struct SplitColumn<T> {
 
 impl<T: PageFloat> SplitColumn<T> {
     /// A writer of the leaf `descr` with the file's `props`, or `None` unless the column is
-    /// a required flat one of `T` and its settings are the tables': version 1 pages, no
-    /// dictionary, BYTE_STREAM_SPLIT, chunk statistics, no bloom filter, zstd.
-    pub(crate) fn new(descr: ColumnDescPtr, props: WriterPropertiesPtr) -> Option<Self> {
+    /// one of `T` laid out as `shape` says (flat, or a list's leaf repeated once) and its
+    /// settings are the tables': version 1 pages, no dictionary, BYTE_STREAM_SPLIT, chunk
+    /// statistics, no bloom filter, zstd.
+    pub(crate) fn new(
+        descr: ColumnDescPtr,
+        props: WriterPropertiesPtr,
+        shape: DirectShape,
+    ) -> Option<Self> {
         let path = descr.path();
         let Compression::ZSTD(level) = props.compression(path) else {
             return None;
         };
+        let (per_row, levels) = match shape {
+            DirectShape::Flat if descr.max_def_level() == 0 && descr.max_rep_level() == 0 => {
+                (1, None)
+            }
+            DirectShape::List { len } if len > 0 && descr.max_rep_level() == 1 => {
+                (len, Some(ListLevels::new(len, descr.max_def_level())?))
+            }
+            _ => return None,
+        };
         let taken = descr.physical_type() == T::PHYSICAL
             && props.statistics_enabled(path) == EnabledStatistics::Chunk
-            && descr.max_def_level() == 0
-            && descr.max_rep_level() == 0
             && props.writer_version() == WriterVersion::PARQUET_1_0
             && !props.dictionary_enabled(path)
             && props.encoding(path) == Some(Encoding::BYTE_STREAM_SPLIT)
@@ -304,16 +327,20 @@ impl<T: PageFloat> SplitColumn<T> {
         };
         Some(Self {
             descr,
+            shape,
+            per_row,
+            levels,
             settings,
             kept: Vec::new(),
             page_len: 0,
             bounds: Bounds::new(),
-            streams: Vec::new(),
+            uncompressed: Vec::new(),
             compressed: Vec::new(),
             pages: ChunkPages::default(),
             offset_index: settings.offset_index.then(OffsetIndexBuilder::new),
             page_count: 0,
             rows: 0,
+            values: 0,
             uncompressed_bytes: 0,
             compressed_bytes: 0,
             bytes_written: 0,
@@ -321,18 +348,31 @@ impl<T: PageFloat> SplitColumn<T> {
         })
     }
 
-    /// Encodes `values`, a row each: batches of `write_batch_size` from its first, a page
-    /// cut after the batch that fills it.
+    /// How the column's values lie in its arrays.
+    pub(crate) fn shape(&self) -> DirectShape {
+        self.shape
+    }
+
+    /// Encodes `values`, `per_row` a row: batches of `write_batch_size` values from its
+    /// first, each to the end of its last row, a page cut after the batch that fills it.
     pub(crate) fn write(&mut self, values: &[T]) -> Result<(), ParquetError> {
+        if !values.len().is_multiple_of(self.per_row) {
+            return Err(ParquetError::General(format!(
+                "{} values in rows of {}",
+                values.len(),
+                self.per_row
+            )));
+        }
         self.bounds.push(values);
         // Values of `values` from `start` on are in the page being filled.
         let mut start = 0;
         let mut end = 0;
         while end < values.len() {
-            let batch = self.settings.batch.min(values.len() - end);
-            end += batch;
-            self.page_len += batch;
-            let full = self.page_len >= self.settings.page_rows
+            let batch_end = (end + self.settings.batch).min(values.len());
+            let batch_end = batch_end.next_multiple_of(self.per_row);
+            self.page_len += batch_end - end;
+            end = batch_end;
+            let full = self.page_len / self.per_row >= self.settings.page_rows
                 || self.page_len * T::SIZE >= self.settings.page_bytes;
             if full {
                 if self.kept.is_empty() {
@@ -351,15 +391,21 @@ impl<T: PageFloat> SplitColumn<T> {
         Ok(())
     }
 
-    /// Writes the page of `values`.
+    /// Writes the page of `values` (whole rows).
     fn page(&mut self, values: &[T]) -> Result<(), ParquetError> {
         let n = values.len();
-        let uncompressed = n * T::SIZE;
-        self.streams.resize(uncompressed, 0);
-        T::split(values, &mut self.streams);
+        let rows = n / self.per_row;
+        // Version 1 pages: the repetition levels, the definition levels, the values.
+        self.uncompressed.clear();
+        if let Some(levels) = &mut self.levels {
+            self.uncompressed.extend_from_slice(levels.encoded(n));
+        }
+        let at = self.uncompressed.len();
+        self.uncompressed.resize(at + n * T::SIZE, 0);
+        T::split(values, &mut self.uncompressed[at..]);
         zstd_compress(
             self.settings.zstd_level,
-            &self.streams,
+            &self.uncompressed,
             &mut self.compressed,
         )?;
         let buf = Bytes::copy_from_slice(&self.compressed);
@@ -373,16 +419,19 @@ impl<T: PageFloat> SplitColumn<T> {
             rep_level_encoding: Encoding::RLE,
             statistics: None,
         };
-        let spec = self.pages.push(CompressedPage::new(page, uncompressed))?;
+        let spec = self
+            .pages
+            .push(CompressedPage::new(page, self.uncompressed.len()))?;
         if let Some(index) = &mut self.offset_index {
-            index.append_row_count(n as i64);
+            index.append_row_count(rows as i64);
             index.append_unencoded_byte_array_data_bytes(None);
             let size = i32::try_from(spec.compressed_size)
                 .map_err(|_| ParquetError::General("a page of more than 2 GiB".into()))?;
             index.append_offset_and_size(spec.offset as i64, size);
         }
         self.page_count += 1;
-        self.rows += n as u64;
+        self.rows += rows as u64;
+        self.values += n as u64;
         self.uncompressed_bytes += spec.uncompressed_size as u64;
         self.compressed_bytes += spec.compressed_size as u64;
         self.bytes_written += spec.bytes_written;
@@ -411,26 +460,36 @@ impl<T: PageFloat> SplitColumn<T> {
         }
         let as_i64 =
             |v: u64| i64::try_from(v).map_err(|_| ParquetError::General("a chunk past i64".into()));
-        let builder = ColumnChunkMetaData::builder(self.descr.clone())
+        // The levels' histograms (none for a flat column): each row's first value at
+        // repetition level 0, the others at 1; every value defined.
+        let mut repetition = LevelHistogram::try_new(self.descr.max_rep_level());
+        if let Some(h) = &mut repetition {
+            h.increment_by(0, as_i64(self.rows)?);
+            h.increment_by(1, as_i64(self.values - self.rows)?);
+        }
+        let mut definition = LevelHistogram::try_new(self.descr.max_def_level());
+        if let Some(h) = &mut definition {
+            h.increment_by(self.descr.max_def_level(), as_i64(self.values)?);
+        }
+        let bounds = self.bounds.get();
+        let backwards_compatible = self.descr.sort_order().is_signed();
+        let metadata = ColumnChunkMetaData::builder(self.descr.clone())
             .set_compression(self.settings.codec)
             .set_encodings_mask(EncodingMask::new_from_encodings(encodings.iter()))
             .set_page_encoding_stats(page_stats)
             .set_total_compressed_size(as_i64(self.compressed_bytes)?)
             .set_total_uncompressed_size(as_i64(self.uncompressed_bytes)?)
-            .set_num_values(as_i64(self.rows)?)
+            .set_num_values(as_i64(self.values)?)
             .set_data_page_offset(as_i64(self.first_page_offset.unwrap_or(0))?)
-            .set_dictionary_page_offset(None);
-        let bounds = self.bounds.get();
-        let backwards_compatible = self.descr.sort_order().is_signed();
-        let metadata = builder
+            .set_dictionary_page_offset(None)
             .set_statistics(T::statistics(
                 bounds.map(|b| b.0),
                 bounds.map(|b| b.1),
                 backwards_compatible,
             ))
             .set_unencoded_byte_array_data_bytes(None)
-            .set_repetition_level_histogram(None)
-            .set_definition_level_histogram(None)
+            .set_repetition_level_histogram(repetition)
+            .set_definition_level_histogram(definition)
             .build()?;
         let close = ColumnCloseResult {
             bytes_written: self.bytes_written,
@@ -441,6 +500,180 @@ impl<T: PageFloat> SplitColumn<T> {
             offset_index: self.offset_index.map(OffsetIndexBuilder::build),
         };
         Ok((self.pages, close))
+    }
+}
+
+/// The levels of a page of a fixed-size list column whose lists and values are required:
+/// each value defined (at the column's maximum level), each row's first value at
+/// repetition level 0 and the others at 1. A page always begins a row, so its levels
+/// depend on its count of values only: the last count's are kept encoded.
+struct ListLevels {
+    per_row: usize,
+    max_def: u8,
+    /// A page's count of values, and its levels encoded (repetition, then definition).
+    encoded: Option<(usize, Vec<u8>)>,
+}
+
+impl ListLevels {
+    /// `None` for a definition level past a byte (not a column the tables write).
+    fn new(per_row: usize, max_def: i16) -> Option<Self> {
+        Some(Self {
+            per_row,
+            max_def: u8::try_from(max_def).ok()?,
+            encoded: None,
+        })
+    }
+
+    /// The levels of a page of `n` values, as version 1 pages hold them.
+    fn encoded(&mut self, n: usize) -> &[u8] {
+        if self.encoded.as_ref().is_none_or(|(m, _)| *m != n) {
+            let repetition: Vec<u8> = (0..n).map(|k| u8::from(k % self.per_row != 0)).collect();
+            let mut bytes = rle_hybrid(&repetition, 1);
+            bytes.extend(rle_hybrid(&vec![self.max_def; n], bits_for(self.max_def)));
+            self.encoded = Some((n, bytes));
+        }
+        self.encoded.as_ref().map_or(&[], |(_, bytes)| bytes)
+    }
+}
+
+/// Bits of the widest level up to `max_level`.
+fn bits_for(max_level: u8) -> u8 {
+    (u8::BITS - max_level.leading_zeros()) as u8
+}
+
+/// `levels` (each below 2^`width`, `width` ≤ 8) in Parquet's RLE / bit-packed hybrid
+/// encoding behind their length in 4 bytes, as a version 1 page holds them: the bytes
+/// parquet-rs's `RleEncoder` writes (a port of its choices: values taken eight at a
+/// time, a run of eight equal ones or more encoded as a run, up to 63 groups of eight a
+/// bit-packed run, the last group padded with zeros).
+fn rle_hybrid(levels: &[u8], width: u8) -> Vec<u8> {
+    let mut e = Rle {
+        out: vec![0; 4],
+        width,
+        buffered: [0; 8],
+        n_buffered: 0,
+        current: 0,
+        repeat: 0,
+        bit_packed: 0,
+        indicator: None,
+    };
+    for &v in levels {
+        e.put(v);
+    }
+    e.flush();
+    let len = u32::try_from(e.out.len() - 4).unwrap_or(u32::MAX);
+    e.out[..4].copy_from_slice(&len.to_le_bytes());
+    e.out
+}
+
+/// The state of [`rle_hybrid`]: parquet-rs's `RleEncoder`'s, field for field.
+struct Rle {
+    out: Vec<u8>,
+    width: u8,
+    buffered: [u8; 8],
+    n_buffered: usize,
+    current: u8,
+    repeat: usize,
+    /// Values in the bit-packed run being written.
+    bit_packed: usize,
+    /// Where that run's header byte goes.
+    indicator: Option<usize>,
+}
+
+impl Rle {
+    fn put(&mut self, v: u8) {
+        if self.current == v {
+            self.repeat += 1;
+            if self.repeat > 8 {
+                return;
+            }
+        } else {
+            if self.repeat >= 8 {
+                self.flush_rle_run();
+            }
+            self.repeat = 1;
+            self.current = v;
+        }
+        self.buffered[self.n_buffered] = v;
+        self.n_buffered += 1;
+        if self.n_buffered == 8 {
+            self.flush_buffered();
+        }
+    }
+
+    fn flush(&mut self) {
+        if self.bit_packed > 0 || self.repeat > 0 || self.n_buffered > 0 {
+            let all_repeat =
+                self.bit_packed == 0 && (self.repeat == self.n_buffered || self.n_buffered == 0);
+            if self.repeat > 0 && all_repeat {
+                self.flush_rle_run();
+            } else {
+                if self.n_buffered > 0 {
+                    self.buffered[self.n_buffered..].fill(0);
+                    self.n_buffered = 8;
+                }
+                self.bit_packed += self.n_buffered;
+                self.flush_bit_packed_run(true);
+                self.repeat = 0;
+            }
+        }
+    }
+
+    fn flush_rle_run(&mut self) {
+        let mut header = self.repeat << 1;
+        while header >= 0x80 {
+            self.out.push((header & 0x7F) as u8 | 0x80);
+            header >>= 7;
+        }
+        self.out.push(header as u8);
+        // The value in whole bytes: one, as `width` ≤ 8.
+        self.out.push(self.current);
+        self.n_buffered = 0;
+        self.repeat = 0;
+    }
+
+    fn flush_bit_packed_run(&mut self, end_run: bool) {
+        if self.indicator.is_none() {
+            self.indicator = Some(self.out.len());
+            self.out.push(0);
+        }
+        // Eight values of `width` bits, the first in the lowest: `width` bytes.
+        if self.n_buffered > 0 {
+            let packed = self.buffered[..self.n_buffered]
+                .iter()
+                .enumerate()
+                .fold(0u64, |acc, (k, &v)| {
+                    acc | (u64::from(v) << (k * self.width as usize))
+                });
+            let bytes = packed.to_le_bytes();
+            self.out.extend_from_slice(&bytes[..self.width as usize]);
+        }
+        self.n_buffered = 0;
+        if end_run {
+            self.finish_bit_packed_run();
+        }
+    }
+
+    fn finish_bit_packed_run(&mut self) {
+        let groups = self.bit_packed / 8;
+        if let Some(at) = self.indicator.take() {
+            self.out[at] = ((groups << 1) | 1) as u8;
+        }
+        self.bit_packed = 0;
+    }
+
+    fn flush_buffered(&mut self) {
+        if self.repeat >= 8 {
+            self.n_buffered = 0;
+            if self.bit_packed > 0 {
+                self.finish_bit_packed_run();
+            }
+            return;
+        }
+        self.bit_packed += self.n_buffered;
+        let groups = self.bit_packed / 8;
+        self.flush_bit_packed_run(groups + 1 >= 64);
+        self.repeat = 0;
     }
 }
 
