@@ -51,26 +51,38 @@ impl RouteSigma {
             .sample
             .partition_point(|&s| s <= range.start)
             .saturating_sub(1);
-        // Each sample's value before it and weight, taken once for the three σ.
+        // The samples between two of the σ's, each σ interpolated over them in one loop
+        // (the weight `(k − a) / (b − a)`, clamped, the same expression at every sample).
         let last = self.sample.len() - 1;
         let mut out: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(range.len()));
         let mut j = first;
-        for k in range {
+        let mut k = range.start;
+        while k < range.end {
             while j < last && self.sample[j + 1] <= k {
                 j += 1;
             }
             let (a, b) = (self.sample[j], self.sample[(j + 1).min(last)]);
-            let w = if b > a {
-                ((k as f64 - a as f64) / (b - a) as f64).clamp(0.0, 1.0)
+            // Up to the next σ's sample (past `k`, by the loop above), else to the end.
+            let until = if j < last {
+                b.min(range.end)
             } else {
-                0.0
+                range.end
             };
             for (o, v) in out
                 .iter_mut()
                 .zip([&self.north_m, &self.east_m, &self.heading_rad])
             {
-                o.push(v[j] + w * (v[(j + 1).min(v.len() - 1)] - v[j]));
+                let (v_a, v_b) = (v[j], v[(j + 1).min(v.len() - 1)]);
+                o.extend((k..until).map(|s| {
+                    let w = if b > a {
+                        ((s as f64 - a as f64) / (b - a) as f64).clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    v_a + w * (v_b - v_a)
+                }));
             }
+            k = until;
         }
         out
     }
@@ -577,5 +589,25 @@ mod tests {
         }
         let none = RouteSigma::default().at_samples(3..7);
         assert_eq!(none[1], vec![0.0; 4]);
+        // Before the first σ's sample: its value held. Every sample, bit for bit, as
+        // each one's own weight between the σ's on either side gives.
+        let later = RouteSigma {
+            sample: vec![3, 13, 20, 23],
+            ..sigma
+        };
+        let all = later.at_samples(0..40);
+        for (k, n) in all[0].iter().enumerate() {
+            let j = later.sample.partition_point(|&s| s <= k).saturating_sub(1);
+            let (a, b) = (later.sample[j], later.sample[(j + 1).min(3)]);
+            let w = if b > a {
+                ((k as f64 - a as f64) / (b - a) as f64).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let v = &later.north_m;
+            let want = v[j] + w * (v[(j + 1).min(3)] - v[j]);
+            assert_eq!(n.to_bits(), want.to_bits(), "sample {k}");
+        }
+        assert_eq!(all[0][..4], [1.0; 4]);
     }
 }
