@@ -35,6 +35,7 @@ pub mod odometer_range;
 pub mod odometer_stuck;
 pub mod picked_rows;
 pub mod raw_mcap;
+pub mod read_ahead;
 pub mod review;
 pub mod review_sensors;
 pub mod runs;

@@ -187,6 +187,7 @@ impl RunCtx {
             return Ok(());
         }
         stage.invalidate()?;
+        crate::read_ahead::read_ahead(&stage.inputs);
         body().with_context(|| format!("{}: stage {} failed", self.manifest.name, stage.name))?;
         stage.commit(self.manifest.dir())?;
         let wall_s = t0.elapsed().as_secs_f64();
