@@ -11,8 +11,8 @@
 //! time by SSE2's byte unpacking (the inverse of [`crate::split_doubles`]' join); the
 //! bounds are kept in eight lanes; a list's levels, which depend on a page's count of
 //! values only, are encoded once per count (by a port of the crate's RLE encoder); the
-//! pages are compressed by a zstd context the thread keeps (the same library and level:
-//! the same bytes).
+//! pages are split and compressed in buffers and by a zstd context the thread keeps (the
+//! same library and level: the same bytes).
 //!
 //! What stays the crate's: where pages are cut (after each batch of `write_batch_size`
 //! values carried to a row's end, once the page holds `data_page_row_count_limit` rows
@@ -219,25 +219,52 @@ impl<T: PageFloat> Bounds<T> {
     }
 }
 
-thread_local! {
-    /// The thread's zstd context and its level (made once, reset by each compression).
-    static ZSTD: RefCell<Option<(i32, zstd::bulk::Compressor<'static>)>> =
-        const { RefCell::new(None) };
+/// What a thread encodes pages with, whichever column they are of: its zstd context and
+/// that context's level (made once, reset by each compression), and buffers for a page's
+/// bytes before and after compression (the memory one page needs, taken once a thread
+/// rather than once a column).
+#[derive(Default)]
+struct PageScratch {
+    zstd: Option<(i32, zstd::bulk::Compressor<'static>)>,
+    uncompressed: Vec<u8>,
+    compressed: Vec<u8>,
 }
 
-/// `src` compressed at zstd `level` into `out` (emptied first), as parquet-rs's codec
-/// compresses a page: one frame by the bulk API.
-fn zstd_compress(level: i32, src: &[u8], out: &mut Vec<u8>) -> Result<(), ParquetError> {
-    out.clear();
-    out.reserve(zstd::zstd_safe::compress_bound(src.len()));
-    ZSTD.with_borrow_mut(|slot| {
-        let compressor = match slot {
-            Some((l, c)) if *l == level => c,
-            _ => &mut slot.insert((level, zstd::bulk::Compressor::new(level)?)).1,
+thread_local! {
+    static SCRATCH: RefCell<PageScratch> = RefCell::new(PageScratch::default());
+}
+
+impl PageScratch {
+    /// The page of `values` (the bytes `levels` before them, if any) at zstd `level`, as
+    /// parquet-rs's codec compresses a page (one frame by the bulk API): its compressed
+    /// bytes and its size before compression.
+    fn page<T: PageFloat>(
+        &mut self,
+        levels: &[u8],
+        values: &[T],
+        level: i32,
+    ) -> Result<(Bytes, usize), ParquetError> {
+        let u = &mut self.uncompressed;
+        u.clear();
+        u.extend_from_slice(levels);
+        u.resize(levels.len() + values.len() * T::SIZE, 0);
+        T::split(values, &mut u[levels.len()..]);
+        let c = &mut self.compressed;
+        c.clear();
+        c.reserve(zstd::zstd_safe::compress_bound(u.len()));
+        let compressor = match &mut self.zstd {
+            Some((l, compressor)) if *l == level => compressor,
+            slot => {
+                let made = zstd::bulk::Compressor::new(level)
+                    .map_err(|e| ParquetError::External(Box::new(e)))?;
+                &mut slot.insert((level, made)).1
+            }
         };
-        compressor.compress_to_buffer(src, out).map(|_| ())
-    })
-    .map_err(|e| ParquetError::External(Box::new(e)))
+        compressor
+            .compress_to_buffer(u.as_slice(), c)
+            .map_err(|e| ParquetError::External(Box::new(e)))?;
+        Ok((Bytes::copy_from_slice(c), u.len()))
+    }
 }
 
 /// The writer settings a [`SplitColumn`] takes from the file's.
@@ -270,9 +297,6 @@ pub(crate) struct SplitColumn<T> {
     /// Values in the page being filled.
     page_len: usize,
     bounds: Bounds<T>,
-    /// A page's levels and streams, then its compressed bytes.
-    uncompressed: Vec<u8>,
-    compressed: Vec<u8>,
     pages: ChunkPages,
     offset_index: Option<OffsetIndexBuilder>,
     page_count: i32,
@@ -334,8 +358,6 @@ impl<T: PageFloat> SplitColumn<T> {
             kept: Vec::new(),
             page_len: 0,
             bounds: Bounds::new(),
-            uncompressed: Vec::new(),
-            compressed: Vec::new(),
             pages: ChunkPages::default(),
             offset_index: settings.offset_index.then(OffsetIndexBuilder::new),
             page_count: 0,
@@ -396,19 +418,10 @@ impl<T: PageFloat> SplitColumn<T> {
         let n = values.len();
         let rows = n / self.per_row;
         // Version 1 pages: the repetition levels, the definition levels, the values.
-        self.uncompressed.clear();
-        if let Some(levels) = &mut self.levels {
-            self.uncompressed.extend_from_slice(levels.encoded(n));
-        }
-        let at = self.uncompressed.len();
-        self.uncompressed.resize(at + n * T::SIZE, 0);
-        T::split(values, &mut self.uncompressed[at..]);
-        zstd_compress(
-            self.settings.zstd_level,
-            &self.uncompressed,
-            &mut self.compressed,
-        )?;
-        let buf = Bytes::copy_from_slice(&self.compressed);
+        let levels = self.levels.as_mut().map_or(&[][..], |l| l.encoded(n));
+        let level = self.settings.zstd_level;
+        let (buf, uncompressed) =
+            SCRATCH.with_borrow_mut(|scratch| scratch.page(levels, values, level))?;
         let num_values =
             u32::try_from(n).map_err(|_| ParquetError::General(format!("a page of {n} values")))?;
         let page = Page::DataPage {
@@ -419,9 +432,7 @@ impl<T: PageFloat> SplitColumn<T> {
             rep_level_encoding: Encoding::RLE,
             statistics: None,
         };
-        let spec = self
-            .pages
-            .push(CompressedPage::new(page, self.uncompressed.len()))?;
+        let spec = self.pages.push(CompressedPage::new(page, uncompressed))?;
         if let Some(index) = &mut self.offset_index {
             index.append_row_count(rows as i64);
             index.append_unencoded_byte_array_data_bytes(None);
