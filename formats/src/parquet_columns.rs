@@ -7,8 +7,10 @@
 //! `Float64` column, or a required fixed-size list of such required values (a 3-vector).
 //! Its values go to the same typed column writer as they lie in the array, with the levels
 //! such a column always has (none when flat; in a list, every value defined and each
-//! list's first value starting a record). The pages, the column chunk and its metadata
-//! are the Arrow writer's, byte for byte (`parquet_io`'s tests compare whole files).
+//! list's first value starting a record). Float columns go to [`SplitColumn`] instead,
+//! which encodes their pages itself (`split_pages`). The pages, the column chunk and its
+//! metadata are the Arrow writer's, byte for byte (`parquet_io`'s tests compare whole
+//! files).
 
 use std::io::Read;
 use std::sync::{Arc, Mutex};
