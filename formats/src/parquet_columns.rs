@@ -234,20 +234,8 @@ impl DirectColumn {
     /// Encodes `column`'s rows.
     pub(crate) fn write(&mut self, column: &ArrayRef) -> Result<(), ParquetError> {
         match self {
-            Self::SplitF64(w) => {
-                let values = plain_values(column, w.shape())?;
-                let values = values.as_primitive_opt::<Float64Type>().ok_or_else(|| {
-                    ParquetError::General(format!("{} values for f64", values.data_type()))
-                })?;
-                w.write(values.values())
-            }
-            Self::SplitF32(w) => {
-                let values = plain_values(column, w.shape())?;
-                let values = values.as_primitive_opt::<Float32Type>().ok_or_else(|| {
-                    ParquetError::General(format!("{} values for f32", values.data_type()))
-                })?;
-                w.write(values.values())
-            }
+            Self::SplitF64(w) => w.write_array(column),
+            Self::SplitF32(w) => w.write_array(column),
             Self::Typed(w) => w.write(column),
         }
     }
@@ -265,7 +253,10 @@ impl DirectColumn {
 
 /// The values of `column` laid out as `shape` says, without nulls: the column itself
 /// (flat), or a fixed-size list's values (`len` a row).
-fn plain_values(column: &ArrayRef, shape: DirectShape) -> Result<&dyn Array, ParquetError> {
+pub(crate) fn plain_values(
+    column: &ArrayRef,
+    shape: DirectShape,
+) -> Result<&dyn Array, ParquetError> {
     let values: &dyn Array = match shape {
         DirectShape::Flat => column.as_ref(),
         DirectShape::List { len } => {

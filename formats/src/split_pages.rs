@@ -24,8 +24,10 @@
 
 use std::cell::RefCell;
 
+use arrow::array::{ArrayRef, AsArray};
+use arrow::datatypes::{ArrowNativeType, ArrowPrimitiveType, Float32Type, Float64Type};
 use bytes::Bytes;
-use parquet::basic::{Compression, Encoding, EncodingMask, PageType, Type as PhysicalType};
+use parquet::basic::{Compression, Encoding, EncodingMask, PageType, ZstdLevel};
 use parquet::column::page::{CompressedPage, Page};
 use parquet::column::writer::ColumnCloseResult;
 use parquet::errors::ParquetError;
@@ -36,21 +38,23 @@ use parquet::file::properties::{EnabledStatistics, WriterPropertiesPtr, WriterVe
 use parquet::file::statistics::{Statistics, ValueStatistics};
 use parquet::schema::types::ColumnDescPtr;
 
-use crate::parquet_columns::{ChunkPages, DirectShape};
+use crate::parquet_columns::{ChunkPages, DirectShape, plain_values};
+use crate::split_doubles::SplitFloat;
 
-/// A float type written BYTE_STREAM_SPLIT: its Parquet type, its statistics, and how a
+/// A float type written BYTE_STREAM_SPLIT (its Parquet and Arrow types are
+/// [`SplitFloat`]'s, which reads it back): its Arrow array type, its statistics, and how a
 /// page's values split into byte streams.
-pub(crate) trait PageFloat: Copy + PartialOrd + bytemuck::Pod {
-    /// Its Parquet physical type.
-    const PHYSICAL: PhysicalType;
+pub(crate) trait PageFloat:
+    SplitFloat + PartialOrd + bytemuck::Pod + ArrowNativeType
+{
+    /// Its Arrow primitive type.
+    type Arrow: ArrowPrimitiveType<Native = Self>;
     /// Bytes a value (and streams a page).
     const SIZE: usize;
     /// +∞ and −∞: the bounds of no value.
     const INFINITY: Self;
     const NEG_INFINITY: Self;
-    /// Zero of either sign: a bound the format writes as −0 (a minimum) or +0 (a maximum).
-    fn is_zero(self) -> bool;
-    /// −0 and +0.
+    /// −0 and +0: a zero minimum and a zero maximum as the format writes them.
     const NEG_ZERO: Self;
     const ZERO: Self;
     /// The chunk statistics parquet-rs's writer makes of these bounds and no nulls.
@@ -60,45 +64,34 @@ pub(crate) trait PageFloat: Copy + PartialOrd + bytemuck::Pod {
     fn split(values: &[Self], out: &mut [u8]);
 }
 
-impl PageFloat for f64 {
-    const PHYSICAL: PhysicalType = PhysicalType::DOUBLE;
-    const SIZE: usize = 8;
-    const INFINITY: f64 = f64::INFINITY;
-    const NEG_INFINITY: f64 = f64::NEG_INFINITY;
-    const NEG_ZERO: f64 = -0.0;
-    const ZERO: f64 = 0.0;
-    fn is_zero(self) -> bool {
-        self == 0.0
-    }
-    fn statistics(min: Option<f64>, max: Option<f64>, backwards_compatible: bool) -> Statistics {
-        ValueStatistics::new(min, max, None, Some(0), false)
-            .with_backwards_compatible_min_max(backwards_compatible)
-            .into()
-    }
-    fn split(values: &[f64], out: &mut [u8]) {
-        split_streams::<8>(bytemuck::cast_slice(values), out);
-    }
+/// [`PageFloat`] for `$t` (`$arrow` its Arrow type, `$size` its bytes).
+macro_rules! page_float {
+    ($t:ty, $arrow:ty, $size:literal) => {
+        impl PageFloat for $t {
+            type Arrow = $arrow;
+            const SIZE: usize = $size;
+            const INFINITY: $t = <$t>::INFINITY;
+            const NEG_INFINITY: $t = <$t>::NEG_INFINITY;
+            const NEG_ZERO: $t = -0.0;
+            const ZERO: $t = 0.0;
+            fn statistics(
+                min: Option<$t>,
+                max: Option<$t>,
+                backwards_compatible: bool,
+            ) -> Statistics {
+                ValueStatistics::new(min, max, None, Some(0), false)
+                    .with_backwards_compatible_min_max(backwards_compatible)
+                    .into()
+            }
+            fn split(values: &[$t], out: &mut [u8]) {
+                split_streams::<$size>(bytemuck::cast_slice(values), out);
+            }
+        }
+    };
 }
 
-impl PageFloat for f32 {
-    const PHYSICAL: PhysicalType = PhysicalType::FLOAT;
-    const SIZE: usize = 4;
-    const INFINITY: f32 = f32::INFINITY;
-    const NEG_INFINITY: f32 = f32::NEG_INFINITY;
-    const NEG_ZERO: f32 = -0.0;
-    const ZERO: f32 = 0.0;
-    fn is_zero(self) -> bool {
-        self == 0.0
-    }
-    fn statistics(min: Option<f32>, max: Option<f32>, backwards_compatible: bool) -> Statistics {
-        ValueStatistics::new(min, max, None, Some(0), false)
-            .with_backwards_compatible_min_max(backwards_compatible)
-            .into()
-    }
-    fn split(values: &[f32], out: &mut [u8]) {
-        split_streams::<4>(bytemuck::cast_slice(values), out);
-    }
-}
+page_float!(f64, Float64Type, 8);
+page_float!(f32, Float32Type, 4);
 
 /// The byte streams of `src` (values of `N` bytes) into `out`, as long: byte `j` of value
 /// `i` at `j n + i`.
@@ -213,8 +206,9 @@ impl<T: PageFloat> Bounds<T> {
         if min > max {
             return None;
         }
-        let min = if min.is_zero() { T::NEG_ZERO } else { min };
-        let max = if max.is_zero() { T::ZERO } else { max };
+        // Zero of either sign equals both.
+        let min = if min == T::ZERO { T::NEG_ZERO } else { min };
+        let max = if max == T::ZERO { T::ZERO } else { max };
         Some((min, max))
     }
 }
@@ -276,10 +270,8 @@ struct Settings {
     page_rows: usize,
     /// … or this many bytes of values.
     page_bytes: usize,
-    /// Zstd, at `zstd_level`.
-    codec: Compression,
-    zstd_level: i32,
-    offset_index: bool,
+    /// The pages' zstd level.
+    zstd: ZstdLevel,
 }
 
 /// A float column without nulls, flat or in lists of a fixed length, written as
@@ -287,15 +279,12 @@ struct Settings {
 pub(crate) struct SplitColumn<T> {
     descr: ColumnDescPtr,
     shape: DirectShape,
-    /// Values a row: 1, or the lists' length.
-    per_row: usize,
     /// A list's levels, encoded for a page of the last count of values asked.
     levels: Option<ListLevels>,
     settings: Settings,
-    /// Values of the page being filled that came in an earlier batch.
+    /// Values of the page being filled that came in an earlier batch (between batches:
+    /// all of that page's).
     kept: Vec<T>,
-    /// Values in the page being filled.
-    page_len: usize,
     bounds: Bounds<T>,
     pages: ChunkPages,
     offset_index: Option<OffsetIndexBuilder>,
@@ -322,16 +311,14 @@ impl<T: PageFloat> SplitColumn<T> {
         let Compression::ZSTD(level) = props.compression(path) else {
             return None;
         };
-        let (per_row, levels) = match shape {
-            DirectShape::Flat if descr.max_def_level() == 0 && descr.max_rep_level() == 0 => {
-                (1, None)
-            }
+        let levels = match shape {
+            DirectShape::Flat if descr.max_def_level() == 0 && descr.max_rep_level() == 0 => None,
             DirectShape::List { len } if len > 0 && descr.max_rep_level() == 1 => {
-                (len, Some(ListLevels::new(len, descr.max_def_level())?))
+                Some(ListLevels::new(len, descr.max_def_level())?)
             }
             _ => return None,
         };
-        let taken = descr.physical_type() == T::PHYSICAL
+        let taken = descr.physical_type() == <T as SplitFloat>::PHYSICAL
             && props.statistics_enabled(path) == EnabledStatistics::Chunk
             && props.writer_version() == WriterVersion::PARQUET_1_0
             && !props.dictionary_enabled(path)
@@ -345,21 +332,17 @@ impl<T: PageFloat> SplitColumn<T> {
             batch: props.write_batch_size(),
             page_rows: props.data_page_row_count_limit(),
             page_bytes: props.column_data_page_size_limit(path),
-            codec: Compression::ZSTD(level),
-            zstd_level: level.compression_level(),
-            offset_index: !props.offset_index_disabled(),
+            zstd: level,
         };
         Some(Self {
             descr,
             shape,
-            per_row,
             levels,
             settings,
             kept: Vec::new(),
-            page_len: 0,
             bounds: Bounds::new(),
             pages: ChunkPages::default(),
-            offset_index: settings.offset_index.then(OffsetIndexBuilder::new),
+            offset_index: (!props.offset_index_disabled()).then(OffsetIndexBuilder::new),
             page_count: 0,
             rows: 0,
             values: 0,
@@ -370,32 +353,49 @@ impl<T: PageFloat> SplitColumn<T> {
         })
     }
 
-    /// How the column's values lie in its arrays.
-    pub(crate) fn shape(&self) -> DirectShape {
-        self.shape
+    /// Values a row: 1, or the lists' length.
+    fn per_row(&self) -> usize {
+        match self.shape {
+            DirectShape::Flat => 1,
+            DirectShape::List { len } => len,
+        }
+    }
+
+    /// Encodes the rows of `column` (laid out as the column's shape says, without nulls).
+    pub(crate) fn write_array(&mut self, column: &ArrayRef) -> Result<(), ParquetError> {
+        let values = plain_values(column, self.shape)?;
+        let values = values.as_primitive_opt::<T::Arrow>().ok_or_else(|| {
+            ParquetError::General(format!(
+                "{} values for {}",
+                values.data_type(),
+                <T as SplitFloat>::ARROW
+            ))
+        })?;
+        self.write(values.values().as_ref())
     }
 
     /// Encodes `values`, `per_row` a row: batches of `write_batch_size` values from its
     /// first, each to the end of its last row, a page cut after the batch that fills it.
-    pub(crate) fn write(&mut self, values: &[T]) -> Result<(), ParquetError> {
-        if !values.len().is_multiple_of(self.per_row) {
+    fn write(&mut self, values: &[T]) -> Result<(), ParquetError> {
+        let per_row = self.per_row();
+        if !values.len().is_multiple_of(per_row) {
             return Err(ParquetError::General(format!(
-                "{} values in rows of {}",
-                values.len(),
-                self.per_row
+                "{} values in rows of {per_row}",
+                values.len()
             )));
         }
         self.bounds.push(values);
-        // Values of `values` from `start` on are in the page being filled.
+        // Values of `values` from `start` on are in the page being filled, after the
+        // kept ones.
         let mut start = 0;
         let mut end = 0;
         while end < values.len() {
-            let batch_end = (end + self.settings.batch).min(values.len());
-            let batch_end = batch_end.next_multiple_of(self.per_row);
-            self.page_len += batch_end - end;
-            end = batch_end;
-            let full = self.page_len / self.per_row >= self.settings.page_rows
-                || self.page_len * T::SIZE >= self.settings.page_bytes;
+            end = (end + self.settings.batch)
+                .min(values.len())
+                .next_multiple_of(per_row);
+            let page_len = self.kept.len() + end - start;
+            let full = page_len / per_row >= self.settings.page_rows
+                || page_len * T::SIZE >= self.settings.page_bytes;
             if full {
                 if self.kept.is_empty() {
                     self.page(&values[start..end])?;
@@ -416,10 +416,10 @@ impl<T: PageFloat> SplitColumn<T> {
     /// Writes the page of `values` (whole rows).
     fn page(&mut self, values: &[T]) -> Result<(), ParquetError> {
         let n = values.len();
-        let rows = n / self.per_row;
+        let rows = n / self.per_row();
         // Version 1 pages: the repetition levels, the definition levels, the values.
         let levels = self.levels.as_mut().map_or(&[][..], |l| l.encoded(n));
-        let level = self.settings.zstd_level;
+        let level = self.settings.zstd.compression_level();
         let (buf, uncompressed) =
             SCRATCH.with_borrow_mut(|scratch| scratch.page(levels, values, level))?;
         let num_values =
@@ -447,14 +447,13 @@ impl<T: PageFloat> SplitColumn<T> {
         self.compressed_bytes += spec.compressed_size as u64;
         self.bytes_written += spec.bytes_written;
         self.first_page_offset.get_or_insert(spec.offset);
-        self.page_len = 0;
         Ok(())
     }
 
     /// Writes the last page and returns the chunk's pages and what the row group records
     /// of them.
     pub(crate) fn close(mut self) -> Result<(ChunkPages, ColumnCloseResult), ParquetError> {
-        if self.page_len > 0 {
+        if !self.kept.is_empty() {
             let kept = std::mem::take(&mut self.kept);
             self.page(&kept)?;
         }
@@ -485,7 +484,7 @@ impl<T: PageFloat> SplitColumn<T> {
         let bounds = self.bounds.get();
         let backwards_compatible = self.descr.sort_order().is_signed();
         let metadata = ColumnChunkMetaData::builder(self.descr.clone())
-            .set_compression(self.settings.codec)
+            .set_compression(Compression::ZSTD(self.settings.zstd))
             .set_encodings_mask(EncodingMask::new_from_encodings(encodings.iter()))
             .set_page_encoding_stats(page_stats)
             .set_total_compressed_size(as_i64(self.compressed_bytes)?)
