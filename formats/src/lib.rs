@@ -17,6 +17,7 @@ pub mod atomic;
 pub mod error;
 pub mod kfgins;
 pub mod manifest;
+pub mod mcap_chunks;
 pub mod mcap_io;
 mod parquet_columns;
 pub mod parquet_io;

@@ -8,6 +8,7 @@ use std::path::Path;
 
 use crate::atomic::AtomicFile;
 use crate::error::{FileError, FormatError};
+use crate::mcap_chunks::{ChunkedMcap, MessageError};
 use crate::ros2_msgs::Ros2Message;
 
 /// CDR encapsulation header: plain CDR, little-endian.
@@ -23,13 +24,11 @@ pub struct Channel<M> {
 
 /// How an MCAP file's chunks are compressed.
 ///
-/// The mcap crate feeds its compressor one small write per record field, about seven per
-/// message. zstd's stream takes each as a call of its own: with ~240 000 messages per
-/// 40-min run it costs more than the rest of the ingest (uncompressed chunks ingest at
-/// ~165 MB/s of raw log, zstd ones at ~110 MB/s, about half the size; rosbag2 records
-/// uncompressed by default for the same reason). lz4's frame encoder gathers the small
-/// writes into its block before compressing: the export's `corrected.mcap` (96 000
-/// messages a 40-min run) takes 11 ms less CPU than with zstd, 20 % larger.
+/// A chunk is compressed in one go when it is full ([`crate::mcap_chunks`]), so the choice
+/// costs the compressor's own time only. `unz bench ingest` (a 40-min run): the full ingest
+/// at 195 MB/s of raw log with uncompressed chunks and 181 MB/s with zstd ones, half the
+/// size (with the mcap crate's writer, which fed zstd each record field apart, 101–105
+/// MB/s).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum McapCompression {
@@ -43,15 +42,15 @@ pub enum McapCompression {
     Lz4,
 }
 
-/// An MCAP file of ROS 2 channels being written.
+/// An MCAP file of ROS 2 channels being written (by [`ChunkedMcap`]: the mcap crate's
+/// writer's bytes, a chunk at a time).
 pub struct Ros2Mcap {
-    writer: mcap::Writer<BufWriter<std::fs::File>>,
+    writer: ChunkedMcap<BufWriter<std::fs::File>>,
     file: AtomicFile,
-    message: Vec<u8>,
 }
 
-fn mcap_err(path: &Path, e: impl Into<FormatError>) -> FileError {
-    e.into().in_file(path)
+fn io_err(path: &Path, e: std::io::Error) -> FileError {
+    crate::error::io_in_file(path, e)
 }
 
 impl Ros2Mcap {
@@ -59,36 +58,27 @@ impl Ros2Mcap {
     pub fn create(dest: &Path, compression: McapCompression) -> Result<Self, FileError> {
         let file = AtomicFile::create(dest)?;
         let handle = BufWriter::with_capacity(1 << 20, file.file_handle()?);
-        let writer = mcap::WriteOptions::new()
-            .compression(match compression {
-                McapCompression::None => None,
-                McapCompression::Zstd => Some(mcap::Compression::Zstd),
-                McapCompression::Lz4 => Some(mcap::Compression::Lz4),
-            })
-            .compression_level(1)
-            .compression_threads(0)
-            .profile("ros2")
-            .library(concat!("unz ", env!("CARGO_PKG_VERSION")))
-            .create(handle)
-            .map_err(|e| mcap_err(dest, e))?;
-        Ok(Self {
-            writer,
-            file,
-            message: Vec::with_capacity(512),
-        })
+        let writer = ChunkedMcap::new(
+            handle,
+            compression,
+            "ros2",
+            concat!("unz ", env!("CARGO_PKG_VERSION")),
+        )
+        .map_err(|e| io_err(dest, e))?;
+        Ok(Self { writer, file })
     }
 
     /// Registers a channel of `M` messages on `topic`.
     pub fn add_channel<M: Ros2Message>(&mut self, topic: &str) -> Result<Channel<M>, FileError> {
-        let dest = self.file.dest().to_path_buf();
+        let dest = self.file.dest();
         let schema_id = self
             .writer
             .add_schema(M::NAME, "ros2msg", M::DEFINITION.as_bytes())
-            .map_err(|e| mcap_err(&dest, e))?;
+            .map_err(|e| io_err(dest, e))?;
         let id = self
             .writer
             .add_channel(schema_id, topic, "cdr", &BTreeMap::new())
-            .map_err(|e| mcap_err(&dest, e))?;
+            .map_err(|e| io_err(dest, e))?;
         Ok(Channel {
             id,
             sequence: 0,
@@ -103,32 +93,35 @@ impl Ros2Mcap {
         log_time_ns: u64,
         message: &M,
     ) -> Result<(), FileError> {
-        self.message.clear();
-        self.message.extend_from_slice(&CDR_LE);
-        // CDR aligns from the end of the encapsulation header: the serializer counts from
-        // the buffer's length when it starts.
-        let mut ser = re_cdr::CdrSerializer::<re_cdr::LittleEndian>::new(&mut self.message);
-        message
-            .serialize(&mut ser)
-            .map_err(|e| mcap_err(self.file.dest(), e))?;
-        let header = mcap::records::MessageHeader {
-            channel_id: channel.id,
-            sequence: channel.sequence,
-            log_time: log_time_ns,
-            publish_time: log_time_ns,
-        };
-        channel.sequence = channel.sequence.wrapping_add(1);
+        let dest = self.file.dest();
         self.writer
-            .write_to_known_channel(&header, &self.message)
-            .map_err(|e| mcap_err(self.file.dest(), e))
+            .message(
+                channel.id,
+                channel.sequence,
+                log_time_ns,
+                log_time_ns,
+                |buf| -> Result<(), FileError> {
+                    buf.extend_from_slice(&CDR_LE);
+                    // CDR aligns from the end of the encapsulation header: the serializer
+                    // counts from the buffer's length when it starts.
+                    let mut ser = re_cdr::CdrSerializer::<re_cdr::LittleEndian>::new(buf);
+                    message
+                        .serialize(&mut ser)
+                        .map_err(|e| FormatError::from(e).in_file(dest))
+                },
+            )
+            .map_err(|e| match e {
+                MessageError::Io(e) => io_err(dest, e),
+                MessageError::Data(e) => e,
+            })?;
+        channel.sequence = channel.sequence.wrapping_add(1);
+        Ok(())
     }
 
     /// Writes the summary, flushes and renames the file into place.
-    pub fn finish(mut self) -> Result<(), FileError> {
+    pub fn finish(self) -> Result<(), FileError> {
         let dest = self.file.dest().to_path_buf();
-        self.writer.finish().map_err(|e| mcap_err(&dest, e))?;
-        let mut inner = self.writer.into_inner();
-        std::io::Write::flush(&mut inner).map_err(|e| crate::error::io_in_file(&dest, e))?;
+        let inner = self.writer.finish().map_err(|e| io_err(&dest, e))?;
         drop(inner);
         self.file.commit()
     }
