@@ -21,6 +21,7 @@ pub mod disupt;
 pub mod earth;
 pub mod euler_f32;
 pub mod filter;
+pub mod hypot;
 pub mod imu_axes;
 pub mod imu_mounting;
 pub mod in_motion_level;

@@ -141,7 +141,7 @@ pub struct NavTrack {
 /// to a positive scale (a sum of rows works as well as their mean).
 #[inline]
 pub fn roll_pitch_from_row3(c31: f64, c32: f64, c33: f64) -> (f64, f64) {
-    (c32.atan2(c33), (-c31).atan2(c32.hypot(c33)))
+    (c32.atan2(c33), (-c31).atan2(crate::hypot::hypot(c32, c33)))
 }
 
 /// The third row of `C_b^n` of a quaternion (w, x, y, z).
