@@ -10,7 +10,7 @@
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-use crate::error::{FileError, io_in_file};
+use crate::error::{FileError, io_in_file, write_error_in_file};
 
 /// A file being written; it appears under its final name only on [`AtomicFile::commit`].
 pub struct AtomicFile {
@@ -91,7 +91,7 @@ pub fn write_atomic(dest: &Path, bytes: &[u8]) -> Result<(), FileError> {
         let mut w = BufWriter::new(f.file());
         w.write_all(bytes)
             .and_then(|()| w.flush())
-            .map_err(|e| io_in_file(dest, e))?;
+            .map_err(|e| write_error_in_file(dest, e))?;
     }
     f.commit()
 }

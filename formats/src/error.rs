@@ -20,6 +20,12 @@ pub enum FormatError {
         /// The I/O error.
         source: std::io::Error,
     },
+    /// Writing failed.
+    #[error("write failed: {source}")]
+    Write {
+        /// The I/O error.
+        source: std::io::Error,
+    },
     /// A text log line could not be used.
     #[error("line {line}: {reason}")]
     Line {
@@ -42,9 +48,6 @@ pub enum FormatError {
     /// Arrow failed.
     #[error("arrow: {}", with_causes(.0))]
     Arrow(#[from] arrow::error::ArrowError),
-    /// MCAP failed.
-    #[error("mcap: {}", with_causes(.0))]
-    Mcap(#[from] mcap::McapError),
     /// A CDR message could not be encoded.
     #[error("cdr: {}", with_causes(.0))]
     Cdr(#[from] re_cdr::Error),
@@ -57,8 +60,8 @@ pub enum FormatError {
 }
 
 /// `e` and each of its causes that says something new, joined by ": " (a library's
-/// message may hide its cause: mcap's "I/O error from writing" does not say "No space
-/// left on device").
+/// message may hide its cause: an "I/O error from writing" need not say "No space left
+/// on device").
 pub fn with_causes(e: &(dyn std::error::Error + 'static)) -> String {
     let mut out = e.to_string();
     let mut source = e.source();
@@ -97,4 +100,9 @@ impl FormatError {
 /// Attaches a path to an I/O error that happened opening or writing a file.
 pub fn io_in_file(path: impl Into<PathBuf>, source: std::io::Error) -> FileError {
     FormatError::Io { offset: 0, source }.in_file(path)
+}
+
+/// Attaches a path to an I/O error that happened writing a file.
+pub fn write_error_in_file(path: impl Into<PathBuf>, source: std::io::Error) -> FileError {
+    FormatError::Write { source }.in_file(path)
 }

@@ -50,7 +50,7 @@ pub struct Ros2Mcap {
 }
 
 fn io_err(path: &Path, e: std::io::Error) -> FileError {
-    crate::error::io_in_file(path, e)
+    crate::error::write_error_in_file(path, e)
 }
 
 impl Ros2Mcap {
