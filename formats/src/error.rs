@@ -97,7 +97,7 @@ impl FormatError {
     }
 }
 
-/// Attaches a path to an I/O error that happened opening or writing a file.
+/// Attaches a path to an I/O error that happened opening, reading or renaming a file.
 pub fn io_in_file(path: impl Into<PathBuf>, source: std::io::Error) -> FileError {
     FormatError::Io { offset: 0, source }.in_file(path)
 }

@@ -56,6 +56,43 @@ struct ChannelContent {
     metadata: BTreeMap<String, String>,
 }
 
+impl SchemaContent {
+    /// Appends its Schema record, with ID `id`, to `out` (`scratch` for its header).
+    fn record(&self, id: u16, scratch: &mut Vec<u8>, out: &mut Vec<u8>) -> io::Result<()> {
+        let header = records::SchemaHeader {
+            id,
+            name: self.name.clone(),
+            encoding: self.encoding.clone(),
+        };
+        serialize(scratch, &header)?;
+        let data_len = u32::try_from(self.data.len()).map_err(io::Error::other)?;
+        out.push(op::SCHEMA);
+        out.extend_from_slice(&((scratch.len() + 4 + self.data.len()) as u64).to_le_bytes());
+        out.extend_from_slice(scratch);
+        out.extend_from_slice(&data_len.to_le_bytes());
+        out.extend_from_slice(&self.data);
+        Ok(())
+    }
+}
+
+impl ChannelContent {
+    /// Appends its Channel record, with ID `id`, to `out` (`scratch` for its body).
+    fn record(&self, id: u16, scratch: &mut Vec<u8>, out: &mut Vec<u8>) -> io::Result<()> {
+        let channel = records::Channel {
+            id,
+            schema_id: self.schema_id,
+            topic: self.topic.clone(),
+            message_encoding: self.message_encoding.clone(),
+            metadata: self.metadata.clone(),
+        };
+        serialize(scratch, &channel)?;
+        out.push(op::CHANNEL);
+        out.extend_from_slice(&(scratch.len() as u64).to_le_bytes());
+        out.extend_from_slice(scratch);
+        Ok(())
+    }
+}
+
 /// The output's bytes so far: how many, and their CRC-32 (the data section's, then the
 /// summary's).
 struct Counted<W: Write> {
@@ -241,22 +278,7 @@ impl<W: Write> ChunkedMcap<W> {
             return Ok(id_of(i));
         }
         let id = new_id(self.schemas.len())?;
-        let header = records::SchemaHeader {
-            id,
-            name: content.name.clone(),
-            encoding: content.encoding.clone(),
-        };
-        serialize(&mut self.scratch, &header)?;
-        let body = self.scratch.len() + 4 + data.len();
-        self.chunk.push(op::SCHEMA);
-        self.chunk.extend_from_slice(&(body as u64).to_le_bytes());
-        self.chunk.extend_from_slice(&self.scratch);
-        self.chunk.extend_from_slice(
-            &u32::try_from(data.len())
-                .map_err(io::Error::other)?
-                .to_le_bytes(),
-        );
-        self.chunk.extend_from_slice(data);
+        content.record(id, &mut self.scratch, &mut self.chunk)?;
         self.schemas.push(content);
         Ok(id)
     }
@@ -286,18 +308,7 @@ impl<W: Write> ChunkedMcap<W> {
             )));
         }
         let id = new_id(self.channels.len())?;
-        let channel = records::Channel {
-            id,
-            schema_id,
-            topic: content.topic.clone(),
-            message_encoding: content.message_encoding.clone(),
-            metadata: content.metadata.clone(),
-        };
-        serialize(&mut self.scratch, &channel)?;
-        self.chunk.push(op::CHANNEL);
-        self.chunk
-            .extend_from_slice(&(self.scratch.len() as u64).to_le_bytes());
-        self.chunk.extend_from_slice(&self.scratch);
+        content.record(id, &mut self.scratch, &mut self.chunk)?;
         self.channels.push(content);
         self.message_counts.push(0);
         self.chunk_index.push(Vec::new());
@@ -422,37 +433,23 @@ impl<W: Write> ChunkedMcap<W> {
                 group_length: out.position - group_start,
             });
         };
+        // The schemas, then the channels, again (their records as in the first chunk).
+        let mut record = Vec::new();
         if !self.schemas.is_empty() {
             let start = self.out.position;
-            for (i, s) in self.schemas.iter().enumerate() {
-                let header = records::SchemaHeader {
-                    id: id_of(i),
-                    name: s.name.clone(),
-                    encoding: s.encoding.clone(),
-                };
-                serialize(&mut self.scratch, &header)?;
-                let data_len = u32::try_from(s.data.len()).map_err(io::Error::other)?;
-                self.out.put(&[op::SCHEMA])?;
-                let body = (self.scratch.len() + 4 + s.data.len()) as u64;
-                self.out.put(&body.to_le_bytes())?;
-                self.out.put(&self.scratch)?;
-                self.out.put(&data_len.to_le_bytes())?;
-                self.out.put(&s.data)?;
+            for (i, schema) in self.schemas.iter().enumerate() {
+                record.clear();
+                schema.record(id_of(i), &mut self.scratch, &mut record)?;
+                self.out.put(&record)?;
             }
             group(&mut self.out, op::SCHEMA, start);
         }
         if !self.channels.is_empty() {
             let start = self.out.position;
-            for (i, c) in self.channels.iter().enumerate() {
-                let channel = records::Channel {
-                    id: id_of(i),
-                    schema_id: c.schema_id,
-                    topic: c.topic.clone(),
-                    message_encoding: c.message_encoding.clone(),
-                    metadata: c.metadata.clone(),
-                };
-                serialize(&mut self.scratch, &channel)?;
-                self.out.record(op::CHANNEL, &self.scratch)?;
+            for (i, channel) in self.channels.iter().enumerate() {
+                record.clear();
+                channel.record(id_of(i), &mut self.scratch, &mut record)?;
+                self.out.put(&record)?;
             }
             group(&mut self.out, op::CHANNEL, start);
         }
@@ -540,6 +537,15 @@ mod tests {
 
     const TOPICS: [(&str, &str); 3] = [("/imu", "a"), ("/odometer", "b"), ("/marks", "a")];
 
+    /// The IDs of [`TOPICS`]' channels, each registered with its schema by `add` (schema
+    /// name and data, topic → channel ID).
+    fn register(mut add: impl FnMut(&str, &str) -> u16) -> Vec<u16> {
+        TOPICS
+            .iter()
+            .map(|&(topic, schema)| add(schema, topic))
+            .collect()
+    }
+
     /// The file the mcap crate's writer makes of `msgs`, with Ros2Mcap's options.
     fn crate_file(compression: McapCompression, msgs: &[Msg]) -> Vec<u8> {
         let mut w = mcap::WriteOptions::new()
@@ -554,11 +560,10 @@ mod tests {
             .library("unz test")
             .create(Cursor::new(Vec::new()))
             .unwrap();
-        let mut ids = Vec::new();
-        for (topic, schema) in TOPICS {
+        let ids = register(|schema, topic| {
             let s = w.add_schema(schema, "ros2msg", schema.as_bytes()).unwrap();
-            ids.push(w.add_channel(s, topic, "cdr", &BTreeMap::new()).unwrap());
-        }
+            w.add_channel(s, topic, "cdr", &BTreeMap::new()).unwrap()
+        });
         let mut seq = [0u32; 3];
         for (c, t, data) in msgs {
             let header = records::MessageHeader {
@@ -574,14 +579,18 @@ mod tests {
         w.into_inner().into_inner()
     }
 
+    /// [`register`] on our writer.
+    fn register_ours(w: &mut ChunkedMcap<Vec<u8>>) -> Vec<u16> {
+        register(|schema, topic| {
+            let s = w.add_schema(schema, "ros2msg", schema.as_bytes()).unwrap();
+            w.add_channel(s, topic, "cdr", &BTreeMap::new()).unwrap()
+        })
+    }
+
     /// The file [`ChunkedMcap`] makes of `msgs`.
     fn our_file(compression: McapCompression, msgs: &[Msg]) -> Vec<u8> {
         let mut w = ChunkedMcap::new(Vec::new(), compression, "ros2", "unz test").unwrap();
-        let mut ids = Vec::new();
-        for (topic, schema) in TOPICS {
-            let s = w.add_schema(schema, "ros2msg", schema.as_bytes()).unwrap();
-            ids.push(w.add_channel(s, topic, "cdr", &BTreeMap::new()).unwrap());
-        }
+        let ids = register_ours(&mut w);
         let mut seq = [0u32; 3];
         for (c, t, data) in msgs {
             w.message(ids[*c], seq[*c], *t, *t, |buf| {
@@ -655,10 +664,7 @@ mod tests {
         // it exactly to its target, then one byte over: the next message opens a new
         // chunk only in the second case, as in the crate's files.
         let mut w = ChunkedMcap::new(Vec::new(), McapCompression::None, "", "").unwrap();
-        for (topic, schema) in TOPICS {
-            let s = w.add_schema(schema, "ros2msg", schema.as_bytes()).unwrap();
-            w.add_channel(s, topic, "cdr", &BTreeMap::new()).unwrap();
-        }
+        register_ours(&mut w);
         let registry = w.chunk.len();
         let record = |data: usize| 9 + MESSAGE_HEADER_BYTES as usize + data;
         let rest = 1000 - record(0);

@@ -120,8 +120,11 @@ impl Ros2Mcap {
 
     /// Writes the summary, flushes and renames the file into place.
     pub fn finish(self) -> Result<(), FileError> {
-        let dest = self.file.dest().to_path_buf();
-        let inner = self.writer.finish().map_err(|e| io_err(&dest, e))?;
+        let inner = self
+            .writer
+            .finish()
+            .map_err(|e| io_err(self.file.dest(), e))?;
+        // The file's handle (in `inner`) is closed before the file is put in place.
         drop(inner);
         self.file.commit()
     }
