@@ -222,10 +222,13 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let case = load_case(ctx, params, &Overrides::default())?;
         // A coarse search over ±180° of azimuth by the control points first: the run's
         // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).
+        let start_problem = problem_of(&case, params);
+        start_problem.integrate_segments();
         let (coarse, odometer) = rayon::join(
-            || coarse_azimuth(&problem_of(&case, params), &dparams),
+            || coarse_azimuth(&start_problem, &dparams),
             || IngestedSeries::load_odometer_tags(&ctx.layout().dir(StageName::Ingest)),
         );
+        drop(start_problem);
         let odometer = odometer?;
         // The odometer's bridged failures are bridged again at each lag the joint fit
         // tries (the ingest's bridges took the lag their readings showed).

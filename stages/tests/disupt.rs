@@ -595,3 +595,33 @@ fn the_joint_fit_finds_the_vehicles_mark() {
     // A fit with the mark free has nothing to check.
     assert_eq!(free.mark_arm_seen(&problem).unwrap(), None);
 }
+
+/// Every value of an observation, bit for bit.
+fn observation_bits(y: &Observation) -> Vec<u64> {
+    let mut bits: Vec<u64> = y
+        .theta_rad
+        .iter()
+        .chain(&y.phi_rad)
+        .map(|v| v.to_bits())
+        .collect();
+    bits.extend(y.cp_m.iter().flatten().map(|v| v.to_bits()));
+    bits.extend(y.cp_arm_ne.iter().flatten().flatten().map(|v| v.to_bits()));
+    bits
+}
+
+#[test]
+fn segments_integrated_ahead_give_the_observations_a_first_pass_gives() {
+    let c = case_with(44, SensorErrors::ALL, Some(5.0));
+    let (fresh, ahead) = (problem_of(&c), problem_of(&c));
+    ahead.integrate_segments();
+    let x0 = fresh.x0();
+    // At the start's settings (the columns integrated ahead), then with an odometer yaw
+    // boresight, which reads a column more (integrated again, with the ones it had).
+    let mut turned = x0;
+    turned.odo_yaw_deg = 0.5;
+    for x in [x0, turned] {
+        let want = observation_bits(&fresh.observe(&x));
+        assert!(!want.is_empty());
+        assert_eq!(observation_bits(&ahead.observe(&x)), want, "at {x:?}");
+    }
+}

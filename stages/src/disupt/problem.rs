@@ -291,6 +291,15 @@ impl<'a> Problem<'a> {
         self
     }
 
+    /// Integrates the segments the passes at the problem's start read (the IMU's and its
+    /// odometer's, with the columns its settings read), unless they are already: a caller
+    /// with both cores free does it first, where the first pass would do it beside other
+    /// work, and the passes then find them (the same segments either way).
+    pub fn integrate_segments(&self) {
+        let columns = OdoColumns::read_by(&[self.settings(&self.x0())]);
+        self.segments_of(columns);
+    }
+
     /// The IMU's segments, and this problem's odometer's (with at least `columns`),
     /// integrated on first use: the derive's own through its memo, a moved odometer's
     /// here.
