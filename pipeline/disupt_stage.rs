@@ -216,9 +216,11 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 ),
             )
         };
-        // The derive's output first (its own reads side by side), then the coarse search
-        // of the azimuth (mostly one core's passes) beside the reading of the ingested
-        // odometer (the lag's re-derives read it).
+        // The derive's output first (its own reads side by side), then the run's segments
+        // (on both cores: the search's first pass would integrate them on one, the other
+        // reading the odometer), then the coarse search of the azimuth (mostly one core's
+        // passes) beside the reading of the ingested odometer (the lag's re-derives read
+        // it). The segments stay in the derive's memo for every later problem on it.
         let case = load_case(ctx, params, &Overrides::default())?;
         // A coarse search over ±180° of azimuth by the control points first: the run's
         // initial azimuth may be arbitrarily wrong (no static start, a bad manifest).
@@ -228,7 +230,6 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             || coarse_azimuth(&start_problem, &dparams),
             || IngestedSeries::load_odometer_tags(&ctx.layout().dir(StageName::Ingest)),
         );
-        drop(start_problem);
         let odometer = odometer?;
         // The odometer's bridged failures are bridged again at each lag the joint fit
         // tries (the ingest's bridges took the lag their readings showed).
