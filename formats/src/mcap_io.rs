@@ -7,7 +7,7 @@ use std::io::BufWriter;
 use std::path::Path;
 
 use crate::atomic::AtomicFile;
-use crate::error::{FileError, FormatError};
+use crate::error::{FileError, FormatError, write_error_in_file};
 use crate::mcap_chunks::{ChunkedMcap, MessageError};
 use crate::ros2_msgs::Ros2Message;
 
@@ -49,10 +49,6 @@ pub struct Ros2Mcap {
     file: AtomicFile,
 }
 
-fn io_err(path: &Path, e: std::io::Error) -> FileError {
-    crate::error::write_error_in_file(path, e)
-}
-
 impl Ros2Mcap {
     /// Starts an MCAP file at `dest` with chunks compressed as `compression` says.
     pub fn create(dest: &Path, compression: McapCompression) -> Result<Self, FileError> {
@@ -64,7 +60,7 @@ impl Ros2Mcap {
             "ros2",
             concat!("unz ", env!("CARGO_PKG_VERSION")),
         )
-        .map_err(|e| io_err(dest, e))?;
+        .map_err(|e| write_error_in_file(dest, e))?;
         Ok(Self { writer, file })
     }
 
@@ -74,11 +70,11 @@ impl Ros2Mcap {
         let schema_id = self
             .writer
             .add_schema(M::NAME, "ros2msg", M::DEFINITION.as_bytes())
-            .map_err(|e| io_err(dest, e))?;
+            .map_err(|e| write_error_in_file(dest, e))?;
         let id = self
             .writer
             .add_channel(schema_id, topic, "cdr", &BTreeMap::new())
-            .map_err(|e| io_err(dest, e))?;
+            .map_err(|e| write_error_in_file(dest, e))?;
         Ok(Channel {
             id,
             sequence: 0,
@@ -111,7 +107,7 @@ impl Ros2Mcap {
                 },
             )
             .map_err(|e| match e {
-                MessageError::Io(e) => io_err(dest, e),
+                MessageError::Io(e) => write_error_in_file(dest, e),
                 MessageError::Data(e) => e,
             })?;
         channel.sequence = channel.sequence.wrapping_add(1);
@@ -123,7 +119,7 @@ impl Ros2Mcap {
         let inner = self
             .writer
             .finish()
-            .map_err(|e| io_err(self.file.dest(), e))?;
+            .map_err(|e| write_error_in_file(self.file.dest(), e))?;
         // The file's handle (in `inner`) is closed before the file is put in place.
         drop(inner);
         self.file.commit()
