@@ -16,7 +16,7 @@ use unz_formats::tables::values_of;
 use unz_stages::criteria::Kryt1Series;
 use unz_stages::derive::Derived;
 use unz_stages::earth::{Geodetic, LocalFrame};
-use unz_stages::euler_f32::{HeadingDeg, euler_deg_f32_into};
+use unz_stages::euler_f32::{HeadingDeg, SIDE_BY_SIDE, euler_deg_f32_into};
 use unz_stages::strapdown::{KeepRows, TrackRow, samples_every};
 
 /// File name of the per-method trajectories.
@@ -115,14 +115,14 @@ pub struct KeptTrack {
 /// [`track_samples`]; a [`KeepRows`]): no state of the pass is stored beside it.
 pub struct TrackBuilder {
     track: KeptTrack,
-    /// Attitudes whose angles are not taken yet: they are taken four at a time, side by
-    /// side ([`euler_deg_f32_into`]).
+    /// Attitudes whose angles are not taken yet: they are taken a block at a time, side
+    /// by side ([`euler_deg_f32_into`]).
     pending: [[f64; 4]; ANGLES_AT_ONCE],
     pending_rows: usize,
 }
 
 /// Attitudes a [`TrackBuilder`] turns into angles at once.
-const ANGLES_AT_ONCE: usize = 4;
+const ANGLES_AT_ONCE: usize = SIDE_BY_SIDE;
 
 impl TrackBuilder {
     /// For `method`'s pass, keeping `rows` samples.
