@@ -132,6 +132,12 @@ impl BlockAttitude {
         self.pitch_rad.reserve_exact(n);
     }
 
+    /// The blocks filtered with F ([`FilteredBlocks`]).
+    pub fn filtered(mut self, lp: &LowPass) -> FilteredBlocks {
+        self.filter(lp);
+        FilteredBlocks(self)
+    }
+
     /// Filters both series with F, in place: they become F(Φ_N) and F(Θ_N).
     fn filter(&mut self, lp: &LowPass) {
         lp.filter_blocks_each(&mut [&mut self.pitch_rad, &mut self.roll_rad]);
@@ -315,18 +321,34 @@ pub fn epoch_attitude(
     scratch.blocks.at_epochs(epochs, theta, phi);
 }
 
-/// [`epoch_attitude`] from a pass's attitude per block of F (what a
-/// [`crate::strapdown::CriteriaSink`] collected), which it filters in place — the same
-/// numbers, without the stored track.
-pub fn epoch_attitude_from_blocks(
-    epochs: &Epochs,
+/// A pass's attitude per block of F filtered with F: F(Φ_N) and F(Θ_N), all that Kryt1
+/// and the attitude residuals read of a pass ([`BlockAttitude::filtered`],
+/// [`filtered_side_by_side`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FilteredBlocks(BlockAttitude);
+
+impl FilteredBlocks {
+    /// [`epoch_attitude`] of the pass: its filtered (Θ, Φ) at each epoch into `theta` and
+    /// `phi` — the same numbers, without the stored track.
+    pub fn at_epochs(&self, epochs: &Epochs, theta: &mut Vec<f64>, phi: &mut Vec<f64>) {
+        self.0.at_epochs(epochs, theta, phi);
+    }
+}
+
+/// The attitude per block of F of several passes (what their
+/// [`crate::strapdown::CriteriaSink`]s collected), each [`BlockAttitude::filtered`], side
+/// by side: their pitch and roll series four at a time ([`LowPass::filter_blocks_each`]),
+/// where a pass alone fills two of the four lanes. Each the same, bit for bit, as alone.
+pub fn filtered_side_by_side<const N: usize>(
     lp: &LowPass,
-    mut blocks: BlockAttitude,
-    theta: &mut Vec<f64>,
-    phi: &mut Vec<f64>,
-) {
-    blocks.filter(lp);
-    blocks.at_epochs(epochs, theta, phi);
+    mut blocks: [BlockAttitude; N],
+) -> [FilteredBlocks; N] {
+    let mut series: Vec<&mut [f64]> = blocks
+        .iter_mut()
+        .flat_map(|b| [&mut b.pitch_rad[..], &mut b.roll_rad[..]])
+        .collect();
+    lp.filter_blocks_each(&mut series);
+    blocks.map(FilteredBlocks)
 }
 
 /// Kryt1 from the filtered gyro (pitch, roll) of each epoch, given by `attitude(e)`;
@@ -872,5 +894,52 @@ mod tests {
         assert_eq!(whole.to_bits(), by_hand.to_bits());
         assert_eq!(from_blocks.to_bits(), by_hand.to_bits());
         assert!(whole > 0.0);
+    }
+
+    /// Several passes' blocks filtered side by side are each pass's filtered alone, bit
+    /// for bit, at every epoch: one to five passes (a group of four series and its
+    /// remainder), of one length and of two.
+    #[test]
+    fn blocks_filtered_side_by_side_are_each_alone_bit_for_bit() {
+        let lp = LowPass::new(&crate::filter::FilterParams::default(), 0.01);
+        let pass = |p: usize, n: usize| BlockAttitude {
+            roll_rad: (0..n)
+                .map(|j| (0.01 * (j * (p + 1)) as f64).sin())
+                .collect(),
+            pitch_rad: (0..n)
+                .map(|j| 0.02 * (0.003 * (j + p) as f64).cos())
+                .collect(),
+        };
+        let epochs = |n: usize| Epochs {
+            block: (0..n).collect(),
+            ..Epochs::default()
+        };
+        let angles = |f: &FilteredBlocks, n: usize| {
+            let (mut theta, mut phi) = (Vec::new(), Vec::new());
+            f.at_epochs(&epochs(n), &mut theta, &mut phi);
+            assert_eq!(theta.len(), n);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            (bits(&theta), bits(&phi))
+        };
+        fn check<const N: usize>(
+            lens: [usize; N],
+            lp: &LowPass,
+            pass: impl Fn(usize, usize) -> BlockAttitude,
+            angles: impl Fn(&FilteredBlocks, usize) -> (Vec<u64>, Vec<u64>),
+        ) {
+            let together: [FilteredBlocks; N] =
+                filtered_side_by_side(lp, std::array::from_fn(|p| pass(p, lens[p])));
+            for (p, f) in together.iter().enumerate() {
+                let alone = pass(p, lens[p]).filtered(lp);
+                assert_eq!(angles(f, lens[p]), angles(&alone, lens[p]), "{lens:?} {p}");
+                assert_ne!(f, &FilteredBlocks(pass(p, lens[p])), "filtered");
+            }
+        }
+        check([500], &lp, pass, angles);
+        check([500, 500], &lp, pass, angles);
+        check([500, 500, 500], &lp, pass, angles);
+        check([500, 500, 500, 500], &lp, pass, angles);
+        check([500, 500, 500, 500, 500], &lp, pass, angles);
+        check([500, 300, 500], &lp, pass, angles);
     }
 }

@@ -8,7 +8,7 @@ use either::Either;
 use rayon::prelude::*;
 
 use super::settings::{BASE_SETTINGS, X, params_of, x_of};
-use crate::criteria::{self, ControlPointFix, KalmanParams, Kryt1Gains, Kryt2};
+use crate::criteria::{self, ControlPointFix, FilteredBlocks, KalmanParams, Kryt1Gains, Kryt2};
 use crate::derive::{Epochs, MovedOdometer, OdoIncrements};
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
@@ -442,16 +442,16 @@ impl<'a> Problem<'a> {
         )
     }
 
-    /// What the criteria read from a pass's sink.
-    fn observation_of_sink(&self, mut sink: CriteriaSink, x: &X) -> Observation {
+    /// What the criteria read from a pass's sink, its blocks filtered (`blocks`, taken
+    /// from the sink).
+    fn observation_of_sink(
+        &self,
+        blocks: &FilteredBlocks,
+        sink: &CriteriaSink,
+        x: &X,
+    ) -> Observation {
         let mut y = Observation::default();
-        criteria::epoch_attitude_from_blocks(
-            self.epochs,
-            &self.lp,
-            std::mem::take(&mut sink.blocks),
-            &mut y.theta_rad,
-            &mut y.phi_rad,
-        );
+        blocks.at_epochs(self.epochs, &mut y.theta_rad, &mut y.phi_rad);
         y.cp_m = self
             .fixes
             .iter()
@@ -622,11 +622,22 @@ impl LaneBatch for OnDerives<'_, '_> {
             &at,
             &mut sinks,
         );
-        let mut sinks = sinks.into_iter();
+        // F on the lanes' blocks side by side when they share it (the problems of a batch
+        // do: they differ in their odometers only), else on each lane's.
+        let blocks = sinks.each_mut().map(|s| std::mem::take(&mut s.blocks));
+        let lps = points.map(|i| &self.problem(i).lp);
+        let filtered = if lps.iter().all(|lp| *lp == lps[0]) {
+            criteria::filtered_side_by_side(lps[0], blocks)
+        } else {
+            let mut lps = lps.into_iter();
+            blocks.map(|b| b.filtered(lps.next().expect("one filter per lane")))
+        };
         std::array::from_fn(|l| {
-            let sink = sinks.next().expect("one sink per lane");
-            self.problem(points[l])
-                .observation_of_sink(sink, &self.xs[points[l]])
+            self.problem(points[l]).observation_of_sink(
+                &filtered[l],
+                &sinks[l],
+                &self.xs[points[l]],
+            )
         })
     }
 }
