@@ -332,24 +332,11 @@ fn asin_lanes(x: [f64; WIDTH]) -> [f64; WIDTH] {
 /// storage) of each lane, NaN where it gives none.
 #[inline(always)]
 fn fast_lanes(q: &[[f64; 4]; WIDTH]) -> [[f64; WIDTH]; 3] {
-    // The quaternions' components lane by lane, then the entries as `matrix_entries`
-    // forms them.
-    let mut c = [[0.0; WIDTH]; 4];
-    for l in 0..WIDTH {
-        for (i, v) in q[l].into_iter().enumerate() {
-            c[i][l] = v;
-        }
-    }
-    let [w, i, j, k] = c;
     let mut m = [[0.0; WIDTH]; 5];
     for l in 0..WIDTH {
-        let (w, i, j, k) = (w[l], i[l], j[l], k[l]);
-        let (ww, ii, jj, kk) = (w * w, i * i, j * j, k * k);
-        m[0][l] = ww + ii - jj - kk;
-        m[1][l] = w * k * 2.0 + i * j * 2.0;
-        m[2][l] = i * k * 2.0 - w * j * 2.0;
-        m[3][l] = w * i * 2.0 + j * k * 2.0;
-        m[4][l] = ww - ii - jj + kk;
+        for (e, v) in matrix_entries(&q[l]).into_iter().enumerate() {
+            m[e][l] = v;
+        }
     }
     let [m00, m10, m20, m21, m22] = m;
     let pitch = asin_lanes(m20);
