@@ -117,12 +117,9 @@ pub struct TrackBuilder {
     track: KeptTrack,
     /// Attitudes whose angles are not taken yet: they are taken a block at a time, side
     /// by side ([`euler_deg_f32_into`]).
-    pending: [[f64; 4]; ANGLES_AT_ONCE],
+    pending: [[f64; 4]; SIDE_BY_SIDE],
     pending_rows: usize,
 }
-
-/// Attitudes a [`TrackBuilder`] turns into angles at once.
-const ANGLES_AT_ONCE: usize = SIDE_BY_SIDE;
 
 impl TrackBuilder {
     /// For `method`'s pass, keeping `rows` samples.
@@ -137,7 +134,7 @@ impl TrackBuilder {
                 pitch_deg: Vec::with_capacity(rows),
                 heading_deg: Vec::with_capacity(rows),
             },
-            pending: [[0.0; 4]; ANGLES_AT_ONCE],
+            pending: [[0.0; 4]; SIDE_BY_SIDE],
             pending_rows: 0,
         }
     }
@@ -151,7 +148,7 @@ impl TrackBuilder {
     /// The pending attitudes' angles, into the track.
     fn take_angles(&mut self) {
         let n = self.pending_rows;
-        let mut rows = [[0.0; 3]; ANGLES_AT_ONCE];
+        let mut rows = [[0.0; 3]; SIDE_BY_SIDE];
         euler_deg_f32_into(&self.pending[..n], HeadingDeg::Wrapped, &mut rows[..n]);
         let m = &mut self.track;
         for [roll, pitch, heading] in &rows[..n] {
@@ -171,7 +168,7 @@ impl KeepRows for TrackBuilder {
         m.h_m.push(h as f32);
         self.pending[self.pending_rows] = q;
         self.pending_rows += 1;
-        if self.pending_rows == ANGLES_AT_ONCE {
+        if self.pending_rows == SIDE_BY_SIDE {
             self.take_angles();
         }
     }

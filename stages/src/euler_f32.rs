@@ -196,9 +196,6 @@ fn matrix_entries(q: &[f64; 4]) -> [f64; 5] {
 /// A list's last attitudes short of a block are taken one at a time.
 pub const SIDE_BY_SIDE: usize = 32;
 
-/// [`SIDE_BY_SIDE`] in the lanes' loops.
-const WIDTH: usize = SIDE_BY_SIDE;
-
 /// [`euler_deg_f32`] of each of `q` into `out` (as long): blocks of [`SIDE_BY_SIDE`]
 /// attitudes side by side, in vector registers on x86-64 CPUs with AVX2 (a table's rows
 /// are independent: its divisions, square roots and polynomials then take a quarter of the
@@ -227,10 +224,10 @@ fn into_avx2(q: &[[f64; 4]], heading: HeadingDeg, out: &mut [[f32; 3]]) {
 
 #[inline(always)]
 fn into_portable(q: &[[f64; 4]], heading: HeadingDeg, out: &mut [[f32; 3]]) {
-    let mut groups = q.chunks_exact(WIDTH);
-    let mut rows = out.chunks_exact_mut(WIDTH);
+    let mut groups = q.chunks_exact(SIDE_BY_SIDE);
+    let mut rows = out.chunks_exact_mut(SIDE_BY_SIDE);
     for (q, rows) in (&mut groups).zip(&mut rows) {
-        let q: &[[f64; 4]; WIDTH] = q.try_into().expect("a whole group");
+        let q: &[[f64; 4]; SIDE_BY_SIDE] = q.try_into().expect("a whole group");
         let (angles, sure) = certain_lanes(&fast_lanes(q), heading);
         for (l, row) in rows.iter_mut().enumerate() {
             *row = [angles[0][l], angles[1][l], angles[2][l]];
@@ -258,9 +255,9 @@ fn uncertain_again(q: &[[f64; 4]], sure: &[bool], heading: HeadingDeg, rows: &mu
 
 /// [`atan_unit`] of each lane (each `t` in [0, 1]; any value in a lane left out).
 #[inline(always)]
-fn atan_unit_lanes(t: [f64; WIDTH]) -> [f64; WIDTH] {
-    let mut r = [0.0; WIDTH];
-    for l in 0..WIDTH {
+fn atan_unit_lanes(t: [f64; SIDE_BY_SIDE]) -> [f64; SIDE_BY_SIDE] {
+    let mut r = [0.0; SIDE_BY_SIDE];
+    for l in 0..SIDE_BY_SIDE {
         // `as i32` truncates as `as usize` does over [0.5, 32.5]; a lane left out (NaN,
         // out of range) saturates, and is clamped to the table.
         let k = (t[l] * 32.0 + 0.5) as i32;
@@ -276,9 +273,9 @@ fn atan_unit_lanes(t: [f64; WIDTH]) -> [f64; WIDTH] {
 
 /// [`atan2_fast`] of each lane, NaN where it gives none.
 #[inline(always)]
-fn atan2_lanes(y: [f64; WIDTH], x: [f64; WIDTH]) -> [f64; WIDTH] {
-    let mut ratio = [0.0; WIDTH];
-    for l in 0..WIDTH {
+fn atan2_lanes(y: [f64; SIDE_BY_SIDE], x: [f64; SIDE_BY_SIDE]) -> [f64; SIDE_BY_SIDE] {
+    let mut ratio = [0.0; SIDE_BY_SIDE];
+    for l in 0..SIDE_BY_SIDE {
         // `if ay <= ax { ay / ax } else { ax / ay }` in one division (NaNs aside, whose
         // lanes are left out).
         let (ay, ax) = (y[l].abs(), x[l].abs());
@@ -286,8 +283,8 @@ fn atan2_lanes(y: [f64; WIDTH], x: [f64; WIDTH]) -> [f64; WIDTH] {
         ratio[l] = small / large;
     }
     let a = atan_unit_lanes(ratio);
-    let mut out = [0.0; WIDTH];
-    for l in 0..WIDTH {
+    let mut out = [0.0; SIDE_BY_SIDE];
+    for l in 0..SIDE_BY_SIDE {
         let (ay, ax) = (y[l].abs(), x[l].abs());
         let r = if ay <= ax {
             a[l]
@@ -307,16 +304,16 @@ fn atan2_lanes(y: [f64; WIDTH], x: [f64; WIDTH]) -> [f64; WIDTH] {
 
 /// [`asin_fast`] of each lane, NaN where it gives none.
 #[inline(always)]
-fn asin_lanes(x: [f64; WIDTH]) -> [f64; WIDTH] {
-    let mut t = [0.0; WIDTH];
-    let mut unit = [0.0; WIDTH];
-    for l in 0..WIDTH {
+fn asin_lanes(x: [f64; SIDE_BY_SIDE]) -> [f64; SIDE_BY_SIDE] {
+    let mut t = [0.0; SIDE_BY_SIDE];
+    let mut unit = [0.0; SIDE_BY_SIDE];
+    for l in 0..SIDE_BY_SIDE {
         t[l] = x[l].abs() / ((1.0 - x[l]) * (1.0 + x[l])).sqrt();
         unit[l] = if t[l] <= 1.0 { t[l] } else { 1.0 / t[l] };
     }
     let a = atan_unit_lanes(unit);
-    let mut out = [0.0; WIDTH];
-    for l in 0..WIDTH {
+    let mut out = [0.0; SIDE_BY_SIDE];
+    for l in 0..SIDE_BY_SIDE {
         let r = if t[l] <= 1.0 {
             a[l]
         } else {
@@ -331,9 +328,9 @@ fn asin_lanes(x: [f64; WIDTH]) -> [f64; WIDTH] {
 /// [`fast`]'s f64 angles in degrees (roll, pitch, heading in [0, 360) before `heading`'s
 /// storage) of each lane, NaN where it gives none.
 #[inline(always)]
-fn fast_lanes(q: &[[f64; 4]; WIDTH]) -> [[f64; WIDTH]; 3] {
-    let mut m = [[0.0; WIDTH]; 5];
-    for l in 0..WIDTH {
+fn fast_lanes(q: &[[f64; 4]; SIDE_BY_SIDE]) -> [[f64; SIDE_BY_SIDE]; 3] {
+    let mut m = [[0.0; SIDE_BY_SIDE]; 5];
+    for l in 0..SIDE_BY_SIDE {
         for (e, v) in matrix_entries(&q[l]).into_iter().enumerate() {
             m[e][l] = v;
         }
@@ -342,8 +339,8 @@ fn fast_lanes(q: &[[f64; 4]; WIDTH]) -> [[f64; WIDTH]; 3] {
     let pitch = asin_lanes(m20);
     let roll = atan2_lanes(m21, m22);
     let yaw = atan2_lanes(m10, m00);
-    let mut out = [[0.0; WIDTH]; 3];
-    for l in 0..WIDTH {
+    let mut out = [[0.0; SIDE_BY_SIDE]; 3];
+    for l in 0..SIDE_BY_SIDE {
         // `rem_euclid_turn` of an atan2 in (−π, π] (NaN stays NaN).
         let y = if yaw[l] < 0.0 {
             yaw[l] + std::f64::consts::TAU
@@ -363,14 +360,14 @@ fn fast_lanes(q: &[[f64; 4]; WIDTH]) -> [[f64; WIDTH]; 3] {
 /// take [`euler_deg_f32`], which gives the libm route's angles either way.
 #[inline(always)]
 fn certain_lanes(
-    angles: &[[f64; WIDTH]; 3],
+    angles: &[[f64; SIDE_BY_SIDE]; 3],
     heading: HeadingDeg,
-) -> ([[f32; WIDTH]; 3], [bool; WIDTH]) {
-    let mut out = [[0.0f32; WIDTH]; 3];
-    let mut sure = [true; WIDTH];
+) -> ([[f32; SIDE_BY_SIDE]; 3], [bool; SIDE_BY_SIDE]) {
+    let mut out = [[0.0f32; SIDE_BY_SIDE]; 3];
+    let mut sure = [true; SIDE_BY_SIDE];
     for (a, (zs, out)) in angles.iter().zip(&mut out).enumerate() {
         let wraps = a == 2 && heading == HeadingDeg::Wrapped;
-        for l in 0..WIDTH {
+        for l in 0..SIDE_BY_SIDE {
             let z = zs[l];
             let e = z.abs() * MARGIN;
             let (lo, hi) = (z - e, z + e);
@@ -605,7 +602,7 @@ mod tests {
                 .iter()
                 .flat_map(|&e| [e, 1.5, 2.5, 3.5, e, 4.5, 5.5, 6.5, e]),
         );
-        while values.len() < 3 * WIDTH * 200 {
+        while values.len() < 3 * SIDE_BY_SIDE * 200 {
             values.push((u.next() - 0.1) * 400.0);
             // Near an f32 rounding boundary of a random f32.
             let f = ((u.next() - 0.5) * 720.0) as f32;
@@ -613,13 +610,13 @@ mod tests {
             values.push((f64::from(f) + up) / 2.0 + (u.next() - 0.5) * 1e-12 * up.abs());
         }
         for heading in [HeadingDeg::AsIs, HeadingDeg::Wrapped] {
-            for block in values.chunks_exact(3 * WIDTH) {
-                let mut angles = [[0.0; WIDTH]; 3];
+            for block in values.chunks_exact(3 * SIDE_BY_SIDE) {
+                let mut angles = [[0.0; SIDE_BY_SIDE]; 3];
                 for (i, &v) in block.iter().enumerate() {
                     angles[i % 3][i / 3] = v;
                 }
                 let (got, sure) = certain_lanes(&angles, heading);
-                for l in 0..WIDTH {
+                for l in 0..SIDE_BY_SIDE {
                     let row = [angles[0][l], angles[1][l], angles[2][l]];
                     match certain_row(row, heading) {
                         Some(want) if sure[l] => assert_eq!(
