@@ -591,18 +591,24 @@ pub fn read_schema(path: &Path) -> Result<SchemaRef, FileError> {
     Ok(builder.schema().clone())
 }
 
+/// At most how many rows a Parquet file's footer may make [`row_capacity_hint`] reserve
+/// for each byte of the file. The densest file of a run is `odometer.parquet`: about
+/// half a byte a row (its times delta-packed, its distances byte-split and compressed),
+/// so a byte a row would leave its columns to grow twice over as they are read.
+pub const ROWS_PER_FILE_BYTE_MAX: u64 = 4;
+
 /// How many rows to make room for before reading a Parquet file batch by batch: the
-/// row count its footer states, but never more than the file's length in bytes, so that
-/// a footer that lies cannot make a reader reserve more than the file's size says. It
-/// is only a hint: the run-length files this pipeline reads hold many bytes per row, and
-/// a reader's columns still grow past it if the file has more rows.
+/// row count its footer states, but never more than [`ROWS_PER_FILE_BYTE_MAX`] times the
+/// file's length in bytes, so that a footer that lies cannot make a reader reserve more
+/// than a bounded multiple of the file's size. It is only a hint: a reader's columns
+/// still grow past it if the file has more rows.
 pub fn row_capacity_hint(path: &Path) -> Result<usize, FileError> {
     let file = std::fs::File::open(path).map_err(|e| io_in_file(path, e))?;
     let len = file.metadata().map_err(|e| io_in_file(path, e))?.len();
     let builder =
         ParquetRecordBatchReaderBuilder::try_new(file).map_err(|e| parquet_err(path, e))?;
     let rows = u64::try_from(builder.metadata().file_metadata().num_rows()).unwrap_or(0);
-    Ok(usize::try_from(rows.min(len)).unwrap_or(0))
+    Ok(usize::try_from(rows.min(len.saturating_mul(ROWS_PER_FILE_BYTE_MAX))).unwrap_or(0))
 }
 
 /// A reader of a Parquet file's batches (of 65 536 rows), and its schema; only the
@@ -714,7 +720,7 @@ mod tests {
     use std::sync::Arc;
 
     #[test]
-    fn the_row_hint_is_the_footers_count_within_the_files_size() {
+    fn the_row_hint_is_the_footers_count_within_a_multiple_of_the_files_size() {
         let dir = tempfile::tempdir().expect("temp dir");
         let schema = Arc::new(Schema::new(vec![Field::new("x", DataType::Float64, false)]));
         let write = |name: &str, values: Vec<f64>| {
@@ -731,12 +737,26 @@ mod tests {
             (0..5000).map(|k| (k as f64).sin()).collect(),
         );
         assert_eq!(row_capacity_hint(&noisy).expect("hint"), 5000);
-        // A constant column compresses to fewer bytes than rows: the file's size bounds
-        // the hint, and reading still gives every row.
+        // An odometer's distances (a ramp in whole centimetres): fewer bytes than rows,
+        // but within the bound, so the footer's count still stands.
+        let ramp = write(
+            "ramp.parquet",
+            (0..200_000)
+                .map(|k| f64::from(k * 13 / 10) * 0.01)
+                .collect(),
+        );
+        let bytes = std::fs::metadata(&ramp).expect("size").len() as usize;
+        assert!(bytes < 200_000 && 200_000 <= bytes * ROWS_PER_FILE_BYTE_MAX as usize);
+        assert_eq!(row_capacity_hint(&ramp).expect("hint"), 200_000);
+        // A constant column compresses to far fewer bytes than rows: the file's size
+        // bounds the hint, and reading still gives every row.
         let flat = write("flat.parquet", vec![1.0; 200_000]);
         let bytes = std::fs::metadata(&flat).expect("size").len() as usize;
-        assert!(bytes < 200_000);
-        assert_eq!(row_capacity_hint(&flat).expect("hint"), bytes);
+        assert!(bytes * (ROWS_PER_FILE_BYTE_MAX as usize) < 200_000);
+        assert_eq!(
+            row_capacity_hint(&flat).expect("hint"),
+            bytes * ROWS_PER_FILE_BYTE_MAX as usize
+        );
         let mut rows = 0;
         for_each_batch(&flat, |b| {
             rows += b.num_rows();
