@@ -283,9 +283,31 @@ impl Derived {
         ns_since(self.t0_ns, t_s)
     }
 
-    /// Times of the samples `range`, ns in the log's time base (as they are stored).
+    /// Times of the samples `range`, ns in the log's time base (as they are stored): each
+    /// [`Self::ns_of`] its time, bit for bit. Stored times are added to `t0_ns` as they
+    /// are, without the round trip through seconds, within
+    /// [`crate::time_base::ROUND_TRIP_NS_MAX`], where that trip gives them back.
+    ///
+    /// # Panics
+    /// If the range goes past the samples.
     pub fn t_ns(&self, range: std::ops::Range<usize>) -> impl Iterator<Item = i64> + '_ {
-        self.t_s.range(range).map(|t| self.ns_of(t))
+        assert!(
+            range.end <= self.t_s.len(),
+            "{range:?} of {}",
+            self.t_s.len()
+        );
+        let stored = self.t_s.nanos();
+        range.map(move |k| match stored {
+            Some(t) => {
+                let ns = t.ns(k);
+                if ns.unsigned_abs() <= crate::time_base::ROUND_TRIP_NS_MAX.unsigned_abs() {
+                    self.t0_ns + ns
+                } else {
+                    self.ns_of(t.get(k))
+                }
+            }
+            None => self.ns_of(self.t_s.get(k)),
+        })
     }
 
     /// The navigation kernel's inputs.
@@ -1105,6 +1127,42 @@ pub fn shifted_blocks(x: &[f64], block_s: f64, shift_s: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A stored derive's times in ns are each its time in seconds rounded back, bit for
+    /// bit: at 100 Hz with jitter, across a gap past a 32-bit offset (a far time), 12 h
+    /// in, and past the round trip's bound (the trip taken there), from a start anywhere
+    /// in the log's time base; and so are times kept as computed.
+    #[test]
+    fn sample_times_in_ns_are_their_seconds_rounded_back() {
+        let mut ns: Vec<i64> = Vec::new();
+        let mut t = 0i64;
+        for k in 0..3000i64 {
+            t += match k {
+                1000 => 6_000_000_000,
+                2000 => 43_200_000_000_000,
+                2500 => crate::time_base::ROUND_TRIP_NS_MAX,
+                _ => 10_000_000 + (k * 7919) % 1000 - 500,
+            };
+            ns.push(t);
+        }
+        let stored = TimeBase::from_nanos(ns.iter().copied());
+        let computed = TimeBase::from(stored.to_vec());
+        for t0_ns in [0, 1_234_567_890_123_456_789, -987_654_321] {
+            for t_s in [&stored, &computed] {
+                let d = Derived {
+                    t0_ns,
+                    t_s: t_s.clone(),
+                    ..Derived::default()
+                };
+                let each: Vec<i64> = (0..ns.len()).map(|k| d.ns_of(d.t_s.get(k))).collect();
+                assert_eq!(d.t_ns(0..ns.len()).collect::<Vec<_>>(), each);
+                assert_eq!(d.t_ns(2499..2502).collect::<Vec<_>>(), each[2499..2502]);
+                // Within the bound, the stored times themselves.
+                let within: Vec<i64> = ns[..2500].iter().map(|&n| t0_ns + n).collect();
+                assert_eq!(each[..2500], within);
+            }
+        }
+    }
 
     /// The rounding is libm's, bit for bit: halves (either sign), values next to them,
     /// the ends of i64, infinities, NaN, and a million times and products of the kind the

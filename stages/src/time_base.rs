@@ -15,6 +15,14 @@ pub const NANOS_BLOCK: usize = 64;
 /// Offset marking a sample whose time is in the far list.
 const FAR: u32 = u32::MAX;
 
+/// The largest |ns| whose time in seconds (`ns as f64 * 1e-9`, as a stored derive's times
+/// are read) gives `ns` back when scaled by 1e9 and rounded to the nearest (6.5 days).
+///
+/// `ns` is exact in an f64 (below 2^53); `1e-9` is within a relative 2^-53 of 10^-9, and
+/// the two products each round within a relative 2^-53, so the scaled value is within
+/// |ns| · 3.0000001 · 2^-53 ≤ 0.19 of `ns`, and rounds to it.
+pub const ROUND_TRIP_NS_MAX: i64 = 1 << 49;
+
 /// Per-sample times.
 #[derive(Clone)]
 pub enum TimeBase {
@@ -117,6 +125,15 @@ impl TimeBase {
     pub fn range(&self, range: std::ops::Range<usize>) -> Times<'_> {
         assert!(range.end <= self.len(), "{range:?} of {}", self.len());
         Times { base: self, range }
+    }
+
+    /// The stored whole nanoseconds since the first sample's time, when the times are
+    /// stored as such ([`TimeBase::Nanos`]).
+    pub fn nanos(&self) -> Option<&NanoTimes> {
+        match self {
+            TimeBase::Seconds(_) => None,
+            TimeBase::Nanos(t) => Some(t),
+        }
     }
 
     /// Every time, in order.
@@ -425,6 +442,27 @@ mod tests {
         assert_eq!(tb.last(), Some(ns[9999] as f64 * 1e-9));
         // Sized once: four bytes a sample, not a vector grown to twice its length.
         assert_eq!(n.offset_ns.capacity(), ns.len());
+    }
+
+    #[test]
+    fn nanoseconds_within_the_bound_come_back_from_seconds() {
+        use rand::{Rng, SeedableRng};
+        let back = |ns: i64| crate::derive::ns_since(0, ns as f64 * 1e-9);
+        let max = ROUND_TRIP_NS_MAX;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(49);
+        let edges = [0, 1, -1, max, -max, max - 1, 1 << 40, 43_200_000_000_000];
+        let random = (0..200_000).map(|_| rng.random_range(-max..=max));
+        // Near the bound, where the round trip's error is largest.
+        let near = (0..200_000).map(|k| max - k * 7_919);
+        for ns in edges.into_iter().chain(random).chain(near) {
+            assert_eq!(back(ns), ns, "{ns}");
+        }
+        // Far past it the trip loses nanoseconds: the bound is not idle.
+        let lost = (0..1000i64)
+            .map(|k| (1i64 << 62) + k * 1_000_003)
+            .filter(|&ns| back(ns) != ns)
+            .count();
+        assert!(lost > 0);
     }
 
     #[test]
