@@ -296,7 +296,15 @@ impl<'a> Problem<'a> {
     /// with both cores free does it first, where the first pass would do it beside other
     /// work, and the passes then find them (the same segments either way).
     pub fn integrate_segments(&self) {
-        let columns = OdoColumns::read_by(&[self.settings(&self.x0())]);
+        self.integrate_segments_with(OdoColumns::default());
+    }
+
+    /// [`Self::integrate_segments`] with the odometer's columns `also` beside those its
+    /// start reads, for passes to come that read them: integrated in the same walk, not in
+    /// a walk of their own when those passes come (each column's sums are the same
+    /// either way).
+    pub fn integrate_segments_with(&self, also: OdoColumns) {
+        let columns = OdoColumns::read_by(&[self.settings(&self.x0())]).union(&also);
         self.segments_of(columns);
     }
 

@@ -1027,6 +1027,25 @@ mod tests {
                 "{parts} stretches, plain"
             );
         }
+        // A column integrated beside others holds the sums it holds alone (what the joint
+        // fit's segments with the yaw column rely on), and none it was not asked for.
+        let with = |columns: OdoColumns| {
+            let (_, odos) = in_parts(false, 1, columns, 2);
+            odos.into_iter().next().expect("one odometer")
+        };
+        let (plain, yaw) = (
+            with(OdoColumns::default()),
+            with(OdoColumns {
+                yaw: true,
+                ..OdoColumns::default()
+            }),
+        );
+        let all = with(ALL);
+        assert_eq!(yaw.distance.x, plain.distance.x);
+        assert_eq!(yaw.distance.y, all.distance.y);
+        assert!(plain.distance.y.is_empty() && yaw.distance.z.is_empty());
+        assert!(yaw.moving.is_none() && all.moving.is_some());
+        assert_eq!(yaw.distance.y.len(), plan.count());
         assert_eq!(whole.0.expect("IMU").segments.len(), plan.count());
         // The public entry splits by the pool's threads beyond its size, the same.
         let long = SegmentPlan::new(n, 2, []);
