@@ -17,7 +17,7 @@
 //! block from its own buffer when it was given in writes shorter than a block, and from the
 //! caller's otherwise, and its output differs between the two. The crate hands it each
 //! record field apart, so here a chunk goes to it in pieces shorter than any block
-//! ([`LZ4_PIECE_BYTES`]); the files are the crate's as long as no message is as long as an
+//! (`LZ4_PIECE_BYTES`); the files are the crate's as long as no message is as long as an
 //! lz4 block (64 KiB), which none of ours comes near.
 
 use std::collections::BTreeMap;

@@ -24,7 +24,7 @@ use crate::parquet_columns::{DirectColumn, DirectShape, LeafChunk, LeafWriter, d
 ///
 /// Its columns are encoded and compressed side by side (on rayon's pool) by the column
 /// writers `ArrowWriter` itself uses (a column without nulls handed its values as they
-/// lie, see [`crate::parquet_columns`]), in the same row groups, so the file is the one
+/// lie, see the `parquet_columns` module), in the same row groups, so the file is the one
 /// `ArrowWriter` writes, byte for byte.
 pub struct ParquetSink {
     writer: SerializedFileWriter<BufWriter<std::fs::File>>,

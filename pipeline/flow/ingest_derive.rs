@@ -96,7 +96,7 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
     Ok(dir)
 }
 
-/// Stage 2, checked once per context and parameters ([`RunCtx::ensured_with`]; a derive
+/// Stage 2, checked once per context and parameters (`RunCtx::ensured_with`; a derive
 /// that failed is asked again).
 pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     let ensured_with = params_hash(params)?;
