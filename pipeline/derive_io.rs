@@ -95,7 +95,7 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
                 replaced.iter().map(|&k| k as u64),
             )),
             Arc::new(Int64Array::from_iter_values(
-                replaced.iter().flat_map(|&k| d.t_ns(k..k + 1)),
+                replaced.iter().map(|&k| d.t_ns_at(k)),
             )),
             vec3_to_array(
                 &replaced

@@ -86,7 +86,7 @@ pub fn track_samples(d: &Derived) -> Vec<usize> {
 /// The times of the kept samples `keep` of `d` (ns in the log's time base): the rows of
 /// each track in `tracks.parquet`.
 pub fn track_times(d: &Derived, keep: &[usize]) -> Vec<i64> {
-    keep.iter().map(|&k| d.ns_of(d.t_s.get(k))).collect()
+    keep.iter().map(|&k| d.t_ns_at(k)).collect()
 }
 
 /// One method's trajectory as its review pass keeps it, at [`track_samples`]: what

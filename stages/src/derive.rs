@@ -283,21 +283,16 @@ impl Derived {
         ns_since(self.t0_ns, t_s)
     }
 
-    /// Times of the samples `range`, ns in the log's time base (as they are stored): each
-    /// [`Self::ns_of`] its time, bit for bit. Stored times are added to `t0_ns` as they
-    /// are, without the round trip through seconds, within
-    /// [`crate::time_base::ROUND_TRIP_NS_MAX`], where that trip gives them back.
+    /// Time of sample `k`, ns in the log's time base (as it is stored): [`Self::ns_of`]
+    /// its time, bit for bit. A stored time is added to `t0_ns` as it is, without the
+    /// round trip through seconds, within [`crate::time_base::ROUND_TRIP_NS_MAX`], where
+    /// that trip gives it back.
     ///
     /// # Panics
-    /// If the range goes past the samples.
-    pub fn t_ns(&self, range: std::ops::Range<usize>) -> impl Iterator<Item = i64> + '_ {
-        assert!(
-            range.end <= self.t_s.len(),
-            "{range:?} of {}",
-            self.t_s.len()
-        );
-        let stored = self.t_s.nanos();
-        range.map(move |k| match stored {
+    /// If `k` is not a sample.
+    #[inline]
+    pub fn t_ns_at(&self, k: usize) -> i64 {
+        match self.t_s.nanos() {
             Some(t) => {
                 let ns = t.ns(k);
                 if ns.unsigned_abs() <= crate::time_base::ROUND_TRIP_NS_MAX.unsigned_abs() {
@@ -307,7 +302,20 @@ impl Derived {
                 }
             }
             None => self.ns_of(self.t_s.get(k)),
-        })
+        }
+    }
+
+    /// Times of the samples `range` ([`Self::t_ns_at`] each).
+    ///
+    /// # Panics
+    /// If the range goes past the samples.
+    pub fn t_ns(&self, range: std::ops::Range<usize>) -> impl Iterator<Item = i64> + '_ {
+        assert!(
+            range.end <= self.t_s.len(),
+            "{range:?} of {}",
+            self.t_s.len()
+        );
+        range.map(|k| self.t_ns_at(k))
     }
 
     /// The navigation kernel's inputs.
