@@ -644,9 +644,11 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         };
         // A short run's boresight probe runs beside the route's σ, then its corrected
         // navigation's pass and tables (each about a pass's time on one core): the σ
-        // columns are encoded beside the pass, the others as the pass goes; a long run's
-        // probe first, then the tables beside the σ and the corrected navigation (at 12
-        // hours the first order is slower, and the held row groups would grow).
+        // columns are encoded beside the pass, the others as the pass goes, by the
+        // pass's core until the other comes free of the σ and the tables
+        // (`NavWriter::run_helped`); a long run's probe first, then the tables beside the
+        // σ and the corrected navigation (at 12 hours the first order is slower, and the
+        // held row groups would grow).
         let (odo_pitch, nav) = if case.derived.t_s.len() <= TAIL_BESIDE_SIGMA_MAX_SAMPLES {
             let later = route_base.is_some();
             let mut nav = corrected.create(if later {
@@ -810,7 +812,7 @@ impl<'a> CorrectedNav<'_, 'a> {
     }
 
     /// Runs the pass with the odometer pitch boresight `odo_pitch` (else the configured
-    /// one) into `nav`.
+    /// one) into `nav` (helped by a free core: [`NavWriter::run_helped`]).
     fn run(&self, odo_pitch: &Option<OdoPitchFit>, nav: &mut NavWriter<'_>) {
         let settings = NavSettings {
             odo_pitch_rad: odo_pitch
@@ -818,7 +820,7 @@ impl<'a> CorrectedNav<'_, 'a> {
                 .map_or(self.pass.settings.odo_pitch_rad, |f| f.applied_rad()),
             ..self.pass.settings
         };
-        strapdown::run(&self.pass.inputs, &settings, nav);
+        nav.run_helped(|sink| strapdown::run(&self.pass.inputs, &settings, sink));
     }
 }
 

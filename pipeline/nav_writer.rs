@@ -1,8 +1,11 @@
 //! `nav.parquet` and `corrected_nav.parquet` written while their pass runs: the pass's
-//! samples go to the file [`ROWS`] at a time, and no track of the run's length is held.
+//! samples go to the file [`ROWS`] at a time (encoded by another thread while the pass
+//! runs on, when one is free: [`NavWriter::run_helped`]), and no track of the run's
+//! length is held.
 
+use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Condvar, Mutex};
 
 use arrow::array::{ArrayRef, Float32Array, Float64Array, Int64Array, RecordBatch};
 use arrow::datatypes::SchemaRef;
@@ -27,19 +30,38 @@ pub const ROWS: usize = 1 << 14;
 /// A navigation table being written by the pass that feeds it (a [`PassSink`]); it
 /// appears under its name on [`NavWriter::finish`], when every sample was finite.
 pub struct NavWriter<'a> {
+    /// How the pass's rows become the file's batches.
+    batches: Batches<'a>,
+    /// The file, or what went wrong writing it.
+    out: Out,
+    /// The σ columns' encoder, until taken ([`SigmaColumns::Later`]).
+    sigma_apart: Option<SigmaApart>,
+    /// What the pass gave so far: the batch being filled and the samples kept.
+    rows: Rows,
+}
+
+/// How a pass's rows become batches of a navigation table's file.
+struct Batches<'a> {
     path: PathBuf,
-    file: Option<ParquetSink>,
-    error: Option<FileError>,
     /// The schema of the batches written as the pass goes (the file's, or its columns
     /// before the route's σ when that comes later).
     schema: SchemaRef,
     derived: &'a Derived,
     start: Geodetic,
     sigma: SigmaColumns<'a>,
-    /// The σ columns' encoder, until taken ([`SigmaColumns::Later`]).
-    sigma_apart: Option<SigmaApart>,
+}
+
+/// A navigation table's file, until an error ends it.
+#[derive(Default)]
+struct Out {
+    file: Option<ParquetSink>,
+    error: Option<FileError>,
+}
+
+/// The samples a pass gave a writer.
+struct Rows {
     /// The samples of the batch being filled, from sample `lo` on.
-    rows: NavTrack,
+    batch: NavTrack,
     lo: usize,
     /// The first non-finite latitude, longitude, height and attitude: (sample, value).
     first_bad: [Option<(usize, f64)>; 4],
@@ -48,6 +70,119 @@ pub struct NavWriter<'a> {
     kept: Vec<KeptSample>,
     samples: usize,
     last_distance_m: f64,
+}
+
+/// Batches a pass hands to the thread that helps it ([`NavWriter::run_helped`]) and
+/// that thread has not yet encoded, at most: a pass that gets this far ahead waits, so
+/// that what is held stays a few batches' rows (about 1.2 MB each) at any run length.
+const HANDED_MAX: usize = 2;
+
+/// What a pass and the thread that helps it share ([`NavWriter::run_helped`]).
+struct Handoff {
+    state: Mutex<HandoffState>,
+    /// Signalled when a batch is handed or taken, and when either side is done.
+    changed: Condvar,
+}
+
+#[derive(Default)]
+struct HandoffState {
+    /// Batches handed over, in sample order: each one's first sample and rows.
+    handed: VecDeque<(usize, NavTrack)>,
+    /// Whether the helper has come (batches are handed from then on).
+    helping: bool,
+    /// Whether the pass has ended (its last rows handed or encoded).
+    pass_done: bool,
+    /// Whether the helper has ended (it returns only once the pass has: else it panicked).
+    helper_gone: bool,
+    /// Row buffers the helper is done with, for the pass's next batches.
+    spares: Vec<NavTrack>,
+}
+
+impl Handoff {
+    fn lock(&self) -> std::sync::MutexGuard<'_, HandoffState> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    fn wait<'g>(
+        &self,
+        guard: std::sync::MutexGuard<'g, HandoffState>,
+    ) -> std::sync::MutexGuard<'g, HandoffState> {
+        self.changed.wait(guard).unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// The sink of a pass another thread helps ([`NavWriter::run_helped`]): the writer's
+/// pass side.
+pub struct HelpedSink<'h, 'a> {
+    rows: &'h mut Rows,
+    batches: &'h Batches<'a>,
+    out: &'h Mutex<Out>,
+    handoff: &'h Handoff,
+}
+
+impl HelpedSink<'_, '_> {
+    /// The rows gathered so far go to the helper, once it has come; until then they are
+    /// encoded here, as an unhelped writer does.
+    fn flush(&mut self) {
+        let n = self.rows.batch.len();
+        if n == 0 {
+            return;
+        }
+        let mut state = self.handoff.lock();
+        if state.helping {
+            while state.handed.len() >= HANDED_MAX && !state.helper_gone {
+                state = self.handoff.wait(state);
+            }
+            if state.helper_gone {
+                // It panicked (which the join passes on): the file is not written.
+                self.rows.batch.clear();
+                self.rows.lo += n;
+                return;
+            }
+            let spare = state.spares.pop().unwrap_or_default();
+            let rows = std::mem::replace(&mut self.rows.batch, spare);
+            state.handed.push_back((self.rows.lo, rows));
+            drop(state);
+            self.handoff.changed.notify_all();
+        } else {
+            drop(state);
+            let mut out = self.out.lock().unwrap_or_else(|e| e.into_inner());
+            self.batches.write(&mut out, self.rows.lo, &self.rows.batch);
+            self.rows.batch.clear();
+        }
+        self.rows.lo += n;
+    }
+}
+
+/// A side of [`NavWriter::run_helped`].
+#[derive(Clone, Copy)]
+enum Side {
+    Pass,
+    Helper,
+}
+
+/// Tells the other side, when dropped, that this side has ended (returned or panicked):
+/// neither then waits for the other for ever.
+struct Ended<'h>(&'h Handoff, Side);
+
+impl Drop for Ended<'_> {
+    fn drop(&mut self) {
+        let mut state = self.0.lock();
+        match self.1 {
+            Side::Pass => state.pass_done = true,
+            Side::Helper => state.helper_gone = true,
+        }
+        drop(state);
+        self.0.changed.notify_all();
+    }
+}
+
+impl PassSink for HelpedSink<'_, '_> {
+    fn sample(&mut self, k: usize, lat: f64, lon: f64, h: f64, q: &[f64; 4], distance_m: f64) {
+        if self.rows.push(k, lat, lon, h, q, distance_m) {
+            self.flush();
+        }
+    }
 }
 
 /// The route's 1σ columns of a navigation table (`sigma_north_m`, `sigma_east_m`,
@@ -148,65 +283,81 @@ impl<'a> NavWriter<'a> {
         wanted.dedup();
         wanted.reverse();
         Ok(Self {
-            path: path.to_path_buf(),
-            file: Some(file),
-            error: None,
-            schema,
-            derived,
-            start,
-            sigma,
+            batches: Batches {
+                path: path.to_path_buf(),
+                schema,
+                derived,
+                start,
+                sigma,
+            },
+            out: Out {
+                file: Some(file),
+                error: None,
+            },
             sigma_apart,
-            rows: NavTrack::default(),
-            lo: 0,
-            first_bad: [None; 4],
-            wanted,
-            kept: Vec::new(),
-            samples: 0,
-            last_distance_m: 0.0,
+            rows: Rows {
+                batch: NavTrack::default(),
+                lo: 0,
+                first_bad: [None; 4],
+                wanted,
+                kept: Vec::new(),
+                samples: 0,
+                last_distance_m: 0.0,
+            },
         })
     }
 
     /// Writes the rows gathered so far as one batch.
     fn flush(&mut self) {
-        let n = self.rows.len();
+        let n = self.rows.batch.len();
         if n == 0 {
             return;
         }
-        if let Some(file) = self.file.as_mut() {
-            let written = nav_batch(
-                &self.schema,
-                self.derived,
-                self.lo,
-                &self.rows,
-                self.start,
-                match self.sigma {
-                    SigmaColumns::With(s) => Some(s),
-                    SigmaColumns::Without | SigmaColumns::Later => None,
-                },
-            )
-            .map_err(|e| FormatError::from(e).in_file(&self.path))
-            .and_then(|b| file.write(&b));
-            if let Err(e) = written {
-                self.error = Some(e);
-                self.file = None;
-            }
-        }
-        self.lo += n;
-        for v in [
-            &mut self.rows.lat_rad,
-            &mut self.rows.lon_rad,
-            &mut self.rows.h_m,
-            &mut self.rows.distance_m,
-        ] {
-            v.clear();
-        }
-        self.rows.q_b_to_n.clear();
+        self.batches
+            .write(&mut self.out, self.rows.lo, &self.rows.batch);
+        self.rows.lo += n;
+        self.rows.batch.clear();
+    }
+
+    /// Runs `pass` into this writer with a helper: once another of rayon's threads comes
+    /// free, it builds and encodes the batches the pass hands it while the pass runs on.
+    /// Until then (and when none comes before the pass ends) the pass's thread encodes
+    /// each batch as it fills, as [`PassSink::sample`] does. The same batches in the
+    /// same order: the same file. For a pass whose other core ends its own work first
+    /// (the corrected navigation's, beside the route's σ and the tables) or has none (the
+    /// navigate stage's): a batch's columns and their encoding take about as long as its
+    /// samples' pass.
+    pub fn run_helped(&mut self, pass: impl FnOnce(&mut HelpedSink<'_, 'a>) + Send) {
+        let out = Mutex::new(std::mem::take(&mut self.out));
+        let handoff = Handoff {
+            state: Mutex::new(HandoffState::default()),
+            changed: Condvar::new(),
+        };
+        let (rows, batches) = (&mut self.rows, &self.batches);
+        rayon::join(
+            || {
+                let _ended = Ended(&handoff, Side::Pass);
+                let mut sink = HelpedSink {
+                    rows,
+                    batches,
+                    out: &out,
+                    handoff: &handoff,
+                };
+                pass(&mut sink);
+                sink.flush();
+            },
+            || {
+                let _ended = Ended(&handoff, Side::Helper);
+                batches.help(&out, &handoff);
+            },
+        );
+        self.out = out.into_inner().unwrap_or_else(|e| e.into_inner());
     }
 
     /// Writes the last rows and puts the file in place. `what` names the pass in the
     /// error when a sample was not finite (the file is then not written).
     pub fn finish(self, what: &str) -> anyhow::Result<NavWritten> {
-        if matches!(self.sigma, SigmaColumns::Later) {
+        if matches!(self.batches.sigma, SigmaColumns::Later) {
             anyhow::bail!("{what}: the route's σ was not given to the navigation's writer");
         }
         self.close(what, None)
@@ -220,7 +371,7 @@ impl<'a> NavWriter<'a> {
     /// [`NavWriter::finish`] of a writer created with [`SigmaColumns::Later`]: its rows
     /// with the route's σ columns `sigma` encoded, then the file put in place.
     pub fn finish_with_sigma(self, what: &str, sigma: SigmaApart) -> anyhow::Result<NavWritten> {
-        if !matches!(self.sigma, SigmaColumns::Later) {
+        if !matches!(self.batches.sigma, SigmaColumns::Later) {
             anyhow::bail!("{what}: the navigation's writer takes no σ at its end");
         }
         self.close(what, Some(sigma))
@@ -230,7 +381,7 @@ impl<'a> NavWriter<'a> {
     fn close(mut self, what: &str, sigma: Option<SigmaApart>) -> anyhow::Result<NavWritten> {
         self.flush();
         let names = ["latitude", "longitude", "height", "attitude"];
-        for (name, bad) in names.iter().zip(self.first_bad) {
+        for (name, bad) in names.iter().zip(self.rows.first_bad) {
             if let Some((k, v)) = bad {
                 anyhow::bail!(
                     "{what} {name} is {v} at sample {k}: the input's scales or values are not \
@@ -238,25 +389,88 @@ impl<'a> NavWriter<'a> {
                 );
             }
         }
-        if let Some(e) = self.error {
+        if let Some(e) = self.out.error {
             return Err(e.into());
         }
-        if let Some(file) = self.file {
+        if let Some(file) = self.out.file {
             match sigma {
                 Some(sigma) => file.finish_with(sigma.columns)?,
                 None => file.finish()?,
             }
         }
         Ok(NavWritten {
-            samples: self.samples,
-            distance_m: self.last_distance_m,
-            kept: self.kept,
+            samples: self.rows.samples,
+            distance_m: self.rows.last_distance_m,
+            kept: self.rows.kept,
         })
     }
 }
 
-impl PassSink for NavWriter<'_> {
-    fn sample(&mut self, k: usize, lat: f64, lon: f64, h: f64, q: &[f64; 4], distance_m: f64) {
+impl Batches<'_> {
+    /// Builds the batch of rows `t` (from sample `lo`) and encodes it into `out`; the
+    /// first error ends the file.
+    fn write(&self, out: &mut Out, lo: usize, t: &NavTrack) {
+        let Some(file) = out.file.as_mut() else {
+            return;
+        };
+        let written = nav_batch(
+            &self.schema,
+            self.derived,
+            lo,
+            t,
+            self.start,
+            match self.sigma {
+                SigmaColumns::With(s) => Some(s),
+                SigmaColumns::Without | SigmaColumns::Later => None,
+            },
+        )
+        .map_err(|e| FormatError::from(e).in_file(&self.path))
+        .and_then(|b| file.write(&b));
+        if let Err(e) = written {
+            out.error = Some(e);
+            out.file = None;
+        }
+    }
+
+    /// The helper's side of [`NavWriter::run_helped`]: encodes the batches handed over
+    /// until the pass has ended and none is left (nothing when the pass ended first).
+    fn help(&self, out: &Mutex<Out>, handoff: &Handoff) {
+        let mut state = handoff.lock();
+        if state.pass_done {
+            return;
+        }
+        state.helping = true;
+        loop {
+            if let Some((lo, mut rows)) = state.handed.pop_front() {
+                drop(state);
+                handoff.changed.notify_all();
+                {
+                    let mut out = out.lock().unwrap_or_else(|e| e.into_inner());
+                    self.write(&mut out, lo, &rows);
+                }
+                rows.clear();
+                state = handoff.lock();
+                state.spares.push(rows);
+            } else if state.pass_done {
+                return;
+            } else {
+                state = handoff.wait(state);
+            }
+        }
+    }
+}
+
+impl Rows {
+    /// Takes one sample; whether the batch is full.
+    fn push(
+        &mut self,
+        k: usize,
+        lat: f64,
+        lon: f64,
+        h: f64,
+        q: &[f64; 4],
+        distance_m: f64,
+    ) -> bool {
         for (slot, v) in self.first_bad.iter_mut().zip([lat, lon, h, q[0]]) {
             if slot.is_none() && !v.is_finite() {
                 *slot = Some((k, v));
@@ -280,13 +494,19 @@ impl PassSink for NavWriter<'_> {
         }
         self.samples = k + 1;
         self.last_distance_m = distance_m;
-        let r = &mut self.rows;
+        let r = &mut self.batch;
         r.lat_rad.push(lat);
         r.lon_rad.push(lon);
         r.h_m.push(h);
         r.q_b_to_n.push(*q);
         r.distance_m.push(distance_m);
-        if r.len() == ROWS {
+        r.len() == ROWS
+    }
+}
+
+impl PassSink for NavWriter<'_> {
+    fn sample(&mut self, k: usize, lat: f64, lon: f64, h: f64, q: &[f64; 4], distance_m: f64) {
+        if self.rows.push(k, lat, lon, h, q, distance_m) {
             self.flush();
         }
     }
@@ -376,15 +596,158 @@ mod tests {
         }
     }
 
-    fn feed(w: &mut NavWriter<'_>, n: usize, bad: Option<usize>) {
+    /// The tests' start.
+    const START: Geodetic = Geodetic {
+        lat_rad: 0.8,
+        lon_rad: 0.5,
+        h_m: 100.0,
+    };
+
+    /// A route's σ over `n` samples, at every 100th.
+    fn sigma_of(n: usize) -> RouteSigma {
+        RouteSigma {
+            sample: (0..n).step_by(100).collect(),
+            north_m: (0..n).step_by(100).map(|k| 1.0 + k as f64 * 1e-3).collect(),
+            east_m: (0..n).step_by(100).map(|k| 2.0 + k as f64 * 2e-3).collect(),
+            heading_rad: (0..n)
+                .step_by(100)
+                .map(|k| 1e-3 + k as f64 * 1e-8)
+                .collect(),
+        }
+    }
+
+    fn feed(w: &mut impl PassSink, n: usize, bad: Option<usize>) {
+        feed_pausing(w, n, bad, None);
+    }
+
+    /// [`feed`], pausing for `pause` after each batch's first sample.
+    fn feed_pausing(
+        w: &mut impl PassSink,
+        n: usize,
+        bad: Option<usize>,
+        pause: Option<std::time::Duration>,
+    ) {
         for k in 0..n {
             let lat = if Some(k) == bad {
                 f64::NAN
             } else {
                 0.8 + k as f64 * 1e-9
             };
-            w.sample(k, lat, 0.5, 100.0, &[1.0, 0.0, 0.0, 0.0], k as f64 * 0.1);
+            // A turning attitude, so that every angle column varies.
+            let a = k as f64 * 1e-4;
+            let q = [
+                a.cos(),
+                0.1 * a.sin(),
+                0.2 * a.sin(),
+                (1.0 - 0.05f64).sqrt() * a.sin(),
+            ];
+            w.sample(k, lat, 0.5 + k as f64 * 2e-9, 100.0 + a, &q, k as f64 * 0.1);
+            if k % ROWS == 0
+                && let Some(p) = pause
+            {
+                std::thread::sleep(p);
+            }
         }
+    }
+
+    /// A pass helped by another thread ([`NavWriter::run_helped`]) writes the file the
+    /// unhelped pass writes, byte for byte, however the helper comes: from the start (a
+    /// pool of two threads with nothing else to do), midway (the other thread busy for
+    /// a while first), or never (a pool of one thread: it comes once the pass has ended,
+    /// to find nothing left); with the route's σ given or encoded apart.
+    #[test]
+    fn a_helped_pass_writes_the_unhelped_file() {
+        let n = 9 * ROWS + 123;
+        let d = derive_of(n);
+        let tmp = tempfile::tempdir().unwrap();
+        let (start, sigma) = (START, sigma_of(n));
+        let keep = [5, ROWS, n - 1];
+        for columns in [SigmaColumns::Without, SigmaColumns::With(&sigma)] {
+            let plain_path = tmp.path().join("plain.parquet");
+            let mut w = NavWriter::create(&plain_path, &d, start, columns, &keep).unwrap();
+            feed(&mut w, n, None);
+            let plain = w.finish("corrected").unwrap();
+            let plain_bytes = std::fs::read(&plain_path).unwrap();
+            let pause = std::time::Duration::from_millis(1);
+            for (threads, busy_ms) in [(2, 0), (2, 4), (1, 0)] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let path = tmp
+                    .path()
+                    .join(format!("helped-{threads}-{busy_ms}.parquet"));
+                let mut w = NavWriter::create(&path, &d, start, columns, &keep).unwrap();
+                pool.install(|| {
+                    rayon::join(
+                        || std::thread::sleep(std::time::Duration::from_millis(busy_ms)),
+                        || w.run_helped(|sink| feed_pausing(sink, n, None, Some(pause))),
+                    )
+                });
+                let helped = w.finish("corrected").unwrap();
+                assert_eq!(helped, plain, "{threads} threads, busy {busy_ms} ms");
+                assert!(
+                    std::fs::read(&path).unwrap() == plain_bytes,
+                    "{threads} threads, busy {busy_ms} ms: the files differ"
+                );
+            }
+        }
+        // The σ encoded apart, beside a helped pass.
+        let known = tmp.path().join("known.parquet");
+        let mut w =
+            NavWriter::create(&known, &d, start, SigmaColumns::With(&sigma), &keep).unwrap();
+        feed(&mut w, n, None);
+        w.finish("corrected").unwrap();
+        let apart_path = tmp.path().join("apart.parquet");
+        let mut w = NavWriter::create(&apart_path, &d, start, SigmaColumns::Later, &keep).unwrap();
+        let mut apart = w.take_sigma_apart().unwrap();
+        rayon::join(
+            || w.run_helped(|sink| feed(sink, n, None)),
+            || apart.write(&sigma, n).unwrap(),
+        );
+        w.finish_with_sigma("corrected", apart).unwrap();
+        assert!(std::fs::read(&apart_path).unwrap() == std::fs::read(&known).unwrap());
+    }
+
+    /// A helped pass that panics ends its helper (the panic goes on, nothing waits for
+    /// ever), and a non-finite sample of a helped pass is named as an unhelped one's is.
+    #[test]
+    fn a_helped_pass_ends_its_helper_and_names_a_bad_sample() {
+        let n = 6 * ROWS;
+        let d = derive_of(n);
+        let tmp = tempfile::tempdir().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let path = tmp.path().join("panicked.parquet");
+        let mut w =
+            NavWriter::create(&path, &d, Geodetic::default(), SigmaColumns::Without, &[]).unwrap();
+        let panicked = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            pool.install(|| {
+                w.run_helped(|sink| {
+                    feed(sink, 3 * ROWS + 7, None);
+                    panic!("the pass broke");
+                })
+            })
+        }));
+        assert!(panicked.is_err());
+        drop(w);
+        assert!(!path.exists());
+
+        let path = tmp.path().join("bad.parquet");
+        let mut w =
+            NavWriter::create(&path, &d, Geodetic::default(), SigmaColumns::Without, &[]).unwrap();
+        pool.install(|| w.run_helped(|sink| feed(sink, n, Some(2 * ROWS + 3))));
+        let e = w.finish("corrected").unwrap_err().to_string();
+        assert!(
+            e.contains(&format!(
+                "corrected latitude is NaN at sample {}",
+                2 * ROWS + 3
+            )),
+            "{e}"
+        );
+        assert!(!path.exists());
     }
 
     #[test]
@@ -393,12 +756,7 @@ mod tests {
         let d = derive_of(n);
         let tmp = tempfile::tempdir().unwrap();
         let path = tmp.path().join("nav.parquet");
-        let start = Geodetic {
-            lat_rad: 0.8,
-            lon_rad: 0.5,
-            h_m: 100.0,
-        };
-        let mut w = NavWriter::create(&path, &d, start, SigmaColumns::Without, &[n - 1, 3, n + 10])
+        let mut w = NavWriter::create(&path, &d, START, SigmaColumns::Without, &[n - 1, 3, n + 10])
             .unwrap();
         feed(&mut w, n, None);
         let written = w.finish("navigated").unwrap();
@@ -428,20 +786,7 @@ mod tests {
         let n = 2 * ROWS + 77;
         let d = derive_of(n);
         let tmp = tempfile::tempdir().unwrap();
-        let start = Geodetic {
-            lat_rad: 0.8,
-            lon_rad: 0.5,
-            h_m: 100.0,
-        };
-        let sigma = RouteSigma {
-            sample: (0..n).step_by(100).collect(),
-            north_m: (0..n).step_by(100).map(|k| 1.0 + k as f64 * 1e-3).collect(),
-            east_m: (0..n).step_by(100).map(|k| 2.0 + k as f64 * 2e-3).collect(),
-            heading_rad: (0..n)
-                .step_by(100)
-                .map(|k| 1e-3 + k as f64 * 1e-8)
-                .collect(),
-        };
+        let (start, sigma) = (START, sigma_of(n));
         let known = tmp.path().join("known.parquet");
         let mut w = NavWriter::create(&known, &d, start, SigmaColumns::With(&sigma), &[5]).unwrap();
         feed(&mut w, n, None);

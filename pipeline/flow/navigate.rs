@@ -114,8 +114,8 @@ pub fn ensure_navigate(
     };
     ctx.run_stage(&stage, || {
         let case = load_case(ctx, params, overrides)?;
-        // The pass writes nav.parquet as it runs, keeping the positions at the control
-        // points.
+        // The pass writes nav.parquet as it runs (the other core encoding its batches),
+        // keeping the positions at the control points.
         let fix_samples: Vec<usize> = case.fixes.iter().map(|f| f.sample).collect();
         let mut nav = NavWriter::create(
             &dir.join(files::NAV),
@@ -124,7 +124,7 @@ pub fn ensure_navigate(
             SigmaColumns::Without,
             &fix_samples,
         )?;
-        unz_stages::strapdown::run(&case.inputs(), &case.settings, &mut nav);
+        nav.run_helped(|sink| unz_stages::strapdown::run(&case.inputs(), &case.settings, sink));
         let nav = nav.finish("navigated")?;
         let summary = NavigateSummary {
             initial: case.initial,

@@ -200,6 +200,19 @@ impl NavTrack {
         self.q_b_to_n.resize(n, [1.0, 0.0, 0.0, 0.0]);
     }
 
+    /// Empties every column, keeping their room.
+    pub fn clear(&mut self) {
+        for v in [
+            &mut self.lat_rad,
+            &mut self.lon_rad,
+            &mut self.h_m,
+            &mut self.distance_m,
+        ] {
+            v.clear();
+        }
+        self.q_b_to_n.clear();
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.lat_rad.len()
