@@ -709,6 +709,47 @@ mod tests {
         assert!(std::fs::read(&apart_path).unwrap() == std::fs::read(&known).unwrap());
     }
 
+    /// Two helped passes at once on a pool of two threads (two runs of a campaign
+    /// sharing the cores): a thread free of its own pass may help the other's, and both
+    /// files are the unhelped ones.
+    #[test]
+    fn two_helped_passes_at_once_write_their_files() {
+        let n = 7 * ROWS + 11;
+        let d = derive_of(n);
+        let tmp = tempfile::tempdir().unwrap();
+        let plain_path = tmp.path().join("plain.parquet");
+        let mut w = NavWriter::create(&plain_path, &d, START, SigmaColumns::Without, &[3]).unwrap();
+        feed(&mut w, n, None);
+        w.finish("navigated").unwrap();
+        let plain = std::fs::read(&plain_path).unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        for (first, second) in [(0, 2), (2, 0), (1, 1)] {
+            let paths = [0, 1].map(|i| tmp.path().join(format!("run{i}-{first}-{second}.parquet")));
+            let mut writers = paths
+                .each_ref()
+                .map(|p| NavWriter::create(p, &d, START, SigmaColumns::Without, &[3]).unwrap());
+            let [a, b] = &mut writers;
+            let pause = |ms: u64| Some(std::time::Duration::from_millis(ms));
+            pool.install(|| {
+                rayon::join(
+                    || a.run_helped(|sink| feed_pausing(sink, n, None, pause(first))),
+                    || b.run_helped(|sink| feed_pausing(sink, n, None, pause(second))),
+                )
+            });
+            for (w, path) in writers.into_iter().zip(&paths) {
+                w.finish("navigated").unwrap();
+                assert!(
+                    std::fs::read(path).unwrap() == plain,
+                    "{}: the file differs",
+                    path.display()
+                );
+            }
+        }
+    }
+
     /// A helped pass that panics ends its helper (the panic goes on, nothing waits for
     /// ever), and a non-finite sample of a helped pass is named as an unhelped one's is.
     #[test]
