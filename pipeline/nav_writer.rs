@@ -124,33 +124,28 @@ impl HelpedSink<'_, '_> {
     /// The rows gathered so far go to the helper, once it has come; until then they are
     /// encoded here, as an unhelped writer does.
     fn flush(&mut self) {
-        let n = self.rows.batch.len();
-        if n == 0 {
+        if self.rows.batch.is_empty() {
             return;
         }
         let mut state = self.handoff.lock();
-        if state.helping {
-            while state.handed.len() >= HANDED_MAX && !state.helper_gone {
-                state = self.handoff.wait(state);
-            }
-            if state.helper_gone {
-                // It panicked (which the join passes on): the file is not written.
-                self.rows.batch.clear();
-                self.rows.lo += n;
-                return;
-            }
-            let spare = state.spares.pop().unwrap_or_default();
-            let rows = std::mem::replace(&mut self.rows.batch, spare);
-            state.handed.push_back((self.rows.lo, rows));
-            drop(state);
-            self.handoff.changed.notify_all();
-        } else {
+        if !state.helping {
             drop(state);
             let mut out = self.out.lock().unwrap_or_else(|e| e.into_inner());
-            self.batches.write(&mut out, self.rows.lo, &self.rows.batch);
-            self.rows.batch.clear();
+            self.batches.write_filled(&mut out, self.rows);
+            return;
         }
-        self.rows.lo += n;
+        while state.handed.len() >= HANDED_MAX && !state.helper_gone {
+            state = self.handoff.wait(state);
+        }
+        let spare = state.spares.pop().unwrap_or_default();
+        let handed = self.rows.take_batch(spare);
+        // A helper gone before the pass panicked (which the join passes on): the file is
+        // not written, and the rows are dropped.
+        if !state.helper_gone {
+            state.handed.push_back(handed);
+            drop(state);
+            self.handoff.changed.notify_all();
+        }
     }
 }
 
@@ -309,14 +304,7 @@ impl<'a> NavWriter<'a> {
 
     /// Writes the rows gathered so far as one batch.
     fn flush(&mut self) {
-        let n = self.rows.batch.len();
-        if n == 0 {
-            return;
-        }
-        self.batches
-            .write(&mut self.out, self.rows.lo, &self.rows.batch);
-        self.rows.lo += n;
-        self.rows.batch.clear();
+        self.batches.write_filled(&mut self.out, &mut self.rows);
     }
 
     /// Runs `pass` into this writer with a helper: once another of rayon's threads comes
@@ -432,6 +420,16 @@ impl Batches<'_> {
         }
     }
 
+    /// Writes the batch `rows` filled so far (if any) into `out`, and begins the next.
+    fn write_filled(&self, out: &mut Out, rows: &mut Rows) {
+        if rows.batch.is_empty() {
+            return;
+        }
+        self.write(out, rows.lo, &rows.batch);
+        rows.lo += rows.batch.len();
+        rows.batch.clear();
+    }
+
     /// The helper's side of [`NavWriter::run_helped`]: encodes the batches handed over
     /// until the pass has ended and none is left (nothing when the pass ended first).
     fn help(&self, out: &Mutex<Out>, handoff: &Handoff) {
@@ -461,6 +459,13 @@ impl Batches<'_> {
 }
 
 impl Rows {
+    /// The batch filled so far, with its first sample; the next one begins in `spare`.
+    fn take_batch(&mut self, spare: NavTrack) -> (usize, NavTrack) {
+        let lo = self.lo;
+        self.lo += self.batch.len();
+        (lo, std::mem::replace(&mut self.batch, spare))
+    }
+
     /// Takes one sample; whether the batch is full.
     fn push(
         &mut self,
@@ -616,6 +621,14 @@ mod tests {
         }
     }
 
+    /// A pool of `threads` of rayon's threads.
+    fn pool_of(threads: usize) -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+    }
+
     fn feed(w: &mut impl PassSink, n: usize, bad: Option<usize>) {
         feed_pausing(w, n, bad, None);
     }
@@ -670,10 +683,7 @@ mod tests {
             let plain_bytes = std::fs::read(&plain_path).unwrap();
             let pause = std::time::Duration::from_millis(1);
             for (threads, busy_ms) in [(2, 0), (2, 4), (1, 0)] {
-                let pool = rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .unwrap();
+                let pool = pool_of(threads);
                 let path = tmp
                     .path()
                     .join(format!("helped-{threads}-{busy_ms}.parquet"));
@@ -722,10 +732,7 @@ mod tests {
         feed(&mut w, n, None);
         w.finish("navigated").unwrap();
         let plain = std::fs::read(&plain_path).unwrap();
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap();
+        let pool = pool_of(2);
         for (first, second) in [(0, 2), (2, 0), (1, 1)] {
             let paths = [0, 1].map(|i| tmp.path().join(format!("run{i}-{first}-{second}.parquet")));
             let mut writers = paths
@@ -757,10 +764,7 @@ mod tests {
         let n = 6 * ROWS;
         let d = derive_of(n);
         let tmp = tempfile::tempdir().unwrap();
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap();
+        let pool = pool_of(2);
         let path = tmp.path().join("panicked.parquet");
         let mut w =
             NavWriter::create(&path, &d, Geodetic::default(), SigmaColumns::Without, &[]).unwrap();
