@@ -165,10 +165,20 @@ pub fn validate(p: &Params) -> anyhow::Result<()> {
         .chain([pitch_check])
     {
         if !(v.is_finite() && (lo..=hi).contains(&v)) {
-            anyhow::bail!("{name} = {v} is outside [{lo}, {hi}]");
+            anyhow::bail!("{name} = {} is outside [{lo}, {hi}]", shown(v));
         }
     }
     Ok(())
+}
+
+/// A parameter's value for a message: as Rust writes it, or in exponent form when that
+/// would run to many digits (`1e300`, `1e-30`).
+fn shown(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-6..1e15).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
 }
 
 /// The effective parameters of a run: defaults, `config`, then the run's `[params]`.
@@ -214,7 +224,7 @@ mod tests {
         for (text, name) in [
             (
                 "[disupt]\nazimuth_bound_deg = 1e300\n",
-                "disupt.azimuth_bound_deg",
+                "disupt.azimuth_bound_deg = 1e300 is outside",
             ),
             (
                 "[derive.filter]\ncutoff_hz = nan\n",
@@ -224,7 +234,7 @@ mod tests {
             ("[kalman]\nr_rad = -1.0\n", "kalman.r_rad"),
             (
                 "[vehicle]\nmark_lever_arm_m = [1.0, 1e300, 0.0]\n",
-                "vehicle.mark_lever_arm_m[1]",
+                "vehicle.mark_lever_arm_m[1] = 1e300 is outside",
             ),
             (
                 "[vehicle]\nmark_lever_arm_m = [1.0, 0.0, nan]\n",

@@ -221,12 +221,27 @@ impl Checker<'_> {
         })
     }
 
+    /// A value as the manifest writes it (`1e308`, not its 309 digits), at most 40
+    /// characters of it.
+    fn as_written(&self, span: std::ops::Range<usize>) -> &str {
+        let text = self.text.get(span).unwrap_or_default().trim();
+        text.char_indices()
+            .nth(40)
+            .map_or(text, |(end, _)| &text[..end])
+    }
+
     fn in_range(&self, v: &Spanned<f64>, key: &str, lo: f64, hi: f64) -> Result<f64, FormatError> {
         let x = *v.get_ref();
         if x.is_finite() && (lo..=hi).contains(&x) {
             Ok(x)
         } else {
-            self.err(v.span(), format!("{key} = {x} is outside [{lo}, {hi}]"))
+            self.err(
+                v.span(),
+                format!(
+                    "{key} = {} is outside [{lo}, {hi}]",
+                    self.as_written(v.span())
+                ),
+            )
         }
     }
 
@@ -560,6 +575,31 @@ t_s = 2415.3
         let (line, reason) = err_line(&text);
         assert_eq!(line, 7);
         assert!(reason.contains("latitude_deg"), "{reason}");
+    }
+
+    #[test]
+    fn a_value_out_of_range_is_quoted_as_written() {
+        for (written, quoted) in [
+            ("1e308", "1e308"),
+            ("nan", "nan"),
+            ("-inf", "-inf"),
+            ("1_000.5", "1_000.5"),
+            (
+                &format!("1{}.0", "0".repeat(60)),
+                &format!("1{}", "0".repeat(39)),
+            ),
+        ] {
+            let text = GOOD.replace(
+                "latitude_deg = 52.2297",
+                &format!("latitude_deg = {written}"),
+            );
+            let (line, reason) = err_line(&text);
+            assert_eq!(line, 7);
+            assert!(
+                reason.starts_with(&format!("latitude_deg = {quoted} is outside [-89, 89]")),
+                "{reason}"
+            );
+        }
     }
 
     /// Regression (hostile-archive probe): a symlink switched to a file outside the run
