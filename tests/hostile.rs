@@ -255,6 +255,23 @@ fn a_log_whose_time_does_not_advance_fails_its_run() {
         text.contains("FAILED sim-0081") && text.contains("time tags do not increase"),
         "{text}"
     );
+    // Located in the raw log: the ingest's first such fault (the second IMU record, after
+    // the header and the first record).
+    let events: unz_formats::IngestEvents = serde_json::from_slice(
+        &std::fs::read(out.join("sim-0081/ingest/ingest_events.json")).unwrap(),
+    )
+    .unwrap();
+    let first = (events.events.iter())
+        .find(|e| e.kind == unz_formats::raw::FaultKind::TimeNotIncreasing)
+        .unwrap();
+    assert!(first.offset > 0, "{first:?}");
+    assert!(
+        text.contains(&format!(
+            "the first at byte offset {} of sim-0081.unz",
+            first.offset
+        )),
+        "{text}"
+    );
     assert!(out.join("sim-0080/derive/derived.parquet").is_file());
 }
 

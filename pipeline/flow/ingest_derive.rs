@@ -1,16 +1,18 @@
 //! Stages 1 and 2: the ingest of the raw log, and the derive of its series.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use anyhow::{Context, bail};
-use unz_formats::IngestReport;
 use unz_formats::manifest::RunManifest;
+use unz_formats::raw::FaultKind;
+use unz_formats::{IngestEvents, IngestReport};
 use unz_stages::earth;
 
 use super::axes::check_axes;
 use super::{IngestedSeries, Params, RunCtx};
 use crate::artifacts::{StageName, files};
+use crate::campaign::read_report;
 use crate::derive_io::{as_stored, write_derived};
 use crate::ingest::{IngestOptions, OUTPUTS as INGEST_OUTPUTS, ingest};
 use crate::review_sensors::{review_sensors, write_review_sensors};
@@ -181,9 +183,11 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         if d.repaired_times * 100 > d.t_s.len() {
             bail!(
                 "{} of {} IMU time tags do not increase (constant, saturated or going back): \
-                 the log's time base is broken",
+                 the log's time base is broken{}",
                 d.repaired_times,
-                d.t_s.len()
+                d.t_s.len(),
+                first_time_fault(&ingest_dir.join(files::INGEST_EVENTS))
+                    .map_or_else(String::new, |at| format!(" ({at})"))
             );
         }
         // A gap is bridged by holding the rate across it: beyond a few seconds, the turns
@@ -227,6 +231,20 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     })?;
     ctx.set_ensured("derive", ensured_with);
     Ok(dir)
+}
+
+/// Where the ingest's account (`ingest_events.json`) locates the raw log's first time tag
+/// that did not increase: "the first at byte offset N of LOG". None for a text log (its
+/// rejected lines are listed there) or without the account.
+fn first_time_fault(events_path: &Path) -> Option<String> {
+    let events: IngestEvents = read_report(events_path)?;
+    let first = (events.events.iter()).find(|e| e.kind == FaultKind::TimeNotIncreasing)?;
+    Some(format!(
+        "the first at byte offset {} of {}; {} lists the first faults",
+        first.offset,
+        events.raw.display(),
+        events_path.display()
+    ))
 }
 
 /// Fails unless every value is finite, naming the quantity and the first sample that is
