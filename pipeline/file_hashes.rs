@@ -127,7 +127,7 @@ pub fn file_hash(path: &Path) -> anyhow::Result<String> {
 fn hash_content(path: &Path) -> anyhow::Result<String> {
     let read = || -> std::io::Result<blake3::Hash> {
         Ok(blake3::Hasher::new()
-            .update_reader(std::fs::File::open(path)?)?
+            .update_reader(unz_formats::regular::open_regular(path)?)?
             .finalize())
     };
     let h = read().with_context(|| format!("cannot read {}", path.display()))?;

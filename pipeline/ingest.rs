@@ -368,7 +368,7 @@ pub fn ingest(
 fn open(manifest: &RunManifest, path: &Path) -> anyhow::Result<std::fs::File> {
     manifest
         .open_named(path)
-        .map_err(|e| unz_formats::error::io_in_file(path, e).into())
+        .map_err(|e| unz_formats::error::open_error_in_file(path, e).into())
 }
 
 fn ingest_binary(

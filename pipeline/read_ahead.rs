@@ -12,7 +12,7 @@ use std::path::PathBuf;
 /// A file that cannot be opened or advised is left to its reader, which reports it.
 pub fn read_ahead(paths: &[PathBuf]) {
     for path in paths {
-        if let Ok(file) = std::fs::File::open(path) {
+        if let Ok(file) = unz_formats::regular::open_regular(path) {
             let _ = rustix::fs::fadvise(&file, 0, None, rustix::fs::Advice::WillNeed);
         }
     }

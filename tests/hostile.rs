@@ -257,10 +257,8 @@ fn a_log_whose_time_does_not_advance_fails_its_run() {
     );
     // Located in the raw log: the ingest's first such fault (the second IMU record, after
     // the header and the first record).
-    let events: unz_formats::IngestEvents = serde_json::from_slice(
-        &std::fs::read(out.join("sim-0081/ingest/ingest_events.json")).unwrap(),
-    )
-    .unwrap();
+    let events: unz_formats::IngestEvents =
+        read_json(&out.join("sim-0081/ingest/ingest_events.json"));
     let first = (events.events.iter())
         .find(|e| e.kind == unz_formats::raw::FaultKind::TimeNotIncreasing)
         .unwrap();
@@ -272,6 +270,69 @@ fn a_log_whose_time_does_not_advance_fails_its_run() {
         )),
         "{text}"
     );
+    assert!(out.join("sim-0080/derive/derived.parquet").is_file());
+}
+
+/// A raw log that is a FIFO (an archive may restore one): opening it for reading waited
+/// for a writer, and the whole campaign with it. Now that run fails at once, naming the
+/// file and its kind, and the other run goes on. Run under a deadline, so a regression
+/// fails instead of hanging the tests.
+#[cfg(unix)]
+#[test]
+fn a_raw_log_that_is_a_fifo_fails_its_run_and_stops_nothing_else() {
+    use std::io::Read;
+    use std::process::Stdio;
+    use std::time::{Duration, Instant};
+
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let log = camp.join("sim-0081/sim-0081.unz");
+    std::fs::remove_file(&log).unwrap();
+    rustix::fs::mknodat(
+        rustix::fs::CWD,
+        &log,
+        rustix::fs::FileType::Fifo,
+        rustix::fs::Mode::RUSR | rustix::fs::Mode::WUSR,
+        0,
+    )
+    .unwrap();
+    let out = tmp.path().join("o");
+    let mut child = unz()
+        .args([
+            "run",
+            camp.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .args(["--until", "derive"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if Instant::now() > deadline {
+            child.kill().unwrap();
+            panic!("unz run still waits on the FIFO after 120 s");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut text = String::new();
+    child
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut text)
+        .unwrap();
+    assert_eq!(status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("FAILED sim-0081") && text.contains("not a regular file but a FIFO"),
+        "{text}"
+    );
+    assert!(text.contains("sim-0081.unz"), "{text}");
     assert!(out.join("sim-0080/derive/derived.parquet").is_file());
 }
 

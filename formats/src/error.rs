@@ -12,6 +12,12 @@ pub enum FormatError {
         /// What is wrong.
         reason: String,
     },
+    /// The file could not be opened (missing, not readable, not a regular file).
+    #[error("cannot open it: {source}")]
+    Open {
+        /// The I/O error.
+        source: std::io::Error,
+    },
     /// Reading failed at a byte offset.
     #[error("read failed at byte offset {offset}: {source}")]
     Io {
@@ -100,6 +106,11 @@ impl FormatError {
 /// Attaches a path to an I/O error that happened opening, reading or renaming a file.
 pub fn io_in_file(path: impl Into<PathBuf>, source: std::io::Error) -> FileError {
     FormatError::Io { offset: 0, source }.in_file(path)
+}
+
+/// Attaches a path to an I/O error that happened opening a file to read it.
+pub fn open_error_in_file(path: impl Into<PathBuf>, source: std::io::Error) -> FileError {
+    FormatError::Open { source }.in_file(path)
 }
 
 /// Attaches a path to an I/O error that happened writing a file.

@@ -23,6 +23,7 @@ mod parquet_columns;
 pub mod parquet_io;
 pub mod parquet_thread;
 pub mod raw;
+pub mod regular;
 pub mod report;
 pub mod ros2_msgs;
 pub mod schema;

@@ -314,9 +314,10 @@ pub fn resolve_inside(dir: &Path, rel: &str) -> Result<PathBuf, String> {
 /// Opens `path`, a file the manifest in `dir` names, and checks that what was opened is
 /// inside `dir`: the file the path resolves to now must be the very file opened (same
 /// device and inode), so a symbolic link switched between the manifest's check and the
-/// open cannot smuggle in a file from elsewhere.
+/// open cannot smuggle in a file from elsewhere. Only a regular file opens
+/// ([`crate::regular::open_regular`]: a FIFO is refused, not waited on).
 pub fn open_inside(dir: &Path, path: &Path) -> std::io::Result<std::fs::File> {
-    let file = std::fs::File::open(path)?;
+    let file = crate::regular::open_regular(path)?;
     let escape = |what: &str| {
         std::io::Error::new(
             std::io::ErrorKind::PermissionDenied,
@@ -493,7 +494,7 @@ impl RunManifest {
 /// Reads a whole text file, refusing files larger than `max_bytes`.
 pub fn read_bounded(path: &Path, max_bytes: u64) -> Result<String, FormatError> {
     use std::io::Read;
-    let file = std::fs::File::open(path).map_err(|source| FormatError::Io { offset: 0, source })?;
+    let file = crate::regular::open_regular(path).map_err(|source| FormatError::Open { source })?;
     let mut text = String::new();
     file.take(max_bytes + 1)
         .read_to_string(&mut text)
