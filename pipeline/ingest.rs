@@ -41,6 +41,20 @@ use unz_stages::imu_mounting;
 /// Rows per Parquet batch.
 const BATCH_ROWS: usize = 1 << 16;
 
+/// The most samples the ingest makes room for before reading a raw log (8.4 M: 23 hours
+/// at 100 Hz); a longer log's columns grow as they fill. A file's size is no promise of
+/// its samples: a sparse raw log of 64 GiB (holes read as zeros) asked for 34 GB for one
+/// column, which the kernel refused, and the process aborted with every run of its
+/// campaign.
+const ROWS_HINT_MAX: usize = 1 << 23;
+
+/// Room for as many samples as a raw log of `file_len` bytes can hold (its length, not a
+/// field of it: no more than the file's size says), up to [`ROWS_HINT_MAX`].
+fn rows_hint(file_len: u64) -> usize {
+    let rows = usize::try_from(file_len).unwrap_or(usize::MAX) / frame_len(IMU_PAYLOAD_LEN);
+    rows.min(ROWS_HINT_MAX)
+}
+
 /// Output files of the ingest stage.
 pub const OUTPUTS: [&str; 6] = [
     files::IMU,
@@ -385,11 +399,7 @@ fn ingest_binary(
         .scale_m_per_pulse
         .unwrap_or(header.odo_lsb_m);
     let nominal_dt_s = header.sample_period_s();
-    // Room for as many samples as the log's bytes can hold (its length, not a field of
-    // it: no more than the file's size says).
-    let rows_hint = std::fs::metadata(path).map_or(0, |m| {
-        usize::try_from(m.len()).unwrap_or(usize::MAX) / frame_len(IMU_PAYLOAD_LEN)
-    });
+    let rows_hint = std::fs::metadata(path).map_or(0, |m| rows_hint(m.len()));
     let mut sinks = Sinks::create(dir, origin_ns, Some(scale), &options, rows_hint)?;
     let mut first_pulses = None;
     // The odometer's failures (status bit 1) are bridged: their samples, and the marks
@@ -689,5 +699,23 @@ impl SpeedColumn {
             return None;
         };
         Some((d, range.step(tag_ns(s.t_s), d)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The room asked for follows the log's size up to a day's samples: a sparse file of
+    /// a terabyte (or one that claims any size) asks for no more than 2^23 rows.
+    #[test]
+    fn the_room_asked_for_follows_the_file_up_to_a_day() {
+        let frame = frame_len(IMU_PAYLOAD_LEN) as u64;
+        assert_eq!(rows_hint(0), 0);
+        assert_eq!(rows_hint(1000 * frame + 3), 1000);
+        // 12 hours at 100 Hz fit under the bound.
+        assert_eq!(rows_hint(4_320_000 * frame), 4_320_000);
+        assert_eq!(rows_hint(1 << 40), ROWS_HINT_MAX);
+        assert_eq!(rows_hint(u64::MAX), ROWS_HINT_MAX);
     }
 }
