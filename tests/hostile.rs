@@ -265,7 +265,7 @@ fn a_log_whose_time_does_not_advance_fails_its_run() {
     assert!(first.offset > 0, "{first:?}");
     assert!(
         text.contains(&format!(
-            "the first at byte offset {} of sim-0081.unz",
+            "the first at sample 1, byte offset {} of sim-0081.unz",
             first.offset
         )),
         "{text}"

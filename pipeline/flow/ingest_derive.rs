@@ -141,6 +141,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             None => IngestedSeries::load(&ingest_dir)?,
         };
         let counts = raw.failure_counts();
+        let first_time_not_increasing = raw.first_time_not_increasing();
         let mut d = raw.derive(&params.derive, site_gravity_mps2(m));
         (d.imu_failure_samples, d.odometer_failure_samples) = counts;
         // A run whose odometer failed over much of it (flagged, or a count that stood
@@ -181,13 +182,21 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // A few tags going back are repaired and counted; a time base that does not
         // advance (constant or saturated tags) is no time base.
         if d.repaired_times * 100 > d.t_s.len() {
+            // Where: the sample, and in a binary log the record's byte offset.
+            let at = (first_time_not_increasing.map(|k| format!("the first at sample {k}")))
+                .into_iter()
+                .chain(first_time_fault(&ingest_dir.join(files::INGEST_EVENTS)))
+                .collect::<Vec<_>>();
             bail!(
                 "{} of {} IMU time tags do not increase (constant, saturated or going back): \
                  the log's time base is broken{}",
                 d.repaired_times,
                 d.t_s.len(),
-                first_time_fault(&ingest_dir.join(files::INGEST_EVENTS))
-                    .map_or_else(String::new, |at| format!(" ({at})"))
+                if at.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", at.join(", "))
+                }
             );
         }
         // A gap is bridged by holding the rate across it: beyond a few seconds, the turns
@@ -234,13 +243,13 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
 }
 
 /// Where the ingest's account (`ingest_events.json`) locates the raw log's first time tag
-/// that did not increase: "the first at byte offset N of LOG". None for a text log (its
-/// rejected lines are listed there) or without the account.
+/// that did not increase: "byte offset N of LOG". None for a text log (its rejected lines
+/// are listed there) or without the account.
 fn first_time_fault(events_path: &Path) -> Option<String> {
     let events: IngestEvents = read_report(events_path)?;
     let first = (events.events.iter()).find(|e| e.kind == FaultKind::TimeNotIncreasing)?;
     Some(format!(
-        "the first at byte offset {} of {}; {} lists the first faults",
+        "byte offset {} of {}; {} lists the first faults",
         first.offset,
         events.raw.display(),
         events_path.display()

@@ -279,6 +279,15 @@ impl IngestedSeries {
         (count(1), count(2))
     }
 
+    /// The first IMU sample whose time tag the derive repairs: the first whose time from
+    /// the first tag (in seconds, as the derive takes it) is not after the one before.
+    pub fn first_time_not_increasing(&self) -> Option<usize> {
+        let t_ns = &self.imu.t_ns;
+        let t0 = *t_ns.first()?;
+        let t_s = |k: usize| (t_ns[k] - t0) as f64 * 1e-9;
+        (1..t_ns.len()).find(|&k| t_s(k) <= t_s(k - 1))
+    }
+
     /// Derives the run, the IMU's increments repaired in place and its time tags made its
     /// times in place (no copy of the run's length): [`derive_owned`]. The odometer's
     /// table goes once its increments are taken, before the samples' intervals are made.
@@ -318,6 +327,29 @@ impl IngestedSeries {
 mod tests {
     use super::*;
     use unz_formats::parquet_io::write_batch;
+
+    /// The first tag the derive repairs: the first not after the one before it, a tag
+    /// going back or standing still; none in a log whose time advances.
+    #[test]
+    fn the_first_time_tag_not_increasing_is_found() {
+        let series = |t_ns: Vec<i64>| IngestedSeries {
+            imu: ImuTable {
+                t_ns,
+                ..ImuTable::with_room(0)
+            },
+            odo: OdometerTable::with_room(0),
+        };
+        let mut t: Vec<i64> = (0..20_000)
+            .map(|k| 5_000_000_000 + k * 10_000_000)
+            .collect();
+        assert_eq!(series(t.clone()).first_time_not_increasing(), None);
+        t[17_000] = t[16_999] - 1;
+        t[18_000] = t[17_999];
+        assert_eq!(series(t.clone()).first_time_not_increasing(), Some(17_000));
+        t[12_000] = t[11_999];
+        assert_eq!(series(t).first_time_not_increasing(), Some(12_000));
+        assert_eq!(series(Vec::new()).first_time_not_increasing(), None);
+    }
 
     /// An ingested IMU table read with its increments' byte streams joined is the one
     /// Arrow reads, bit for bit (a run over several of the reader's batches); a table of
