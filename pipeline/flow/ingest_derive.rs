@@ -141,7 +141,6 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             None => IngestedSeries::load(&ingest_dir)?,
         };
         let counts = raw.failure_counts();
-        let first_time_not_increasing = raw.first_time_not_increasing();
         let mut d = raw.derive(&params.derive, site_gravity_mps2(m));
         (d.imu_failure_samples, d.odometer_failure_samples) = counts;
         // A run whose odometer failed over much of it (flagged, or a count that stood
@@ -182,8 +181,12 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // A few tags going back are repaired and counted; a time base that does not
         // advance (constant or saturated tags) is no time base.
         if d.repaired_times * 100 > d.t_s.len() {
-            // Where: the sample, and in a binary log the record's byte offset.
-            let at = (first_time_not_increasing.map(|k| format!("the first at sample {k}")))
+            // Where: the sample (the ingested tags read again: only a failing run pays for
+            // it), and in a binary log the record's byte offset.
+            let first = IngestedSeries::load(&ingest_dir)
+                .ok()
+                .and_then(|raw| raw.first_time_not_increasing());
+            let at = (first.map(|k| format!("the first at sample {k}")))
                 .into_iter()
                 .chain(first_time_fault(&ingest_dir.join(files::INGEST_EVENTS)))
                 .collect::<Vec<_>>();
