@@ -35,18 +35,40 @@ pub const STAGES: [&str; 7] = [
 /// Deepest folder searched for run manifests.
 const MAX_DEPTH: usize = 8;
 
-/// Every `run.toml` under `path` (or `path` itself), sorted; `out` is never searched and
-/// symlinks are not followed.
-pub fn find_runs(path: &Path, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+/// What the search for runs found: their manifests, and what it passed over that a user
+/// should hear of.
+#[derive(Debug, Default)]
+pub struct FoundRuns {
+    /// Every `run.toml` found, sorted.
+    pub manifests: Vec<PathBuf>,
+    /// A `run.toml` that is not a regular file (a symbolic link, which is not followed, or
+    /// a FIFO, a device, a folder), or a folder below `path` that could not be listed:
+    /// each with why, in the order met.
+    pub skipped: Vec<(PathBuf, String)>,
+}
+
+/// Every `run.toml` under `path` (or `path` itself); `out` is never searched and symlinks
+/// are not followed. A folder below `path` that cannot be listed is skipped and said, as
+/// is a `run.toml` that is not a regular file: the rest of the campaign goes on.
+pub fn find_runs(path: &Path, out: &Path) -> anyhow::Result<FoundRuns> {
     if let Some(manifest) = crate::runs::one_run_manifest(path) {
-        return Ok(vec![manifest]);
+        return Ok(FoundRuns {
+            manifests: vec![manifest],
+            skipped: Vec::new(),
+        });
     }
     let out_real = out.canonicalize().ok();
-    let mut found = Vec::new();
+    let mut found = FoundRuns::default();
     let mut stack = vec![(path.to_path_buf(), 0usize)];
     while let Some((dir, depth)) = stack.pop() {
-        let entries =
-            std::fs::read_dir(&dir).with_context(|| format!("cannot list {}", dir.display()))?;
+        let entries = match std::fs::read_dir(&dir) {
+            Ok(entries) => entries,
+            Err(e) if depth > 0 => {
+                found.skipped.push((dir, format!("cannot list it: {e}")));
+                continue;
+            }
+            Err(e) => return Err(e).with_context(|| format!("cannot list {}", dir.display())),
+        };
         for e in entries {
             let e = e?;
             let p = e.path();
@@ -58,12 +80,22 @@ pub fn find_runs(path: &Path, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
                 && out_real.as_deref() != p.canonicalize().ok().as_deref()
             {
                 stack.push((p, depth + 1));
-            } else if meta.is_file() && e.file_name() == crate::runs::MANIFEST {
-                found.push(p);
+            } else if e.file_name() == crate::runs::MANIFEST {
+                if meta.is_file() {
+                    found.manifests.push(p);
+                } else {
+                    let why = if meta.file_type().is_symlink() {
+                        "a symbolic link, not followed (a run's manifest must be a file in its \
+                         folder)"
+                    } else {
+                        "not a regular file"
+                    };
+                    found.skipped.push((p, why.to_owned()));
+                }
             }
         }
     }
-    found.sort();
+    found.manifests.sort();
     Ok(found)
 }
 

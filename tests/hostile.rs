@@ -336,6 +336,45 @@ fn a_raw_log_that_is_a_fifo_fails_its_run_and_stops_nothing_else() {
     assert!(out.join("sim-0080/derive/derived.parquet").is_file());
 }
 
+/// A campaign's `run.toml` that is a symbolic link (not followed: it could name a
+/// manifest anywhere) or a FIFO was passed over without a word; now each is named with
+/// why, and the other runs go on.
+#[cfg(unix)]
+#[test]
+fn a_manifest_that_is_not_a_regular_file_is_skipped_and_said() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let linked = camp.join("sim-0081/run.toml");
+    std::fs::rename(&linked, camp.join("sim-0081/manifest.toml")).unwrap();
+    std::os::unix::fs::symlink("manifest.toml", &linked).unwrap();
+    let fifo = camp.join("elsewhere/run.toml");
+    std::fs::create_dir_all(fifo.parent().unwrap()).unwrap();
+    rustix::fs::mknodat(
+        rustix::fs::CWD,
+        &fifo,
+        rustix::fs::FileType::Fifo,
+        rustix::fs::Mode::RUSR | rustix::fs::Mode::WUSR,
+        0,
+    )
+    .unwrap();
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "ingest");
+    assert_eq!(code, Some(0), "{text}");
+    assert!(
+        text.contains(&format!(
+            "skipped {}: a symbolic link, not followed",
+            linked.display()
+        )),
+        "{text}"
+    );
+    assert!(
+        text.contains(&format!("skipped {}: not a regular file", fifo.display())),
+        "{text}"
+    );
+    assert!(text.contains("1 runs: 1 ok"), "{text}");
+    assert!(out.join("sim-0080/ingest/imu.parquet").is_file());
+}
+
 /// The odometer-failure status bit: set on every sample, the run fails and says so; set on
 /// a few, they are counted in navigate.json and the run goes on.
 #[test]

@@ -451,7 +451,7 @@ fn bench_campaign(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     );
     let out = tmp.path().join("out");
     std::fs::create_dir_all(&out)?;
-    let manifests = find_runs(&camp, &out)?;
+    let manifests = find_runs(&camp, &out)?.manifests;
     let plan = Plan::every_stage(out.clone());
     for label in ["cold", "cached"] {
         // What a new process does: it knows the hashes the last one saved.

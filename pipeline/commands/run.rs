@@ -35,7 +35,11 @@ pub fn run(args: &RunArgs) -> anyhow::Result<ExitCode> {
         progress: std::io::IsTerminal::is_terminal(&std::io::stderr()),
     };
     std::fs::create_dir_all(&args.out)?;
-    let manifests = find_runs(&args.path, &args.out)?;
+    let found = find_runs(&args.path, &args.out)?;
+    for (path, why) in &found.skipped {
+        eprintln!("skipped {}: {why}", path.display());
+    }
+    let manifests = found.manifests;
     if manifests.is_empty() {
         bail!("no run.toml under {}", args.path.display());
     }
