@@ -273,6 +273,13 @@ fn a_log_whose_time_does_not_advance_fails_its_run() {
     assert!(out.join("sim-0080/derive/derived.parquet").is_file());
 }
 
+/// Makes a FIFO (named pipe) at `path`, as an archive tool may restore one.
+#[cfg(unix)]
+fn make_fifo(path: &Path) {
+    let mode = rustix::fs::Mode::RUSR | rustix::fs::Mode::WUSR;
+    rustix::fs::mknodat(rustix::fs::CWD, path, rustix::fs::FileType::Fifo, mode, 0).unwrap();
+}
+
 /// A raw log that is a FIFO (an archive may restore one): opening it for reading waited
 /// for a writer, and the whole campaign with it. Now that run fails at once, naming the
 /// file and its kind, and the other run goes on. Run under a deadline, so a regression
@@ -288,14 +295,7 @@ fn a_raw_log_that_is_a_fifo_fails_its_run_and_stops_nothing_else() {
     let camp = campaign(tmp.path());
     let log = camp.join("sim-0081/sim-0081.unz");
     std::fs::remove_file(&log).unwrap();
-    rustix::fs::mknodat(
-        rustix::fs::CWD,
-        &log,
-        rustix::fs::FileType::Fifo,
-        rustix::fs::Mode::RUSR | rustix::fs::Mode::WUSR,
-        0,
-    )
-    .unwrap();
+    make_fifo(&log);
     let out = tmp.path().join("o");
     let mut child = unz()
         .args([
@@ -349,14 +349,7 @@ fn a_manifest_that_is_not_a_regular_file_is_skipped_and_said() {
     std::os::unix::fs::symlink("manifest.toml", &linked).unwrap();
     let fifo = camp.join("elsewhere/run.toml");
     std::fs::create_dir_all(fifo.parent().unwrap()).unwrap();
-    rustix::fs::mknodat(
-        rustix::fs::CWD,
-        &fifo,
-        rustix::fs::FileType::Fifo,
-        rustix::fs::Mode::RUSR | rustix::fs::Mode::WUSR,
-        0,
-    )
-    .unwrap();
+    make_fifo(&fifo);
     let out = tmp.path().join("o");
     let (code, text) = run(&camp, &out, "ingest");
     assert_eq!(code, Some(0), "{text}");
