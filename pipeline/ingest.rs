@@ -385,6 +385,26 @@ fn open(manifest: &RunManifest, path: &Path) -> anyhow::Result<std::fs::File> {
         .map_err(|e| unz_formats::error::open_error_in_file(path, e).into())
 }
 
+/// Where the `k`-th IMU sample the ingest kept (0-based: its row of `imu.parquet`) is in
+/// the run's raw log: "byte offset N of LOG" or "line N of LOG", the log as its manifest
+/// names it. The log is read again up to the sample, so only a run that fails asks; None
+/// when the log cannot be read or holds fewer samples.
+pub fn imu_sample_place(manifest: &RunManifest, k: usize) -> Option<String> {
+    let path = &manifest.raw;
+    let file = manifest.open_named(path).ok()?;
+    let place = match manifest.format {
+        LogFormat::UnzBinary => {
+            let offset = unz_formats::raw::imu_record_offset(file, k as u64).ok()??;
+            format!("byte offset {offset}")
+        }
+        LogFormat::KfGins => {
+            let line = unz_formats::kfgins::sample_line(BufReader::new(file), k as u64).ok()??;
+            format!("line {line}")
+        }
+    };
+    Some(format!("{place} of {}", manifest.named(path).display()))
+}
+
 fn ingest_binary(
     manifest: &RunManifest,
     dir: &Path,

@@ -271,6 +271,37 @@ fn a_log_whose_time_does_not_advance_fails_its_run() {
         "{text}"
     );
     assert!(out.join("sim-0080/derive/derived.parquet").is_file());
+
+    // A text log's are located by their line: 200 of Kingston's tags (2 %) made the one
+    // before them.
+    let run = kingston_with_imu(&tmp.path().join("k"), |lines| {
+        let t = lines[2999].split_whitespace().next().unwrap().to_owned();
+        for line in &mut lines[3000..3200] {
+            let rest = line.split_once(' ').unwrap().1.to_owned();
+            *line = format!("{t} {rest}");
+        }
+    });
+    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("ko"));
+    assert!(
+        err.contains("200 of 8760 IMU time tags do not increase")
+            && err.contains("(the first at sample 3000, line 3001 of imu.txt)"),
+        "{err}"
+    );
+}
+
+/// A copy of the Kingston segment in `run` (its manifest and odometer file), its IMU log's
+/// lines edited by `edit`; returns `run`.
+fn kingston_with_imu(run: &Path, edit: impl FnOnce(&mut Vec<String>)) -> PathBuf {
+    let data = crate::util::test_data("kingston2008-seg1");
+    std::fs::create_dir_all(run).unwrap();
+    for f in ["run.toml", "odometer.txt"] {
+        std::fs::copy(data.join(f), run.join(f)).unwrap();
+    }
+    let imu = std::fs::read_to_string(data.join("imu.txt")).unwrap();
+    let mut lines: Vec<String> = imu.lines().map(String::from).collect();
+    edit(&mut lines);
+    std::fs::write(run.join("imu.txt"), lines.join("\n") + "\n").unwrap();
+    run.to_path_buf()
 }
 
 /// Makes a FIFO (named pipe) at `path`, as an archive tool may restore one.
@@ -642,12 +673,36 @@ fn a_gap_longer_than_the_derive_bridges_fails_its_run() {
     assert_eq!(code, Some(1), "{text}");
     assert!(
         text.contains("FAILED sim-0081")
-            && text.contains("gap of 30.01 s after t = 119.99 s (before sample 12000)")
+            && text.contains("gap of 30.01 s after t = 119.99 s (before sample 12000, byte")
             && text.contains("derive.max_gap_s = 2 s"),
         "{text}"
     );
     assert!(!text.contains("FAILED sim-0080"), "{text}");
     assert!(out.join("sim-0080/derive/derived.parquet").is_file());
+    // The sample after the gap is named by its record's byte offset: the frame there is
+    // the 12 000th record after the first, 150 s after it.
+    let log = std::fs::read(camp.join("sim-0081/sim-0081.unz")).unwrap();
+    let at: usize = (text.split("(before sample 12000, byte offset ").nth(1))
+        .and_then(|rest| rest.split(" of sim-0081.unz)").next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{text}"));
+    let first = unz_formats::raw::HEADER_LEN;
+    let field = |at: usize, from: usize, len: usize| {
+        (log[at + from..at + from + len].iter().rev()).fold(0_u64, |v, &b| v << 8 | u64::from(b))
+    };
+    assert_eq!(log[at..at + 4], [0xA5, 0x5A, 0x01, 42]);
+    assert_eq!(field(at, 4, 4) - field(first, 4, 4), 12_000);
+    assert_eq!(field(at, 8, 8) - field(first, 8, 8), 150_000_000);
+
+    // A text log's gap is named by its line: 40 lines (4 s) of Kingston's log taken out.
+    let run = kingston_with_imu(&tmp.path().join("k"), |lines| {
+        lines.drain(7000..7040);
+    });
+    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("ko"));
+    assert!(
+        err.contains("gap of 4.10 s after t = ") && err.contains(", line 7001 of imu.txt)"),
+        "{err}"
+    );
 }
 
 /// Odometer steps no land vehicle makes: a pulse counter jumping by a million counts

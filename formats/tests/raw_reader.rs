@@ -2,7 +2,8 @@
 
 use proptest::prelude::*;
 use unz_formats::raw::{
-    Accepted, FileHeader, HEADER_LEN, ImuRecord, MarkRecord, RawLog, RawReader, RawWriter, TYPE_IMU,
+    Accepted, FileHeader, HEADER_LEN, IMU_PAYLOAD_LEN, ImuRecord, MarkRecord, RawLog, RawReader,
+    RawWriter, SYNC, TYPE_IMU, imu_record_offset,
 };
 use unz_formats::report::IngestReport;
 
@@ -200,6 +201,56 @@ fn each_fault_is_counted_exactly() {
     assert!((rep.lost_duration_s - 0.04).abs() < 1e-12);
     assert_eq!(rep.t_non_increasing, 1);
     assert_eq!(rep.records_read, 96 + 1 + 1 + 1 + 1);
+}
+
+/// An accepted IMU record is found again by its row (the ingest's IMU table's): the
+/// frame at the offset is that record, through the bad CRCs, garbage, duplicates, lost
+/// records, reserved types and marks before it, and the offsets go forward; past the last
+/// row there is none.
+#[test]
+fn an_accepted_imu_records_offset_is_found_by_its_row() {
+    let records: Vec<_> = (0..400)
+        .map(|i| imu(i, 10_000 * u64::from(i + 1), i))
+        .collect();
+    let marks = [(3, 1), (150, 2), (151, 3), (390, 4)]
+        .map(|(k, point_id)| {
+            let t_us = records[k].t_us + 1;
+            (k, MarkRecord { t_us, point_id })
+        })
+        .to_vec();
+    let run = RawLog {
+        header: FileHeader::unz50(0, "SN"),
+        records,
+        marks,
+    };
+    let damaged = run.damage(11);
+    let bytes = damaged.bytes.as_slice();
+    let (got, rep) = read(bytes);
+    assert!(
+        rep.rejected.bad_crc + rep.rejected.duplicate_seq + rep.seq_gaps > 3,
+        "{rep:?}"
+    );
+    let accepted = imus(&got);
+    let mut rows: Vec<_> = (0..accepted.len()).step_by(7).collect();
+    rows.push(accepted.len() - 1);
+    rows.dedup();
+    let mut last = 0;
+    for k in rows {
+        let at = imu_record_offset(bytes, k as u64).unwrap().unwrap() as usize;
+        assert!(at > last || k == 0, "row {k} at {at}, after {last}");
+        last = at;
+        let frame = &bytes[at..at + 4 + IMU_PAYLOAD_LEN];
+        assert_eq!(
+            frame[..4],
+            [SYNC[0], SYNC[1], TYPE_IMU, IMU_PAYLOAD_LEN as u8]
+        );
+        let payload = frame[4..].try_into().unwrap();
+        assert_eq!(ImuRecord::decode_payload(payload), accepted[k], "row {k}");
+    }
+    assert_eq!(
+        imu_record_offset(bytes, accepted.len() as u64).unwrap(),
+        None
+    );
 }
 
 #[test]

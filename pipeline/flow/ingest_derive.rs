@@ -14,7 +14,7 @@ use super::{IngestedSeries, Params, RunCtx};
 use crate::artifacts::{StageName, files};
 use crate::campaign::read_report;
 use crate::derive_io::{as_stored, write_derived};
-use crate::ingest::{IngestOptions, OUTPUTS as INGEST_OUTPUTS, ingest};
+use crate::ingest::{IngestOptions, OUTPUTS as INGEST_OUTPUTS, imu_sample_place, ingest};
 use crate::review_sensors::{review_sensors, write_review_sensors};
 use crate::stage::{Stage, params_hash};
 
@@ -182,13 +182,13 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // advance (constant or saturated tags) is no time base.
         if d.repaired_times * 100 > d.t_s.len() {
             // Where: the sample (the ingested tags read again: only a failing run pays for
-            // it), and in a binary log the record's byte offset.
+            // it) and its place in the raw log; a binary log's account lists the faults.
             let first = IngestedSeries::load(&ingest_dir)
                 .ok()
                 .and_then(|raw| raw.first_time_not_increasing());
-            let at = (first.map(|k| format!("the first at sample {k}")))
+            let at = (first.map(|k| format!("the first at {}", sample_at(m, k))))
                 .into_iter()
-                .chain(first_time_fault(&ingest_dir.join(files::INGEST_EVENTS)))
+                .chain(time_faults_listed(&ingest_dir.join(files::INGEST_EVENTS)))
                 .collect::<Vec<_>>();
             bail!(
                 "{} of {} IMU time tags do not increase (constant, saturated or going back): \
@@ -198,7 +198,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                 if at.is_empty() {
                     String::new()
                 } else {
-                    format!(" ({})", at.join(", "))
+                    format!(" ({})", at.join("; "))
                 }
             );
         }
@@ -214,19 +214,30 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         }
         if let Some(k) = d.dt_s.iter().position(|&dt| dt > max_gap_s) {
             bail!(
-                "the IMU log has a gap of {:.2} s after t = {:.2} s (before sample {k}): \
-                 dead reckoning does not bridge more than derive.max_gap_s = {max_gap_s} s \
-                 (the turns and the gyros' noise in it are unknown); split the run there, or \
-                 raise max_gap_s for a pause at rest",
+                "the IMU log has a gap of {:.2} s after t = {:.2} s (before {}): dead \
+                 reckoning does not bridge more than derive.max_gap_s = {max_gap_s} s (the \
+                 turns and the gyros' noise in it are unknown); split the run there, or raise \
+                 max_gap_s for a pause at rest",
                 d.dt_s[k],
-                d.t_s.get(k) - d.dt_s[k]
+                d.t_s.get(k) - d.dt_s[k],
+                sample_at(m, k)
             );
         }
-        ensure_finite("angle increment", d.dtheta_rad.iter().flatten().copied())?;
-        ensure_finite("velocity increment", d.dvel_mps.iter().flatten().copied())?;
-        ensure_finite("odometer distance", d.odo_dist_m.iter().copied())?;
-        ensure_finite("accelerometer pitch", d.epochs.theta_p_rad.iter().copied())?;
-        ensure_finite("accelerometer roll", d.epochs.phi_p_rad.iter().copied())?;
+        let (dtheta, dvel) = (d.dtheta_rad.iter(), d.dvel_mps.iter());
+        ensure_finite("angle increment", "sample", dtheta.map(not_finite_of))?;
+        ensure_finite("velocity increment", "sample", dvel.map(not_finite_of))?;
+        ensure_finite("odometer distance", "sample", d.odo_dist_m.iter().copied())?;
+        let epochs = &d.epochs;
+        ensure_finite(
+            "accelerometer pitch",
+            "epoch",
+            epochs.theta_p_rad.iter().copied(),
+        )?;
+        ensure_finite(
+            "accelerometer roll",
+            "epoch",
+            epochs.phi_p_rad.iter().copied(),
+        )?;
         let g_mps2 = site_gravity_mps2(m);
         let odometer_file = (report.odometer_file.as_ref()).and(m.odometer.file.as_deref());
         let axes = check_axes(&d, &params.vehicle, g_mps2, m, odometer_file)?;
@@ -245,27 +256,42 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     Ok(dir)
 }
 
-/// Where the ingest's account (`ingest_events.json`) locates the raw log's first time tag
-/// that did not increase: "byte offset N of LOG". None for a text log (its rejected lines
-/// are listed there) or without the account.
-fn first_time_fault(events_path: &Path) -> Option<String> {
-    let events: IngestEvents = read_report(events_path)?;
-    let first = (events.events.iter()).find(|e| e.kind == FaultKind::TimeNotIncreasing)?;
-    Some(format!(
-        "byte offset {} of {}; {} lists the first faults",
-        first.offset,
-        events.raw.display(),
-        events_path.display()
-    ))
+/// "sample K" and, when the raw log can be read again, its place there ("sample K, byte
+/// offset N of LOG" or "sample K, line N of LOG"): [`imu_sample_place`].
+fn sample_at(m: &RunManifest, k: usize) -> String {
+    match imu_sample_place(m, k) {
+        Some(place) => format!("sample {k}, {place}"),
+        None => format!("sample {k}"),
+    }
 }
 
-/// Fails unless every value is finite, naming the quantity and the first sample that is
-/// not: a stage never records outputs that went to Inf or NaN.
-pub fn ensure_finite(what: &str, values: impl IntoIterator<Item = f64>) -> anyhow::Result<()> {
+/// "EVENTS lists the first faults" when the ingest's account (`ingest_events.json`) holds
+/// a time tag that did not increase: a binary log's (a text log's tags are not events).
+fn time_faults_listed(events_path: &Path) -> Option<String> {
+    let events: IngestEvents = read_report(events_path)?;
+    (events.events.iter())
+        .any(|e| e.kind == FaultKind::TimeNotIncreasing)
+        .then(|| format!("{} lists the first faults", events_path.display()))
+}
+
+/// Fails unless every value is finite, naming the quantity and the first `unit` (its
+/// index: "sample", "epoch") that is not: a stage never records outputs that went to Inf
+/// or NaN.
+pub fn ensure_finite(
+    what: &str,
+    unit: &str,
+    values: impl IntoIterator<Item = f64>,
+) -> anyhow::Result<()> {
     if let Some((k, v)) = values.into_iter().enumerate().find(|(_, v)| !v.is_finite()) {
-        bail!("{what} is {v} at sample {k}: the input's scales or values are not physical");
+        bail!("{what} is {v} at {unit} {k}: the input's scales or values are not physical");
     }
     Ok(())
+}
+
+/// A vector's first component that is not finite, else 0: the vector as one value for
+/// [`ensure_finite`], which then names its sample.
+fn not_finite_of(v: &[f64; 3]) -> f64 {
+    v.iter().copied().find(|x| !x.is_finite()).unwrap_or(0.0)
 }
 
 /// Normal gravity at the run's site, m/s² (derive's g).
@@ -276,6 +302,25 @@ pub fn site_gravity_mps2(m: &RunManifest) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A value that is not finite is named by its index in the unit given, a vector's by
+    /// its sample (not by its component's place in the flattened values).
+    #[test]
+    fn the_first_value_not_finite_is_named_by_its_sample() {
+        let v = [[0.0, 1.0, 2.0], [3.0, 4.0, 5.0], [6.0, f64::NAN, 8.0]];
+        let err = ensure_finite("angle increment", "sample", v.iter().map(not_finite_of));
+        let err = err.unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "angle increment is NaN at sample 2: the input's scales or values are not physical"
+        );
+        let err = ensure_finite("roll", "epoch", [0.0, f64::INFINITY]).unwrap_err();
+        assert!(
+            err.to_string().starts_with("roll is inf at epoch 1:"),
+            "{err}"
+        );
+        ensure_finite("roll", "epoch", [0.0, -1e308]).unwrap();
+    }
 
     /// The stages of a chain each ask for the derive: one context checks it once for the
     /// same parameters, and again for others.

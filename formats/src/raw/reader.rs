@@ -96,6 +96,8 @@ pub struct RawReader<R: Read> {
     events: Vec<FaultEvent>,
     events_total: u64,
     last_imu: Option<(u32, u64, u64, u32, i64)>, // raw seq, unwrapped seq, t_us, raw odo, odo
+    /// File offset of the record returned last.
+    last_offset: u64,
 }
 
 impl<R: Read> RawReader<R> {
@@ -132,6 +134,7 @@ impl<R: Read> RawReader<R> {
             events: Vec::new(),
             events_total: 0,
             last_imu: None,
+            last_offset: 0,
         })
     }
 
@@ -153,6 +156,12 @@ impl<R: Read> RawReader<R> {
     /// Consumes the reader, returning the final report and fault events.
     pub fn into_report(self) -> (IngestReport, Vec<FaultEvent>, u64) {
         (self.report, self.events, self.events_total)
+    }
+
+    /// The byte offset in the file of the record [`Self::next_record`] returned last (0
+    /// before the first).
+    pub fn record_offset(&self) -> u64 {
+        self.last_offset
     }
 
     fn offset_of(&self, i: usize) -> u64 {
@@ -249,6 +258,7 @@ impl<R: Read> RawReader<R> {
                         self.pos += n;
                         self.report.records_read += 1;
                         if let Some(rec) = self.classify(i) {
+                            self.last_offset = self.offset_of(i);
                             return Ok(Some(rec));
                         }
                     } else {
@@ -423,6 +433,23 @@ impl<R: Read> RawReader<R> {
             odo_pulses,
         }))
     }
+}
+
+/// The byte offset of the `k`-th IMU record the reader accepts (0-based: the row of the
+/// ingest's IMU table it became), or `None` when the log holds fewer. The log is read up
+/// to it, in the reader's bounded buffer.
+pub fn imu_record_offset<R: Read>(src: R, k: u64) -> Result<Option<u64>, FormatError> {
+    let mut reader = RawReader::new(src)?;
+    let mut seen = 0u64;
+    while let Some(rec) = reader.next_record()? {
+        if let Accepted::Imu(_) = rec {
+            if seen == k {
+                return Ok(Some(reader.record_offset()));
+            }
+            seen += 1;
+        }
+    }
+    Ok(None)
 }
 
 /// Reads until `buf` is full or the source ends; returns the bytes read.
