@@ -332,7 +332,10 @@ impl Sinks {
 
     /// Writes the marks and closes every file (renaming them into place); returns the
     /// odometer's rows, its steps replaced for their speed, and the series kept.
-    fn finish(mut self, dir: &Path) -> anyhow::Result<(usize, u64, Option<WrittenSeries>)> {
+    fn finish(
+        mut self,
+        dir: &Path,
+    ) -> anyhow::Result<(usize, OdometerRange, Option<WrittenSeries>)> {
         self.flush(true)?;
         let odo_rows = self.odo.rows();
         self.imu.finish()?;
@@ -344,7 +347,7 @@ impl Sinks {
         if let Some(m) = self.mcap {
             m.finish()?;
         }
-        Ok((odo_rows, self.odo_range.out_of_range, self.kept))
+        Ok((odo_rows, self.odo_range, self.kept))
     }
 }
 
@@ -355,7 +358,13 @@ pub fn ingest(
     options: IngestOptions,
 ) -> anyhow::Result<IngestOutcome> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let (report, odometer_rows, series) = match manifest.format {
+    let Streamed {
+        report,
+        odometer_rows,
+        odometer_range,
+        odometer_file,
+        series,
+    } = match manifest.format {
         LogFormat::UnzBinary => ingest_binary(manifest, dir, options)?,
         LogFormat::KfGins => ingest_text(manifest, dir, options)?,
     };
@@ -363,10 +372,14 @@ pub fn ingest(
     if report.odometer_out_of_range * 100 > odometer_rows as u64 {
         anyhow::bail!(
             "{} of {} odometer steps are beyond a land vehicle's speed ({} m/s): corrupt \
-             counts or readings",
+             counts or readings{}",
             report.odometer_out_of_range,
             odometer_rows,
-            LAND_SPEED_RANGE_MPS
+            LAND_SPEED_RANGE_MPS,
+            (odometer_range.first_ns).map_or_else(String::new, |t_ns| {
+                let place = odometer_place(manifest, odometer_file.as_deref(), t_ns);
+                format!(" (the first {place})")
+            })
         );
     }
     write_json_atomic(&dir.join(files::INGEST_REPORT), &report)?;
@@ -378,6 +391,48 @@ pub fn ingest(
     })
 }
 
+/// What a log's stream gave: its accounting, the odometer's rows, range check and file
+/// (a text log's separate one, when its readings came from it), and the series kept for
+/// the derive.
+struct Streamed {
+    report: IngestReport,
+    odometer_rows: usize,
+    odometer_range: OdometerRange,
+    odometer_file: Option<PathBuf>,
+    series: Option<WrittenSeries>,
+}
+
+/// Where the odometer's reading at `t_ns` is: "at byte offset N of LOG" or "at line N of
+/// LOG" (the IMU record or line that carries it), or "at its reading of t = T s in FILE"
+/// (a separate file's, whose readings no IMU sample carries).
+fn odometer_place(manifest: &RunManifest, file: Option<&Path>, t_ns: i64) -> String {
+    let t = seconds(t_ns);
+    match file {
+        Some(file) => format!(
+            "at its reading of t = {t} s in {}",
+            manifest.named(file).display()
+        ),
+        None => match imu_sample_place(manifest, KeptSample::TagNs(t_ns)) {
+            Some(place) => format!("at {place}"),
+            None => format!("at t = {t} s"),
+        },
+    }
+}
+
+/// A time tag, ns, in seconds as a decimal: exact, without trailing zeros.
+fn seconds(t_ns: i64) -> String {
+    let sign = if t_ns < 0 { "-" } else { "" };
+    let (s, ns) = (
+        t_ns.unsigned_abs() / 1_000_000_000,
+        t_ns.unsigned_abs() % 1_000_000_000,
+    );
+    let fraction = format!("{ns:09}");
+    match fraction.trim_end_matches('0') {
+        "" => format!("{sign}{s}"),
+        f => format!("{sign}{s}.{f}"),
+    }
+}
+
 /// Opens a file `manifest` names, checking that what was opened is inside its folder.
 fn open(manifest: &RunManifest, path: &Path) -> anyhow::Result<std::fs::File> {
     manifest
@@ -385,31 +440,55 @@ fn open(manifest: &RunManifest, path: &Path) -> anyhow::Result<std::fs::File> {
         .map_err(|e| unz_formats::error::open_error_in_file(path, e).into())
 }
 
-/// Where the `k`-th IMU sample the ingest kept (0-based: its row of `imu.parquet`) is in
-/// the run's raw log: "byte offset N of LOG" or "line N of LOG", the log as its manifest
-/// names it. The log is read again up to the sample, so only a run that fails asks; None
-/// when the log cannot be read or holds fewer samples.
-pub fn imu_sample_place(manifest: &RunManifest, k: usize) -> Option<String> {
+/// An IMU sample the ingest kept, as a failing stage names it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KeptSample {
+    /// Its row of `imu.parquet` (0-based).
+    Row(usize),
+    /// The first with this time tag, ns, as the ingest tags it.
+    TagNs(i64),
+}
+
+/// Where an IMU sample the ingest kept is in the run's raw log: "byte offset N of LOG" or
+/// "line N of LOG", the log as its manifest names it. The log is read again up to the
+/// sample, so only a run that fails asks; None when the log cannot be read or holds no
+/// such sample.
+pub fn imu_sample_place(manifest: &RunManifest, sample: KeptSample) -> Option<String> {
     let path = &manifest.raw;
     let file = manifest.open_named(path).ok()?;
     let place = match manifest.format {
         LogFormat::UnzBinary => {
-            let offset = unz_formats::raw::imu_record_offset(file, k as u64).ok()??;
-            format!("byte offset {offset}")
+            let offset = unz_formats::raw::find_imu_record(file, |row, s| match sample {
+                KeptSample::Row(k) => row == k as u64,
+                KeptSample::TagNs(t_ns) => record_tag_ns(s.raw.t_us) == t_ns,
+            });
+            format!("byte offset {}", offset.ok()??)
         }
         LogFormat::KfGins => {
-            let line = unz_formats::kfgins::sample_line(BufReader::new(file), k as u64).ok()??;
-            format!("line {line}")
+            let src = BufReader::new(file);
+            let line = unz_formats::kfgins::find_sample_line(src, |row, s| match sample {
+                KeptSample::Row(k) => row == k as u64,
+                KeptSample::TagNs(t_ns) => tag_ns(s.t_s) == t_ns,
+            });
+            format!("line {}", line.ok()??)
         }
     };
     Some(format!("{place} of {}", manifest.named(path).display()))
+}
+
+/// A binary record's time tag (µs from the header's start time) as the ingest tags it,
+/// ns; a tag beyond i64's nanoseconds saturates.
+fn record_tag_ns(t_us: u64) -> i64 {
+    i64::try_from(t_us)
+        .unwrap_or(i64::MAX / 1000)
+        .saturating_mul(1000)
 }
 
 fn ingest_binary(
     manifest: &RunManifest,
     dir: &Path,
     options: IngestOptions,
-) -> anyhow::Result<(IngestReport, usize, Option<WrittenSeries>)> {
+) -> anyhow::Result<Streamed> {
     let path = &manifest.raw;
     let mut reader = RawReader::new(open(manifest, path)?).map_err(|e| e.in_file(path))?;
     let header = reader.header().clone();
@@ -439,9 +518,7 @@ fn ingest_binary(
     while let Some(rec) = reader.next_record().map_err(|e| e.in_file(path))? {
         match rec {
             Accepted::Imu(s) => {
-                let t_ns = i64::try_from(s.raw.t_us)
-                    .unwrap_or(i64::MAX / 1000)
-                    .saturating_mul(1000);
+                let t_ns = record_tag_ns(s.raw.t_us);
                 // The counts are turned (whole numbers: a zero stays +0.0), then scaled.
                 // A mounting turns the scaled increments.
                 let axes = options.imu_axes;
@@ -488,9 +565,7 @@ fn ingest_binary(
                 }
             }
             Accepted::Mark(m) => {
-                let t_ns = i64::try_from(m.t_us)
-                    .unwrap_or(i64::MAX / 1000)
-                    .saturating_mul(1000);
+                let t_ns = record_tag_ns(m.t_us);
                 bridger.other(Row::Mark {
                     t_ns,
                     point_id: m.point_id,
@@ -501,9 +576,9 @@ fn ingest_binary(
     }
     bridger.finish();
     give(&mut sinks, &mut bridger)?;
-    let (odo_rows, odometer_out_of_range, series) = sinks.finish(dir)?;
+    let (odometer_rows, odometer_range, series) = sinks.finish(dir)?;
     let (mut report, events, events_total) = reader.into_report();
-    report.odometer_out_of_range = odometer_out_of_range;
+    report.odometer_out_of_range = odometer_range.out_of_range;
     report.odometer_failures = bridger.failures().cloned();
     write_json_atomic(
         &dir.join(files::INGEST_EVENTS),
@@ -515,14 +590,20 @@ fn ingest_binary(
             odometer_file_faults: Vec::new(),
         },
     )?;
-    Ok((report, odo_rows, series))
+    Ok(Streamed {
+        report,
+        odometer_rows,
+        odometer_range,
+        odometer_file: None,
+        series,
+    })
 }
 
 fn ingest_text(
     manifest: &RunManifest,
     dir: &Path,
     options: IngestOptions,
-) -> anyhow::Result<(IngestReport, usize, Option<WrittenSeries>)> {
+) -> anyhow::Result<Streamed> {
     let path = &manifest.raw;
     let mut reader = KfGinsReader::new(BufReader::with_capacity(1 << 16, open(manifest, path)?));
     let period = reader
@@ -645,9 +726,9 @@ fn ingest_text(
     };
     // Stands the IMU found standing are no failure: nothing to report.
     let bridged = failures.filter(|f| *f != unz_formats::OdometerFailures::default());
-    let (odo_rows, odometer_out_of_range, series) = sinks.finish(dir)?;
+    let (odometer_rows, odometer_range, series) = sinks.finish(dir)?;
     let mut report = reader.report().clone();
-    report.odometer_out_of_range = odometer_out_of_range;
+    report.odometer_out_of_range = odometer_range.out_of_range;
     report.odometer_failures = bridged;
     report.odometer_file = file_report.as_ref().map(|(r, _)| r.clone());
     let (faults, total) = reader.faults();
@@ -661,7 +742,13 @@ fn ingest_text(
             odometer_file_faults: file_report.map_or(Vec::new(), |(_, faults)| faults),
         },
     )?;
-    Ok((report, odo_rows, series))
+    Ok(Streamed {
+        report,
+        odometer_rows,
+        odometer_range,
+        odometer_file: odometer_file.map(|(file, _)| file.to_path_buf()),
+        series,
+    })
 }
 
 /// The 8th column's samples the spikes' judgement has decided, through the trapezoid to
@@ -715,7 +802,7 @@ impl SpeedColumn {
     fn reading(&mut self, s: &TextSample, range: &mut OdometerRange) -> Option<(f64, f64)> {
         let v_mps = s.speed_mps?;
         let Some(d) = self.distance_m(s.t_s, v_mps) else {
-            range.out_of_range += 1;
+            range.refuse(tag_ns(s.t_s));
             return None;
         };
         Some((d, range.step(tag_ns(s.t_s), d)))
@@ -725,6 +812,17 @@ impl SpeedColumn {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A time tag in seconds is its decimal, exact and without trailing zeros.
+    #[test]
+    fn a_time_tag_reads_as_its_decimal_seconds() {
+        assert_eq!(seconds(152_843_090_000_000), "152843.09");
+        assert_eq!(seconds(120_000_000_000), "120");
+        assert_eq!(seconds(1), "0.000000001");
+        assert_eq!(seconds(-1_500_000_000), "-1.5");
+        assert_eq!(seconds(i64::MIN), "-9223372036.854775808");
+        assert_eq!(seconds(0), "0");
+    }
 
     /// The room asked for follows the log's size up to a day's samples: a sparse file of
     /// a terabyte (or one that claims any size) asks for no more than 2^23 rows.

@@ -22,6 +22,9 @@ pub struct OdometerRange {
     speed_mps: f64,
     /// Steps replaced.
     pub out_of_range: u64,
+    /// Time tag (ns) of the first step replaced, or of the first reading refused
+    /// ([`Self::refuse`]).
+    pub first_ns: Option<i64>,
 }
 
 impl OdometerRange {
@@ -41,7 +44,7 @@ impl OdometerRange {
             }
             self.kept_m += step_m;
         } else {
-            self.out_of_range += 1;
+            self.refuse(t_ns);
             self.kept_m += self.speed_mps * dt_s;
         }
         if self.out_of_range == 0 {
@@ -49,6 +52,13 @@ impl OdometerRange {
         } else {
             self.kept_m
         }
+    }
+
+    /// Counts the reading at `t_ns` as beyond a land vehicle's (a speed no step was made
+    /// of), with the steps replaced.
+    pub fn refuse(&mut self, t_ns: i64) {
+        self.out_of_range += 1;
+        self.first_ns.get_or_insert(t_ns);
     }
 }
 
@@ -68,7 +78,7 @@ mod tests {
         let kept: Vec<f64> = (0..10)
             .map(|k| r.step(k * 10_000_000, given[k as usize]))
             .collect();
-        assert_eq!(r.out_of_range, 1);
+        assert_eq!((r.out_of_range, r.first_ns), (1, Some(50_000_000)));
         for (k, d) in kept.iter().enumerate() {
             assert!((d - 0.1 * k as f64).abs() < 1e-9, "{k}: {d}");
         }
@@ -87,7 +97,7 @@ mod tests {
         for (&t_ns, &d) in times.iter().zip(&plain) {
             assert_eq!(r.step(t_ns, d).to_bits(), d.to_bits());
         }
-        assert_eq!(r.out_of_range, 0);
+        assert_eq!((r.out_of_range, r.first_ns), (0, None));
 
         let mut r = OdometerRange::default();
         let given = [0.0, 10.0, 1e300, 30.0, 40.0];
@@ -96,7 +106,7 @@ mod tests {
             .enumerate()
             .map(|(k, &d)| r.step(k as i64 * 1_000_000_000, d))
             .collect();
-        assert_eq!(r.out_of_range, 2);
+        assert_eq!((r.out_of_range, r.first_ns), (2, Some(2_000_000_000)));
         assert_eq!(kept, [0.0, 10.0, 20.0, 30.0, 40.0]);
     }
 }

@@ -546,7 +546,7 @@ fn saturated_increments_are_replaced_or_fail_their_run() {
     );
     rewrite_imu(
         &camp.join("sim-0081/sim-0081.unz"),
-        &saturate(|seq| seq % 10 == 0),
+        &saturate(|seq| seq % 10 == 3),
     );
     let out = tmp.path().join("o");
     let (code, text) = run(&camp, &out, "navigate");
@@ -555,6 +555,17 @@ fn saturated_increments_are_replaced_or_fail_their_run() {
         text.contains("FAILED sim-0081") && text.contains("exceed the IMU's range"),
         "{text}"
     );
+    // The first is named with its record's byte offset: the fourth record (the log
+    // holds IMU records alone before its marks, 48 bytes each after the header's 128),
+    // saturated.
+    assert!(
+        text.contains("(degrees?) (the first at sample 3, byte offset 272 of sim-0081.unz)"),
+        "{text}"
+    );
+    let log = std::fs::read(camp.join("sim-0081/sim-0081.unz")).unwrap();
+    let dtheta_x = i32::from_le_bytes(log[272 + 16..272 + 20].try_into().unwrap());
+    assert_eq!(log[272..274], [0xA5, 0x5A]);
+    assert_eq!(dtheta_x, i32::MAX);
     let read =
         |dir: &Path| -> NavigateSummary { read_json(&dir.join("sim-0080/navigate/navigate.json")) };
     let (patched, reference) = (read(&out), read(&clean));
@@ -703,6 +714,43 @@ fn a_gap_longer_than_the_derive_bridges_fails_its_run() {
         err.contains("gap of 4.10 s after t = ") && err.contains(", line 7001 of imu.txt)"),
         "{err}"
     );
+}
+
+/// Many odometer steps no land vehicle makes (a pulse counter jumping by a million counts
+/// on every 50th record, 2 % of the steps) are a broken odometer: the run fails in its
+/// ingest, naming the first step's record by its byte offset, and the other run goes on.
+#[test]
+fn an_odometer_of_many_impossible_steps_fails_its_run_at_the_first() {
+    use std::cell::Cell;
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    let k = Cell::new(0_u32);
+    let jumps = Cell::new(0_u32);
+    rewrite_imu(&camp.join("sim-0081/sim-0081.unz"), &|r| {
+        if k.get() >= 1000 && k.get() % 50 == 7 {
+            jumps.set(jumps.get() + 1);
+        }
+        r.odo_count = (r.odo_count).wrapping_add(1_000_000 * jumps.get());
+        k.set(k.get() + 1);
+    });
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "derive");
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("FAILED sim-0081")
+            && text.contains("380 of 20000 odometer steps are beyond a land vehicle's speed"),
+        "{text}"
+    );
+    assert!(!text.contains("FAILED sim-0080"), "{text}");
+    // The first is the 1007th record after the first, named by its byte offset.
+    let at: usize = (text.split("(the first at byte offset ").nth(1))
+        .and_then(|rest| rest.split(" of sim-0081.unz)").next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{text}"));
+    let log = std::fs::read(camp.join("sim-0081/sim-0081.unz")).unwrap();
+    let seq = |at: usize| u32::from_le_bytes(log[at + 4..at + 8].try_into().unwrap());
+    assert_eq!(log[at..at + 4], [0xA5, 0x5A, 0x01, 42]);
+    assert_eq!(seq(at) - seq(unz_formats::raw::HEADER_LEN), 1007);
 }
 
 /// Odometer steps no land vehicle makes: a pulse counter jumping by a million counts

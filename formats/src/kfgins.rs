@@ -157,17 +157,20 @@ impl<R: BufRead> LineReader<R> {
     }
 }
 
-/// The 1-based line of the `k`-th sample the reader accepts (0-based: the row of the
-/// ingest's IMU table it became), or `None` when the log holds fewer. The log is read up
-/// to it, a line at a time.
-pub fn sample_line<R: BufRead>(src: R, k: u64) -> Result<Option<u64>, FormatError> {
+/// The 1-based line of the first sample the reader accepts for which `wanted(row, sample)`
+/// holds (`row`: 0-based among the accepted samples, the row of the ingest's IMU table it
+/// became), or `None` when none does. The log is read up to it, a line at a time.
+pub fn find_sample_line<R: BufRead>(
+    src: R,
+    mut wanted: impl FnMut(u64, &TextSample) -> bool,
+) -> Result<Option<u64>, FormatError> {
     let mut reader = KfGinsReader::new(src);
-    let mut seen = 0u64;
+    let mut row = 0u64;
     while let Some(s) = reader.next_sample()? {
-        if seen == k {
+        if wanted(row, &s) {
             return Ok(Some(s.line));
         }
-        seen += 1;
+        row += 1;
     }
     Ok(None)
 }
@@ -601,18 +604,20 @@ mod tests {
         assert!(rep.is_consistent(), "{rep:?}");
     }
 
-    /// A sample is found again by its row: the line it was read from, past comments,
+    /// A sample is found again by its row or its time: the line it was read from, past comments,
     /// blank lines, rejected lines and a retransmitted duplicate; past the last, none.
     #[test]
     fn a_samples_line_is_found_by_its_row() {
         let text = "# header\n0.01 1 2 3 4 5 6\n0.02 1 2 3 4 5 6\n0.02 1 2 3 4 5 6\n0.03 x 2 3 4 5 6\n\n% note\n0.03 1 2 3 4 5 6\n0.05 1 2 3 4 5 6\n";
-        let line = |k| sample_line(text.as_bytes(), k).unwrap();
+        let line = |k| find_sample_line(text.as_bytes(), |row, _| row == k).unwrap();
         assert_eq!(
             (0..5).map(line).collect::<Vec<_>>(),
             [Some(2), Some(3), Some(8), Some(9), None]
         );
         let (v, _, _) = read_all(text);
         assert_eq!(v.iter().map(|s| s.line).collect::<Vec<_>>(), [2, 3, 8, 9]);
+        let tagged = |t_s| find_sample_line(text.as_bytes(), |_, s| s.t_s == t_s).unwrap();
+        assert_eq!((tagged(0.03), tagged(0.04)), (Some(8), None));
     }
 
     #[test]

@@ -3,7 +3,7 @@
 use proptest::prelude::*;
 use unz_formats::raw::{
     Accepted, FileHeader, HEADER_LEN, IMU_PAYLOAD_LEN, ImuRecord, MarkRecord, RawLog, RawReader,
-    RawWriter, SYNC, TYPE_IMU, imu_record_offset,
+    RawWriter, SYNC, TYPE_IMU, find_imu_record,
 };
 use unz_formats::report::IngestReport;
 
@@ -203,7 +203,7 @@ fn each_fault_is_counted_exactly() {
     assert_eq!(rep.records_read, 96 + 1 + 1 + 1 + 1);
 }
 
-/// An accepted IMU record is found again by its row (the ingest's IMU table's): the
+/// An accepted IMU record is found again by its row (the ingest's IMU table's) or its tag: the
 /// frame at the offset is that record, through the bad CRCs, garbage, duplicates, lost
 /// records, reserved types and marks before it, and the offsets go forward; past the last
 /// row there is none.
@@ -236,7 +236,9 @@ fn an_accepted_imu_records_offset_is_found_by_its_row() {
     rows.dedup();
     let mut last = 0;
     for k in rows {
-        let at = imu_record_offset(bytes, k as u64).unwrap().unwrap() as usize;
+        let at = find_imu_record(bytes, |row, _| row == k as u64)
+            .unwrap()
+            .unwrap() as usize;
         assert!(at > last || k == 0, "row {k} at {at}, after {last}");
         last = at;
         let frame = &bytes[at..at + 4 + IMU_PAYLOAD_LEN];

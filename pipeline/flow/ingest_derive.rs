@@ -14,7 +14,9 @@ use super::{IngestedSeries, Params, RunCtx};
 use crate::artifacts::{StageName, files};
 use crate::campaign::read_report;
 use crate::derive_io::{as_stored, write_derived};
-use crate::ingest::{IngestOptions, OUTPUTS as INGEST_OUTPUTS, imu_sample_place, ingest};
+use crate::ingest::{
+    IngestOptions, KeptSample, OUTPUTS as INGEST_OUTPUTS, imu_sample_place, ingest,
+};
 use crate::review_sensors::{review_sensors, write_review_sensors};
 use crate::stage::{Stage, params_hash};
 
@@ -169,13 +171,21 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // A corrupt sample that passed the CRC (a 2^-16 chance per damaged frame) or a
         // saturated one is replaced and counted; many are a broken instrument or log.
         if d.out_of_range_samples * 100 > d.t_s.len() {
+            // Where: the first (the ingested increments read again, on this path only).
+            let first = IngestedSeries::load(&ingest_dir)
+                .ok()
+                .and_then(|raw| raw.first_out_of_range(&d));
             bail!(
                 "{} of {} IMU samples exceed the IMU's range ({:.0} °/s, {:.0} m/s²): saturated \
-                 or corrupt increments, or increments not in radians and m/s (degrees?)",
+                 or corrupt increments, or increments not in radians and m/s (degrees?){}",
                 d.out_of_range_samples,
                 d.t_s.len(),
                 unz_stages::derive::GYRO_RANGE_RAD_S.to_degrees(),
-                unz_stages::derive::ACCEL_RANGE_MPS2
+                unz_stages::derive::ACCEL_RANGE_MPS2,
+                first.map_or_else(String::new, |k| format!(
+                    " (the first at {})",
+                    sample_at(m, k)
+                ))
             );
         }
         // A few tags going back are repaired and counted; a time base that does not
@@ -259,7 +269,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
 /// "sample K" and, when the raw log can be read again, its place there ("sample K, byte
 /// offset N of LOG" or "sample K, line N of LOG"): [`imu_sample_place`].
 fn sample_at(m: &RunManifest, k: usize) -> String {
-    match imu_sample_place(m, k) {
+    match imu_sample_place(m, KeptSample::Row(k)) {
         Some(place) => format!("sample {k}, {place}"),
         None => format!("sample {k}"),
     }

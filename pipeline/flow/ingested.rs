@@ -288,6 +288,12 @@ impl IngestedSeries {
         (1..t_ns.len()).find(|&k| t_s(k) <= t_s(k - 1))
     }
 
+    /// The first IMU sample whose increments `d` (the derive of this series) replaced as
+    /// beyond the IMU's range: [`unz_stages::derive::first_out_of_range`].
+    pub fn first_out_of_range(&self, d: &Derived) -> Option<usize> {
+        unz_stages::derive::first_out_of_range(d, &self.imu.dtheta_rad, &self.imu.dvel_mps)
+    }
+
     /// Derives the run, the IMU's increments repaired in place and its time tags made its
     /// times in place (no copy of the run's length): [`derive_owned`]. The odometer's
     /// table goes once its increments are taken, before the samples' intervals are made.

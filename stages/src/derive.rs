@@ -202,6 +202,34 @@ pub fn increments_in_range(dtheta_rad: [f64; 3], dvel_mps: [f64; 3], dt_s: f64) 
     norm(dtheta_rad) <= GYRO_RANGE_RAD_S * dt_s && norm(dvel_mps) <= ACCEL_RANGE_MPS2 * dt_s
 }
 
+/// What a sample's increments are scaled by: a sample that closes a gap (an interval
+/// `dt_s` over 1.5 nominal ones) holds the rate over it; any other, 1.
+fn gap_scale(dt_s: f64, nominal_dt_s: f64) -> f64 {
+    if dt_s > 1.5 * nominal_dt_s {
+        dt_s / nominal_dt_s
+    } else {
+        1.0
+    }
+}
+
+/// The first sample whose increments `d`'s derive replaced as beyond the IMU's range (not
+/// one only scaled to its gap), given the increments it was derived from: where a run
+/// that fails for them names it (the derive counts them only).
+pub fn first_out_of_range(
+    d: &Derived,
+    dtheta_rad: &[[f64; 3]],
+    dvel_mps: &[[f64; 3]],
+) -> Option<usize> {
+    d.replaced_increments.iter().copied().find(|&k| {
+        let dt = d.dt_s[k];
+        let scale = gap_scale(dt, d.nominal_dt_s);
+        let (dth, dv) = (dtheta_rad.get(k), dvel_mps.get(k));
+        dth.zip(dv).is_some_and(|(dth, dv)| {
+            !increments_in_range(dth.map(|v| v * scale), dv.map(|v| v * scale), dt)
+        })
+    })
+}
+
 impl Derived {
     /// This derive without its odometer's part (its increments, block series and epochs
     /// left empty) — what a re-derive at another odometer timing starts from and fills,
@@ -638,12 +666,10 @@ pub fn derive_owned(
     let mut dt_s = Vec::with_capacity(n);
     for (k, &t) in t_s.iter().enumerate() {
         let dt = t - prev_t;
-        let scale = if dt > 1.5 * nominal {
+        let scale = gap_scale(dt, nominal);
+        if scale != 1.0 {
             out.filled_gaps += 1;
-            dt / nominal
-        } else {
-            1.0
-        };
+        }
         let mut dth = dtheta_rad[k].map(|v| v * scale);
         let mut dv = dvel_mps[k].map(|v| v * scale);
         let replaced = if !increments_in_range(dth, dv, dt) {
@@ -1435,6 +1461,12 @@ mod tests {
             .collect();
         // Every listed sample but the zero one scaled to itself differs.
         assert_eq!(differs, [5_000, 12_000, 15_000]);
+        // The first replaced as beyond the range (not the gaps before it); with the
+        // saturated gyro within range, the NaN accelerometer.
+        assert_eq!(first_out_of_range(&d, &columns.1, &columns.2), Some(12_000));
+        let mut within = columns.1.clone();
+        within[12_000][1] = 1e-4;
+        assert_eq!(first_out_of_range(&d, &within, &columns.2), Some(15_000));
         assert_eq!(
             (d.dtheta_rad[9_000], d.dvel_mps[9_000]),
             ([0.0; 3], [0.0; 3])

@@ -28,7 +28,7 @@ mod writer;
 
 pub use faults::{DamagedLog, RawLog};
 pub use header::{FileHeader, HEADER_LEN, MAGIC};
-pub use reader::{Accepted, FaultEvent, FaultKind, ImuSample, RawReader, imu_record_offset};
+pub use reader::{Accepted, FaultEvent, FaultKind, ImuSample, RawReader, find_imu_record};
 pub use record::{
     IMU_PAYLOAD_LEN, ImuRecord, MARK_PAYLOAD_LEN, MAX_FRAME_LEN, MarkRecord, Record, SYNC,
     TYPE_IMU, TYPE_MARK, frame_len,

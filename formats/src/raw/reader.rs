@@ -435,18 +435,22 @@ impl<R: Read> RawReader<R> {
     }
 }
 
-/// The byte offset of the `k`-th IMU record the reader accepts (0-based: the row of the
-/// ingest's IMU table it became), or `None` when the log holds fewer. The log is read up
-/// to it, in the reader's bounded buffer.
-pub fn imu_record_offset<R: Read>(src: R, k: u64) -> Result<Option<u64>, FormatError> {
+/// The byte offset of the first IMU record the reader accepts for which `wanted(row,
+/// sample)` holds (`row`: 0-based among the accepted IMU records, the row of the ingest's
+/// IMU table it became), or `None` when none does. The log is read up to it, in the
+/// reader's bounded buffer.
+pub fn find_imu_record<R: Read>(
+    src: R,
+    mut wanted: impl FnMut(u64, &ImuSample) -> bool,
+) -> Result<Option<u64>, FormatError> {
     let mut reader = RawReader::new(src)?;
-    let mut seen = 0u64;
+    let mut row = 0u64;
     while let Some(rec) = reader.next_record()? {
-        if let Accepted::Imu(_) = rec {
-            if seen == k {
+        if let Accepted::Imu(sample) = rec {
+            if wanted(row, &sample) {
                 return Ok(Some(reader.record_offset()));
             }
-            seen += 1;
+            row += 1;
         }
     }
     Ok(None)
