@@ -410,14 +410,29 @@ fn odometer_failure_flags_are_honoured() {
             r.status |= 2;
         }
     });
-    rewrite_imu(&camp.join("sim-0081/sim-0081.unz"), &|r| r.status |= 2);
+    // Flagged from its 401st record on (the log's IMU records alone are before its
+    // marks: 48 bytes each after the header's 128).
+    let k = std::cell::Cell::new(0_u32);
+    rewrite_imu(&camp.join("sim-0081/sim-0081.unz"), &|r| {
+        if k.get() >= 400 {
+            r.status |= 2;
+        }
+        k.set(k.get() + 1);
+    });
     let out = tmp.path().join("o");
     let (code, text) = run(&camp, &out, "navigate");
     assert_eq!(code, Some(1), "{text}");
     assert!(
-        text.contains("FAILED sim-0081") && text.contains("odometer is flagged failed"),
+        text.contains("FAILED sim-0081")
+            && text.contains(
+                "odometer is flagged failed (status bit 1) on 19600 of 20000 samples (the first \
+                 at sample 400, byte offset 19328 of sim-0081.unz)"
+            ),
         "{text}"
     );
+    let log = std::fs::read(camp.join("sim-0081/sim-0081.unz")).unwrap();
+    let status = |at: usize| u16::from_le_bytes(log[at + 44..at + 46].try_into().unwrap());
+    assert_eq!((status(19_328 - 48) & 2, status(19_328) & 2), (0, 2));
     let nav: NavigateSummary = read_json(&out.join("sim-0080/navigate/navigate.json"));
     assert_eq!(nav.odometer_failure_samples, 100, "{nav:?}");
 }

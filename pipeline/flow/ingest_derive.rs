@@ -154,9 +154,18 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         let stuck = report.odometer_failures.map_or(0, |f| f.stuck_samples) as usize;
         if (d.odometer_failure_samples + stuck) * 10 > d.t_s.len() {
             let (flagged, n) = (d.odometer_failure_samples, d.t_s.len());
+            // Where the flags begin (the ingested flags read again, on this path only).
+            let first_flagged = (flagged > 0)
+                .then(|| IngestedSeries::load(&ingest_dir).ok())
+                .flatten()
+                .and_then(|raw| raw.first_odometer_flagged())
+                .map_or_else(String::new, |k| {
+                    format!(" (the first at {})", sample_at(m, k))
+                });
             match (flagged, stuck) {
                 (_, 0) => bail!(
-                    "the odometer is flagged failed (status bit 1) on {flagged} of {n} samples"
+                    "the odometer is flagged failed (status bit 1) on {flagged} of {n} samples\
+                     {first_flagged}"
                 ),
                 (0, _) => bail!(
                     "the odometer's distance stood while the vehicle moved (unflagged) on {stuck} \
@@ -164,7 +173,8 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                 ),
                 _ => bail!(
                     "the odometer is flagged failed (status bit 1) on {flagged} and its count \
-                     stood while the vehicle moved (unflagged) on {stuck} of {n} samples"
+                     stood while the vehicle moved (unflagged) on {stuck} of {n} samples\
+                     {first_flagged}"
                 ),
             }
         }

@@ -279,6 +279,11 @@ impl IngestedSeries {
         (count(1), count(2))
     }
 
+    /// The first IMU sample whose status flags an odometer failure (bit 1).
+    pub fn first_odometer_flagged(&self) -> Option<usize> {
+        self.imu.status.iter().position(|s| s & 2 != 0)
+    }
+
     /// The first IMU sample whose time tag the derive repairs: the first whose time from
     /// the first tag (in seconds, as the derive takes it) is not after the one before.
     pub fn first_time_not_increasing(&self) -> Option<usize> {
