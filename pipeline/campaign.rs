@@ -42,14 +42,15 @@ pub struct FoundRuns {
     /// Every `run.toml` found, sorted.
     pub manifests: Vec<PathBuf>,
     /// A `run.toml` that is not a regular file (a symbolic link, which is not followed, or
-    /// a FIFO, a device, a folder), or a folder below `path` that could not be listed:
-    /// each with why, in the order met.
+    /// a FIFO, a device, a folder), or a folder below `path` that could not be listed or
+    /// is deeper than the search: each with why, in the order met.
     pub skipped: Vec<(PathBuf, String)>,
 }
 
-/// Every `run.toml` under `path` (or `path` itself); `out` is never searched and symlinks
-/// are not followed. A folder below `path` that cannot be listed is skipped and said, as
-/// is a `run.toml` that is not a regular file: the rest of the campaign goes on.
+/// Every `run.toml` under `path` (or `path` itself), down to [`MAX_DEPTH`] folders below
+/// it; `out` is never searched and symlinks are not followed. A folder below `path` that
+/// cannot be listed, or is deeper than that, is skipped and said, as is a `run.toml` that
+/// is not a regular file: the rest of the campaign goes on.
 pub fn find_runs(path: &Path, out: &Path) -> anyhow::Result<FoundRuns> {
     if let Some(manifest) = crate::runs::one_run_manifest(path) {
         return Ok(FoundRuns {
@@ -70,16 +71,37 @@ pub fn find_runs(path: &Path, out: &Path) -> anyhow::Result<FoundRuns> {
             Err(e) => return Err(e).with_context(|| format!("cannot list {}", dir.display())),
         };
         for e in entries {
-            let e = e?;
+            let e = match e {
+                Ok(e) => e,
+                Err(err) => {
+                    found
+                        .skipped
+                        .push((dir.clone(), format!("cannot list all of it: {err}")));
+                    continue;
+                }
+            };
             let p = e.path();
-            let meta = std::fs::symlink_metadata(&p)?;
+            let meta = match std::fs::symlink_metadata(&p) {
+                Ok(meta) => meta,
+                Err(err) => {
+                    found
+                        .skipped
+                        .push((p, format!("cannot read what it is: {err}")));
+                    continue;
+                }
+            };
             let hidden = e.file_name().to_string_lossy().starts_with('.');
-            if meta.is_dir()
-                && !hidden
-                && depth < MAX_DEPTH
-                && out_real.as_deref() != p.canonicalize().ok().as_deref()
-            {
+            let searched =
+                meta.is_dir() && !hidden && out_real.as_deref() != p.canonicalize().ok().as_deref();
+            if searched && depth < MAX_DEPTH {
                 stack.push((p, depth + 1));
+            } else if searched {
+                let why = format!(
+                    "a folder {} below the campaign's, deeper than the search for runs \
+                     ({MAX_DEPTH}): not searched",
+                    depth + 1
+                );
+                found.skipped.push((p, why));
             } else if e.file_name() == crate::runs::MANIFEST {
                 if meta.is_file() {
                     found.manifests.push(p);
@@ -1049,6 +1071,35 @@ pub fn merge_summaries(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Runs are found down to the search's depth; a folder below it is said, not searched
+    /// in silence; hidden folders and the output folder are not searched.
+    #[test]
+    fn runs_are_found_to_the_searchs_depth_and_deeper_folders_are_said() {
+        let tmp = tempfile::tempdir().unwrap();
+        let camp = tmp.path().join("c");
+        let at = |depth: usize| (1..=depth).fold(camp.clone(), |p, d| p.join(d.to_string()));
+        for (dir, name) in [
+            (at(MAX_DEPTH), "run.toml"),
+            (at(MAX_DEPTH + 2), "run.toml"),
+            (camp.join(".hidden"), "run.toml"),
+            (camp.join("out/r"), "run.toml"),
+            (camp.join("r"), "notes.toml"),
+        ] {
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(dir.join(name), "").unwrap();
+        }
+        let found = find_runs(&camp, &camp.join("out")).unwrap();
+        assert_eq!(found.manifests, [at(MAX_DEPTH).join("run.toml")]);
+        let [(deeper, why)] = &found.skipped[..] else {
+            panic!("{:?}", found.skipped)
+        };
+        assert_eq!(deeper, &at(MAX_DEPTH + 1));
+        assert_eq!(
+            why,
+            "a folder 9 below the campaign's, deeper than the search for runs (8): not searched"
+        );
+    }
 
     /// A panic becomes the run's error with its message (a formatted one, a literal one);
     /// a result goes through untouched.
