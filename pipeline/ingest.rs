@@ -331,7 +331,8 @@ impl Sinks {
     }
 
     /// Writes the marks and closes every file (renaming them into place); returns the
-    /// odometer's rows, its steps replaced for their speed, and the series kept.
+    /// odometer's rows, its range check (the steps replaced for their speed, the first's
+    /// time), and the series kept.
     fn finish(
         mut self,
         dir: &Path,
