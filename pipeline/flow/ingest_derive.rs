@@ -247,17 +247,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ensure_finite("angle increment", "sample", dtheta.map(not_finite_of))?;
         ensure_finite("velocity increment", "sample", dvel.map(not_finite_of))?;
         ensure_finite("odometer distance", "sample", d.odo_dist_m.iter().copied())?;
-        let epochs = &d.epochs;
-        ensure_finite(
-            "accelerometer pitch",
-            "epoch",
-            epochs.theta_p_rad.iter().copied(),
-        )?;
-        ensure_finite(
-            "accelerometer roll",
-            "epoch",
-            epochs.phi_p_rad.iter().copied(),
-        )?;
+        let (pitch, roll) = (d.epochs.theta_p_rad.iter(), d.epochs.phi_p_rad.iter());
+        ensure_finite("accelerometer pitch", "epoch", pitch.copied())?;
+        ensure_finite("accelerometer roll", "epoch", roll.copied())?;
         let g_mps2 = site_gravity_mps2(m);
         let odometer_file = (report.odometer_file.as_ref()).and(m.odometer.file.as_deref());
         let axes = check_axes(&d, &params.vehicle, g_mps2, m, odometer_file)?;
