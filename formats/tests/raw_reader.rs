@@ -249,10 +249,20 @@ fn an_accepted_imu_records_offset_is_found_by_its_row() {
         let payload = frame[4..].try_into().unwrap();
         assert_eq!(ImuRecord::decode_payload(payload), accepted[k], "row {k}");
     }
-    assert_eq!(
-        imu_record_offset(bytes, accepted.len() as u64).unwrap(),
-        None
-    );
+    let past = accepted.len() as u64;
+    assert_eq!(find_imu_record(bytes, |row, _| row == past).unwrap(), None);
+    // By its time tag (one no other record has: a tag going back repeats one).
+    let unique = |k: &usize| {
+        accepted
+            .iter()
+            .filter(|r| r.t_us == accepted[*k].t_us)
+            .count()
+            == 1
+    };
+    let k = (accepted.len() / 2..accepted.len()).find(unique).unwrap();
+    let by_tag = find_imu_record(bytes, |_, s| s.raw.t_us == accepted[k].t_us).unwrap();
+    let by_row = find_imu_record(bytes, |row, _| row == k as u64).unwrap();
+    assert_eq!(by_tag, by_row);
 }
 
 #[test]
