@@ -233,6 +233,42 @@ fn kingston_text_log_ingests_with_aligned_odometer() {
     }
 }
 
+/// Kingston's files saved with a UTF-8 byte-order mark (as a Windows editor or a
+/// spreadsheet's export writes them): its first IMU line and first odometer reading were
+/// line faults, each lost. Now the run ingests as without the marks, file for file.
+#[test]
+fn kingston_saved_with_byte_order_marks_ingests_as_without() {
+    let tmp = tempfile::tempdir().unwrap();
+    let plain = test_data("kingston2008-seg1");
+    let marked = tmp.path().join("marked");
+    std::fs::create_dir_all(&marked).unwrap();
+    for f in ["imu.txt", "odometer.txt", "run.toml"] {
+        let text = std::fs::read(plain.join(f)).unwrap();
+        std::fs::write(marked.join(f), [&b"\xef\xbb\xbf"[..], &text].concat()).unwrap();
+    }
+    let ingest = |run: &Path, out: &str| {
+        let out = tmp.path().join(out);
+        unz_ok(&[
+            "ingest",
+            run.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        out.join("kingston2008-segment1/ingest")
+    };
+    let (want, got) = (ingest(&plain, "plain"), ingest(&marked, "marked"));
+    assert_eq!(report(&got.join("ingest.json")).rejected_all_files(), 0);
+    for f in [
+        "imu.parquet",
+        "odometer.parquet",
+        "ingest.json",
+        "ingest_events.json",
+    ] {
+        let (a, b) = (std::fs::read(want.join(f)), std::fs::read(got.join(f)));
+        assert!(a.unwrap() == b.unwrap(), "{f} differs");
+    }
+}
+
 #[test]
 fn raw_mcap_compression_changes_the_size_not_the_messages() {
     use unz::ingest::{IngestOptions, ingest};

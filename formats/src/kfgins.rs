@@ -143,9 +143,14 @@ impl<R: BufRead> LineReader<R> {
         if overlong {
             return Ok(Some(Line::Overlong));
         }
-        let Ok(text) = std::str::from_utf8(&self.buf) else {
+        let Ok(mut text) = std::str::from_utf8(&self.buf) else {
             return Ok(Some(Line::NotText));
         };
+        // A byte-order mark (a Windows editor's or spreadsheet's export) opens the file
+        // and is no part of its first line.
+        if self.line_no == 1 {
+            text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        }
         let text = text.trim();
         Ok(Some(
             if text.is_empty() || text.starts_with('#') || text.starts_with('%') {
@@ -618,6 +623,25 @@ mod tests {
         assert_eq!(v.iter().map(|s| s.line).collect::<Vec<_>>(), [2, 3, 8, 9]);
         let tagged = |t_s| find_sample_line(text.as_bytes(), |_, s| s.t_s == t_s).unwrap();
         assert_eq!((tagged(0.03), tagged(0.04)), (Some(8), None));
+    }
+
+    /// A UTF-8 byte-order mark opening a file is no part of its first line: the first
+    /// record (or comment) behind it is read as without it, in a log and in an odometer
+    /// file; one further on is a fault.
+    #[test]
+    fn a_byte_order_mark_opening_a_file_is_not_its_first_line() {
+        let plain = "0.01 1 2 3 4 5 6\n0.02 1 2 3 4 5 6\n";
+        let (v, rep, _) = read_all(&format!("\u{feff}{plain}"));
+        let (want, want_rep, _) = read_all(plain);
+        assert_eq!((v, rep), (want, want_rep));
+        let (v, rep, _) = read_all(&format!("\u{feff}# header\n{plain}"));
+        assert_eq!((v.len(), rep.rejected.malformed_line), (2, Some(0)));
+        let (v, rep, faults) = read_all(&format!("{plain}\u{feff}0.03 1 2 3 4 5 6\n"));
+        assert_eq!((v.len(), rep.rejected.malformed_line), (2, Some(1)));
+        assert_eq!(faults[0].line, 3);
+        let (d, rep, faults, _) =
+            read_odometer("\u{feff}0 0\n1 2\n".as_bytes(), OdometerKind::SpeedMps);
+        assert_eq!((d, faults, rep.lines_rejected), (vec![0.0, 1.0], vec![], 0));
     }
 
     #[test]
