@@ -369,6 +369,13 @@ pub fn ingest(
         LogFormat::UnzBinary => ingest_binary(manifest, dir, options)?,
         LogFormat::KfGins => ingest_text(manifest, dir, options)?,
     };
+    if report.imu_accepted == 0 {
+        anyhow::bail!(no_imu_sample(
+            manifest,
+            &report,
+            &dir.join(files::INGEST_EVENTS)
+        ));
+    }
     // A few corrupt odometer steps are replaced and counted; many are a broken odometer.
     if report.odometer_out_of_range * 100 > odometer_rows as u64 {
         anyhow::bail!(
@@ -390,6 +397,39 @@ pub fn ingest(
         odometer_rows,
         series,
     })
+}
+
+/// Why a log gave no IMU sample, from its account (`ingest.json`, and the first faults
+/// `events_path` lists): a text log's first line rejected and why, or a binary log's
+/// records read and bytes skipped.
+fn no_imu_sample(manifest: &RunManifest, report: &IngestReport, events_path: &Path) -> String {
+    let log = manifest.named(&manifest.raw).display();
+    let listed = format!("{} lists the first faults", events_path.display());
+    match manifest.format {
+        LogFormat::KfGins => {
+            let events: Option<IngestEvents> = crate::campaign::read_report(events_path);
+            match events.as_ref().and_then(|e| e.line_faults.first()) {
+                Some(first) => format!(
+                    "{log} has no IMU sample (lines rejected: {}; the first, line {}: {}); \
+                     {listed}",
+                    report.rejected.malformed_line.unwrap_or(0),
+                    first.line,
+                    first.reason
+                ),
+                None => format!(
+                    "{log} has no IMU sample: it holds no record line (empty, or blank and \
+                     comment lines alone)"
+                ),
+            }
+        }
+        LogFormat::UnzBinary => format!(
+            "{log} has no IMU record after its header: {} records read, {} rejected, {} bytes \
+             skipped while resynchronising; {listed}",
+            report.records_read,
+            report.rejected_total(),
+            report.bytes_skipped
+        ),
+    }
 }
 
 /// What a log's stream gave: its accounting, the odometer's rows, range check and file

@@ -289,6 +289,46 @@ fn a_log_whose_time_does_not_advance_fails_its_run() {
     );
 }
 
+/// A log that gives no IMU sample fails its ingest naming the log and why: a text log's
+/// lines rejected and the first's reason (here decimal commas), a binary log's records
+/// read and bytes skipped. It failed in the derive, after an ingest of empty tables, with
+/// "the raw log has no IMU record".
+#[test]
+fn a_log_without_an_imu_sample_fails_its_ingest_saying_why() {
+    let tmp = tempfile::tempdir().unwrap();
+    let kingston = kingston_with_imu(&tmp.path().join("k"), |lines| {
+        for line in lines.iter_mut() {
+            *line = line.replace('.', ",");
+        }
+    });
+    let err = crate::util::stage_fails("derive", &kingston, &tmp.path().join("ko"));
+    assert!(
+        err.contains(
+            "stage ingest failed: imu.txt has no IMU sample (lines rejected: 8760; the first, \
+             line 1: more than 8 columns, expected 7 or 8 (decimal commas?"
+        ) && err.contains("ingest_events.json lists the first faults"),
+        "{err}"
+    );
+
+    let camp = campaign(tmp.path());
+    let log = camp.join("sim-0081/sim-0081.unz");
+    let mut bytes = std::fs::read(&log).unwrap();
+    let header = unz_formats::raw::HEADER_LEN;
+    let n = bytes.len() - header;
+    bytes[header..].fill(0);
+    std::fs::write(&log, bytes).unwrap();
+    let (code, text) = run(&camp, &tmp.path().join("o"), "derive");
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains(&format!(
+            "sim-0081.unz has no IMU record after its header: 0 records read, 0 rejected, {n} \
+             bytes skipped while resynchronising"
+        )),
+        "{text}"
+    );
+    assert!(!text.contains("FAILED sim-0080"), "{text}");
+}
+
 /// A copy of the Kingston segment in `run` (its manifest and odometer file), its IMU log's
 /// lines edited by `edit`; returns `run`.
 fn kingston_with_imu(run: &Path, edit: impl FnOnce(&mut Vec<String>)) -> PathBuf {

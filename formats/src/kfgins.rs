@@ -80,10 +80,13 @@ struct LineReader<R: BufRead> {
 
 /// One line as read.
 enum Line<'a> {
-    /// Longer than [`MAX_LINE_BYTES`].
-    Overlong,
+    /// Longer than [`MAX_LINE_BYTES`]; whether its first bytes hold a carriage return (a
+    /// file whose lines end in CR alone reads as one line).
+    Overlong { cr: bool },
     /// Not UTF-8.
     NotText,
+    /// The first line, opening with UTF-16's byte-order mark.
+    Utf16,
     /// Blank, or a comment (`#`, `%`).
     Skipped,
     /// A line to parse, trimmed.
@@ -97,8 +100,17 @@ impl Line<'_> {
         match self {
             Line::Skipped => None,
             Line::Text(text) => Some(Ok(text)),
-            Line::Overlong => Some(Err(format!("line longer than {MAX_LINE_BYTES} bytes"))),
+            Line::Overlong { cr: false } => {
+                Some(Err(format!("line longer than {MAX_LINE_BYTES} bytes")))
+            }
+            Line::Overlong { cr: true } => Some(Err(format!(
+                "line longer than {MAX_LINE_BYTES} bytes, with carriage returns in it: lines \
+                 that end in CR alone? (lines end in LF or CR LF)"
+            ))),
             Line::NotText => Some(Err("not UTF-8 text".into())),
+            Line::Utf16 => Some(Err(
+                "UTF-16 text (its byte-order mark): the file must be UTF-8 or ASCII".into(),
+            )),
         }
     }
 }
@@ -141,7 +153,13 @@ impl<R: BufRead> LineReader<R> {
         }
         self.line_no += 1;
         if overlong {
-            return Ok(Some(Line::Overlong));
+            let cr = self.buf.contains(&b'\r');
+            return Ok(Some(Line::Overlong { cr }));
+        }
+        if self.line_no == 1
+            && (self.buf.starts_with(&[0xFF, 0xFE]) || self.buf.starts_with(&[0xFE, 0xFF]))
+        {
+            return Ok(Some(Line::Utf16));
         }
         let Ok(mut text) = std::str::from_utf8(&self.buf) else {
             return Ok(Some(Line::NotText));
@@ -289,7 +307,26 @@ impl<R: BufRead> KfGinsReader<R> {
                 if !(7..=8).contains(&expected) {
                     self.columns = None;
                 }
-                self.fault(format!("{n} columns, expected {want}"));
+                let got = if n > 8 {
+                    "more than 8".to_owned()
+                } else {
+                    n.to_string()
+                };
+                // A comma between digits and no point: numbers written with decimal
+                // commas, which split into columns.
+                let bytes = text.as_bytes();
+                let decimal_comma = !text.contains('.')
+                    && (1..bytes.len().saturating_sub(1)).any(|i| {
+                        bytes[i] == b','
+                            && bytes[i - 1].is_ascii_digit()
+                            && bytes[i + 1].is_ascii_digit()
+                    });
+                let hint = if decimal_comma {
+                    " (decimal commas? numbers take a decimal point; a comma separates columns)"
+                } else {
+                    ""
+                };
+                self.fault(format!("{got} columns, expected {want}{hint}"));
                 continue;
             }
             return Ok(Some(TextSample {
@@ -642,6 +679,40 @@ mod tests {
         let (d, rep, faults, _) =
             read_odometer("\u{feff}0 0\n1 2\n".as_bytes(), OdometerKind::SpeedMps);
         assert_eq!((d, faults, rep.lines_rejected), (vec![0.0, 1.0], vec![], 0));
+    }
+
+    /// Why a line is not a record says what a user can mend: more columns than a log has,
+    /// numbers written with decimal commas, lines that end in CR alone, UTF-16 text.
+    #[test]
+    fn a_rejected_lines_reason_names_what_to_mend() {
+        let reason = |text: &[u8]| {
+            let mut r = KfGinsReader::new(text);
+            while r.next_sample().unwrap().is_some() {}
+            r.faults().0[0].reason.clone()
+        };
+        assert_eq!(
+            reason(b"0.01 1 2 3 4 5 6\n0.02 1 2 3 4 5 6 7 8 9 10\n"),
+            "more than 8 columns, expected 7"
+        );
+        assert_eq!(
+            reason(b"0,01 1 2 3 4 5,5 6\n"),
+            "more than 8 columns, expected 7 or 8 (decimal commas? numbers take a decimal \
+             point; a comma separates columns)"
+        );
+        let cr_only = "0.01 1 2 3 4 5 6\r".repeat(400);
+        assert!(
+            reason(cr_only.as_bytes()).contains("carriage returns in it: lines that end in CR"),
+            "{}",
+            reason(cr_only.as_bytes())
+        );
+        let utf16: Vec<u8> = "\u{feff}0.01 1 2 3 4 5 6\n"
+            .encode_utf16()
+            .flat_map(u16::to_le_bytes)
+            .collect();
+        assert_eq!(
+            reason(&utf16),
+            "UTF-16 text (its byte-order mark): the file must be UTF-8 or ASCII"
+        );
     }
 
     #[test]

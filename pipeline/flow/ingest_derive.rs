@@ -65,7 +65,8 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // 12: that rest judged by the IMU's speed with gravity carried by the gyros.
         // 13: no bridge across IMU samples more than a second apart. 14: a text log's
         // speeds that jump faster than a land vehicle's and come back are left out.
-        version: 14,
+        // 15: a UTF-8 byte-order mark opening a text file is no part of its first line.
+        version: 15,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
