@@ -369,11 +369,15 @@ pub fn ingest(
         LogFormat::UnzBinary => ingest_binary(manifest, dir, options)?,
         LogFormat::KfGins => ingest_text(manifest, dir, options)?,
     };
+    let events_path = dir.join(files::INGEST_EVENTS);
     if report.imu_accepted == 0 {
-        anyhow::bail!(no_imu_sample(
+        anyhow::bail!(no_imu_sample(manifest, &report, &events_path));
+    }
+    if odometer_rows == 0 {
+        anyhow::bail!(no_odometer_reading(
             manifest,
-            &report,
-            &dir.join(files::INGEST_EVENTS)
+            odometer_file.as_deref(),
+            &events_path
         ));
     }
     // A few corrupt odometer steps are replaced and counted; many are a broken odometer.
@@ -428,6 +432,35 @@ fn no_imu_sample(manifest: &RunManifest, report: &IngestReport, events_path: &Pa
             report.records_read,
             report.rejected_total(),
             report.bytes_skipped
+        ),
+    }
+}
+
+/// Why a text log's run has no odometer reading: its odometer file's lines all rejected
+/// (the first and why, from `events_path`) or none in it, or neither an 8th column nor a
+/// file.
+fn no_odometer_reading(manifest: &RunManifest, file: Option<&Path>, events_path: &Path) -> String {
+    let Some(file) = file else {
+        return format!(
+            "the run has no odometer data: {} has no 8th column (the speed) and the manifest \
+             names no [odometer] file",
+            manifest.named(&manifest.raw).display()
+        );
+    };
+    let name = manifest.named(file).display();
+    let events: Option<IngestEvents> = crate::campaign::read_report(events_path);
+    let faults = events.map(|e| e.odometer_file_faults).unwrap_or_default();
+    match faults.first() {
+        Some(first) => format!(
+            "the odometer file {name} gave no reading (the first line rejected, line {}: {}); \
+             {} lists the first faults",
+            first.line,
+            first.reason,
+            events_path.display()
+        ),
+        None => format!(
+            "the odometer file {name} gave no reading: it holds no reading line (empty, or blank \
+             and comment lines alone)"
         ),
     }
 }

@@ -329,6 +329,42 @@ fn a_log_without_an_imu_sample_fails_its_ingest_saying_why() {
     assert!(!text.contains("FAILED sim-0080"), "{text}");
 }
 
+/// A text log's run whose odometer gives no reading fails its ingest saying why: its
+/// odometer file saved as UTF-16, or no odometer at all (7 columns and no file). Both
+/// said "no 8th column and no odometer file", the first wrongly.
+#[test]
+fn an_odometer_without_a_reading_fails_its_ingest_saying_why() {
+    let tmp = tempfile::tempdir().unwrap();
+    let kingston = kingston_with_imu(&tmp.path().join("k"), |_| {});
+    let speeds = std::fs::read_to_string(kingston.join("odometer.txt")).unwrap();
+    let utf16: Vec<u8> = (std::iter::once('\u{feff}').chain(speeds.chars()))
+        .flat_map(|c| c.encode_utf16(&mut [0; 2]).to_vec())
+        .flat_map(u16::to_le_bytes)
+        .collect();
+    std::fs::write(kingston.join("odometer.txt"), utf16).unwrap();
+    let err = crate::util::stage_fails("ingest", &kingston, &tmp.path().join("ko"));
+    assert!(
+        err.contains(
+            "the odometer file odometer.txt gave no reading (the first line rejected, line 1: \
+             UTF-16 text (its byte-order mark): the file must be UTF-8 or ASCII)"
+        ),
+        "{err}"
+    );
+
+    let manifest = std::fs::read_to_string(kingston.join("run.toml")).unwrap();
+    let without = manifest.replace("file = \"odometer.txt\"\nkind = \"speed_mps\"\n", "");
+    assert_ne!(without, manifest);
+    std::fs::write(kingston.join("run.toml"), without).unwrap();
+    let err = crate::util::stage_fails("ingest", &kingston, &tmp.path().join("ko2"));
+    assert!(
+        err.contains(
+            "the run has no odometer data: imu.txt has no 8th column (the speed) and the \
+             manifest names no [odometer] file"
+        ),
+        "{err}"
+    );
+}
+
 /// A copy of the Kingston segment in `run` (its manifest and odometer file), its IMU log's
 /// lines edited by `edit`; returns `run`.
 fn kingston_with_imu(run: &Path, edit: impl FnOnce(&mut Vec<String>)) -> PathBuf {
