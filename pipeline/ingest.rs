@@ -494,7 +494,7 @@ fn odometer_place(manifest: &RunManifest, file: Option<&Path>, t_ns: i64) -> Str
 }
 
 /// A time tag, ns, in seconds as a decimal: exact, without trailing zeros.
-fn seconds(t_ns: i64) -> String {
+pub(crate) fn seconds(t_ns: i64) -> String {
     let sign = if t_ns < 0 { "-" } else { "" };
     let (s, ns) = (
         t_ns.unsigned_abs() / 1_000_000_000,

@@ -1285,10 +1285,22 @@ fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
     assert!(
         text.contains(&format!(
             "the odometer's distance stood while the vehicle moved (unflagged) on {} of {n} \
-             samples",
+             samples (the first from byte offset ",
             n - 1 - k0
         )),
         "{text}"
+    );
+    // Named by the record where the count stood: the held one's next.
+    let at: usize = (text.split("samples (the first from byte offset ").nth(1))
+        .and_then(|rest| rest.split(" of sim-0082.unz)").next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{text}"));
+    let log = std::fs::read(&raw).unwrap();
+    let seq = |at: usize| u32::from_le_bytes(log[at + 4..at + 8].try_into().unwrap());
+    assert_eq!(log[at..at + 4], [0xA5, 0x5A, 0x01, 42]);
+    assert_eq!(
+        (seq(at) - seq(unz_formats::raw::HEADER_LEN)) as usize,
+        k0 + 1
     );
 }
 

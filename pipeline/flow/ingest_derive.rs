@@ -15,7 +15,7 @@ use crate::artifacts::{StageName, files};
 use crate::campaign::read_report;
 use crate::derive_io::{as_stored, write_derived};
 use crate::ingest::{
-    IngestOptions, KeptSample, OUTPUTS as INGEST_OUTPUTS, imu_sample_place, ingest,
+    IngestOptions, KeptSample, OUTPUTS as INGEST_OUTPUTS, imu_sample_place, ingest, seconds,
 };
 use crate::review_sensors::{review_sensors, write_review_sensors};
 use crate::stage::{Stage, params_hash};
@@ -170,7 +170,8 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                 ),
                 (0, _) => bail!(
                     "the odometer's distance stood while the vehicle moved (unflagged) on {stuck} \
-                     of {n} samples"
+                     of {n} samples{}",
+                    first_failed_from(m, &ingest_dir)
                 ),
                 _ => bail!(
                     "the odometer is flagged failed (status bit 1) on {flagged} and its count \
@@ -267,6 +268,22 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     })?;
     ctx.set_ensured("derive", ensured_with);
     Ok(dir)
+}
+
+/// " (the first from PLACE)": where the odometer's first failure (its first row of
+/// `odometer.parquet` whose distance is not a reading) begins in the raw log, the IMU
+/// sample that carries it ([`imu_sample_place`]) or its time tag; empty without one.
+fn first_failed_from(m: &RunManifest, ingest_dir: &Path) -> String {
+    let Some(t_ns) = IngestedSeries::load_failed_rows(ingest_dir)
+        .ok()
+        .and_then(|(spans, _)| spans.first().map(|s| s.first_t_ns))
+    else {
+        return String::new();
+    };
+    match imu_sample_place(m, KeptSample::TagNs(t_ns)) {
+        Some(place) => format!(" (the first from {place})"),
+        None => format!(" (the first from the time tag {} s)", seconds(t_ns)),
+    }
 }
 
 /// "sample K" and, when the raw log can be read again, its place there ("sample K, byte
