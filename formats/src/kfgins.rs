@@ -180,6 +180,14 @@ impl<R: BufRead> LineReader<R> {
     }
 }
 
+/// Whether a line's numbers look written with decimal commas (a comma between digits, and
+/// no point), which split into columns.
+fn has_decimal_commas(text: &str) -> bool {
+    !text.contains('.')
+        && (text.as_bytes().windows(3))
+            .any(|w| w[1] == b',' && w[0].is_ascii_digit() && w[2].is_ascii_digit())
+}
+
 /// The 1-based line of the first sample the reader accepts for which `wanted(row, sample)`
 /// holds (`row`: 0-based among the accepted samples, the row of the ingest's IMU table it
 /// became), or `None` when none does. The log is read up to it, a line at a time.
@@ -312,16 +320,7 @@ impl<R: BufRead> KfGinsReader<R> {
                 } else {
                     n.to_string()
                 };
-                // A comma between digits and no point: numbers written with decimal
-                // commas, which split into columns.
-                let bytes = text.as_bytes();
-                let decimal_comma = !text.contains('.')
-                    && (1..bytes.len().saturating_sub(1)).any(|i| {
-                        bytes[i] == b','
-                            && bytes[i - 1].is_ascii_digit()
-                            && bytes[i + 1].is_ascii_digit()
-                    });
-                let hint = if decimal_comma {
+                let hint = if has_decimal_commas(text) {
                     " (decimal commas? numbers take a decimal point; a comma separates columns)"
                 } else {
                     ""
@@ -646,8 +645,9 @@ mod tests {
         assert!(rep.is_consistent(), "{rep:?}");
     }
 
-    /// A sample is found again by its row or its time: the line it was read from, past comments,
-    /// blank lines, rejected lines and a retransmitted duplicate; past the last, none.
+    /// A sample is found again by its row or its time: the line it was read from, past
+    /// comments, blank lines, rejected lines and a retransmitted duplicate; past the last,
+    /// none.
     #[test]
     fn a_samples_line_is_found_by_its_row() {
         let text = "# header\n0.01 1 2 3 4 5 6\n0.02 1 2 3 4 5 6\n0.02 1 2 3 4 5 6\n0.03 x 2 3 4 5 6\n\n% note\n0.03 1 2 3 4 5 6\n0.05 1 2 3 4 5 6\n";
