@@ -162,7 +162,12 @@ impl<R: BufRead> LineReader<R> {
             return Ok(Some(Line::Utf16));
         }
         let Ok(mut text) = std::str::from_utf8(&self.buf) else {
-            return Ok(Some(Line::NotText));
+            // A comment in another encoding (a crew's note in Latin-1) is a comment.
+            let first = self.buf.iter().find(|b| !b.is_ascii_whitespace());
+            return Ok(Some(match first {
+                Some(b'#' | b'%') => Line::Skipped,
+                _ => Line::NotText,
+            }));
         };
         // A byte-order mark (a Windows editor's or spreadsheet's export) opens the file
         // and is no part of its first line.
@@ -713,6 +718,22 @@ mod tests {
             reason(&utf16),
             "UTF-16 text (its byte-order mark): the file must be UTF-8 or ASCII"
         );
+    }
+
+    /// A comment line that is not UTF-8 (a crew's note in Latin-1) is a comment, in a log
+    /// and in an odometer file; a record line that is not is a fault.
+    #[test]
+    fn a_comment_in_another_encoding_is_a_comment() {
+        let text = b"# Messung \xfcber Land\n0.01 1 2 3 4 5 6\n  % n\xe4he\n0.02 1 2 3 4 5 6\n";
+        let mut r = KfGinsReader::new(&text[..]);
+        while r.next_sample().unwrap().is_some() {}
+        assert_eq!((r.report().imu_accepted, r.faults().1), (2, 0));
+        let bad = b"0.01 1 2 3 4 5 6\n0.02 1 2 3 4 5 \xfc\n";
+        let mut r = KfGinsReader::new(&bad[..]);
+        while r.next_sample().unwrap().is_some() {}
+        assert_eq!(r.faults().0[0].reason, "not UTF-8 text");
+        let (d, rep, faults, _) = read_odometer(b"# \xfcber\n0 0\n1 2\n", OdometerKind::SpeedMps);
+        assert_eq!((d, faults, rep.lines_rejected), (vec![0.0, 1.0], vec![], 0));
     }
 
     #[test]
