@@ -38,6 +38,12 @@ use unz_formats::{IngestEvents, IngestReport, schema};
 use unz_stages::imu_axes::ImuAxes;
 use unz_stages::imu_mounting;
 
+/// The most control-point marks a binary log may hold (a 12-hour run marking a point a
+/// minute holds 720): a log with more fails its run. Each is held in order among the
+/// samples while a standing odometer count is judged: a damaged log of a million marks in
+/// a row took the ingest to 310 MB, and more would take any memory.
+const MAX_MARKS: u64 = 100_000;
+
 /// Rows per Parquet batch.
 const BATCH_ROWS: usize = 1 << 16;
 
@@ -589,6 +595,7 @@ fn ingest_binary(
         }
         sinks.flush(false)
     };
+    let mut marks = 0u64;
     while let Some(rec) = reader.next_record().map_err(|e| e.in_file(path))? {
         match rec {
             Accepted::Imu(s) => {
@@ -639,6 +646,17 @@ fn ingest_binary(
                 }
             }
             Accepted::Mark(m) => {
+                marks += 1;
+                if marks > MAX_MARKS {
+                    anyhow::bail!(
+                        "{} holds more than {MAX_MARKS} control-point marks, the next at byte \
+                         offset {}: a crew marks a control point with a press of its key, and \
+                         so many marks are a damaged log (held in order among the samples, \
+                         they would fill the memory)",
+                        manifest.named(path).display(),
+                        reader.record_offset()
+                    );
+                }
                 let t_ns = record_tag_ns(m.t_us);
                 bridger.other(Row::Mark {
                     t_ns,
