@@ -147,6 +147,7 @@ impl<P> OdometerBridger<P> {
             Count::Suspect => {
                 if self.state == State::Working {
                     self.held.push_back(Held::Sample(s, payload));
+                    self.bound_held_while_judged();
                     return None;
                 }
             }
@@ -154,6 +155,7 @@ impl<P> OdometerBridger<P> {
                 if self.state == State::Working {
                     self.held.push_back(Held::Sample(s, payload));
                     self.give_held_while(|h| h.t_s < release_before_s);
+                    self.bound_held_while_judged();
                     return None;
                 }
             }
@@ -297,6 +299,15 @@ impl<P> OdometerBridger<P> {
                 Some(Held::Sample(s, p)) => self.give_working(s, p),
                 None => break,
             }
+        }
+    }
+
+    /// While a standing count is judged, what is held goes out as working once it is
+    /// [`MAX_HELD`]: a judgement over time that does not pass (tags that do not advance)
+    /// would otherwise hold the rest of the log.
+    fn bound_held_while_judged(&mut self) {
+        if self.held.len() >= MAX_HELD {
+            self.give_held_working();
         }
     }
 
@@ -550,6 +561,42 @@ mod tests {
                 "{i}: {d:?} against {want}"
             );
         }
+    }
+
+    /// Time tags that do not advance (a damaged log's, constant) while the count stands
+    /// at rest: a standing count is judged over time that never passes, and its samples
+    /// were held until the log ended (a 12-hour log's all of them, about a gigabyte).
+    /// They are held back at most [`MAX_HELD`], then given out as working, in order.
+    #[test]
+    fn tags_that_do_not_advance_are_held_back_no_more_than_the_bound() {
+        let mut b = OdometerBridger::new(G, PULSE_M, DT_S, 0.0);
+        let (mut out, mut most_held) = (Vec::new(), 0);
+        let n = 2 * MAX_HELD + 500;
+        for k in 0..n {
+            // Driving at 10 m/s for 10 s, then the tags and the count stand.
+            let t_s = (k.min(1000) as f64) * DT_S;
+            let s = OdometerSample {
+                t_s,
+                dtheta_rad: [0.0; 3],
+                dvel_mps: [0.0, 0.0, -G * DT_S],
+                distance_m: ((V_MPS * t_s) / PULSE_M).round() * PULSE_M,
+                failed: false,
+            };
+            if let Some((p, given)) = b.sample(s, k) {
+                out.extend(b.ready());
+                out.push((p, Some(given)));
+            }
+            out.extend(b.ready());
+            most_held = most_held.max(b.held.len());
+        }
+        b.finish();
+        out.extend(b.ready());
+        assert!(most_held <= MAX_HELD, "{most_held}");
+        assert_eq!(out.len(), n);
+        assert!(out.iter().enumerate().all(|(i, (p, _))| *p == i));
+        // Never judged (time never passes), so the readings as given.
+        let reading = |k: usize| ((V_MPS * k.min(1000) as f64 * DT_S) / PULSE_M).round() * PULSE_M;
+        assert!((out.iter()).all(|(k, g)| *g == Some((reading(*k), DistanceSource::Reading))));
     }
 
     #[test]
