@@ -563,10 +563,11 @@ mod tests {
         }
     }
 
-    /// Time tags that do not advance (a damaged log's, constant) while the count stands
-    /// at rest: a standing count is judged over time that never passes, and its samples
-    /// were held until the log ended (a 12-hour log's all of them, about a gigabyte).
-    /// They are held back at most [`MAX_HELD`], then given out as working, in order.
+    /// Time tags that do not advance (a damaged log's, constant) after a drive, the count
+    /// standing with them: the count is judged over time that never passes, and the
+    /// samples were held until the log ended (here 199 499 of 200 500; at 12 hours an
+    /// estimated 0.7 GB and more). They are held back at most [`MAX_HELD`], then given
+    /// out as working, in order.
     #[test]
     fn tags_that_do_not_advance_are_held_back_no_more_than_the_bound() {
         let mut b = OdometerBridger::new(G, PULSE_M, DT_S, 0.0);

@@ -28,7 +28,8 @@ pub const KEPT_S: f64 = MAX_BRIDGED_S + 2.0 * WINDOW_S + 1.0;
 /// would otherwise hold a log whole): [`KEPT_S`] at 1 kHz and more.
 const MAX_KEPT_SAMPLES: usize = 150_000;
 /// Readings held at most, whatever their time tags; beyond, the gaps and the stand not
-/// complete are forgotten (left to the trapezoid, counted) and the readings given out.
+/// complete are forgotten (left to the trapezoid, counted) and the older half of the
+/// readings given out.
 const MAX_PENDING: usize = 200_000;
 
 /// The 8th column's readings and the IMU's samples, streamed; each reading given out with

@@ -221,6 +221,27 @@ fn output_folder_is_ours_alone() {
     );
 }
 
+/// The byte offset a failure message `text` names right after `before`, in the raw log
+/// `log` (`… byte offset N of LOG)`).
+fn offset_named(text: &str, before: &str, log: &str) -> usize {
+    (text.split(before).nth(1))
+        .and_then(|rest| rest.split(&format!(" of {log})")).next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no offset after {before:?}: {text}"))
+}
+
+/// An IMU record's field `len` bytes long `from` its frame's start, of the frame at byte
+/// `at` of the raw log `log` (its frame checked): `seq` at 4, `t_us` at 8, the status at
+/// 44.
+fn imu_field(log: &[u8], at: usize, from: usize, len: usize) -> u64 {
+    assert_eq!(
+        log[at..at + 4],
+        [0xA5, 0x5A, 0x01, 42],
+        "no IMU frame at {at}"
+    );
+    (log[at + from..at + from + len].iter().rev()).fold(0, |v, &b| v << 8 | u64::from(b))
+}
+
 /// Rewrites the raw log `log` record by record, IMU records through `edit`.
 fn rewrite_imu(log: &Path, edit: &dyn Fn(&mut unz_formats::raw::ImuRecord)) {
     use unz_formats::raw::{Accepted, RawReader, RawWriter};
@@ -544,7 +565,7 @@ fn odometer_failure_flags_are_honoured() {
         "{text}"
     );
     let log = std::fs::read(camp.join("sim-0081/sim-0081.unz")).unwrap();
-    let status = |at: usize| u16::from_le_bytes(log[at + 44..at + 46].try_into().unwrap());
+    let status = |at: usize| imu_field(&log, at, 44, 2);
     assert_eq!((status(19_328 - 48) & 2, status(19_328) & 2), (0, 2));
     let nav: NavigateSummary = read_json(&out.join("sim-0080/navigate/navigate.json"));
     assert_eq!(nav.odometer_failure_samples, 100, "{nav:?}");
@@ -691,9 +712,7 @@ fn saturated_increments_are_replaced_or_fail_their_run() {
         "{text}"
     );
     let log = std::fs::read(camp.join("sim-0081/sim-0081.unz")).unwrap();
-    let dtheta_x = i32::from_le_bytes(log[272 + 16..272 + 20].try_into().unwrap());
-    assert_eq!(log[272..274], [0xA5, 0x5A]);
-    assert_eq!(dtheta_x, i32::MAX);
+    assert_eq!(imu_field(&log, 272, 16, 4), i32::MAX as u64);
     let read =
         |dir: &Path| -> NavigateSummary { read_json(&dir.join("sim-0080/navigate/navigate.json")) };
     let (patched, reference) = (read(&out), read(&clean));
@@ -821,15 +840,9 @@ fn a_gap_longer_than_the_derive_bridges_fails_its_run() {
     // The sample after the gap is named by its record's byte offset: the frame there is
     // the 12 000th record after the first, 150 s after it.
     let log = std::fs::read(camp.join("sim-0081/sim-0081.unz")).unwrap();
-    let at: usize = (text.split("(before sample 12000, byte offset ").nth(1))
-        .and_then(|rest| rest.split(" of sim-0081.unz)").next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("{text}"));
+    let at = offset_named(&text, "(before sample 12000, byte offset ", "sim-0081.unz");
+    let field = |at: usize, from: usize, len: usize| imu_field(&log, at, from, len);
     let first = unz_formats::raw::HEADER_LEN;
-    let field = |at: usize, from: usize, len: usize| {
-        (log[at + from..at + from + len].iter().rev()).fold(0_u64, |v, &b| v << 8 | u64::from(b))
-    };
-    assert_eq!(log[at..at + 4], [0xA5, 0x5A, 0x01, 42]);
     assert_eq!(field(at, 4, 4) - field(first, 4, 4), 12_000);
     assert_eq!(field(at, 8, 8) - field(first, 8, 8), 150_000_000);
 
@@ -871,13 +884,9 @@ fn an_odometer_of_many_impossible_steps_fails_its_run_at_the_first() {
     );
     assert!(!text.contains("FAILED sim-0080"), "{text}");
     // The first is the 1007th record after the first, named by its byte offset.
-    let at: usize = (text.split("(the first at byte offset ").nth(1))
-        .and_then(|rest| rest.split(" of sim-0081.unz)").next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("{text}"));
+    let at = offset_named(&text, "(the first at byte offset ", "sim-0081.unz");
     let log = std::fs::read(camp.join("sim-0081/sim-0081.unz")).unwrap();
-    let seq = |at: usize| u32::from_le_bytes(log[at + 4..at + 8].try_into().unwrap());
-    assert_eq!(log[at..at + 4], [0xA5, 0x5A, 0x01, 42]);
+    let seq = |at: usize| imu_field(&log, at, 4, 4);
     assert_eq!(seq(at) - seq(unz_formats::raw::HEADER_LEN), 1007);
 }
 
@@ -1328,17 +1337,14 @@ fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
         "{text}"
     );
     // Named by the record where the count stood: the held one's next.
-    let at: usize = (text.split("samples (the first from byte offset ").nth(1))
-        .and_then(|rest| rest.split(" of sim-0082.unz)").next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("{text}"));
-    let log = std::fs::read(&raw).unwrap();
-    let seq = |at: usize| u32::from_le_bytes(log[at + 4..at + 8].try_into().unwrap());
-    assert_eq!(log[at..at + 4], [0xA5, 0x5A, 0x01, 42]);
-    assert_eq!(
-        (seq(at) - seq(unz_formats::raw::HEADER_LEN)) as usize,
-        k0 + 1
+    let at = offset_named(
+        &text,
+        "samples (the first from byte offset ",
+        "sim-0082.unz",
     );
+    let log = std::fs::read(&raw).unwrap();
+    let seq = |at: usize| imu_field(&log, at, 4, 4);
+    assert_eq!(seq(at) - seq(unz_formats::raw::HEADER_LEN), k0 as u64 + 1);
 }
 
 /// A mark whose point id no control point has (a key pressed wrong, or a point left out
