@@ -185,6 +185,10 @@ impl<R: BufRead> LineReader<R> {
     }
 }
 
+/// What a rejected line's reason adds when its numbers look written with decimal commas.
+const DECIMAL_COMMA_HINT: &str =
+    " (decimal commas? numbers take a decimal point; a comma separates columns)";
+
 /// Whether a line's numbers look written with decimal commas (a comma between digits, and
 /// no point), which split into columns.
 fn has_decimal_commas(text: &str) -> bool {
@@ -326,7 +330,7 @@ impl<R: BufRead> KfGinsReader<R> {
                     n.to_string()
                 };
                 let hint = if has_decimal_commas(text) {
-                    " (decimal commas? numbers take a decimal point; a comma separates columns)"
+                    DECIMAL_COMMA_HINT
                 } else {
                     ""
                 };
@@ -590,7 +594,12 @@ impl<R: BufRead> OdometerFileReader<R> {
                 n += 1;
             }
             if n != 2 || !finite {
-                let reason = format!("expected two numbers `t_s value`, got {text:?}");
+                let hint = if has_decimal_commas(text) {
+                    DECIMAL_COMMA_HINT
+                } else {
+                    ""
+                };
+                let reason = format!("expected two numbers `t_s value`, got {text:?}{hint}");
                 self.reject_read(reason);
                 continue;
             }
@@ -709,6 +718,10 @@ mod tests {
             reason(cr_only.as_bytes()).contains("carriage returns in it: lines that end in CR"),
             "{}",
             reason(cr_only.as_bytes())
+        );
+        assert_eq!(
+            first_fault(b"152143 0,00000\n", OdometerKind::SpeedMps),
+            format!("expected two numbers `t_s value`, got \"152143 0,00000\"{DECIMAL_COMMA_HINT}")
         );
         let utf16: Vec<u8> = "\u{feff}0.01 1 2 3 4 5 6\n"
             .encode_utf16()
