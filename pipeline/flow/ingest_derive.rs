@@ -66,8 +66,9 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // 13: no bridge across IMU samples more than a second apart. 14: a text log's
         // speeds that jump faster than a land vehicle's and come back are left out.
         // 15: a UTF-8 byte-order mark opening a text file is no part of its first line.
-        // 16: a comment line that is not UTF-8 is a comment, not a fault.
-        version: 16,
+        // 16: a comment line that is not UTF-8 is a comment, not a fault. 17: a rejected
+        // line's reason (in `ingest_events.json`) names decimal commas in a speed file too.
+        version: 17,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
