@@ -89,7 +89,8 @@ fn prim<'a, T: arrow::datatypes::ArrowPrimitiveType>(
     })
 }
 
-fn vec3_values(b: &RecordBatch, name: &str) -> Result<Vec<[f64; 3]>, FormatError> {
+/// A batch's 3-vector column `name` (a fixed-size list of three Float64), as arrays.
+pub fn vec3_values(b: &RecordBatch, name: &str) -> Result<Vec<[f64; 3]>, FormatError> {
     let list = column(b, name)?
         .as_fixed_size_list_opt()
         .filter(|l| l.value_length() == 3)

@@ -10,7 +10,7 @@ use unz_formats::{IngestEvents, IngestReport};
 use unz_stages::earth;
 
 use super::axes::check_axes;
-use super::{IngestedSeries, Params, RunCtx};
+use super::{IngestedSeries, Params, RunCtx, ingested};
 use crate::artifacts::{StageName, files};
 use crate::campaign::read_report;
 use crate::derive_io::{as_stored, write_derived};
@@ -159,9 +159,8 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             let (flagged, n) = (d.odometer_failure_samples, d.t_s.len());
             // Where the flags begin (the ingested flags read again, on this path only).
             let first_flagged = (flagged > 0)
-                .then(|| IngestedSeries::load(&ingest_dir).ok())
+                .then(|| ingested::first_odometer_flagged(&ingest_dir))
                 .flatten()
-                .and_then(|raw| raw.first_odometer_flagged())
                 .map_or_else(String::new, |k| {
                     format!(" (the first at {})", sample_at(m, k))
                 });
@@ -186,9 +185,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // saturated one is replaced and counted; many are a broken instrument or log.
         if d.out_of_range_samples * 100 > d.t_s.len() {
             // Where: the first (the ingested increments read again, on this path only).
-            let first = IngestedSeries::load(&ingest_dir)
-                .ok()
-                .and_then(|raw| raw.first_out_of_range(&d));
+            let first = ingested::first_out_of_range(&ingest_dir, &d);
             bail!(
                 "{} of {} IMU samples exceed the IMU's range ({:.0} °/s, {:.0} m/s²): saturated \
                  or corrupt increments, or increments not in radians and m/s (degrees?){}",
@@ -207,9 +204,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         if d.repaired_times * 100 > d.t_s.len() {
             // Where: the sample (the ingested tags read again: only a failing run pays for
             // it) and its place in the raw log; a binary log's account lists the faults.
-            let first = IngestedSeries::load(&ingest_dir)
-                .ok()
-                .and_then(|raw| raw.first_time_not_increasing());
+            let first = ingested::first_time_tag_not_increasing(&ingest_dir);
             let at = (first.map(|k| format!("the first at {}", sample_at(m, k))))
                 .into_iter()
                 .chain(time_faults_listed(&ingest_dir.join(files::INGEST_EVENTS)))

@@ -6,11 +6,14 @@ use std::path::Path;
 use anyhow::bail;
 use arrow::array::RecordBatch;
 use arrow::datatypes::UInt16Type;
+use unz_formats::error::FormatError;
 use unz_formats::parquet_io::{for_each_batch, for_each_batch_of, row_capacity_hint};
 use unz_formats::schema;
 use unz_formats::schema::DistanceSource;
 use unz_formats::split_doubles::{read_split_doubles, read_split_vec3};
-use unz_formats::tables::{ImuTable, OdometerTable, f64_column, i64_column, u8_column, values_of};
+use unz_formats::tables::{
+    ImuTable, OdometerTable, f64_column, i64_column, u8_column, values_of, vec3_values,
+};
 use unz_stages::derive::{DeriveParams, Derived, IncrementTimes, RawSeries, derive_owned};
 use unz_stages::odo_rebridge::FailedRows;
 use unz_stages::time_base::TagTimes;
@@ -279,26 +282,6 @@ impl IngestedSeries {
         (count(1), count(2))
     }
 
-    /// The first IMU sample whose status flags an odometer failure (bit 1).
-    pub fn first_odometer_flagged(&self) -> Option<usize> {
-        self.imu.status.iter().position(|s| s & 2 != 0)
-    }
-
-    /// The first IMU sample whose time tag the derive repairs: the first whose time from
-    /// the first tag (in seconds, as the derive takes it) is not after the one before.
-    pub fn first_time_not_increasing(&self) -> Option<usize> {
-        let t_ns = &self.imu.t_ns;
-        let t0 = *t_ns.first()?;
-        let t_s = |k: usize| (t_ns[k] - t0) as f64 * 1e-9;
-        (1..t_ns.len()).find(|&k| t_s(k) <= t_s(k - 1))
-    }
-
-    /// The first IMU sample whose increments `d` (the derive of this series) replaced as
-    /// beyond the IMU's range: [`unz_stages::derive::first_out_of_range`].
-    pub fn first_out_of_range(&self, d: &Derived) -> Option<usize> {
-        unz_stages::derive::first_out_of_range(d, &self.imu.dtheta_rad, &self.imu.dvel_mps)
-    }
-
     /// Derives the run, the IMU's increments repaired in place and its time tags made its
     /// times in place (no copy of the run's length): [`derive_owned`]. The odometer's
     /// table goes once its increments are taken, before the samples' intervals are made.
@@ -334,6 +317,79 @@ impl IngestedSeries {
     }
 }
 
+/// The first row of the ingest's `imu.parquet` (in `ingest_dir`) that `first` finds in a
+/// batch of its `columns` (given with the batch's first row): read a batch at a time,
+/// never the table whole, since only a run that fails asks. `None` without one, or when
+/// the file cannot be read.
+fn first_imu_row(
+    ingest_dir: &Path,
+    columns: &[&str],
+    mut first: impl FnMut(&RecordBatch, usize) -> Result<Option<usize>, FormatError>,
+) -> Option<usize> {
+    let (mut found, mut row) = (None, 0);
+    for_each_batch_of(&ingest_dir.join(files::IMU), columns, |b| {
+        if found.is_none() {
+            found = first(b, row)?;
+        }
+        row += b.num_rows();
+        Ok(())
+    })
+    .ok()?;
+    found
+}
+
+/// The first IMU sample of an ingest whose status flags an odometer failure (bit 1).
+pub fn first_odometer_flagged(ingest_dir: &Path) -> Option<usize> {
+    first_imu_row(ingest_dir, &[schema::STATUS], |b, row| {
+        let status = values_of::<UInt16Type>(b, schema::STATUS)?;
+        Ok(status.iter().position(|s| s & 2 != 0).map(|i| row + i))
+    })
+}
+
+/// The first IMU sample of an ingest whose time tag the derive repairs
+/// ([`first_time_not_increasing`]), its tags read alone.
+pub fn first_time_tag_not_increasing(ingest_dir: &Path) -> Option<usize> {
+    let mut t_ns = Vec::new();
+    for_each_batch_of(&ingest_dir.join(files::IMU), &[schema::T_NS], |b| {
+        t_ns.extend_from_slice(values_of::<arrow::datatypes::Int64Type>(b, schema::T_NS)?);
+        Ok(())
+    })
+    .ok()?;
+    first_time_not_increasing(&t_ns)
+}
+
+/// The first of time tags `t_ns` the derive repairs: the first whose time from the first
+/// tag (in seconds, as the derive takes it) is not after the one before.
+pub fn first_time_not_increasing(t_ns: &[i64]) -> Option<usize> {
+    let t0 = *t_ns.first()?;
+    let t_s = |k: usize| (t_ns[k] - t0) as f64 * 1e-9;
+    (1..t_ns.len()).find(|&k| t_s(k) <= t_s(k - 1))
+}
+
+/// The first IMU sample of an ingest whose increments `d` (its derive) replaced as beyond
+/// the IMU's range ([`unz_stages::derive::replaced_as_out_of_range`]), the increments read
+/// a batch at a time.
+pub fn first_out_of_range(ingest_dir: &Path, d: &Derived) -> Option<usize> {
+    let replaced = &d.replaced_increments;
+    let columns = [schema::DTHETA_RAD, schema::DVEL_MPS];
+    first_imu_row(ingest_dir, &columns, |b, row| {
+        let rows = row..row + b.num_rows();
+        let from = replaced.partition_point(|k| *k < rows.start);
+        let here: Vec<usize> = (replaced[from..].iter().copied())
+            .take_while(|k| rows.contains(k))
+            .collect();
+        if here.is_empty() {
+            return Ok(None);
+        }
+        let dtheta = vec3_values(b, schema::DTHETA_RAD)?;
+        let dvel = vec3_values(b, schema::DVEL_MPS)?;
+        let out_of_range = |k: usize| {
+            unz_stages::derive::replaced_as_out_of_range(d, k, dtheta[k - row], dvel[k - row])
+        };
+        Ok(here.into_iter().find(|&k| out_of_range(k)))
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -343,23 +399,16 @@ mod tests {
     /// going back or standing still; none in a log whose time advances.
     #[test]
     fn the_first_time_tag_not_increasing_is_found() {
-        let series = |t_ns: Vec<i64>| IngestedSeries {
-            imu: ImuTable {
-                t_ns,
-                ..ImuTable::with_room(0)
-            },
-            odo: OdometerTable::with_room(0),
-        };
         let mut t: Vec<i64> = (0..20_000)
             .map(|k| 5_000_000_000 + k * 10_000_000)
             .collect();
-        assert_eq!(series(t.clone()).first_time_not_increasing(), None);
+        assert_eq!(first_time_not_increasing(&t), None);
         t[17_000] = t[16_999] - 1;
         t[18_000] = t[17_999];
-        assert_eq!(series(t.clone()).first_time_not_increasing(), Some(17_000));
+        assert_eq!(first_time_not_increasing(&t), Some(17_000));
         t[12_000] = t[11_999];
-        assert_eq!(series(t).first_time_not_increasing(), Some(12_000));
-        assert_eq!(series(Vec::new()).first_time_not_increasing(), None);
+        assert_eq!(first_time_not_increasing(&t), Some(12_000));
+        assert_eq!(first_time_not_increasing(&[]), None);
     }
 
     /// An ingested IMU table read with its increments' byte streams joined is the one

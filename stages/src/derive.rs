@@ -221,13 +221,27 @@ pub fn first_out_of_range(
     dvel_mps: &[[f64; 3]],
 ) -> Option<usize> {
     d.replaced_increments.iter().copied().find(|&k| {
-        let dt = d.dt_s[k];
-        let scale = gap_scale(dt, d.nominal_dt_s);
         let (dth, dv) = (dtheta_rad.get(k), dvel_mps.get(k));
-        dth.zip(dv).is_some_and(|(dth, dv)| {
-            !increments_in_range(dth.map(|v| v * scale), dv.map(|v| v * scale), dt)
-        })
+        dth.zip(dv)
+            .is_some_and(|(dth, dv)| replaced_as_out_of_range(d, k, *dth, *dv))
     })
+}
+
+/// Whether sample `k`, one `d`'s derive replaced, was replaced as beyond the IMU's range
+/// (not only scaled to its gap), given the increments it was derived from.
+pub fn replaced_as_out_of_range(
+    d: &Derived,
+    k: usize,
+    dtheta_rad: [f64; 3],
+    dvel_mps: [f64; 3],
+) -> bool {
+    let dt = d.dt_s[k];
+    let scale = gap_scale(dt, d.nominal_dt_s);
+    !increments_in_range(
+        dtheta_rad.map(|v| v * scale),
+        dvel_mps.map(|v| v * scale),
+        dt,
+    )
 }
 
 impl Derived {
