@@ -367,6 +367,7 @@ pub fn ingest(
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let Streamed {
         report,
+        events,
         odometer_rows,
         odometer_range,
         odometer_file,
@@ -375,16 +376,16 @@ pub fn ingest(
         LogFormat::UnzBinary => ingest_binary(manifest, dir, options)?,
         LogFormat::KfGins => ingest_text(manifest, dir, options)?,
     };
+    // The account of the first faults is written even for a log that fails below: its
+    // messages point to it.
     let events_path = dir.join(files::INGEST_EVENTS);
+    write_json_atomic(&events_path, &events)?;
     if report.imu_accepted == 0 {
-        anyhow::bail!(no_imu_sample(manifest, &report, &events_path));
+        anyhow::bail!(no_imu_sample(manifest, &report, &events, &events_path));
     }
     if odometer_rows == 0 {
-        anyhow::bail!(no_odometer_reading(
-            manifest,
-            odometer_file.as_deref(),
-            &events_path
-        ));
+        let file = odometer_file.as_deref();
+        anyhow::bail!(no_odometer_reading(manifest, file, &events, &events_path));
     }
     // A few corrupt odometer steps are replaced and counted; many are a broken odometer.
     if report.odometer_out_of_range * 100 > odometer_rows as u64 {
@@ -409,29 +410,31 @@ pub fn ingest(
     })
 }
 
-/// Why a log gave no IMU sample, from its account (`ingest.json`, and the first faults
-/// `events_path` lists): a text log's first line rejected and why, or a binary log's
-/// records read and bytes skipped.
-fn no_imu_sample(manifest: &RunManifest, report: &IngestReport, events_path: &Path) -> String {
+/// Why a log gave no IMU sample, from its account and first faults (`events`, written to
+/// `events_path`): a text log's first line rejected and why, or a binary log's records
+/// read and bytes skipped.
+fn no_imu_sample(
+    manifest: &RunManifest,
+    report: &IngestReport,
+    events: &IngestEvents,
+    events_path: &Path,
+) -> String {
     let log = manifest.named(&manifest.raw).display();
     let listed = format!("{} lists the first faults", events_path.display());
     match manifest.format {
-        LogFormat::KfGins => {
-            let events: Option<IngestEvents> = crate::campaign::read_report(events_path);
-            match events.as_ref().and_then(|e| e.line_faults.first()) {
-                Some(first) => format!(
-                    "{log} has no IMU sample (lines rejected: {}; the first, line {}: {}); \
+        LogFormat::KfGins => match events.line_faults.first() {
+            Some(first) => format!(
+                "{log} has no IMU sample (lines rejected: {}; the first, line {}: {}); \
                      {listed}",
-                    report.rejected.malformed_line.unwrap_or(0),
-                    first.line,
-                    first.reason
-                ),
-                None => format!(
-                    "{log} has no IMU sample: it holds no record line (empty, or blank and \
+                report.rejected.malformed_line.unwrap_or(0),
+                first.line,
+                first.reason
+            ),
+            None => format!(
+                "{log} has no IMU sample: it holds no record line (empty, or blank and \
                      comment lines alone)"
-                ),
-            }
-        }
+            ),
+        },
         LogFormat::UnzBinary => format!(
             "{log} has no IMU record after its header: {} records read, {} rejected, {} bytes \
              skipped while resynchronising; {listed}",
@@ -443,9 +446,14 @@ fn no_imu_sample(manifest: &RunManifest, report: &IngestReport, events_path: &Pa
 }
 
 /// Why a text log's run has no odometer reading: its odometer file's lines all rejected
-/// (the first and why, from `events_path`) or none in it, or neither an 8th column nor a
-/// file.
-fn no_odometer_reading(manifest: &RunManifest, file: Option<&Path>, events_path: &Path) -> String {
+/// (the first and why, from `events`, written to `events_path`) or none in it, or neither
+/// an 8th column nor a file.
+fn no_odometer_reading(
+    manifest: &RunManifest,
+    file: Option<&Path>,
+    events: &IngestEvents,
+    events_path: &Path,
+) -> String {
     let Some(file) = file else {
         return format!(
             "the run has no odometer data: {} has no 8th column (the speed) and the manifest \
@@ -454,9 +462,7 @@ fn no_odometer_reading(manifest: &RunManifest, file: Option<&Path>, events_path:
         );
     };
     let name = manifest.named(file).display();
-    let events: Option<IngestEvents> = crate::campaign::read_report(events_path);
-    let faults = events.map(|e| e.odometer_file_faults).unwrap_or_default();
-    match faults.first() {
+    match events.odometer_file_faults.first() {
         Some(first) => format!(
             "the odometer file {name} gave no reading (the first line rejected, line {}: {}); \
              {} lists the first faults",
@@ -471,11 +477,13 @@ fn no_odometer_reading(manifest: &RunManifest, file: Option<&Path>, events_path:
     }
 }
 
-/// What a log's stream gave: its accounting, the odometer's rows, range check and file
+/// What a log's stream gave: its accounting and first faults, the odometer's rows, range check and file
 /// (a text log's separate one, when its readings came from it), and the series kept for
 /// the derive.
 struct Streamed {
     report: IngestReport,
+    /// The first faults, located (`ingest_events.json`).
+    events: IngestEvents,
     odometer_rows: usize,
     odometer_range: OdometerRange,
     odometer_file: Option<PathBuf>,
@@ -672,18 +680,15 @@ fn ingest_binary(
     let (mut report, events, events_total) = reader.into_report();
     report.odometer_out_of_range = odometer_range.out_of_range;
     report.odometer_failures = bridger.failures().cloned();
-    write_json_atomic(
-        &dir.join(files::INGEST_EVENTS),
-        &IngestEvents {
+    Ok(Streamed {
+        report,
+        events: IngestEvents {
             raw: manifest.named(path).to_path_buf(),
             events_total,
             events,
             line_faults: Vec::new(),
             odometer_file_faults: Vec::new(),
         },
-    )?;
-    Ok(Streamed {
-        report,
         odometer_rows,
         odometer_range,
         odometer_file: None,
@@ -824,18 +829,15 @@ fn ingest_text(
     report.odometer_failures = bridged;
     report.odometer_file = file_report.as_ref().map(|(r, _)| r.clone());
     let (faults, total) = reader.faults();
-    write_json_atomic(
-        &dir.join(files::INGEST_EVENTS),
-        &IngestEvents {
+    Ok(Streamed {
+        report,
+        events: IngestEvents {
             raw: manifest.named(path).to_path_buf(),
             events_total: total,
             events: Vec::new(),
             line_faults: faults.to_vec(),
             odometer_file_faults: file_report.map_or(Vec::new(), |(_, faults)| faults),
         },
-    )?;
-    Ok(Streamed {
-        report,
         odometer_rows,
         odometer_range,
         odometer_file: odometer_file.map(|(file, _)| file.to_path_buf()),
