@@ -212,21 +212,6 @@ fn gap_scale(dt_s: f64, nominal_dt_s: f64) -> f64 {
     }
 }
 
-/// The first sample whose increments `d`'s derive replaced as beyond the IMU's range (not
-/// one only scaled to its gap), given the increments it was derived from: where a run
-/// that fails for them names it (the derive counts them only).
-pub fn first_out_of_range(
-    d: &Derived,
-    dtheta_rad: &[[f64; 3]],
-    dvel_mps: &[[f64; 3]],
-) -> Option<usize> {
-    d.replaced_increments.iter().copied().find(|&k| {
-        let (dth, dv) = (dtheta_rad.get(k), dvel_mps.get(k));
-        dth.zip(dv)
-            .is_some_and(|(dth, dv)| replaced_as_out_of_range(d, k, *dth, *dv))
-    })
-}
-
 /// Whether sample `k`, one `d`'s derive replaced, was replaced as beyond the IMU's range
 /// (not only scaled to its gap), given the increments it was derived from.
 pub fn replaced_as_out_of_range(
@@ -1439,6 +1424,17 @@ mod tests {
     /// Bits, not values: -0.0 and 0.0 would pass `==`.
     fn bits(v: &[f64]) -> Vec<u64> {
         v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    /// The first sample `d`'s derive replaced as beyond the IMU's range, given the
+    /// increments it was derived from (what the pipeline finds a batch at a time).
+    fn first_out_of_range(
+        d: &Derived,
+        dtheta_rad: &[[f64; 3]],
+        dvel_mps: &[[f64; 3]],
+    ) -> Option<usize> {
+        (d.replaced_increments.iter().copied())
+            .find(|&k| replaced_as_out_of_range(d, k, dtheta_rad[k], dvel_mps[k]))
     }
 
     /// The samples the derive lists as replaced are exactly those whose increments are
