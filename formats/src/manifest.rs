@@ -202,11 +202,7 @@ struct RawControlPoint {
 
 /// 1-based line of a byte offset.
 fn line_of(text: &str, offset: usize) -> usize {
-    text.as_bytes()[..offset.min(text.len())]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count()
-        + 1
+    line_of_bytes(text.as_bytes(), offset)
 }
 
 struct Checker<'a> {
@@ -491,20 +487,59 @@ impl RunManifest {
     }
 }
 
-/// Reads a whole text file, refusing files larger than `max_bytes`.
+/// Reads a whole text file, refusing files larger than `max_bytes` and text that is not
+/// UTF-8, naming where and what to mend: a manifest saved by an editor as UTF-16 or in a
+/// Latin-1 code page would otherwise fail with no place ("stream did not contain valid
+/// UTF-8"), and one in UTF-16 without its byte-order mark would be read as text with a
+/// NUL byte between letters.
 pub fn read_bounded(path: &Path, max_bytes: u64) -> Result<String, FormatError> {
     use std::io::Read;
     let file = crate::regular::open_regular(path).map_err(|source| FormatError::Open { source })?;
-    let mut text = String::new();
-    file.take(max_bytes + 1)
-        .read_to_string(&mut text)
-        .map_err(|source| FormatError::Io { offset: 0, source })?;
-    if text.len() as u64 > max_bytes {
+    let mut bytes = Vec::new();
+    if let Err(source) = file.take(max_bytes + 1).read_to_end(&mut bytes) {
+        let offset = bytes.len() as u64;
+        return Err(FormatError::Io { offset, source });
+    }
+    if bytes.len() as u64 > max_bytes {
         return Err(FormatError::Invalid(format!(
             "file is larger than {max_bytes} bytes"
         )));
     }
+    if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
+        return Err(FormatError::Invalid(
+            "UTF-16 text (its byte-order mark): the file must be UTF-8 or ASCII".into(),
+        ));
+    }
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        FormatError::Manifest {
+            line: line_of_bytes(e.as_bytes(), at),
+            reason: format!(
+                "byte 0x{:02X} at byte offset {at} is not UTF-8 (text saved in a Latin-1 or \
+                 Windows code page?): the file must be UTF-8 or ASCII",
+                e.as_bytes()[at]
+            ),
+        }
+    })?;
+    if let Some(at) = text.find('\0') {
+        return Err(FormatError::Manifest {
+            line: line_of(&text, at),
+            reason: format!(
+                "a NUL byte at byte offset {at} (UTF-16 text without its byte-order \
+                 mark?): the file must be UTF-8 or ASCII"
+            ),
+        });
+    }
     Ok(text)
+}
+
+/// The 1-based line of byte `offset` in `bytes`.
+fn line_of_bytes(bytes: &[u8], offset: usize) -> usize {
+    bytes[..offset.min(bytes.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
 }
 
 #[cfg(test)]
@@ -622,6 +657,49 @@ t_s = 2415.3
         let e = open_inside(&run, &link).unwrap_err();
         assert_eq!(e.kind(), std::io::ErrorKind::PermissionDenied, "{e}");
         assert!(e.to_string().contains("outside"), "{e}");
+    }
+
+    /// Regression (hostile-archive probe): a manifest saved as UTF-16 or in a Latin-1
+    /// code page failed with "read failed at byte offset 0: stream did not contain valid
+    /// UTF-8", naming neither the place nor the cause; it now names both, and a UTF-8
+    /// byte-order mark is read past.
+    #[test]
+    fn a_manifest_not_in_utf8_says_where_and_what_to_mend() {
+        let tmp = tempfile::tempdir().unwrap();
+        let load = |name: &str, bytes: &[u8]| {
+            let path = tmp.path().join(name);
+            std::fs::write(&path, bytes).unwrap();
+            RunManifest::load(&path)
+                .map(|m| m.name)
+                .map_err(|e| e.to_string())
+        };
+        let utf16 = |bom: bool| -> Vec<u8> {
+            let text = if bom {
+                format!("\u{feff}{GOOD}")
+            } else {
+                GOOD.into()
+            };
+            text.encode_utf16().flat_map(u16::to_le_bytes).collect()
+        };
+        assert_eq!(load("plain.toml", GOOD.as_bytes()), Ok("route-03".into()));
+        let marked = [b"\xEF\xBB\xBF", GOOD.as_bytes()].concat();
+        assert_eq!(load("utf8-bom.toml", &marked), Ok("route-03".into()));
+
+        let e = load("utf16.toml", &utf16(true)).unwrap_err();
+        assert!(e.starts_with("UTF-16 text (its byte-order mark): "), "{e}");
+        let e = load("utf16-no-bom.toml", &utf16(false)).unwrap_err();
+        // GOOD opens with a newline ("\n\0" in UTF-16): its NUL is on line 2.
+        assert!(
+            e.starts_with("line 2: a NUL byte at byte offset 1 (UTF-16"),
+            "{e}"
+        );
+        let latin1 = [&b"# ok\n# ok\n# caf\xE9\n"[..], GOOD.as_bytes()].concat();
+        let e = load("latin1.toml", &latin1).unwrap_err();
+        assert!(
+            e.starts_with("line 3: byte 0xE9 at byte offset 15 is not UTF-8 (text saved in"),
+            "{e}"
+        );
+        assert!(e.ends_with("latin1.toml)"), "{e}");
     }
 
     #[test]
