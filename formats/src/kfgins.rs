@@ -399,7 +399,10 @@ impl<R: BufRead> KfGinsReader<R> {
                     let steps = (dt / p).round();
                     if steps >= 2.0 && dt > 1.5 * p {
                         self.report.seq_gaps += 1;
-                        self.report.lost_samples += steps as u64 - 1;
+                        // Saturating: a tag of 1e300 (a damaged line) is a gap of
+                        // more samples than a u64 counts (`as` saturates too).
+                        let lost = (steps - 1.0) as u64;
+                        self.report.lost_samples = self.report.lost_samples.saturating_add(lost);
                         self.report.lost_duration_s = self.report.lost_samples as f64 * p;
                     }
                 }
@@ -656,6 +659,25 @@ mod tests {
             faults.iter().map(|f| f.line).collect::<Vec<_>>(),
             vec![4, 5]
         );
+        assert!(rep.is_consistent(), "{rep:?}");
+    }
+
+    /// Regression (fuzzing the text ingest): time tags that leap by 1e300 s (damaged
+    /// lines) counted more lost samples than a u64 holds, and the count overflowed (a
+    /// panic in a debug build, a wrong count in a release one); it now saturates.
+    #[test]
+    fn tags_that_leap_beyond_counting_saturate_the_lost_samples() {
+        let mut text: String = (1..=20)
+            .map(|k| format!("{} 1 2 3 4 5 6\n", k as f64 * 0.01))
+            .collect();
+        text += "1e300 1 2 3 4 5 6\n1e301 1 2 3 4 5 6\n1e302 1 2 3 4 5 6\n";
+        let (v, rep, _) = read_all(&text);
+        assert_eq!(v.len(), 23);
+        assert_eq!(rep.seq_gaps, 3);
+        assert_eq!(rep.lost_samples, u64::MAX);
+        // The lost samples × the period (0.01 s, to the rounding of the tags' steps).
+        let expected_s = u64::MAX as f64 * 0.01;
+        assert!((rep.lost_duration_s / expected_s - 1.0).abs() < 1e-9);
         assert!(rep.is_consistent(), "{rep:?}");
     }
 
