@@ -154,8 +154,9 @@ impl RawMcapWriter {
         let speed_mps = match self.last_odo {
             // Time went back (a damaged log): start again from this sample.
             Some((t0, _)) if t_ns < t0 => 0.0,
-            Some((t0, _)) if t_ns - t0 < ODOMETER_VIEW_PERIOD_NS => return,
-            Some((t0, d0)) => (distance_m - d0) / ((t_ns - t0) as f64 * 1e-9),
+            // Saturating: tags 292 years apart (a damaged text log's) overflow an i64.
+            Some((t0, _)) if t_ns.saturating_sub(t0) < ODOMETER_VIEW_PERIOD_NS => return,
+            Some((t0, d0)) => (distance_m - d0) / (t_ns.saturating_sub(t0) as f64 * 1e-9),
             None => 0.0,
         };
         self.last_odo = Some((t_ns, distance_m));
@@ -215,5 +216,32 @@ impl Drop for RawMcapWriter {
         if let Some(thread) = self.thread.take() {
             let _ = thread.join();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Regression (fuzzing the text ingest): odometer readings whose time tags were more
+    /// than 292 years apart overflowed the interval between them (a panic in a debug
+    /// build, a wrapped interval and a skipped message in a release one).
+    #[test]
+    fn odometer_tags_an_i64_apart_give_their_messages() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("raw.mcap");
+        let mut w = RawMcapWriter::create(&path, 0, McapCompression::default()).unwrap();
+        w.odometer(i64::MIN + 1, 0.0);
+        w.odometer(i64::MAX, 5.0);
+        let speeds: Vec<f64> = (w.batch.iter())
+            .map(|item| match item {
+                Item::Odometer(_, m) => m.speed_mps,
+                _ => panic!("an odometer message expected"),
+            })
+            .collect();
+        assert_eq!(speeds.len(), 2);
+        // 5 m over the i64's span, saturated: 9.2e18 ns.
+        assert!(speeds[1] > 0.0 && speeds[1] < 1e-9, "{speeds:?}");
+        w.finish().unwrap();
     }
 }
