@@ -15,6 +15,22 @@ use crate::speed_spikes::{MAX_ACCEL_MPS2, MAX_BRAKING_MPS2, SpeedSpikes, Verdict
 
 /// Longest line accepted; longer lines are malformed (and never buffered whole).
 pub const MAX_LINE_BYTES: usize = 4096;
+/// Largest time tag accepted, ±s (285 years): the pipeline keeps times as i64
+/// nanoseconds (±9.22e9 s), with room to spare for the windows reaching past a tag. A
+/// file whose times are in milliseconds, microseconds or nanoseconds since an epoch
+/// (1.7e12, 1.7e15, 1.7e18) goes far beyond it; a larger tag would saturate and stand.
+pub const MAX_TAG_S: f64 = 9.0e9;
+
+/// Why time tag `t_s` is refused, if it is beyond [`MAX_TAG_S`].
+fn tag_beyond_range(t_s: f64) -> Option<String> {
+    (t_s.abs() > MAX_TAG_S).then(|| {
+        format!(
+            "time {t_s:e} s is beyond ±{MAX_TAG_S:e} s (285 years), the span the pipeline \
+             times to the nanosecond: are the file's times in ms, µs or ns?"
+        )
+    })
+}
+
 /// Number of leading samples whose median interval is the nominal sample period.
 const PERIOD_WINDOW: usize = 101;
 
@@ -337,6 +353,10 @@ impl<R: BufRead> KfGinsReader<R> {
                 self.fault(format!("{got} columns, expected {want}{hint}"));
                 continue;
             }
+            if let Some(reason) = tag_beyond_range(values[0]) {
+                self.fault(reason);
+                continue;
+            }
             return Ok(Some(TextSample {
                 line: self.lines.line_no,
                 t_s: values[0],
@@ -607,6 +627,10 @@ impl<R: BufRead> OdometerFileReader<R> {
                 continue;
             }
             let [t, given] = values;
+            if let Some(reason) = tag_beyond_range(t) {
+                self.reject_read(reason);
+                continue;
+            }
             // m/s or m from here on.
             let v = self.kind.si(given);
             if self.kind.is_speed() && v.abs() > LAND_SPEED_RANGE_MPS {
@@ -664,21 +688,52 @@ mod tests {
 
     /// Regression (fuzzing the text ingest): time tags that leap by 1e300 s (damaged
     /// lines) counted more lost samples than a u64 holds, and the count overflowed (a
-    /// panic in a debug build, a wrong count in a release one); it now saturates.
+    /// panic in a debug build, a wrong count in a release one); it now saturates. Within
+    /// the tags accepted ([`MAX_TAG_S`]) it takes a period of 0.5 ns: two leaps of 9e9 s
+    /// are 1.8e19 samples each.
     #[test]
     fn tags_that_leap_beyond_counting_saturate_the_lost_samples() {
-        let mut text: String = (1..=20)
-            .map(|k| format!("{} 1 2 3 4 5 6\n", k as f64 * 0.01))
-            .collect();
-        text += "1e300 1 2 3 4 5 6\n1e301 1 2 3 4 5 6\n1e302 1 2 3 4 5 6\n";
+        let mut text = String::from("-9e9 1 2 3 4 5 6\n");
+        text.extend((0..100).map(|k| format!("{:e} 1 2 3 4 5 6\n", k as f64 * 5e-10)));
+        text += "9e9 1 2 3 4 5 6\n";
         let (v, rep, _) = read_all(&text);
-        assert_eq!(v.len(), 23);
-        assert_eq!(rep.seq_gaps, 3);
+        assert_eq!(v.len(), 102);
+        assert_eq!(rep.seq_gaps, 2);
         assert_eq!(rep.lost_samples, u64::MAX);
-        // The lost samples × the period (0.01 s, to the rounding of the tags' steps).
-        let expected_s = u64::MAX as f64 * 0.01;
-        assert!((rep.lost_duration_s / expected_s - 1.0).abs() < 1e-9);
+        // The lost samples × the period (0.5 ns, to the rounding of the tags' steps).
+        let expected_s = u64::MAX as f64 * 5e-10;
+        assert!((rep.lost_duration_s / expected_s - 1.0).abs() < 1e-6);
         assert!(rep.is_consistent(), "{rep:?}");
+    }
+
+    /// Regression (fuzzing the text ingest): a time tag beyond what an i64 of nanoseconds
+    /// holds saturated, so a file whose times are in microseconds since 1970 stood still
+    /// at 9.2e9 s and failed for its odometer's speed; its lines are now refused, naming
+    /// the units, and the tags within the range are kept.
+    #[test]
+    fn time_tags_beyond_the_span_timed_to_the_nanosecond_are_refused() {
+        let text = "1700000000000000 1 2 3 4 5 6\n0.01 1 2 3 4 5 6\n-9e9 1 2 3 4 5 6\n\
+                    9e9 1 2 3 4 5 6\n9000000001 1 2 3 4 5 6\n";
+        let (v, rep, faults) = read_all(text);
+        assert_eq!(
+            v.iter().map(|s| s.t_s).collect::<Vec<_>>(),
+            [0.01, -9e9, 9e9]
+        );
+        assert_eq!(faults.iter().map(|f| f.line).collect::<Vec<_>>(), [1, 5]);
+        assert_eq!(
+            faults[0].reason,
+            "time 1.7e15 s is beyond ±9e9 s (285 years), the span the pipeline times to \
+             the nanosecond: are the file's times in ms, µs or ns?"
+        );
+        assert!(rep.is_consistent(), "{rep:?}");
+        let odometer = b"1700000000000000 0\n1 0\n-9000000001 0\n2 0\n";
+        let (d, _, lines, _) = read_odometer(odometer, OdometerKind::SpeedMps);
+        assert_eq!((d.len(), lines), (2, vec![1, 3]));
+        let reason = first_fault(odometer, OdometerKind::DistanceM);
+        assert!(
+            reason.starts_with("time 1.7e15 s is beyond ±9e9 s"),
+            "{reason}"
+        );
     }
 
     /// A sample is found again by its row or its time: the line it was read from, past
