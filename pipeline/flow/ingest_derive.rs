@@ -126,8 +126,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // 7: an odometer count that stood while the vehicle moved counts with the
         // flagged samples against a tenth of the run. 8: the IMU's axes checked. 9: the
         // IMU's mounting measured, a yaw beyond 10° failed. 10: the IMU's increments not
-        // stored again (the ingest's, but for imu_repairs.parquet's), r not stored.
-        version: 10,
+        // stored again (the ingest's, but for imu_repairs.parquet's), r not stored. 11: a
+        // time tag that leapt forward alone is repaired alone.
+        version: 11,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,

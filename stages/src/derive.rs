@@ -448,8 +448,10 @@ struct OdoInterp<'a> {
     next: Option<(f64, f64)>,
     /// The ingested tag the search for the next kept one starts at.
     from: usize,
-    /// The time of the last tag kept, s.
+    /// The time of the last tag kept, s, and its step from the one kept before
+    /// (infinite until there is one).
     last_t: Option<f64>,
+    last_step_s: f64,
 }
 
 impl<'a> OdoInterp<'a> {
@@ -476,6 +478,7 @@ impl<'a> OdoInterp<'a> {
             next: None,
             from: 0,
             last_t: None,
+            last_step_s: f64::INFINITY,
         };
         s.first = s.next_kept();
         s.second = s.next_kept();
@@ -499,11 +502,32 @@ impl<'a> OdoInterp<'a> {
                 None => self.d[i],
             };
             if self.last_t.is_none_or(|last| ts > last) && d.is_finite() {
+                if let Some(last) = self.last_t
+                    && ts - last > 2.0 * self.last_step_s
+                    && self.leapt_alone(last, ts)
+                {
+                    continue;
+                }
+                self.last_step_s = self.last_t.map_or(f64::INFINITY, |last| ts - last);
                 self.last_t = Some(ts);
                 return Some((ts, d));
             }
         }
         None
+    }
+
+    /// Whether a tag at `ts`, more than twice the last step after the last kept one (at
+    /// `last`), leapt forward alone: the next tag falls between the two (a glitch in the
+    /// recorder's clock, as [`derive_owned`] repairs the IMU's). Kept, it would hide every
+    /// tag up to its time: a 10-minute run with one record's tag saturated held its
+    /// distance from there on. Only such a step reads the next tag.
+    #[cold]
+    fn leapt_alone(&self, last: f64, ts: f64) -> bool {
+        let next = self.t_ns.clone().next();
+        next.is_some_and(|ns| {
+            let next_s = (ns - self.t0_ns) as f64 * 1e-9 + self.offset_s;
+            last < next_s && next_s < ts
+        })
     }
 
     /// Distance at `ts`; calls must come with non-decreasing `ts`.
@@ -636,13 +660,24 @@ pub fn derive_owned(
     let mut tags = imu_t_ns.into_owned();
     tags.truncate(n);
     let mut prev_t = -nominal;
-    for (k, slot) in tags.iter_mut().enumerate() {
-        let mut t = (*slot - t0) as f64 * 1e-9;
+    for k in 0..n {
+        let mut t = (tags[k] - t0) as f64 * 1e-9;
         if k > 0 && t <= prev_t {
             t = prev_t + nominal;
             out.repaired_times += 1;
+        } else if let Some(next_t) = (tags.get(k + 1)).map(|&s| (s - t0) as f64 * 1e-9)
+            && k > 0
+            && prev_t < next_t
+            && next_t < t
+            && t - prev_t > 1.5 * nominal
+        {
+            // A tag that leapt forward alone, its neighbours in order (a glitch in the
+            // recorder's clock, its CRC made after it): repaired, short of the next, as
+            // one going back is; kept, it would make every later tag go back from it.
+            t = prev_t + nominal.min(0.5 * (next_t - prev_t));
+            out.repaired_times += 1;
         }
-        *slot = t.to_bits() as i64;
+        tags[k] = t.to_bits() as i64;
         prev_t = t;
     }
     let t_s: Arc<Vec<f64>> = Arc::new(bytemuck::cast_vec(tags));
@@ -1285,11 +1320,22 @@ mod tests {
     }
 
     /// The interpolation by its definition: the kept tags gathered first, then searched.
+    /// A tag is kept when it is after the last kept, its distance finite, and it did not
+    /// leap forward alone: a step more than twice the last kept step, over the next tag.
     fn distance_by_definition(t_ns: &[i64], d: &[f64], t0_ns: i64, offset_s: f64, ts: f64) -> f64 {
+        let time = |ti: i64| (ti - t0_ns) as f64 * 1e-9 + offset_s;
         let mut kept: Vec<(f64, f64)> = Vec::new();
-        for (&ti, &di) in t_ns.iter().zip(d) {
-            let t = (ti - t0_ns) as f64 * 1e-9 + offset_s;
-            if kept.last().is_none_or(|&(last, _)| t > last) && di.is_finite() {
+        for (i, (&ti, &di)) in t_ns.iter().zip(d).enumerate() {
+            let t = time(ti);
+            let leapt = match kept.as_slice() {
+                [.., (before, _), (last, _)] => {
+                    let next = t_ns.get(i + 1).map(|&tn| time(tn));
+                    t - last > 2.0 * (last - before)
+                        && next.is_some_and(|next| *last < next && next < t)
+                }
+                _ => false,
+            };
+            if kept.last().is_none_or(|&(last, _)| t > last) && di.is_finite() && !leapt {
                 kept.push((t, di));
             }
         }
@@ -1315,8 +1361,8 @@ mod tests {
 
     #[test]
     fn the_odometer_interpolation_is_its_definition_bit_for_bit() {
-        // Tags going back, repeated, a NaN distance, a gap; calls before the first tag,
-        // on tags, between them and after the last.
+        // Tags going back, repeated, a NaN distance, one that leapt forward alone, a gap;
+        // calls before the first tag, on tags, between them and after the last.
         let t_ns = [
             1_000_000_000,
             1_100_000_000,
@@ -1324,10 +1370,12 @@ mod tests {
             1_100_000_000,
             1_200_000_000,
             1_300_000_000,
+            1_800_000_000,
+            1_400_000_000,
             1_900_000_000,
             2_000_000_000,
         ];
-        let d = [0.0, 0.4, 9.0, 7.0, f64::NAN, 1.3, 3.0, 3.1];
+        let d = [0.0, 0.4, 9.0, 7.0, f64::NAN, 1.3, 50.0, 1.4, 3.0, 3.1];
         let calls: Vec<f64> = (0..260).map(|i| -0.3 + i as f64 * 0.00731).collect();
         for offset_s in [0.0, 0.0137, -0.25] {
             for (tags, dists) in [
@@ -1492,6 +1540,54 @@ mod tests {
     /// stored (no second vector of the run's length), repaired as given by reference;
     /// every series is the borrowed derive's, bit for bit, with a gap and a tag going
     /// back among them.
+    /// Regression (probing binary logs with one record's tag damaged, its CRC valid): a
+    /// tag that leapt forward alone (by 1 s, by 2^40 µs) made every later tag go back
+    /// from it, so a 10-minute run "repaired" 29 999 of its 60 000 times and failed; a
+    /// tag going back alone cost one. Each now costs one, in either direction, and the
+    /// samples around it keep their times. Two tags out of order by less than a sample
+    /// (the second went back a little) cost one too: the second is the one repaired.
+    #[test]
+    fn a_tag_that_leapt_forward_alone_is_repaired_alone() {
+        let (t, dtheta, dvel, odo_t, odo_d) = drive();
+        let nominal_ns = 10_000_000;
+        for (k, leap_ns) in [
+            (17_000, 1_000_000_000),
+            (9_000, 1 << 50),
+            (3_000, -nominal_ns),
+        ] {
+            let mut tags = t.clone();
+            tags[k] += leap_ns;
+            let columns = (
+                tags,
+                dtheta.clone(),
+                dvel.clone(),
+                odo_t.clone(),
+                odo_d.clone(),
+            );
+            let d = derive(&series(&columns), &DeriveParams::default(), 9.81);
+            assert_eq!(d.repaired_times, 1, "a leap of {leap_ns} ns");
+            let times: Vec<f64> = (0..t.len()).map(|j| d.t_s.get(j)).collect();
+            for (j, &time) in times.iter().enumerate() {
+                let given = (t[j] - t[0]) as f64 * 1e-9;
+                if j == k {
+                    assert!(times[j - 1] < time && time < times[j + 1], "{time}");
+                } else {
+                    assert!(
+                        (time - given).abs() < 1e-12,
+                        "sample {j}: {time} for {given}"
+                    );
+                }
+            }
+        }
+        // The first of two out of order by less than a sample keeps its time.
+        let mut tags = t.clone();
+        tags[5_001] = tags[5_000] - 1;
+        let columns = (tags, dtheta, dvel, odo_t, odo_d);
+        let d = derive(&series(&columns), &DeriveParams::default(), 9.81);
+        assert_eq!(d.repaired_times, 1);
+        assert_eq!(d.t_s.get(5_000), (t[5_000] - t[0]) as f64 * 1e-9);
+    }
+
     #[test]
     fn tags_given_by_value_become_the_times_in_place() {
         let (mut t, dtheta, dvel, odo_t, odo_d) = drive();
