@@ -17,6 +17,7 @@ use rerun::external::re_sdk_types::blueprint::components::{
 };
 use rerun::external::re_sdk_types::components::Name;
 use rerun::external::re_sdk_types::datatypes;
+use rerun::sink::{BufferedSink, MemorySinkStorage};
 use rerun::{RecordingStream, RecordingStreamBuilder, RecordingStreamResult};
 
 use crate::paths::*;
@@ -246,7 +247,18 @@ fn blueprint_messages(app_id: ApplicationId, layout: &Node) -> RecordingStreamRe
         "time_panel",
         &TimePanelBlueprint::new().with_timeline(datatypes::Utf8(TIME.into())),
     )?;
-    Ok(storage.take())
+    Ok(take_messages(bp, storage))
+}
+
+/// The messages of a memory stream, and the stream let go. The SDK's memory sink holds its
+/// stream (to flush it) and the stream holds its sink, so neither was ever dropped nor the
+/// stream's two threads ended: every review left a pair (a campaign of 500 runs in one
+/// process, 1 000 threads and their memory). A sink that holds nothing, swapped in once
+/// the messages are taken, breaks the cycle: the stream ends here, with its last handles.
+fn take_messages(stream: RecordingStream, storage: MemorySinkStorage) -> Vec<LogMsg> {
+    let msgs = storage.take();
+    stream.set_sink(Box::new(BufferedSink::new()));
+    msgs
 }
 
 /// Sends `review`'s layout to `rec` as its active and default blueprint.
@@ -282,5 +294,24 @@ mod tests {
         assert_ne!(a, uuid_text(&node_id("root/1")));
         assert_eq!(a.len(), 36);
         assert_eq!(&a[14..15], "4");
+    }
+
+    /// Regression (fuzzing every stage in one process: its threads grew by two a run): a
+    /// memory stream outlived its handles, its sink and it holding each other; once its
+    /// messages are taken it ends with them.
+    #[test]
+    fn a_memory_stream_ends_once_its_messages_are_taken() {
+        let (stream, storage) = RecordingStreamBuilder::new("unz-test")
+            .batcher_config(crate::rrd_sink::IN_LOGGED_ORDER)
+            .memory()
+            .unwrap();
+        stream.set_time_sequence("blueprint", 0);
+        stream.log("viewport", &ViewportBlueprint::new()).unwrap();
+        let handle = stream.clone_weak();
+        assert!(handle.is_enabled());
+        let msgs = take_messages(stream, storage);
+        // The store's info and the viewport's chunk, at least.
+        assert!(msgs.len() >= 2, "{msgs:?}");
+        assert!(!handle.is_enabled(), "the stream outlived its handles");
     }
 }
