@@ -14,7 +14,10 @@ fuzz_target!(|data: &[u8]| {
             while let Ok(Some(_)) = reader.next_record() {}
             let report = reader.report();
             assert!(report.is_consistent(), "{report:?}");
-            let body = input.len().saturating_sub(usize::from(reader.header().header_len)) as u64;
+            let body = input
+                .len()
+                .saturating_sub(usize::from(reader.header().header_len))
+                as u64;
             assert!(report.bytes_skipped + report.truncated_bytes <= body);
         }
     }
