@@ -1536,10 +1536,6 @@ mod tests {
         );
     }
 
-    /// The IMU's time tags given by value become the derive's times where they were
-    /// stored (no second vector of the run's length), repaired as given by reference;
-    /// every series is the borrowed derive's, bit for bit, with a gap and a tag going
-    /// back among them.
     /// Regression (probing binary logs with one record's tag damaged, its CRC valid): a
     /// tag that leapt forward alone (by 1 s, by 2^40 µs) made every later tag go back
     /// from it, so a 10-minute run "repaired" 29 999 of its 60 000 times and failed; a
@@ -1588,6 +1584,10 @@ mod tests {
         assert_eq!(d.t_s.get(5_000), (t[5_000] - t[0]) as f64 * 1e-9);
     }
 
+    /// The IMU's time tags given by value become the derive's times where they were
+    /// stored (no second vector of the run's length), repaired as given by reference;
+    /// every series is the borrowed derive's, bit for bit, with a gap and a tag going
+    /// back among them.
     #[test]
     fn tags_given_by_value_become_the_times_in_place() {
         let (mut t, dtheta, dvel, odo_t, odo_d) = drive();
