@@ -15,6 +15,10 @@ use crate::speed_spikes::{MAX_ACCEL_MPS2, MAX_BRAKING_MPS2, SpeedSpikes, Verdict
 
 /// Longest line accepted; longer lines are malformed (and never buffered whole).
 pub const MAX_LINE_BYTES: usize = 4096;
+/// Why a file that opens with UTF-16's byte-order mark is refused.
+pub(crate) const UTF16_TEXT: &str =
+    "UTF-16 text (its byte-order mark): the file must be UTF-8 or ASCII";
+
 /// Largest time tag accepted, ±s (285 years): the pipeline keeps times as i64
 /// nanoseconds (±9.22e9 s), with room to spare for the windows reaching past a tag. A
 /// file whose times are in milliseconds, microseconds or nanoseconds since an epoch
@@ -124,9 +128,7 @@ impl Line<'_> {
                  that end in CR alone? (lines end in LF or CR LF)"
             ))),
             Line::NotText => Some(Err("not UTF-8 text".into())),
-            Line::Utf16 => Some(Err(
-                "UTF-16 text (its byte-order mark): the file must be UTF-8 or ASCII".into(),
-            )),
+            Line::Utf16 => Some(Err(UTF16_TEXT.into())),
         }
     }
 }
@@ -706,10 +708,11 @@ mod tests {
         assert!(rep.is_consistent(), "{rep:?}");
     }
 
-    /// Regression (fuzzing the text ingest): a time tag beyond what an i64 of nanoseconds
-    /// holds saturated, so a file whose times are in microseconds since 1970 stood still
-    /// at 9.2e9 s and failed for its odometer's speed; its lines are now refused, naming
-    /// the units, and the tags within the range are kept.
+    /// Regression (probing the time range after the fuzzer's overflows): a time tag beyond
+    /// what an i64 of nanoseconds holds saturated, so a file whose times are in
+    /// microseconds since 1970 stood still at 9.2e9 s and failed for its odometer's
+    /// speed; its lines are now refused, naming the units, and the tags within the range
+    /// are kept.
     #[test]
     fn time_tags_beyond_the_span_timed_to_the_nanosecond_are_refused() {
         let text = "1700000000000000 1 2 3 4 5 6\n0.01 1 2 3 4 5 6\n-9e9 1 2 3 4 5 6\n\

@@ -506,9 +506,7 @@ pub fn read_bounded(path: &Path, max_bytes: u64) -> Result<String, FormatError> 
         )));
     }
     if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
-        return Err(FormatError::Invalid(
-            "UTF-16 text (its byte-order mark): the file must be UTF-8 or ASCII".into(),
-        ));
+        return Err(FormatError::Invalid(crate::kfgins::UTF16_TEXT.into()));
     }
     let text = String::from_utf8(bytes).map_err(|e| {
         let at = e.utf8_error().valid_up_to();
