@@ -331,7 +331,9 @@ fn a_record_whose_tag_leapt_forward_alone_costs_one_repaired_time() {
     assert_eq!(code, Some(0), "{text}");
     let clean: DisuptOut = read_json(&clean_out.join("sim-0080/disupt/disupt.json"));
     assert!(clean.methods.len() >= 3, "{:?}", clean.skipped);
-    let leaps: [(&str, fn(u64) -> u64); 3] = [
+    /// A record's time tag moved by a leap, µs.
+    type Leap = fn(u64) -> u64;
+    let leaps: [(&str, Leap); 3] = [
         ("1 s", |t| t + 1_000_000),
         ("2^40 µs", |t| t + (1 << 40)),
         ("u64::MAX", |_| u64::MAX),
