@@ -7,8 +7,8 @@
 //! after it the odometer file.
 #![no_main]
 
-use std::path::PathBuf;
-use std::sync::OnceLock;
+#[path = "common/scratch.rs"]
+mod scratch;
 
 use libfuzzer_sys::fuzz_target;
 use unz::flow::{RunCtx, ensure_derive};
@@ -21,13 +21,6 @@ const ODOMETER: [&str; 3] = [
     "[odometer]\nfile = \"odometer.txt\"\nkind = \"distance_m\"\n",
 ];
 
-/// One folder for the whole fuzzing process: `run/` (rewritten every input) and `out/`
-/// (removed every input, so no stage is taken from the cache).
-fn scratch() -> &'static PathBuf {
-    static DIR: OnceLock<PathBuf> = OnceLock::new();
-    DIR.get_or_init(|| tempfile::tempdir().unwrap().keep())
-}
-
 fuzz_target!(|data: &[u8]| {
     let Some((&choice, rest)) = data.split_first() else {
         return;
@@ -36,7 +29,8 @@ fuzz_target!(|data: &[u8]| {
         Some(k) => (&rest[..k], &rest[k + 1..]),
         None => (rest, &[][..]),
     };
-    let (run, out) = (scratch().join("run"), scratch().join("out"));
+    let dir = scratch::scratch();
+    let (run, out) = (dir.join("run"), dir.join("out"));
     let _ = std::fs::remove_dir_all(&out);
     std::fs::create_dir_all(&run).unwrap();
     std::fs::write(run.join("imu.txt"), log).unwrap();

@@ -5,7 +5,6 @@
 //! UNZ-50 writes them), a sample of any fields, a mark, or bytes between records.
 
 use std::path::PathBuf;
-use std::sync::OnceLock;
 
 use unz_formats::raw::{FileHeader, ImuRecord, MarkRecord, RawWriter};
 
@@ -20,12 +19,8 @@ const MANIFEST: &str = "name = \"fuzz\"\nraw = \"run.unz\"\nformat = \"unz-binar
     [[control_point]]\nid = 1\nlatitude_deg = 52.203042058\nlongitude_deg = 21.001906675\n\
     height_m = 110.0\n";
 
-/// One folder for the whole fuzzing process: `run/` (rewritten every input) and `out/`
-/// (removed every input, so no stage is taken from the cache).
-fn scratch() -> &'static PathBuf {
-    static DIR: OnceLock<PathBuf> = OnceLock::new();
-    DIR.get_or_init(|| tempfile::tempdir().unwrap().keep())
-}
+#[path = "scratch.rs"]
+mod scratch;
 
 /// The input's bytes, taken in order (zeros once it ends).
 struct Args<'a>(&'a [u8]);
@@ -204,7 +199,8 @@ fn log(data: &[u8]) -> Vec<u8> {
 /// Writes the run `data` describes into the scratch folder's `run/`, and empties its
 /// `out/`; returns both.
 pub fn write_run(data: &[u8]) -> (PathBuf, PathBuf) {
-    let (run, out) = (scratch().join("run"), scratch().join("out"));
+    let dir = scratch::scratch();
+    let (run, out) = (dir.join("run"), dir.join("out"));
     let _ = std::fs::remove_dir_all(&out);
     std::fs::create_dir_all(&run).unwrap();
     std::fs::write(run.join("run.unz"), log(data)).unwrap();
