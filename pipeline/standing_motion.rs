@@ -34,6 +34,11 @@ pub const MOVED_M: f64 = 1.0;
 /// a block the body of a vehicle at rest does not turn, and a block's trapezoid is within
 /// centimetres of the samples' over the watch.
 const BLOCK_SAMPLES: usize = 10;
+/// Shortest sample period taken, s (10 kHz, beyond any navigation IMU's rate): a log
+/// whose tags say a shorter one (a damaged text log's, tags that stand) would ask for
+/// reference and watch blocks without bound; from a period of zero, more than a usize
+/// holds.
+const MIN_PERIOD_S: f64 = 1e-4;
 /// The watch is judged every this many blocks (0.2 s at 100 Hz): each judgement
 /// integrates the reference and the watch whole.
 const JUDGE_EVERY: usize = 2;
@@ -89,7 +94,7 @@ pub struct StandingMotion {
 impl StandingMotion {
     /// Where gravity is `g_mps2`, samples every `period_s`.
     pub fn new(g_mps2: f64, period_s: f64) -> Self {
-        let period_s = period_s.abs();
+        let period_s = period_s.abs().max(MIN_PERIOD_S);
         let blocks = |s: f64| ((s / (period_s * BLOCK_SAMPLES as f64)).round() as usize).max(1);
         Self {
             g_mps2,
@@ -231,6 +236,23 @@ mod tests {
                 m.push(t, f.map(|x| x * DT_S), [0.0, q * DT_S, 0.0])
             })
             .collect()
+    }
+
+    /// Regression (fuzzing the text ingest): a period of zero (tags that stand) asked for
+    /// more reference and watch blocks than a usize holds, and their sum overflowed (a
+    /// panic in a debug build; in a release one the wrapped bound let the blocks go).
+    /// The blocks stay within what a 10-kHz IMU's reference and watch take.
+    #[test]
+    fn a_period_of_zero_keeps_its_blocks_bounded() {
+        for period_s in [0.0, 1e-300, f64::NAN] {
+            let mut m = StandingMotion::new(G, period_s);
+            for _ in 0..200_000 {
+                m.push(0.0, [0.0, 0.0, -G * DT_S], [0.0; 3]);
+            }
+            let bound = ((REFERENCE_S + WATCH_S) / (MIN_PERIOD_S * BLOCK_SAMPLES as f64)) as usize;
+            assert_eq!(m.reference_blocks + m.watch_blocks, bound, "{period_s}");
+            assert!(m.blocks.len() <= bound, "{period_s}: {}", m.blocks.len());
+        }
     }
 
     #[test]
