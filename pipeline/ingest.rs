@@ -477,9 +477,9 @@ fn no_odometer_reading(
     }
 }
 
-/// What a log's stream gave: its accounting and first faults, the odometer's rows, range check and file
-/// (a text log's separate one, when its readings came from it), and the series kept for
-/// the derive.
+/// What a log's stream gave: its accounting and first faults, the odometer's rows, range
+/// check and file (a text log's separate one, when its readings came from it), and the
+/// series kept for the derive.
 struct Streamed {
     report: IngestReport,
     /// The first faults, located (`ingest_events.json`).

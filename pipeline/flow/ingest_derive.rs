@@ -207,7 +207,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         if d.repaired_times * 100 > d.t_s.len() {
             // Where: the sample (the ingested tags read again: only a failing run pays for
             // it) and its place in the raw log; a binary log's account lists the faults.
-            let first = ingested::first_time_tag_not_increasing(&ingest_dir);
+            let first = ingested::first_time_tag_not_increasing(&ingest_dir, d.nominal_dt_s);
             let at = (first.map(|k| format!("the first at {}", sample_at(m, k))))
                 .into_iter()
                 .chain(time_faults_listed(&ingest_dir.join(files::INGEST_EVENTS)))

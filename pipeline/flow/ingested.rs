@@ -347,23 +347,33 @@ pub fn first_odometer_flagged(ingest_dir: &Path) -> Option<usize> {
 }
 
 /// The first IMU sample of an ingest whose time tag the derive repairs
-/// ([`first_time_not_increasing`]), its tags read alone.
-pub fn first_time_tag_not_increasing(ingest_dir: &Path) -> Option<usize> {
+/// ([`first_time_not_increasing`]), its tags read alone; `nominal_s` is the derive's
+/// nominal interval.
+pub fn first_time_tag_not_increasing(ingest_dir: &Path, nominal_s: f64) -> Option<usize> {
     let mut t_ns = Vec::new();
     for_each_batch_of(&ingest_dir.join(files::IMU), &[schema::T_NS], |b| {
         t_ns.extend_from_slice(values_of::<arrow::datatypes::Int64Type>(b, schema::T_NS)?);
         Ok(())
     })
     .ok()?;
-    first_time_not_increasing(&t_ns)
+    first_time_not_increasing(&t_ns, nominal_s)
 }
 
-/// The first of time tags `t_ns` the derive repairs: the first whose time from the first
-/// tag (in seconds, as the derive takes it) is not after the one before.
-pub fn first_time_not_increasing(t_ns: &[i64]) -> Option<usize> {
+/// The first of time tags `t_ns` the derive repairs, by its own rule
+/// ([`unz_stages::derive::repaired_time`], with its nominal interval `nominal_s`): the
+/// first not after the one before, or one that leapt forward alone.
+pub fn first_time_not_increasing(t_ns: &[i64], nominal_s: f64) -> Option<usize> {
     let t0 = *t_ns.first()?;
     let t_s = |k: usize| (t_ns[k] - t0) as f64 * 1e-9;
-    (1..t_ns.len()).find(|&k| t_s(k) <= t_s(k - 1))
+    let mut prev_t_s = -nominal_s;
+    for k in 0..t_ns.len() {
+        let next_t_s = || (k + 1 < t_ns.len()).then(|| t_s(k + 1));
+        if unz_stages::derive::repaired_time(k, prev_t_s, t_s(k), next_t_s, nominal_s).is_some() {
+            return Some(k);
+        }
+        prev_t_s = t_s(k);
+    }
+    None
 }
 
 /// The first IMU sample of an ingest whose increments `d` (its derive) replaced as beyond
@@ -402,13 +412,13 @@ mod tests {
         let mut t: Vec<i64> = (0..20_000)
             .map(|k| 5_000_000_000 + k * 10_000_000)
             .collect();
-        assert_eq!(first_time_not_increasing(&t), None);
+        assert_eq!(first_time_not_increasing(&t, 0.01), None);
         t[17_000] = t[16_999] - 1;
         t[18_000] = t[17_999];
-        assert_eq!(first_time_not_increasing(&t), Some(17_000));
+        assert_eq!(first_time_not_increasing(&t, 0.01), Some(17_000));
         t[12_000] = t[11_999];
-        assert_eq!(first_time_not_increasing(&t), Some(12_000));
-        assert_eq!(first_time_not_increasing(&[]), None);
+        assert_eq!(first_time_not_increasing(&t, 0.01), Some(12_000));
+        assert_eq!(first_time_not_increasing(&[], 0.01), None);
     }
 
     /// An ingested IMU table read with its increments' byte streams joined is the one

@@ -427,6 +427,32 @@ impl Epochs {
     }
 }
 
+/// The time the derive gives sample `k` in place of its tag's `t_s` (s from the first
+/// tag), after the time it gave the sample before (`prev_t_s`), the next tag's time to
+/// hand (`next_t_s`, read only when it matters), and the run's nominal interval; `None`
+/// when the tag stands. A tag not after the time before is repaired one interval on; so
+/// is one that leapt forward alone, its neighbours in order (a glitch in the recorder's
+/// clock, its CRC made after it), short of the next: kept, it would make every later
+/// tag go back from it.
+#[inline]
+pub fn repaired_time(
+    k: usize,
+    prev_t_s: f64,
+    t_s: f64,
+    next_t_s: impl FnOnce() -> Option<f64>,
+    nominal_s: f64,
+) -> Option<f64> {
+    if k == 0 {
+        return None;
+    }
+    if t_s <= prev_t_s {
+        return Some(prev_t_s + nominal_s);
+    }
+    let next_t_s = next_t_s()?;
+    (prev_t_s < next_t_s && next_t_s < t_s && t_s - prev_t_s > 1.5 * nominal_s)
+        .then(|| prev_t_s + nominal_s.min(0.5 * (next_t_s - prev_t_s)))
+}
+
 /// Cumulative odometer distance at time `t` (linear interpolation; held after the last
 /// tag, and continued back over one interval before the first). Only tags later than the
 /// last one kept, with a finite distance, are kept; they are read from the ingested series
@@ -666,19 +692,9 @@ pub fn derive_owned(
     let mut prev_t = -nominal;
     for k in 0..n {
         let mut t = (tags[k] - t0) as f64 * 1e-9;
-        if k > 0 && t <= prev_t {
-            t = prev_t + nominal;
-            out.repaired_times += 1;
-        } else if let Some(next_t) = (tags.get(k + 1)).map(|&s| (s - t0) as f64 * 1e-9)
-            && k > 0
-            && prev_t < next_t
-            && next_t < t
-            && t - prev_t > 1.5 * nominal
-        {
-            // A tag that leapt forward alone, its neighbours in order (a glitch in the
-            // recorder's clock, its CRC made after it): repaired, short of the next, as
-            // one going back is; kept, it would make every later tag go back from it.
-            t = prev_t + nominal.min(0.5 * (next_t - prev_t));
+        let next_t = || tags.get(k + 1).map(|&s| (s - t0) as f64 * 1e-9);
+        if let Some(repaired) = repaired_time(k, prev_t, t, next_t, nominal) {
+            t = repaired;
             out.repaired_times += 1;
         }
         tags[k] = t.to_bits() as i64;
