@@ -198,12 +198,19 @@ fn log(data: &[u8]) -> Vec<u8> {
 
 /// Writes the run `data` describes into the scratch folder's `run/`, and empties its
 /// `out/`; returns both.
+#[allow(dead_code)] // Not every target that shares this module calls it.
 pub fn write_run(data: &[u8]) -> (PathBuf, PathBuf) {
+    write_run_with(data, MANIFEST.as_bytes())
+}
+
+/// [`write_run`] with `manifest` as its `run.toml`, whatever it holds.
+pub fn write_run_with(data: &[u8], manifest: &[u8]) -> (PathBuf, PathBuf) {
     let dir = scratch::scratch();
     let (run, out) = (dir.join("run"), dir.join("out"));
     let _ = std::fs::remove_dir_all(&out);
+    let _ = std::fs::remove_dir_all(&run);
     std::fs::create_dir_all(&run).unwrap();
     std::fs::write(run.join("run.unz"), log(data)).unwrap();
-    std::fs::write(run.join("run.toml"), MANIFEST).unwrap();
+    std::fs::write(run.join("run.toml"), manifest).unwrap();
     (run, out)
 }
