@@ -27,6 +27,7 @@ use crate::flow::{
     Cores, NavigateSummary, Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest,
     ensure_ingest_before_derive, ensure_navigate,
 };
+use unz_stages::initial::StaticCut;
 
 /// The stages of `unz run`, in order.
 pub const STAGES: [&str; 7] = [
@@ -510,8 +511,10 @@ fn run_note(
             None => by_reason.push((vec![name], why)),
         }
     }
-    odo_failed
+    let static_cut = nav.and_then(|n| n.initial.static_cut.as_ref());
+    (static_cut.map(StaticCut::said))
         .into_iter()
+        .chain(odo_failed)
         .chain(rebridged)
         .chain(
             by_reason

@@ -193,7 +193,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 18: the heights' fit starts from the vehicle's configured angle; each point's
         //     slope reported.
         // 19: a mounted unit's manifest angles and drifts are turned into the body's.
-        version: 19,
+        // 20: a static start given past the odometer's first sign of motion is cut there.
+        version: 20,
         params_hash: params_hash(&(params.before_export(), method, dparams))?,
         inputs,
         outputs: &[

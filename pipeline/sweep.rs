@@ -181,7 +181,8 @@ pub fn ensure_sweep(ctx: &RunCtx, params: &Params, axes: &[Axis]) -> anyhow::Res
         dir: dir.clone(),
         name: "sweep",
         // 2: a mounted unit's manifest angles and drifts are turned into the body's.
-        version: 2,
+        // 3: a static start given past the odometer's first sign of motion is cut there.
+        version: 3,
         params_hash: params_hash(&(params.before_export(), axes))?,
         inputs,
         outputs: &["sweep.parquet", "sweep.json"],

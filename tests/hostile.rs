@@ -1413,6 +1413,35 @@ fn an_odometer_count_that_stops_while_driving_is_found_without_a_flag() {
     assert_eq!(seq(at) - seq(unz_formats::raw::HEADER_LEN), k0 as u64 + 1);
 }
 
+/// A control point whose `t_s` lies outside the log fails the run naming the point, its
+/// time as a number a reader can take in (1e300 was printed with 301 digits), and the
+/// log's span, which shows a time given from the log's start where the log's clock counts
+/// from elsewhere (or the other way round).
+#[test]
+fn a_control_point_timed_outside_the_log_names_the_logs_span() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    for (run, t_s, said) in [("sim-0080", 1e300, "1e300"), ("sim-0081", -2.5, "-2.5")] {
+        let path = camp.join(run).join("run.toml");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let point = format!(
+            "\n[[control_point]]\nid = 9\nlatitude_deg = 50.0\nlongitude_deg = 16.0\n\
+             height_m = 200.0\nt_s = {t_s:e}\n"
+        );
+        std::fs::write(&path, text + &point).unwrap();
+        let log = read_log(&camp.join(run).join(format!("{run}.unz")));
+        let (first, last) = (log.imu.first().unwrap().t_us, log.imu.last().unwrap().t_us);
+        let span = format!("{:.2} to {:.2}", first as f64 * 1e-6, last as f64 * 1e-6);
+        let out = tmp.path().join(format!("o-{run}"));
+        let (code, text) = self::run(&camp.join(run), &out, "navigate");
+        assert_eq!(code, Some(1), "{text}");
+        let want = format!(
+            "control point 9 at t_s = {said} is outside the log, which runs from t_s = {span}"
+        );
+        assert!(text.contains(&want), "{want}\n{text}");
+    }
+}
+
 /// A mark whose point id no control point has (a key pressed wrong, or a point left out
 /// of the manifest): beside a control point that then matches nothing, the run's error
 /// names both, the id typed wrong being the likely fault; beside points that all match

@@ -107,13 +107,17 @@ pub fn ensure_navigate(
         //    has are said.
         // 8: a point the route comes back to is compared at each visit.
         // 9: a mounted unit's manifest angles and drifts are turned into the body's.
-        version: 9,
+        // 10: a static start given past the odometer's first sign of motion is cut there.
+        version: 10,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],
     };
     ctx.run_stage(&stage, || {
         let case = load_case(ctx, params, overrides)?;
+        if let Some(cut) = &case.initial.static_cut {
+            ctx.say("navigate", &cut.said());
+        }
         // The pass writes nav.parquet as it runs (the other core encoding its batches),
         // keeping the positions at the control points.
         let fix_samples: Vec<usize> = case.fixes.iter().map(|f| f.sample).collect();

@@ -122,7 +122,43 @@ pub struct InitialReport {
     /// log's first minute; absent otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub in_motion_level: Option<InMotionLevelReport>,
+    /// The static start given, cut where the odometer shows the vehicle moving within
+    /// it; absent when it stood through it (or none was given).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub static_cut: Option<StaticCut>,
 }
+
+/// A static start given (by the manifest) longer than the vehicle stood: the alignment
+/// would have averaged a drive.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct StaticCut {
+    /// The static start given, s.
+    pub given_s: f64,
+    /// When the odometer's net travel from the log's start first passed [`MOVED_M`], s
+    /// from the first sample; the static start then ends [`MOVE_MARGIN_S`] before.
+    pub moved_s: f64,
+}
+
+impl StaticCut {
+    /// What the cut was, for the run's log and its row of the campaign summary.
+    pub fn said(&self) -> String {
+        format!(
+            "the static start given (static_s = {} s) runs past the vehicle's first move, \
+             {:.2} s in by its odometer: the alignment averaged the first {:.2} s (set \
+             static_s to the time the vehicle stood)",
+            self.given_s,
+            self.moved_s,
+            (self.moved_s - MOVE_MARGIN_S).max(0.0)
+        )
+    }
+}
+
+/// Net odometer travel from the log's start, m, past which the vehicle has left its
+/// place: a count's jitter at rest goes back and forth, a drive does not.
+pub const MOVED_M: f64 = 0.05;
+/// Time, s, between the end of a static start and the odometer's first sign of motion
+/// (the vehicle creeps, and the odometer may lag).
+pub const MOVE_MARGIN_S: f64 = 1.0;
 
 /// How a start levelled in motion was fitted ([`crate::in_motion_level`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
@@ -148,10 +184,33 @@ pub fn detect_static_s(d: &Derived) -> f64 {
     d.t_s.last().unwrap_or(0.0)
 }
 
-/// Length of the static start `initial_settings` averages over, s: the request's, else
-/// detected from the odometer, at most the run.
+/// When the odometer's net travel from the log's start first passes [`MOVED_M`], s from
+/// the first sample; `None` if it never does.
+pub fn first_moved_s(d: &Derived) -> Option<f64> {
+    let mut net_m = 0.0;
+    (d.t_s.iter().zip(&d.odo_dist_m)).find_map(|(t_s, dd_m)| {
+        net_m += dd_m;
+        (net_m.abs() > MOVED_M).then_some(t_s)
+    })
+}
+
+/// The request's static start cut where the odometer shows the vehicle moving within it,
+/// `None` when it stood through it or none was given.
+pub fn static_cut(d: &Derived, req: &InitialRequest) -> Option<StaticCut> {
+    let given_s = req.static_s?;
+    let moved_s = first_moved_s(d).filter(|&t| t - MOVE_MARGIN_S < given_s)?;
+    Some(StaticCut { given_s, moved_s })
+}
+
+/// Length of the static start `initial_settings` averages over, s: the request's, up to
+/// [`MOVE_MARGIN_S`] before the odometer shows the vehicle moving ([`static_cut`]), else
+/// detected from the odometer; at most the run.
 pub fn static_start_s(d: &Derived, req: &InitialRequest) -> f64 {
-    req.static_s
+    let given = match static_cut(d, req) {
+        Some(cut) => Some((cut.moved_s - MOVE_MARGIN_S).max(0.0)),
+        None => req.static_s,
+    };
+    given
         .unwrap_or_else(|| detect_static_s(d))
         .min(d.t_s.last().unwrap_or(0.0))
 }
@@ -317,6 +376,83 @@ pub fn initial_settings_with_velocity(
         drift_z_at_rest_rad_s: dz,
         odo_scale: req.odo_scale,
         in_motion_level: None,
+        static_cut: static_cut(d, req),
     };
     (settings, report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::time_base::TimeBase;
+
+    /// A log at 100 Hz whose odometer gives `step_m(k)` at sample `k`.
+    fn log(n: usize, step_m: impl Fn(usize) -> f64) -> Derived {
+        Derived {
+            t_s: TimeBase::from((0..n).map(|k| k as f64 * 0.01).collect::<Vec<_>>()),
+            odo_dist_m: (0..n).map(step_m).collect(),
+            ..Derived::default()
+        }
+    }
+
+    fn given(static_s: f64) -> InitialRequest {
+        InitialRequest {
+            static_s: Some(static_s),
+            ..InitialRequest::default()
+        }
+    }
+
+    /// A count's jitter at rest: 2 cm forward and back, sample after sample.
+    fn jitter_m(k: usize) -> f64 {
+        if k.is_multiple_of(2) { 0.02 } else { -0.02 }
+    }
+
+    #[test]
+    fn a_static_start_given_past_the_first_move_ends_a_second_before_it() {
+        // At rest for 30 s, the count jittering, then driving at 1.2 m/s: the net travel
+        // passes 5 cm at the drive's fifth sample (6 cm), where the jitter's sum of
+        // steps passed it at the log's third.
+        let d = log(6000, |k| if k < 3000 { jitter_m(k) } else { 0.012 });
+        let moved_s = first_moved_s(&d).unwrap();
+        assert!((moved_s - 30.04).abs() < 1e-9, "{moved_s}");
+        assert_eq!(detect_static_s(&d), 0.0);
+        // Given 45 s: cut to a second before the move, and said.
+        let cut = static_cut(&d, &given(45.0)).unwrap();
+        assert_eq!(
+            cut,
+            StaticCut {
+                given_s: 45.0,
+                moved_s
+            }
+        );
+        assert!((static_start_s(&d, &given(45.0)) - 29.04).abs() < 1e-9);
+        assert!(
+            cut.said()
+                .contains("(static_s = 45 s) runs past the vehicle's first move, 30.04 s in")
+                && cut.said().contains("averaged the first 29.04 s"),
+            "{}",
+            cut.said()
+        );
+        // Within the stand, or within a second of the move: as given.
+        for s in [25.0, 29.0] {
+            assert_eq!(static_cut(&d, &given(s)), None);
+            assert_eq!(static_start_s(&d, &given(s)), s);
+        }
+        // Past it by a hair: cut.
+        assert!(static_cut(&d, &given(29.05)).is_some());
+        // A move in the first second: no static start left.
+        let early = log(1000, |k| if k < 50 { 0.0 } else { 0.012 });
+        assert_eq!(static_start_s(&early, &given(60.0)), 0.0);
+    }
+
+    #[test]
+    fn a_static_start_given_past_a_log_at_rest_is_the_log() {
+        let d = log(1000, jitter_m);
+        assert_eq!(first_moved_s(&d), None);
+        assert_eq!(static_cut(&d, &given(86_400.0)), None);
+        assert_eq!(static_start_s(&d, &given(86_400.0)), 9.99);
+        // Backwards counts are travel too: a vehicle that rolled back moved.
+        let back = log(1000, |k| if k < 500 { 0.0 } else { -0.012 });
+        assert!((first_moved_s(&back).unwrap() - 5.04).abs() < 1e-9);
+    }
 }
