@@ -198,7 +198,7 @@ pub fn first_moved_s(d: &Derived) -> Option<f64> {
 /// `None` when it stood through it or none was given.
 pub fn static_cut(d: &Derived, req: &InitialRequest) -> Option<StaticCut> {
     let given_s = req.static_s?;
-    let moved_s = first_moved_s(d).filter(|&t| t - MOVE_MARGIN_S < given_s)?;
+    let moved_s = first_moved_s(d).filter(|&t| (t - MOVE_MARGIN_S).max(0.0) < given_s)?;
     Some(StaticCut { given_s, moved_s })
 }
 
@@ -440,9 +440,12 @@ mod tests {
         }
         // Past it by a hair: cut.
         assert!(static_cut(&d, &given(29.05)).is_some());
-        // A move in the first second: no static start left.
+        // A move in the first second: no static start left. None given (a log begun
+        // while driving): none cut.
         let early = log(1000, |k| if k < 50 { 0.0 } else { 0.012 });
         assert_eq!(static_start_s(&early, &given(60.0)), 0.0);
+        assert_eq!(static_cut(&early, &given(0.0)), None);
+        assert_eq!(static_cut(&early, &InitialRequest::default()), None);
     }
 
     #[test]
