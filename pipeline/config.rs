@@ -171,9 +171,10 @@ pub fn validate(p: &Params) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// A parameter's value for a message: as Rust writes it, or in exponent form when that
-/// would run to many digits (`1e300`, `1e-30`).
-fn shown(v: f64) -> String {
+/// A number from untrusted input for a message (a parameter's value, a control point's
+/// time): as Rust writes it, or in exponent form when that would run to many digits
+/// (`1e300`, `1e-30`).
+pub(crate) fn shown(v: f64) -> String {
     if v == 0.0 || !v.is_finite() || (1e-6..1e15).contains(&v.abs()) {
         format!("{v}")
     } else {

@@ -115,16 +115,6 @@ pub struct MatchedPoints {
     pub unknown_marks: Option<UnknownMarks>,
 }
 
-/// A time as a message gives it, s: as written below 1e10 s (three centuries), else in
-/// exponent form (a `t_s` of 1e300 would print 301 digits).
-fn said_s(t_s: f64) -> String {
-    if t_s.abs() < 1e10 {
-        format!("{t_s}")
-    } else {
-        format!("{t_s:e}")
-    }
-}
-
 /// Matches the manifest's control points: by their mark records ([`choose_marks`],
 /// reading the ingested `odometer`: of an id marked more than once, the last made at
 /// rest, and the earlier stops that `navigated` puts at the same place, each a visit),
@@ -194,7 +184,7 @@ pub fn match_control_points(
                     "control point {} at t_s = {} is outside the log, which runs from \
                      t_s = {first_s:.2} to {:.2}",
                     cp.id,
-                    said_s(t_s),
+                    crate::config::shown(t_s),
                     first_s + last
                 );
             }
