@@ -171,17 +171,14 @@ pub struct InMotionLevelReport {
     pub residual_rms_deg: f64,
 }
 
-/// Length of the static start: from the odometer, the time before it first moves 5 cm,
-/// less 1 s.
+/// Length of the static start detected from the odometer, s: up to [`MOVE_MARGIN_S`]
+/// before it first shows the vehicle moving ([`first_moved_s`]), the whole log if it
+/// never does.
 pub fn detect_static_s(d: &Derived) -> f64 {
-    let mut dist = 0.0;
-    for (t, dd) in d.t_s.iter().zip(&d.odo_dist_m) {
-        dist += dd.abs();
-        if dist > 0.05 {
-            return (t - 1.0).max(0.0);
-        }
+    match first_moved_s(d) {
+        Some(moved_s) => (moved_s - MOVE_MARGIN_S).max(0.0),
+        None => d.t_s.last().unwrap_or(0.0),
     }
-    d.t_s.last().unwrap_or(0.0)
 }
 
 /// When the odometer's net travel from the log's start first passes [`MOVED_M`], s from
@@ -194,24 +191,22 @@ pub fn first_moved_s(d: &Derived) -> Option<f64> {
     })
 }
 
-/// The request's static start cut where the odometer shows the vehicle moving within it,
-/// `None` when it stood through it or none was given.
+/// The request's static start when it runs past the one detected (the odometer shows
+/// the vehicle moving within it); `None` when the vehicle stood through it, or none was
+/// given.
 pub fn static_cut(d: &Derived, req: &InitialRequest) -> Option<StaticCut> {
     let given_s = req.static_s?;
     let moved_s = first_moved_s(d).filter(|&t| (t - MOVE_MARGIN_S).max(0.0) < given_s)?;
     Some(StaticCut { given_s, moved_s })
 }
 
-/// Length of the static start `initial_settings` averages over, s: the request's, up to
-/// [`MOVE_MARGIN_S`] before the odometer shows the vehicle moving ([`static_cut`]), else
-/// detected from the odometer; at most the run.
+/// Length of the static start `initial_settings` averages over, s: the request's, cut
+/// to the one detected where the vehicle moved within it ([`static_cut`]), else the one
+/// detected; at most the run.
 pub fn static_start_s(d: &Derived, req: &InitialRequest) -> f64 {
-    let given = match static_cut(d, req) {
-        Some(cut) => Some((cut.moved_s - MOVE_MARGIN_S).max(0.0)),
-        None => req.static_s,
-    };
-    given
-        .unwrap_or_else(|| detect_static_s(d))
+    let detected_s = detect_static_s(d);
+    (req.static_s)
+        .map_or(detected_s, |given_s| given_s.min(detected_s))
         .min(d.t_s.last().unwrap_or(0.0))
 }
 
@@ -410,12 +405,12 @@ mod tests {
     #[test]
     fn a_static_start_given_past_the_first_move_ends_a_second_before_it() {
         // At rest for 30 s, the count jittering, then driving at 1.2 m/s: the net travel
-        // passes 5 cm at the drive's fifth sample (6 cm), where the jitter's sum of
-        // steps passed it at the log's third.
+        // passes 5 cm at the drive's fifth sample (6 cm). The jitter's sum of steps
+        // passed it at the log's third, where detection used to end the static start.
         let d = log(6000, |k| if k < 3000 { jitter_m(k) } else { 0.012 });
         let moved_s = first_moved_s(&d).unwrap();
         assert!((moved_s - 30.04).abs() < 1e-9, "{moved_s}");
-        assert_eq!(detect_static_s(&d), 0.0);
+        assert!((detect_static_s(&d) - 29.04).abs() < 1e-9);
         // Given 45 s: cut to a second before the move, and said.
         let cut = static_cut(&d, &given(45.0)).unwrap();
         assert_eq!(
@@ -454,6 +449,7 @@ mod tests {
         assert_eq!(first_moved_s(&d), None);
         assert_eq!(static_cut(&d, &given(86_400.0)), None);
         assert_eq!(static_start_s(&d, &given(86_400.0)), 9.99);
+        assert_eq!(detect_static_s(&d), 9.99);
         // Backwards counts are travel too: a vehicle that rolled back moved.
         let back = log(1000, |k| if k < 500 { 0.0 } else { -0.012 });
         assert!((first_moved_s(&back).unwrap() - 5.04).abs() < 1e-9);
