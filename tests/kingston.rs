@@ -349,6 +349,45 @@ fn kingston_cut_to_begin_while_driving() {
     assert!(cp_max < 2.0, "control points {cp_max} m");
 }
 
+/// The real drive with a static start given past its drive-off (`static_s = 800`; the
+/// car stood 527 s): the static start ends a second before the OBD-II speed has it 5 cm
+/// on, as `navigate.json` says, and the corrected heading and control points are the
+/// whole drive's with its own 500 s (within 0.5° over the moving part and 2 m).
+#[test]
+fn kingston_static_start_given_past_the_drive_off() {
+    use unz::disupt_stage::DisuptOut;
+    use unz::flow::NavigateSummary;
+
+    let tmp = tempfile::tempdir().unwrap();
+    let run = kingston_with(&tmp.path().join("k"), "");
+    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+    let mut m: toml::Table = toml::from_str(&manifest).unwrap();
+    m["initial"]["static_s"] = 800.0.into();
+    std::fs::write(run.join("run.toml"), toml::to_string(&m).unwrap()).unwrap();
+    let out = tmp.path().join("o");
+    crate::util::run_until(&run, &out, "disupt");
+    let dir = out.join("kingston2008-segment1");
+    let nav: NavigateSummary = read_json(&dir.join("navigate/navigate.json"));
+    let cut = nav.initial.static_cut.expect("the static start cut");
+    assert_eq!(cut.given_s, 800.0);
+    // The reference has the car leave its place between 527 and 528 s in.
+    assert!((527.0..530.0).contains(&cut.moved_s), "{cut:?}");
+    let d: DisuptOut = read_json(&dir.join("disupt/disupt.json"));
+    let j = d
+        .methods
+        .get("joint")
+        .unwrap_or_else(|| panic!("joint not run: {:?}", d.skipped));
+    let r = reference();
+    let heading_err = corrected_heading_error_deg(&dir.join("disupt"), &r);
+    let cp_max = worst_control_point_m(j);
+    eprintln!(
+        "Kingston, static_s = 800: cut at {:.2} s, corrected by {:?}, heading {heading_err:.3}°, control points ≤ {cp_max:.2} m",
+        nav.initial.static_s, d.corrected_by
+    );
+    assert!(heading_err < 0.5, "heading {heading_err}°");
+    assert!(cp_max < 2.0, "control points {cp_max} m");
+}
+
 /// The shipped Kingston run's OBD-II speeds: time, s, and speed, m/s.
 fn kingston_speeds() -> Vec<(f64, f64)> {
     std::fs::read_to_string(test_data("kingston2008-seg1").join("odometer.txt"))
