@@ -134,6 +134,7 @@ mod tests {
             error_sigma: None,
             inconsistent: excluded,
             excluded,
+            apart: false,
         }
     }
 

@@ -24,6 +24,15 @@ pub const HOLDOUT_INCONSISTENT_SIGMA: f64 = 3.717;
 /// two (36 clean simulated runs: none above 2.1σ).
 pub const HOLDOUT_MIN_POINTS: usize = 3;
 
+/// With two control points (fewer than [`HOLDOUT_MIN_POINTS`], so neither is called
+/// inconsistent) and a static start, the hold-out errors, in σ, beyond which both
+/// together are said to disagree with the log ([`Holdout::apart`]): correct points
+/// reached 5.3σ on 50 simulated runs with a static start (100 hold-outs). Without one
+/// they reached 12.9σ on 14 logs begun while driving, so no call is made there. On
+/// Kingston (1.1σ and 1.1σ as surveyed) the site 50 m off gave 41σ and 32σ, 20 m off
+/// 12.5σ and 12.4σ, the first point timed 25 s early 31σ and 26σ.
+pub const HOLDOUT_TWO_POINTS_SIGMA: f64 = 10.0;
+
 /// Hold-out refits whose exact passes run, and whose observations are held, at once
 /// (whole batches of lanes). A run with more points holds this many observations, not one
 /// per point: with 5 050 points a 10-minute run's disupt process peaked at 2.0 GB when
@@ -64,6 +73,12 @@ pub struct Holdout {
     /// fit's own there, its spread what the fit predicts.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub excluded: bool,
+    /// One of exactly two control points, in a run with a static start, whose hold-out
+    /// errors are both beyond [`HOLDOUT_TWO_POINTS_SIGMA`]: the two disagree with the
+    /// log (a point's coordinates, time or mark, or the site, are off), and the fit
+    /// cannot tell which.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub apart: bool,
 }
 
 impl Holdout {
@@ -89,6 +104,7 @@ impl Holdout {
             inconsistent: points >= HOLDOUT_MIN_POINTS
                 && error_sigma.is_some_and(|e| e > HOLDOUT_INCONSISTENT_SIGMA),
             excluded: false,
+            apart: false,
         }
     }
 
@@ -168,7 +184,15 @@ pub fn inconsistent_points_note(h: &[Holdout]) -> Option<String> {
              mark, the largest first"
         )
     });
-    let notes: Vec<String> = excluded.into_iter().chain(kept).collect();
+    let two_apart = listed(&|p| p.apart).map(|(_, each)| {
+        format!(
+            "the two control points disagree with the log beyond what the settings explain \
+             (hold-out error, and in σ of what the fit without it predicts): {each}; with \
+             two points the fit cannot tell which is off: check their coordinates, times \
+             and marks, and the site (the run's start)"
+        )
+    });
+    let notes: Vec<String> = excluded.into_iter().chain(kept).chain(two_apart).collect();
     (!notes.is_empty()).then(|| notes.join("; "))
 }
 
@@ -258,7 +282,23 @@ pub fn holdout(
             }
         }
     }
-    Ok(out.into_iter().flatten().collect())
+    let mut out: Vec<Holdout> = out.into_iter().flatten().collect();
+    mark_two_apart(&mut out, problem.drift_z_prior_deg_h.is_some());
+    Ok(out)
+}
+
+/// Marks [`Holdout::apart`] on the hold-outs `h` of a run with two control points, when
+/// it has a `static_start` and every visit's error is beyond
+/// [`HOLDOUT_TWO_POINTS_SIGMA`].
+fn mark_two_apart(h: &mut [Holdout], static_start: bool) {
+    let weighed = || h.iter().filter(|p| !p.excluded);
+    let ids: std::collections::BTreeSet<u32> = weighed().map(|p| p.id).collect();
+    let far = |p: &Holdout| p.error_sigma.is_some_and(|e| e > HOLDOUT_TWO_POINTS_SIGMA);
+    if static_start && ids.len() == 2 && weighed().all(far) {
+        for p in h.iter_mut().filter(|p| !p.excluded) {
+            p.apart = true;
+        }
+    }
 }
 
 /// The predicted covariance (north, east; m²) of control point `i`'s hold-out error:
@@ -372,6 +412,63 @@ mod tests {
             note.starts_with("control points inconsistent")
                 && note.contains(": 3 (9.0 m, 9.0σ), 2 (5.0 m, 5.0σ);"),
             "{note}"
+        );
+    }
+
+    #[test]
+    fn two_points_far_beyond_their_spread_are_said_to_disagree_together() {
+        let s = Matrix2::new(1.0, 0.0, 0.0, 1.0);
+        let marked = |h: &[Holdout], static_start: bool| {
+            let mut h = h.to_vec();
+            mark_two_apart(&mut h, static_start);
+            h
+        };
+        let two = [
+            Holdout::of(1, 0.0, [30.0, 0.0], Some(s), 2),
+            Holdout::of(2, 0.0, [0.0, 40.0], Some(s), 2),
+        ];
+        let h = marked(&two, true);
+        assert!(h.iter().all(|p| p.apart && !p.inconsistent));
+        let note = inconsistent_points_note(&h).unwrap();
+        assert!(
+            note.starts_with("the two control points disagree with the log")
+                && note.contains(": 2 (40.0 m, 40.0σ), 1 (30.0 m, 30.0σ); with two points")
+                && note.ends_with("and the site (the run's start)"),
+            "{note}"
+        );
+        // Without a static start (correct points reached 12.9σ), or with one of them
+        // within 10σ, or none beyond: nothing said.
+        assert_eq!(inconsistent_points_note(&marked(&two, false)), None);
+        for near in [[9.0, 0.0], [1.0, 1.0]] {
+            let h = marked(&[two[0], Holdout::of(2, 0.0, near, Some(s), 2)], true);
+            assert!(h.iter().all(|p| !p.apart));
+            assert_eq!(inconsistent_points_note(&h), None);
+        }
+        // A point the route came back to, visited twice, and one more: two points.
+        let visits = marked(
+            &[two[0], two[1], Holdout::of(1, 9.0, [0.0, 25.0], Some(s), 2)],
+            true,
+        );
+        assert!(
+            inconsistent_points_note(&visits)
+                .unwrap()
+                .contains("1 at t_s = 9.0")
+        );
+        // Three points: the per-point call ([`HOLDOUT_MIN_POINTS`]) says it.
+        let three = marked(
+            &[two[0], two[1], Holdout::of(3, 0.0, [0.0, 25.0], Some(s), 3)],
+            true,
+        );
+        assert!(three.iter().all(|p| !p.apart));
+        // A point the fit left out does not count as one of two.
+        let left_out = Holdout {
+            excluded: true,
+            ..Holdout::of(3, 0.0, [0.0, 25.0], Some(s), 3)
+        };
+        assert!(
+            marked(&[two[0], two[1], left_out], true)[..2]
+                .iter()
+                .all(|p| p.apart)
         );
     }
 
