@@ -11,6 +11,7 @@ use unz_stages::imu_axes::{
     AxesCheck, AxesVerdict, GRAVITY_TOLERANCE, ImuAxes, MAX_TILT_DEG, SCALE_GAIN_RANGE,
 };
 use unz_stages::imu_mounting::{self, MAX_MOUNTING_YAW_DEG};
+use unz_stages::units::UnitRatio;
 
 use crate::flow::VehicleParams;
 
@@ -88,7 +89,7 @@ pub fn check_axes(
                 SCALE_GAIN_RANGE.end(),
                 // A pulse scale is no unit of speed.
                 if manifest.format == LogFormat::UnzBinary {
-                    ""
+                    String::new()
                 } else {
                     known_unit(1.0 / along.gain)
                 },
@@ -208,18 +209,13 @@ fn settings_for(body_from_log: nalgebra::Rotation3<f64>) -> (ImuAxes, [f64; 3]) 
     (axes, imu_mounting::angles_deg(&rest))
 }
 
-/// Names the unit a speed in m/s would be `factor` times, when one is near it.
-fn known_unit(factor: f64) -> &'static str {
-    const UNITS: [(f64, &str); 4] = [
-        (3.6, " (a speed in km/h is 3.6 times its m/s)"),
-        (3.281, " (a speed in ft/s is 3.28 times its m/s)"),
-        (2.237, " (a speed in mph is 2.24 times its m/s)"),
-        (1.944, " (a speed in knots is 1.94 times its m/s)"),
-    ];
-    // Within 8 %: the units are 13 % or more apart, and a real gain is within 10 % of 1.
-    (UNITS.iter())
-        .find(|(f, _)| (factor / f - 1.0).abs() < 0.08)
-        .map_or("", |(_, s)| *s)
+/// The ratio of units the odometer's `factor` (its accelerations over the
+/// accelerometers') is near, for the message ([`UnitRatio`]): " (near 3.6, the ratio of
+/// km/h to m/s)"; empty when none is.
+fn known_unit(factor: f64) -> String {
+    UnitRatio::near(factor).map_or_else(String::new, |u| {
+        format!(" (near {}, the ratio of {})", u.shown(), u.of)
+    })
 }
 
 /// Where the odometer's distance is set or written, and how to fix it: `file` is the

@@ -127,8 +127,10 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // flagged samples against a tenth of the run. 8: the IMU's axes checked. 9: the
         // IMU's mounting measured, a yaw beyond 10° failed. 10: the IMU's increments not
         // stored again (the ingest's, but for imu_repairs.parquet's), r not stored. 11: a
-        // time tag that leapt forward alone is repaired alone.
-        version: 11,
+        // time tag that leapt forward alone is repaired alone. 12: the odometer's scale
+        // judged on the accelerometers' part it explains (an odometer reading 1/3.6 of
+        // the truth was not judged).
+        version: 12,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,

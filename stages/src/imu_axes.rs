@@ -280,8 +280,8 @@ pub const MIN_FORWARD_CORRELATION: f64 = 0.5;
 /// twenty seconds of 1 m/s² (pulling away, braking, turning).
 pub const MIN_FORWARD_EXCITATION: f64 = 20.0;
 
-/// Least sum of the odometer's squared accelerations along one axis for its gain to be
-/// judged, (m/s²)²: ten seconds of 1 m/s².
+/// Least sum of the squared accelerations along one axis for its gain to be judged
+/// ([`ScaleFit::explained`]), (m/s²)²: ten seconds of 1 m/s².
 pub const MIN_SCALE_EXCITATION: f64 = 10.0;
 
 /// The gains a log in its own units gives: 0.98–1.03 on 21 simulated runs, 1.04 along
@@ -345,9 +345,17 @@ pub struct ScaleFit {
 }
 
 impl ScaleFit {
-    /// Whether the drive shows the gain: enough acceleration, well correlated.
+    /// The accelerometer's sum of squares the odometer's accelerations explain, (m/s²)²:
+    /// the odometer's own ([`Self::excitation`]) times the gain squared, the same whatever
+    /// the odometer's unit (speeds in m/s read as km/h have 1/13 of the odometer's sum).
+    pub fn explained(&self) -> f64 {
+        self.excitation * self.gain * self.gain
+    }
+
+    /// Whether the drive shows the gain: enough acceleration (the accelerometer's the
+    /// odometer explains), well correlated.
     pub fn shown(&self) -> bool {
-        self.excitation >= MIN_SCALE_EXCITATION && self.correlation >= MIN_FORWARD_CORRELATION
+        self.explained() >= MIN_SCALE_EXCITATION && self.correlation >= MIN_FORWARD_CORRELATION
     }
 
     /// Whether the gain is shown and beyond what units or scales that are right give.
