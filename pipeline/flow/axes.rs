@@ -91,7 +91,10 @@ pub fn check_axes(
                 if manifest.format == LogFormat::UnzBinary {
                     String::new()
                 } else {
-                    known_unit(1.0 / along.gain)
+                    known_unit(
+                        1.0 / along.gain,
+                        manifest.odometer.kind == Some(OdometerKind::SpeedKmh),
+                    )
                 },
                 odometer_fix(manifest, odometer_file)
             )
@@ -211,11 +214,15 @@ fn settings_for(body_from_log: nalgebra::Rotation3<f64>) -> (ImuAxes, [f64; 3]) 
 
 /// The ratio of units the odometer's `factor` (its accelerations over the
 /// accelerometers') is near, for the message ([`UnitRatio`]): " (near 3.6, the ratio of
-/// km/h to m/s)"; empty when none is.
-fn known_unit(factor: f64) -> String {
-    UnitRatio::near(factor).map_or_else(String::new, |u| {
-        format!(" (near {}, the ratio of {})", u.shown(), u.of)
-    })
+/// km/h to m/s)"; empty when none is. Below 1 (the file's unit smaller than the one
+/// read) only when the speeds are `declared_kmh`: no other unit a manifest names is
+/// larger than the log's own.
+fn known_unit(factor: f64, declared_kmh: bool) -> String {
+    (UnitRatio::near(factor))
+        .filter(|u| !u.inverse || declared_kmh)
+        .map_or_else(String::new, |u| {
+            format!(" (near {}, the ratio of {})", u.shown(), u.of)
+        })
 }
 
 /// Where the odometer's distance is set or written, and how to fix it: `file` is the
@@ -273,6 +280,23 @@ fn down_words(axes: ImuAxes) -> String {
 mod tests {
     use super::*;
     use nalgebra::{Rotation3, Vector3};
+
+    /// A unit named above 1 whatever the kind; below 1 only for speeds declared in km/h
+    /// (m/s read as km/h: 1/3.6), the one unit a manifest names larger than a log's own.
+    #[test]
+    fn a_unit_below_one_is_named_for_speeds_declared_in_kmh_only() {
+        assert_eq!(
+            known_unit(3.45, false),
+            " (near 3.6, the ratio of km/h to m/s)"
+        );
+        assert_eq!(
+            known_unit(0.27, true),
+            " (near 1/3.6, the ratio of km/h to m/s)"
+        );
+        // A pulse or distance reading half the truth is no unit's (1/1.94 would be knots').
+        assert_eq!(known_unit(0.5, false), "");
+        assert_eq!(known_unit(1.0, true), "");
+    }
 
     /// The settings that name a turn: a yaw within 45° is a mounting of the axes as they
     /// are; a roll of 50° is a right angle's axes and the 40° back; a turn 60° about a
