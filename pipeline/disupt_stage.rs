@@ -195,7 +195,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 19: a mounted unit's manifest angles and drifts are turned into the body's.
         // 20: a static start given past the odometer's first sign of motion is cut there.
         // 21: two control points far beyond their hold-out spread are said to disagree.
-        version: 21,
+        // 22: a drift given beyond its bound, which the fit takes back, is blamed.
+        version: 22,
         params_hash: params_hash(&(params.before_export(), method, dparams))?,
         inputs,
         outputs: &[

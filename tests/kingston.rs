@@ -472,6 +472,31 @@ fn kingston_speeds_in_ms_declared_in_kmh_are_named() {
     );
 }
 
+/// Kingston with its gyro drift x given as 0.001 rad/s (206 °/h: a typo, or °/h written
+/// as rad/s): the joint fit takes it back to 0.0 °/h, beyond its ±5 °/h bound, and is
+/// refused; the reason the campaign's note gives blames the drift given, not the run.
+#[test]
+fn kingston_a_drift_given_far_off_is_blamed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = kingston_with(&tmp.path().join("k"), "");
+    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+    let mut m: toml::Table = toml::from_str(&manifest).unwrap();
+    let drift = toml::Value::Array(vec![1e-3.into(), 0.0.into(), 0.0.into()]);
+    m["initial"]
+        .as_table_mut()
+        .unwrap()
+        .insert("drift_rad_s".into(), drift);
+    std::fs::write(run.join("run.toml"), toml::to_string(&m).unwrap()).unwrap();
+    let out = tmp.path().join("o");
+    crate::util::run_until(&run, &out, "disupt");
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains("drift x moved -206.3 °/h, bound ±5 °/h, from +206.3 °/h given to")
+            && summary.contains("the drift given ([initial] drift_rad_s, in rad/s) is off"),
+        "{summary}"
+    );
+}
+
 /// The shipped Kingston run's OBD-II speeds: time, s, and speed, m/s.
 fn kingston_speeds() -> Vec<(f64, f64)> {
     std::fs::read_to_string(test_data("kingston2008-seg1").join("odometer.txt"))

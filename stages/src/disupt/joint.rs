@@ -314,13 +314,32 @@ pub fn within_bounds(fit: &JointFit, start: &X, p: &DisuptParams) -> Result<(), 
         .iter()
         .map(|&(s, moved)| {
             let (name, unit) = s.name_and_unit();
+            let given = match s {
+                Setting::DriftX | Setting::DriftY | Setting::DriftZ => {
+                    drift_given_off(start.get(s), fit.result.x.get(s), p.bound(s))
+                }
+                _ => None,
+            };
             format!(
-                "{name} moved {moved:+.1} {unit}, bound ±{} {unit}",
-                p.bound(s)
+                "{name} moved {moved:+.1} {unit}, bound ±{} {unit}{}",
+                p.bound(s),
+                given.unwrap_or_default()
             )
         })
         .collect();
     Err(DisuptError::OutOfBounds(said.join("; ")))
+}
+
+/// What a drift that moved beyond its bound says when the drift it started from, °/h, was
+/// itself beyond the bound and the fit brings it within the bound of zero: the drift
+/// given (`[initial] drift_rad_s`) is off, not the run. `None` otherwise.
+fn drift_given_off(start_deg_h: f64, fitted_deg_h: f64, bound_deg_h: f64) -> Option<String> {
+    (start_deg_h.abs() > bound_deg_h && fitted_deg_h.abs() <= bound_deg_h).then(|| {
+        format!(
+            ", from {start_deg_h:+.1} °/h given to {fitted_deg_h:+.1}: the drift given \
+             ([initial] drift_rad_s, in rad/s) is off, not the run"
+        )
+    })
 }
 
 /// The joint estimator, with options; see [`joint`].
@@ -679,5 +698,24 @@ impl OdoYawSeen {
     /// How many σ from zero.
     pub fn z(&self) -> f64 {
         self.odo_yaw_deg.abs() / self.sigma_deg
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::drift_given_off;
+
+    #[test]
+    fn a_drift_given_beyond_its_bound_and_fitted_near_zero_is_blamed() {
+        // Kingston with drift x given as 0.001 rad/s (206.3 °/h): fitted to +0.1.
+        assert_eq!(
+            drift_given_off(206.3, 0.1, 5.0).unwrap(),
+            ", from +206.3 °/h given to +0.1: the drift given ([initial] drift_rad_s, in \
+             rad/s) is off, not the run"
+        );
+        // A drift given within its bound, or fitted beyond it from zero: not the drift
+        // given's fault.
+        assert_eq!(drift_given_off(3.0, -9.0, 5.0), None);
+        assert_eq!(drift_given_off(206.3, 40.0, 5.0), None);
     }
 }
