@@ -27,7 +27,7 @@ use crate::flow::{
     Cores, NavigateSummary, Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest,
     ensure_ingest_before_derive, ensure_navigate,
 };
-use unz_stages::initial::StaticCut;
+use unz_stages::initial::{LevelApart, StaticCut};
 
 /// The stages of `unz run`, in order.
 pub const STAGES: [&str; 7] = [
@@ -512,8 +512,10 @@ fn run_note(
         }
     }
     let static_cut = nav.and_then(|n| n.initial.static_cut.as_ref());
+    let level_apart = nav.and_then(|n| n.initial.level_apart.as_ref());
     (static_cut.map(StaticCut::said))
         .into_iter()
+        .chain(level_apart.map(LevelApart::said))
         .chain(odo_failed)
         .chain(rebridged)
         .chain(

@@ -497,6 +497,57 @@ fn kingston_a_drift_given_far_off_is_blamed() {
     );
 }
 
+/// Kingston with a pitch of 5° given beside its 500-s static start, whose accelerometers
+/// level the car at −0.34°: `navigate.json` (`initial.level_apart`), the run's log and the
+/// campaign's note say that the pitch given is 5.34° from the levelling (the joint fit,
+/// which takes ±50 mrad of levelling, is refused). A roll and pitch given within 0.1° of
+/// the levelling say nothing.
+#[test]
+fn kingston_a_tilt_given_far_from_the_levelling_is_said() {
+    use unz::flow::NavigateSummary;
+
+    let tmp = tempfile::tempdir().unwrap();
+    for (k, (tilt, apart)) in [
+        ("pitch_deg = 5.0", true),
+        ("roll_deg = -0.3\npitch_deg = -0.3", false),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let run = kingston_with(&tmp.path().join(format!("k{k}")), "");
+        let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+        let given = manifest.replacen("static_s = 500.0", &format!("static_s = 500.0\n{tilt}"), 1);
+        assert_ne!(given, manifest);
+        std::fs::write(run.join("run.toml"), given).unwrap();
+        let out = tmp.path().join(format!("o{k}"));
+        let o = crate::util::unz_output(&[
+            "run",
+            run.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success());
+        let dir = out.join("kingston2008-segment1");
+        let nav: NavigateSummary = read_json(&dir.join("navigate/navigate.json"));
+        let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+        let log = String::from_utf8_lossy(&o.stderr);
+        match nav.initial.level_apart {
+            Some(a) => {
+                assert!(apart, "{tilt}: {a:?}");
+                assert!((a.given_deg[1] - 5.0).abs() < 1e-9 && (a.apart_deg() - 5.34).abs() < 0.05);
+                assert!(
+                    summary.contains(&a.said()) && log.contains(&a.said()),
+                    "{summary}"
+                );
+            }
+            None => {
+                assert!(!apart, "{tilt}");
+                assert!(!summary.contains("the roll and pitch given"), "{summary}");
+            }
+        }
+    }
+}
+
 /// The shipped Kingston run's OBD-II speeds: time, s, and speed, m/s.
 fn kingston_speeds() -> Vec<(f64, f64)> {
     std::fs::read_to_string(test_data("kingston2008-seg1").join("odometer.txt"))

@@ -108,7 +108,8 @@ pub fn ensure_navigate(
         // 8: a point the route comes back to is compared at each visit.
         // 9: a mounted unit's manifest angles and drifts are turned into the body's.
         // 10: a static start given past the odometer's first sign of motion is cut there.
-        version: 10,
+        // 11: a roll or pitch given far from the static start's levelling is said.
+        version: 11,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],
@@ -117,6 +118,9 @@ pub fn ensure_navigate(
         let case = load_case(ctx, params, overrides)?;
         if let Some(cut) = &case.initial.static_cut {
             ctx.say("navigate", &cut.said());
+        }
+        if let Some(apart) = &case.initial.level_apart {
+            ctx.say("navigate", &apart.said());
         }
         // The pass writes nav.parquet as it runs (the other core encoding its batches),
         // keeping the positions at the control points.

@@ -126,6 +126,58 @@ pub struct InitialReport {
     /// it; absent when it stood through it (or none was given).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub static_cut: Option<StaticCut>,
+    /// A roll or pitch given more than [`LEVEL_APART_DEG`] from the static start's
+    /// levelling; absent otherwise. The run keeps what was given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub level_apart: Option<LevelApart>,
+}
+
+/// How far a tilt given may be from the static start's levelling before it is said to be
+/// off, degrees: a milli-g of accelerometer bias tilts the levelling by 0.057°, and 1° is
+/// 17 mg, beyond any navigation-grade IMU's bias.
+pub const LEVEL_APART_DEG: f64 = 1.0;
+
+/// A roll or pitch given (by the manifest) far from what the static start's
+/// accelerometers level the body at: a setting typed wrong, or another run's.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct LevelApart {
+    /// The body's roll and pitch with what was given, degrees.
+    pub given_deg: [f64; 2],
+    /// The static start's levelling of the body, roll and pitch, degrees.
+    pub levelled_deg: [f64; 2],
+}
+
+impl LevelApart {
+    /// Of a body at `given_deg` (roll, pitch) that the static start levels at
+    /// `levelled_deg`: `None` when they are within [`LEVEL_APART_DEG`].
+    pub fn of(given_deg: [f64; 2], levelled_deg: [f64; 2]) -> Option<Self> {
+        let apart = Self {
+            given_deg,
+            levelled_deg,
+        };
+        (apart.apart_deg() > LEVEL_APART_DEG).then_some(apart)
+    }
+
+    /// The larger of the roll's and the pitch's difference, degrees.
+    pub fn apart_deg(&self) -> f64 {
+        let d = |k: usize| {
+            crate::attitude::wrap_pi((self.given_deg[k] - self.levelled_deg[k]).to_radians())
+        };
+        d(0).abs().max(d(1).abs()).to_degrees()
+    }
+
+    /// What it is, for the run's log and its row of the campaign summary.
+    pub fn said(&self) -> String {
+        let [r, p] = self.given_deg;
+        let [lr, lp] = self.levelled_deg;
+        format!(
+            "the roll and pitch given ({r:.2}°, {p:.2}°) are {:.2}° from the static start's \
+             levelling ({lr:.2}°, {lp:.2}°), where the accelerometers' biases move it by a \
+             tenth of a degree: the manifest's roll_deg or pitch_deg may be wrong (the run \
+             keeps them)",
+            self.apart_deg()
+        )
+    }
 }
 
 /// A static start given (by the manifest) longer than the vehicle stood: the alignment
@@ -372,6 +424,14 @@ pub fn initial_settings_with_velocity(
         odo_scale: req.odo_scale,
         in_motion_level: None,
         static_cut: static_cut(d, req),
+        level_apart: (has_static && (req.roll_deg.is_some() || req.pitch_deg.is_some()))
+            .then(|| {
+                LevelApart::of(
+                    [roll, pitch].map(f64::to_degrees),
+                    [lev_roll, lev_pitch].map(f64::to_degrees),
+                )
+            })
+            .flatten(),
     };
     (settings, report)
 }
@@ -441,6 +501,25 @@ mod tests {
         assert_eq!(static_start_s(&early, &given(60.0)), 0.0);
         assert_eq!(static_cut(&early, &given(0.0)), None);
         assert_eq!(static_cut(&early, &InitialRequest::default()), None);
+    }
+
+    #[test]
+    fn a_tilt_given_far_from_the_levelling_is_said() {
+        // Within a degree: nothing; beyond, on either angle: said, with how far.
+        assert_eq!(LevelApart::of([-0.3, -0.3], [-0.25, -0.34]), None);
+        let apart = LevelApart::of([-0.25, 5.0], [-0.25, -0.34]).unwrap();
+        assert!((apart.apart_deg() - 5.34).abs() < 1e-9);
+        assert!(
+            apart.said().starts_with(
+                "the roll and pitch given (-0.25°, 5.00°) are 5.34° from the static start's \
+                 levelling (-0.25°, -0.34°)"
+            ),
+            "{}",
+            apart.said()
+        );
+        assert!(LevelApart::of([1.2, 0.0], [0.0, 0.0]).is_some());
+        // A roll of 179.5° given for a levelling of −179.9°: 0.6° apart, not 359.4°.
+        assert_eq!(LevelApart::of([179.5, 0.0], [-179.9, 0.0]), None);
     }
 
     #[test]
