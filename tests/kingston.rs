@@ -359,11 +359,7 @@ fn kingston_static_start_given_past_the_drive_off() {
     use unz::flow::NavigateSummary;
 
     let tmp = tempfile::tempdir().unwrap();
-    let run = kingston_with(&tmp.path().join("k"), "");
-    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
-    let mut m: toml::Table = toml::from_str(&manifest).unwrap();
-    m["initial"]["static_s"] = 800.0.into();
-    std::fs::write(run.join("run.toml"), toml::to_string(&m).unwrap()).unwrap();
+    let run = kingston_with_initial(&tmp.path().join("k"), "static_s", 800.0.into());
     let out = tmp.path().join("o");
     crate::util::run_until(&run, &out, "disupt");
     let dir = out.join("kingston2008-segment1");
@@ -415,17 +411,9 @@ fn kingston_two_control_points_apart_from_the_log_are_said() {
         ),
     ];
     for (k, (case, from, to, apart)) in cases.into_iter().enumerate() {
-        let run = kingston_with(&tmp.path().join(format!("k{k}")), "");
-        let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
-        assert!(manifest.contains(from));
-        std::fs::write(run.join("run.toml"), manifest.replacen(from, to, 1)).unwrap();
+        let run = kingston_edited(&tmp.path().join(format!("k{k}")), from, to);
         let out = tmp.path().join(format!("o{k}"));
-        let o = crate::util::unz_output(&[
-            "run",
-            run.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
+        let o = unz_run(&run, &out);
         assert!(
             o.status.success(),
             "{case}: {}",
@@ -458,11 +446,11 @@ fn kingston_two_control_points_apart_from_the_log_are_said() {
 #[test]
 fn kingston_speeds_in_ms_declared_in_kmh_are_named() {
     let tmp = tempfile::tempdir().unwrap();
-    let run = kingston_with(&tmp.path().join("k"), "");
-    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
-    let declared = manifest.replacen("kind = \"speed_mps\"", "kind = \"speed_kmh\"", 1);
-    assert_ne!(declared, manifest);
-    std::fs::write(run.join("run.toml"), declared).unwrap();
+    let run = kingston_edited(
+        &tmp.path().join("k"),
+        "kind = \"speed_mps\"",
+        "kind = \"speed_kmh\"",
+    );
     let err = crate::util::stage_fails("derive", &run, &tmp.path().join("o"));
     assert!(
         err.contains(
@@ -478,15 +466,8 @@ fn kingston_speeds_in_ms_declared_in_kmh_are_named() {
 #[test]
 fn kingston_a_drift_given_far_off_is_blamed() {
     let tmp = tempfile::tempdir().unwrap();
-    let run = kingston_with(&tmp.path().join("k"), "");
-    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
-    let mut m: toml::Table = toml::from_str(&manifest).unwrap();
     let drift = toml::Value::Array(vec![1e-3.into(), 0.0.into(), 0.0.into()]);
-    m["initial"]
-        .as_table_mut()
-        .unwrap()
-        .insert("drift_rad_s".into(), drift);
-    std::fs::write(run.join("run.toml"), toml::to_string(&m).unwrap()).unwrap();
+    let run = kingston_with_initial(&tmp.path().join("k"), "drift_rad_s", drift);
     let out = tmp.path().join("o");
     crate::util::run_until(&run, &out, "disupt");
     let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
@@ -514,18 +495,10 @@ fn kingston_a_tilt_given_far_from_the_levelling_is_said() {
     .into_iter()
     .enumerate()
     {
-        let run = kingston_with(&tmp.path().join(format!("k{k}")), "");
-        let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
-        let given = manifest.replacen("static_s = 500.0", &format!("static_s = 500.0\n{tilt}"), 1);
-        assert_ne!(given, manifest);
-        std::fs::write(run.join("run.toml"), given).unwrap();
+        let with = format!("static_s = 500.0\n{tilt}");
+        let run = kingston_edited(&tmp.path().join(format!("k{k}")), "static_s = 500.0", &with);
         let out = tmp.path().join(format!("o{k}"));
-        let o = crate::util::unz_output(&[
-            "run",
-            run.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
+        let o = unz_run(&run, &out);
         assert!(o.status.success());
         let dir = out.join("kingston2008-segment1");
         let nav: NavigateSummary = read_json(&dir.join("navigate/navigate.json"));
@@ -569,6 +542,39 @@ fn kingston_with(run: &std::path::Path, extra: &str) -> std::path::PathBuf {
     let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap() + "\n" + extra;
     std::fs::write(run.join("run.toml"), manifest).unwrap();
     run.to_path_buf()
+}
+
+/// `unz run RUN --out OUT`: every stage, the campaign's summary beside.
+fn unz_run(run: &std::path::Path, out: &std::path::Path) -> std::process::Output {
+    crate::util::unz_output(&["run", run.to_str().unwrap(), "--out", out.to_str().unwrap()])
+}
+
+/// The shipped Kingston run copied into `run` (created), `from` in its manifest (which
+/// must hold it) replaced once by `to`.
+fn kingston_edited(run: &std::path::Path, from: &str, to: &str) -> std::path::PathBuf {
+    let run = kingston_with(run, "");
+    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+    assert!(manifest.contains(from), "{from}");
+    std::fs::write(run.join("run.toml"), manifest.replacen(from, to, 1)).unwrap();
+    run
+}
+
+/// The shipped Kingston run copied into `run` (created), its manifest's `[initial] key`
+/// set to `value`.
+fn kingston_with_initial(
+    run: &std::path::Path,
+    key: &str,
+    value: toml::Value,
+) -> std::path::PathBuf {
+    let run = kingston_with(run, "");
+    let path = run.join("run.toml");
+    let mut m: toml::Table = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    m["initial"]
+        .as_table_mut()
+        .unwrap()
+        .insert(key.into(), value);
+    std::fs::write(&path, toml::to_string(&m).unwrap()).unwrap();
+    run
 }
 
 /// Kingston with `extra` added to its manifest ([`kingston_with`] in `dir/k`), run to

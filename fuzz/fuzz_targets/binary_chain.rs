@@ -5,29 +5,19 @@
 //! into the run's error.
 #![no_main]
 
+#[path = "common/every_stage.rs"]
+mod every_stage;
+
 #[path = "common/unz50_run.rs"]
 mod unz50_run;
 
 use libfuzzer_sys::fuzz_target;
-use unz::disupt_stage::{Method, ensure_disupt};
-use unz::flow::{
-    Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest_before_derive, ensure_navigate,
-};
+use unz::flow::RunCtx;
 use unz::runs::load_run;
 
 fuzz_target!(|data: &[u8]| {
     let (run, out) = unz50_run::write_run(data);
     let ctx = RunCtx::new(load_run(&run).unwrap(), out, false);
     let p = &unz::config::for_run(&toml::Table::new(), &ctx.manifest).unwrap();
-    let none = Overrides::default();
-    let _ = (|| -> anyhow::Result<()> {
-        ensure_ingest_before_derive(&ctx, p)?;
-        ensure_derive(&ctx, p)?;
-        ensure_navigate(&ctx, p, &none)?;
-        ensure_criteria(&ctx, p, &none)?;
-        ensure_disupt(&ctx, p, Method::All)?;
-        unz::export::ensure_export(&ctx, p)?;
-        unz::review::ensure_review(&ctx, p)?;
-        Ok(())
-    })();
+    let _ = every_stage::run(&ctx, p);
 });

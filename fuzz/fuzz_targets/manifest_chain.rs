@@ -9,14 +9,14 @@
 //! panic into the run's error.
 #![no_main]
 
+#[path = "common/every_stage.rs"]
+mod every_stage;
+
 #[path = "common/unz50_run.rs"]
 mod unz50_run;
 
 use libfuzzer_sys::fuzz_target;
-use unz::disupt_stage::{Method, ensure_disupt};
-use unz::flow::{
-    Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest_before_derive, ensure_navigate,
-};
+use unz::flow::RunCtx;
 use unz::runs::load_run;
 
 fuzz_target!(|data: &[u8]| {
@@ -35,17 +35,7 @@ fuzz_target!(|data: &[u8]| {
     let Ok(p) = unz::config::for_run(&toml::Table::new(), &ctx.manifest) else {
         return;
     };
-    let none = Overrides::default();
-    let _ = (|| -> anyhow::Result<()> {
-        ensure_ingest_before_derive(&ctx, &p)?;
-        ensure_derive(&ctx, &p)?;
-        ensure_navigate(&ctx, &p, &none)?;
-        ensure_criteria(&ctx, &p, &none)?;
-        ensure_disupt(&ctx, &p, Method::All)?;
-        unz::export::ensure_export(&ctx, &p)?;
-        unz::review::ensure_review(&ctx, &p)?;
-        Ok(())
-    })();
+    let _ = every_stage::run(&ctx, &p);
     // Whatever the run's name, its outputs are in the output folder: the scratch folder
     // holds the run's and the output's folders only, and the run's folder what was
     // written into it.
