@@ -200,8 +200,13 @@ impl StaticCut {
              static_s to the time the vehicle stood)",
             self.given_s,
             self.moved_s,
-            (self.moved_s - MOVE_MARGIN_S).max(0.0)
+            self.static_s()
         )
+    }
+
+    /// The static start averaged, s: the one detected ([`stood_until_s`]).
+    pub fn static_s(&self) -> f64 {
+        stood_until_s(self.moved_s)
     }
 }
 
@@ -223,14 +228,17 @@ pub struct InMotionLevelReport {
     pub residual_rms_deg: f64,
 }
 
+/// The end of a static start whose odometer first shows the vehicle moving at
+/// `moved_s`, s: [`MOVE_MARGIN_S`] before it, and not before the log.
+fn stood_until_s(moved_s: f64) -> f64 {
+    (moved_s - MOVE_MARGIN_S).max(0.0)
+}
+
 /// Length of the static start detected from the odometer, s: up to [`MOVE_MARGIN_S`]
 /// before it first shows the vehicle moving ([`first_moved_s`]), the whole log if it
 /// never does.
 pub fn detect_static_s(d: &Derived) -> f64 {
-    match first_moved_s(d) {
-        Some(moved_s) => (moved_s - MOVE_MARGIN_S).max(0.0),
-        None => d.t_s.last().unwrap_or(0.0),
-    }
+    first_moved_s(d).map_or_else(|| d.t_s.last().unwrap_or(0.0), stood_until_s)
 }
 
 /// When the odometer's net travel from the log's start first passes [`MOVED_M`], s from
@@ -247,19 +255,27 @@ pub fn first_moved_s(d: &Derived) -> Option<f64> {
 /// the vehicle moving within it); `None` when the vehicle stood through it, or none was
 /// given.
 pub fn static_cut(d: &Derived, req: &InitialRequest) -> Option<StaticCut> {
-    let given_s = req.static_s?;
-    let moved_s = first_moved_s(d).filter(|&t| (t - MOVE_MARGIN_S).max(0.0) < given_s)?;
-    Some(StaticCut { given_s, moved_s })
+    static_start(d, req).1
 }
 
 /// Length of the static start `initial_settings` averages over, s: the request's, cut
 /// to the one detected where the vehicle moved within it ([`static_cut`]), else the one
 /// detected; at most the run.
 pub fn static_start_s(d: &Derived, req: &InitialRequest) -> f64 {
-    let detected_s = detect_static_s(d);
-    (req.static_s)
-        .map_or(detected_s, |given_s| given_s.min(detected_s))
-        .min(d.t_s.last().unwrap_or(0.0))
+    static_start(d, req).0
+}
+
+/// [`static_start_s`] and [`static_cut`], from one search of the odometer.
+fn static_start(d: &Derived, req: &InitialRequest) -> (f64, Option<StaticCut>) {
+    let log_s = d.t_s.last().unwrap_or(0.0);
+    let moved_s = first_moved_s(d);
+    let detected_s = moved_s.map_or(log_s, stood_until_s);
+    let cut = (req.static_s)
+        .zip(moved_s)
+        .filter(|&(given_s, _)| detected_s < given_s)
+        .map(|(given_s, moved_s)| StaticCut { given_s, moved_s });
+    let static_s = (req.static_s).map_or(detected_s, |given_s| given_s.min(detected_s));
+    (static_s.min(log_s), cut)
 }
 
 /// Samples of the static start (the only velocity increments [`initial_settings`] reads).
@@ -291,7 +307,7 @@ pub fn initial_settings_with_velocity(
         lon_rad: lon0,
         h_m: h0,
     } = start;
-    let static_s = static_start_s(d, req);
+    let (static_s, static_cut) = static_start(d, req);
     let means = align::static_means(&d.dt_s, &d.dtheta_rad, dvel_mps, static_s);
     let has_static = means.duration_s >= 5.0;
     let (lev_roll, lev_pitch) = align::level(&means.f_b_mps2);
@@ -423,7 +439,7 @@ pub fn initial_settings_with_velocity(
         drift_z_at_rest_rad_s: dz,
         odo_scale: req.odo_scale,
         in_motion_level: None,
-        static_cut: static_cut(d, req),
+        static_cut,
         level_apart: (has_static && (req.roll_deg.is_some() || req.pitch_deg.is_some()))
             .then(|| {
                 LevelApart::of(

@@ -38,10 +38,7 @@ pub fn write_run(data: &[u8], control_point: bool) -> Option<(PathBuf, PathBuf)>
         Some(k) => (&rest[..k], &rest[k + 1..]),
         None => (rest, &[][..]),
     };
-    let dir = scratch::scratch();
-    let (run, out) = (dir.join("run"), dir.join("out"));
-    let _ = std::fs::remove_dir_all(&out);
-    std::fs::create_dir_all(&run).unwrap();
+    let (run, out) = scratch::run_and_out();
     std::fs::write(run.join("imu.txt"), log).unwrap();
     std::fs::write(run.join("odometer.txt"), odometer).unwrap();
     let choice = usize::from(choice);

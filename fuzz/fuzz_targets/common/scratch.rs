@@ -10,7 +10,7 @@ const PREFIX: &str = "unz-fuzz-";
 /// folder, for a run's `run/` and `out/`. A process ends without removing it (libFuzzer
 /// exits), and a fork-mode campaign starts a process per job: the folders of processes
 /// that have ended are removed when a process makes its own, so none outlives the next.
-pub fn scratch() -> &'static Path {
+fn scratch() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
         let tmp = std::env::temp_dir();
@@ -27,4 +27,15 @@ pub fn scratch() -> &'static Path {
         std::fs::create_dir_all(&dir).unwrap();
         dir
     })
+}
+
+/// The scratch folder's `run/` and `out/`, emptied (the first created): a run written
+/// there and processed into `out/` leaves nothing of the input before.
+pub fn run_and_out() -> (PathBuf, PathBuf) {
+    let dir = scratch();
+    let (run, out) = (dir.join("run"), dir.join("out"));
+    let _ = std::fs::remove_dir_all(&out);
+    let _ = std::fs::remove_dir_all(&run);
+    std::fs::create_dir_all(&run).unwrap();
+    (run, out)
 }

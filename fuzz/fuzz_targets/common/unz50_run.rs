@@ -205,11 +205,7 @@ pub fn write_run(data: &[u8]) -> (PathBuf, PathBuf) {
 
 /// [`write_run`] with `manifest` as its `run.toml`, whatever it holds.
 pub fn write_run_with(data: &[u8], manifest: &[u8]) -> (PathBuf, PathBuf) {
-    let dir = scratch::scratch();
-    let (run, out) = (dir.join("run"), dir.join("out"));
-    let _ = std::fs::remove_dir_all(&out);
-    let _ = std::fs::remove_dir_all(&run);
-    std::fs::create_dir_all(&run).unwrap();
+    let (run, out) = scratch::run_and_out();
     std::fs::write(run.join("run.unz"), log(data)).unwrap();
     std::fs::write(run.join("run.toml"), manifest).unwrap();
     (run, out)
