@@ -21,6 +21,7 @@ use std::path::Path;
 use anyhow::Context;
 use serde::Deserialize;
 use unz_formats::manifest::RunManifest;
+use unz_stages::derive::ODO_TIME_OFFSET_RANGE_S;
 
 use crate::flow::Params;
 use crate::flow::case::MARK_LEVER_ARM_MAX_M;
@@ -100,7 +101,12 @@ pub fn validate(p: &Params) -> anyhow::Result<()> {
         ("derive.filter.block_s", d.filter.block_s, 1e-4, 10.0),
         ("derive.filter.cutoff_hz", d.filter.cutoff_hz, 1e-3, 50.0),
         ("derive.epoch_s", d.epoch_s, 1e-3, 3600.0),
-        ("derive.odo_time_offset_s", d.odo_time_offset_s, -60.0, 60.0),
+        (
+            "derive.odo_time_offset_s",
+            d.odo_time_offset_s,
+            -ODO_TIME_OFFSET_RANGE_S,
+            ODO_TIME_OFFSET_RANGE_S,
+        ),
         ("derive.gate_long_mps2", d.gate_long_mps2, 1e-3, 100.0),
         ("derive.gate_lat_mps2", d.gate_lat_mps2, 1e-3, 100.0),
         ("derive.max_gap_s", d.max_gap_s, 1e-3, 86_400.0),

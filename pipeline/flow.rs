@@ -13,6 +13,7 @@ pub mod ingest_derive;
 pub mod ingested;
 pub mod marks;
 pub mod navigate;
+pub mod odometer_checks;
 pub mod run_ctx;
 
 use serde::{Deserialize, Serialize};

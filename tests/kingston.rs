@@ -460,6 +460,113 @@ fn kingston_speeds_in_ms_declared_in_kmh_are_named() {
     );
 }
 
+/// Kingston's odometer file with its time tags moved by `shift_s` (a logger on another
+/// clock), copied into `run`.
+fn kingston_odometer_shifted(run: &std::path::Path, shift_s: f64) -> std::path::PathBuf {
+    kingston_odometer_edited(run, |t, v| (t + shift_s, v))
+}
+
+/// Kingston's odometer file with each row `(t_s, value)` replaced by `edit`'s, copied
+/// into `run`.
+fn kingston_odometer_edited(
+    run: &std::path::Path,
+    edit: impl Fn(f64, f64) -> (f64, f64),
+) -> std::path::PathBuf {
+    let run = kingston_with(run, "");
+    let rows: String = kingston_speeds()
+        .into_iter()
+        .map(|(t, v)| {
+            let (t, v) = edit(t, v);
+            format!("{t:.3} {v:.5}\n")
+        })
+        .collect();
+    std::fs::write(run.join("odometer.txt"), rows).unwrap();
+    run
+}
+
+/// Kingston's OBD-II speed file on a clock 5 s late, and 5 s early: beyond the ±1 s of
+/// lag the joint fit searches. Before, each ran "ok": late, with hold-out errors of 39
+/// and 55 m (2.2 and 3.0 m on its own clock) and its lag at the search's bound; early,
+/// with the lag short of its bound (−0.94 s) and hold-out errors of 51 and 129 m, which
+/// the run blamed on the control points. Now the derive fails, naming the file and the
+/// offset that aligns it (within the joint fit's ±1 s of the shift and Kingston's own
+/// −0.58 s lag); set as named, the run is its own clock's again: the route's heading
+/// within 0.45° of the reference and the hold-out errors within 4 m, as the README's
+/// joint fit with lag and bias.
+#[test]
+fn kingston_an_odometer_file_on_another_clock_is_named() {
+    let r = reference();
+    let tmp = tempfile::tempdir().unwrap();
+    for (shift_s, late) in [(5.0, "late"), (-5.0, "early")] {
+        let dir = tmp.path().join(format!("{shift_s}"));
+        let run = kingston_odometer_shifted(&dir.join("k"), shift_s);
+        let err = crate::util::stage_fails("derive", &run, &dir.join("failed"));
+        assert!(
+            err.contains("odometer.txt's time tags run")
+                && err.contains(&format!("s {late} against the IMU's")),
+            "{err}"
+        );
+        let offset_s = crate::util::named_offset_s(&err);
+        // Kingston's own lag, −0.58 ± 0.17 s, is the joint fit's to find.
+        assert!((offset_s + shift_s - 0.58).abs() < 0.8, "{err}");
+        let set = format!("[params.derive]\nodo_time_offset_s = {offset_s}\n");
+        let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap() + "\n" + &set;
+        std::fs::write(run.join("run.toml"), manifest).unwrap();
+        let out = dir.join("o");
+        crate::util::run_until(&run, &out, "disupt");
+        let disupt = out.join("kingston2008-segment1/disupt");
+        let d: unz::disupt_stage::DisuptOut = read_json(&disupt.join("disupt.json"));
+        let j = &d.methods["joint"];
+        let heading_err = corrected_heading_error_deg(&disupt, &r);
+        let holdout_max = (j.holdout.as_ref().unwrap().iter())
+            .map(|h| h.dx_m.hypot(h.dy_m))
+            .fold(0.0, f64::max);
+        eprintln!(
+            "odometer {shift_s:+} s, offset named {offset_s} s: lag {:.3} s, heading {heading_err:.3}°, hold-out ≤ {holdout_max:.2} m",
+            j.outcome.x.odo_lag_s
+        );
+        assert!(
+            heading_err < 0.45 && holdout_max < 4.0,
+            "{heading_err}° {holdout_max} m"
+        );
+        // The lag beyond the offset set: the whole lag is the shift and Kingston's own.
+        assert!(
+            (j.outcome.x.odo_lag_s - offset_s - shift_s + 0.58).abs() < 0.5,
+            "{:?}",
+            j.outcome.x
+        );
+    }
+}
+
+/// Kingston's OBD-II speeds negated, and read as distances: the odometer then runs
+/// backward over all its travel, or over half of it. Before, the negated speeds turned
+/// the axes' check, which named the IMU facing backwards (`imu_axes = "BLD"`); the
+/// speeds read as distances went on to the navigate, which blamed the control points'
+/// coordinates. Now the derive names the odometer file and what is wrong with it.
+#[test]
+fn kingston_an_odometer_running_backward_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let negated = kingston_odometer_edited(&tmp.path().join("neg"), |t, v| (t, -v));
+    let err = crate::util::stage_fails("derive", &negated, &tmp.path().join("neg-o"));
+    assert!(
+        err.contains("odometer.txt runs backward over 100 % of its travel")
+            && err.contains("its sign is reversed; write the speeds of")
+            && !err.contains("imu_axes ="),
+        "{err}"
+    );
+    let as_distances = kingston_edited(
+        &tmp.path().join("dist"),
+        "kind = \"speed_mps\"",
+        "kind = \"distance_m\"",
+    );
+    let err = crate::util::stage_fails("derive", &as_distances, &tmp.path().join("dist-o"));
+    assert!(
+        err.contains("odometer.txt runs backward over 50 % of its travel")
+            && err.contains("speeds? They are read as distances"),
+        "{err}"
+    );
+}
+
 /// Kingston with its gyro drift x given as 0.001 rad/s (206 °/h: a typo, or °/h written
 /// as rad/s): the joint fit takes it back to 0.0 °/h, beyond its ±5 °/h bound, and is
 /// refused; the reason the campaign's note gives blames the drift given, not the run.

@@ -139,6 +139,22 @@ pub fn stage_fails(stage: &str, run: &Path, out: &Path) -> String {
     err
 }
 
+/// The offset a failed derive names for the odometer's time tags: "Set [derive]
+/// odo_time_offset_s = V (in …".
+pub fn named_offset_s(err: &str) -> f64 {
+    let key = "Set [derive] odo_time_offset_s = ";
+    let at = err
+        .find(key)
+        .unwrap_or_else(|| panic!("no offset named: {err}"));
+    let value = err[at + key.len()..]
+        .split_whitespace()
+        .next()
+        .unwrap_or("");
+    value
+        .parse()
+        .unwrap_or_else(|_| panic!("no offset named: {err}"))
+}
+
 /// Every file below `root`, relative to it, sorted.
 pub fn files_below(root: &Path) -> Vec<PathBuf> {
     let mut out = Vec::new();

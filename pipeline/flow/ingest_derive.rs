@@ -10,6 +10,7 @@ use unz_formats::{IngestEvents, IngestReport};
 use unz_stages::earth;
 
 use super::axes::check_axes;
+use super::odometer_checks::{check_clock, check_travel};
 use super::{IngestedSeries, Params, RunCtx, ingested};
 use crate::artifacts::{StageName, files};
 use crate::campaign::read_report;
@@ -129,8 +130,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // stored again (the ingest's, but for imu_repairs.parquet's), r not stored. 11: a
         // time tag that leapt forward alone is repaired alone. 12: the odometer's scale
         // judged on the accelerometers' part it explains (an odometer reading 1/3.6 of
-        // the truth was not judged).
-        version: 12,
+        // the truth was not judged). 13: the odometer's travel backward and its clock
+        // judged (a file on another clock, a count reversed, speeds read as distances).
+        version: 13,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
@@ -159,6 +161,12 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         let report_path = ingest_dir.join(files::INGEST_REPORT);
         let report: IngestReport = serde_json::from_slice(&std::fs::read(&report_path)?)
             .with_context(|| format!("{}", report_path.display()))?;
+        // Which way the odometer runs and on which clock, before its stands are judged
+        // against the vehicle's motion: an odometer on another clock stands while the
+        // vehicle drives, and one counting backward turns the axes' check.
+        let odometer_file = (report.odometer_file.as_ref()).and(m.odometer.file.as_deref());
+        check_travel(&d, m, odometer_file)?;
+        check_clock(&d, params.derive.odo_time_offset_s, m, odometer_file)?;
         let stuck = report.odometer_failures.map_or(0, |f| f.stuck_samples) as usize;
         if (d.odometer_failure_samples + stuck) * 10 > d.t_s.len() {
             let (flagged, n) = (d.odometer_failure_samples, d.t_s.len());
@@ -255,7 +263,6 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ensure_finite("accelerometer pitch", "epoch", pitch.copied())?;
         ensure_finite("accelerometer roll", "epoch", roll.copied())?;
         let g_mps2 = site_gravity_mps2(m);
-        let odometer_file = (report.odometer_file.as_ref()).and(m.odometer.file.as_deref());
         let axes = check_axes(&d, &params.vehicle, g_mps2, m, odometer_file)?;
         d.axes_check = Some(axes);
         write_derived(&d, &dir)?;

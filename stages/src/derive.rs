@@ -28,7 +28,8 @@ pub struct DeriveParams {
     pub filter: FilterParams,
     /// Epoch spacing ΔTg, s (100·ΔT = 1 s at 100 Hz).
     pub epoch_s: f64,
-    /// Time added to the odometer's time tags to align them with the IMU, s.
+    /// Time added to the odometer's time tags to align them with the IMU, s (within
+    /// ±[`ODO_TIME_OFFSET_RANGE_S`]).
     pub odo_time_offset_s: f64,
     /// Epochs with |filtered u̇| above this are gated out, m/s².
     pub gate_long_mps2: f64,
@@ -40,6 +41,10 @@ pub struct DeriveParams {
     /// turns the heading by 0.12° (1σ) over 10 s. A pause at rest may be worth raising it.
     pub max_gap_s: f64,
 }
+
+/// Largest `odo_time_offset_s` either way, s: a logger's clock set by hand is seconds
+/// off; a time zone's or a day's difference leaves no overlap, which the ingest refuses.
+pub const ODO_TIME_OFFSET_RANGE_S: f64 = 60.0;
 
 impl Default for DeriveParams {
     fn default() -> Self {

@@ -1,0 +1,139 @@
+//! The derive's checks of the odometer against the drive: which way its distance runs
+//! ([`Travel`]) and which clock its time tags keep ([`ClockFit`]). Each names the
+//! setting or the file that fixes what it finds; both come before the axes' check, whose
+//! verdict an odometer counting backward or on another clock would mislead.
+
+use std::path::Path;
+
+use anyhow::bail;
+use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
+use unz_stages::derive::{Derived, ODO_TIME_OFFSET_RANGE_S};
+use unz_stages::odo_clock::{ClockFit, MAX_ODOMETER_LAG_S};
+use unz_stages::odo_travel::{Travel, TravelVerdict};
+
+/// Where the odometer's distance comes from, in `m`'s log: `file` is the odometer file
+/// the ingest read (none for a binary log or an 8th column).
+enum Source<'a> {
+    /// A binary log's pulse count.
+    Count,
+    /// A text log's 8th column.
+    Column,
+    /// An odometer file of the kind given.
+    File(&'a Path, OdometerKind),
+}
+
+impl<'a> Source<'a> {
+    fn of(m: &RunManifest, file: Option<&'a Path>) -> Self {
+        match (m.format, file) {
+            (LogFormat::UnzBinary, _) => Self::Count,
+            (LogFormat::KfGins, None) => Self::Column,
+            (LogFormat::KfGins, Some(f)) => {
+                Self::File(f, m.odometer.kind.unwrap_or(OdometerKind::SpeedMps))
+            }
+        }
+    }
+
+    /// "the odometer file odometer.txt".
+    fn name(&self) -> String {
+        match self {
+            Self::Count => "the log's odometer count".to_owned(),
+            Self::Column => "the log's 8th column (the odometer's speed)".to_owned(),
+            Self::File(f, _) => format!("the odometer file {}", f.display()),
+        }
+    }
+}
+
+/// Fails `d` when its odometer's distance runs backward over most of its travel (its sign
+/// reversed) or about as much as ahead (no distance: speeds read as distances), naming
+/// where to fix it.
+pub fn check_travel(d: &Derived, m: &RunManifest, file: Option<&Path>) -> anyhow::Result<()> {
+    let travel = Travel::of(d);
+    let source = Source::of(m, file);
+    let share = format!(
+        "{} runs backward over {:.0} % of its travel ({:.0} m back, {:.0} m ahead)",
+        source.name(),
+        100.0 * travel.backward_share(),
+        travel.back_m,
+        travel.ahead_m
+    );
+    match travel.verdict() {
+        TravelVerdict::Ahead => Ok(()),
+        TravelVerdict::Reversed => {
+            let fix = match source {
+                Source::Count => "the count must rise as the vehicle drives ahead (the \
+                                  counter's direction is wired reversed)"
+                    .to_owned(),
+                Source::Column => "write the column's speeds positive ahead".to_owned(),
+                Source::File(f, kind) if kind.is_speed() => {
+                    format!("write the speeds of {} positive ahead", f.display())
+                }
+                Source::File(f, _) => format!(
+                    "write the distances of {} rising as the vehicle drives ahead",
+                    f.display()
+                ),
+            };
+            bail!(
+                "{share}: its sign is reversed; {fix}. (Its accelerations are the \
+                 accelerometers' turned by 180°, as an IMU facing backwards would make them: \
+                 the IMU's axes are not to blame.)"
+            )
+        }
+        TravelVerdict::BackAndForth => {
+            let hint = match source {
+                Source::File(f, OdometerKind::DistanceM) => format!(
+                    ": are the values of {} speeds? They are read as distances ([odometer] \
+                     kind = \"distance_m\"); name their kind (\"speed_mps\", \"speed_kmh\")",
+                    f.display()
+                ),
+                Source::File(f, _) => format!(": check the sign of the speeds of {}", f.display()),
+                Source::Column => ": check the sign of the column's speeds".to_owned(),
+                Source::Count => ": a count that runs back and forth".to_owned(),
+            };
+            bail!(
+                "{share}, {:.0} m net: no distance a vehicle drives (it reverses metres in \
+                 kilometres){hint}",
+                travel.ahead_m - travel.back_m
+            )
+        }
+    }
+}
+
+/// Fails `d` when its drive shows the odometer's time tags on another clock than the
+/// IMU's (a lag beyond [`MAX_ODOMETER_LAG_S`] at the offset `offset_s` configured),
+/// naming the offset that aligns them. Searched over the lags the setting then takes
+/// (±[`ODO_TIME_OFFSET_RANGE_S`]).
+pub fn check_clock(
+    d: &Derived,
+    offset_s: f64,
+    m: &RunManifest,
+    file: Option<&Path>,
+) -> anyhow::Result<Option<ClockFit>> {
+    let lags = offset_s - ODO_TIME_OFFSET_RANGE_S..=offset_s + ODO_TIME_OFFSET_RANGE_S;
+    let fit = ClockFit::of(d, lags);
+    let Some(f) = fit.filter(ClockFit::off) else {
+        return Ok(fit);
+    };
+    let (late, moved) = if f.lag_s > 0.0 {
+        ("late", "earlier")
+    } else {
+        ("early", "later")
+    };
+    let configured = if offset_s == 0.0 {
+        String::new()
+    } else {
+        format!(", with [derive] odo_time_offset_s = {offset_s}")
+    };
+    bail!(
+        "{}'s time tags run {:.1} s {late} against the IMU's, another clock's: the \
+         accelerometers' x follows the odometer's accelerations best with them {:.1} s \
+         {moved} (correlation {:.2}, against {:.2} as they are{configured}), beyond the \
+         ±{MAX_ODOMETER_LAG_S} s of an odometer's own delay. Set [derive] odo_time_offset_s \
+         = {:.1} (in the campaign's --config, or the run's [params.derive])",
+        Source::of(m, file).name(),
+        f.lag_s.abs(),
+        f.lag_s.abs(),
+        f.correlation,
+        f.correlation_as_given,
+        offset_s - f.lag_s
+    )
+}
