@@ -23,6 +23,7 @@ use crate::artifacts::{RunLayout, StageName, files};
 use crate::campaign_pools::{Pools, RunReports};
 use crate::disupt_stage::{DisuptOut, Method, MethodOut, SettingsOut, SigmaOut, ensure_disupt};
 use crate::flow::marks::RepeatedMark;
+use crate::flow::moving_marks::MovingMark;
 use crate::flow::{
     Cores, NavigateSummary, Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest,
     ensure_ingest_before_derive, ensure_navigate,
@@ -473,6 +474,7 @@ fn run_note(
 ) -> String {
     let skipped = d.into_iter().flat_map(|d| &d.skipped);
     let repeated = nav.into_iter().flat_map(|n| &n.repeated_marks);
+    let moving = nav.into_iter().flat_map(|n| &n.moving_marks);
     let inconsistent = d
         .and_then(|d| d.methods.get("joint")?.holdout.as_deref())
         .and_then(unz_stages::disupt::inconsistent_points_note);
@@ -539,6 +541,7 @@ fn run_note(
                 .map(|u| format!("marks of ids no control point has: {}", u.listed())),
         )
         .chain(repeated.map(RepeatedMark::said))
+        .chain(moving.map(MovingMark::said))
         .collect::<Vec<_>>()
         .join("; ")
 }

@@ -12,6 +12,7 @@ pub mod criteria;
 pub mod ingest_derive;
 pub mod ingested;
 pub mod marks;
+pub mod moving_marks;
 pub mod navigate;
 pub mod odometer_checks;
 pub mod run_ctx;

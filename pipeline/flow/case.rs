@@ -25,6 +25,7 @@ use unz_stages::strapdown::{self, NavInputs, NavSettings, NavTrack, PassSink, na
 
 use super::ingested::load_table;
 use super::marks::{RepeatedMark, UnknownMarks, choose_marks};
+use super::moving_marks::{MovingMark, moving_marks};
 use super::{Overrides, Params, RunCtx, ensure_derive};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::{StoredDerive, read_velocity_prefix};
@@ -37,6 +38,8 @@ pub struct NavCase {
     pub fixes: Vec<ControlPointFix>,
     /// Control points whose id was marked more than once, and the mark used.
     pub repeated_marks: Vec<RepeatedMark>,
+    /// Control points passed at speed, not stood at.
+    pub moving_marks: Vec<MovingMark>,
     /// Marks whose id no control point of the manifest has.
     pub unknown_marks: Option<UnknownMarks>,
     /// Settings of the pass.
@@ -111,6 +114,8 @@ pub struct MatchedPoints {
     pub fixes: Vec<ControlPointFix>,
     /// Points whose id was marked more than once, and the mark used.
     pub repeated_marks: Vec<RepeatedMark>,
+    /// Points passed at speed, not stood at ([`moving_marks`]).
+    pub moving_marks: Vec<MovingMark>,
     /// Marks whose id no control point of the manifest has.
     pub unknown_marks: Option<UnknownMarks>,
 }
@@ -199,9 +204,14 @@ pub fn match_control_points(
             });
         }
     }
+    // A repeated id none of whose marks was at rest is said so with its marks.
+    let moving_marks = moving_marks(&fixes, d, |id| {
+        (repeated_marks.iter()).any(|r| r.id == id && !r.at_rest)
+    });
     Ok(MatchedPoints {
         fixes,
         repeated_marks,
+        moving_marks,
         unknown_marks,
     })
 }
@@ -320,6 +330,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
     let MatchedPoints {
         fixes,
         repeated_marks,
+        moving_marks,
         unknown_marks,
     } = match_control_points(
         m,
@@ -344,6 +355,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         derived,
         fixes,
         repeated_marks,
+        moving_marks,
         unknown_marks,
         settings,
         initial,

@@ -10,6 +10,7 @@ use unz_stages::imu_axes::{AxesCheck, ImuAxes};
 use unz_stages::initial::InitialReport;
 
 use super::marks::{RepeatedMark, UnknownMarks};
+use super::moving_marks::MovingMark;
 use super::{Overrides, Params, RunCtx, ensure_derive, load_case};
 use crate::artifacts::{StageName, files};
 use crate::nav_writer::{NavWriter, SigmaColumns};
@@ -37,6 +38,10 @@ pub struct NavigateSummary {
     /// when none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub repeated_marks: Vec<RepeatedMark>,
+    /// Control points passed at speed, not stood at, and the nearest stop (absent when
+    /// none).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub moving_marks: Vec<MovingMark>,
     /// Marks whose id no control point of the manifest has: a key pressed wrong, or a
     /// point missing from the manifest (absent when none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -109,7 +114,8 @@ pub fn ensure_navigate(
         // 9: a mounted unit's manifest angles and drifts are turned into the body's.
         // 10: a static start given past the odometer's first sign of motion is cut there.
         // 11: a roll or pitch given far from the static start's levelling is said.
-        version: 11,
+        // 12: control points passed at speed, not stood at, are said.
+        version: 12,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],
@@ -118,6 +124,9 @@ pub fn ensure_navigate(
         let case = load_case(ctx, params, overrides)?;
         if let Some(cut) = &case.initial.static_cut {
             ctx.say("navigate", &cut.said());
+        }
+        for moving in &case.moving_marks {
+            ctx.say("navigate", &moving.said());
         }
         if let Some(apart) = &case.initial.level_apart {
             ctx.say("navigate", &apart.said());
@@ -142,6 +151,7 @@ pub fn ensure_navigate(
             control_points: criteria::kryt2_at(&case.fixes, |k| nav.at(k).map(|s| s.pose)),
             mark_lever_arm_m: params.vehicle.mark_arm(),
             repeated_marks: case.repeated_marks.clone(),
+            moving_marks: case.moving_marks.clone(),
             unknown_marks: case.unknown_marks.clone(),
             repaired_times: case.derived.repaired_times,
             filled_gaps: case.derived.filled_gaps,
