@@ -24,11 +24,12 @@ use crate::campaign_pools::{Pools, RunReports};
 use crate::disupt_stage::{DisuptOut, Method, MethodOut, SettingsOut, SigmaOut, ensure_disupt};
 use crate::flow::marks::RepeatedMark;
 use crate::flow::moving_marks::MovingMark;
+use crate::flow::site_apart::SiteApart;
 use crate::flow::{
     Cores, NavigateSummary, Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest,
     ensure_ingest_before_derive, ensure_navigate,
 };
-use unz_stages::initial::{LevelApart, StaticCut};
+use unz_stages::initial::{LevelApart, StaticCut, StaticUnused};
 
 /// The stages of `unz run`, in order.
 pub const STAGES: [&str; 7] = [
@@ -514,9 +515,11 @@ fn run_note(
         }
     }
     let static_cut = nav.and_then(|n| n.initial.static_cut.as_ref());
+    let static_unused = nav.and_then(|n| n.initial.static_unused.as_ref());
     let level_apart = nav.and_then(|n| n.initial.level_apart.as_ref());
     (static_cut.map(StaticCut::said))
         .into_iter()
+        .chain(static_unused.map(StaticUnused::said))
         .chain(level_apart.map(LevelApart::said))
         .chain(odo_failed)
         .chain(rebridged)
@@ -542,6 +545,7 @@ fn run_note(
         )
         .chain(repeated.map(RepeatedMark::said))
         .chain(moving.map(MovingMark::said))
+        .chain(nav.and_then(|n| n.site_apart.as_ref()).map(SiteApart::said))
         .collect::<Vec<_>>()
         .join("; ")
 }

@@ -16,6 +16,7 @@ pub mod moving_marks;
 pub mod navigate;
 pub mod odometer_checks;
 pub mod run_ctx;
+pub mod site_apart;
 
 use serde::{Deserialize, Serialize};
 use unz_stages::criteria::KalmanParams;

@@ -580,8 +580,7 @@ fn kingston_a_control_point_timed_while_driving_is_said() {
     let run = kingston_edited(&tmp.path().join("k"), "t_s = 153011.5", "t_s = 152995.0");
     let out = tmp.path().join("o");
     crate::util::run_until(&run, &out, "navigate");
-    let nav: unz::flow::NavigateSummary =
-        read_json(&out.join("kingston2008-segment1/navigate/navigate.json"));
+    let nav = navigate_summary(&out);
     let [m] = nav.moving_marks.as_slice() else {
         panic!("{:?}", nav.moving_marks)
     };
@@ -598,15 +597,103 @@ fn kingston_a_control_point_timed_while_driving_is_said() {
             && summary.contains("check its time or mark"),
         "{summary}"
     );
-    let shipped = tmp.path().join("shipped");
-    crate::util::run_until(
-        &kingston_with(&tmp.path().join("ks"), ""),
-        &shipped,
-        "navigate",
-    );
-    let nav: unz::flow::NavigateSummary =
-        read_json(&shipped.join("kingston2008-segment1/navigate/navigate.json"));
+    let nav = shipped_navigated(&tmp.path().join("shipped"));
     assert!(nav.moving_marks.is_empty(), "{:?}", nav.moving_marks);
+}
+
+/// Kingston with `static_s = 0` (no static start) though it stands 527 s at its start:
+/// the heading then comes from the control points alone. Before, the run was "ok" with
+/// the joint fit's azimuth σ 0.69° (0.06° aligned) and hold-out errors of 16 and 29 m
+/// (2.2 and 3.0 m), and nothing said. Now `navigate.json` (`initial.static_unused`) and
+/// the campaign's note say the stand was left out, and the run keeps what was given.
+#[test]
+fn kingston_a_stand_left_out_of_the_alignment_is_said() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = kingston_edited(&tmp.path().join("k"), "static_s = 500.0", "static_s = 0.0");
+    let out = tmp.path().join("o");
+    crate::util::run_until(&run, &out, "disupt");
+    let nav = navigate_summary(&out);
+    let unused = nav.initial.static_unused.unwrap();
+    // The speed file's first non-zero speed is at 152671 s, 527.9 s into the log.
+    assert_eq!(unused.given_s, 0.0);
+    assert!((unused.stood_s - 527.0).abs() < 1.5, "{unused:?}");
+    assert_eq!(nav.initial.static_s, 0.0);
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains("the vehicle stood 527 s at the log's start by its odometer")
+            && summary.contains("(static_s = 0 s) leaves it out of the alignment"),
+        "{summary}"
+    );
+    // As shipped (500 s given): nothing said.
+    let nav = shipped_navigated(&tmp.path().join("shipped"));
+    assert_eq!(nav.initial.static_unused, None);
+}
+
+/// Kingston's IMU log with its time tags in milliseconds: its 10-Hz samples step by 100.
+/// The derive's failure now says what the step would be in seconds.
+#[test]
+fn kingston_imu_time_tags_in_milliseconds_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = kingston_with(&tmp.path().join("k"), "");
+    let imu = std::fs::read_to_string(run.join("imu.txt")).unwrap();
+    let in_ms: String = imu
+        .lines()
+        .map(|l| {
+            let (t, rest) = l.split_once(' ').unwrap();
+            let t_ms = (t.parse::<f64>().unwrap() * 1000.0).round();
+            format!("{t_ms} {rest}\n")
+        })
+        .collect();
+    std::fs::write(run.join("imu.txt"), in_ms).unwrap();
+    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("o"));
+    assert!(
+        err.contains("is 100.000 s, longer than derive.max_gap_s")
+            && err.contains("(time tags in milliseconds? 0.1 s then"),
+        "{err}"
+    );
+}
+
+/// Kingston with its site at its second control point's coordinates, 1.1 km from where
+/// it starts (a manifest's site copied from the run's end). Before, the run was "ok" with
+/// the joint fit refused, blamed on "a control point's coordinates or mark, the
+/// odometer's scale, or a setting given", and OEPI's route 1134 m off. Now `navigate.json`
+/// (`site_apart`) and the campaign's note give the shift every point's error shares,
+/// which is the site's error (the site given less the true one: −237 m north, −1120 m
+/// east), and the refusal names the site among the suspects.
+#[test]
+fn kingston_a_site_off_is_named_by_the_shift_of_every_point() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = kingston_edited(
+        &tmp.path().join("k"),
+        "latitude_deg = 44.232490740",
+        "latitude_deg = 44.230360898",
+    );
+    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+    let manifest = manifest.replacen(
+        "longitude_deg = -76.466492006",
+        "longitude_deg = -76.480514264",
+        1,
+    );
+    std::fs::write(run.join("run.toml"), manifest).unwrap();
+    let out = tmp.path().join("o");
+    crate::util::run_until(&run, &out, "disupt");
+    let nav = navigate_summary(&out);
+    let apart = nav.site_apart.unwrap();
+    // The site given less the true one: (44.230360898 − 44.232490740)° north is −236.7 m,
+    // (−76.480514264 + 76.466492006)° east −1120.3 m (WGS-84); the errors' own spread
+    // (the initial azimuth's and the drifts' share, 10 m on Kingston as surveyed) moves
+    // their mean.
+    assert!((apart.north_m + 236.7).abs() < 10.0, "{apart:?}");
+    assert!((apart.east_m + 1120.3).abs() < 10.0, "{apart:?}");
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains(
+            "every control point's error before DISUPT is about -237 m north and -1113 m east"
+        ) && summary.contains("the site (the run's start), the odometer's scale"),
+        "{summary}"
+    );
+    let nav = shipped_navigated(&tmp.path().join("shipped"));
+    assert_eq!(nav.site_apart, None);
 }
 
 /// Kingston with its gyro drift x given as 0.001 rad/s (206 °/h: a typo, or °/h written
@@ -691,6 +778,19 @@ fn kingston_with(run: &std::path::Path, extra: &str) -> std::path::PathBuf {
     let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap() + "\n" + extra;
     std::fs::write(run.join("run.toml"), manifest).unwrap();
     run.to_path_buf()
+}
+
+/// The Kingston run's `navigate.json` in the output folder `out`.
+fn navigate_summary(out: &std::path::Path) -> unz::flow::NavigateSummary {
+    read_json(&out.join("kingston2008-segment1/navigate/navigate.json"))
+}
+
+/// The shipped Kingston run copied into `dir/k` and navigated into `dir/o`: its
+/// `navigate.json`.
+fn shipped_navigated(dir: &std::path::Path) -> unz::flow::NavigateSummary {
+    let out = dir.join("o");
+    crate::util::run_until(&kingston_with(&dir.join("k"), ""), &out, "navigate");
+    navigate_summary(&out)
 }
 
 /// `unz run RUN --out OUT`: every stage, the campaign's summary beside.

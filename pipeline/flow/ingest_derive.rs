@@ -240,8 +240,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         if d.nominal_dt_s > max_gap_s {
             bail!(
                 "the IMU log's sample interval (the median step of its time tags) is {:.3} s, \
-                 longer than derive.max_gap_s = {max_gap_s} s: no IMU's rate",
-                d.nominal_dt_s
+                 longer than derive.max_gap_s = {max_gap_s} s: no IMU's rate{}",
+                d.nominal_dt_s,
+                tag_unit_hint(d.nominal_dt_s)
             );
         }
         if let Some(k) = d.dt_s.iter().position(|&dt| dt > max_gap_s) {
@@ -277,6 +278,27 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
     })?;
     ctx.set_ensured("derive", ensured_with);
     Ok(dir)
+}
+
+/// An IMU's sample interval, s: 1 kHz to 1 Hz.
+const IMU_INTERVALS_S: std::ops::RangeInclusive<f64> = 1e-3..=1.0;
+
+/// " (time tags in milliseconds?)" when a sample interval read as `interval_s` is an
+/// IMU's in a smaller unit of time; empty otherwise.
+fn tag_unit_hint(interval_s: f64) -> String {
+    [
+        (1e-3, "milliseconds"),
+        (1e-6, "microseconds"),
+        (1e-9, "nanoseconds"),
+    ]
+    .into_iter()
+    .find(|(unit_s, _)| IMU_INTERVALS_S.contains(&(interval_s * unit_s)))
+    .map_or_else(String::new, |(unit_s, name)| {
+        format!(
+            " (time tags in {name}? {} s then: the log's time tags must be in seconds)",
+            interval_s * unit_s
+        )
+    })
 }
 
 /// " (the first from PLACE)": where the odometer's first failure (its first row of
@@ -341,6 +363,20 @@ pub fn site_gravity_mps2(m: &RunManifest) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 100-Hz log's tags in milliseconds step by 10 (a 10-Hz one's by 100), in
+    /// microseconds by 10 000: named; a long step in seconds is none of them.
+    #[test]
+    fn time_tags_in_a_smaller_unit_are_named() {
+        assert_eq!(
+            tag_unit_hint(10.0),
+            " (time tags in milliseconds? 0.01 s then: the log's time tags must be in seconds)"
+        );
+        assert!(tag_unit_hint(100.0).contains("milliseconds? 0.1 s"));
+        assert!(tag_unit_hint(10_000.0).contains("microseconds? 0.01 s"));
+        assert!(tag_unit_hint(1e7).contains("nanoseconds? 0.01 s"));
+        assert_eq!(tag_unit_hint(0.5), "");
+    }
 
     /// A value that is not finite is named by its index in the unit given, a vector's by
     /// its sample (not by its component's place in the flattened values).

@@ -11,6 +11,7 @@ use unz_stages::initial::InitialReport;
 
 use super::marks::{RepeatedMark, UnknownMarks};
 use super::moving_marks::MovingMark;
+use super::site_apart::SiteApart;
 use super::{Overrides, Params, RunCtx, ensure_derive, load_case};
 use crate::artifacts::{StageName, files};
 use crate::nav_writer::{NavWriter, SigmaColumns};
@@ -42,6 +43,10 @@ pub struct NavigateSummary {
     /// none).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub moving_marks: Vec<MovingMark>,
+    /// Every control point's error before DISUPT one shift: the site off, or the points
+    /// in another datum (absent otherwise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub site_apart: Option<SiteApart>,
     /// Marks whose id no control point of the manifest has: a key pressed wrong, or a
     /// point missing from the manifest (absent when none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -114,7 +119,9 @@ pub fn ensure_navigate(
         // 9: a mounted unit's manifest angles and drifts are turned into the body's.
         // 10: a static start given past the odometer's first sign of motion is cut there.
         // 11: a roll or pitch given far from the static start's levelling is said.
-        // 12: control points passed at speed, not stood at, are said.
+        // 12: control points passed at speed, not stood at, are said; so are a stand at
+        //     the log's start the static start given leaves out, and every point's error
+        //     one shift (the site off).
         version: 12,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
@@ -122,6 +129,9 @@ pub fn ensure_navigate(
     };
     ctx.run_stage(&stage, || {
         let case = load_case(ctx, params, overrides)?;
+        if let Some(unused) = &case.initial.static_unused {
+            ctx.say("navigate", &unused.said());
+        }
         if let Some(cut) = &case.initial.static_cut {
             ctx.say("navigate", &cut.said());
         }
@@ -143,12 +153,19 @@ pub fn ensure_navigate(
         )?;
         nav.run_helped(|sink| unz_stages::strapdown::run(&case.inputs(), &case.settings, sink));
         let nav = nav.finish("navigated")?;
+        let control_points = criteria::kryt2_at(&case.fixes, |k| nav.at(k).map(|s| s.pose));
+        let site = case.settings.start();
+        let site_apart = SiteApart::of(&control_points, &case.fixes, site);
+        if let Some(apart) = &site_apart {
+            ctx.say("navigate", &apart.said());
+        }
         let summary = NavigateSummary {
             initial: case.initial,
             samples: nav.samples,
             duration_s: case.derived.t_s.last().unwrap_or(0.0),
             distance_m: nav.distance_m,
-            control_points: criteria::kryt2_at(&case.fixes, |k| nav.at(k).map(|s| s.pose)),
+            control_points,
+            site_apart,
             mark_lever_arm_m: params.vehicle.mark_arm(),
             repeated_marks: case.repeated_marks.clone(),
             moving_marks: case.moving_marks.clone(),

@@ -76,8 +76,8 @@ pub enum DisuptError {
     /// disagree beyond what the settings explain ([`DisuptParams::bound`]).
     #[error(
         "the fit left its bounds ({0}): the control points and the log disagree beyond what \
-         the settings explain (a control point's coordinates or mark, the odometer's scale, \
-         or a setting given, are wrong)"
+         the settings explain (a control point's coordinates or mark, the site (the run's \
+         start), the odometer's scale, or a setting given, are wrong)"
     )]
     OutOfBounds(String),
     /// The vehicle hardly moved: nothing DISUPT corrects is observable.

@@ -126,6 +126,10 @@ pub struct InitialReport {
     /// it; absent when it stood through it (or none was given).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub static_cut: Option<StaticCut>,
+    /// No static start given where the vehicle stood a minute or more at the log's
+    /// start ([`StaticUnused`]); absent otherwise. The run keeps what was given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub static_unused: Option<StaticUnused>,
     /// A roll or pitch given more than [`LEVEL_APART_DEG`] from the static start's
     /// levelling; absent otherwise. The run keeps what was given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -210,6 +214,47 @@ impl StaticCut {
     }
 }
 
+/// Shortest stand at a log's start worth an alignment, s: a minute of gyrocompassing
+/// gives a heading; the levelling takes seconds.
+pub const STAND_WORTH_ALIGNING_S: f64 = 60.0;
+
+/// Shortest static start the alignment takes, s: below, the run has none.
+pub const MIN_STATIC_S: f64 = 5.0;
+
+/// A static start given (by the manifest) shorter than the alignment takes
+/// ([`MIN_STATIC_S`]: none) on a log that begins with a stand of a minute or more:
+/// `static_s = 0` on a log that begins at rest leaves the alignment's heading and
+/// levelling out (Kingston's 527-s stand unused: the joint fit's azimuth σ 0.69° against
+/// 0.06°, its hold-out errors 16 and 29 m against 2.2 and 3.0 m). Said, not acted on: a
+/// vehicle carried (on a ship, a train) stands on its odometer while the IMU moves.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct StaticUnused {
+    /// The static start given, s.
+    pub given_s: f64,
+    /// How long the odometer stood at the log's start ([`detect_static_s`]), s.
+    pub stood_s: f64,
+}
+
+impl StaticUnused {
+    /// Of a static start `given_s` on a log whose odometer stood `stood_s` at its start.
+    pub fn of(given_s: f64, stood_s: f64) -> Option<Self> {
+        (stood_s >= STAND_WORTH_ALIGNING_S && given_s < MIN_STATIC_S)
+            .then_some(Self { given_s, stood_s })
+    }
+
+    /// What it is, for the run's log and its row of the campaign summary.
+    pub fn said(&self) -> String {
+        format!(
+            "the vehicle stood {:.0} s at the log's start by its odometer, but the static \
+             start given (static_s = {} s) leaves it out of the alignment: set static_s (or \
+             leave it out for the stand detected) to gyrocompass the heading and level \
+             over it, unless the vehicle was carried (a ship, a train), its odometer still \
+             and its IMU moving (the run keeps what was given)",
+            self.stood_s, self.given_s,
+        )
+    }
+}
+
 /// Net odometer travel from the log's start, m, past which the vehicle has left its
 /// place: a count's jitter at rest goes back and forth, a drive does not.
 pub const MOVED_M: f64 = 0.05;
@@ -255,18 +300,29 @@ pub fn first_moved_s(d: &Derived) -> Option<f64> {
 /// the vehicle moving within it); `None` when the vehicle stood through it, or none was
 /// given.
 pub fn static_cut(d: &Derived, req: &InitialRequest) -> Option<StaticCut> {
-    static_start(d, req).1
+    static_start(d, req).cut
 }
 
 /// Length of the static start `initial_settings` averages over, s: the request's, cut
 /// to the one detected where the vehicle moved within it ([`static_cut`]), else the one
 /// detected; at most the run.
 pub fn static_start_s(d: &Derived, req: &InitialRequest) -> f64 {
-    static_start(d, req).0
+    static_start(d, req).static_s
 }
 
-/// [`static_start_s`] and [`static_cut`], from one search of the odometer.
-fn static_start(d: &Derived, req: &InitialRequest) -> (f64, Option<StaticCut>) {
+/// What the odometer says of the static start asked for.
+struct StaticStart {
+    /// The static start averaged, s ([`static_start_s`]).
+    static_s: f64,
+    /// [`static_cut`].
+    cut: Option<StaticCut>,
+    /// The one given, when it leaves most of the stand out ([`StaticUnused`]).
+    unused: Option<StaticUnused>,
+}
+
+/// [`static_start_s`], [`static_cut`] and [`StaticUnused`], from one search of the
+/// odometer.
+fn static_start(d: &Derived, req: &InitialRequest) -> StaticStart {
     let log_s = d.t_s.last().unwrap_or(0.0);
     let moved_s = first_moved_s(d);
     let detected_s = moved_s.map_or(log_s, stood_until_s);
@@ -274,8 +330,13 @@ fn static_start(d: &Derived, req: &InitialRequest) -> (f64, Option<StaticCut>) {
         .zip(moved_s)
         .filter(|&(given_s, _)| detected_s < given_s)
         .map(|(given_s, moved_s)| StaticCut { given_s, moved_s });
+    let unused = (req.static_s).and_then(|given_s| StaticUnused::of(given_s, detected_s));
     let static_s = (req.static_s).map_or(detected_s, |given_s| given_s.min(detected_s));
-    (static_s.min(log_s), cut)
+    StaticStart {
+        static_s: static_s.min(log_s),
+        cut,
+        unused,
+    }
 }
 
 /// Samples of the static start (the only velocity increments [`initial_settings`] reads).
@@ -307,9 +368,13 @@ pub fn initial_settings_with_velocity(
         lon_rad: lon0,
         h_m: h0,
     } = start;
-    let (static_s, static_cut) = static_start(d, req);
+    let StaticStart {
+        static_s,
+        cut: static_cut,
+        unused: static_unused,
+    } = static_start(d, req);
     let means = align::static_means(&d.dt_s, &d.dtheta_rad, dvel_mps, static_s);
-    let has_static = means.duration_s >= 5.0;
+    let has_static = means.duration_s >= MIN_STATIC_S;
     let (lev_roll, lev_pitch) = align::level(&means.f_b_mps2);
     // Without a static start, level in motion from the accelerometer references of the
     // first epoch (the filter's delay is zero; the joint fit's levelling corrections take
@@ -440,6 +505,7 @@ pub fn initial_settings_with_velocity(
         odo_scale: req.odo_scale,
         in_motion_level: None,
         static_cut,
+        static_unused,
         level_apart: (has_static && (req.roll_deg.is_some() || req.pitch_deg.is_some()))
             .then(|| {
                 LevelApart::of(
@@ -536,6 +602,31 @@ mod tests {
         assert!(LevelApart::of([1.2, 0.0], [0.0, 0.0]).is_some());
         // A roll of 179.5° given for a levelling of −179.9°: 0.6° apart, not 359.4°.
         assert_eq!(LevelApart::of([179.5, 0.0], [-179.9, 0.0]), None);
+    }
+
+    #[test]
+    fn a_stand_left_out_of_the_alignment_is_said() {
+        // At rest for 90 s, then driving: the stand detected ends at 89.04 s.
+        let d = log(12_000, |k| if k < 9000 { jitter_m(k) } else { 0.012 });
+        let unused = |s: f64| static_start(&d, &given(s)).unused;
+        let none = unused(0.0).unwrap();
+        assert!((none.stood_s - 89.04).abs() < 1e-9, "{none:?}");
+        assert!(
+            none.said().starts_with(
+                "the vehicle stood 89 s at the log's start by its odometer, but the static start \
+                 given (static_s = 0 s) leaves it out"
+            ),
+            "{}",
+            none.said()
+        );
+        assert!(unused(4.0).is_some());
+        // A static start the alignment takes, or none given (the stand detected): nothing
+        // said.
+        assert_eq!(unused(5.0), None);
+        assert_eq!(static_start(&d, &InitialRequest::default()).unused, None);
+        // A stand shorter than a minute is no loss.
+        let short = log(6000, |k| if k < 3000 { 0.0 } else { 0.012 });
+        assert_eq!(static_start(&short, &given(0.0)).unused, None);
     }
 
     #[test]
