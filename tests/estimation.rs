@@ -124,8 +124,8 @@ fn an_odometer_on_another_clock_is_named_and_the_offset_named_recovers_its_lag()
     );
     let err = crate::util::stage_fails("derive", &run, &tmp.path().join("failed"));
     assert!(
-        err.contains("the log's odometer count's time tags run ")
-            && err.contains(" s late against the IMU's"),
+        err.contains("the log's odometer count runs ")
+            && err.contains(" s late against the IMU's increments in the same records"),
         "{err}"
     );
     let offset_s = crate::util::named_offset_s(&err);

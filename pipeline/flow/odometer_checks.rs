@@ -123,14 +123,26 @@ pub fn check_clock(
     } else {
         format!(", with [derive] odo_time_offset_s = {offset_s}")
     };
+    let source = Source::of(m, file);
+    // A binary log's count rides in the IMU's records: one clock, a counter's delay.
+    let runs = match source {
+        Source::Count => format!(
+            "{} runs {:.1} s {late} against the IMU's increments in the same records",
+            source.name(),
+            f.lag_s.abs()
+        ),
+        _ => format!(
+            "{}'s time tags run {:.1} s {late} against the IMU's, another clock's",
+            source.name(),
+            f.lag_s.abs()
+        ),
+    };
     bail!(
-        "{}'s time tags run {:.1} s {late} against the IMU's, another clock's: the \
-         accelerometers' x follows the odometer's accelerations best with them {:.1} s \
-         {moved} (correlation {:.2}, against {:.2} as they are{configured}), beyond the \
-         ±{MAX_ODOMETER_LAG_S} s of an odometer's own delay. Set [derive] odo_time_offset_s \
-         = {:.1} (in the campaign's --config, or the run's [params.derive])",
-        Source::of(m, file).name(),
-        f.lag_s.abs(),
+        "{runs}: the accelerometers' x follows the odometer's accelerations best with the \
+         odometer {:.1} s {moved} (correlation {:.2}, against {:.2} as it is{configured}), \
+         beyond the ±{MAX_ODOMETER_LAG_S} s of an odometer's own delay. Set [derive] \
+         odo_time_offset_s = {:.1} (in the campaign's --config, or the run's \
+         [params.derive])",
         f.lag_s.abs(),
         f.correlation,
         f.correlation_as_given,
