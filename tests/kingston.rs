@@ -538,6 +538,44 @@ fn kingston_an_odometer_file_on_another_clock_is_named() {
     }
 }
 
+/// Kingston's speed file with its time tags in milliseconds, a day late, and its lines in
+/// reverse order (each but the first rejected as not after the one before): none leaves
+/// two readings within the IMU's log. Before, the derive held the distance at zero and
+/// the navigate failed blaming the first control point's coordinates, its mark or the
+/// site ("the odometer measured 0 m of travel by its mark"). Now the derive fails naming
+/// the file, the two spans and the likeliest reason.
+#[test]
+fn kingston_an_odometer_file_outside_the_log_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let in_ms = kingston_odometer_edited(&tmp.path().join("ms"), |t, v| (t * 1000.0, v));
+    let err = crate::util::stage_fails("derive", &in_ms, &tmp.path().join("ms-o"));
+    assert!(
+        err.contains(
+            "odometer.txt has 0 of its 877 rows within the IMU log (t_s = 152143.09 to 153018.99)"
+        ) && err
+            .contains("its time tags read in milliseconds would run t_s = 152143.00 to 153019.00"),
+        "{err}"
+    );
+    let a_day_late = kingston_odometer_edited(&tmp.path().join("day"), |t, v| (t + 86_400.0, v));
+    let err = crate::util::stage_fails("derive", &a_day_late, &tmp.path().join("day-o"));
+    assert!(
+        err.contains("where it runs t_s = 238543.00 to 239419.00")
+            && err.contains("its time tags are not the IMU's clock"),
+        "{err}"
+    );
+    let reversed = kingston_with(&tmp.path().join("rev"), "");
+    let rows: Vec<String> = (kingston_speeds().into_iter().rev())
+        .map(|(t, v)| format!("{t} {v}\n"))
+        .collect();
+    std::fs::write(reversed.join("odometer.txt"), rows.concat()).unwrap();
+    let err = crate::util::stage_fails("derive", &reversed, &tmp.path().join("rev-o"));
+    assert!(
+        err.contains("has 0 of its 1 rows within the IMU log")
+            && err.contains("the ingest rejected 876 of its 877 lines"),
+        "{err}"
+    );
+}
+
 /// Kingston's OBD-II speeds negated, and read as distances: the odometer then runs
 /// backward over all its travel, or over half of it. Before, the negated speeds turned
 /// the axes' check, which named the IMU facing backwards (`imu_axes = "BLD"`); the
@@ -629,23 +667,40 @@ fn kingston_a_stand_left_out_of_the_alignment_is_said() {
     assert_eq!(nav.initial.static_unused, None);
 }
 
-/// Kingston's IMU log with its time tags in milliseconds: its 10-Hz samples step by 100.
-/// The derive's failure now says what the step would be in seconds.
+/// Kingston's IMU log with its time tags in milliseconds (its 10-Hz samples step by 100),
+/// beside its speed file in seconds, and with both in milliseconds. The first is now
+/// failed by the odometer's overlap with the log, which names the IMU's tags; the second
+/// (the two files together, as an 8th column is) by the IMU's sample interval, which now
+/// says what its step would be in seconds.
 #[test]
 fn kingston_imu_time_tags_in_milliseconds_are_named() {
     let tmp = tempfile::tempdir().unwrap();
-    let run = kingston_with(&tmp.path().join("k"), "");
-    let imu = std::fs::read_to_string(run.join("imu.txt")).unwrap();
-    let in_ms: String = imu
-        .lines()
-        .map(|l| {
-            let (t, rest) = l.split_once(' ').unwrap();
-            let t_ms = (t.parse::<f64>().unwrap() * 1000.0).round();
-            format!("{t_ms} {rest}\n")
-        })
-        .collect();
-    std::fs::write(run.join("imu.txt"), in_ms).unwrap();
-    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("o"));
+    let imu_in_ms = |run: &std::path::Path| {
+        let imu = std::fs::read_to_string(run.join("imu.txt")).unwrap();
+        let in_ms: String = imu
+            .lines()
+            .map(|l| {
+                let (t, rest) = l.split_once(' ').unwrap();
+                let t_ms = (t.parse::<f64>().unwrap() * 1000.0).round();
+                format!("{t_ms} {rest}\n")
+            })
+            .collect();
+        std::fs::write(run.join("imu.txt"), in_ms).unwrap();
+    };
+    let run = kingston_with(&tmp.path().join("imu"), "");
+    imu_in_ms(&run);
+    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("imu-o"));
+    assert!(
+        err.contains("has 0 of its 877 rows within the IMU log")
+            && err.contains(
+                "the IMU log's time tags read in milliseconds would run t_s = 152143.09 to \
+                 153018.99: write them in seconds"
+            ),
+        "{err}"
+    );
+    let both = kingston_odometer_edited(&tmp.path().join("both"), |t, v| (t * 1000.0, v));
+    imu_in_ms(&both);
+    let err = crate::util::stage_fails("derive", &both, &tmp.path().join("both-o"));
     assert!(
         err.contains("is 100.000 s, longer than derive.max_gap_s")
             && err.contains("(time tags in milliseconds? 0.1 s then"),

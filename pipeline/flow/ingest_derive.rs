@@ -10,7 +10,7 @@ use unz_formats::{IngestEvents, IngestReport};
 use unz_stages::earth;
 
 use super::axes::check_axes;
-use super::odometer_checks::{check_clock, check_travel};
+use super::odometer_checks::{SMALLER_UNITS, check_clock, check_overlap, check_travel};
 use super::{IngestedSeries, Params, RunCtx, ingested};
 use crate::artifacts::{StageName, files};
 use crate::campaign::read_report;
@@ -132,7 +132,8 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // judged on the accelerometers' part it explains (an odometer reading 1/3.6 of
         // the truth was not judged). 13: the odometer's travel backward and its clock
         // judged (a file on another clock, a count reversed, speeds read as distances).
-        version: 13,
+        // 14: an odometer without two rows within the IMU's log failed.
+        version: 14,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
@@ -153,6 +154,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             None => IngestedSeries::load(&ingest_dir)?,
         };
         let counts = raw.failure_counts();
+        let overlap = raw.odometer_overlap(params.derive.odo_time_offset_s);
         let mut d = raw.derive(&params.derive, site_gravity_mps2(m));
         (d.imu_failure_samples, d.odometer_failure_samples) = counts;
         // A run whose odometer failed over much of it (flagged, or a count that stood
@@ -165,8 +167,10 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // against the vehicle's motion: an odometer on another clock stands while the
         // vehicle drives, and one counting backward turns the axes' check.
         let odometer_file = (report.odometer_file.as_ref()).and(m.odometer.file.as_deref());
+        let offset_s = params.derive.odo_time_offset_s;
+        check_overlap(&overlap, offset_s, &report, m, odometer_file)?;
         check_travel(&d, m, odometer_file)?;
-        check_clock(&d, params.derive.odo_time_offset_s, m, odometer_file)?;
+        check_clock(&d, offset_s, m, odometer_file)?;
         let stuck = report.odometer_failures.map_or(0, |f| f.stuck_samples) as usize;
         if (d.odometer_failure_samples + stuck) * 10 > d.t_s.len() {
             let (flagged, n) = (d.odometer_failure_samples, d.t_s.len());
@@ -286,19 +290,14 @@ const IMU_INTERVALS_S: std::ops::RangeInclusive<f64> = 1e-3..=1.0;
 /// " (time tags in milliseconds?)" when a sample interval read as `interval_s` is an
 /// IMU's in a smaller unit of time; empty otherwise.
 fn tag_unit_hint(interval_s: f64) -> String {
-    [
-        (1e-3, "milliseconds"),
-        (1e-6, "microseconds"),
-        (1e-9, "nanoseconds"),
-    ]
-    .into_iter()
-    .find(|(unit_s, _)| IMU_INTERVALS_S.contains(&(interval_s * unit_s)))
-    .map_or_else(String::new, |(unit_s, name)| {
-        format!(
-            " (time tags in {name}? {} s then: the log's time tags must be in seconds)",
-            interval_s * unit_s
-        )
-    })
+    (SMALLER_UNITS.into_iter())
+        .find(|(_, unit_s)| IMU_INTERVALS_S.contains(&(interval_s * unit_s)))
+        .map_or_else(String::new, |(name, unit_s)| {
+            format!(
+                " (time tags in {name}? {} s then: the log's time tags must be in seconds)",
+                interval_s * unit_s
+            )
+        })
 }
 
 /// " (the first from PLACE)": where the odometer's first failure (its first row of

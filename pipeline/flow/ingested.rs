@@ -143,6 +143,19 @@ pub struct IngestedSeries {
     odo: OdometerTable,
 }
 
+/// Where an ingested odometer's rows lie against the IMU's log.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometerOverlap {
+    /// Rows of `odometer.parquet`.
+    pub rows: usize,
+    /// Rows whose time tags, with the offset configured, fall within the IMU's log.
+    pub within: usize,
+    /// The odometer's first and last time tags, ns (as written, without the offset).
+    pub odometer_span_ns: [i64; 2],
+    /// The IMU's, ns.
+    pub imu_span_ns: [i64; 2],
+}
+
 impl IngestedSeries {
     /// Loads `imu.parquet` and `odometer.parquet` of an ingest folder: the columns derive
     /// reads (not the IMU's sequence numbers nor the odometer's pulse counts).
@@ -273,6 +286,24 @@ impl IngestedSeries {
             })
             .collect();
         Ok((spans, rows))
+    }
+
+    /// Where the odometer's rows lie against the IMU's log, their time tags moved by
+    /// `offset_s` (the derive's `odo_time_offset_s`).
+    pub fn odometer_overlap(&self, offset_s: f64) -> OdometerOverlap {
+        let span =
+            |t: &[i64]| [t.first().copied(), t.last().copied()].map(Option::unwrap_or_default);
+        let imu_span_ns = span(&self.imu.t_ns);
+        let offset_ns = (offset_s * 1e9).round() as i64;
+        let within = (self.odo.t_ns.iter())
+            .filter(|&&t| (imu_span_ns[0]..=imu_span_ns[1]).contains(&t.saturating_add(offset_ns)))
+            .count();
+        OdometerOverlap {
+            rows: self.odo.t_ns.len(),
+            within,
+            odometer_span_ns: span(&self.odo.t_ns),
+            imu_span_ns,
+        }
     }
 
     /// Samples whose status flags an IMU built-in-test failure (bit 0) and an odometer

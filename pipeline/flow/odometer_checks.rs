@@ -6,10 +6,13 @@
 use std::path::Path;
 
 use anyhow::bail;
+use unz_formats::IngestReport;
 use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_stages::derive::{Derived, ODO_TIME_OFFSET_RANGE_S};
 use unz_stages::odo_clock::{ClockFit, MAX_ODOMETER_LAG_S};
 use unz_stages::odo_travel::{Travel, TravelVerdict};
+
+use super::ingested::OdometerOverlap;
 
 /// Where the odometer's distance comes from, in `m`'s log: `file` is the odometer file
 /// the ingest read (none for a binary log or an 8th column).
@@ -148,4 +151,82 @@ pub fn check_clock(
         f.correlation_as_given,
         offset_s - f.lag_s
     )
+}
+
+/// Least odometer rows within the IMU's log for a distance to be derived: two readings
+/// make an interval.
+pub const MIN_ROWS_WITHIN: usize = 2;
+
+/// Fails a run whose odometer has fewer than [`MIN_ROWS_WITHIN`] rows within the IMU's
+/// log (with the offset `offset_s` configured): the derive would hold its distance over
+/// the whole log, and the navigate blame the control points. Names why, as far as the
+/// ingest's account (`report`) and the two spans tell: the file's lines rejected, time
+/// tags in a smaller unit, or another clock.
+pub fn check_overlap(
+    o: &OdometerOverlap,
+    offset_s: f64,
+    report: &IngestReport,
+    m: &RunManifest,
+    file: Option<&Path>,
+) -> anyhow::Result<()> {
+    if o.within >= MIN_ROWS_WITHIN {
+        return Ok(());
+    }
+    let s = |t_ns: i64| t_ns as f64 * 1e-9;
+    let [i0, i1] = o.imu_span_ns.map(s);
+    let [o0, o1] = o.odometer_span_ns.map(s);
+    let offset = if offset_s == 0.0 {
+        String::new()
+    } else {
+        format!(", before [derive] odo_time_offset_s = {offset_s} is added")
+    };
+    let lines = report.odometer_file.as_ref();
+    let why = if let Some(l) = lines.filter(|l| l.lines_rejected >= l.lines_accepted) {
+        format!(
+            "the ingest rejected {} of its {} lines (ingest_events.json gives their lines and \
+             reasons)",
+            l.lines_rejected, l.lines_read
+        )
+    } else if let Some((log, name, [a, b])) =
+        SMALLER_UNITS.into_iter().find_map(|(name, unit_s)| {
+            let (odo, imu) = ([o0, o1].map(|t| t * unit_s), [i0, i1].map(|t| t * unit_s));
+            if spans_meet(odo, [i0, i1]) {
+                Some(("its", name, odo))
+            } else if spans_meet(imu, [o0, o1]) {
+                Some(("the IMU log's", name, imu))
+            } else {
+                None
+            }
+        })
+    {
+        format!(
+            "{log} time tags read in {name} would run t_s = {a:.2} to {b:.2}: write them in seconds"
+        )
+    } else {
+        "its time tags are not the IMU's clock (another day's, a time zone's, or counted \
+         from another start?): write them on the IMU's clock ([derive] odo_time_offset_s \
+         shifts them by a minute at most)"
+            .to_owned()
+    };
+    bail!(
+        "{} has {} of its {} rows within the IMU log (t_s = {i0:.2} to {i1:.2}), where it \
+         runs t_s = {o0:.2} to {o1:.2}{offset}: no distance to derive; {why}",
+        Source::of(m, file).name(),
+        o.within,
+        o.rows
+    )
+}
+
+/// Units of time a log's tags may be written in instead of seconds, with their size in
+/// seconds.
+pub(crate) const SMALLER_UNITS: [(&str, f64); 3] = [
+    ("milliseconds", 1e-3),
+    ("microseconds", 1e-6),
+    ("nanoseconds", 1e-9),
+];
+
+/// Whether the spans `a` and `b` (s) overlap by half of `b` or more.
+fn spans_meet(a: [f64; 2], b: [f64; 2]) -> bool {
+    let overlap = a[1].min(b[1]) - a[0].max(b[0]);
+    overlap >= 0.5 * (b[1] - b[0])
 }
