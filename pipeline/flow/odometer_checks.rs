@@ -1,7 +1,9 @@
-//! The derive's checks of the odometer against the drive: which way its distance runs
-//! ([`Travel`]) and which clock its time tags keep ([`ClockFit`]). Each names the
-//! setting or the file that fixes what it finds; both come before the axes' check, whose
-//! verdict an odometer counting backward or on another clock would mislead.
+//! The derive's checks of the odometer against the IMU's log: whether it has readings
+//! within the log ([`check_overlap`]), which way its distance runs ([`Travel`]) and which
+//! clock its time tags keep ([`ClockFit`]). Each names the setting or the file that fixes
+//! what it finds; all come before the watch of its stands and the axes' check, whose
+//! verdicts an odometer outside the log, counting backward or on another clock would
+//! mislead.
 
 use std::path::Path;
 
@@ -110,11 +112,10 @@ pub fn check_clock(
     offset_s: f64,
     m: &RunManifest,
     file: Option<&Path>,
-) -> anyhow::Result<Option<ClockFit>> {
+) -> anyhow::Result<()> {
     let lags = offset_s - ODO_TIME_OFFSET_RANGE_S..=offset_s + ODO_TIME_OFFSET_RANGE_S;
-    let fit = ClockFit::of(d, lags);
-    let Some(f) = fit.filter(ClockFit::off) else {
-        return Ok(fit);
+    let Some(f) = ClockFit::of(d, lags).filter(ClockFit::off) else {
+        return Ok(());
     };
     let (late, moved) = if f.lag_s > 0.0 {
         ("late", "earlier")

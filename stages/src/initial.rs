@@ -316,7 +316,8 @@ struct StaticStart {
     static_s: f64,
     /// [`static_cut`].
     cut: Option<StaticCut>,
-    /// The one given, when it leaves most of the stand out ([`StaticUnused`]).
+    /// The one given, when it leaves a stand of a minute or more out of the alignment
+    /// ([`StaticUnused`]).
     unused: Option<StaticUnused>,
 }
 
