@@ -78,9 +78,9 @@ pub fn check_travel(d: &Derived, m: &RunManifest, file: Option<&Path>) -> anyhow
                 ),
             };
             bail!(
-                "{share}: its sign is reversed; {fix}. (Its accelerations are the \
+                "{share}: its sign is reversed; {fix}. (Its accelerations are then the \
                  accelerometers' turned by 180°, as an IMU facing backwards would make them: \
-                 the IMU's axes are not to blame.)"
+                 mend the odometer's sign before the IMU's axes.)"
             )
         }
         TravelVerdict::BackAndForth => {
