@@ -13,6 +13,7 @@ use unz_stages::imu_axes::{
 use unz_stages::imu_mounting::{self, MAX_MOUNTING_YAW_DEG};
 use unz_stages::units::UnitRatio;
 
+use super::odometer_checks::Source;
 use crate::flow::VehicleParams;
 
 /// Checks `d` (ingested in the axes and mounting `vehicle` names, from the run
@@ -228,35 +229,35 @@ fn known_unit(factor: f64, declared_kmh: bool) -> String {
 /// Where the odometer's distance is set or written, and how to fix it: `file` is the
 /// odometer file the ingest read (none for a binary log or an 8th column).
 fn odometer_fix(m: &RunManifest, file: Option<&Path>) -> String {
-    match (m.format, file, m.odometer.kind) {
-        (LogFormat::UnzBinary, _, _) => "Set the metres per pulse in the manifest's [odometer] \
+    match Source::of(m, file) {
+        Source::Count => "Set the metres per pulse in the manifest's [odometer] \
              scale_m_per_pulse (it overrides the header's odo_lsb_m)"
             .to_owned(),
-        (LogFormat::KfGins, Some(file), Some(OdometerKind::DistanceM)) => {
+        Source::File(file, OdometerKind::DistanceM) => {
             format!("Write the distances of {} in metres", file.display())
         }
-        (LogFormat::KfGins, Some(file), Some(OdometerKind::SpeedKmh)) => format!(
+        Source::File(file, OdometerKind::SpeedKmh) => format!(
             "Check the speeds of {} (read as km/h: [odometer] kind = \"speed_kmh\")",
             file.display()
         ),
-        (LogFormat::KfGins, Some(file), _) => format!(
+        Source::File(file, OdometerKind::SpeedMps) => format!(
             "Write the speeds of {} in m/s, or name their unit in the manifest's [odometer] \
              kind (\"speed_kmh\" for km/h)",
             file.display()
         ),
         // The column read over the manifest's file: its kind is the file's.
-        (LogFormat::KfGins, None, _) if m.odometer.file.is_some() => {
+        Source::Column if m.odometer.file.is_some() => {
             "Write the log's 8th column's speeds in m/s (the column is read, not the \
              manifest's [odometer] file)"
                 .to_owned()
         }
-        (LogFormat::KfGins, None, Some(OdometerKind::SpeedKmh)) => {
+        Source::Column if m.odometer.kind == Some(OdometerKind::SpeedKmh) => {
             "Check the log's 8th column's speeds (read as km/h: [odometer] kind = \
              \"speed_kmh\")"
                 .to_owned()
         }
-        (LogFormat::KfGins, None, _) => "Write the log's 8th column's speeds in m/s, or name \
-             their unit in the manifest's [odometer] kind (\"speed_kmh\" for km/h)"
+        Source::Column => "Write the log's 8th column's speeds in m/s, or name their unit in \
+             the manifest's [odometer] kind (\"speed_kmh\" for km/h)"
             .to_owned(),
     }
 }

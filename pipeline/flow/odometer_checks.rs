@@ -18,7 +18,7 @@ use super::ingested::OdometerOverlap;
 
 /// Where the odometer's distance comes from, in `m`'s log: `file` is the odometer file
 /// the ingest read (none for a binary log or an 8th column).
-enum Source<'a> {
+pub(crate) enum Source<'a> {
     /// A binary log's pulse count.
     Count,
     /// A text log's 8th column.
@@ -28,7 +28,7 @@ enum Source<'a> {
 }
 
 impl<'a> Source<'a> {
-    fn of(m: &RunManifest, file: Option<&'a Path>) -> Self {
+    pub(crate) fn of(m: &RunManifest, file: Option<&'a Path>) -> Self {
         match (m.format, file) {
             (LogFormat::UnzBinary, _) => Self::Count,
             (LogFormat::KfGins, None) => Self::Column,
