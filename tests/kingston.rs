@@ -484,6 +484,42 @@ fn kingston_odometer_edited(
     run
 }
 
+/// Kingston's speeds in km/h, on a clock 5 s late: the derive names the clock first;
+/// with the offset it names set, the accelerometers read the speeds 3.36 times theirs
+/// (the odometer's own lag left for the joint fit), between feet to metres (3.28) and
+/// km/h to m/s (3.6), 9.7 % apart. Before, only the nearest, feet, was named; now both
+/// are, the nearest first, and with the unit named in the manifest the route is the
+/// shipped file's with the same offset's.
+#[test]
+fn kingston_speeds_in_kmh_on_another_clock_name_every_unit_near() {
+    let tmp = tempfile::tempdir().unwrap();
+    let kmh = kingston_odometer_edited(&tmp.path().join("kmh"), |t, v| (t + 5.0, v * 3.6));
+    let err = crate::util::stage_fails("derive", &kmh, &tmp.path().join("o"));
+    assert!(err.contains("s late against the IMU's"), "{err}");
+    let offset_s = crate::util::named_offset_s(&err);
+    // The shipped manifest with the odometer's `kind` and the offset named.
+    let manifest = |run: &std::path::Path, kind: &str| {
+        let shipped = std::fs::read_to_string(test_data("kingston2008-seg1").join("run.toml"));
+        let m = (shipped.unwrap()).replace("kind = \"speed_mps\"", &format!("kind = \"{kind}\""));
+        let set = format!("{m}\n[params.derive]\nodo_time_offset_s = {offset_s}\n");
+        std::fs::write(run.join("run.toml"), set).unwrap();
+    };
+    manifest(&kmh, "speed_mps");
+    let err = crate::util::stage_fails("derive", &kmh, &tmp.path().join("o"));
+    assert!(
+        err.contains("(near 3.28084, the ratio of feet to metres, or 3.6, of km/h to m/s)"),
+        "{err}"
+    );
+    manifest(&kmh, "speed_kmh");
+    crate::util::run_until(&kmh, &tmp.path().join("kmh-o"), "disupt");
+    let mps = kingston_odometer_shifted(&tmp.path().join("mps"), 5.0);
+    manifest(&mps, "speed_mps");
+    crate::util::run_until(&mps, &tmp.path().join("mps-o"), "disupt");
+    let worst = |o: &str| joint_worst_control_point_m(&tmp.path().join(o));
+    let (kmh, mps) = (worst("kmh-o"), worst("mps-o"));
+    assert!((kmh - mps).abs() < 0.01, "{kmh} m in km/h, {mps} m in m/s");
+}
+
 /// Kingston's OBD-II speed file on a clock 5 s late, and 5 s early: beyond the ±1 s of
 /// lag the joint fit searches. Before, each ran "ok": late, with hold-out errors of 39
 /// and 55 m (2.2 and 3.0 m on its own clock) and its lag at the search's bound; early,
@@ -1891,7 +1927,7 @@ fn kingston_speeds_in_kmh_or_mph_are_named() {
             "{err}"
         );
         assert!(
-            err.contains(&format!("(near {factor}, the ratio of {unit} to m/s)")),
+            err.contains(&format!("(near {factor}, the ratio of {unit} to m/s")),
             "{err}"
         );
         assert!(err.contains("odometer.txt in m/s"), "{err}");
@@ -1926,10 +1962,7 @@ fn kingston_a_speed_column_in_kmh_is_named() {
     let kmh = tmp.path().join("kmh");
     kingston_column(&kmh, |_, v| v * 3.6);
     let err = crate::util::stage_fails("derive", &kmh, &tmp.path().join("kmh-o"));
-    assert!(
-        err.contains("(near 3.6, the ratio of km/h to m/s)"),
-        "{err}"
-    );
+    assert!(err.contains("(near 3.6, the ratio of km/h to m/s"), "{err}");
     assert!(err.contains("8th column's speeds in m/s"), "{err}");
     let manifest = std::fs::read_to_string(kmh.join("run.toml")).unwrap();
     let with = |kind: &str| format!("{manifest}\n[odometer]\nkind = \"{kind}\"\n");

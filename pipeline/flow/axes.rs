@@ -214,16 +214,28 @@ fn settings_for(body_from_log: nalgebra::Rotation3<f64>) -> (ImuAxes, [f64; 3]) 
 }
 
 /// The ratio of units the odometer's `factor` (its accelerations over the
-/// accelerometers') is near, for the message ([`UnitRatio`]): " (near 3.6, the ratio of
-/// km/h to m/s)"; empty when none is. Below 1 (the file's unit smaller than the one
-/// read) only when the speeds are `declared_kmh`: no other unit a manifest names is
-/// larger than the log's own.
+/// accelerometers') is near, for the message ([`UnitRatio::near`]), the nearest first:
+/// " (near 3.6, the ratio of km/h to m/s)", " (near 3.28084, the ratio of feet to metres,
+/// or 3.6, of km/h to m/s)"; empty when none is. Below 1 (the file's unit smaller than
+/// the one read) only when the speeds are `declared_kmh`: no other unit a manifest names
+/// is larger than the log's own.
 fn known_unit(factor: f64, declared_kmh: bool) -> String {
-    (UnitRatio::near(factor))
+    let near: Vec<UnitRatio> = (UnitRatio::near(factor).into_iter())
         .filter(|u| !u.inverse || declared_kmh)
-        .map_or_else(String::new, |u| {
-            format!(" (near {}, the ratio of {})", u.shown(), u.of)
-        })
+        .collect();
+    match near.split_first() {
+        None => String::new(),
+        Some((first, others)) => {
+            let others: String = (others.iter())
+                .map(|u| format!(", or {}, of {}", u.shown(), u.of))
+                .collect();
+            format!(
+                " (near {}, the ratio of {}{others})",
+                first.shown(),
+                first.of
+            )
+        }
+    }
 }
 
 /// Where the odometer's distance is set or written, and how to fix it: `file` is the
@@ -287,8 +299,12 @@ mod tests {
     #[test]
     fn a_unit_below_one_is_named_for_speeds_declared_in_kmh_only() {
         assert_eq!(
-            known_unit(3.45, false),
+            known_unit(3.6, false),
             " (near 3.6, the ratio of km/h to m/s)"
+        );
+        assert_eq!(
+            known_unit(3.36, false),
+            " (near 3.28084, the ratio of feet to metres, or 3.6, of km/h to m/s)"
         );
         assert_eq!(
             known_unit(0.27, true),
