@@ -38,6 +38,7 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
         .axes_check
         .map(|c| serde_json::to_string(&c))
         .transpose()?;
+    let odometer_clock = (d.odometer_clock.map(|c| serde_json::to_string(&c))).transpose()?;
     let schema = schema::derived(
         [
             (derived_meta::BLOCK, d.block.to_string()),
@@ -58,7 +59,8 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
             ),
         ]
         .into_iter()
-        .chain(axes_check.map(|c| (derived_meta::IMU_AXES_CHECK, c))),
+        .chain(axes_check.map(|c| (derived_meta::IMU_AXES_CHECK, c)))
+        .chain(odometer_clock.map(|c| (derived_meta::ODOMETER_CLOCK, c))),
     );
     // In batches of 65 536 rows: the columns of one batch are copied at a time, whatever
     // the run's length.
@@ -486,6 +488,10 @@ fn load_derived_of(
             .map(|c| serde_json::from_str(c))
             .transpose()
             .with_context(|| format!("{}: {}", path.display(), derived_meta::IMU_AXES_CHECK))?,
+        odometer_clock: (schema.metadata().get(derived_meta::ODOMETER_CLOCK))
+            .map(|c| serde_json::from_str(c))
+            .transpose()
+            .with_context(|| format!("{}: {}", path.display(), derived_meta::ODOMETER_CLOCK))?,
         ..Derived::default()
     };
     d.ax_f = f64_column(&bl, filtered_cols::AX_F_MPS2)?.into();

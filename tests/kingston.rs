@@ -977,6 +977,20 @@ fn kingston_odometer_terms_through_the_binary() {
             (j.outcome.x.odo_scale / d.before.x.odo_scale - 1.0) * 1e6
         );
         rows.push((heading_err, cp_max, holdout_max, j.outcome.x.odo_bias_mps));
+        if lag {
+            // The derive's reading of the clock, from the accelerations alone (−0.40 s),
+            // agrees with the joint fit's lag from the route (−0.58 ± 0.17 s).
+            let nav: unz::flow::NavigateSummary = read_json(&dir.join("../navigate/navigate.json"));
+            let clock = nav.odometer_clock.expect("the odometer's clock read");
+            let (fit, sigma) = (
+                j.outcome.x.odo_lag_s,
+                j.outcome.x.sigma.as_ref().unwrap().odo_lag_s,
+            );
+            assert!(
+                clock.shown && (clock.fit.lag_s - fit).abs() < 2.0 * sigma,
+                "{clock:?}; the joint fit's lag {fit} ± {sigma} s"
+            );
+        }
     }
     let [plain, _, _, both] = [rows[0], rows[1], rows[2], rows[3]];
     // The README's figure: the OBD-II speed reads about 0.08 m/s low (its σ here ~0.015).

@@ -261,6 +261,9 @@ pub mod derived_meta {
     /// The check of the IMU's axes against the vehicle's (JSON of
     /// `unz_stages::imu_axes::AxesCheck`).
     pub const IMU_AXES_CHECK: &str = "unz.imu_axes_check";
+    /// What the drive says of the odometer's clock (JSON of
+    /// `unz_stages::odo_clock::ClockFit`).
+    pub const ODOMETER_CLOCK: &str = "unz.odometer_clock";
 }
 
 fn f64_field(name: &str, unit: &str) -> Field {

@@ -132,8 +132,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // judged on the accelerometers' part it explains (an odometer reading 1/3.6 of
         // the truth was not judged). 13: the odometer's travel backward and its clock
         // judged (a file on another clock, a count reversed, speeds read as distances).
-        // 14: an odometer without two rows within the IMU's log failed.
-        version: 14,
+        // 14: an odometer without two rows within the IMU's log failed. 15: the clock's
+        // reading kept (derived.parquet's metadata), F's start-up left out of it.
+        version: 15,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
@@ -170,7 +171,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         let offset_s = params.derive.odo_time_offset_s;
         check_overlap(&overlap, offset_s, &report, m, odometer_file)?;
         check_travel(&d, m, odometer_file)?;
-        check_clock(&d, offset_s, m, odometer_file)?;
+        d.odometer_clock = check_clock(&d, &params.derive, m, odometer_file)?;
         let stuck = report.odometer_failures.map_or(0, |f| f.stuck_samples) as usize;
         if (d.odometer_failure_samples + stuck) * 10 > d.t_s.len() {
             let (flagged, n) = (d.odometer_failure_samples, d.t_s.len());

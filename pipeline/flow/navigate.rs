@@ -8,6 +8,7 @@ use unz_formats::atomic::write_json_atomic;
 use unz_stages::criteria::{self, Kryt2};
 use unz_stages::imu_axes::{AxesCheck, ImuAxes};
 use unz_stages::initial::InitialReport;
+use unz_stages::odo_clock::ClockFit;
 
 use super::marks::{RepeatedMark, UnknownMarks};
 use super::moving_marks::MovingMark;
@@ -68,6 +69,25 @@ pub struct NavigateSummary {
     /// The IMU's axes: as named, and what the log's data say of them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub imu_axes: Option<ImuAxesReport>,
+    /// What the drive says of the odometer's clock at `[derive] odo_time_offset_s`: the
+    /// shift of its time tags (`lag_s`, positive late) at which its u̇ follows the
+    /// accelerometers' x best, and the correlation there; judged when `shown`
+    /// (correlation ≥ 0.5 over enough driving). The joint fit estimates the lag with the
+    /// route; this reading is the drive's alone. Absent for a log with too little.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub odometer_clock: Option<OdometerClock>,
+}
+
+/// [`NavigateSummary::odometer_clock`]: the derive's [`ClockFit`], and whether the drive
+/// shows the clock ([`ClockFit::shown`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct OdometerClock {
+    /// The derive's reading.
+    #[serde(flatten)]
+    pub fit: ClockFit,
+    /// Whether the drive shows the clock: enough of the odometer's accelerations, well
+    /// enough followed.
+    pub shown: bool,
 }
 
 /// The log's IMU axes and mounting as named (`[vehicle] imu_axes`, `imu_mounting_deg`;
@@ -122,7 +142,8 @@ pub fn ensure_navigate(
         // 12: control points passed at speed, not stood at, are said; so are a stand at
         //     the log's start the static start given leaves out, and every point's error
         //     one shift (the site off).
-        version: 12,
+        // 13: the derive's reading of the odometer's clock reported.
+        version: 13,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],
@@ -180,6 +201,10 @@ pub fn ensure_navigate(
                 named_mounting_deg: Some(params.vehicle.imu_mounting_deg)
                     .filter(|m| *m != [0.0; 3]),
                 check,
+            }),
+            odometer_clock: (case.derived.odometer_clock).map(|fit| OdometerClock {
+                fit,
+                shown: fit.shown(),
             }),
         };
         write_json_atomic(&dir.join(files::NAVIGATE_REPORT), &summary)?;

@@ -177,6 +177,10 @@ pub struct Derived {
     /// direction, the odometer's accelerations): set by the derive stage, which fails a
     /// log whose axes are not the vehicle's.
     pub axes_check: Option<crate::imu_axes::AxesCheck>,
+    /// What the drive says of the odometer's clock at the offset configured (the shift
+    /// at which its u̇ follows the accelerometers' x): set by the derive stage, which
+    /// fails a log whose odometer is seconds off ([`crate::odo_clock`]).
+    pub odometer_clock: Option<crate::odo_clock::ClockFit>,
     /// The segments the optimisers' passes read, integrated from these series on first
     /// use and kept (a memo: not part of the derive's value).
     pub segments: crate::strapdown::segments::SegmentMemo,
@@ -262,6 +266,7 @@ impl Derived {
             odometer_failure_samples: self.odometer_failure_samples,
             out_of_range_samples: self.out_of_range_samples,
             axes_check: self.axes_check,
+            odometer_clock: self.odometer_clock,
             segments: self.segments.for_other_odometer(),
         }
     }

@@ -132,6 +132,17 @@ impl Default for FilterParams {
     }
 }
 
+impl FilterParams {
+    /// Seconds over which a pass's start-up dies away to a thousandth, s (5.2 s at
+    /// 0.3 Hz): the second-order Butterworth's envelope falls as e^(−2π·f_c·t/√2). The
+    /// forward pass starts from steady state on a series' first value, whose own noise
+    /// (an odometer's pulses, in a block's u̇, at a log begun while driving) F does not
+    /// average: the first seconds of the filtered series carry it.
+    pub fn settling_s(&self) -> f64 {
+        1000f64.ln() * std::f64::consts::SQRT_2 / (std::f64::consts::TAU * self.cutoff_hz)
+    }
+}
+
 /// F, ready for a series of a given sample period.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LowPass {

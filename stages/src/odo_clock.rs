@@ -14,11 +14,19 @@
 //! blocks low-passed at 0.3 Hz), first every second over the shifts the setting takes,
 //! then every block within a second of the best, and the peak read off the parabola
 //! through its neighbours. Slopes add g·sin(pitch) to the accelerometers' x: a slow
-//! noise the correlation takes. Measured on 65 simulated runs without a lag: −0.07 to
-//! +0.07 s, but 0.46–0.67 s on 5 of the 14 begun while driving (whose joint fits cannot
-//! tell: σ 1.4 s); correlations 0.58–0.89. On Kingston −0.40 s (the joint fit: −0.58 ±
-//! 0.17 s), and its odometer file shifted by 3, ±5, 10, 30 and −60 s found within 0.4 s
-//! of the shift.
+//! noise the correlation takes.
+//!
+//! F's start-up is left out at both ends ([`crate::filter::FilterParams::settling_s`],
+//! 5.2 s at 0.3 Hz): F's forward pass starts from steady state on the first block, and a
+//! log begun while driving has in its first block's u̇ the odometer's pulses at speed
+//! (−6.5 m/s² filtered on one simulated log), a transient of seconds with nothing like it
+//! in the accelerometers'. Left in, it read 0.46–0.67 s of lag on 5 of 14 simulated logs
+//! begun while driving, with none simulated.
+//!
+//! Measured on simulated runs without a lag: −0.05 to +0.07 s on 50 with a static start,
+//! −0.07 to +0.23 s on 14 begun while driving (0.23 s at a correlation of 0.59);
+//! correlations 0.58–0.89. On Kingston −0.40 s (the joint fit: −0.58 ± 0.17 s), and its
+//! odometer file shifted by 3, ±5, 10, 30 and −60 s found within 0.4 s of the shift.
 
 use std::ops::RangeInclusive;
 
@@ -32,7 +40,7 @@ use crate::odo_lag::parabola;
 pub const MAX_ODOMETER_LAG_S: f64 = 2.0;
 
 /// What the drive says of the odometer's clock.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ClockFit {
     /// The shift of the odometer's time tags, beyond the offset configured, at which its
     /// u̇ follows the accelerometers' x best, s: positive when the odometer reports late
@@ -49,15 +57,23 @@ pub struct ClockFit {
 
 impl ClockFit {
     /// The fit of `d`'s odometer against its accelerometers' x over the lags `lags_s`
-    /// (within a quarter of the log either way), when the log has F's series.
-    pub fn of(d: &Derived, lags_s: RangeInclusive<f64>) -> Option<Self> {
+    /// (within a quarter of the log either way), when the log has F's series, their
+    /// first and last `edge_s` left out: F's start-up ([`FilterParams::settling_s`]).
+    ///
+    /// [`FilterParams::settling_s`]: crate::filter::FilterParams::settling_s
+    pub fn of(d: &Derived, lags_s: RangeInclusive<f64>, edge_s: f64) -> Option<Self> {
         let (ax, u_dot) = (d.ax_f.as_slice(), d.u_dot_f.as_slice());
-        let n = ax.len().min(u_dot.len());
         let block_s = d.block as f64 * d.nominal_dt_s;
-        if n < 8 || !(block_s > 0.0 && block_s.is_finite()) {
+        if !(block_s > 0.0 && block_s.is_finite()) {
             return None;
         }
-        let (ax, u_dot) = (&ax[..n], &u_dot[..n]);
+        let edge = (edge_s.max(0.0) / block_s).ceil().min(usize::MAX as f64) as usize;
+        let n = ax.len().min(u_dot.len());
+        if n < 8 + 2 * edge.min(n) {
+            return None;
+        }
+        let (ax, u_dot) = (&ax[edge..n - edge], &u_dot[edge..n - edge]);
+        let n = ax.len();
         // Shifts in blocks: those of `lags_s`, and the overlap three quarters of the log.
         let quarter = (n / 4) as f64;
         let first = (lags_s.start() / block_s).ceil().max(-quarter) as isize;
@@ -172,7 +188,7 @@ mod tests {
     #[test]
     fn the_odometers_shift_is_found_to_a_tenth_of_a_second() {
         for lag_s in [0.0, 0.35, -1.0, 4.8, -7.25, 42.0] {
-            let fit = ClockFit::of(&drive(lag_s), -60.0..=60.0).unwrap();
+            let fit = ClockFit::of(&drive(lag_s), -60.0..=60.0, 5.0).unwrap();
             assert!((fit.lag_s - lag_s).abs() < 0.1, "{lag_s}: {fit:?}");
             assert!(fit.correlation > 0.95 && fit.shown(), "{fit:?}");
             assert_eq!(fit.off(), lag_s.abs() > MAX_ODOMETER_LAG_S, "{fit:?}");
@@ -183,10 +199,35 @@ mod tests {
     /// there (and not taken for one within).
     #[test]
     fn the_search_keeps_to_the_lags_given() {
-        let fit = ClockFit::of(&drive(30.0), -10.0..=10.0).unwrap();
+        let fit = ClockFit::of(&drive(30.0), -10.0..=10.0, 5.0).unwrap();
         assert!(fit.lag_s.abs() <= 10.0, "{fit:?}");
         assert!(fit.correlation < 0.5, "{fit:?}");
-        assert!(ClockFit::of(&drive(0.0), 5.0..=4.0).is_none());
+        assert!(ClockFit::of(&drive(0.0), 5.0..=4.0, 5.0).is_none());
+    }
+
+    /// F's start-up at either end is left out: a transient there (a log begun while
+    /// driving starts its u̇ from one block's odometer pulses) changes nothing.
+    #[test]
+    fn the_filters_start_up_is_left_out() {
+        let clean = drive(0.35);
+        let mut started = drive(0.35);
+        let n = started.u_dot_f.len();
+        for i in 0..50 {
+            let decay = -6.5 * (-1.33 * i as f64 * 0.1).exp();
+            started.u_dot_f[i] += decay;
+            started.u_dot_f[n - 1 - i] -= decay;
+        }
+        let fit = |d: &Derived, edge_s| ClockFit::of(d, -60.0..=60.0, edge_s).unwrap();
+        assert_eq!(fit(&started, 5.0), fit(&clean, 5.0));
+        assert_ne!(fit(&started, 0.0), fit(&clean, 0.0));
+        // A log no longer than its two ends: no fit (and no slice out of its bounds).
+        let short = Derived {
+            ax_f: Arc::new(clean.ax_f[..100].to_vec()),
+            u_dot_f: clean.u_dot_f[..100].to_vec(),
+            ..clean.clone()
+        };
+        assert!(ClockFit::of(&short, -1.0..=1.0, 5.0).is_none());
+        assert!(ClockFit::of(&short, -1.0..=1.0, f64::INFINITY).is_none());
     }
 
     /// An odometer that stands still the whole log shows no clock.
@@ -194,6 +235,6 @@ mod tests {
     fn no_drive_no_clock() {
         let mut d = drive(0.0);
         d.u_dot_f = vec![0.0; d.u_dot_f.len()];
-        assert!(ClockFit::of(&d, -60.0..=60.0).is_none_or(|f| !f.shown()));
+        assert!(ClockFit::of(&d, -60.0..=60.0, 5.0).is_none_or(|f| !f.shown()));
     }
 }
