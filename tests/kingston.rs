@@ -574,6 +574,54 @@ fn kingston_an_odometer_file_on_another_clock_is_named() {
     }
 }
 
+/// Kingston's speed file 150 s late and 200 s early: beyond the ±60 s that
+/// `odo_time_offset_s` takes (a logger's clock set minutes off). Before, the first
+/// failed blaming the odometer's stands while the vehicle moved, and the second ran "ok"
+/// with its static start cut at the odometer's "first move", the joint fit out of its
+/// bounds and OEPI's route 446 m off at the control points. Now the
+/// derive, finding the drive nowhere within the setting's reach, searches half the log
+/// and names the shift to write into the file (within 0.5 s of the shift and Kingston's
+/// own −0.4 s); written so, the run is its own clock's again.
+#[test]
+fn kingston_an_odometer_file_minutes_off_is_named_with_the_shift_to_write() {
+    let r = reference();
+    let tmp = tempfile::tempdir().unwrap();
+    for (shift_s, late) in [(150.0, "late"), (-200.0, "early")] {
+        let dir = tmp.path().join(format!("{shift_s}"));
+        let run = kingston_odometer_shifted(&dir.join("k"), shift_s);
+        let err = crate::util::stage_fails("derive", &run, &dir.join("failed"));
+        assert!(
+            err.contains(&format!("s {late} against the IMU's, another clock's"))
+                && err.contains("(beyond the ±60 s [derive] odo_time_offset_s takes)"),
+            "{err}"
+        );
+        let key = "Add ";
+        let at = err
+            .find(key)
+            .unwrap_or_else(|| panic!("no shift named: {err}"));
+        let named_s: f64 = err[at + key.len()..]
+            .split_whitespace()
+            .next()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("no shift named: {err}"));
+        assert!((named_s + shift_s).abs() < 0.5, "{err}");
+        let written = kingston_odometer_shifted(&dir.join("written"), shift_s + named_s);
+        let out = dir.join("o");
+        crate::util::run_until(&written, &out, "disupt");
+        let disupt = out.join("kingston2008-segment1/disupt");
+        let d: unz::disupt_stage::DisuptOut = read_json(&disupt.join("disupt.json"));
+        let j = &d.methods["joint"];
+        let heading_err = corrected_heading_error_deg(&disupt, &r);
+        let holdout_max = (j.holdout.as_ref().unwrap().iter())
+            .map(|h| h.dx_m.hypot(h.dy_m))
+            .fold(0.0, f64::max);
+        assert!(
+            heading_err < 0.45 && holdout_max < 4.0,
+            "{shift_s} s: {heading_err}° {holdout_max} m"
+        );
+    }
+}
+
 /// Kingston's speed file with its time tags in milliseconds, a day late, and its lines in
 /// reverse order (each but the first rejected as not after the one before): none leaves
 /// two readings within the IMU's log. Before, the derive held the distance at zero and

@@ -133,8 +133,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // the truth was not judged). 13: the odometer's travel backward and its clock
         // judged (a file on another clock, a count reversed, speeds read as distances).
         // 14: an odometer without two rows within the IMU's log failed. 15: the clock's
-        // reading kept (derived.parquet's metadata), F's start-up left out of it.
-        version: 15,
+        // reading kept (derived.parquet's metadata), F's start-up left out of it. 16: an
+        // odometer file minutes off searched beyond the setting's reach.
+        version: 16,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,

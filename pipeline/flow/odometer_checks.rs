@@ -107,7 +107,8 @@ pub fn check_travel(d: &Derived, m: &RunManifest, file: Option<&Path>) -> anyhow
 /// `odo_time_offset_s` (searched over the lags the setting then takes,
 /// ±[`ODO_TIME_OFFSET_RANGE_S`]); fails when it shows the odometer's time tags on another
 /// clock than the IMU's (a lag beyond [`MAX_ODOMETER_LAG_S`]), naming the offset that
-/// aligns them.
+/// aligns them. An odometer file whose drive the setting's reach shows nowhere is
+/// searched beyond it ([`ClockFit::far`]): a logger's clock set minutes off.
 pub fn check_clock(
     d: &Derived,
     params: &DeriveParams,
@@ -120,9 +121,43 @@ pub fn check_clock(
     // block's pulses (0.46–0.67 s of lag read on 5 of 14 simulated such logs).
     let edge_s = params.filter.settling_s();
     let fit = ClockFit::of(d, lags, edge_s);
-    let Some(f) = fit.filter(ClockFit::off) else {
-        return Ok(fit);
-    };
+    let source = Source::of(m, file);
+    if let Some(f) = fit.filter(ClockFit::off) {
+        bail!(another_clock(&source, f, f.correlation_as_given, offset_s));
+    }
+    if let (Source::File(..), Some(near)) = (&source, fit)
+        && let Some(f) = far_clock(d, near, edge_s)
+    {
+        bail!(another_clock(
+            &source,
+            f,
+            near.correlation_as_given,
+            offset_s
+        ));
+    }
+    Ok(fit)
+}
+
+/// The clock of an odometer file beyond the setting's reach: when the drive shows it
+/// nowhere within the reach (`near`, the fit there), the far fit, when it is shown
+/// beyond the odometer's own delay and at least twice as well as anything within the
+/// reach (the clock as given included, either sign: an IMU facing backwards correlates
+/// −0.9 there, and is the axes' check's). A file whose driving the shift moves out of
+/// the IMU's log (Kingston's 300 s late: its stand of 527 s where the IMU drives) has
+/// too little left to show it; its stands while the vehicle moves fail the run.
+fn far_clock(d: &Derived, near: ClockFit, edge_s: f64) -> Option<ClockFit> {
+    let near_best = near.correlation.max(near.correlation_as_given.abs());
+    if near.shown() {
+        return None;
+    }
+    ClockFit::far(d, edge_s).filter(|f| f.off() && f.correlation >= 2.0 * near_best)
+}
+
+/// The failure of an odometer (`source`) whose drive `f` shows on another clock: its
+/// correlation `as_given` (at the offset `offset_s` configured) and the offset that
+/// aligns it; beyond the ±[`ODO_TIME_OFFSET_RANGE_S`] the setting takes, the shift to
+/// write into the file's time tags.
+fn another_clock(source: &Source, f: ClockFit, as_given: f64, offset_s: f64) -> String {
     let (late, moved) = if f.lag_s > 0.0 {
         ("late", "earlier")
     } else {
@@ -133,7 +168,6 @@ pub fn check_clock(
     } else {
         format!(", with [derive] odo_time_offset_s = {offset_s}")
     };
-    let source = Source::of(m, file);
     // A binary log's count rides in the IMU's records: one clock, a counter's delay.
     let runs = match source {
         Source::Count => format!(
@@ -147,16 +181,26 @@ pub fn check_clock(
             f.lag_s.abs()
         ),
     };
-    bail!(
+    let aligning_s = offset_s - f.lag_s;
+    let fix = match source {
+        Source::File(file, _) if aligning_s.abs() > ODO_TIME_OFFSET_RANGE_S => format!(
+            "Add {:.1} s to each of the time tags of {} (beyond the ±{ODO_TIME_OFFSET_RANGE_S} \
+             s [derive] odo_time_offset_s takes)",
+            -f.lag_s,
+            file.display()
+        ),
+        _ => format!(
+            "Set [derive] odo_time_offset_s = {aligning_s:.1} (in the campaign's --config, or \
+             the run's [params.derive])"
+        ),
+    };
+    format!(
         "{runs}: the accelerometers' x follows the odometer's accelerations best with the \
-         odometer {:.1} s {moved} (correlation {:.2}, against {:.2} as it is{configured}), \
-         beyond the ±{MAX_ODOMETER_LAG_S} s of an odometer's own delay. Set [derive] \
-         odo_time_offset_s = {:.1} (in the campaign's --config, or the run's \
-         [params.derive])",
+         odometer {:.1} s {moved} (correlation {:.2}, against {as_given:.2} as it \
+         is{configured}), beyond the ±{MAX_ODOMETER_LAG_S} s of an odometer's own delay. \
+         {fix}",
         f.lag_s.abs(),
         f.correlation,
-        f.correlation_as_given,
-        offset_s - f.lag_s
     )
 }
 

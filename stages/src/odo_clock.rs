@@ -16,6 +16,13 @@
 //! through its neighbours. Slopes add g·sin(pitch) to the accelerometers' x: a slow
 //! noise the correlation takes.
 //!
+//! Beyond the setting's reach ([`ClockFit::far`]): a logger's clock set minutes off
+//! leaves nothing within ±60 s that the accelerometers follow. Over half the log either
+//! way, the series' 10-s means are correlated first (a hundredth of the blocks, and as
+//! many shifts: linear in the log's length), then the blocks near the best. Kingston's
+//! file 90, ±150 and −200 s off: found within 0.4 s, at correlations of 0.82–0.92
+//! against 0.06–0.22 at best within the reach.
+//!
 //! F's start-up is left out at both ends ([`crate::filter::FilterParams::settling_s`],
 //! 5.2 s at 0.3 Hz): F's forward pass starts from steady state on the first block, and a
 //! log begun while driving has in its first block's u̇ the odometer's pulses at speed
@@ -38,6 +45,10 @@ use crate::odo_lag::parabola;
 /// tenths of a second, and the joint fit estimates ±1 s of it about the offset
 /// configured. Beyond, the odometer's time tags are another clock's.
 pub const MAX_ODOMETER_LAG_S: f64 = 2.0;
+
+/// Length of the means [`ClockFit::far`] first correlates, s: the accelerations of
+/// pulling away and braking last seconds, their speeds' changes tens of seconds.
+pub const FAR_MEAN_S: f64 = 10.0;
 
 /// What the drive says of the odometer's clock.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -62,22 +73,52 @@ impl ClockFit {
     ///
     /// [`FilterParams::settling_s`]: crate::filter::FilterParams::settling_s
     pub fn of(d: &Derived, lags_s: RangeInclusive<f64>, edge_s: f64) -> Option<Self> {
-        let (ax, u_dot) = (d.ax_f.as_slice(), d.u_dot_f.as_slice());
-        let block_s = d.block as f64 * d.nominal_dt_s;
-        if !(block_s > 0.0 && block_s.is_finite()) {
-            return None;
-        }
-        let edge = (edge_s.max(0.0) / block_s).ceil().min(usize::MAX as f64) as usize;
-        let n = ax.len().min(u_dot.len());
-        if n < 8 + 2 * edge.min(n) {
-            return None;
-        }
-        let (ax, u_dot) = (&ax[edge..n - edge], &u_dot[edge..n - edge]);
-        let n = ax.len();
-        // Shifts in blocks: those of `lags_s`, and the overlap three quarters of the log.
-        let quarter = (n / 4) as f64;
-        let first = (lags_s.start() / block_s).ceil().max(-quarter) as isize;
-        let last = (lags_s.end() / block_s).floor().min(quarter) as isize;
+        let (ax, u_dot, block_s) = series(d, edge_s)?;
+        Self::search(ax, u_dot, block_s, lags_s, ax.len() / 4)
+    }
+
+    /// The fit beyond any setting: the best shift within half the log either way (an
+    /// overlap of half the log or more), found first on [`FAR_MEAN_S`] means of the
+    /// series, then as [`Self::of`] within two means of it. Linear in the log's length:
+    /// the means are a hundredth of the blocks, and their shifts as many.
+    pub fn far(d: &Derived, edge_s: f64) -> Option<Self> {
+        let (ax, u_dot, block_s) = series(d, edge_s)?;
+        let per = ((FAR_MEAN_S / block_s).round() as usize).max(1);
+        let means = |x: &[f64]| -> Vec<f64> {
+            (x.chunks_exact(per))
+                .map(|c| c.iter().sum::<f64>() / per as f64)
+                .collect()
+        };
+        let (a, u) = (means(ax), means(u_dot));
+        let half = (a.len() / 2) as isize;
+        let coarse = (-half..=half)
+            .map(|k| (k, correlation(&a, &u, k, 1).0))
+            .filter(|(_, c)| c.is_finite())
+            .max_by(|a, b| a.1.total_cmp(&b.1))?
+            .0;
+        let centre_s = (coarse * per as isize) as f64 * block_s;
+        let reach_s = 2.0 * per as f64 * block_s;
+        Self::search(
+            ax,
+            u_dot,
+            block_s,
+            centre_s - reach_s..=centre_s + reach_s,
+            ax.len() / 2,
+        )
+    }
+
+    /// The fit over the lags `lags_s` and within `reach` blocks either way.
+    fn search(
+        ax: &[f64],
+        u_dot: &[f64],
+        block_s: f64,
+        lags_s: RangeInclusive<f64>,
+        reach: usize,
+    ) -> Option<Self> {
+        // Shifts in blocks: those of `lags_s` within the reach.
+        let reach = reach as f64;
+        let first = (lags_s.start() / block_s).ceil().max(-reach) as isize;
+        let last = (lags_s.end() / block_s).floor().min(reach) as isize;
         if first > last {
             return None;
         }
@@ -126,6 +167,23 @@ impl ClockFit {
     pub fn off(&self) -> bool {
         self.shown() && self.lag_s.abs() > MAX_ODOMETER_LAG_S
     }
+}
+
+/// `d`'s F series of the accelerometers' x and the odometer's u̇, of one length, their
+/// first and last `edge_s` left out, and the blocks' length, s; `None` when the log is
+/// no longer than eight blocks and its two ends.
+fn series(d: &Derived, edge_s: f64) -> Option<(&[f64], &[f64], f64)> {
+    let (ax, u_dot) = (d.ax_f.as_slice(), d.u_dot_f.as_slice());
+    let block_s = d.block as f64 * d.nominal_dt_s;
+    if !(block_s > 0.0 && block_s.is_finite()) {
+        return None;
+    }
+    let edge = (edge_s.max(0.0) / block_s).ceil().min(usize::MAX as f64) as usize;
+    let n = ax.len().min(u_dot.len());
+    if n < 8 + 2 * edge.min(n) {
+        return None;
+    }
+    Some((&ax[edge..n - edge], &u_dot[edge..n - edge], block_s))
 }
 
 /// Pearson's correlation of `ax[i]` with `u_dot[i + k]` over every `stride`-th block both
@@ -228,6 +286,47 @@ mod tests {
         };
         assert!(ClockFit::of(&short, -1.0..=1.0, 5.0).is_none());
         assert!(ClockFit::of(&short, -1.0..=1.0, f64::INFINITY).is_none());
+    }
+
+    /// An irregular drive of 10 minutes (pulling away and braking at random times, of
+    /// random sizes: no shift but the odometer's repeats it), its odometer `lag_s` late.
+    fn irregular_drive(lag_s: f64) -> Derived {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let pulses: Vec<(f64, f64)> = (0..60)
+            .map(|_| (rng.random_range(-300.0..900.0), rng.random_range(-2.0..2.0)))
+            .collect();
+        let accel = |t: f64| -> f64 {
+            (pulses.iter())
+                .filter(|&&(at, _)| (at..at + 6.0).contains(&t))
+                .map(|&(at, size)| size * (std::f64::consts::PI * (t - at) / 6.0).sin().powi(2))
+                .sum()
+        };
+        let (block_s, n) = (0.1, 6000);
+        let t = |i: usize| i as f64 * block_s;
+        Derived {
+            nominal_dt_s: 0.01,
+            block: 10,
+            ax_f: Arc::new((0..n).map(|i| accel(t(i))).collect()),
+            u_dot_f: (0..n).map(|i| accel(t(i) - lag_s)).collect(),
+            ..Derived::default()
+        }
+    }
+
+    /// A shift beyond the setting's reach is found by the far search, not by the near.
+    #[test]
+    fn a_shift_of_minutes_is_found_beyond_the_reach() {
+        for lag_s in [150.0, -222.2, 0.4] {
+            let d = irregular_drive(lag_s);
+            let far = ClockFit::far(&d, 5.0).unwrap();
+            assert!((far.lag_s - lag_s).abs() < 0.1, "{lag_s}: {far:?}");
+            assert!(far.correlation > 0.95 && far.shown(), "{far:?}");
+            let near = ClockFit::of(&d, -60.0..=60.0, 5.0).unwrap();
+            assert_eq!(near.shown(), lag_s.abs() < 60.0, "{lag_s}: {near:?}");
+        }
+        // Beyond half the log (600 s), no overlap left to judge: not found.
+        let far = ClockFit::far(&irregular_drive(400.0), 5.0).unwrap();
+        assert!(far.lag_s.abs() <= 300.0, "{far:?}");
     }
 
     /// An odometer that stands still the whole log shows no clock.
