@@ -142,17 +142,21 @@ pub fn stage_fails(stage: &str, run: &Path, out: &Path) -> String {
 /// The offset a failed derive names for the odometer's time tags: "Set [derive]
 /// odo_time_offset_s = V (in …".
 pub fn named_offset_s(err: &str) -> f64 {
-    let key = "Set [derive] odo_time_offset_s = ";
+    number_after(err, "Set [derive] odo_time_offset_s = ")
+}
+
+/// The number that follows `key` in the message `err`.
+pub fn number_after(err: &str, key: &str) -> f64 {
     let at = err
         .find(key)
-        .unwrap_or_else(|| panic!("no offset named: {err}"));
+        .unwrap_or_else(|| panic!("no {key:?} in: {err}"));
     let value = err[at + key.len()..]
         .split_whitespace()
         .next()
         .unwrap_or("");
     value
         .parse()
-        .unwrap_or_else(|_| panic!("no offset named: {err}"))
+        .unwrap_or_else(|_| panic!("no number after {key:?} in: {err}"))
 }
 
 /// Every file below `root`, relative to it, sorted.
