@@ -755,7 +755,7 @@ fn no_static_start_and_no_control_point_is_an_error() {
 /// into the alignment: the joint fit left its bounds and OEPI's azimuth was 4.85° off.
 /// The static start now ends a second before the odometer shows the vehicle moving, as
 /// navigate.json and the campaign's note say, and the methods find the truth as with the
-/// manifest's own 85 s (measured: the joint fit 0.0006° off, OEPI 0.0004°; with 85 s,
+/// manifest's own 85 s (measured: the joint fit 0.0007° off, OEPI 0.0006°; with 85 s,
 /// 0.005° both). The bound, 0.05°, is ten times the run's own error and a hundredth of
 /// what the drive's average cost.
 #[test]
@@ -770,10 +770,11 @@ fn a_static_start_given_past_the_drive_off_ends_where_the_vehicle_moved() {
     let o = unz_output(&["run", run.to_str().unwrap(), "--out", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let nav: NavigateSummary = read_json(&out.join(name).join("navigate/navigate.json"));
-    // The simulated vehicle drives off at 90 s; its odometer passes 5 cm within 2.5 s.
+    // The simulated vehicle drives off at 90 s, gently; its odometer passes 10 cm over a
+    // second within 3 s (92.76 s; 5 cm from the start at 92.25 s).
     let cut = nav.initial.static_cut.expect("the static start cut");
     assert_eq!(cut.given_s, 150.0);
-    assert!((90.0..92.5).contains(&cut.moved_s), "{cut:?}");
+    assert!((90.0..93.0).contains(&cut.moved_s), "{cut:?}");
     assert!(
         (nav.initial.static_s - (cut.moved_s - 1.0)).abs() < 0.011,
         "{:?}",

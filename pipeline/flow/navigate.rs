@@ -142,8 +142,10 @@ pub fn ensure_navigate(
         // 12: control points passed at speed, not stood at, are said; so are a stand at
         //     the log's start the static start given leaves out, and every point's error
         //     one shift (the site off).
-        // 13: the derive's reading of the odometer's clock reported.
-        version: 13,
+        // 13: the derive's reading of the odometer's clock reported. 14: the stand at the
+        //     log's start judged by the odometer's travel over each second (a speed
+        //     sensor's noise at rest ended it), and its travel said.
+        version: 14,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],
@@ -152,6 +154,9 @@ pub fn ensure_navigate(
         let case = load_case(ctx, params, overrides)?;
         if let Some(unused) = &case.initial.static_unused {
             ctx.say("navigate", &unused.said());
+        }
+        if let Some(travel) = &case.initial.stand_travel {
+            ctx.say("navigate", &travel.said());
         }
         if let Some(cut) = &case.initial.static_cut {
             ctx.say("navigate", &cut.said());
