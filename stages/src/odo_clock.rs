@@ -18,8 +18,8 @@
 //!
 //! Beyond the setting's reach ([`ClockFit::far`]): a logger's clock set minutes off
 //! leaves nothing within ±60 s that the accelerometers follow. Over half the log either
-//! way, the series' 10-s means are correlated first (a hundredth of the blocks, and as
-//! many shifts: linear in the log's length), then the blocks near the best. Kingston's
+//! way (6 hours at most), the series' 10-s means are correlated first (a hundredth of the
+//! blocks, and as many shifts), then the blocks near the best. Kingston's
 //! file 90, ±150 and −200 s off: found within 0.4 s, at correlations of 0.82–0.92
 //! against 0.06–0.22 at best within the reach.
 //!
@@ -50,6 +50,10 @@ pub const MAX_ODOMETER_LAG_S: f64 = 2.0;
 /// pulling away and braking last seconds, their speeds' changes tens of seconds.
 pub const FAR_MEAN_S: f64 = 10.0;
 
+/// Farthest shift [`ClockFit::far`] searches either way, s: a time zone's hours (on a
+/// log long enough to overlap), and a bound on its shifts whatever the log's length.
+pub const FAR_REACH_S: f64 = 6.0 * 3600.0;
+
 /// What the drive says of the odometer's clock.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ClockFit {
@@ -77,10 +81,12 @@ impl ClockFit {
         Self::search(ax, u_dot, block_s, lags_s, ax.len() / 4)
     }
 
-    /// The fit beyond any setting: the best shift within half the log either way (an
-    /// overlap of half the log or more), found first on [`FAR_MEAN_S`] means of the
-    /// series, then as [`Self::of`] within two means of it. Linear in the log's length:
-    /// the means are a hundredth of the blocks, and their shifts as many.
+    /// The fit beyond any setting: the best shift within half the log and
+    /// [`FAR_REACH_S`] either way (an overlap of half the log or more), found first on
+    /// [`FAR_MEAN_S`] means of the series, then as [`Self::of`] within two means of it.
+    /// The means are a hundredth of the blocks, and their shifts as many up to the
+    /// reach's 4 320: about 2·10⁷ products at 12 hours (25 ms, about twice the search
+    /// within ±60 s), linear beyond.
     pub fn far(d: &Derived, edge_s: f64) -> Option<Self> {
         let (ax, u_dot, block_s) = series(d, edge_s)?;
         let per = ((FAR_MEAN_S / block_s).round() as usize).max(1);
@@ -90,7 +96,8 @@ impl ClockFit {
                 .collect()
         };
         let (a, u) = (means(ax), means(u_dot));
-        let half = (a.len() / 2) as isize;
+        let reach = (FAR_REACH_S / (per as f64 * block_s)).floor() as usize;
+        let half = (a.len() / 2).min(reach) as isize;
         let coarse = (-half..=half)
             .map(|k| (k, correlation(&a, &u, k, 1).0))
             .filter(|(_, c)| c.is_finite())
