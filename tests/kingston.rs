@@ -741,6 +741,54 @@ fn kingston_a_stand_left_out_of_the_alignment_is_said() {
     assert_eq!(nav.initial.static_unused, None);
 }
 
+/// Kingston's log moved to run over a GPS week's rollover (its time column in seconds of
+/// week: 604343.09 to 604799.99, then 0.09 to 418.99), its speed file and its control
+/// points' times with it. Before, the IMU's tags after the rollover were repaired one
+/// interval apart and the speed file's 420 lines after it rejected as not after the one
+/// before: the derive failed, the odometer having "0 of its 457 rows within the IMU log
+/// (t_s = 604343.09 to 418.99)". Now each file's tags go on a week later (counted in
+/// `ingest.json`), a point timed after the rollover is taken a week on, and the run is
+/// the one on the week's own clock: the joint fit's control points within 1 cm.
+#[test]
+fn kingston_over_a_gps_weeks_rollover_is_the_run_on_its_own_clock() {
+    let tmp = tempfile::tempdir().unwrap();
+    let week_s = unz_formats::kfgins::GPS_WEEK_S;
+    let moved = |t: f64| (t + 452_200.0) % week_s;
+    let own = kingston_odometer_edited(&tmp.path().join("own"), |t, v| (t, v));
+    let run = kingston_odometer_edited(&tmp.path().join("k"), |t, v| (moved(t), v));
+    let imu: String = (std::fs::read_to_string(run.join("imu.txt"))
+        .unwrap()
+        .lines())
+    .map(|line| {
+        let (t, rest) = line.split_once(' ').unwrap();
+        format!("{:.3} {rest}\n", moved(t.parse().unwrap()))
+    })
+    .collect();
+    std::fs::write(run.join("imu.txt"), imu).unwrap();
+    let path = run.join("run.toml");
+    let mut m: toml::Table = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    for cp in m["control_point"].as_array_mut().unwrap() {
+        let t_s = cp["t_s"].as_float().unwrap();
+        cp["t_s"] = toml::Value::Float(moved(t_s));
+    }
+    std::fs::write(&path, toml::to_string(&m).unwrap()).unwrap();
+    let out = tmp.path().join("o");
+    crate::util::run_until(&run, &out, "disupt");
+    let report: unz_formats::IngestReport =
+        read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
+    assert_eq!(report.week_rollovers, 1);
+    assert_eq!(report.odometer_file.unwrap().week_rollovers, 1);
+    crate::util::run_until(&own, &tmp.path().join("own-o"), "disupt");
+    let (worst, worst_own) = (
+        joint_worst_control_point_m(&out),
+        joint_worst_control_point_m(&tmp.path().join("own-o")),
+    );
+    assert!(
+        (worst - worst_own).abs() < 0.01,
+        "{worst} m, {worst_own} m on its own clock"
+    );
+}
+
 /// Kingston's speeds with a sensor's noise at rest (0–4 cm/s, never negative, as a GNSS
 /// ground speed has) where the file reads 0. Before, the odometer's net travel from the
 /// log's start passed 5 cm 3.3 s in, the static start given (500 s) was cut there, and

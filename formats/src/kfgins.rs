@@ -35,6 +35,45 @@ fn tag_beyond_range(t_s: f64) -> Option<String> {
     })
 }
 
+/// Seconds in a GPS week. A text log's time column is often GPS seconds of week (KF-GINS
+/// writes it so), which rolls over to 0 at the week's end, Saturday to Sunday midnight.
+pub const GPS_WEEK_S: f64 = 604_800.0;
+
+/// How near the week's end a tag, and how near its start the tag after it, must be for
+/// the step between them to be the week's rollover, s: an hour, a logger's gap with room.
+pub const WEEK_ROLLOVER_WINDOW_S: f64 = 3600.0;
+
+/// A text file's time tags unwrapped over GPS-week rollovers: a tag within
+/// [`WEEK_ROLLOVER_WINDOW_S`] of the week's start after one within it of its end is the
+/// next week's, and every tag from it on has the week added. Without it, a log running
+/// over Sunday midnight (GPS time) kept its tags up to the rollover: the IMU's after it
+/// were repaired one interval apart, and the odometer file's rejected as not after the
+/// one before.
+#[derive(Debug, Default, Clone, Copy)]
+struct WeekUnwrap {
+    /// Seconds added to the tags: the weeks rolled over.
+    added_s: f64,
+    /// The last tag read, as written.
+    last_s: Option<f64>,
+    /// Rollovers so far.
+    rollovers: u64,
+}
+
+impl WeekUnwrap {
+    /// Tag `t_s`, as written, in the file's time base unwrapped.
+    fn unwrap(&mut self, t_s: f64) -> f64 {
+        if let Some(last_s) = self.last_s
+            && (GPS_WEEK_S - WEEK_ROLLOVER_WINDOW_S..GPS_WEEK_S).contains(&last_s)
+            && (0.0..WEEK_ROLLOVER_WINDOW_S).contains(&t_s)
+        {
+            self.added_s += GPS_WEEK_S;
+            self.rollovers += 1;
+        }
+        self.last_s = Some(t_s);
+        t_s + self.added_s
+    }
+}
+
 /// Number of leading samples whose median interval is the nominal sample period.
 const PERIOD_WINDOW: usize = 101;
 
@@ -244,6 +283,8 @@ pub struct KfGinsReader<R: BufRead> {
     period_s: Option<f64>,
     prev: Option<TextSample>,
     eof: bool,
+    /// The time tags over GPS-week rollovers.
+    weeks: WeekUnwrap,
 }
 
 impl<R: BufRead> KfGinsReader<R> {
@@ -264,6 +305,7 @@ impl<R: BufRead> KfGinsReader<R> {
             period_s: None,
             prev: None,
             eof: false,
+            weeks: WeekUnwrap::default(),
         }
     }
 
@@ -359,9 +401,11 @@ impl<R: BufRead> KfGinsReader<R> {
                 self.fault(reason);
                 continue;
             }
+            let t_s = self.weeks.unwrap(values[0]);
+            self.report.week_rollovers = self.weeks.rollovers;
             return Ok(Some(TextSample {
                 line: self.lines.line_no,
-                t_s: values[0],
+                t_s,
                 dtheta_rad: [values[1], values[2], values[3]],
                 dvel_mps: [values[4], values[5], values[6]],
                 speed_mps: (n == 8).then_some(values[7]),
@@ -477,6 +521,8 @@ pub struct OdometerFileReader<R: BufRead> {
     spikes: SpeedSpikes<SpeedLine>,
     /// Reasons held in `spikes`.
     held_reasons: usize,
+    /// The time tags over GPS-week rollovers.
+    weeks: WeekUnwrap,
 }
 
 impl<R: BufRead> OdometerFileReader<R> {
@@ -491,6 +537,7 @@ impl<R: BufRead> OdometerFileReader<R> {
             last_t_s: None,
             spikes: SpeedSpikes::default(),
             held_reasons: 0,
+            weeks: WeekUnwrap::default(),
         }
     }
 
@@ -633,6 +680,8 @@ impl<R: BufRead> OdometerFileReader<R> {
                 self.reject_read(reason);
                 continue;
             }
+            let t = self.weeks.unwrap(t);
+            self.report.week_rollovers = self.weeks.rollovers;
             // m/s or m from here on.
             let v = self.kind.si(given);
             if self.kind.is_speed() && v.abs() > LAND_SPEED_RANGE_MPS {
@@ -664,6 +713,38 @@ impl<R: BufRead> OdometerFileReader<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A log in GPS seconds of week running over the rollover: its tags go on a week
+    /// later, counted once; the odometer file's too. A step back that is no rollover
+    /// (not from the week's last hour to its first) is a tag not after the one before.
+    #[test]
+    fn time_tags_over_a_gps_weeks_rollover_go_on() {
+        let tags = [604_799.8, 604_799.9, 0.0, 0.1, 0.2];
+        let text: String = tags.iter().map(|t| format!("{t} 1 2 3 4 5 6\n")).collect();
+        let (v, rep, _) = read_all(&text);
+        let t: Vec<f64> = v.iter().map(|s| s.t_s).collect();
+        assert_eq!(t, [604_799.8, 604_799.9, 604_800.0, 604_800.1, 604_800.2]);
+        assert_eq!((rep.week_rollovers, rep.t_non_increasing), (1, 0));
+        assert!(rep.is_consistent(), "{rep:?}");
+
+        let mut odo =
+            OdometerFileReader::new(&b"604799 1.0\n0 1.0\n1 2.0\n"[..], OdometerKind::SpeedMps);
+        let mut samples = Vec::new();
+        while let Some(s) = odo.next_sample().unwrap() {
+            samples.push(s);
+        }
+        let t: Vec<f64> = samples.iter().map(|s| s.t_s).collect();
+        assert_eq!(t, [604_799.0, 604_800.0, 604_801.0], "{:?}", odo.faults());
+        assert_eq!(odo.report().week_rollovers, 1);
+        assert!((samples[2].distance_m - 2.5).abs() < 1e-12);
+
+        for tags in [[600_000.0, 0.5], [604_799.0, 3_600.0]] {
+            let text: String = tags.iter().map(|t| format!("{t} 1 2 3 4 5 6\n")).collect();
+            let (v, rep, _) = read_all(&text);
+            assert_eq!(v[1].t_s, tags[1]);
+            assert_eq!((rep.week_rollovers, rep.t_non_increasing), (0, 1));
+        }
+    }
 
     fn read_all(text: &str) -> (Vec<TextSample>, IngestReport, Vec<LineFault>) {
         let mut r = KfGinsReader::new(text.as_bytes());
@@ -871,7 +952,8 @@ mod tests {
             OdometerFileReport {
                 lines_read: 5,
                 lines_accepted: 4,
-                lines_rejected: 1
+                lines_rejected: 1,
+                week_rollovers: 0
             }
         );
     }
@@ -913,7 +995,8 @@ mod tests {
             OdometerFileReport {
                 lines_read: 10,
                 lines_accepted: 5,
-                lines_rejected: 5
+                lines_rejected: 5,
+                week_rollovers: 0
             }
         );
     }

@@ -56,6 +56,10 @@ pub struct IngestReport {
     pub lost_duration_s: f64,
     /// Accepted IMU records whose `t_us` is not after the previous one's.
     pub t_non_increasing: u64,
+    /// Text logs: times the time tags rolled over from the end of a GPS week to its start
+    /// (seconds of week: [`crate::kfgins::GPS_WEEK_S`]), the week added to the tags after.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub week_rollovers: u64,
     /// Odometer steps beyond a land vehicle's speed (a corrupt count or reading), replaced
     /// by the speed before them; a run fails above 1 % of its odometer's samples.
     #[serde(default, skip_serializing_if = "is_zero")]
@@ -139,6 +143,10 @@ pub struct OdometerFileReport {
     /// Lines not kept: not two finite numbers, time not advancing, a speed beyond a land
     /// vehicle's, a spike (their numbers and reasons are in `ingest_events.json`).
     pub lines_rejected: u64,
+    /// Times its time tags rolled over from the end of a GPS week to its start (seconds of
+    /// week: [`crate::kfgins::GPS_WEEK_S`]), the week added to the tags after.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub week_rollovers: u64,
 }
 
 /// The first faults of one raw log, located (`ingest_events.json`): the counts are in

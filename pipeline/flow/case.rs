@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use anyhow::{Context, bail};
 use serde::{Deserialize, Serialize};
-use unz_formats::manifest::RunManifest;
+use unz_formats::manifest::{LogFormat, RunManifest};
 use unz_formats::parquet_io::read_schema;
 use unz_formats::schema::META_ODO_M_PER_PULSE;
 use unz_formats::tables::MarksTable;
@@ -175,12 +175,16 @@ pub fn match_control_points(
     for cp in &m.control_points {
         let times: Vec<f64> = match marks_of.get(&cp.id) {
             Some(visits) => visits.iter().map(|&i| log_t_s(marks.t_ns[i])).collect(),
-            None => vec![cp.t_s.with_context(|| {
-                format!(
-                    "control point {} matches no mark record and has no t_s{unknown_said}",
-                    cp.id
-                )
-            })?],
+            None => vec![next_week(
+                cp.t_s.with_context(|| {
+                    format!(
+                        "control point {} matches no mark record and has no t_s{unknown_said}",
+                        cp.id
+                    )
+                })?,
+                m.format,
+                in_log,
+            )],
         };
         for t_s in times {
             if !in_log(t_s) {
@@ -214,6 +218,18 @@ pub fn match_control_points(
         moving_marks,
         unknown_marks,
     })
+}
+
+/// A text log's time `t_s` as written in the manifest (its time column's seconds of GPS
+/// week), in the log's time base when the log ran over a week's rollover and the time is
+/// after it: a week on, when only that is within the log (`in_log`). The ingest adds the
+/// week to the log's own tags from the rollover on (`unz_formats::kfgins::GPS_WEEK_S`).
+fn next_week(t_s: f64, format: LogFormat, in_log: impl Fn(f64) -> bool) -> f64 {
+    let week_on = t_s + unz_formats::kfgins::GPS_WEEK_S;
+    match format {
+        LogFormat::KfGins if !in_log(t_s) && in_log(week_on) => week_on,
+        _ => t_s,
+    }
 }
 
 /// How many times over the odometer's path to a mark a control point may lie from the

@@ -71,7 +71,8 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // line's reason (in `ingest_events.json`) names decimal commas in a speed file too.
         // 18: a text file's time tag beyond ±9e9 s is a rejected line, not a saturated
         // time. 19: a standing count's watch takes a sample period of 0.1 ms at least.
-        version: 19,
+        // 20: a text file's time tags unwrapped over a GPS week's rollover.
+        version: 20,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,

@@ -144,8 +144,9 @@ pub fn ensure_navigate(
         //     one shift (the site off).
         // 13: the derive's reading of the odometer's clock reported. 14: the stand at the
         //     log's start judged by the odometer's travel over each second (a speed
-        //     sensor's noise at rest ended it), and its travel said.
-        version: 14,
+        //     sensor's noise at rest ended it), and its travel said. 15: a text log's
+        //     control point timed after a GPS week's rollover taken a week on.
+        version: 15,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],
