@@ -29,7 +29,7 @@ use crate::flow::{
     Cores, NavigateSummary, Overrides, RunCtx, ensure_criteria, ensure_derive, ensure_ingest,
     ensure_ingest_before_derive, ensure_navigate,
 };
-use unz_stages::initial::{LevelApart, StandTravel, StaticCut, StaticUnused};
+use unz_stages::initial::{AzimuthApart, LevelApart, StandTravel, StaticCut, StaticUnused};
 
 /// The stages of `unz run`, in order.
 pub const STAGES: [&str; 7] = [
@@ -518,10 +518,12 @@ fn run_note(
     let static_unused = nav.and_then(|n| n.initial.static_unused.as_ref());
     let stand_travel = nav.and_then(|n| n.initial.stand_travel.as_ref());
     let level_apart = nav.and_then(|n| n.initial.level_apart.as_ref());
+    let azimuth_apart = nav.and_then(|n| n.initial.azimuth_apart.as_ref());
     (static_cut.map(StaticCut::said))
         .into_iter()
         .chain(static_unused.map(StaticUnused::said))
         .chain(stand_travel.map(StandTravel::said))
+        .chain(azimuth_apart.map(AzimuthApart::said))
         .chain(level_apart.map(LevelApart::said))
         .chain(odo_failed)
         .chain(rebridged)

@@ -712,6 +712,43 @@ fn kingston_a_control_point_timed_while_driving_is_said() {
     assert!(nav.moving_marks.is_empty(), "{:?}", nav.moving_marks);
 }
 
+/// Kingston with its heading given in radians (`azimuth_deg = 3.523`: 201.85°, the static
+/// start's gyrocompassing) and 52° off (150°). Before, both ran "ok" with nothing said
+/// (DISUPT's coarse search turned the first by 162°). Now `navigate.json`
+/// (`initial.azimuth_apart`) and the campaign's note say how far the azimuth given is
+/// from the gyrocompassing, naming radians where they fit; the run keeps what was given,
+/// and DISUPT corrects it as before. 195° (7° off, within 4σ of the gyrocompassing's
+/// 5.4°) and the manifest without an azimuth say nothing.
+#[test]
+fn kingston_an_azimuth_given_far_from_the_gyrocompassing_is_said() {
+    let tmp = tempfile::tempdir().unwrap();
+    let said = |name: &str, azimuth_deg: f64| {
+        let run = kingston_with_initial(&tmp.path().join(name), "azimuth_deg", azimuth_deg.into());
+        let out = tmp.path().join(format!("{name}-o"));
+        crate::util::run_until(&run, &out, "navigate");
+        let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+        (navigate_summary(&out).initial.azimuth_apart, summary)
+    };
+    let (apart, summary) = said("rad", 3.523);
+    let apart = apart.expect("the azimuth given said");
+    assert!((apart.apart_deg() - 161.7).abs() < 0.5, "{apart:?}");
+    assert!(
+        summary.contains("the azimuth given (3.523°) is 161.")
+            && summary.contains("(3.523 read as radians is 201.8"),
+        "{summary}"
+    );
+    let (apart, summary) = said("off", 150.0);
+    assert!(apart.is_some_and(|a| (a.apart_deg() - 51.8).abs() < 0.5));
+    assert!(!summary.contains("radians"), "{summary}");
+    assert_eq!(said("near", 195.0).0, None);
+    assert_eq!(
+        shipped_navigated(&tmp.path().join("shipped"))
+            .initial
+            .azimuth_apart,
+        None
+    );
+}
+
 /// Kingston with `static_s = 0` (no static start) though it stands 527 s at its start:
 /// the heading then comes from the control points alone. Before, the run was "ok" with
 /// the joint fit's azimuth σ 0.69° (0.06° aligned) and hold-out errors of 16 and 29 m

@@ -145,8 +145,9 @@ pub fn ensure_navigate(
         // 13: the derive's reading of the odometer's clock reported. 14: the stand at the
         //     log's start judged by the odometer's travel over each second (a speed
         //     sensor's noise at rest ended it), and its travel said. 15: a text log's
-        //     control point timed after a GPS week's rollover taken a week on.
-        version: 15,
+        //     control point timed after a GPS week's rollover taken a week on. 16: an
+        //     azimuth given far from the static start's gyrocompassing said.
+        version: 16,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],
@@ -164,6 +165,9 @@ pub fn ensure_navigate(
         }
         for moving in &case.moving_marks {
             ctx.say("navigate", &moving.said());
+        }
+        if let Some(apart) = &case.initial.azimuth_apart {
+            ctx.say("navigate", &apart.said());
         }
         if let Some(apart) = &case.initial.level_apart {
             ctx.say("navigate", &apart.said());

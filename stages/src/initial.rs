@@ -138,6 +138,103 @@ pub struct InitialReport {
     /// [`STAND_TRAVEL_SAID_M`] or more ([`StandTravel`]); absent otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stand_travel: Option<StandTravel>,
+    /// An azimuth given far from the static start's gyrocompassing ([`AzimuthApart`]);
+    /// absent otherwise. The run keeps what was given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub azimuth_apart: Option<AzimuthApart>,
+}
+
+/// How far an azimuth given may be from the static start's gyrocompassing before it is
+/// said, degrees, or [`AZIMUTH_APART_SIGMAS`] of the gyrocompassing's σ if more: an
+/// alignment's azimuth is degrees off (DISUPT's to correct), tens of degrees a setting
+/// written wrong.
+pub const AZIMUTH_APART_DEG: f64 = 10.0;
+
+/// How many of the gyrocompassing's σ an azimuth given may be from it before it is said:
+/// an LN-200's 1 °/h of drift gives 6.5–7.2° over 85 s at 52° of latitude, and 50
+/// simulated runs' manifest azimuths (the alignment's, degrees off) were within 2.7σ of
+/// theirs (a run in 16 000 is past 4σ by chance).
+pub const AZIMUTH_APART_SIGMAS: f64 = 4.0;
+
+/// An azimuth given (by the manifest, or on the command line) far from the static
+/// start's gyrocompassing: a setting in radians, another run's, or another convention's.
+/// Kingston with `azimuth_deg = 3.523` (its heading, 201.85°, in radians) ran "ok" with
+/// nothing said: DISUPT's coarse search turned it by 162°.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct AzimuthApart {
+    /// The azimuth given, degrees.
+    pub given_deg: f64,
+    /// The body's heading with it, degrees (the given one, but for an IMU mounted at an
+    /// angle).
+    pub heading_deg: f64,
+    /// The static start's gyrocompassing of the body's heading, degrees.
+    pub gyrocompass_deg: f64,
+    /// Its σ, degrees.
+    pub gyrocompass_sigma_deg: f64,
+}
+
+impl AzimuthApart {
+    /// Of an azimuth `given_deg` (the body heading `heading_deg`) on a static start whose
+    /// gyrocompassing gives `gyrocompass_deg` ± `sigma_deg`: `None` within
+    /// [`AZIMUTH_APART_DEG`] and [`AZIMUTH_APART_SIGMAS`].
+    pub fn of(
+        given_deg: f64,
+        heading_deg: f64,
+        gyrocompass_deg: f64,
+        sigma_deg: f64,
+    ) -> Option<Self> {
+        let apart = Self {
+            given_deg,
+            heading_deg,
+            gyrocompass_deg,
+            gyrocompass_sigma_deg: sigma_deg,
+        };
+        (apart.apart_deg() > reach_deg(sigma_deg)).then_some(apart)
+    }
+
+    /// How far the heading is from the gyrocompassing's, degrees (0–180).
+    pub fn apart_deg(&self) -> f64 {
+        apart_deg(self.heading_deg, self.gyrocompass_deg)
+    }
+
+    /// What it is, for the run's log and its row of the campaign summary.
+    pub fn said(&self) -> String {
+        // The value given, read as the radians it may have been written in.
+        let as_radians = self.given_deg.to_degrees();
+        let radians = if apart_deg(as_radians, self.gyrocompass_deg)
+            <= reach_deg(self.gyrocompass_sigma_deg)
+        {
+            format!(
+                " ({} read as radians is {:.2}°: azimuth_deg is in degrees)",
+                self.given_deg,
+                as_radians.rem_euclid(360.0)
+            )
+        } else {
+            String::new()
+        };
+        format!(
+            "the azimuth given ({}°) is {:.1}° from the static start's gyrocompassing \
+             ({:.2}° ± {:.2}°){radians}: DISUPT corrects the run from it, but the manifest's \
+             azimuth_deg may be wrong (the run keeps it)",
+            self.given_deg,
+            self.apart_deg(),
+            self.gyrocompass_deg,
+            self.gyrocompass_sigma_deg
+        )
+    }
+}
+
+/// How far an azimuth may be from a gyrocompassing of σ `sigma_deg` and agree with it,
+/// degrees.
+fn reach_deg(sigma_deg: f64) -> f64 {
+    AZIMUTH_APART_DEG.max(AZIMUTH_APART_SIGMAS * sigma_deg)
+}
+
+/// Degrees between two headings (0–180).
+fn apart_deg(a_deg: f64, b_deg: f64) -> f64 {
+    crate::attitude::wrap_pi((a_deg - b_deg).to_radians())
+        .abs()
+        .to_degrees()
 }
 
 /// How far a tilt given may be from the static start's levelling before it is said to be
@@ -579,6 +676,9 @@ pub fn initial_settings_with_velocity(
         static_cut,
         static_unused,
         stand_travel,
+        azimuth_apart: (req.azimuth_deg.zip(gc).zip(gc_sigma)).and_then(|(((given, _), gc), s)| {
+            AzimuthApart::of(given, heading.to_degrees(), gc.to_degrees(), s.to_degrees())
+        }),
         level_apart: (has_static && (req.roll_deg.is_some() || req.pitch_deg.is_some()))
             .then(|| {
                 LevelApart::of(
@@ -658,6 +758,30 @@ mod tests {
         assert_eq!(static_start_s(&early, &given(60.0)), 0.0);
         assert_eq!(static_cut(&early, &given(0.0)), None);
         assert_eq!(static_cut(&early, &InitialRequest::default()), None);
+    }
+
+    #[test]
+    fn an_azimuth_given_far_from_the_gyrocompassing_is_said() {
+        // Within 10° or 4σ: nothing, across north too.
+        assert_eq!(AzimuthApart::of(195.0, 195.0, 201.85, 5.41), None);
+        assert_eq!(AzimuthApart::of(355.0, 355.0, 5.0, 0.5), None);
+        assert_eq!(AzimuthApart::of(182.0, 182.0, 201.85, 5.41), None);
+        assert!(AzimuthApart::of(180.0, 180.0, 201.85, 5.41).is_some());
+        // Beyond: how far, and a value that is the heading in radians named so.
+        let rad = AzimuthApart::of(3.523, 3.523, 201.85, 5.41).unwrap();
+        assert!((rad.apart_deg() - 161.67).abs() < 0.01, "{rad:?}");
+        assert!(
+            rad.said().starts_with(
+                "the azimuth given (3.523°) is 161.7° from the static start's gyrocompassing \
+                 (201.85° ± 5.41°) (3.523 read as radians is 201.85°: azimuth_deg is in \
+                 degrees)"
+            ),
+            "{}",
+            rad.said()
+        );
+        let off = AzimuthApart::of(150.0, 150.0, 201.85, 5.41).unwrap();
+        assert!(!off.said().contains("radians"), "{}", off.said());
+        assert!(AzimuthApart::of(12.0, 12.0, 0.0, 0.5).is_some());
     }
 
     #[test]
