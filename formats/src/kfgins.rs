@@ -403,6 +403,12 @@ impl<R: BufRead> KfGinsReader<R> {
             }
             let t_s = self.weeks.unwrap(values[0]);
             self.report.week_rollovers = self.weeks.rollovers;
+            // Rollovers without end (a file of tags at a week's end and start by turns)
+            // add weeks past the span too.
+            if let Some(reason) = tag_beyond_range(t_s) {
+                self.fault(reason);
+                continue;
+            }
             return Ok(Some(TextSample {
                 line: self.lines.line_no,
                 t_s,
@@ -682,6 +688,10 @@ impl<R: BufRead> OdometerFileReader<R> {
             }
             let t = self.weeks.unwrap(t);
             self.report.week_rollovers = self.weeks.rollovers;
+            if let Some(reason) = tag_beyond_range(t) {
+                self.reject_read(reason);
+                continue;
+            }
             // m/s or m from here on.
             let v = self.kind.si(given);
             if self.kind.is_speed() && v.abs() > LAND_SPEED_RANGE_MPS {
@@ -738,6 +748,29 @@ mod tests {
         assert_eq!(odo.report().week_rollovers, 1);
         assert!((samples[2].distance_m - 2.5).abs() < 1e-12);
 
+        // Rollovers by turns, without end: their weeks pass the span kept, and the lines
+        // past it are rejected, not saturated.
+        let turns: String = (0..40_000)
+            .map(|k| {
+                if k % 2 == 0 {
+                    "604799.5 1 2 3 4 5 6\n"
+                } else {
+                    "0.5 1 2 3 4 5 6\n"
+                }
+            })
+            .collect();
+        let (v, rep, _) = read_all(&turns);
+        assert!(v.iter().all(|s| s.t_s.abs() <= MAX_TAG_S), "{:?}", v.last());
+        assert_eq!(rep.week_rollovers, 20_000);
+        assert!(v.len() < 40_000 && rep.is_consistent(), "{rep:?}");
+        let turns = turns.replace(" 1 2 3 4 5 6", " 1.0");
+        let mut odo = OdometerFileReader::new(turns.as_bytes(), OdometerKind::SpeedMps);
+        let mut last_s = 0.0;
+        while let Some(s) = odo.next_sample().unwrap() {
+            last_s = s.t_s;
+        }
+        assert!(last_s > 0.0 && last_s <= MAX_TAG_S, "{last_s}");
+        assert!(odo.report().lines_rejected > 0, "{:?}", odo.report());
         for tags in [[600_000.0, 0.5], [604_799.0, 3_600.0]] {
             let text: String = tags.iter().map(|t| format!("{t} 1 2 3 4 5 6\n")).collect();
             let (v, rep, _) = read_all(&text);
