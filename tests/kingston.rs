@@ -516,9 +516,7 @@ fn kingston_speeds_in_kmh_on_another_clock_name_every_unit_near() {
     let mps = kingston_odometer_shifted(&tmp.path().join("mps"), 5.0);
     manifest(&mps, "speed_mps");
     crate::util::run_until(&mps, &tmp.path().join("mps-o"), "disupt");
-    let worst = |o: &str| joint_worst_control_point_m(&tmp.path().join(o));
-    let (kmh, mps) = (worst("kmh-o"), worst("mps-o"));
-    assert!((kmh - mps).abs() < 0.01, "{kmh} m in km/h, {mps} m in m/s");
+    assert_same_worst_point(&tmp.path().join("kmh-o"), &tmp.path().join("mps-o"));
 }
 
 /// Kingston's OBD-II speed file on a clock 5 s late, and 5 s early: beyond the ±1 s of
@@ -816,14 +814,7 @@ fn kingston_over_a_gps_weeks_rollover_is_the_run_on_its_own_clock() {
     assert_eq!(report.week_rollovers, 1);
     assert_eq!(report.odometer_file.unwrap().week_rollovers, 1);
     crate::util::run_until(&own, &tmp.path().join("own-o"), "disupt");
-    let (worst, worst_own) = (
-        joint_worst_control_point_m(&out),
-        joint_worst_control_point_m(&tmp.path().join("own-o")),
-    );
-    assert!(
-        (worst - worst_own).abs() < 0.01,
-        "{worst} m, {worst_own} m on its own clock"
-    );
+    assert_same_worst_point(&out, &tmp.path().join("own-o"));
 }
 
 /// Kingston's speeds with a sensor's noise at rest (0–4 cm/s, never negative, as a GNSS
@@ -2081,6 +2072,20 @@ fn kingston_an_imu_mounted_at_an_angle_is_named() {
 
 /// The joint fit's worst control point of the Kingston run disupt put in `out`, m (the
 /// joint corrected it).
+/// Asserts the joint fit's worst control point of the Kingston run in `out` is the one
+/// in `reference`'s within 1 cm: the same route.
+fn assert_same_worst_point(out: &std::path::Path, reference: &std::path::Path) {
+    let (w, w0) = (
+        joint_worst_control_point_m(out),
+        joint_worst_control_point_m(reference),
+    );
+    assert!(
+        (w - w0).abs() < 0.01,
+        "{w} m, {w0} m in {}",
+        reference.display()
+    );
+}
+
 fn joint_worst_control_point_m(out: &std::path::Path) -> f64 {
     let d: unz::disupt_stage::DisuptOut =
         read_json(&out.join("kingston2008-segment1/disupt/disupt.json"));
@@ -2099,10 +2104,8 @@ fn joint_worst_control_point_m(out: &std::path::Path) -> f64 {
 #[test]
 fn kingston_speeds_in_kmh_or_mph_are_named() {
     let tmp = tempfile::tempdir().unwrap();
-    let worst = joint_worst_control_point_m;
     let intact = kingston_with(&tmp.path().join("intact"), "");
     crate::util::run_until(&intact, &tmp.path().join("intact-o"), "disupt");
-    let worst_intact = worst(&tmp.path().join("intact-o"));
     for (unit, factor) in [("km/h", 3.6), ("mph", 2.236_936)] {
         let run = kingston_with(&tmp.path().join(unit.replace('/', "")), "");
         let text: String = (kingston_speeds().iter())
@@ -2126,11 +2129,7 @@ fn kingston_speeds_in_kmh_or_mph_are_named() {
             std::fs::write(run.join("run.toml"), named).unwrap();
             let out = tmp.path().join("kmh-o");
             crate::util::run_until(&run, &out, "disupt");
-            let w = worst(&out);
-            assert!(
-                (w - worst_intact).abs() < 0.01,
-                "{w} m, shipped {worst_intact} m"
-            );
+            assert_same_worst_point(&out, &tmp.path().join("intact-o"));
         }
     }
 }
@@ -2141,11 +2140,9 @@ fn kingston_speeds_in_kmh_or_mph_are_named() {
 #[test]
 fn kingston_a_speed_column_in_kmh_is_named() {
     let tmp = tempfile::tempdir().unwrap();
-    let worst = joint_worst_control_point_m;
     let mps = tmp.path().join("mps");
     kingston_column(&mps, |_, v| v);
     crate::util::run_until(&mps, &tmp.path().join("mps-o"), "disupt");
-    let worst_mps = worst(&tmp.path().join("mps-o"));
 
     let kmh = tmp.path().join("kmh");
     kingston_column(&kmh, |_, v| v * 3.6);
@@ -2159,6 +2156,5 @@ fn kingston_a_speed_column_in_kmh_is_named() {
     assert!(err.contains("the 8th column is a speed"), "{err}");
     std::fs::write(kmh.join("run.toml"), with("speed_kmh")).unwrap();
     crate::util::run_until(&kmh, &tmp.path().join("kmh-o"), "disupt");
-    let w = worst(&tmp.path().join("kmh-o"));
-    assert!((w - worst_mps).abs() < 0.01, "{w} m, in m/s {worst_mps} m");
+    assert_same_worst_point(&tmp.path().join("kmh-o"), &tmp.path().join("mps-o"));
 }

@@ -146,10 +146,10 @@ pub fn check_clock(
 /// the IMU's log (Kingston's 300 s late: its stand of 527 s where the IMU drives) has
 /// too little left to show it; its stands while the vehicle moves fail the run.
 fn far_clock(d: &Derived, near: ClockFit, edge_s: f64) -> Option<ClockFit> {
-    let near_best = near.correlation.max(near.correlation_as_given.abs());
     if near.shown() {
         return None;
     }
+    let near_best = near.correlation.max(near.correlation_as_given.abs());
     ClockFit::far(d, edge_s).filter(|f| f.off() && f.correlation >= 2.0 * near_best)
 }
 

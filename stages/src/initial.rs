@@ -230,7 +230,7 @@ fn reach_deg(sigma_deg: f64) -> f64 {
     AZIMUTH_APART_DEG.max(AZIMUTH_APART_SIGMAS * sigma_deg)
 }
 
-/// Degrees between two headings (0–180).
+/// Degrees between two angles (0–180).
 fn apart_deg(a_deg: f64, b_deg: f64) -> f64 {
     crate::attitude::wrap_pi((a_deg - b_deg).to_radians())
         .abs()
@@ -265,10 +265,8 @@ impl LevelApart {
 
     /// The larger of the roll's and the pitch's difference, degrees.
     pub fn apart_deg(&self) -> f64 {
-        let d = |k: usize| {
-            crate::attitude::wrap_pi((self.given_deg[k] - self.levelled_deg[k]).to_radians())
-        };
-        d(0).abs().max(d(1).abs()).to_degrees()
+        let d = |k: usize| apart_deg(self.given_deg[k], self.levelled_deg[k]);
+        d(0).max(d(1))
     }
 
     /// What it is, for the run's log and its row of the campaign summary.
@@ -483,8 +481,8 @@ struct StaticStart {
     /// The one given, when it leaves a stand of a minute or more out of the alignment
     /// ([`StaticUnused`]).
     unused: Option<StaticUnused>,
-    /// [`StandTravel`] over the stand detected.
-    stand_travel: Option<StandTravel>,
+    /// How long the odometer stood at the log's start ([`detect_static_s`]), s.
+    stood_s: f64,
 }
 
 /// [`static_start_s`], [`static_cut`] and [`StaticUnused`], from one search of the
@@ -503,7 +501,7 @@ fn static_start(d: &Derived, req: &InitialRequest) -> StaticStart {
         static_s: static_s.min(log_s),
         cut,
         unused,
-        stand_travel: StandTravel::of(d, detected_s),
+        stood_s: detected_s,
     }
 }
 
@@ -540,7 +538,7 @@ pub fn initial_settings_with_velocity(
         static_s,
         cut: static_cut,
         unused: static_unused,
-        stand_travel,
+        stood_s,
     } = static_start(d, req);
     let means = align::static_means(&d.dt_s, &d.dtheta_rad, dvel_mps, static_s);
     let has_static = means.duration_s >= MIN_STATIC_S;
@@ -675,7 +673,8 @@ pub fn initial_settings_with_velocity(
         in_motion_level: None,
         static_cut,
         static_unused,
-        stand_travel,
+        // Walked here only: the static start's other callers do not report it.
+        stand_travel: StandTravel::of(d, stood_s),
         azimuth_apart: (req.azimuth_deg.zip(gc).zip(gc_sigma)).and_then(|(((given, _), gc), s)| {
             AzimuthApart::of(given, heading.to_degrees(), gc.to_degrees(), s.to_degrees())
         }),
