@@ -525,6 +525,7 @@ fn run_note(
         .chain(stand_travel.map(StandTravel::said))
         .chain(azimuth_apart.map(AzimuthApart::said))
         .chain(level_apart.map(LevelApart::said))
+        .chain(ing.and_then(|i| i.speed_floor).map(|f| f.said()))
         .chain(odo_failed)
         .chain(rebridged)
         .chain(

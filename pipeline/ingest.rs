@@ -32,6 +32,7 @@ use unz_formats::parquet_io::ParquetSink;
 use unz_formats::parquet_thread::ParquetThread;
 use unz_formats::raw::{Accepted, IMU_PAYLOAD_LEN, RawReader, frame_len};
 use unz_formats::schema::DistanceSource;
+use unz_formats::speed_floor::{SpeedFloor, SpeedFloorReport};
 use unz_formats::speed_spikes::{SpeedSpikes, Verdict};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
 use unz_formats::{IngestEvents, IngestReport, schema};
@@ -727,12 +728,22 @@ fn ingest_text(
         }
         _ => OdometerKind::SpeedMps,
     };
+    let floor_mps = manifest.odometer.speed_floor_mps;
+    if floor_mps.is_some() && !column && odometer_file.is_none() {
+        anyhow::bail!(
+            "[odometer] speed_floor_mps is set, but {} has no odometer speeds: 7 columns, and \
+             no [odometer] file (in {})",
+            manifest.named(path).display(),
+            manifest.path.display()
+        );
+    }
     // A speed file's gaps and stands are found first, its readings around them kept, so
     // that the IMU's samples over them can be kept as they stream by; the 8th column's
     // as the log streams.
     let found = match odometer_file {
         Some((file, kind)) if kind.is_speed() => {
-            let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind);
+            let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind)
+                .with_speed_floor(floor_mps);
             Some(find_gaps(|| file_readings(&mut odo)).map_err(|e| e.in_file(file))?)
         }
         _ => None,
@@ -753,7 +764,7 @@ fn ingest_text(
         let g_mps2 = site_gravity_mps2(manifest);
         (
             SpeedSpikes::default(),
-            SpeedColumn::default(),
+            SpeedColumn::new(floor_mps),
             ColumnBridger::new(g_mps2, options.odo_lag_prior_s),
         )
     });
@@ -794,8 +805,10 @@ fn ingest_text(
     let mut gaps = gaps.map(GapBridger::finish);
     let mut file_report = None;
     let mut file_spikes = (0, 0);
+    let mut speed_floor = (column.as_ref()).and_then(|(_, speed, _)| speed.floor_report());
     if let Some((file, kind)) = odometer_file {
-        let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind);
+        let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind)
+            .with_speed_floor(floor_mps);
         while let Some(o) = odo.next_sample().map_err(|e| e.in_file(file))? {
             let t_ns = tag_ns(o.t_s);
             let d = sinks.odo_range.step(t_ns, o.distance_m);
@@ -807,6 +820,7 @@ fn ingest_text(
         }
         file_report = Some((odo.report().clone(), odo.faults().0.to_vec()));
         file_spikes = odo.spikes();
+        speed_floor = odo.speed_floor();
     }
     let failures = match column {
         Some((spikes, _, bridger)) => {
@@ -828,6 +842,7 @@ fn ingest_text(
     report.odometer_out_of_range = odometer_range.out_of_range;
     report.odometer_failures = bridged;
     report.odometer_file = file_report.as_ref().map(|(r, _)| r.clone());
+    report.speed_floor = speed_floor;
     let (faults, total) = reader.faults();
     Ok(Streamed {
         report,
@@ -866,14 +881,29 @@ fn column_readings(
 }
 
 /// A text log's 8th column: the odometer's speed at each IMU sample, integrated into
-/// distance by the trapezoid.
+/// distance by the trapezoid (through the manifest's speed floor, when it sets one).
 #[derive(Debug, Default)]
 struct SpeedColumn {
     /// The last speed taken: its time, s, speed, m/s, and distance, m.
     prev: Option<(f64, f64, f64)>,
+    /// `[odometer] speed_floor_mps`.
+    floor: Option<SpeedFloor>,
 }
 
 impl SpeedColumn {
+    /// Integrating from the first speed, through a floor of `floor_mps` if given.
+    fn new(floor_mps: Option<f64>) -> Self {
+        Self {
+            prev: None,
+            floor: floor_mps.map(SpeedFloor::new),
+        }
+    }
+
+    /// What the floor took away so far (`None` without one).
+    fn floor_report(&self) -> Option<SpeedFloorReport> {
+        self.floor.as_ref().map(SpeedFloor::report)
+    }
+
     /// The distance at `t_s` with the speed `v_mps` there; `None` for a speed beyond a
     /// land vehicle's (a corrupt reading: the sample goes on without its speed). A time
     /// not after the last speed's adds nothing (the derive repairs and counts those).
@@ -881,6 +911,10 @@ impl SpeedColumn {
         if v_mps.abs() > LAND_SPEED_RANGE_MPS {
             return None;
         }
+        let v_mps = match &mut self.floor {
+            Some(floor) => floor.read(t_s, v_mps),
+            None => v_mps,
+        };
         let d = match self.prev {
             Some((t0, v0, d0)) if t_s > t0 => d0 + 0.5 * (v0 + v_mps) * (t_s - t0),
             Some((_, _, d0)) => d0,
@@ -906,6 +940,15 @@ impl SpeedColumn {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The manifest's highest speed floor is the speed of a move, as the stand's
+    /// detection judges it (the formats crate cannot name the stages' constants).
+    #[test]
+    fn the_highest_speed_floor_is_a_moves_speed() {
+        use unz_stages::initial::{MOVE_WINDOW_S, MOVED_M};
+        let max = unz_formats::speed_floor::SPEED_FLOOR_MAX_MPS;
+        assert_eq!(max, MOVED_M / MOVE_WINDOW_S);
+    }
 
     /// A time tag in seconds is its decimal, exact and without trailing zeros.
     #[test]

@@ -828,10 +828,8 @@ fn kingston_over_a_gps_weeks_rollover_is_the_run_on_its_own_clock() {
 #[test]
 fn kingston_a_speed_sensors_noise_at_rest_keeps_the_static_start_and_is_said() {
     let tmp = tempfile::tempdir().unwrap();
-    // 0–4 cm/s, 2 cm/s on average, from the time tag (whole seconds).
-    let noise_mps = |t: f64| 0.04 * ((t as i64 * 7919).rem_euclid(101) as f64 / 100.0);
     let run = kingston_odometer_edited(&tmp.path().join("k"), |t, v| {
-        (t, if v < 0.05 { noise_mps(t) } else { v })
+        (t, if v < 0.05 { noise_at_rest_mps(t) } else { v })
     });
     let out = tmp.path().join("o");
     crate::util::run_until(&run, &out, "disupt");
@@ -860,12 +858,158 @@ fn kingston_a_speed_sensors_noise_at_rest_keeps_the_static_start_and_is_said() {
         (travel.travel_m - 10.5).abs() < 1.5 && (travel.stood_s - 527.0).abs() < 1.5,
         "{travel:?}"
     );
+    // The floor that reads the noise's fastest (4 cm/s) as 0.
+    assert_eq!(travel.floor_mps, Some(0.04), "{travel:?}");
     let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
     assert!(
-        summary.contains("the odometer counted 1") && summary.contains("s the vehicle stood"),
+        summary.contains("the odometer counted 1")
+            && summary.contains("s the vehicle stood")
+            && summary.contains("set [odometer] speed_floor_mps = 0.04 in the run's manifest"),
         "{summary}"
     );
     assert_eq!(shipped.initial.stand_travel, None);
+}
+
+/// A speed sensor's noise at rest at `t_s`: 0–4 cm/s, never negative (a GNSS ground
+/// speed's), 2 cm/s on average, from the time tag's whole seconds.
+fn noise_at_rest_mps(t_s: f64) -> f64 {
+    0.04 * ((t_s as i64 * 7919).rem_euclid(101) as f64 / 100.0)
+}
+
+/// 0–4 cm/s of noise where Kingston's speed file reads 0 (a GNSS ground speed at rest),
+/// read through the floor the stand's note names (`[odometer] speed_floor_mps = 0.04`):
+/// the noise is gone as if never logged. The derive, the navigation and the methods'
+/// report are byte for byte the shipped file's through the same floor, and `ingest.json`
+/// counts the readings floored and the travel they held, as the file writes them
+/// (summed here by the trapezoid). Without the floor the joint fit's worst hold-out error
+/// is 41 m; with it, the shipped file's through the floor: 2.2 m (3.0 m as shipped
+/// without one: the floor also reads the file's own 0.8 and 2.0 cm/s as 0).
+#[test]
+fn kingston_a_speed_floor_reads_a_sensors_noise_at_rest_as_never_logged() {
+    let tmp = tempfile::tempdir().unwrap();
+    let floor_mps = 0.04;
+    let noisy = kingston_odometer_edited(&tmp.path().join("noisy"), |t, v| {
+        (t, if v == 0.0 { noise_at_rest_mps(t) } else { v })
+    });
+    let shipped = kingston_with(&tmp.path().join("shipped"), "");
+    let set = format!("kind = \"speed_mps\"\nspeed_floor_mps = {floor_mps}\n");
+    for run in [&noisy, &shipped] {
+        let m = std::fs::read_to_string(run.join("run.toml")).unwrap();
+        let floored = m.replacen("kind = \"speed_mps\"\n", &set, 1);
+        assert_ne!(floored, m);
+        std::fs::write(run.join("run.toml"), floored).unwrap();
+    }
+    let (out, reference) = (tmp.path().join("o"), tmp.path().join("shipped-o"));
+    crate::util::run_until(&noisy, &out, "disupt");
+    crate::util::run_until(&shipped, &reference, "disupt");
+    for file in [
+        "derive/derived.parquet",
+        "navigate/nav.parquet",
+        "navigate/navigate.json",
+        "disupt/disupt.json",
+    ] {
+        let bytes = |o: &std::path::Path| {
+            std::fs::read(o.join("kingston2008-segment1").join(file)).unwrap()
+        };
+        assert!(bytes(&out) == bytes(&reference), "{file} differs");
+    }
+    // The floor's account, from the file as written.
+    let written: Vec<(f64, f64)> = std::fs::read_to_string(noisy.join("odometer.txt"))
+        .unwrap()
+        .lines()
+        .map(|l| {
+            let (t, v) = l.split_once(' ').unwrap();
+            (t.parse().unwrap(), v.parse().unwrap())
+        })
+        .collect();
+    let taken = |v: f64| {
+        if v != 0.0 && v.abs() <= floor_mps {
+            v
+        } else {
+            0.0
+        }
+    };
+    let floored = written.iter().filter(|(_, v)| taken(*v) != 0.0).count() as u64;
+    let floored_m: f64 = (written.windows(2))
+        .map(|w| 0.5 * (taken(w[0].1) + taken(w[1].1)) * (w[1].0 - w[0].0))
+        .sum();
+    let ingest: unz_formats::IngestReport =
+        read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
+    let report = ingest.speed_floor.expect("the floor's account");
+    assert_eq!(report.floor_mps, floor_mps);
+    assert_eq!(report.readings_floored, floored);
+    assert!(
+        (report.floored_m - floored_m).abs() < 1e-9,
+        "{report:?}, {floored_m} m"
+    );
+    // The noise over the 527-s stand, 2 cm/s on average, and over the stops after.
+    assert!(floored > 550 && floored_m > 10.0, "{report:?}");
+    let nav = navigate_summary(&out);
+    assert_eq!(nav.initial.stand_travel, None, "{:?}", nav.initial);
+    let worst_m = joint_worst_holdout_m(&out);
+    assert!(worst_m < 3.5, "worst hold-out {worst_m} m");
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains("the odometer's speeds at or below 0.04 m/s were read as 0"),
+        "{summary}"
+    );
+}
+
+/// The same noise at rest in an 8th column (Kingston's speeds at its 10-Hz IMU lines),
+/// through the same floor: the run is the noiseless column's through the floor, byte for
+/// byte, and the floor's account counts the noise's 10 readings a second over the stand.
+#[test]
+fn kingston_a_speed_floor_reads_an_8th_columns_noise_at_rest_as_never_logged() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (noisy, plain) = (tmp.path().join("noisy"), tmp.path().join("plain"));
+    kingston_column(
+        &noisy,
+        |t, v| if v == 0.0 { noise_at_rest_mps(t) } else { v },
+    );
+    kingston_column(&plain, |_, v| v);
+    for run in [&noisy, &plain] {
+        let m = std::fs::read_to_string(run.join("run.toml")).unwrap();
+        let floored = m + "\n[odometer]\nspeed_floor_mps = 0.04\n";
+        std::fs::write(run.join("run.toml"), floored).unwrap();
+    }
+    let (out, reference) = (tmp.path().join("o"), tmp.path().join("plain-o"));
+    crate::util::run_until(&noisy, &out, "disupt");
+    crate::util::run_until(&plain, &reference, "disupt");
+    for file in ["navigate/nav.parquet", "disupt/disupt.json"] {
+        let bytes = |o: &std::path::Path| {
+            std::fs::read(o.join("kingston2008-segment1").join(file)).unwrap()
+        };
+        assert!(bytes(&out) == bytes(&reference), "{file} differs");
+    }
+    let ingest: unz_formats::IngestReport =
+        read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
+    let report = ingest.speed_floor.expect("the floor's account");
+    // At 10 Hz over the 527-s stand, about one reading in a hundred of it 0, and more
+    // at the stops after; 2 cm/s on average over the stand.
+    assert!(report.readings_floored > 5_000, "{report:?}");
+    assert!((10.0..13.0).contains(&report.floored_m), "{report:?}");
+    assert_eq!(navigate_summary(&out).initial.stand_travel, None);
+    // A floor over a log with neither an 8th column nor a speed file floors nothing: said.
+    let seven = kingston_edited(
+        &tmp.path().join("seven"),
+        "file = \"odometer.txt\"\nkind = \"speed_mps\"",
+        "speed_floor_mps = 0.04",
+    );
+    let err = crate::util::stage_fails("ingest", &seven, &tmp.path().join("seven-o"));
+    assert!(
+        err.contains("speed_floor_mps is set, but imu.txt has no odometer speeds"),
+        "{err}"
+    );
+}
+
+/// The joint fit's worst horizontal hold-out error in `out`'s Kingston run, m.
+fn joint_worst_holdout_m(out: &std::path::Path) -> f64 {
+    let d: unz::disupt_stage::DisuptOut =
+        read_json(&out.join("kingston2008-segment1/disupt/disupt.json"));
+    let holdout = d.methods["joint"].holdout.as_ref().expect("hold-outs");
+    unz_stages::disupt::holdout_median_max_m(holdout)
+        .expect("hold-out errors")
+        .1
 }
 
 /// Kingston's IMU log with its time tags in milliseconds (its 10-Hz samples step by 100),

@@ -11,6 +11,7 @@ use std::io::BufRead;
 use crate::error::FormatError;
 use crate::manifest::OdometerKind;
 use crate::report::{IngestReport, OdometerFileReport};
+use crate::speed_floor::{SpeedFloor, SpeedFloorReport};
 use crate::speed_spikes::{MAX_ACCEL_MPS2, MAX_BRAKING_MPS2, SpeedSpikes, Verdict};
 
 /// Longest line accepted; longer lines are malformed (and never buffered whole).
@@ -529,6 +530,8 @@ pub struct OdometerFileReader<R: BufRead> {
     held_reasons: usize,
     /// The time tags over GPS-week rollovers.
     weeks: WeekUnwrap,
+    /// A speed file's floor (`[odometer] speed_floor_mps`), applied to the speeds kept.
+    floor: Option<SpeedFloor>,
 }
 
 impl<R: BufRead> OdometerFileReader<R> {
@@ -544,7 +547,22 @@ impl<R: BufRead> OdometerFileReader<R> {
             spikes: SpeedSpikes::default(),
             held_reasons: 0,
             weeks: WeekUnwrap::default(),
+            floor: None,
         }
+    }
+
+    /// Speeds kept below `floor_mps` in magnitude read as 0 (`None`, or a distance
+    /// file: every value as written).
+    pub fn with_speed_floor(mut self, floor_mps: Option<f64>) -> Self {
+        self.floor = floor_mps
+            .filter(|_| self.kind.is_speed())
+            .map(SpeedFloor::new);
+        self
+    }
+
+    /// What the speed floor took away so far (`None` without one).
+    pub fn speed_floor(&self) -> Option<SpeedFloorReport> {
+        self.floor.as_ref().map(SpeedFloor::report)
     }
 
     /// The accounting so far (final after the last sample).
@@ -584,6 +602,10 @@ impl<R: BufRead> OdometerFileReader<R> {
 
     /// A line kept: its distance, m, from the last kept.
     fn accept(&mut self, t: f64, v: f64) -> OdometerSample {
+        let v = match &mut self.floor {
+            Some(floor) => floor.read(t, v),
+            None => v,
+        };
         let distance_m = match (self.kind.is_speed(), self.prev) {
             (false, _) => v,
             (true, Some((pt, pv, pd))) => pd + 0.5 * (pv + v) * (t - pt),

@@ -27,6 +27,7 @@ pub mod regular;
 pub mod report;
 pub mod ros2_msgs;
 pub mod schema;
+pub mod speed_floor;
 pub mod speed_spikes;
 pub mod split_doubles;
 mod split_pages;

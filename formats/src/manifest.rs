@@ -112,6 +112,10 @@ pub struct Odometer {
     pub file: Option<PathBuf>,
     /// What the odometer file holds.
     pub kind: Option<OdometerKind>,
+    /// A speed odometer's floor, m/s: readings at or below it in magnitude are read as 0 (a
+    /// speed sensor's noise at rest; [`crate::speed_floor`]). Speeds only, up to
+    /// [`crate::speed_floor::SPEED_FLOOR_MAX_MPS`].
+    pub speed_floor_mps: Option<f64>,
 }
 
 /// A surveyed control point visited at a stop.
@@ -188,6 +192,7 @@ struct RawOdometer {
     scale_m_per_pulse: Option<Spanned<f64>>,
     file: Option<Spanned<String>>,
     kind: Option<OdometerKind>,
+    speed_floor_mps: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -239,6 +244,45 @@ impl Checker<'_> {
                 ),
             )
         }
+    }
+
+    /// `[odometer] speed_floor_mps`, for an odometer that gives speeds: a count's steps
+    /// and a file's distances have no reading at rest to floor.
+    fn speed_floor(
+        &self,
+        v: &Spanned<f64>,
+        format: LogFormat,
+        kind: Option<OdometerKind>,
+    ) -> Result<f64, FormatError> {
+        let max = crate::speed_floor::SPEED_FLOOR_MAX_MPS;
+        if format == LogFormat::UnzBinary {
+            return self.err(
+                v.span(),
+                "speed_floor_mps is for an odometer that gives speeds; a binary log's \
+                 odometer is a pulse count"
+                    .into(),
+            );
+        }
+        if kind == Some(OdometerKind::DistanceM) {
+            return self.err(
+                v.span(),
+                "speed_floor_mps is for an odometer that gives speeds; kind = \"distance_m\" \
+                 gives distances"
+                    .into(),
+            );
+        }
+        let x = self.in_range(v, "speed_floor_mps", 0.0, max)?;
+        if x == 0.0 {
+            return self.err(
+                v.span(),
+                format!(
+                    "speed_floor_mps = 0 floors nothing: leave it out, or give the speed \
+                     below which a reading is the sensor's noise at rest (up to {max} m/s, \
+                     a move's)"
+                ),
+            );
+        }
+        Ok(x)
     }
 
     fn geodetic(
@@ -439,6 +483,11 @@ impl RunManifest {
                 None => None,
             },
             kind: o.kind,
+            speed_floor_mps: o
+                .speed_floor_mps
+                .as_ref()
+                .map(|v| c.speed_floor(v, raw.format, o.kind))
+                .transpose()?,
         };
         if let (Some(f), None) = (&o.file, o.kind) {
             return c.err(
@@ -633,6 +682,44 @@ t_s = 2415.3
                 reason.starts_with(&format!("latitude_deg = {quoted} is outside [-89, 89]")),
                 "{reason}"
             );
+        }
+    }
+
+    /// `[odometer] speed_floor_mps` is taken for a text log's speeds, and refused, naming
+    /// its line, for a binary log's count, a file of distances, 0 and beyond a move's
+    /// speed.
+    #[test]
+    fn a_speed_floor_is_for_speeds_within_a_moves() {
+        let text_log = |odometer: &str| {
+            GOOD.replace("format = \"unz-binary\"", "format = \"kf-gins\"")
+                .replace("[initial]", &format!("[odometer]\n{odometer}\n[initial]"))
+        };
+        let m = parse(&text_log("speed_floor_mps = 0.04")).unwrap();
+        assert_eq!(m.odometer.speed_floor_mps, Some(0.04));
+        let file = "file = \"odo.txt\"\nkind = \"speed_kmh\"\nspeed_floor_mps = 0.1";
+        assert_eq!(
+            parse(&text_log(file)).unwrap().odometer.speed_floor_mps,
+            Some(0.1)
+        );
+        let binary = GOOD.replace("[initial]", "[odometer]\nspeed_floor_mps = 0.04\n[initial]");
+        for (text, says) in [
+            (binary, "a binary log's odometer is a pulse count"),
+            (
+                text_log("file = \"odo.txt\"\nkind = \"distance_m\"\nspeed_floor_mps = 0.04"),
+                "kind = \"distance_m\" gives distances",
+            ),
+            (text_log("speed_floor_mps = 0.0"), "floors nothing"),
+            (text_log("speed_floor_mps = 0.2"), "is outside [0, 0.1]"),
+            (text_log("speed_floor_mps = -0.04"), "is outside [0, 0.1]"),
+            (text_log("speed_floor_mps = nan"), "is outside [0, 0.1]"),
+        ] {
+            let (line, reason) = err_line(&text);
+            let at = text
+                .lines()
+                .position(|l| l.starts_with("speed_floor_mps"))
+                .unwrap();
+            assert_eq!(line, at + 1, "{reason}");
+            assert!(reason.contains(says), "{reason}");
         }
     }
 

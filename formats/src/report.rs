@@ -72,6 +72,10 @@ pub struct IngestReport {
     /// `odometer.parquet` or not.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub odometer_failures: Option<OdometerFailures>,
+    /// A speed odometer read with a floor (`[odometer] speed_floor_mps`): the readings
+    /// below it read as 0, and the distance they would have added.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_floor: Option<crate::speed_floor::SpeedFloorReport>,
 }
 
 /// The odometer's failures in a binary log: flagged (status bit 1), or found from a count

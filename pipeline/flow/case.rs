@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use anyhow::{Context, bail};
 use serde::{Deserialize, Serialize};
-use unz_formats::manifest::{LogFormat, RunManifest};
+use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_formats::parquet_io::read_schema;
 use unz_formats::schema::META_ODO_M_PER_PULSE;
 use unz_formats::tables::MarksTable;
@@ -337,6 +337,12 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
     let (mut settings, mut initial) =
         initial_settings_with_velocity(&derived, dvel_mps, &req, &params.align, start_position(m));
     level_in_motion_over_window(&derived, params, &mut settings, &mut initial);
+    // Only an odometer that gives speeds takes a speed floor.
+    let gives_speeds =
+        m.format == LogFormat::KfGins && m.odometer.kind.is_none_or(OdometerKind::is_speed);
+    if let Some(travel) = initial.stand_travel.as_mut().filter(|_| !gives_speeds) {
+        travel.floor_mps = None;
+    }
     settings.odo_pitch_rad = params.vehicle.odo_pitch_deg.to_radians();
     let inputs = NavInputs {
         dt_s: &derived.dt_s,

@@ -95,6 +95,9 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
     ctx.run_stage(&stage, || {
         ctx.set_ingested(None);
         let outcome = ingest(m, &dir, options)?;
+        if let Some(floor) = &outcome.report.speed_floor {
+            ctx.say("ingest", &floor.said());
+        }
         ctx.set_ingested(
             outcome
                 .series

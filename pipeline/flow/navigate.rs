@@ -146,8 +146,9 @@ pub fn ensure_navigate(
         //     log's start judged by the odometer's travel over each second (a speed
         //     sensor's noise at rest ended it), and its travel said. 15: a text log's
         //     control point timed after a GPS week's rollover taken a week on. 16: an
-        //     azimuth given far from the static start's gyrocompassing said.
-        version: 16,
+        //     azimuth given far from the static start's gyrocompassing said. 17: the
+        //     stand's travel said with the speed floor that reads it as 0.
+        version: 17,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],

@@ -363,34 +363,56 @@ pub const STAND_TRAVEL_SAID_M: f64 = 1.0;
 /// [`MOVED_M`] a second throughout): a speed sensor's noise at rest, never negative (a
 /// GNSS ground speed: a few cm/s), which the dead reckoning takes for travel along the
 /// heading. Kingston's speeds with 0–4 cm/s at rest counted 10 m over its 527-s stand,
-/// and its hold-out errors were 25 and 37 m against 2.2 and 3.0 m. Said, not acted on:
-/// the odometer's speeds are what was logged.
+/// and its hold-out errors were 25 and 37 m against 2.2 and 3.0 m. Said, with the speed
+/// floor (the run manifest's `[odometer] speed_floor_mps`) that would read the stand's
+/// speeds as 0: the run reads them as logged until the manifest sets one.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct StandTravel {
     /// How long the odometer stood at the log's start ([`detect_static_s`]), s.
     pub stood_s: f64,
     /// The odometer's net travel over it, m.
     pub travel_m: f64,
+    /// The floor that reads every speed over the stand as 0, m/s: the fastest of its
+    /// samples' speeds (each the mean over its sample's interval), up to the next whole
+    /// cm/s. `None` beyond a move's speed (`MOVED_M` over its second: the vehicle crept),
+    /// and for an odometer that gives no speeds (a count, a file of distances).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floor_mps: Option<f64>,
 }
 
 impl StandTravel {
     /// Of `d`'s odometer over its first `stood_s`, when its net travel is
     /// [`STAND_TRAVEL_SAID_M`] or more either way.
     pub fn of(d: &Derived, stood_s: f64) -> Option<Self> {
-        let travel_m: f64 = (d.t_s.iter().zip(&d.odo_dist_m))
-            .take_while(|&(t_s, _)| t_s <= stood_s)
-            .map(|(_, dd_m)| dd_m)
-            .sum();
-        (travel_m.abs() >= STAND_TRAVEL_SAID_M).then_some(Self { stood_s, travel_m })
+        let stood = d.t_s.iter().take_while(|&t_s| t_s <= stood_s).count();
+        let travel_m: f64 = d.odo_dist_m.iter().take(stood).sum();
+        let fastest_mps = (d.odo_dist_m.iter().take(stood).zip(d.dt_s.iter()))
+            .map(|(dd_m, dt_s)| (dd_m / dt_s).abs())
+            .fold(0.0, f64::max);
+        // Whole cm/s, rounded at a micrometre per second first: 0.04 m/s is 4 cm/s, not
+        // its float's 4.000000000000001.
+        let floor_mps = ((fastest_mps * 1e6).round() / 1e4).ceil() / 100.0;
+        (travel_m.abs() >= STAND_TRAVEL_SAID_M).then_some(Self {
+            stood_s,
+            travel_m,
+            floor_mps: (floor_mps <= MOVED_M / MOVE_WINDOW_S).then_some(floor_mps),
+        })
     }
 
     /// What it is, for the run's log and its row of the campaign summary.
     pub fn said(&self) -> String {
+        let mend = match self.floor_mps {
+            Some(floor_mps) => format!(
+                "set [odometer] speed_floor_mps = {floor_mps} in the run's manifest to read \
+                 its speeds at or below it as 0, or write them as 0"
+            ),
+            None => "write them as 0".to_owned(),
+        };
         format!(
             "the odometer counted {:.1} m over the {:.0} s the vehicle stood at the log's \
              start ({:.1} cm/s, below the {} m/s of a move): if it stood, its speeds at rest \
              are a sensor's noise, which the dead reckoning takes for travel along the \
-             heading (write them as 0)",
+             heading ({mend})",
             self.travel_m,
             self.stood_s,
             100.0 * self.travel_m / self.stood_s.max(f64::MIN_POSITIVE),
@@ -700,6 +722,7 @@ mod tests {
         Derived {
             t_s: TimeBase::from((0..n).map(|k| k as f64 * 0.01).collect::<Vec<_>>()),
             odo_dist_m: (0..n).map(step_m).collect(),
+            dt_s: std::sync::Arc::new(vec![0.01; n]),
             ..Derived::default()
         }
     }
@@ -849,5 +872,39 @@ mod tests {
         let moved_s = first_moved_s(&d).unwrap();
         assert!((500.0..500.1).contains(&moved_s), "{moved_s}");
         assert_eq!(static_cut(&d, &given(450.0)), None);
+    }
+
+    /// The stand's travel is said from 1 m, with the floor that reads its fastest sample
+    /// (4 cm/s, up to the next cm/s) as 0; none past a move's speed, nor under a metre.
+    #[test]
+    fn a_stands_travel_names_the_floor_that_reads_it_as_zero() {
+        let noise = |k: usize| 0.0004 * ((k * 7919) % 101) as f64 / 100.0;
+        let d = log(60_000, |k| if k < 50_000 { noise(k) } else { 0.012 });
+        let travel = StandTravel::of(&d, 499.0).expect("10 m said");
+        assert!((travel.travel_m - 9.98).abs() < 0.2, "{travel:?}");
+        assert_eq!(travel.floor_mps, Some(0.04));
+        assert!(
+            travel.said().contains("speed_floor_mps = 0.04 in"),
+            "{}",
+            travel.said()
+        );
+        // 3.01 cm/s at most: 4 cm/s.
+        let d = log(60_000, |k| if k < 50_000 { 0.000301 } else { 0.012 });
+        assert_eq!(StandTravel::of(&d, 499.0).unwrap().floor_mps, Some(0.04));
+        // 12 cm/s now and then: crept, no floor named.
+        let d = log(60_000, |k| match k {
+            _ if k >= 50_000 => 0.012,
+            _ if k % 1000 == 0 => 0.0012,
+            _ => noise(k),
+        });
+        let travel = StandTravel::of(&d, 499.0).unwrap();
+        assert_eq!(travel.floor_mps, None);
+        assert!(
+            travel.said().ends_with("(write them as 0)"),
+            "{}",
+            travel.said()
+        );
+        // 0.1 cm/s: 0.5 m, not said.
+        assert_eq!(StandTravel::of(&log(60_000, |_| 0.00001), 499.0), None);
     }
 }
