@@ -788,15 +788,60 @@ fn kingston_a_stand_left_out_of_the_alignment_is_said() {
 fn kingston_over_a_gps_weeks_rollover_is_the_run_on_its_own_clock() {
     let tmp = tempfile::tempdir().unwrap();
     let week_s = unz_formats::kfgins::GPS_WEEK_S;
-    let moved = |t: f64| (t + 452_200.0) % week_s;
+    let run = kingston_retimed(&tmp.path().join("k"), |t| (t + 452_200.0) % week_s);
+    let out = tmp.path().join("o");
+    crate::util::run_until(&run, &out, "disupt");
+    let report: unz_formats::IngestReport =
+        read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
+    assert_eq!(report.week_rollovers, 1);
+    assert_eq!(report.odometer_file.unwrap().week_rollovers, 1);
     let own = kingston_odometer_edited(&tmp.path().join("own"), |t, v| (t, v));
-    let run = kingston_odometer_edited(&tmp.path().join("k"), |t, v| (moved(t), v));
+    crate::util::run_until(&own, &tmp.path().join("own-o"), "disupt");
+    assert_same_worst_point(&out, &tmp.path().join("own-o"));
+}
+
+/// Kingston's log in UTC seconds of day (as a logger timed by an NMEA fix writes them)
+/// over midnight, 750 s in (85650.09 to 86399.99, then 0.09 to 125.99), its first control
+/// point timed before it and its second after. Before, as over a week's rollover: the
+/// IMU's later tags repaired one interval apart, the speed file's 127 later lines
+/// rejected, and the derive failed naming the odometer file ("0 of its 750 rows within the
+/// IMU log"). Now the tags go on a day later (`day_rollovers` in `ingest.json`), the
+/// second point is taken a day on and the first as written, and the run is the one on
+/// its own clock: the joint fit's control points within 1 cm.
+#[test]
+fn kingston_over_midnight_in_seconds_of_day_is_the_run_on_its_own_clock() {
+    let tmp = tempfile::tempdir().unwrap();
+    let day_s = unz_formats::kfgins::DAY_S;
+    let run = kingston_retimed(&tmp.path().join("k"), |t| {
+        (t - 152_143.0 + day_s - 750.0) % day_s
+    });
+    let m = std::fs::read_to_string(run.join("run.toml")).unwrap();
+    assert!(
+        m.contains("t_s = 86332.0") && m.contains("t_s = 118.5"),
+        "{m}"
+    );
+    let out = tmp.path().join("o");
+    crate::util::run_until(&run, &out, "disupt");
+    let report: unz_formats::IngestReport =
+        read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
+    assert_eq!((report.day_rollovers, report.week_rollovers), (1, 0));
+    let file = report.odometer_file.unwrap();
+    assert_eq!((file.day_rollovers, file.lines_rejected), (1, 0));
+    let own = kingston_odometer_edited(&tmp.path().join("own"), |t, v| (t, v));
+    crate::util::run_until(&own, &tmp.path().join("own-o"), "disupt");
+    assert_same_worst_point(&out, &tmp.path().join("own-o"));
+}
+
+/// Kingston in `run` (created) with every time tag `t` (the IMU's, the speed file's, the
+/// control points') written `retimed(t)`, to 1 ms.
+fn kingston_retimed(run: &std::path::Path, retimed: impl Fn(f64) -> f64) -> std::path::PathBuf {
+    let run = kingston_odometer_edited(run, |t, v| (retimed(t), v));
     let imu: String = (std::fs::read_to_string(run.join("imu.txt"))
         .unwrap()
         .lines())
     .map(|line| {
         let (t, rest) = line.split_once(' ').unwrap();
-        format!("{:.3} {rest}\n", moved(t.parse().unwrap()))
+        format!("{:.3} {rest}\n", retimed(t.parse().unwrap()))
     })
     .collect();
     std::fs::write(run.join("imu.txt"), imu).unwrap();
@@ -804,17 +849,10 @@ fn kingston_over_a_gps_weeks_rollover_is_the_run_on_its_own_clock() {
     let mut m: toml::Table = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     for cp in m["control_point"].as_array_mut().unwrap() {
         let t_s = cp["t_s"].as_float().unwrap();
-        cp["t_s"] = toml::Value::Float(moved(t_s));
+        cp["t_s"] = toml::Value::Float(retimed(t_s));
     }
     std::fs::write(&path, toml::to_string(&m).unwrap()).unwrap();
-    let out = tmp.path().join("o");
-    crate::util::run_until(&run, &out, "disupt");
-    let report: unz_formats::IngestReport =
-        read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
-    assert_eq!(report.week_rollovers, 1);
-    assert_eq!(report.odometer_file.unwrap().week_rollovers, 1);
-    crate::util::run_until(&own, &tmp.path().join("own-o"), "disupt");
-    assert_same_worst_point(&out, &tmp.path().join("own-o"));
+    run
 }
 
 /// Kingston's speeds with a sensor's noise at rest (0–4 cm/s, never negative, as a GNSS

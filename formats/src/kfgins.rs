@@ -40,38 +40,59 @@ fn tag_beyond_range(t_s: f64) -> Option<String> {
 /// writes it so), which rolls over to 0 at the week's end, Saturday to Sunday midnight.
 pub const GPS_WEEK_S: f64 = 604_800.0;
 
-/// How near the week's end a tag, and how near its start the tag after it, must be for
-/// the step between them to be the week's rollover, s: an hour, a logger's gap with room.
+/// Seconds in a day. A logger that writes UTC seconds of day (an NMEA fix's time, as
+/// many GNSS-timed loggers do) rolls over to 0 at midnight.
+pub const DAY_S: f64 = 86_400.0;
+
+/// How near the week's (or the day's) end a tag, and how near its start the tag after
+/// it, must be for the step between them to be the rollover, s: an hour, a logger's gap
+/// with room.
 pub const WEEK_ROLLOVER_WINDOW_S: f64 = 3600.0;
 
-/// A text file's time tags unwrapped over GPS-week rollovers: a tag within
-/// [`WEEK_ROLLOVER_WINDOW_S`] of the week's start after one within it of its end is the
-/// next week's, and every tag from it on has the week added. Without it, a log running
-/// over Sunday midnight (GPS time) kept its tags up to the rollover: the IMU's after it
-/// were repaired one interval apart, and the odometer file's rejected as not after the
-/// one before.
+/// A text file's time tags unwrapped over rollovers: a tag within
+/// [`WEEK_ROLLOVER_WINDOW_S`] of the start after one within it of a GPS week's end is the
+/// next week's, and after one within it of a day's end (seconds of day) the next day's;
+/// every tag from it on has the week or the day added. Without it, a log running over
+/// Sunday midnight (GPS time) kept its tags up to the rollover: the IMU's after it were
+/// repaired one interval apart, and the odometer file's rejected as not after the one
+/// before; and so did one in seconds of day over midnight. A log in seconds of week runs
+/// through a day's end without a step back, so the two are not confused.
 #[derive(Debug, Default, Clone, Copy)]
-struct WeekUnwrap {
-    /// Seconds added to the tags: the weeks rolled over.
+struct TagUnwrap {
+    /// Seconds added to the tags: the weeks and days rolled over.
     added_s: f64,
     /// The last tag read, as written.
     last_s: Option<f64>,
-    /// Rollovers so far.
-    rollovers: u64,
+    /// Weeks rolled over so far.
+    weeks: u64,
+    /// Days rolled over so far.
+    days: u64,
 }
 
-impl WeekUnwrap {
+impl TagUnwrap {
     /// Tag `t_s`, as written, in the file's time base unwrapped.
     fn unwrap(&mut self, t_s: f64) -> f64 {
+        let ends_at = |period_s: f64, last_s: f64| {
+            (period_s - WEEK_ROLLOVER_WINDOW_S..period_s).contains(&last_s)
+        };
         if let Some(last_s) = self.last_s
-            && (GPS_WEEK_S - WEEK_ROLLOVER_WINDOW_S..GPS_WEEK_S).contains(&last_s)
             && (0.0..WEEK_ROLLOVER_WINDOW_S).contains(&t_s)
         {
-            self.added_s += GPS_WEEK_S;
-            self.rollovers += 1;
+            if ends_at(GPS_WEEK_S, last_s) {
+                self.added_s += GPS_WEEK_S;
+                self.weeks += 1;
+            } else if ends_at(DAY_S, last_s) {
+                self.added_s += DAY_S;
+                self.days += 1;
+            }
         }
         self.last_s = Some(t_s);
         t_s + self.added_s
+    }
+
+    /// Into a report's counts.
+    fn count(&self, weeks: &mut u64, days: &mut u64) {
+        (*weeks, *days) = (self.weeks, self.days);
     }
 }
 
@@ -284,8 +305,8 @@ pub struct KfGinsReader<R: BufRead> {
     period_s: Option<f64>,
     prev: Option<TextSample>,
     eof: bool,
-    /// The time tags over GPS-week rollovers.
-    weeks: WeekUnwrap,
+    /// The time tags over GPS-week and day rollovers.
+    tags: TagUnwrap,
 }
 
 impl<R: BufRead> KfGinsReader<R> {
@@ -306,7 +327,7 @@ impl<R: BufRead> KfGinsReader<R> {
             period_s: None,
             prev: None,
             eof: false,
-            weeks: WeekUnwrap::default(),
+            tags: TagUnwrap::default(),
         }
     }
 
@@ -402,8 +423,9 @@ impl<R: BufRead> KfGinsReader<R> {
                 self.fault(reason);
                 continue;
             }
-            let t_s = self.weeks.unwrap(values[0]);
-            self.report.week_rollovers = self.weeks.rollovers;
+            let t_s = self.tags.unwrap(values[0]);
+            let r = &mut self.report;
+            self.tags.count(&mut r.week_rollovers, &mut r.day_rollovers);
             // Rollovers without end (a file of tags at a week's end and start by turns)
             // add weeks past the span too.
             if let Some(reason) = tag_beyond_range(t_s) {
@@ -528,8 +550,8 @@ pub struct OdometerFileReader<R: BufRead> {
     spikes: SpeedSpikes<SpeedLine>,
     /// Reasons held in `spikes`.
     held_reasons: usize,
-    /// The time tags over GPS-week rollovers.
-    weeks: WeekUnwrap,
+    /// The time tags over GPS-week and day rollovers.
+    tags: TagUnwrap,
     /// A speed file's floor (`[odometer] speed_floor_mps`), applied to the speeds kept.
     floor: Option<SpeedFloor>,
 }
@@ -546,7 +568,7 @@ impl<R: BufRead> OdometerFileReader<R> {
             last_t_s: None,
             spikes: SpeedSpikes::default(),
             held_reasons: 0,
-            weeks: WeekUnwrap::default(),
+            tags: TagUnwrap::default(),
             floor: None,
         }
     }
@@ -708,8 +730,9 @@ impl<R: BufRead> OdometerFileReader<R> {
                 self.reject_read(reason);
                 continue;
             }
-            let t = self.weeks.unwrap(t);
-            self.report.week_rollovers = self.weeks.rollovers;
+            let t = self.tags.unwrap(t);
+            let r = &mut self.report;
+            self.tags.count(&mut r.week_rollovers, &mut r.day_rollovers);
             if let Some(reason) = tag_beyond_range(t) {
                 self.reject_read(reason);
                 continue;
@@ -799,6 +822,39 @@ mod tests {
             assert_eq!(v[1].t_s, tags[1]);
             assert_eq!((rep.week_rollovers, rep.t_non_increasing), (0, 1));
         }
+    }
+
+    /// A log in UTC seconds of day running over midnight: its tags go on a day later,
+    /// counted, the odometer file's too; twice over two midnights. A log in seconds of
+    /// week runs through a day's end without a step back, and stays as written.
+    #[test]
+    fn time_tags_over_a_days_rollover_go_on() {
+        let tags = [86_399.8, 86_399.9, 0.0, 0.1];
+        let text: String = tags.iter().map(|t| format!("{t} 1 2 3 4 5 6\n")).collect();
+        let (v, rep, _) = read_all(&text);
+        let t: Vec<f64> = v.iter().map(|s| s.t_s).collect();
+        assert_eq!(t, [86_399.8, 86_399.9, 86_400.0, 86_400.1]);
+        assert_eq!((rep.day_rollovers, rep.week_rollovers), (1, 0));
+        assert_eq!(rep.t_non_increasing, 0);
+
+        let mut odo = OdometerFileReader::new(
+            &b"86399 1.0\n0 1.0\n86399 1.0\n1 1.0\n"[..],
+            OdometerKind::SpeedMps,
+        );
+        let mut t = Vec::new();
+        while let Some(s) = odo.next_sample().unwrap() {
+            t.push(s.t_s);
+        }
+        assert_eq!(t, [86_399.0, 86_400.0, 172_799.0, 172_801.0]);
+        assert_eq!(odo.report().day_rollovers, 2);
+
+        let week_s: String = [86_399.9, 86_400.0, 86_400.1]
+            .iter()
+            .map(|t| format!("{t} 1 2 3 4 5 6\n"))
+            .collect();
+        let (v, rep, _) = read_all(&week_s);
+        assert_eq!(v[2].t_s, 86_400.1);
+        assert_eq!(rep.day_rollovers, 0);
     }
 
     fn read_all(text: &str) -> (Vec<TextSample>, IngestReport, Vec<LineFault>) {
@@ -1008,7 +1064,8 @@ mod tests {
                 lines_read: 5,
                 lines_accepted: 4,
                 lines_rejected: 1,
-                week_rollovers: 0
+                week_rollovers: 0,
+                day_rollovers: 0
             }
         );
     }
@@ -1051,7 +1108,8 @@ mod tests {
                 lines_read: 10,
                 lines_accepted: 5,
                 lines_rejected: 5,
-                week_rollovers: 0
+                week_rollovers: 0,
+                day_rollovers: 0
             }
         );
     }

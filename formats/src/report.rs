@@ -60,6 +60,10 @@ pub struct IngestReport {
     /// (seconds of week: [`crate::kfgins::GPS_WEEK_S`]), the week added to the tags after.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub week_rollovers: u64,
+    /// Text logs: times the time tags rolled over from a day's end to its start (seconds
+    /// of day: [`crate::kfgins::DAY_S`]), the day added to the tags after.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub day_rollovers: u64,
     /// Odometer steps beyond a land vehicle's speed (a corrupt count or reading), replaced
     /// by the speed before them; a run fails above 1 % of its odometer's samples.
     #[serde(default, skip_serializing_if = "is_zero")]
@@ -151,6 +155,10 @@ pub struct OdometerFileReport {
     /// week: [`crate::kfgins::GPS_WEEK_S`]), the week added to the tags after.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub week_rollovers: u64,
+    /// Times its time tags rolled over from a day's end to its start (seconds of day:
+    /// [`crate::kfgins::DAY_S`]), the day added to the tags after.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub day_rollovers: u64,
 }
 
 /// The first faults of one raw log, located (`ingest_events.json`): the counts are in

@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use anyhow::{Context, bail};
 use serde::{Deserialize, Serialize};
+use unz_formats::IngestReport;
 use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_formats::parquet_io::read_schema;
 use unz_formats::schema::META_ODO_M_PER_PULSE;
@@ -23,6 +24,7 @@ use unz_stages::initial::{
 };
 use unz_stages::strapdown::{self, NavInputs, NavSettings, NavTrack, PassSink, navigate};
 
+use super::ingest_derive::read_ingest_report;
 use super::ingested::load_table;
 use super::marks::{RepeatedMark, UnknownMarks, choose_marks};
 use super::moving_marks::{MovingMark, moving_marks};
@@ -130,6 +132,7 @@ pub fn match_control_points(
     m: &RunManifest,
     marks: &MarksTable,
     d: &Derived,
+    rolled: &IngestReport,
     odometer: &Path,
     vehicle: &VehicleParams,
     navigated: impl FnOnce(&[usize]) -> anyhow::Result<Vec<[f64; 2]>>,
@@ -175,14 +178,14 @@ pub fn match_control_points(
     for cp in &m.control_points {
         let times: Vec<f64> = match marks_of.get(&cp.id) {
             Some(visits) => visits.iter().map(|&i| log_t_s(marks.t_ns[i])).collect(),
-            None => vec![next_week(
+            None => vec![past_rollovers(
                 cp.t_s.with_context(|| {
                     format!(
                         "control point {} matches no mark record and has no t_s{unknown_said}",
                         cp.id
                     )
                 })?,
-                m.format,
+                rolled,
                 in_log,
             )],
         };
@@ -220,16 +223,21 @@ pub fn match_control_points(
     })
 }
 
-/// A text log's time `t_s` as written in the manifest (its time column's seconds of GPS
-/// week), in the log's time base when the log ran over a week's rollover and the time is
-/// after it: a week on, when only that is within the log (`in_log`). The ingest adds the
-/// week to the log's own tags from the rollover on (`unz_formats::kfgins::GPS_WEEK_S`).
-fn next_week(t_s: f64, format: LogFormat, in_log: impl Fn(f64) -> bool) -> f64 {
-    let week_on = t_s + unz_formats::kfgins::GPS_WEEK_S;
-    match format {
-        LogFormat::KfGins if !in_log(t_s) && in_log(week_on) => week_on,
-        _ => t_s,
+/// A text log's time `t_s` as written in the manifest (as its time column reads: seconds
+/// of GPS week, or of day), in the log's time base when the log ran over rollovers and
+/// the time is after one: the first of a week on, two weeks, …, then a day on, two days,
+/// … (as many as the log's tags rolled over, `rolled`'s counts) that lies within the log
+/// (`in_log`). The ingest adds the week or the day to the log's own tags from each
+/// rollover on (`unz_formats::kfgins::{GPS_WEEK_S, DAY_S}`); a log that did not roll
+/// over takes `t_s` as written.
+fn past_rollovers(t_s: f64, rolled: &IngestReport, in_log: impl Fn(f64) -> bool) -> f64 {
+    use unz_formats::kfgins::{DAY_S, GPS_WEEK_S};
+    if in_log(t_s) {
+        return t_s;
     }
+    let weeks = (1..=rolled.week_rollovers).map(|k| t_s + k as f64 * GPS_WEEK_S);
+    let days = (1..=rolled.day_rollovers).map(|k| t_s + k as f64 * DAY_S);
+    weeks.chain(days).find(|&t| in_log(t)).unwrap_or(t_s)
 }
 
 /// How many times over the odometer's path to a mark a control point may lie from the
@@ -358,6 +366,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         m,
         &marks,
         &derived,
+        &read_ingest_report(&ingest_dir)?,
         &ingest_dir.join(files::ODOMETER),
         &params.vehicle,
         |samples| Ok(navigated_places(&inputs, &settings, samples)),
@@ -457,4 +466,41 @@ fn level_in_motion_over_window(
         epochs: fit.epochs,
         residual_rms_deg: fit.residual_rms_rad.to_degrees(),
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use unz_formats::kfgins::{DAY_S, GPS_WEEK_S};
+
+    /// A time outside the log is taken past as many rollovers as the log's tags made, the
+    /// weeks first, and never past one they did not make: a log in seconds of week
+    /// running Monday to Tuesday has no day's rollover, so a point timed a day before it
+    /// (a typo, or another run's) stays outside, and the run says so.
+    #[test]
+    fn a_time_is_taken_past_the_rollovers_the_log_made_only() {
+        let rolled = |weeks: u64, days: u64| IngestReport {
+            week_rollovers: weeks,
+            day_rollovers: days,
+            ..IngestReport::default()
+        };
+        // Monday and Tuesday in seconds of week, or two days after two midnights.
+        let in_log = |t: f64| (100_000.0..180_000.0).contains(&t);
+        assert_eq!(past_rollovers(120_000.0, &rolled(0, 0), in_log), 120_000.0);
+        assert_eq!(past_rollovers(20_000.0, &rolled(0, 0), in_log), 20_000.0);
+        assert_eq!(
+            past_rollovers(20_000.0, &rolled(0, 1), in_log),
+            20_000.0 + DAY_S
+        );
+        assert_eq!(
+            past_rollovers(1_000.0, &rolled(0, 2), in_log),
+            1_000.0 + 2.0 * DAY_S
+        );
+        let after_week = |t: f64| (GPS_WEEK_S - 100.0..GPS_WEEK_S + 500.0).contains(&t);
+        assert_eq!(
+            past_rollovers(300.0, &rolled(1, 0), after_week),
+            300.0 + GPS_WEEK_S
+        );
+        assert_eq!(past_rollovers(300.0, &rolled(0, 0), after_week), 300.0);
+    }
 }

@@ -15,6 +15,7 @@ use unz_stages::derive::Derived;
 use unz_stages::earth::Geodetic;
 use unz_stages::filter::LowPass;
 
+use super::ingest_derive::read_ingest_report;
 use super::ingested::load_table;
 use super::{Overrides, Params, RunCtx, ensure_navigate, match_control_points, start_position};
 use crate::artifacts::{StageName, files};
@@ -178,6 +179,7 @@ pub fn ensure_criteria(
             m,
             &marks,
             &d,
+            &read_ingest_report(&ingest_dir)?,
             &ingest_dir.join(files::ODOMETER),
             &params.vehicle,
             // The navigation's places, as the navigate stage matched them.

@@ -71,8 +71,9 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // line's reason (in `ingest_events.json`) names decimal commas in a speed file too.
         // 18: a text file's time tag beyond ±9e9 s is a rejected line, not a saturated
         // time. 19: a standing count's watch takes a sample period of 0.1 ms at least.
-        // 20: a text file's time tags unwrapped over a GPS week's rollover.
-        version: 20,
+        // 20: a text file's time tags unwrapped over a GPS week's rollover. 21: and over
+        // a day's (seconds of day, at midnight).
+        version: 21,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
@@ -108,6 +109,13 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
     })?;
     ctx.set_ensured("ingest", ensured_with);
     Ok(dir)
+}
+
+/// The ingest's account (`ingest.json`) in `ingest_dir`.
+pub fn read_ingest_report(ingest_dir: &Path) -> anyhow::Result<IngestReport> {
+    let path = ingest_dir.join(files::INGEST_REPORT);
+    let bytes = std::fs::read(&path).with_context(|| format!("cannot read {}", path.display()))?;
+    serde_json::from_slice(&bytes).with_context(|| format!("{}", path.display()))
 }
 
 /// Stage 2, checked once per context and parameters (`RunCtx::ensured_with`; a derive
@@ -166,9 +174,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // A run whose odometer failed over much of it (flagged, or a count that stood
         // while the vehicle moved) has no dead reckoning worth correcting; a short
         // failure is bridged or not, counted and reported (navigate.json, ingest.json).
-        let report_path = ingest_dir.join(files::INGEST_REPORT);
-        let report: IngestReport = serde_json::from_slice(&std::fs::read(&report_path)?)
-            .with_context(|| format!("{}", report_path.display()))?;
+        let report = read_ingest_report(&ingest_dir)?;
         // Which way the odometer runs and on which clock, before its stands are judged
         // against the vehicle's motion: an odometer on another clock stands while the
         // vehicle drives, and one counting backward turns the axes' check.
