@@ -556,6 +556,39 @@ fn kingston_an_odometer_file_on_another_clock_is_named() {
     }
 }
 
+/// Kingston's speed file in UTC seconds of day beside its IMU log in GPS seconds of week
+/// (a logger timed by an NMEA fix): a day and 18 s (GPS time's lead on UTC) before the
+/// IMU's tags. The derive names the day first ("add 86400 s"); written so, the file is
+/// 18 s early, and the derive names the offset; set, the run is its own clock's again.
+/// Before, the day's message named no shift, and the file a day on ran "ok": its two
+/// stands fell where the vehicle drove and were bridged by the inertial speed (53 s),
+/// which the accelerometers follow at no shift, so the clock's correlation was 0.43 (not
+/// shown), the joint fit refused (the odometer's scale +307 000 ppm) and OWPI's route
+/// 122 m off at the points. The clock is now read from the odometer's readings only
+/// (0.91 at 18.4 s).
+#[test]
+fn kingston_an_odometer_in_utc_seconds_of_day_is_named_the_day_then_the_seconds() {
+    let r = reference();
+    let tmp = tempfile::tempdir().unwrap();
+    let utc = kingston_odometer_shifted(&tmp.path().join("utc"), -86_418.0);
+    let err = crate::util::stage_fails("derive", &utc, &tmp.path().join("utc-o"));
+    assert!(
+        err.contains("its time tags run 1 day before the IMU's, to the hour")
+            && err.contains("add 86400 s to each of its time tags"),
+        "{err}"
+    );
+    let run = kingston_odometer_shifted(&tmp.path().join("k"), -86_418.0 + 86_400.0);
+    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("failed"));
+    assert!(err.contains("s early against the IMU's"), "{err}");
+    let offset_s = crate::util::named_offset_s(&err);
+    // Kingston's own lag, −0.58 ± 0.17 s, is the joint fit's to find.
+    assert!((offset_s - 18.0 - 0.58).abs() < 0.8, "{err}");
+    let set = format!("[params.derive]\nodo_time_offset_s = {offset_s}\n");
+    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap() + "\n" + &set;
+    std::fs::write(run.join("run.toml"), manifest).unwrap();
+    own_clock_figures(&run, &tmp.path().join("o"), &r);
+}
+
 /// Kingston's `run`, its odometer on the IMU's clock again, run to disupt into `out`:
 /// the joint fit's lag, s, the route's heading error against the reference, degrees, and
 /// the worst hold-out error, m, asserted within 0.45° and 4 m (the README's joint fit
@@ -614,7 +647,7 @@ fn kingston_an_odometer_file_minutes_off_is_named_with_the_shift_to_write() {
 /// two readings within the IMU's log. Before, the derive held the distance at zero and
 /// the navigate failed blaming the first control point's coordinates, its mark or the
 /// site ("the odometer measured 0 m of travel by its mark"). Now the derive fails naming
-/// the file, the two spans and the likeliest reason.
+/// the file, the two spans and the likeliest reason (for the day, the shift to write).
 #[test]
 fn kingston_an_odometer_file_outside_the_log_is_named() {
     let tmp = tempfile::tempdir().unwrap();
@@ -631,7 +664,8 @@ fn kingston_an_odometer_file_outside_the_log_is_named() {
     let err = crate::util::stage_fails("derive", &a_day_late, &tmp.path().join("day-o"));
     assert!(
         err.contains("where it runs t_s = 238543.00 to 239419.00")
-            && err.contains("its time tags are not the IMU's clock"),
+            && err.contains("its time tags run 1 day after the IMU's, to the hour")
+            && err.contains("add -86400 s to each of its time tags"),
         "{err}"
     );
     let reversed = kingston_with(&tmp.path().join("rev"), "");

@@ -7,6 +7,7 @@ use anyhow::{Context, bail};
 use unz_formats::manifest::RunManifest;
 use unz_formats::raw::FaultKind;
 use unz_formats::{IngestEvents, IngestReport};
+use unz_stages::derive::Derived;
 use unz_stages::earth;
 
 use super::axes::check_axes;
@@ -111,6 +112,28 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
     Ok(dir)
 }
 
+/// The spans of `odometer.parquet` (in `ingest_dir`) whose rows are not the odometer's
+/// readings (bridged or held over its failures), s from `d`'s first sample on the IMU's
+/// clock (their tags moved by `offset_s`, the derive's `odo_time_offset_s`); read only
+/// when the ingest's account has such rows.
+fn not_readings_s(
+    ingest_dir: &Path,
+    report: &IngestReport,
+    d: &Derived,
+    offset_s: f64,
+) -> anyhow::Result<Vec<[f64; 2]>> {
+    let failed = report.odometer_failures.as_ref();
+    if failed.is_none_or(|f| f.bridged_samples + f.not_bridged_samples == 0) {
+        return Ok(Vec::new());
+    }
+    let (spans, _) = IngestedSeries::load_failed_rows(ingest_dir)?;
+    let s = |t_ns: i64| t_ns.saturating_sub(d.t0_ns) as f64 * 1e-9 + offset_s;
+    Ok(spans
+        .iter()
+        .map(|f| [s(f.first_t_ns), s(f.last_t_ns)])
+        .collect())
+}
+
 /// The ingest's account (`ingest.json`) in `ingest_dir`.
 pub fn read_ingest_report(ingest_dir: &Path) -> anyhow::Result<IngestReport> {
     let path = ingest_dir.join(files::INGEST_REPORT);
@@ -146,8 +169,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // judged (a file on another clock, a count reversed, speeds read as distances).
         // 14: an odometer without two rows within the IMU's log failed. 15: the clock's
         // reading kept (derived.parquet's metadata), F's start-up left out of it. 16: an
-        // odometer file minutes off searched beyond the setting's reach.
-        version: 16,
+        // odometer file minutes off searched beyond the setting's reach. 17: the clock
+        // read from the odometer's readings only (the ingest's bridges left out).
+        version: 17,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
@@ -182,7 +206,8 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         let offset_s = params.derive.odo_time_offset_s;
         check_overlap(&overlap, offset_s, &report, m, odometer_file)?;
         check_travel(&d, m, odometer_file)?;
-        d.odometer_clock = check_clock(&d, &params.derive, m, odometer_file)?;
+        let not_readings_s = not_readings_s(&ingest_dir, &report, &d, offset_s)?;
+        d.odometer_clock = check_clock(&d, &params.derive, m, odometer_file, &not_readings_s)?;
         let stuck = report.odometer_failures.map_or(0, |f| f.stuck_samples) as usize;
         if (d.odometer_failure_samples + stuck) * 10 > d.t_s.len() {
             let (flagged, n) = (d.odometer_failure_samples, d.t_s.len());

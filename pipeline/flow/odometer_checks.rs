@@ -114,19 +114,21 @@ pub fn check_clock(
     params: &DeriveParams,
     m: &RunManifest,
     file: Option<&Path>,
+    not_readings_s: &[[f64; 2]],
 ) -> anyhow::Result<Option<ClockFit>> {
     let offset_s = params.odo_time_offset_s;
     let lags = offset_s - ODO_TIME_OFFSET_RANGE_S..=offset_s + ODO_TIME_OFFSET_RANGE_S;
     // F's start-up is left out: a log begun while driving starts its u̇ from one
     // block's pulses (0.46–0.67 s of lag read on 5 of 14 simulated such logs).
     let edge_s = params.filter.settling_s();
-    let fit = ClockFit::of(d, lags, edge_s);
+    // So are the ingest's bridges: the inertial speed's, at no shift whatever the clock.
+    let fit = ClockFit::of_readings(d, lags, edge_s, not_readings_s);
     let source = Source::of(m, file);
     if let Some(f) = fit.filter(ClockFit::off) {
         bail!(another_clock(&source, f, f.correlation_as_given, offset_s));
     }
     if let (Source::File(..), Some(near)) = (&source, fit)
-        && let Some(f) = far_clock(d, near, edge_s)
+        && let Some(f) = far_clock(d, near, edge_s, not_readings_s)
     {
         bail!(another_clock(
             &source,
@@ -145,12 +147,17 @@ pub fn check_clock(
 /// −0.9 there, and is the axes' check's). A file whose driving the shift moves out of
 /// the IMU's log (Kingston's 300 s late: its stand of 527 s where the IMU drives) has
 /// too little left to show it; its stands while the vehicle moves fail the run.
-fn far_clock(d: &Derived, near: ClockFit, edge_s: f64) -> Option<ClockFit> {
+fn far_clock(
+    d: &Derived,
+    near: ClockFit,
+    edge_s: f64,
+    not_readings_s: &[[f64; 2]],
+) -> Option<ClockFit> {
     if near.shown() {
         return None;
     }
     let near_best = near.correlation.max(near.correlation_as_given.abs());
-    ClockFit::far(d, edge_s).filter(|f| f.off() && f.correlation >= 2.0 * near_best)
+    ClockFit::far(d, edge_s, not_readings_s).filter(|f| f.off() && f.correlation >= 2.0 * near_best)
 }
 
 /// The failure of an odometer (`source`) whose drive `f` shows on another clock: its
@@ -253,6 +260,15 @@ pub fn check_overlap(
         format!(
             "{log} time tags read in {name} would run t_s = {a:.2} to {b:.2}: write them in seconds"
         )
+    } else if let Some(shift_s) = whole_hours_apart_s([o0, o1], [i0, i1]) {
+        format!(
+            "its time tags run {} {} the IMU's, to the hour (a time zone's or a day's \
+             difference, or UTC seconds of day against the IMU's GPS seconds of week?): add \
+             {shift_s} s to each of its time tags, and the clock check will read the seconds \
+             left (GPS time runs 18 s ahead of UTC)",
+            hours_and_days(shift_s.abs()),
+            if shift_s > 0.0 { "before" } else { "after" },
+        )
     } else {
         "its time tags are not the IMU's clock (another day's, a time zone's, or counted \
          from another start?): write them on the IMU's clock ([derive] odo_time_offset_s \
@@ -268,6 +284,33 @@ pub fn check_overlap(
     )
 }
 
+/// Farthest apart, s, two clocks are named a whole number of hours apart: a week (a log
+/// in seconds of week against one in seconds of day on the week's last day).
+const WHOLE_HOURS_REACH_S: f64 = 7.0 * 86_400.0;
+
+/// The whole number of hours, s, that added to the odometer's span `odo` (s) brings it
+/// onto the IMU's `imu`, middle to middle, when that makes them meet ([`spans_meet`]);
+/// `None` for no hour or beyond [`WHOLE_HOURS_REACH_S`]. To the hour only: what is left
+/// (a minute's clock error, UTC's 18 s behind GPS time) is the clock check's to read.
+fn whole_hours_apart_s(odo: [f64; 2], imu: [f64; 2]) -> Option<f64> {
+    let mid = |s: [f64; 2]| 0.5 * (s[0] + s[1]);
+    let shift_s = ((mid(imu) - mid(odo)) / 3600.0).round() * 3600.0;
+    let shifted = odo.map(|t| t + shift_s);
+    (shift_s != 0.0 && shift_s.abs() <= WHOLE_HOURS_REACH_S && spans_meet(shifted, imu))
+        .then_some(shift_s)
+}
+
+/// "1 day and 2 hours" of `s` seconds, a whole number of hours.
+fn hours_and_days(s: f64) -> String {
+    let hours = (s / 3600.0).round() as u64;
+    let plural = |n: u64, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
+    match (hours / 24, hours % 24) {
+        (0, h) => plural(h, "hour"),
+        (d, 0) => plural(d, "day"),
+        (d, h) => format!("{} and {}", plural(d, "day"), plural(h, "hour")),
+    }
+}
+
 /// Units of time a log's tags may be written in instead of seconds, with their size in
 /// seconds.
 pub(crate) const SMALLER_UNITS: [(&str, f64); 3] = [
@@ -280,4 +323,26 @@ pub(crate) const SMALLER_UNITS: [(&str, f64); 3] = [
 fn spans_meet(a: [f64; 2], b: [f64; 2]) -> bool {
     let overlap = a[1].min(b[1]) - a[0].max(b[0]);
     overlap >= 0.5 * (b[1] - b[0])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two clocks a whole number of hours apart (a day and 18 s, a time zone's 5 hours)
+    /// are named to the hour when the shift brings the spans together; none for spans
+    /// that do not meet so, nor beyond a week.
+    #[test]
+    fn clocks_whole_hours_apart_are_named_to_the_hour() {
+        let imu: [f64; 2] = [152_143.09, 153_018.99];
+        let odo = |shift_s: f64| imu.map(|t| t.round() + shift_s);
+        assert_eq!(whole_hours_apart_s(odo(-86_418.0), imu), Some(86_400.0));
+        assert_eq!(whole_hours_apart_s(odo(5.0 * 3600.0), imu), Some(-18_000.0));
+        assert_eq!(whole_hours_apart_s(odo(-1_800.0), imu), None);
+        assert_eq!(whole_hours_apart_s(odo(-8.0 * 86_400.0), imu), None);
+        assert_eq!(whole_hours_apart_s(odo(100.0), imu), None);
+        assert_eq!(hours_and_days(86_400.0), "1 day");
+        assert_eq!(hours_and_days(5.0 * 3600.0), "5 hours");
+        assert_eq!(hours_and_days(2.0 * 86_400.0 + 3600.0), "2 days and 1 hour");
+    }
 }
