@@ -83,8 +83,8 @@ impl ClockFit {
 
     /// [`Self::of`] over the odometer's own readings: its blocks within `edge_s` (F's
     /// settling) of a span of `not_readings_s` (s from the log's first sample, on the
-    /// IMU's clock: the rows the ingest bridged or held over the odometer's failures) are
-    /// left out. A bridge's distances are the inertial speed's, which the accelerometers
+    /// IMU's clock, in time order and apart: the rows the ingest bridged or held over the
+    /// odometer's failures) are left out. A bridge's distances are the inertial speed's, which the accelerometers
     /// follow at no shift whatever the odometer's clock: Kingston's speed file 18 s early
     /// had both its stands found moving and bridged (53 s of 877), and its clock read
     /// −18.3 s at a correlation of 0.43, not shown; its readings alone show it.
