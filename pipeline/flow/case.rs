@@ -186,6 +186,7 @@ pub fn match_control_points(
                     )
                 })?,
                 rolled,
+                log_t_s(d.t0_ns),
                 in_log,
             )],
         };
@@ -227,17 +228,36 @@ pub fn match_control_points(
 /// of GPS week, or of day), in the log's time base when the log ran over rollovers and
 /// the time is after one: the first of a week on, two weeks, …, then a day on, two days,
 /// … (as many as the log's tags rolled over, `rolled`'s counts) that lies within the log
-/// (`in_log`). The ingest adds the week or the day to the log's own tags from each
-/// rollover on (`unz_formats::kfgins::{GPS_WEEK_S, DAY_S}`); a log that did not roll
-/// over takes `t_s` as written.
-fn past_rollovers(t_s: f64, rolled: &IngestReport, in_log: impl Fn(f64) -> bool) -> f64 {
+/// (`in_log`; it begins at `first_s`). The ingest adds the week or the day to the log's
+/// own tags from each rollover on (`unz_formats::kfgins::{GPS_WEEK_S, DAY_S}`); a log
+/// that did not roll over takes `t_s` as written. The first period on that reaches the
+/// log's start is computed, not walked to: a hostile log's rollovers by turns count
+/// millions.
+fn past_rollovers(
+    t_s: f64,
+    rolled: &IngestReport,
+    first_s: f64,
+    in_log: impl Fn(f64) -> bool,
+) -> f64 {
     use unz_formats::kfgins::{DAY_S, GPS_WEEK_S};
     if in_log(t_s) {
         return t_s;
     }
-    let weeks = (1..=rolled.week_rollovers).map(|k| t_s + k as f64 * GPS_WEEK_S);
-    let days = (1..=rolled.day_rollovers).map(|k| t_s + k as f64 * DAY_S);
-    weeks.chain(days).find(|&t| in_log(t)).unwrap_or(t_s)
+    [
+        (GPS_WEEK_S, rolled.week_rollovers),
+        (DAY_S, rolled.day_rollovers),
+    ]
+    .into_iter()
+    .flat_map(|(period_s, count)| {
+        // The fewest periods that reach the log's start, and one more for rounding.
+        let k = ((first_s - t_s) / period_s).ceil().max(1.0);
+        [k, k + 1.0]
+            .into_iter()
+            .filter(move |&k| k <= count as f64)
+            .map(move |k| t_s + k * period_s)
+    })
+    .find(|&t| in_log(t))
+    .unwrap_or(t_s)
 }
 
 /// How many times over the odometer's path to a mark a control point may lie from the
@@ -485,22 +505,19 @@ mod tests {
             ..IngestReport::default()
         };
         // Monday and Tuesday in seconds of week, or two days after two midnights.
-        let in_log = |t: f64| (100_000.0..180_000.0).contains(&t);
-        assert_eq!(past_rollovers(120_000.0, &rolled(0, 0), in_log), 120_000.0);
-        assert_eq!(past_rollovers(20_000.0, &rolled(0, 0), in_log), 20_000.0);
-        assert_eq!(
-            past_rollovers(20_000.0, &rolled(0, 1), in_log),
-            20_000.0 + DAY_S
-        );
-        assert_eq!(
-            past_rollovers(1_000.0, &rolled(0, 2), in_log),
-            1_000.0 + 2.0 * DAY_S
-        );
-        let after_week = |t: f64| (GPS_WEEK_S - 100.0..GPS_WEEK_S + 500.0).contains(&t);
-        assert_eq!(
-            past_rollovers(300.0, &rolled(1, 0), after_week),
-            300.0 + GPS_WEEK_S
-        );
-        assert_eq!(past_rollovers(300.0, &rolled(0, 0), after_week), 300.0);
+        let log = |t: f64| (100_000.0..180_000.0).contains(&t);
+        let past = |t: f64, weeks, days| past_rollovers(t, &rolled(weeks, days), 100_000.0, log);
+        assert_eq!(past(120_000.0, 0, 0), 120_000.0);
+        assert_eq!(past(20_000.0, 0, 0), 20_000.0);
+        assert_eq!(past(20_000.0, 0, 1), 20_000.0 + DAY_S);
+        assert_eq!(past(1_000.0, 0, 2), 1_000.0 + 2.0 * DAY_S);
+        assert_eq!(past(1_000.0, 0, 1), 1_000.0);
+        // A hostile log's rollovers by turns, without end: at once.
+        assert_eq!(past(1_000.0, u64::MAX, u64::MAX), 1_000.0 + 2.0 * DAY_S);
+        let week = GPS_WEEK_S - 100.0;
+        let after_week = |t: f64| (week..GPS_WEEK_S + 500.0).contains(&t);
+        let past_week = |t: f64, weeks| past_rollovers(t, &rolled(weeks, 0), week, after_week);
+        assert_eq!(past_week(300.0, 1), 300.0 + GPS_WEEK_S);
+        assert_eq!(past_week(300.0, 0), 300.0);
     }
 }
