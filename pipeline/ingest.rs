@@ -729,6 +729,7 @@ fn ingest_text(
         _ => OdometerKind::SpeedMps,
     };
     let floor_mps = manifest.odometer.speed_floor_mps;
+    let log_first_s = reader.first_tag_s();
     if floor_mps.is_some() && !column && odometer_file.is_none() {
         anyhow::bail!(
             "[odometer] speed_floor_mps is set, but {} has no odometer speeds: 7 columns, and \
@@ -743,7 +744,8 @@ fn ingest_text(
     let found = match odometer_file {
         Some((file, kind)) if kind.is_speed() => {
             let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind)
-                .with_speed_floor(floor_mps);
+                .with_speed_floor(floor_mps)
+                .beside_log_from(log_first_s);
             Some(find_gaps(|| file_readings(&mut odo)).map_err(|e| e.in_file(file))?)
         }
         _ => None,
@@ -808,7 +810,8 @@ fn ingest_text(
     let mut speed_floor = (column.as_ref()).and_then(|(_, speed, _)| speed.floor_report());
     if let Some((file, kind)) = odometer_file {
         let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind)
-            .with_speed_floor(floor_mps);
+            .with_speed_floor(floor_mps)
+            .beside_log_from(log_first_s);
         while let Some(o) = odo.next_sample().map_err(|e| e.in_file(file))? {
             let t_ns = tag_ns(o.t_s);
             let d = sinks.odo_range.step(t_ns, o.distance_m);

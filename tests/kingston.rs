@@ -866,6 +866,60 @@ fn kingston_over_midnight_in_seconds_of_day_is_the_run_on_its_own_clock() {
     assert_same_worst_point(&out, &tmp.path().join("own-o"));
 }
 
+/// Kingston in UTC seconds of day with its speed logger started across midnight from
+/// its IMU: the IMU 30 s before midnight and the speed file at it (the file's readings
+/// before midnight left out), and the IMU 5 s after midnight and the speed file 10 s
+/// before it (ten more readings at rest). Before, each file's tags were unwrapped alone:
+/// the first failed in the derive ("0 of its 847 rows within the IMU log"), the second
+/// named a day's shift that, written into the file, would have moved its readings after
+/// midnight a day back. Now the speed file's first tag is taken beside the log's (a day
+/// on, or a day back until its own rollover), and each run is the one on its own clock:
+/// the joint fit's control points within 1 cm.
+#[test]
+fn kingston_a_speed_file_begun_across_midnight_from_its_log_is_on_its_clock() {
+    let tmp = tempfile::tempdir().unwrap();
+    let day_s = unz_formats::kfgins::DAY_S;
+    let own = kingston_odometer_edited(&tmp.path().join("own"), |t, v| (t, v));
+    crate::util::run_until(&own, &tmp.path().join("own-o"), "disupt");
+    let rows = |run: &std::path::Path| -> Vec<String> {
+        let text = std::fs::read_to_string(run.join("odometer.txt")).unwrap();
+        text.lines().map(str::to_owned).collect()
+    };
+    let tag = |row: &str| -> f64 { row.split_once(' ').unwrap().0.parse().unwrap() };
+    // The IMU 30 s before midnight; the speed file from midnight on.
+    let after = kingston_retimed(&tmp.path().join("after"), |t| {
+        (t - 152_143.0 + day_s - 30.0) % day_s
+    });
+    let from_midnight: Vec<String> = (rows(&after).into_iter())
+        .filter(|r| tag(r) < 80_000.0)
+        .collect();
+    std::fs::write(after.join("odometer.txt"), from_midnight.join("\n") + "\n").unwrap();
+    // The IMU 5 s after midnight; the speed file 10 s before it, at rest.
+    let before = kingston_retimed(&tmp.path().join("before"), |t| {
+        (t - 152_143.09 + 5.0).rem_euclid(day_s)
+    });
+    let first = tag(&rows(&before)[0]);
+    let at_rest = (1..=10)
+        .rev()
+        .map(|k| format!("{:.3} 0.00000", (first - k as f64).rem_euclid(day_s)));
+    let with_rest: Vec<String> = at_rest.chain(rows(&before)).collect();
+    assert!(tag(&with_rest[0]) > 86_000.0, "{}", with_rest[0]);
+    std::fs::write(before.join("odometer.txt"), with_rest.join("\n") + "\n").unwrap();
+    for (name, run, days) in [("after", &after, 1), ("before", &before, 1)] {
+        let out = tmp.path().join(format!("{name}-o"));
+        crate::util::run_until(run, &out, "disupt");
+        let report: unz_formats::IngestReport =
+            read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
+        let file = report.odometer_file.unwrap();
+        assert_eq!(
+            (file.day_rollovers, file.lines_rejected),
+            (days, 0),
+            "{name}"
+        );
+        assert_same_worst_point(&out, &tmp.path().join("own-o"));
+    }
+}
+
 /// Kingston in `run` (created) with every time tag `t` (the IMU's, the speed file's, the
 /// control points') written `retimed(t)`, to 1 ms.
 fn kingston_retimed(run: &std::path::Path, retimed: impl Fn(f64) -> f64) -> std::path::PathBuf {

@@ -67,6 +67,11 @@ struct TagUnwrap {
     weeks: u64,
     /// Days rolled over so far.
     days: u64,
+    /// For a separate file (an odometer's): the log's first tag as written, which its
+    /// first tag is taken beside (`None` once it is).
+    log_first_s: Option<f64>,
+    /// The first tag read, as written.
+    first_s: Option<f64>,
 }
 
 impl TagUnwrap {
@@ -75,6 +80,25 @@ impl TagUnwrap {
         let ends_at = |period_s: f64, last_s: f64| {
             (period_s - WEEK_ROLLOVER_WINDOW_S..period_s).contains(&last_s)
         };
+        let starts = |t_s: f64| (0.0..WEEK_ROLLOVER_WINDOW_S).contains(&t_s);
+        self.first_s.get_or_insert(t_s);
+        // A separate file begun across the week's or the day's end from the log: on the
+        // log's side of it. After the log's first tag, the file's first is the next
+        // period's (counted: the period is added to its tags); before it, the period
+        // before's (its own rollover then counts).
+        if let Some(log_s) = self.log_first_s.take() {
+            for (period_s, count) in [(GPS_WEEK_S, &mut self.weeks), (DAY_S, &mut self.days)] {
+                if ends_at(period_s, log_s) && starts(t_s) {
+                    self.added_s += period_s;
+                    *count += 1;
+                    break;
+                }
+                if starts(log_s) && ends_at(period_s, t_s) {
+                    self.added_s -= period_s;
+                    break;
+                }
+            }
+        }
         if let Some(last_s) = self.last_s
             && (0.0..WEEK_ROLLOVER_WINDOW_S).contains(&t_s)
         {
@@ -341,6 +365,13 @@ impl<R: BufRead> KfGinsReader<R> {
         (&self.faults.kept, self.faults.total)
     }
 
+    /// The log's first time tag as written (before any rollover), once a sample is read
+    /// ([`Self::period_s`] reads ahead): what a separate odometer file's first tag is
+    /// taken beside ([`OdometerFileReader::beside_log_from`]).
+    pub fn first_tag_s(&self) -> Option<f64> {
+        self.tags.first_s
+    }
+
     /// Number of columns of this file (7 or 8), once known.
     pub fn columns(&self) -> Option<usize> {
         self.columns
@@ -571,6 +602,18 @@ impl<R: BufRead> OdometerFileReader<R> {
             tags: TagUnwrap::default(),
             floor: None,
         }
+    }
+
+    /// Its first time tag taken beside the IMU log's first, `log_first_s` (as written):
+    /// a file begun within an hour after a GPS week's or a day's end where the log began
+    /// within an hour before it has the period added to its tags (counted in
+    /// `week_rollovers` or `day_rollovers`); begun within the hour before where the log
+    /// began within the hour after, the period taken from its tags up to its own
+    /// rollover. Without it, a logger started a minute after the IMU's across midnight in
+    /// seconds of day had tags a day apart from the log's.
+    pub fn beside_log_from(mut self, log_first_s: Option<f64>) -> Self {
+        self.tags.log_first_s = log_first_s;
+        self
     }
 
     /// Speeds kept below `floor_mps` in magnitude read as 0 (`None`, or a distance
@@ -855,6 +898,30 @@ mod tests {
         let (v, rep, _) = read_all(&week_s);
         assert_eq!(v[2].t_s, 86_400.1);
         assert_eq!(rep.day_rollovers, 0);
+    }
+
+    /// An odometer file begun across midnight (or the week's end) from its log: after
+    /// the log's first tag (within the hour each side), a day on, counted; before it, a
+    /// day back until its own rollover. Begun on the log's side, or hours apart, as
+    /// written.
+    #[test]
+    fn a_file_begun_across_midnight_from_its_log_is_taken_on_the_logs_side() {
+        let tags = |text: &[u8], log_first_s: f64| {
+            let mut odo = OdometerFileReader::new(text, OdometerKind::SpeedMps)
+                .beside_log_from(Some(log_first_s));
+            let mut t = Vec::new();
+            while let Some(s) = odo.next_sample().unwrap() {
+                t.push(s.t_s);
+            }
+            (t, odo.report().day_rollovers, odo.report().week_rollovers)
+        };
+        let after = b"10 0\n11 0\n";
+        assert_eq!(tags(after, 86_370.0), (vec![86_410.0, 86_411.0], 1, 0));
+        assert_eq!(tags(after, 604_790.0), (vec![604_810.0, 604_811.0], 0, 1));
+        let before = b"86398 0\n86399 0\n1 0\n";
+        assert_eq!(tags(before, 5.0), (vec![-2.0, -1.0, 1.0], 1, 0));
+        assert_eq!(tags(after, 5.0), (vec![10.0, 11.0], 0, 0));
+        assert_eq!(tags(after, 70_000.0), (vec![10.0, 11.0], 0, 0));
     }
 
     fn read_all(text: &str) -> (Vec<TextSample>, IngestReport, Vec<LineFault>) {

@@ -73,8 +73,9 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // 18: a text file's time tag beyond ±9e9 s is a rejected line, not a saturated
         // time. 19: a standing count's watch takes a sample period of 0.1 ms at least.
         // 20: a text file's time tags unwrapped over a GPS week's rollover. 21: and over
-        // a day's (seconds of day, at midnight).
-        version: 21,
+        // a day's (seconds of day, at midnight). 22: an odometer file begun across the
+        // week's or the day's end from its log taken on the log's side.
+        version: 22,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,

@@ -260,7 +260,11 @@ pub fn check_overlap(
         format!(
             "{log} time tags read in {name} would run t_s = {a:.2} to {b:.2}: write them in seconds"
         )
-    } else if let Some(shift_s) = whole_hours_apart_s([o0, o1], [i0, i1]) {
+    } else if let Some(shift_s) = whole_hours_apart_s([o0, o1], [i0, i1])
+        // A file that rolled over itself has tags the ingest moved: one shift written
+        // into the file would not bring its rows before and after the rollover alike.
+        && lines.is_none_or(|l| l.week_rollovers + l.day_rollovers == 0)
+    {
         format!(
             "its time tags run {} {} the IMU's, to the hour (a time zone's or a day's \
              difference, or UTC seconds of day against the IMU's GPS seconds of week?): add \
@@ -289,15 +293,21 @@ pub fn check_overlap(
 const WHOLE_HOURS_REACH_S: f64 = 7.0 * 86_400.0;
 
 /// The whole number of hours, s, that added to the odometer's span `odo` (s) brings it
-/// onto the IMU's `imu`, middle to middle, when that makes them meet ([`spans_meet`]);
-/// `None` for no hour or beyond [`WHOLE_HOURS_REACH_S`]. To the hour only: what is left
-/// (a minute's clock error, UTC's 18 s behind GPS time) is the clock check's to read.
+/// onto the IMU's `imu`: the spans' starts, ends and middles, each brought together to
+/// the hour, must agree on it (a file covering part of the log: its start's or its
+/// end's), and overlap the spans by half the shorter or more; `None` when they do not,
+/// for no hour, or beyond [`WHOLE_HOURS_REACH_S`]. A short file in a long log lies hours
+/// apart from each end: no hour is named. To the hour only: what is left (a minute's
+/// clock error, UTC's 18 s behind GPS time) is the clock check's to read.
 fn whole_hours_apart_s(odo: [f64; 2], imu: [f64; 2]) -> Option<f64> {
+    let to_hour = |s: f64| (s / 3600.0).round() * 3600.0;
+    let overlap = |shift_s: f64| imu[1].min(odo[1] + shift_s) - imu[0].max(odo[0] + shift_s);
+    let shorter = (odo[1] - odo[0]).min(imu[1] - imu[0]);
     let mid = |s: [f64; 2]| 0.5 * (s[0] + s[1]);
-    let shift_s = ((mid(imu) - mid(odo)) / 3600.0).round() * 3600.0;
-    let shifted = odo.map(|t| t + shift_s);
-    (shift_s != 0.0 && shift_s.abs() <= WHOLE_HOURS_REACH_S && spans_meet(shifted, imu))
-        .then_some(shift_s)
+    let [a, b, c] = [mid(imu) - mid(odo), imu[0] - odo[0], imu[1] - odo[1]].map(to_hour);
+    (a == b && b == c && a != 0.0 && a.abs() <= WHOLE_HOURS_REACH_S)
+        .then_some(a)
+        .filter(|&s| overlap(s) >= 0.5 * shorter)
 }
 
 /// "1 day and 2 hours" of `s` seconds, a whole number of hours.
@@ -341,6 +351,13 @@ mod tests {
         assert_eq!(whole_hours_apart_s(odo(-1_800.0), imu), None);
         assert_eq!(whole_hours_apart_s(odo(-8.0 * 86_400.0), imu), None);
         assert_eq!(whole_hours_apart_s(odo(100.0), imu), None);
+        // A file that covers the log's last two minutes, written after midnight in
+        // seconds of day beside the log's tags unwrapped past it.
+        let log = [85_650.09, 86_525.99];
+        assert_eq!(whole_hours_apart_s([0.0, 126.0], log), Some(86_400.0));
+        // A two-minute file a day off in a 10-hour log: its start and its end disagree.
+        let long = [0.0, 36_000.0];
+        assert_eq!(whole_hours_apart_s([-86_400.0, -86_280.0], long), None);
         assert_eq!(hours_and_days(86_400.0), "1 day");
         assert_eq!(hours_and_days(5.0 * 3600.0), "5 hours");
         assert_eq!(hours_and_days(2.0 * 86_400.0 + 3600.0), "2 days and 1 hour");
