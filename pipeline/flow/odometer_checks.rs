@@ -362,4 +362,47 @@ mod tests {
         assert_eq!(hours_and_days(5.0 * 3600.0), "5 hours");
         assert_eq!(hours_and_days(2.0 * 86_400.0 + 3600.0), "2 days and 1 hour");
     }
+
+    /// The overlap's failure names a day's shift for a file written a day off, and none
+    /// for one whose own rollover the ingest unwrapped (a single shift written into it
+    /// would move its rows before and after the rollover apart).
+    #[test]
+    fn no_shift_is_named_for_a_file_that_rolled_over_itself() {
+        let text = "name = \"r\"\nraw = \"imu.txt\"\nformat = \"kf-gins\"\n\
+                    [site]\nlatitude_deg = 44.2\nlongitude_deg = -76.5\nheight_m = 40.0\n\
+                    [odometer]\nfile = \"odometer.txt\"\nkind = \"speed_mps\"\n";
+        let m = RunManifest::parse(text, Path::new("/c/r/run.toml")).unwrap();
+        let ns = |s: f64| (s * 1e9) as i64;
+        let overlap = OdometerOverlap {
+            rows: 900,
+            within: 0,
+            odometer_span_ns: [ns(86_390.0), ns(87_290.0)],
+            imu_span_ns: [ns(0.0), ns(890.0)],
+        };
+        let said = |day_rollovers: u64| {
+            let report = IngestReport {
+                odometer_file: Some(unz_formats::OdometerFileReport {
+                    lines_read: 900,
+                    lines_accepted: 900,
+                    day_rollovers,
+                    ..Default::default()
+                }),
+                ..IngestReport::default()
+            };
+            let file = Some(Path::new("/c/r/odometer.txt"));
+            check_overlap(&overlap, 0.0, &report, &m, file)
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(
+            said(0).contains("add -86400 s to each of its time tags"),
+            "{}",
+            said(0)
+        );
+        assert!(
+            said(1).contains("its time tags are not the IMU's clock"),
+            "{}",
+            said(1)
+        );
+    }
 }
