@@ -920,6 +920,24 @@ fn kingston_a_speed_file_begun_across_midnight_from_its_log_is_on_its_clock() {
     }
 }
 
+/// Kingston's first control point timed in UTC seconds of day (a day and GPS time's 18 s
+/// before the log's GPS seconds of week). Before, "control point 1 at t_s = 66407 is
+/// outside the log" alone; now the day that brings it within the log is named, with the
+/// time it would have there.
+#[test]
+fn kingston_a_control_points_time_in_utc_seconds_of_day_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = kingston_edited(&tmp.path().join("k"), "t_s = 152825.0", "t_s = 66407.0");
+    let err = crate::util::stage_fails("navigate", &run, &tmp.path().join("o"));
+    assert!(
+        err.contains("control point 1 at t_s = 66407 is outside the log")
+            && err
+                .contains(": 86400 s later (1 day on) it would lie within it, at t_s = 152807.00")
+            && err.contains("write the point's t_s on the log's clock"),
+        "{err}"
+    );
+}
+
 /// Kingston in `run` (created) with every time tag `t` (the IMU's, the speed file's, the
 /// control points') written `retimed(t)`, to 1 ms.
 fn kingston_retimed(run: &std::path::Path, retimed: impl Fn(f64) -> f64) -> std::path::PathBuf {

@@ -28,6 +28,7 @@ use super::ingest_derive::read_ingest_report;
 use super::ingested::load_table;
 use super::marks::{RepeatedMark, UnknownMarks, choose_marks};
 use super::moving_marks::{MovingMark, moving_marks};
+use super::odometer_checks::{WHOLE_HOURS_REACH_S, hours_and_days};
 use super::{Overrides, Params, RunCtx, ensure_derive};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::{StoredDerive, read_velocity_prefix};
@@ -193,9 +194,23 @@ pub fn match_control_points(
         for t_s in times {
             if !in_log(t_s) {
                 let first_s = log_t_s(d.t0_ns);
+                let other_clock = whole_hours_into(t_s, [first_s, first_s + last]).map_or_else(
+                    String::new,
+                    |shift_s| {
+                        format!(
+                            ": {} s later ({} on) it would lie within it, at t_s = {:.2} \
+                             (a time on another clock: UTC seconds of day against the log's \
+                             GPS seconds of week, or a time zone's? GPS time runs 18 s ahead \
+                             of UTC); write the point's t_s on the log's clock",
+                            shift_s,
+                            hours_and_days(shift_s.abs()),
+                            t_s + shift_s
+                        )
+                    },
+                );
                 bail!(
                     "control point {} at t_s = {} is outside the log, which runs from \
-                     t_s = {first_s:.2} to {:.2}",
+                     t_s = {first_s:.2} to {:.2}{other_clock}",
                     cp.id,
                     crate::config::shown(t_s),
                     first_s + last
@@ -258,6 +273,16 @@ fn past_rollovers(
     })
     .find(|&t| in_log(t))
     .unwrap_or(t_s)
+}
+
+/// The one whole number of hours, s, that brings the time `t_s` within the log's span
+/// `log_s` (s), up to a week either way: `None` when none does, or more than one (a log
+/// longer than an hour may take several, and the point's own clock is then unknown).
+fn whole_hours_into(t_s: f64, log_s: [f64; 2]) -> Option<f64> {
+    let k_first = ((log_s[0] - t_s) / 3600.0).ceil();
+    let k_last = ((log_s[1] - t_s) / 3600.0).floor();
+    let shift_s = k_first * 3600.0;
+    (k_first == k_last && k_first != 0.0 && shift_s.abs() <= WHOLE_HOURS_REACH_S).then_some(shift_s)
 }
 
 /// How many times over the odometer's path to a mark a control point may lie from the
@@ -492,6 +517,23 @@ fn level_in_motion_over_window(
 mod tests {
     use super::*;
     use unz_formats::kfgins::{DAY_S, GPS_WEEK_S};
+
+    /// A point's time the log takes after one whole number of hours only is named; none
+    /// when it takes none, several (a log longer than an hour), or beyond a week.
+    #[test]
+    fn a_time_whole_hours_off_the_log_is_named() {
+        let log = [152_143.09, 153_018.99];
+        assert_eq!(whole_hours_into(66_407.0, log), Some(86_400.0));
+        assert_eq!(
+            whole_hours_into(152_825.0 + 5.0 * 3600.0, log),
+            Some(-18_000.0)
+        );
+        assert_eq!(whole_hours_into(152_825.0 + 1_800.0, log), None);
+        assert_eq!(whole_hours_into(152_825.0, log), None);
+        assert_eq!(whole_hours_into(152_825.0 - 8.0 * 86_400.0, log), None);
+        let long = [0.0, 3.0 * 3600.0];
+        assert_eq!(whole_hours_into(-86_400.0 + 100.0, long), None);
+    }
 
     /// A time outside the log is taken past as many rollovers as the log's tags made, the
     /// weeks first, and never past one they did not make: a log in seconds of week

@@ -290,7 +290,7 @@ pub fn check_overlap(
 
 /// Farthest apart, s, two clocks are named a whole number of hours apart: a week (a log
 /// in seconds of week against one in seconds of day on the week's last day).
-const WHOLE_HOURS_REACH_S: f64 = 7.0 * 86_400.0;
+pub(crate) const WHOLE_HOURS_REACH_S: f64 = 7.0 * 86_400.0;
 
 /// The whole number of hours, s, that added to the odometer's span `odo` (s) brings it
 /// onto the IMU's `imu`: the spans' starts, ends and middles, each brought together to
@@ -311,7 +311,7 @@ fn whole_hours_apart_s(odo: [f64; 2], imu: [f64; 2]) -> Option<f64> {
 }
 
 /// "1 day and 2 hours" of `s` seconds, a whole number of hours.
-fn hours_and_days(s: f64) -> String {
+pub(crate) fn hours_and_days(s: f64) -> String {
     let hours = (s / 3600.0).round() as u64;
     let plural = |n: u64, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
     match (hours / 24, hours % 24) {
