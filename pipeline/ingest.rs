@@ -730,6 +730,14 @@ fn ingest_text(
     };
     let floor_mps = manifest.odometer.speed_floor_mps;
     let log_first_s = reader.first_tag_s();
+    // The odometer file, read twice for speeds (its gaps and stands first), alike.
+    let open_odometer = |file: &Path, kind| -> anyhow::Result<_> {
+        Ok(
+            OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind)
+                .with_speed_floor(floor_mps)
+                .beside_log_from(log_first_s),
+        )
+    };
     if floor_mps.is_some() && !column && odometer_file.is_none() {
         anyhow::bail!(
             "[odometer] speed_floor_mps is set, but {} has no odometer speeds: 7 columns, and \
@@ -743,9 +751,7 @@ fn ingest_text(
     // as the log streams.
     let found = match odometer_file {
         Some((file, kind)) if kind.is_speed() => {
-            let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind)
-                .with_speed_floor(floor_mps)
-                .beside_log_from(log_first_s);
+            let mut odo = open_odometer(file, kind)?;
             Some(find_gaps(|| file_readings(&mut odo)).map_err(|e| e.in_file(file))?)
         }
         _ => None,
@@ -809,9 +815,7 @@ fn ingest_text(
     let mut file_spikes = (0, 0);
     let mut speed_floor = (column.as_ref()).and_then(|(_, speed, _)| speed.floor_report());
     if let Some((file, kind)) = odometer_file {
-        let mut odo = OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind)
-            .with_speed_floor(floor_mps)
-            .beside_log_from(log_first_s);
+        let mut odo = open_odometer(file, kind)?;
         while let Some(o) = odo.next_sample().map_err(|e| e.in_file(file))? {
             let t_ns = tag_ns(o.t_s);
             let d = sinks.odo_range.step(t_ns, o.distance_m);

@@ -824,14 +824,10 @@ fn kingston_over_a_gps_weeks_rollover_is_the_run_on_its_own_clock() {
     let week_s = unz_formats::kfgins::GPS_WEEK_S;
     let run = kingston_retimed(&tmp.path().join("k"), |t| (t + 452_200.0) % week_s);
     let out = tmp.path().join("o");
-    crate::util::run_until(&run, &out, "disupt");
-    let report: unz_formats::IngestReport =
-        read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
+    let report = disupt_with_ingest_report(&run, &out);
     assert_eq!(report.week_rollovers, 1);
     assert_eq!(report.odometer_file.unwrap().week_rollovers, 1);
-    let own = kingston_odometer_edited(&tmp.path().join("own"), |t, v| (t, v));
-    crate::util::run_until(&own, &tmp.path().join("own-o"), "disupt");
-    assert_same_worst_point(&out, &tmp.path().join("own-o"));
+    assert_same_worst_point(&out, &own_clock_reference(tmp.path()));
 }
 
 /// Kingston's log in UTC seconds of day (as a logger timed by an NMEA fix writes them)
@@ -855,15 +851,11 @@ fn kingston_over_midnight_in_seconds_of_day_is_the_run_on_its_own_clock() {
         "{m}"
     );
     let out = tmp.path().join("o");
-    crate::util::run_until(&run, &out, "disupt");
-    let report: unz_formats::IngestReport =
-        read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
+    let report = disupt_with_ingest_report(&run, &out);
     assert_eq!((report.day_rollovers, report.week_rollovers), (1, 0));
     let file = report.odometer_file.unwrap();
     assert_eq!((file.day_rollovers, file.lines_rejected), (1, 0));
-    let own = kingston_odometer_edited(&tmp.path().join("own"), |t, v| (t, v));
-    crate::util::run_until(&own, &tmp.path().join("own-o"), "disupt");
-    assert_same_worst_point(&out, &tmp.path().join("own-o"));
+    assert_same_worst_point(&out, &own_clock_reference(tmp.path()));
 }
 
 /// Kingston in UTC seconds of day with its speed logger started across midnight from
@@ -879,8 +871,7 @@ fn kingston_over_midnight_in_seconds_of_day_is_the_run_on_its_own_clock() {
 fn kingston_a_speed_file_begun_across_midnight_from_its_log_is_on_its_clock() {
     let tmp = tempfile::tempdir().unwrap();
     let day_s = unz_formats::kfgins::DAY_S;
-    let own = kingston_odometer_edited(&tmp.path().join("own"), |t, v| (t, v));
-    crate::util::run_until(&own, &tmp.path().join("own-o"), "disupt");
+    let own = own_clock_reference(tmp.path());
     let rows = |run: &std::path::Path| -> Vec<String> {
         let text = std::fs::read_to_string(run.join("odometer.txt")).unwrap();
         text.lines().map(str::to_owned).collect()
@@ -907,16 +898,13 @@ fn kingston_a_speed_file_begun_across_midnight_from_its_log_is_on_its_clock() {
     std::fs::write(before.join("odometer.txt"), with_rest.join("\n") + "\n").unwrap();
     for (name, run, days) in [("after", &after, 1), ("before", &before, 1)] {
         let out = tmp.path().join(format!("{name}-o"));
-        crate::util::run_until(run, &out, "disupt");
-        let report: unz_formats::IngestReport =
-            read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
-        let file = report.odometer_file.unwrap();
+        let file = disupt_with_ingest_report(run, &out).odometer_file.unwrap();
         assert_eq!(
             (file.day_rollovers, file.lines_rejected),
             (days, 0),
             "{name}"
         );
-        assert_same_worst_point(&out, &tmp.path().join("own-o"));
+        assert_same_worst_point(&out, &own);
     }
 }
 
@@ -936,6 +924,24 @@ fn kingston_a_control_points_time_in_utc_seconds_of_day_is_named() {
             && err.contains("write the point's t_s on the log's clock"),
         "{err}"
     );
+}
+
+/// `run` to disupt into `out`: the ingest's account (`ingest.json`).
+fn disupt_with_ingest_report(
+    run: &std::path::Path,
+    out: &std::path::Path,
+) -> unz_formats::IngestReport {
+    crate::util::run_until(run, out, "disupt");
+    read_json(&out.join("kingston2008-segment1/ingest/ingest.json"))
+}
+
+/// Kingston on its own clock, its speed file written as the retimed runs write theirs
+/// (`kingston_odometer_edited`), run to disupt into `dir/own-o`: that output folder.
+fn own_clock_reference(dir: &std::path::Path) -> std::path::PathBuf {
+    let own = kingston_odometer_edited(&dir.join("own"), |t, v| (t, v));
+    let out = dir.join("own-o");
+    crate::util::run_until(&own, &out, "disupt");
+    out
 }
 
 /// Kingston in `run` (created) with every time tag `t` (the IMU's, the speed file's, the

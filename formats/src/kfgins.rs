@@ -77,37 +77,28 @@ struct TagUnwrap {
 impl TagUnwrap {
     /// Tag `t_s`, as written, in the file's time base unwrapped.
     fn unwrap(&mut self, t_s: f64) -> f64 {
-        let ends_at = |period_s: f64, last_s: f64| {
-            (period_s - WEEK_ROLLOVER_WINDOW_S..period_s).contains(&last_s)
-        };
+        let ends =
+            |period_s: f64, t_s: f64| (period_s - WEEK_ROLLOVER_WINDOW_S..period_s).contains(&t_s);
         let starts = |t_s: f64| (0.0..WEEK_ROLLOVER_WINDOW_S).contains(&t_s);
         self.first_s.get_or_insert(t_s);
+        // The week first: seconds of week 0–3600 are also a day's first hour.
+        let periods = [(GPS_WEEK_S, &mut self.weeks), (DAY_S, &mut self.days)];
         // A separate file begun across the week's or the day's end from the log: on the
         // log's side of it. After the log's first tag, the file's first is the next
         // period's (counted: the period is added to its tags); before it, the period
-        // before's (its own rollover then counts).
-        if let Some(log_s) = self.log_first_s.take() {
-            for (period_s, count) in [(GPS_WEEK_S, &mut self.weeks), (DAY_S, &mut self.days)] {
-                if ends_at(period_s, log_s) && starts(t_s) {
-                    self.added_s += period_s;
-                    *count += 1;
-                    break;
-                }
-                if starts(log_s) && ends_at(period_s, t_s) {
-                    self.added_s -= period_s;
-                    break;
-                }
+        // before's (its own rollover then counts). Then, as for every file, a tag in a
+        // period's first hour after one in its last is the next period's.
+        let log_s = self.log_first_s.take();
+        for (period_s, count) in periods {
+            let after_end = |before_s: f64| ends(period_s, before_s) && starts(t_s);
+            if log_s.is_some_and(|l| starts(l) && ends(period_s, t_s)) {
+                self.added_s -= period_s;
+                break;
             }
-        }
-        if let Some(last_s) = self.last_s
-            && (0.0..WEEK_ROLLOVER_WINDOW_S).contains(&t_s)
-        {
-            if ends_at(GPS_WEEK_S, last_s) {
-                self.added_s += GPS_WEEK_S;
-                self.weeks += 1;
-            } else if ends_at(DAY_S, last_s) {
-                self.added_s += DAY_S;
-                self.days += 1;
+            if log_s.or(self.last_s).is_some_and(after_end) {
+                self.added_s += period_s;
+                *count += 1;
+                break;
             }
         }
         self.last_s = Some(t_s);

@@ -265,7 +265,7 @@ fn past_rollovers(
     .into_iter()
     .flat_map(|(period_s, count)| {
         // The fewest periods that reach the log's start, and one more for rounding.
-        let k = ((first_s - t_s) / period_s).ceil().max(1.0);
+        let k = periods_into(t_s, first_s, period_s).max(1.0);
         [k, k + 1.0]
             .into_iter()
             .filter(move |&k| k <= count as f64)
@@ -275,14 +275,21 @@ fn past_rollovers(
     .unwrap_or(t_s)
 }
 
+/// The fewest whole `period_s` that bring the time `t_s` to `to_s` or past it (negative
+/// to go back).
+fn periods_into(t_s: f64, to_s: f64, period_s: f64) -> f64 {
+    ((to_s - t_s) / period_s).ceil()
+}
+
 /// The one whole number of hours, s, that brings the time `t_s` within the log's span
 /// `log_s` (s), up to a week either way: `None` when none does, or more than one (a log
 /// longer than an hour may take several, and the point's own clock is then unknown).
 fn whole_hours_into(t_s: f64, log_s: [f64; 2]) -> Option<f64> {
-    let k_first = ((log_s[0] - t_s) / 3600.0).ceil();
-    let k_last = ((log_s[1] - t_s) / 3600.0).floor();
-    let shift_s = k_first * 3600.0;
-    (k_first == k_last && k_first != 0.0 && shift_s.abs() <= WHOLE_HOURS_REACH_S).then_some(shift_s)
+    let k = periods_into(t_s, log_s[0], 3600.0);
+    // One hour more would pass the log's end.
+    let only = t_s + (k + 1.0) * 3600.0 > log_s[1] && t_s + k * 3600.0 <= log_s[1];
+    let shift_s = k * 3600.0;
+    (only && k != 0.0 && shift_s.abs() <= WHOLE_HOURS_REACH_S).then_some(shift_s)
 }
 
 /// How many times over the odometer's path to a mark a control point may lie from the
