@@ -318,61 +318,91 @@ fn a_log_whose_time_does_not_advance_fails_its_run() {
 /// tag went back from the leap (half a run's tags "repaired", and the run failed), and
 /// once the IMU's were repaired the odometer's reading there hid every later one (the
 /// distance held from it: 1 169 m off at a 10-minute run's control point).
+///
+/// The log's first or last record apart from the rest: the first's tag leapt 1 s or 20 s
+/// forward (a glitch at its start), the last 10 s after the rest (a record a logger
+/// wrote as it closed). Each is placed beside the record next to it, one repaired time,
+/// and DISUPT finds the same. Before, a first tag that leapt had every tag up to its time
+/// repaired one interval on from it (the whole log shifted by the leap), and a lone
+/// record across a gap at the end failed the run on the gap. (A first record before a
+/// gap: the Kingston test `kingston_a_lone_first_or_last_line_is_placed_beside_the_rest`.)
 #[test]
 fn a_record_whose_tag_leapt_forward_alone_costs_one_repaired_time() {
     use unz::disupt_stage::DisuptOut;
+    use unz_formats::raw::{Accepted, RawReader};
 
     let tmp = tempfile::tempdir().unwrap();
     let camp = simulated_campaign(&tmp.path().join("c"), 80, 1, 200.0);
     let log = camp.join("sim-0080/sim-0080.unz");
     let undamaged = std::fs::read(&log).unwrap();
+    let mut seqs = Vec::new();
+    let mut reader = RawReader::new(undamaged.as_slice()).unwrap();
+    while let Some(rec) = reader.next_record().unwrap() {
+        if let Accepted::Imu(s) = rec {
+            seqs.push(s.raw.seq);
+        }
+    }
+    let (first, last) = (seqs[0], *seqs.last().unwrap());
     let clean_out = tmp.path().join("clean");
     let (code, text) = run(&camp, &clean_out, "disupt");
     assert_eq!(code, Some(0), "{text}");
     let clean: DisuptOut = read_json(&clean_out.join("sim-0080/disupt/disupt.json"));
     assert!(clean.methods.len() >= 3, "{:?}", clean.skipped);
-    /// A record's time tag moved by a leap, µs.
-    type Leap = fn(u64) -> u64;
-    let leaps: [(&str, Leap); 3] = [
-        ("1 s", |t| t + 1_000_000),
-        ("2^40 µs", |t| t + (1 << 40)),
-        ("u64::MAX", |_| u64::MAX),
+    /// Which record, and its time tag moved, µs.
+    type Edit = (u32, fn(u64) -> u64);
+    let edits: [(&str, Edit); 6] = [
+        ("a leap of 1 s", (12_000, |t| t + 1_000_000)),
+        ("a leap of 2^40 µs", (12_000, |t| t + (1 << 40))),
+        ("a leap to u64::MAX", (12_000, |_| u64::MAX)),
+        ("the first leapt 1 s", (first, |t| t + 1_000_000)),
+        ("the first leapt 20 s", (first, |t| t + 20_000_000)),
+        ("the last 10 s after", (last, |t| t + 10_000_000)),
     ];
-    for (i, (leap, to)) in leaps.into_iter().enumerate() {
+    for (i, (what, (seq, to))) in edits.into_iter().enumerate() {
         std::fs::write(&log, &undamaged).unwrap();
         rewrite_imu(&log, &|r| {
-            if r.seq == 12_000 {
+            if r.seq == seq {
                 r.t_us = to(r.t_us);
             }
         });
         let out = tmp.path().join(format!("o{i}"));
         let (code, text) = run(&camp, &out, "disupt");
-        assert_eq!(code, Some(0), "a leap of {leap}: {text}");
+        assert_eq!(code, Some(0), "{what}: {text}");
         let nav: NavigateSummary = read_json(&out.join("sim-0080/navigate/navigate.json"));
-        assert_eq!(nav.repaired_times, 1, "a leap of {leap}");
+        assert_eq!(nav.repaired_times, 1, "{what}");
         let damaged: DisuptOut = read_json(&out.join("sim-0080/disupt/disupt.json"));
-        assert_eq!(
-            damaged.methods.keys().collect::<Vec<_>>(),
-            clean.methods.keys().collect::<Vec<_>>()
+        assert_same_fit(&clean, &damaged, what);
+    }
+}
+
+/// The joint fit and OEPI of `damaged` are `clean`'s, well posed on the 200-s run of
+/// [`a_record_whose_tag_leapt_forward_alone_costs_one_repaired_time`]: the same fit to a
+/// microdegree and a millimetre. OWPI, whose fit leaves this short run hundreds of metres
+/// off, is as ill-conditioned as that says: it ran, and its numbers are not compared.
+fn assert_same_fit(
+    clean: &unz::disupt_stage::DisuptOut,
+    damaged: &unz::disupt_stage::DisuptOut,
+    what: &str,
+) {
+    assert_eq!(
+        damaged.methods.keys().collect::<Vec<_>>(),
+        clean.methods.keys().collect::<Vec<_>>(),
+        "{what}"
+    );
+    for name in ["joint", "oepi"] {
+        let (want, got) = (&clean.methods[name].outcome, &damaged.methods[name].outcome);
+        assert!(
+            (got.x.azimuth_deg - want.x.azimuth_deg).abs() < 1e-6
+                && (got.dx_m - want.dx_m).abs() < 1e-3
+                && (got.dy_m - want.dy_m).abs() < 1e-3,
+            "{name}, {what}: azimuth {} for {}, ΔX {} for {}, ΔY {} for {}",
+            got.x.azimuth_deg,
+            want.x.azimuth_deg,
+            got.dx_m,
+            want.dx_m,
+            got.dy_m,
+            want.dy_m
         );
-        // The joint fit and OEPI, well posed here: the same fit to a microdegree and a
-        // millimetre. OWPI, whose fit leaves this short run hundreds of metres off, is as
-        // ill-conditioned as that says: it ran, and its numbers are not compared.
-        for name in ["joint", "oepi"] {
-            let (want, got) = (&clean.methods[name].outcome, &damaged.methods[name].outcome);
-            assert!(
-                (got.x.azimuth_deg - want.x.azimuth_deg).abs() < 1e-6
-                    && (got.dx_m - want.dx_m).abs() < 1e-3
-                    && (got.dy_m - want.dy_m).abs() < 1e-3,
-                "{name}, a leap of {leap}: azimuth {} for {}, ΔX {} for {}, ΔY {} for {}",
-                got.x.azimuth_deg,
-                want.x.azimuth_deg,
-                got.dx_m,
-                want.dx_m,
-                got.dy_m,
-                want.dy_m
-            );
-        }
     }
 }
 
@@ -502,6 +532,90 @@ fn kingston_with_imu(run: &Path, edit: impl FnOnce(&mut Vec<String>)) -> PathBuf
     edit(&mut lines);
     std::fs::write(run.join("imu.txt"), lines.join("\n") + "\n").unwrap();
     run.to_path_buf()
+}
+
+/// Kingston with a line apart from the rest, as loggers write them: the IMU log's first
+/// line 10 s ahead of the rest (its tag leapt) or 10 s before it (a stale line flushed as
+/// the logger began), its last 10 s after it (one written as it closed); the speed file's
+/// line at 152 862 s (13 m/s) or its first 50 s ahead of the lines about it. An IMU line
+/// is placed beside the next (one repaired time), and `disupt.json` is the shipped run's,
+/// byte for byte; a speed line is rejected naming its leap, and `disupt.json` is that of
+/// the file without the line. Before, the IMU's first tag shifted the whole log by 10 s
+/// (the odometer named 10.4 s early), a lone line across a gap failed the run on the gap,
+/// and the speed file kept the line that leapt and rejected the 49 or 50 after it, the
+/// odometer bridged over them.
+#[test]
+fn kingston_a_lone_first_or_last_line_is_placed_beside_the_rest() {
+    let tmp = tempfile::tempdir().unwrap();
+    let disupt_json = |run: &Path, name: &str| {
+        let out = tmp.path().join(format!("o-{name}"));
+        crate::util::run_until(run, &out, "disupt");
+        let stage = out.join("kingston2008-segment1");
+        let nav: NavigateSummary = read_json(&stage.join("navigate/navigate.json"));
+        let events: unz_formats::IngestEvents = read_json(&stage.join("ingest/ingest_events.json"));
+        let json = std::fs::read(stage.join("disupt/disupt.json")).unwrap();
+        (json, nav.repaired_times, events.odometer_file_faults)
+    };
+    let shipped = kingston_with_imu(&tmp.path().join("k"), |_| {});
+    let (want, repaired, _) = disupt_json(&shipped, "shipped");
+    assert_eq!(repaired, 0);
+    /// A line's time tag moved by `by` s.
+    fn moved(line: &str, by: f64) -> String {
+        let (t, rest) = line.split_once(' ').unwrap();
+        format!("{:.3} {rest}", t.parse::<f64>().unwrap() + by)
+    }
+    /// The IMU log's lines edited.
+    type Edit = fn(&mut Vec<String>);
+    let imu_edits: [(&str, Edit); 3] = [
+        ("first-ahead", |l| l[0] = moved(&l[0], 10.0)),
+        ("first-before", |l| l[0] = moved(&l[0], -10.0)),
+        ("last-after", |l| {
+            let last = l.len() - 1;
+            l[last] = moved(&l[last], 10.0);
+        }),
+    ];
+    for (name, edit) in imu_edits {
+        let run = kingston_with_imu(&tmp.path().join(name), edit);
+        let (got, repaired, _) = disupt_json(&run, name);
+        assert_eq!(repaired, 1, "{name}");
+        assert!(
+            got == want,
+            "{name}: disupt.json differs from the shipped run's"
+        );
+    }
+
+    let speeds = std::fs::read_to_string(shipped.join("odometer.txt")).unwrap();
+    let speeds: Vec<&str> = speeds.lines().collect();
+    for (name, k) in [("speed-720", 719), ("speed-first", 0)] {
+        assert!(
+            k == 0 || speeds[k].starts_with("152862 13."),
+            "{}",
+            speeds[k]
+        );
+        let with = |lines: Vec<String>| {
+            let run =
+                kingston_with_imu(&tmp.path().join(format!("{name}-{}", lines.len())), |_| {});
+            std::fs::write(run.join("odometer.txt"), lines.join("\n") + "\n").unwrap();
+            run
+        };
+        let mut leapt: Vec<String> = speeds.iter().map(|l| l.to_string()).collect();
+        leapt[k] = moved(&leapt[k], 50.0);
+        let mut without = leapt.clone();
+        without.remove(k);
+        let (got, _, faults) = disupt_json(&with(leapt), name);
+        assert_eq!(faults.len(), 1, "{name}: {faults:?}");
+        assert_eq!(faults[0].line, k as u64 + 1, "{name}: {faults:?}");
+        assert!(
+            faults[0].reason.contains("leaps ahead of the lines"),
+            "{name}: {faults:?}"
+        );
+        let (want, _, none) = disupt_json(&with(without), &format!("{name}-without"));
+        assert!(none.is_empty(), "{none:?}");
+        assert!(
+            got == want,
+            "{name}: disupt.json differs from the file without the line"
+        );
+    }
 }
 
 /// Makes a FIFO (named pipe) at `path`, as an archive tool may restore one.

@@ -153,14 +153,26 @@ impl FaultLog {
         self.push_with(line, || reason);
     }
 
-    /// As [`FaultLog::push`], the reason written only when it is kept.
+    /// As [`FaultLog::push`], the reason written only when it is kept. Kept in the
+    /// lines' order: a line judged after the lines behind it (a time tag that leapt
+    /// forward, judged by the next line's) takes its place among them.
     fn push_with(&mut self, line: u64, reason: impl FnOnce() -> String) {
         self.total += 1;
         if self.kept.len() < Self::KEPT {
-            self.kept.push(LineFault {
-                line,
-                reason: reason(),
-            });
+            let at = self.kept.len()
+                - self
+                    .kept
+                    .iter()
+                    .rev()
+                    .take_while(|fault| fault.line > line)
+                    .count();
+            self.kept.insert(
+                at,
+                LineFault {
+                    line,
+                    reason: reason(),
+                },
+            );
         }
     }
 }
@@ -566,8 +578,14 @@ pub struct OdometerFileReader<R: BufRead> {
     faults: FaultLog,
     /// Time and value of the last accepted line, and its distance, m.
     prev: Option<(f64, f64, f64)>,
-    /// Time of the last line read with a speed, s (times must advance).
+    /// Time of the last line kept, s (times must advance).
     last_t_s: Option<f64>,
+    /// The last line read that passed its own checks (line, time s, value in SI),
+    /// judged against the next such line: a tag that leapt forward alone, the next
+    /// going on from the line before it, is the glitch, not the lines after it.
+    pending: Option<(u64, f64, f64)>,
+    /// A line read past `pending` to judge the file's first line, read next.
+    queued: Option<(u64, f64, f64)>,
     /// A speed file's lines, in order, to their verdicts.
     spikes: SpeedSpikes<SpeedLine>,
     /// Reasons held in `spikes`.
@@ -588,6 +606,8 @@ impl<R: BufRead> OdometerFileReader<R> {
             faults: FaultLog::default(),
             prev: None,
             last_t_s: None,
+            pending: None,
+            queued: None,
             spikes: SpeedSpikes::default(),
             held_reasons: 0,
             tags: TagUnwrap::default(),
@@ -646,7 +666,11 @@ impl<R: BufRead> OdometerFileReader<R> {
     /// A line rejected as it was read: at once for distances, in its place among the
     /// speeds' verdicts.
     fn reject_read(&mut self, reason: String) {
-        let line = self.lines.line_no;
+        self.reject_read_at(self.lines.line_no, reason);
+    }
+
+    /// As [`Self::reject_read`], for line `line` (read before the current one).
+    fn reject_read_at(&mut self, line: u64, reason: String) {
         if self.kind.is_speed() {
             let kept = self.faults.kept.len() + self.held_reasons < FaultLog::KEPT;
             self.held_reasons += usize::from(kept);
@@ -707,21 +731,94 @@ impl<R: BufRead> OdometerFileReader<R> {
                 }
             }
             match self.read_line()? {
-                Some((t, v)) if !self.kind.is_speed() => {
+                Some((_, t, v)) if !self.kind.is_speed() => {
                     return Ok(Some(self.accept(t, v)));
                 }
-                Some((t, v)) => self
-                    .spikes
-                    .push(Some((t, v)), (self.lines.line_no, Ok((t, v)))),
+                Some((line, t, v)) => self.spikes.push(Some((t, v)), (line, Ok((t, v)))),
                 None if self.spikes.is_finished() => return Ok(None),
                 None => self.spikes.finish(),
             }
         }
     }
 
-    /// The next line's time and value, its checks passed; lines that fail them are
-    /// rejected on the way. `None` at the end.
-    fn read_line(&mut self) -> Result<Option<(f64, f64)>, FormatError> {
+    /// The next line kept: its number, time and value, its checks passed and its time
+    /// after the last kept; lines that fail them are rejected on the way. A line whose
+    /// time leapt forward alone (the next line's time lies between the last kept and
+    /// it; for the file's first line, the next two lines' times, in order) is rejected,
+    /// not the lines after it: kept, it would have every line up to its time rejected as
+    /// not after it, and the odometer bridged over them. `None` at the end.
+    fn read_line(&mut self) -> Result<Option<(u64, f64, f64)>, FormatError> {
+        loop {
+            let next = match self.queued.take() {
+                Some(queued) => Some(queued),
+                None => self.read_checked()?,
+            };
+            let Some(held) = self.pending.take() else {
+                match next {
+                    Some(next) => self.pending = Some(next),
+                    None => return Ok(None),
+                }
+                continue;
+            };
+            let Some(next) = next else {
+                self.last_t_s = Some(held.1);
+                return Ok(Some(held));
+            };
+            if next.1 > held.1 {
+                self.pending = Some(next);
+                self.last_t_s = Some(held.1);
+                return Ok(Some(held));
+            }
+            match self.last_t_s {
+                Some(kept_t) if kept_t < next.1 && next.1 < held.1 => {
+                    self.reject_read_at(
+                        held.0,
+                        format!(
+                            "time {} leaps ahead of the lines about it ({kept_t} before, \
+                             {} after): a glitch in its time tag",
+                            held.1, next.1
+                        ),
+                    );
+                    self.pending = Some(next);
+                }
+                Some(_) => {
+                    self.reject_read_at(next.0, format!("time {} is not after {}", next.1, held.1));
+                    self.pending = Some(held);
+                }
+                None => {
+                    // The first line: the line after the next tells which of the two
+                    // is out of order.
+                    let after = self.read_checked()?;
+                    self.queued = after;
+                    match after {
+                        Some(after) if next.1 < after.1 && after.1 < held.1 => {
+                            self.reject_read_at(
+                                held.0,
+                                format!(
+                                    "time {} of the first line leaps ahead of the lines \
+                                     after it ({} and {}): a glitch in its time tag",
+                                    held.1, next.1, after.1
+                                ),
+                            );
+                            self.pending = Some(next);
+                        }
+                        _ => {
+                            self.reject_read_at(
+                                next.0,
+                                format!("time {} is not after {}", next.1, held.1),
+                            );
+                            self.pending = Some(held);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// The next line that passes its own checks (its number, time and value), whatever
+    /// its time against the lines before it; lines that fail them are rejected on the
+    /// way. `None` at the end.
+    fn read_checked(&mut self) -> Result<Option<(u64, f64, f64)>, FormatError> {
         while let Some(line) = self.lines.next_line()? {
             let Some(record) = line.record() else {
                 continue;
@@ -786,14 +883,7 @@ impl<R: BufRead> OdometerFileReader<R> {
                 ));
                 continue;
             }
-            if let Some(pt) = self.last_t_s
-                && t <= pt
-            {
-                self.reject_read(format!("time {t} is not after {pt}"));
-                continue;
-            }
-            self.last_t_s = Some(t);
-            return Ok(Some((t, v)));
+            return Ok(Some((self.lines.line_no, t, v)));
         }
         Ok(None)
     }
@@ -889,6 +979,65 @@ mod tests {
         let (v, rep, _) = read_all(&week_s);
         assert_eq!(v[2].t_s, 86_400.1);
         assert_eq!(rep.day_rollovers, 0);
+    }
+
+    /// A speed or distance line whose time tag leapt forward alone (the next line goes
+    /// on from the line before it; for the first line, the next two in order) is the
+    /// line rejected, naming its leap, and the lines after it are kept; its fault takes
+    /// its place among a malformed line's after it. A step back that lasts (two lines
+    /// going on from below the last kept) is still the lines after it rejected. Before,
+    /// the line that leapt was kept and every line up to its time rejected.
+    #[test]
+    fn a_time_tag_that_leapt_forward_alone_is_the_line_rejected() {
+        let read = |text: &str, kind| {
+            let mut odo = OdometerFileReader::new(text.as_bytes(), kind);
+            let mut t = Vec::new();
+            while let Some(s) = odo.next_sample().unwrap() {
+                t.push((s.t_s, s.distance_m));
+            }
+            let faults: Vec<(u64, String)> = (odo.faults().0.iter())
+                .map(|f| (f.line, f.reason.clone()))
+                .collect();
+            let r = odo.report();
+            assert_eq!(r.lines_read, r.lines_accepted + r.lines_rejected, "{r:?}");
+            (t, faults)
+        };
+        let (t, faults) = read("0 1\n1 1\n60 1\n2 1\n3 1\n", OdometerKind::SpeedMps);
+        assert_eq!(t, [(0.0, 0.0), (1.0, 1.0), (2.0, 2.0), (3.0, 3.0)]);
+        assert_eq!(faults.len(), 1);
+        assert_eq!(faults[0].0, 3);
+        assert!(
+            faults[0]
+                .1
+                .contains("time 60 leaps ahead of the lines about it (1 before, 2 after)"),
+            "{faults:?}"
+        );
+        let (t, faults) = read("0 5\n1 6\n60 7\nx\n2 8\n", OdometerKind::DistanceM);
+        assert_eq!(t, [(0.0, 5.0), (1.0, 6.0), (2.0, 8.0)]);
+        let lines: Vec<u64> = faults.iter().map(|f| f.0).collect();
+        assert_eq!(lines, [3, 4], "{faults:?}");
+        let (t, faults) = read("60 1\n1 1\n2 1\n", OdometerKind::SpeedMps);
+        assert_eq!(t, [(1.0, 0.0), (2.0, 1.0)]);
+        assert_eq!(faults.len(), 1);
+        assert!(
+            faults[0].0 == 1 && faults[0].1.contains("of the first line"),
+            "{faults:?}"
+        );
+        // The first line kept when the next goes back alone.
+        let (t, faults) = read("5 1\n1 1\n6 1\n", OdometerKind::SpeedMps);
+        assert_eq!(t, [(5.0, 0.0), (6.0, 1.0)]);
+        assert!(faults.len() == 1 && faults[0].0 == 2, "{faults:?}");
+        // A tag repeated: the second line rejected.
+        let (t, faults) = read("0 1\n1 1\n1 2\n2 1\n", OdometerKind::SpeedMps);
+        assert_eq!(t.iter().map(|s| s.0).collect::<Vec<_>>(), [0.0, 1.0, 2.0]);
+        assert!(faults.len() == 1 && faults[0].0 == 3, "{faults:?}");
+        let (t, faults) = read("0 1\n1 1\n2 1\n0.5 1\n0.6 1\n3 1\n", OdometerKind::SpeedMps);
+        assert_eq!(
+            t.iter().map(|s| s.0).collect::<Vec<_>>(),
+            [0.0, 1.0, 2.0, 3.0]
+        );
+        let lines: Vec<u64> = faults.iter().map(|f| f.0).collect();
+        assert_eq!(lines, [4, 5], "{faults:?}");
     }
 
     /// An odometer file begun across midnight (or the week's end) from its log: after

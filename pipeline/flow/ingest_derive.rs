@@ -74,8 +74,10 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // time. 19: a standing count's watch takes a sample period of 0.1 ms at least.
         // 20: a text file's time tags unwrapped over a GPS week's rollover. 21: and over
         // a day's (seconds of day, at midnight). 22: an odometer file begun across the
-        // week's or the day's end from its log taken on the log's side.
-        version: 22,
+        // week's or the day's end from its log taken on the log's side. 23: an odometer
+        // file's line whose time tag leapt forward alone is the line rejected, not the
+        // lines after it.
+        version: 23,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
@@ -171,8 +173,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // 14: an odometer without two rows within the IMU's log failed. 15: the clock's
         // reading kept (derived.parquet's metadata), F's start-up left out of it. 16: an
         // odometer file minutes off searched beyond the setting's reach. 17: the clock
-        // read from the odometer's readings only (the ingest's bridges left out).
-        version: 17,
+        // read from the odometer's readings only (the ingest's bridges left out). 18: a
+        // first or last IMU sample apart from the rest placed beside its neighbour.
+        version: 18,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,

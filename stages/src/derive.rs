@@ -463,6 +463,20 @@ pub fn repaired_time(
         .then(|| prev_t_s + nominal_s.min(0.5 * (next_t_s - prev_t_s)))
 }
 
+/// Whether a log's first sample stands apart from the rest: the second tag goes back
+/// from it while the log goes on from the second (a glitch in the first tag), or a gap
+/// longer than `max_gap_s`, which no run bridges, parts it from a second sample that is
+/// not apart itself (a lone line a logger wrote before it began). Kept as tagged, the
+/// first would make every tag up to its own time go back from it, or fail the run on a
+/// gap; the last sample has the same rule for a gap (its tag going back is any tag's).
+pub fn first_sample_apart(tags_ns: &[i64], max_gap_s: f64) -> bool {
+    let &[t0, t1, t2, ..] = tags_ns else {
+        return false;
+    };
+    let gap_s = |a: i64, b: i64| b.saturating_sub(a) as f64 * 1e-9;
+    (t1 < t0 && t1 < t2) || (gap_s(t0, t1) > max_gap_s && gap_s(t1, t2) <= max_gap_s)
+}
+
 /// Cumulative odometer distance at time `t` (linear interpolation; held after the last
 /// tag, and continued back over one interval before the first). Only tags later than the
 /// last one kept, with a finite distance, are kept; they are read from the ingested series
@@ -679,7 +693,6 @@ pub fn derive_owned(
     }
     dtheta_rad.truncate(n);
     dvel_mps.truncate(n);
-    let t0 = imu_t_ns[0];
     let mut dts: Vec<f64> = imu_t_ns[..n]
         .windows(2)
         .map(|w| (w[1] - w[0]) as f64 * 1e-9)
@@ -692,6 +705,13 @@ pub fn derive_owned(
     }
     let nominal = dts.get(mid).copied().unwrap_or(0.01);
     drop(dts);
+    // A first sample apart from the rest takes its time one interval before the second's.
+    let first_apart = first_sample_apart(&imu_t_ns[..n], params.max_gap_s);
+    let t0 = if first_apart {
+        imu_t_ns[1].saturating_sub((nominal * 1e9).round() as i64)
+    } else {
+        imu_t_ns[0]
+    };
     out.t0_ns = t0;
     out.nominal_dt_s = nominal;
 
@@ -703,8 +723,14 @@ pub fn derive_owned(
     for k in 0..n {
         let mut t = (tags[k] - t0) as f64 * 1e-9;
         let next_t = || tags.get(k + 1).map(|&s| (s - t0) as f64 * 1e-9);
+        let last_apart = || k + 1 == n && k >= 2 && t - prev_t > params.max_gap_s;
         if let Some(repaired) = repaired_time(k, prev_t, t, next_t, nominal) {
             t = repaired;
+            out.repaired_times += 1;
+        } else if (k == 0 && first_apart) || last_apart() {
+            // Beside the sample next to it: a glitch in its tag, or a lone sample a
+            // logger wrote at its start or end, carries no time of its own.
+            t = prev_t + nominal;
             out.repaired_times += 1;
         }
         tags[k] = t.to_bits() as i64;
@@ -1457,6 +1483,22 @@ mod tests {
         (t, dtheta, dvel, odo_t, odo_d)
     }
 
+    /// The derive of [`drive`]'s run with the IMU's time tags `tags`.
+    #[allow(clippy::type_complexity)]
+    fn derived_with_tags(
+        tags: Vec<i64>,
+        (dtheta, dvel, odo_t, odo_d): (&[[f64; 3]], &[[f64; 3]], &[i64], &[f64]),
+    ) -> Derived {
+        let columns = (
+            tags,
+            dtheta.to_vec(),
+            dvel.to_vec(),
+            odo_t.to_vec(),
+            odo_d.to_vec(),
+        );
+        derive(&series(&columns), &DeriveParams::default(), 9.81)
+    }
+
     /// The ingested series of [`drive`]'s columns.
     #[allow(clippy::type_complexity)]
     fn series(c: &(Vec<i64>, Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<i64>, Vec<f64>)) -> RawSeries<'_> {
@@ -1583,14 +1625,7 @@ mod tests {
         ] {
             let mut tags = t.clone();
             tags[k] += leap_ns;
-            let columns = (
-                tags,
-                dtheta.clone(),
-                dvel.clone(),
-                odo_t.clone(),
-                odo_d.clone(),
-            );
-            let d = derive(&series(&columns), &DeriveParams::default(), 9.81);
+            let d = derived_with_tags(tags, (&dtheta, &dvel, &odo_t, &odo_d));
             assert_eq!(d.repaired_times, 1, "a leap of {leap_ns} ns");
             let times: Vec<f64> = (0..t.len()).map(|j| d.t_s.get(j)).collect();
             for (j, &time) in times.iter().enumerate() {
@@ -1612,6 +1647,56 @@ mod tests {
         let d = derive(&series(&columns), &DeriveParams::default(), 9.81);
         assert_eq!(d.repaired_times, 1);
         assert_eq!(d.t_s.get(5_000), (t[5_000] - t[0]) as f64 * 1e-9);
+    }
+
+    /// A first sample apart from the rest (its tag 1 s or 2^50 ns ahead of the second's,
+    /// or 10 s before it across a gap no run bridges) and a last one 10 s after the rest
+    /// are placed one interval beside their neighbour, one repaired time each, and the
+    /// other samples keep their times on the clock they were logged on: the run's `t0_ns`
+    /// is the true first sample's. A first sample across a short gap (0.5 s), or before a
+    /// second that is apart itself, keeps its time.
+    #[test]
+    fn a_lone_first_or_last_sample_is_placed_beside_the_rest() {
+        let (t, dtheta, dvel, odo_t, odo_d) = drive();
+        let n = t.len();
+        let derived = |tags| derived_with_tags(tags, (&dtheta, &dvel, &odo_t, &odo_d));
+        for (k, by_ns) in [
+            (0, 1_000_000_000),
+            (0, 1 << 50),
+            (0, -10_000_000_000),
+            (n - 1, 10_000_000_000),
+        ] {
+            let mut tags = t.clone();
+            tags[k] += by_ns;
+            let d = derived(tags);
+            assert_eq!(d.repaired_times, 1, "sample {k} moved by {by_ns} ns");
+            assert_eq!(d.t0_ns, t[0], "sample {k} moved by {by_ns} ns");
+            for j in 0..n {
+                let (time, given) = (d.t_s.get(j), (t[j] - t[0]) as f64 * 1e-9);
+                assert!(
+                    (time - given).abs() < 1e-9,
+                    "sample {j}: {time} for {given}"
+                );
+            }
+            assert!(
+                d.dt_s.iter().all(|&dt| dt < 0.011),
+                "sample {k} moved by {by_ns} ns"
+            );
+        }
+        let max_gap_s = DeriveParams::default().max_gap_s;
+        assert!(!first_sample_apart(
+            &[0, 500_000_000, 510_000_000],
+            max_gap_s
+        ));
+        assert!(!first_sample_apart(
+            &[0, 5_000_000_000, 10_000_000_000],
+            max_gap_s
+        ));
+        assert!(first_sample_apart(
+            &[0, 5_000_000_000, 5_010_000_000],
+            max_gap_s
+        ));
+        assert!(!first_sample_apart(&[0, 10_000_000], max_gap_s));
     }
 
     /// The IMU's time tags given by value become the derive's times where they were
