@@ -375,6 +375,118 @@ fn a_record_whose_tag_leapt_forward_alone_costs_one_repaired_time() {
     }
 }
 
+/// A block a recorder sent again after itself (10 s of a binary log's records, their
+/// `seq` and `t_us` as first sent), and Kingston's text log with 10 s of lines repeated
+/// so, or its two halves joined over 100 s they share: the repeats are duplicates
+/// (`rejected.duplicate_seq`, each text line listed with the line it repeats), the time
+/// base goes on as logged, and `disupt.json` is the undamaged run's byte for byte. Before, the block went back in time and was kept: its
+/// samples were repaired one interval on, the log grew by the block's length, and the
+/// binary run's odometer, a text log's control points and its speed file were that much
+/// off its clock (Kingston: "the odometer file's time tags run 10.4 s early").
+#[test]
+fn a_block_sent_again_or_logs_joined_over_their_overlap_are_duplicates() {
+    use unz_formats::raw::{Accepted, RawReader, RawWriter};
+
+    let tmp = tempfile::tempdir().unwrap();
+    let disupt_json = |folder: &Path, out: &str| {
+        let out = tmp.path().join(out);
+        let (code, text) = run(folder, &out, "disupt");
+        assert_eq!(code, Some(0), "{text}");
+        let stage = std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .find(|p| p.join("disupt/disupt.json").exists())
+            .unwrap();
+        let report: IngestReport = read_json(&stage.join("ingest/ingest.json"));
+        let events: unz_formats::IngestEvents = read_json(&stage.join("ingest/ingest_events.json"));
+        let json = std::fs::read(stage.join("disupt/disupt.json")).unwrap();
+        (json, report, events)
+    };
+
+    let camp = simulated_campaign(&tmp.path().join("c"), 80, 1, 200.0);
+    let run = camp.join("sim-0080");
+    let (clean, _, _) = disupt_json(&run, "clean");
+    let log = run.join("sim-0080.unz");
+    let bytes = std::fs::read(&log).unwrap();
+    let mut reader = RawReader::new(bytes.as_slice()).unwrap();
+    let mut writer = RawWriter::new(Vec::new(), reader.header()).unwrap();
+    let mut block = Vec::new();
+    while let Some(rec) = reader.next_record().unwrap() {
+        match rec {
+            Accepted::Imu(s) => {
+                writer.write_imu(&s.raw).unwrap();
+                if (12_000..13_000).contains(&s.raw.seq) {
+                    block.push(s.raw);
+                }
+                if s.raw.seq == 12_999 {
+                    block.iter().for_each(|r| writer.write_imu(r).unwrap());
+                }
+            }
+            Accepted::Mark(m) => writer.write_mark(&m).unwrap(),
+        }
+    }
+    std::fs::write(&log, writer.finish().unwrap()).unwrap();
+    let (resent, report, _) = disupt_json(&run, "resent");
+    assert_eq!(report.rejected.duplicate_seq, 1000, "{report:?}");
+    assert_eq!(
+        (report.t_non_increasing, report.seq_gaps),
+        (0, 0),
+        "{report:?}"
+    );
+    assert!(
+        resent == clean,
+        "disupt.json differs from the undamaged run's"
+    );
+
+    let shipped = kingston_with_imu(&tmp.path().join("k"), |_| {});
+    let (want, _, _) = disupt_json(&shipped, "k-o");
+    /// The IMU log's lines edited.
+    type Edit = fn(&mut Vec<String>);
+    let edits: [(&str, Edit, u64); 2] = [
+        (
+            "10 s sent again",
+            |l| {
+                let block = l[5000..5100].to_vec();
+                l.splice(5100..5100, block);
+            },
+            100,
+        ),
+        (
+            "halves joined over 100 s",
+            |l| {
+                let overlap = l[5000..6000].to_vec();
+                l.splice(6000..6000, overlap);
+            },
+            1000,
+        ),
+    ];
+    for (what, edit, repeats) in edits {
+        let run = kingston_with_imu(&tmp.path().join(what), edit);
+        let (got, report, events) = disupt_json(&run, &format!("{what}-o"));
+        assert_eq!(report.rejected.duplicate_seq, repeats, "{what}: {report:?}");
+        // Each repeat listed (the text file's lines are 1-based).
+        assert_eq!(events.events_total, repeats, "{what}");
+        let first = &events.line_faults[0];
+        let (line, of) = if repeats == 100 {
+            (5101, 5001)
+        } else {
+            (6001, 5001)
+        };
+        assert_eq!(first.line, line, "{what}: {first:?}");
+        assert!(
+            first
+                .reason
+                .starts_with(&format!("repeats line {of} (its time tag and values)")),
+            "{what}: {first:?}"
+        );
+        assert_eq!(report.t_non_increasing, 0, "{what}: {report:?}");
+        assert!(
+            got == want,
+            "{what}: disupt.json differs from the shipped run's"
+        );
+    }
+}
+
 /// The joint fit and OEPI of `damaged` are `clean`'s, well posed on the 200-s run of
 /// [`a_record_whose_tag_leapt_forward_alone_costs_one_repaired_time`]: the same fit to a
 /// microdegree and a millimetre. OWPI, whose fit leaves this short run hundreds of metres

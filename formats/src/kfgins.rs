@@ -11,6 +11,7 @@ use std::io::BufRead;
 use crate::error::FormatError;
 use crate::manifest::OdometerKind;
 use crate::report::{IngestReport, OdometerFileReport};
+use crate::resent::RecentRecords;
 use crate::speed_floor::{SpeedFloor, SpeedFloorReport};
 use crate::speed_spikes::{MAX_ACCEL_MPS2, MAX_BRAKING_MPS2, SpeedSpikes, Verdict};
 
@@ -334,6 +335,11 @@ pub struct KfGinsReader<R: BufRead> {
     eof: bool,
     /// The time tags over GPS-week and day rollovers.
     tags: TagUnwrap,
+    /// The first sample's time, s: a sample's place is its intervals from it.
+    first_t_s: Option<f64>,
+    /// The samples accepted lately, their time and values bit for bit: a line repeating
+    /// one of them (a block sent again, logs joined over their overlap) is a duplicate.
+    recent: RecentRecords<[u64; 7], u64>,
 }
 
 impl<R: BufRead> KfGinsReader<R> {
@@ -355,6 +361,8 @@ impl<R: BufRead> KfGinsReader<R> {
             prev: None,
             eof: false,
             tags: TagUnwrap::default(),
+            first_t_s: None,
+            recent: RecentRecords::default(),
         }
     }
 
@@ -513,12 +521,26 @@ impl<R: BufRead> KfGinsReader<R> {
                 },
             };
             self.report.records_read += 1;
+            let key = resent_key(&s);
+            let place = self.place(s.t_s);
             if let Some(prev) = self.prev {
-                if s.t_s == prev.t_s
-                    && s.dtheta_rad == prev.dtheta_rad
-                    && s.dvel_mps == prev.dvel_mps
-                {
+                let repeated = || {
+                    if key == resent_key(&prev) {
+                        Some(prev.line)
+                    } else if s.t_s < prev.t_s {
+                        self.recent.seen(place?, &key)
+                    } else {
+                        None
+                    }
+                };
+                if let Some(line) = repeated() {
                     self.report.rejected.duplicate_seq += 1;
+                    self.faults.push_with(s.line, || {
+                        format!(
+                            "repeats line {line} (its time tag and values): a record sent \
+                             again, or logs joined over the stretch they share"
+                        )
+                    });
                     continue;
                 }
                 let dt = s.t_s - prev.t_s;
@@ -537,11 +559,32 @@ impl<R: BufRead> KfGinsReader<R> {
                 }
             }
             self.prev = Some(s);
+            self.first_t_s.get_or_insert(s.t_s);
+            if let Some(place) = place.or_else(|| self.place(s.t_s)) {
+                self.recent.keep(place, key, s.line);
+            }
             self.report.records_accepted += 1;
             self.report.imu_accepted += 1;
             return Ok(Some(s));
         }
     }
+
+    /// A time's place in the log: its sample intervals from the first sample's time
+    /// (`None` before the first, or without a period).
+    fn place(&self, t_s: f64) -> Option<u64> {
+        let intervals = (t_s - self.first_t_s?) / self.period_s?;
+        // `as` saturates: a damaged tag's place is some slot, its key still its own.
+        intervals
+            .is_finite()
+            .then(|| intervals.round() as i64 as u64)
+    }
+}
+
+/// What makes a text line the same as another: its time and values, bit for bit.
+fn resent_key(s: &TextSample) -> [u64; 7] {
+    let [a, b, c] = s.dtheta_rad.map(f64::to_bits);
+    let [d, e, f] = s.dvel_mps.map(f64::to_bits);
+    [s.t_s.to_bits(), a, b, c, d, e, f]
 }
 
 /// One odometer sample of a separate file, converted to cumulative distance.

@@ -25,6 +25,7 @@ pub mod parquet_thread;
 pub mod raw;
 pub mod regular;
 pub mod report;
+pub mod resent;
 pub mod ros2_msgs;
 pub mod schema;
 pub mod speed_floor;

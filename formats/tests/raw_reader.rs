@@ -141,6 +141,31 @@ fn seq_and_odo_count_wrap_around_unwrap() {
     assert_eq!(rep.seq_gaps, 0);
 }
 
+/// A block sent again after itself (its records' `seq` and `t_us` as first sent), over a
+/// `seq` wrap, is duplicates: the stream goes on from the block's end unbroken. A counter
+/// reset (`seq` back, time going on) and a record whose `seq` comes again with another
+/// time are no repeats: a reset and a time going back, as before.
+#[test]
+fn a_block_sent_again_is_duplicates_and_a_counter_reset_is_not() {
+    let start = u32::MAX - 4;
+    let rec = |i: u32| imu(start.wrapping_add(i), 10_000 * u64::from(i + 1), i);
+    let mut records: Vec<_> = (0..10).map(rec).collect();
+    records.extend((3..8).map(rec));
+    records.extend((10..12).map(rec));
+    let (got, rep) = read(&log(&records));
+    assert_eq!(imus(&got), (0..12).map(rec).collect::<Vec<_>>());
+    assert_eq!(rep.rejected.duplicate_seq, 5);
+    assert_eq!((rep.seq_gaps, rep.t_non_increasing), (0, 0));
+
+    let mut reset: Vec<_> = (0..10).map(rec).collect();
+    reset.push(imu(0, 200_000, 10));
+    reset.push(imu(start.wrapping_add(2), 1_000, 11));
+    let (got, rep) = read(&log(&reset));
+    assert_eq!(imus(&got).len(), 12);
+    assert_eq!(rep.rejected.duplicate_seq, 0);
+    assert_eq!((rep.seq_gaps, rep.t_non_increasing), (2, 1));
+}
+
 #[test]
 fn each_fault_is_counted_exactly() {
     let records: Vec<_> = (0..100)

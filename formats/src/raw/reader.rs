@@ -21,6 +21,7 @@ use super::record::{
 };
 use crate::error::FormatError;
 use crate::report::IngestReport;
+use crate::resent::RecentRecords;
 
 /// Buffer size of the reader: memory use is bounded by it whatever the file size.
 const BUF_LEN: usize = 256 * 1024;
@@ -96,6 +97,10 @@ pub struct RawReader<R: Read> {
     events: Vec<FaultEvent>,
     events_total: u64,
     last_imu: Option<(u32, u64, u64, u32, i64)>, // raw seq, unwrapped seq, t_us, raw odo, odo
+    /// The IMU records accepted lately (`seq`, `t_us`) at their `seq`: a record going
+    /// back to one of them is a duplicate (a block sent again, logs joined over their
+    /// overlap), not a counter reset.
+    recent: RecentRecords<(u32, u64)>,
     /// File offset of the record returned last.
     last_offset: u64,
 }
@@ -134,6 +139,7 @@ impl<R: Read> RawReader<R> {
             events: Vec::new(),
             events_total: 0,
             last_imu: None,
+            recent: RecentRecords::default(),
             last_offset: 0,
         })
     }
@@ -391,7 +397,12 @@ impl<R: Read> RawReader<R> {
             None => (u64::from(raw.seq), i64::from(raw.odo_count)),
             Some((prev_seq_raw, prev_seq, prev_t, prev_odo_raw, prev_odo)) => {
                 let step = raw.seq.wrapping_sub(prev_seq_raw);
-                if step == 0 {
+                let resent = || {
+                    step >= 1 << 31
+                        && raw.t_us <= prev_t
+                        && (self.recent.seen(u64::from(raw.seq), &(raw.seq, raw.t_us))).is_some()
+                };
+                if step == 0 || resent() {
                     self.report.rejected.duplicate_seq += 1;
                     self.event(offset, FaultKind::DuplicateSeq, u64::from(raw.seq));
                     return None;
@@ -423,6 +434,8 @@ impl<R: Read> RawReader<R> {
             }
         };
         self.last_imu = Some((raw.seq, seq, raw.t_us, raw.odo_count, odo_pulses));
+        self.recent
+            .keep(u64::from(raw.seq), (raw.seq, raw.t_us), ());
         self.report.records_accepted += 1;
         self.report.imu_accepted += 1;
         self.report.lost_duration_s =
