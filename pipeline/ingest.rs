@@ -768,15 +768,21 @@ fn ingest_text(
         });
     let mut sinks = Sinks::create(dir, None, None, &options, 0)?;
     let mut seq = 0u64;
-    let mut column = column.then(|| {
+    let new_column = || {
         let g_mps2 = site_gravity_mps2(manifest);
         (
             SpeedSpikes::default(),
             SpeedColumn::new(floor_mps),
             ColumnBridger::new(g_mps2, options.odo_lag_prior_s),
         )
-    });
+    };
+    let mut column = column.then(new_column);
     while let Some(mut s) = reader.next_sample().map_err(|e| e.in_file(path))? {
+        // A log whose first lines leave the 8th column blank: its speeds from the first
+        // given, when no file is the odometer.
+        if column.is_none() && odometer_file.is_none() && s.speed_mps.is_some() {
+            column = Some(new_column());
+        }
         s.dtheta_rad = options.imu_axes.to_body(s.dtheta_rad);
         s.dvel_mps = options.imu_axes.to_body(s.dvel_mps);
         if let Some(r) = &options.imu_mounting {

@@ -438,16 +438,15 @@ impl<R: BufRead> KfGinsReader<R> {
                 self.fault(reason);
                 continue;
             }
-            let expected = *self.columns.get_or_insert(n);
-            if !(7..=8).contains(&n) || n != expected {
-                let want = if (7..=8).contains(&expected) {
-                    expected.to_string()
-                } else {
-                    "7 or 8".into()
-                };
-                if !(7..=8).contains(&expected) {
-                    self.columns = None;
-                }
+            // A log's lines hold 7 or 8 columns: the 8th, the odometer's speed, may be left
+            // blank (a logger's line without a fresh reading, or a CSV's empty last field),
+            // and the log is of 8 columns once a line has them. Before, a log's columns were
+            // its first line's, and every line of the other count was rejected: an 8-column
+            // log lost the IMU samples of its lines without a speed (Kingston with one in
+            // ten: 876 samples, OWPI's route 536 m off).
+            if (7..=8).contains(&n) {
+                self.columns = Some(self.columns.map_or(n, |c| c.max(n)));
+            } else {
                 let got = if n > 8 {
                     "more than 8".to_owned()
                 } else {
@@ -458,7 +457,7 @@ impl<R: BufRead> KfGinsReader<R> {
                 } else {
                     ""
                 };
-                self.fault(format!("{got} columns, expected {want}{hint}"));
+                self.fault(format!("{got} columns, expected 7 or 8{hint}"));
                 continue;
             }
             if let Some(reason) = tag_beyond_range(values[0]) {
@@ -1217,6 +1216,27 @@ mod tests {
         assert_eq!((d, faults, rep.lines_rejected), (vec![0.0, 1.0], vec![], 0));
     }
 
+    /// A log's 8th column may be left blank on any line, the first included: each line of
+    /// 7 or 8 columns is a sample (its speed `None` without the 8th), and the log is of 8
+    /// columns once a line has them. Before, the first line's count was the log's, and
+    /// every line of the other count was rejected.
+    #[test]
+    fn an_8th_column_may_be_left_blank_on_any_line() {
+        let text =
+            "0.01 1 2 3 4 5 6\n0.02 1 2 3 4 5 6 7.5\n0.03,1,2,3,4,5,6,\n0.04 1 2 3 4 5 6 8\n";
+        let mut r = KfGinsReader::new(text.as_bytes());
+        assert_eq!(r.period_s().unwrap(), Some(0.01));
+        assert_eq!(r.columns(), Some(8));
+        let mut speeds = Vec::new();
+        while let Some(s) = r.next_sample().unwrap() {
+            speeds.push(s.speed_mps);
+        }
+        assert_eq!(speeds, [None, Some(7.5), None, Some(8.0)]);
+        assert_eq!(r.report().rejected_total(), 0);
+        let (v, _, _) = read_all("0.01 1 2 3 4 5 6\n0.02 1 2 3 4 5 6\n");
+        assert!(v.iter().all(|s| s.speed_mps.is_none()) && v.len() == 2);
+    }
+
     /// Why a line is not a record says what a user can mend: more columns than a log has,
     /// numbers written with decimal commas, lines that end in CR alone, UTF-16 text.
     #[test]
@@ -1228,7 +1248,7 @@ mod tests {
         };
         assert_eq!(
             reason(b"0.01 1 2 3 4 5 6\n0.02 1 2 3 4 5 6 7 8 9 10\n"),
-            "more than 8 columns, expected 7"
+            "more than 8 columns, expected 7 or 8"
         );
         assert_eq!(
             reason(b"0,01 1 2 3 4 5,5 6\n"),

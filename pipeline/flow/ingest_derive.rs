@@ -77,8 +77,9 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // week's or the day's end from its log taken on the log's side. 23: an odometer
         // file's line whose time tag leapt forward alone is the line rejected, not the
         // lines after it. 24: a record or line repeating one of the last 8192 accepted
-        // (a block sent again, logs joined over their overlap) is a duplicate.
-        version: 24,
+        // (a block sent again, logs joined over their overlap) is a duplicate. 25: a
+        // text log's 8th column may be left blank on any line.
+        version: 25,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
