@@ -8,6 +8,7 @@
 
 pub mod axes;
 pub mod case;
+pub mod coordinates_misread;
 pub mod criteria;
 pub mod ingest_derive;
 pub mod ingested;

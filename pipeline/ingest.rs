@@ -856,6 +856,9 @@ fn ingest_text(
     report.odometer_failures = bridged;
     report.odometer_file = file_report.as_ref().map(|(r, _)| r.clone());
     report.speed_floor = speed_floor;
+    report.odometer_file_unread = (manifest.odometer.file.as_ref())
+        .filter(|_| odometer_file.is_none())
+        .map(|file| manifest.named(file).to_path_buf());
     let (faults, total) = reader.faults();
     Ok(Streamed {
         report,

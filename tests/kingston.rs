@@ -786,6 +786,9 @@ fn kingston_an_azimuth_given_far_from_the_gyrocompassing_is_said() {
 /// the joint fit's azimuth σ 0.69° (0.06° aligned) and hold-out errors of 16 and 29 m
 /// (2.2 and 3.0 m), and nothing said. Now `navigate.json` (`initial.static_unused`) and
 /// the campaign's note say the stand was left out, and the run keeps what was given.
+/// With `static_s = 8` (8 minutes meant), the alignment gyrocompassed over 8 s of the
+/// stand (σ 9.5° against 5.4°; the joint fit's azimuth σ 0.27°, hold-outs 2.9 and 4.1 m)
+/// and nothing was said: now the 8 s and the minutes are.
 #[test]
 fn kingston_a_stand_left_out_of_the_alignment_is_said() {
     let tmp = tempfile::tempdir().unwrap();
@@ -803,6 +806,20 @@ fn kingston_a_stand_left_out_of_the_alignment_is_said() {
     assert!(
         summary.contains("the vehicle stood 528 s at the log's start by its odometer")
             && summary.contains("(static_s = 0 s) leaves it out of the alignment"),
+        "{summary}"
+    );
+    // 8 s given (minutes meant): the alignment's 8 s of the stand said, and the minutes.
+    let run = kingston_edited(&tmp.path().join("k8"), "static_s = 500.0", "static_s = 8.0");
+    let out = tmp.path().join("o8");
+    crate::util::run_until(&run, &out, "disupt");
+    let unused = navigate_summary(&out).initial.static_unused.unwrap();
+    assert_eq!(unused.given_s, 8.0);
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains(
+            "(static_s = 8 s) aligns over its first 8 s only (8 minutes would be 480 s: \
+             static_s is in seconds)"
+        ),
         "{summary}"
     );
     // As shipped (500 s given): nothing said.
@@ -1249,6 +1266,99 @@ fn kingston_an_8th_column_left_blank_keeps_its_imu_samples() {
         late == want_json,
         "the late column's disupt.json differs from the whole one's"
     );
+}
+
+/// Kingston with an 8th column and its speed file named in the manifest too: the column
+/// is the odometer (as documented), and the file left unread is said, in `ingest.json`
+/// (`odometer_file_unread`, as the manifest names it), the run's log and the campaign's
+/// note; the run is the column's alone, byte for byte. Before, the file was left unread
+/// in silence: a user who named it could not tell which was read.
+#[test]
+fn kingston_an_odometer_file_beside_an_8th_column_is_said_unread() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (column, both) = (tmp.path().join("column"), tmp.path().join("both"));
+    kingston_column(&column, |_, v| v);
+    kingston_column(&both, |_, v| v);
+    let data = test_data("kingston2008-seg1");
+    std::fs::copy(data.join("odometer.txt"), both.join("odometer.txt")).unwrap();
+    let manifest = std::fs::read_to_string(both.join("run.toml")).unwrap()
+        + "\n[odometer]\nfile = \"odometer.txt\"\nkind = \"speed_mps\"\n";
+    std::fs::write(both.join("run.toml"), manifest).unwrap();
+    let (alone, out) = (tmp.path().join("column-o"), tmp.path().join("both-o"));
+    crate::util::run_until(&column, &alone, "disupt");
+    crate::util::run_until(&both, &out, "disupt");
+    let stage = |o: &std::path::Path, file: &str| {
+        std::fs::read(o.join("kingston2008-segment1").join(file)).unwrap()
+    };
+    assert!(stage(&alone, "disupt/disupt.json") == stage(&out, "disupt/disupt.json"));
+    let ingest: unz_formats::IngestReport =
+        read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
+    assert_eq!(ingest.odometer_file_unread, Some("odometer.txt".into()));
+    let summary = std::fs::read_to_string(out.join("campaign.md")).unwrap();
+    assert!(
+        summary.contains(
+            "the log's 8th column is the odometer (its speeds): the manifest's [odometer] file \
+             odometer.txt is left unread"
+        ),
+        "{summary}"
+    );
+    let ingest: unz_formats::IngestReport =
+        read_json(&alone.join("kingston2008-segment1/ingest/ingest.json"));
+    assert_eq!(ingest.odometer_file_unread, None);
+}
+
+/// A control point's or the site's coordinates written another way than decimal
+/// degrees, as field sheets and GIS exports write them: the run fails on the point (no
+/// setting reaches it, as before), and the failure names the reading that brings it
+/// within the odometer's reach: the point's latitude and longitude swapped, its west
+/// longitude written positive, its coordinates in degrees and minutes; the site's in
+/// radians or its longitude positive (every point out of reach: the site is named, not
+/// the first point). A point merely 8 km off is named no reading. Before, each said only
+/// "its coordinates, its mark's point id or the site are wrong".
+#[test]
+fn kingston_coordinates_written_another_way_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let point = "latitude_deg = 44.236711682\nlongitude_deg = -76.465835437";
+    let site = "latitude_deg = 44.232490740\nlongitude_deg = -76.466492006";
+    let cases = [
+        (
+            point,
+            "latitude_deg = -76.465835437\nlongitude_deg = 44.236711682",
+            "its latitude and longitude swapped? (read so, it lies 472 m from the start)",
+        ),
+        (
+            point,
+            "latitude_deg = 44.236711682\nlongitude_deg = 76.465835437",
+            "its longitude's sign reversed (west is negative)?",
+        ),
+        (
+            point,
+            "latitude_deg = 44.142016\nlongitude_deg = -76.279501",
+            "its coordinates in degrees and minutes (DD.MMmm), not decimal degrees?",
+        ),
+        (
+            site,
+            "latitude_deg = 0.771994\nlongitude_deg = -1.334580",
+            "the site's coordinates in radians, not degrees?",
+        ),
+        (
+            site,
+            "latitude_deg = 44.232490740\nlongitude_deg = 76.466492006",
+            "the site's longitude's sign reversed (west is negative)?",
+        ),
+    ];
+    for (k, (from, to, named)) in cases.into_iter().enumerate() {
+        let run = kingston_edited(&tmp.path().join(format!("k{k}")), from, to);
+        let err = crate::util::stage_fails("navigate", &run, &tmp.path().join(format!("o{k}")));
+        assert!(
+            err.contains("control point 1 is ") && err.contains(&format!("are wrong: {named}")),
+            "{named}: {err}"
+        );
+    }
+    let far = "latitude_deg = 44.236711682\nlongitude_deg = -76.565835437";
+    let run = kingston_edited(&tmp.path().join("far"), point, far);
+    let err = crate::util::stage_fails("navigate", &run, &tmp.path().join("far-o"));
+    assert!(err.trim_end().ends_with("the site are wrong"), "{err}");
 }
 
 /// The joint fit's worst horizontal hold-out error in `out`'s Kingston run, m.

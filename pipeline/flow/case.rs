@@ -24,6 +24,7 @@ use unz_stages::initial::{
 };
 use unz_stages::strapdown::{self, NavInputs, NavSettings, NavTrack, PassSink, navigate};
 
+use super::coordinates_misread::misreading_that_reaches;
 use super::ingest_derive::read_ingest_report;
 use super::ingested::load_table;
 use super::marks::{RepeatedMark, UnknownMarks, choose_marks};
@@ -316,6 +317,9 @@ pub fn check_reach(
     let mut by_sample: Vec<&ControlPointFix> = fixes.iter().collect();
     by_sample.sort_by_key(|f| f.sample);
     let (mut path_m, mut k) = (0.0, 0);
+    // Each point's distance from the start, the odometer's travel by its mark, and the
+    // farthest it may lie.
+    let mut reaches = Vec::with_capacity(by_sample.len());
     for f in by_sample {
         let end = (f.sample + 1).min(d.odo_dist_m.len());
         path_m += d.odo_dist_m[k.min(end)..end]
@@ -327,16 +331,23 @@ pub fn check_reach(
         let (north_m, east_m) = start.offset_m(f.lat_rad, f.lon_rad);
         let away_m = north_m.hypot(east_m);
         let reach_m = CP_REACH_PATH_FACTOR * travelled_m + CP_REACH_MARGIN_M;
-        if away_m.is_nan() || away_m > reach_m {
-            bail!(
-                "control point {} is {away_m:.0} m from the run's start (the site) but the \
-                 odometer measured {travelled_m:.0} m of travel by its mark at t_s = {:.2}: no \
-                 azimuth or odometer scale reaches it; its coordinates, its mark's point id or \
-                 the site are wrong",
-                f.id,
-                f.t_s
-            );
-        }
+        reaches.push((f, away_m, travelled_m, reach_m));
+    }
+    let out_of_reach =
+        |&&(_, away_m, _, reach_m): &&(_, f64, _, f64)| away_m.is_nan() || away_m > reach_m;
+    // Every point out of reach, two or more: the site is the likelier misread.
+    let site_first = reaches.len() > 1 && reaches.iter().all(|r| out_of_reach(&r));
+    if let Some(&(f, away_m, travelled_m, reach_m)) = reaches.iter().find(out_of_reach) {
+        let misread = misreading_that_reaches(m, f, reach_m, site_first)
+            .map_or_else(String::new, |misread| format!(": {misread}"));
+        bail!(
+            "control point {} is {away_m:.0} m from the run's start (the site) but the \
+             odometer measured {travelled_m:.0} m of travel by its mark at t_s = {:.2}: no \
+             azimuth or odometer scale reaches it; its coordinates, its mark's point id or \
+             the site are wrong{misread}",
+            f.id,
+            f.t_s
+        );
     }
     Ok(())
 }

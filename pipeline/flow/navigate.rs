@@ -147,8 +147,10 @@ pub fn ensure_navigate(
         //     sensor's noise at rest ended it), and its travel said. 15: a text log's
         //     control point timed after a GPS week's rollover taken a week on. 16: an
         //     azimuth given far from the static start's gyrocompassing said. 17: the
-        //     stand's travel said with the speed floor that reads it as 0.
-        version: 17,
+        //     stand's travel said with the speed floor that reads it as 0. 18: a static
+        //     start given shorter than half the stand said (minutes meant named); a
+        //     control point out of reach named the misreading of its coordinates.
+        version: 18,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],

@@ -321,10 +321,12 @@ pub const STAND_WORTH_ALIGNING_S: f64 = 60.0;
 pub const MIN_STATIC_S: f64 = 5.0;
 
 /// A static start given (by the manifest) shorter than the alignment takes
-/// ([`MIN_STATIC_S`]: none) on a log that begins with a stand of a minute or more:
-/// `static_s = 0` on a log that begins at rest leaves the alignment's heading and
-/// levelling out (Kingston's 527-s stand unused: the joint fit's azimuth σ 0.69° against
-/// 0.06°, its hold-out errors 16 and 29 m against 2.2 and 3.0 m). Said, not acted on: a
+/// ([`MIN_STATIC_S`]: none), or shorter than half the stand, on a log that begins with a
+/// stand of a minute or more: `static_s = 0` on a log that begins at rest leaves the
+/// alignment's heading and levelling out (Kingston's 527-s stand unused: the joint fit's
+/// azimuth σ 0.69° against 0.06°, its hold-out errors 16 and 29 m against 2.2 and 3.0 m);
+/// `static_s = 8` (minutes meant) gyrocompasses over 8 s of it (σ 9.5° against 5.4°;
+/// the joint fit's azimuth σ 0.27°, hold-outs 2.9 and 4.1 m). Said, not acted on: a
 /// vehicle carried (on a ship, a train) stands on its odometer while the IMU moves.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
 pub struct StaticUnused {
@@ -335,21 +337,39 @@ pub struct StaticUnused {
 }
 
 impl StaticUnused {
-    /// Of a static start `given_s` on a log whose odometer stood `stood_s` at its start.
-    pub fn of(given_s: f64, stood_s: f64) -> Option<Self> {
-        (stood_s >= STAND_WORTH_ALIGNING_S && given_s < MIN_STATIC_S)
+    /// Of a static start `given_s` on a log whose odometer stood `stood_s` at its start,
+    /// then moved (`drove`) or not. Less than half the stand is said only before a drive:
+    /// a log that never moves is all stand, and how much of it the crew aligned over is
+    /// theirs to choose.
+    pub fn of(given_s: f64, stood_s: f64, drove: bool) -> Option<Self> {
+        let part = drove && given_s < stood_s / 2.0;
+        (stood_s >= STAND_WORTH_ALIGNING_S && (given_s < MIN_STATIC_S || part))
             .then_some(Self { given_s, stood_s })
     }
 
     /// What it is, for the run's log and its row of the campaign summary.
     pub fn said(&self) -> String {
+        let (given_s, stood_s) = (self.given_s, self.stood_s);
+        let used = if given_s < MIN_STATIC_S {
+            "leaves it out of the alignment".to_owned()
+        } else {
+            format!("aligns over its first {given_s} s only")
+        };
+        // Minutes meant: the stand is about as many minutes as seconds were given.
+        let minutes = if (given_s * 60.0 - stood_s).abs() <= 0.2 * stood_s {
+            format!(
+                " ({given_s} minutes would be {:.0} s: static_s is in seconds)",
+                given_s * 60.0
+            )
+        } else {
+            String::new()
+        };
         format!(
-            "the vehicle stood {:.0} s at the log's start by its odometer, but the static \
-             start given (static_s = {} s) leaves it out of the alignment: set static_s (or \
-             leave it out for the stand detected) to gyrocompass the heading and level \
-             over it, unless the vehicle was carried (a ship, a train), its odometer still \
-             and its IMU moving (the run keeps what was given)",
-            self.stood_s, self.given_s,
+            "the vehicle stood {stood_s:.0} s at the log's start by its odometer, but the \
+             static start given (static_s = {given_s} s) {used}{minutes}: set static_s (or \
+             leave it out for the stand detected) to gyrocompass the heading and level over \
+             it, unless the vehicle was carried (a ship, a train), its odometer still and its \
+             IMU moving (the run keeps what was given)",
         )
     }
 }
@@ -517,7 +537,8 @@ fn static_start(d: &Derived, req: &InitialRequest) -> StaticStart {
         .zip(moved_s)
         .filter(|&(given_s, _)| detected_s < given_s)
         .map(|(given_s, moved_s)| StaticCut { given_s, moved_s });
-    let unused = (req.static_s).and_then(|given_s| StaticUnused::of(given_s, detected_s));
+    let unused =
+        (req.static_s).and_then(|given_s| StaticUnused::of(given_s, detected_s, moved_s.is_some()));
     let static_s = (req.static_s).map_or(detected_s, |given_s| given_s.min(detected_s));
     StaticStart {
         static_s: static_s.min(log_s),
@@ -841,13 +862,30 @@ mod tests {
             none.said()
         );
         assert!(unused(4.0).is_some());
-        // A static start the alignment takes, or none given (the stand detected): nothing
-        // said.
-        assert_eq!(unused(5.0), None);
+        // Less than half the stand given: said, minutes named where they fit.
+        let part = unused(40.0).unwrap();
+        assert!(
+            part.said()
+                .contains("(static_s = 40 s) aligns over its first 40 s only: set"),
+            "{}",
+            part.said()
+        );
+        let minutes = unused(1.5).map(|u| u.said()).unwrap();
+        assert!(
+            minutes.contains("(1.5 minutes would be 90 s: static_s is in seconds)"),
+            "{minutes}"
+        );
+        // A static start the alignment takes over half the stand or more, or none given
+        // (the stand detected): nothing said.
+        assert_eq!(unused(45.0), None);
         assert_eq!(static_start(&d, &InitialRequest::default()).unused, None);
         // A stand shorter than a minute is no loss.
         let short = log(6000, |k| if k < 3000 { 0.0 } else { 0.012 });
         assert_eq!(static_start(&short, &given(0.0)).unused, None);
+        // A log that never moves: none given is said, part of it given is the crew's.
+        let still = log(12_000, jitter_m);
+        assert!(static_start(&still, &given(0.0)).unused.is_some());
+        assert_eq!(static_start(&still, &given(40.0)).unused, None);
     }
 
     #[test]
