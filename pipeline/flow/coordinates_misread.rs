@@ -67,8 +67,12 @@ pub fn misreading_that_reaches(
         let said = |whose: &str, away_m: f64| {
             format!("{whose} {what}? (read so, it lies {away_m:.0} m from the start)")
         };
-        let of_point = read(point).map(|p| away_m(site, p));
-        let of_site = read(site).map(|s| away_m(s, point));
+        // A reading is a gross one (it moves the coordinates more than twice the
+        // reach): a point merely out of reach near the equator or Greenwich is no sign
+        // lost.
+        let gross = |from: [f64; 2], to: [f64; 2]| away_m(from, to) > 2.0 * reach_m;
+        let of_point = (read(point).filter(|&p| gross(point, p))).map(|p| away_m(site, p));
+        let of_site = (read(site).filter(|&s| gross(site, s))).map(|s| away_m(s, point));
         let mut tried = [("its", of_point), ("the site's", of_site)];
         if site_first {
             tried.reverse();
@@ -81,6 +85,42 @@ pub fn misreading_that_reaches(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A point 176 m east of a site by Greenwich's meridian, out of a reach of 100 m: its
+    /// longitude's sign reversed would bring it within (16 m), but moves it only 192 m:
+    /// no misreading named. A point at 76° W written with its longitude positive is
+    /// named so.
+    #[test]
+    fn only_a_gross_misreading_is_named() {
+        let manifest = |lon_deg: f64| {
+            let text = format!(
+                "name = \"r\"\nraw = \"r.unz\"\nformat = \"unz-binary\"\n[site]\n\
+                 latitude_deg = 44.0\nlongitude_deg = {lon_deg}\nheight_m = 0.0\n"
+            );
+            RunManifest::parse(&text, std::path::Path::new("run.toml")).unwrap()
+        };
+        let fix = |lat_deg: f64, lon_deg: f64| ControlPointFix {
+            id: 1,
+            sample: 0,
+            t_s: 0.0,
+            lat_rad: lat_deg.to_radians(),
+            lon_rad: lon_deg.to_radians(),
+            h_m: 0.0,
+            mark_lever_arm_m: [0.0; 3],
+        };
+        // 0.001° of longitude at 44° N is 80 m.
+        let near = fix(44.0, 0.0012);
+        assert_eq!(
+            misreading_that_reaches(&manifest(-0.001), &near, 100.0, false),
+            None
+        );
+        let west = fix(44.0, 76.0);
+        let named = misreading_that_reaches(&manifest(-76.0), &west, 100.0, false).unwrap();
+        assert!(
+            named.starts_with("its longitude's sign reversed"),
+            "{named}"
+        );
+    }
 
     /// Degrees and minutes read back: 44.1423 is 44° 14.23', -76.2800 is -76° 28'; a
     /// value whose "minutes" pass 60 is no such reading.
