@@ -837,8 +837,8 @@ impl<R: BufRead> OdometerFileReader<R> {
                             self.reject_read_at(
                                 held.0,
                                 format!(
-                                    "time {} of the first line leaps ahead of the lines \
-                                     after it ({} and {}): a glitch in its time tag",
+                                    "time {} leaps ahead of the lines after it ({} and \
+                                     {}), no line kept before it: a glitch in its time tag",
                                     held.1, next.1, after.1
                                 ),
                             );
@@ -1062,7 +1062,10 @@ mod tests {
         assert_eq!(t, [(1.0, 0.0), (2.0, 1.0)]);
         assert_eq!(faults.len(), 1);
         assert!(
-            faults[0].0 == 1 && faults[0].1.contains("of the first line"),
+            faults[0].0 == 1
+                && faults[0].1.contains(
+                    "time 60 leaps ahead of the lines after it (1 and 2), no line kept before it"
+                ),
             "{faults:?}"
         );
         // The first line kept when the next goes back alone.
