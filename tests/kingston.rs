@@ -1307,6 +1307,62 @@ fn kingston_an_odometer_file_beside_an_8th_column_is_said_unread() {
     assert_eq!(ingest.odometer_file_unread, None);
 }
 
+/// Kingston's IMU log and control points in GPS seconds since the weeks' start (6
+/// January 1980: 1480 weeks on), its speed file in seconds of week: the derive names the
+/// 1480 weeks and the seconds to add; written into the file, the run is the one on its
+/// own clock (its worst control point within 1 cm). A control point left in seconds of
+/// week is named the same weeks. And the IMU log with its lines in reverse order of time
+/// fails on its time base, named so, not on the odometer's overlap. Before, the weeks
+/// were "another day's, a time zone's, or counted from another start?", and the reversed
+/// log's failure blamed the odometer's clock.
+#[test]
+fn kingston_clocks_counted_from_the_gps_weeks_start_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let weeks_s = 1480.0 * unz_formats::kfgins::GPS_WEEK_S;
+    let since_1980 = kingston_retimed(&tmp.path().join("k"), |t| t + weeks_s);
+    let rows: String = (kingston_speeds().into_iter())
+        .map(|(t, v)| format!("{t:.3} {v:.5}\n"))
+        .collect();
+    std::fs::write(since_1980.join("odometer.txt"), rows).unwrap();
+    let err = crate::util::stage_fails("derive", &since_1980, &tmp.path().join("k-o"));
+    assert!(
+        err.contains("its time tags run 1480 GPS weeks before the IMU's")
+            && err.contains("add 895104000 s to each of its time tags"),
+        "{err}"
+    );
+    let mended = kingston_retimed(&tmp.path().join("mended"), |t| t + weeks_s);
+    let out = tmp.path().join("mended-o");
+    crate::util::run_until(&mended, &out, "disupt");
+    assert_same_worst_point(&out, &own_clock_reference(tmp.path()));
+    // A control point left in seconds of week.
+    let manifest = std::fs::read_to_string(mended.join("run.toml")).unwrap();
+    let at = format!("t_s = {:?}", 152_825.0 + weeks_s);
+    assert!(manifest.contains(&at), "{manifest}");
+    std::fs::write(
+        mended.join("run.toml"),
+        manifest.replace(&at, "t_s = 152825.0"),
+    )
+    .unwrap();
+    let err = crate::util::stage_fails("navigate", &mended, &tmp.path().join("cp-o"));
+    assert!(
+        err.contains("895104000 s later (1480 GPS weeks on) it would lie within it"),
+        "{err}"
+    );
+    let reversed = kingston_with(&tmp.path().join("rev"), "");
+    let imu = std::fs::read_to_string(reversed.join("imu.txt")).unwrap();
+    let lines: Vec<&str> = imu.lines().rev().collect();
+    std::fs::write(reversed.join("imu.txt"), lines.join("\n") + "\n").unwrap();
+    let err = crate::util::stage_fails("derive", &reversed, &tmp.path().join("rev-o"));
+    assert!(
+        err.contains("8759 of 8760 IMU time tags do not increase")
+            && err.contains(
+                "its tags fall from t_s = 153018.99 to 152143.09: its lines in reverse order \
+                 of time?"
+            ),
+        "{err}"
+    );
+}
+
 /// A control point's or the site's coordinates written another way than decimal
 /// degrees, as field sheets and GIS exports write them: the run fails on the point (no
 /// setting reaches it, as before), and the failure names the reading that brings it

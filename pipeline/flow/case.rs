@@ -8,6 +8,7 @@ use std::sync::Arc;
 use anyhow::{Context, bail};
 use serde::{Deserialize, Serialize};
 use unz_formats::IngestReport;
+use unz_formats::kfgins::GPS_WEEK_S;
 use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_formats::parquet_io::read_schema;
 use unz_formats::schema::META_ODO_M_PER_PULSE;
@@ -29,7 +30,7 @@ use super::ingest_derive::read_ingest_report;
 use super::ingested::load_table;
 use super::marks::{RepeatedMark, UnknownMarks, choose_marks};
 use super::moving_marks::{MovingMark, moving_marks};
-use super::odometer_checks::{WHOLE_HOURS_REACH_S, hours_and_days};
+use super::odometer_checks::{WHOLE_HOURS_REACH_S, hours_and_days, whole_weeks};
 use super::{Overrides, Params, RunCtx, ensure_derive};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::{StoredDerive, read_velocity_prefix};
@@ -198,13 +199,22 @@ pub fn match_control_points(
                 let other_clock = whole_hours_into(t_s, [first_s, first_s + last]).map_or_else(
                     String::new,
                     |shift_s| {
+                        let (on, why) = match whole_weeks(shift_s) {
+                            Some(weeks) => (
+                                format!("{weeks} GPS weeks"),
+                                "GPS seconds of week against the log's GPS seconds since \
+                                 the weeks' start (6 January 1980), or the other way round?",
+                            ),
+                            None => (
+                                hours_and_days(shift_s.abs()),
+                                "UTC seconds of day against the log's GPS seconds of week, \
+                                 or a time zone's? GPS time runs 18 s ahead of UTC",
+                            ),
+                        };
                         format!(
-                            ": {} s later ({} on) it would lie within it, at t_s = {:.2} \
-                             (a time on another clock: UTC seconds of day against the log's \
-                             GPS seconds of week, or a time zone's? GPS time runs 18 s ahead \
-                             of UTC); write the point's t_s on the log's clock",
-                            shift_s,
-                            hours_and_days(shift_s.abs()),
+                            ": {shift_s} s later ({on} on) it would lie within it, at t_s = \
+                             {:.2} (a time on another clock: {why}); write the point's t_s on \
+                             the log's clock",
                             t_s + shift_s
                         )
                     },
@@ -255,7 +265,7 @@ fn past_rollovers(
     first_s: f64,
     in_log: impl Fn(f64) -> bool,
 ) -> f64 {
-    use unz_formats::kfgins::{DAY_S, GPS_WEEK_S};
+    use unz_formats::kfgins::DAY_S;
     if in_log(t_s) {
         return t_s;
     }
@@ -285,12 +295,20 @@ fn periods_into(t_s: f64, to_s: f64, period_s: f64) -> f64 {
 /// The one whole number of hours, s, that brings the time `t_s` within the log's span
 /// `log_s` (s), up to a week either way: `None` when none does, or more than one (a log
 /// longer than an hour may take several, and the point's own clock is then unknown).
+/// Beyond a week, the one whole number of GPS weeks ([`whole_weeks`]) that does, for a
+/// log shorter than a week.
 fn whole_hours_into(t_s: f64, log_s: [f64; 2]) -> Option<f64> {
     let k = periods_into(t_s, log_s[0], 3600.0);
     // One hour more would pass the log's end.
     let only = t_s + (k + 1.0) * 3600.0 > log_s[1] && t_s + k * 3600.0 <= log_s[1];
     let shift_s = k * 3600.0;
-    (only && k != 0.0 && shift_s.abs() <= WHOLE_HOURS_REACH_S).then_some(shift_s)
+    if only && k != 0.0 && shift_s.abs() <= WHOLE_HOURS_REACH_S {
+        return Some(shift_s);
+    }
+    let weeks_s = periods_into(t_s, log_s[0], GPS_WEEK_S) * GPS_WEEK_S;
+    (log_s[1] - log_s[0] < GPS_WEEK_S && t_s + weeks_s <= log_s[1])
+        .then_some(weeks_s)
+        .filter(|&s| whole_weeks(s).is_some())
 }
 
 /// How many times over the odometer's path to a mark a control point may lie from the
@@ -534,7 +552,7 @@ fn level_in_motion_over_window(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use unz_formats::kfgins::{DAY_S, GPS_WEEK_S};
+    use unz_formats::kfgins::DAY_S;
 
     /// A point's time the log takes after one whole number of hours only is named; none
     /// when it takes none, several (a log longer than an hour), or beyond a week.
@@ -549,6 +567,11 @@ mod tests {
         assert_eq!(whole_hours_into(152_825.0 + 1_800.0, log), None);
         assert_eq!(whole_hours_into(152_825.0, log), None);
         assert_eq!(whole_hours_into(152_825.0 - 8.0 * 86_400.0, log), None);
+        // A point in seconds of week, the log in seconds since GPS time's start.
+        let weeks = 1480.0 * GPS_WEEK_S;
+        let since_1980 = log.map(|t| t + weeks);
+        assert_eq!(whole_hours_into(152_825.0, since_1980), Some(weeks));
+        assert_eq!(whole_hours_into(152_825.0 + weeks, log), Some(-weeks));
         let long = [0.0, 3.0 * 3600.0];
         assert_eq!(whole_hours_into(-86_400.0 + 100.0, long), None);
     }

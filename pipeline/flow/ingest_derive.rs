@@ -180,8 +180,10 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // reading kept (derived.parquet's metadata), F's start-up left out of it. 16: an
         // odometer file minutes off searched beyond the setting's reach. 17: the clock
         // read from the odometer's readings only (the ingest's bridges left out). 18: a
-        // first or last IMU sample apart from the rest placed beside its neighbour.
-        version: 18,
+        // first or last IMU sample apart from the rest placed beside its neighbour. 19:
+        // the time base judged before the odometer (a log in reverse order named so);
+        // clocks whole GPS weeks apart named.
+        version: 19,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
@@ -212,6 +214,41 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // Which way the odometer runs and on which clock, before its stands are judged
         // against the vehicle's motion: an odometer on another clock stands while the
         // vehicle drives, and one counting backward turns the axes' check.
+        // A few tags going back are repaired and counted; a time base that does not
+        // advance (constant or saturated tags) is no time base: judged first, as the
+        // odometer's checks read the log's span from its tags.
+        if d.repaired_times * 100 > d.t_s.len() {
+            // Where: the sample (the ingested tags read again: only a failing run pays for
+            // it) and its place in the raw log; a binary log's account lists the faults.
+            let first = ingested::first_time_tag_not_increasing(&ingest_dir, d.nominal_dt_s);
+            let at = (first.map(|k| format!("the first at {}", sample_at(m, k))))
+                .into_iter()
+                .chain(time_faults_listed(&ingest_dir.join(files::INGEST_EVENTS)))
+                .collect::<Vec<_>>();
+            // Tags falling from the first to the last: a file sorted the wrong way.
+            let [first_ns, last_ns] = overlap.imu_span_ns;
+            let falling = if last_ns < first_ns {
+                format!(
+                    "; its tags fall from t_s = {:.2} to {:.2}: its lines in reverse order of \
+                     time? (write them oldest first)",
+                    first_ns as f64 * 1e-9,
+                    last_ns as f64 * 1e-9
+                )
+            } else {
+                String::new()
+            };
+            bail!(
+                "{} of {} IMU time tags do not increase (constant, saturated or going back): \
+                 the log's time base is broken{}{falling}",
+                d.repaired_times,
+                d.t_s.len(),
+                if at.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", at.join("; "))
+                }
+            );
+        }
         let odometer_file = (report.odometer_file.as_ref()).and(m.odometer.file.as_deref());
         let offset_s = params.derive.odo_time_offset_s;
         check_overlap(&overlap, offset_s, &report, m, odometer_file)?;
@@ -261,28 +298,6 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                     " (the first at {})",
                     sample_at(m, k)
                 ))
-            );
-        }
-        // A few tags going back are repaired and counted; a time base that does not
-        // advance (constant or saturated tags) is no time base.
-        if d.repaired_times * 100 > d.t_s.len() {
-            // Where: the sample (the ingested tags read again: only a failing run pays for
-            // it) and its place in the raw log; a binary log's account lists the faults.
-            let first = ingested::first_time_tag_not_increasing(&ingest_dir, d.nominal_dt_s);
-            let at = (first.map(|k| format!("the first at {}", sample_at(m, k))))
-                .into_iter()
-                .chain(time_faults_listed(&ingest_dir.join(files::INGEST_EVENTS)))
-                .collect::<Vec<_>>();
-            bail!(
-                "{} of {} IMU time tags do not increase (constant, saturated or going back): \
-                 the log's time base is broken{}",
-                d.repaired_times,
-                d.t_s.len(),
-                if at.is_empty() {
-                    String::new()
-                } else {
-                    format!(" ({})", at.join("; "))
-                }
             );
         }
         // A gap is bridged by holding the rate across it: beyond a few seconds, the turns

@@ -149,8 +149,9 @@ pub fn ensure_navigate(
         //     azimuth given far from the static start's gyrocompassing said. 17: the
         //     stand's travel said with the speed floor that reads it as 0. 18: a static
         //     start given shorter than half the stand said (minutes meant named); a
-        //     control point out of reach named the misreading of its coordinates.
-        version: 18,
+        //     control point out of reach named the misreading of its coordinates. 19: a
+        //     control point's time whole GPS weeks off the log named.
+        version: 19,
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],

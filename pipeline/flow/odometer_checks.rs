@@ -9,6 +9,7 @@ use std::path::Path;
 
 use anyhow::bail;
 use unz_formats::IngestReport;
+use unz_formats::kfgins::GPS_WEEK_S;
 use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_stages::derive::{DeriveParams, Derived, ODO_TIME_OFFSET_RANGE_S};
 use unz_stages::odo_clock::{ClockFit, MAX_ODOMETER_LAG_S};
@@ -265,12 +266,24 @@ pub fn check_overlap(
         // into the file would not bring its rows before and after the rollover alike.
         && lines.is_none_or(|l| l.week_rollovers + l.day_rollovers == 0)
     {
+        let (apart, to_hour, why) = match whole_weeks(shift_s) {
+            Some(weeks) => (
+                format!("{weeks} GPS weeks"),
+                "",
+                "GPS seconds of week against GPS seconds since the weeks' start (6 January \
+                 1980), the one clock counted from two starts?",
+            ),
+            None => (
+                hours_and_days(shift_s.abs()),
+                ", to the hour",
+                "a time zone's or a day's difference, or UTC seconds of day against the \
+                 IMU's GPS seconds of week?",
+            ),
+        };
         format!(
-            "its time tags run {} {} the IMU's, to the hour (a time zone's or a day's \
-             difference, or UTC seconds of day against the IMU's GPS seconds of week?): add \
-             {shift_s} s to each of its time tags, and the clock check will read the seconds \
-             left (GPS time runs 18 s ahead of UTC)",
-            hours_and_days(shift_s.abs()),
+            "its time tags run {apart} {} the IMU's{to_hour} ({why}): add {shift_s} s to each \
+             of its time tags, and the clock check will read the seconds left (GPS time runs \
+             18 s ahead of UTC)",
             if shift_s > 0.0 { "before" } else { "after" },
         )
     } else {
@@ -298,17 +311,32 @@ pub(crate) const WHOLE_HOURS_REACH_S: f64 = 7.0 * 86_400.0;
 /// end's), and overlap the spans by half the shorter or more; `None` when they do not,
 /// for no hour, or beyond [`WHOLE_HOURS_REACH_S`]. A short file in a long log lies hours
 /// apart from each end: no hour is named. To the hour only: what is left (a minute's
-/// clock error, UTC's 18 s behind GPS time) is the clock check's to read.
+/// clock error, UTC's 18 s behind GPS time) is the clock check's to read. Beyond a week,
+/// a whole number of GPS weeks ([`whole_weeks`]): one log in seconds of week, the other
+/// in seconds since GPS time's start.
 fn whole_hours_apart_s(odo: [f64; 2], imu: [f64; 2]) -> Option<f64> {
     let to_hour = |s: f64| (s / 3600.0).round() * 3600.0;
     let overlap = |shift_s: f64| imu[1].min(odo[1] + shift_s) - imu[0].max(odo[0] + shift_s);
     let shorter = (odo[1] - odo[0]).min(imu[1] - imu[0]);
     let mid = |s: [f64; 2]| 0.5 * (s[0] + s[1]);
     let [a, b, c] = [mid(imu) - mid(odo), imu[0] - odo[0], imu[1] - odo[1]].map(to_hour);
-    (a == b && b == c && a != 0.0 && a.abs() <= WHOLE_HOURS_REACH_S)
+    let reach = a.abs() <= WHOLE_HOURS_REACH_S || whole_weeks(a).is_some();
+    (a == b && b == c && a != 0.0 && reach)
         .then_some(a)
         .filter(|&s| overlap(s) >= 0.5 * shorter)
 }
+
+/// The number of GPS weeks in `shift_s` when it is two or more whole weeks (up to
+/// [`MAX_GPS_WEEKS`]): a clock in GPS seconds of week against one in seconds since GPS
+/// time's start (6 January 1980), which differ by the week number's weeks exactly.
+pub(crate) fn whole_weeks(shift_s: f64) -> Option<u64> {
+    let weeks = (shift_s / GPS_WEEK_S).round();
+    (weeks.abs() >= 2.0 && weeks.abs() <= MAX_GPS_WEEKS && weeks * GPS_WEEK_S == shift_s)
+        .then_some(weeks.abs() as u64)
+}
+
+/// The most GPS weeks a shift is named in: a century of them.
+const MAX_GPS_WEEKS: f64 = 5_300.0;
 
 /// "1 day and 2 hours" of `s` seconds, a whole number of hours.
 pub(crate) fn hours_and_days(s: f64) -> String {
@@ -358,6 +386,15 @@ mod tests {
         // A two-minute file a day off in a 10-hour log: its start and its end disagree.
         let long = [0.0, 36_000.0];
         assert_eq!(whole_hours_apart_s([-86_400.0, -86_280.0], long), None);
+        // GPS seconds since 1980 against seconds of week: 1480 weeks, not a day or an hour
+        // more.
+        let weeks = 1480.0 * GPS_WEEK_S;
+        assert_eq!(whole_hours_apart_s(odo(-weeks), imu), Some(weeks));
+        assert_eq!(whole_hours_apart_s(odo(-weeks - 86_400.0), imu), None);
+        assert_eq!(
+            (whole_weeks(weeks), whole_weeks(GPS_WEEK_S)),
+            (Some(1480), None)
+        );
         assert_eq!(hours_and_days(86_400.0), "1 day");
         assert_eq!(hours_and_days(5.0 * 3600.0), "5 hours");
         assert_eq!(hours_and_days(2.0 * 86_400.0 + 3600.0), "2 days and 1 hour");
