@@ -379,10 +379,11 @@ fn a_record_whose_tag_leapt_forward_alone_costs_one_repaired_time() {
 /// `seq` and `t_us` as first sent), and Kingston's text log with 10 s of lines repeated
 /// so, or its two halves joined over 100 s they share: the repeats are duplicates
 /// (`rejected.duplicate_seq`, each text line listed with the line it repeats), the time
-/// base goes on as logged, and `disupt.json` is the undamaged run's byte for byte. Before, the block went back in time and was kept: its
-/// samples were repaired one interval on, the log grew by the block's length, and the
-/// binary run's odometer, a text log's control points and its speed file were that much
-/// off its clock (Kingston: "the odometer file's time tags run 10.4 s early").
+/// base goes on as logged, and `disupt.json` is the undamaged run's byte for byte.
+/// Before, the block went back in time and was kept: its samples were repaired one
+/// interval on, the log grew by the block's length, and the binary run's odometer, a text
+/// log's control points and its speed file were that much off its clock (Kingston: "the
+/// odometer file's time tags run 10.4 s early", 100.4 s for the halves).
 #[test]
 fn a_block_sent_again_or_logs_joined_over_their_overlap_are_duplicates() {
     use unz_formats::raw::{Accepted, RawReader, RawWriter};
