@@ -708,11 +708,12 @@ fn ingest_text(
         .period_s()
         .map_err(|e| e.in_file(path))?
         .unwrap_or(0.0);
-    // The 8th column, when present, is the odometer; otherwise the manifest's file.
-    let column = reader.columns() == Some(8);
-    let odometer_file = (manifest.odometer.file.as_ref())
-        .zip(manifest.odometer.kind)
-        .filter(|_| !column);
+    // The manifest's odometer file, when it names one, is the odometer; otherwise the
+    // 8th column. (The column won before: a log's 8th column of anything, a temperature
+    // say, was read as the speed over the file named, and the run went "ok" kilometres
+    // off.)
+    let odometer_file = (manifest.odometer.file.as_ref()).zip(manifest.odometer.kind);
+    let column = reader.columns() == Some(8) && odometer_file.is_none();
     // Without a file, `[odometer] kind` names the 8th column's unit (m/s by default).
     let column_kind = match manifest.odometer.kind {
         Some(kind) if column && manifest.odometer.file.is_none() => {
@@ -856,9 +857,7 @@ fn ingest_text(
     report.odometer_failures = bridged;
     report.odometer_file = file_report.as_ref().map(|(r, _)| r.clone());
     report.speed_floor = speed_floor;
-    report.odometer_file_unread = (manifest.odometer.file.as_ref())
-        .filter(|_| odometer_file.is_none())
-        .map(|file| manifest.named(file).to_path_buf());
+    report.speed_column_unread = odometer_file.is_some() && reader.columns() == Some(8);
     let (faults, total) = reader.faults();
     Ok(Streamed {
         report,

@@ -80,23 +80,20 @@ pub struct IngestReport {
     /// below it read as 0, and the distance they would have added.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub speed_floor: Option<crate::speed_floor::SpeedFloorReport>,
-    /// Text logs with an 8th column (the odometer's speed) whose manifest names an
-    /// odometer file too: the file as named, left unread (the column is the odometer).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub odometer_file_unread: Option<std::path::PathBuf>,
+    /// Text logs with an 8th column whose manifest names an odometer file: the file is
+    /// the odometer, the column left unread.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub speed_column_unread: bool,
 }
 
 impl IngestReport {
-    /// What the run's log and its row of the campaign summary say of an odometer file
-    /// left unread (`None`: none was).
-    pub fn odometer_file_unread_said(&self) -> Option<String> {
-        self.odometer_file_unread.as_ref().map(|file| {
-            format!(
-                "the log's 8th column is the odometer (its speeds): the manifest's [odometer] \
-                 file {} is left unread (leave it out of the manifest, or the 8th column out \
-                 of the log, to say which is the odometer)",
-                file.display()
-            )
+    /// What the run's log and its row of the campaign summary say of an 8th column left
+    /// unread (`None`: none was).
+    pub fn speed_column_unread_said(&self) -> Option<String> {
+        self.speed_column_unread.then(|| {
+            "the manifest's [odometer] file is the odometer: the log's 8th column is left \
+             unread (leave the file out of the manifest to read the column as the speed)"
+                .to_owned()
         })
     }
 }

@@ -78,9 +78,9 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // file's line whose time tag leapt forward alone is the line rejected, not the
         // lines after it. 24: a record or line repeating one of the last 8192 accepted
         // (a block sent again, logs joined over their overlap) is a duplicate. 25: a
-        // text log's 8th column may be left blank on any line. 26: an odometer file left
-        // unread beside an 8th column said.
-        version: 26,
+        // text log's 8th column may be left blank on any line. 27: the manifest's
+        // odometer file is the odometer over an 8th column, the column left unread said.
+        version: 27,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
@@ -106,7 +106,7 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         if let Some(floor) = &outcome.report.speed_floor {
             ctx.say("ingest", &floor.said());
         }
-        if let Some(unread) = outcome.report.odometer_file_unread_said() {
+        if let Some(unread) = outcome.report.speed_column_unread_said() {
             ctx.say("ingest", &unread);
         }
         ctx.set_ingested(
