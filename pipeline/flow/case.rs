@@ -30,7 +30,7 @@ use super::ingest_derive::read_ingest_report;
 use super::ingested::load_table;
 use super::marks::{RepeatedMark, UnknownMarks, choose_marks};
 use super::moving_marks::{MovingMark, moving_marks};
-use super::odometer_checks::{WHOLE_HOURS_REACH_S, hours_and_days, whole_weeks};
+use super::odometer_checks::{WHOLE_HOURS_REACH_S, shift_named, whole_weeks};
 use super::{Overrides, Params, RunCtx, ensure_derive};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::{StoredDerive, read_velocity_prefix};
@@ -199,17 +199,13 @@ pub fn match_control_points(
                 let other_clock = whole_hours_into(t_s, [first_s, first_s + last]).map_or_else(
                     String::new,
                     |shift_s| {
-                        let (on, why) = match whole_weeks(shift_s) {
-                            Some(weeks) => (
-                                format!("{weeks} GPS weeks"),
-                                "GPS seconds of week against the log's GPS seconds since \
-                                 the weeks' start (6 January 1980), or the other way round?",
-                            ),
-                            None => (
-                                hours_and_days(shift_s.abs()),
-                                "UTC seconds of day against the log's GPS seconds of week, \
-                                 or a time zone's? GPS time runs 18 s ahead of UTC",
-                            ),
+                        let (on, in_weeks) = shift_named(shift_s);
+                        let why = if in_weeks {
+                            "GPS seconds of week against the log's GPS seconds since the \
+                             weeks' start (6 January 1980), or the other way round?"
+                        } else {
+                            "UTC seconds of day against the log's GPS seconds of week, or a \
+                             time zone's? GPS time runs 18 s ahead of UTC"
                         };
                         format!(
                             ": {shift_s} s later ({on} on) it would lie within it, at t_s = \

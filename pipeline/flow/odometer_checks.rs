@@ -266,19 +266,19 @@ pub fn check_overlap(
         // into the file would not bring its rows before and after the rollover alike.
         && lines.is_none_or(|l| l.week_rollovers + l.day_rollovers == 0)
     {
-        let (apart, to_hour, why) = match whole_weeks(shift_s) {
-            Some(weeks) => (
-                format!("{weeks} GPS weeks"),
+        let (apart, in_weeks) = shift_named(shift_s);
+        let (to_hour, why) = if in_weeks {
+            (
                 "",
                 "GPS seconds of week against GPS seconds since the weeks' start (6 January \
                  1980), the one clock counted from two starts?",
-            ),
-            None => (
-                hours_and_days(shift_s.abs()),
+            )
+        } else {
+            (
                 ", to the hour",
                 "a time zone's or a day's difference, or UTC seconds of day against the \
                  IMU's GPS seconds of week?",
-            ),
+            )
         };
         format!(
             "its time tags run {apart} {} the IMU's{to_hour} ({why}): add {shift_s} s to each \
@@ -333,6 +333,15 @@ pub(crate) fn whole_weeks(shift_s: f64) -> Option<u64> {
     let weeks = (shift_s / GPS_WEEK_S).round();
     (weeks.abs() >= 2.0 && weeks.abs() <= MAX_GPS_WEEKS && weeks * GPS_WEEK_S == shift_s)
         .then_some(weeks.abs() as u64)
+}
+
+/// A whole shift between two clocks as said, and whether in weeks: "1480 GPS weeks"
+/// ([`whole_weeks`]), else "1 day and 2 hours" ([`hours_and_days`]).
+pub(crate) fn shift_named(shift_s: f64) -> (String, bool) {
+    match whole_weeks(shift_s) {
+        Some(weeks) => (format!("{weeks} GPS weeks"), true),
+        None => (hours_and_days(shift_s.abs()), false),
+    }
 }
 
 /// The most GPS weeks a shift is named in: a century of them.
