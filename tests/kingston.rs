@@ -1315,6 +1315,46 @@ fn kingston_an_odometer_file_beside_an_8th_column_is_the_odometer() {
     assert!(!ingest.speed_column_unread);
 }
 
+/// A log's 8th column of something else than a speed, with no odometer file named, fails
+/// the derive, which names the column, its mean and the turns' gain, and the file to name:
+/// a temperature of 21.5 (constant, or drifting 1.5° over the log), a battery's voltage
+/// stepping up while the engine pulls. Before, each was read as the speed and the run
+/// ran "ok" kilometres off: the constant 18.7 km driven where 2.4 km were, 13.3 km off at
+/// the last control point. Each reads a gain across of 0.20–0.34 (the vehicle's speed
+/// in its turns against the column's); the column's accelerations sum to at most 1.7
+/// (m/s²)² where the speeds' give 63.
+#[test]
+fn kingston_an_8th_column_that_is_no_speed_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t0_s = 152_143.0;
+    let temperature = |_: f64, _: f64| 21.5;
+    let drifting = |t: f64, _: f64| 21.5 + 1.5 * (t - t0_s) / 900.0;
+    let voltage = |_: f64, v: f64| if v > 0.5 { 13.4 } else { 12.6 };
+    type Column<'a> = &'a dyn Fn(f64, f64) -> f64;
+    let columns: [(&str, Column, f64); 3] = [
+        ("temperature", &temperature, 21.5),
+        ("drifting", &drifting, 22.2),
+        ("voltage", &voltage, 12.9),
+    ];
+    for (name, column, mean_mps) in columns {
+        let run = tmp.path().join(name);
+        kingston_column(&run, column);
+        let err = crate::util::stage_fails("derive", &run, &tmp.path().join(format!("{name}-o")));
+        assert!(
+            err.contains("the log's 8th column (the odometer's speed) reads")
+                && err.contains(
+                    "it is not the vehicle's speed. Name the odometer's file in \
+                                 the manifest's [odometer] file"
+                ),
+            "{name}: {err}"
+        );
+        let said_mean = crate::util::number_after(&err, "speed) reads ");
+        assert!((said_mean - mean_mps).abs() < 0.1, "{name}: {err}");
+        let gain = crate::util::number_after(&err, "the accelerometers' y is ");
+        assert!((0.15..0.4).contains(&gain), "{name}: {err}");
+    }
+}
+
 /// Kingston's IMU log and control points in GPS seconds since the weeks' start (6
 /// January 1980: 1480 weeks on), its speed file in seconds of week: the derive names the
 /// 1480 weeks and the seconds to add; written into the file, the run is the one on its

@@ -100,6 +100,34 @@ pub fn check_axes(
                 odometer_fix(manifest, odometer_file)
             )
         }
+        AxesVerdict::OdometerFlat => {
+            let (along, across) = (check.along, check.across);
+            let source = Source::of(manifest, odometer_file);
+            let distance_m: f64 = d.odo_dist_m.iter().sum();
+            let mean_mps = distance_m / check.duration_s.max(f64::MIN_POSITIVE);
+            // Gyros in degrees scale the gain across alone, by 1/57.3.
+            let degrees = if (1.0 / across.gain / 57.3 - 1.0).abs() < 0.15 {
+                " (or, its speeds right, the log's angle increments in degrees: 57.3 times \
+                 radians)"
+            } else {
+                ""
+            };
+            bail!(
+                "{} reads {mean_mps:.2} m/s on average and barely changes (its accelerations \
+                 along x sum to {:.2} (m/s²)² over the log's 1-s blocks, where pulling away \
+                 and braking give tens), while in the vehicle's turns the accelerometers' y \
+                 is {:.2} times its speed times the gyros' yaw rate (correlation {:.2}; \
+                 {:.1}–{:.1} for the vehicle's speed): it is not the vehicle's speed{degrees}. \
+                 {}",
+                source.name(),
+                along.excitation,
+                across.gain,
+                across.correlation,
+                SCALE_GAIN_RANGE.start(),
+                SCALE_GAIN_RANGE.end(),
+                not_speed_fix(&source)
+            )
+        }
         AxesVerdict::GyroScale => {
             let (along, across) = (check.along, check.across);
             bail!(
@@ -257,12 +285,6 @@ fn odometer_fix(m: &RunManifest, file: Option<&Path>) -> String {
              kind (\"speed_kmh\" for km/h)",
             file.display()
         ),
-        // The column read over the manifest's file: its kind is the file's.
-        Source::Column if m.odometer.file.is_some() => {
-            "Write the log's 8th column's speeds in m/s (the column is read, not the \
-             manifest's [odometer] file)"
-                .to_owned()
-        }
         Source::Column if m.odometer.kind == Some(OdometerKind::SpeedKmh) => {
             "Check the log's 8th column's speeds (read as km/h: [odometer] kind = \
              \"speed_kmh\")"
@@ -271,6 +293,24 @@ fn odometer_fix(m: &RunManifest, file: Option<&Path>) -> String {
         Source::Column => "Write the log's 8th column's speeds in m/s, or name their unit in \
              the manifest's [odometer] kind (\"speed_kmh\" for km/h)"
             .to_owned(),
+    }
+}
+
+/// Where an odometer that is no speed (`source`) comes from, and what to check.
+fn not_speed_fix(source: &Source) -> String {
+    match source {
+        Source::Count => "Check what the log's odometer count counts: the wheels' pulses, \
+                          or the odometer's wiring"
+            .to_owned(),
+        Source::Column => "Name the odometer's file in the manifest's [odometer] file (it is \
+                           read over the column), or write the vehicle's speeds in the log's \
+                           8th column"
+            .to_owned(),
+        Source::File(file, kind) => format!(
+            "Check that the second column of {} is the vehicle's {}",
+            file.display(),
+            if kind.is_speed() { "speed" } else { "distance" }
+        ),
     }
 }
 

@@ -182,8 +182,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // read from the odometer's readings only (the ingest's bridges left out). 18: a
         // first or last IMU sample apart from the rest placed beside its neighbour. 19:
         // the time base judged before the odometer (a log in reverse order named so);
-        // clocks whole GPS weeks apart named.
-        version: 19,
+        // clocks whole GPS weeks apart named. 20: an odometer whose speed is flat while
+        // the turns show it is not the vehicle's failed (a temperature's column).
+        version: 20,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,

@@ -40,7 +40,7 @@ impl<'a> Source<'a> {
     }
 
     /// "the odometer file odometer.txt".
-    fn name(&self) -> String {
+    pub(crate) fn name(&self) -> String {
         match self {
             Self::Count => "the log's odometer count".to_owned(),
             Self::Column => "the log's 8th column (the odometer's speed)".to_owned(),

@@ -296,6 +296,15 @@ pub const SCALE_GAIN_RANGE: std::ops::RangeInclusive<f64> = 0.7..=1.4;
 /// dropping to zero gave 0.49 along against 1.08 across.
 pub const SCALE_GAINS_ALIKE: f64 = 1.3;
 
+/// Largest sum of the odometer's squared accelerations along x over 1-s blocks, scaled to
+/// the vehicle's speed by the gain across, (m/s²)², for its speed to be flat
+/// ([`AxesCheck::odometer_flat`]): one second of 1 m/s² over the whole log, where pulling
+/// away from one stop and braking at the next give tens. Kingston's speed file gives 74
+/// (63 in its own units); its speed column replaced by a constant 21.5 (a temperature,
+/// say) 0.0, by a temperature drifting 1.5° over the log 0.03 (0.7 in its own), by a
+/// voltage stepping with the engine 0.2 (1.7 in its own).
+pub const FLAT_ODOMETER_EXCITATION: f64 = 1.0;
+
 /// What a log's data, in the axes it was ingested in, say of those axes and its scales.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct AxesCheck {
@@ -390,6 +399,12 @@ pub enum AxesVerdict {
     /// ([`SCALE_GAINS_ALIKE`]): the odometer's distance is not in metres (a speed in
     /// km/h, a wrong pulse scale). Judged only when the drive shows both gains.
     OdometerScale,
+    /// The odometer's speed barely changes ([`FLAT_ODOMETER_EXCITATION`]) while the
+    /// vehicle's turns show a gain across beyond [`SCALE_GAIN_RANGE`]: it is not the
+    /// vehicle's speed (a log's extra column of a temperature or a voltage read as one).
+    /// Judged when the drive does not show the gain along (a flat speed has nothing the
+    /// accelerometers follow); one shown is the other verdicts'.
+    OdometerFlat,
     /// The accelerometers' y does not follow ru while x follows u̇: the gyros' rate is
     /// not in radians.
     GyroScale,
@@ -444,6 +459,24 @@ impl AxesCheck {
             && self.forward_correlation >= MIN_FORWARD_CORRELATION
     }
 
+    /// Whether the odometer's speed is flat while the vehicle's turns show it is not
+    /// the vehicle's: the gain across shown and beyond [`SCALE_GAIN_RANGE`], the gain
+    /// along not shown, and the odometer's accelerations along, scaled to the vehicle's
+    /// speed by the gain across, under [`FLAT_ODOMETER_EXCITATION`]. A speed in other
+    /// units is not flat so scaled (in km/h, its accelerations are 3.6 times, the gain
+    /// across 1/3.6). Angle increments in degrees scale the gain across alone, by 1/57.3:
+    /// a drive's accelerations so scaled are flat, so the odometer's own must be under
+    /// [`MIN_SCALE_EXCITATION`] too (a drive of any length that shows them is the gain
+    /// along's, [`AxesVerdict::GyroScale`]).
+    pub fn odometer_flat(&self) -> bool {
+        let (along, across) = (&self.along, &self.across);
+        let scaled = along.excitation * across.gain * across.gain;
+        across.wrong()
+            && !along.shown()
+            && scaled < FLAT_ODOMETER_EXCITATION
+            && along.excitation < MIN_SCALE_EXCITATION
+    }
+
     /// The verdict against gravity `g_mps2`.
     pub fn verdict(&self, g_mps2: f64) -> AxesVerdict {
         // NaN is neither long enough nor gravity's size.
@@ -483,6 +516,9 @@ impl AxesCheck {
         // zero and back while driving makes a u̇ the accelerometers do not follow), not a
         // scale: the ingest's judgements and the joint fit deal with it.
         let (along, across) = (&self.along, &self.across);
+        if self.odometer_flat() {
+            return AxesVerdict::OdometerFlat;
+        }
         if !(along.shown() && across.shown()) {
             return AxesVerdict::Agree;
         }

@@ -166,3 +166,45 @@ fn a_yawed_mounting_is_measured_and_failed_beyond_ten_degrees() {
         "{twenty:?} {level:?}"
     );
 }
+
+/// An odometer that is no speed (a log's extra column of a temperature or a voltage read
+/// as one) is flat: a constant 21.5 m/s, or one drifting 1.5 over the run, gives no
+/// acceleration along x while the vehicle's turns give a gain across far from 1 (the
+/// vehicle's speed in them against the constant's). A speed that is the vehicle's is
+/// not flat in any unit (km/h: the scale's verdict), and angle increments in degrees
+/// beside a speed that changes are the gyros' verdict.
+#[test]
+fn an_odometer_that_is_no_speed_is_flat() {
+    let (d, g) = logged_in(ImuAxes::FRD);
+    let with = |speed_mps: &dyn Fn(usize) -> f64| {
+        let mut d = d.clone();
+        let n = d.odo_dist_m.len();
+        for (k, x) in d.odo_dist_m.iter_mut().enumerate() {
+            *x = speed_mps(k * 1000 / n) * d.dt_s[k];
+        }
+        let check = AxesCheck::of(&d);
+        (check.verdict(g), check)
+    };
+    for (name, flat) in [
+        ("constant", &(|_| 21.5) as &dyn Fn(usize) -> f64),
+        ("drifting", &|per_mille| {
+            21.5 + 1.5 * per_mille as f64 / 1000.0
+        }),
+    ] {
+        let (verdict, check) = with(flat);
+        assert_eq!(verdict, AxesVerdict::OdometerFlat, "{name}: {check:?}");
+        assert!(check.across.gain < 0.7, "{name}: {check:?}");
+    }
+    let check = AxesCheck::of(&d);
+    assert!(!check.odometer_flat(), "{check:?}");
+    let mut kmh = d.clone();
+    kmh.odo_dist_m.iter_mut().for_each(|x| *x *= 3.6);
+    assert_eq!(AxesCheck::of(&kmh).verdict(g), AxesVerdict::OdometerScale);
+    let mut degrees = d.clone();
+    degrees.dtheta_rad = Arc::new(
+        (degrees.dtheta_rad.iter())
+            .map(|v| v.map(f64::to_degrees))
+            .collect(),
+    );
+    assert_eq!(AxesCheck::of(&degrees).verdict(g), AxesVerdict::GyroScale);
+}
