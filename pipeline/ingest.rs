@@ -463,10 +463,17 @@ fn no_odometer_reading(
         );
     };
     let name = manifest.named(file).display();
-    match events.odometer_file_faults.first() {
+    let faults = &events.odometer_file_faults;
+    // A file of more columns names the setting on its first line of numbers, which a
+    // header line may precede.
+    let columns = (faults.iter().skip(1))
+        .find(|f| f.reason.contains("[odometer] value_column"))
+        .map(|f| format!("; line {}: {}", f.line, f.reason))
+        .unwrap_or_default();
+    match faults.first() {
         Some(first) => format!(
-            "the odometer file {name} gave no reading (the first line rejected, line {}: {}); \
-             {} lists the first faults",
+            "the odometer file {name} gave no reading (the first line rejected, line {}: \
+             {}{columns}); {} lists the first faults",
             first.line,
             first.reason,
             events_path.display()
@@ -735,6 +742,7 @@ fn ingest_text(
     let open_odometer = |file: &Path, kind| -> anyhow::Result<_> {
         Ok(
             OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind)
+                .with_value_column(manifest.odometer.value_column)
                 .with_speed_floor(floor_mps)
                 .beside_log_from(log_first_s),
         )

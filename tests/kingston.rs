@@ -485,6 +485,52 @@ fn kingston_odometer_edited(
     run
 }
 
+/// An OBD-II logger's CSV of more columns (time, engine speed, speed, a status, under a
+/// header line) as Kingston's speed file: without a setting the ingest fails naming the
+/// file's columns and `[odometer] value_column`; with `value_column = 3` the run is the
+/// shipped one's byte for byte, its header line the one rejected. Before, no column could
+/// be named: the file's every line was rejected, "expected two numbers".
+#[test]
+fn kingston_an_odometer_csv_of_more_columns_reads_the_column_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shipped = kingston_with(&tmp.path().join("shipped"), "");
+    let want = tmp.path().join("shipped-o");
+    crate::util::run_until(&shipped, &want, "disupt");
+    let run = kingston_with(&tmp.path().join("csv"), "");
+    let rows: String = std::iter::once("time_s,rpm,speed_mps,status\n".to_owned())
+        .chain(
+            (kingston_speeds().into_iter())
+                .map(|(t, v)| format!("{t:.3},{:.0},{v:.5},OK\n", 800.0 + 120.0 * v)),
+        )
+        .collect();
+    std::fs::write(run.join("odometer.txt"), rows).unwrap();
+    let err = crate::util::stage_fails("ingest", &run, &tmp.path().join("csv-bare"));
+    assert!(
+        err.contains(
+            "line 1: expected two numbers `t_s value`, got \"time_s,rpm,speed_mps,status\"; line 2:"
+        ) && err.contains(
+            "(a file of 4 columns? name the value's in the manifest's [odometer] \
+                 value_column: 2 for the second, the time being the first)"
+        ),
+        "{err}"
+    );
+    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+    let kind = "kind = \"speed_mps\"\n";
+    assert!(manifest.contains(kind));
+    let named = manifest.replace(kind, &format!("{kind}value_column = 3\n"));
+    std::fs::write(run.join("run.toml"), named).unwrap();
+    let out = tmp.path().join("csv-o");
+    crate::util::run_until(&run, &out, "disupt");
+    let stage = |o: &std::path::Path, file: &str| {
+        std::fs::read(o.join("kingston2008-segment1").join(file)).unwrap()
+    };
+    assert!(stage(&want, "disupt/disupt.json") == stage(&out, "disupt/disupt.json"));
+    let ingest: unz_formats::IngestReport =
+        read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
+    let file = ingest.odometer_file.expect("read");
+    assert_eq!(file.lines_rejected, 1, "{file:?}");
+}
+
 /// Kingston's speeds in km/h, on a clock 5 s late: the derive names the clock first;
 /// with the offset it names set, the accelerometers read the speeds 3.32 times theirs
 /// (3.36 when the clock was read with the ingest's bridges), near feet to metres (3.28)

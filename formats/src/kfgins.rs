@@ -595,6 +595,83 @@ pub struct OdometerSample {
     pub distance_m: f64,
 }
 
+/// A two-column line's time and value, or why it is not one: a line of more numbers is
+/// named a file of that many columns, whose value's column `[odometer] value_column`
+/// names.
+fn two_numbers(text: &str) -> Result<[f64; 2], String> {
+    let mut values = [0f64; 2];
+    let mut n = 0;
+    // Whether the first two fields are numbers, and all the fields.
+    let (mut leading, mut finite) = (true, true);
+    for field in text
+        .split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|f| !f.is_empty())
+        .take(MAX_VALUE_COLUMN + 1)
+    {
+        match field.parse::<f64>() {
+            Ok(v) if v.is_finite() && n < 2 => values[n] = v,
+            Ok(v) if v.is_finite() => {}
+            _ => {
+                leading &= n >= 2;
+                finite = false;
+            }
+        }
+        n += 1;
+    }
+    if n == 2 && finite {
+        return Ok(values);
+    }
+    let hint = if has_decimal_commas(text) {
+        DECIMAL_COMMA_HINT.to_owned()
+    } else if n > 2 && leading {
+        let n = if n > MAX_VALUE_COLUMN {
+            format!("more than {MAX_VALUE_COLUMN}")
+        } else {
+            n.to_string()
+        };
+        format!(
+            " (a file of {n} columns? name the value's in the manifest's [odometer] \
+             value_column: 2 for the second, the time being the first)"
+        )
+    } else {
+        String::new()
+    };
+    Err(format!(
+        "expected two numbers `t_s value`, got {text:?}{hint}"
+    ))
+}
+
+/// A line's time (its first column) and the value of its `column` (1-based), the other
+/// columns left unread, or why it has none: split at its commas when it has one (a
+/// CSV's empty fields count), else at its spaces.
+fn time_and_column(text: &str, column: usize) -> Result<[f64; 2], String> {
+    let field = |k: usize| -> Option<&str> {
+        if text.contains(',') {
+            text.split(',').map(str::trim).nth(k)
+        } else {
+            text.split_whitespace().nth(k)
+        }
+    };
+    let number = |f: Option<&str>| {
+        f.and_then(|f| f.parse::<f64>().ok())
+            .filter(|v| v.is_finite())
+    };
+    match (number(field(0)), number(field(column - 1))) {
+        (Some(t), Some(v)) => Ok([t, v]),
+        _ => {
+            let hint = if has_decimal_commas(text) {
+                DECIMAL_COMMA_HINT
+            } else {
+                ""
+            };
+            Err(format!(
+                "expected the time in column 1 and the value in column {column} \
+                 ([odometer] value_column), got {text:?}{hint}"
+            ))
+        }
+    }
+}
+
 /// Fastest a land vehicle's odometer may say it went, m/s (360 km/h): a speed beyond it
 /// is a corrupt reading, and a step of distance beyond it a corrupt count.
 pub const LAND_SPEED_RANGE_MPS: f64 = 100.0;
@@ -636,7 +713,13 @@ pub struct OdometerFileReader<R: BufRead> {
     tags: TagUnwrap,
     /// A speed file's floor (`[odometer] speed_floor_mps`), applied to the speeds kept.
     floor: Option<SpeedFloor>,
+    /// The value's column, 1-based, in a file of more columns (`[odometer]
+    /// value_column`); `None`: two columns, `t_s value`.
+    value_column: Option<usize>,
 }
+
+/// Highest column `[odometer] value_column` may name: an OBD-II logger's CSV has tens.
+pub const MAX_VALUE_COLUMN: usize = 64;
 
 impl<R: BufRead> OdometerFileReader<R> {
     /// Wraps a buffered source holding values of `kind`.
@@ -654,7 +737,18 @@ impl<R: BufRead> OdometerFileReader<R> {
             held_reasons: 0,
             tags: TagUnwrap::default(),
             floor: None,
+            value_column: None,
         }
+    }
+
+    /// The value read from `column` (1-based, 2 to [`MAX_VALUE_COLUMN`]; the time is the
+    /// first) of lines of that many columns or more, the others left unread (an OBD-II
+    /// logger's CSV: time, speed, engine speed, …); `None`, as without it: lines of two
+    /// numbers. A line with a comma is split at its commas, its empty fields counted (a
+    /// CSV's missing reading), else at its spaces.
+    pub fn with_value_column(mut self, column: Option<usize>) -> Self {
+        self.value_column = column.filter(|c| (2..=MAX_VALUE_COLUMN).contains(c));
+        self
     }
 
     /// Its first time tag taken beside the IMU log's first, `log_first_s` (as written):
@@ -873,32 +967,17 @@ impl<R: BufRead> OdometerFileReader<R> {
                     continue;
                 }
             };
-            let mut values = [0f64; 2];
-            let mut n = 0;
-            let mut finite = true;
-            for field in text
-                .split(|c: char| c.is_whitespace() || c == ',')
-                .filter(|f| !f.is_empty())
-                .take(3)
-            {
-                match field.parse::<f64>() {
-                    Ok(v) if v.is_finite() && n < 2 => values[n] = v,
-                    Ok(v) if v.is_finite() => {}
-                    _ => finite = false,
+            let read = match self.value_column {
+                None => two_numbers(text),
+                Some(column) => time_and_column(text, column),
+            };
+            let [t, given] = match read {
+                Ok(values) => values,
+                Err(reason) => {
+                    self.reject_read(reason);
+                    continue;
                 }
-                n += 1;
-            }
-            if n != 2 || !finite {
-                let hint = if has_decimal_commas(text) {
-                    DECIMAL_COMMA_HINT
-                } else {
-                    ""
-                };
-                let reason = format!("expected two numbers `t_s value`, got {text:?}{hint}");
-                self.reject_read(reason);
-                continue;
-            }
-            let [t, given] = values;
+            };
             if let Some(reason) = tag_beyond_range(t) {
                 self.reject_read(reason);
                 continue;
@@ -1323,6 +1402,57 @@ mod tests {
         let mut r = OdometerFileReader::new(text, kind);
         while r.next_sample().unwrap().is_some() {}
         r.faults().0[0].reason.clone()
+    }
+
+    /// A file of more columns (an OBD-II logger's: time, speed, engine speed, a status)
+    /// reads the value's column `[odometer] value_column` names, the others unread; a
+    /// CSV's empty field is a column (the speed missing: the line rejected, not the next
+    /// column read as it). Without the setting, the first line's reason names the
+    /// columns it has and the setting.
+    #[test]
+    fn a_file_of_more_columns_reads_the_column_named() {
+        let read = |text: &[u8], column: Option<usize>| {
+            let mut r =
+                OdometerFileReader::new(text, OdometerKind::SpeedMps).with_value_column(column);
+            let mut d = Vec::new();
+            while let Some(s) = r.next_sample().unwrap() {
+                d.push(s.distance_m);
+            }
+            let faults: Vec<(u64, String)> = (r.faults().0.iter())
+                .map(|f| (f.line, f.reason.clone()))
+                .collect();
+            (d, faults)
+        };
+        let spaced = b"0 0 800 OK\n1 2 1500 OK\n2 2 1600 OK\n";
+        assert_eq!(read(spaced, Some(2)), (vec![0.0, 1.0, 3.0], vec![]));
+        let csv = b"time,speed,rpm\n0, 0, 800\n1,2,1500\n2,,1600\n3,2,1600\n";
+        let (d, faults) = read(csv, Some(2));
+        assert_eq!(d, vec![0.0, 1.0, 5.0]);
+        assert_eq!(faults.iter().map(|f| f.0).collect::<Vec<_>>(), vec![1, 4]);
+        assert_eq!(
+            faults[1].1,
+            "expected the time in column 1 and the value in column 2 ([odometer] \
+             value_column), got \"2,,1600\""
+        );
+        // The value in the third column: engine speed first.
+        let third = b"0 800 0\n1 1500 2\n2 1600 2\n";
+        assert_eq!(read(third, Some(3)), (vec![0.0, 1.0, 3.0], vec![]));
+        // A line without the column named.
+        assert_eq!(read(b"0 800\n", Some(3)).1[0].0, 1);
+        // Without the setting: named.
+        assert_eq!(
+            first_fault(spaced, OdometerKind::SpeedMps),
+            "expected two numbers `t_s value`, got \"0 0 800 OK\" (a file of 4 columns? name \
+             the value's in the manifest's [odometer] value_column: 2 for the second, the \
+             time being the first)"
+        );
+        assert_eq!(
+            first_fault(b"0 x\n", OdometerKind::SpeedMps),
+            "expected two numbers `t_s value`, got \"0 x\""
+        );
+        // Two columns read alike with the setting at 2 or without it.
+        let two = b"0 0\n1 2\n2 2\n";
+        assert_eq!(read(two, Some(2)), read(two, None));
     }
 
     #[test]

@@ -116,6 +116,9 @@ pub struct Odometer {
     /// speed sensor's noise at rest; [`crate::speed_floor`]). Speeds only, up to
     /// [`crate::speed_floor::SPEED_FLOOR_MAX_MPS`].
     pub speed_floor_mps: Option<f64>,
+    /// The column of the odometer file's value, 1-based (the time is the first), in a file
+    /// of more columns than `t_s value` (an OBD-II logger's CSV); `None`: two columns.
+    pub value_column: Option<usize>,
 }
 
 /// A surveyed control point visited at a stop.
@@ -193,6 +196,7 @@ struct RawOdometer {
     file: Option<Spanned<String>>,
     kind: Option<OdometerKind>,
     speed_floor_mps: Option<Spanned<f64>>,
+    value_column: Option<Spanned<i64>>,
 }
 
 #[derive(Deserialize)]
@@ -243,6 +247,23 @@ impl Checker<'_> {
                     self.as_written(v.span())
                 ),
             )
+        }
+    }
+
+    /// `[odometer] value_column`: 2 to [`crate::kfgins::MAX_VALUE_COLUMN`], the first
+    /// being the time.
+    fn value_column(&self, v: &Spanned<i64>) -> Result<usize, FormatError> {
+        let max = crate::kfgins::MAX_VALUE_COLUMN;
+        match usize::try_from(*v.get_ref()) {
+            Ok(column) if (2..=max).contains(&column) => Ok(column),
+            _ => self.err(
+                v.span(),
+                format!(
+                    "value_column = {} is outside [2, {max}] (counted from 1: the time is \
+                     column 1, the value of a `t_s value` file column 2)",
+                    self.as_written(v.span())
+                ),
+            ),
         }
     }
 
@@ -488,6 +509,18 @@ impl RunManifest {
                 .as_ref()
                 .map(|v| c.speed_floor(v, raw.format, o.kind))
                 .transpose()?,
+            value_column: match (&o.value_column, &o.file) {
+                (None, _) => None,
+                (Some(v), None) => {
+                    return c.err(
+                        v.span(),
+                        "odometer.value_column names a column of the [odometer] file, and \
+                         there is none"
+                            .into(),
+                    );
+                }
+                (Some(v), Some(_)) => Some(c.value_column(v)?),
+            },
         };
         if let (Some(f), None) = (&o.file, o.kind) {
             return c.err(
@@ -717,6 +750,50 @@ t_s = 2415.3
             let at = text
                 .lines()
                 .position(|l| l.starts_with("speed_floor_mps"))
+                .unwrap();
+            assert_eq!(line, at + 1, "{reason}");
+            assert!(reason.contains(says), "{reason}");
+        }
+    }
+
+    /// `[odometer] value_column` names a column of the odometer file, 2 to 64; refused,
+    /// naming its line, without a file and out of that range.
+    #[test]
+    fn a_value_column_is_a_column_of_the_odometer_file() {
+        let text_log = |odometer: &str| {
+            GOOD.replace("format = \"unz-binary\"", "format = \"kf-gins\"")
+                .replace("[initial]", &format!("[odometer]\n{odometer}\n[initial]"))
+        };
+        let file = "file = \"odo.csv\"\nkind = \"speed_kmh\"\n";
+        let m = parse(&text_log(&format!("{file}value_column = 3"))).unwrap();
+        assert_eq!(m.odometer.value_column, Some(3));
+        assert_eq!(parse(&text_log(file)).unwrap().odometer.value_column, None);
+        for (text, says) in [
+            (
+                text_log("value_column = 2"),
+                "of the [odometer] file, and there is none",
+            ),
+            (
+                text_log(&format!("{file}value_column = 1")),
+                "is outside [2, 64]",
+            ),
+            (
+                text_log(&format!("{file}value_column = 65")),
+                "is outside [2, 64]",
+            ),
+            (
+                text_log(&format!("{file}value_column = -2")),
+                "is outside [2, 64]",
+            ),
+            (
+                text_log(&format!("{file}value_column = 9223372036854775807")),
+                "is outside [2, 64]",
+            ),
+        ] {
+            let (line, reason) = err_line(&text);
+            let at = text
+                .lines()
+                .position(|l| l.starts_with("value_column"))
                 .unwrap();
             assert_eq!(line, at + 1, "{reason}");
             assert!(reason.contains(says), "{reason}");

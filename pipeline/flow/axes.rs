@@ -125,7 +125,7 @@ pub fn check_axes(
                 across.correlation,
                 SCALE_GAIN_RANGE.start(),
                 SCALE_GAIN_RANGE.end(),
-                not_speed_fix(&source)
+                not_speed_fix(&source, manifest.odometer.value_column.unwrap_or(2))
             )
         }
         AxesVerdict::GyroScale => {
@@ -296,8 +296,9 @@ fn odometer_fix(m: &RunManifest, file: Option<&Path>) -> String {
     }
 }
 
-/// Where an odometer that is no speed (`source`) comes from, and what to check.
-fn not_speed_fix(source: &Source) -> String {
+/// Where an odometer that is no speed (`source`) comes from, and what to check: a file's
+/// `column` (1-based).
+fn not_speed_fix(source: &Source, column: usize) -> String {
     match source {
         Source::Count => "Check what the log's odometer count counts: the wheels' pulses, \
                           or the odometer's wiring"
@@ -307,7 +308,8 @@ fn not_speed_fix(source: &Source) -> String {
                            8th column"
             .to_owned(),
         Source::File(file, kind) => format!(
-            "Check that the second column of {} is the vehicle's {}",
+            "Check that column {column} of {} is the vehicle's {} ([odometer] \
+             value_column)",
             file.display(),
             if kind.is_speed() { "speed" } else { "distance" }
         ),

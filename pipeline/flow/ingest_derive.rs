@@ -80,7 +80,9 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // (a block sent again, logs joined over their overlap) is a duplicate. 25: a
         // text log's 8th column may be left blank on any line. 27: the manifest's
         // odometer file is the odometer over an 8th column, the column left unread said.
-        version: 27,
+        // 28: an odometer file of more columns read at `[odometer] value_column`; a line
+        // of more numbers without it names the setting.
+        version: 28,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,

@@ -5,8 +5,9 @@
 //! The input's first byte picks the odometer (its value mod 3: the log's 8th column, a
 //! speed file, a distance file), the start (its value / 3, even: the alignment over the
 //! first 5 s; odd: no static start, the heading given) and, for speeds, a speed floor
-//! (its value / 6, odd: `speed_floor_mps = 0.04`); the rest up to its first NUL byte is
-//! the log, the rest after it the odometer file.
+//! (its value / 6, odd: `speed_floor_mps = 0.04`) and, for a file, its value's column
+//! (its value / 12, odd: `value_column = 2`, the file's lines read column by column); the
+//! rest up to its first NUL byte is the log, the rest after it the odometer file.
 
 use std::path::PathBuf;
 
@@ -46,11 +47,15 @@ pub fn write_run(data: &[u8], control_point: bool) -> Option<(PathBuf, PathBuf)>
     let odometer = ODOMETER[choice % ODOMETER.len()];
     // A floor for speeds only: the manifest refuses one for distances.
     let floored = choice / 6 % 2 == 1 && choice % ODOMETER.len() != 2;
-    let odometer = match (floored, odometer) {
+    let mut odometer = match (floored, odometer) {
         (false, _) => odometer.to_owned(),
         (true, "") => "[odometer]\nspeed_floor_mps = 0.04\n".to_owned(),
         (true, file) => format!("{file}speed_floor_mps = 0.04\n"),
     };
+    // A column for a file only: the manifest refuses one without.
+    if choice / 12 % 2 == 1 && choice % ODOMETER.len() != 0 {
+        odometer.push_str("value_column = 2\n");
+    }
     let manifest = format!(
         "name = \"fuzz\"\nraw = \"imu.txt\"\nformat = \"kf-gins\"\n\n[site]\n\
          latitude_deg = 44.23632744\nlongitude_deg = -76.465406407\nheight_m = 46.2\n\n{}\n{}\n{}",
