@@ -485,6 +485,48 @@ fn kingston_odometer_edited(
     run
 }
 
+/// Kingston's speeds read 10 m/s high (a CAN signal decoded with a wrong offset) fail
+/// the derive naming the offset (8.3 m/s: the real drive's own fit gives −1.7 at none),
+/// where the previous build said the gyros' rate was 3.0 times the vehicle's turn and
+/// the angle increments must be in radians; its gyros reading double are still the
+/// gyros' (their fit's gain 0.40, no right one's).
+#[test]
+fn kingston_a_speed_read_with_an_offset_is_told_from_the_gyros_scale() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = kingston_odometer_edited(&tmp.path().join("offset"), |t, v| (t, v + 10.0));
+    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("offset-o"));
+    assert!(
+        err.contains("m/s more than the vehicle's speed") && err.contains("from 0 at rest"),
+        "{err}"
+    );
+    let offset_mps = crate::util::number_after(&err, "times (u − ");
+    assert!((6.0..12.0).contains(&offset_mps), "{err}");
+    let run = kingston_with(&tmp.path().join("gyros"), "");
+    let imu = std::fs::read_to_string(run.join("imu.txt")).unwrap();
+    let doubled: String = imu
+        .lines()
+        .map(|l| {
+            let f: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            format!(
+                "{} {:e} {:e} {:e} {} {} {}\n",
+                f[0],
+                2.0 * f[1],
+                2.0 * f[2],
+                2.0 * f[3],
+                f[4],
+                f[5],
+                f[6]
+            )
+        })
+        .collect();
+    std::fs::write(run.join("imu.txt"), doubled).unwrap();
+    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("gyros-o"));
+    assert!(
+        err.contains("the gyros' rate is 1.8 times the vehicle's turn"),
+        "{err}"
+    );
+}
+
 /// An OBD-II logger's CSV of more columns (time, engine speed, speed, a status, under a
 /// header line) as Kingston's speed file: without a setting the ingest fails naming the
 /// file's columns and `[odometer] value_column`; with `value_column = 3` the run is the

@@ -8,7 +8,7 @@ use anyhow::bail;
 use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_stages::derive::Derived;
 use unz_stages::imu_axes::{
-    AxesCheck, AxesVerdict, GRAVITY_TOLERANCE, ImuAxes, MAX_TILT_DEG, SCALE_GAIN_RANGE,
+    AxesCheck, AxesVerdict, GRAVITY_TOLERANCE, ImuAxes, MAX_TILT_DEG, SCALE_GAIN_RANGE, SpeedOffset,
 };
 use unz_stages::imu_mounting::{self, MAX_MOUNTING_YAW_DEG};
 use unz_stages::units::UnitRatio;
@@ -126,6 +126,33 @@ pub fn check_axes(
                 SCALE_GAIN_RANGE.start(),
                 SCALE_GAIN_RANGE.end(),
                 not_speed_fix(&source, manifest.odometer.value_column.unwrap_or(2))
+            )
+        }
+        AxesVerdict::OdometerOffset => {
+            let (along, across) = (check.along, check.across);
+            let offset = check.speed_offset.unwrap_or(SpeedOffset {
+                gain: across.gain,
+                offset_mps: 0.0,
+            });
+            let source = Source::of(manifest, odometer_file);
+            let (c, side) = if offset.offset_mps > 0.0 {
+                (offset.offset_mps, "more")
+            } else {
+                (-offset.offset_mps, "less")
+            };
+            bail!(
+                "{} reads about {c:.0} m/s {side} than the vehicle's speed: in its turns the \
+                 accelerometers' y is {:.2} times (u {} {c:.1} m/s) times the gyros' yaw \
+                 rate, where u times it alone gives {:.2} (correlation {:.2}), and along x \
+                 its u̇ agrees (gain {:.2}): its readings' zero is off (a speed decoded with \
+                 a wrong offset?), where it must read 0 at rest. {}",
+                source.name(),
+                offset.gain,
+                if offset.offset_mps > 0.0 { "−" } else { "+" },
+                across.gain,
+                across.correlation,
+                along.gain,
+                offset_fix(&source)
             )
         }
         AxesVerdict::GyroScale => {
@@ -293,6 +320,23 @@ fn odometer_fix(m: &RunManifest, file: Option<&Path>) -> String {
         Source::Column => "Write the log's 8th column's speeds in m/s, or name their unit in \
              the manifest's [odometer] kind (\"speed_kmh\" for km/h)"
             .to_owned(),
+    }
+}
+
+/// Where an odometer whose speed is offset (`source`) is written, and what to mend.
+fn offset_fix(source: &Source) -> String {
+    match source {
+        Source::Count => {
+            "Check the log's odometer count: its steps at rest must be none".to_owned()
+        }
+        Source::Column => "Write the log's 8th column's speeds from 0 at rest".to_owned(),
+        Source::File(file, kind) if kind.is_speed() => {
+            format!("Write the speeds of {} from 0 at rest", file.display())
+        }
+        Source::File(file, _) => format!(
+            "Write the distances of {} standing still at rest",
+            file.display()
+        ),
     }
 }
 

@@ -185,7 +185,8 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // first or last IMU sample apart from the rest placed beside its neighbour. 19:
         // the time base judged before the odometer (a log in reverse order named so);
         // clocks whole GPS weeks apart named. 20: an odometer whose speed is flat while
-        // the turns show it is not the vehicle's failed (a temperature's column).
+        // the turns show it is not the vehicle's failed (a temperature's column); a speed
+        // offset told from the gyros' scale (a failure either way: no output changes).
         version: 20,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,

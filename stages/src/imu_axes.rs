@@ -337,6 +337,40 @@ pub struct AxesCheck {
     /// [`MIN_FORWARD_CORRELATION`] or more.
     #[serde(default)]
     pub mounting_deg: Option<[f64; 3]>,
+    /// The odometer's speed offset the turns show, when the gain across is shown and off
+    /// ([`SpeedOffset`]); absent otherwise (a log whose gain across is off fails the
+    /// derive, so no stored report holds one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_offset: Option<SpeedOffset>,
+}
+
+/// Least speed offset named, m/s: a sensor's bias at rest is centimetres per second.
+pub const MIN_SPEED_OFFSET_MPS: f64 = 1.0;
+
+/// The accelerometers' y fitted on the odometer's speed times the yaw rate and on the yaw
+/// rate, f_y = gain·r·(u − offset): a speed read `offset_mps` too high (a CAN signal
+/// decoded with a wrong offset) lowers the gain on ru alone as the gyros' scale does, but
+/// by v/(v + c), which changes with the speed, where the gyros' is one factor (which
+/// scales both terms alike, and leaves the offset). Kingston's own speeds give 0.80 and
+/// −1.7 m/s (its car's tight turns at low speed pull more than v·r, its highway curves
+/// less: the fit's own bias on real data, which an offset adds to): read 3 and 10 m/s
+/// high (gains on ru alone 0.66 and 0.33), 0.80 and 1.3, 8.3 m/s; its gyros reading
+/// double (0.54 on ru alone), 0.40 and −1.7 m/s, the gyros' verdict. Simulated runs:
+/// [`AxesVerdict::OdometerOffset`]'s test.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SpeedOffset {
+    /// Gain of the accelerometers' y on r·(u − offset).
+    pub gain: f64,
+    /// The speed's offset, m/s: positive when it reads high.
+    pub offset_mps: f64,
+}
+
+impl SpeedOffset {
+    /// Whether it, not the gyros' scale, is what the gain across shows: its gain a
+    /// right one's, and the offset [`MIN_SPEED_OFFSET_MPS`] or more.
+    pub fn explains(&self) -> bool {
+        SCALE_GAIN_RANGE.contains(&self.gain) && self.offset_mps.abs() >= MIN_SPEED_OFFSET_MPS
+    }
 }
 
 /// One of the accelerometers' horizontal axes against the odometer's acceleration along
@@ -408,6 +442,9 @@ pub enum AxesVerdict {
     /// The accelerometers' y does not follow ru while x follows u̇: the gyros' rate is
     /// not in radians.
     GyroScale,
+    /// As [`AxesVerdict::GyroScale`], but the accelerometers' y follows r·(u − c): the
+    /// odometer's speed reads c too high or low ([`AxesCheck::speed_offset`]).
+    OdometerOffset,
     /// The drive shows the IMU yawed on its mount beyond
     /// [`crate::imu_mounting::MAX_MOUNTING_YAW_DEG`] (and less than 45°: beyond, another
     /// right angle is nearer forward, [`AxesVerdict::Other`]):
@@ -445,6 +482,7 @@ impl AxesCheck {
             along: fit.along,
             across: fit.across,
             mounting_deg,
+            speed_offset: fit.speed_offset.filter(|_| fit.across.wrong()),
         }
     }
 
@@ -527,7 +565,11 @@ impl AxesCheck {
         if along.wrong() && across.wrong() && alike {
             AxesVerdict::OdometerScale
         } else if across.wrong() && !along.wrong() {
-            AxesVerdict::GyroScale
+            if self.speed_offset.is_some_and(|o| o.explains()) {
+                AxesVerdict::OdometerOffset
+            } else {
+                AxesVerdict::GyroScale
+            }
         } else if self
             .mounting_deg
             .is_some_and(|[_, _, yaw]| yaw.abs() > crate::imu_mounting::MAX_MOUNTING_YAW_DEG)
@@ -644,13 +686,15 @@ struct Fit {
     /// f_x on u̇ and f_y on ru.
     along: ScaleFit,
     across: ScaleFit,
+    /// f_y on ru and r.
+    speed_offset: Option<SpeedOffset>,
 }
 
 /// One-second means of the specific force and of the odometer's horizontal acceleration
 /// (u̇, ru), in axes whose down is the log's as turned.
 struct Blocks {
-    /// Per block: specific force x, y, z; u̇, ru (r: the rate about the turned z).
-    rows: Vec<[f64; 5]>,
+    /// Per block: specific force x, y, z; u̇, ru, r (r: the rate about the turned z).
+    rows: Vec<[f64; 6]>,
     /// The same with r the rate about gravity's direction, wherever the IMU's z points
     /// (the mounting's fit).
     mounting_rows: Vec<[f64; 5]>,
@@ -678,7 +722,7 @@ impl Blocks {
                 let r_down = (0..3).map(|i| theta[i] * down[i]).sum::<f64>() / c.dt_s;
                 let f = [v[0] / c.dt_s, v[1] / c.dt_s, v[2] / c.dt_s];
                 (
-                    [f[0], f[1], f[2], u_dot, r * u(c)],
+                    [f[0], f[1], f[2], u_dot, r * u(c), r],
                     [f[0], f[1], f[2], u_dot, r_down * u(c)],
                 )
             })
@@ -698,7 +742,15 @@ impl Blocks {
         let (mut p, mut q) = (0.0, 0.0);
         // Per axis: Σ a², Σ f², Σ f·a.
         let mut sums = [[0.0; 3]; 2];
+        // f_y on ru and r: Σ (ru)², Σ ru·r, Σ r², Σ f·ru, Σ f·r.
+        let mut turns = [0.0; 5];
         for r in &self.rows {
+            let fy = r[1] - mean_f[1];
+            turns[0] += r[4] * r[4];
+            turns[1] += r[4] * r[5];
+            turns[2] += r[5] * r[5];
+            turns[3] += fy * r[4];
+            turns[4] += fy * r[5];
             let f = [r[0] - mean_f[0], r[1] - mean_f[1]];
             let a = [r[3], r[4]];
             p += f[0] * a[0] + f[1] * a[1];
@@ -716,6 +768,16 @@ impl Blocks {
             excitation: aa,
         });
         let (aa, ff) = (sums[0][0] + sums[1][0], sums[0][1] + sums[1][1]);
+        // f_y = gain·ru − gain·offset·r; no offset where ru and r are one (a flat speed).
+        let det = turns[0] * turns[2] - turns[1] * turns[1];
+        let speed_offset = (det > 1e-9 * turns[0] * turns[2]).then(|| {
+            let gain = (turns[3] * turns[2] - turns[4] * turns[1]) / det;
+            let b = (turns[0] * turns[4] - turns[1] * turns[3]) / det;
+            SpeedOffset {
+                gain,
+                offset_mps: -b / gain,
+            }
+        });
         Fit {
             p,
             q,
@@ -723,6 +785,7 @@ impl Blocks {
             correlation: p.hypot(q) / (aa * ff).sqrt().max(tiny),
             along,
             across,
+            speed_offset: speed_offset.filter(|o| o.gain.is_finite() && o.offset_mps.is_finite()),
         }
     }
 }

@@ -208,3 +208,45 @@ fn an_odometer_that_is_no_speed_is_flat() {
     );
     assert_eq!(AxesCheck::of(&degrees).verdict(g), AxesVerdict::GyroScale);
 }
+
+/// A speed read c too high (a CAN signal decoded with a wrong offset) lowers the gain
+/// across as the gyros' scale does; fitted on ru and r together, the gain is a right
+/// one's and the offset c's, where the gyros' scale leaves the gain off and no offset.
+/// This 10-minute run read 6 and 12 m/s high: each within 0.5 m/s (3 m/s leaves its gain
+/// across at 0.75, within the range, and is not judged).
+#[test]
+fn a_speed_offset_is_told_from_the_gyros_scale() {
+    let (d, g) = logged_in(ImuAxes::FRD);
+    let offset = |c_mps: f64| {
+        let mut d = d.clone();
+        for (x, dt) in d.odo_dist_m.iter_mut().zip(d.dt_s.iter()) {
+            *x += c_mps * dt;
+        }
+        d
+    };
+    for c_mps in [6.0, 12.0] {
+        let check = AxesCheck::of(&offset(c_mps));
+        assert_eq!(check.verdict(g), AxesVerdict::OdometerOffset, "{check:?}");
+        let found = check.speed_offset.unwrap();
+        assert!((found.offset_mps - c_mps).abs() < 0.5, "{check:?}");
+        assert!((0.9..1.1).contains(&found.gain), "{check:?}");
+    }
+    for factor in [2.0, 57.3] {
+        let mut scaled = d.clone();
+        scaled.dtheta_rad = Arc::new(
+            (scaled.dtheta_rad.iter())
+                .map(|v| v.map(|x| x * factor))
+                .collect(),
+        );
+        let check = AxesCheck::of(&scaled);
+        assert_eq!(
+            check.verdict(g),
+            AxesVerdict::GyroScale,
+            "×{factor}: {check:?}"
+        );
+        let found = check.speed_offset.unwrap();
+        assert!(!found.explains(), "×{factor}: {check:?}");
+    }
+    // No offset is kept where the gain across is right.
+    assert_eq!(AxesCheck::of(&d).speed_offset, None);
+}
