@@ -28,7 +28,8 @@ def text_chain_seeds(out):
 
 def stretches(out, spans, starts):
     """Each stretch with its odometer as an 8th column (first byte 0, plus each of
-    `starts`), a speed file (1) and a distance file (2)."""
+    `starts`), a speed file (1), a distance file (2) and a speed file as a CSV of three
+    columns read at `value_column = 2` (13)."""
     imu, odo = records("imu.txt"), records("odometer.txt")
     t = lambda line: float(line.split()[0])
     for (name, (t0, t1)), start in ((s, b) for s in spans.items() for b in starts):
@@ -52,6 +53,8 @@ def stretches(out, spans, starts):
         log, speeds = "".join(i).encode(), "".join(o).encode()
         (out / f"{name}-speed").write_bytes(bytes([start + 1]) + log + b"\x00" + speeds)
         (out / f"{name}-dist").write_bytes(bytes([start + 2]) + log + b"\x00" + "".join(distance).encode())
+        csv = "".join("%s,%s,%d\n" % (l.split()[0], l.split()[1], 800 + 120 * float(l.split()[1])) for l in o)
+        (out / f"{name}-csv").write_bytes(bytes([start + 13]) + log + b"\x00" + csv.encode())
 
 
 def drive_ops():
