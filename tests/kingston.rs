@@ -501,25 +501,9 @@ fn kingston_a_speed_read_with_an_offset_is_told_from_the_gyros_scale() {
     );
     let offset_mps = crate::util::number_after(&err, "times (u − ");
     assert!((6.0..12.0).contains(&offset_mps), "{err}");
-    let run = kingston_with(&tmp.path().join("gyros"), "");
-    let imu = std::fs::read_to_string(run.join("imu.txt")).unwrap();
-    let doubled: String = imu
-        .lines()
-        .map(|l| {
-            let f: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
-            format!(
-                "{} {:e} {:e} {:e} {} {} {}\n",
-                f[0],
-                2.0 * f[1],
-                2.0 * f[2],
-                2.0 * f[3],
-                f[4],
-                f[5],
-                f[6]
-            )
-        })
-        .collect();
-    std::fs::write(run.join("imu.txt"), doubled).unwrap();
+    let run = kingston_increments_edited(&tmp.path().join("gyros"), |v| {
+        [2.0 * v[0], 2.0 * v[1], 2.0 * v[2], v[3], v[4], v[5]]
+    });
     let err = crate::util::stage_fails("derive", &run, &tmp.path().join("gyros-o"));
     assert!(
         err.contains("the gyros' rate is 1.8 times the vehicle's turn"),
@@ -2701,20 +2685,35 @@ fn kingston_heights_give_the_odometers_pitch() {
 /// Kingston as logged by an IMU mounted at `mounting_deg` (roll, pitch, yaw: its axes
 /// the body's turned by them, as `[vehicle] imu_mounting_deg` names them), in `run`.
 fn kingston_mounted(run: &std::path::Path, mounting_deg: [f64; 3]) -> std::path::PathBuf {
-    let run = kingston_with(run, "");
     let [r, p, y] = mounting_deg.map(f64::to_radians);
     let imu_from_body = nalgebra::Rotation3::from_euler_angles(r, p, y).inverse();
+    kingston_increments_edited(run, |v| {
+        let turn = |i: usize| imu_from_body * nalgebra::Vector3::new(v[i], v[i + 1], v[i + 2]);
+        let (a, w) = (turn(0), turn(3));
+        [a.x, a.y, a.z, w.x, w.y, w.z]
+    })
+}
+
+/// Kingston with each line's six increments (angle, then velocity) as `edit` gives them,
+/// its time tags as written, in `run`.
+fn kingston_increments_edited(
+    run: &std::path::Path,
+    edit: impl Fn([f64; 6]) -> [f64; 6],
+) -> std::path::PathBuf {
+    let run = kingston_with(run, "");
     let imu = std::fs::read_to_string(run.join("imu.txt")).unwrap();
     let text: String = imu
         .lines()
         .map(|l| {
             let f: Vec<&str> = l.split_whitespace().collect();
-            let v: Vec<f64> = f[1..7].iter().map(|x| x.parse().unwrap()).collect();
-            let turn = |i: usize| imu_from_body * nalgebra::Vector3::new(v[i], v[i + 1], v[i + 2]);
-            let (a, w) = (turn(0), turn(3));
+            let mut v = [0.0; 6];
+            for (x, t) in v.iter_mut().zip(&f[1..7]) {
+                *x = t.parse().unwrap();
+            }
+            let e = edit(v);
             format!(
                 "{} {:e} {:e} {:e} {:e} {:e} {:e}\n",
-                f[0], a.x, a.y, a.z, w.x, w.y, w.z
+                f[0], e[0], e[1], e[2], e[3], e[4], e[5]
             )
         })
         .collect();
