@@ -18,6 +18,7 @@ pub mod navigate;
 pub mod odometer_checks;
 pub mod run_ctx;
 pub mod site_apart;
+pub mod unix_clock;
 
 use serde::{Deserialize, Serialize};
 use unz_stages::criteria::KalmanParams;

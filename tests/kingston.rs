@@ -1483,6 +1483,78 @@ fn kingston_clocks_counted_from_the_gps_weeks_start_are_named() {
     );
 }
 
+/// Kingston's speed file in Unix time (UTC seconds since 1970: 19 May 2008), its IMU
+/// log in GPS seconds of week (week 1480): the derive names both clocks and the seconds
+/// to add, the 14 leap seconds GPS time then ran ahead of UTC counted in; added to each
+/// of the file's tags, the run is the one on its own clock (its worst control point
+/// within 1 cm), where the shift to the hour would leave the odometer 14 s early. The IMU
+/// log and its control points in Unix time beside the speed file in seconds of week name
+/// the same seconds the other way, and a control point left in Unix time in the log of
+/// seconds of week is named with its time on the log's clock. Before, the file was "not
+/// the IMU's clock (another day's, a time zone's, or counted from another start?)", and
+/// the point was named no clock.
+#[test]
+fn kingston_unix_time_against_gps_seconds_of_week_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    // 3657 days and 1480 weeks, less 14 leap seconds.
+    let unix_ahead_s = 1_211_068_786.0;
+    let unix = kingston_odometer_edited(&tmp.path().join("unix"), |t, v| (t + unix_ahead_s, v));
+    let err = crate::util::stage_fails("derive", &unix, &tmp.path().join("unix-o"));
+    assert!(
+        err.contains(
+            "its time tags are Unix time (UTC seconds since 1 January 1970; 19 May 2008) and \
+             the IMU's GPS seconds of week (week 1480): add -1211068786 s to each of its time \
+             tags (the 3657 days from 1 January 1970 to 6 January 1980 and 1480 GPS weeks, \
+             less the 14 leap seconds GPS time then ran ahead of UTC)"
+        ),
+        "{err}"
+    );
+    // The seconds named added to each of the file's tags, as written.
+    let shift_s = crate::util::number_after(&err, ": add ");
+    let rows: String = (std::fs::read_to_string(unix.join("odometer.txt"))
+        .unwrap()
+        .lines())
+    .map(|l| {
+        let (t, v) = l.split_once(' ').unwrap();
+        format!("{:.3} {v}\n", t.parse::<f64>().unwrap() + shift_s)
+    })
+    .collect();
+    std::fs::write(unix.join("odometer.txt"), rows).unwrap();
+    let out = tmp.path().join("mended-o");
+    crate::util::run_until(&unix, &out, "disupt");
+    assert_same_worst_point(&out, &own_clock_reference(tmp.path()));
+    // The IMU log and its control points in Unix time, the speed file in seconds of week.
+    let imu_unix = kingston_retimed(&tmp.path().join("imu-unix"), |t| t + unix_ahead_s);
+    std::fs::copy(
+        test_data("kingston2008-seg1").join("odometer.txt"),
+        imu_unix.join("odometer.txt"),
+    )
+    .unwrap();
+    let err = crate::util::stage_fails("derive", &imu_unix, &tmp.path().join("imu-unix-o"));
+    assert!(
+        err.contains(
+            "the IMU log's time tags are Unix time (UTC seconds since 1 January 1970; 19 May \
+             2008) and its GPS seconds of week (week 1480): add 1211068786 s to each of its \
+             time tags"
+        ),
+        "{err}"
+    );
+    // A control point in Unix time, the log in seconds of week.
+    let point = kingston_with(&tmp.path().join("point"), "");
+    let manifest = std::fs::read_to_string(point.join("run.toml")).unwrap();
+    assert!(manifest.contains("t_s = 152825.0"), "{manifest}");
+    let moved = manifest.replace("t_s = 152825.0", "t_s = 1211221611.0");
+    std::fs::write(point.join("run.toml"), moved).unwrap();
+    let err = crate::util::stage_fails("navigate", &point, &tmp.path().join("point-o"));
+    assert!(
+        err.contains(
+            "its t_s is Unix time (UTC seconds since 1 January 1970; 19 May 2008) and the \
+             log's GPS seconds of week (week 1480); moved by -1211068786 s ("
+        ) && err.contains("it would lie within it, at t_s = 152825.00"),
+        "{err}"
+    );
+}
+
 /// A control point's or the site's coordinates written another way than decimal
 /// degrees, as field sheets and GIS exports write them: the run fails on the point (no
 /// setting reaches it, as before), and the failure names the reading that brings it

@@ -31,6 +31,7 @@ use super::ingested::load_table;
 use super::marks::{RepeatedMark, UnknownMarks, choose_marks};
 use super::moving_marks::{MovingMark, moving_marks};
 use super::odometer_checks::{WHOLE_HOURS_REACH_S, shift_named, whole_weeks};
+use super::unix_clock::UnixAgainstGps;
 use super::{Overrides, Params, RunCtx, ensure_derive};
 use crate::artifacts::{StageName, files};
 use crate::derive_io::{StoredDerive, read_velocity_prefix};
@@ -196,8 +197,9 @@ pub fn match_control_points(
         for t_s in times {
             if !in_log(t_s) {
                 let first_s = log_t_s(d.t0_ns);
-                let other_clock = whole_hours_into(t_s, [first_s, first_s + last]).map_or_else(
-                    String::new,
+                let log_s = [first_s, first_s + last];
+                let other_clock = whole_hours_into(t_s, log_s).map_or_else(
+                    || on_unix_clock(t_s, log_s).unwrap_or_default(),
                     |shift_s| {
                         let (on, in_weeks) = shift_named(shift_s);
                         let why = if in_weeks {
@@ -305,6 +307,26 @@ fn whole_hours_into(t_s: f64, log_s: [f64; 2]) -> Option<f64> {
     (log_s[1] - log_s[0] < GPS_WEEK_S && t_s + weeks_s <= log_s[1])
         .then_some(weeks_s)
         .filter(|&s| whole_weeks(s).is_some())
+}
+
+/// Why a control point's time `t_s` lies outside the log's span `log_s` (s) when one
+/// of them is Unix time and the other GPS time ([`UnixAgainstGps`]), with the time it
+/// would have on the log's clock; `None` for other clocks.
+fn on_unix_clock(t_s: f64, log_s: [f64; 2]) -> Option<String> {
+    let u = UnixAgainstGps::between([t_s; 2], log_s)?;
+    let (unix, gps) = (u.unix_clock(), u.gps_clock());
+    let clocks = if u.other_is_unix {
+        format!("its t_s is {unix} and the log's {gps}")
+    } else {
+        format!("the log's time tags are {unix} and its t_s {gps}")
+    };
+    Some(format!(
+        ": {clocks}; moved by {} s ({}) it would lie within it, at t_s = {:.2}; write the \
+         point's t_s on the log's clock",
+        u.shift_s,
+        u.parts(),
+        t_s + u.shift_s
+    ))
 }
 
 /// How many times over the odometer's path to a mark a control point may lie from the

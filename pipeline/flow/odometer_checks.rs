@@ -16,6 +16,7 @@ use unz_stages::odo_clock::{ClockFit, MAX_ODOMETER_LAG_S};
 use unz_stages::odo_travel::{Travel, TravelVerdict};
 
 use super::ingested::OdometerOverlap;
+use super::unix_clock::UnixAgainstGps;
 
 /// Where the odometer's distance comes from, in `m`'s log: `file` is the odometer file
 /// the ingest read (none for a binary log or an 8th column).
@@ -260,6 +261,21 @@ pub fn check_overlap(
     {
         format!(
             "{log} time tags read in {name} would run t_s = {a:.2} to {b:.2}: write them in seconds"
+        )
+    } else if let Some(u) = UnixAgainstGps::between([o0, o1], [i0, i1])
+        // A file that rolled over itself: as below.
+        && lines.is_none_or(|l| l.week_rollovers + l.day_rollovers == 0)
+    {
+        let (unix, gps) = (u.unix_clock(), u.gps_clock());
+        let clocks = if u.other_is_unix {
+            format!("its time tags are {unix} and the IMU's {gps}")
+        } else {
+            format!("the IMU log's time tags are {unix} and its {gps}")
+        };
+        format!(
+            "{clocks}: add {} s to each of its time tags ({})",
+            u.shift_s,
+            u.parts()
         )
     } else if let Some(shift_s) = whole_hours_apart_s([o0, o1], [i0, i1])
         // A file that rolled over itself has tags the ingest moved: one shift written
