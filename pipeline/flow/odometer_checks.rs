@@ -262,21 +262,11 @@ pub fn check_overlap(
         format!(
             "{log} time tags read in {name} would run t_s = {a:.2} to {b:.2}: write them in seconds"
         )
-    } else if let Some(u) = UnixAgainstGps::between([o0, o1], [i0, i1])
+    } else if let Some(said) = on_unix_clock([o0, o1], [i0, i1])
         // A file that rolled over itself: as below.
         && lines.is_none_or(|l| l.week_rollovers + l.day_rollovers == 0)
     {
-        let (unix, gps) = (u.unix_clock(), u.gps_clock());
-        let clocks = if u.other_is_unix {
-            format!("its time tags are {unix} and the IMU's {gps}")
-        } else {
-            format!("the IMU log's time tags are {unix} and its {gps}")
-        };
-        format!(
-            "{clocks}: add {} s to each of its time tags ({})",
-            u.shift_s,
-            u.parts()
-        )
+        said
     } else if let Some(shift_s) = whole_hours_apart_s([o0, o1], [i0, i1])
         // A file that rolled over itself has tags the ingest moved: one shift written
         // into the file would not bring its rows before and after the rollover alike.
@@ -315,6 +305,25 @@ pub fn check_overlap(
         o.within,
         o.rows
     )
+}
+
+/// Why the odometer's time tags (spanning `odo`, s) miss the IMU log's (`imu`) when one
+/// of them is Unix time and the other GPS time ([`UnixAgainstGps`]), with the shift that
+/// brings them onto the IMU's clock; `None` for other clocks. In seconds only: a
+/// logger's Unix milliseconds are beyond the times the ingest takes, which names them.
+fn on_unix_clock(odo: [f64; 2], imu: [f64; 2]) -> Option<String> {
+    let u = UnixAgainstGps::between(odo, imu)?;
+    let (unix, gps) = (u.unix_clock(), u.gps_clock());
+    let clocks = if u.other_is_unix {
+        format!("its time tags are {unix} and the IMU's {gps}")
+    } else {
+        format!("the IMU log's time tags are {unix} and its {gps}")
+    };
+    Some(format!(
+        "{clocks}: add {} s to each of its time tags ({})",
+        u.shift_s,
+        u.parts()
+    ))
 }
 
 /// Farthest apart, s, two clocks are named a whole number of hours apart: a week (a log
