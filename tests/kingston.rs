@@ -485,15 +485,23 @@ fn kingston_odometer_edited(
     run
 }
 
-/// Kingston's speeds read 10 m/s high (a CAN signal decoded with a wrong offset) fail
-/// the derive naming the offset (8.3 m/s: the real drive's own fit gives −1.7 at none),
-/// where the previous build said the gyros' rate was 3.0 times the vehicle's turn and
-/// the angle increments must be in radians; its gyros reading double are still the
-/// gyros' (their fit's gain 0.40, no right one's).
+/// Kingston's speeds read 10 m/s high (a CAN signal decoded with a wrong offset), with
+/// no static start given (its stand would read the offset: below), fail the derive
+/// naming the offset (8.3 m/s: the real drive's own fit gives −1.7 at none), where the
+/// previous build said the gyros' rate was 3.0 times the vehicle's turn and the angle
+/// increments must be in radians; its gyros reading double are still the gyros' (their
+/// fit's gain 0.40, no right one's).
 #[test]
 fn kingston_a_speed_read_with_an_offset_is_told_from_the_gyros_scale() {
     let tmp = tempfile::tempdir().unwrap();
     let run = kingston_odometer_edited(&tmp.path().join("offset"), |t, v| (t, v + 10.0));
+    let manifest = std::fs::read_to_string(run.join("run.toml")).unwrap();
+    assert!(manifest.contains("static_s = 500.0\n"), "{manifest}");
+    std::fs::write(
+        run.join("run.toml"),
+        manifest.replace("static_s = 500.0\n", ""),
+    )
+    .unwrap();
     let err = crate::util::stage_fails("derive", &run, &tmp.path().join("offset-o"));
     assert!(
         err.contains("m/s more than the vehicle's speed") && err.contains("from 0 at rest"),
@@ -509,6 +517,50 @@ fn kingston_a_speed_read_with_an_offset_is_told_from_the_gyros_scale() {
         err.contains("the gyros' rate is 1.8 times the vehicle's turn"),
         "{err}"
     );
+}
+
+/// Kingston's speeds read 1 m/s high, 3 m/s high and 3 m/s low (a CAN speed decoded with
+/// a wrong offset) fail the derive naming the offset to the cm/s, read where the static
+/// start given (500 s) says the vehicle stood; the speeds mended as it says, the run is
+/// the shipped one's. Before, 1 m/s high ran "ok" 2.6 km off at the last control point
+/// before DISUPT (its joint fit refused), 3 m/s high was "about 1.3 m/s" by the turns and
+/// 3 m/s low "runs backward over 55 % of its travel … check the sign of the speeds".
+/// Speeds that stand at 0 with a sensor's noise of 0–4 cm/s are no offset (the shipped
+/// file reads 0.8 and 2.0 cm/s at rest).
+#[test]
+fn kingston_a_speed_offset_is_read_off_the_static_start() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shipped = tmp.path().join("shipped-o");
+    crate::util::run_until(
+        &kingston_with(&tmp.path().join("shipped"), ""),
+        &shipped,
+        "disupt",
+    );
+    for (name, offset_mps, mend) in [
+        ("1", 1.0, "subtract"),
+        ("3", 3.0, "subtract"),
+        ("-3", -3.0, "add"),
+    ] {
+        let run = kingston_odometer_edited(&tmp.path().join(name), |t, v| (t, v + offset_mps));
+        let err = crate::util::stage_fails("derive", &run, &tmp.path().join(format!("{name}-o")));
+        let said = format!(
+            "reads {offset_mps:.2} m/s, steady (σ 0.000 m/s), over the first 250 s of the \
+             static start given (static_s = 500 s), where the vehicle stood: its readings' \
+             zero is off"
+        );
+        assert!(err.contains(&said), "{name}: {err}");
+        let fix = format!(
+            "from 0 at rest ({mend} {:.2} m/s to each)",
+            offset_mps.abs()
+        );
+        assert!(err.contains(&fix), "{name}: {err}");
+        // Mended as said.
+        let said_mps = crate::util::number_after(&err, "odometer.txt reads ");
+        kingston_odometer_edited(&run, |t, v| (t, v + offset_mps - said_mps));
+        let out = tmp.path().join(format!("{name}-mended-o"));
+        crate::util::run_until(&run, &out, "disupt");
+        assert_same_worst_point(&out, &shipped);
+    }
 }
 
 /// An OBD-II logger's CSV of more columns (time, engine speed, speed, a status, under a

@@ -324,7 +324,7 @@ fn odometer_fix(m: &RunManifest, file: Option<&Path>) -> String {
 }
 
 /// Where an odometer whose speed is offset (`source`) is written, and what to mend.
-fn offset_fix(source: &Source) -> String {
+pub(crate) fn offset_fix(source: &Source) -> String {
     match source {
         Source::Count => {
             "Check the log's odometer count: its steps at rest must be none".to_owned()

@@ -11,7 +11,9 @@ use unz_stages::derive::Derived;
 use unz_stages::earth;
 
 use super::axes::check_axes;
-use super::odometer_checks::{SMALLER_UNITS, check_clock, check_overlap, check_travel};
+use super::odometer_checks::{
+    SMALLER_UNITS, check_clock, check_overlap, check_stand_speed, check_travel,
+};
 use super::{IngestedSeries, Params, RunCtx, ingested};
 use crate::artifacts::{StageName, files};
 use crate::campaign::read_report;
@@ -187,7 +189,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // clocks whole GPS weeks apart named. 20: an odometer whose speed is flat while
         // the turns show it is not the vehicle's failed (a temperature's column); a speed
         // offset told from the gyros' scale (a failure either way: no output changes).
-        version: 20,
+        // 21: a speed steady and not 0 over the static start given failed (an offset: a
+        // run that went "ok" with 1 m/s of it is re-derived, and fails).
+        version: 21,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
@@ -256,6 +260,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         let odometer_file = (report.odometer_file.as_ref()).and(m.odometer.file.as_deref());
         let offset_s = params.derive.odo_time_offset_s;
         check_overlap(&overlap, offset_s, &report, m, odometer_file)?;
+        check_stand_speed(&d, m, odometer_file)?;
         check_travel(&d, m, odometer_file)?;
         let not_readings_s = not_readings_s(&ingest_dir, &report, &d, offset_s)?;
         d.odometer_clock = check_clock(&d, &params.derive, m, odometer_file, &not_readings_s)?;

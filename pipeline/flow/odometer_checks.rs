@@ -14,7 +14,9 @@ use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_stages::derive::{DeriveParams, Derived, ODO_TIME_OFFSET_RANGE_S};
 use unz_stages::odo_clock::{ClockFit, MAX_ODOMETER_LAG_S};
 use unz_stages::odo_travel::{Travel, TravelVerdict};
+use unz_stages::stand_speed::StandSpeed;
 
+use super::axes::offset_fix;
 use super::ingested::OdometerOverlap;
 use super::unix_clock::UnixAgainstGps;
 
@@ -48,6 +50,44 @@ impl<'a> Source<'a> {
             Self::File(f, _) => format!("the odometer file {}", f.display()),
         }
     }
+}
+
+/// Fails `d` when its odometer's speed reads steady and not 0 over the static start the
+/// manifest gives ([`StandSpeed`]): its readings' zero is off (a speed decoded with a
+/// wrong offset), named with the speed to subtract. Before the travel's check, which an
+/// offset below zero turns into backward travel.
+pub fn check_stand_speed(d: &Derived, m: &RunManifest, file: Option<&Path>) -> anyhow::Result<()> {
+    let source = Source::of(m, file);
+    let speeds = match source {
+        Source::Column => true,
+        Source::File(_, kind) => kind.is_speed(),
+        Source::Count => false,
+    };
+    let Some(s) = (m.initial.static_s)
+        .filter(|_| speeds)
+        .and_then(|given_s| StandSpeed::of(d, given_s))
+    else {
+        return Ok(());
+    };
+    let (adds, mend) = if s.mean_mps > 0.0 {
+        ("adds", "subtract")
+    } else {
+        ("takes", "add")
+    };
+    let offset_mps = s.mean_mps.abs();
+    bail!(
+        "{} reads {:.2} m/s, steady (σ {:.3} m/s), over the first {:.0} s of the static start \
+         given (static_s = {} s), where the vehicle stood: its readings' zero is off (a speed \
+         decoded with a wrong offset?), which {adds} {offset_mps:.2} m/s to every reading of \
+         the drive. {} ({mend} {offset_mps:.2} m/s to each), or set static_s to the time the \
+         vehicle stood if it drove",
+        source.name(),
+        s.mean_mps,
+        s.sigma_mps,
+        s.read_s,
+        s.given_s,
+        offset_fix(&source),
+    )
 }
 
 /// Fails `d` when its odometer's distance runs backward over most of its travel (its sign

@@ -34,6 +34,7 @@ pub mod odo_rebridge;
 pub mod odo_travel;
 pub mod route_sigma;
 pub mod simulate;
+pub mod stand_speed;
 pub mod strapdown;
 pub mod time_base;
 pub mod units;

@@ -1,0 +1,154 @@
+//! The odometer's speed over the static start the crew gave: a vehicle that stood reads
+//! 0 there, or a sensor's few cm/s ([`crate::initial::StandTravel`]).
+//!
+//! One that reads a steady speed through the stand, the same metres per second barely
+//! changing, counts from another zero: a CAN or OBD-II speed decoded with a wrong
+//! offset, which adds it to every reading of the drive too. The dead reckoning then
+//! drives the offset through every stop, and the static start is lost (the odometer shows
+//! the vehicle moving from the log's first second). Kingston's speeds read 1 m/s high ran
+//! "ok" 2.6 km off at its last control point before DISUPT, its joint fit refused; 3 m/s
+//! high were read by the turns as "about 1.3 m/s" ([`crate::imu_axes::SpeedOffset`]);
+//! 3 m/s low failed as a sign to check ("runs backward over 55 % of its travel").
+//!
+//! The stand's first half is read: a crew's static start is approximate at its end (the
+//! vehicle pulling away a little before it), never at the log's start. A speed that
+//! barely changes over the whole log is left to the axes' check: a column that is no
+//! speed at all (a temperature's), not an offset.
+
+use crate::derive::Derived;
+use crate::initial::{MIN_STATIC_S, MOVE_WINDOW_S, MOVED_M};
+
+/// Spread (σ) of the speeds over the stand within which they are steady, m/s: an
+/// OBD-II speed steps by 1 km/h (0.28 m/s), a stopped engine's or a parked car's reading
+/// does not step at all; a creeping vehicle's changes by more.
+pub const STEADY_SIGMA_MPS: f64 = 0.05;
+
+/// Least spread (σ) of the speeds over the whole log for an offset to be judged, m/s: a
+/// drive's speeds spread metres per second (Kingston's 4.8); a flat column's (a
+/// temperature, a voltage) tenths.
+pub const MIN_DRIVE_SIGMA_MPS: f64 = 1.0;
+
+/// Least speed read over the stand that is an offset, m/s: a move's ([`MOVED_M`] over
+/// [`MOVE_WINDOW_S`]); a sensor's noise at rest reads less.
+pub const MIN_OFFSET_MPS: f64 = MOVED_M / MOVE_WINDOW_S;
+
+/// A steady speed read over the static start given.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StandSpeed {
+    /// The static start given, s.
+    pub given_s: f64,
+    /// The stand read: its first half, s.
+    pub read_s: f64,
+    /// Mean speed over it, m/s.
+    pub mean_mps: f64,
+    /// Spread (σ) of the speeds over it, m/s.
+    pub sigma_mps: f64,
+}
+
+impl StandSpeed {
+    /// The speed of `d`'s odometer over the first half of the static start `given_s`,
+    /// when it is steady ([`STEADY_SIGMA_MPS`]) at [`MIN_OFFSET_MPS`] or more either
+    /// way, and the log's speeds spread as a drive's ([`MIN_DRIVE_SIGMA_MPS`]); `None`
+    /// for a static start under [`MIN_STATIC_S`].
+    pub fn of(d: &Derived, given_s: f64) -> Option<Self> {
+        if given_s < MIN_STATIC_S {
+            return None;
+        }
+        let read_s = given_s / 2.0;
+        let speeds = (d.odo_dist_m.iter().zip(d.dt_s.iter()))
+            .map(|(dd_m, dt_s)| dd_m / dt_s)
+            .enumerate()
+            .filter(|(_, v)| v.is_finite());
+        let (mut stand, mut log) = (Spread::default(), Spread::default());
+        for (k, v) in speeds {
+            if d.t_s.get(k) <= read_s {
+                stand.push(v);
+            }
+            log.push(v);
+        }
+        let (mean_mps, sigma_mps) = stand.mean_sigma()?;
+        let (_, drive_sigma_mps) = log.mean_sigma()?;
+        (mean_mps.abs() >= MIN_OFFSET_MPS
+            && sigma_mps <= STEADY_SIGMA_MPS
+            && drive_sigma_mps >= MIN_DRIVE_SIGMA_MPS)
+            .then_some(Self {
+                given_s,
+                read_s,
+                mean_mps,
+                sigma_mps,
+            })
+    }
+}
+
+/// Mean and spread of values as they come (Welford's).
+#[derive(Debug, Default)]
+struct Spread {
+    n: f64,
+    mean: f64,
+    m2: f64,
+}
+
+impl Spread {
+    fn push(&mut self, v: f64) {
+        self.n += 1.0;
+        let delta = v - self.mean;
+        self.mean += delta / self.n;
+        self.m2 += delta * (v - self.mean);
+    }
+
+    /// Mean and σ, when there are two values or more.
+    fn mean_sigma(&self) -> Option<(f64, f64)> {
+        (self.n >= 2.0).then(|| (self.mean, (self.m2 / self.n).sqrt()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::time_base::TimeBase;
+
+    /// A 100-Hz log of `n` samples whose odometer reads `speed(t_s)`, m/s.
+    fn log(n: usize, speed: impl Fn(f64) -> f64) -> Derived {
+        let t_s: Vec<f64> = (0..n).map(|k| 0.01 * k as f64).collect();
+        Derived {
+            odo_dist_m: t_s.iter().map(|&t| 0.01 * speed(t)).collect(),
+            dt_s: std::sync::Arc::new(vec![0.01; n]),
+            t_s: TimeBase::from(t_s),
+            ..Derived::default()
+        }
+    }
+
+    /// A drive after a 100-s stand: 0 to 12 m/s and back, twice a minute.
+    fn drive(t_s: f64) -> f64 {
+        if t_s < 100.0 {
+            0.0
+        } else {
+            6.0 - 6.0 * (0.1 * t_s).cos()
+        }
+    }
+
+    /// Speeds offset by ±3 m/s and by 0.2 m/s are read off the stand to the mm/s; one at 0,
+    /// a sensor's noise of 0–4 cm/s, a creep of 0.3 m/s changing by its tenths and a
+    /// flat column are not; nor is a stand under 5 s.
+    #[test]
+    fn a_steady_speed_where_the_vehicle_stood_is_an_offset() {
+        for offset in [3.0, -3.0, 0.2] {
+            let s = StandSpeed::of(&log(60_000, |t| drive(t) + offset), 100.0).unwrap();
+            assert!((s.mean_mps - offset).abs() < 1e-3, "{offset}: {s:?}");
+            assert!(s.sigma_mps < 1e-9 && s.read_s == 50.0, "{offset}: {s:?}");
+        }
+        assert_eq!(StandSpeed::of(&log(60_000, drive), 100.0), None);
+        let noise = |t: f64| drive(t) + 0.04 * ((t * 7919.0) % 1.0);
+        assert_eq!(StandSpeed::of(&log(60_000, noise), 100.0), None);
+        let creep = |t: f64| {
+            if t < 100.0 {
+                0.3 + 0.1 * (t).sin()
+            } else {
+                drive(t)
+            }
+        };
+        assert_eq!(StandSpeed::of(&log(60_000, creep), 100.0), None);
+        assert_eq!(StandSpeed::of(&log(60_000, |_| 21.5), 100.0), None);
+        assert_eq!(StandSpeed::of(&log(60_000, |t| drive(t) + 3.0), 4.0), None);
+    }
+}
