@@ -537,9 +537,9 @@ fn kingston_a_speed_offset_is_read_off_the_static_start() {
         "disupt",
     );
     for (name, offset_mps, mend) in [
-        ("1", 1.0, "subtract"),
-        ("3", 3.0, "subtract"),
-        ("-3", -3.0, "add"),
+        ("1", 1.0, "subtract 1.00 m/s from each"),
+        ("3", 3.0, "subtract 3.00 m/s from each"),
+        ("-3", -3.0, "add 3.00 m/s to each"),
     ] {
         let run = kingston_odometer_edited(&tmp.path().join(name), |t, v| (t, v + offset_mps));
         let err = crate::util::stage_fails("derive", &run, &tmp.path().join(format!("{name}-o")));
@@ -549,11 +549,10 @@ fn kingston_a_speed_offset_is_read_off_the_static_start() {
              zero is off"
         );
         assert!(err.contains(&said), "{name}: {err}");
-        let fix = format!(
-            "from 0 at rest ({mend} {:.2} m/s to each)",
-            offset_mps.abs()
+        assert!(
+            err.contains(&format!("from 0 at rest ({mend})")),
+            "{name}: {err}"
         );
-        assert!(err.contains(&fix), "{name}: {err}");
         // Mended as said.
         let said_mps = crate::util::number_after(&err, "odometer.txt reads ");
         kingston_odometer_edited(&run, |t, v| (t, v + offset_mps - said_mps));

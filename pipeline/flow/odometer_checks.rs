@@ -69,18 +69,17 @@ pub fn check_stand_speed(d: &Derived, m: &RunManifest, file: Option<&Path>) -> a
     else {
         return Ok(());
     };
-    let (adds, mend) = if s.mean_mps > 0.0 {
-        ("adds", "subtract")
-    } else {
-        ("takes", "add")
-    };
     let offset_mps = s.mean_mps.abs();
+    let (adds, mend) = if s.mean_mps > 0.0 {
+        ("adds", format!("subtract {offset_mps:.2} m/s from each"))
+    } else {
+        ("takes", format!("add {offset_mps:.2} m/s to each"))
+    };
     bail!(
         "{} reads {:.2} m/s, steady (σ {:.3} m/s), over the first {:.0} s of the static start \
          given (static_s = {} s), where the vehicle stood: its readings' zero is off (a speed \
          decoded with a wrong offset?), which {adds} {offset_mps:.2} m/s to every reading of \
-         the drive. {} ({mend} {offset_mps:.2} m/s to each), or set static_s to the time the \
-         vehicle stood if it drove",
+         the drive. {} ({mend}), or set static_s to the time the vehicle stood if it drove",
         source.name(),
         s.mean_mps,
         s.sigma_mps,
