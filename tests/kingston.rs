@@ -1478,6 +1478,30 @@ fn kingston_an_8th_column_that_is_no_speed_is_named() {
     }
 }
 
+/// Kingston with its 8th column a constant 5 (a temperature, say) and no odometer file:
+/// near the car's speed in its turns, the turns read it as a speed (a gain across within
+/// 0.7–1.4), and the run went "ok" 3.6 km off at its last control point before DISUPT.
+/// The static start given (500 s) names it: it reads 5.00 m/s where the vehicle stood and
+/// barely changes over the log. The shipped speeds written in the column run as before.
+#[test]
+fn kingston_an_8th_column_flat_near_the_turns_speed_is_named_by_its_stand() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = tmp.path().join("flat");
+    kingston_column(&run, &|_: f64, _: f64| 5.0);
+    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("flat-o"));
+    assert!(
+        err.contains(
+            "the log's 8th column (the odometer's speed) reads 5.00 m/s, steady (σ 0.000 m/s), \
+             over the first 250 s of the static start given (static_s = 500 s), where the \
+             vehicle stood, and barely changes over the whole log (σ 0.00 m/s"
+        ) && err.contains("it is not the vehicle's speed. Name the odometer's file"),
+        "{err}"
+    );
+    let run = tmp.path().join("speeds");
+    kingston_column(&run, &|_: f64, v: f64| v);
+    crate::util::run_until(&run, &tmp.path().join("speeds-o"), "derive");
+}
+
 /// Kingston's IMU log and control points in GPS seconds since the weeks' start (6
 /// January 1980: 1480 weeks on), its speed file in seconds of week: the derive names the
 /// 1480 weeks and the seconds to add; written into the file, the run is the one on its

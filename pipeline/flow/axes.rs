@@ -342,7 +342,7 @@ pub(crate) fn offset_fix(source: &Source) -> String {
 
 /// Where an odometer that is no speed (`source`) comes from, and what to check: a file's
 /// `column` (1-based).
-fn not_speed_fix(source: &Source, column: usize) -> String {
+pub(crate) fn not_speed_fix(source: &Source, column: usize) -> String {
     match source {
         Source::Count => "Check what the log's odometer count counts: the wheels' pulses, \
                           or the odometer's wiring"

@@ -12,7 +12,7 @@ use unz_stages::earth;
 
 use super::axes::check_axes;
 use super::odometer_checks::{
-    SMALLER_UNITS, check_clock, check_overlap, check_stand_speed, check_travel,
+    SMALLER_UNITS, check_clock, check_overlap, check_stand_flat, check_stand_speed, check_travel,
 };
 use super::{IngestedSeries, Params, RunCtx, ingested};
 use crate::artifacts::{StageName, files};
@@ -340,6 +340,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ensure_finite("accelerometer roll", "epoch", roll.copied())?;
         let g_mps2 = site_gravity_mps2(m);
         let axes = check_axes(&d, &params.vehicle, g_mps2, m, odometer_file)?;
+        check_stand_flat(&d, m, odometer_file)?;
         d.axes_check = Some(axes);
         write_derived(&d, &dir)?;
         let mut d = as_stored(d);

@@ -14,9 +14,9 @@ use unz_formats::manifest::{LogFormat, OdometerKind, RunManifest};
 use unz_stages::derive::{DeriveParams, Derived, ODO_TIME_OFFSET_RANGE_S};
 use unz_stages::odo_clock::{ClockFit, MAX_ODOMETER_LAG_S};
 use unz_stages::odo_travel::{Travel, TravelVerdict};
-use unz_stages::stand_speed::StandSpeed;
+use unz_stages::stand_speed::{MIN_DRIVE_SIGMA_MPS, StandSpeed};
 
-use super::axes::offset_fix;
+use super::axes::{not_speed_fix, offset_fix};
 use super::ingested::OdometerOverlap;
 use super::unix_clock::UnixAgainstGps;
 
@@ -52,21 +52,27 @@ impl<'a> Source<'a> {
     }
 }
 
-/// Fails `d` when its odometer's speed reads steady and not 0 over the static start the
-/// manifest gives ([`StandSpeed`]): its readings' zero is off (a speed decoded with a
-/// wrong offset), named with the speed to subtract. Before the travel's check, which an
-/// offset below zero turns into backward travel.
-pub fn check_stand_speed(d: &Derived, m: &RunManifest, file: Option<&Path>) -> anyhow::Result<()> {
-    let source = Source::of(m, file);
+/// The speed of `d`'s odometer over the static start the manifest gives, when it reads
+/// steady and not 0 there ([`StandSpeed`]); none for an odometer of counts or distances.
+fn stand_speed(d: &Derived, m: &RunManifest, source: &Source) -> Option<StandSpeed> {
     let speeds = match source {
         Source::Column => true,
         Source::File(_, kind) => kind.is_speed(),
         Source::Count => false,
     };
-    let Some(s) = (m.initial.static_s)
+    (m.initial.static_s)
         .filter(|_| speeds)
         .and_then(|given_s| StandSpeed::of(d, given_s))
-    else {
+}
+
+/// Fails `d` when its odometer's speed reads steady and not 0 over the static start the
+/// manifest gives, in a log whose speeds spread as a drive's ([`StandSpeed::drove`]):
+/// its readings' zero is off (a speed decoded with a wrong offset), named with the speed
+/// to subtract. Before the travel's check, which an offset below zero turns into
+/// backward travel.
+pub fn check_stand_speed(d: &Derived, m: &RunManifest, file: Option<&Path>) -> anyhow::Result<()> {
+    let source = Source::of(m, file);
+    let Some(s) = stand_speed(d, m, &source).filter(StandSpeed::drove) else {
         return Ok(());
     };
     let offset_mps = s.mean_mps.abs();
@@ -86,6 +92,31 @@ pub fn check_stand_speed(d: &Derived, m: &RunManifest, file: Option<&Path>) -> a
         s.read_s,
         s.given_s,
         offset_fix(&source),
+    )
+}
+
+/// Fails `d` when its odometer's speed reads steady and not 0 over the static start the
+/// manifest gives and barely changes over the whole log ([`StandSpeed::drove`] not): no
+/// speed at all (a column of a temperature, or flat near the vehicle's speed in its
+/// turns, which the axes' check takes for one). After the axes' check, whose verdict on
+/// a flat column names the gain its turns show.
+pub fn check_stand_flat(d: &Derived, m: &RunManifest, file: Option<&Path>) -> anyhow::Result<()> {
+    let source = Source::of(m, file);
+    let Some(s) = stand_speed(d, m, &source).filter(|s| !s.drove()) else {
+        return Ok(());
+    };
+    bail!(
+        "{} reads {:.2} m/s, steady (σ {:.3} m/s), over the first {:.0} s of the static start \
+         given (static_s = {} s), where the vehicle stood, and barely changes over the whole \
+         log (σ {:.2} m/s, where a drive's speeds spread {MIN_DRIVE_SIGMA_MPS} m/s or more): \
+         it is not the vehicle's speed. {}",
+        source.name(),
+        s.mean_mps,
+        s.sigma_mps,
+        s.read_s,
+        s.given_s,
+        s.log_sigma_mps,
+        not_speed_fix(&source, m.odometer.value_column.unwrap_or(2)),
     )
 }
 
