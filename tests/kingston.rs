@@ -1487,7 +1487,7 @@ fn kingston_an_8th_column_that_is_no_speed_is_named() {
 fn kingston_an_8th_column_flat_near_the_turns_speed_is_named_by_its_stand() {
     let tmp = tempfile::tempdir().unwrap();
     let run = tmp.path().join("flat");
-    kingston_column(&run, &|_: f64, _: f64| 5.0);
+    kingston_column(&run, |_: f64, _: f64| 5.0);
     let err = crate::util::stage_fails("derive", &run, &tmp.path().join("flat-o"));
     assert!(
         err.contains(
@@ -1498,7 +1498,7 @@ fn kingston_an_8th_column_flat_near_the_turns_speed_is_named_by_its_stand() {
         "{err}"
     );
     let run = tmp.path().join("speeds");
-    kingston_column(&run, &|_: f64, v: f64| v);
+    kingston_column(&run, |_: f64, v: f64| v);
     crate::util::run_until(&run, &tmp.path().join("speeds-o"), "derive");
 }
 
