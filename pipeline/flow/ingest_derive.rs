@@ -13,6 +13,7 @@ use unz_stages::earth;
 use super::axes::check_axes;
 use super::odometer_checks::{
     SMALLER_UNITS, check_clock, check_overlap, check_stand_flat, check_stand_speed, check_travel,
+    stand_speed,
 };
 use super::{IngestedSeries, Params, RunCtx, ingested};
 use crate::artifacts::{StageName, files};
@@ -189,8 +190,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // clocks whole GPS weeks apart named. 20: an odometer whose speed is flat while
         // the turns show it is not the vehicle's failed (a temperature's column); a speed
         // offset told from the gyros' scale (a failure either way: no output changes).
-        // 21: a speed steady and not 0 over the static start given failed (an offset: a
-        // run that went "ok" with 1 m/s of it is re-derived, and fails).
+        // 21: a speed steady and not 0 over the static start given failed: an offset (a
+        // run that went "ok" with 1 m/s of it is re-derived, and fails) or, barely
+        // changing over the log, no speed; clocks in Unix time against GPS time named.
         version: 21,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
@@ -260,7 +262,8 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         let odometer_file = (report.odometer_file.as_ref()).and(m.odometer.file.as_deref());
         let offset_s = params.derive.odo_time_offset_s;
         check_overlap(&overlap, offset_s, &report, m, odometer_file)?;
-        check_stand_speed(&d, m, odometer_file)?;
+        let stand = stand_speed(&d, m, odometer_file);
+        check_stand_speed(stand.as_ref(), m, odometer_file)?;
         check_travel(&d, m, odometer_file)?;
         let not_readings_s = not_readings_s(&ingest_dir, &report, &d, offset_s)?;
         d.odometer_clock = check_clock(&d, &params.derive, m, odometer_file, &not_readings_s)?;
@@ -340,7 +343,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ensure_finite("accelerometer roll", "epoch", roll.copied())?;
         let g_mps2 = site_gravity_mps2(m);
         let axes = check_axes(&d, &params.vehicle, g_mps2, m, odometer_file)?;
-        check_stand_flat(&d, m, odometer_file)?;
+        check_stand_flat(stand.as_ref(), m, odometer_file)?;
         d.axes_check = Some(axes);
         write_derived(&d, &dir)?;
         let mut d = as_stored(d);

@@ -54,8 +54,9 @@ impl<'a> Source<'a> {
 
 /// The speed of `d`'s odometer over the static start the manifest gives, when it reads
 /// steady and not 0 there ([`StandSpeed`]); none for an odometer of counts or distances.
-fn stand_speed(d: &Derived, m: &RunManifest, source: &Source) -> Option<StandSpeed> {
-    let speeds = match source {
+/// Read once, for [`check_stand_speed`] and [`check_stand_flat`].
+pub fn stand_speed(d: &Derived, m: &RunManifest, file: Option<&Path>) -> Option<StandSpeed> {
+    let speeds = match Source::of(m, file) {
         Source::Column => true,
         Source::File(_, kind) => kind.is_speed(),
         Source::Count => false,
@@ -65,14 +66,18 @@ fn stand_speed(d: &Derived, m: &RunManifest, source: &Source) -> Option<StandSpe
         .and_then(|given_s| StandSpeed::of(d, given_s))
 }
 
-/// Fails `d` when its odometer's speed reads steady and not 0 over the static start the
-/// manifest gives, in a log whose speeds spread as a drive's ([`StandSpeed::drove`]):
+/// Fails when the odometer's speed reads steady and not 0 over the static start the
+/// manifest gives (`stand`), in a log whose speeds spread as a drive's ([`StandSpeed::drove`]):
 /// its readings' zero is off (a speed decoded with a wrong offset), named with the speed
 /// to subtract. Before the travel's check, which an offset below zero turns into
 /// backward travel.
-pub fn check_stand_speed(d: &Derived, m: &RunManifest, file: Option<&Path>) -> anyhow::Result<()> {
+pub fn check_stand_speed(
+    stand: Option<&StandSpeed>,
+    m: &RunManifest,
+    file: Option<&Path>,
+) -> anyhow::Result<()> {
     let source = Source::of(m, file);
-    let Some(s) = stand_speed(d, m, &source).filter(StandSpeed::drove) else {
+    let Some(s) = stand.filter(|s| s.drove()) else {
         return Ok(());
     };
     let offset_mps = s.mean_mps.abs();
@@ -95,14 +100,18 @@ pub fn check_stand_speed(d: &Derived, m: &RunManifest, file: Option<&Path>) -> a
     )
 }
 
-/// Fails `d` when its odometer's speed reads steady and not 0 over the static start the
-/// manifest gives and barely changes over the whole log ([`StandSpeed::drove`] not): no
+/// Fails when the odometer's speed reads steady and not 0 over the static start the
+/// manifest gives (`stand`) and barely changes over the whole log ([`StandSpeed::drove`] not): no
 /// speed at all (a column of a temperature, or flat near the vehicle's speed in its
 /// turns, which the axes' check takes for one). After the axes' check, whose verdict on
 /// a flat column names the gain its turns show.
-pub fn check_stand_flat(d: &Derived, m: &RunManifest, file: Option<&Path>) -> anyhow::Result<()> {
+pub fn check_stand_flat(
+    stand: Option<&StandSpeed>,
+    m: &RunManifest,
+    file: Option<&Path>,
+) -> anyhow::Result<()> {
     let source = Source::of(m, file);
-    let Some(s) = stand_speed(d, m, &source).filter(|s| !s.drove()) else {
+    let Some(s) = stand.filter(|s| !s.drove()) else {
         return Ok(());
     };
     bail!(
