@@ -67,7 +67,7 @@ pub fn stand_speed(d: &Derived, m: &RunManifest, file: Option<&Path>) -> Option<
 }
 
 /// Fails when the odometer's speed reads steady and not 0 over the static start the
-/// manifest gives (`stand`), in a log whose speeds spread as a drive's ([`StandSpeed::drove`]):
+/// manifest gives (`stand`), as an offset of every reading ([`StandSpeed::is_offset`]):
 /// its readings' zero is off (a speed decoded with a wrong offset), named with the speed
 /// to subtract. Before the travel's check, which an offset below zero turns into
 /// backward travel.
@@ -77,7 +77,7 @@ pub fn check_stand_speed(
     file: Option<&Path>,
 ) -> anyhow::Result<()> {
     let source = Source::of(m, file);
-    let Some(s) = stand.filter(|s| s.drove()) else {
+    let Some(s) = stand.filter(|s| s.is_offset()) else {
         return Ok(());
     };
     let offset_mps = s.mean_mps.abs();

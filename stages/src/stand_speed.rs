@@ -10,6 +10,10 @@
 //! high were read by the turns as "about 1.3 m/s" ([`crate::imu_axes::SpeedOffset`]);
 //! 3 m/s low failed as a sign to check ("runs backward over 55 % of its travel").
 //!
+//! An offset is the floor of every reading: the vehicle's speed is never below zero but
+//! in a reversing manoeuvre's seconds. A logger that held its last speed through the
+//! stand reads 0 at the drive's stops, below it, and is not taken for one.
+//!
 //! The stand's first half is read: a crew's static start is approximate at its end (the
 //! vehicle pulling away a little before it), never at the log's start. A speed that
 //! barely changes over the whole log as well is no speed at all, not an offset: a column
@@ -34,6 +38,15 @@ pub const MIN_DRIVE_SIGMA_MPS: f64 = 1.0;
 /// [`MOVE_WINDOW_S`]); a sensor's noise at rest reads less.
 pub const MIN_OFFSET_MPS: f64 = MOVED_M / MOVE_WINDOW_S;
 
+/// Readings of the log below the stand's speed by more than this, m/s, are the vehicle's
+/// speed below zero if the stand's is an offset: a reversing manoeuvre's, or none.
+pub const BELOW_STAND_MPS: f64 = 0.1;
+
+/// Largest share of the log's readings below the stand's speed ([`BELOW_STAND_MPS`]) for
+/// it to be an offset: a parking manoeuvre's seconds. A logger that held its last speed
+/// through the stand (0.56 m/s, say) and reads 0 at the drive's stops is no offset.
+pub const MAX_BELOW_SHARE: f64 = 0.01;
+
 /// A steady speed read over the static start given.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StandSpeed {
@@ -47,36 +60,48 @@ pub struct StandSpeed {
     pub sigma_mps: f64,
     /// Spread (σ) of the speeds over the whole log, m/s.
     pub log_sigma_mps: f64,
+    /// Share of the log's readings below the stand's speed ([`BELOW_STAND_MPS`]).
+    pub below_share: f64,
 }
 
 impl StandSpeed {
     /// The speed of `d`'s odometer over the first half of the static start `given_s`,
     /// when it is steady ([`STEADY_SIGMA_MPS`]) at [`MIN_OFFSET_MPS`] or more either
-    /// way; `None` for a static start under [`MIN_STATIC_S`].
+    /// way, with the whole log's spread and its share of readings below it (read only
+    /// then); `None` for a static start under [`MIN_STATIC_S`].
     pub fn of(d: &Derived, given_s: f64) -> Option<Self> {
         if given_s < MIN_STATIC_S {
             return None;
         }
         let read_s = given_s / 2.0;
-        let speeds = (d.odo_dist_m.iter().zip(d.dt_s.iter()))
-            .map(|(dd_m, dt_s)| dd_m / dt_s)
-            .enumerate()
-            .filter(|(_, v)| v.is_finite());
-        let (mut stand, mut log) = (Spread::default(), Spread::default());
-        for (k, v) in speeds {
-            if d.t_s.get(k) <= read_s {
-                stand.push(v);
-            }
-            log.push(v);
-        }
+        // The readings as speeds, m/s, the first `n` of them.
+        let speeds = |n: usize| {
+            (d.odo_dist_m.iter().zip(d.dt_s.iter()))
+                .take(n)
+                .map(|(dd_m, dt_s)| dd_m / dt_s)
+                .filter(|v| v.is_finite())
+        };
+        // The stand first: most logs read 0 there, and are read no further.
+        let stood = d.t_s.iter().take_while(|&t_s| t_s <= read_s).count();
+        let mut stand = Spread::default();
+        speeds(stood).for_each(|v| stand.push(v));
         let (mean_mps, sigma_mps) = stand.mean_sigma()?;
+        if mean_mps.abs() < MIN_OFFSET_MPS || sigma_mps > STEADY_SIGMA_MPS {
+            return None;
+        }
+        let (mut log, mut below) = (Spread::default(), 0.0);
+        for v in speeds(usize::MAX) {
+            log.push(v);
+            below += f64::from(u8::from(v < mean_mps - BELOW_STAND_MPS));
+        }
         let (_, log_sigma_mps) = log.mean_sigma()?;
-        (mean_mps.abs() >= MIN_OFFSET_MPS && sigma_mps <= STEADY_SIGMA_MPS).then_some(Self {
+        Some(Self {
             given_s,
             read_s,
             mean_mps,
             sigma_mps,
             log_sigma_mps,
+            below_share: below / log.n,
         })
     }
 
@@ -84,6 +109,13 @@ impl StandSpeed {
     /// stand's speed is then an offset of them; else the odometer is no speed.
     pub fn drove(&self) -> bool {
         self.log_sigma_mps >= MIN_DRIVE_SIGMA_MPS
+    }
+
+    /// Whether the stand's speed is an offset of every reading: the log's speeds spread
+    /// as a drive's ([`Self::drove`]) and hardly any reads below it
+    /// ([`MAX_BELOW_SHARE`]).
+    pub fn is_offset(&self) -> bool {
+        self.drove() && self.below_share <= MAX_BELOW_SHARE
     }
 }
 
@@ -144,7 +176,10 @@ mod tests {
             let s = StandSpeed::of(&log(60_000, |t| drive(t) + offset), 100.0).unwrap();
             assert!((s.mean_mps - offset).abs() < 1e-3, "{offset}: {s:?}");
             assert!(s.sigma_mps < 1e-9 && s.read_s == 50.0, "{offset}: {s:?}");
-            assert!(s.drove() && (4.0..5.0).contains(&s.log_sigma_mps), "{s:?}");
+            assert!(
+                s.is_offset() && (4.0..5.0).contains(&s.log_sigma_mps),
+                "{s:?}"
+            );
         }
         assert_eq!(StandSpeed::of(&log(60_000, drive), 100.0), None);
         let noise = |t: f64| drive(t) + 0.04 * ((t * 7919.0) % 1.0);
@@ -158,6 +193,10 @@ mod tests {
         };
         assert_eq!(StandSpeed::of(&log(60_000, creep), 100.0), None);
         assert_eq!(StandSpeed::of(&log(60_000, |t| drive(t) + 3.0), 4.0), None);
+        // A logger that held 0.56 m/s through the stand and reads 0 at the drive's stops.
+        let held = |t: f64| if t < 100.0 { 0.56 } else { drive(t) };
+        let s = StandSpeed::of(&log(60_000, held), 100.0).unwrap();
+        assert!(s.drove() && !s.is_offset() && s.below_share > 0.1, "{s:?}");
         for flat in [21.5, 5.0] {
             let s = StandSpeed::of(&log(60_000, |_| flat), 100.0).unwrap();
             assert!(!s.drove() && s.log_sigma_mps < 1e-9, "{s:?}");
