@@ -81,21 +81,16 @@ pub fn check_stand_speed(
         return Ok(());
     };
     let offset_mps = s.mean_mps.abs();
+    let read = stand_read(&source, s);
     let (adds, mend) = if s.mean_mps > 0.0 {
         ("adds", format!("subtract {offset_mps:.2} m/s from each"))
     } else {
         ("takes", format!("add {offset_mps:.2} m/s to each"))
     };
     bail!(
-        "{} reads {:.2} m/s, steady (σ {:.3} m/s), over the first {:.0} s of the static start \
-         given (static_s = {} s), where the vehicle stood: its readings' zero is off (a speed \
-         decoded with a wrong offset?), which {adds} {offset_mps:.2} m/s to every reading of \
-         the drive. {} ({mend}), or set static_s to the time the vehicle stood if it drove",
-        source.name(),
-        s.mean_mps,
-        s.sigma_mps,
-        s.read_s,
-        s.given_s,
+        "{read}: its readings' zero is off (a speed decoded with a wrong offset?), which \
+         {adds} {offset_mps:.2} m/s to every reading of the drive. {} ({mend}), or set \
+         static_s to the time the vehicle stood if it drove",
         offset_fix(&source),
     )
 }
@@ -115,17 +110,26 @@ pub fn check_stand_flat(
         return Ok(());
     };
     bail!(
+        "{}, and barely changes over the whole log (σ {:.2} m/s, where a drive's speeds \
+         spread {MIN_DRIVE_SIGMA_MPS} m/s or more): it is not the vehicle's speed. {}",
+        stand_read(&source, s),
+        s.log_sigma_mps,
+        not_speed_fix(&source, m.odometer.value_column.unwrap_or(2)),
+    )
+}
+
+/// What `source` read over the static start given: "the odometer file … reads 1.00 m/s,
+/// steady (σ 0.000 m/s), over the first 250 s of the static start given (static_s = 500
+/// s), where the vehicle stood".
+fn stand_read(source: &Source, s: &StandSpeed) -> String {
+    format!(
         "{} reads {:.2} m/s, steady (σ {:.3} m/s), over the first {:.0} s of the static start \
-         given (static_s = {} s), where the vehicle stood, and barely changes over the whole \
-         log (σ {:.2} m/s, where a drive's speeds spread {MIN_DRIVE_SIGMA_MPS} m/s or more): \
-         it is not the vehicle's speed. {}",
+         given (static_s = {} s), where the vehicle stood",
         source.name(),
         s.mean_mps,
         s.sigma_mps,
         s.read_s,
         s.given_s,
-        s.log_sigma_mps,
-        not_speed_fix(&source, m.odometer.value_column.unwrap_or(2)),
     )
 }
 
@@ -320,6 +324,10 @@ pub fn check_overlap(
         format!(", before [derive] odo_time_offset_s = {offset_s} is added")
     };
     let lines = report.odometer_file.as_ref();
+    // A file that rolled over itself has tags the ingest moved: one shift written into
+    // the file would not bring its rows before and after the rollover alike, and none is
+    // named.
+    let rolled_over = lines.is_some_and(|l| l.week_rollovers + l.day_rollovers > 0);
     let why = if let Some(l) = lines.filter(|l| l.lines_rejected >= l.lines_accepted) {
         format!(
             "the ingest rejected {} of its {} lines (ingest_events.json gives their lines and \
@@ -342,14 +350,11 @@ pub fn check_overlap(
             "{log} time tags read in {name} would run t_s = {a:.2} to {b:.2}: write them in seconds"
         )
     } else if let Some(said) = on_unix_clock([o0, o1], [i0, i1])
-        // A file that rolled over itself: as below.
-        && lines.is_none_or(|l| l.week_rollovers + l.day_rollovers == 0)
+        && !rolled_over
     {
         said
     } else if let Some(shift_s) = whole_hours_apart_s([o0, o1], [i0, i1])
-        // A file that rolled over itself has tags the ingest moved: one shift written
-        // into the file would not bring its rows before and after the rollover alike.
-        && lines.is_none_or(|l| l.week_rollovers + l.day_rollovers == 0)
+        && !rolled_over
     {
         let (apart, in_weeks) = shift_named(shift_s);
         let (to_hour, why) = if in_weeks {

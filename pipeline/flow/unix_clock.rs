@@ -12,11 +12,11 @@
 use chrono::DateTime;
 use unz_formats::kfgins::GPS_WEEK_S;
 
-/// Unix time at GPS time's start (6 January 1980, 00:00 UTC), s: 3 657 days.
-pub const GPS_EPOCH_UNIX_S: f64 = 315_964_800.0;
-
 /// Whole days from Unix time's start to GPS time's.
 const GPS_EPOCH_DAYS: u64 = 3_657;
+
+/// Unix time at GPS time's start (6 January 1980, 00:00 UTC), s: 315 964 800.
+pub const GPS_EPOCH_UNIX_S: f64 = GPS_EPOCH_DAYS as f64 * 86_400.0;
 
 /// The Unix times from which GPS time runs one more second ahead of UTC: the leap
 /// seconds since GPS time's start (IERS Bulletin C; none after the end of 2016).

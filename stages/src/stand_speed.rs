@@ -89,10 +89,12 @@ impl StandSpeed {
         if mean_mps.abs() < MIN_OFFSET_MPS || sigma_mps > STEADY_SIGMA_MPS {
             return None;
         }
-        let (mut log, mut below) = (Spread::default(), 0.0);
+        let (mut log, mut below) = (Spread::default(), 0_usize);
         for v in speeds(usize::MAX) {
             log.push(v);
-            below += f64::from(u8::from(v < mean_mps - BELOW_STAND_MPS));
+            if v < mean_mps - BELOW_STAND_MPS {
+                below += 1;
+            }
         }
         let (_, log_sigma_mps) = log.mean_sigma()?;
         Some(Self {
@@ -101,7 +103,7 @@ impl StandSpeed {
             mean_mps,
             sigma_mps,
             log_sigma_mps,
-            below_share: below / log.n,
+            below_share: below as f64 / log.n,
         })
     }
 
