@@ -942,7 +942,7 @@ pub fn odometer_blocks(out: &mut Derived, raw: &RawSeries<'_>, offset_s: f64, lp
 /// [`odometer_blocks`] of the odometer's `increments` over each sample, m.
 fn odometer_blocks_from(out: &mut Derived, increments: Vec<f64>, lp: &LowPass) {
     [out.u_dot_f, out.ru_f, out.r_moving_f, out.moving_dot_f] =
-        odometer_blocks_split(out, lp, true, |k| {
+        odometer_blocks_split(out, lp, OdoBlockSeries::ALL, |k| {
             increments[k.min(increments.len())..].iter().copied()
         });
     out.odo_dist_m = increments;
@@ -964,15 +964,15 @@ pub fn odometer_blocks_of(out: &mut Derived, increments: impl Iterator<Item = f6
 /// (about 14 minutes at 100 Hz).
 pub const SPLIT_BLOCKS: usize = 8192;
 
-/// F's block series of the odometer's part of `d` ([`odometer_blocks_of`]'s, u̇'s left
-/// empty unless `u_dot`), the increments from sample `k` on given by `increments_from(k)`:
+/// F's block series of the odometer's part of `d` ([`odometer_blocks_of`]'s, those
+/// `series` leaves out empty), the increments from sample `k` on given by `increments_from(k)`:
 /// the run is split into stretches of whole blocks taken side by side on rayon's threads
 /// (each stretch resumes from the increment before its first sample), the same, bit for
 /// bit, as one walk.
 pub fn odometer_blocks_split<I, F>(
     d: &Derived,
     lp: &LowPass,
-    u_dot: bool,
+    series: OdoBlockSeries,
     increments_from: F,
 ) -> [Vec<f64>; 4]
 where
@@ -981,14 +981,14 @@ where
 {
     let blocks = lp.blocks(d.t_s.len());
     let parts = rayon::current_num_threads().min(blocks / SPLIT_BLOCKS);
-    odometer_blocks_in_parts(d, lp, u_dot, increments_from, parts)
+    odometer_blocks_in_parts(d, lp, series, increments_from, parts)
 }
 
 /// [`odometer_blocks_split`] in `parts` stretches (at least one, at most one a block).
 fn odometer_blocks_in_parts<I, F>(
     d: &Derived,
     lp: &LowPass,
-    u_dot: bool,
+    series: OdoBlockSeries,
     increments_from: F,
     parts: usize,
 ) -> [Vec<f64>; 4]
@@ -1007,7 +1007,7 @@ where
             let (from, to) = (first * lp.block, (last * lp.block).min(n));
             // The first stretch is sized for all of them: the others are appended to it.
             let room = if p == 0 { blocks } else { last - first };
-            let mut b = OdometerBlocks::sized(d, lp, u_dot, room);
+            let mut b = OdometerBlocks::sized(d, lp, series, room);
             let mut increments = increments_from(from.saturating_sub(1));
             if from > 0 {
                 b.resume_after(from, increments.next().unwrap_or(0.0));
@@ -1049,25 +1049,74 @@ pub struct OdometerBlocks<'d> {
     prev: (f64, f64),
     /// u̇'s, unless left out.
     u_dot: Option<crate::filter::BlockMeans<1>>,
+    /// ru's, with or without the odometer-bias sensitivities'.
+    turns: TurnMeans,
+}
+
+/// Which of the odometer's block series a walk takes: ru's always, u̇'s and the
+/// odometer-bias sensitivities' (r while moving, the rate of change of "moving") when
+/// asked; a series left out comes out empty.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OdoBlockSeries {
+    /// u̇'s.
+    pub u_dot: bool,
+    /// r while moving's and the rate of change of "moving"'s: what the odometer's speed
+    /// bias moves the references by ([`epochs_of`] takes 0 for a series left out).
+    pub bias: bool,
+}
+
+impl OdoBlockSeries {
+    /// Every series: the derive's.
+    pub const ALL: Self = Self {
+        u_dot: true,
+        bias: true,
+    };
+
+    /// Those a derive with its odometer moved makes anew (u̇'s is the configured
+    /// derive's, moved in time), the bias sensitivities' only when `bias`.
+    pub fn moved(bias: bool) -> Self {
+        Self { u_dot: false, bias }
+    }
+
+    /// How many series of block means a walk holds.
+    pub fn count(self) -> usize {
+        1 + usize::from(self.u_dot) + 2 * usize::from(self.bias)
+    }
+}
+
+/// The block means of ru, and of the odometer-bias sensitivities unless left out.
+#[derive(Debug, Clone)]
+enum TurnMeans {
     /// ru's, r while moving's and the rate of change of "moving"'s.
-    rest: crate::filter::BlockMeans<3>,
+    WithBias(crate::filter::BlockMeans<3>),
+    /// ru's alone.
+    Ru(crate::filter::BlockMeans<1>),
 }
 
 impl<'d> OdometerBlocks<'d> {
     /// The blocks of `d`'s odometer part, from its IMU's intervals and yaw rates.
     pub fn new(d: &'d Derived, lp: &LowPass) -> Self {
-        Self::sized(d, lp, true, lp.blocks(d.t_s.len()))
+        Self::sized(d, lp, OdoBlockSeries::ALL, lp.blocks(d.t_s.len()))
     }
 
-    /// [`Self::new`] (u̇'s blocks only when `u_dot`) with room for `blocks` blocks.
-    pub(crate) fn sized(d: &'d Derived, lp: &LowPass, u_dot: bool, blocks: usize) -> Self {
+    /// [`Self::new`] of `series` only, with room for `blocks` blocks.
+    pub(crate) fn sized(
+        d: &'d Derived,
+        lp: &LowPass,
+        series: OdoBlockSeries,
+        blocks: usize,
+    ) -> Self {
+        use crate::filter::BlockMeans;
         Self {
             dt_s: &d.dt_s,
             dtheta_rad: &d.dtheta_rad,
             k: 0,
             prev: (0.0, 0.0),
-            u_dot: u_dot.then(|| crate::filter::BlockMeans::new(lp.block, blocks)),
-            rest: crate::filter::BlockMeans::new(lp.block, blocks),
+            u_dot: series.u_dot.then(|| BlockMeans::new(lp.block, blocks)),
+            turns: match series.bias {
+                true => TurnMeans::WithBias(BlockMeans::new(lp.block, blocks)),
+                false => TurnMeans::Ru(BlockMeans::new(lp.block, blocks)),
+            },
         }
     }
 
@@ -1146,8 +1195,10 @@ impl<'d> OdometerBlocks<'d> {
             u_dot.push([u_dot_mps2]);
         }
         self.prev = (u_mps, moving);
-        self.rest
-            .push([r_rad_s * u_mps, r_rad_s * moving, moving_dot]);
+        match &mut self.turns {
+            TurnMeans::WithBias(m) => m.push([r_rad_s * u_mps, r_rad_s * moving, moving_dot]),
+            TurnMeans::Ru(m) => m.push([r_rad_s * u_mps]),
+        }
     }
 
     /// The next sample it takes.
@@ -1155,10 +1206,16 @@ impl<'d> OdometerBlocks<'d> {
         self.k
     }
 
-    /// The block means, unfiltered (u̇'s empty when left out).
+    /// The block means, unfiltered (those left out empty).
     pub(crate) fn means(self) -> [Vec<f64>; 4] {
         let [u_dot] = self.u_dot.map_or_else(|| [Vec::new()], |m| m.finish());
-        let [ru, r_moving, moving_dot] = self.rest.finish();
+        let [ru, r_moving, moving_dot] = match self.turns {
+            TurnMeans::WithBias(m) => m.finish(),
+            TurnMeans::Ru(m) => {
+                let [ru] = m.finish();
+                [ru, Vec::new(), Vec::new()]
+            }
+        };
         [u_dot, ru, r_moving, moving_dot]
     }
 
@@ -1823,16 +1880,26 @@ mod tests {
         let moved_increments: Vec<f64> = moved.increments().collect();
         let moved_whole = whole(&d, &moved_increments);
         for parts in [1, 2, 3, 7] {
-            let split = odometer_blocks_in_parts(&d, &lp, true, from, parts);
+            let split = odometer_blocks_in_parts(&d, &lp, OdoBlockSeries::ALL, from, parts);
             for (a, b) in split.iter().zip(&stored) {
                 assert_eq!(bits(a), bits(b), "{parts} stretches");
             }
+            let moved_from = |k| moved.increments_from(k);
             let split =
-                odometer_blocks_in_parts(&d, &lp, false, |k| moved.increments_from(k), parts);
+                odometer_blocks_in_parts(&d, &lp, OdoBlockSeries::moved(true), moved_from, parts);
             assert!(split[0].is_empty());
             for (a, b) in split.iter().zip(&moved_whole).skip(1) {
                 assert_eq!(bits(a), bits(b), "{parts} stretches, moved");
             }
+            // Without the bias sensitivities: ru's the same, the others empty.
+            let ru_only =
+                odometer_blocks_in_parts(&d, &lp, OdoBlockSeries::moved(false), moved_from, parts);
+            assert_eq!(
+                bits(&ru_only[1]),
+                bits(&moved_whole[1]),
+                "{parts} stretches"
+            );
+            assert!([0, 2, 3].iter().all(|&i| ru_only[i].is_empty()));
         }
         assert!(stored[3].iter().any(|&v| v != 0.0), "the drive stops");
     }

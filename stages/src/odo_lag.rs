@@ -33,8 +33,8 @@ use std::cell::RefCell;
 use std::sync::{Mutex, OnceLock};
 
 use crate::derive::{
-    DeriveParams, Derived, MovedOdometer, OdoIncrements, OdoTimes, OdometerBlocks, RawSeries,
-    derive, epochs_of, filtered_stretches, odometer_blocks_split, shifted_blocks,
+    DeriveParams, Derived, MovedOdometer, OdoBlockSeries, OdoIncrements, OdoTimes, OdometerBlocks,
+    RawSeries, derive, epochs_of, filtered_stretches, odometer_blocks_split, shifted_blocks,
 };
 use crate::disupt::{
     DisuptError, DisuptParams, JointFit, JointOptions, Problem, ProblemSpec, joint_fit,
@@ -183,9 +183,10 @@ impl<'a> Rederive<'a> {
         // The increments, kept, are read once: the blocks take them from memory.
         let odo_dist_m: Vec<f64> = self.odometer_at(lag_s).increments().collect();
         let lp = self.low_pass();
-        let blocks = odometer_blocks_split(self.configured(), &lp, false, |k| {
-            odo_dist_m.get(k..).unwrap_or_default().iter().copied()
-        });
+        let blocks =
+            odometer_blocks_split(self.configured(), &lp, OdoBlockSeries::moved(true), |k| {
+                odo_dist_m.get(k..).unwrap_or_default().iter().copied()
+            });
         let mut d = self.moved_derive_of(lag_s, blocks, &lp);
         d.odo_dist_m = odo_dist_m;
         d
@@ -195,14 +196,21 @@ impl<'a> Rederive<'a> {
     /// from the returned odometer as a pass goes.
     pub fn at_moved(&self, lag_s: f64) -> (Derived, MovedOdometer<'_>) {
         let odometer = self.odometer_at(lag_s);
-        (self.moved_derive(lag_s, &odometer), odometer)
+        let d = self.moved_derive(lag_s, &odometer, OdoBlockSeries::moved(true));
+        (d, odometer)
     }
 
     /// The derive at `lag_s` (its block series and epochs) of `odometer`, the odometer
-    /// `lag_s` later: [`Rederive::at_moved`]'s.
-    fn moved_derive(&self, lag_s: f64, odometer: &MovedOdometer<'_>) -> Derived {
+    /// `lag_s` later, with the odometer's block `series` ([`OdoBlockSeries::moved`]):
+    /// [`Rederive::at_moved`]'s.
+    fn moved_derive(
+        &self,
+        lag_s: f64,
+        odometer: &MovedOdometer<'_>,
+        series: OdoBlockSeries,
+    ) -> Derived {
         let lp = self.low_pass();
-        let blocks = odometer_blocks_split(self.configured(), &lp, false, |k| {
+        let blocks = odometer_blocks_split(self.configured(), &lp, series, |k| {
             odometer.increments_from(k)
         });
         self.moved_derive_of(lag_s, blocks, &lp)
@@ -230,6 +238,8 @@ impl<'a> Rederive<'a> {
     /// [`Rederive::at_moved`] at each of `lags` but for its block series (a trial's
     /// problem reads the epochs they make), with each odometer's segments over `plan`
     /// (the sums `columns` asks for), all of them in one walk over the IMU's samples.
+    /// The epochs' odometer-bias sensitivities are made only when `bias` (else 0: a fit
+    /// that holds the bias reads them times 0).
     /// With [`TrialWalks::Fused`], each odometer's increments, read once, feed its
     /// segments and its blocks (the walk's stretches start at block boundaries; should one
     /// not, or a stretch not follow on from the one before, that odometer's blocks are read
@@ -240,10 +250,12 @@ impl<'a> Rederive<'a> {
         lags: &[f64],
         plan: &SegmentPlan,
         columns: OdoColumns,
+        bias: bool,
         walks: TrialWalks,
     ) -> Vec<(Derived, MovedOdometer<'_>, OdoSegments)> {
+        let series = OdoBlockSeries::moved(bias);
         if walks == TrialWalks::Apart {
-            return self.at_moved_apart(lags, plan, columns);
+            return self.at_moved_apart(lags, plan, columns, series);
         }
         let base = self.configured();
         let lp = self.low_pass();
@@ -258,7 +270,7 @@ impl<'a> Rederive<'a> {
             plan,
             false,
             odometers.len(),
-            |v, k| Tee::new(base, &lp, &odometers[v], k, &stretches[v]),
+            |v, k| Tee::new(base, &lp, series, &odometers[v], k, &stretches[v]),
             columns,
             lp.block,
         );
@@ -273,7 +285,7 @@ impl<'a> Rederive<'a> {
                         filtered_stretches(blocks.into_iter().map(OdometerBlocks::means), &lp)
                     }
                     None => {
-                        odometer_blocks_split(base, &lp, false, |k| odometer.increments_from(k))
+                        odometer_blocks_split(base, &lp, series, |k| odometer.increments_from(k))
                     }
                 };
                 // A trial's problem reads the epochs, not the block series (14 MB a
@@ -293,13 +305,16 @@ impl<'a> Rederive<'a> {
         lags: &[f64],
         plan: &SegmentPlan,
         columns: OdoColumns,
+        series: OdoBlockSeries,
     ) -> Vec<(Derived, MovedOdometer<'_>, OdoSegments)> {
         let base = self.configured();
         let (derives, odometers): (Vec<Derived>, Vec<MovedOdometer<'_>>) = lags
             .iter()
             .map(|&lag_s| {
                 let odometer = self.odometer_at(lag_s);
-                let d = self.moved_derive(lag_s, &odometer).without_block_series();
+                let d = self
+                    .moved_derive(lag_s, &odometer, series)
+                    .without_block_series();
                 (d, odometer)
             })
             .unzip();
@@ -345,15 +360,23 @@ pub enum TrialWalks {
     Apart,
 }
 
-/// Samples of a run up to which the lag search's trials read their odometers once
-/// ([`TrialWalks::Fused`]: two hours at 100 Hz, where the trials' block series held
-/// together are about 5 MB; at 12 hours they added 28 MiB to `unz run`'s peak).
-pub const FUSED_WALK_MAX_SAMPLES: usize = 720_000;
+/// The unfiltered block series a round of trials may hold together for the lag search to
+/// read their odometers once ([`TrialWalks::Fused`]), bytes. A 12-hour run at 100 Hz
+/// holds 10.4 MB for three trials of ru's series alone (the disupt stage's peak, at the
+/// hold-out after them, the same); with the odometer-bias sensitivities too it would hold
+/// 31 MB (measured: 21 MiB more at the stage's peak), so those trials read their
+/// odometers once up to 6.5 hours, and twice beyond.
+pub const FUSED_WALK_MAX_BYTES: usize = 16 << 20;
 
 impl TrialWalks {
-    /// The walks for a run of `samples` samples ([`FUSED_WALK_MAX_SAMPLES`]).
-    pub fn for_samples(samples: usize) -> Self {
-        if samples <= FUSED_WALK_MAX_SAMPLES {
+    /// The walks for `trials` trials on a run of `blocks` blocks, each trial with the
+    /// block `series` ([`FUSED_WALK_MAX_BYTES`]).
+    pub fn for_trials(trials: usize, blocks: usize, series: OdoBlockSeries) -> Self {
+        let held_bytes = trials
+            .saturating_mul(series.count())
+            .saturating_mul(blocks)
+            .saturating_mul(std::mem::size_of::<f64>());
+        if held_bytes <= FUSED_WALK_MAX_BYTES {
             TrialWalks::Fused
         } else {
             TrialWalks::Apart
@@ -377,16 +400,17 @@ struct Tee<'s, 'a> {
 }
 
 impl<'s, 'a> Tee<'s, 'a> {
-    /// `odometer`'s increments from sample `start` on, for the blocks of `base`'s IMU
-    /// (F `lp`) and `out`.
+    /// `odometer`'s increments from sample `start` on, for the block `series` of `base`'s
+    /// IMU (F `lp`) and `out`.
     fn new(
         base: &'a Derived,
         lp: &LowPass,
+        series: OdoBlockSeries,
         odometer: &MovedOdometer<'a>,
         start: usize,
         out: &'s Mutex<Vec<BlockStretch<'a>>>,
     ) -> Self {
-        let mut blocks = OdometerBlocks::sized(base, lp, false, lp.blocks(base.t_s.len()));
+        let mut blocks = OdometerBlocks::sized(base, lp, series, lp.blocks(base.t_s.len()));
         // From the sample before, as the derive's stretches resume (the same increments,
         // bit for bit, from wherever they are read).
         let mut rest = odometer.increments_from(start.saturating_sub(1));
@@ -485,14 +509,16 @@ impl Profile<'_> {
         let x = x_of(&warm.p_ref);
         let columns = OdoColumns::read_by(&[self.spec.settings_of(&x)]);
         let plan = self.spec.moved_segment_plan(self.rederive.configured());
+        // The bias sensitivities only for a fit that frees the bias.
+        let bias = self.fit0.free.contains(&Setting::OdoBias);
+        let blocks = self
+            .rederive
+            .low_pass()
+            .blocks(self.rederive.configured().t_s.len());
+        let walks = TrialWalks::for_trials(new.len(), blocks, OdoBlockSeries::moved(bias));
         let (derives, segments): (Vec<(Derived, MovedOdometer<'_>)>, Vec<OdoSegments>) = self
             .rederive
-            .at_moved_with_segments(
-                &new,
-                &plan,
-                columns,
-                TrialWalks::for_samples(self.rederive.configured().t_s.len()),
-            )
+            .at_moved_with_segments(&new, &plan, columns, bias, walks)
             .into_iter()
             .map(|(mut d, odometer, segments)| {
                 // The same epochs at every trial: the gate moves with the lag, and an

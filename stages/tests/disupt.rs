@@ -390,7 +390,9 @@ fn a_problem_reading_its_odometer_as_it_goes_observes_what_the_stored_derive_giv
                 .num_threads(threads)
                 .build()
                 .unwrap()
-                .install(|| rederive.at_moved_with_segments(&[lag_s, 0.1], &plan, columns, walks))
+                .install(|| {
+                    rederive.at_moved_with_segments(&[lag_s, 0.1], &plan, columns, true, walks)
+                })
         };
         let mut both = walk(TrialWalks::Apart, 2);
         for (walks, threads) in [(TrialWalks::Fused, 1), (TrialWalks::Fused, 2)] {
@@ -462,6 +464,109 @@ fn a_problem_reading_its_odometer_as_it_goes_observes_what_the_stored_derive_giv
     assert!(
         positions[0] != positions[1] && positions[1] != positions[2],
         "the lag moves the stops"
+    );
+}
+
+/// A lag trial made without the odometer-bias sensitivities (ru's blocks alone: a third
+/// of the block series a round of trials holds, so that a 12-hour run's trials read their
+/// odometers once) scores as one made with them, bit for bit, when the fit holds the bias:
+/// the epochs' references and segments are the same, the sensitivities 0 (read times 0).
+#[test]
+fn a_lag_trial_without_the_bias_sensitivities_scores_the_same_when_the_fit_holds_the_bias() {
+    use unz_stages::derive::OdoBlockSeries;
+    use unz_stages::linearized::{Linearization, Setting};
+    use unz_stages::strapdown::segments::OdoColumns;
+
+    let c = case(44, SensorErrors::ALL);
+    let (odo_t_ns, odo_m) = c.raw_odometer();
+    let params = DeriveParams::default();
+    let g = unz_stages::earth::normal_gravity_mps2(c.run.site.lat_rad, c.run.site.h_m);
+    let rederive = Rederive::of_odometer(&c.derived, &odo_t_ns, &odo_m, params, g);
+    let spec = ProblemSpec {
+        settings: c.manifest_settings(),
+        filter: params.filter,
+        kalman: KalmanParams::default(),
+        fixes: &c.fixes,
+        excluded_cps: &[],
+        drift_z_prior_deg_h: None,
+    };
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let base = spec.on(&c.derived);
+    let dparams = DisuptParams::default();
+    let fit0 = joint_fit(&base, &dparams, &JointOptions::default()).unwrap();
+    assert!(!fit0.free.contains(&Setting::OdoBias), "{:?}", fit0.free);
+    let warm = fit0.linearization();
+    let x = unz_stages::disupt::x_of(&warm.p_ref);
+    let columns = OdoColumns::read_by(&[spec.settings_of(&x)]);
+    let plan = spec.moved_segment_plan(&c.derived);
+    let lags_s = [-0.23, 0.17];
+    let score = |bias: bool, walks: TrialWalks| {
+        let trials = rederive.at_moved_with_segments(&lags_s, &plan, columns, bias, walks);
+        let problems: Vec<Problem<'_>> = trials
+            .iter()
+            .map(|(d, odometer, segments)| {
+                spec.on_moved(d, odometer.clone())
+                    .with_moved_segments(segments.clone())
+            })
+            .collect();
+        let refs: Vec<&Problem<'_>> = problems.iter().collect();
+        let ys = observe_each(&refs, &x, &AtomicUsize::new(0));
+        let costs: Vec<f64> = problems
+            .iter()
+            .zip(ys)
+            .map(|(problem, y)| {
+                let lin = Linearization {
+                    p_ref: warm.p_ref,
+                    y_ref: y,
+                    slopes: warm.slopes.clone(),
+                };
+                fit0.linearised_cp_cost(problem, &lin).unwrap()
+            })
+            .collect();
+        (trials, costs)
+    };
+    let (with_bias, want) = score(true, TrialWalks::Fused);
+    assert!(want.iter().all(|c| c.is_finite() && *c > 0.0), "{want:?}");
+    assert!(
+        with_bias
+            .iter()
+            .any(|(d, ..)| d.epochs.theta_p_per_bias.iter().any(|&v| v != 0.0)),
+        "the drive's stops move the references with a bias"
+    );
+    for walks in [TrialWalks::Fused, TrialWalks::Apart] {
+        let (without, costs) = score(false, walks);
+        assert_eq!(bits(&costs), bits(&want), "{walks:?}");
+        for ((a, _, sa), (b, _, sb)) in with_bias.iter().zip(&without) {
+            assert!(sa == sb, "{walks:?}: segments");
+            for (x, y) in [
+                (&a.epochs.theta_p_rad, &b.epochs.theta_p_rad),
+                (&a.epochs.phi_p_rad, &b.epochs.phi_p_rad),
+                (&a.epochs.theta_p_per_yaw, &b.epochs.theta_p_per_yaw),
+                (&a.epochs.phi_p_per_yaw, &b.epochs.phi_p_per_yaw),
+            ] {
+                assert_eq!(bits(x), bits(y), "{walks:?}");
+            }
+            assert!(
+                b.epochs.theta_p_per_bias.iter().all(|&v| v == 0.0)
+                    && b.epochs.phi_p_per_bias.iter().all(|&v| v == 0.0),
+                "{walks:?}"
+            );
+        }
+    }
+    // What a round holds decides its walks: a 12-hour run's three trials of ru's blocks
+    // alone read their odometers once; with the sensitivities, apart beyond 6.5 hours.
+    let blocks_12_h = 12 * 3600 * 10;
+    assert_eq!(
+        TrialWalks::for_trials(3, blocks_12_h, OdoBlockSeries::moved(false)),
+        TrialWalks::Fused
+    );
+    assert_eq!(
+        TrialWalks::for_trials(3, blocks_12_h, OdoBlockSeries::moved(true)),
+        TrialWalks::Apart
+    );
+    assert_eq!(
+        TrialWalks::for_trials(3, 6 * 3600 * 10, OdoBlockSeries::moved(true)),
+        TrialWalks::Fused
     );
 }
 
