@@ -530,12 +530,7 @@ fn kingston_a_speed_read_with_an_offset_is_told_from_the_gyros_scale() {
 #[test]
 fn kingston_a_speed_offset_is_read_off_the_static_start() {
     let tmp = tempfile::tempdir().unwrap();
-    let shipped = tmp.path().join("shipped-o");
-    crate::util::run_until(
-        &kingston_with(&tmp.path().join("shipped"), ""),
-        &shipped,
-        "disupt",
-    );
+    let shipped = kingston_shipped_disupt(tmp.path());
     for (name, offset_mps, mend) in [
         ("1", 1.0, "subtract 1.00 m/s from each"),
         ("3", 3.0, "subtract 3.00 m/s from each"),
@@ -560,6 +555,51 @@ fn kingston_a_speed_offset_is_read_off_the_static_start() {
         crate::util::run_until(&run, &out, "disupt");
         assert_same_worst_point(&out, &shipped);
     }
+}
+
+/// Kingston's speed logger holding 0.56 m/s through the stand (its first 528 readings,
+/// where it read 0) while the drive reads 0 at its stops fails the derive naming the
+/// stretch to write 0 over; mended as said, the run is the shipped one. Before, it was
+/// neither an offset (the stops read below it) nor flat: the run went "ok" with the static
+/// start cut at once, 2.3 km off at the last control point before DISUPT, its joint fit
+/// refused (session 65's probe).
+#[test]
+fn kingston_a_speed_held_through_the_stand_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shipped = kingston_shipped_disupt(tmp.path());
+    let t0_s = kingston_speeds()[0].0;
+    let stood = kingston_speeds()
+        .iter()
+        .take_while(|(t, _)| t - t0_s < 528.0)
+        .count();
+    assert!(
+        stood == 528 && kingston_speeds()[..stood].iter().all(|(_, v)| *v == 0.0),
+        "the shipped stand reads 0"
+    );
+    let held = |t: f64, v: f64| (t, if t - t0_s < 528.0 { 0.56 } else { v });
+    let run = kingston_odometer_edited(&tmp.path().join("held"), held);
+    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("held-o"));
+    assert!(
+        err.contains(
+            "odometer.txt reads 0.56 m/s, steady (σ 0.000 m/s), over the first 250 s of the \
+             static start given (static_s = 500 s), where the vehicle stood, yet the log reads \
+             0 at the drive's stops ("
+        ) && err.contains("the stand's speed is a reading held"),
+        "{err}"
+    );
+    assert!(
+        err.contains(
+            "odometer.txt over the log's first 527 s, where it reads 0.56 m/s, if the \
+             vehicle stood, or set static_s to the time the vehicle stood if it drove"
+        ),
+        "{err}"
+    );
+    // Mended as said.
+    let said_s = crate::util::number_after(&err, "over the log's first ");
+    kingston_odometer_edited(&run, |t, v| (t, if t - t0_s <= said_s { 0.0 } else { v }));
+    let out = tmp.path().join("mended-o");
+    crate::util::run_until(&run, &out, "disupt");
+    assert_same_worst_point(&out, &shipped);
 }
 
 /// An OBD-II logger's CSV of more columns (time, engine speed, speed, a status, under a
@@ -1849,6 +1889,14 @@ fn kingston_speeds() -> Vec<(f64, f64)> {
             (v[0], v[1])
         })
         .collect()
+}
+
+/// The shipped Kingston run copied into `tmp`/shipped and run up to its disupt stage into
+/// `tmp`/shipped-o, returned.
+fn kingston_shipped_disupt(tmp: &std::path::Path) -> std::path::PathBuf {
+    let out = tmp.join("shipped-o");
+    crate::util::run_until(&kingston_with(&tmp.join("shipped"), ""), &out, "disupt");
+    out
 }
 
 /// The shipped Kingston run copied into `run` (created), `extra` added to its manifest.

@@ -193,7 +193,10 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // 21: a speed steady and not 0 over the static start given failed: an offset (a
         // run that went "ok" with 1 m/s of it is re-derived, and fails) or, barely
         // changing over the log, no speed; clocks in Unix time against GPS time named.
-        version: 21,
+        // 22: a speed held through the stand while the drive reads 0 at its stops failed
+        // (a run that went "ok" with its static start cut at once is re-derived, and
+        // fails).
+        version: 22,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,

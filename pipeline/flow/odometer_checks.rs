@@ -69,14 +69,27 @@ pub fn stand_speed(d: &Derived, m: &RunManifest, file: Option<&Path>) -> Option<
 /// Fails when the odometer's speed reads steady and not 0 over the static start the
 /// manifest gives (`stand`), as an offset of every reading ([`StandSpeed::is_offset`]):
 /// its readings' zero is off (a speed decoded with a wrong offset), named with the speed
-/// to subtract. Before the travel's check, which an offset below zero turns into
-/// backward travel.
+/// to subtract; or as a reading held while the drive reads 0 at its stops
+/// ([`StandSpeed::is_held`]), named with the stretch to write 0 over. Before the travel's
+/// check, which an offset below zero turns into backward travel.
 pub fn check_stand_speed(
     stand: Option<&StandSpeed>,
     m: &RunManifest,
     file: Option<&Path>,
 ) -> anyhow::Result<()> {
     let source = Source::of(m, file);
+    if let Some(s) = stand.filter(|s| s.is_held()) {
+        bail!(
+            "{}, yet the log reads 0 at the drive's stops ({:.1} % of its readings): the \
+             stand's speed is a reading held (a logger repeating its last one?), or the \
+             vehicle drove where it stood, and the alignment has no stand (the odometer \
+             moves from the log's first second). {}, or set static_s to the time the \
+             vehicle stood if it drove",
+            stand_read(&source, s),
+            100.0 * s.stopped_share,
+            held_fix(&source, s),
+        );
+    }
     let Some(s) = stand.filter(|s| s.is_offset()) else {
         return Ok(());
     };
@@ -116,6 +129,19 @@ pub fn check_stand_flat(
         s.log_sigma_mps,
         not_speed_fix(&source, m.odometer.value_column.unwrap_or(2)),
     )
+}
+
+/// What to write where `source` held the stand's speed `s` (from the log's start until it
+/// left it).
+fn held_fix(source: &Source, s: &StandSpeed) -> String {
+    let over = format!(
+        "over the log's first {:.0} s, where it reads {:.2} m/s, if the vehicle stood",
+        s.left_s, s.mean_mps
+    );
+    match source {
+        Source::File(file, _) => format!("Write 0 for the speeds of {} {over}", file.display()),
+        _ => format!("Write 0 in the log's 8th column {over}"),
+    }
 }
 
 /// What `source` read over the static start given: "the odometer file … reads 1.00 m/s,

@@ -12,7 +12,11 @@
 //!
 //! An offset is the floor of every reading: the vehicle's speed is never below zero but
 //! in a reversing manoeuvre's seconds. A logger that held its last speed through the
-//! stand reads 0 at the drive's stops, below it, and is not taken for one.
+//! stand reads 0 at the drive's stops, below it, and is not taken for one: its odometer
+//! reads 0 at rest, so the stand's steady speed is a reading held, or the vehicle driving
+//! where the crew gave a stand. Either way the static start is lost (the odometer shows
+//! the vehicle moving from the log's first second): Kingston's stand read 0.56 m/s ran
+//! "ok" 2.3 km off at its last control point before DISUPT, its joint fit refused.
 //!
 //! The stand's first half is read: a crew's static start is approximate at its end (the
 //! vehicle pulling away a little before it), never at the log's start. A speed that
@@ -47,6 +51,10 @@ pub const BELOW_STAND_MPS: f64 = 0.1;
 /// through the stand (0.56 m/s, say) and reads 0 at the drive's stops is no offset.
 pub const MAX_BELOW_SHARE: f64 = 0.01;
 
+/// Least share of the log's readings at 0 (within [`MIN_OFFSET_MPS`]) for its odometer to
+/// read 0 at rest: the drive's stops, a few seconds in a hundred (Kingston's 6.5 %).
+pub const MIN_STOPPED_SHARE: f64 = 0.01;
+
 /// A steady speed read over the static start given.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StandSpeed {
@@ -62,13 +70,19 @@ pub struct StandSpeed {
     pub log_sigma_mps: f64,
     /// Share of the log's readings below the stand's speed ([`BELOW_STAND_MPS`]).
     pub below_share: f64,
+    /// Share of the log's readings at 0 ([`MIN_OFFSET_MPS`]).
+    pub stopped_share: f64,
+    /// When the speed first leaves the stand's ([`BELOW_STAND_MPS`] either way), s from
+    /// the first sample; the log's last sample's time if it never does.
+    pub left_s: f64,
 }
 
 impl StandSpeed {
     /// The speed of `d`'s odometer over the first half of the static start `given_s`,
     /// when it is steady ([`STEADY_SIGMA_MPS`]) at [`MIN_OFFSET_MPS`] or more either
-    /// way, with the whole log's spread and its share of readings below it (read only
-    /// then); `None` for a static start under [`MIN_STATIC_S`].
+    /// way, with the whole log's spread, its shares of readings below it and at 0, and
+    /// when the speed leaves it (read only then); `None` for a static start under
+    /// [`MIN_STATIC_S`].
     pub fn of(d: &Derived, given_s: f64) -> Option<Self> {
         if given_s < MIN_STATIC_S {
             return None;
@@ -79,21 +93,28 @@ impl StandSpeed {
             (d.odo_dist_m.iter().zip(d.dt_s.iter()))
                 .take(n)
                 .map(|(dd_m, dt_s)| dd_m / dt_s)
-                .filter(|v| v.is_finite())
         };
         // The stand first: most logs read 0 there, and are read no further.
         let stood = d.t_s.iter().take_while(|&t_s| t_s <= read_s).count();
         let mut stand = Spread::default();
-        speeds(stood).for_each(|v| stand.push(v));
+        speeds(stood)
+            .filter(|v| v.is_finite())
+            .for_each(|v| stand.push(v));
         let (mean_mps, sigma_mps) = stand.mean_sigma()?;
         if mean_mps.abs() < MIN_OFFSET_MPS || sigma_mps > STEADY_SIGMA_MPS {
             return None;
         }
-        let (mut log, mut below) = (Spread::default(), 0_usize);
-        for v in speeds(usize::MAX) {
+        let (mut log, mut below, mut stopped) = (Spread::default(), 0_usize, 0_usize);
+        let mut left_s = None;
+        for (k, v) in speeds(d.t_s.len()).enumerate() {
+            if !v.is_finite() {
+                continue;
+            }
             log.push(v);
-            if v < mean_mps - BELOW_STAND_MPS {
-                below += 1;
+            below += usize::from(v < mean_mps - BELOW_STAND_MPS);
+            stopped += usize::from(v.abs() < MIN_OFFSET_MPS);
+            if left_s.is_none() && (v - mean_mps).abs() > BELOW_STAND_MPS {
+                left_s = Some(d.t_s.get(k));
             }
         }
         let (_, log_sigma_mps) = log.mean_sigma()?;
@@ -104,6 +125,8 @@ impl StandSpeed {
             sigma_mps,
             log_sigma_mps,
             below_share: below as f64 / log.n,
+            stopped_share: stopped as f64 / log.n,
+            left_s: left_s.or(d.t_s.last()).unwrap_or(0.0),
         })
     }
 
@@ -118,6 +141,14 @@ impl StandSpeed {
     /// ([`MAX_BELOW_SHARE`]).
     pub fn is_offset(&self) -> bool {
         self.drove() && self.below_share <= MAX_BELOW_SHARE
+    }
+
+    /// Whether the stand's speed is a reading held (or the vehicle driving where a stand
+    /// was given): the log's speeds spread as a drive's, are no offset of it
+    /// ([`Self::is_offset`]), and read 0 at the drive's stops ([`MIN_STOPPED_SHARE`]):
+    /// its odometer reads 0 at rest.
+    pub fn is_held(&self) -> bool {
+        self.drove() && !self.is_offset() && self.stopped_share >= MIN_STOPPED_SHARE
     }
 }
 
@@ -196,12 +227,39 @@ mod tests {
         assert_eq!(StandSpeed::of(&log(60_000, creep), 100.0), None);
         assert_eq!(StandSpeed::of(&log(60_000, |t| drive(t) + 3.0), 4.0), None);
         // A logger that held 0.56 m/s through the stand and reads 0 at the drive's stops.
+        // It is held: the drive reads 0 at its stops (4.9 % of the log's readings within
+        // 0.1 m/s of 0: 5.8 % of the drive's), and leaves the held speed as it pulls away
+        // at 100 s.
         let held = |t: f64| if t < 100.0 { 0.56 } else { drive(t) };
         let s = StandSpeed::of(&log(60_000, held), 100.0).unwrap();
         assert!(s.drove() && !s.is_offset() && s.below_share > 0.1, "{s:?}");
+        assert!(
+            s.is_held() && (0.045..0.055).contains(&s.stopped_share),
+            "{s:?}"
+        );
+        assert!((s.left_s - 100.0).abs() < 0.015, "{s:?}");
+        // An offset never reads 0 but at its stand; a drive that never stops held
+        // nothing it can be told by.
+        let offset = StandSpeed::of(&log(60_000, |t| drive(t) + 3.0), 100.0).unwrap();
+        assert!(
+            !offset.is_held() && offset.stopped_share == 0.0,
+            "{offset:?}"
+        );
+        let cruise = |t: f64| {
+            if t < 100.0 {
+                20.0
+            } else {
+                15.0 + drive(t) / 6.0
+            }
+        };
+        let s = StandSpeed::of(&log(60_000, cruise), 100.0).unwrap();
+        assert!(s.drove() && !s.is_offset() && !s.is_held(), "{s:?}");
         for flat in [21.5, 5.0] {
             let s = StandSpeed::of(&log(60_000, |_| flat), 100.0).unwrap();
-            assert!(!s.drove() && s.log_sigma_mps < 1e-9, "{s:?}");
+            assert!(
+                !s.drove() && s.log_sigma_mps < 1e-9 && !s.is_held(),
+                "{s:?}"
+            );
         }
     }
 }
