@@ -743,6 +743,7 @@ fn ingest_text(
         Ok(
             OdometerFileReader::new(BufReader::new(open(manifest, file)?), kind)
                 .with_value_column(manifest.odometer.value_column)
+                .with_value_header(manifest.odometer.value_header.as_deref())
                 .with_speed_floor(floor_mps)
                 .beside_log_from(log_first_s),
         )

@@ -604,9 +604,11 @@ fn kingston_a_speed_held_through_the_stand_is_named() {
 
 /// An OBD-II logger's CSV of more columns (time, engine speed, speed, a status, under a
 /// header line) as Kingston's speed file: without a setting the ingest fails naming the
-/// file's columns and `[odometer] value_column`; with `value_column = 3` the run is the
-/// shipped one's byte for byte, its header line the one rejected. Before, no column could
-/// be named: the file's every line was rejected, "expected two numbers".
+/// file's columns and `[odometer] value_column`; with `value_column = 3`, or
+/// `value_column = "speed_mps"` as its header names it, the run is the shipped one's byte
+/// for byte, its header line the one rejected. Before, no column could be named: the
+/// file's every line was rejected, "expected two numbers"; and before session 66, by its
+/// number only.
 #[test]
 fn kingston_an_odometer_csv_of_more_columns_reads_the_column_named() {
     let tmp = tempfile::tempdir().unwrap();
@@ -646,6 +648,39 @@ fn kingston_an_odometer_csv_of_more_columns_reads_the_column_named() {
         read_json(&out.join("kingston2008-segment1/ingest/ingest.json"));
     let file = ingest.odometer_file.expect("read");
     assert_eq!(file.lines_rejected, 1, "{file:?}");
+    // By its name on the header line (session 66): the same run, the header the line
+    // rejected as such; a name the header does not give fails the ingest, naming them.
+    for (name, fails) in [("speed_mps", false), ("speed", true)] {
+        let by_name = manifest.replace(kind, &format!("{kind}value_column = {name:?}\n"));
+        std::fs::write(run.join("run.toml"), by_name).unwrap();
+        let out = tmp.path().join(format!("csv-{name}-o"));
+        if fails {
+            let err = crate::util::stage_fails("ingest", &run, &out);
+            assert!(
+                err.contains(
+                    "line 1: [odometer] value_column = \"speed\" names the value's column on \
+                     the file's header line, and its header line names none so: its columns \
+                     are \"time_s\", \"rpm\", \"speed_mps\", \"status\" (in "
+                ) && err.contains("odometer.txt)"),
+                "{err}"
+            );
+            continue;
+        }
+        crate::util::run_until(&run, &out, "disupt");
+        assert!(stage(&want, "disupt/disupt.json") == stage(&out, "disupt/disupt.json"));
+        let events: unz_formats::IngestEvents =
+            read_json(&out.join("kingston2008-segment1/ingest/ingest_events.json"));
+        assert_eq!(
+            (events.odometer_file_faults.iter())
+                .map(|f| (f.line, f.reason.as_str()))
+                .collect::<Vec<_>>(),
+            vec![(
+                1,
+                "the file's header line (its columns' names): \"speed_mps\" is column 3 \
+                 ([odometer] value_column)"
+            )]
+        );
+    }
 }
 
 /// Kingston's speeds in km/h, on a clock 5 s late: the derive names the clock first;

@@ -672,6 +672,60 @@ fn time_and_column(text: &str, column: usize) -> Result<[f64; 2], String> {
     }
 }
 
+/// The column (1-based) that a header line `text` names `name` (its fields split as
+/// [`time_and_column`] splits a line, each trimmed of spaces and double quotes), or why
+/// there is none: the name absent (the line's names listed), the time's column, beyond
+/// [`MAX_VALUE_COLUMN`], or a line of numbers.
+fn header_column(text: &str, name: &str) -> Result<usize, String> {
+    let fields: Vec<&str> = if text.contains(',') {
+        text.split(',')
+            .map(|f| f.trim().trim_matches('"').trim())
+            .collect()
+    } else {
+        text.split_whitespace()
+            .map(|f| f.trim_matches('"'))
+            .collect()
+    };
+    let wanted = format!(
+        "[odometer] value_column = {name:?} names the value's column on the file's header \
+         line"
+    );
+    match fields.iter().position(|f| *f == name) {
+        Some(0) => Err(format!(
+            "{wanted}, and the header gives that name to column 1, the time's"
+        )),
+        Some(i) if i < MAX_VALUE_COLUMN => Ok(i + 1),
+        Some(i) => Err(format!(
+            "{wanted}, and the header gives it to column {}, beyond {MAX_VALUE_COLUMN}",
+            i + 1
+        )),
+        None if fields.first().is_some_and(|f| f.parse::<f64>().is_ok()) => Err(format!(
+            "{wanted}, and the file's first line holds numbers, no names ({}): name the \
+             column by its number (2 for the second, the time being the first)",
+            shown(text)
+        )),
+        None => {
+            const LISTED: usize = 16;
+            let mut names: Vec<String> = fields.iter().take(LISTED).map(|f| shown(f)).collect();
+            if fields.len() > LISTED {
+                names.push(format!("… {} in all", fields.len()));
+            }
+            Err(format!(
+                "{wanted}, and its header line names none so: its columns are {}",
+                names.join(", ")
+            ))
+        }
+    }
+}
+
+/// `text` quoted for a message, at most 40 characters of it.
+fn shown(text: &str) -> String {
+    match text.char_indices().nth(40) {
+        Some((end, _)) => format!("{:?}…", &text[..end]),
+        None => format!("{text:?}"),
+    }
+}
+
 /// Fastest a land vehicle's odometer may say it went, m/s (360 km/h): a speed beyond it
 /// is a corrupt reading, and a step of distance beyond it a corrupt count.
 pub const LAND_SPEED_RANGE_MPS: f64 = 100.0;
@@ -716,6 +770,9 @@ pub struct OdometerFileReader<R: BufRead> {
     /// The value's column, 1-based, in a file of more columns (`[odometer]
     /// value_column`); `None`: two columns, `t_s value`.
     value_column: Option<usize>,
+    /// The value's column's name on the file's header line, its first line of text, until
+    /// that line is read (`value_column` then holds its number).
+    value_header: Option<String>,
 }
 
 /// Highest column `[odometer] value_column` may name: an OBD-II logger's CSV has tens.
@@ -738,6 +795,7 @@ impl<R: BufRead> OdometerFileReader<R> {
             tags: TagUnwrap::default(),
             floor: None,
             value_column: None,
+            value_header: None,
         }
     }
 
@@ -748,6 +806,16 @@ impl<R: BufRead> OdometerFileReader<R> {
     /// CSV's missing reading), else at its spaces.
     pub fn with_value_column(mut self, column: Option<usize>) -> Self {
         self.value_column = column.filter(|c| (2..=MAX_VALUE_COLUMN).contains(c));
+        self
+    }
+
+    /// The value read from the column the file's header line (its first line that is
+    /// neither blank nor a comment) names `name` (`[odometer] value_column = "speed_mps"`),
+    /// as [`Self::with_value_column`] reads a column by number; the header line is
+    /// rejected as such. A file whose first line names no such column, or holds numbers,
+    /// fails, naming its line and columns. `None`: unset.
+    pub fn with_value_header(mut self, name: Option<&str>) -> Self {
+        self.value_header = name.map(str::to_owned);
         self
     }
 
@@ -967,6 +1035,18 @@ impl<R: BufRead> OdometerFileReader<R> {
                     continue;
                 }
             };
+            if let Some(name) = self.value_header.take() {
+                let column = header_column(text, &name).map_err(|reason| FormatError::Line {
+                    line: self.lines.line_no,
+                    reason,
+                })?;
+                self.value_column = Some(column);
+                self.reject_read(format!(
+                    "the file's header line (its columns' names): {name:?} is column {column} \
+                     ([odometer] value_column)"
+                ));
+                continue;
+            }
             let read = match self.value_column {
                 None => two_numbers(text),
                 Some(column) => time_and_column(text, column),
@@ -1453,6 +1533,72 @@ mod tests {
         // Two columns read alike with the setting at 2 or without it.
         let two = b"0 0\n1 2\n2 2\n";
         assert_eq!(read(two, Some(2)), read(two, None));
+    }
+
+    /// `value_column` given as a name reads the column the file's header line gives it
+    /// (after comments and blank lines; spaces and double quotes around a name are not
+    /// part of it), as its number does, the header line rejected as such; a header without
+    /// the name, one giving it to the time's column, and a first line of numbers fail,
+    /// naming the line and what it holds.
+    #[test]
+    fn a_file_of_more_columns_reads_the_column_its_header_names() {
+        let named = |text: &[u8], name: &str| {
+            let mut r =
+                OdometerFileReader::new(text, OdometerKind::SpeedMps).with_value_header(Some(name));
+            let mut d = Vec::new();
+            loop {
+                match r.next_sample() {
+                    Ok(Some(s)) => d.push(s.distance_m),
+                    Ok(None) => break,
+                    Err(e) => return Err(e.to_string()),
+                }
+            }
+            let faults: Vec<(u64, String)> = (r.faults().0.iter())
+                .map(|f| (f.line, f.reason.clone()))
+                .collect();
+            Ok((d, faults, r.report().clone()))
+        };
+        let csv = b"# OBD log\n\n\"time\", \"rpm\" ,\"speed\"\n0,800,0\n1,1500,2\n2,1600,2\n";
+        let (d, faults, report) = named(csv, "speed").unwrap();
+        assert_eq!(d, vec![0.0, 1.0, 3.0]);
+        assert_eq!(
+            faults,
+            vec![(
+                3,
+                "the file's header line (its columns' names): \"speed\" is column 3 \
+                 ([odometer] value_column)"
+                    .to_owned()
+            )]
+        );
+        assert_eq!((report.lines_read, report.lines_rejected), (4, 1));
+        let spaced = b"t v rpm\n0 0 800\n1 2 1500\n2 2 1600\n";
+        assert_eq!(named(spaced, "v").unwrap().0, vec![0.0, 1.0, 3.0]);
+        let wanted = "line 3: [odometer] value_column = \"speed_mps\" names the value's column \
+                      on the file's header line";
+        assert_eq!(
+            named(csv, "speed_mps").unwrap_err(),
+            format!(
+                "{wanted}, and its header line names none so: its columns are \"time\", \"rpm\", \"speed\""
+            )
+        );
+        let wanted = wanted.replace("line 3", "line 1").replace("speed_mps", "t");
+        assert_eq!(
+            named(spaced, "t").unwrap_err(),
+            format!("{wanted}, and the header gives that name to column 1, the time's")
+        );
+        let err = named(b"0 0 800\n1 2 1500\n", "speed").unwrap_err();
+        assert!(
+            err.starts_with("line 1: [odometer] value_column = \"speed\"")
+                && err.ends_with(
+                    "and the file's first line holds numbers, no names (\"0 0 800\"): name the \
+                     column by its number (2 for the second, the time being the first)"
+                ),
+            "{err}"
+        );
+        // A header of many long names is listed in part.
+        let wide: String = (0..40).map(|i| format!("{}{i},", "n".repeat(50))).collect();
+        let err = named(format!("{wide}\n").as_bytes(), "speed").unwrap_err();
+        assert!(err.ends_with(", … 41 in all") && err.len() < 1500, "{err}");
     }
 
     #[test]

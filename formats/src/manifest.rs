@@ -117,9 +117,29 @@ pub struct Odometer {
     /// [`crate::speed_floor::SPEED_FLOOR_MAX_MPS`].
     pub speed_floor_mps: Option<f64>,
     /// The column of the odometer file's value, 1-based (the time is the first), in a file
-    /// of more columns than `t_s value` (an OBD-II logger's CSV); `None`: two columns.
+    /// of more columns than `t_s value` (an OBD-II logger's CSV); `None`: two columns, or
+    /// the column named by [`Self::value_header`].
     pub value_column: Option<usize>,
+    /// The odometer file's value's column named as the file's header line names it
+    /// (`value_column` written as a name: `value_column = "speed_mps"`), found when the
+    /// file is read.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub value_header: Option<String>,
 }
+
+impl Odometer {
+    /// The value's column as the manifest names it, for a message: "column 3", "column
+    /// \"speed_mps\"" (column 2, a `t_s value` file's, when none is named).
+    pub fn value_column_said(&self) -> String {
+        match (&self.value_header, self.value_column) {
+            (Some(name), _) => format!("column {name:?}"),
+            (None, column) => format!("column {}", column.unwrap_or(2)),
+        }
+    }
+}
+
+/// Longest header name `[odometer] value_column` may give, characters.
+pub const MAX_VALUE_HEADER_CHARS: usize = 128;
 
 /// A surveyed control point visited at a stop.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -196,7 +216,43 @@ struct RawOdometer {
     file: Option<Spanned<String>>,
     kind: Option<OdometerKind>,
     speed_floor_mps: Option<Spanned<f64>>,
-    value_column: Option<Spanned<i64>>,
+    value_column: Option<Spanned<RawValueColumn>>,
+}
+
+/// `[odometer] value_column` as written: a column's number, or its name on the file's
+/// header line.
+enum RawValueColumn {
+    Number(i64),
+    Name(String),
+}
+
+impl<'de> Deserialize<'de> for RawValueColumn {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Column;
+        impl serde::de::Visitor<'_> for Column {
+            type Value = RawValueColumn;
+
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(
+                    "a column's number (2 for the second, the time being the first) or its \
+                     name on the file's header line (\"speed_mps\")",
+                )
+            }
+
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<RawValueColumn, E> {
+                Ok(RawValueColumn::Number(v))
+            }
+
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<RawValueColumn, E> {
+                Ok(RawValueColumn::Number(i64::try_from(v).unwrap_or(i64::MAX)))
+            }
+
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<RawValueColumn, E> {
+                Ok(RawValueColumn::Name(v.to_owned()))
+            }
+        }
+        d.deserialize_any(Column)
+    }
 }
 
 #[derive(Deserialize)]
@@ -251,19 +307,40 @@ impl Checker<'_> {
     }
 
     /// `[odometer] value_column`: 2 to [`crate::kfgins::MAX_VALUE_COLUMN`], the first
-    /// being the time.
-    fn value_column(&self, v: &Spanned<i64>) -> Result<usize, FormatError> {
+    /// being the time, as a number (the first of the pair) or a header's name (the
+    /// second: a line of text, [`MAX_VALUE_HEADER_CHARS`] at most).
+    fn value_column(
+        &self,
+        v: &Spanned<RawValueColumn>,
+    ) -> Result<(Option<usize>, Option<String>), FormatError> {
         let max = crate::kfgins::MAX_VALUE_COLUMN;
-        match usize::try_from(*v.get_ref()) {
-            Ok(column) if (2..=max).contains(&column) => Ok(column),
-            _ => self.err(
-                v.span(),
-                format!(
-                    "value_column = {} is outside [2, {max}] (counted from 1: the time is \
-                     column 1, the value of a `t_s value` file column 2)",
-                    self.as_written(v.span())
+        match v.get_ref() {
+            RawValueColumn::Number(n) => match usize::try_from(*n) {
+                Ok(column) if (2..=max).contains(&column) => Ok((Some(column), None)),
+                _ => self.err(
+                    v.span(),
+                    format!(
+                        "value_column = {} is outside [2, {max}] (counted from 1: the time is \
+                         column 1, the value of a `t_s value` file column 2)",
+                        self.as_written(v.span())
+                    ),
                 ),
-            ),
+            },
+            RawValueColumn::Name(name) => {
+                let name = name.trim();
+                let chars = name.chars().count();
+                if chars == 0 || chars > MAX_VALUE_HEADER_CHARS || name.contains(['\n', '\r']) {
+                    return self.err(
+                        v.span(),
+                        format!(
+                            "value_column = {} is no column's name on a header line (1 to \
+                             {MAX_VALUE_HEADER_CHARS} characters, one line)",
+                            self.as_written(v.span())
+                        ),
+                    );
+                }
+                Ok((None, Some(name.to_owned())))
+            }
         }
     }
 
@@ -490,6 +567,18 @@ impl RunManifest {
         };
 
         let o = &raw.odometer;
+        let (value_column, value_header) = match (&o.value_column, &o.file) {
+            (None, _) => (None, None),
+            (Some(v), None) => {
+                return c.err(
+                    v.span(),
+                    "odometer.value_column names a column of the [odometer] file, and there is \
+                     none"
+                        .into(),
+                );
+            }
+            (Some(v), Some(_)) => c.value_column(v)?,
+        };
         let odometer = Odometer {
             scale_m_per_pulse: o
                 .scale_m_per_pulse
@@ -509,18 +598,8 @@ impl RunManifest {
                 .as_ref()
                 .map(|v| c.speed_floor(v, raw.format, o.kind))
                 .transpose()?,
-            value_column: match (&o.value_column, &o.file) {
-                (None, _) => None,
-                (Some(v), None) => {
-                    return c.err(
-                        v.span(),
-                        "odometer.value_column names a column of the [odometer] file, and \
-                         there is none"
-                            .into(),
-                    );
-                }
-                (Some(v), Some(_)) => Some(c.value_column(v)?),
-            },
+            value_column,
+            value_header,
         };
         if let (Some(f), None) = (&o.file, o.kind) {
             return c.err(
@@ -767,7 +846,15 @@ t_s = 2415.3
         let file = "file = \"odo.csv\"\nkind = \"speed_kmh\"\n";
         let m = parse(&text_log(&format!("{file}value_column = 3"))).unwrap();
         assert_eq!(m.odometer.value_column, Some(3));
+        assert_eq!(m.odometer.value_column_said(), "column 3");
         assert_eq!(parse(&text_log(file)).unwrap().odometer.value_column, None);
+        // By its name on the file's header line.
+        let m = parse(&text_log(&format!("{file}value_column = \" speed_mps \""))).unwrap();
+        assert_eq!(
+            (m.odometer.value_column, m.odometer.value_header.as_deref()),
+            (None, Some("speed_mps"))
+        );
+        assert_eq!(m.odometer.value_column_said(), "column \"speed_mps\"");
         for (text, says) in [
             (
                 text_log("value_column = 2"),
@@ -788,6 +875,22 @@ t_s = 2415.3
             (
                 text_log(&format!("{file}value_column = 9223372036854775807")),
                 "is outside [2, 64]",
+            ),
+            (
+                text_log(&format!("{file}value_column = \" \"")),
+                "is no column's name on a header line (1 to 128 characters, one line)",
+            ),
+            (
+                text_log(&format!("{file}value_column = \"{}\"", "x".repeat(129))),
+                "is no column's name on a header line",
+            ),
+            (
+                text_log(&format!("{file}value_column = \"a\\nb\"")),
+                "is no column's name on a header line",
+            ),
+            (
+                text_log(&format!("{file}value_column = 2.5")),
+                "a column's number (2 for the second, the time being the first) or its name",
             ),
         ] {
             let (line, reason) = err_line(&text);

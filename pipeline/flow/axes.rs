@@ -125,7 +125,7 @@ pub fn check_axes(
                 across.correlation,
                 SCALE_GAIN_RANGE.start(),
                 SCALE_GAIN_RANGE.end(),
-                not_speed_fix(&source, manifest.odometer.value_column.unwrap_or(2))
+                not_speed_fix(&source, &manifest.odometer.value_column_said())
             )
         }
         AxesVerdict::OdometerOffset => {
@@ -341,8 +341,8 @@ pub(crate) fn offset_fix(source: &Source) -> String {
 }
 
 /// Where an odometer that is no speed (`source`) comes from, and what to check: a file's
-/// `column` (1-based).
-pub(crate) fn not_speed_fix(source: &Source, column: usize) -> String {
+/// `column` (as said: "column 3", [`unz_formats::manifest::Odometer::value_column_said`]).
+pub(crate) fn not_speed_fix(source: &Source, column: &str) -> String {
     match source {
         Source::Count => "Check what the log's odometer count counts: the wheels' pulses, \
                           or the odometer's wiring"
@@ -352,8 +352,7 @@ pub(crate) fn not_speed_fix(source: &Source, column: usize) -> String {
                            8th column"
             .to_owned(),
         Source::File(file, kind) => format!(
-            "Check that column {column} of {} is the vehicle's {} ([odometer] \
-             value_column)",
+            "Check that {column} of {} is the vehicle's {} ([odometer] value_column)",
             file.display(),
             if kind.is_speed() { "speed" } else { "distance" }
         ),

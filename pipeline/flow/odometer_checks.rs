@@ -127,7 +127,7 @@ pub fn check_stand_flat(
          spread {MIN_DRIVE_SIGMA_MPS} m/s or more): it is not the vehicle's speed. {}",
         stand_read(&source, s),
         s.log_sigma_mps,
-        not_speed_fix(&source, m.odometer.value_column.unwrap_or(2)),
+        not_speed_fix(&source, &m.odometer.value_column_said()),
     )
 }
 
