@@ -29,7 +29,8 @@ def text_chain_seeds(out):
 def stretches(out, spans, starts):
     """Each stretch with its odometer as an 8th column (first byte 0, plus each of
     `starts`), a speed file (1), a distance file (2) and a speed file as a CSV of three
-    columns read at `value_column = 2` (13)."""
+    columns read at `value_column = 2` (13), and under a header line at `value_column =
+    "speed"` (37)."""
     imu, odo = records("imu.txt"), records("odometer.txt")
     t = lambda line: float(line.split()[0])
     for (name, (t0, t1)), start in ((s, b) for s in spans.items() for b in starts):
@@ -55,6 +56,8 @@ def stretches(out, spans, starts):
         (out / f"{name}-dist").write_bytes(bytes([start + 2]) + log + b"\x00" + "".join(distance).encode())
         csv = "".join("%s,%s,%d\n" % (l.split()[0], l.split()[1], 800 + 120 * float(l.split()[1])) for l in o)
         (out / f"{name}-csv").write_bytes(bytes([start + 13]) + log + b"\x00" + csv.encode())
+        named = "time,speed,rpm\n" + csv
+        (out / f"{name}-csv-named").write_bytes(bytes([start + 37]) + log + b"\x00" + named.encode())
 
 
 def drive_ops():

@@ -6,8 +6,9 @@
 //! speed file, a distance file), the start (its value / 3, even: the alignment over the
 //! first 5 s; odd: no static start, the heading given) and, for speeds, a speed floor
 //! (its value / 6, odd: `speed_floor_mps = 0.04`) and, for a file, its value's column
-//! (its value / 12, odd: `value_column = 2`, the file's lines read column by column); the
-//! rest up to its first NUL byte is the log, the rest after it the odometer file.
+//! (its value / 12 mod 4: 1, `value_column = 2`, the file's lines read column by column;
+//! 3, `value_column = "speed"`, the column its header line names so); the rest up to its
+//! first NUL byte is the log, the rest after it the odometer file.
 
 use std::path::PathBuf;
 
@@ -53,8 +54,12 @@ pub fn write_run(data: &[u8], control_point: bool) -> Option<(PathBuf, PathBuf)>
         (true, file) => format!("{file}speed_floor_mps = 0.04\n"),
     };
     // A column for a file only: the manifest refuses one without.
-    if choice / 12 % 2 == 1 && choice % ODOMETER.len() != 0 {
-        odometer.push_str("value_column = 2\n");
+    if choice % ODOMETER.len() != 0 {
+        match choice / 12 % 4 {
+            1 => odometer.push_str("value_column = 2\n"),
+            3 => odometer.push_str("value_column = \"speed\"\n"),
+            _ => {}
+        }
     }
     let manifest = format!(
         "name = \"fuzz\"\nraw = \"imu.txt\"\nformat = \"kf-gins\"\n\n[site]\n\
