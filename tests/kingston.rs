@@ -602,6 +602,27 @@ fn kingston_a_speed_held_through_the_stand_is_named() {
     assert_same_worst_point(&out, &shipped);
 }
 
+/// Kingston's speed file in Unix milliseconds (a phone's or an OBD-II logger's clock):
+/// every line is beyond the span the pipeline times to the nanosecond, and the ingest
+/// names the unit and the date (19 May 2008), where before it asked "are the file's times
+/// in ms, µs or ns?".
+#[test]
+fn kingston_a_speed_file_in_unix_milliseconds_is_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    // Unix time against GPS seconds of week 1480 on 19 May 2008 (14 leap seconds).
+    let unix_ms = |t: f64, v: f64| ((t + 1_211_068_786.0) * 1e3, v);
+    let run = kingston_odometer_edited(&tmp.path().join("ms"), unix_ms);
+    let err = crate::util::stage_fails("ingest", &run, &tmp.path().join("ms-o"));
+    assert!(
+        err.contains(
+            "gave no reading (the first line rejected, line 1: time 1.211220929e12 s is \
+             beyond ±9e9 s (285 years), the span the pipeline times to the nanosecond: Unix \
+             time in milliseconds (19 May 2008)? Write the file's times in seconds)"
+        ),
+        "{err}"
+    );
+}
+
 /// An OBD-II logger's CSV of more columns (time, engine speed, speed, a status, under a
 /// header line) as Kingston's speed file: without a setting the ingest fails naming the
 /// file's columns and `[odometer] value_column`; with `value_column = 3`, or

@@ -27,13 +27,39 @@ pub(crate) const UTF16_TEXT: &str =
 /// (1.7e12, 1.7e15, 1.7e18) goes far beyond it; a larger tag would saturate and stand.
 pub const MAX_TAG_S: f64 = 9.0e9;
 
-/// Why time tag `t_s` is refused, if it is beyond [`MAX_TAG_S`].
+/// Why time tag `t_s` is refused, if it is beyond [`MAX_TAG_S`]: named as Unix time in
+/// milliseconds, microseconds or nanoseconds when one of them dates it between 1980 and
+/// 2100 (an OBD-II or phone logger's clock), else asked.
 fn tag_beyond_range(t_s: f64) -> Option<String> {
     (t_s.abs() > MAX_TAG_S).then(|| {
-        format!(
+        let beyond = format!(
             "time {t_s:e} s is beyond ±{MAX_TAG_S:e} s (285 years), the span the pipeline \
-             times to the nanosecond: are the file's times in ms, µs or ns?"
-        )
+             times to the nanosecond"
+        );
+        match unix_time_in(t_s) {
+            Some((unit, date)) => {
+                format!("{beyond}: Unix time in {unit} ({date})? Write the file's times in seconds")
+            }
+            None => format!("{beyond}: are the file's times in ms, µs or ns?"),
+        }
+    })
+}
+
+/// The unit of Unix time (`milliseconds`, `microseconds`, `nanoseconds`) in which `t`
+/// dates a moment between 1980 and 2100, with that date (UTC, "18 May 2008").
+fn unix_time_in(t: f64) -> Option<(&'static str, String)> {
+    /// 1 January 1980 and 1 January 2100, Unix seconds.
+    const SPAN_S: std::ops::Range<f64> = 315_532_800.0..4_102_444_800.0;
+    [
+        ("milliseconds", 1e3),
+        ("microseconds", 1e6),
+        ("nanoseconds", 1e9),
+    ]
+    .into_iter()
+    .find(|(_, per_s)| SPAN_S.contains(&(t / per_s)))
+    .and_then(|(unit, per_s)| {
+        let date = chrono::DateTime::from_timestamp((t / per_s).floor() as i64, 0)?;
+        Some((unit, date.format("%-d %B %Y").to_string()))
     })
 }
 
@@ -1329,9 +1355,27 @@ mod tests {
         assert_eq!(
             faults[0].reason,
             "time 1.7e15 s is beyond ±9e9 s (285 years), the span the pipeline times to \
-             the nanosecond: are the file's times in ms, µs or ns?"
+             the nanosecond: Unix time in microseconds (14 November 2023)? Write the \
+             file's times in seconds"
         );
         assert!(rep.is_consistent(), "{rep:?}");
+        // Unix milliseconds (a logger's, 18 May 2008) and nanoseconds named; a tag no
+        // unit dates between 1980 and 2100 asked.
+        for (t, said) in [
+            (
+                "1211068800123.4",
+                "Unix time in milliseconds (18 May 2008)?",
+            ),
+            (
+                "1211068800123456789",
+                "Unix time in nanoseconds (18 May 2008)?",
+            ),
+            ("-1211068800123", "are the file's times in ms, µs or ns?"),
+            ("9e25", "are the file's times in ms, µs or ns?"),
+        ] {
+            let (_, _, faults) = read_all(&format!("{t} 1 2 3 4 5 6\n0.01 1 2 3 4 5 6\n"));
+            assert!(faults[0].reason.contains(said), "{t}: {}", faults[0].reason);
+        }
         let odometer = b"1700000000000000 0\n1 0\n-9000000001 0\n2 0\n";
         let (d, _, lines, _) = read_odometer(odometer, OdometerKind::SpeedMps);
         assert_eq!((d.len(), lines), (2, vec![1, 3]));

@@ -84,8 +84,10 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // text log's 8th column may be left blank on any line. 27: the manifest's
         // odometer file is the odometer over an 8th column, the column left unread said.
         // 28: an odometer file of more columns read at `[odometer] value_column`; a line
-        // of more numbers without it names the setting.
-        version: 28,
+        // of more numbers without it names the setting. 29: the column named by the
+        // file's header line too; a time tag in Unix ms, µs or ns named so (its reason in
+        // `ingest_events.json`).
+        version: 29,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
