@@ -57,10 +57,13 @@ fn unix_time_in(t: f64) -> Option<(&'static str, String)> {
     ]
     .into_iter()
     .find(|(_, per_s)| SPAN_S.contains(&(t / per_s)))
-    .and_then(|(unit, per_s)| {
-        let date = chrono::DateTime::from_timestamp((t / per_s).floor() as i64, 0)?;
-        Some((unit, date.format("%-d %B %Y").to_string()))
-    })
+    .and_then(|(unit, per_s)| Some((unit, unix_date(t / per_s)?)))
+}
+
+/// The UTC date of Unix time `unix_s`, "19 May 2008" (`None` beyond chrono's range).
+pub fn unix_date(unix_s: f64) -> Option<String> {
+    let date = chrono::DateTime::from_timestamp(unix_s.floor() as i64, 0)?;
+    Some(date.format("%-d %B %Y").to_string())
 }
 
 /// Seconds in a GPS week. A text log's time column is often GPS seconds of week (KF-GINS
@@ -671,13 +674,7 @@ fn two_numbers(text: &str) -> Result<[f64; 2], String> {
 /// columns left unread, or why it has none: split at its commas when it has one (a
 /// CSV's empty fields count), else at its spaces.
 fn time_and_column(text: &str, column: usize) -> Result<[f64; 2], String> {
-    let field = |k: usize| -> Option<&str> {
-        if text.contains(',') {
-            text.split(',').map(str::trim).nth(k)
-        } else {
-            text.split_whitespace().nth(k)
-        }
-    };
+    let field = |k: usize| line_fields(text).nth(k);
     let number = |f: Option<&str>| {
         f.and_then(|f| f.parse::<f64>().ok())
             .filter(|v| v.is_finite())
@@ -698,20 +695,23 @@ fn time_and_column(text: &str, column: usize) -> Result<[f64; 2], String> {
     }
 }
 
-/// The column (1-based) that a header line `text` names `name` (its fields split as
-/// [`time_and_column`] splits a line, each trimmed of spaces and double quotes), or why
+/// A line's fields, each trimmed: split at its commas when it has one (a CSV's empty
+/// fields count), else at its spaces.
+fn line_fields(text: &str) -> impl Iterator<Item = &str> {
+    let comma = text.contains(',');
+    text.split(move |c: char| if comma { c == ',' } else { c.is_whitespace() })
+        .map(str::trim)
+        .filter(move |f| comma || !f.is_empty())
+}
+
+/// The column (1-based) that a header line `text` names `name` (its fields as
+/// [`line_fields`] gives them, each trimmed of double quotes and spaces), or why
 /// there is none: the name absent (the line's names listed), the time's column, beyond
 /// [`MAX_VALUE_COLUMN`], or a line of numbers.
 fn header_column(text: &str, name: &str) -> Result<usize, String> {
-    let fields: Vec<&str> = if text.contains(',') {
-        text.split(',')
-            .map(|f| f.trim().trim_matches('"').trim())
-            .collect()
-    } else {
-        text.split_whitespace()
-            .map(|f| f.trim_matches('"'))
-            .collect()
-    };
+    let fields: Vec<&str> = line_fields(text)
+        .map(|f| f.trim_matches('"').trim())
+        .collect();
     let wanted = format!(
         "[odometer] value_column = {name:?} names the value's column on the file's header \
          line"

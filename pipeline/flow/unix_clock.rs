@@ -9,7 +9,6 @@
 //! file in Unix time runs 1 211 068 786 s after its IMU log. No whole hour nor whole week
 //! names that, and the run said only "not the IMU's clock".
 
-use chrono::DateTime;
 use unz_formats::kfgins::GPS_WEEK_S;
 
 /// Whole days from Unix time's start to GPS time's.
@@ -105,8 +104,8 @@ impl UnixAgainstGps {
 
     /// "Unix time (UTC seconds since 1 January 1970; 19 May 2008)".
     pub fn unix_clock(&self) -> String {
-        let date = DateTime::from_timestamp(self.unix_s.floor() as i64, 0)
-            .map(|d| format!("; {}", d.format("%-d %B %Y")))
+        let date = unz_formats::kfgins::unix_date(self.unix_s)
+            .map(|d| format!("; {d}"))
             .unwrap_or_default();
         format!("Unix time (UTC seconds since 1 January 1970{date})")
     }

@@ -29,6 +29,31 @@ fn problem_of(c: &common::Case) -> Problem<'_> {
     )
 }
 
+/// Re-derives of a simulated case around its stored derive, from its ingested odometer
+/// (`odo_t_ns`, `odo_m`: [`common::Case::raw_odometer`]) and `params`.
+fn rederive_of<'a>(
+    c: &'a common::Case,
+    odo_t_ns: &'a [i64],
+    odo_m: &'a [f64],
+    params: DeriveParams,
+) -> Rederive<'a> {
+    let g = unz_stages::earth::normal_gravity_mps2(c.run.site.lat_rad, c.run.site.h_m);
+    Rederive::of_odometer(&c.derived, odo_t_ns, odo_m, params, g)
+}
+
+/// The DISUPT problem of a simulated case to set on any of its derives (its manifest's
+/// settings, `params`' filter).
+fn spec_of<'a>(c: &'a common::Case, params: &DeriveParams) -> ProblemSpec<'a> {
+    ProblemSpec {
+        settings: c.manifest_settings(),
+        filter: params.filter,
+        kalman: KalmanParams::default(),
+        fixes: &c.fixes,
+        excluded_cps: &[],
+        drift_z_prior_deg_h: None,
+    }
+}
+
 #[test]
 fn methods_recover_the_settings_of_paper_like_runs() {
     for seed in [41, 42, 43] {
@@ -348,16 +373,8 @@ fn a_problem_reading_its_odometer_as_it_goes_observes_what_the_stored_derive_giv
     let c = case(44, SensorErrors::ALL);
     let (odo_t_ns, odo_m) = c.raw_odometer();
     let params = DeriveParams::default();
-    let g = unz_stages::earth::normal_gravity_mps2(c.run.site.lat_rad, c.run.site.h_m);
-    let rederive = Rederive::of_odometer(&c.derived, &odo_t_ns, &odo_m, params, g);
-    let spec = ProblemSpec {
-        settings: c.manifest_settings(),
-        filter: params.filter,
-        kalman: KalmanParams::default(),
-        fixes: &c.fixes,
-        excluded_cps: &[],
-        drift_z_prior_deg_h: None,
-    };
+    let rederive = rederive_of(&c, &odo_t_ns, &odo_m, params);
+    let spec = spec_of(&c, &params);
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     let tally = std::sync::atomic::AtomicUsize::new(0);
     let mut positions = Vec::new();
@@ -480,16 +497,8 @@ fn a_lag_trial_without_the_bias_sensitivities_scores_the_same_when_the_fit_holds
     let c = case(44, SensorErrors::ALL);
     let (odo_t_ns, odo_m) = c.raw_odometer();
     let params = DeriveParams::default();
-    let g = unz_stages::earth::normal_gravity_mps2(c.run.site.lat_rad, c.run.site.h_m);
-    let rederive = Rederive::of_odometer(&c.derived, &odo_t_ns, &odo_m, params, g);
-    let spec = ProblemSpec {
-        settings: c.manifest_settings(),
-        filter: params.filter,
-        kalman: KalmanParams::default(),
-        fixes: &c.fixes,
-        excluded_cps: &[],
-        drift_z_prior_deg_h: None,
-    };
+    let rederive = rederive_of(&c, &odo_t_ns, &odo_m, params);
+    let spec = spec_of(&c, &params);
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     let base = spec.on(&c.derived);
     let dparams = DisuptParams::default();
