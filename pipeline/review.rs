@@ -140,7 +140,10 @@ fn sensor_blocks(ctx: &RunCtx, derive_dir: &Path) -> anyhow::Result<(SensorBlock
     Ok((s.blocks, s.times))
 }
 
-/// Reads the cached tables into a [`Review`].
+/// Reads the cached tables into a [`Review`]. After the sensors' table (which gives the
+/// run's times), the other files are read side by side: the epochs' series, the tracks,
+/// the truth and the disupt stage's reports (a 12-hour run's tracks and truth took 0.19
+/// and 0.17 s of the 0.55 s its tables took one after the other).
 pub fn build_review(
     ctx: &RunCtx,
     derive_dir: &Path,
@@ -154,48 +157,33 @@ pub fn build_review(
     let rel =
         |t_ns: &[i64]| -> Vec<f64> { t_ns.iter().map(|&t| (t - d.t0_ns) as f64 * 1e-9).collect() };
     let start = start_position(m);
-
-    let c = load_criteria(&criteria_dir.join(files::CRITERIA))?;
-    // The filtered acceleration terms at the same epochs.
-    let terms = read_epoch_terms(derive_dir)?;
-    let epochs = EpochSeries {
-        t_s: rel(&c.t_ns),
-        theta_gyro_rad: c.theta_n_rad,
-        phi_gyro_rad: c.phi_n_rad,
-        theta_acc_rad: c.theta_p_rad,
-        phi_acc_rad: c.phi_p_rad,
-        d_theta_rad: c.d_theta_rad,
-        d_phi_rad: c.d_phi_rad,
-        kf_d_theta_rad: c.kf_d_theta_rad,
-        kf_d_phi_rad: c.kf_d_phi_rad,
-        ax_f_mps2: terms.ax_f_mps2,
-        ay_f_mps2: terms.ay_f_mps2,
-        u_dot_f_mps2: terms.u_dot_f_mps2,
-        ru_f_mps2: terms.ru_f_mps2,
-    };
-
-    let mut tracks: Vec<Track> = read_tracks(&disupt_dir.join(TRACKS))?
+    let ((epochs, tracks), (truth, reports)) = rayon::join(
+        || {
+            rayon::join(
+                || epoch_series(derive_dir, criteria_dir, &rel),
+                || read_tracks(&disupt_dir.join(TRACKS)),
+            )
+        },
+        || {
+            rayon::join(
+                || {
+                    truth
+                        .map(|p| truth_track(p, &rel, start, d.nominal_dt_s))
+                        .transpose()
+                },
+                || read_reports(ctx, disupt_dir, &rel, d.nominal_dt_s),
+            )
+        },
+    );
+    // Errors in the order the files were read one after the other.
+    let epochs = epochs?;
+    let mut tracks: Vec<Track> = tracks?
         .into_iter()
         .map(|t| track_view(t, &rel, start.h_m))
         .collect();
-    if let Some(p) = truth {
-        tracks.push(truth_track(p, &rel, start, d.nominal_dt_s)?);
-    }
-    let kryt1 = read_kryt1_series(&disupt_dir.join(KRYT1_SERIES))?
-        .into_iter()
-        .map(|k| Kryt1Curve {
-            label: k.method,
-            t_s: rel(&k.t_ns),
-            kryt1_cum_rad: k.kryt1_cum,
-        })
-        .collect();
-
-    let json_path = disupt_dir.join(files::DISUPT_REPORT);
-    let dj: DisuptOut = serde_json::from_slice(
-        &std::fs::read(&json_path)
-            .with_context(|| format!("cannot read {}", json_path.display()))?,
-    )
-    .with_context(|| format!("not a disupt report: {}", json_path.display()))?;
+    tracks.extend(truth?);
+    let reports = reports?;
+    let dj = &reports.dj;
     let control_points = m
         .control_points
         .iter()
@@ -231,13 +219,6 @@ pub fn build_review(
             }
         })
         .collect();
-    let tables_markdown = std::fs::read_to_string(disupt_dir.join(files::DISUPT_TABLES))
-        .with_context(|| {
-            format!(
-                "cannot read {}",
-                disupt_dir.join(files::DISUPT_TABLES).display()
-            )
-        })?;
     let summary_markdown = format!(
         "Raw log `{}`; {:.0} s, {} IMU samples at {:.0} Hz; {:.0} m to the last control point.",
         m.raw.file_name().unwrap_or_default().to_string_lossy(),
@@ -246,17 +227,15 @@ pub fn build_review(
         1.0 / d.nominal_dt_s.max(1e-9),
         dj.distance_m,
     );
-    let route_sigma =
-        read_route_sigma(&disupt_dir.join(files::CORRECTED_NAV), &rel, d.nominal_dt_s)?;
     // A binary log's odometer rows are its IMU samples; a text log's are its odometer
     // file's readings, and the rows bridged across its gaps are at IMU samples, found by
     // their time tags.
-    let (failed, rows) = IngestedSeries::load_failed_rows(&ctx.layout().dir(StageName::Ingest))?;
     let sample_at = |t_ns: i64| sensors.sample_at((t_ns - d.t0_ns) as f64 * 1e-9, d.nominal_dt_s);
-    let odometer_failures = failed
+    let odometer_failures = reports
+        .failed
         .into_iter()
         .map(|f| {
-            let (first_sample, samples) = if rows == d.samples {
+            let (first_sample, samples) = if reports.odometer_rows == d.samples {
                 (f.rows.first as i64, f.rows.len as i64)
             } else {
                 let first = sample_at(f.first_t_ns);
@@ -275,15 +254,89 @@ pub fn build_review(
         sensors,
         odometer_failures,
         epochs,
-        kryt1,
+        kryt1: reports.kryt1,
         tracks,
         vehicle_track: dj.corrected_by.clone(),
-        mark_lever_arm_m: vehicle_mark(&dj),
-        route_sigma,
+        mark_lever_arm_m: vehicle_mark(dj),
+        route_sigma: reports.route_sigma,
         control_points,
         sweep: sweep.map(read_sweep).transpose()?,
-        tables_markdown,
+        tables_markdown: reports.tables_markdown,
         summary_markdown,
+    })
+}
+
+/// The criteria's epochs with the derive's filtered acceleration terms at them.
+fn epoch_series(
+    derive_dir: &Path,
+    criteria_dir: &Path,
+    rel: &(impl Fn(&[i64]) -> Vec<f64> + Sync),
+) -> anyhow::Result<EpochSeries> {
+    let c = load_criteria(&criteria_dir.join(files::CRITERIA))?;
+    let terms = read_epoch_terms(derive_dir)?;
+    Ok(EpochSeries {
+        t_s: rel(&c.t_ns),
+        theta_gyro_rad: c.theta_n_rad,
+        phi_gyro_rad: c.phi_n_rad,
+        theta_acc_rad: c.theta_p_rad,
+        phi_acc_rad: c.phi_p_rad,
+        d_theta_rad: c.d_theta_rad,
+        d_phi_rad: c.d_phi_rad,
+        kf_d_theta_rad: c.kf_d_theta_rad,
+        kf_d_phi_rad: c.kf_d_phi_rad,
+        ax_f_mps2: terms.ax_f_mps2,
+        ay_f_mps2: terms.ay_f_mps2,
+        u_dot_f_mps2: terms.u_dot_f_mps2,
+        ru_f_mps2: terms.ru_f_mps2,
+    })
+}
+
+/// What the review takes from the disupt stage's reports and the ingest's odometer.
+struct Reports {
+    kryt1: Vec<Kryt1Curve>,
+    dj: DisuptOut,
+    tables_markdown: String,
+    route_sigma: Option<RouteSigmaView>,
+    failed: Vec<crate::flow::ingested::FailedSpan>,
+    /// The ingested odometer's rows.
+    odometer_rows: usize,
+}
+
+/// Reads the Kryt1 curves, the disupt report and tables, the route's σ and the
+/// odometer's failures.
+fn read_reports(
+    ctx: &RunCtx,
+    disupt_dir: &Path,
+    rel: &(impl Fn(&[i64]) -> Vec<f64> + Sync),
+    nominal_dt_s: f64,
+) -> anyhow::Result<Reports> {
+    let kryt1 = read_kryt1_series(&disupt_dir.join(KRYT1_SERIES))?
+        .into_iter()
+        .map(|k| Kryt1Curve {
+            label: k.method,
+            t_s: rel(&k.t_ns),
+            kryt1_cum_rad: k.kryt1_cum,
+        })
+        .collect();
+    let json_path = disupt_dir.join(files::DISUPT_REPORT);
+    let dj: DisuptOut = serde_json::from_slice(
+        &std::fs::read(&json_path)
+            .with_context(|| format!("cannot read {}", json_path.display()))?,
+    )
+    .with_context(|| format!("not a disupt report: {}", json_path.display()))?;
+    let tables_path = disupt_dir.join(files::DISUPT_TABLES);
+    let tables_markdown = std::fs::read_to_string(&tables_path)
+        .with_context(|| format!("cannot read {}", tables_path.display()))?;
+    let route_sigma = read_route_sigma(&disupt_dir.join(files::CORRECTED_NAV), rel, nominal_dt_s)?;
+    let (failed, odometer_rows) =
+        IngestedSeries::load_failed_rows(&ctx.layout().dir(StageName::Ingest))?;
+    Ok(Reports {
+        kryt1,
+        dj,
+        tables_markdown,
+        route_sigma,
+        failed,
+        odometer_rows,
     })
 }
 
