@@ -17,47 +17,29 @@
 //!
 //! The streams are built with the batching [`IN_LOGGED_ORDER`] and
 //! [`without_wall_clock`] timelines.
-//!
-//! Messages are encoded (Arrow IPC, LZ4) on [`ENCODERS`] threads of the sink's own, each
-//! taking every other message, and written by a third in the order they came, so the
-//! bytes are those of the SDK's encoder, which encodes one message after the other on
-//! the stream's thread: the footer's index is built as its encoder builds it, from each
-//! chunk and the span it was written at. A 12-hour run's recording (185 MB) took 1.1 s
-//! of encoding on one thread while the series were built beside it.
 
-use std::collections::HashMap;
 use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::Path;
-use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::sync::{Arc, Mutex, MutexGuard};
-use std::thread::JoinHandle;
 use std::time::Duration;
 
 use re_protos::common::v1alpha1::Schema as SchemaProto;
 use re_protos::external::prost::Message;
 use re_protos::log_msg::v1alpha1::RrdFooter as FooterProto;
-use re_protos::log_msg::v1alpha1::log_msg::Msg as TransportMsg;
 use rerun::external::arrow::datatypes::{FieldRef, Schema};
 use rerun::external::arrow::error::ArrowError;
 use rerun::external::arrow::ipc::reader::StreamReader;
 use rerun::external::re_log_encoding::{
     CodecError, CrateVersion, Decodable, Encodable, EncodeError, Encoder, EncodingOptions,
-    MessageHeader, MessageKind, RrdFooter, RrdManifestBuilder, StreamFooter, ToTransport,
+    MessageHeader, MessageKind, StreamFooter,
 };
-use rerun::external::re_log_types::StoreId;
 use rerun::external::re_tuid::Tuid;
 use rerun::log::{Chunk, ChunkBatcherConfig, ChunkId, LogMsg, RowId};
 use rerun::sink::{LogSink, SinkFlushError};
 use rerun::{RecordingStream, StoreKind};
 
 type FileEncoder = Encoder<BufWriter<File>>;
-
-/// What the SDK's memory and file sinks write: this version, compressed protobuf.
-const OPTIONS: EncodingOptions = EncodingOptions::PROTOBUF_COMPRESSED;
-
-/// Threads encoding the messages, each every `ENCODERS`-th one.
-pub(crate) const ENCODERS: usize = 2;
 
 /// The batching of a stream whose messages come in the order they were logged: each row
 /// logged is sent on as a chunk of its own at once. The SDK's default holds rows per
@@ -77,175 +59,31 @@ pub(crate) fn without_wall_clock(rec: &RecordingStream) {
     rec.set_log_tick_enabled(false);
 }
 
-/// The messages' way to the file, the ids handed out so far, and the blueprint's
+/// The encoder, the first error it met, the ids handed out so far, and the blueprint's
 /// messages held until the file is finished.
 struct State {
-    pipeline: Option<Pipeline>,
+    encoder: Option<FileEncoder>,
+    error: Option<EncodeError>,
     ids: StableIds,
     blueprint: Vec<LogMsg>,
 }
 
 impl State {
-    /// Sends `msg` with its ids renamed to be encoded and written (a renaming's error
-    /// takes its place in the stream: the file reports the first in the messages' order).
+    /// Encodes `msg` with its ids renamed; the first error is kept, and anything after it
+    /// is dropped.
     fn append(&mut self, msg: LogMsg) {
-        let renamed = self.ids.rename(msg);
-        if let Some(p) = self.pipeline.as_mut() {
-            p.send(renamed);
+        if self.error.is_some() {
+            return;
+        }
+        let Self { encoder, ids, .. } = self;
+        let result = ids.rename(msg).and_then(|msg| match encoder.as_mut() {
+            Some(encoder) => encoder.append(&msg).map(|_| ()),
+            None => Err(EncodeError::AlreadyFinished),
+        });
+        if let Err(e) = result {
+            self.error = Some(e);
         }
     }
-}
-
-/// A message encoded for the file, and the chunk the footer's index takes from it.
-struct Encoded {
-    transport: TransportMsg,
-    chunk: Option<(StoreId, re_sorbet::ChunkBatch)>,
-}
-
-/// Encodes `msg` as the SDK's encoder does before it writes it ([`OPTIONS`]).
-fn encode(msg: &LogMsg) -> Result<Encoded, EncodeError> {
-    let transport = msg.to_transport(OPTIONS.compression)?;
-    let chunk = match msg {
-        LogMsg::ArrowMsg(store_id, arrow) => Some((
-            store_id.clone(),
-            re_sorbet::ChunkBatch::try_from(&arrow.batch)?,
-        )),
-        LogMsg::SetStoreInfo(_) | LogMsg::BlueprintActivationCommand(_) => None,
-    };
-    Ok(Encoded { transport, chunk })
-}
-
-/// The file's encoder, and the index of the chunks it wrote (the footer), store by store.
-struct FileWriter {
-    encoder: FileEncoder,
-    manifests: HashMap<StoreId, RrdManifestBuilder>,
-}
-
-impl FileWriter {
-    /// Writes `e` after the messages before it and indexes its chunk, as
-    /// [`Encoder::append`] does.
-    fn write(&mut self, e: Encoded) -> Result<(), EncodeError> {
-        // SAFETY (the call's contract, not memory): `e` was encoded with the compression
-        // of `OPTIONS`, the encoder's.
-        #[allow(unsafe_code)]
-        let (span, uncompressed) =
-            unsafe { self.encoder.append_transport_without_footer(&e.transport)? };
-        if let Some((store_id, batch)) = e.chunk {
-            self.manifests
-                .entry(store_id)
-                .or_default()
-                .append(&batch, span, uncompressed)?;
-        }
-        Ok(())
-    }
-
-    /// Writes the footer (the index, as [`Encoder::finish`] would) and the stream's end.
-    fn finish(mut self) -> Result<BufWriter<File>, EncodeError> {
-        let manifests = self
-            .manifests
-            .into_iter()
-            .map(|(store_id, m)| Ok((store_id.clone(), m.build(store_id)?)))
-            .collect::<Result<HashMap<_, _>, EncodeError>>()?;
-        // SAFETY (the call's contract, not memory): the footer indexes every chunk this
-        // encoder wrote, at the spans it wrote them, and it computes no footer of its own.
-        #[allow(unsafe_code)]
-        unsafe {
-            self.encoder
-                .finish_with_custom_footer(&RrdFooter { manifests })?;
-        }
-        self.encoder.into_inner()
-    }
-}
-
-/// A message on its way to the file: renamed, or the renaming's error.
-type Pending = Result<LogMsg, EncodeError>;
-
-/// The encoding threads and the writing one. Message `k` goes to encoder `k %
-/// ENCODERS`, and the writer takes the encoders' results in that order, so the file has
-/// the messages in the order they were sent. The channels hold nothing (each hand-over
-/// waits for its taker), so at most four of the recording's chunks are held at a time:
-/// the one the stream's thread is handing over, one per encoder (its message, or its
-/// result waiting for the writer's turn) and the writer's (a 12-hour run's largest, 432
-/// 000 rows of a series, some 17 MB as a chunk and 10 MB encoded).
-struct Pipeline {
-    encoders: Vec<(SyncSender<Pending>, JoinHandle<()>)>,
-    next: usize,
-    writer: JoinHandle<Result<FileWriter, EncodeError>>,
-}
-
-impl Pipeline {
-    fn start(mut file: FileWriter) -> std::io::Result<Self> {
-        let mut encoders = Vec::with_capacity(ENCODERS);
-        let mut results: Vec<Receiver<Result<Encoded, EncodeError>>> = Vec::new();
-        for k in 0..ENCODERS {
-            let (to_encoder, inbox) = sync_channel::<Pending>(0);
-            let (outbox, from_encoder) = sync_channel(0);
-            let thread = std::thread::Builder::new()
-                .name(format!("rrd encoder {k}"))
-                .spawn(move || {
-                    for msg in inbox {
-                        if outbox.send(msg.and_then(|m| encode(&m))).is_err() {
-                            return;
-                        }
-                    }
-                })?;
-            encoders.push((to_encoder, thread));
-            results.push(from_encoder);
-        }
-        let writer = std::thread::Builder::new()
-            .name("rrd writer".into())
-            .spawn(move || {
-                let mut first_error = None;
-                // The results in the messages' order, until the encoder whose turn it is
-                // has none (it was sent no more: neither were the others).
-                for k in 0.. {
-                    let Ok(result) = results[k % ENCODERS].recv() else {
-                        break;
-                    };
-                    if first_error.is_none()
-                        && let Err(e) = result.and_then(|e| file.write(e))
-                    {
-                        first_error = Some(e);
-                    }
-                }
-                match first_error {
-                    Some(e) => Err(e),
-                    None => Ok(file),
-                }
-            })?;
-        Ok(Self {
-            encoders,
-            next: 0,
-            writer,
-        })
-    }
-
-    fn send(&mut self, msg: Pending) {
-        let (to_encoder, _) = &self.encoders[self.next % ENCODERS];
-        self.next += 1;
-        // A closed door means the encoder stopped (it panicked): the writer then stops at
-        // its turn and `finish` reports it.
-        let _ = to_encoder.send(msg);
-    }
-
-    /// Waits for every message to be written; the file's writer, or the first error in
-    /// the messages' order.
-    fn finish(self) -> Result<FileWriter, EncodeError> {
-        let mut panicked = false;
-        for (to_encoder, thread) in self.encoders {
-            drop(to_encoder);
-            panicked |= thread.join().is_err();
-        }
-        let written = self.writer.join();
-        if panicked {
-            return Err(pipeline_error("an encoder thread panicked"));
-        }
-        written.unwrap_or_else(|_| Err(pipeline_error("the writer thread panicked")))
-    }
-}
-
-fn pipeline_error(reason: &str) -> EncodeError {
-    EncodeError::Write(std::io::Error::other(format!("RRD sink: {reason}")))
 }
 
 /// Whether `msg` belongs to a blueprint (its store's, or the command activating it).
@@ -340,13 +178,15 @@ pub(crate) fn create(
         .truncate(true)
         .open(path)?;
     let file = BufWriter::with_capacity(1 << 20, file);
-    let encoder = Encoder::new_eager(CrateVersion::LOCAL, OPTIONS, file)?;
-    let pipeline = Pipeline::start(FileWriter {
-        encoder,
-        manifests: HashMap::new(),
-    })?;
+    // What the SDK's memory and file sinks write: this version, compressed protobuf.
+    let encoder = Encoder::new_eager(
+        CrateVersion::LOCAL,
+        EncodingOptions::PROTOBUF_COMPRESSED,
+        file,
+    )?;
     let state = Arc::new(Mutex::new(State {
-        pipeline: Some(pipeline),
+        encoder: Some(encoder),
+        error: None,
         ids: StableIds::for_recording(recording_id),
         blueprint: Vec::new(),
     }));
@@ -383,10 +223,15 @@ impl RrdFile {
         for msg in std::mem::take(&mut s.blueprint) {
             s.append(msg);
         }
-        let Some(pipeline) = s.pipeline.take() else {
+        if let Some(e) = s.error.take() {
+            s.encoder = None;
+            return Err(e);
+        }
+        let Some(mut encoder) = s.encoder.take() else {
             return Err(EncodeError::AlreadyUnwrapped);
         };
-        let file = pipeline.finish()?.finish()?;
+        encoder.finish()?;
+        let file = encoder.into_inner()?;
         // Flushed, not synced: like every other output, the file is made whole by the
         // rename that follows, not made durable.
         let mut file = file.into_inner().map_err(|e| e.into_error())?;
@@ -489,8 +334,7 @@ fn footer_error(reason: &str) -> EncodeError {
 mod tests {
     use super::*;
 
-    /// What the recording stream sends: series as columns, static texts, a log call's row,
-    /// in more messages than the encoders take at once.
+    /// What the recording stream sends: series as columns, static texts, a log call's row.
     fn messages(recording_id: &str) -> Vec<LogMsg> {
         let rec = rerun::RecordingStreamBuilder::new("unz-review")
             .recording_id(recording_id)
@@ -536,7 +380,12 @@ mod tests {
             .truncate(true)
             .open(path)
             .unwrap();
-        let mut encoder = Encoder::new_eager(CrateVersion::LOCAL, OPTIONS, file).unwrap();
+        let mut encoder = Encoder::new_eager(
+            CrateVersion::LOCAL,
+            EncodingOptions::PROTOBUF_COMPRESSED,
+            file,
+        )
+        .unwrap();
         for msg in messages {
             encoder.append(&ids.rename(msg.clone()).unwrap()).unwrap();
         }
@@ -547,11 +396,11 @@ mod tests {
     }
 
     #[test]
-    fn messages_encoded_side_by_side_are_the_sdks_encoders_bytes() {
+    fn the_sinks_file_is_the_sdks_encoders_bytes_for_the_messages_renamed() {
         let dir = tempfile::tempdir().unwrap();
-        let id = "side-by-side";
+        let id = "renamed";
         let msgs = messages(id);
-        assert!(msgs.len() > 4 * ENCODERS, "{} messages", msgs.len());
+        assert!(msgs.len() > 8, "{} messages", msgs.len());
         let (sink, file) = create(&dir.path().join("a.rrd"), id).unwrap();
         for msg in msgs.iter().cloned() {
             sink.send(msg);
