@@ -674,12 +674,15 @@ fn two_numbers(text: &str) -> Result<[f64; 2], String> {
 /// columns left unread, or why it has none: split at its commas when it has one (a
 /// CSV's empty fields count), else at its spaces.
 fn time_and_column(text: &str, column: usize) -> Result<[f64; 2], String> {
-    let field = |k: usize| line_fields(text).nth(k);
+    // One pass over the line: the time, then the value `column - 2` fields on (`column`
+    // is 2 or more: the time is the first).
+    let mut fields = line_fields(text);
     let number = |f: Option<&str>| {
         f.and_then(|f| f.parse::<f64>().ok())
             .filter(|v| v.is_finite())
     };
-    match (number(field(0)), number(field(column - 1))) {
+    let t = number(fields.next());
+    match (t, number(fields.nth(column.saturating_sub(2)))) {
         (Some(t), Some(v)) => Ok([t, v]),
         _ => {
             let hint = if has_decimal_commas(text) {
