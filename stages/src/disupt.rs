@@ -7,7 +7,8 @@
 //!   drifty) by Kryt1 with Nelder–Mead.
 //! - joint: Gauss–Newton over x, two levelling corrections and the odometer scale (when
 //!   control points make it observable), fed with the raw pitch/roll residual series and
-//!   every control point at once; each linearised step is solved by Levenberg–Marquardt.
+//!   every control point at once; each linearised step is the linear model's least-squares
+//!   optimum (QR, then the SVD of R).
 //!   A second round re-weights the epochs by their residuals' RMS (variance components:
 //!   the epochs' misfit is several mrad, not the assumed 2), so that the control points
 //!   weigh what their 1 m says; the covariance `s²(JᵀJ)⁻¹` gives each estimate a 1σ.
@@ -66,9 +67,6 @@ pub enum DisuptError {
     /// An optimiser (argmin) failed; the cause is kept as the source.
     #[error("optimiser: {0}")]
     Optimiser(#[from] ArgminError),
-    /// A least-squares step (Levenberg–Marquardt) did not converge.
-    #[error("least squares did not converge: {0}")]
-    LeastSquares(String),
     /// A linear solve failed.
     #[error("linear solve: {0}")]
     Linear(&'static str),

@@ -241,12 +241,7 @@ pub fn holdout(
             .filter(|s| n > 1 || !s.needs_control_points())
             .collect();
         let model = JointModel::new(problem, &fit.lin, &free, &fit.weights, Some(i));
-        let delta = model
-            .a
-            .clone()
-            .svd(true, true)
-            .solve(&(-&model.r0), 1e-12)
-            .map_err(DisuptError::Linear)?;
+        let delta = model.solve()?;
         let mut pi = fit.lin.p_ref;
         for (k, s) in free.iter().enumerate() {
             pi[s.index()] += delta[k];
