@@ -165,7 +165,8 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             };
             mcap.write(&mut crit, log_time_of(tk), &msg)?;
         }
-        mcap.finish()?;
+        let hash = mcap.finish()?;
+        crate::file_hashes::remember_written(&dir.join("corrected.mcap"), &hash);
         Ok(())
     })?;
     Ok(dir)

@@ -15,8 +15,10 @@
 //! file's identity ("racy" entries, as git calls them, are read again by the next
 //! process), with one exception: files under the output folder. Only the process holding
 //! its lock writes there, and it hashes its outputs right after renaming them into
-//! place (a stage's record); a change in that instant from outside would already be
-//! taken into the record as if the stage had written it.
+//! place (a stage's record), or as they are written ([`remember_written`]: a file
+//! written front to back, its hash kept with its identity once renamed); a change in
+//! that instant from outside would already be taken into the record as if the stage had
+//! written it.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -122,6 +124,25 @@ pub fn file_hash(path: &Path) -> anyhow::Result<String> {
         });
     }
     Ok(h)
+}
+
+/// Remembers `hash` for the file this process just put in place at `path`, hashed as
+/// its bytes were written ([`unz_formats::hashing_writer`]): the stage's record then takes
+/// it without reading the file back. Like any output's, it is kept while the file keeps
+/// the identity it has now.
+pub fn remember_written(path: &Path, hash: &blake3::Hash) {
+    if let Some(id) = FileId::of(path) {
+        known().insert(
+            id,
+            Known {
+                blake3: hash.to_hex().to_string(),
+                // Under the output folder, where only this process writes (see the
+                // module's notes): saved, as an output hashed right after its rename is.
+                settled: false,
+                path: path.to_path_buf(),
+            },
+        );
+    }
 }
 
 fn hash_content(path: &Path) -> anyhow::Result<String> {

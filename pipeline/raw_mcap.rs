@@ -6,7 +6,7 @@
 //! sample is quantised to a pulse per 10 ms (a 2 m/s step at 2 cm per pulse), and 0.1 s
 //! gives a readable speed. The exact pulses are in `odometer.parquet`.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::mpsc::{Receiver, Sender, SyncSender, channel, sync_channel};
 use std::thread::JoinHandle;
 
@@ -36,6 +36,8 @@ enum Order {
 /// The writer's side of `raw.mcap`, on its thread.
 struct RawMcap {
     mcap: Ros2Mcap,
+    /// Where the file goes (its hash is remembered under this name).
+    path: PathBuf,
     imu: Channel<ImuSample>,
     odo: Channel<OdometerSample>,
     marks: Channel<ControlPointMark>,
@@ -78,7 +80,11 @@ impl RawMcap {
                     // The ingest may have finished already: then nobody needs it back.
                     let _ = empties.send(items);
                 }
-                Order::Commit => return Ok(self.mcap.finish()?),
+                Order::Commit => {
+                    let hash = self.mcap.finish()?;
+                    crate::file_hashes::remember_written(&self.path, &hash);
+                    return Ok(());
+                }
             }
         }
         // The ingest stopped without committing: the temporary file is dropped.
@@ -112,6 +118,7 @@ impl RawMcapWriter {
             odo: mcap.add_channel("/odometer")?,
             marks: mcap.add_channel("/marks")?,
             mcap,
+            path: path.to_path_buf(),
             origin_ns,
         };
         let (orders, receiver) = sync_channel(IN_FLIGHT);
@@ -243,5 +250,32 @@ mod tests {
         // 5 m over the i64's span, saturated: 9.2e18 ns.
         assert!(speeds[1] > 0.0 && speeds[1] < 1e-9, "{speeds:?}");
         w.finish().unwrap();
+    }
+
+    /// The file's hash is taken as it is written (more than one chunk here) and
+    /// remembered for its stage's record, which then does not read the file back: before,
+    /// a 12-hour run's 405 MB were read again, 0.2 s on one core at the ingest's end.
+    #[test]
+    fn the_files_hash_is_remembered_as_written() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("raw.mcap");
+        let mut w = RawMcapWriter::create(&path, 7, McapCompression::default()).unwrap();
+        for k in 0..60_000i64 {
+            w.imu(
+                k * 10_000_000,
+                0.01,
+                k as u64,
+                [1e-5; 3],
+                [0.098, 0.0, -0.098],
+                0,
+            );
+            w.odometer(k * 10_000_000, k as f64 * 0.1);
+        }
+        w.mark(123, 4);
+        w.finish().unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert!(bytes.len() > 2 << 20, "{} bytes: one chunk", bytes.len());
+        let want = blake3::hash(&bytes).to_hex().to_string();
+        assert_eq!(crate::file_hashes::remembered(&path), Some(want));
     }
 }

@@ -15,6 +15,7 @@
 
 pub mod atomic;
 pub mod error;
+pub mod hashing_writer;
 pub mod kfgins;
 pub mod manifest;
 pub mod mcap_chunks;

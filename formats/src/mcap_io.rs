@@ -8,6 +8,7 @@ use std::path::Path;
 
 use crate::atomic::AtomicFile;
 use crate::error::{FileError, FormatError, write_error_in_file};
+use crate::hashing_writer::HashingWriter;
 use crate::mcap_chunks::{ChunkedMcap, MessageError};
 use crate::ros2_msgs::Ros2Message;
 
@@ -45,7 +46,7 @@ pub enum McapCompression {
 /// An MCAP file of ROS 2 channels being written (by [`ChunkedMcap`]: the mcap crate's
 /// writer's bytes, a chunk at a time).
 pub struct Ros2Mcap {
-    writer: ChunkedMcap<BufWriter<std::fs::File>>,
+    writer: ChunkedMcap<BufWriter<HashingWriter<std::fs::File>>>,
     file: AtomicFile,
 }
 
@@ -53,7 +54,7 @@ impl Ros2Mcap {
     /// Starts an MCAP file at `dest` with chunks compressed as `compression` says.
     pub fn create(dest: &Path, compression: McapCompression) -> Result<Self, FileError> {
         let file = AtomicFile::create(dest)?;
-        let handle = BufWriter::with_capacity(1 << 20, file.file_handle()?);
+        let handle = BufWriter::with_capacity(1 << 20, HashingWriter::new(file.file_handle()?));
         let writer = ChunkedMcap::new(
             handle,
             compression,
@@ -114,14 +115,22 @@ impl Ros2Mcap {
         Ok(())
     }
 
-    /// Writes the summary, flushes and renames the file into place.
-    pub fn finish(self) -> Result<(), FileError> {
-        let inner = self
+    /// Writes the summary, flushes and renames the file into place; returns the blake3
+    /// of the file's bytes, hashed as they were written (the file is written front to
+    /// back: [`HashingWriter`]).
+    pub fn finish(self) -> Result<blake3::Hash, FileError> {
+        let dest = self.file.dest();
+        let buffered = self
             .writer
             .finish()
-            .map_err(|e| write_error_in_file(self.file.dest(), e))?;
-        // The file's handle (in `inner`) is closed before the file is put in place.
-        drop(inner);
-        self.file.commit()
+            .map_err(|e| write_error_in_file(dest, e))?;
+        let (handle, hash) = buffered
+            .into_inner()
+            .map_err(|e| write_error_in_file(dest, e.into_error()))?
+            .finish();
+        // The file's handle is closed before the file is put in place.
+        drop(handle);
+        self.file.commit()?;
+        Ok(hash)
     }
 }
