@@ -50,7 +50,7 @@ pub struct FoundRuns {
     pub skipped: Vec<(PathBuf, String)>,
 }
 
-/// Every `run.toml` under `path` (or `path` itself), down to [`MAX_DEPTH`] folders below
+/// Every `run.toml` under `path` (or `path` itself), down to `MAX_DEPTH` folders below
 /// it; `out` is never searched and symlinks are not followed. A folder below `path` that
 /// cannot be listed, or is deeper than that, is skipped and said, as is a `run.toml` that
 /// is not a regular file: the rest of the campaign goes on.

@@ -307,7 +307,7 @@ impl StaticCut {
         )
     }
 
-    /// The static start averaged, s: the one detected ([`stood_until_s`]).
+    /// The static start averaged, s: the one detected (`stood_until_s`).
     pub fn static_s(&self) -> f64 {
         stood_until_s(self.moved_s)
     }

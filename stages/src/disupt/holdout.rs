@@ -74,7 +74,7 @@ pub struct Holdout {
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub excluded: bool,
     /// One of exactly two control points, in a run with a static start, whose hold-out
-    /// errors are both beyond [`HOLDOUT_TWO_POINTS_SIGMA`]: the two disagree with the
+    /// errors are both beyond `HOLDOUT_TWO_POINTS_SIGMA`: the two disagree with the
     /// log (a point's coordinates, time or mark, or the site, are off), and the fit
     /// cannot tell which.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
