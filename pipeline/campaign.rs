@@ -527,6 +527,7 @@ fn run_note(
         .chain(level_apart.map(LevelApart::said))
         .chain(ing.and_then(|i| i.speed_floor).map(|f| f.said()))
         .chain(ing.and_then(|i| i.speed_column_unread_said()))
+        .chain(ing.and_then(|i| i.clock_said()))
         .chain(odo_failed)
         .chain(rebridged)
         .chain(

@@ -556,7 +556,7 @@ pub fn imu_sample_place(manifest: &RunManifest, sample: KeptSample) -> Option<St
         LogFormat::UnzBinary => {
             let offset = unz_formats::raw::find_imu_record(file, |row, s| match sample {
                 KeptSample::Row(k) => row == k as u64,
-                KeptSample::TagNs(t_ns) => record_tag_ns(s.raw.t_us) == t_ns,
+                KeptSample::TagNs(t_ns) => record_tag_ns(s.t_us) == t_ns,
             });
             format!("byte offset {}", offset.ok()??)
         }
@@ -572,7 +572,7 @@ pub fn imu_sample_place(manifest: &RunManifest, sample: KeptSample) -> Option<St
     Some(format!("{place} of {}", manifest.named(path).display()))
 }
 
-/// A binary record's time tag (µs from the header's start time) as the ingest tags it,
+/// A binary record's time (µs from the header's start time, [`unz_formats::raw::ImuSample::t_us`]) as the ingest tags it,
 /// ns; a tag beyond i64's nanoseconds saturates.
 fn record_tag_ns(t_us: u64) -> i64 {
     i64::try_from(t_us)
@@ -615,7 +615,7 @@ fn ingest_binary(
     while let Some(rec) = reader.next_record().map_err(|e| e.in_file(path))? {
         match rec {
             Accepted::Imu(s) => {
-                let t_ns = record_tag_ns(s.raw.t_us);
+                let t_ns = record_tag_ns(s.t_us);
                 // The counts are turned (whole numbers: a zero stays +0.0), then scaled.
                 // A mounting turns the scaled increments.
                 let axes = options.imu_axes;
@@ -676,7 +676,7 @@ fn ingest_binary(
                 let t_ns = record_tag_ns(m.t_us);
                 bridger.other(Row::Mark {
                     t_ns,
-                    point_id: m.point_id,
+                    point_id: m.raw.point_id,
                 });
             }
         }

@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 use unz::flow::NavigateSummary;
 use unz_formats::IngestReport;
 
-use crate::util::{files_below, hold_count, parquet_rows, read_json, read_log, unz, unz_output};
+use crate::util::{
+    files_below, hold_count, parquet_rows, read_json, read_log, unz, unz_output, write_log,
+};
 
 /// A campaign of two simulated 200 s runs; returns the campaign folder.
 fn campaign(dir: &Path) -> PathBuf {
@@ -256,7 +258,7 @@ fn rewrite_imu(log: &Path, edit: &dyn Fn(&mut unz_formats::raw::ImuRecord)) {
                 edit(&mut r);
                 writer.write_imu(&r).unwrap();
             }
-            Accepted::Mark(m) => writer.write_mark(&m).unwrap(),
+            Accepted::Mark(m) => writer.write_mark(&m.raw).unwrap(),
         }
     }
     std::fs::write(log, writer.finish().unwrap()).unwrap();
@@ -312,22 +314,22 @@ fn a_log_whose_time_does_not_advance_fails_its_run() {
 
 /// One record whose time tag leapt forward alone, its CRC valid (a glitch in the
 /// recorder's clock): by 1 s, by 2^40 µs (beyond an i64 of nanoseconds once scaled) and to
-/// u64::MAX. The derive repairs that one tag, the odometer's interpolation passes over
-/// its reading, and DISUPT finds what it finds in the undamaged run: the repaired tag is
-/// the true one, and the odometer loses one reading of 100 a second. Before, every later
-/// tag went back from the leap (half a run's tags "repaired", and the run failed), and
-/// once the IMU's were repaired the odometer's reading there hid every later one (the
-/// distance held from it: 1 169 m off at a 10-minute run's control point).
+/// u64::MAX. The ingest gives it its `seq`'s time (one lone tag off), and DISUPT finds
+/// what it finds in the undamaged run. Before the derive repaired such a tag (one
+/// repaired time); before that, every later tag went back from the leap (half a run's
+/// tags "repaired", and the run failed), and the odometer's reading there hid every
+/// later one (the distance held from it: 1 169 m off at a 10-minute run's control point).
 ///
 /// The log's first or last record apart from the rest: the first's tag leapt 1 s or 20 s
-/// forward (a glitch at its start), the last 10 s after the rest (a record a logger
-/// wrote as it closed). Each is placed beside the record next to it, one repaired time,
-/// and DISUPT finds the same. Before, a first tag that leapt had every tag up to its time
+/// forward (a glitch at its start, inside the stretch whose tags give the ingest its
+/// period: the derive places it beside the second, one repaired time), the last 10 s
+/// after the rest (a record a logger wrote as it closed: the ingest's lone tag off).
+/// DISUPT finds the same. Before, a first tag that leapt had every tag up to its time
 /// repaired one interval on from it (the whole log shifted by the leap), and a lone
 /// record across a gap at the end failed the run on the gap. (A first record before a
 /// gap: the Kingston test `kingston_a_lone_first_or_last_line_is_placed_beside_the_rest`.)
 #[test]
-fn a_record_whose_tag_leapt_forward_alone_costs_one_repaired_time() {
+fn a_record_whose_tag_leapt_forward_alone_is_given_its_time() {
     use unz::disupt_stage::DisuptOut;
     use unz_formats::raw::{Accepted, RawReader};
 
@@ -369,7 +371,13 @@ fn a_record_whose_tag_leapt_forward_alone_costs_one_repaired_time() {
         let (code, text) = run(&camp, &out, "disupt");
         assert_eq!(code, Some(0), "{what}: {text}");
         let nav: NavigateSummary = read_json(&out.join("sim-0080/navigate/navigate.json"));
-        assert_eq!(nav.repaired_times, 1, "{what}");
+        let report: IngestReport = read_json(&out.join("sim-0080/ingest/ingest.json"));
+        let (lone, repaired) = if seq == first { (0, 1) } else { (1, 0) };
+        assert_eq!(
+            (report.lone_tags_off, report.clock_steps, nav.repaired_times),
+            (lone, 0, repaired),
+            "{what}: {report:?}"
+        );
         let damaged: DisuptOut = read_json(&out.join("sim-0080/disupt/disupt.json"));
         assert_same_fit(&clean, &damaged, what);
     }
@@ -423,7 +431,7 @@ fn a_block_sent_again_or_logs_joined_over_their_overlap_are_duplicates() {
                     block.iter().for_each(|r| writer.write_imu(r).unwrap());
                 }
             }
-            Accepted::Mark(m) => writer.write_mark(&m).unwrap(),
+            Accepted::Mark(m) => writer.write_mark(&m.raw).unwrap(),
         }
     }
     std::fs::write(&log, writer.finish().unwrap()).unwrap();
@@ -488,8 +496,93 @@ fn a_block_sent_again_or_logs_joined_over_their_overlap_are_duplicates() {
     }
 }
 
+/// A recorder whose clock was set twice while it logged, `seq` running on: 2 s forward at
+/// 60 s, then 3 s back at 140 s (the tags after it 1 s behind the log's start), the
+/// control point's mark after both. The ingest takes both leaps out of the time base (each
+/// listed at its record), the summary says so, and `disupt.json` is the undamaged run's
+/// byte for byte. Before, the leap forward read as a 2.01-s gap and failed the run's
+/// derive (`max_gap_s`); a 1-s leap was filled with 99 samples of held rates, and every
+/// mark after it was a second off the samples.
+#[test]
+fn a_clock_set_while_logging_is_taken_out_of_the_time_base() {
+    use std::cell::Cell;
+    use unz_formats::raw::FaultKind;
+
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = simulated_campaign(&tmp.path().join("c"), 80, 1, 200.0);
+    let clean_out = tmp.path().join("clean");
+    let (code, text) = run(&camp, &clean_out, "disupt");
+    assert_eq!(code, Some(0), "{text}");
+    let log = camp.join("sim-0080/sim-0080.unz");
+    let marks = read_log(&log).marks;
+    assert!(marks.iter().any(|(at, _)| *at > 14_000), "{marks:?}");
+    let k = Cell::new(0_usize);
+    rewrite_imu(&log, &|r| {
+        match k.get() {
+            6_000..14_000 => r.t_us += 2_000_000,
+            14_000.. => r.t_us -= 1_000_000,
+            _ => {}
+        }
+        k.set(k.get() + 1);
+    });
+    let mut stepped = read_log(&log);
+    for (at, m) in &mut stepped.marks {
+        match *at {
+            6_001..=14_000 => m.t_us += 2_000_000,
+            14_001.. => m.t_us -= 1_000_000,
+            _ => {}
+        }
+    }
+    write_log(&log, &stepped);
+
+    let out = tmp.path().join("o");
+    let (code, text) = run(&camp, &out, "disupt");
+    assert_eq!(code, Some(0), "{text}");
+    let report: IngestReport = read_json(&out.join("sim-0080/ingest/ingest.json"));
+    assert_eq!(
+        (report.clock_steps, report.lone_tags_off, report.seq_gaps),
+        (2, 0, 0),
+        "{report:?}"
+    );
+    assert!((report.clock_shift_s - 1.0).abs() < 1e-9, "{report:?}");
+    let events: unz_formats::IngestEvents =
+        read_json(&out.join("sim-0080/ingest/ingest_events.json"));
+    let leaps: Vec<_> = (events.events.iter())
+        .filter(|e| matches!(e.kind, FaultKind::ClockAhead | FaultKind::ClockBack))
+        .map(|e| (e.kind, e.amount))
+        .collect();
+    assert_eq!(
+        leaps,
+        [
+            (FaultKind::ClockAhead, 2_000_000),
+            (FaultKind::ClockBack, 3_000_000)
+        ]
+    );
+    let bytes = std::fs::read(&log).unwrap();
+    let first = unz_formats::raw::HEADER_LEN;
+    for e in events
+        .events
+        .iter()
+        .filter(|e| e.kind == FaultKind::ClockAhead)
+    {
+        let seq = imu_field(&bytes, e.offset as usize, 4, 4) - imu_field(&bytes, first, 4, 4);
+        assert_eq!(seq, 6_000, "{e:?}");
+    }
+    assert!(
+        campaign_row(&out, "sim-0080").contains(
+            "the recorder's clock leapt twice while its seq ran on, taken out of the time \
+             base (the tags after the last moved by +1.000000 s)"
+        ),
+        "{}",
+        campaign_row(&out, "sim-0080")
+    );
+    let clean = std::fs::read(clean_out.join("sim-0080/disupt/disupt.json")).unwrap();
+    let got = std::fs::read(out.join("sim-0080/disupt/disupt.json")).unwrap();
+    assert!(got == clean, "disupt.json differs from the undamaged run's");
+}
+
 /// The joint fit and OEPI of `damaged` are `clean`'s, well posed on the 200-s run of
-/// [`a_record_whose_tag_leapt_forward_alone_costs_one_repaired_time`]: the same fit to a
+/// [`a_record_whose_tag_leapt_forward_alone_is_given_its_time`]: the same fit to a
 /// microdegree and a millimetre. OWPI, whose fit leaves this short run hundreds of metres
 /// off, is as ill-conditioned as that says: it ran, and its numbers are not compared.
 fn assert_same_fit(
@@ -1095,26 +1188,27 @@ fn control_points_the_log_cannot_reach_are_refused() {
     );
 }
 
-/// A 30-s hole in a moving run's IMU log (its time tags jump) fails the run at derive with
+/// A 30-s hole in a moving run's IMU log (its records lost) fails the run at derive with
 /// where the gap is, where holding the rate across it turned the heading by whatever the
 /// vehicle was turning at times 3 000; a run that raises `derive.max_gap_s` past it (a
 /// pause its crew knows to have been at rest) is bridged as before.
 #[test]
 fn a_gap_longer_than_the_derive_bridges_fails_its_run() {
-    use std::cell::Cell;
     let tmp = tempfile::tempdir().unwrap();
     let camp = campaign(tmp.path());
-    let shift_after = |log: &Path| {
-        let k = Cell::new(0_u32);
-        rewrite_imu(log, &|r| {
-            if k.get() >= 12_000 {
-                r.t_us += 30_000_000;
+    // 30 s of records lost (their `seq` and tags gone with them).
+    let lose_30_s = |log: &Path| {
+        let mut l = read_log(log);
+        l.imu.drain(12_000..15_000);
+        for (at, _) in &mut l.marks {
+            if *at > 12_000 {
+                *at = at.saturating_sub(3_000).max(12_000);
             }
-            k.set(k.get() + 1);
-        })
+        }
+        write_log(log, &l);
     };
-    shift_after(&camp.join("sim-0081/sim-0081.unz"));
-    shift_after(&camp.join("sim-0080/sim-0080.unz"));
+    lose_30_s(&camp.join("sim-0081/sim-0081.unz"));
+    lose_30_s(&camp.join("sim-0080/sim-0080.unz"));
     append(
         &camp.join("sim-0080/run.toml"),
         "\n[params.derive]\nmax_gap_s = 40.0\n",
@@ -1131,12 +1225,12 @@ fn a_gap_longer_than_the_derive_bridges_fails_its_run() {
     assert!(!text.contains("FAILED sim-0080"), "{text}");
     assert!(out.join("sim-0080/derive/derived.parquet").is_file());
     // The sample after the gap is named by its record's byte offset: the frame there is
-    // the 12 000th record after the first, 150 s after it.
+    // the 15 000th record after the first by its `seq`, 150 s after it.
     let log = std::fs::read(camp.join("sim-0081/sim-0081.unz")).unwrap();
     let at = offset_named(&text, "(before sample 12000, byte offset ", "sim-0081.unz");
     let field = |at: usize, from: usize, len: usize| imu_field(&log, at, from, len);
     let first = unz_formats::raw::HEADER_LEN;
-    assert_eq!(field(at, 4, 4) - field(first, 4, 4), 12_000);
+    assert_eq!(field(at, 4, 4) - field(first, 4, 4), 15_000);
     assert_eq!(field(at, 8, 8) - field(first, 8, 8), 150_000_000);
 
     // A text log's gap is named by its line: 40 lines (4 s) of Kingston's log taken out.

@@ -206,7 +206,7 @@ pub fn read_log(path: &Path) -> Log {
     while let Some(rec) = reader.next_record().unwrap() {
         match rec {
             Accepted::Imu(s) => imu.push(s.raw),
-            Accepted::Mark(m) => marks.push((imu.len(), m)),
+            Accepted::Mark(m) => marks.push((imu.len(), m.raw)),
         }
     }
     Log { header, imu, marks }

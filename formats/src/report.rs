@@ -56,6 +56,19 @@ pub struct IngestReport {
     pub lost_duration_s: f64,
     /// Accepted IMU records whose `t_us` is not after the previous one's.
     pub t_non_increasing: u64,
+    /// Binary logs: times the recorder's clock leapt (forward or back, beyond
+    /// [`crate::raw::TOLERANCE_PERIODS`] sample periods) while `seq` ran on: taken out of
+    /// the time base, each listed in `ingest_events.json` (`clock_ahead`, `clock_back`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub clock_steps: u64,
+    /// Binary logs: what the clock steps add to the tags after the last one, s (negative
+    /// when the clock leapt forward).
+    #[serde(default, skip_serializing_if = "is_zero_f64")]
+    pub clock_shift_s: f64,
+    /// Binary logs: IMU records whose tag alone was off its `seq`'s time beyond the same
+    /// tolerance (its neighbours agreeing), given their `seq`'s time (`lone_tag_off`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub lone_tags_off: u64,
     /// Text logs: times the time tags rolled over from the end of a GPS week to its start
     /// (seconds of week: [`crate::kfgins::GPS_WEEK_S`]), the week added to the tags after.
     #[serde(default, skip_serializing_if = "is_zero")]
@@ -87,6 +100,39 @@ pub struct IngestReport {
 }
 
 impl IngestReport {
+    /// What the run's log and its row of the campaign summary say of the recorder's clock
+    /// leaping while `seq` ran on, and of lone tags off (`None`: neither happened).
+    pub fn clock_said(&self) -> Option<String> {
+        let mut parts = Vec::new();
+        if self.clock_steps > 0 {
+            parts.push(format!(
+                "the recorder's clock leapt {} while its seq ran on, taken out of the time \
+                 base (the tags after the last moved by {:+.6} s)",
+                times(self.clock_steps),
+                self.clock_shift_s
+            ));
+        }
+        if self.lone_tags_off > 0 {
+            parts.push(format!(
+                "{} IMU record{} tagged off alone, given {} seq's time",
+                self.lone_tags_off,
+                if self.lone_tags_off == 1 { "" } else { "s" },
+                if self.lone_tags_off == 1 {
+                    "its"
+                } else {
+                    "their"
+                },
+            ));
+        }
+        (!parts.is_empty()).then(|| {
+            format!(
+                "{} (each at its byte offset in ingest_events.json; a manifest's t_s is on \
+                 this time base)",
+                parts.join("; ")
+            )
+        })
+    }
+
     /// What the run's log and its row of the campaign summary say of an 8th column left
     /// unread (`None`: none was).
     pub fn speed_column_unread_said(&self) -> Option<String> {
@@ -198,6 +244,19 @@ pub struct IngestEvents {
 
 fn is_zero(n: &u64) -> bool {
     *n == 0
+}
+
+/// "once", "twice", "N times".
+fn times(n: u64) -> String {
+    match n {
+        1 => "once".to_owned(),
+        2 => "twice".to_owned(),
+        n => format!("{n} times"),
+    }
+}
+
+fn is_zero_f64(v: &f64) -> bool {
+    *v == 0.0
 }
 
 impl IngestReport {

@@ -2,8 +2,9 @@
 
 use proptest::prelude::*;
 use unz_formats::raw::{
-    Accepted, FileHeader, HEADER_LEN, IMU_PAYLOAD_LEN, ImuRecord, MarkRecord, RawLog, RawReader,
-    RawWriter, SYNC, TYPE_IMU, find_imu_record,
+    Accepted, FaultKind, FileHeader, HEADER_LEN, IMU_PAYLOAD_LEN, ImuRecord, MARK_PAYLOAD_LEN,
+    MarkRecord, MarkSample, RawLog, RawReader, RawWriter, SYNC, TYPE_IMU, find_imu_record,
+    frame_len,
 };
 use unz_formats::report::IngestReport;
 
@@ -79,16 +80,20 @@ fn round_trip_is_bit_exact() {
         got.push(a);
     }
     assert_eq!(imus(&got), records);
-    assert!(got.contains(&Accepted::Mark(MarkRecord {
+    let mark = MarkRecord {
         t_us: records[2500].t_us,
-        point_id: 9
+        point_id: 9,
+    };
+    assert!(got.contains(&Accepted::Mark(MarkSample {
+        raw: mark,
+        t_us: mark.t_us
     })));
     // Re-encoding what was read gives the same bytes.
     let mut w = RawWriter::new(Vec::new(), &header).unwrap();
     for a in &got {
         match a {
             Accepted::Imu(s) => w.write_imu(&s.raw).unwrap(),
-            Accepted::Mark(m) => w.write_mark(m).unwrap(),
+            Accepted::Mark(m) => w.write_mark(&m.raw).unwrap(),
         }
     }
     let mut header_fixed = bytes.clone();
@@ -288,6 +293,89 @@ fn an_accepted_imu_records_offset_is_found_by_its_row() {
     let by_tag = find_imu_record(bytes, |_, s| s.raw.t_us == accepted[k].t_us).unwrap();
     let by_row = find_imu_record(bytes, |row, _| row == k as u64).unwrap();
     assert_eq!(by_tag, by_row);
+}
+
+/// A recorder's clock set while it logs (`seq` running on): 2 s forward at record 3 000
+/// (a lost sample beside it), 0.5 s back at record 6 000, and one record's tag 7 s off
+/// alone at 4 000. Every sample is given its `seq`'s time on the clock of the log's start,
+/// the marks on either side of a step and the records' own tags are kept as recorded;
+/// each leap is counted and listed at its record's byte offset.
+#[test]
+fn a_clock_set_while_logging_is_taken_out_of_the_time_base() {
+    const T: u64 = 10_000;
+    let true_t = |seq: u32| 1_000_000 + u64::from(seq) * T;
+    let tag = |seq: u32| match seq {
+        4_000 => true_t(seq) + 7_000_000,
+        3_000..6_000 => true_t(seq) + 2_000_000,
+        6_000.. => true_t(seq) + 1_500_000,
+        _ => true_t(seq),
+    };
+    let mut w = RawWriter::new(Vec::new(), &FileHeader::unz50(0, "SN")).unwrap();
+    let mut offsets = std::collections::HashMap::new();
+    let mut at = HEADER_LEN as u64;
+    for seq in (0..8_000).filter(|&s| s != 2_999) {
+        offsets.insert(seq, at);
+        w.write_imu(&imu(seq, tag(seq), seq)).unwrap();
+        at += frame_len(IMU_PAYLOAD_LEN) as u64;
+        // Marks stamped on the clock of the records around them.
+        if [2_998, 3_000, 5_999, 6_000].contains(&seq) {
+            let t_us = tag(seq) + 100;
+            w.write_mark(&MarkRecord {
+                t_us,
+                point_id: seq,
+            })
+            .unwrap();
+            at += frame_len(MARK_PAYLOAD_LEN) as u64;
+        }
+    }
+    let bytes = w.finish().unwrap();
+    let mut r = RawReader::new(bytes.as_slice()).unwrap();
+    let (mut samples, mut marks) = (Vec::new(), Vec::new());
+    while let Some(rec) = r.next_record().unwrap() {
+        match rec {
+            Accepted::Imu(s) => samples.push(s),
+            Accepted::Mark(m) => marks.push(m),
+        }
+    }
+    let (rep, events, _) = r.into_report();
+    assert!(rep.is_consistent(), "{rep:?}");
+    assert_eq!(samples.len(), 7_999);
+    for s in &samples {
+        let seq = s.raw.seq;
+        assert_eq!(s.t_us, true_t(seq), "seq {seq}");
+        assert_eq!(s.raw.t_us, tag(seq), "seq {seq}");
+    }
+    for m in &marks {
+        assert_eq!(m.t_us, true_t(m.raw.point_id) + 100, "{m:?}");
+    }
+    assert_eq!(
+        (rep.clock_steps, rep.lone_tags_off, rep.seq_gaps),
+        (2, 1, 1),
+        "{rep:?}"
+    );
+    assert!((rep.clock_shift_s + 1.5).abs() < 1e-12, "{rep:?}");
+    // The tag going 0.5 s back, and the one after the lone tag, are not after the one
+    // before them.
+    assert_eq!(rep.t_non_increasing, 2, "{rep:?}");
+    let clock: Vec<_> = (events.iter())
+        .filter(|e| {
+            matches!(
+                e.kind,
+                FaultKind::ClockAhead | FaultKind::ClockBack | FaultKind::LoneTagOff
+            )
+        })
+        .map(|e| (e.kind, e.offset, e.amount))
+        .collect();
+    assert_eq!(
+        clock,
+        [
+            (FaultKind::ClockAhead, offsets[&3_000], 2_000_000),
+            (FaultKind::LoneTagOff, offsets[&4_000], 5_000_000),
+            (FaultKind::ClockBack, offsets[&6_000], 500_000),
+        ]
+    );
+    // The events are in the file's order.
+    assert!(events.windows(2).all(|w| w[0].offset <= w[1].offset));
 }
 
 #[test]

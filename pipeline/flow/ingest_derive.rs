@@ -86,8 +86,9 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // 28: an odometer file of more columns read at `[odometer] value_column`; a line
         // of more numbers without it names the setting. 29: the column named by the
         // file's header line too; a time tag in Unix ms, µs or ns named so (its reason in
-        // `ingest_events.json`).
-        version: 29,
+        // `ingest_events.json`). 30: a binary log's time base follows `seq` across the
+        // recorder's clock leaping (steps and lone tags off taken out, said and listed).
+        version: 30,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
@@ -115,6 +116,9 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         }
         if let Some(unread) = outcome.report.speed_column_unread_said() {
             ctx.say("ingest", &unread);
+        }
+        if let Some(clock) = outcome.report.clock_said() {
+            ctx.say("ingest", &clock);
         }
         ctx.set_ingested(
             outcome

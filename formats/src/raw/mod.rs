@@ -19,6 +19,7 @@
 //! assert_eq!(reader.report().imu_accepted, 1);
 //! ```
 
+mod clock;
 mod crc;
 pub mod faults;
 mod header;
@@ -26,9 +27,12 @@ mod reader;
 mod record;
 mod writer;
 
+pub use clock::{LEARN_INTERVALS, TOLERANCE_PERIODS};
 pub use faults::{DamagedLog, RawLog};
 pub use header::{FileHeader, HEADER_LEN, MAGIC};
-pub use reader::{Accepted, FaultEvent, FaultKind, ImuSample, RawReader, find_imu_record};
+pub use reader::{
+    Accepted, FaultEvent, FaultKind, ImuSample, MarkSample, RawReader, find_imu_record,
+};
 pub use record::{
     IMU_PAYLOAD_LEN, ImuRecord, MARK_PAYLOAD_LEN, MAX_FRAME_LEN, MarkRecord, Record, SYNC,
     TYPE_IMU, TYPE_MARK, frame_len,

@@ -14,6 +14,7 @@
 
 use std::io::Read;
 
+use super::clock::{RecorderClock, Resolved};
 use super::header::{FileHeader, HEADER_LEN};
 use super::record::{
     IMU_PAYLOAD_LEN, ImuRecord, MARK_PAYLOAD_LEN, MAX_FRAME_LEN, MarkRecord, SYNC, TYPE_IMU,
@@ -48,6 +49,15 @@ pub enum FaultKind {
     SeqBackwards,
     /// `t_us` did not increase.
     TimeNotIncreasing,
+    /// The recorder's clock leapt forward while `seq` ran on (amount: µs); the tags from
+    /// this record on are moved back by it.
+    ClockAhead,
+    /// The recorder's clock leapt back while `seq` ran on (amount: µs); the tags from this
+    /// record on are moved forward by it.
+    ClockBack,
+    /// This record's tag alone was off its `seq`'s time, its neighbours agreeing (amount:
+    /// µs, either way); it is given its `seq`'s time.
+    LoneTagOff,
 }
 
 /// One fault, located by the byte offset of the record (or skipped run) in the file.
@@ -66,10 +76,24 @@ pub struct FaultEvent {
 pub struct ImuSample {
     /// The record as read.
     pub raw: ImuRecord,
+    /// Its time, µs since the header's start on the clock of the log's start: its tag,
+    /// the recorder's clock steps taken out and a lone tag off given its `seq`'s time
+    /// ([`RecorderClock`]).
+    pub t_us: u64,
     /// `seq` unwrapped across 2^32 (the first record's `seq` is its own value).
     pub seq: u64,
     /// `odo_count` unwrapped across 2^32 (signed steps, so reversing is kept).
     pub odo_pulses: i64,
+}
+
+/// An accepted control-point mark.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MarkSample {
+    /// The record as read.
+    pub raw: MarkRecord,
+    /// Its time, µs since the header's start on the clock of the log's start (its tag,
+    /// the recorder's clock steps before it taken out).
+    pub t_us: u64,
 }
 
 /// A record the reader accepted.
@@ -78,7 +102,7 @@ pub enum Accepted {
     /// IMU sample.
     Imu(ImuSample),
     /// Control-point mark.
-    Mark(MarkRecord),
+    Mark(MarkSample),
 }
 
 /// Streaming reader; see the module documentation for the framing rules.
@@ -103,6 +127,8 @@ pub struct RawReader<R: Read> {
     recent: RecentRecords<(u32, u64)>,
     /// File offset of the record returned last.
     last_offset: u64,
+    /// The recorder's clock, as `seq` says it ran.
+    clock: RecorderClock,
 }
 
 impl<R: Read> RawReader<R> {
@@ -141,6 +167,7 @@ impl<R: Read> RawReader<R> {
             last_imu: None,
             recent: RecentRecords::default(),
             last_offset: 0,
+            clock: RecorderClock::default(),
         })
     }
 
@@ -159,8 +186,12 @@ impl<R: Read> RawReader<R> {
         (&self.events, self.events_total)
     }
 
-    /// Consumes the reader, returning the final report and fault events.
-    pub fn into_report(self) -> (IngestReport, Vec<FaultEvent>, u64) {
+    /// Consumes the reader, returning the final report and fault events (a last record
+    /// whose tag was off its `seq`'s time counted as a lone tag off).
+    pub fn into_report(mut self) -> (IngestReport, Vec<FaultEvent>, u64) {
+        if let Some(resolved) = self.clock.finish() {
+            self.said_of_clock(resolved);
+        }
         (self.report, self.events, self.events_total)
     }
 
@@ -382,7 +413,9 @@ impl<R: Read> RawReader<R> {
                 p.copy_from_slice(payload);
                 self.report.records_accepted += 1;
                 self.report.marks_accepted += 1;
-                Some(Accepted::Mark(MarkRecord::decode_payload(&p)))
+                let raw = MarkRecord::decode_payload(&p);
+                let t_us = self.clock.mark(raw.t_us);
+                Some(Accepted::Mark(MarkSample { raw, t_us }))
             }
             _ => {
                 self.report.rejected.unknown_type += 1;
@@ -393,46 +426,63 @@ impl<R: Read> RawReader<R> {
     }
 
     fn accept_imu(&mut self, raw: ImuRecord, offset: u64) -> Option<Accepted> {
-        let (seq, odo_pulses) = match self.last_imu {
-            None => (u64::from(raw.seq), i64::from(raw.odo_count)),
-            Some((prev_seq_raw, prev_seq, prev_t, prev_odo_raw, prev_odo)) => {
-                let step = raw.seq.wrapping_sub(prev_seq_raw);
-                let resent = || {
-                    step >= 1 << 31
-                        && raw.t_us <= prev_t
-                        && (self.recent.seen(u64::from(raw.seq), &(raw.seq, raw.t_us))).is_some()
-                };
-                if step == 0 || resent() {
-                    self.report.rejected.duplicate_seq += 1;
-                    self.event(offset, FaultKind::DuplicateSeq, u64::from(raw.seq));
-                    return None;
-                }
-                let seq = if step < 1 << 31 {
-                    if step > 1 {
-                        let lost = u64::from(step - 1);
-                        self.report.seq_gaps += 1;
-                        self.report.lost_samples += lost;
-                        self.event(offset, FaultKind::SeqGap, lost);
-                    }
-                    prev_seq + u64::from(step)
-                } else {
-                    // A counter reset: keep the stream going, report it.
-                    self.report.seq_gaps += 1;
-                    self.event(
-                        offset,
-                        FaultKind::SeqBackwards,
-                        u64::from(step.wrapping_neg()),
-                    );
-                    prev_seq + 1
-                };
-                if raw.t_us <= prev_t {
-                    self.report.t_non_increasing += 1;
-                    self.event(offset, FaultKind::TimeNotIncreasing, prev_t - raw.t_us);
-                }
-                let odo_step = raw.odo_count.wrapping_sub(prev_odo_raw) as i32;
-                (seq, prev_odo + i64::from(odo_step))
-            }
+        let Some((prev_seq_raw, prev_seq, prev_t, prev_odo_raw, prev_odo)) = self.last_imu else {
+            let (t_us, _) = self.clock.imu(raw.t_us, 1, offset);
+            return self.accepted_imu(raw, t_us, u64::from(raw.seq), i64::from(raw.odo_count));
         };
+        let step = raw.seq.wrapping_sub(prev_seq_raw);
+        let resent = || {
+            step >= 1 << 31
+                && raw.t_us <= prev_t
+                && (self.recent.seen(u64::from(raw.seq), &(raw.seq, raw.t_us))).is_some()
+        };
+        if step == 0 || resent() {
+            self.report.rejected.duplicate_seq += 1;
+            self.event(offset, FaultKind::DuplicateSeq, u64::from(raw.seq));
+            return None;
+        }
+        // A counter reset (a step back) keeps the stream going one sample on.
+        let seq_step = if step < 1 << 31 { u64::from(step) } else { 1 };
+        // What this record says of the one before comes first, in the file's order.
+        let (t_us, resolved) = self.clock.imu(raw.t_us, seq_step, offset);
+        if let Some(resolved) = resolved {
+            self.said_of_clock(resolved);
+        }
+        if step >= 1 << 31 {
+            self.report.seq_gaps += 1;
+            self.event(
+                offset,
+                FaultKind::SeqBackwards,
+                u64::from(step.wrapping_neg()),
+            );
+        } else if step > 1 {
+            let lost = u64::from(step - 1);
+            self.report.seq_gaps += 1;
+            self.report.lost_samples += lost;
+            self.event(offset, FaultKind::SeqGap, lost);
+        }
+        if raw.t_us <= prev_t {
+            self.report.t_non_increasing += 1;
+            self.event(offset, FaultKind::TimeNotIncreasing, prev_t - raw.t_us);
+        }
+        let odo_step = raw.odo_count.wrapping_sub(prev_odo_raw) as i32;
+        self.accepted_imu(
+            raw,
+            t_us,
+            prev_seq + seq_step,
+            prev_odo + i64::from(odo_step),
+        )
+    }
+
+    /// Keeps an IMU record accepted as sample `seq` (unwrapped) at time `t_us` with
+    /// `odo_pulses` (unwrapped).
+    fn accepted_imu(
+        &mut self,
+        raw: ImuRecord,
+        t_us: u64,
+        seq: u64,
+        odo_pulses: i64,
+    ) -> Option<Accepted> {
         self.last_imu = Some((raw.seq, seq, raw.t_us, raw.odo_count, odo_pulses));
         self.recent
             .keep(u64::from(raw.seq), (raw.seq, raw.t_us), ());
@@ -442,9 +492,31 @@ impl<R: Read> RawReader<R> {
             self.report.lost_samples as f64 * self.header.sample_period_s();
         Some(Accepted::Imu(ImuSample {
             raw,
+            t_us,
             seq,
             odo_pulses,
         }))
+    }
+
+    /// Counts what the clock found of a record whose tag was off, and lists it.
+    fn said_of_clock(&mut self, resolved: Resolved) {
+        let amount = |us: i128| u64::try_from(us.unsigned_abs()).unwrap_or(u64::MAX);
+        match resolved {
+            Resolved::Step { offset, leap_us } => {
+                self.report.clock_steps += 1;
+                let kind = if leap_us > 0 {
+                    FaultKind::ClockAhead
+                } else {
+                    FaultKind::ClockBack
+                };
+                self.event(offset, kind, amount(leap_us));
+                self.report.clock_shift_s = self.clock.offset_us() as f64 * 1e-6;
+            }
+            Resolved::LoneTag { offset, off_us } => {
+                self.report.lone_tags_off += 1;
+                self.event(offset, FaultKind::LoneTagOff, amount(off_us));
+            }
+        }
     }
 }
 

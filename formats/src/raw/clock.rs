@@ -1,0 +1,329 @@
+//! The recorder's clock as the IMU's `seq` says it ran.
+//!
+//! `seq` counts sample periods (+1 per IMU record, a jump for samples lost), so the time
+//! between two accepted records is their `seq` step × the sample period, whatever their
+//! time tags say. A recorder whose clock is set while it logs (a time sync) leaves tags
+//! that leap forward or back by the setting while `seq` runs on; kept, a leap forward
+//! reads as samples lost (filled with held rates, or failing the run as a gap no dead
+//! reckoning bridges) and a leap back as tags going back, and the marks after it are
+//! that far off the samples. A glitch in one record's tag, its neighbours agreeing, is
+//! the same on a smaller scale.
+//!
+//! [`RecorderClock`] takes such leaps out of the time base, as the records stream by: a
+//! record whose tag is off its `seq`'s time by more than [`tolerance_us`] is given its
+//! `seq`'s time (the previous record's time plus its step's periods); the next record
+//! tells which it was: back on the old clock, a lone tag off; on the leapt clock, a
+//! clock step, and every later tag (and mark) is moved by the step. Times stay on the
+//! clock of the log's start, the clock of `start_time_us`.
+//!
+//! The period is the median tag step of the log's first [`LEARN_INTERVALS`] one-`seq`
+//! steps (the header's period is not trusted for it): a leap inside them is left to the
+//! derive, as are tags off by less than the tolerance (a recorder's jitter).
+
+/// One-`seq` tag steps whose median is the period before leaps are looked for.
+pub const LEARN_INTERVALS: usize = 64;
+
+/// Sample periods a tag may be off its `seq`'s time before it is a leap: 10 periods
+/// (0.1 s at 100 Hz), far beyond a recorder's jitter, far below a clock setting.
+pub const TOLERANCE_PERIODS: i128 = 10;
+
+/// How far, µs, a tag `seq_step` periods of `period_us` after the record before may be
+/// off that time and still be on the same clock: [`TOLERANCE_PERIODS`] periods, or half
+/// the span across a gap of lost samples (a recorder's rate off by a little adds up over
+/// a long gap).
+pub fn tolerance_us(period_us: i128, seq_step: u64) -> i128 {
+    (TOLERANCE_PERIODS * period_us).max(i128::from(seq_step) * period_us / 2)
+}
+
+/// What the record after an IMU record whose tag was off said of it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Resolved {
+    /// The clock leapt at the record at byte `offset`: by `leap_us` (positive: forward),
+    /// taken off its tag and every later one.
+    Step {
+        /// Byte offset of the first record on the leapt clock.
+        offset: u64,
+        /// Its tag less its `seq`'s time, µs.
+        leap_us: i128,
+    },
+    /// The record at byte `offset` alone was off, by `off_us`; the records after it are
+    /// on the clock before it.
+    LoneTag {
+        /// Byte offset of the record.
+        offset: u64,
+        /// Its tag less its `seq`'s time, µs.
+        off_us: i128,
+    },
+}
+
+/// A record whose tag was off its `seq`'s time, before the next record tells why.
+#[derive(Debug, Clone, Copy)]
+struct Pending {
+    /// The offset of the clock it was on, if it leapt, µs.
+    offset_us: i128,
+    /// Its byte offset in the log.
+    at: u64,
+}
+
+/// The clock of a stream of accepted IMU records; see the module documentation.
+#[derive(Debug, Default)]
+pub struct RecorderClock {
+    /// One-`seq` tag steps seen while the period is learnt, µs.
+    learning: Vec<i128>,
+    /// The period, µs, once learnt (`None` while learning, or for good when the learnt
+    /// median does not advance: such tags are the derive's to judge).
+    period_us: Option<i128>,
+    /// Whether the period's learning has ended.
+    learnt: bool,
+    /// Added to the recorded tags: the clock steps so far, µs.
+    offset_us: i128,
+    /// The last record's recorded and corrected tags, µs.
+    last: Option<(i128, i128)>,
+    /// The last record, when its tag was off.
+    pending: Option<Pending>,
+}
+
+impl RecorderClock {
+    /// The time, µs since the header's start on the clock of the log's start, of the IMU
+    /// record at byte `at` tagged `t_us` and `seq_step` periods after the record before
+    /// (1 for the first), and what it said of the record before when that one's tag was
+    /// off.
+    pub fn imu(&mut self, t_us: u64, seq_step: u64, at: u64) -> (u64, Option<Resolved>) {
+        let t = i128::from(t_us);
+        let Some((last_t, last_time)) = self.last else {
+            self.last = Some((t, t));
+            return (t_us, None);
+        };
+        let Some(period) = self.period_us else {
+            if !self.learnt && seq_step == 1 {
+                self.learn(t - last_t);
+            }
+            let time = t + self.offset_us;
+            self.last = Some((t, time));
+            return (clamp(time), None);
+        };
+        let expected = last_time + i128::from(seq_step) * period;
+        let fits = |time: i128| (time - expected).abs() <= tolerance_us(period, seq_step);
+        let mut resolved = None;
+        if let Some(p) = self.pending.take() {
+            if fits(t + self.offset_us) {
+                resolved = Some(Resolved::LoneTag {
+                    offset: p.at,
+                    off_us: self.offset_us - p.offset_us,
+                });
+            } else if fits(t + p.offset_us) {
+                resolved = Some(Resolved::Step {
+                    offset: p.at,
+                    leap_us: self.offset_us - p.offset_us,
+                });
+                self.offset_us = p.offset_us;
+            } else {
+                resolved = Some(Resolved::LoneTag {
+                    offset: p.at,
+                    off_us: self.offset_us - p.offset_us,
+                });
+            }
+        }
+        let time = if fits(t + self.offset_us) {
+            t + self.offset_us
+        } else {
+            self.pending = Some(Pending {
+                offset_us: expected - t,
+                at,
+            });
+            expected
+        };
+        self.last = Some((t, time));
+        (clamp(time), resolved)
+    }
+
+    /// The time, µs, of a control-point mark tagged `t_us` (on the clock of the records
+    /// around it). After a record whose tag was off, the mark is on whichever of the two
+    /// clocks (before it, or leapt) puts it nearer that record's time.
+    pub fn mark(&self, t_us: u64) -> u64 {
+        let t = i128::from(t_us);
+        let time = match (self.pending, self.last) {
+            (Some(p), Some((_, last_time))) => {
+                let (old, leapt) = (t + self.offset_us, t + p.offset_us);
+                if (old - last_time).abs() <= (leapt - last_time).abs() {
+                    old
+                } else {
+                    leapt
+                }
+            }
+            _ => t + self.offset_us,
+        };
+        clamp(time)
+    }
+
+    /// At the end of the log: a last record whose tag was off is a lone tag (its time is
+    /// its `seq`'s either way).
+    pub fn finish(&mut self) -> Option<Resolved> {
+        let p = self.pending.take()?;
+        Some(Resolved::LoneTag {
+            offset: p.at,
+            off_us: self.offset_us - p.offset_us,
+        })
+    }
+
+    /// What the clock steps add to the tags after the last one, µs.
+    pub fn offset_us(&self) -> i128 {
+        self.offset_us
+    }
+
+    fn learn(&mut self, step_us: i128) {
+        self.learning.push(step_us);
+        if self.learning.len() == LEARN_INTERVALS {
+            let mid = LEARN_INTERVALS / 2;
+            let (_, &mut median, _) = self.learning.select_nth_unstable(mid);
+            self.period_us = (median > 0).then_some(median);
+            self.learnt = true;
+            self.learning = Vec::new();
+        }
+    }
+}
+
+/// A time in µs as a tag: within u64's range.
+fn clamp(t: i128) -> u64 {
+    u64::try_from(t.max(0)).unwrap_or(u64::MAX)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const T: u64 = 10_000;
+
+    /// Feeds records `seq` 0.. with tags `tag(k)` (one `seq` apart); returns their times
+    /// and what was resolved, by record.
+    fn feed(n: u64, tag: impl Fn(u64) -> u64) -> (Vec<u64>, Vec<(u64, Resolved)>) {
+        let mut clock = RecorderClock::default();
+        let mut times = Vec::new();
+        let mut said = Vec::new();
+        for k in 0..n {
+            let (time, r) = clock.imu(tag(k), 1, k);
+            times.push(time);
+            said.extend(r.map(|r| (k, r)));
+        }
+        said.extend(clock.finish().map(|r| (n, r)));
+        (times, said)
+    }
+
+    #[test]
+    fn a_clock_set_forward_or_back_is_taken_out() {
+        // 2 s forward at record 500, 1 s back at record 800.
+        let tag = |k: u64| {
+            let t = 1_000_000 + k * T;
+            match k {
+                500..800 => t + 2_000_000,
+                800.. => t + 2_000_000 - 1_000_000,
+                _ => t,
+            }
+        };
+        let (times, said) = feed(1000, tag);
+        assert!(
+            (times.iter().enumerate()).all(|(k, &t)| t == 1_000_000 + k as u64 * T),
+            "{times:?}"
+        );
+        assert_eq!(
+            said,
+            [
+                (
+                    501,
+                    Resolved::Step {
+                        offset: 500,
+                        leap_us: 2_000_000
+                    }
+                ),
+                (
+                    801,
+                    Resolved::Step {
+                        offset: 800,
+                        leap_us: -1_000_000
+                    }
+                )
+            ]
+        );
+    }
+
+    #[test]
+    fn a_lone_tag_off_is_given_its_seqs_time() {
+        let tag = |k: u64| match k {
+            300 => u64::MAX,
+            600 => 5,
+            999 => k * T + 10_000_000,
+            _ => k * T,
+        };
+        let (times, said) = feed(1000, tag);
+        assert!(
+            (times.iter().enumerate()).all(|(k, &t)| t == k as u64 * T),
+            "{times:?}"
+        );
+        let offsets: Vec<_> = said.iter().map(|(_, r)| *r).collect();
+        assert_eq!(
+            offsets,
+            [
+                Resolved::LoneTag {
+                    offset: 300,
+                    off_us: i128::from(u64::MAX) - 300 * i128::from(T)
+                },
+                Resolved::LoneTag {
+                    offset: 600,
+                    off_us: 5 - 600 * i128::from(T)
+                },
+                Resolved::LoneTag {
+                    offset: 999,
+                    off_us: 10_000_000
+                }
+            ]
+        );
+    }
+
+    #[test]
+    fn jitter_and_lost_samples_are_not_leaps() {
+        let mut clock = RecorderClock::default();
+        let mut seq = 0u64;
+        let mut prev = 0u64;
+        for k in 0..2000u64 {
+            // 3 ms of jitter; 200 samples lost at 1000 (2 s), their tags 2.02 s apart.
+            let step = if k == 1000 { 201 } else { 1 };
+            seq += step;
+            let jitter = [0, 3000, 1000, 2500][(k % 4) as usize];
+            let tag = seq * T + jitter + if k >= 1000 { 20_000 } else { 0 };
+            let (time, r) = clock.imu(tag, if k == 0 { 1 } else { step }, k);
+            assert_eq!(r, None, "record {k}");
+            assert_eq!(time, tag, "record {k}");
+            assert!(k == 0 || time > prev);
+            prev = time;
+        }
+        assert_eq!(clock.finish(), None);
+    }
+
+    #[test]
+    fn a_leap_inside_the_learnt_stretch_is_left_as_tagged() {
+        let tag = |k: u64| if k >= 10 { k * T + 5_000_000 } else { k * T };
+        let (times, said) = feed(200, tag);
+        assert!(said.is_empty());
+        assert_eq!(times[10], tag(10));
+        // Tags that do not advance give no period: nothing is moved.
+        let (times, said) = feed(200, |k| if k < 150 { 7 } else { 7 + 3_000_000 });
+        assert!(said.is_empty() && times[199] == 3_000_007);
+    }
+
+    #[test]
+    fn a_mark_takes_the_clock_that_puts_it_beside_the_record_before() {
+        let mut clock = RecorderClock::default();
+        for k in 0..100 {
+            clock.imu(k * T, 1, k);
+        }
+        // A mark on the old clock, then the clock leaps 5 s: a mark stamped on either.
+        assert_eq!(clock.mark(99 * T), 99 * T);
+        clock.imu(100 * T + 5_000_000, 1, 100);
+        assert_eq!(clock.mark(100 * T + 5_000_000 + 10), 100 * T + 10);
+        assert_eq!(clock.mark(99 * T + 20), 99 * T + 20);
+        let (_, r) = clock.imu(101 * T + 5_000_000, 1, 101);
+        assert!(matches!(r, Some(Resolved::Step { .. })));
+        assert_eq!(clock.mark(101 * T + 5_000_000), 101 * T);
+        assert_eq!(clock.offset_us(), -5_000_000);
+    }
+}
