@@ -127,8 +127,9 @@ pub fn file_hash(path: &Path) -> anyhow::Result<String> {
 }
 
 /// Remembers `hash` for the file this process just put in place at `path`, hashed as
-/// its bytes were written ([`unz_formats::hashing_writer`]): the stage's record then takes
-/// it without reading the file back. Like any output's, it is kept while the file keeps
+/// its bytes were written ([`unz_formats::hashing_writer`], which tells it here once
+/// [`remember_what_formats_write`] was called): the stage's record then takes it without
+/// reading the file back. Like any output's, it is kept while the file keeps
 /// the identity it has now.
 pub fn remember_written(path: &Path, hash: &blake3::Hash) {
     if let Some(id) = FileId::of(path) {
@@ -208,9 +209,18 @@ struct MemoEntry {
     blake3: String,
 }
 
-/// Reads the hashes an earlier process saved in `out` into this process's. A missing,
-/// unreadable or foreign file is no error: the files are then read and hashed.
+/// Has the files the formats hash as they write them (MCAP, Parquet) remembered
+/// ([`remember_written`]) from now on: their stage's record then reads none of them back.
+pub fn remember_what_formats_write() {
+    unz_formats::hashing_writer::listen_to_written(remember_written);
+}
+
+/// Reads the hashes an earlier process saved in `out` into this process's, and remembers
+/// the outputs' hashes as they are written from now on ([`remember_what_formats_write`]).
+/// A missing, unreadable or foreign file is no error: the files are then read and
+/// hashed.
 pub fn load(out: &Path) {
+    remember_what_formats_write();
     let Ok(bytes) = std::fs::read(out.join(MEMO_FILE)) else {
         return;
     };

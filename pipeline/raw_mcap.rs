@@ -6,7 +6,7 @@
 //! sample is quantised to a pulse per 10 ms (a 2 m/s step at 2 cm per pulse), and 0.1 s
 //! gives a readable speed. The exact pulses are in `odometer.parquet`.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::mpsc::{Receiver, Sender, SyncSender, channel, sync_channel};
 use std::thread::JoinHandle;
 
@@ -36,8 +36,6 @@ enum Order {
 /// The writer's side of `raw.mcap`, on its thread.
 struct RawMcap {
     mcap: Ros2Mcap,
-    /// Where the file goes (its hash is remembered under this name).
-    path: PathBuf,
     imu: Channel<ImuSample>,
     odo: Channel<OdometerSample>,
     marks: Channel<ControlPointMark>,
@@ -81,8 +79,9 @@ impl RawMcap {
                     let _ = empties.send(items);
                 }
                 Order::Commit => {
-                    let hash = self.mcap.finish()?;
-                    crate::file_hashes::remember_written(&self.path, &hash);
+                    // Its hash, taken as it was written, is remembered
+                    // (`file_hashes::remember_written`).
+                    self.mcap.finish()?;
                     return Ok(());
                 }
             }
@@ -118,7 +117,6 @@ impl RawMcapWriter {
             odo: mcap.add_channel("/odometer")?,
             marks: mcap.add_channel("/marks")?,
             mcap,
-            path: path.to_path_buf(),
             origin_ns,
         };
         let (orders, receiver) = sync_channel(IN_FLIGHT);
@@ -272,6 +270,7 @@ mod tests {
             w.odometer(k * 10_000_000, k as f64 * 0.1);
         }
         w.mark(123, 4);
+        crate::file_hashes::remember_what_formats_write();
         w.finish().unwrap();
         let bytes = std::fs::read(&path).unwrap();
         assert!(bytes.len() > 2 << 20, "{} bytes: one chunk", bytes.len());

@@ -67,6 +67,15 @@ impl AtomicFile {
             .map_err(|e| io_in_file(&dest, e.error))?;
         Ok(())
     }
+
+    /// [`Self::commit`] of a file whose bytes hashed to `hash` as they were written,
+    /// front to back ([`crate::hashing_writer`]), telling its listener once in place.
+    pub fn commit_hashed(self, hash: &blake3::Hash) -> Result<(), FileError> {
+        let dest = self.dest.clone();
+        self.commit()?;
+        crate::hashing_writer::tell_written(&dest, hash);
+        Ok(())
+    }
 }
 
 /// Outputs are ordinary files (0644 on Unix), not the private 0600 of temporary files.

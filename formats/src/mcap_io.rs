@@ -115,9 +115,9 @@ impl Ros2Mcap {
         Ok(())
     }
 
-    /// Writes the summary, flushes and renames the file into place; returns the blake3
-    /// of the file's bytes, hashed as they were written (the file is written front to
-    /// back: [`HashingWriter`]).
+    /// Writes the summary, flushes and renames the file into place, its blake3 hashed as
+    /// its bytes were written (front to back: [`HashingWriter`]) told to the listener
+    /// ([`crate::hashing_writer::listen_to_written`]); returns it.
     pub fn finish(self) -> Result<blake3::Hash, FileError> {
         let dest = self.file.dest();
         let buffered = self
@@ -130,7 +130,7 @@ impl Ros2Mcap {
             .finish();
         // The file's handle is closed before the file is put in place.
         drop(handle);
-        self.file.commit()?;
+        self.file.commit_hashed(&hash)?;
         Ok(hash)
     }
 }

@@ -18,6 +18,7 @@ use rayon::prelude::*;
 
 use crate::atomic::AtomicFile;
 use crate::error::{FileError, FormatError, io_in_file};
+use crate::hashing_writer::HashingWriter;
 use crate::parquet_columns::{DirectColumn, DirectShape, LeafChunk, LeafWriter, direct_shape};
 
 /// A Parquet file being written; it appears under its name only on [`ParquetSink::finish`].
@@ -27,7 +28,7 @@ use crate::parquet_columns::{DirectColumn, DirectShape, LeafChunk, LeafWriter, d
 /// lie, see the `parquet_columns` module), in the same row groups, so the file is the one
 /// `ArrowWriter` writes, byte for byte.
 pub struct ParquetSink {
-    writer: SerializedFileWriter<BufWriter<std::fs::File>>,
+    writer: SerializedFileWriter<BufWriter<HashingWriter<std::fs::File>>>,
     factory: ArrowRowGroupWriterFactory,
     schema: SchemaRef,
     /// The table's leaf columns, and how a row group's writers of them are made.
@@ -312,7 +313,10 @@ impl ParquetSink {
         // The Parquet writer writes through an 8-KiB buffer, and copies the column chunks
         // it appends in 8-KiB pieces: this buffer makes them writes of a MiB (4.8 MB went
         // into the page cache in 3.4 ms in 8-KiB writes, in 0.8 ms in 1-MiB ones).
-        let handle = BufWriter::with_capacity(FILE_BUFFER_BYTES, file.file_handle()?);
+        // The file is written front to back, and hashed as it is
+        // ([`crate::hashing_writer`]).
+        let handle =
+            BufWriter::with_capacity(FILE_BUFFER_BYTES, HashingWriter::new(file.file_handle()?));
         // `ArrowWriter` sets the file up (the Parquet schema, the Arrow schema in the
         // footer's metadata); its lower-level parts then take the columns.
         let (writer, factory) = ArrowWriter::try_new(handle, schema.clone(), Some(props))
@@ -518,12 +522,23 @@ impl ParquetSink {
         self.close_file()
     }
 
-    /// Writes the last row group and the footer, and renames the file into place.
+    /// Writes the last row group and the footer, and renames the file into place (its
+    /// hash, taken as it was written, told to the listener:
+    /// [`crate::hashing_writer::listen_to_written`]).
     fn close_file(mut self) -> Result<(), FileError> {
         self.flush_row_group()?;
         let dest = self.file.dest().to_path_buf();
-        self.writer.close().map_err(|e| parquet_err(&dest, e))?;
-        self.file.commit()
+        let buffered = self
+            .writer
+            .into_inner()
+            .map_err(|e| parquet_err(&dest, e))?;
+        let (handle, hash) = buffered
+            .into_inner()
+            .map_err(|e| io_in_file(&dest, e.into_error()))?
+            .finish();
+        // The file's handle is closed before the file is put in place.
+        drop(handle);
+        self.file.commit_hashed(&hash)
     }
 }
 
@@ -717,7 +732,23 @@ mod tests {
     use super::*;
     use arrow::array::Float64Array;
     use arrow::datatypes::{Field, Schema};
-    use std::sync::Arc;
+    use std::path::PathBuf;
+    use std::sync::{Arc, Mutex};
+
+    /// The files told as written in this test process, with their hashes.
+    static TOLD: Mutex<Vec<(PathBuf, blake3::Hash)>> = Mutex::new(Vec::new());
+
+    fn record(path: &Path, hash: &blake3::Hash) {
+        let mut told = TOLD.lock().unwrap_or_else(|e| e.into_inner());
+        told.push((path.to_path_buf(), *hash));
+    }
+
+    /// The hash last told for `path` (listening from the first call on).
+    fn told(path: &Path) -> Option<blake3::Hash> {
+        crate::hashing_writer::listen_to_written(record);
+        let told = TOLD.lock().unwrap_or_else(|e| e.into_inner());
+        told.iter().rev().find(|(p, _)| p == path).map(|(_, h)| *h)
+    }
 
     #[test]
     fn the_row_hint_is_the_footers_count_within_a_multiple_of_the_files_size() {
@@ -1042,6 +1073,7 @@ mod tests {
                 .expect("deferring")
         };
         let (mut sink, mut rest) = deferred_sink("deferred.parquet");
+        assert_eq!(told(&dir.path().join("deferred.parquet")), None);
         rayon::join(
             || {
                 for b in &batches {
@@ -1059,6 +1091,11 @@ mod tests {
         sink.finish_with(rest).expect("finished");
         let ours = std::fs::read(dir.path().join("deferred.parquet")).expect("read");
         assert!(ours == arrow_writer_bytes(&schema, group_rows, &batches));
+        // Hashed as it was written, and told once in place.
+        assert_eq!(
+            told(&dir.path().join("deferred.parquet")),
+            Some(blake3::hash(&ours))
+        );
 
         // The trailing rows in other batches: the same table.
         let whole = arrow::compute::concat_batches(&schema, &batches).expect("whole");
