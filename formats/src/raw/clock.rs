@@ -86,13 +86,21 @@ pub struct RecorderClock {
 impl RecorderClock {
     /// The time, µs since the header's start on the clock of the log's start, of the IMU
     /// record at byte `at` tagged `t_us` and `seq_step` periods after the record before
-    /// (1 for the first), and what it said of the record before when that one's tag was
-    /// off.
-    pub fn imu(&mut self, t_us: u64, seq_step: u64, at: u64) -> (u64, Option<Resolved>) {
+    /// (1 for the first; `None` after a counter reset, which says nothing of the time
+    /// between: the tag is then taken as it is, on the clock so far), and what it said
+    /// of the record before when that one's tag was off.
+    pub fn imu(&mut self, t_us: u64, seq_step: Option<u64>, at: u64) -> (u64, Option<Resolved>) {
         let t = i128::from(t_us);
         let Some((last_t, last_time)) = self.last else {
             self.last = Some((t, t));
             return (t_us, None);
+        };
+        let Some(seq_step) = seq_step else {
+            // Nothing tells a leap from the tag before a lone tag off: it keeps its time.
+            let resolved = self.finish();
+            let time = t + self.offset_us;
+            self.last = Some((t, time));
+            return (clamp(time), resolved);
         };
         let Some(period) = self.period_us else {
             if !self.learnt && seq_step == 1 {
@@ -201,7 +209,7 @@ mod tests {
         let mut times = Vec::new();
         let mut said = Vec::new();
         for k in 0..n {
-            let (time, r) = clock.imu(tag(k), 1, k);
+            let (time, r) = clock.imu(tag(k), Some(1), k);
             times.push(time);
             said.extend(r.map(|r| (k, r)));
         }
@@ -290,7 +298,7 @@ mod tests {
             seq += step;
             let jitter = [0, 3000, 1000, 2500][(k % 4) as usize];
             let tag = seq * T + jitter + if k >= 1000 { 20_000 } else { 0 };
-            let (time, r) = clock.imu(tag, if k == 0 { 1 } else { step }, k);
+            let (time, r) = clock.imu(tag, Some(if k == 0 { 1 } else { step }), k);
             assert_eq!(r, None, "record {k}");
             assert_eq!(time, tag, "record {k}");
             assert!(k == 0 || time > prev);
@@ -310,18 +318,43 @@ mod tests {
         assert!(said.is_empty() && times[199] == 3_000_007);
     }
 
+    /// A recorder restarted mid-log, its counter and its clock from 0: `seq` says nothing
+    /// of the time between, so the tags are taken as they are (going back: the derive's
+    /// to judge), and leaps after the restart are found again.
+    #[test]
+    fn a_counter_reset_keeps_the_tags() {
+        let mut clock = RecorderClock::default();
+        for k in 0..500 {
+            assert_eq!(
+                clock.imu(1_000_000 + k * T, Some(1), k),
+                (1_000_000 + k * T, None)
+            );
+        }
+        assert_eq!(clock.imu(0, None, 500), (0, None));
+        for k in 1..100 {
+            assert_eq!(clock.imu(k * T, Some(1), 500 + k), (k * T, None));
+        }
+        clock.imu(100 * T + 3_000_000, Some(1), 600);
+        let (time, r) = clock.imu(101 * T + 3_000_000, Some(1), 601);
+        assert_eq!(time, 101 * T);
+        assert!(
+            matches!(r, Some(Resolved::Step { offset: 600, .. })),
+            "{r:?}"
+        );
+    }
+
     #[test]
     fn a_mark_takes_the_clock_that_puts_it_beside_the_record_before() {
         let mut clock = RecorderClock::default();
         for k in 0..100 {
-            clock.imu(k * T, 1, k);
+            clock.imu(k * T, Some(1), k);
         }
         // A mark on the old clock, then the clock leaps 5 s: a mark stamped on either.
         assert_eq!(clock.mark(99 * T), 99 * T);
-        clock.imu(100 * T + 5_000_000, 1, 100);
+        clock.imu(100 * T + 5_000_000, Some(1), 100);
         assert_eq!(clock.mark(100 * T + 5_000_000 + 10), 100 * T + 10);
         assert_eq!(clock.mark(99 * T + 20), 99 * T + 20);
-        let (_, r) = clock.imu(101 * T + 5_000_000, 1, 101);
+        let (_, r) = clock.imu(101 * T + 5_000_000, Some(1), 101);
         assert!(matches!(r, Some(Resolved::Step { .. })));
         assert_eq!(clock.mark(101 * T + 5_000_000), 101 * T);
         assert_eq!(clock.offset_us(), -5_000_000);

@@ -427,7 +427,7 @@ impl<R: Read> RawReader<R> {
 
     fn accept_imu(&mut self, raw: ImuRecord, offset: u64) -> Option<Accepted> {
         let Some((prev_seq_raw, prev_seq, prev_t, prev_odo_raw, prev_odo)) = self.last_imu else {
-            let (t_us, _) = self.clock.imu(raw.t_us, 1, offset);
+            let (t_us, _) = self.clock.imu(raw.t_us, Some(1), offset);
             return self.accepted_imu(raw, t_us, u64::from(raw.seq), i64::from(raw.odo_count));
         };
         let step = raw.seq.wrapping_sub(prev_seq_raw);
@@ -441,8 +441,9 @@ impl<R: Read> RawReader<R> {
             self.event(offset, FaultKind::DuplicateSeq, u64::from(raw.seq));
             return None;
         }
-        // A counter reset (a step back) keeps the stream going one sample on.
-        let seq_step = if step < 1 << 31 { u64::from(step) } else { 1 };
+        // A counter reset (a step back) keeps the stream going one sample on; it says
+        // nothing of the time since the record before.
+        let seq_step = (step < 1 << 31).then_some(u64::from(step));
         // What this record says of the one before comes first, in the file's order.
         let (t_us, resolved) = self.clock.imu(raw.t_us, seq_step, offset);
         if let Some(resolved) = resolved {
@@ -469,7 +470,7 @@ impl<R: Read> RawReader<R> {
         self.accepted_imu(
             raw,
             t_us,
-            prev_seq + seq_step,
+            prev_seq + seq_step.unwrap_or(1),
             prev_odo + i64::from(odo_step),
         )
     }
