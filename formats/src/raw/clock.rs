@@ -112,26 +112,23 @@ impl RecorderClock {
         };
         let expected = last_time + i128::from(seq_step) * period;
         let fits = |time: i128| (time - expected).abs() <= tolerance_us(period, seq_step);
-        let mut resolved = None;
-        if let Some(p) = self.pending.take() {
-            if fits(t + self.offset_us) {
-                resolved = Some(Resolved::LoneTag {
-                    offset: p.at,
-                    off_us: self.offset_us - p.offset_us,
-                });
-            } else if fits(t + p.offset_us) {
-                resolved = Some(Resolved::Step {
-                    offset: p.at,
-                    leap_us: self.offset_us - p.offset_us,
-                });
+        // The record before was off: on the leapt clock this one says the clock stepped;
+        // back on the old one (or on neither), that tag alone was off.
+        let resolved = self.pending.take().map(|p| {
+            let off_us = self.offset_us - p.offset_us;
+            if !fits(t + self.offset_us) && fits(t + p.offset_us) {
                 self.offset_us = p.offset_us;
-            } else {
-                resolved = Some(Resolved::LoneTag {
+                Resolved::Step {
                     offset: p.at,
-                    off_us: self.offset_us - p.offset_us,
-                });
+                    leap_us: off_us,
+                }
+            } else {
+                Resolved::LoneTag {
+                    offset: p.at,
+                    off_us,
+                }
             }
-        }
+        });
         let time = if fits(t + self.offset_us) {
             t + self.offset_us
         } else {
