@@ -572,8 +572,9 @@ pub fn imu_sample_place(manifest: &RunManifest, sample: KeptSample) -> Option<St
     Some(format!("{place} of {}", manifest.named(path).display()))
 }
 
-/// A binary record's time (µs from the header's start time, [`unz_formats::raw::ImuSample::t_us`]) as the ingest tags it,
-/// ns; a tag beyond i64's nanoseconds saturates.
+/// A binary record's time (µs from the header's start time, the recorder's clock steps
+/// taken out: [`unz_formats::raw::ImuSample::t_us`]) as the ingest tags it, ns; a time
+/// beyond i64's nanoseconds saturates.
 fn record_tag_ns(t_us: u64) -> i64 {
     i64::try_from(t_us)
         .unwrap_or(i64::MAX / 1000)
