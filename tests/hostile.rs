@@ -915,7 +915,7 @@ fn a_manifest_that_is_not_a_regular_file_is_skipped_and_said() {
         text.contains(&format!("skipped {}: not a regular file", fifo.display())),
         "{text}"
     );
-    assert!(text.contains("1 runs: 1 ok"), "{text}");
+    assert!(text.contains("1 run: 1 ok"), "{text}");
     assert!(out.join("sim-0080/ingest/imu.parquet").is_file());
 }
 

@@ -60,8 +60,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<ExitCode> {
         .filter(|o| o.error.is_none() && o.stages.iter().all(|s| !s.1))
         .count();
     println!(
-        "{} runs: {} ok ({} fully cached), {} failed, in {:.2} s → {}",
+        "{} run{}: {} ok ({} fully cached), {} failed, in {:.2} s → {}",
         outcomes.len(),
+        if outcomes.len() == 1 { "" } else { "s" },
         outcomes.len() - failed.len(),
         cached,
         failed.len(),
