@@ -549,7 +549,7 @@ impl<'a> OdoInterp<'a> {
             let t_ns = self.t_ns.next()?;
             let i = self.from;
             self.from += 1;
-            let ts = (t_ns - self.t0_ns) as f64 * 1e-9 + self.offset_s;
+            let ts = t_ns.saturating_sub(self.t0_ns) as f64 * 1e-9 + self.offset_s;
             let d = match &mut self.patch {
                 Some(p) => p.at(i, self.d[i]),
                 None => self.d[i],
@@ -579,7 +579,7 @@ impl<'a> OdoInterp<'a> {
     fn leapt_alone(&self, last: f64, ts: f64) -> bool {
         let next = self.t_ns.clone().next();
         next.is_some_and(|ns| {
-            let next_s = (ns - self.t0_ns) as f64 * 1e-9 + self.offset_s;
+            let next_s = ns.saturating_sub(self.t0_ns) as f64 * 1e-9 + self.offset_s;
             last < next_s && next_s < ts
         })
     }
@@ -721,8 +721,9 @@ pub fn derive_owned(
     tags.truncate(n);
     let mut prev_t = -nominal;
     for k in 0..n {
-        let mut t = (tags[k] - t0) as f64 * 1e-9;
-        let next_t = || tags.get(k + 1).map(|&s| (s - t0) as f64 * 1e-9);
+        // Saturating: tags of a broken log may lie further apart than an i64 of ns holds.
+        let mut t = tags[k].saturating_sub(t0) as f64 * 1e-9;
+        let next_t = || tags.get(k + 1).map(|&s| s.saturating_sub(t0) as f64 * 1e-9);
         let last_apart = || k + 1 == n && k >= 2 && t - prev_t > params.max_gap_s;
         if let Some(repaired) = repaired_time(k, prev_t, t, next_t, nominal) {
             t = repaired;
@@ -1704,6 +1705,27 @@ mod tests {
         let d = derive(&series(&columns), &DeriveParams::default(), 9.81);
         assert_eq!(d.repaired_times, 1);
         assert_eq!(d.t_s.get(5_000), (t[5_000] - t[0]) as f64 * 1e-9);
+    }
+
+    /// Tags further apart than an i64 of nanoseconds holds (a broken log: the first
+    /// sample apart, the others 8e9 s apart, so the run's start is placed 7e18 ns before
+    /// 0): a time from the start beyond the i64 is held at its bound, not wrapped to
+    /// before the start (an overflow the fuzzer's `binary_run` found with debug
+    /// assertions, a panic there).
+    #[test]
+    fn tags_beyond_an_i64_of_nanoseconds_from_the_start_are_held_at_its_bound() {
+        let tags: Vec<i64> = vec![5e18 as i64, 1e18 as i64, 9e18 as i64, 9.2e18 as i64];
+        let columns = (
+            tags,
+            vec![[0.0; 3]; 4],
+            vec![[0.0; 3]; 4],
+            vec![0, 1],
+            vec![0.0, 0.0],
+        );
+        let d = derive(&series(&columns), &DeriveParams::default(), 9.81);
+        assert!((d.t0_ns as f64 + 7e18).abs() < 1e4, "{}", d.t0_ns);
+        assert_eq!(d.t_s.get(2), i64::MAX as f64 * 1e-9);
+        assert!(d.t_s.get(1) < d.t_s.get(2));
     }
 
     /// A first sample apart from the rest (its tag 1 s or 2^50 ns ahead of the second's,
