@@ -117,8 +117,8 @@ impl Ros2Mcap {
 
     /// Writes the summary, flushes and renames the file into place, its blake3 hashed as
     /// its bytes were written (front to back: [`HashingWriter`]) told to the listener
-    /// ([`crate::hashing_writer::listen_to_written`]); returns it.
-    pub fn finish(self) -> Result<blake3::Hash, FileError> {
+    /// ([`crate::hashing_writer::listen_to_written`]).
+    pub fn finish(self) -> Result<(), FileError> {
         let dest = self.file.dest();
         let buffered = self
             .writer
@@ -130,7 +130,6 @@ impl Ros2Mcap {
             .finish();
         // The file's handle is closed before the file is put in place.
         drop(handle);
-        self.file.commit_hashed(&hash)?;
-        Ok(hash)
+        self.file.commit_hashed(&hash)
     }
 }
