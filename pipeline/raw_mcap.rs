@@ -78,12 +78,9 @@ impl RawMcap {
                     // The ingest may have finished already: then nobody needs it back.
                     let _ = empties.send(items);
                 }
-                Order::Commit => {
-                    // Its hash, taken as it was written, is remembered
-                    // (`file_hashes::remember_written`).
-                    self.mcap.finish()?;
-                    return Ok(());
-                }
+                // Its hash, taken as it was written, is remembered
+                // (`file_hashes::remember_written`).
+                Order::Commit => return Ok(self.mcap.finish()?),
             }
         }
         // The ingest stopped without committing: the temporary file is dropped.
