@@ -11,6 +11,10 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use crate::error::{FileError, io_in_file, write_error_in_file};
+use crate::hashing_writer::HashingWriter;
+
+/// A buffered writer of an [`AtomicFile`] that hashes its bytes as they are written.
+pub type HashedFileWriter = BufWriter<HashingWriter<std::fs::File>>;
 
 /// A file being written; it appears under its final name only on [`AtomicFile::commit`].
 pub struct AtomicFile {
@@ -59,6 +63,28 @@ impl AtomicFile {
         &self.dest
     }
 
+    /// A writer of the file through a buffer of `capacity` bytes, hashing what it writes
+    /// front to back ([`crate::hashing_writer`]); [`Self::commit_written`] closes it.
+    pub fn hashed_writer(&self, capacity: usize) -> Result<HashedFileWriter, FileError> {
+        Ok(BufWriter::with_capacity(
+            capacity,
+            HashingWriter::new(self.file_handle()?),
+        ))
+    }
+
+    /// Closes `writer` (its buffer written out, its handle closed) and commits the file
+    /// with the hash of what went through it, telling the listener once it is in place
+    /// ([`crate::hashing_writer::listen_to_written`]).
+    pub fn commit_written(self, writer: HashedFileWriter) -> Result<(), FileError> {
+        let (handle, hash) = writer
+            .into_inner()
+            .map_err(|e| write_error_in_file(&self.dest, e.into_error()))?
+            .finish();
+        // The file's handle is closed before the file is put in place.
+        drop(handle);
+        self.commit_hashed(&hash)
+    }
+
     /// Renames the file to its destination (no fsync: see the module documentation).
     pub fn commit(self) -> Result<(), FileError> {
         let dest = self.dest;
@@ -70,7 +96,7 @@ impl AtomicFile {
 
     /// [`Self::commit`] of a file whose bytes hashed to `hash` as they were written,
     /// front to back ([`crate::hashing_writer`]), telling its listener once in place.
-    pub fn commit_hashed(self, hash: &blake3::Hash) -> Result<(), FileError> {
+    fn commit_hashed(self, hash: &blake3::Hash) -> Result<(), FileError> {
         let dest = self.dest.clone();
         self.commit()?;
         crate::hashing_writer::tell_written(&dest, hash);
@@ -125,6 +151,26 @@ mod tests {
             .collect();
         v.sort();
         v
+    }
+
+    #[test]
+    fn a_file_written_through_its_hashed_writer_is_told_once_in_place_whole() {
+        use crate::hashing_writer::told::told;
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("hashed.bin");
+        // Listening before the file is written: nothing is told until it is in place.
+        assert_eq!(told(&dest), None);
+        let file = AtomicFile::create(&dest).unwrap();
+        // A buffer smaller than the bytes, and bytes still in it at the close.
+        let mut w = file.hashed_writer(4096).unwrap();
+        let bytes: Vec<u8> = (0..10_000u32).map(|i| (i * 31 + 3) as u8).collect();
+        w.write_all(&bytes).unwrap();
+        assert_eq!(told(&dest), None);
+        assert!(!dest.exists());
+        file.commit_written(w).unwrap();
+        assert_eq!(std::fs::read(&dest).unwrap(), bytes);
+        assert_eq!(told(&dest), Some(blake3::hash(&bytes)));
+        assert_eq!(names(dir.path()), ["hashed.bin"]);
     }
 
     #[test]

@@ -64,6 +64,28 @@ impl<W: Write> Write for HashingWriter<W> {
     }
 }
 
+/// The crate's tests' listener: one for the whole test process, as the pipeline's.
+#[cfg(test)]
+pub(crate) mod told {
+    use std::path::{Path, PathBuf};
+    use std::sync::Mutex;
+
+    /// The files told as written in this test process, with their hashes.
+    static TOLD: Mutex<Vec<(PathBuf, blake3::Hash)>> = Mutex::new(Vec::new());
+
+    fn record(path: &Path, hash: &blake3::Hash) {
+        let mut told = TOLD.lock().unwrap_or_else(|e| e.into_inner());
+        told.push((path.to_path_buf(), *hash));
+    }
+
+    /// The hash last told for `path` (listening from the first call on).
+    pub(crate) fn told(path: &Path) -> Option<blake3::Hash> {
+        super::listen_to_written(record);
+        let told = TOLD.lock().unwrap_or_else(|e| e.into_inner());
+        told.iter().rev().find(|(p, _)| p == path).map(|(_, h)| *h)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,12 +3,10 @@
 //! importer without set-up. Written atomically like every other output.
 
 use std::collections::BTreeMap;
-use std::io::BufWriter;
 use std::path::Path;
 
-use crate::atomic::AtomicFile;
+use crate::atomic::{AtomicFile, HashedFileWriter};
 use crate::error::{FileError, FormatError, write_error_in_file};
-use crate::hashing_writer::HashingWriter;
 use crate::mcap_chunks::{ChunkedMcap, MessageError};
 use crate::ros2_msgs::Ros2Message;
 
@@ -46,7 +44,7 @@ pub enum McapCompression {
 /// An MCAP file of ROS 2 channels being written (by [`ChunkedMcap`]: the mcap crate's
 /// writer's bytes, a chunk at a time).
 pub struct Ros2Mcap {
-    writer: ChunkedMcap<BufWriter<HashingWriter<std::fs::File>>>,
+    writer: ChunkedMcap<HashedFileWriter>,
     file: AtomicFile,
 }
 
@@ -54,7 +52,7 @@ impl Ros2Mcap {
     /// Starts an MCAP file at `dest` with chunks compressed as `compression` says.
     pub fn create(dest: &Path, compression: McapCompression) -> Result<Self, FileError> {
         let file = AtomicFile::create(dest)?;
-        let handle = BufWriter::with_capacity(1 << 20, HashingWriter::new(file.file_handle()?));
+        let handle = file.hashed_writer(1 << 20)?;
         let writer = ChunkedMcap::new(
             handle,
             compression,
@@ -116,7 +114,7 @@ impl Ros2Mcap {
     }
 
     /// Writes the summary, flushes and renames the file into place, its blake3 hashed as
-    /// its bytes were written (front to back: [`HashingWriter`]) told to the listener
+    /// its bytes were written (front to back: [`crate::hashing_writer::HashingWriter`]) told to the listener
     /// ([`crate::hashing_writer::listen_to_written`]).
     pub fn finish(self) -> Result<(), FileError> {
         let dest = self.file.dest();
@@ -124,12 +122,6 @@ impl Ros2Mcap {
             .writer
             .finish()
             .map_err(|e| write_error_in_file(dest, e))?;
-        let (handle, hash) = buffered
-            .into_inner()
-            .map_err(|e| write_error_in_file(dest, e.into_error()))?
-            .finish();
-        // The file's handle is closed before the file is put in place.
-        drop(handle);
-        self.file.commit_hashed(&hash)
+        self.file.commit_written(buffered)
     }
 }

@@ -1,6 +1,5 @@
 //! Parquet output (zstd, atomic) and input of whole tables.
 
-use std::io::BufWriter;
 use std::ops::Range;
 use std::path::Path;
 
@@ -16,9 +15,8 @@ use parquet::file::writer::SerializedFileWriter;
 use parquet::schema::types::{ColumnDescPtr, ColumnPath};
 use rayon::prelude::*;
 
-use crate::atomic::AtomicFile;
+use crate::atomic::{AtomicFile, HashedFileWriter};
 use crate::error::{FileError, FormatError, io_in_file};
-use crate::hashing_writer::HashingWriter;
 use crate::parquet_columns::{DirectColumn, DirectShape, LeafChunk, LeafWriter, direct_shape};
 
 /// A Parquet file being written; it appears under its name only on [`ParquetSink::finish`].
@@ -28,7 +26,7 @@ use crate::parquet_columns::{DirectColumn, DirectShape, LeafChunk, LeafWriter, d
 /// lie, see the `parquet_columns` module), in the same row groups, so the file is the one
 /// `ArrowWriter` writes, byte for byte.
 pub struct ParquetSink {
-    writer: SerializedFileWriter<BufWriter<HashingWriter<std::fs::File>>>,
+    writer: SerializedFileWriter<HashedFileWriter>,
     factory: ArrowRowGroupWriterFactory,
     schema: SchemaRef,
     /// The table's leaf columns, and how a row group's writers of them are made.
@@ -315,8 +313,7 @@ impl ParquetSink {
         // into the page cache in 3.4 ms in 8-KiB writes, in 0.8 ms in 1-MiB ones).
         // The file is written front to back, and hashed as it is
         // ([`crate::hashing_writer`]).
-        let handle =
-            BufWriter::with_capacity(FILE_BUFFER_BYTES, HashingWriter::new(file.file_handle()?));
+        let handle = file.hashed_writer(FILE_BUFFER_BYTES)?;
         // `ArrowWriter` sets the file up (the Parquet schema, the Arrow schema in the
         // footer's metadata); its lower-level parts then take the columns.
         let (writer, factory) = ArrowWriter::try_new(handle, schema.clone(), Some(props))
@@ -527,18 +524,11 @@ impl ParquetSink {
     /// [`crate::hashing_writer::listen_to_written`]).
     fn close_file(mut self) -> Result<(), FileError> {
         self.flush_row_group()?;
-        let dest = self.file.dest().to_path_buf();
         let buffered = self
             .writer
             .into_inner()
-            .map_err(|e| parquet_err(&dest, e))?;
-        let (handle, hash) = buffered
-            .into_inner()
-            .map_err(|e| io_in_file(&dest, e.into_error()))?
-            .finish();
-        // The file's handle is closed before the file is put in place.
-        drop(handle);
-        self.file.commit_hashed(&hash)
+            .map_err(|e| parquet_err(self.file.dest(), e))?;
+        self.file.commit_written(buffered)
     }
 }
 
@@ -730,25 +720,10 @@ pub fn read_table(path: &Path) -> Result<(SchemaRef, RecordBatch), FileError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::hashing_writer::told::told;
     use arrow::array::Float64Array;
     use arrow::datatypes::{Field, Schema};
-    use std::path::PathBuf;
-    use std::sync::{Arc, Mutex};
-
-    /// The files told as written in this test process, with their hashes.
-    static TOLD: Mutex<Vec<(PathBuf, blake3::Hash)>> = Mutex::new(Vec::new());
-
-    fn record(path: &Path, hash: &blake3::Hash) {
-        let mut told = TOLD.lock().unwrap_or_else(|e| e.into_inner());
-        told.push((path.to_path_buf(), *hash));
-    }
-
-    /// The hash last told for `path` (listening from the first call on).
-    fn told(path: &Path) -> Option<blake3::Hash> {
-        crate::hashing_writer::listen_to_written(record);
-        let told = TOLD.lock().unwrap_or_else(|e| e.into_inner());
-        told.iter().rev().find(|(p, _)| p == path).map(|(_, h)| *h)
-    }
+    use std::sync::Arc;
 
     #[test]
     fn the_row_hint_is_the_footers_count_within_a_multiple_of_the_files_size() {

@@ -78,7 +78,7 @@ pub struct ImuSample {
     pub raw: ImuRecord,
     /// Its time, µs since the header's start on the clock of the log's start: its tag,
     /// the recorder's clock steps taken out and a lone tag off given its `seq`'s time
-    /// ([`RecorderClock`]).
+    /// (the reader's `RecorderClock`).
     pub t_us: u64,
     /// `seq` unwrapped across 2^32 (the first record's `seq` is its own value).
     pub seq: u64,
