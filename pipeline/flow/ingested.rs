@@ -395,7 +395,8 @@ pub fn first_time_tag_not_increasing(ingest_dir: &Path, nominal_s: f64) -> Optio
 /// first not after the one before, or one that leapt forward alone.
 pub fn first_time_not_increasing(t_ns: &[i64], nominal_s: f64) -> Option<usize> {
     let t0 = *t_ns.first()?;
-    let t_s = |k: usize| (t_ns[k] - t0) as f64 * 1e-9;
+    // Held at i64's bound, as the derive holds them.
+    let t_s = |k: usize| t_ns[k].saturating_sub(t0) as f64 * 1e-9;
     let mut prev_t_s = -nominal_s;
     for k in 0..t_ns.len() {
         let next_t_s = || (k + 1 < t_ns.len()).then(|| t_s(k + 1));
@@ -450,6 +451,15 @@ mod tests {
         t[12_000] = t[11_999];
         assert_eq!(first_time_not_increasing(&t, 0.01), Some(12_000));
         assert_eq!(first_time_not_increasing(&[], 0.01), None);
+    }
+
+    /// Tags beyond an i64 of nanoseconds from the first are held at its bound, as the
+    /// derive holds them: they stand still there, and the first after the one that
+    /// reached it is repaired (wrapped, the one that reached it would go back).
+    #[test]
+    fn tags_beyond_an_i64_of_nanoseconds_from_the_first_are_held_at_its_bound() {
+        let t = [-7e18 as i64, 9e18 as i64, 9e18 as i64 + 10_000_000];
+        assert_eq!(first_time_not_increasing(&t, 0.01), Some(2));
     }
 
     /// An ingested IMU table read with its increments' byte streams joined is the one

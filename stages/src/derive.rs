@@ -371,9 +371,10 @@ impl Derived {
 }
 
 /// Absolute time (ns) of a time `t_s` seconds after `t0_ns` ns, to the nearest
-/// nanosecond: how a derive's times are stored.
+/// nanosecond: how a derive's times are stored. A time beyond i64's nanoseconds is held
+/// at its bound.
 pub fn ns_since(t0_ns: i64, t_s: f64) -> i64 {
-    t0_ns + round_to_i64(t_s * 1e9)
+    t0_ns.saturating_add(round_to_i64(t_s * 1e9))
 }
 
 /// `x.round() as i64`, bit for bit (halves away from zero, saturating, NaN to 0), without
@@ -1712,6 +1713,13 @@ mod tests {
     /// 0): a time from the start beyond the i64 is held at its bound, not wrapped to
     /// before the start (an overflow the fuzzer's `binary_run` found with debug
     /// assertions, a panic there).
+    #[test]
+    fn a_stored_time_beyond_an_i64_of_nanoseconds_is_held_at_its_bound() {
+        assert_eq!(ns_since(i64::MAX - 5, 1.0), i64::MAX);
+        assert_eq!(ns_since(i64::MIN + 5, -1.0), i64::MIN);
+        assert_eq!(ns_since(-7_000_000_000, 9.5), 2_500_000_000);
+    }
+
     #[test]
     fn tags_beyond_an_i64_of_nanoseconds_from_the_start_are_held_at_its_bound() {
         let tags: Vec<i64> = vec![5e18 as i64, 1e18 as i64, 9e18 as i64, 9.2e18 as i64];
