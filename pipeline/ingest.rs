@@ -227,21 +227,33 @@ impl Sinks {
         let mcap = options.mcap;
         let imu_schema = schema::imu(origin_ns);
         let odo_schema = schema::odometer_scaled(origin_ns, odo_m_per_pulse);
-        // With `raw.mcap` on its own thread, the IMU table's columns are encoded on the
-        // reading thread and the odometer's on a thread of their own while the reading
-        // goes on: the full ingest's median 147 MB/s with both on the reading thread, 161
-        // so, 151 with both tables on threads of their own (12 alternations); spread over
-        // the pool batch by batch, they contended with the MCAP writer. Without `raw.mcap`,
-        // side by side.
+        // With `raw.mcap` on its own thread, each table's columns are encoded on a thread
+        // of its own while the reading goes on; with `raw.mcap`'s chunks compressed
+        // (its thread the busier), the IMU table's on the reading thread. Session 70,
+        // uncompressed: the reading thread 1 200 profile samples a pass against 390 for
+        // the MCAP writer and 160 for the odometer's table; the IMU table on a thread of
+        // its own took the full ingest to a median 141 MB/s against 121.5 (30
+        // alternations) and the 12-hour ingest stage to 1.48 s against 1.84 (medians of
+        // five). Session 36, on another host and before the CRC's and the hashing's
+        // changes, had found the opposite: 161 MB/s with it on the reading thread, 151 on
+        // its own. Spread over the pool batch by batch, the tables contended with the MCAP
+        // writer. Without `raw.mcap`, side by side.
         let imu = ParquetSink::create(&dir.join(files::IMU), imu_schema.clone())?;
         let odo = ParquetSink::create(&dir.join(files::ODOMETER), odo_schema.clone())?;
+        let on_a_thread = |sink: ParquetSink, name: &str| -> anyhow::Result<TableSink> {
+            Ok(TableSink::Thread(ParquetThread::spawn(
+                sink.on_this_thread(),
+                name,
+            )?))
+        };
         let (imu, odo) = match mcap {
+            Some(McapCompression::None) => (
+                on_a_thread(imu, "imu.parquet")?,
+                on_a_thread(odo, "odometer.parquet")?,
+            ),
             Some(_) => (
                 TableSink::Here(Box::new(imu.on_this_thread())),
-                TableSink::Thread(ParquetThread::spawn(
-                    odo.on_this_thread(),
-                    "odometer.parquet",
-                )?),
+                on_a_thread(odo, "odometer.parquet")?,
             ),
             None => (
                 TableSink::Here(Box::new(imu)),
