@@ -12,6 +12,7 @@ use unz_formats::parquet_io::{read_schema, read_table};
 use unz_formats::schema::{nav_cols, sweep_cols};
 use unz_formats::tables::f64_column;
 use unz_stages::criteria::Kryt2;
+use unz_stages::derive::seconds_since;
 use unz_stages::earth::Geodetic;
 use unz_viz::review::{
     ControlPointView, EpochSeries, Kryt1Curve, OdometerFailure, Review, RouteSigmaView,
@@ -154,12 +155,8 @@ pub fn build_review(
 ) -> anyhow::Result<Review> {
     let m = &ctx.manifest;
     let (sensors, d) = sensor_blocks(ctx, derive_dir)?;
-    // Held at i64's bound, as the derive holds its times.
-    let rel = |t_ns: &[i64]| -> Vec<f64> {
-        (t_ns.iter())
-            .map(|&t| t.saturating_sub(d.t0_ns) as f64 * 1e-9)
-            .collect()
-    };
+    let rel =
+        |t_ns: &[i64]| -> Vec<f64> { (t_ns.iter()).map(|&t| seconds_since(d.t0_ns, t)).collect() };
     let start = start_position(m);
     let ((epochs, tracks), (truth, reports)) = rayon::join(
         || {
@@ -234,10 +231,7 @@ pub fn build_review(
     // A binary log's odometer rows are its IMU samples; a text log's are its odometer
     // file's readings, and the rows bridged across its gaps are at IMU samples, found by
     // their time tags.
-    let sample_at = |t_ns: i64| {
-        let t_s = t_ns.saturating_sub(d.t0_ns) as f64 * 1e-9;
-        sensors.sample_at(t_s, d.nominal_dt_s)
-    };
+    let sample_at = |t_ns: i64| sensors.sample_at(seconds_since(d.t0_ns, t_ns), d.nominal_dt_s);
     let odometer_failures = reports
         .failed
         .into_iter()

@@ -114,8 +114,8 @@ impl Ros2Mcap {
     }
 
     /// Writes the summary, flushes and renames the file into place, its blake3 hashed as
-    /// its bytes were written (front to back: [`crate::hashing_writer::HashingWriter`]) told to the listener
-    /// ([`crate::hashing_writer::listen_to_written`]).
+    /// its bytes were written (front to back: [`crate::hashing_writer::HashingWriter`])
+    /// told to the listener ([`crate::hashing_writer::listen_to_written`]).
     pub fn finish(self) -> Result<(), FileError> {
         let dest = self.file.dest();
         let buffered = self

@@ -395,8 +395,7 @@ pub fn first_time_tag_not_increasing(ingest_dir: &Path, nominal_s: f64) -> Optio
 /// first not after the one before, or one that leapt forward alone.
 pub fn first_time_not_increasing(t_ns: &[i64], nominal_s: f64) -> Option<usize> {
     let t0 = *t_ns.first()?;
-    // Held at i64's bound, as the derive holds them.
-    let t_s = |k: usize| t_ns[k].saturating_sub(t0) as f64 * 1e-9;
+    let t_s = |k: usize| unz_stages::derive::seconds_since(t0, t_ns[k]);
     let mut prev_t_s = -nominal_s;
     for k in 0..t_ns.len() {
         let next_t_s = || (k + 1 < t_ns.len()).then(|| t_s(k + 1));

@@ -377,6 +377,13 @@ pub fn ns_since(t0_ns: i64, t_s: f64) -> i64 {
     t0_ns.saturating_add(round_to_i64(t_s * 1e9))
 }
 
+/// Seconds from `t0_ns` to `t_ns` (both ns), the way the derive reads its tags: a span
+/// beyond i64's nanoseconds (a broken log's tags) is held at its bound, not wrapped.
+#[inline]
+pub fn seconds_since(t0_ns: i64, t_ns: i64) -> f64 {
+    t_ns.saturating_sub(t0_ns) as f64 * 1e-9
+}
+
 /// `x.round() as i64`, bit for bit (halves away from zero, saturating, NaN to 0), without
 /// libm's `round` call, which the writers paid for every sample: `x as i64` truncates in
 /// one instruction, and the part it drops (`x` less an integer it is within one of) is
@@ -474,7 +481,7 @@ pub fn first_sample_apart(tags_ns: &[i64], max_gap_s: f64) -> bool {
     let &[t0, t1, t2, ..] = tags_ns else {
         return false;
     };
-    let gap_s = |a: i64, b: i64| b.saturating_sub(a) as f64 * 1e-9;
+    let gap_s = seconds_since;
     (t1 < t0 && t1 < t2) || (gap_s(t0, t1) > max_gap_s && gap_s(t1, t2) <= max_gap_s)
 }
 
@@ -550,7 +557,7 @@ impl<'a> OdoInterp<'a> {
             let t_ns = self.t_ns.next()?;
             let i = self.from;
             self.from += 1;
-            let ts = t_ns.saturating_sub(self.t0_ns) as f64 * 1e-9 + self.offset_s;
+            let ts = seconds_since(self.t0_ns, t_ns) + self.offset_s;
             let d = match &mut self.patch {
                 Some(p) => p.at(i, self.d[i]),
                 None => self.d[i],
@@ -580,7 +587,7 @@ impl<'a> OdoInterp<'a> {
     fn leapt_alone(&self, last: f64, ts: f64) -> bool {
         let next = self.t_ns.clone().next();
         next.is_some_and(|ns| {
-            let next_s = ns.saturating_sub(self.t0_ns) as f64 * 1e-9 + self.offset_s;
+            let next_s = seconds_since(self.t0_ns, ns) + self.offset_s;
             last < next_s && next_s < ts
         })
     }
@@ -722,9 +729,8 @@ pub fn derive_owned(
     tags.truncate(n);
     let mut prev_t = -nominal;
     for k in 0..n {
-        // Saturating: tags of a broken log may lie further apart than an i64 of ns holds.
-        let mut t = tags[k].saturating_sub(t0) as f64 * 1e-9;
-        let next_t = || tags.get(k + 1).map(|&s| s.saturating_sub(t0) as f64 * 1e-9);
+        let mut t = seconds_since(t0, tags[k]);
+        let next_t = || tags.get(k + 1).map(|&s| seconds_since(t0, s));
         let last_apart = || k + 1 == n && k >= 2 && t - prev_t > params.max_gap_s;
         if let Some(repaired) = repaired_time(k, prev_t, t, next_t, nominal) {
             t = repaired;
@@ -1708,11 +1714,8 @@ mod tests {
         assert_eq!(d.t_s.get(5_000), (t[5_000] - t[0]) as f64 * 1e-9);
     }
 
-    /// Tags further apart than an i64 of nanoseconds holds (a broken log: the first
-    /// sample apart, the others 8e9 s apart, so the run's start is placed 7e18 ns before
-    /// 0): a time from the start beyond the i64 is held at its bound, not wrapped to
-    /// before the start (an overflow the fuzzer's `binary_run` found with debug
-    /// assertions, a panic there).
+    /// A stored time (the start plus seconds) beyond i64's nanoseconds is held at its
+    /// bound, not wrapped.
     #[test]
     fn a_stored_time_beyond_an_i64_of_nanoseconds_is_held_at_its_bound() {
         assert_eq!(ns_since(i64::MAX - 5, 1.0), i64::MAX);
@@ -1720,6 +1723,11 @@ mod tests {
         assert_eq!(ns_since(-7_000_000_000, 9.5), 2_500_000_000);
     }
 
+    /// Tags further apart than an i64 of nanoseconds holds (a broken log: the first
+    /// sample apart, the others 8e9 s apart, so the run's start is placed 7e18 ns before
+    /// 0): a time from the start beyond the i64 is held at its bound, not wrapped to
+    /// before the start (an overflow the fuzzer's `binary_run` found with debug
+    /// assertions, a panic there).
     #[test]
     fn tags_beyond_an_i64_of_nanoseconds_from_the_start_are_held_at_its_bound() {
         let tags: Vec<i64> = vec![5e18 as i64, 1e18 as i64, 9e18 as i64, 9.2e18 as i64];
