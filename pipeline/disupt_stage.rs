@@ -206,6 +206,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             TRACKS,
             KRYT1_SERIES,
         ],
+        hashed_as_read: vec![],
     };
     ctx.run_stage(&stage, || {
         let t0 = std::time::Instant::now();

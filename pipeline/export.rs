@@ -59,6 +59,7 @@ pub fn ensure_export(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         params_hash: params_hash(&(NAV_RATE_HZ, params.export))?,
         inputs: vec![nav_path.clone(), crit_path.clone(), imu_path.clone()],
         outputs: &["corrected.mcap"],
+        hashed_as_read: vec![],
     };
     ctx.run_stage(&stage, || {
         // MCAP log times in UTC when the log gives it (Foxglove shows the drive's date,

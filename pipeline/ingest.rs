@@ -14,6 +14,7 @@ use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use crate::artifacts::files;
+use crate::file_hashes::HashingRead;
 use crate::flow::site_gravity_mps2;
 use crate::odometer_bridge::{Given, OdometerBridger, OdometerSample};
 use crate::odometer_column::ColumnBridger;
@@ -541,11 +542,13 @@ pub(crate) fn seconds(t_ns: i64) -> String {
     }
 }
 
-/// Opens a file `manifest` names, checking that what was opened is inside its folder.
-fn open(manifest: &RunManifest, path: &Path) -> anyhow::Result<std::fs::File> {
-    manifest
+/// Opens a file `manifest` names, checking that what was opened is inside its folder, to
+/// be read front to back: its hash is taken as it is read, for the stage's record.
+fn open(manifest: &RunManifest, path: &Path) -> anyhow::Result<HashingRead> {
+    let file = manifest
         .open_named(path)
-        .map_err(|e| unz_formats::error::open_error_in_file(path, e).into())
+        .map_err(|e| unz_formats::error::open_error_in_file(path, e))?;
+    Ok(HashingRead::new(file, path))
 }
 
 /// An IMU sample the ingest kept, as a failing stage names it.

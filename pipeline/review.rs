@@ -103,6 +103,7 @@ pub fn ensure_review(ctx: &RunCtx, params: &Params) -> anyhow::Result<ReviewOutp
         ))?,
         inputs,
         outputs: &outputs,
+        hashed_as_read: vec![],
     };
     ctx.run_stage(&stage, || {
         let review = build_review(

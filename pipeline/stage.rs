@@ -60,6 +60,10 @@ pub struct Stage<'a> {
     pub inputs: Vec<PathBuf>,
     /// Output file names.
     pub outputs: &'a [&'a str],
+    /// Inputs the body reads front to back through [`crate::file_hashes::HashingRead`],
+    /// which hashes their bytes as it reads them: they are not read again to be hashed
+    /// beside the body ([`crate::flow::RunCtx::run_stage`]).
+    pub hashed_as_read: Vec<PathBuf>,
 }
 
 impl Stage<'_> {
@@ -214,6 +218,7 @@ mod tests {
             inputs: vec![],
             // An output not written yet is no error.
             outputs: &["old.parquet", "never.json"],
+            hashed_as_read: vec![],
         };
         // The removed output's hash is forgotten: a file written next may take its inode.
         let old = dir.path().join("old.parquet");

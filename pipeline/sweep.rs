@@ -186,6 +186,7 @@ pub fn ensure_sweep(ctx: &RunCtx, params: &Params, axes: &[Axis]) -> anyhow::Res
         params_hash: params_hash(&(params.before_export(), axes))?,
         inputs,
         outputs: &["sweep.parquet", "sweep.json"],
+        hashed_as_read: vec![],
     };
     ctx.run_stage(&stage, || {
         let t0 = std::time::Instant::now();

@@ -163,6 +163,7 @@ pub fn ensure_criteria(
         params_hash: params_hash(&(params.kalman, params.derive.filter, params.vehicle))?,
         inputs,
         outputs: &[files::CRITERIA, files::CRITERIA_REPORT],
+        hashed_as_read: vec![],
     };
     ctx.run_stage(&stage, || {
         // The criteria read the derive's times and epochs only: without the chain's derive

@@ -47,8 +47,11 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
     ctx.forget_ensured("derive");
     let m = &ctx.manifest;
     let dir = ctx.layout().create(StageName::Ingest)?;
-    let mut inputs = vec![m.path.clone(), m.raw.clone()];
-    inputs.extend(m.odometer.file.clone());
+    // The ingest reads the raw log and the odometer file front to back, hashing them.
+    let mut hashed_as_read = vec![m.raw.clone()];
+    hashed_as_read.extend(m.odometer.file.clone());
+    let mut inputs = vec![m.path.clone()];
+    inputs.extend(hashed_as_read.iter().cloned());
     let stage = Stage {
         dir: dir.clone(),
         name: "ingest",
@@ -98,6 +101,7 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         ))?,
         inputs,
         outputs: &INGEST_OUTPUTS,
+        hashed_as_read,
     };
     let options = IngestOptions {
         mcap: Some(params.ingest.raw_mcap_compression),
@@ -213,6 +217,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
             files::BLOCKS,
             files::SENSORS,
         ],
+        hashed_as_read: vec![],
     };
     // What the ingest kept goes now, whether the derive runs or is up to date.
     let written = ctx.take_ingested();

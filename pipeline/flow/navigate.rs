@@ -155,6 +155,7 @@ pub fn ensure_navigate(
         params_hash: params_hash(&(params.align, overrides, params.vehicle))?,
         inputs,
         outputs: &[files::NAV, files::NAVIGATE_REPORT],
+        hashed_as_read: vec![],
     };
     ctx.run_stage(&stage, || {
         let case = load_case(ctx, params, overrides)?;

@@ -191,10 +191,13 @@ impl RunCtx {
         // The inputs' hashes, which the record takes after the body, are taken beside it
         // when a core is free (a 12-hour ingest's raw log, 207 MB, was hashed alone after
         // its outputs); a file that cannot be read is left to the record, which says so.
+        // Those the body hashes as it reads them are not read twice.
         let done = std::thread::scope(|s| {
             s.spawn(|| {
                 for path in &stage.inputs {
-                    let _ = crate::file_hashes::file_hash(path);
+                    if !stage.hashed_as_read.contains(path) {
+                        let _ = crate::file_hashes::file_hash(path);
+                    }
                 }
             });
             body()
@@ -226,6 +229,7 @@ mod tests {
             params_hash: "p".into(),
             inputs: vec![raw.clone()],
             outputs: &[],
+            hashed_as_read: vec![],
         };
         std::fs::create_dir_all(&stage.dir).unwrap();
         ctx.run_stage(&stage, || {
@@ -241,5 +245,51 @@ mod tests {
             Ok(())
         })
         .unwrap();
+    }
+
+    #[test]
+    fn an_input_the_body_hashes_as_it_reads_is_not_read_beside_it() {
+        let tmp = tempfile::tempdir().unwrap();
+        let ctx = crate::simulate_io::simulated_ctx(tmp.path(), "as-read", 4, 30.0).unwrap();
+        let (raw, manifest) = (ctx.manifest.raw.clone(), ctx.manifest.path.clone());
+        let stage = Stage {
+            dir: tmp.path().join("out").join("as-read").join("probe"),
+            name: "probe",
+            version: 1,
+            params_hash: "p".into(),
+            // Hashed beside the body in this order: the manifest's hash says the raw log
+            // was passed.
+            inputs: vec![raw.clone(), manifest.clone()],
+            outputs: &[],
+            hashed_as_read: vec![raw.clone()],
+        };
+        std::fs::create_dir_all(&stage.dir).unwrap();
+        ctx.run_stage(&stage, || {
+            let t0 = Instant::now();
+            while crate::file_hashes::remembered(&manifest).is_none() {
+                anyhow::ensure!(t0.elapsed() < Duration::from_secs(20), "no hashes beside");
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            anyhow::ensure!(
+                crate::file_hashes::remembered(&raw).is_none(),
+                "the raw log was read beside the body"
+            );
+            let mut read = crate::file_hashes::HashingRead::new(std::fs::File::open(&raw)?, &raw);
+            std::io::copy(&mut read, &mut std::io::sink())?;
+            Ok(())
+        })
+        .unwrap();
+        // The record takes the hash of the bytes the body read.
+        let bytes = std::fs::read(stage.dir.join(crate::stage::RECORD)).unwrap();
+        let record: crate::stage::StageRecord = serde_json::from_slice(&bytes).unwrap();
+        let want = blake3::hash(&std::fs::read(&raw).unwrap())
+            .to_hex()
+            .to_string();
+        let key = format!(
+            "{}/{}",
+            crate::stage::RUN_FOLDER_KEY,
+            raw.file_name().unwrap().to_string_lossy()
+        );
+        assert_eq!(record.inputs.get(&key), Some(&want), "{:?}", record.inputs);
     }
 }
