@@ -520,9 +520,16 @@ impl<T: PageFloat> SplitColumn<T> {
 struct ListLevels {
     per_row: usize,
     max_def: u8,
-    /// A page's count of values, and its levels encoded (repetition, then definition).
-    encoded: Option<(usize, Vec<u8>)>,
+    /// Pages' counts of values and their levels encoded (repetition, then definition),
+    /// the last asked first, up to [`LEVELS_KEPT`].
+    encoded: Vec<(usize, Vec<u8>)>,
 }
+
+/// How many pages' levels a list column keeps encoded: its pages take a few lengths in
+/// turn (cut after the write batch that fills them, batches counted from each array's
+/// start: a 4-hour IMU table's two list columns, in two row groups, asked for 90
+/// encodings of about 60 000 values when only the last was kept, 30 with four).
+const LEVELS_KEPT: usize = 4;
 
 impl ListLevels {
     /// `None` for a definition level past a byte (not a column the tables write).
@@ -530,19 +537,23 @@ impl ListLevels {
         Some(Self {
             per_row,
             max_def: u8::try_from(max_def).ok()?,
-            encoded: None,
+            encoded: Vec::with_capacity(LEVELS_KEPT),
         })
     }
 
     /// The levels of a page of `n` values, as version 1 pages hold them.
     fn encoded(&mut self, n: usize) -> &[u8] {
-        if self.encoded.as_ref().is_none_or(|(m, _)| *m != n) {
-            let repetition: Vec<u8> = (0..n).map(|k| u8::from(k % self.per_row != 0)).collect();
-            let mut bytes = rle_hybrid(&repetition, 1);
-            bytes.extend(rle_hybrid(&vec![self.max_def; n], bits_for(self.max_def)));
-            self.encoded = Some((n, bytes));
+        match self.encoded.iter().position(|(m, _)| *m == n) {
+            Some(i) => self.encoded[..=i].rotate_right(1),
+            None => {
+                let repetition: Vec<u8> = (0..n).map(|k| u8::from(k % self.per_row != 0)).collect();
+                let mut bytes = rle_hybrid(&repetition, 1);
+                bytes.extend(rle_hybrid(&vec![self.max_def; n], bits_for(self.max_def)));
+                self.encoded.truncate(LEVELS_KEPT - 1);
+                self.encoded.insert(0, (n, bytes));
+            }
         }
-        self.encoded.as_ref().map_or(&[], |(_, bytes)| bytes)
+        &self.encoded[0].1
     }
 }
 
@@ -705,6 +716,22 @@ mod tests {
 
     /// Sixteen at a time (and the rest one by one) gives the streams byte for byte, for
     /// every count around the blocks' edges and beyond.
+    #[test]
+    fn list_levels_kept_for_a_few_page_lengths_are_those_encoded_afresh() {
+        let fresh = |n: usize| ListLevels::new(3, 2).unwrap().encoded(n).to_vec();
+        let mut kept = ListLevels::new(3, 2).unwrap();
+        // Lengths in turn, more of them than are kept, some asked again at once.
+        for n in [
+            60_534, 60_150, 60_534, 60_150, 60_174, 60_174, 3, 9, 60_534, 0, 3, 60_150,
+        ] {
+            assert_eq!(kept.encoded(n), fresh(n), "{n} values");
+            assert!(kept.encoded.len() <= LEVELS_KEPT);
+            assert_eq!(kept.encoded[0].0, n, "the last asked first");
+        }
+        let repeated: Vec<usize> = kept.encoded.iter().map(|(n, _)| *n).collect();
+        assert_eq!(repeated, [60_150, 3, 0, 60_534]);
+    }
+
     #[test]
     fn streams_are_split_as_byte_by_byte() {
         for n in (0..70).chain([1000, 20_480, 20_483]) {
