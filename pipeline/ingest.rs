@@ -150,6 +150,10 @@ pub struct IngestOptions {
     /// Keep the series a derive reads in memory as they are written
     /// ([`IngestOutcome::series`]): for a derive that follows in the same process.
     pub keep_series: bool,
+    /// The longest gap a run bridges, s (the derive's `max_gap_s`): a text log's first or
+    /// last line apart from the others across a longer interval is reported so, not as
+    /// lost samples ([`IngestReport::first_line_apart_s`]).
+    pub max_gap_s: f64,
 }
 
 /// The status bit of an odometer failure (the raw-format spec's §1.2).
@@ -726,7 +730,8 @@ fn ingest_text(
     options: IngestOptions,
 ) -> anyhow::Result<Streamed> {
     let path = &manifest.raw;
-    let mut reader = KfGinsReader::new(BufReader::with_capacity(1 << 16, open(manifest, path)?));
+    let mut reader = KfGinsReader::new(BufReader::with_capacity(1 << 16, open(manifest, path)?))
+        .with_max_gap_s(options.max_gap_s);
     let period = reader
         .period_s()
         .map_err(|e| e.in_file(path))?

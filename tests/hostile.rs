@@ -749,7 +749,9 @@ fn kingston_with_imu(run: &Path, edit: impl FnOnce(&mut Vec<String>)) -> PathBuf
 /// the file without the line. Before, the IMU's first tag shifted the whole log by 10 s
 /// (the odometer named 10.4 s early), a lone line across a gap failed the run on the gap,
 /// and the speed file kept the line that leapt and rejected the 49 or 50 after it, the
-/// odometer bridged over them.
+/// odometer bridged over them. The ingest reports a line apart across an interval
+/// longer than the derive's `max_gap_s` (2 s) as apart, and its interval is no lost
+/// samples (before, the 10.1 s were 100 samples lost in `ingest.json`).
 #[test]
 fn kingston_a_lone_first_or_last_line_is_placed_beside_the_rest() {
     let tmp = tempfile::tempdir().unwrap();
@@ -762,9 +764,15 @@ fn kingston_a_lone_first_or_last_line_is_placed_beside_the_rest() {
         let json = std::fs::read(stage.join("disupt/disupt.json")).unwrap();
         (json, nav.repaired_times, events.odometer_file_faults)
     };
+    let ingest_report = |name: &str| -> unz_formats::IngestReport {
+        let stage = tmp.path().join(format!("o-{name}/kingston2008-segment1"));
+        read_json(&stage.join("ingest/ingest.json"))
+    };
     let shipped = kingston_with_imu(&tmp.path().join("k"), |_| {});
     let (want, repaired, _) = disupt_json(&shipped, "shipped");
     assert_eq!(repaired, 0);
+    let clean = ingest_report("shipped");
+    assert_eq!((clean.seq_gaps, clean.lost_samples), (0, 0));
     /// A line's time tag moved by `by` s.
     fn moved(line: &str, by: f64) -> String {
         let (t, rest) = line.split_once(' ').unwrap();
@@ -788,6 +796,21 @@ fn kingston_a_lone_first_or_last_line_is_placed_beside_the_rest() {
             got == want,
             "{name}: disupt.json differs from the shipped run's"
         );
+        // The 10 s and the 0.1-s period between the lines, to the tags' 1 ms.
+        let r = ingest_report(name);
+        assert_eq!((r.seq_gaps, r.lost_samples), (0, 0), "{name}");
+        let (first, last) = match name {
+            "first-before" => (Some(10.1), None),
+            "last-after" => (None, Some(10.1)),
+            // Its tag ahead of the second's: a tag going back, no gap.
+            _ => (None, None),
+        };
+        let near = |got: Option<f64>, want: Option<f64>| match (got, want) {
+            (Some(g), Some(w)) => (g - w).abs() < 1e-3,
+            (g, w) => g.is_none() && w.is_none(),
+        };
+        assert!(near(r.first_line_apart_s, first), "{name}: {r:?}");
+        assert!(near(r.last_line_apart_s, last), "{name}: {r:?}");
     }
 
     let speeds = std::fs::read_to_string(shipped.join("odometer.txt")).unwrap();

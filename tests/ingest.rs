@@ -299,6 +299,7 @@ fn raw_mcap_compression_changes_the_size_not_the_messages() {
             imu_axes: Default::default(),
             imu_mounting: None,
             keep_series: false,
+            max_gap_s: unz_stages::derive::DeriveParams::default().max_gap_s,
         };
         ingest(&manifest, &dir, options).unwrap();
         let path = dir.join("raw.mcap");
@@ -354,6 +355,7 @@ fn the_series_kept_for_the_derive_are_the_files() {
             imu_axes: Default::default(),
             imu_mounting: None,
             keep_series: true,
+            max_gap_s: unz_stages::derive::DeriveParams::default().max_gap_s,
         };
         let kept = ingest(&manifest, &dir, options).unwrap().series.unwrap();
         let mut imu = ImuTable::default();

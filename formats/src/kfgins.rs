@@ -9,6 +9,7 @@
 use std::io::BufRead;
 
 use crate::error::FormatError;
+use crate::lines_apart::GapAccount;
 use crate::manifest::OdometerKind;
 use crate::report::{IngestReport, OdometerFileReport};
 use crate::resent::RecentRecords;
@@ -369,6 +370,8 @@ pub struct KfGinsReader<R: BufRead> {
     /// The samples accepted lately, their time and values bit for bit: a line repeating
     /// one of them (a block sent again, logs joined over their overlap) is a duplicate.
     recent: RecentRecords<[u64; 7], u64>,
+    /// The gaps of lost samples, a first or last line apart left out.
+    gaps: GapAccount,
 }
 
 impl<R: BufRead> KfGinsReader<R> {
@@ -392,7 +395,17 @@ impl<R: BufRead> KfGinsReader<R> {
             tags: TagUnwrap::default(),
             first_t_s: None,
             recent: RecentRecords::default(),
+            gaps: GapAccount::new(f64::INFINITY),
         }
+    }
+
+    /// Reports a first or last line apart from the others across an interval longer
+    /// than `max_gap_s` (the derive's: the longest gap a run bridges) instead of counting
+    /// it as lost samples ([`IngestReport::first_line_apart_s`]). Without it, every gap
+    /// is lost samples.
+    pub fn with_max_gap_s(mut self, max_gap_s: f64) -> Self {
+        self.gaps = GapAccount::new(max_gap_s);
+        self
     }
 
     /// The accounting so far (final after the last sample).
@@ -545,7 +558,10 @@ impl<R: BufRead> KfGinsReader<R> {
                 Some(s) => s,
                 None => match self.next_raw()? {
                     Some(s) => s,
-                    None => return Ok(None),
+                    None => {
+                        self.gaps.end(&mut self.report);
+                        return Ok(None);
+                    }
                 },
             };
             self.report.records_read += 1;
@@ -572,19 +588,18 @@ impl<R: BufRead> KfGinsReader<R> {
                     continue;
                 }
                 let dt = s.t_s - prev.t_s;
+                let mut lost = None;
                 if dt <= 0.0 {
                     self.report.t_non_increasing += 1;
                 } else if let Some(p) = self.period_s {
                     let steps = (dt / p).round();
                     if steps >= 2.0 && dt > 1.5 * p {
-                        self.report.seq_gaps += 1;
-                        // Saturating: a tag of 1e300 (a damaged line) is a gap of
-                        // more samples than a u64 counts (`as` saturates too).
-                        let lost = (steps - 1.0) as u64;
-                        self.report.lost_samples = self.report.lost_samples.saturating_add(lost);
-                        self.report.lost_duration_s = self.report.lost_samples as f64 * p;
+                        // `as` saturates: a tag of 1e300 (a damaged line) is a gap of
+                        // more samples than a u64 counts.
+                        lost = Some(((steps - 1.0) as u64, p));
                     }
                 }
+                self.gaps.interval(&mut self.report, dt, lost);
             }
             self.prev = Some(s);
             self.first_t_s.get_or_insert(s.t_s);

@@ -17,6 +17,7 @@ pub mod atomic;
 pub mod error;
 pub mod hashing_writer;
 pub mod kfgins;
+mod lines_apart;
 pub mod manifest;
 pub mod mcap_chunks;
 pub mod mcap_io;

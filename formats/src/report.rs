@@ -69,6 +69,16 @@ pub struct IngestReport {
     /// tolerance (its neighbours agreeing), given their `seq`'s time (`lone_tag_off`).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub lone_tags_off: u64,
+    /// Text logs: the first line stands apart from the others, across an interval longer
+    /// than the longest gap a run bridges (the derive's `max_gap_s`) while the next is
+    /// not: a line a logger wrote before it began. The interval, s, is not counted in
+    /// `lost_samples`; the derive places the line beside the second.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub first_line_apart_s: Option<f64>,
+    /// Text logs: the same of the last line, across the interval before it (a log of three
+    /// lines or more): a line written after the logger stopped.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub last_line_apart_s: Option<f64>,
     /// Text logs: times the time tags rolled over from the end of a GPS week to its start
     /// (seconds of week: [`crate::kfgins::GPS_WEEK_S`]), the week added to the tags after.
     #[serde(default, skip_serializing_if = "is_zero")]
@@ -131,6 +141,28 @@ impl IngestReport {
                 parts.join("; ")
             )
         })
+    }
+
+    /// What the run's log says of a first or last line apart from the others (`None`:
+    /// neither was).
+    pub fn lines_apart_said(&self) -> Option<String> {
+        let said = |which: &str, gap_s: f64, neighbour: &str, when: &str| {
+            format!(
+                "the {which} line stands {gap_s:.3} s apart from the {neighbour} (a line \
+                 written {when}): its interval is not counted as lost samples, and the \
+                 derive places it beside that line"
+            )
+        };
+        let parts: Vec<String> = [
+            self.first_line_apart_s
+                .map(|g| said("first", g, "second", "before the log began")),
+            self.last_line_apart_s
+                .map(|g| said("last", g, "one before it", "after the log stopped")),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        (!parts.is_empty()).then(|| parts.join("; "))
     }
 
     /// What the run's log and its row of the campaign summary say of an 8th column left

@@ -71,6 +71,7 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
                 imu_mounting: None,
                 // As the stage does: the derive that follows takes the series.
                 keep_series: true,
+                max_gap_s: unz_stages::derive::DeriveParams::default().max_gap_s,
             },
         ),
         (
@@ -82,6 +83,7 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
                 imu_mounting: None,
                 // As the stage does: the derive that follows takes the series.
                 keep_series: true,
+                max_gap_s: unz_stages::derive::DeriveParams::default().max_gap_s,
             },
         ),
         (
@@ -93,6 +95,7 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
                 imu_mounting: None,
                 // As the stage does: the derive that follows takes the series.
                 keep_series: true,
+                max_gap_s: unz_stages::derive::DeriveParams::default().max_gap_s,
             },
         ),
     ] {

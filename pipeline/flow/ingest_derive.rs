@@ -91,13 +91,16 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // file's header line too; a time tag in Unix ms, µs or ns named so (its reason in
         // `ingest_events.json`). 30: a binary log's time base follows `seq` across the
         // recorder's clock leaping (steps and lone tags off taken out, said and listed).
-        version: 30,
+        // 31: a text log's first or last line apart from the others across an interval
+        // longer than the derive's `max_gap_s` is reported so, not as lost samples.
+        version: 31,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
             params.derive.odo_time_offset_s,
             params.vehicle.imu_axes,
             params.vehicle.imu_mounting_deg,
+            params.derive.max_gap_s,
         ))?,
         inputs,
         outputs: &INGEST_OUTPUTS,
@@ -111,6 +114,7 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // The derive that follows takes the series as they were written instead of
         // decoding the files again.
         keep_series: for_derive,
+        max_gap_s: params.derive.max_gap_s,
     };
     ctx.run_stage(&stage, || {
         ctx.set_ingested(None);
@@ -120,6 +124,9 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         }
         if let Some(unread) = outcome.report.speed_column_unread_said() {
             ctx.say("ingest", &unread);
+        }
+        if let Some(apart) = outcome.report.lines_apart_said() {
+            ctx.say("ingest", &apart);
         }
         if let Some(clock) = outcome.report.clock_said() {
             ctx.say("ingest", &clock);
