@@ -107,7 +107,7 @@ fn count(report: &mut IngestReport, lost: Option<(u64, f64)>) {
 /// Takes back a gap [`count`] counted.
 fn uncount(report: &mut IngestReport, lost: Option<(u64, f64)>) {
     if let Some((lost, period_s)) = lost {
-        report.seq_gaps -= 1;
+        report.seq_gaps = report.seq_gaps.saturating_sub(1);
         report.lost_samples = report.lost_samples.saturating_sub(lost);
         report.lost_duration_s = report.lost_samples as f64 * period_s;
     }
