@@ -51,7 +51,7 @@ impl GapAccount {
     }
 
     /// Takes the interval of `length_s` from the sample before, a gap of `lost` samples
-    /// of `period_s` (`None`: no gap).
+    /// (their count and the period they were counted in; `None`: no gap).
     pub(crate) fn interval(
         &mut self,
         report: &mut IngestReport,
@@ -89,7 +89,6 @@ impl GapAccount {
             uncount(report, last.lost);
             report.last_line_apart_s = Some(last.length_s);
         }
-        self.last = None;
     }
 }
 

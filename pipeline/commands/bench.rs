@@ -60,43 +60,24 @@ fn bench_ingest(args: &BenchArgs) -> anyhow::Result<ExitCode> {
     let run_dir = crate::simulate_io::write_run(&run, tmp.path())?;
     let manifest = RunManifest::load(&run_dir.join("run.toml"))?;
     let raw_bytes = std::fs::metadata(&manifest.raw)?.len() as f64;
-    // One core: the stage is single-threaded; nothing else runs meanwhile.
+    // The ingest's options as the stage gives them by default, but for `raw.mcap`.
+    let options = |mcap| IngestOptions {
+        mcap,
+        odo_lag_prior_s: 0.0,
+        imu_axes: Default::default(),
+        imu_mounting: None,
+        // As the stage does: the derive that follows takes the series.
+        keep_series: true,
+        max_gap_s: unz_stages::derive::DeriveParams::default().max_gap_s,
+    };
+    // Nothing else runs meanwhile; the ingest's tables and `raw.mcap` have threads of
+    // their own.
     for (label, options) in [
-        (
-            "raw → Parquet",
-            IngestOptions {
-                mcap: None,
-                odo_lag_prior_s: 0.0,
-                imu_axes: Default::default(),
-                imu_mounting: None,
-                // As the stage does: the derive that follows takes the series.
-                keep_series: true,
-                max_gap_s: unz_stages::derive::DeriveParams::default().max_gap_s,
-            },
-        ),
-        (
-            "full ingest (+ MCAP)",
-            IngestOptions {
-                mcap: Some(McapCompression::None),
-                odo_lag_prior_s: 0.0,
-                imu_axes: Default::default(),
-                imu_mounting: None,
-                // As the stage does: the derive that follows takes the series.
-                keep_series: true,
-                max_gap_s: unz_stages::derive::DeriveParams::default().max_gap_s,
-            },
-        ),
+        ("raw → Parquet", options(None)),
+        ("full ingest (+ MCAP)", options(Some(McapCompression::None))),
         (
             "full ingest (+ zstd MCAP)",
-            IngestOptions {
-                mcap: Some(McapCompression::Zstd),
-                odo_lag_prior_s: 0.0,
-                imu_axes: Default::default(),
-                imu_mounting: None,
-                // As the stage does: the derive that follows takes the series.
-                keep_series: true,
-                max_gap_s: unz_stages::derive::DeriveParams::default().max_gap_s,
-            },
+            options(Some(McapCompression::Zstd)),
         ),
     ] {
         let mut best = f64::INFINITY;
