@@ -18,7 +18,7 @@ use std::sync::Arc;
 use either::Either;
 
 use crate::filter::{FilterParams, LowPass};
-use crate::time_base::{TagIter, TagTimes, TimeBase, Times};
+use crate::time_base::{TagIter, TagTimes, TagsFrom, TimeBase, Times};
 
 /// Parameters of the derive stage.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -592,6 +592,87 @@ impl<'a> OdoInterp<'a> {
         })
     }
 
+    /// The tag's time, s (as [`Self::next_kept`] reads it).
+    fn time_of(&self, t_ns: i64) -> f64 {
+        seconds_since(self.t0_ns, t_ns) + self.offset_s
+    }
+
+    /// Before the first call of [`Self::at`]`(ts)`, moves on, when it can without reading
+    /// the tags between, to a state that call passes through: at the last of `tags`' marks
+    /// ([`TagTimes::marks`]) before `ts` where the marked tag and the one before are kept
+    /// one after the other. `at` then goes on from there, the same bit for bit as from
+    /// where it stood: a split walk's later stretch no longer reads every tag before it
+    /// (with a part for each of 16 threads, the 12-hour disupt spent 2 s of CPU more on
+    /// those reads). Returns the marked tag's index, or `None` where no mark is so (it
+    /// stays).
+    fn seek(&mut self, tags: &'a TagTimes, ts: f64) -> Option<usize> {
+        /// Reachable marks looked at, at most, before giving up (a stretch of tags going
+        /// back, or of failed readings, is read through instead).
+        const TRIES: usize = 16;
+        let mut tries = 0;
+        for m in tags.marks().rev() {
+            if m.index <= self.from || m.index >= self.d.len() || self.time_of(m.before_ns) > ts {
+                continue;
+            }
+            if let Some(c) = self.restart_at(m) {
+                return Some(c);
+            }
+            tries += 1;
+            if tries == TRIES {
+                break;
+            }
+        }
+        None
+    }
+
+    /// [`Self::seek`] at mark `m`, if a walk from the first tag keeps the marked tag `c`
+    /// and the one before, `c − 1`, one after the other; the state is then the walk's
+    /// when it has just kept `c`, which depends on these two tags alone:
+    /// - `c − 1` is kept when it is later than every tag before it (so than the last kept)
+    ///   and its distance finite (the tag after it, `c`, being later, it did not leap
+    ///   alone);
+    /// - then `c` is, when later than `c − 1`, its distance finite, and the tag after it
+    ///   not between the two (it did not leap alone).
+    ///
+    /// A distance patched ([`PatchCursor`]) is the patch's, its cursor moved to `c`.
+    fn restart_at(&mut self, m: TagsFrom<'a>) -> Option<usize> {
+        let c = m.index;
+        let mut tags = m.tags;
+        let t_before = self.time_of(m.before_ns);
+        let t_c = self.time_of(tags.next()?);
+        // (A mark's tag is never the first or second: there are tags before `c − 1`.)
+        let later_than_all = self.time_of(m.max_earlier_ns) < t_before;
+        // As [`Self::leapt_alone`] would find, were `c`'s step long enough to be asked.
+        let leapt = tags.clone().next().is_some_and(|ns| {
+            let t_next = self.time_of(ns);
+            t_before < t_next && t_next < t_c
+        });
+        if !later_than_all || t_c <= t_before || leapt {
+            return None;
+        }
+        let mut patch = self.patch.as_ref().map(|p| PatchCursor {
+            patch: p.patch.clone(),
+            span: 0,
+            shift_m: 0.0,
+        });
+        let mut distance = |i: usize| match &mut patch {
+            Some(p) => p.at(i, self.d[i]),
+            None => self.d[i],
+        };
+        let (d_before, d_c) = (distance(c - 1), distance(c));
+        if !(d_before.is_finite() && d_c.is_finite()) {
+            return None;
+        }
+        self.t_ns = Either::Right(tags);
+        self.from = c + 1;
+        self.patch = patch;
+        self.cur = (t_before, d_before);
+        self.next = Some((t_c, d_c));
+        self.last_t = Some(t_c);
+        self.last_step_s = t_c - t_before;
+        Some(c)
+    }
+
     /// Distance at `ts`; calls must come with non-decreasing `ts`.
     fn at(&mut self, ts: f64) -> f64 {
         let Some((t_first, d_first)) = self.first else {
@@ -904,7 +985,13 @@ impl<'a> MovedOdometer<'a> {
                 .t_s
                 .first()
                 .map_or(0.0, |t| odo.at(t - self.first_dt_s)),
-            _ => odo.at(self.t_s.get(k - 1)),
+            _ => {
+                let t = self.t_s.get(k - 1);
+                if let OdoTimes::Tags(tags) = self.odo_t_ns {
+                    odo.seek(tags, t);
+                }
+                odo.at(t)
+            }
         };
         OdoIncrements {
             odo,
@@ -1940,6 +2027,104 @@ mod tests {
             assert!([0, 2, 3].iter().all(|&i| ru_only[i].is_empty()));
         }
         assert!(stored[3].iter().any(|&v| v != 0.0), "the drive stops");
+    }
+
+    /// An odometer at 100 Hz over 5 minutes, its tags compact: marks at every 4 096 tags
+    /// (`MARK_TAGS`), around which the tags and distances are such that the walk's state
+    /// there can, or cannot, be known from the tags around them alone.
+    fn marked_odometer() -> (Vec<i64>, Vec<f64>) {
+        use crate::time_base::MARK_TAGS;
+        let n = 30_000;
+        let mut tags: Vec<i64> = (0..n as i64)
+            .map(|i| 3_000_000 + i * 10_000_000 + (i * 7919) % 400_000 - 200_000)
+            .collect();
+        let mut dist: Vec<f64> = (0..n).map(|i| i as f64 * 0.08).collect();
+        let m = |j: usize| j * MARK_TAGS;
+        // Mark 1: the reading before the marked one failed.
+        dist[m(1) - 1] = f64::NAN;
+        // Mark 2: the clock went back 5 s 92 tags before (those tags not kept until they
+        // pass the last kept one's time again).
+        for t in &mut tags[m(2) - 92..] {
+            *t -= 5_000_000_000;
+        }
+        // Mark 3: the marked tag leapt 10 s forward alone (the next between).
+        tags[m(3)] += 10_000_000_000;
+        // Mark 4: clean. Mark 5: inside a patch's span (below). Mark 6: the marked
+        // reading failed. Mark 7: clean, the tag after it leapt 10 s forward alone
+        // (dropped by a read from the mark as by one from the first: by the step before).
+        dist[m(6)] = f64::NAN;
+        tags[m(7) + 1] += 10_000_000_000;
+        (tags, dist)
+    }
+
+    /// Read from any sample on, an odometer held compact ([`TagTimes`]) starts from the
+    /// last mark before it whose state is known from the tags there ([`OdoInterp::seek`]):
+    /// the same increments as read from the first, bit for bit, past failed readings, a
+    /// clock gone back, a tag leapt forward alone and a patch over a mark, at two lags.
+    #[test]
+    fn an_odometer_read_from_a_mark_gives_the_increments_read_from_the_first() {
+        use crate::time_base::MARK_TAGS;
+        let columns = drive();
+        let d = derive(&series(&columns), &DeriveParams::default(), 9.81);
+        let (odo_t, odo_d) = marked_odometer();
+        let mut tags = TagTimes::with_room_for(odo_t.len());
+        tags.extend(odo_t[..5000].iter().copied());
+        tags.extend(odo_t[5000..].iter().copied());
+        assert_eq!(tags.marks().len(), 7);
+        let m = |j: usize| j * MARK_TAGS;
+        // Mark 5 inside a span of replaced distances, its readings moved 2 m after.
+        let patch = Arc::new(OdoPatch {
+            spans: vec![PatchSpan {
+                first: m(5) - 50,
+                distance_m: (0..100)
+                    .map(|i| (m(5) - 50 + i) as f64 * 0.08 + 0.01)
+                    .collect(),
+                shift_after_m: 2.0,
+            }],
+        });
+        // The drive's IMU is 200 s long; its samples reach mark 7 with the odometer 90 s
+        // early.
+        for offset_s in [0.0, -90.0] {
+            for patch in [None, Some(patch.clone())] {
+                let raw = RawSeries {
+                    imu_t_ns: &[],
+                    dtheta_rad: &[],
+                    dvel_mps: &[],
+                    odo_t_ns: OdoTimes::Tags(&tags),
+                    odo_distance_m: &odo_d,
+                };
+                let moved = MovedOdometer::new(&d, &raw, offset_s).patched(patch.clone());
+                let all: Vec<u64> = moved.increments().map(f64::to_bits).collect();
+                let n = all.len();
+                let near_marks = (1..=7).flat_map(|j| {
+                    // The IMU's sample at the mark's time, and either side.
+                    let t = seconds_since(d.t0_ns, odo_t[m(j)]) + offset_s;
+                    let k = d.t_s.partition_point(|s| s < t);
+                    [k.saturating_sub(1), k, k + 1, k + 2]
+                });
+                for k in (0..n).step_by(997).chain(near_marks).chain([n - 1, n]) {
+                    let k = k.min(n);
+                    let from: Vec<u64> = moved.increments_from(k).map(f64::to_bits).collect();
+                    assert!(from == all[k..], "from sample {k}, offset {offset_s} s");
+                }
+            }
+        }
+        // Where each read starts (offset 0: the IMU's 200 s reach mark 4, 164 s in).
+        let seek = |ts: f64, patch: Option<Arc<OdoPatch>>| {
+            let mut odo = OdoInterp::new((&tags).into(), &odo_d, patch, d.t0_ns, -90.0);
+            odo.seek(&tags, ts)
+        };
+        let t = |i: usize| seconds_since(d.t0_ns, odo_t[i]) - 90.0;
+        assert_eq!(seek(t(m(1)) + 1.0, None), None, "a failed reading before");
+        assert_eq!(seek(t(m(2)) + 1.0, None), None, "a clock gone back");
+        assert_eq!(seek(t(m(3) + 1) + 1.0, None), None, "a tag leapt alone");
+        assert_eq!(seek(t(m(4)) + 1.0, None), Some(m(4)));
+        assert_eq!(seek(t(m(5)) + 1.0, None), Some(m(5)));
+        assert_eq!(seek(t(m(5)) + 1.0, Some(patch)), Some(m(5)), "patched");
+        assert_eq!(seek(t(m(6)) + 1.0, None), Some(m(5)), "a failed reading");
+        assert_eq!(seek(t(m(7)) + 1.0, None), Some(m(7)));
+        // Before its mark's tag, a read starts from the mark before.
+        assert_eq!(seek(t(m(7) - 1) - 0.001, None), Some(m(5)));
     }
 
     #[test]

@@ -270,6 +270,11 @@ impl NanoTimesBuilder {
 /// in full, then each tag's step from the one before in 32 bits, and the steps that do
 /// not fit (a gap of over 4.29 s, or a tag going back) in full, in order, beside them.
 /// Half the memory of an i64 per tag at any rate, every tag given back exactly.
+///
+/// Every [`MARK_TAGS`] tags, a mark lets them be read from there ([`TagTimes::from_mark`])
+/// with the tag before and the greatest of those before it: what a reader that keeps only
+/// tags later than all before (the derive's odometer) needs to know whether it would keep
+/// the tags there, without reading from the first.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct TagTimes {
     first_ns: i64,
@@ -279,6 +284,39 @@ pub struct TagTimes {
     steps_ns: Vec<u32>,
     /// The tags whose step is [`FAR`], in order.
     far_ns: Vec<i64>,
+    /// The greatest tag before the last one (`i64::MIN` before there are two).
+    max_before_last_ns: i64,
+    /// A mark at each tag whose index is a positive multiple of [`MARK_TAGS`].
+    marks: Vec<TagMark>,
+}
+
+/// Tags between [`TagTimes`]' marks: a read from a mark reaches any tag within this many
+/// (40 s at 100 Hz); 24 bytes a mark (25 kB at 12 h at 100 Hz).
+pub const MARK_TAGS: usize = 4096;
+
+/// Where [`TagTimes`]' tags can be read from at tag `MARK_TAGS × (i + 1)`, for mark `i`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TagMark {
+    /// Tags in [`TagTimes::far_ns`] before the marked one.
+    far: usize,
+    /// The tag before the marked one, ns.
+    before_ns: i64,
+    /// The greatest of the tags before that one, ns.
+    max_earlier_ns: i64,
+}
+
+/// A place in [`TagTimes`] to read its tags from ([`TagTimes::marks`]).
+#[derive(Debug, Clone)]
+pub struct TagsFrom<'a> {
+    /// The index of the first tag read.
+    pub index: usize,
+    /// The tag before it, ns.
+    pub before_ns: i64,
+    /// The greatest of the tags before that one, ns (a mark's tag is never the first or
+    /// second).
+    pub max_earlier_ns: i64,
+    /// The tags from `index` on.
+    pub tags: TagIter<'a>,
 }
 
 impl TagTimes {
@@ -286,6 +324,7 @@ impl TagTimes {
     pub fn with_room_for(n: usize) -> Self {
         Self {
             steps_ns: Vec::with_capacity(n),
+            marks: Vec::with_capacity(n / MARK_TAGS),
             ..Self::default()
         }
     }
@@ -294,6 +333,19 @@ impl TagTimes {
     pub fn extend(&mut self, ns: impl IntoIterator<Item = i64>) {
         let mut prev = (!self.is_empty()).then_some(self.last_ns);
         for t in ns {
+            if let Some(p) = prev {
+                let index = self.steps_ns.len();
+                if index.is_multiple_of(MARK_TAGS) {
+                    self.marks.push(TagMark {
+                        far: self.far_ns.len(),
+                        before_ns: p,
+                        max_earlier_ns: self.max_before_last_ns,
+                    });
+                }
+                self.max_before_last_ns = self.max_before_last_ns.max(p);
+            } else {
+                self.max_before_last_ns = i64::MIN;
+            }
             let step = prev
                 .and_then(|p| t.checked_sub(p))
                 .and_then(|d| u32::try_from(d).ok())
@@ -333,6 +385,24 @@ impl TagTimes {
             far_ns: self.far_ns.iter(),
             prev_ns: self.first_ns,
         }
+    }
+
+    /// The places the tags can be read from besides the first (every [`MARK_TAGS`]
+    /// tags), in order.
+    pub fn marks(&self) -> impl DoubleEndedIterator<Item = TagsFrom<'_>> + ExactSizeIterator {
+        self.marks.iter().enumerate().map(|(i, m)| {
+            let index = (i + 1) * MARK_TAGS;
+            TagsFrom {
+                index,
+                before_ns: m.before_ns,
+                max_earlier_ns: m.max_earlier_ns,
+                tags: TagIter {
+                    steps_ns: self.steps_ns[index..].iter(),
+                    far_ns: self.far_ns[m.far..].iter(),
+                    prev_ns: m.before_ns,
+                },
+            }
+        })
     }
 }
 
@@ -406,6 +476,41 @@ mod tests {
         assert_eq!(tags.far_ns.len(), 6, "{:?}", tags.far_ns);
         assert_eq!(tags.steps_ns.capacity(), ns.len());
         assert!(TagTimes::default().iter().next().is_none());
+    }
+
+    #[test]
+    fn marks_read_the_tags_from_there_with_the_tag_before_and_the_greatest_earlier() {
+        // 100 Hz with a tag going back far (the greatest earlier stays ahead for a
+        // while), gaps past 32 bits, and a tag at i64's extremes; appended in pieces that
+        // end before, at and after marks.
+        let n = 5 * MARK_TAGS + 17;
+        let mut ns: Vec<i64> = (0..n as i64).map(|i| i * 10_000_000).collect();
+        ns[MARK_TAGS + 5] -= 1_000_000_000_000;
+        ns[2 * MARK_TAGS - 1] += 30_000_000_000;
+        ns[3 * MARK_TAGS - 2] = i64::MAX;
+        ns[4 * MARK_TAGS] = i64::MIN;
+        let mut tags = TagTimes::with_room_for(n);
+        for piece in ns.chunks(MARK_TAGS - 1) {
+            tags.extend(piece.iter().copied());
+        }
+        let mut whole = TagTimes::default();
+        whole.extend(ns.iter().copied());
+        assert_eq!(tags, whole);
+        assert_eq!(tags.marks().len(), 5);
+        for (j, m) in tags.marks().enumerate() {
+            let c = (j + 1) * MARK_TAGS;
+            assert_eq!(m.index, c);
+            assert_eq!(m.before_ns, ns[c - 1]);
+            assert_eq!(m.max_earlier_ns, ns[..c - 1].iter().copied().max().unwrap());
+            assert_eq!(m.tags.len(), n - c);
+            assert!(m.tags.eq(ns[c..].iter().copied()), "from tag {c}");
+        }
+        // No mark at the first tag, nor before a mark's tag is there.
+        let mut short = TagTimes::default();
+        short.extend(ns[..MARK_TAGS].iter().copied());
+        assert_eq!(short.marks().len(), 0);
+        short.extend([ns[MARK_TAGS]]);
+        assert_eq!(short.marks().len(), 1);
     }
 
     #[test]
