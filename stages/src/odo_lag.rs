@@ -410,7 +410,15 @@ impl<'s, 'a> Tee<'s, 'a> {
         start: usize,
         out: &'s Mutex<Vec<BlockStretch<'a>>>,
     ) -> Self {
-        let mut blocks = OdometerBlocks::sized(base, lp, series, lp.blocks(base.t_s.len()));
+        // The first stretch is sized for all the blocks (the others are appended to it,
+        // [`whole_blocks`]); the others grow as they fill, the walk not saying where they
+        // end. Each sized for the whole run, with a stretch for each of 16 threads the
+        // 12-hour disupt's peak stood 125 MB higher (592 against 467 MB).
+        let room = match start {
+            0 => lp.blocks(base.t_s.len()),
+            _ => 0,
+        };
+        let mut blocks = OdometerBlocks::sized(base, lp, series, room);
         // From the sample before, as the derive's stretches resume (the same increments,
         // bit for bit, from wherever they are read).
         let mut rest = odometer.increments_from(start.saturating_sub(1));
@@ -660,4 +668,50 @@ pub fn joint_with_lag(
         fit,
         profile: profile.trials.into_inner(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fused walk's first stretch holds room for every block (the others are appended
+    /// to it); a later one for its own (it grows as it fills), not for the whole run's.
+    #[test]
+    fn a_fused_walks_later_stretch_holds_room_for_its_own_blocks() {
+        let n = 20_000;
+        let imu_t: Vec<i64> = (0..n as i64).map(|k| k * 10_000_000).collect();
+        let dtheta = vec![[0.0, 0.0, 1e-3]; n];
+        let dvel = vec![[0.01, 0.0, -0.098]; n];
+        let odo_d: Vec<f64> = (0..n).map(|k| k as f64 * 0.05).collect();
+        let raw = RawSeries {
+            imu_t_ns: &imu_t,
+            dtheta_rad: &dtheta,
+            dvel_mps: &dvel,
+            odo_t_ns: (&imu_t).into(),
+            odo_distance_m: &odo_d,
+        };
+        let params = DeriveParams::default();
+        let d = derive(&raw, &params, 9.81);
+        let lp = LowPass::new(&params.filter, d.nominal_dt_s);
+        let odometer = MovedOdometer::new(&d, &raw, 0.0);
+        let blocks = lp.blocks(n);
+        // The stretch from the run's start, and its last eighth's.
+        let last_eighth = (blocks - blocks / 8) * lp.block;
+        for start in [0, last_eighth] {
+            let out = Mutex::new(Vec::new());
+            let mut tee = Tee::new(&d, &lp, OdoBlockSeries::moved(true), &odometer, start, &out);
+            tee.fill(&mut Vec::new(), n - start);
+            drop(tee);
+            let stretch = out.into_inner().unwrap().pop().unwrap();
+            let ru = &stretch.blocks.means()[1];
+            let (held, room) = (ru.len(), ru.capacity());
+            if start == 0 {
+                assert_eq!(held, blocks);
+                assert!(room >= blocks, "{room} for {blocks} blocks");
+            } else {
+                assert!(held >= blocks / 8, "{held} of {blocks} blocks");
+                assert!(room <= 2 * held, "room for {room} blocks, {held} held");
+            }
+        }
+    }
 }
