@@ -271,7 +271,7 @@ impl NanoTimesBuilder {
 /// not fit (a gap of over 4.29 s, or a tag going back) in full, in order, beside them.
 /// Half the memory of an i64 per tag at any rate, every tag given back exactly.
 ///
-/// Every [`MARK_TAGS`] tags, a mark lets them be read from there ([`TagTimes::from_mark`])
+/// Every [`MARK_TAGS`] tags, a mark lets them be read from there ([`TagTimes::marks`])
 /// with the tag before and the greatest of those before it: what a reader that keeps only
 /// tags later than all before (the derive's odometer) needs to know whether it would keep
 /// the tags there, without reading from the first.
@@ -480,9 +480,9 @@ mod tests {
 
     #[test]
     fn marks_read_the_tags_from_there_with_the_tag_before_and_the_greatest_earlier() {
-        // 100 Hz with a tag going back far (the greatest earlier stays ahead for a
-        // while), gaps past 32 bits, and a tag at i64's extremes; appended in pieces that
-        // end before, at and after marks.
+        // 100 Hz with a tag going back far, a gap past 32 bits just before a mark, and
+        // tags at i64's extremes (the greatest earlier then stays at the top); appended
+        // in pieces that end before, at and after marks.
         let n = 5 * MARK_TAGS + 17;
         let mut ns: Vec<i64> = (0..n as i64).map(|i| i * 10_000_000).collect();
         ns[MARK_TAGS + 5] -= 1_000_000_000_000;
