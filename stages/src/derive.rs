@@ -523,11 +523,7 @@ impl<'a> OdoInterp<'a> {
         let mut s = Self {
             t_ns: t_ns.iter(),
             d,
-            patch: patch.map(|patch| PatchCursor {
-                patch,
-                span: 0,
-                shift_m: 0.0,
-            }),
+            patch: patch.map(PatchCursor::new),
             t0_ns,
             offset_s,
             first: None,
@@ -558,10 +554,7 @@ impl<'a> OdoInterp<'a> {
             let i = self.from;
             self.from += 1;
             let ts = seconds_since(self.t0_ns, t_ns) + self.offset_s;
-            let d = match &mut self.patch {
-                Some(p) => p.at(i, self.d[i]),
-                None => self.d[i],
-            };
+            let d = PatchCursor::distance(&mut self.patch, self.d, i);
             if self.last_t.is_none_or(|last| ts > last) && d.is_finite() {
                 if let Some(last) = self.last_t
                     && ts - last > 2.0 * self.last_step_s
@@ -650,16 +643,12 @@ impl<'a> OdoInterp<'a> {
         if !later_than_all || t_c <= t_before || leapt {
             return None;
         }
-        let mut patch = self.patch.as_ref().map(|p| PatchCursor {
-            patch: p.patch.clone(),
-            span: 0,
-            shift_m: 0.0,
-        });
-        let mut distance = |i: usize| match &mut patch {
-            Some(p) => p.at(i, self.d[i]),
-            None => self.d[i],
-        };
-        let (d_before, d_c) = (distance(c - 1), distance(c));
+        let mut patch = self
+            .patch
+            .as_ref()
+            .map(|p| PatchCursor::new(p.patch.clone()));
+        let d_before = PatchCursor::distance(&mut patch, self.d, c - 1);
+        let d_c = PatchCursor::distance(&mut patch, self.d, c);
         if !(d_before.is_finite() && d_c.is_finite()) {
             return None;
         }
@@ -731,6 +720,25 @@ struct PatchCursor {
 }
 
 impl PatchCursor {
+    /// `patch` read from its first row.
+    fn new(patch: Arc<OdoPatch>) -> Self {
+        Self {
+            patch,
+            span: 0,
+            shift_m: 0.0,
+        }
+    }
+
+    /// The distance of row `i` of `ingested_m` as `cursor` patches it (none: as ingested).
+    /// Inline: [`OdoInterp::next_kept`] reads every row through it.
+    #[inline(always)]
+    fn distance(cursor: &mut Option<Self>, ingested_m: &[f64], i: usize) -> f64 {
+        match cursor {
+            Some(p) => p.at(i, ingested_m[i]),
+            None => ingested_m[i],
+        }
+    }
+
     /// The distance of row `i` (not before the last one asked), whose ingested one is
     /// `ingested_m`. Out of line: most runs have no patch, and their odometer's reading
     /// loop stays as small as it was.
