@@ -22,6 +22,7 @@
 //! read, and gives each exactly what it would give alone.
 
 mod lanes;
+pub mod lanes_in_flight;
 mod segment_lanes;
 pub mod segments;
 #[cfg(test)]
@@ -367,13 +368,23 @@ pub fn in_lanes<B: LaneBatch>(n: usize, batch: &mut B) -> Vec<B::Out> {
     fn points<const N: usize>(n: usize) -> [usize; N] {
         std::array::from_fn(|l| l.min(n - 1))
     }
-    let out: Vec<B::Out> = match n {
+    let out: Vec<B::Out> = match batch_lanes(n) {
         0 => return Vec::new(),
         1 => batch.run::<1>(points(n)).into(),
-        2..=4 => batch.run::<4>(points(n)).into(),
+        4 => batch.run::<4>(points(n)).into(),
         _ => batch.run::<8>(points(n)).into(),
     };
     out.into_iter().take(n).collect()
+}
+
+/// The lanes [`in_lanes`] runs `n` points in: 0, 1, 4 or 8 (past [`MAX_LANES`], `n`).
+pub fn batch_lanes(n: usize) -> usize {
+    match n {
+        0 | 1 => n,
+        2..=4 => 4,
+        5..=MAX_LANES => MAX_LANES,
+        _ => n,
+    }
 }
 
 /// Runs `N` passes side by side (one per settings) into `sinks`, each reset first for

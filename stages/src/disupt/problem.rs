@@ -12,10 +12,15 @@ use crate::criteria::{self, ControlPointFix, FilteredBlocks, KalmanParams, Kryt1
 use crate::derive::{Epochs, MovedOdometer, OdoIncrements};
 use crate::filter::LowPass;
 use crate::linearized::{Linearization, N_PARAMS, Observation, Setting};
+use crate::strapdown::lanes_in_flight::{
+    BLOCKS_IN_FLIGHT_BUDGET_BYTES, batch_within, lanes_within, wave_len,
+};
 use crate::strapdown::segments::{
     ImuSegments, OdoColumns, OdoSegments, SegmentMemo, SegmentPlan, integrate_split,
 };
-use crate::strapdown::{self, CriteriaSink, LaneBatch, NavInputs, NavSettings, in_lanes};
+use crate::strapdown::{
+    self, CriteriaSink, LaneBatch, NavInputs, NavSettings, batch_lanes, in_lanes,
+};
 use crate::units::DEG_PER_H;
 
 /// One run's optimisation problem: everything is derived once; each evaluation is one
@@ -416,31 +421,85 @@ impl<'a> Problem<'a> {
     /// enough for one each go one to a thread (two points on two cores), else in full
     /// batches (a batch of two to four lanes costs about what one of four does, in CPU and
     /// in time: three or four points in one batch, not two half-empty ones side by side).
+    ///
+    /// The passes over the run in flight hold their Kryt1 blocks
+    /// ([`LanesInFlight`](crate::strapdown::lanes_in_flight::LanesInFlight)): the
+    /// points go in waves of as many as the budget leaves room for beside the others, at
+    /// least one at a time. Only a long run's on many threads wait for room: a 12-hour
+    /// run's budget holds nine passes, more than two threads run at once.
     pub fn observe_many_by(&self, xs: &[X], tally: &AtomicUsize) -> Vec<Observation> {
+        self.observe_many_within(xs, tally, self.lanes_cap())
+    }
+
+    /// [`Self::observe_many_by`] with at most `cap` lanes in flight over the run (beside
+    /// one wave's batch, which always runs).
+    fn observe_many_within(&self, xs: &[X], tally: &AtomicUsize, cap: usize) -> Vec<Observation> {
         let threads = rayon::current_num_threads().max(1);
-        let chunk = if xs.len().div_ceil(threads) > 1 {
-            LANES
-        } else {
-            1
-        };
-        xs.par_chunks(chunk)
-            .flat_map_iter(|chunk| self.observe_batch(chunk, tally))
-            .collect()
+        let in_flight = self.segments.lanes_in_flight();
+        let mut out = Vec::with_capacity(xs.len());
+        let mut left = xs;
+        while !left.is_empty() {
+            let (wave, rest) = left.split_at(wave_len(left.len(), in_flight.room(cap)));
+            let chunk = if wave.len().div_ceil(threads) > 1 {
+                LANES
+            } else {
+                1
+            };
+            out.par_extend(
+                wave.par_chunks(chunk)
+                    .flat_map_iter(|chunk| self.observe_batch(chunk, tally)),
+            );
+            left = rest;
+        }
+        out
     }
 
     /// [`Self::observe_many_by`] on the calling thread only, in as few batches of lanes as
     /// the points fill: the least CPU for a few points, where the caller's own concurrency
     /// keeps the cores busy.
+    ///
+    /// Its batches are as full as the passes over the run in flight leave room for
+    /// ([`Self::observe_many_by`]), down to one point at a time.
     pub fn observe_batched_by(&self, xs: &[X], tally: &AtomicUsize) -> Vec<Observation> {
-        xs.chunks(LANES)
-            .flat_map(|chunk| self.observe_batch(chunk, tally))
-            .collect()
+        self.observe_batched_within(xs, tally, self.lanes_cap())
+    }
+
+    /// [`Self::observe_batched_by`] with at most `cap` lanes in flight over the run (but
+    /// one point at a time, which always runs).
+    fn observe_batched_within(
+        &self,
+        xs: &[X],
+        tally: &AtomicUsize,
+        cap: usize,
+    ) -> Vec<Observation> {
+        let in_flight = self.segments.lanes_in_flight();
+        let mut out = Vec::with_capacity(xs.len());
+        let mut left = xs;
+        while !left.is_empty() {
+            let n = batch_within(left.len(), in_flight.room(cap), LANES);
+            let (batch, rest) = left.split_at(n);
+            out.extend(self.observe_batch(batch, tally));
+            left = rest;
+        }
+        out
+    }
+
+    /// The lanes the passes over this problem's run may hold at once
+    /// ([`BLOCKS_IN_FLIGHT_BUDGET_BYTES`]), a batch at least.
+    fn lanes_cap(&self) -> usize {
+        lanes_within(
+            BLOCKS_IN_FLIGHT_BUDGET_BYTES,
+            self.inputs.len(),
+            self.lp.block,
+            LANES,
+        )
     }
 
     /// At most [`LANES`] points in one batch of lanes.
     fn observe_batch(&self, xs: &[X], tally: &AtomicUsize) -> Vec<Observation> {
         tally.fetch_add(xs.len(), Ordering::Relaxed);
         self.passes.fetch_add(xs.len(), Ordering::Relaxed);
+        let _held = self.segments.lanes_in_flight().hold(batch_lanes(xs.len()));
         in_lanes(
             xs.len(),
             &mut OnDerives {
@@ -578,22 +637,28 @@ pub fn observe_each(problems: &[&Problem<'_>], x: &X, tally: &AtomicUsize) -> Ve
         "derives of different runs or filters"
     );
     tally.fetch_add(problems.len(), Ordering::Relaxed);
-    problems
-        .chunks(LANES)
-        .flat_map(|chunk| {
-            for p in chunk {
-                p.passes.fetch_add(1, Ordering::Relaxed);
-            }
-            let xs = vec![*x; chunk.len()];
-            in_lanes(
-                chunk.len(),
-                &mut OnDerives {
-                    problems: chunk,
-                    xs: &xs,
-                },
-            )
-        })
-        .collect()
+    // In batches as full as the passes over the run in flight leave room for.
+    let (cap, in_flight) = (first.lanes_cap(), first.segments.lanes_in_flight());
+    let mut out = Vec::with_capacity(problems.len());
+    let mut left = problems;
+    while !left.is_empty() {
+        let n = batch_within(left.len(), in_flight.room(cap), LANES);
+        let (chunk, rest) = left.split_at(n);
+        for p in chunk {
+            p.passes.fetch_add(1, Ordering::Relaxed);
+        }
+        let _held = in_flight.hold(batch_lanes(chunk.len()));
+        let xs = vec![*x; chunk.len()];
+        out.extend(in_lanes(
+            chunk.len(),
+            &mut OnDerives {
+                problems: chunk,
+                xs: &xs,
+            },
+        ));
+        left = rest;
+    }
+    out
 }
 
 /// Points side by side: the `i`-th at `xs[i]` on `problems[i]`, or all on the only
@@ -723,5 +788,150 @@ pub(super) fn linearization_of(
         p_ref: params_of(x),
         y_ref: y,
         slopes,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::attitude::Euler;
+    use crate::derive::{DeriveParams, RawSeries, derive};
+
+    /// A 200-second drive at 100 Hz turning gently, its odometer at 5 m/s.
+    struct Drive {
+        t_ns: Vec<i64>,
+        dtheta_rad: Vec<[f64; 3]>,
+        dvel_mps: Vec<[f64; 3]>,
+        odo_m: Vec<f64>,
+    }
+
+    impl Drive {
+        fn new() -> Self {
+            let n = 20_000;
+            Self {
+                t_ns: (0..n as i64).map(|k| k * 10_000_000).collect(),
+                dtheta_rad: (0..n)
+                    .map(|k| [0.0, 0.0, 2e-4 * (k as f64 * 1e-3).sin()])
+                    .collect(),
+                dvel_mps: vec![[0.0, 0.0, -0.0981]; n],
+                odo_m: (0..n).map(|k| k as f64 * 0.05).collect(),
+            }
+        }
+
+        fn raw(&self) -> RawSeries<'_> {
+            RawSeries {
+                imu_t_ns: &self.t_ns,
+                dtheta_rad: &self.dtheta_rad,
+                dvel_mps: &self.dvel_mps,
+                odo_t_ns: (&self.t_ns).into(),
+                odo_distance_m: &self.odo_m,
+            }
+        }
+    }
+
+    /// The derive of [`Drive`].
+    fn derived() -> crate::derive::Derived {
+        derive(&Drive::new().raw(), &DeriveParams::default(), 9.81)
+    }
+
+    fn spec() -> ProblemSpec<'static> {
+        ProblemSpec {
+            settings: NavSettings {
+                initial: Euler {
+                    roll_rad: 0.0,
+                    pitch_rad: 0.0,
+                    heading_rad: 0.3,
+                },
+                drift_rad_s: [0.0; 3],
+                odo_scale: 1.0,
+                odo_yaw_rad: 0.0,
+                odo_pitch_rad: 0.0,
+                odo_bias_mps: 0.0,
+                lat0_rad: 0.77,
+                lon0_rad: -1.33,
+                h0_m: 90.0,
+            },
+            filter: DeriveParams::default().filter,
+            kalman: KalmanParams::default(),
+            fixes: &[],
+            excluded_cps: &[],
+            drift_z_prior_deg_h: None,
+        }
+    }
+
+    /// Six points near the start: its azimuth and drifts moved.
+    fn points(p: &Problem<'_>) -> Vec<X> {
+        let x0 = p.x0();
+        (0..6)
+            .map(|i| {
+                let mut x = x0;
+                x.azimuth_deg += 0.1 * i as f64;
+                x.drift_deg_h[i % 3] += 0.05 * i as f64;
+                x
+            })
+            .collect()
+    }
+
+    /// Many threads' fan-out and a walk in batches keep to the lanes the budget leaves
+    /// (beside those another search holds), and each observation is the pass's alone,
+    /// bit for bit.
+    #[test]
+    fn passes_in_flight_keep_to_the_budget_and_each_is_its_pass_alone() {
+        let d = derived();
+        let p = spec().on(&d);
+        let xs = points(&p);
+        let alone: Vec<Observation> = xs.iter().map(|x| p.observe(x)).collect();
+        // Observations of many epochs, each point's its own.
+        assert!(alone.iter().all(|y| y.theta_rad.len() > 100));
+        assert!(alone.windows(2).all(|w| w[0] != w[1]));
+        let in_flight = p.segments.lanes_in_flight();
+        assert_eq!((in_flight.now(), in_flight.peak()), (0, 1));
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(8)
+            .build()
+            .unwrap();
+        let tally = AtomicUsize::new(0);
+        // Eight threads for six points: one each, but two lanes at a time.
+        let fanned = pool.install(|| p.observe_many_within(&xs, &tally, 2));
+        assert!(fanned == alone, "the fan-out's observations");
+        assert!(in_flight.peak() <= 2, "{} lanes at once", in_flight.peak());
+        // A walk in batches of four with three lanes of five held elsewhere: one point at
+        // a time.
+        let held = in_flight.hold(3);
+        let walked = p.observe_batched_within(&xs, &tally, 5);
+        assert!(walked == alone, "the walk's observations");
+        assert_eq!(in_flight.peak(), 4);
+        // With the room, in batches of four lanes.
+        drop(held);
+        let walked = p.observe_batched_within(&xs, &tally, 5);
+        assert!(walked == alone, "the full batches' observations");
+        assert_eq!(in_flight.peak(), 4);
+        assert_eq!(tally.load(Ordering::Relaxed), 3 * xs.len());
+        // Derives of the run at another odometer timing share the count.
+        assert!(std::ptr::eq(
+            d.segments.for_other_odometer().lanes_in_flight(),
+            in_flight
+        ));
+        assert_eq!(in_flight.now(), 0);
+    }
+
+    /// The lag search's passes of one point on several derives keep to the budget too.
+    #[test]
+    fn the_lag_searchs_passes_keep_to_the_budget() {
+        let d = derived();
+        let p = spec().on(&d);
+        let x = p.x0();
+        let alone = p.observe(&x);
+        let refs = vec![&p; 5];
+        let tally = AtomicUsize::new(0);
+        // A budget of a batch of four with four lanes held elsewhere: one at a time.
+        let in_flight = p.segments.lanes_in_flight();
+        let cap = p.lanes_cap();
+        let held = in_flight.hold(cap.saturating_sub(1));
+        let ys = observe_each(&refs, &x, &tally);
+        assert!(ys.iter().all(|y| *y == alone), "each derive's observation");
+        assert_eq!(in_flight.peak(), cap);
+        drop(held);
+        assert_eq!(in_flight.now(), 0);
     }
 }

@@ -34,6 +34,7 @@ use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
 
+use super::lanes_in_flight::LanesInFlight;
 use crate::attitude::{HALF_ANGLE_SERIES_LIMIT_RAD2, half_angle_exact, half_angle_series};
 
 /// Where a run's segments end: blocks of `block` samples, cut after each of `cuts`.
@@ -754,11 +755,13 @@ type OdoEntry = Option<(SeriesKey, SegmentPlan, Arc<OdoSegments>)>;
 /// The segments a derive's passes read, integrated once and kept with it: the IMU's,
 /// shared by the re-derives at other odometer timings (which share its IMU series), and
 /// those of its own stored odometer. A memo, not part of the derive's value: two derives
-/// compare equal whatever their memos hold.
+/// compare equal whatever their memos hold. It also counts the passes over the run in
+/// flight ([`LanesInFlight`]), shared with the re-derives like the IMU's segments.
 #[derive(Debug, Default, Clone)]
 pub struct SegmentMemo {
     imu: Arc<Mutex<ImuEntry>>,
     odo: Arc<Mutex<OdoEntry>>,
+    lanes: Arc<LanesInFlight>,
 }
 
 impl PartialEq for SegmentMemo {
@@ -781,7 +784,14 @@ impl SegmentMemo {
         Self {
             imu: Arc::clone(&self.imu),
             odo: Arc::default(),
+            lanes: Arc::clone(&self.lanes),
         }
+    }
+
+    /// The passes over the run in flight, counted by every problem on it and its
+    /// re-derives.
+    pub fn lanes_in_flight(&self) -> &LanesInFlight {
+        &self.lanes
     }
 
     /// The IMU's segments of `inputs` over `plan`, and those of its stored odometer with
