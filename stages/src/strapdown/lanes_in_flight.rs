@@ -6,15 +6,16 @@
 //! MB a pass over a 12-hour run at 100 Hz in blocks of 10 samples. A search that gives
 //! each of its few points a thread of its own holds one such sink per thread: on 16
 //! threads a 12-hour run's methods held 15 at once (103 MB) where two threads hold 8.
-//! The passes count themselves here ([`LanesInFlight::hold`]) and the fan-out asks how
-//! many more fit ([`LanesInFlight::room`]) before it starts a wave of them.
+//! The passes count themselves here ([`LanesInFlight::hold`]), and the fan-outs and the
+//! walks in batches ask how many more fit ([`LanesInFlight::room`]) before they start a
+//! wave ([`wave_len`]) or a batch ([`batch_within`]).
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::batch_lanes;
 
-/// Kryt1 block memory the passes over one run may hold at once before a fan-out waits
-/// for its own earlier passes (runs them in waves), bytes: nine passes of a 12-hour run,
+/// Kryt1 block memory the passes over one run may hold at once before a fan-out runs
+/// its points in waves and a walk its batches smaller, bytes: nine passes of a 12-hour run,
 /// more than two threads ever hold (eight), so a two-core machine is never held back;
 /// 174 of a 40-minute run's, which no search reaches.
 pub const BLOCKS_IN_FLIGHT_BUDGET_BYTES: usize = 64 << 20;
