@@ -435,11 +435,8 @@ impl<'a> Problem<'a> {
     /// one wave's batch, which always runs).
     fn observe_many_within(&self, xs: &[X], tally: &AtomicUsize, cap: usize) -> Vec<Observation> {
         let threads = rayon::current_num_threads().max(1);
-        let in_flight = self.segments.lanes_in_flight();
         let mut out = Vec::with_capacity(xs.len());
-        let mut left = xs;
-        while !left.is_empty() {
-            let (wave, rest) = left.split_at(wave_len(left.len(), in_flight.room(cap)));
+        for wave in self.segments.lanes_in_flight().slices(xs, cap, wave_len) {
             let chunk = if wave.len().div_ceil(threads) > 1 {
                 LANES
             } else {
@@ -449,7 +446,6 @@ impl<'a> Problem<'a> {
                 wave.par_chunks(chunk)
                     .flat_map_iter(|chunk| self.observe_batch(chunk, tally)),
             );
-            left = rest;
         }
         out
     }
@@ -472,16 +468,11 @@ impl<'a> Problem<'a> {
         tally: &AtomicUsize,
         cap: usize,
     ) -> Vec<Observation> {
-        let in_flight = self.segments.lanes_in_flight();
-        let mut out = Vec::with_capacity(xs.len());
-        let mut left = xs;
-        while !left.is_empty() {
-            let n = batch_within(left.len(), in_flight.room(cap), LANES);
-            let (batch, rest) = left.split_at(n);
-            out.extend(self.observe_batch(batch, tally));
-            left = rest;
-        }
-        out
+        self.segments
+            .lanes_in_flight()
+            .slices(xs, cap, batches_of_lanes)
+            .flat_map(|batch| self.observe_batch(batch, tally))
+            .collect()
     }
 
     /// The lanes the passes over this problem's run may hold at once
@@ -638,27 +629,29 @@ pub fn observe_each(problems: &[&Problem<'_>], x: &X, tally: &AtomicUsize) -> Ve
     );
     tally.fetch_add(problems.len(), Ordering::Relaxed);
     // In batches as full as the passes over the run in flight leave room for.
-    let (cap, in_flight) = (first.lanes_cap(), first.segments.lanes_in_flight());
-    let mut out = Vec::with_capacity(problems.len());
-    let mut left = problems;
-    while !left.is_empty() {
-        let n = batch_within(left.len(), in_flight.room(cap), LANES);
-        let (chunk, rest) = left.split_at(n);
-        for p in chunk {
-            p.passes.fetch_add(1, Ordering::Relaxed);
-        }
-        let _held = in_flight.hold(batch_lanes(chunk.len()));
-        let xs = vec![*x; chunk.len()];
-        out.extend(in_lanes(
-            chunk.len(),
-            &mut OnDerives {
-                problems: chunk,
-                xs: &xs,
-            },
-        ));
-        left = rest;
-    }
-    out
+    let in_flight = first.segments.lanes_in_flight();
+    in_flight
+        .slices(problems, first.lanes_cap(), batches_of_lanes)
+        .flat_map(|chunk| {
+            for p in chunk {
+                p.passes.fetch_add(1, Ordering::Relaxed);
+            }
+            let _held = in_flight.hold(batch_lanes(chunk.len()));
+            let xs = vec![*x; chunk.len()];
+            in_lanes(
+                chunk.len(),
+                &mut OnDerives {
+                    problems: chunk,
+                    xs: &xs,
+                },
+            )
+        })
+        .collect()
+}
+
+/// A walk's next batch of [`LANES`] points at most, `room` lanes free ([`batch_within`]).
+fn batches_of_lanes(left: usize, room: usize) -> usize {
+    batch_within(left, room, LANES)
 }
 
 /// Points side by side: the `i`-th at `xs[i]` on `problems[i]`, or all on the only

@@ -69,6 +69,46 @@ impl LanesInFlight {
     pub fn peak(&self) -> usize {
         self.peak.load(Ordering::Relaxed)
     }
+
+    /// `items` in consecutive slices, each `size(left, room)` long (at least one item):
+    /// `left` the items not yet taken, `room` what `cap` lanes leave beside those in
+    /// flight when the slice is taken. Taken in turn, each slice's room is read once the
+    /// passes of the one before are done ([`wave_len`], [`batch_within`]).
+    pub fn slices<'s, T>(
+        &'s self,
+        items: &'s [T],
+        cap: usize,
+        size: fn(usize, usize) -> usize,
+    ) -> Slices<'s, T> {
+        Slices {
+            of: self,
+            left: items,
+            cap,
+            size,
+        }
+    }
+}
+
+/// The slices of [`LanesInFlight::slices`].
+pub struct Slices<'s, T> {
+    of: &'s LanesInFlight,
+    left: &'s [T],
+    cap: usize,
+    size: fn(usize, usize) -> usize,
+}
+
+impl<'s, T> Iterator for Slices<'s, T> {
+    type Item = &'s [T];
+
+    fn next(&mut self) -> Option<&'s [T]> {
+        if self.left.is_empty() {
+            return None;
+        }
+        let n = (self.size)(self.left.len(), self.of.room(self.cap)).clamp(1, self.left.len());
+        let (slice, rest) = self.left.split_at(n);
+        self.left = rest;
+        Some(slice)
+    }
 }
 
 /// The lanes whose blocks fit in `budget_bytes` for passes over `samples` samples in
