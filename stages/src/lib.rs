@@ -15,6 +15,8 @@
 
 pub mod align;
 pub mod attitude;
+#[cfg(test)]
+mod counted_heap;
 pub mod criteria;
 pub mod derive;
 pub mod disupt;
@@ -38,6 +40,11 @@ pub mod stand_speed;
 pub mod strapdown;
 pub mod time_base;
 pub mod units;
+
+/// The unit tests count the heap their walks hold.
+#[cfg(test)]
+#[global_allocator]
+static HEAP: counted_heap::CountedHeap = counted_heap::CountedHeap;
 
 /// Serde helpers for report fields that may have no value: a non-finite number is left
 /// out of the report (never written as `null` or a bare NaN) and reads back as NaN.

@@ -182,31 +182,60 @@ pub struct OdoSums {
 }
 
 impl OdoSums {
-    fn with_capacity(count: usize, columns: &OdoColumns) -> Self {
+    /// `count` segments' sums of `columns`, zero until a walk writes them (zeroed pages:
+    /// no memory is touched before it).
+    fn zeroed(count: usize, columns: &OdoColumns) -> Self {
         Self {
-            x: Vec::with_capacity(count),
-            y: Vec::with_capacity(if columns.yaw { count } else { 0 }),
-            z: Vec::with_capacity(if columns.pitch { count } else { 0 }),
+            x: vec![[0.0; 4]; count],
+            y: vec![[0.0; 3]; if columns.yaw { count } else { 0 }],
+            z: vec![[0.0; 3]; if columns.pitch { count } else { 0 }],
         }
     }
 
-    /// Appends `more`'s segments (the same columns).
-    fn append(&mut self, mut more: OdoSums) {
-        self.x.append(&mut more.x);
-        self.y.append(&mut more.y);
-        self.z.append(&mut more.z);
+    /// Room to write all the segments in.
+    fn room(&mut self) -> OdoSumsRoom<'_> {
+        OdoSumsRoom {
+            x: &mut self.x,
+            y: &mut self.y,
+            z: &mut self.z,
+        }
+    }
+}
+
+/// Room in a run's [`OdoSums`] for a stretch of its segments (the columns not integrated
+/// empty).
+struct OdoSumsRoom<'a> {
+    x: &'a mut [[f32; 4]],
+    y: &'a mut [[f32; 3]],
+    z: &'a mut [[f32; 3]],
+}
+
+impl<'a> OdoSumsRoom<'a> {
+    /// The room of the first `k` segments, and of the rest.
+    fn split_at(self, k: usize) -> (Self, Self) {
+        let (x, x_rest) = self.x.split_at_mut(k);
+        let (y, y_rest) = self.y.split_at_mut(k.min(self.y.len()));
+        let (z, z_rest) = self.z.split_at_mut(k.min(self.z.len()));
+        (
+            Self { x, y, z },
+            Self {
+                x: x_rest,
+                y: y_rest,
+                z: z_rest,
+            },
+        )
     }
 
-    /// Appends a segment's sums (`s` row-major, `dist`), the columns asked for.
-    fn push(&mut self, s: &[f64; 9], dist: f64, columns: &OdoColumns) {
+    /// Writes segment `i`'s sums (`s` row-major, `dist`), the columns there is room for.
+    fn set(&mut self, i: usize, s: &[f64; 9], dist: f64) {
         let column = |j: usize| [s[j] as f32, s[3 + j] as f32, s[6 + j] as f32];
         let [x0, x1, x2] = column(0);
-        self.x.push([x0, x1, x2, dist as f32]);
-        if columns.yaw {
-            self.y.push(column(1));
+        self.x[i] = [x0, x1, x2, dist as f32];
+        if let Some(y) = self.y.get_mut(i) {
+            *y = column(1);
         }
-        if columns.pitch {
-            self.z.push(column(2));
+        if let Some(z) = self.z.get_mut(i) {
+            *z = column(2);
         }
     }
 }
@@ -223,12 +252,103 @@ pub struct OdoSegments {
 }
 
 impl OdoSegments {
-    /// Appends `more`'s segments (the same columns).
-    fn append(&mut self, more: OdoSegments) {
-        self.distance.append(more.distance);
-        if let (Some(all), Some(more)) = (self.moving.as_mut(), more.moving) {
-            all.append(more);
+    /// `count` segments of `columns`, zero until a walk writes them.
+    fn zeroed(count: usize, columns: OdoColumns) -> Self {
+        Self {
+            columns,
+            distance: OdoSums::zeroed(count, &columns),
+            moving: columns.moving.then(|| OdoSums::zeroed(count, &columns)),
         }
+    }
+
+    /// Room to write all the segments in.
+    fn room(&mut self) -> OdoSegmentsRoom<'_> {
+        OdoSegmentsRoom {
+            distance: self.distance.room(),
+            moving: self.moving.as_mut().map(OdoSums::room),
+        }
+    }
+}
+
+/// Room in a run's [`OdoSegments`] for a stretch of its segments.
+struct OdoSegmentsRoom<'a> {
+    distance: OdoSumsRoom<'a>,
+    moving: Option<OdoSumsRoom<'a>>,
+}
+
+impl<'a> OdoSegmentsRoom<'a> {
+    /// The room of the first `k` segments, and of the rest.
+    fn split_at(self, k: usize) -> (Self, Self) {
+        let (distance, distance_rest) = self.distance.split_at(k);
+        let (moving, moving_rest) = match self.moving.map(|m| m.split_at(k)) {
+            Some((m, rest)) => (Some(m), Some(rest)),
+            None => (None, None),
+        };
+        (
+            Self { distance, moving },
+            Self {
+                distance: distance_rest,
+                moving: moving_rest,
+            },
+        )
+    }
+}
+
+/// A walk's results over a run's segments, written in place: each stretch of a split walk
+/// writes its own part of them, so the walk holds the run's segments once (not each
+/// stretch's as well until they are joined).
+struct WalkOutputs {
+    imu: Option<Vec<ImuSegment>>,
+    odo: Vec<OdoSegments>,
+}
+
+impl WalkOutputs {
+    /// `count` segments of the IMU's (when `imu`) and of `odometers` odometers' sums of
+    /// `columns`, to be written.
+    fn zeroed(count: usize, imu: bool, odometers: usize, columns: OdoColumns) -> Self {
+        const UNWRITTEN: ImuSegment = ImuSegment {
+            q: [0.0; 4],
+            m: [0.0; 9],
+            t_s: 0.0,
+        };
+        Self {
+            imu: imu.then(|| vec![UNWRITTEN; count]),
+            odo: (0..odometers)
+                .map(|_| OdoSegments::zeroed(count, columns))
+                .collect(),
+        }
+    }
+
+    /// Room to write all the segments in.
+    fn room(&mut self) -> WalkRoom<'_> {
+        WalkRoom {
+            imu: self.imu.as_deref_mut(),
+            odo: self.odo.iter_mut().map(OdoSegments::room).collect(),
+        }
+    }
+}
+
+/// Room in a walk's results for a stretch of its segments.
+struct WalkRoom<'a> {
+    imu: Option<&'a mut [ImuSegment]>,
+    odo: Vec<OdoSegmentsRoom<'a>>,
+}
+
+impl<'a> WalkRoom<'a> {
+    /// The room of the first `k` segments, and of the rest.
+    fn split_at(self, k: usize) -> (Self, Self) {
+        let (imu, imu_rest) = match self.imu.map(|s| s.split_at_mut(k)) {
+            Some((s, rest)) => (Some(s), Some(rest)),
+            None => (None, None),
+        };
+        let (odo, odo_rest) = self.odo.into_iter().map(|o| o.split_at(k)).unzip();
+        (
+            Self { imu, odo },
+            Self {
+                imu: imu_rest,
+                odo: odo_rest,
+            },
+        )
     }
 }
 
@@ -299,9 +419,17 @@ pub fn integrate<I: Iterator<Item = f64>>(
     odometers: &mut [I],
     columns: OdoColumns,
 ) -> (Option<ImuSegments>, Vec<OdoSegments>) {
-    let part = Part::new(dt_s, dtheta_rad, plan, imu, columns);
-    let (imu, odo) = part.integrate(plan.ends(), 0, odometers, plan.count());
-    (imu.map(|segments| imu_segments(plan, segments)), odo)
+    let mut out = WalkOutputs::zeroed(plan.count(), imu, odometers.len(), columns);
+    Part::new(dt_s, dtheta_rad, plan, imu, columns).integrate(
+        plan.ends(),
+        0,
+        odometers,
+        out.room(),
+    );
+    (
+        out.imu.map(|segments| imu_segments(plan, segments)),
+        out.odo,
+    )
 }
 
 /// Where a walk's odometer increments come from, a span of samples at a time: any
@@ -434,40 +562,38 @@ impl<'a> Part<'a> {
                 starts.push((i + 1, e.end));
             }
         }
-        let mut stretches = starts
-            .par_iter()
-            .enumerate()
-            .map(|(p, &(first, sample))| {
-                let segments = starts.get(p + 1).map_or(count, |s| s.0) - first;
+        // Each stretch writes its segments in its own part of the run's.
+        let mut out = WalkOutputs::zeroed(count, self.imu, odometers, self.columns);
+        let mut rest = out.room();
+        let mut stretches = Vec::with_capacity(starts.len());
+        for (p, &(first, sample)) in starts.iter().enumerate() {
+            let segments = starts.get(p + 1).map_or(count, |s| s.0) - first;
+            let (room, after) = rest.split_at(segments);
+            stretches.push((first, sample, segments, room));
+            rest = after;
+        }
+        stretches
+            .into_par_iter()
+            .for_each(|(first, sample, segments, room)| {
                 let mut odos: Vec<I> = (0..odometers).map(|v| odometer(v, sample)).collect();
                 let ends = plan.ends().skip(first).take(segments);
-                // The first stretch is sized for all of them: the others are appended to it.
-                let room = if p == 0 { count } else { segments };
-                self.integrate(ends, sample, &mut odos, room)
-            })
-            .collect::<Vec<_>>()
-            .into_iter();
-        let (mut imu, mut odo) = stretches.next().expect("one stretch at least");
-        for (more_imu, more_odo) in stretches {
-            if let (Some(all), Some(more)) = (imu.as_mut(), more_imu) {
-                all.extend_from_slice(&more);
-            }
-            for (all, more) in odo.iter_mut().zip(more_odo) {
-                all.append(more);
-            }
-        }
-        (imu.map(|segments| imu_segments(plan, segments)), odo)
+                self.integrate(ends, sample, &mut odos, room);
+            });
+        (
+            out.imu.map(|segments| imu_segments(plan, segments)),
+            out.odo,
+        )
     }
 
     /// The segments `ends`, the first starting at sample `start` (where `odometers`
-    /// start), in vectors with room for `room` segments.
+    /// start), written in `room` in order (room for each of them).
     fn integrate<I: IncrementSource>(
         &self,
         ends: impl Iterator<Item = SegmentEnd>,
         mut start: usize,
         odometers: &mut [I],
-        room: usize,
-    ) -> (Option<Vec<ImuSegment>>, Vec<OdoSegments>) {
+        mut room: WalkRoom<'_>,
+    ) {
         let Self {
             dt_s,
             dtheta_rad,
@@ -475,17 +601,9 @@ impl<'a> Part<'a> {
             imu,
             columns,
         } = *self;
-        let mut imu_out = imu.then(|| Vec::with_capacity(room));
-        let mut odo_out: Vec<OdoSegments> = odometers
-            .iter()
-            .map(|_| OdoSegments {
-                columns,
-                distance: OdoSums::with_capacity(room, &columns),
-                moving: columns
-                    .moving
-                    .then(|| OdoSums::with_capacity(room, &columns)),
-            })
-            .collect();
+        debug_assert_eq!(room.imu.is_some(), imu);
+        debug_assert_eq!(room.odo.len(), odometers.len());
+        let mut written = 0;
         let mut buffers: Vec<Vec<f64>> = vec![Vec::new(); odometers.len()];
         let mut group = Group::<WIDTH>::new(odometers.len());
         let mut ends = ends.peekable();
@@ -516,15 +634,15 @@ impl<'a> Part<'a> {
                 moving: columns.moving,
             });
             for l in 0..lanes {
-                if let Some(out) = imu_out.as_mut() {
-                    out.push(group.imu_segment(l));
+                if let Some(out) = room.imu.as_deref_mut() {
+                    out[written] = group.imu_segment(l);
                 }
-                for (v, out) in odo_out.iter_mut().enumerate() {
-                    group.push_odo(v, l, out);
+                for (v, out) in room.odo.iter_mut().enumerate() {
+                    group.set_odo(v, l, written, out);
                 }
+                written += 1;
             }
         }
-        (imu_out, odo_out)
     }
 }
 
@@ -716,14 +834,13 @@ impl<const W: usize> Group<W> {
         }
     }
 
-    /// Appends lane `l`'s sums of odometer `v` to `out`.
-    fn push_odo(&self, v: usize, l: usize, out: &mut OdoSegments) {
-        let columns = out.columns;
+    /// Writes lane `l`'s sums of odometer `v` as segment `i` of `out`.
+    fn set_odo(&self, v: usize, l: usize, i: usize, out: &mut OdoSegmentsRoom<'_>) {
         let s: [f64; 9] = std::array::from_fn(|i| self.s[v][i][l]);
-        out.distance.push(&s, self.dist[v][l], &columns);
+        out.distance.set(i, &s, self.dist[v][l]);
         if let Some(moving) = out.moving.as_mut() {
             let s: [f64; 9] = std::array::from_fn(|i| self.s_mov[v][i][l]);
-            moving.push(&s, self.t_mov[v][l], &columns);
+            moving.set(i, &s, self.t_mov[v][l]);
         }
     }
 }
@@ -903,7 +1020,8 @@ mod tests {
         plan: &SegmentPlan,
         odometer: &[f64],
     ) -> (Vec<ImuSegment>, OdoSums, OdoSums) {
-        let (mut imu, mut odo, mut mov) = (Vec::new(), OdoSums::default(), OdoSums::default());
+        let mut imu = Vec::new();
+        let (mut odo, mut mov) = (Vec::new(), Vec::new());
         let mut prev = [0.0; 3];
         let mut k = 0;
         for end in plan.ends() {
@@ -951,10 +1069,18 @@ mod tests {
                 m: m.map(|v| v as f32),
                 t_s: t as f32,
             });
-            odo.push(&s, dist, &ALL);
-            mov.push(&s_mov, t_mov, &ALL);
+            odo.push((s, dist));
+            mov.push((s_mov, t_mov));
         }
-        (imu, odo, mov)
+        let sums = |rows: Vec<([f64; 9], f64)>| {
+            let mut sums = OdoSums::zeroed(rows.len(), &ALL);
+            let mut room = sums.room();
+            for (i, (s, sum)) in rows.iter().enumerate() {
+                room.set(i, s, *sum);
+            }
+            sums
+        };
+        (imu, sums(odo), sums(mov))
     }
 
     /// A run split into stretches integrated on their own (each odometer read from the
@@ -1062,6 +1188,42 @@ mod tests {
         assert!(long.count() >= SPLIT_SEGMENTS);
         let whole = integrate(&dt, &dth, &long, true, &mut [a.iter().copied()], ALL);
         assert!(integrate_split(&dt, &dth, &long, true, 1, from, ALL) == whole);
+    }
+
+    /// A walk split between threads holds the run's segments once at its peak (what it
+    /// returns, and each stretch's scratch), not each stretch's segments besides, and gives
+    /// the whole walk's, bit for bit.
+    #[test]
+    fn a_split_walk_holds_the_runs_segments_once() {
+        let n = 40_000;
+        let dt: Vec<f64> = (0..n).map(|k| 0.01 + 1e-5 * (k % 7) as f64).collect();
+        let dth: Vec<[f64; 3]> = super::super::test_drive::turning_dtheta(n);
+        let odo: Vec<f64> = (0..n).map(|k| 0.2 + 0.01 * (k % 3) as f64).collect();
+        let from = |v: usize, k: usize| odo[k.min(n)..].iter().map(move |d| d * (1 + v) as f64);
+        // Segments of a sample: four stretches of 10 000.
+        let plan = SegmentPlan::new(n, 1, []);
+        assert!(plan.count() >= 4 * SPLIT_SEGMENTS);
+        let ((imu, odos), peak) = crate::counted_heap::peak_heap_bytes(4, || {
+            integrate_split(&dt, &dth, &plan, true, 2, from, ALL)
+        });
+        let sums = |s: &OdoSums| {
+            s.x.capacity() * size_of::<[f32; 4]>()
+                + (s.y.capacity() + s.z.capacity()) * size_of::<[f32; 3]>()
+        };
+        let imu = imu.expect("the IMU's segments");
+        let held = imu.segments.capacity() * size_of::<ImuSegment>()
+            + odos
+                .iter()
+                .map(|o| sums(&o.distance) + o.moving.as_ref().map_or(0, sums))
+                .sum::<usize>();
+        assert_eq!(held, plan.count() * (72 + 2 * 2 * 40));
+        // Stretches of their own joined at the end held 1.75 times as much.
+        assert!(
+            peak >= held && peak < held + held / 20,
+            "{peak} B, {held} B held"
+        );
+        let whole = integrate(&dt, &dth, &plan, true, &mut [from(0, 0), from(1, 0)], ALL);
+        assert!(whole == (Some(imu), odos));
     }
 
     #[test]
