@@ -19,6 +19,7 @@ use parquet::column::page::Page;
 use parquet::file::reader::{FileReader, SerializedFileReader};
 
 use crate::error::{FileError, FormatError, io_in_file};
+use crate::parquet_io::ROWS_PER_FILE_BYTE_MAX;
 
 /// A float type the tables store BYTE_STREAM_SPLIT: its Parquet and Arrow types, and how
 /// a page's byte streams join back into values.
@@ -64,9 +65,9 @@ pub fn read_split_doubles(
     let Some(pages) = Pages::open::<f64>(path, leaf, per_row)? else {
         return Ok(None);
     };
-    // No more allocated up front than the file's length in values (its metadata's
+    // Room for the values the metadata counts, within a bound of the file's length (its
     // counts are the file's word, not a bound); each page joined where it lands.
-    let mut values: Vec<f64> = Vec::with_capacity(pages.total.min(pages.file_bytes));
+    let mut values: Vec<f64> = Vec::with_capacity(pages.room_for_rows(per_row));
     let whole = pages.walk::<f64>(path, |streams, at| {
         reserve_up_to(&mut values, at + streams.len() / 8, pages.total);
         values.resize(at + streams.len() / 8, 0.0);
@@ -115,7 +116,7 @@ pub fn for_each_split_values<F: SplitFloat>(
 }
 
 /// The rows of `N` doubles of the leaf column `leaf` ([`read_split_doubles`]), grown as
-/// the pages are read: no more is allocated up front than the file's length in rows
+/// the pages are read: no more is allocated up front than [`Pages::room_for_rows`] says
 /// (its metadata's counts are the file's word, not a bound), and each page's values are
 /// joined into a buffer of the page's size, then taken row by row ([`Rows`]).
 fn read_rows<const N: usize>(path: &Path, leaf: &str) -> Result<Option<Vec<[f64; N]>>, FileError> {
@@ -123,7 +124,7 @@ fn read_rows<const N: usize>(path: &Path, leaf: &str) -> Result<Option<Vec<[f64;
         return Ok(None);
     };
     let claimed = pages.total / N;
-    let mut rows = Rows::<N>::with_capacity(claimed.min(pages.file_bytes));
+    let mut rows = Rows::<N>::with_capacity(pages.room_for_rows(N) / N);
     let whole = pages.values::<f64>(path, |_, values| {
         let len = rows.rows.len() + (rows.held + values.len()) / N;
         reserve_up_to(&mut rows.rows, len, claimed);
@@ -200,7 +201,7 @@ struct Pages {
     /// Its values, as the metadata says.
     total: usize,
     /// The file's length, bytes: what is allocated before the values are read is
-    /// bounded by it.
+    /// bounded by a multiple of it ([`Pages::room_for_rows`]).
     file_bytes: usize,
     /// Level runs before a version-1 page's values (repetition, definition).
     level_runs: usize,
@@ -286,6 +287,21 @@ impl Pages {
             file_bytes,
             level_runs,
         }))
+    }
+
+    /// How many values to make room for before reading the column's pages, `per_row` a
+    /// row: the metadata's count, but for no more rows than
+    /// [`ROWS_PER_FILE_BYTE_MAX`] for each byte of the file
+    /// ([`row_capacity_hint`](crate::parquet_io::row_capacity_hint)'s
+    /// bound), so that metadata that lies reserves a bounded multiple of the file's size.
+    /// A column sized once is the vector it ends as: one grown page by page left holes of
+    /// its earlier sizes in the heap (the 12-hour odometer's distances, from the file's
+    /// length in values, 1.85 M, to 4.32 M).
+    fn room_for_rows(&self, per_row: usize) -> usize {
+        let rows = self
+            .file_bytes
+            .saturating_mul(ROWS_PER_FILE_BYTE_MAX as usize);
+        self.total.min(rows.saturating_mul(per_row))
     }
 
     /// `each(first, values)` with each page's values joined into a buffer of the page's
@@ -651,6 +667,10 @@ mod tests {
         assert_eq!(bits(&arrow_x), bits(&want_x));
         let x = read_split_doubles(&path, "x", 1).unwrap().unwrap();
         assert_eq!(bits(&x), bits(&arrow_x));
+        // Within the bound, the metadata's count is the room made, once.
+        let pages = Pages::open::<f64>(&path, "x", 1).unwrap().unwrap();
+        assert_eq!(pages.room_for_rows(1), x.len());
+        assert_eq!(x.capacity(), x.len());
         let v = read_split_vec3(&path, "v").unwrap().unwrap();
         assert_eq!(
             bits(v.as_flattened()),
@@ -720,6 +740,10 @@ mod tests {
         sink.finish().unwrap();
         let file_bytes = std::fs::metadata(&path).unwrap().len() as usize;
         assert!(file_bytes < rows / 4, "{file_bytes} bytes");
+        // Denser than the bound: room for four rows a byte up front, the rest grown.
+        let pages = Pages::open::<f64>(&path, "x", 1).unwrap().unwrap();
+        assert_eq!(pages.room_for_rows(1), 4 * file_bytes);
+        assert_eq!(pages.room_for_rows(3), 12 * file_bytes);
         let read = read_split_doubles(&path, "x", 1).unwrap().unwrap();
         assert_eq!(read, x);
         assert_eq!(read.capacity(), rows);
