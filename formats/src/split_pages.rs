@@ -22,7 +22,7 @@
 //! column goes to the crate's writer. `parquet_io`'s tests compare whole files with
 //! `ArrowWriter`'s.
 
-use std::cell::RefCell;
+use std::sync::{Mutex, OnceLock};
 
 use arrow::array::{ArrayRef, AsArray};
 use arrow::datatypes::{ArrowNativeType, ArrowPrimitiveType, Float32Type, Float64Type};
@@ -213,9 +213,9 @@ impl<T: PageFloat> Bounds<T> {
     }
 }
 
-/// What a thread encodes pages with, whichever column they are of: its zstd context and
-/// that context's level (made once, reset by each compression), and buffers for a page's
-/// bytes before and after compression (the memory one page needs, taken once a thread
+/// What a page is encoded with, whichever column it is of: a zstd context and that
+/// context's level (made once, reset by each compression), and buffers for a page's bytes
+/// before and after compression (the memory one page needs, taken once for many pages
 /// rather than once a column).
 #[derive(Default)]
 struct PageScratch {
@@ -224,8 +224,30 @@ struct PageScratch {
     compressed: Vec<u8>,
 }
 
-thread_local! {
-    static SCRATCH: RefCell<PageScratch> = RefCell::new(PageScratch::default());
+/// Scratches not in use, for the next pages of any column on any thread.
+static SPARE_SCRATCHES: Mutex<Vec<PageScratch>> = Mutex::new(Vec::new());
+
+/// At most how many scratches are kept between pages: as many as the machine has cores
+/// (pages encoded on more threads at once take scratches of their own, let go after).
+/// One a thread kept them for as long as the thread: a 12-hour run on 16 threads held
+/// 30 MB of them through its disupt stage (4.4 MB each at most), written by earlier
+/// stages.
+fn scratches_kept() -> usize {
+    static KEPT: OnceLock<usize> = OnceLock::new();
+    *KEPT.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
+
+/// `f` with a spare scratch, or a new one when none is spare; kept after it unless
+/// [`scratches_kept`] are already.
+fn with_scratch<R>(f: impl FnOnce(&mut PageScratch) -> R) -> R {
+    let spare = || SPARE_SCRATCHES.lock().unwrap_or_else(|e| e.into_inner());
+    let mut scratch = spare().pop().unwrap_or_default();
+    let r = f(&mut scratch);
+    let mut kept = spare();
+    if kept.len() < scratches_kept() {
+        kept.push(scratch);
+    }
+    r
 }
 
 impl PageScratch {
@@ -420,8 +442,7 @@ impl<T: PageFloat> SplitColumn<T> {
         // Version 1 pages: the repetition levels, the definition levels, the values.
         let levels = self.levels.as_mut().map_or(&[][..], |l| l.encoded(n));
         let level = self.settings.zstd.compression_level();
-        let (buf, uncompressed) =
-            SCRATCH.with_borrow_mut(|scratch| scratch.page(levels, values, level))?;
+        let (buf, uncompressed) = with_scratch(|scratch| scratch.page(levels, values, level))?;
         let num_values =
             u32::try_from(n).map_err(|_| ParquetError::General(format!("a page of {n} values")))?;
         let page = Page::DataPage {
@@ -730,6 +751,29 @@ mod tests {
         }
         let repeated: Vec<usize> = kept.encoded.iter().map(|(n, _)| *n).collect();
         assert_eq!(repeated, [60_150, 3, 0, 60_534]);
+    }
+
+    /// Pages encoded on more threads at once than the machine has cores each take a
+    /// scratch; no more are kept after them than it has cores, and the pages are the
+    /// same as with scratches alone.
+    #[test]
+    fn scratches_kept_are_no_more_than_the_cores() {
+        let values: Vec<f64> = (0..100_000).map(|k| (k as f64).sqrt()).collect();
+        let alone = PageScratch::default().page(&[], &values, 3).unwrap();
+        let threads = scratches_kept() + 6;
+        let all_in = std::sync::Barrier::new(threads);
+        std::thread::scope(|s| {
+            for _ in 0..threads {
+                s.spawn(|| {
+                    with_scratch(|scratch| {
+                        all_in.wait();
+                        assert_eq!(scratch.page(&[], &values, 3).unwrap(), alone);
+                    })
+                });
+            }
+        });
+        let kept = SPARE_SCRATCHES.lock().unwrap().len();
+        assert!(kept <= scratches_kept(), "{kept} kept");
     }
 
     #[test]
