@@ -1218,8 +1218,10 @@ mod tests {
                 .sum::<usize>();
         assert_eq!(held, plan.count() * (72 + 2 * 2 * 40));
         // Stretches of their own joined at the end held 1.75 times as much.
+        // Within 64 KiB below (rayon's own blocks, taken before the count and let go
+        // during it, are counted off it) and 5 % above (each stretch's scratch).
         assert!(
-            peak >= held && peak < held + held / 20,
+            peak + (64 << 10) >= held && peak < held + held / 20,
             "{peak} B, {held} B held"
         );
         let whole = integrate(&dt, &dth, &plan, true, &mut [from(0, 0), from(1, 0)], ALL);
