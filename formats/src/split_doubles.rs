@@ -530,6 +530,26 @@ mod tests {
     use crate::parquet_io::{ParquetSink, read_batches};
     use crate::tables::{f64_column, vec3_column};
 
+    /// The item of a list column of three doubles a row.
+    fn item() -> Arc<Field> {
+        Arc::new(Field::new("item", DataType::Float64, false))
+    }
+
+    /// A list column `name` of three doubles a row.
+    fn triples_field(name: &str) -> Field {
+        Field::new(name, DataType::FixedSizeList(item(), 3), false)
+    }
+
+    /// The rows of three of `v` (its values one row after the other).
+    fn triples(v: Vec<f64>) -> ArrayRef {
+        Arc::new(FixedSizeListArray::new(
+            item(),
+            3,
+            Arc::new(Float64Array::from(v)),
+            None,
+        ))
+    }
+
     /// Doubles of every kind: signs, tiny and huge, infinities, NaN with a payload.
     fn values(n: usize, seed: u64) -> Vec<f64> {
         let mut s = seed;
@@ -616,11 +636,10 @@ mod tests {
     #[test]
     fn the_columns_read_here_are_arrows() {
         let dir = tempfile::tempdir().unwrap();
-        let item = Arc::new(Field::new("item", DataType::Float64, false));
         let schema = Arc::new(Schema::new(vec![
             Field::new("t", DataType::Int64, false),
             Field::new("x", DataType::Float64, false),
-            Field::new("v", DataType::FixedSizeList(item.clone(), 3), false),
+            triples_field("v"),
             Field::new("maybe", DataType::Float64, true),
         ]));
         let path = dir.path().join("t.parquet");
@@ -639,12 +658,7 @@ mod tests {
                 vec![
                     Arc::new(Int64Array::from_iter_values(0..rows as i64)) as ArrayRef,
                     Arc::new(Float64Array::from(x.clone())),
-                    Arc::new(FixedSizeListArray::new(
-                        item.clone(),
-                        3,
-                        Arc::new(Float64Array::from(v.clone())),
-                        None,
-                    )),
+                    triples(v.clone()),
                     Arc::new(maybe),
                 ],
             )
@@ -712,10 +726,9 @@ mod tests {
     #[test]
     fn columns_read_have_no_room_left_over() {
         let dir = tempfile::tempdir().unwrap();
-        let item = Arc::new(Field::new("item", DataType::Float64, false));
         let schema = Arc::new(Schema::new(vec![
             Field::new("x", DataType::Float64, false),
-            Field::new("v", DataType::FixedSizeList(item.clone(), 3), false),
+            triples_field("v"),
         ]));
         let path = dir.path().join("c.parquet");
         let rows = 600_001;
@@ -727,12 +740,7 @@ mod tests {
             schema,
             vec![
                 Arc::new(Float64Array::from(x.clone())) as ArrayRef,
-                Arc::new(FixedSizeListArray::new(
-                    item,
-                    3,
-                    Arc::new(Float64Array::from(v.clone())),
-                    None,
-                )),
+                triples(v.clone()),
             ],
         )
         .unwrap();

@@ -5,7 +5,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicIsize, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 thread_local! {
     /// Whether this thread's allocations are counted.
@@ -13,8 +13,8 @@ thread_local! {
 }
 
 /// Bytes the counted threads hold (never below zero: [`shrink`]), and its highest.
-static LIVE: AtomicIsize = AtomicIsize::new(0);
-static PEAK: AtomicIsize = AtomicIsize::new(0);
+static LIVE: AtomicUsize = AtomicUsize::new(0);
+static PEAK: AtomicUsize = AtomicUsize::new(0);
 
 /// One measurement at a time.
 static MEASURING: Mutex<()> = Mutex::new(());
@@ -27,7 +27,7 @@ fn counted() -> bool {
 }
 
 fn grow(bytes: usize) {
-    let live = LIVE.fetch_add(bytes as isize, Ordering::Relaxed) + bytes as isize;
+    let live = LIVE.fetch_add(bytes, Ordering::Relaxed) + bytes;
     PEAK.fetch_max(live, Ordering::Relaxed);
 }
 
@@ -35,7 +35,7 @@ fn grow(bytes: usize) {
 /// bring the count no lower than zero, so they cannot hide what the measurement holds.
 fn shrink(bytes: usize) {
     let _ = LIVE.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |live| {
-        Some((live - bytes as isize).max(0))
+        Some(live.saturating_sub(bytes))
     });
 }
 
@@ -99,7 +99,7 @@ pub fn peak_heap_bytes<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) ->
     let r = pool.install(f);
     let peak = PEAK.load(Ordering::Relaxed);
     COUNTED.with(|c| c.set(false));
-    (r, peak.max(0) as usize)
+    (r, peak)
 }
 
 #[cfg(test)]

@@ -319,6 +319,15 @@ impl WalkOutputs {
         }
     }
 
+    /// The results, written, as the segments of `plan`.
+    fn over(self, plan: &SegmentPlan) -> (Option<ImuSegments>, Vec<OdoSegments>) {
+        let imu = self.imu.map(|segments| ImuSegments {
+            plan: plan.clone(),
+            segments,
+        });
+        (imu, self.odo)
+    }
+
     /// Room to write all the segments in.
     fn room(&mut self) -> WalkRoom<'_> {
         WalkRoom {
@@ -426,10 +435,7 @@ pub fn integrate<I: Iterator<Item = f64>>(
         odometers,
         out.room(),
     );
-    (
-        out.imu.map(|segments| imu_segments(plan, segments)),
-        out.odo,
-    )
+    out.over(plan)
 }
 
 /// Where a walk's odometer increments come from, a span of samples at a time: any
@@ -497,13 +503,6 @@ where
         parts,
         align.max(1),
     )
-}
-
-fn imu_segments(plan: &SegmentPlan, segments: Vec<ImuSegment>) -> ImuSegments {
-    ImuSegments {
-        plan: plan.clone(),
-        segments,
-    }
 }
 
 /// What every stretch of a run's segments is integrated from.
@@ -579,10 +578,7 @@ impl<'a> Part<'a> {
                 let ends = plan.ends().skip(first).take(segments);
                 self.integrate(ends, sample, &mut odos, room);
             });
-        (
-            out.imu.map(|segments| imu_segments(plan, segments)),
-            out.odo,
-        )
+        out.over(plan)
     }
 
     /// The segments `ends`, the first starting at sample `start` (where `odometers`
@@ -1217,9 +1213,9 @@ mod tests {
                 .map(|o| sums(&o.distance) + o.moving.as_ref().map_or(0, sums))
                 .sum::<usize>();
         assert_eq!(held, plan.count() * (72 + 2 * 2 * 40));
-        // Stretches of their own joined at the end held 1.75 times as much.
         // Within 64 KiB below (rayon's own blocks, taken before the count and let go
-        // during it, are counted off it) and 5 % above (each stretch's scratch).
+        // during it, are counted off it) and 5 % above (each stretch's scratch); stretches
+        // of their own joined at the end held 1.75 times as much.
         assert!(
             peak + (64 << 10) >= held && peak < held + held / 20,
             "{peak} B, {held} B held"
