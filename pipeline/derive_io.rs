@@ -102,7 +102,7 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
             vec3_to_array(
                 &replaced
                     .iter()
-                    .map(|&k| d.dtheta_rad[k])
+                    .map(|&k| d.dtheta_rad.get(k))
                     .collect::<Vec<_>>(),
             ),
             vec3_to_array(&replaced.iter().map(|&k| d.dvel_mps[k]).collect::<Vec<_>>()),
@@ -478,7 +478,7 @@ fn load_derived_of(
         nominal_dt_s: meta(derived_meta::NOMINAL_DT_S)?.parse()?,
         t_s: TimeBase::Nanos(Arc::new(t_s.finish())),
         dt_s: dt_s.into(),
-        dtheta_rad: dtheta_rad.into(),
+        dtheta_rad: Arc::new(dtheta_rad.into()),
         dvel_mps: dvel_mps.into(),
         replaced_increments: replaced,
         odo_dist_m,

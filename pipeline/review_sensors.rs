@@ -53,7 +53,7 @@ pub fn review_sensors(d: &Derived) -> ReviewSensors {
         b.push(SensorSample {
             t_s,
             dt_s: d.dt_s[k],
-            dtheta_rad: d.dtheta_rad[k],
+            dtheta_rad: d.dtheta_rad.get(k),
             dvel_mps: d.dvel_mps[k],
             u_mps: speed.u_mps,
             u_dot_mps2: speed.u_dot_mps2,

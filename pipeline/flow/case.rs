@@ -59,7 +59,7 @@ impl NavCase {
     pub fn inputs(&self) -> NavInputs<'_> {
         NavInputs {
             dt_s: &self.derived.dt_s,
-            dtheta_rad: &self.derived.dtheta_rad,
+            dtheta_rad: self.derived.dtheta_rad.view(),
             odo_dist_m: &self.derived.odo_dist_m,
         }
     }
@@ -453,7 +453,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
     settings.odo_pitch_rad = params.vehicle.odo_pitch_deg.to_radians();
     let inputs = NavInputs {
         dt_s: &derived.dt_s,
-        dtheta_rad: &derived.dtheta_rad,
+        dtheta_rad: derived.dtheta_rad.view(),
         odo_dist_m: &derived.odo_dist_m,
     };
     let MatchedPoints {

@@ -355,8 +355,12 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                 sample_at(m, k)
             );
         }
-        let (dtheta, dvel) = (d.dtheta_rad.iter(), d.dvel_mps.iter());
-        ensure_finite("angle increment", "sample", dtheta.map(not_finite_of))?;
+        let (dtheta, dvel) = (d.dtheta_rad.view().iter(), d.dvel_mps.iter());
+        ensure_finite(
+            "angle increment",
+            "sample",
+            dtheta.map(|v| not_finite_of(&v)),
+        )?;
         ensure_finite("velocity increment", "sample", dvel.map(not_finite_of))?;
         ensure_finite("odometer distance", "sample", d.odo_dist_m.iter().copied())?;
         let (pitch, roll) = (d.epochs.theta_p_rad.iter(), d.epochs.phi_p_rad.iter());

@@ -4,6 +4,7 @@
 
 use nalgebra::Vector3;
 
+use crate::angle_increments::AngleSlice;
 use crate::attitude::Euler;
 use crate::earth;
 
@@ -35,13 +36,13 @@ pub fn static_len(dt_s: &[f64], static_s: f64) -> usize {
 /// increments need only cover [`static_len`] samples.
 pub fn static_means(
     dt_s: &[f64],
-    dtheta_rad: &[[f64; 3]],
+    dtheta_rad: AngleSlice<'_>,
     dvel_mps: &[[f64; 3]],
     static_s: f64,
 ) -> StaticMeans {
     let (mut th, mut dv, mut t) = (Vector3::zeros(), Vector3::zeros(), 0.0);
     for k in 0..static_len(dt_s, static_s) {
-        th += Vector3::from(dtheta_rad[k]);
+        th += Vector3::from(dtheta_rad.get(k));
         dv += Vector3::from(dvel_mps[k]);
         t += dt_s[k];
     }

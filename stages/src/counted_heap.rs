@@ -73,8 +73,15 @@ unsafe impl GlobalAlloc for CountedHeap {
         // SAFETY: the caller's contract, passed on.
         let p = unsafe { System.realloc(ptr, layout, new_size) };
         if !p.is_null() && counted() {
-            grow(new_size);
-            shrink(layout.size());
+            if new_size <= layout.size() {
+                // Shrunk where it stands (glibc's heap splits the block, a mapping is
+                // remapped smaller): never held twice.
+                shrink(layout.size() - new_size);
+            } else {
+                // Grown, perhaps moved: both held for the copy.
+                grow(new_size);
+                shrink(layout.size());
+            }
         }
         p
     }

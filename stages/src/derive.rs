@@ -17,7 +17,9 @@ use std::sync::Arc;
 
 use either::Either;
 
+use crate::angle_increments::{AngleIncrements, AngleSlice, Increment3};
 use crate::filter::{FilterParams, LowPass};
+use crate::nth_smallest::nth_smallest;
 use crate::time_base::{TagIter, TagTimes, TagsFrom, TimeBase, Times};
 
 /// Parameters of the derive stage.
@@ -132,8 +134,9 @@ pub struct Derived {
     pub t_s: TimeBase,
     /// Per sample: interval, s.
     pub dt_s: Arc<Vec<f64>>,
-    /// Per sample: angle increments, rad (lost stretches filled by holding the rate).
-    pub dtheta_rad: Arc<Vec<[f64; 3]>>,
+    /// Per sample: angle increments, rad (lost stretches filled by holding the rate), in
+    /// f32 when every value is one exactly ([`AngleIncrements`]).
+    pub dtheta_rad: Arc<AngleIncrements>,
     /// Per sample: velocity increments, m/s (likewise).
     pub dvel_mps: Arc<Vec<[f64; 3]>>,
     /// Samples whose increments are not the ingested ones, in order: scaled over a gap
@@ -288,7 +291,7 @@ impl Derived {
     /// Yaw rate r of sample `k`, rad/s (body z gyro: the angle increment over the
     /// interval).
     pub fn r_rad_s(&self, k: usize) -> f64 {
-        self.dtheta_rad[k][2] / self.dt_s[k]
+        self.dtheta_rad.get(k)[2] / self.dt_s[k]
     }
 
     /// Eqs 9–11 at the samples `range`: u (the odometer's distance over the interval),
@@ -359,7 +362,7 @@ impl Derived {
     pub fn nav_inputs(&self) -> crate::strapdown::NavInputs<'_> {
         crate::strapdown::NavInputs {
             dt_s: &self.dt_s,
-            dtheta_rad: &self.dtheta_rad,
+            dtheta_rad: self.dtheta_rad.view(),
             odo_dist_m: &self.odo_dist_m,
         }
     }
@@ -771,10 +774,12 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
 }
 
 /// [`derive()`] of the IMU's increments given by value: they are repaired in place and
-/// become the derive's, without a copy of the run's length. The IMU's time tags, when
-/// given by value too, become its times in place. The odometer is read once, by
-/// `increments_over` (its increments over the samples: [`IncrementTimes::of`]), before
-/// the samples' intervals are made: an odometer it owns goes when it returns.
+/// become the derive's, without a copy of the run's length; the angle increments are
+/// compacted first ([`AngleIncrements::compact`], before anything else of the run's
+/// length is made). The IMU's time tags, when given by value too, become its times in
+/// place. The odometer is read once, by `increments_over` (its increments over the
+/// samples: [`IncrementTimes::of`]), before the samples' intervals are made: an odometer
+/// it owns goes when it returns.
 pub fn derive_owned(
     imu_t_ns: std::borrow::Cow<'_, [i64]>,
     mut dtheta_rad: Vec<[f64; 3]>,
@@ -789,19 +794,19 @@ pub fn derive_owned(
         return out;
     }
     dtheta_rad.truncate(n);
+    let mut dtheta = AngleIncrements::compact(dtheta_rad);
     dvel_mps.truncate(n);
-    let mut dts: Vec<f64> = imu_t_ns[..n]
-        .windows(2)
-        .map(|w| (w[1] - w[0]) as f64 * 1e-9)
-        .filter(|d| *d > 0.0)
-        .collect();
-    // The median interval (the element a full sort puts in the middle).
-    let mid = dts.len() / 2;
-    if mid < dts.len() {
-        dts.select_nth_unstable_by(mid, f64::total_cmp);
-    }
-    let nominal = dts.get(mid).copied().unwrap_or(0.01);
-    drop(dts);
+    // The median interval (the element a full sort of the positive ones puts in the
+    // middle), read from the tags without a copy of them.
+    let intervals_ns = || {
+        imu_t_ns[..n]
+            .windows(2)
+            .filter_map(|w| w[1].checked_sub(w[0]))
+            .filter(|&d| d > 0)
+            .map(|d| d as u64)
+    };
+    let mid = intervals_ns().count() / 2;
+    let nominal = nth_smallest(intervals_ns, mid).map_or(0.01, |d| d as f64 * 1e-9);
     // A first sample apart from the rest takes its time one interval before the second's.
     let first_apart = first_sample_apart(&imu_t_ns[..n], params.max_gap_s);
     let t0 = if first_apart {
@@ -857,7 +862,7 @@ pub fn derive_owned(
         if scale != 1.0 {
             out.filled_gaps += 1;
         }
-        let mut dth = dtheta_rad[k].map(|v| v * scale);
+        let mut dth = dtheta.get(k).map(|v| v * scale);
         let mut dv = dvel_mps[k].map(|v| v * scale);
         let replaced = if !increments_in_range(dth, dv, dt) {
             out.out_of_range_samples += 1;
@@ -870,14 +875,15 @@ pub fn derive_owned(
         };
         if replaced {
             out.replaced_increments.push(k);
+            // (Unchanged, a sample is left as it is: times 1 is itself.)
+            dtheta.set(k, dth);
         }
         dt_s.push(dt);
-        dtheta_rad[k] = dth;
         dvel_mps[k] = dv;
         prev_t = t;
     }
     drop(t_s);
-    (out.dt_s, out.dtheta_rad, out.dvel_mps) = (dt_s.into(), dtheta_rad.into(), dvel_mps.into());
+    (out.dt_s, out.dtheta_rad, out.dvel_mps) = (dt_s.into(), Arc::new(dtheta), dvel_mps.into());
 
     // The filter F, then eqs 7–8 at the epochs.
     let lp = LowPass::new(&params.filter, nominal);
@@ -1145,7 +1151,7 @@ pub(crate) fn filtered_stretches(
 #[derive(Debug, Clone)]
 pub struct OdometerBlocks<'d> {
     dt_s: &'d [f64],
-    dtheta_rad: &'d [[f64; 3]],
+    dtheta_rad: AngleSlice<'d>,
     /// The next sample.
     k: usize,
     /// u and "moving" of the sample before.
@@ -1212,7 +1218,7 @@ impl<'d> OdometerBlocks<'d> {
         use crate::filter::BlockMeans;
         Self {
             dt_s: &d.dt_s,
-            dtheta_rad: &d.dtheta_rad,
+            dtheta_rad: d.dtheta_rad.view(),
             k: 0,
             prev: (0.0, 0.0),
             u_dot: series.u_dot.then(|| BlockMeans::new(lp.block, blocks)),
@@ -1238,7 +1244,7 @@ impl<'d> OdometerBlocks<'d> {
     #[inline]
     pub fn push(&mut self, dd: f64) {
         let k = self.k;
-        let (Some(&dt), Some(dtheta)) = (self.dt_s.get(k), self.dtheta_rad.get(k)) else {
+        let (Some(&dt), Some(dtheta)) = (self.dt_s.get(k), self.dtheta_rad.get_checked(k)) else {
             return;
         };
         self.push_at(dd, dt, dd / dt, dtheta[2] / dt);
@@ -1253,26 +1259,28 @@ impl<'d> OdometerBlocks<'d> {
             .len()
             .min(self.dt_s.len() - k)
             .min(self.dtheta_rad.len() - k);
-        let (dd, dt_s, dtheta) = (&dd[..n], &self.dt_s[k..k + n], &self.dtheta_rad[k..k + n]);
+        let (dd, dt_s) = (&dd[..n], &self.dt_s[k..k + n]);
         let (mut u_mps, mut r_rad_s) = ([0.0; CHUNK], [0.0; CHUNK]);
-        for ((dd, dt_s), dtheta) in dd
-            .chunks(CHUNK)
-            .zip(dt_s.chunks(CHUNK))
-            .zip(dtheta.chunks(CHUNK))
-        {
-            for (i, ((u, r), (dd, dt))) in u_mps
-                .iter_mut()
-                .zip(&mut r_rad_s)
-                .zip(dd.iter().zip(dt_s))
-                .enumerate()
+        crate::with_angle_slice!(self.dtheta_rad.slice(k..k + n), |dtheta| {
+            for ((dd, dt_s), dtheta) in dd
+                .chunks(CHUNK)
+                .zip(dt_s.chunks(CHUNK))
+                .zip(dtheta.chunks(CHUNK))
             {
-                *u = dd / dt;
-                *r = dtheta[i][2] / dt;
+                for (i, ((u, r), (dd, dt))) in u_mps
+                    .iter_mut()
+                    .zip(&mut r_rad_s)
+                    .zip(dd.iter().zip(dt_s))
+                    .enumerate()
+                {
+                    *u = dd / dt;
+                    *r = dtheta[i].rad()[2] / dt;
+                }
+                for (i, (&dd, &dt)) in dd.iter().zip(dt_s).enumerate() {
+                    self.push_at(dd, dt, u_mps[i], r_rad_s[i]);
+                }
             }
-            for (i, (&dd, &dt)) in dd.iter().zip(dt_s).enumerate() {
-                self.push_at(dd, dt, u_mps[i], r_rad_s[i]);
-            }
-        }
+        })
     }
 
     /// The next sample's increment `dd` over its interval `dt`, with its speed `u_mps`
@@ -1682,7 +1690,7 @@ mod tests {
             .map(|&x| f64::from(u8::from(x != 0.0)))
             .collect();
         for k in 0..n {
-            let r = d.dtheta_rad[k][2] / d.dt_s[k];
+            let r = d.dtheta_rad.get(k)[2] / d.dt_s[k];
             u.push(d.odo_dist_m[k] / d.dt_s[k]);
             u_dot.push(if k == 0 {
                 0.0
@@ -1746,7 +1754,7 @@ mod tests {
                 let same = |a: &[f64; 3], b: &[f64; 3]| {
                     a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
                 };
-                !same(&d.dtheta_rad[k], &columns.1[k]) || !same(&d.dvel_mps[k], &columns.2[k])
+                !same(&d.dtheta_rad.get(k), &columns.1[k]) || !same(&d.dvel_mps[k], &columns.2[k])
             })
             .collect();
         // Every listed sample but the zero one scaled to itself differs.
@@ -1758,7 +1766,7 @@ mod tests {
         within[12_000][1] = 1e-4;
         assert_eq!(first_out_of_range(&d, &within, &columns.2), Some(15_000));
         assert_eq!(
-            (d.dtheta_rad[9_000], d.dvel_mps[9_000]),
+            (d.dtheta_rad.get(9_000), d.dvel_mps[9_000]),
             ([0.0; 3], [0.0; 3])
         );
         // A re-derive at another odometer timing keeps the IMU's list.
@@ -1766,6 +1774,39 @@ mod tests {
             d.without_odometer_series().replaced_increments,
             d.replaced_increments
         );
+    }
+
+    /// A binary log's angle increments (counts of 2⁻²⁶ rad) are held in f32, read back bit
+    /// for bit; a gap's scaled increment, not an f32, turns them into f64 at the derive,
+    /// each sample then the one an f64 derive makes. The median interval is the tags'.
+    #[test]
+    fn a_binary_logs_angle_increments_are_held_in_f32_unless_a_repair_needs_f64() {
+        let (t, dtheta, dvel, odo_t, odo_d) = drive();
+        let lsb = (-26f64).exp2();
+        let counts: Vec<[f64; 3]> = (dtheta.iter())
+            .map(|v| v.map(|x| (x / lsb).round() * lsb))
+            .collect();
+        let columns = (t, counts, dvel, odo_t, odo_d);
+        let d = derive(&series(&columns), &DeriveParams::default(), 9.81);
+        assert!(d.dtheta_rad.is_single());
+        assert_eq!(d.dtheta_rad.view().to_vec(), columns.1);
+        assert_eq!(d.nominal_dt_s, 0.01);
+        // A gap of 2 samples before 5 000: its closing sample holds the rate over 3.
+        let mut gap = columns.clone();
+        for tk in gap.0.iter_mut().skip(5_000) {
+            *tk += 20_000_000;
+        }
+        let d = derive(&series(&gap), &DeriveParams::default(), 9.81);
+        assert!(!d.dtheta_rad.is_single());
+        assert_eq!(d.replaced_increments, [5_000]);
+        let scale = d.dt_s[5_000] / d.nominal_dt_s;
+        for k in [0, 4_999, 5_000, 5_001, 20_006] {
+            let want = gap.1[k].map(|x| if k == 5_000 { x * scale } else { x });
+            assert_eq!(
+                d.dtheta_rad.get(k).map(f64::to_bits),
+                want.map(f64::to_bits)
+            );
+        }
     }
 
     /// Regression (probing binary logs with one record's tag damaged, its CRC valid): a

@@ -659,10 +659,11 @@ impl BlockSums {
                 ..BlockSum::default()
             };
             for k in start..(start + per).min(n) {
+                let (dtheta_rad, dvel_mps) = (d.dtheta_rad.get(k), d.dvel_mps[k]);
                 for i in 0..3 {
-                    b.dvel_mps[i] += d.dvel_mps[k][i];
-                    b.dtheta_rad[i] += d.dtheta_rad[k][i];
-                    out.dvel_mps[i] += d.dvel_mps[k][i];
+                    b.dvel_mps[i] += dvel_mps[i];
+                    b.dtheta_rad[i] += dtheta_rad[i];
+                    out.dvel_mps[i] += dvel_mps[i];
                 }
                 b.dt_s += d.dt_s[k];
                 out.duration_s += d.dt_s[k];

@@ -80,7 +80,7 @@ pub fn level_in_motion(whole: &Problem<'_>, free: Free) -> Option<InMotionLevel>
     let i = &whole.inputs;
     let inputs = crate::strapdown::NavInputs {
         dt_s: &i.dt_s[..samples],
-        dtheta_rad: &i.dtheta_rad[..samples],
+        dtheta_rad: i.dtheta_rad.prefix(samples),
         odo_dist_m: &i.odo_dist_m[..samples],
     };
     let problem = Problem::new(inputs, whole.base, e, whole.lp, whole.kalman, &[]);

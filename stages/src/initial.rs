@@ -583,7 +583,7 @@ pub fn initial_settings_with_velocity(
         unused: static_unused,
         stood_s,
     } = static_start(d, req);
-    let means = align::static_means(&d.dt_s, &d.dtheta_rad, dvel_mps, static_s);
+    let means = align::static_means(&d.dt_s, d.dtheta_rad.view(), dvel_mps, static_s);
     let has_static = means.duration_s >= MIN_STATIC_S;
     let (lev_roll, lev_pitch) = align::level(&means.f_b_mps2);
     // Without a static start, level in motion from the accelerometer references of the

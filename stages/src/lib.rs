@@ -14,6 +14,7 @@
 //! ```
 
 pub mod align;
+pub mod angle_increments;
 pub mod attitude;
 #[cfg(test)]
 mod counted_heap;
@@ -29,6 +30,7 @@ pub mod imu_mounting;
 pub mod in_motion_level;
 pub mod initial;
 pub mod linearized;
+pub mod nth_smallest;
 pub mod odo_bridge;
 pub mod odo_clock;
 pub mod odo_lag;

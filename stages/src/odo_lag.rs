@@ -266,7 +266,7 @@ impl<'a> Rederive<'a> {
             odometers.iter().map(|_| Mutex::new(Vec::new())).collect();
         let (_, segments) = integrate_split_aligned(
             &base.dt_s,
-            &base.dtheta_rad,
+            base.dtheta_rad.view(),
             plan,
             false,
             odometers.len(),
@@ -320,7 +320,7 @@ impl<'a> Rederive<'a> {
             .unzip();
         let (_, segments) = integrate_split(
             &base.dt_s,
-            &base.dtheta_rad,
+            base.dtheta_rad.view(),
             plan,
             false,
             odometers.len(),

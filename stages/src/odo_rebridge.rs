@@ -223,7 +223,7 @@ impl<'a> Rebridges<'a> {
                     .zip(&w.dvel_mps)
                     .map(|(k, dvel_mps)| BridgeSample {
                         t_s: d.t_s.get(k),
-                        dtheta_rad: d.dtheta_rad[k],
+                        dtheta_rad: d.dtheta_rad.get(k),
                         dvel_mps: *dvel_mps,
                         reading: if k < w.first {
                             Reading::Before(odo[k])

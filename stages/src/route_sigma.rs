@@ -515,7 +515,7 @@ mod tests {
         let (dt, dtheta, odo, later) = drive(n);
         let inputs = NavInputs {
             dt_s: &dt,
-            dtheta_rad: &dtheta,
+            dtheta_rad: (&dtheta).into(),
             odo_dist_m: &odo,
         };
         let at_lag = NavInputs {

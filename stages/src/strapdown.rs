@@ -32,6 +32,7 @@ pub use segment_lanes::run_criteria_segments;
 
 use nalgebra::UnitQuaternion;
 
+use crate::angle_increments::AngleSlice;
 use crate::attitude::Euler;
 use crate::criteria::{BlockAttitude, FixPose};
 use crate::earth::Geodetic;
@@ -42,8 +43,8 @@ use lanes::{Emit, Lanes, OdometerLanes, OdometerPerLane, OdometerStreams, Shared
 pub struct NavInputs<'a> {
     /// Length of each sample's interval, s.
     pub dt_s: &'a [f64],
-    /// Angle increments, rad, body FRD.
-    pub dtheta_rad: &'a [[f64; 3]],
+    /// Angle increments, rad, body FRD (as held: [`AngleSlice`]).
+    pub dtheta_rad: AngleSlice<'a>,
     /// Odometer distance travelled over each interval at the nominal scale, m.
     pub odo_dist_m: &'a [f64],
 }
@@ -52,14 +53,14 @@ impl NavInputs<'_> {
     /// Whether `other` reads the very same series (not equal copies).
     pub fn same_as(&self, other: &NavInputs<'_>) -> bool {
         std::ptr::eq(self.dt_s, other.dt_s)
-            && std::ptr::eq(self.dtheta_rad, other.dtheta_rad)
+            && self.dtheta_rad.same_as(&other.dtheta_rad)
             && std::ptr::eq(self.odo_dist_m, other.odo_dist_m)
     }
 
     /// Whether `other` reads the very same IMU series (its odometer's may differ: a
     /// derive at another odometer timing).
     pub fn same_imu_as(&self, other: &NavInputs<'_>) -> bool {
-        std::ptr::eq(self.dt_s, other.dt_s) && std::ptr::eq(self.dtheta_rad, other.dtheta_rad)
+        std::ptr::eq(self.dt_s, other.dt_s) && self.dtheta_rad.same_as(&other.dtheta_rad)
     }
 
     /// Number of samples.

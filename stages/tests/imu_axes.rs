@@ -69,7 +69,7 @@ fn a_short_log_units_a_tilt_and_a_log_without_odometer() {
         let (s, c) = 45f64.to_radians().sin_cos();
         let roll = |v: &[f64; 3]| [v[0], c * v[1] + s * v[2], -s * v[1] + c * v[2]];
         d.dvel_mps = Arc::new(d.dvel_mps.iter().map(roll).collect());
-        d.dtheta_rad = Arc::new(d.dtheta_rad.iter().map(roll).collect());
+        d.dtheta_rad = Arc::new(d.dtheta_rad.view().iter().map(|v| roll(&v)).collect());
     };
     assert_eq!(with(&rolled), AxesVerdict::Tilted);
     // The drive shows the roll whole (the yaw rate taken about gravity's direction).
@@ -104,6 +104,7 @@ fn a_short_log_units_a_tilt_and_a_log_without_odometer() {
     let degrees = |d: &mut Derived| {
         d.dtheta_rad = Arc::new(
             d.dtheta_rad
+                .view()
                 .iter()
                 .map(|v| v.map(f64::to_degrees))
                 .collect(),
@@ -202,7 +203,7 @@ fn an_odometer_that_is_no_speed_is_flat() {
     assert_eq!(AxesCheck::of(&kmh).verdict(g), AxesVerdict::OdometerScale);
     let mut degrees = d.clone();
     degrees.dtheta_rad = Arc::new(
-        (degrees.dtheta_rad.iter())
+        (degrees.dtheta_rad.view().iter())
             .map(|v| v.map(f64::to_degrees))
             .collect(),
     );
@@ -234,7 +235,7 @@ fn a_speed_offset_is_told_from_the_gyros_scale() {
     for factor in [2.0, 57.3] {
         let mut scaled = d.clone();
         scaled.dtheta_rad = Arc::new(
-            (scaled.dtheta_rad.iter())
+            (scaled.dtheta_rad.view().iter())
                 .map(|v| v.map(|x| x * factor))
                 .collect(),
         );

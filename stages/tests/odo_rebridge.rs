@@ -32,7 +32,7 @@ impl Drive {
             nominal_dt_s: DT_S,
             t_s: TimeBase::from_nanos(tags_ns.iter().map(|t| t - tags_ns[0])),
             dt_s: Arc::new(vec![DT_S; n]),
-            dtheta_rad: Arc::new(vec![[0.0; 3]; n]),
+            dtheta_rad: Arc::new(vec![[0.0; 3]; n].into()),
             ..Derived::default()
         };
         Self {

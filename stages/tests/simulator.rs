@@ -80,7 +80,7 @@ fn own_increments_with_true_settings_reproduce_truth_over_40_minutes() {
     navigate(
         &NavInputs {
             dt_s: &inp.dt,
-            dtheta_rad: &inp.dtheta,
+            dtheta_rad: (&inp.dtheta).into(),
             odo_dist_m: &inp.dist,
         },
         &true_settings(&run),
@@ -120,7 +120,7 @@ fn a_wrong_azimuth_really_moves_the_stop() {
     navigate(
         &NavInputs {
             dt_s: &inp.dt,
-            dtheta_rad: &inp.dtheta,
+            dtheta_rad: (&inp.dtheta).into(),
             odo_dist_m: &inp.dist,
         },
         &settings,

@@ -8,6 +8,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::{LAT_REFRESH_RAD, NavInputs, NavSettings};
+use crate::angle_increments::Increment3;
 use crate::attitude::{HALF_ANGLE_SERIES_LIMIT_RAD2, half_angle_exact, half_angle_series};
 use crate::earth;
 
@@ -217,14 +218,15 @@ struct Turn {
 /// `dt_s` and angle increments `dtheta_rad` ([`AHEAD`] of each), the drift-corrected
 /// increment of the sample before them being `prev`, which is left at their last's.
 #[inline(always)]
-fn turns_ahead(
+fn turns_ahead<T: Increment3>(
     drift: &[f64; 3],
     prev: &mut [f64; 3],
     dt_s: &[f64],
-    dtheta_rad: &[[f64; 3]],
+    dtheta_rad: &[T],
 ) -> TurnsAhead {
+    let th: [[f64; 3]; AHEAD] = std::array::from_fn(|j| dtheta_rad[j].rad());
     let d: [[f64; AHEAD]; 3] =
-        std::array::from_fn(|i| std::array::from_fn(|j| dtheta_rad[j][i] - drift[i] * dt_s[j]));
+        std::array::from_fn(|i| std::array::from_fn(|j| th[j][i] - drift[i] * dt_s[j]));
     // The increment before each: the last one's before the first.
     let p: [[f64; AHEAD]; 3] = std::array::from_fn(|i| {
         std::array::from_fn(|j| if j == 0 { prev[i] } else { d[i][j - 1] })
@@ -348,8 +350,21 @@ impl<const N: usize> Lanes<N> {
     /// The sample loop, compiled once with and once without the boresight terms.
     #[inline(always)]
     fn run_portable(
+        self,
+        inputs: &NavInputs<'_>,
+        odometer: &mut impl OdometerLanes<N>,
+        emit: &mut impl Emit<N>,
+    ) {
+        crate::with_angle_slice!(inputs.dtheta_rad, |dtheta_rad| self
+            .run_held(inputs, dtheta_rad, odometer, emit))
+    }
+
+    /// [`Self::run_portable`] with the angle increments in the form they are held.
+    #[inline(always)]
+    fn run_held<T: Increment3>(
         mut self,
         inputs: &NavInputs<'_>,
+        dtheta_rad: &[T],
         odometer: &mut impl OdometerLanes<N>,
         emit: &mut impl Emit<N>,
     ) {
@@ -357,24 +372,24 @@ impl<const N: usize> Lanes<N> {
         let mut from = 0;
         if N == 1 {
             from = if self.boresight {
-                self.run_one_ahead::<true>(inputs, n, odometer, emit)
+                self.run_one_ahead::<true, T>(inputs, dtheta_rad, n, odometer, emit)
             } else {
-                self.run_one_ahead::<false>(inputs, n, odometer, emit)
+                self.run_one_ahead::<false, T>(inputs, dtheta_rad, n, odometer, emit)
             };
         }
         let samples = inputs.dt_s[..n]
             .iter()
-            .zip(&inputs.dtheta_rad[..n])
+            .zip(&dtheta_rad[..n])
             .enumerate()
             .skip(from);
         if self.boresight {
             for (k, (&dt, dtheta)) in samples {
-                self.step::<true>(k, dt, dtheta, odometer.at(k, inputs), None);
+                self.step::<true>(k, dt, &dtheta.rad(), odometer.at(k, inputs), None);
                 emit.emit(k, &self);
             }
         } else {
             for (k, (&dt, dtheta)) in samples {
-                self.step::<false>(k, dt, dtheta, odometer.at(k, inputs), None);
+                self.step::<false>(k, dt, &dtheta.rad(), odometer.at(k, inputs), None);
                 emit.emit(k, &self);
             }
         }
@@ -385,9 +400,10 @@ impl<const N: usize> Lanes<N> {
     /// steps, whose chain of dependent operations they no longer lengthen. The same
     /// operations on each sample. The samples stepped.
     #[inline(always)]
-    fn run_one_ahead<const BORESIGHT: bool>(
+    fn run_one_ahead<const BORESIGHT: bool, T: Increment3>(
         &mut self,
         inputs: &NavInputs<'_>,
+        dtheta_rad: &[T],
         n: usize,
         odometer: &mut impl OdometerLanes<N>,
         emit: &mut impl Emit<N>,
@@ -397,7 +413,7 @@ impl<const N: usize> Lanes<N> {
         let mut k = 0;
         for (dt4, dth4) in inputs.dt_s[..n]
             .chunks_exact(AHEAD)
-            .zip(inputs.dtheta_rad[..n].chunks_exact(AHEAD))
+            .zip(dtheta_rad[..n].chunks_exact(AHEAD))
         {
             let turns = turns_ahead(&drift, &mut prev, dt4, dth4);
             for (j, (&dt, dtheta)) in dt4.iter().zip(dth4).enumerate() {
@@ -407,7 +423,8 @@ impl<const N: usize> Lanes<N> {
                     c: turns.c[j],
                     d: [0, 1, 2].map(|i| turns.d[i][j]),
                 };
-                self.step::<BORESIGHT>(k, dt, dtheta, odometer.at(k, inputs), Some(turn));
+                let dtheta = dtheta.rad();
+                self.step::<BORESIGHT>(k, dt, &dtheta, odometer.at(k, inputs), Some(turn));
                 emit.emit(k, self);
                 k += 1;
             }
@@ -620,7 +637,7 @@ mod tests {
         let (dt, dth, odo) = inputs();
         let inputs = NavInputs {
             dt_s: &dt,
-            dtheta_rad: &dth,
+            dtheta_rad: (&dth).into(),
             odo_dist_m: &odo,
         };
         let all: [NavSettings; 8] = std::array::from_fn(settings);
@@ -637,7 +654,7 @@ mod tests {
         for n in [4999, 4998, 4997, 3, 0] {
             let short = NavInputs {
                 dt_s: &dt[..n],
-                dtheta_rad: &dth[..n],
+                dtheta_rad: dth[..n].into(),
                 odo_dist_m: &odo[..n],
             };
             let mut batch = Every::<8>(Vec::new());
@@ -662,6 +679,34 @@ mod tests {
         assert_eq!(final_state(&four.0.unwrap())[..], batch[..4]);
     }
 
+    /// Angle increments held in f32 give every lane the pass the same values in f64 give,
+    /// bit for bit, batched or alone (four samples ahead and one by one).
+    #[test]
+    fn increments_held_in_f32_give_the_f64_pass_bit_for_bit() {
+        let (dt, dth, odo) = inputs();
+        let exact: Vec<[f64; 3]> = dth.iter().map(|v| v.map(|x| f64::from(x as f32))).collect();
+        let held = crate::angle_increments::AngleIncrements::compact(exact.clone());
+        assert!(held.is_single());
+        let all: [NavSettings; 8] = std::array::from_fn(settings);
+        for n in [5000, 4997] {
+            let pass = |dtheta_rad| {
+                let inputs = NavInputs {
+                    dt_s: &dt[..n],
+                    dtheta_rad,
+                    odo_dist_m: &odo[..n],
+                };
+                let (mut batch, mut alone) = (Every::<8>(Vec::new()), Every::<1>(Vec::new()));
+                Lanes::new(&all).run(&inputs, &mut batch);
+                Lanes::new(&[all[3]]).run(&inputs, &mut alone);
+                (batch.0, alone.0)
+            };
+            assert!(
+                pass(held.view().prefix(n)) == pass(exact[..n].into()),
+                "{n} samples"
+            );
+        }
+    }
+
     /// A drive straight north, level, with the Earth's rate taken out of the gyros: the
     /// odometer's pitch boresight climbs tan(angle) per metre of distance and leaves the
     /// horizontal route as it is (its distance is the horizontal one); a yaw boresight
@@ -679,7 +724,7 @@ mod tests {
         let dth = vec![[w_ie.x * 0.01, -(10.0 / rm) * 0.01, w_ie.z * 0.01]; n];
         let inputs = NavInputs {
             dt_s: &dt,
-            dtheta_rad: &dth,
+            dtheta_rad: (&dth).into(),
             odo_dist_m: &odo,
         };
         let base = NavSettings {
@@ -766,7 +811,7 @@ mod tests {
         let all: [NavSettings; 4] = std::array::from_fn(|l| settings(l + 2));
         let shared = NavInputs {
             dt_s: &dt,
-            dtheta_rad: &dth,
+            dtheta_rad: (&dth).into(),
             odo_dist_m: &odo,
         };
         let mut batch = Last(None);
@@ -803,7 +848,7 @@ mod tests {
         let all: [NavSettings; 4] = std::array::from_fn(|l| settings(l + 2));
         let shared = NavInputs {
             dt_s: &dt,
-            dtheta_rad: &dth,
+            dtheta_rad: (&dth).into(),
             odo_dist_m: &odo,
         };
         let keep = [0, 10, 2500, 4999];
@@ -855,7 +900,7 @@ mod tests {
         let (dt, dth, odo) = inputs();
         let inputs = NavInputs {
             dt_s: &dt,
-            dtheta_rad: &dth,
+            dtheta_rad: (&dth).into(),
             odo_dist_m: &odo,
         };
         let all: [NavSettings; 4] = std::array::from_fn(|l| settings(l + 3));

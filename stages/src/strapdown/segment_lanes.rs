@@ -793,7 +793,7 @@ mod tests {
         };
         let (imu, odos) = integrate(
             &dt,
-            &dth,
+            (&dth).into(),
             &plan,
             true,
             &mut [odo.iter().copied()],

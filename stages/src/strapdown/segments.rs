@@ -35,6 +35,7 @@ use std::sync::{Arc, Mutex};
 use rayon::prelude::*;
 
 use super::lanes_in_flight::LanesInFlight;
+use crate::angle_increments::{AngleSlice, Increment3};
 use crate::attitude::{HALF_ANGLE_SERIES_LIMIT_RAD2, half_angle_exact, half_angle_series};
 
 /// Where a run's segments end: blocks of `block` samples, cut after each of `cuts`.
@@ -422,7 +423,7 @@ const WIDTH: usize = 4;
 /// units busy), each lane exactly as a segment alone would be.
 pub fn integrate<I: Iterator<Item = f64>>(
     dt_s: &[f64],
-    dtheta_rad: &[[f64; 3]],
+    dtheta_rad: AngleSlice<'_>,
     plan: &SegmentPlan,
     imu: bool,
     odometers: &mut [I],
@@ -462,7 +463,7 @@ pub const SPLIT_SEGMENTS: usize = 8192;
 /// sample `k` on are `odometer(v, k)`.
 pub fn integrate_split<I, F>(
     dt_s: &[f64],
-    dtheta_rad: &[[f64; 3]],
+    dtheta_rad: AngleSlice<'_>,
     plan: &SegmentPlan,
     imu: bool,
     odometers: usize,
@@ -483,7 +484,7 @@ where
 #[allow(clippy::too_many_arguments)]
 pub fn integrate_split_aligned<I, F>(
     dt_s: &[f64],
-    dtheta_rad: &[[f64; 3]],
+    dtheta_rad: AngleSlice<'_>,
     plan: &SegmentPlan,
     imu: bool,
     odometers: usize,
@@ -509,7 +510,7 @@ where
 #[derive(Clone, Copy)]
 struct Part<'a> {
     dt_s: &'a [f64],
-    dtheta_rad: &'a [[f64; 3]],
+    dtheta_rad: AngleSlice<'a>,
     /// Samples there are increments for.
     n: usize,
     imu: bool,
@@ -519,7 +520,7 @@ struct Part<'a> {
 impl<'a> Part<'a> {
     fn new(
         dt_s: &'a [f64],
-        dtheta_rad: &'a [[f64; 3]],
+        dtheta_rad: AngleSlice<'a>,
         plan: &SegmentPlan,
         imu: bool,
         columns: OdoColumns,
@@ -646,7 +647,7 @@ impl<'a> Part<'a> {
 #[derive(Clone, Copy)]
 struct GroupInputs<'a, const W: usize> {
     dt_s: &'a [f64],
-    dtheta_rad: &'a [[f64; 3]],
+    dtheta_rad: AngleSlice<'a>,
     /// Each lane's segment (sample range `from..to`; empty for lanes past the last).
     bounds: &'a [(usize, usize); W],
     /// The first sample `buffers` hold.
@@ -709,13 +710,19 @@ impl<const W: usize> Group<W> {
 
     #[inline(always)]
     fn run_portable(&mut self, x: &GroupInputs<'_, W>) {
+        crate::with_angle_slice!(x.dtheta_rad, |dtheta_rad| self.run_on(x, dtheta_rad))
+    }
+
+    /// [`Self::run_portable`] with the angle increments in the form they are held.
+    #[inline(always)]
+    fn run_on<T: Increment3>(&mut self, x: &GroupInputs<'_, W>, dtheta_rad: &[T]) {
         let GroupInputs {
             dt_s,
-            dtheta_rad,
             bounds,
             span,
             buffers,
             moving,
+            ..
         } = *x;
         let odometers = buffers.len();
         let identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
@@ -736,8 +743,9 @@ impl<const W: usize> Group<W> {
             let (from, to) = bounds[l];
             len[l] = to - from;
             if from > 0 && len[l] > 0 {
+                let before = dtheta_rad[from - 1].rad();
                 for i in 0..3 {
-                    prev[i][l] = dtheta_rad[from - 1][i];
+                    prev[i][l] = before[i];
                 }
             }
         }
@@ -754,8 +762,9 @@ impl<const W: usize> Group<W> {
             for l in 0..W {
                 if j < len[l] {
                     let k = bounds[l].0 + j;
+                    let sample = dtheta_rad[k].rad();
                     for i in 0..3 {
-                        th[i][l] = dtheta_rad[k][i];
+                        th[i][l] = sample[i];
                     }
                     dt[l] = dt_s[k];
                     active[l] = 1.0;
@@ -920,7 +929,7 @@ impl SegmentMemo {
     ) -> (Arc<ImuSegments>, Option<Arc<OdoSegments>>) {
         let imu_key = SeriesKey {
             dt: inputs.dt_s.as_ptr() as usize,
-            dtheta: inputs.dtheta_rad.as_ptr() as usize,
+            dtheta: inputs.dtheta_rad.addr(),
             len: inputs.dt_s.len().min(inputs.dtheta_rad.len()),
         };
         let odo_key = SeriesKey {
@@ -1083,6 +1092,33 @@ mod tests {
     /// stretch's first sample) gives the whole walk's segments, bit for bit: stretches
     /// starting at a cut, inside a stop, with every column, and more stretches than the
     /// pool has threads; the IMU's segments alone, and odometers alone.
+    /// Angle increments held in f32 give the segments the same values in f64 give, bit
+    /// for bit, in one walk or in stretches.
+    #[test]
+    fn segments_of_increments_held_in_f32_are_the_f64s() {
+        let n = 40_000;
+        let dt = vec![0.01; n];
+        let exact: Vec<[f64; 3]> = crate::strapdown::test_drive::turning_dtheta(n)
+            .iter()
+            .map(|v| v.map(|x| f64::from(x as f32)))
+            .collect();
+        let held = crate::angle_increments::AngleIncrements::compact(exact.clone());
+        assert!(held.is_single());
+        let odo: Vec<f64> = (0..n).map(|k| if k % 5 == 0 { 0.0 } else { 0.1 }).collect();
+        let from = |_: usize, k: usize| odo[k..].iter().copied();
+        let plan = SegmentPlan::new(n, 10, [12_345]);
+        for parts in [1, 4] {
+            let walk = |dtheta_rad| {
+                let part = Part::new(&dt, dtheta_rad, &plan, true, ALL);
+                part.in_stretches(&plan, 1, from, parts, 1)
+            };
+            assert!(
+                walk(held.view()) == walk((&exact).into()),
+                "{parts} stretches"
+            );
+        }
+    }
+
     #[test]
     fn stretches_of_a_run_are_the_whole_walk_bit_for_bit() {
         let n = 20_011;
@@ -1103,7 +1139,7 @@ mod tests {
         let plan = SegmentPlan::new(n, 10, [5_003, 6_668, 13_337, 19_999]);
         let whole = integrate(
             &dt,
-            &dth,
+            (&dth).into(),
             &plan,
             true,
             &mut [a.iter().copied(), b.iter().copied()],
@@ -1114,7 +1150,8 @@ mod tests {
             d[k.min(n)..].iter().copied()
         };
         let in_parts = |imu: bool, odometers: usize, columns: OdoColumns, parts: usize| {
-            Part::new(&dt, &dth, &plan, imu, columns).in_stretches(&plan, odometers, from, parts, 1)
+            Part::new(&dt, (&dth).into(), &plan, imu, columns)
+                .in_stretches(&plan, odometers, from, parts, 1)
         };
         for parts in [1, 2, 3, 7] {
             let split = in_parts(true, 2, ALL, parts);
@@ -1123,7 +1160,7 @@ mod tests {
             // its control points are not), and of a length no end is a multiple of.
             for align in [50, 7_000_000] {
                 let starts = std::sync::Mutex::new(Vec::new());
-                let aligned = Part::new(&dt, &dth, &plan, true, ALL).in_stretches(
+                let aligned = Part::new(&dt, (&dth).into(), &plan, true, ALL).in_stretches(
                     &plan,
                     2,
                     |v, k| {
@@ -1148,7 +1185,7 @@ mod tests {
             let (no_imu, odos) = in_parts(false, 2, OdoColumns::default(), parts);
             let plain = integrate(
                 &dt,
-                &dth,
+                (&dth).into(),
                 &plan,
                 false,
                 &mut [a.iter().copied(), b.iter().copied()],
@@ -1182,8 +1219,15 @@ mod tests {
         // The public entry splits by the pool's threads beyond its size, the same.
         let long = SegmentPlan::new(n, 2, []);
         assert!(long.count() >= SPLIT_SEGMENTS);
-        let whole = integrate(&dt, &dth, &long, true, &mut [a.iter().copied()], ALL);
-        assert!(integrate_split(&dt, &dth, &long, true, 1, from, ALL) == whole);
+        let whole = integrate(
+            &dt,
+            (&dth).into(),
+            &long,
+            true,
+            &mut [a.iter().copied()],
+            ALL,
+        );
+        assert!(integrate_split(&dt, (&dth).into(), &long, true, 1, from, ALL) == whole);
     }
 
     /// A walk split between threads holds the run's segments once at its peak (what it
@@ -1200,7 +1244,7 @@ mod tests {
         let plan = SegmentPlan::new(n, 1, []);
         assert!(plan.count() >= 4 * SPLIT_SEGMENTS);
         let ((imu, odos), peak) = crate::counted_heap::peak_heap_bytes(4, || {
-            integrate_split(&dt, &dth, &plan, true, 2, from, ALL)
+            integrate_split(&dt, (&dth).into(), &plan, true, 2, from, ALL)
         });
         let sums = |s: &OdoSums| {
             s.x.capacity() * size_of::<[f32; 4]>()
@@ -1220,7 +1264,14 @@ mod tests {
             peak + (64 << 10) >= held && peak < held + held / 20,
             "{peak} B, {held} B held"
         );
-        let whole = integrate(&dt, &dth, &plan, true, &mut [from(0, 0), from(1, 0)], ALL);
+        let whole = integrate(
+            &dt,
+            (&dth).into(),
+            &plan,
+            true,
+            &mut [from(0, 0), from(1, 0)],
+            ALL,
+        );
         assert!(whole == (Some(imu), odos));
     }
 
@@ -1244,7 +1295,7 @@ mod tests {
         let doubled: Vec<f64> = odo.iter().map(|d| 2.0 * d).collect();
         let (imu, odos) = integrate(
             &dt,
-            &dth,
+            (&dth).into(),
             &plan,
             true,
             &mut [odo.iter().copied(), doubled.iter().copied()],
@@ -1259,7 +1310,7 @@ mod tests {
         // Without the columns no pass reads: the first column alone, the same.
         let (_, plain) = integrate(
             &dt,
-            &dth,
+            (&dth).into(),
             &plan,
             false,
             &mut [odo.iter().copied()],
@@ -1298,7 +1349,7 @@ mod tests {
         let plan = SegmentPlan::new(10, 10, []);
         let (imu, odo) = integrate(
             &dt,
-            &dth,
+            (&dth).into(),
             &plan,
             true,
             &mut [std::iter::repeat_n(0.5, 10)],

@@ -103,7 +103,7 @@ impl Case {
         navigate(
             &NavInputs {
                 dt_s: &d.dt_s,
-                dtheta_rad: &d.dtheta_rad,
+                dtheta_rad: d.dtheta_rad.view(),
                 odo_dist_m: &d.odo_dist_m,
             },
             s,
@@ -186,7 +186,7 @@ impl Case {
     pub fn inputs(&self) -> NavInputs<'_> {
         NavInputs {
             dt_s: &self.derived.dt_s,
-            dtheta_rad: &self.derived.dtheta_rad,
+            dtheta_rad: self.derived.dtheta_rad.view(),
             odo_dist_m: &self.derived.odo_dist_m,
         }
     }
