@@ -19,7 +19,7 @@ use either::Either;
 
 use crate::angle_increments::{AngleIncrements, AngleSlice, Increment3};
 use crate::filter::{FilterParams, LowPass};
-use crate::nth_smallest::nth_smallest;
+use crate::nth_smallest::median;
 use crate::time_base::{TagIter, TagTimes, TagsFrom, TimeBase, Times};
 
 /// Parameters of the derive stage.
@@ -290,6 +290,7 @@ impl Derived {
 
     /// Yaw rate r of sample `k`, rad/s (body z gyro: the angle increment over the
     /// interval).
+    #[inline]
     pub fn r_rad_s(&self, k: usize) -> f64 {
         self.dtheta_rad.get(k)[2] / self.dt_s[k]
     }
@@ -805,8 +806,7 @@ pub fn derive_owned(
             .filter(|&d| d > 0)
             .map(|d| d as u64)
     };
-    let mid = intervals_ns().count() / 2;
-    let nominal = nth_smallest(intervals_ns, mid).map_or(0.01, |d| d as f64 * 1e-9);
+    let nominal = median(intervals_ns).map_or(0.01, |d| d as f64 * 1e-9);
     // A first sample apart from the rest takes its time one interval before the second's.
     let first_apart = first_sample_apart(&imu_t_ns[..n], params.max_gap_s);
     let t0 = if first_apart {
