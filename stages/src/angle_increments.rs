@@ -187,7 +187,8 @@ impl AngleIncrements {
     }
 
     /// Bytes of room the values' allocation holds.
-    pub fn room_bytes(&self) -> usize {
+    #[cfg(test)]
+    fn room_bytes(&self) -> usize {
         match self {
             Self::Single(v) => v.words.capacity() * std::mem::size_of::<u64>(),
             Self::Double(v) => v.capacity() * std::mem::size_of::<[f64; 3]>(),
@@ -195,7 +196,8 @@ impl AngleIncrements {
     }
 
     /// Bytes the values take (their room aside).
-    pub fn held_bytes(&self) -> usize {
+    #[cfg(test)]
+    fn held_bytes(&self) -> usize {
         match self.view() {
             AngleSlice::Single(v) => std::mem::size_of_val(v),
             AngleSlice::Double(v) => std::mem::size_of_val(v),
@@ -213,12 +215,6 @@ pub enum AngleSlice<'a> {
     Double(&'a [[f64; 3]]),
 }
 
-impl Default for AngleSlice<'_> {
-    fn default() -> Self {
-        Self::Double(&[])
-    }
-}
-
 impl<'a> From<&'a [[f64; 3]]> for AngleSlice<'a> {
     fn from(v: &'a [[f64; 3]]) -> Self {
         Self::Double(v)
@@ -228,18 +224,6 @@ impl<'a> From<&'a [[f64; 3]]> for AngleSlice<'a> {
 impl<'a> From<&'a Vec<[f64; 3]>> for AngleSlice<'a> {
     fn from(v: &'a Vec<[f64; 3]>) -> Self {
         Self::Double(v)
-    }
-}
-
-impl<'a> From<&'a [[f32; 3]]> for AngleSlice<'a> {
-    fn from(v: &'a [[f32; 3]]) -> Self {
-        Self::Single(v)
-    }
-}
-
-impl<'a> From<&'a AngleIncrements> for AngleSlice<'a> {
-    fn from(v: &'a AngleIncrements) -> Self {
-        v.view()
     }
 }
 

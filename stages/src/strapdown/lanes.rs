@@ -218,15 +218,14 @@ struct Turn {
 /// `dt_s` and angle increments `dtheta_rad` ([`AHEAD`] of each), the drift-corrected
 /// increment of the sample before them being `prev`, which is left at their last's.
 #[inline(always)]
-fn turns_ahead<T: Increment3>(
+fn turns_ahead(
     drift: &[f64; 3],
     prev: &mut [f64; 3],
     dt_s: &[f64],
-    dtheta_rad: &[T],
+    dtheta_rad: &[[f64; 3]; AHEAD],
 ) -> TurnsAhead {
-    let th: [[f64; 3]; AHEAD] = std::array::from_fn(|j| dtheta_rad[j].rad());
     let d: [[f64; AHEAD]; 3] =
-        std::array::from_fn(|i| std::array::from_fn(|j| th[j][i] - drift[i] * dt_s[j]));
+        std::array::from_fn(|i| std::array::from_fn(|j| dtheta_rad[j][i] - drift[i] * dt_s[j]));
     // The increment before each: the last one's before the first.
     let p: [[f64; AHEAD]; 3] = std::array::from_fn(|i| {
         std::array::from_fn(|j| if j == 0 { prev[i] } else { d[i][j - 1] })
@@ -415,16 +414,17 @@ impl<const N: usize> Lanes<N> {
             .chunks_exact(AHEAD)
             .zip(dtheta_rad[..n].chunks_exact(AHEAD))
         {
-            let turns = turns_ahead(&drift, &mut prev, dt4, dth4);
-            for (j, (&dt, dtheta)) in dt4.iter().zip(dth4).enumerate() {
+            // The samples' increments read once, for their turns and their steps.
+            let dth4: [[f64; 3]; AHEAD] = std::array::from_fn(|j| dth4[j].rad());
+            let turns = turns_ahead(&drift, &mut prev, dt4, &dth4);
+            for (j, (&dt, dtheta)) in dt4.iter().zip(&dth4).enumerate() {
                 let turn = Turn {
                     phi: [0, 1, 2].map(|i| turns.phi[i][j]),
                     s: turns.s[j],
                     c: turns.c[j],
                     d: [0, 1, 2].map(|i| turns.d[i][j]),
                 };
-                let dtheta = dtheta.rad();
-                self.step::<BORESIGHT>(k, dt, &dtheta, odometer.at(k, inputs), Some(turn));
+                self.step::<BORESIGHT>(k, dt, dtheta, odometer.at(k, inputs), Some(turn));
                 emit.emit(k, self);
                 k += 1;
             }
