@@ -21,8 +21,9 @@ use unz_formats::schema::{
     self, DTHETA_RAD, DVEL_MPS, T_NS, VALID, derived_cols, derived_meta, epochs_cols,
     filtered_cols, imu_repairs_cols,
 };
-use unz_formats::split_doubles::{read_split_doubles, read_split_vec3};
+use unz_formats::split_doubles::{for_each_split_values, read_split_doubles, read_split_vec3};
 use unz_formats::tables::{f64_column, i64_column, u64_column, vec3_column, vec3_to_array};
+use unz_stages::angle_increments::{AngleIncrements, AngleIncrementsBuilder};
 use unz_stages::derive::{Derived, Epochs, OdometerSpeed, ns_since};
 use unz_stages::odo_rebridge::WindowVelocities;
 use unz_stages::time_base::{NanoTimes, TimeBase};
@@ -317,6 +318,17 @@ impl ImuRepairs {
     /// Writes the repairs of `which` increments over the samples `rows` into `out`, their
     /// increments as ingested (`out[i]` is sample `rows.start + i`'s).
     fn apply(&self, which: Increment, rows: std::ops::Range<usize>, out: &mut [[f64; 3]]) {
+        self.apply_with(which, rows.clone(), |k, v| out[k - rows.start] = v);
+    }
+
+    /// `set(k, increments)` for each repaired sample `k` within `rows`, in order, with the
+    /// increments the derive uses there.
+    fn apply_with(
+        &self,
+        which: Increment,
+        rows: std::ops::Range<usize>,
+        mut set: impl FnMut(usize, [f64; 3]),
+    ) {
         let values = match which {
             Increment::Angle => &self.dtheta_rad,
             Increment::Velocity => &self.dvel_mps,
@@ -326,7 +338,7 @@ impl ImuRepairs {
             if k >= rows.end {
                 break;
             }
-            out[k - rows.start] = *v;
+            set(k, *v);
         }
     }
 }
@@ -407,39 +419,51 @@ fn load_derived_of(
         let names: &[&str] = match (with_nav, with_velocity) {
             (_, true) => &[DTHETA_RAD, DVEL_MPS],
             (true, false) => &[DTHETA_RAD],
-            (false, false) => return Ok((Vec::new(), Vec::new(), Vec::new())),
+            (false, false) => return Ok((AngleIncrements::default(), Vec::new(), Vec::new())),
         };
         let Some(imu) = &imu else {
-            return Ok((Vec::new(), Vec::new(), Vec::new()));
+            return Ok((AngleIncrements::default(), Vec::new(), Vec::new()));
         };
-        // Each column's byte streams joined here (split_doubles), else through Arrow.
-        let fast = |name: &str, wanted: bool| -> anyhow::Result<Option<Vec<[f64; 3]>>> {
-            Ok(if wanted {
-                read_split_vec3(imu, name)?
+        // Each column's byte streams joined here (split_doubles), else through Arrow. The
+        // angle increments go to their held form as each page comes
+        // ([`AngleIncrementsBuilder`]: a binary log's in f32, never in f64 first).
+        let fast_angles = || -> anyhow::Result<Option<AngleIncrements>> {
+            if !with_nav {
+                return Ok(Some(AngleIncrements::default()));
+            }
+            let mut angles = AngleIncrementsBuilder::with_room_for(rows);
+            let leaf = format!("{DTHETA_RAD}.list.item");
+            let whole = for_each_split_values::<f64>(imu, &leaf, 3, |_, values| {
+                angles.extend_from_values(values);
+            })?;
+            Ok(whole.then(|| angles.finish()).flatten())
+        };
+        let fast_velocities = || -> anyhow::Result<Option<Vec<[f64; 3]>>> {
+            Ok(if with_velocity {
+                read_split_vec3(imu, DVEL_MPS)?
             } else {
                 Some(Vec::new())
             })
         };
         // Through Arrow, each column sized to the file's rows once; the columns read
         // above come sized to their values (no room taken before the layout is known).
-        let (mut dtheta_rad, mut dvel_mps) =
-            match (fast(DTHETA_RAD, with_nav)?, fast(DVEL_MPS, with_velocity)?) {
-                (Some(angles), Some(velocities)) => (angles, velocities),
-                _ => {
-                    let mut angles = Vec::with_capacity(per_sample(with_nav));
-                    let mut velocities = Vec::with_capacity(per_sample(with_velocity));
-                    for_each_batch_of(imu, names, |b| {
-                        if with_nav {
-                            angles.extend(vec3_column(b, DTHETA_RAD)?);
-                        }
-                        if with_velocity {
-                            velocities.extend(vec3_column(b, DVEL_MPS)?);
-                        }
-                        Ok(())
-                    })?;
-                    (angles, velocities)
-                }
-            };
+        let (mut dtheta_rad, mut dvel_mps) = match (fast_angles()?, fast_velocities()?) {
+            (Some(angles), Some(velocities)) => (angles, velocities),
+            _ => {
+                let mut angles = Vec::with_capacity(per_sample(with_nav));
+                let mut velocities = Vec::with_capacity(per_sample(with_velocity));
+                for_each_batch_of(imu, names, |b| {
+                    if with_nav {
+                        angles.extend(vec3_column(b, DTHETA_RAD)?);
+                    }
+                    if with_velocity {
+                        velocities.extend(vec3_column(b, DVEL_MPS)?);
+                    }
+                    Ok(())
+                })?;
+                (AngleIncrements::compact(angles), velocities)
+            }
+        };
         let repairs = ImuRepairs::read(dir)?;
         if let Some(&k) = repairs.sample.last().filter(|&&k| k >= dtheta_rad.len()) {
             bail!(
@@ -449,7 +473,7 @@ fn load_derived_of(
             );
         }
         let all = 0..dtheta_rad.len();
-        repairs.apply(Increment::Angle, all.clone(), &mut dtheta_rad);
+        repairs.apply_with(Increment::Angle, all.clone(), |k, v| dtheta_rad.set(k, v));
         if with_velocity {
             repairs.apply(Increment::Velocity, all, &mut dvel_mps);
         }
@@ -478,7 +502,7 @@ fn load_derived_of(
         nominal_dt_s: meta(derived_meta::NOMINAL_DT_S)?.parse()?,
         t_s: TimeBase::Nanos(Arc::new(t_s.finish())),
         dt_s: dt_s.into(),
-        dtheta_rad: Arc::new(dtheta_rad.into()),
+        dtheta_rad: Arc::new(dtheta_rad),
         dvel_mps: dvel_mps.into(),
         replaced_increments: replaced,
         odo_dist_m,
@@ -629,6 +653,76 @@ mod tests {
         };
         let batch = table.to_batch(schema::imu(None)).unwrap();
         write_batch(&dir.join(files::IMU), &batch).unwrap();
+    }
+
+    /// A binary log's angle increments (counts of 2⁻²⁶ rad) load in f32, as the derive
+    /// held them, read a page at a time into that form; a repaired sample whose increment
+    /// is not an f32 (the one after a gap, scaled) turns them to f64 as the derive did.
+    /// Bit for bit either way, by byte streams or through Arrow.
+    #[test]
+    fn a_binary_logs_angle_increments_load_in_the_form_the_derive_held() {
+        let lsb = (-26f64).exp2();
+        for with_gap in [false, true] {
+            let mut columns = raw();
+            for v in columns.1.iter_mut().flatten() {
+                *v = (*v / lsb).round() * lsb;
+            }
+            if !with_gap {
+                // No gap, and no saturated count: no increment replaced.
+                for (k, t) in columns.0.iter_mut().enumerate().skip(20_000) {
+                    *t = 1_000_000_000 + k as i64 * 10_000_000;
+                }
+                columns.2[25_000][1] = columns.2[24_999][1];
+            }
+            let (t, dth, dv, ot, od) = &columns;
+            let series = RawSeries {
+                imu_t_ns: t,
+                dtheta_rad: dth,
+                dvel_mps: dv,
+                odo_t_ns: ot.into(),
+                odo_distance_m: od,
+            };
+            let d = derive(&series, &DeriveParams::default(), 9.81);
+            assert_eq!(d.dtheta_rad.is_single(), !with_gap, "gap {with_gap}");
+            let tmp = tempfile::tempdir().unwrap();
+            let stored = StoredDerive {
+                derive_dir: tmp.path().join("derive"),
+                ingest_dir: tmp.path().join("ingest"),
+            };
+            std::fs::create_dir_all(&stored.derive_dir).unwrap();
+            std::fs::create_dir_all(&stored.ingest_dir).unwrap();
+            write_imu(&columns, &stored.ingest_dir);
+            write_derived(&d, &stored.derive_dir).unwrap();
+            let plain = tempfile::tempdir().unwrap();
+            let plain = StoredDerive {
+                derive_dir: plain.path().join("derive"),
+                ingest_dir: plain.path().join("ingest"),
+            };
+            for (from, to) in [
+                (&stored.derive_dir, &plain.derive_dir),
+                (&stored.ingest_dir, &plain.ingest_dir),
+            ] {
+                std::fs::create_dir_all(to).unwrap();
+                for f in std::fs::read_dir(from).unwrap() {
+                    let f = f.unwrap().path();
+                    crate::picked_rows::plain_copy(&f, &to.join(f.file_name().unwrap()));
+                }
+            }
+            for at in [&stored, &plain] {
+                let nav = load_derived_for_navigation(at).unwrap();
+                assert_eq!(nav.dtheta_rad.is_single(), !with_gap, "gap {with_gap}");
+                let bits = |a: &unz_stages::angle_increments::AngleIncrements| {
+                    a.view()
+                        .iter()
+                        .map(|v| v.map(f64::to_bits))
+                        .collect::<Vec<_>>()
+                };
+                assert!(
+                    bits(&nav.dtheta_rad) == bits(&d.dtheta_rad),
+                    "gap {with_gap}"
+                );
+            }
+        }
     }
 
     #[test]
