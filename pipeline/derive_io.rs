@@ -446,7 +446,8 @@ fn load_derived_of(
             })
         };
         // Through Arrow, each column sized to the file's rows once; the columns read
-        // above come sized to their values (no room taken before the layout is known).
+        // above take room only once their layout is known (the velocities sized to their
+        // values, the angles to the derive's rows).
         let (mut dtheta_rad, mut dvel_mps) = match (fast_angles()?, fast_velocities()?) {
             (Some(angles), Some(velocities)) => (angles, velocities),
             _ => {
