@@ -656,6 +656,55 @@ mod tests {
         write_batch(&dir.join(files::IMU), &batch).unwrap();
     }
 
+    /// The derive of the ingested columns `c`.
+    fn derived_of(c: &Columns) -> Derived {
+        let (t, dth, dv, ot, od) = c;
+        let series = RawSeries {
+            imu_t_ns: t,
+            dtheta_rad: dth,
+            dvel_mps: dv,
+            odo_t_ns: ot.into(),
+            odo_distance_m: od,
+        };
+        derive(&series, &DeriveParams::default(), 9.81)
+    }
+
+    /// `c`'s IMU table and its derive `d` stored as the stages store them, in a
+    /// temporary folder (kept as long as the first value is).
+    fn stored(c: &Columns, d: &Derived) -> (tempfile::TempDir, StoredDerive) {
+        let tmp = tempfile::tempdir().unwrap();
+        let stored = StoredDerive {
+            derive_dir: tmp.path().join("derive"),
+            ingest_dir: tmp.path().join("ingest"),
+        };
+        std::fs::create_dir_all(&stored.derive_dir).unwrap();
+        std::fs::create_dir_all(&stored.ingest_dir).unwrap();
+        write_imu(c, &stored.ingest_dir);
+        write_derived(d, &stored.derive_dir).unwrap();
+        (tmp, stored)
+    }
+
+    /// The tables of `stored` copied in Arrow's plain encodings (read through Arrow, not
+    /// by their byte streams), in a temporary folder.
+    fn plain_copy_of(stored: &StoredDerive) -> (tempfile::TempDir, StoredDerive) {
+        let tmp = tempfile::tempdir().unwrap();
+        let plain = StoredDerive {
+            derive_dir: tmp.path().join("derive"),
+            ingest_dir: tmp.path().join("ingest"),
+        };
+        for (from, to) in [
+            (&stored.derive_dir, &plain.derive_dir),
+            (&stored.ingest_dir, &plain.ingest_dir),
+        ] {
+            std::fs::create_dir_all(to).unwrap();
+            for f in std::fs::read_dir(from).unwrap() {
+                let f = f.unwrap().path();
+                crate::picked_rows::plain_copy(&f, &to.join(f.file_name().unwrap()));
+            }
+        }
+        (tmp, plain)
+    }
+
     /// A binary log's angle increments (counts of 2⁻²⁶ rad) load in f32, as the derive
     /// held them, read a page at a time into that form; a repaired sample whose increment
     /// is not an f32 (the one after a gap, scaled) turns them to f64 as the derive did.
@@ -675,40 +724,10 @@ mod tests {
                 }
                 columns.2[25_000][1] = columns.2[24_999][1];
             }
-            let (t, dth, dv, ot, od) = &columns;
-            let series = RawSeries {
-                imu_t_ns: t,
-                dtheta_rad: dth,
-                dvel_mps: dv,
-                odo_t_ns: ot.into(),
-                odo_distance_m: od,
-            };
-            let d = derive(&series, &DeriveParams::default(), 9.81);
+            let d = derived_of(&columns);
             assert_eq!(d.dtheta_rad.is_single(), !with_gap, "gap {with_gap}");
-            let tmp = tempfile::tempdir().unwrap();
-            let stored = StoredDerive {
-                derive_dir: tmp.path().join("derive"),
-                ingest_dir: tmp.path().join("ingest"),
-            };
-            std::fs::create_dir_all(&stored.derive_dir).unwrap();
-            std::fs::create_dir_all(&stored.ingest_dir).unwrap();
-            write_imu(&columns, &stored.ingest_dir);
-            write_derived(&d, &stored.derive_dir).unwrap();
-            let plain = tempfile::tempdir().unwrap();
-            let plain = StoredDerive {
-                derive_dir: plain.path().join("derive"),
-                ingest_dir: plain.path().join("ingest"),
-            };
-            for (from, to) in [
-                (&stored.derive_dir, &plain.derive_dir),
-                (&stored.ingest_dir, &plain.ingest_dir),
-            ] {
-                std::fs::create_dir_all(to).unwrap();
-                for f in std::fs::read_dir(from).unwrap() {
-                    let f = f.unwrap().path();
-                    crate::picked_rows::plain_copy(&f, &to.join(f.file_name().unwrap()));
-                }
-            }
+            let (_tmp, stored) = stored(&columns, &d);
+            let (_plain_tmp, plain) = plain_copy_of(&stored);
             for at in [&stored, &plain] {
                 let nav = load_derived_for_navigation(at).unwrap();
                 assert_eq!(nav.dtheta_rad.is_single(), !with_gap, "gap {with_gap}");
@@ -730,25 +749,10 @@ mod tests {
     fn the_derive_loads_back_whole() {
         let columns = raw();
         let (t, dth, dv, ot, od) = &columns;
-        let series = RawSeries {
-            imu_t_ns: t,
-            dtheta_rad: dth,
-            dvel_mps: dv,
-            odo_t_ns: ot.into(),
-            odo_distance_m: od,
-        };
-        let d = derive(&series, &DeriveParams::default(), 9.81);
+        let d = derived_of(&columns);
         assert!(d.repaired_times == 1 && !d.u_dot_f.is_empty());
         assert_eq!(d.replaced_increments, [20_000, 25_000]);
-        let tmp = tempfile::tempdir().unwrap();
-        let stored = StoredDerive {
-            derive_dir: tmp.path().join("derive"),
-            ingest_dir: tmp.path().join("ingest"),
-        };
-        std::fs::create_dir_all(&stored.derive_dir).unwrap();
-        std::fs::create_dir_all(&stored.ingest_dir).unwrap();
-        write_imu(&columns, &stored.ingest_dir);
-        write_derived(&d, &stored.derive_dir).unwrap();
+        let (_tmp, stored) = stored(&columns, &d);
         // The derive stores its two replaced samples' increments only.
         let (_, repairs) = read_table(&stored.derive_dir.join(files::IMU_REPAIRS)).unwrap();
         assert_eq!(repairs.num_rows(), 2);
@@ -852,21 +856,7 @@ mod tests {
         );
         // The same tables in Arrow's plain encodings (read through Arrow, not by their
         // byte streams), the same.
-        let plain = tempfile::tempdir().unwrap();
-        let plain = StoredDerive {
-            derive_dir: plain.path().join("derive"),
-            ingest_dir: plain.path().join("ingest"),
-        };
-        for (from, to) in [
-            (&stored.derive_dir, &plain.derive_dir),
-            (&stored.ingest_dir, &plain.ingest_dir),
-        ] {
-            std::fs::create_dir_all(to).unwrap();
-            for f in std::fs::read_dir(from).unwrap() {
-                let f = f.unwrap().path();
-                crate::picked_rows::plain_copy(&f, &to.join(f.file_name().unwrap()));
-            }
-        }
+        let (_plain_tmp, plain) = plain_copy_of(&stored);
         assert!(load_derived(&plain).unwrap() == loaded);
         assert!(load_derived_for_navigation(&plain).unwrap() == nav);
         for n in [0, 1, 100, 70_000, 1 << 20] {

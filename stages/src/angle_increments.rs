@@ -130,9 +130,7 @@ impl AngleIncrements {
     /// `values` in `f32` when every one of them is exactly an `f32` (converted in their
     /// own allocation, which then shrinks to half), else as they are.
     pub fn compact(values: Vec<[f64; 3]>) -> Self {
-        // A chunk at a time, each checked whole (a loop the compiler vectorises).
-        let exact = |c: &[[f64; 3]]| c.iter().flatten().fold(true, |ok, &v| ok & fits_f32(v));
-        if values.chunks(1024).all(exact) {
+        if all_fit_f32(bytemuck::cast_slice(&values)) {
             Self::Single(PackedSingles::in_place(values))
         } else {
             Self::Double(values)
