@@ -15,7 +15,7 @@ use unz_stages::simulate::{SensorSpec, SimRun};
 
 /// What the simulator makes of a configuration changes when its code does: bump this with
 /// it, so that [`simulated_before`] does not trust runs of an older simulator.
-const SIMULATOR_VERSION: u32 = 2;
+const SIMULATOR_VERSION: u32 = 3;
 
 /// The marker written last into a simulated run's folder: which configuration made it.
 const MARKER: &str = "simulated.json";

@@ -496,6 +496,31 @@ fn a_block_sent_again_or_logs_joined_over_their_overlap_are_duplicates() {
     }
 }
 
+/// The log at `log` with its recorder's clock set twice while it logged, `seq` running
+/// on: its tags moved `ahead_us` from record 6 000 (60 s) and `then_us` from record
+/// 14 000 (140 s), its marks with the records about them.
+fn set_clock_twice(log: &Path, ahead_us: i64, then_us: i64) {
+    let moved = |t: u64, by: i64| t.checked_add_signed(by).unwrap();
+    let k = std::cell::Cell::new(0_usize);
+    rewrite_imu(log, &|r| {
+        match k.get() {
+            6_000..14_000 => r.t_us = moved(r.t_us, ahead_us),
+            14_000.. => r.t_us = moved(r.t_us, then_us),
+            _ => {}
+        }
+        k.set(k.get() + 1);
+    });
+    let mut stepped = read_log(log);
+    for (at, m) in &mut stepped.marks {
+        match *at {
+            6_001..=14_000 => m.t_us = moved(m.t_us, ahead_us),
+            14_001.. => m.t_us = moved(m.t_us, then_us),
+            _ => {}
+        }
+    }
+    write_log(log, &stepped);
+}
+
 /// A recorder whose clock was set twice while it logged, `seq` running on: 2 s forward at
 /// 60 s, then 3 s back at 140 s (the tags after it 1 s behind the log's start), the
 /// control point's mark after both. The ingest takes both leaps out of the time base (each
@@ -505,7 +530,6 @@ fn a_block_sent_again_or_logs_joined_over_their_overlap_are_duplicates() {
 /// mark after it was a second off the samples.
 #[test]
 fn a_clock_set_while_logging_is_taken_out_of_the_time_base() {
-    use std::cell::Cell;
     use unz_formats::raw::FaultKind;
 
     let tmp = tempfile::tempdir().unwrap();
@@ -516,24 +540,7 @@ fn a_clock_set_while_logging_is_taken_out_of_the_time_base() {
     let log = camp.join("sim-0080/sim-0080.unz");
     let marks = read_log(&log).marks;
     assert!(marks.iter().any(|(at, _)| *at > 14_000), "{marks:?}");
-    let k = Cell::new(0_usize);
-    rewrite_imu(&log, &|r| {
-        match k.get() {
-            6_000..14_000 => r.t_us += 2_000_000,
-            14_000.. => r.t_us -= 1_000_000,
-            _ => {}
-        }
-        k.set(k.get() + 1);
-    });
-    let mut stepped = read_log(&log);
-    for (at, m) in &mut stepped.marks {
-        match *at {
-            6_001..=14_000 => m.t_us += 2_000_000,
-            14_001.. => m.t_us -= 1_000_000,
-            _ => {}
-        }
-    }
-    write_log(&log, &stepped);
+    set_clock_twice(&log, 2_000_000, -1_000_000);
 
     let out = tmp.path().join("o");
     let (code, text) = run(&camp, &out, "disupt");
@@ -1843,4 +1850,54 @@ fn marks_of_ids_no_control_point_has_are_said() {
             )),
         "{row}"
     );
+}
+
+/// A recorder's clock set by a time sync's tens of milliseconds while `seq` ran on (less
+/// than the 10 periods a leap had to be): 50 ms forward at 60 s and 30 ms back at 140 s,
+/// 95 ms each way, 20 ms forward alone, 40 ms back alone, the marks after each on its
+/// clock. Each leap is taken out of the time base (counted, with what they add to the
+/// tags after the last), and `disupt.json` is the undamaged run's byte for byte. Before,
+/// every leap back failed the run's derive (the 6 000 tags after it, each behind the
+/// time repaired before it, "do not increase"), and 20 ms forward scaled one sample's
+/// increments three times as if it closed a gap (the joint azimuth 0.00016° off).
+#[test]
+fn a_clock_set_by_a_time_sync_is_taken_out_of_the_time_base() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = simulated_campaign(&tmp.path().join("c"), 80, 1, 200.0);
+    let clean_out = tmp.path().join("clean");
+    let (code, text) = run(&camp, &clean_out, "disupt");
+    assert_eq!(code, Some(0), "{text}");
+    let clean = std::fs::read(clean_out.join("sim-0080/disupt/disupt.json")).unwrap();
+    let log = camp.join("sim-0080/sim-0080.unz");
+    let undamaged = std::fs::read(&log).unwrap();
+    // µs forward at record 6 000, back at 14 000; the steps; what they add after the last.
+    let syncs: [(i64, i64, u64, f64); 4] = [
+        (50_000, 30_000, 2, -0.02),
+        (95_000, 95_000, 2, 0.0),
+        (20_000, 0, 1, -0.02),
+        (0, 40_000, 1, 0.04),
+    ];
+    for (i, (ahead, back, steps, shift_s)) in syncs.into_iter().enumerate() {
+        let what = format!("{ahead} µs ahead, {back} µs back");
+        std::fs::write(&log, &undamaged).unwrap();
+        set_clock_twice(&log, ahead, ahead - back);
+        let out = tmp.path().join(format!("o{i}"));
+        let (code, text) = run(&camp, &out, "disupt");
+        assert_eq!(code, Some(0), "{what}: {text}");
+        let report: IngestReport = read_json(&out.join("sim-0080/ingest/ingest.json"));
+        assert_eq!(
+            (report.clock_steps, report.lone_tags_off, report.seq_gaps),
+            (steps, 0, 0),
+            "{what}: {report:?}"
+        );
+        assert!(
+            (report.clock_shift_s - shift_s).abs() < 1e-9,
+            "{what}: {report:?}"
+        );
+        let got = std::fs::read(out.join("sim-0080/disupt/disupt.json")).unwrap();
+        assert!(
+            got == clean,
+            "{what}: disupt.json differs from the undamaged run's"
+        );
+    }
 }

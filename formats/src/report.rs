@@ -56,9 +56,11 @@ pub struct IngestReport {
     pub lost_duration_s: f64,
     /// Accepted IMU records whose `t_us` is not after the previous one's.
     pub t_non_increasing: u64,
-    /// Binary logs: times the recorder's clock leapt (forward or back, beyond
-    /// [`crate::raw::TOLERANCE_PERIODS`] sample periods) while `seq` ran on: taken out of
-    /// the time base, each listed in `ingest_events.json` (`clock_ahead`, `clock_back`).
+    /// Binary logs: times the recorder's clock leapt (forward or back, beyond half a
+    /// sample period, or beyond the recorder's jitter times
+    /// [`crate::raw::JITTER_TOLERANCE`] up to [`crate::raw::MAX_TOLERANCE_PERIODS`]
+    /// periods) while `seq` ran on: taken out of the time base, each listed in
+    /// `ingest_events.json` (`clock_ahead`, `clock_back`).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub clock_steps: u64,
     /// Binary logs: what the clock steps add to the tags after the last one, s (negative

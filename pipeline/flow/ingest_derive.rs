@@ -93,7 +93,10 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // recorder's clock leaping (steps and lone tags off taken out, said and listed).
         // 31: a text log's first or last line apart from the others across an interval
         // longer than the derive's `max_gap_s` is reported so, not as lost samples.
-        version: 31,
+        // 32: a binary log's tag off its `seq`'s time by more than half a period (or four
+        // times the recorder's learnt jitter) is a leap, not 10 periods: a time sync's
+        // tens of milliseconds taken out; the period a trimmed mean, not a median.
+        version: 32,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,

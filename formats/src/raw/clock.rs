@@ -16,23 +16,66 @@
 //! clock step, and every later tag (and mark) is moved by the step. Times stay on the
 //! clock of the log's start, the clock of `start_time_us`.
 //!
-//! The period is the median tag step of the log's first [`LEARN_INTERVALS`] one-`seq`
-//! steps (the header's period is not trusted for it): a leap inside them is left to the
-//! derive, as are tags off by less than the tolerance (a recorder's jitter).
+//! The period is the mean tag step of the log's first [`LEARN_INTERVALS`] one-`seq`
+//! steps without their tenth at either end ([`period_us`]; the header's period is not
+//! trusted for it), and the recorder's jitter how far those steps stray from it
+//! ([`jitter_us`]). The tolerance is half a period, or
+//! [`JITTER_TOLERANCE`] times the jitter when that is more (at most
+//! [`MAX_TOLERANCE_PERIODS`] periods): a clock set by a time sync's tens of milliseconds
+//! is a leap, which kept would read as samples lost (a leap forward past half a period:
+//! a sample's increments scaled as if it closed a gap) or as every later tag going back
+//! (a leap back: the derive fails the run). A leap inside the learnt steps is left to the
+//! derive, as are tags off by less than the tolerance (within half a period they move the
+//! time base by less than a sample and stand for no sample lost).
 
-/// One-`seq` tag steps whose median is the period before leaps are looked for.
+/// One-`seq` tag steps whose trimmed mean is the period before leaps are looked for.
 pub const LEARN_INTERVALS: usize = 64;
 
-/// Sample periods a tag may be off its `seq`'s time before it is a leap: 10 periods
-/// (0.1 s at 100 Hz), far beyond a recorder's jitter, far below a clock setting.
-pub const TOLERANCE_PERIODS: i128 = 10;
+/// Times the recorder's jitter (how far its tag steps stray from the period) a tag may
+/// be off its `seq`'s time before it is a leap, when that is more than half a period.
+pub const JITTER_TOLERANCE: i128 = 4;
+
+/// Sample periods a tag may be off its `seq`'s time at the most before it is a leap, how
+/// ever jittery the recorder: 10 (0.1 s at 100 Hz).
+pub const MAX_TOLERANCE_PERIODS: i128 = 10;
 
 /// How far, µs, a tag `seq_step` periods of `period_us` after the record before may be
-/// off that time and still be on the same clock: [`TOLERANCE_PERIODS`] periods, or half
-/// the span across a gap of lost samples (a recorder's rate off by a little adds up over
-/// a long gap).
-pub fn tolerance_us(period_us: i128, seq_step: u64) -> i128 {
-    (TOLERANCE_PERIODS * period_us).max(i128::from(seq_step) * period_us / 2)
+/// off that time and still be on the same clock, for a recorder whose one-`seq` tag
+/// steps stray `jitter_us` from the period: half a period or [`JITTER_TOLERANCE`] times
+/// the jitter, whichever is more, up to [`MAX_TOLERANCE_PERIODS`] periods; across a gap
+/// of lost samples, at least half its span (a recorder's rate off by a little adds up
+/// over a long gap).
+pub fn tolerance_us(period_us: i128, jitter_us: i128, seq_step: u64) -> i128 {
+    let within =
+        (JITTER_TOLERANCE * jitter_us).clamp(period_us / 2, MAX_TOLERANCE_PERIODS * period_us);
+    within.max(i128::from(seq_step) * period_us / 2)
+}
+
+/// The period, µs, of one-`seq` tag steps `steps_us` (sorted in place): their mean
+/// without the tenth at either end (a lone tag off, or a leap, strays one or two steps;
+/// a jitter that repeats in a pattern, which a median takes one of, averages out).
+pub fn period_us(steps_us: &mut [i128]) -> i128 {
+    steps_us.sort_unstable();
+    let cut = steps_us.len() / 10;
+    let kept = &steps_us[cut..steps_us.len() - cut];
+    if kept.is_empty() {
+        return 0;
+    }
+    let n = kept.len() as i128;
+    let sum: i128 = kept.iter().sum();
+    (2 * sum + n).div_euclid(2 * n)
+}
+
+/// The recorder's jitter, µs: how far the one-`seq` tag steps `steps_us` stray from the
+/// period `period_us`, at their 90th percentile (a lone tag off, which strays two steps,
+/// leaves it as the others make it).
+pub fn jitter_us(steps_us: &[i128], period_us: i128) -> i128 {
+    let mut strays: Vec<i128> = steps_us.iter().map(|s| (s - period_us).abs()).collect();
+    if strays.is_empty() {
+        return 0;
+    }
+    let at = (strays.len() * 9 / 10).min(strays.len() - 1);
+    *strays.select_nth_unstable(at).1
 }
 
 /// What the record after an IMU record whose tag was off said of it.
@@ -71,8 +114,11 @@ pub struct RecorderClock {
     /// One-`seq` tag steps seen while the period is learnt, µs.
     learning: Vec<i128>,
     /// The period, µs, once learnt (`None` while learning, or for good when the learnt
-    /// median does not advance: such tags are the derive's to judge).
+    /// mean does not advance: such tags are the derive's to judge).
     period_us: Option<i128>,
+    /// How far a tag one `seq` after the record before may be off that time, µs, once
+    /// the period is learnt: [`tolerance_us`] of the period and the learnt jitter.
+    one_step_tolerance_us: i128,
     /// Whether the period's learning has ended.
     learnt: bool,
     /// Added to the recorded tags: the clock steps so far, µs.
@@ -111,7 +157,11 @@ impl RecorderClock {
             return (clamp(time), None);
         };
         let expected = last_time + i128::from(seq_step) * period;
-        let fits = |time: i128| (time - expected).abs() <= tolerance_us(period, seq_step);
+        // `tolerance_us(period, jitter, seq_step)`, its one-step part learnt once.
+        let tolerance = self
+            .one_step_tolerance_us
+            .max(i128::from(seq_step) * period / 2);
+        let fits = |time: i128| (time - expected).abs() <= tolerance;
         // The record before was off: on the leapt clock this one says the clock stepped;
         // back on the old one (or on neither), that tag alone was off.
         let resolved = self.pending.take().map(|p| {
@@ -179,9 +229,9 @@ impl RecorderClock {
     fn learn(&mut self, step_us: i128) {
         self.learning.push(step_us);
         if self.learning.len() == LEARN_INTERVALS {
-            let mid = LEARN_INTERVALS / 2;
-            let (_, &mut median, _) = self.learning.select_nth_unstable(mid);
-            self.period_us = (median > 0).then_some(median);
+            let period = period_us(&mut self.learning);
+            self.period_us = (period > 0).then_some(period);
+            self.one_step_tolerance_us = tolerance_us(period, jitter_us(&self.learning, period), 1);
             self.learnt = true;
             self.learning = Vec::new();
         }
@@ -249,6 +299,107 @@ mod tests {
                 )
             ]
         );
+    }
+
+    /// A time sync's steps, a fraction of the old 10 periods' tolerance: 30 ms back, 6 ms
+    /// forward (past half a period), each taken out; 4 ms (within half a period) kept.
+    #[test]
+    fn a_clock_set_by_milliseconds_is_taken_out() {
+        let tag = |k: u64| {
+            let t = 1_000_000 + k * T;
+            match k {
+                300..600 => t - 30_000,
+                600..900 => t - 30_000 + 6_000,
+                900.. => t - 30_000 + 6_000 + 4_000,
+                _ => t,
+            }
+        };
+        let (times, said) = feed(1000, tag);
+        assert!(
+            (times.iter().enumerate())
+                .all(|(k, &t)| t == 1_000_000 + k as u64 * T + if k >= 900 { 4_000 } else { 0 }),
+            "{times:?}"
+        );
+        assert_eq!(
+            said,
+            [
+                (
+                    301,
+                    Resolved::Step {
+                        offset: 300,
+                        leap_us: -30_000
+                    }
+                ),
+                (
+                    601,
+                    Resolved::Step {
+                        offset: 600,
+                        leap_us: 6_000
+                    }
+                )
+            ]
+        );
+    }
+
+    /// A recorder's jitter learnt: steps beyond four times it are leaps (20 ms with 2 ms
+    /// of jitter), steps within it are jitter (15 ms with 4.5 ms of jitter, whose
+    /// tolerance is 18 ms: left to the derive, as a leap below 10 periods was before).
+    #[test]
+    fn the_tolerance_follows_the_recorders_jitter() {
+        for (jitter, leap, taken) in [(2_000, 20_000, true), (4_500, 15_000, false)] {
+            let tag = |k: u64| {
+                let shake = [0, jitter, jitter / 2, jitter][(k % 4) as usize];
+                1_000_000 + k * T + shake + if k >= 500 { leap } else { 0 }
+            };
+            let (times, said) = feed(1000, tag);
+            let steps: Vec<_> = said.iter().map(|(_, r)| *r).collect();
+            if taken {
+                // The leap as its record measured it: within the record before's jitter.
+                let [
+                    Resolved::Step {
+                        offset: 500,
+                        leap_us,
+                    },
+                ] = steps[..]
+                else {
+                    panic!("jitter {jitter}: {steps:?}");
+                };
+                assert!((leap_us - i128::from(leap)).abs() <= i128::from(jitter));
+                assert_eq!(i128::from(times[999]), i128::from(tag(999)) - leap_us);
+            } else {
+                assert!(steps.is_empty(), "jitter {jitter}: {steps:?}");
+                assert_eq!(times[999], tag(999));
+            }
+        }
+    }
+
+    /// The jitter is the steps' 90th percentile stray and the period their mean without
+    /// the tenth at either end: a lone tag off (two steps astray) leaves both at what the
+    /// others give.
+    #[test]
+    fn a_lone_tag_off_leaves_the_period_and_jitter_as_the_others_make_them() {
+        let mut steps: Vec<i128> = (0..64).map(|k| 10_000 + [0, 300, -300][k % 3]).collect();
+        assert_eq!(jitter_us(&steps, 10_000), 300);
+        steps[20] += 5_000_000;
+        steps[21] -= 5_000_000;
+        assert_eq!(jitter_us(&steps, 10_000), 300);
+        // The two strays trimmed with a few of the jitter's steps: 6 µs off.
+        assert!((period_us(&mut steps) - 10_000).abs() <= 6);
+        let mut even = vec![10_000_i128; 64];
+        even[20] += 5_000_000;
+        even[21] -= 5_000_000;
+        assert_eq!(period_us(&mut even), 10_000);
+        // A jitter in a pattern: the median step is 11 ms, the period 10.
+        let mut pattern: Vec<i128> = (0..64)
+            .map(|k| [12_000, 9_000, 11_000, 8_000][k % 4])
+            .collect();
+        assert_eq!(period_us(&mut pattern), 10_000);
+        assert_eq!(period_us(&mut []), 0);
+        assert_eq!(jitter_us(&[], 10_000), 0);
+        assert_eq!(tolerance_us(10_000, 0, 1), 5_000);
+        assert_eq!(tolerance_us(10_000, 3_000, 1), 12_000);
+        assert_eq!(tolerance_us(10_000, 1_000_000, 1), 100_000);
+        assert_eq!(tolerance_us(10_000, 0, 301), 1_505_000);
     }
 
     #[test]

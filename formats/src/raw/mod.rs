@@ -27,7 +27,7 @@ mod reader;
 mod record;
 mod writer;
 
-pub use clock::{LEARN_INTERVALS, TOLERANCE_PERIODS};
+pub use clock::{JITTER_TOLERANCE, LEARN_INTERVALS, MAX_TOLERANCE_PERIODS};
 pub use faults::{DamagedLog, RawLog};
 pub use header::{FileHeader, HEADER_LEN, MAGIC};
 pub use reader::{
