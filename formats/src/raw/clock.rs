@@ -402,6 +402,37 @@ mod tests {
         assert_eq!(tolerance_us(10_000, 0, 301), 1_505_000);
     }
 
+    proptest::proptest! {
+        /// Any tags, any `seq` steps (counter resets among them): no panic, no overflow.
+        #[test]
+        fn any_tags_and_steps_are_taken(
+            records in proptest::collection::vec(
+                (proptest::prelude::any::<u64>(), proptest::option::of(1u64..=1 << 32)),
+                0..300,
+            ),
+        ) {
+            let mut clock = RecorderClock::default();
+            for (k, (tag, step)) in (0u64..).zip(records) {
+                clock.imu(tag, step, k);
+                clock.mark(tag);
+            }
+            clock.finish();
+        }
+
+        /// A recorder whose tags jitter by up to an eighth of a period, its clock never
+        /// set: every tag is kept as it is, and nothing is said.
+        #[test]
+        fn a_steady_clock_keeps_its_tags(
+            jitter in proptest::collection::vec(0u64..=T / 8, 100..400),
+        ) {
+            let (times, said) = feed(jitter.len() as u64, |k| 1_000_000 + k * T + jitter[k as usize]);
+            proptest::prop_assert!(said.is_empty(), "{said:?}");
+            for (k, t) in times.iter().enumerate() {
+                proptest::prop_assert_eq!(*t, 1_000_000 + k as u64 * T + jitter[k]);
+            }
+        }
+    }
+
     #[test]
     fn a_lone_tag_off_is_given_its_seqs_time() {
         let tag = |k: u64| match k {
