@@ -496,6 +496,17 @@ fn a_block_sent_again_or_logs_joined_over_their_overlap_are_duplicates() {
     }
 }
 
+/// A campaign in `tmp` of one 200-s simulated run (seed 80), and the `disupt.json` its
+/// undamaged log gives.
+fn clean_200_s_run(tmp: &Path) -> (PathBuf, Vec<u8>) {
+    let camp = simulated_campaign(&tmp.join("c"), 80, 1, 200.0);
+    let clean_out = tmp.join("clean");
+    let (code, text) = run(&camp, &clean_out, "disupt");
+    assert_eq!(code, Some(0), "{text}");
+    let clean = std::fs::read(clean_out.join("sim-0080/disupt/disupt.json")).unwrap();
+    (camp, clean)
+}
+
 /// The log at `log` with its recorder's clock set twice while it logged, `seq` running
 /// on: its tags moved `ahead_us` from record 6 000 (60 s) and `then_us` from record
 /// 14 000 (140 s), its marks with the records about them.
@@ -533,10 +544,7 @@ fn a_clock_set_while_logging_is_taken_out_of_the_time_base() {
     use unz_formats::raw::FaultKind;
 
     let tmp = tempfile::tempdir().unwrap();
-    let camp = simulated_campaign(&tmp.path().join("c"), 80, 1, 200.0);
-    let clean_out = tmp.path().join("clean");
-    let (code, text) = run(&camp, &clean_out, "disupt");
-    assert_eq!(code, Some(0), "{text}");
+    let (camp, clean) = clean_200_s_run(tmp.path());
     let log = camp.join("sim-0080/sim-0080.unz");
     let marks = read_log(&log).marks;
     assert!(marks.iter().any(|(at, _)| *at > 14_000), "{marks:?}");
@@ -583,7 +591,6 @@ fn a_clock_set_while_logging_is_taken_out_of_the_time_base() {
         "{}",
         campaign_row(&out, "sim-0080")
     );
-    let clean = std::fs::read(clean_out.join("sim-0080/disupt/disupt.json")).unwrap();
     let got = std::fs::read(out.join("sim-0080/disupt/disupt.json")).unwrap();
     assert!(got == clean, "disupt.json differs from the undamaged run's");
 }
@@ -1863,11 +1870,7 @@ fn marks_of_ids_no_control_point_has_are_said() {
 #[test]
 fn a_clock_set_by_a_time_sync_is_taken_out_of_the_time_base() {
     let tmp = tempfile::tempdir().unwrap();
-    let camp = simulated_campaign(&tmp.path().join("c"), 80, 1, 200.0);
-    let clean_out = tmp.path().join("clean");
-    let (code, text) = run(&camp, &clean_out, "disupt");
-    assert_eq!(code, Some(0), "{text}");
-    let clean = std::fs::read(clean_out.join("sim-0080/disupt/disupt.json")).unwrap();
+    let (camp, clean) = clean_200_s_run(tmp.path());
     let log = camp.join("sim-0080/sim-0080.unz");
     let undamaged = std::fs::read(&log).unwrap();
     // µs forward at record 6 000, back at 14 000; the steps; what they add after the last.

@@ -39,16 +39,20 @@ pub const JITTER_TOLERANCE: i128 = 4;
 /// ever jittery the recorder: 10 (0.1 s at 100 Hz).
 pub const MAX_TOLERANCE_PERIODS: i128 = 10;
 
+/// How far, µs, a tag one period of `period_us` after the record before may be off that
+/// time and still be on the same clock, for a recorder whose one-`seq` tag steps stray
+/// `jitter_us` from the period: half a period or [`JITTER_TOLERANCE`] times the jitter,
+/// whichever is more, up to [`MAX_TOLERANCE_PERIODS`] periods.
+pub fn one_step_tolerance_us(period_us: i128, jitter_us: i128) -> i128 {
+    (JITTER_TOLERANCE * jitter_us).clamp(period_us / 2, MAX_TOLERANCE_PERIODS * period_us)
+}
+
 /// How far, µs, a tag `seq_step` periods of `period_us` after the record before may be
-/// off that time and still be on the same clock, for a recorder whose one-`seq` tag
-/// steps stray `jitter_us` from the period: half a period or [`JITTER_TOLERANCE`] times
-/// the jitter, whichever is more, up to [`MAX_TOLERANCE_PERIODS`] periods; across a gap
-/// of lost samples, at least half its span (a recorder's rate off by a little adds up
-/// over a long gap).
-pub fn tolerance_us(period_us: i128, jitter_us: i128, seq_step: u64) -> i128 {
-    let within =
-        (JITTER_TOLERANCE * jitter_us).clamp(period_us / 2, MAX_TOLERANCE_PERIODS * period_us);
-    within.max(i128::from(seq_step) * period_us / 2)
+/// off that time and still be on the same clock: `one_step_us`
+/// ([`one_step_tolerance_us`]), or across a gap of lost samples at least half its span
+/// (a recorder's rate off by a little adds up over a long gap).
+pub fn tolerance_us(one_step_us: i128, period_us: i128, seq_step: u64) -> i128 {
+    one_step_us.max(i128::from(seq_step) * period_us / 2)
 }
 
 /// The period, µs, of one-`seq` tag steps `steps_us` (sorted in place): their mean
@@ -117,7 +121,7 @@ pub struct RecorderClock {
     /// mean does not advance: such tags are the derive's to judge).
     period_us: Option<i128>,
     /// How far a tag one `seq` after the record before may be off that time, µs, once
-    /// the period is learnt: [`tolerance_us`] of the period and the learnt jitter.
+    /// the period is learnt ([`one_step_tolerance_us`] of the period and the learnt jitter).
     one_step_tolerance_us: i128,
     /// Whether the period's learning has ended.
     learnt: bool,
@@ -157,10 +161,7 @@ impl RecorderClock {
             return (clamp(time), None);
         };
         let expected = last_time + i128::from(seq_step) * period;
-        // `tolerance_us(period, jitter, seq_step)`, its one-step part learnt once.
-        let tolerance = self
-            .one_step_tolerance_us
-            .max(i128::from(seq_step) * period / 2);
+        let tolerance = tolerance_us(self.one_step_tolerance_us, period, seq_step);
         let fits = |time: i128| (time - expected).abs() <= tolerance;
         // The record before was off: on the leapt clock this one says the clock stepped;
         // back on the old one (or on neither), that tag alone was off.
@@ -231,7 +232,8 @@ impl RecorderClock {
         if self.learning.len() == LEARN_INTERVALS {
             let period = period_us(&mut self.learning);
             self.period_us = (period > 0).then_some(period);
-            self.one_step_tolerance_us = tolerance_us(period, jitter_us(&self.learning, period), 1);
+            self.one_step_tolerance_us =
+                one_step_tolerance_us(period, jitter_us(&self.learning, period));
             self.learnt = true;
             self.learning = Vec::new();
         }
@@ -396,10 +398,11 @@ mod tests {
         assert_eq!(period_us(&mut pattern), 10_000);
         assert_eq!(period_us(&mut []), 0);
         assert_eq!(jitter_us(&[], 10_000), 0);
-        assert_eq!(tolerance_us(10_000, 0, 1), 5_000);
-        assert_eq!(tolerance_us(10_000, 3_000, 1), 12_000);
-        assert_eq!(tolerance_us(10_000, 1_000_000, 1), 100_000);
-        assert_eq!(tolerance_us(10_000, 0, 301), 1_505_000);
+        assert_eq!(one_step_tolerance_us(10_000, 0), 5_000);
+        assert_eq!(one_step_tolerance_us(10_000, 3_000), 12_000);
+        assert_eq!(one_step_tolerance_us(10_000, 1_000_000), 100_000);
+        assert_eq!(tolerance_us(5_000, 10_000, 1), 5_000);
+        assert_eq!(tolerance_us(5_000, 10_000, 301), 1_505_000);
     }
 
     proptest::proptest! {
