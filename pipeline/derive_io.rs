@@ -153,8 +153,8 @@ pub fn write_derived(d: &Derived, dir: &Path) -> anyhow::Result<()> {
 
 /// `d` as [`load_derived`] gives it back after [`write_derived`]: the times are stored
 /// in whole nanoseconds, so the ones that are not (a repaired sample's, the epochs') come
-/// back within half of one. A stage handed the derive in memory then computes exactly
-/// what it computes from the cache.
+/// back within half of one, and the first sample out of range is not stored. A stage
+/// handed the derive in memory then computes exactly what it computes from the cache.
 pub fn as_stored(mut d: Derived) -> Derived {
     let t0_ns = d.t_s.first().map_or(0, |t| d.ns_of(t));
     let epoch_t_ns = d.epoch_t_ns();
@@ -167,6 +167,8 @@ pub fn as_stored(mut d: Derived) -> Derived {
         .map(|t| (t - t0_ns) as f64 * 1e-9)
         .collect();
     d.t0_ns = t0_ns;
+    // Not stored: what only a failing derive names.
+    d.first_out_of_range = None;
     d
 }
 
@@ -774,6 +776,9 @@ mod tests {
             assert!((a - b).abs() <= 0.5e-9, "epoch at {b} s loads as {a} s");
         }
         same_times.epochs.t_s.clone_from(&d.epochs.t_s);
+        // Not stored: what only a failing derive names.
+        assert_eq!(same_times.first_out_of_range, None);
+        same_times.first_out_of_range = d.first_out_of_range;
         // Field by field first, so that a failure names the field, not the whole run.
         macro_rules! same {
             ($($f:ident).+) => {

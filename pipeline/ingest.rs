@@ -39,6 +39,7 @@ use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
 use unz_formats::{IngestEvents, IngestReport, schema};
 use unz_stages::imu_axes::ImuAxes;
 use unz_stages::imu_mounting;
+use unz_stages::lost_samples::SeqSteps;
 
 /// The most control-point marks a binary log may hold (a 12-hour run marking a point a
 /// minute holds 720): a log with more fails its run. Each is held in order among the
@@ -93,6 +94,8 @@ pub struct IngestOutcome {
 pub struct WrittenSeries {
     /// The IMU's series (`seq` left empty).
     pub imu: ImuTable,
+    /// Where the IMU's `seq` stepped by more than one (what the derive reads of it).
+    pub seq_steps: SeqSteps,
     /// The odometer's series (`pulses` and `source` left empty).
     pub odometer: OdometerTable,
 }
@@ -103,6 +106,7 @@ impl WrittenSeries {
     fn with_room_for(rows: usize) -> Self {
         Self {
             imu: ImuTable::with_series_capacity(rows),
+            seq_steps: SeqSteps::default(),
             odometer: OdometerTable::with_series_capacity(rows),
         }
     }
@@ -113,6 +117,7 @@ impl WrittenSeries {
         self.imu.dtheta_rad.extend_from_slice(&rows.dtheta_rad);
         self.imu.dvel_mps.extend_from_slice(&rows.dvel_mps);
         self.imu.status.extend_from_slice(&rows.status);
+        self.seq_steps.extend(rows.seq.iter().copied());
     }
 
     /// Appends the series columns of odometer rows about to be written.

@@ -216,7 +216,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // 22: a speed held through the stand while the drive reads 0 at its stops failed
         // (a run that went "ok" with its static start cut at once is re-derived, and
         // fails).
-        version: 22,
+        // 23: a binary log's lost samples told by its `seq`: a tag late within the
+        // recorder's jitter (past half a period) is no gap filled.
+        version: 23,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
@@ -239,7 +241,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         };
         let counts = raw.failure_counts();
         let overlap = raw.odometer_overlap(params.derive.odo_time_offset_s);
-        let mut d = raw.derive(&params.derive, site_gravity_mps2(m));
+        let mut d = raw.derive(&params.derive, site_gravity_mps2(m), m.format);
         (d.imu_failure_samples, d.odometer_failure_samples) = counts;
         // A run whose odometer failed over much of it (flagged, or a count that stood
         // while the vehicle moved) has no dead reckoning worth correcting; a short
@@ -321,8 +323,8 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // A corrupt sample that passed the CRC (a 2^-16 chance per damaged frame) or a
         // saturated one is replaced and counted; many are a broken instrument or log.
         if d.out_of_range_samples * 100 > d.t_s.len() {
-            // Where: the first (the ingested increments read again, on this path only).
-            let first = ingested::first_out_of_range(&ingest_dir, &d);
+            // Where: the first.
+            let first = d.first_out_of_range;
             bail!(
                 "{} of {} IMU samples exceed the IMU's range ({:.0} °/s, {:.0} m/s²): saturated \
                  or corrupt increments, or increments not in radians and m/s (degrees?){}",

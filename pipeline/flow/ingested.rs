@@ -5,16 +5,17 @@ use std::path::Path;
 
 use anyhow::bail;
 use arrow::array::RecordBatch;
-use arrow::datatypes::UInt16Type;
+use arrow::datatypes::{UInt16Type, UInt64Type};
 use unz_formats::error::FormatError;
+use unz_formats::manifest::LogFormat;
 use unz_formats::parquet_io::{for_each_batch, for_each_batch_of, row_capacity_hint};
+use unz_formats::raw::MAX_TOLERANCE_PERIODS;
 use unz_formats::schema;
 use unz_formats::schema::DistanceSource;
 use unz_formats::split_doubles::{read_split_doubles, read_split_vec3};
-use unz_formats::tables::{
-    ImuTable, OdometerTable, f64_column, i64_column, u8_column, values_of, vec3_values,
-};
+use unz_formats::tables::{ImuTable, OdometerTable, f64_column, i64_column, u8_column, values_of};
 use unz_stages::derive::{DeriveParams, Derived, IncrementTimes, RawSeries, derive_owned};
+use unz_stages::lost_samples::{LostSamples, SeqStep, SeqSteps};
 use unz_stages::odo_rebridge::FailedRows;
 use unz_stages::time_base::TagTimes;
 
@@ -140,6 +141,8 @@ fn extend_failed(
 /// The ingested IMU and odometer tables: what derive reads.
 pub struct IngestedSeries {
     imu: ImuTable,
+    /// Where the IMU's `seq` stepped by more than one.
+    seq_steps: Vec<SeqStep>,
     odo: OdometerTable,
 }
 
@@ -158,7 +161,8 @@ pub struct OdometerOverlap {
 
 impl IngestedSeries {
     /// Loads `imu.parquet` and `odometer.parquet` of an ingest folder: the columns derive
-    /// reads (not the IMU's sequence numbers nor the odometer's pulse counts).
+    /// reads (of the IMU's sequence numbers, only where they step by more than one; not
+    /// the odometer's pulse counts).
     pub fn load(ingest_dir: &Path) -> anyhow::Result<Self> {
         let path = ingest_dir.join(files::IMU);
         let imu = match load_imu_split(&path)? {
@@ -170,7 +174,12 @@ impl IngestedSeries {
                 ImuTable::extend_series_from_batch,
             )?,
         };
-        Self::checked(imu, Self::load_odometer(ingest_dir)?)
+        let mut seq_steps = SeqSteps::default();
+        for_each_batch_of(&path, &[schema::SEQ], |b| {
+            seq_steps.extend(values_of::<UInt64Type>(b, schema::SEQ)?.iter().copied());
+            Ok(())
+        })?;
+        Self::checked(imu, seq_steps.finish(), Self::load_odometer(ingest_dir)?)
     }
 
     /// The series an ingest kept as it wrote them ([`WrittenSeries`]): what
@@ -179,15 +188,20 @@ impl IngestedSeries {
         if written.odometer.is_empty() {
             bail!(NO_ODOMETER);
         }
-        Self::checked(written.imu, written.odometer)
+        let seq_steps = written.seq_steps.finish();
+        Self::checked(written.imu, seq_steps, written.odometer)
     }
 
     /// The tables, unless the IMU's is empty.
-    fn checked(imu: ImuTable, odo: OdometerTable) -> anyhow::Result<Self> {
+    fn checked(imu: ImuTable, seq_steps: Vec<SeqStep>, odo: OdometerTable) -> anyhow::Result<Self> {
         if imu.is_empty() {
             bail!("the raw log has no IMU record");
         }
-        Ok(Self { imu, odo })
+        Ok(Self {
+            imu,
+            seq_steps,
+            odo,
+        })
     }
 
     /// Loads `odometer.parquet` of an ingest folder alone, its times and distances (all a
@@ -316,7 +330,10 @@ impl IngestedSeries {
     /// Derives the run, the IMU's increments repaired in place and its time tags made its
     /// times in place (no copy of the run's length): [`derive_owned`]. The odometer's
     /// table goes once its increments are taken, before the samples' intervals are made.
-    pub fn derive(self, params: &DeriveParams, g_mps2: f64) -> Derived {
+    /// A binary log's samples that close a stretch of lost ones are told by its `seq`
+    /// (a tag late within the recorder's jitter is none), a text log's by the tags'
+    /// intervals ([`LostSamples`]).
+    pub fn derive(self, params: &DeriveParams, g_mps2: f64, format: LogFormat) -> Derived {
         // The status flags are counted already (failure_counts), the sequence numbers not
         // read: they go now.
         let ImuTable {
@@ -327,6 +344,13 @@ impl IngestedSeries {
             status,
         } = self.imu;
         drop((seq, status));
+        let lost = match format {
+            LogFormat::UnzBinary => LostSamples::BySeq {
+                steps: self.seq_steps,
+                longest_one_step_periods: ONE_STEP_PERIODS_KEPT,
+            },
+            LogFormat::KfGins => LostSamples::ByInterval,
+        };
         let odo = self.odo;
         let increments = move |at: IncrementTimes<'_>| {
             at.of(&RawSeries {
@@ -342,11 +366,16 @@ impl IngestedSeries {
             dtheta_rad,
             dvel_mps,
             increments,
+            &lost,
             params,
             g_mps2,
         )
     }
 }
+
+/// The longest interval, in periods, between two tags the reader's clock kept one `seq`
+/// apart: each within [`MAX_TOLERANCE_PERIODS`] of its `seq`'s time.
+const ONE_STEP_PERIODS_KEPT: f64 = (1 + 2 * MAX_TOLERANCE_PERIODS) as f64;
 
 /// The first row of the ingest's `imu.parquet` (in `ingest_dir`) that `first` finds in a
 /// batch of its `columns` (given with the batch's first row): read a batch at a time,
@@ -405,30 +434,6 @@ pub fn first_time_not_increasing(t_ns: &[i64], nominal_s: f64) -> Option<usize> 
         prev_t_s = t_s(k);
     }
     None
-}
-
-/// The first IMU sample of an ingest whose increments `d` (its derive) replaced as beyond
-/// the IMU's range ([`unz_stages::derive::replaced_as_out_of_range`]), the increments read
-/// a batch at a time.
-pub fn first_out_of_range(ingest_dir: &Path, d: &Derived) -> Option<usize> {
-    let replaced = &d.replaced_increments;
-    let columns = [schema::DTHETA_RAD, schema::DVEL_MPS];
-    first_imu_row(ingest_dir, &columns, |b, row| {
-        let rows = row..row + b.num_rows();
-        let from = replaced.partition_point(|k| *k < rows.start);
-        let here: Vec<usize> = (replaced[from..].iter().copied())
-            .take_while(|k| rows.contains(k))
-            .collect();
-        if here.is_empty() {
-            return Ok(None);
-        }
-        let dtheta = vec3_values(b, schema::DTHETA_RAD)?;
-        let dvel = vec3_values(b, schema::DVEL_MPS)?;
-        let out_of_range = |k: usize| {
-            unz_stages::derive::replaced_as_out_of_range(d, k, dtheta[k - row], dvel[k - row])
-        };
-        Ok(here.into_iter().find(|&k| out_of_range(k)))
-    })
 }
 
 #[cfg(test)]

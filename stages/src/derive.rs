@@ -19,6 +19,7 @@ use either::Either;
 
 use crate::angle_increments::{AngleIncrements, AngleSlice, Increment3};
 use crate::filter::{FilterParams, LowPass};
+use crate::lost_samples::LostSamples;
 use crate::nth_smallest::median;
 use crate::time_base::{TagIter, TagTimes, TagsFrom, TimeBase, Times};
 
@@ -132,7 +133,9 @@ pub struct Derived {
     /// not copied, between a derive and its re-derives at other odometer timings: only
     /// the odometer's part differs.
     pub t_s: TimeBase,
-    /// Per sample: interval, s.
+    /// Per sample: the interval its increments were integrated over, s (a text log's:
+    /// from the time before; a binary log's: its `seq` step times the nominal period,
+    /// the IMU's, whatever a recorder's jittering tags say: [`LostSamples`]).
     pub dt_s: Arc<Vec<f64>>,
     /// Per sample: angle increments, rad (lost stretches filled by holding the rate), in
     /// f32 when every value is one exactly ([`AngleIncrements`]).
@@ -176,6 +179,8 @@ pub struct Derived {
     /// [`ACCEL_RANGE_MPS2`]): saturated or corrupt counts, replaced by the previous
     /// sample's rates.
     pub out_of_range_samples: usize,
+    /// The first of those (not stored: what a failing derive names).
+    pub first_out_of_range: Option<usize>,
     /// What the increments say of the IMU's axes against the vehicle's (gravity's
     /// direction, the odometer's accelerations): set by the derive stage, which fails a
     /// log whose axes are not the vehicle's.
@@ -214,33 +219,6 @@ pub fn increments_in_range(dtheta_rad: [f64; 3], dvel_mps: [f64; 3], dt_s: f64) 
     norm(dtheta_rad) <= GYRO_RANGE_RAD_S * dt_s && norm(dvel_mps) <= ACCEL_RANGE_MPS2 * dt_s
 }
 
-/// What a sample's increments are scaled by: a sample that closes a gap (an interval
-/// `dt_s` over 1.5 nominal ones) holds the rate over it; any other, 1.
-fn gap_scale(dt_s: f64, nominal_dt_s: f64) -> f64 {
-    if dt_s > 1.5 * nominal_dt_s {
-        dt_s / nominal_dt_s
-    } else {
-        1.0
-    }
-}
-
-/// Whether sample `k`, one `d`'s derive replaced, was replaced as beyond the IMU's range
-/// (not only scaled to its gap), given the increments it was derived from.
-pub fn replaced_as_out_of_range(
-    d: &Derived,
-    k: usize,
-    dtheta_rad: [f64; 3],
-    dvel_mps: [f64; 3],
-) -> bool {
-    let dt = d.dt_s[k];
-    let scale = gap_scale(dt, d.nominal_dt_s);
-    !increments_in_range(
-        dtheta_rad.map(|v| v * scale),
-        dvel_mps.map(|v| v * scale),
-        dt,
-    )
-}
-
 impl Derived {
     /// This derive without its odometer's part (its increments, block series and epochs
     /// left empty) — what a re-derive at another odometer timing starts from and fills,
@@ -268,6 +246,7 @@ impl Derived {
             imu_failure_samples: self.imu_failure_samples,
             odometer_failure_samples: self.odometer_failure_samples,
             out_of_range_samples: self.out_of_range_samples,
+            first_out_of_range: self.first_out_of_range,
             axes_check: self.axes_check,
             odometer_clock: self.odometer_clock,
             segments: self.segments.for_other_odometer(),
@@ -769,6 +748,7 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
         raw.dtheta_rad.to_vec(),
         raw.dvel_mps.to_vec(),
         |at| at.of(raw),
+        &LostSamples::ByInterval,
         params,
         g_mps2,
     )
@@ -780,12 +760,14 @@ pub fn derive(raw: &RawSeries<'_>, params: &DeriveParams, g_mps2: f64) -> Derive
 /// length is made). The IMU's time tags, when given by value too, become its times in
 /// place. The odometer is read once, by `increments_over` (its increments over the
 /// samples: [`IncrementTimes::of`]), before the samples' intervals are made: an odometer
-/// it owns goes when it returns.
+/// it owns goes when it returns. `lost` tells the samples that close a stretch of lost
+/// ones (by the tags' intervals, or by a binary log's `seq`: [`LostSamples`]).
 pub fn derive_owned(
     imu_t_ns: std::borrow::Cow<'_, [i64]>,
     mut dtheta_rad: Vec<[f64; 3]>,
     mut dvel_mps: Vec<[f64; 3]>,
     increments_over: impl FnOnce(IncrementTimes<'_>) -> Vec<f64>,
+    lost: &LostSamples,
     params: &DeriveParams,
     g_mps2: f64,
 ) -> Derived {
@@ -806,7 +788,11 @@ pub fn derive_owned(
             .filter(|&d| d > 0)
             .map(|d| d as u64)
     };
-    let nominal = median(intervals_ns).map_or(0.01, |d| d as f64 * 1e-9);
+    // A binary log's: the tags' mean step per `seq` step, which a recorder's jitter does
+    // not move.
+    let nominal = median(intervals_ns)
+        .map(|d| lost.period_ns(&imu_t_ns[..n], d))
+        .map_or(0.01, |d| d as f64 * 1e-9);
     // A first sample apart from the rest takes its time one interval before the second's.
     let first_apart = first_sample_apart(&imu_t_ns[..n], params.max_gap_s);
     let t0 = if first_apart {
@@ -851,14 +837,16 @@ pub fn derive_owned(
         offset_s: params.odo_time_offset_s,
     });
 
-    // Lost stretches filled by holding the rate; increments beyond the instrument's range
-    // replaced by the previous sample's rates.
+    // Lost stretches filled by holding the rate and each sample's interval (told by
+    // `lost`); increments beyond the instrument's range replaced by the previous sample's
+    // rates.
     let mut prev_t = -nominal;
     let mut prev_rates = ([0.0; 3], [0.0; 3]);
     let mut dt_s = Vec::with_capacity(n);
+    let mut scales = lost.scales();
     for (k, &t) in t_s.iter().enumerate() {
-        let dt = t - prev_t;
-        let scale = gap_scale(dt, nominal);
+        let closed = scales.of(k, t - prev_t, nominal);
+        let (scale, dt) = (closed.samples, closed.dt_s);
         if scale != 1.0 {
             out.filled_gaps += 1;
         }
@@ -866,6 +854,7 @@ pub fn derive_owned(
         let mut dv = dvel_mps[k].map(|v| v * scale);
         let replaced = if !increments_in_range(dth, dv, dt) {
             out.out_of_range_samples += 1;
+            out.first_out_of_range.get_or_insert(k);
             dth = prev_rates.0.map(|w| w * dt);
             dv = prev_rates.1.map(|a| a * dt);
             true
@@ -1714,17 +1703,6 @@ mod tests {
         v.iter().map(|x| x.to_bits()).collect()
     }
 
-    /// The first sample `d`'s derive replaced as beyond the IMU's range, given the
-    /// increments it was derived from (what the pipeline finds a batch at a time).
-    fn first_out_of_range(
-        d: &Derived,
-        dtheta_rad: &[[f64; 3]],
-        dvel_mps: &[[f64; 3]],
-    ) -> Option<usize> {
-        (d.replaced_increments.iter().copied())
-            .find(|&k| replaced_as_out_of_range(d, k, dtheta_rad[k], dvel_mps[k]))
-    }
-
     /// The samples the derive lists as replaced are exactly those whose increments are
     /// not the ingested ones, bit for bit: a gap closed (scaled), a saturated gyro and a
     /// NaN accelerometer count (held at the rates before), a tag going back (its time
@@ -1761,10 +1739,11 @@ mod tests {
         assert_eq!(differs, [5_000, 12_000, 15_000]);
         // The first replaced as beyond the range (not the gaps before it); with the
         // saturated gyro within range, the NaN accelerometer.
-        assert_eq!(first_out_of_range(&d, &columns.1, &columns.2), Some(12_000));
-        let mut within = columns.1.clone();
-        within[12_000][1] = 1e-4;
-        assert_eq!(first_out_of_range(&d, &within, &columns.2), Some(15_000));
+        assert_eq!(d.first_out_of_range, Some(12_000));
+        let mut within = columns.clone();
+        within.1[12_000][1] = 1e-4;
+        let d_within = derive(&series(&within), &DeriveParams::default(), 9.81);
+        assert_eq!(d_within.first_out_of_range, Some(15_000));
         assert_eq!(
             (d.dtheta_rad.get(9_000), d.dvel_mps[9_000]),
             ([0.0; 3], [0.0; 3])
@@ -1955,6 +1934,7 @@ mod tests {
                 odometer_reads += 1;
                 at.of(&series(&columns))
             },
+            &LostSamples::ByInterval,
             &params,
             9.81,
         );
@@ -1995,6 +1975,7 @@ mod tests {
             columns.1.clone(),
             columns.2.clone(),
             |at| at.of(&series(&shifted)),
+            &LostSamples::ByInterval,
             &params,
             9.81,
         );

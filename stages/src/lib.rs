@@ -30,6 +30,7 @@ pub mod imu_mounting;
 pub mod in_motion_level;
 pub mod initial;
 pub mod linearized;
+pub mod lost_samples;
 pub mod nth_smallest;
 pub mod odo_bridge;
 pub mod odo_clock;
