@@ -216,8 +216,10 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // 22: a speed held through the stand while the drive reads 0 at its stops failed
         // (a run that went "ok" with its static start cut at once is re-derived, and
         // fails).
-        // 23: a binary log's lost samples told by its `seq`: a tag late within the
-        // recorder's jitter (past half a period) is no gap filled.
+        // 23: a binary log's samples told by its `seq`: a sample's interval is its `seq`
+        // step times the period (the tags' mean step per `seq` step), not its tags'
+        // jittering interval, and a tag late within the recorder's jitter (past half a
+        // period) is no gap filled.
         version: 23,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,

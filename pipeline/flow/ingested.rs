@@ -334,8 +334,8 @@ impl IngestedSeries {
     /// (a tag late within the recorder's jitter is none), a text log's by the tags'
     /// intervals ([`LostSamples`]).
     pub fn derive(self, params: &DeriveParams, g_mps2: f64, format: LogFormat) -> Derived {
-        // The status flags are counted already (failure_counts), the sequence numbers not
-        // read: they go now.
+        // The status flags are counted already (failure_counts), and what the derive reads
+        // of the sequence numbers is `seq_steps`: they go now.
         let ImuTable {
             t_ns,
             seq,
