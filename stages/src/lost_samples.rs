@@ -275,4 +275,57 @@ mod tests {
         first_leapt[0] += 1_000_000_000;
         assert_eq!(rule.period_ns(&first_leapt, median_ns), 10_000_000);
     }
+
+    proptest::proptest! {
+        /// Any recorder jittering by up to 40 % of a 10-ms period, losing stretches of up
+        /// to 5 samples now and then: the period by `seq` is within the two ends' jitter
+        /// over the log's periods of the true one, and the samples' intervals sum to the
+        /// periods `seq` counts, each the period times its step; the late tags fill no gap.
+        #[test]
+        fn a_jittering_recorder_with_lost_stretches_keeps_its_period(
+            jitter_ns in proptest::collection::vec(-4_000_000_i64..=4_000_000, 50..400),
+            lost in proptest::collection::vec(0_u64..=5, 50..400),
+        ) {
+            const PERIOD_NS: i64 = 10_000_000;
+            let n = jitter_ns.len().min(lost.len());
+            let mut seq = 0_u64;
+            let (mut tags, mut seqs) = (Vec::with_capacity(n), Vec::with_capacity(n));
+            for k in 0..n {
+                // A stretch lost before one sample in seven.
+                if k > 0 && k % 7 == 0 {
+                    seq += lost[k];
+                }
+                tags.push(seq as i64 * PERIOD_NS + jitter_ns[k]);
+                seqs.push(seq);
+                seq += 1;
+            }
+            let mut steps = SeqSteps::default();
+            steps.extend(seqs.iter().copied());
+            let rule = LostSamples::BySeq {
+                steps: steps.finish(),
+                longest_one_step_periods: 21.0,
+            };
+            let mut sorted: Vec<i64> = tags.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0).collect();
+            sorted.sort_unstable();
+            let median_ns = sorted[sorted.len() / 2] as u64;
+            let period_ns = rule.period_ns(&tags, median_ns) as i64;
+            let spans = (seqs[n - 1] - seqs[0]) as i64;
+            proptest::prop_assert!(
+                (period_ns - PERIOD_NS).abs() <= 8_000_000 / spans + 1,
+                "period {period_ns} ns over {spans} periods"
+            );
+            let nominal_s = period_ns as f64 * 1e-9;
+            let mut scales = rule.scales();
+            let mut samples = 0.0;
+            for k in 1..n {
+                let interval_s = (tags[k] - tags[k - 1]) as f64 * 1e-9;
+                let c = scales.of(k, interval_s, nominal_s);
+                let step = (seqs[k] - seqs[k - 1]) as f64;
+                proptest::prop_assert_eq!(c.samples, step);
+                proptest::prop_assert!((c.dt_s - step * nominal_s).abs() <= 1e-15);
+                samples += c.samples;
+            }
+            proptest::prop_assert_eq!(samples, spans as f64);
+        }
+    }
 }
