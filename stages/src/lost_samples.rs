@@ -41,9 +41,9 @@ impl LostSamples {
     /// The sample period, ns, given the tags (ns) and the median of their positive
     /// steps. By the intervals, that median. By `seq`, the tags' mean step per `seq`
     /// step over the log (a counter reset's pause and a first or last tag apart left
-    /// out), which the recorder's jitter does not move: a median of jittering steps is off by about the jitter over the
-    /// root of the samples' count (1 µs in 10 ms over a 200-s run with ±2.5 ms of it),
-    /// and every interval with it.
+    /// out), which the recorder's jitter does not move: a median of jittering steps is
+    /// off by about the jitter over the root of the samples' count (1 µs in 10 ms over a
+    /// 200-s run with ±2.5 ms of it), and every interval with it.
     pub fn period_ns(&self, tags_ns: &[i64], median_ns: u64) -> u64 {
         let LostSamples::BySeq {
             steps,
@@ -57,6 +57,7 @@ impl LostSamples {
         let mut next = steps.iter().peekable();
         for (k, w) in tags_ns.windows(2).enumerate() {
             let interval_ns = i128::from(w[1]) - i128::from(w[0]);
+            while next.next_if(|s| s.sample < k + 1).is_some() {}
             let step = next.next_if(|s| s.sample == k + 1).map_or(1, |s| s.step);
             // An interval either way longer than a kept tag's from the one before (a
             // counter reset's pause; a first or last tag apart) says nothing of the
