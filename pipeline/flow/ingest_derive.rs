@@ -137,7 +137,7 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         ctx.set_ingested(
             outcome
                 .series
-                .map(IngestedSeries::from_written)
+                .map(|written| IngestedSeries::from_written(written, ctx.manifest.format))
                 .transpose()?,
         );
         Ok(())
@@ -239,11 +239,11 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         ctx.set_derived(None);
         let raw = match written {
             Some(series) => series,
-            None => IngestedSeries::load(&ingest_dir)?,
+            None => IngestedSeries::load(&ingest_dir, m.format)?,
         };
         let counts = raw.failure_counts();
         let overlap = raw.odometer_overlap(params.derive.odo_time_offset_s);
-        let mut d = raw.derive(&params.derive, site_gravity_mps2(m), m.format);
+        let mut d = raw.derive(&params.derive, site_gravity_mps2(m));
         (d.imu_failure_samples, d.odometer_failure_samples) = counts;
         // A run whose odometer failed over much of it (flagged, or a count that stood
         // while the vehicle moved) has no dead reckoning worth correcting; a short

@@ -15,7 +15,7 @@ use unz_formats::schema::DistanceSource;
 use unz_formats::split_doubles::{read_split_doubles, read_split_vec3};
 use unz_formats::tables::{ImuTable, OdometerTable, f64_column, i64_column, u8_column, values_of};
 use unz_stages::derive::{DeriveParams, Derived, IncrementTimes, RawSeries, derive_owned};
-use unz_stages::lost_samples::{LostSamples, SeqStep, SeqSteps};
+use unz_stages::lost_samples::{LostSamples, SeqSteps};
 use unz_stages::odo_rebridge::FailedRows;
 use unz_stages::time_base::TagTimes;
 
@@ -141,8 +141,8 @@ fn extend_failed(
 /// The ingested IMU and odometer tables: what derive reads.
 pub struct IngestedSeries {
     imu: ImuTable,
-    /// Where the IMU's `seq` stepped by more than one.
-    seq_steps: Vec<SeqStep>,
+    /// How the derive tells the samples that close a stretch of lost ones.
+    lost: LostSamples,
     odo: OdometerTable,
 }
 
@@ -160,10 +160,10 @@ pub struct OdometerOverlap {
 }
 
 impl IngestedSeries {
-    /// Loads `imu.parquet` and `odometer.parquet` of an ingest folder: the columns derive
-    /// reads (of the IMU's sequence numbers, only where they step by more than one; not
-    /// the odometer's pulse counts).
-    pub fn load(ingest_dir: &Path) -> anyhow::Result<Self> {
+    /// Loads `imu.parquet` and `odometer.parquet` of an ingest folder, a log of `format`:
+    /// the columns derive reads (of a binary log's sequence numbers, only where they step
+    /// by more than one; not the odometer's pulse counts).
+    pub fn load(ingest_dir: &Path, format: LogFormat) -> anyhow::Result<Self> {
         let path = ingest_dir.join(files::IMU);
         let imu = match load_imu_split(&path)? {
             Some(imu) => imu,
@@ -174,34 +174,34 @@ impl IngestedSeries {
                 ImuTable::extend_series_from_batch,
             )?,
         };
-        let mut seq_steps = SeqSteps::default();
-        for_each_batch_of(&path, &[schema::SEQ], |b| {
-            seq_steps.extend(values_of::<UInt64Type>(b, schema::SEQ)?.iter().copied());
-            Ok(())
+        let lost = lost_samples(format, || {
+            let mut steps = SeqSteps::default();
+            for_each_batch_of(&path, &[schema::SEQ], |b| {
+                steps.extend(values_of::<UInt64Type>(b, schema::SEQ)?.iter().copied());
+                Ok(())
+            })?;
+            Ok(steps)
         })?;
-        Self::checked(imu, seq_steps.finish(), Self::load_odometer(ingest_dir)?)
+        Self::checked(imu, lost, Self::load_odometer(ingest_dir)?)
     }
 
-    /// The series an ingest kept as it wrote them ([`WrittenSeries`]): what
-    /// [`Self::load`] reads back from its files, without decoding them.
-    pub fn from_written(written: WrittenSeries) -> anyhow::Result<Self> {
+    /// The series an ingest of a log of `format` kept as it wrote them
+    /// ([`WrittenSeries`]): what [`Self::load`] reads back from its files, without
+    /// decoding them.
+    pub fn from_written(written: WrittenSeries, format: LogFormat) -> anyhow::Result<Self> {
         if written.odometer.is_empty() {
             bail!(NO_ODOMETER);
         }
-        let seq_steps = written.seq_steps.finish();
-        Self::checked(written.imu, seq_steps, written.odometer)
+        let lost = lost_samples(format, || Ok(written.seq_steps))?;
+        Self::checked(written.imu, lost, written.odometer)
     }
 
     /// The tables, unless the IMU's is empty.
-    fn checked(imu: ImuTable, seq_steps: Vec<SeqStep>, odo: OdometerTable) -> anyhow::Result<Self> {
+    fn checked(imu: ImuTable, lost: LostSamples, odo: OdometerTable) -> anyhow::Result<Self> {
         if imu.is_empty() {
             bail!("the raw log has no IMU record");
         }
-        Ok(Self {
-            imu,
-            seq_steps,
-            odo,
-        })
+        Ok(Self { imu, lost, odo })
     }
 
     /// Loads `odometer.parquet` of an ingest folder alone, its times and distances (all a
@@ -333,9 +333,9 @@ impl IngestedSeries {
     /// A binary log's samples that close a stretch of lost ones are told by its `seq`
     /// (a tag late within the recorder's jitter is none), a text log's by the tags'
     /// intervals ([`LostSamples`]).
-    pub fn derive(self, params: &DeriveParams, g_mps2: f64, format: LogFormat) -> Derived {
+    pub fn derive(self, params: &DeriveParams, g_mps2: f64) -> Derived {
         // The status flags are counted already (failure_counts), and what the derive reads
-        // of the sequence numbers is `seq_steps`: they go now.
+        // of the sequence numbers is in `lost`: they go now.
         let ImuTable {
             t_ns,
             seq,
@@ -344,14 +344,7 @@ impl IngestedSeries {
             status,
         } = self.imu;
         drop((seq, status));
-        let lost = match format {
-            LogFormat::UnzBinary => LostSamples::BySeq {
-                steps: self.seq_steps,
-                longest_one_step_periods: ONE_STEP_PERIODS_KEPT,
-            },
-            LogFormat::KfGins => LostSamples::ByInterval,
-        };
-        let odo = self.odo;
+        let (lost, odo) = (self.lost, self.odo);
         let increments = move |at: IncrementTimes<'_>| {
             at.of(&RawSeries {
                 imu_t_ns: &[],
@@ -376,6 +369,21 @@ impl IngestedSeries {
 /// The longest interval, in periods, between two tags the reader's clock kept one `seq`
 /// apart: each within [`MAX_TOLERANCE_PERIODS`] of its `seq`'s time.
 const ONE_STEP_PERIODS_KEPT: f64 = (1 + 2 * MAX_TOLERANCE_PERIODS) as f64;
+
+/// The rule a log of `format` tells its lost samples by: a binary log's `seq` (its
+/// steps over one from `seq_steps`, asked only then), a text log's intervals.
+fn lost_samples(
+    format: LogFormat,
+    seq_steps: impl FnOnce() -> anyhow::Result<SeqSteps>,
+) -> anyhow::Result<LostSamples> {
+    Ok(match format {
+        LogFormat::UnzBinary => LostSamples::BySeq {
+            steps: seq_steps()?.finish(),
+            longest_one_step_periods: ONE_STEP_PERIODS_KEPT,
+        },
+        LogFormat::KfGins => LostSamples::ByInterval,
+    })
+}
 
 /// The first row of the ingest's `imu.parquet` (in `ingest_dir`) that `first` finds in a
 /// batch of its `columns` (given with the batch's first row): read a batch at a time,

@@ -19,7 +19,7 @@ use either::Either;
 
 use crate::angle_increments::{AngleIncrements, AngleSlice, Increment3};
 use crate::filter::{FilterParams, LowPass};
-use crate::lost_samples::LostSamples;
+use crate::lost_samples::{Closed, LostSamples};
 use crate::nth_smallest::median;
 use crate::time_base::{TagIter, TagTimes, TagsFrom, TimeBase, Times};
 
@@ -845,8 +845,10 @@ pub fn derive_owned(
     let mut dt_s = Vec::with_capacity(n);
     let mut scales = lost.scales();
     for (k, &t) in t_s.iter().enumerate() {
-        let closed = scales.of(k, t - prev_t, nominal);
-        let (scale, dt) = (closed.samples, closed.dt_s);
+        let Closed {
+            samples: scale,
+            dt_s: dt,
+        } = scales.of(k, t - prev_t, nominal);
         if scale != 1.0 {
             out.filled_gaps += 1;
         }

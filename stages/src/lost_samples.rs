@@ -59,11 +59,11 @@ impl LostSamples {
             let interval_ns = i128::from(w[1]) - i128::from(w[0]);
             while next.next_if(|s| s.sample < k + 1).is_some() {}
             let step = next.next_if(|s| s.sample == k + 1).map_or(1, |s| s.step);
-            // An interval either way longer than a kept tag's from the one before (a
-            // counter reset's pause; a first or last tag apart) says nothing of the
-            // period. Shorter ones, going back or not (a jitter, a tag back the derive
-            // repairs), are taken: their sum is the span of the tags about them.
-            if interval_ns.unsigned_abs() as f64 > longest_ns * step as f64 {
+            // An interval beyond a kept tag's (a counter reset's pause; a first or last
+            // tag apart) says nothing of the period. Shorter ones, going back or not (a
+            // jitter, a tag back the derive repairs), are taken: their sum is the span
+            // of the tags about them.
+            if beyond_kept(interval_ns as f64, step as f64, longest_ns) {
                 continue;
             }
             periods += u128::from(step);
@@ -122,7 +122,7 @@ impl Scales<'_> {
                 }
                 let samples = match steps.get(self.next) {
                     Some(s) if s.sample == k => s.step as f64,
-                    _ if interval_s > longest_one_step_periods * nominal_dt_s => {
+                    _ if beyond_kept(interval_s, 1.0, longest_one_step_periods * nominal_dt_s) => {
                         return by_interval();
                     }
                     _ => 1.0,
@@ -134,6 +134,14 @@ impl Scales<'_> {
             }
         }
     }
+}
+
+/// Whether an interval (either way) spans more than two tags the reader's clock kept
+/// `steps` of `seq` apart can be, the longest one step apart being `longest_one_step`
+/// (in the interval's unit): only a counter reset (or a tag apart at a log's end) parts
+/// them so far.
+fn beyond_kept(interval: f64, steps: f64, longest_one_step: f64) -> bool {
+    interval.abs() > longest_one_step * steps
 }
 
 /// What a sample's increments are scaled by when only its interval tells: a sample that
