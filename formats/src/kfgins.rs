@@ -362,6 +362,13 @@ pub struct KfGinsReader<R: BufRead> {
     ahead: std::collections::VecDeque<TextSample>,
     period_s: Option<f64>,
     prev: Option<TextSample>,
+    /// The next accepted sample, read before the one before it is given out: with the
+    /// one before, it tells whether that one was written off its slot alone.
+    held: Option<TextSample>,
+    /// An error met reading [`Self::held`], returned after the sample before it.
+    failed: Option<FormatError>,
+    /// The time of the last sample given out, s (its slot's, when it was off it).
+    given_t_s: Option<f64>,
     eof: bool,
     /// The time tags over GPS-week and day rollovers.
     tags: TagUnwrap,
@@ -391,6 +398,9 @@ impl<R: BufRead> KfGinsReader<R> {
             ahead: std::collections::VecDeque::new(),
             period_s: None,
             prev: None,
+            held: None,
+            failed: None,
+            given_t_s: None,
             eof: false,
             tags: TagUnwrap::default(),
             first_t_s: None,
@@ -550,18 +560,60 @@ impl<R: BufRead> KfGinsReader<R> {
         Ok(())
     }
 
-    /// Returns the next accepted sample, or `None` at the end.
+    /// Returns the next accepted sample, or `None` at the end. A line written late or
+    /// early alone, more than half a period off the middle of its neighbours' times
+    /// while they are a slot either side of it, takes that middle
+    /// ([`IngestReport::lines_off_slot`]); the sample after it is accepted first (the
+    /// report counts it) to tell.
     pub fn next_sample(&mut self) -> Result<Option<TextSample>, FormatError> {
+        if let Some(e) = self.failed.take() {
+            return Err(e);
+        }
+        if self.given_t_s.is_none() && self.held.is_none() {
+            self.held = self.next_accepted()?;
+        }
+        let Some(mut s) = self.held.take() else {
+            self.gaps.end(&mut self.report);
+            return Ok(None);
+        };
+        self.held = self.next_accepted().unwrap_or_else(|e| {
+            self.failed = Some(e);
+            None
+        });
+        if let Some(prev_t_s) = self.given_t_s {
+            if let (Some(next), Some(p)) = (self.held, self.period_s)
+                && let Some(t_s) = slot_time(prev_t_s, s.t_s, next.t_s, p)
+            {
+                s.t_s = t_s;
+                self.report.lines_off_slot += 1;
+            }
+            let dt = s.t_s - prev_t_s;
+            let mut lost = None;
+            if dt <= 0.0 {
+                self.report.t_non_increasing += 1;
+            } else if let Some(p) = self.period_s {
+                let steps = (dt / p).round();
+                if steps >= 2.0 && dt > 1.5 * p {
+                    // `as` saturates: a tag of 1e300 (a damaged line) is a gap of more
+                    // samples than a u64 counts.
+                    lost = Some(((steps - 1.0) as u64, p));
+                }
+            }
+            self.gaps.interval(&mut self.report, dt, lost);
+        }
+        self.given_t_s = Some(s.t_s);
+        Ok(Some(s))
+    }
+
+    /// The next sample accepted (its time as written), or `None` at the end.
+    fn next_accepted(&mut self) -> Result<Option<TextSample>, FormatError> {
         self.prime()?;
         loop {
             let s = match self.ahead.pop_front() {
                 Some(s) => s,
                 None => match self.next_raw()? {
                     Some(s) => s,
-                    None => {
-                        self.gaps.end(&mut self.report);
-                        return Ok(None);
-                    }
+                    None => return Ok(None),
                 },
             };
             self.report.records_read += 1;
@@ -587,19 +639,6 @@ impl<R: BufRead> KfGinsReader<R> {
                     });
                     continue;
                 }
-                let dt = s.t_s - prev.t_s;
-                let mut lost = None;
-                if dt <= 0.0 {
-                    self.report.t_non_increasing += 1;
-                } else if let Some(p) = self.period_s {
-                    let steps = (dt / p).round();
-                    if steps >= 2.0 && dt > 1.5 * p {
-                        // `as` saturates: a tag of 1e300 (a damaged line) is a gap of
-                        // more samples than a u64 counts.
-                        lost = Some(((steps - 1.0) as u64, p));
-                    }
-                }
-                self.gaps.interval(&mut self.report, dt, lost);
             }
             self.prev = Some(s);
             self.first_t_s.get_or_insert(s.t_s);
@@ -621,6 +660,27 @@ impl<R: BufRead> KfGinsReader<R> {
             .is_finite()
             .then(|| intervals.round() as i64 as u64)
     }
+}
+
+/// The time a line tagged `t_s` takes when it was written off its slot alone: the
+/// middle of its neighbours' times (`prev_s`, as given out, and `next_s`) when they are a
+/// slot either side of it (two periods of `period_s` apart, to half a period) and it lies
+/// between them, more than half a period off that middle; else `None`, its tag stands.
+///
+/// A logger that stamps its lines as they come writes one late now and then (or early,
+/// after a late one). Kept, a line late by more than half a period read as a gap of a
+/// sample lost before it (the derive scaled its increments: a turn's angle increment 1.6
+/// times over) and its interval and the next gave their samples' rates over 1.6 and 0.4
+/// periods. A tag going back, or past the next, is the derive's to repair; two lines off
+/// together are left as written. Beside a gap of lines lost the reading is the tags':
+/// a line early after the gap may read as the line before it late across the gap (either
+/// has one line off and the same lines lost).
+fn slot_time(prev_s: f64, t_s: f64, next_s: f64, period_s: f64) -> Option<f64> {
+    let span_s = next_s - prev_s;
+    let middle_s = prev_s + 0.5 * span_s;
+    let a_slot_either_side = span_s > 1.5 * period_s && span_s < 2.5 * period_s;
+    (a_slot_either_side && prev_s < t_s && t_s < next_s && (t_s - middle_s).abs() > 0.5 * period_s)
+        .then_some(middle_s)
 }
 
 /// What makes a text line the same as another: its time and values, bit for bit.
@@ -1333,6 +1393,146 @@ mod tests {
             vec![4, 5]
         );
         assert!(rep.is_consistent(), "{rep:?}");
+    }
+
+    /// The lines of a 7-column log at `tags_s`.
+    fn log_at(tags_s: &[f64]) -> String {
+        tags_s
+            .iter()
+            .map(|t| format!("{t:.6} 1 2 3 4 5 6\n"))
+            .collect()
+    }
+
+    /// A line written 0.7 of a period late and one 0.7 early, each between lines on
+    /// time, take their slots' times and are counted; neither is a gap, while a line
+    /// lost (at 0.08 s) is one, and a line 0.4 of a period off keeps its tag. Before, the
+    /// late line closed a gap of one sample lost and the derive scaled its increments.
+    #[test]
+    fn a_line_written_late_or_early_alone_takes_its_slot() {
+        let tags = [
+            0.0, 0.01, 0.027, 0.03, 0.04, 0.043, 0.06, 0.07, 0.09, 0.10, 0.114, 0.12,
+        ];
+        let (v, rep, _) = read_all(&log_at(&tags));
+        let got: Vec<f64> = v.iter().map(|s| s.t_s).collect();
+        let want = [
+            0.0, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.07, 0.09, 0.10, 0.114, 0.12,
+        ];
+        assert!(
+            got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-12),
+            "{got:?}"
+        );
+        assert_eq!(
+            (rep.lines_off_slot, rep.seq_gaps, rep.lost_samples),
+            (2, 1, 1)
+        );
+        assert_eq!((rep.records_accepted, rep.t_non_increasing), (12, 0));
+        assert!(
+            rep.lines_off_slot_said()
+                .unwrap()
+                .starts_with("2 lines written late")
+        );
+        assert!(rep.is_consistent(), "{rep:?}");
+    }
+
+    /// A line off beside a gap (its neighbours three periods apart), and a line whose tag
+    /// goes back or past the next (the derive's to repair), keep their tags: which slot
+    /// such a line holds cannot be told from the lines lost.
+    #[test]
+    fn a_line_off_beside_a_gap_or_past_its_neighbour_keeps_its_tag() {
+        // Lines on time after them: the period is the median interval.
+        let on_time = |tags: &[f64]| {
+            let mut tags = tags.to_vec();
+            tags.extend((7..20).map(|k| k as f64 * 0.01));
+            tags
+        };
+        let (v, rep, _) = read_all(&log_at(&on_time(&[0.0, 0.01, 0.027, 0.04, 0.05])));
+        assert_eq!(v[2].t_s, 0.027);
+        assert_eq!((rep.lines_off_slot, rep.lost_samples), (0, 2));
+        let tags = on_time(&[0.0, 0.01, 0.005, 0.03, 0.04, 0.065, 0.06]);
+        let (v, rep, _) = read_all(&log_at(&tags));
+        let got: Vec<f64> = v.iter().map(|s| s.t_s).collect();
+        assert_eq!(got, tags);
+        assert_eq!((rep.lines_off_slot, rep.t_non_increasing), (0, 2));
+    }
+
+    /// An error reading the line after a sample (the one read ahead to tell whether the
+    /// sample is off its slot) comes after that sample, as before the look-ahead.
+    #[test]
+    fn an_error_reading_ahead_comes_after_the_sample_before_it() {
+        struct FailsAtEnd(std::io::Cursor<Vec<u8>>);
+        impl std::io::Read for FailsAtEnd {
+            fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+                match self.0.read(buf)? {
+                    0 => Err(std::io::Error::other("the disk failed")),
+                    n => Ok(n),
+                }
+            }
+        }
+        let tags: Vec<f64> = (0..150).map(|k| k as f64 * 0.01).collect();
+        let src = FailsAtEnd(std::io::Cursor::new(log_at(&tags).into_bytes()));
+        let mut r = KfGinsReader::new(std::io::BufReader::new(src));
+        let mut read = 0;
+        let err = loop {
+            match r.next_sample() {
+                Ok(Some(_)) => read += 1,
+                Ok(None) => panic!("the error was lost"),
+                Err(e) => break e,
+            }
+        };
+        assert_eq!(read, 150);
+        assert!(err.to_string().contains("the disk failed"), "{err}");
+    }
+
+    proptest::proptest! {
+        /// Lines on their slots to a sixteenth of a period, lost in stretches of up to
+        /// three, with lines written 0.65–0.85 of a period late or early alone, two lines
+        /// a slot apart either side: every off line takes its slot's time (to the others'
+        /// sixteenth), every gap is counted as it was lost and nothing more. (The margins
+        /// to the rule's half periods are 0.09 of a period, well beyond the median
+        /// interval's error as the period.)
+        #[test]
+        fn lines_off_alone_take_their_slots_and_gaps_stay_counted(
+            lines in proptest::collection::vec((0u64..12, -0.0625f64..0.0625, 0u8..20, 0.65f64..0.85), 110..300),
+        ) {
+            let period = 0.01;
+            let mut slots = Vec::new();
+            let mut slot = 0u64;
+            for &(lost, _, _, _) in &lines {
+                // A stretch of 1–3 lines lost before a quarter of the lines (the period
+                // is the median interval).
+                slot += 1 + lost.saturating_sub(8);
+                slots.push(slot);
+            }
+            let mut tags: Vec<f64> = (slots.iter().zip(&lines))
+                .map(|(&s, &(_, jitter, _, _))| (s as f64 + jitter) * period)
+                .collect();
+            let mut off = vec![false; tags.len()];
+            for k in 2..tags.len() - 2 {
+                let (_, _, pick, by) = lines[k];
+                // Two slots either side on lines (beside a gap, a line early after it
+                // reads as well as the line before it late across it), the one before
+                // not off.
+                let alone = !off[k - 1]
+                    && slots[k - 2] + 2 == slots[k]
+                    && slots[k + 2] == slots[k] + 2;
+                // One line in ten off, late or early (shrinking to none).
+                let sign = match pick { 19 => 1.0, 18 => -1.0, _ => 0.0 };
+                if alone && sign != 0.0 {
+                    tags[k] = (slots[k] as f64 + sign * by) * period;
+                    off[k] = true;
+                }
+            }
+            let (v, rep, _) = read_all(&log_at(&tags));
+            proptest::prop_assert_eq!(v.len(), tags.len());
+            let lost: u64 = slots.windows(2).map(|w| w[1] - w[0] - 1).sum();
+            proptest::prop_assert_eq!(rep.lost_samples, lost);
+            proptest::prop_assert_eq!(rep.lines_off_slot, off.iter().filter(|o| **o).count() as u64);
+            for (k, s) in v.iter().enumerate() {
+                let slot_s = slots[k] as f64 * period;
+                let within = 0.0625 * period + 1e-12;
+                proptest::prop_assert!((s.t_s - slot_s).abs() <= within, "line {} at {} for {}", k, s.t_s, slot_s);
+            }
+        }
     }
 
     /// Regression (fuzzing the text ingest): time tags that leap by 1e300 s (damaged

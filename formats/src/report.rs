@@ -71,6 +71,11 @@ pub struct IngestReport {
     /// tolerance (its neighbours agreeing), given their `seq`'s time (`lone_tag_off`).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub lone_tags_off: u64,
+    /// Text logs: lines written late or early alone, off their slot by more than half a
+    /// period between neighbours a slot either side, given the middle of their times
+    /// (read as written, a late one closed a gap of a sample lost).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub lines_off_slot: u64,
     /// Text logs: the first line stands apart from the others, across an interval longer
     /// than the longest gap a run bridges (the derive's `max_gap_s`) while the next is
     /// not: a line a logger wrote before it began. The interval, s, is not counted in
@@ -165,6 +170,20 @@ impl IngestReport {
         .flatten()
         .collect();
         (!parts.is_empty()).then(|| parts.join("; "))
+    }
+
+    /// What the run's log and its row of the campaign summary say of a text log's lines
+    /// written late or early alone (`None`: none was).
+    pub fn lines_off_slot_said(&self) -> Option<String> {
+        let n = self.lines_off_slot;
+        let (s, its) = if n == 1 { ("", "its") } else { ("s", "their") };
+        (n > 0).then(|| {
+            format!(
+                "{n} line{s} written late or early alone (more than half a period off {its} \
+                 slot, {its} neighbours a slot either side): given the middle of {its} \
+                 neighbours' times, not read as a gap of lost samples"
+            )
+        })
     }
 
     /// What the run's log and its row of the campaign summary say of an 8th column left

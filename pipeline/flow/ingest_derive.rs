@@ -96,7 +96,11 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // 32: a binary log's tag off its `seq`'s time by more than half a period (or four
         // times the recorder's learnt jitter) is a leap, not 10 periods: a time sync's
         // tens of milliseconds taken out; the period a trimmed mean, not a median.
-        version: 32,
+        // 33: a text log's line written late or early alone (off its slot by more than
+        // half a period, between its neighbours, they a slot either side) takes its
+        // slot's time, the middle of theirs: read as written, a late one closed a gap and
+        // had its increments scaled.
+        version: 33,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
@@ -130,6 +134,9 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         }
         if let Some(apart) = outcome.report.lines_apart_said() {
             ctx.say("ingest", &apart);
+        }
+        if let Some(off) = outcome.report.lines_off_slot_said() {
+            ctx.say("ingest", &off);
         }
         if let Some(clock) = outcome.report.clock_said() {
             ctx.say("ingest", &clock);
