@@ -529,6 +529,7 @@ fn run_note(
         .chain(ing.and_then(|i| i.speed_column_unread_said()))
         .chain(ing.and_then(|i| i.clock_said()))
         .chain(ing.and_then(|i| i.lines_off_slot_said()))
+        .chain(ing.and_then(|i| i.text_clock_said()))
         .chain(odo_failed)
         .chain(rebridged)
         .chain(

@@ -1175,26 +1175,17 @@ fn kingston_a_control_points_time_in_utc_seconds_of_day_is_named() {
 fn kingston_lines_written_late_or_early_alone_take_their_slots() {
     let tmp = tempfile::tempdir().unwrap();
     let shipped = kingston_with(&tmp.path().join("shipped"), "");
-    let run = kingston_with(&tmp.path().join("jittery"), "");
     let mut off = 0;
-    let imu: String = (std::fs::read_to_string(run.join("imu.txt"))
-        .unwrap()
-        .lines())
-    .enumerate()
-    .map(|(k, line)| {
-        let (t, rest) = line.split_once(' ').unwrap();
-        let t: f64 = t.parse().unwrap();
+    let run = kingston_imu_tags_edited(&tmp.path().join("jittery"), |k, t| {
         let by_s = 0.06 + 0.02 * ((k as f64 * 0.37).sin() * 0.5 + 0.5);
-        let t = match k % 40 {
+        let edited = match k % 40 {
             7 if k > 40 => t + by_s,
             27 => t - by_s,
-            _ => return format!("{line}\n"),
+            _ => return t,
         };
         off += 1;
-        format!("{t:.3} {rest}\n")
-    })
-    .collect();
-    std::fs::write(run.join("imu.txt"), imu).unwrap();
+        edited
+    });
     assert!(off > 400, "{off}");
     let report = disupt_with_ingest_report(&run, &tmp.path().join("o"));
     assert_eq!(
@@ -1203,17 +1194,88 @@ fn kingston_lines_written_late_or_early_alone_take_their_slots() {
     );
     let shipped_report = disupt_with_ingest_report(&shipped, &tmp.path().join("so"));
     assert_eq!(shipped_report.lines_off_slot, 0);
-    let run_dir = |o: &str| tmp.path().join(o).join("kingston2008-segment1");
-    for file in ["ingest/imu.parquet", "disupt/disupt.json"] {
-        let got = std::fs::read(run_dir("o").join(file)).unwrap();
-        let want = std::fs::read(run_dir("so").join(file)).unwrap();
-        assert!(got == want, "{file} differs from the shipped run's");
-    }
+    assert_imu_and_disupt_as_shipped(tmp.path());
     let log = std::fs::read_to_string(tmp.path().join("o/campaign.md")).unwrap();
     assert!(
         log.contains(&format!("{off} lines written late or early alone")),
         "{log}"
     );
+}
+
+/// Kingston's logger's clock set back three times while it logs, its speed file and
+/// control points on the clock it started on: 1.5 s back at line 3001, 70 ms (0.7 of a
+/// period) at line 5001, 0.5 s at line 6001. Before, every tag after the first step went
+/// back from the time repaired before it and the derive failed ("5760 of 8760 IMU time
+/// tags do not increase"). Now each step is taken out (counted in `ingest.json`, said in
+/// the summary), the line after it taking the time one period after the line before,
+/// which is the shipped tag to the nanosecond: the IMU's table and `disupt.json` are the
+/// shipped run's byte for byte.
+#[test]
+fn kingston_a_clock_set_back_while_logging_is_the_run_on_its_start_clock() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shipped = kingston_with(&tmp.path().join("shipped"), "");
+    let run = kingston_imu_tags_edited(&tmp.path().join("stepped"), |k, t| {
+        let back_s: f64 = [(3000, 1.5), (5000, 0.07), (6000, 0.5)]
+            .iter()
+            .filter(|(from, _)| k >= *from)
+            .map(|(_, s)| s)
+            .sum();
+        t - back_s
+    });
+    let report = disupt_with_ingest_report(&run, &tmp.path().join("o"));
+    assert_eq!(
+        (
+            report.text_clock_steps_back,
+            report.t_non_increasing,
+            report.lost_samples
+        ),
+        (3, 0, 0)
+    );
+    assert!(
+        (report.text_clock_shift_s - 2.07).abs() < 1e-6,
+        "{report:?}"
+    );
+    disupt_with_ingest_report(&shipped, &tmp.path().join("so"));
+    assert_imu_and_disupt_as_shipped(tmp.path());
+    let summary = std::fs::read_to_string(tmp.path().join("o/campaign.md")).unwrap();
+    assert!(
+        summary.contains(
+            "the log's clock was set back 3 times while it logged (line 3001 +1.500 s, \
+             line 5001 +0.070 s, line 6001 +0.500 s;"
+        ) && summary.contains("moved by +2.070000 s"),
+        "{summary}"
+    );
+}
+
+/// Kingston in `run` (created) with its IMU line `k`'s time tag `t` written `edit(k, t)`,
+/// to 1 ms (its speed file and control points as shipped).
+fn kingston_imu_tags_edited(
+    run: &std::path::Path,
+    mut edit: impl FnMut(usize, f64) -> f64,
+) -> std::path::PathBuf {
+    let run = kingston_with(run, "");
+    let imu: String = (std::fs::read_to_string(run.join("imu.txt"))
+        .unwrap()
+        .lines())
+    .enumerate()
+    .map(|(k, line)| {
+        let (t, rest) = line.split_once(' ').unwrap();
+        format!("{:.3} {rest}\n", edit(k, t.parse().unwrap()))
+    })
+    .collect();
+    std::fs::write(run.join("imu.txt"), imu).unwrap();
+    run
+}
+
+/// The edited run's `imu.parquet` and `disupt.json` (output folder `dir/o`) are the
+/// shipped run's (`dir/so`) byte for byte.
+fn assert_imu_and_disupt_as_shipped(dir: &std::path::Path) {
+    let run_dir = |o: &str| dir.join(o).join("kingston2008-segment1");
+    for file in ["ingest/imu.parquet", "disupt/disupt.json"] {
+        let got = std::fs::read(run_dir("o").join(file)).unwrap();
+        let want = std::fs::read(run_dir("so").join(file)).unwrap();
+        assert!(got == want, "{file} differs from the shipped run's");
+    }
 }
 
 /// `run` to disupt into `out`: the ingest's account (`ingest.json`).

@@ -11,7 +11,7 @@ use std::io::BufRead;
 use crate::error::FormatError;
 use crate::lines_apart::GapAccount;
 use crate::manifest::OdometerKind;
-use crate::report::{IngestReport, OdometerFileReport};
+use crate::report::{IngestReport, OdometerFileReport, TextClockStep};
 use crate::resent::RecentRecords;
 use crate::speed_floor::{SpeedFloor, SpeedFloorReport};
 use crate::speed_spikes::{MAX_ACCEL_MPS2, MAX_BRAKING_MPS2, SpeedSpikes, Verdict};
@@ -369,6 +369,10 @@ pub struct KfGinsReader<R: BufRead> {
     failed: Option<FormatError>,
     /// The time of the last sample given out, s (its slot's, when it was off it).
     given_t_s: Option<f64>,
+    /// That sample's interval from the one before it, s.
+    given_interval_s: Option<f64>,
+    /// What the clock's steps back so far add to the tags read, s ([`clock_step_back_s`]).
+    shift_s: f64,
     eof: bool,
     /// The time tags over GPS-week and day rollovers.
     tags: TagUnwrap,
@@ -401,6 +405,8 @@ impl<R: BufRead> KfGinsReader<R> {
             held: None,
             failed: None,
             given_t_s: None,
+            given_interval_s: None,
+            shift_s: 0.0,
             eof: false,
             tags: TagUnwrap::default(),
             first_t_s: None,
@@ -580,13 +586,31 @@ impl<R: BufRead> KfGinsReader<R> {
             self.failed = Some(e);
             None
         });
-        if let Some(prev_t_s) = self.given_t_s {
-            if let (Some(next), Some(p)) = (self.held, self.period_s)
-                && let Some(t_s) = slot_time(prev_t_s, s.t_s, next.t_s, p)
-            {
+        s.t_s += self.shift_s;
+        if let Some(prev_t_s) = self.given_t_s
+            && let (Some(next), Some(p)) = (self.held, self.period_s)
+        {
+            let next_t_s = next.t_s + self.shift_s;
+            if let Some(t_s) = slot_time(prev_t_s, s.t_s, next_t_s, p) {
                 s.t_s = t_s;
                 self.report.lines_off_slot += 1;
+            } else if let Some(step_s) =
+                clock_step_back_s(self.given_interval_s, prev_t_s, s.t_s, next_t_s, p)
+            {
+                self.shift_s += step_s;
+                s.t_s += step_s;
+                self.report.text_clock_steps_back += 1;
+                self.report.text_clock_shift_s = self.shift_s;
+                let steps = &mut self.report.text_clock_steps;
+                if steps.len() < TextClockStep::KEPT {
+                    steps.push(TextClockStep {
+                        line: s.line,
+                        step_s,
+                    });
+                }
             }
+        }
+        if let Some(prev_t_s) = self.given_t_s {
             let dt = s.t_s - prev_t_s;
             let mut lost = None;
             if dt <= 0.0 {
@@ -600,6 +624,7 @@ impl<R: BufRead> KfGinsReader<R> {
                 }
             }
             self.gaps.interval(&mut self.report, dt, lost);
+            self.given_interval_s = Some(dt);
         }
         self.given_t_s = Some(s.t_s);
         Ok(Some(s))
@@ -681,6 +706,40 @@ fn slot_time(prev_s: f64, t_s: f64, next_s: f64, period_s: f64) -> Option<f64> {
     let a_slot_either_side = span_s > 1.5 * period_s && span_s < 2.5 * period_s;
     (a_slot_either_side && prev_s < t_s && t_s < next_s && (t_s - middle_s).abs() > 0.5 * period_s)
         .then_some(middle_s)
+}
+
+/// Seconds a text log's clock may be set back at once and be taken as a step: an hour
+/// (a logger on local time over a change from summer time) and a second. Further back, the
+/// lines after are left as written (the derive then names the tags that do not increase):
+/// a log of two parts in the wrong order is no clock set back.
+pub const MAX_CLOCK_STEP_BACK_S: f64 = 3601.0;
+
+/// How far a text log's clock was set back at a line tagged `t_s`, s, so that the line
+/// takes the time one period of `period_s` after the line before it (`prev_s`, as given
+/// out): when the line is less than half a period after that one (or before it), while
+/// the line before came a period after its own (`prev_interval_s`) and the next
+/// (`next_s`) goes on from this one at a period, each to half a period (the logger's
+/// clock set back by a time sync, or to standard time, while it logs); else `None`.
+/// Every later tag is moved by as much. A line alone off its slot is [`slot_time`]'s
+/// (tried first); a line whose next does not go on from it (a tag repeated, going back
+/// alone), or after a line that leapt forward alone, is the derive's to repair. A clock
+/// set forward reads as lines lost, as it must without sequence numbers. A separate
+/// odometer file and the manifest's control points are taken on the log's clock at its
+/// start (what the tags are moved to).
+fn clock_step_back_s(
+    prev_interval_s: Option<f64>,
+    prev_s: f64,
+    t_s: f64,
+    next_s: f64,
+    period_s: f64,
+) -> Option<f64> {
+    let a_period = |interval_s: f64| (interval_s - period_s).abs() < 0.5 * period_s;
+    let step_s = prev_s + period_s - t_s;
+    (t_s - prev_s <= 0.5 * period_s
+        && prev_interval_s.is_some_and(a_period)
+        && a_period(next_s - t_s)
+        && step_s <= MAX_CLOCK_STEP_BACK_S)
+        .then_some(step_s)
 }
 
 /// What makes a text line the same as another: its time and values, bit for bit.
@@ -1395,11 +1454,11 @@ mod tests {
         assert!(rep.is_consistent(), "{rep:?}");
     }
 
-    /// The lines of a 7-column log at `tags_s`.
+    /// The lines of a 7-column log at `tags_s`, each line's increments its own (a line
+    /// of another's tag and increments is a line sent again).
     fn log_at(tags_s: &[f64]) -> String {
-        tags_s
-            .iter()
-            .map(|t| format!("{t:.6} 1 2 3 4 5 6\n"))
+        (tags_s.iter().enumerate())
+            .map(|(k, t)| format!("{t:.6} {k} 2 3 4 5 6\n"))
             .collect()
     }
 
@@ -1483,6 +1542,55 @@ mod tests {
         assert!(err.to_string().contains("the disk failed"), "{err}");
     }
 
+    /// A logger's clock set back by 0.7 of a period, by 3 periods and by 1.5 s while it
+    /// logs: each line after a step takes the time one period after the line before, the
+    /// later tags moved by the steps (counted, with their sum); a line repeated as the
+    /// one before, a line alone back and a step back beyond an hour and a second are no
+    /// step (the derive's to repair or fail). Before, every tag after a step was
+    /// "not increasing" and the derive failed.
+    #[test]
+    fn a_clock_set_back_while_logging_is_taken_out_of_the_time_base() {
+        let mut tags: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
+        for (from, back_s) in [(120, 0.007), (150, 0.03), (170, 1.5)] {
+            tags[from..].iter_mut().for_each(|t| *t -= back_s);
+        }
+        let (v, rep, _) = read_all(&log_at(&tags));
+        let got: Vec<f64> = v.iter().map(|s| s.t_s).collect();
+        assert!(
+            got.iter()
+                .enumerate()
+                .all(|(k, t)| (t - k as f64 * 0.01).abs() < 1e-9),
+            "{got:?}"
+        );
+        assert_eq!(
+            (
+                rep.text_clock_steps_back,
+                rep.t_non_increasing,
+                rep.lost_samples
+            ),
+            (3, 0, 0)
+        );
+        assert!((rep.text_clock_shift_s - 1.537).abs() < 1e-9, "{rep:?}");
+        let at: Vec<(u64, f64)> = (rep.text_clock_steps.iter())
+            .map(|s| (s.line, (s.step_s * 1e6).round() / 1e6))
+            .collect();
+        assert_eq!(at, [(121, 0.007), (151, 0.03), (171, 1.5)]);
+        let said = rep.text_clock_said().unwrap();
+        assert!(
+            said.contains("set back 3 times while it logged (line 121 +0.007 s, line 151 +0.030 s, line 171 +1.500 s;"),
+            "{said}"
+        );
+        // Not steps: a line repeated, a line back alone, and an hour and 2 s back.
+        let mut tags: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
+        tags[120] = tags[119];
+        tags[150] -= 0.05;
+        tags[170..].iter_mut().for_each(|t| *t -= 3602.0);
+        let (v, rep, _) = read_all(&log_at(&tags));
+        assert_eq!(v[120].t_s, tags[119]);
+        assert_eq!(v[171].t_s, tags[171]);
+        assert_eq!((rep.text_clock_steps_back, rep.t_non_increasing), (0, 3));
+    }
+
     proptest::proptest! {
         /// Lines on their slots to a sixteenth of a period, lost in stretches of up to
         /// three, with lines written 0.65–0.85 of a period late or early alone, two lines
@@ -1531,6 +1639,40 @@ mod tests {
                 let slot_s = slots[k] as f64 * period;
                 let within = 0.0625 * period + 1e-12;
                 proptest::prop_assert!((s.t_s - slot_s).abs() <= within, "line {} at {} for {}", k, s.t_s, slot_s);
+            }
+        }
+
+        /// Lines on their slots to a sixteenth of a period, the logger's clock set back
+        /// by 0.65–40 periods up to four times, 30 lines apart at least: every step is
+        /// taken out (each line within half a period of its slot, the errors of the
+        /// lines beside the steps adding up by a sixteenth each at most), nothing is
+        /// lost and every step counted.
+        #[test]
+        fn a_clock_set_back_is_taken_out_wherever_and_by_however_much(
+            jitter in proptest::collection::vec(-0.0625f64..0.0625, 150..400),
+            steps in proptest::collection::vec((30usize..100, 0.65f64..40.0), 0..5),
+        ) {
+            let period = 0.01;
+            let mut tags: Vec<f64> = (jitter.iter().enumerate())
+                .map(|(k, j)| (k as f64 + j) * period)
+                .collect();
+            let mut at = 0;
+            let mut made = 0;
+            for &(after, back) in &steps {
+                at += after;
+                if at + 2 >= tags.len() {
+                    break;
+                }
+                tags[at..].iter_mut().for_each(|t| *t -= back * period);
+                made += 1;
+            }
+            let (v, rep, _) = read_all(&log_at(&tags));
+            proptest::prop_assert_eq!(v.len(), tags.len());
+            proptest::prop_assert_eq!((rep.text_clock_steps_back, rep.lost_samples), (made, 0));
+            proptest::prop_assert_eq!((rep.t_non_increasing, rep.lines_off_slot), (0, 0));
+            for (k, s) in v.iter().enumerate() {
+                let slot_s = k as f64 * period;
+                proptest::prop_assert!((s.t_s - slot_s).abs() < 0.5 * period, "line {} at {}", k, s.t_s);
             }
         }
     }

@@ -37,4 +37,4 @@ mod split_pages;
 pub mod tables;
 
 pub use error::{FileError, FormatError};
-pub use report::{IngestEvents, IngestReport, OdometerFailures, OdometerFileReport};
+pub use report::{IngestEvents, IngestReport, OdometerFailures, OdometerFileReport, TextClockStep};

@@ -71,6 +71,18 @@ pub struct IngestReport {
     /// tolerance (its neighbours agreeing), given their `seq`'s time (`lone_tag_off`).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub lone_tags_off: u64,
+    /// Text logs: times the logger's clock was set back while it logged (a line before
+    /// the one before it, or less than half a period after it, while the next goes on
+    /// from it at a period): the line taken one period after the one before, and every
+    /// later tag moved by as much.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub text_clock_steps_back: u64,
+    /// Text logs: what the steps back add to the tags after the last one, s.
+    #[serde(default, skip_serializing_if = "is_zero_f64")]
+    pub text_clock_shift_s: f64,
+    /// Text logs: the first [`TextClockStep::KEPT`] steps back, each at its line.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub text_clock_steps: Vec<TextClockStep>,
     /// Text logs: lines written late or early alone, off their slot by more than half a
     /// period between neighbours a slot either side, given the middle of their times
     /// (read as written, a late one closed a gap of a sample lost).
@@ -114,6 +126,20 @@ pub struct IngestReport {
     /// the odometer, the column left unread.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub speed_column_unread: bool,
+}
+
+/// A text log's clock set back while it logged ([`IngestReport::text_clock_steps`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TextClockStep {
+    /// The 1-based line of the first tag after the step.
+    pub line: u64,
+    /// What the step adds to the tags from that line on, s.
+    pub step_s: f64,
+}
+
+impl TextClockStep {
+    /// Steps listed in a report, at most (the rest are counted).
+    pub const KEPT: usize = 100;
 }
 
 impl IngestReport {
@@ -170,6 +196,28 @@ impl IngestReport {
         .flatten()
         .collect();
         (!parts.is_empty()).then(|| parts.join("; "))
+    }
+
+    /// What the run's log and its row of the campaign summary say of a text log's clock
+    /// set back while it logged (`None`: it was not).
+    pub fn text_clock_said(&self) -> Option<String> {
+        let n = self.text_clock_steps_back;
+        let listed: Vec<String> = (self.text_clock_steps.iter().take(5))
+            .map(|s| format!("line {} {:+.3} s", s.line, s.step_s))
+            .collect();
+        let more = if n > listed.len() as u64 { ", …" } else { "" };
+        (n > 0).then(|| {
+            format!(
+                "the log's clock was set back {} while it logged ({}{more}; every step in \
+                 ingest.json), taken out of the time base (the tags after the last moved by \
+                 {:+.6} s); a separate odometer file and the manifest's t_s are taken on the \
+                 log's clock at its start (an odometer file written on the stepped clock \
+                 needs its tags after each step moved by as much)",
+                times(n),
+                listed.join(", "),
+                self.text_clock_shift_s
+            )
+        })
     }
 
     /// What the run's log and its row of the campaign summary say of a text log's lines

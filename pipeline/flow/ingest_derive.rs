@@ -99,8 +99,10 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // 33: a text log's line written late or early alone (off its slot by more than
         // half a period, between its neighbours, they a slot either side) takes its
         // slot's time, the middle of theirs: read as written, a late one closed a gap and
-        // had its increments scaled.
-        version: 33,
+        // had its increments scaled. 34: a text log's clock set back while it logged (a
+        // line less than half a period after the one before, or before it, its next
+        // going on from it at a period) taken out of the time base: the derive failed.
+        version: 34,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
@@ -137,6 +139,9 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         }
         if let Some(off) = outcome.report.lines_off_slot_said() {
             ctx.say("ingest", &off);
+        }
+        if let Some(clock) = outcome.report.text_clock_said() {
+            ctx.say("ingest", &clock);
         }
         if let Some(clock) = outcome.report.clock_said() {
             ctx.say("ingest", &clock);
