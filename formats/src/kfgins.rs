@@ -596,6 +596,7 @@ impl<R: BufRead> KfGinsReader<R> {
                 self.report.lines_off_slot += 1;
             } else if let Some(step_s) =
                 clock_step_back_s(self.given_interval_s, prev_t_s, s.t_s, next_t_s, p)
+                    .filter(|step_s| self.shift_s + step_s <= MAX_CLOCK_SHIFT_S)
             {
                 self.shift_s += step_s;
                 s.t_s += step_s;
@@ -713,6 +714,11 @@ fn slot_time(prev_s: f64, t_s: f64, next_s: f64, period_s: f64) -> Option<f64> {
 /// lines after are left as written (the derive then names the tags that do not increase):
 /// a log of two parts in the wrong order is no clock set back.
 pub const MAX_CLOCK_STEP_BACK_S: f64 = 3601.0;
+
+/// Seconds a text log's clock may be set back in all: a day. Beyond, a step is left as
+/// written (the derive names the tags that do not increase), so that every tag given out
+/// stays within a day of [`MAX_TAG_S`], timed to the nanosecond in an `i64`.
+pub const MAX_CLOCK_SHIFT_S: f64 = 86_400.0;
 
 /// How far a text log's clock was set back at a line tagged `t_s`, s, so that the line
 /// takes the time one period of `period_s` after the line before it (`prev_s`, as given
@@ -1580,6 +1586,15 @@ mod tests {
             said.contains("set back 3 times while it logged (line 121 +0.007 s, line 151 +0.030 s, line 171 +1.500 s;"),
             "{said}"
         );
+        // 33 steps of 3000 s, 30 lines apart: the first 28 taken out (84 000 s, within
+        // a day), the other five left as written (each a tag going back).
+        let mut tags: Vec<f64> = (0..1000).map(|k| k as f64 * 0.01).collect();
+        for from in (30..1000).step_by(30) {
+            tags[from..].iter_mut().for_each(|t| *t -= 3000.0);
+        }
+        let (v, rep, _) = read_all(&log_at(&tags));
+        assert_eq!((rep.text_clock_steps_back, rep.t_non_increasing), (28, 5));
+        assert!((v[29 * 30].t_s - (29.0 * 30.0 * 0.01 - 3000.0)).abs() < 1e-6);
         // Not steps: a line repeated, a line back alone, and an hour and 2 s back.
         let mut tags: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
         tags[120] = tags[119];
@@ -1639,6 +1654,37 @@ mod tests {
                 let slot_s = slots[k] as f64 * period;
                 let within = 0.0625 * period + 1e-12;
                 proptest::prop_assert!((s.t_s - slot_s).abs() <= within, "line {} at {} for {}", k, s.t_s, slot_s);
+            }
+        }
+
+        /// Any tags (steps of any size and sign, repeats, leaps): every line is accepted
+        /// or rejected without a panic, the account adds up, every time given out is
+        /// finite and within a day of the range, and the clock's shift within a day.
+        #[test]
+        fn any_tags_are_read_without_a_panic_and_account_for_every_line(
+            steps in proptest::collection::vec(
+                proptest::prop_oneof![
+                    proptest::strategy::Just(0.01f64),
+                    -0.05f64..0.05,
+                    -4000.0f64..4000.0,
+                    proptest::strategy::Just(0.0),
+                ],
+                2..300,
+            ),
+        ) {
+            let tags: Vec<f64> = steps
+                .iter()
+                .scan(0.0, |t, step| {
+                    *t += step;
+                    Some(*t)
+                })
+                .collect();
+            let (v, rep, _) = read_all(&log_at(&tags));
+            proptest::prop_assert!(rep.is_consistent(), "{:?}", rep);
+            proptest::prop_assert_eq!(rep.records_read, tags.len() as u64);
+            proptest::prop_assert!(rep.text_clock_shift_s <= MAX_CLOCK_SHIFT_S);
+            for s in &v {
+                proptest::prop_assert!(s.t_s.is_finite() && s.t_s.abs() <= MAX_TAG_S + MAX_CLOCK_SHIFT_S);
             }
         }
 
