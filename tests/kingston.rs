@@ -1209,18 +1209,15 @@ fn kingston_lines_written_late_or_early_alone_take_their_slots() {
 /// tags do not increase"). Now each step is taken out (counted in `ingest.json`, said in
 /// the summary), the line after it taking the time one period after the line before,
 /// which is the shipped tag to the nanosecond: the IMU's table and `disupt.json` are the
-/// shipped run's byte for byte.
+/// shipped run's byte for byte. With its speed file set back with it (one logger), the
+/// derive fails as on another clock (2.2 s early) and names the steps' lines: the one
+/// shift for the whole file its clock check names alone is no fix.
 #[test]
 fn kingston_a_clock_set_back_while_logging_is_the_run_on_its_start_clock() {
     let tmp = tempfile::tempdir().unwrap();
     let shipped = kingston_with(&tmp.path().join("shipped"), "");
     let run = kingston_imu_tags_edited(&tmp.path().join("stepped"), |k, t| {
-        let back_s: f64 = [(3000, 1.5), (5000, 0.07), (6000, 0.5)]
-            .iter()
-            .filter(|(from, _)| k >= *from)
-            .map(|(_, s)| s)
-            .sum();
-        t - back_s
+        t - set_back_s(|from| k >= from)
     });
     let report = disupt_with_ingest_report(&run, &tmp.path().join("o"));
     assert_eq!(
@@ -1245,6 +1242,45 @@ fn kingston_a_clock_set_back_while_logging_is_the_run_on_its_start_clock() {
         ) && summary.contains("moved by +2.070000 s"),
         "{summary}"
     );
+
+    // Its speed file written on the same clock (one logger, both files): the derive
+    // fails as on another clock, and names the steps to move the file's tags by, not
+    // the one shift for the whole file its clock check finds.
+    let imu_tags: Vec<f64> = (std::fs::read_to_string(shipped.join("imu.txt"))
+        .unwrap()
+        .lines())
+    .map(|l| l.split_once(' ').unwrap().0.parse().unwrap())
+    .collect();
+    let speeds: String = (std::fs::read_to_string(run.join("odometer.txt"))
+        .unwrap()
+        .lines())
+    .map(|line| {
+        let (t, rest) = line.split_once(' ').unwrap();
+        let t: f64 = t.parse().unwrap();
+        format!("{:.3} {rest}\n", t - set_back_s(|from| t >= imu_tags[from]))
+    })
+    .collect();
+    std::fs::write(run.join("odometer.txt"), speeds).unwrap();
+    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("both-o"));
+    assert!(
+        err.contains("time tags run")
+            && err.contains(
+                "But the log's clock was set back while it logged (line 3001 +1.500 s, line \
+                 5001 +0.070 s, line 6001 +0.500 s; every step in ingest.json): if"
+            )
+            && err.contains("was written on that clock, move its tags after each step by the step"),
+        "{err}"
+    );
+}
+
+/// Kingston's clock steps back (at its IMU lines 3001, 5001 and 6001, 0-based 3000,
+/// 5000, 6000): what they add to a tag after the lines `after` says it is.
+fn set_back_s(after: impl Fn(usize) -> bool) -> f64 {
+    [(3000, 1.5), (5000, 0.07), (6000, 0.5)]
+        .iter()
+        .filter(|(from, _)| after(*from))
+        .map(|(_, s)| s)
+        .sum()
 }
 
 /// Kingston in `run` (created) with its IMU line `k`'s time tag `t` written `edit(k, t)`,

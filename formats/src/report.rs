@@ -201,23 +201,32 @@ impl IngestReport {
     /// What the run's log and its row of the campaign summary say of a text log's clock
     /// set back while it logged (`None`: it was not).
     pub fn text_clock_said(&self) -> Option<String> {
-        let n = self.text_clock_steps_back;
-        let listed: Vec<String> = (self.text_clock_steps.iter().take(5))
-            .map(|s| format!("line {} {:+.3} s", s.line, s.step_s))
-            .collect();
-        let more = if n > listed.len() as u64 { ", …" } else { "" };
-        (n > 0).then(|| {
+        (self.text_clock_steps_back > 0).then(|| {
             format!(
-                "the log's clock was set back {} while it logged ({}{more}; every step in \
-                 ingest.json), taken out of the time base (the tags after the last moved by \
-                 {:+.6} s); a separate odometer file and the manifest's t_s are taken on the \
-                 log's clock at its start (an odometer file written on the stepped clock \
-                 needs its tags after each step moved by as much)",
-                times(n),
-                listed.join(", "),
+                "the log's clock was set back {} while it logged ({}), taken out of the time \
+                 base (the tags after the last moved by {:+.6} s); a separate odometer file \
+                 and the manifest's t_s are taken on the log's clock at its start (an \
+                 odometer file written on the stepped clock needs its tags after each step \
+                 moved by as much)",
+                times(self.text_clock_steps_back),
+                self.text_clock_steps_listed(),
                 self.text_clock_shift_s
             )
         })
+    }
+
+    /// A text log's first five clock steps back, each at its line, and where the rest
+    /// are listed: "line 3001 +1.500 s, …; every step in ingest.json".
+    pub fn text_clock_steps_listed(&self) -> String {
+        let listed: Vec<String> = (self.text_clock_steps.iter().take(5))
+            .map(|s| format!("line {} {:+.3} s", s.line, s.step_s))
+            .collect();
+        let more = if self.text_clock_steps_back > listed.len() as u64 {
+            ", …"
+        } else {
+            ""
+        };
+        format!("{}{more}; every step in ingest.json", listed.join(", "))
     }
 
     /// What the run's log and its row of the campaign summary say of a text log's lines

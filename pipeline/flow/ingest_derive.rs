@@ -180,6 +180,26 @@ fn not_readings_s(
         .collect())
 }
 
+/// An odometer file's clock failure `e`, told the log's clock was set back while it
+/// logged (`report`'s steps): a file written on that clock (the same logger's) needs its
+/// tags after each step moved by the step, which one shift for the whole file does not do.
+fn with_log_clock_set_back(
+    e: anyhow::Error,
+    report: &IngestReport,
+    odometer_file: Option<&Path>,
+) -> anyhow::Error {
+    let Some(file) = odometer_file.filter(|_| report.text_clock_steps_back > 0) else {
+        return e;
+    };
+    anyhow::anyhow!(
+        "{e}. But the log's clock was set back while it logged ({}): if {} was written on \
+         that clock, move its tags after each step by the step instead of one shift for the \
+         file",
+        report.text_clock_steps_listed(),
+        file.display()
+    )
+}
+
 /// The ingest's account (`ingest.json`) in `ingest_dir`.
 pub fn read_ingest_report(ingest_dir: &Path) -> anyhow::Result<IngestReport> {
     let path = ingest_dir.join(files::INGEST_REPORT);
@@ -306,7 +326,8 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         check_stand_speed(stand.as_ref(), m, odometer_file)?;
         check_travel(&d, m, odometer_file)?;
         let not_readings_s = not_readings_s(&ingest_dir, &report, &d, offset_s)?;
-        d.odometer_clock = check_clock(&d, &params.derive, m, odometer_file, &not_readings_s)?;
+        d.odometer_clock = check_clock(&d, &params.derive, m, odometer_file, &not_readings_s)
+            .map_err(|e| with_log_clock_set_back(e, &report, odometer_file))?;
         let stuck = report.odometer_failures.map_or(0, |f| f.stuck_samples) as usize;
         if (d.odometer_failure_samples + stuck) * 10 > d.t_s.len() {
             let (flagged, n) = (d.odometer_failure_samples, d.t_s.len());
