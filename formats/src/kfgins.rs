@@ -1594,6 +1594,26 @@ mod tests {
         }
         let (v, rep, _) = read_all(&log_at(&tags));
         assert_eq!((rep.text_clock_steps_back, rep.t_non_increasing), (28, 5));
+        assert!(
+            rep.text_clock_said()
+                .unwrap()
+                .contains(", …; every step in ingest.json")
+        );
+        let many = IngestReport {
+            text_clock_steps_back: 150,
+            text_clock_steps: vec![
+                TextClockStep {
+                    line: 9,
+                    step_s: 0.5
+                };
+                TextClockStep::KEPT
+            ],
+            ..rep
+        };
+        assert!(
+            many.text_clock_steps_listed()
+                .ends_with(", …; the first 100 in ingest.json")
+        );
         assert!((v[29 * 30].t_s - (29.0 * 30.0 * 0.01 - 3000.0)).abs() < 1e-6);
         // Not steps: a line repeated, a line back alone, and an hour and 2 s back.
         let mut tags: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();

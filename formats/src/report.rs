@@ -216,7 +216,8 @@ impl IngestReport {
     }
 
     /// A text log's first five clock steps back, each at its line, and where the rest
-    /// are listed: "line 3001 +1.500 s, …; every step in ingest.json".
+    /// are listed: "line 3001 +1.500 s, …; every step in ingest.json" (or the first
+    /// [`TextClockStep::KEPT`], when there were more).
     pub fn text_clock_steps_listed(&self) -> String {
         let listed: Vec<String> = (self.text_clock_steps.iter().take(5))
             .map(|s| format!("line {} {:+.3} s", s.line, s.step_s))
@@ -226,7 +227,12 @@ impl IngestReport {
         } else {
             ""
         };
-        format!("{}{more}; every step in ingest.json", listed.join(", "))
+        let kept = if self.text_clock_steps_back > TextClockStep::KEPT as u64 {
+            format!("the first {}", TextClockStep::KEPT)
+        } else {
+            "every step".to_owned()
+        };
+        format!("{}{more}; {kept} in ingest.json", listed.join(", "))
     }
 
     /// What the run's log and its row of the campaign summary say of a text log's lines
