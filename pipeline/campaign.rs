@@ -527,9 +527,7 @@ fn run_note(
         .chain(level_apart.map(LevelApart::said))
         .chain(ing.and_then(|i| i.speed_floor).map(|f| f.said()))
         .chain(ing.and_then(|i| i.speed_column_unread_said()))
-        .chain(ing.and_then(|i| i.clock_said()))
-        .chain(ing.and_then(|i| i.lines_off_slot_said()))
-        .chain(ing.and_then(|i| i.text_clock_said()))
+        .chain(ing.into_iter().flat_map(|i| i.time_base_said()))
         .chain(odo_failed)
         .chain(rebridged)
         .chain(

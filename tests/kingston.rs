@@ -1287,9 +1287,15 @@ fn set_back_s(after: impl Fn(usize) -> bool) -> f64 {
 /// to 1 ms (its speed file and control points as shipped).
 fn kingston_imu_tags_edited(
     run: &std::path::Path,
-    mut edit: impl FnMut(usize, f64) -> f64,
+    edit: impl FnMut(usize, f64) -> f64,
 ) -> std::path::PathBuf {
     let run = kingston_with(run, "");
+    edit_imu_tags(&run, edit);
+    run
+}
+
+/// `run`'s `imu.txt` with its line `k`'s time tag `t` written `edit(k, t)`, to 1 ms.
+fn edit_imu_tags(run: &std::path::Path, mut edit: impl FnMut(usize, f64) -> f64) {
     let imu: String = (std::fs::read_to_string(run.join("imu.txt"))
         .unwrap()
         .lines())
@@ -1300,7 +1306,6 @@ fn kingston_imu_tags_edited(
     })
     .collect();
     std::fs::write(run.join("imu.txt"), imu).unwrap();
-    run
 }
 
 /// The edited run's `imu.parquet` and `disupt.json` (output folder `dir/o`) are the
@@ -1336,15 +1341,7 @@ fn own_clock_reference(dir: &std::path::Path) -> std::path::PathBuf {
 /// control points') written `retimed(t)`, to 1 ms.
 fn kingston_retimed(run: &std::path::Path, retimed: impl Fn(f64) -> f64) -> std::path::PathBuf {
     let run = kingston_odometer_edited(run, |t, v| (retimed(t), v));
-    let imu: String = (std::fs::read_to_string(run.join("imu.txt"))
-        .unwrap()
-        .lines())
-    .map(|line| {
-        let (t, rest) = line.split_once(' ').unwrap();
-        format!("{:.3} {rest}\n", retimed(t.parse().unwrap()))
-    })
-    .collect();
-    std::fs::write(run.join("imu.txt"), imu).unwrap();
+    edit_imu_tags(&run, |_, t| retimed(t));
     let path = run.join("run.toml");
     let mut m: toml::Table = toml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     for cp in m["control_point"].as_array_mut().unwrap() {

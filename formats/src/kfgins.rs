@@ -371,8 +371,6 @@ pub struct KfGinsReader<R: BufRead> {
     given_t_s: Option<f64>,
     /// That sample's interval from the one before it, s.
     given_interval_s: Option<f64>,
-    /// What the clock's steps back so far add to the tags read, s ([`clock_step_back_s`]).
-    shift_s: f64,
     eof: bool,
     /// The time tags over GPS-week and day rollovers.
     tags: TagUnwrap,
@@ -406,7 +404,6 @@ impl<R: BufRead> KfGinsReader<R> {
             failed: None,
             given_t_s: None,
             given_interval_s: None,
-            shift_s: 0.0,
             eof: false,
             tags: TagUnwrap::default(),
             first_t_s: None,
@@ -586,49 +583,61 @@ impl<R: BufRead> KfGinsReader<R> {
             self.failed = Some(e);
             None
         });
-        s.t_s += self.shift_s;
-        if let Some(prev_t_s) = self.given_t_s
-            && let (Some(next), Some(p)) = (self.held, self.period_s)
-        {
-            let next_t_s = next.t_s + self.shift_s;
-            if let Some(t_s) = slot_time(prev_t_s, s.t_s, next_t_s, p) {
-                s.t_s = t_s;
-                self.report.lines_off_slot += 1;
-            } else if let Some(step_s) =
-                clock_step_back_s(self.given_interval_s, prev_t_s, s.t_s, next_t_s, p)
-                    .filter(|step_s| self.shift_s + step_s <= MAX_CLOCK_SHIFT_S)
-            {
-                self.shift_s += step_s;
-                s.t_s += step_s;
-                self.report.text_clock_steps_back += 1;
-                self.report.text_clock_shift_s = self.shift_s;
-                let steps = &mut self.report.text_clock_steps;
-                if steps.len() < TextClockStep::KEPT {
-                    steps.push(TextClockStep {
-                        line: s.line,
-                        step_s,
-                    });
-                }
-            }
-        }
+        s.t_s += self.report.text_clock_shift_s;
         if let Some(prev_t_s) = self.given_t_s {
-            let dt = s.t_s - prev_t_s;
-            let mut lost = None;
-            if dt <= 0.0 {
-                self.report.t_non_increasing += 1;
-            } else if let Some(p) = self.period_s {
-                let steps = (dt / p).round();
-                if steps >= 2.0 && dt > 1.5 * p {
-                    // `as` saturates: a tag of 1e300 (a damaged line) is a gap of more
-                    // samples than a u64 counts.
-                    lost = Some(((steps - 1.0) as u64, p));
-                }
-            }
-            self.gaps.interval(&mut self.report, dt, lost);
-            self.given_interval_s = Some(dt);
+            self.retime(&mut s, prev_t_s);
+            self.count_interval(s.t_s - prev_t_s);
         }
         self.given_t_s = Some(s.t_s);
         Ok(Some(s))
+    }
+
+    /// Gives `s` (its time on the log's clock at its start so far, the line before it
+    /// given out at `prev_t_s`) its slot's time when it was written off its slot alone
+    /// ([`slot_time`]), or takes a step back of the log's clock out at it
+    /// ([`clock_step_back_s`]), telling by the line after it ([`Self::held`]).
+    fn retime(&mut self, s: &mut TextSample, prev_t_s: f64) {
+        let (Some(next), Some(p)) = (self.held, self.period_s) else {
+            return;
+        };
+        let shift_s = self.report.text_clock_shift_s;
+        let next_t_s = next.t_s + shift_s;
+        if let Some(t_s) = slot_time(prev_t_s, s.t_s, next_t_s, p) {
+            s.t_s = t_s;
+            self.report.lines_off_slot += 1;
+        } else if let Some(step_s) =
+            clock_step_back_s(self.given_interval_s, prev_t_s, s.t_s, next_t_s, p)
+                .filter(|step_s| shift_s + step_s <= MAX_CLOCK_SHIFT_S)
+        {
+            s.t_s += step_s;
+            let r = &mut self.report;
+            r.text_clock_steps_back += 1;
+            r.text_clock_shift_s += step_s;
+            if r.text_clock_steps.len() < TextClockStep::KEPT {
+                r.text_clock_steps.push(TextClockStep {
+                    line: s.line,
+                    step_s,
+                });
+            }
+        }
+    }
+
+    /// Counts the interval `dt` (s) from the sample given out before: going back, or a
+    /// gap of lost samples ([`GapAccount`]).
+    fn count_interval(&mut self, dt: f64) {
+        let mut lost = None;
+        if dt <= 0.0 {
+            self.report.t_non_increasing += 1;
+        } else if let Some(p) = self.period_s {
+            let steps = (dt / p).round();
+            if steps >= 2.0 && dt > 1.5 * p {
+                // `as` saturates: a tag of 1e300 (a damaged line) is a gap of more samples
+                // than a u64 counts.
+                lost = Some(((steps - 1.0) as u64, p));
+            }
+        }
+        self.gaps.interval(&mut self.report, dt, lost);
+        self.given_interval_s = Some(dt);
     }
 
     /// The next sample accepted (its time as written), or `None` at the end.

@@ -198,6 +198,19 @@ impl IngestReport {
         (!parts.is_empty()).then(|| parts.join("; "))
     }
 
+    /// What the run's log and its row of the campaign summary say of the log's time base:
+    /// a binary log's clock leaping ([`Self::clock_said`]), a text log's lines off their
+    /// slot ([`Self::lines_off_slot_said`]) and clock set back ([`Self::text_clock_said`]).
+    pub fn time_base_said(&self) -> impl Iterator<Item = String> {
+        [
+            self.clock_said(),
+            self.lines_off_slot_said(),
+            self.text_clock_said(),
+        ]
+        .into_iter()
+        .flatten()
+    }
+
     /// What the run's log and its row of the campaign summary say of a text log's clock
     /// set back while it logged (`None`: it was not).
     pub fn text_clock_said(&self) -> Option<String> {

@@ -137,14 +137,8 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         if let Some(apart) = outcome.report.lines_apart_said() {
             ctx.say("ingest", &apart);
         }
-        if let Some(off) = outcome.report.lines_off_slot_said() {
-            ctx.say("ingest", &off);
-        }
-        if let Some(clock) = outcome.report.text_clock_said() {
-            ctx.say("ingest", &clock);
-        }
-        if let Some(clock) = outcome.report.clock_said() {
-            ctx.say("ingest", &clock);
+        for said in outcome.report.time_base_said() {
+            ctx.say("ingest", &said);
         }
         ctx.set_ingested(
             outcome
