@@ -803,7 +803,6 @@ fn ingest_text(
             )
         });
     let mut sinks = Sinks::create(dir, None, None, &options, 0)?;
-    let mut seq = 0u64;
     let new_column = || {
         let g_mps2 = site_gravity_mps2(manifest);
         (
@@ -826,6 +825,8 @@ fn ingest_text(
             s.dvel_mps = imu_mounting::to_body(r, s.dvel_mps);
         }
         let t_ns = tag_ns(s.t_s);
+        // A text log's sequence number is its line's slot: lines lost are its steps.
+        let seq = s.slot;
         let rows = &mut sinks.imu_rows;
         rows.t_ns.push(t_ns);
         rows.seq.push(seq);
@@ -845,7 +846,6 @@ fn ingest_text(
             spikes.push(v.map(|v| (s.t_s, v)), s);
             column_readings(spikes, speed, bridger, &mut sinks);
         }
-        seq += 1;
         sinks.flush(false)?;
     }
     if let Some((spikes, speed, bridger)) = &mut column {

@@ -13,6 +13,7 @@ use crate::lines_apart::GapAccount;
 use crate::manifest::OdometerKind;
 use crate::report::{IngestReport, OdometerFileReport, TextClockStep};
 use crate::resent::RecentRecords;
+use crate::slot_clock::SlotClock;
 use crate::speed_floor::{SpeedFloor, SpeedFloorReport};
 use crate::speed_spikes::{MAX_ACCEL_MPS2, MAX_BRAKING_MPS2, SpeedSpikes, Verdict};
 
@@ -158,6 +159,10 @@ pub struct TextSample {
     pub dvel_mps: [f64; 3],
     /// Optional 8th column: odometer speed, m/s.
     pub speed_mps: Option<f64>,
+    /// The sample's slot of the period, counted from the first sample's (0): one more
+    /// than the last sample's, and more after lines lost ([`SlotClock`]). What a
+    /// recorder's sequence number is to a binary log.
+    pub slot: u64,
 }
 
 /// A line that could not be used.
@@ -369,8 +374,15 @@ pub struct KfGinsReader<R: BufRead> {
     failed: Option<FormatError>,
     /// The time of the last sample given out, s (its slot's, when it was off it).
     given_t_s: Option<f64>,
-    /// That sample's interval from the one before it, s.
-    given_interval_s: Option<f64>,
+    /// The slots that sample moved on from the one before it (0 for the first).
+    given_slots: u64,
+    /// That sample's slot.
+    slot: u64,
+    /// The slots of the samples given out, following their tags.
+    clock: SlotClock,
+    /// The period the slot clock starts from: the one the first lines' tags agree on
+    /// best ([`first_slots`]).
+    slot_period_s: Option<f64>,
     eof: bool,
     /// The time tags over GPS-week and day rollovers.
     tags: TagUnwrap,
@@ -403,7 +415,10 @@ impl<R: BufRead> KfGinsReader<R> {
             held: None,
             failed: None,
             given_t_s: None,
-            given_interval_s: None,
+            given_slots: 0,
+            slot: 0,
+            clock: SlotClock::default(),
+            slot_period_s: None,
             eof: false,
             tags: TagUnwrap::default(),
             first_t_s: None,
@@ -534,6 +549,7 @@ impl<R: BufRead> KfGinsReader<R> {
                 dtheta_rad: [values[1], values[2], values[3]],
                 dvel_mps: [values[4], values[5], values[6]],
                 speed_mps: (n == 8).then_some(values[7]),
+                slot: 0,
             }));
         }
         self.eof = true;
@@ -560,14 +576,20 @@ impl<R: BufRead> KfGinsReader<R> {
             .collect();
         dts.sort_by(f64::total_cmp);
         self.period_s = dts.get(dts.len() / 2).copied();
+        if let Some(median_s) = self.period_s {
+            let tags_s: Vec<f64> = self.ahead.iter().map(|s| s.t_s).collect();
+            let (period_s, first_late_s) = first_slots(&tags_s, median_s);
+            self.slot_period_s = Some(period_s);
+            self.clock = SlotClock::with_late_s(first_late_s);
+        }
         Ok(())
     }
 
-    /// Returns the next accepted sample, or `None` at the end. A line written late or
-    /// early alone, more than half a period off the middle of its neighbours' times
-    /// while they are a slot either side of it, takes that middle
-    /// ([`IngestReport::lines_off_slot`]); the sample after it is accepted first (the
-    /// report counts it) to tell.
+    /// Returns the next accepted sample, or `None` at the end, with its slot
+    /// ([`TextSample::slot`]). A line written late or early alone, more than half a
+    /// period off its slot while the next line is on the slot after, takes the middle of
+    /// its neighbours' times ([`IngestReport::lines_off_slot`]); the sample after it is
+    /// accepted first (the report counts it) to tell.
     pub fn next_sample(&mut self) -> Result<Option<TextSample>, FormatError> {
         if let Some(e) = self.failed.take() {
             return Err(e);
@@ -587,26 +609,30 @@ impl<R: BufRead> KfGinsReader<R> {
         if let Some(prev_t_s) = self.given_t_s {
             self.retime(&mut s, prev_t_s);
             self.count_interval(s.t_s - prev_t_s);
+            s.slot = self.slot;
         }
         self.given_t_s = Some(s.t_s);
         Ok(Some(s))
     }
 
     /// Gives `s` (its time on the log's clock at its start so far, the line before it
-    /// given out at `prev_t_s`) its slot's time when it was written off its slot alone
-    /// ([`slot_time`]), or takes a step back of the log's clock out at it
-    /// ([`clock_step_back_s`]), telling by the line after it ([`Self::held`]).
+    /// given out at `prev_t_s`) the middle of its neighbours' times when it was written
+    /// off its slot alone ([`slot_time`]), or takes a step back of the log's clock out at it
+    /// ([`clock_step_back_s`]), telling by the line after it ([`Self::held`]) and by
+    /// where the slot clock puts the last line's slot.
     fn retime(&mut self, s: &mut TextSample, prev_t_s: f64) {
-        let (Some(next), Some(p)) = (self.held, self.period_s) else {
+        let (Some(next), Some(p)) = (self.held, self.slot_period_s) else {
             return;
         };
+        let p = self.clock.period_s(p);
         let shift_s = self.report.text_clock_shift_s;
         let next_t_s = next.t_s + shift_s;
-        if let Some(t_s) = slot_time(prev_t_s, s.t_s, next_t_s, p) {
+        let prev_slot_s = self.clock.slot_of(prev_t_s);
+        if let Some(t_s) = slot_time(prev_slot_s, prev_t_s, s.t_s, next_t_s, p) {
             s.t_s = t_s;
             self.report.lines_off_slot += 1;
         } else if let Some(step_s) =
-            clock_step_back_s(self.given_interval_s, prev_t_s, s.t_s, next_t_s, p)
+            clock_step_back_s(self.given_slots, prev_slot_s, s.t_s, next_t_s, p)
                 .filter(|step_s| shift_s + step_s <= MAX_CLOCK_SHIFT_S)
         {
             s.t_s += step_s;
@@ -622,22 +648,21 @@ impl<R: BufRead> KfGinsReader<R> {
         }
     }
 
-    /// Counts the interval `dt` (s) from the sample given out before: going back, or a
-    /// gap of lost samples ([`GapAccount`]).
+    /// Counts the interval `dt` (s) from the sample given out before: going back, or
+    /// the slots it moved on on the slot clock, more than one a gap of lost samples
+    /// ([`GapAccount`]).
     fn count_interval(&mut self, dt: f64) {
-        let mut lost = None;
         if dt <= 0.0 {
             self.report.t_non_increasing += 1;
-        } else if let Some(p) = self.period_s {
-            let steps = (dt / p).round();
-            if steps >= 2.0 && dt > 1.5 * p {
-                // `as` saturates: a tag of 1e300 (a damaged line) is a gap of more samples
-                // than a u64 counts.
-                lost = Some(((steps - 1.0) as u64, p));
-            }
         }
+        let slots = (self.slot_period_s).map_or(1, |p| self.clock.step(dt, p));
+        // (A tag of 1e300, a damaged line, is a gap of more samples than a u64 counts.)
+        let lost = (self.slot_period_s)
+            .filter(|_| slots >= 2)
+            .map(|p| (slots - 1, self.clock.period_s(p)));
         self.gaps.interval(&mut self.report, dt, lost);
-        self.given_interval_s = Some(dt);
+        self.given_slots = slots;
+        self.slot = self.slot.saturating_add(slots);
     }
 
     /// The next sample accepted (its time as written), or `None` at the end.
@@ -697,10 +722,101 @@ impl<R: BufRead> KfGinsReader<R> {
     }
 }
 
-/// The time a line tagged `t_s` takes when it was written off its slot alone: the
-/// middle of its neighbours' times (`prev_s`, as given out, and `next_s`) when they are a
-/// slot either side of it (two periods of `period_s` apart, to half a period) and it lies
-/// between them, more than half a period off that middle; else `None`, its tag stands.
+/// The slots of a log's first lines (`tags_s`, their median positive step `median_s`):
+/// their period, and the first line's tag less its slot's time, s.
+///
+/// The lines are taken in stretches whose tags go on by up to 20 median steps (a tag
+/// going back, leaping, or a clock set back parts them: across such a part the phases
+/// would turn by the part's length times the period's error). The period is the one at
+/// which the longest stretch's tags' phases agree best (the phasors `exp(2πi t / period)`
+/// summed: lines lost do not move them, and a random jitter only shortens their sum),
+/// searched within a quarter of the median step on a grid a thousandth of it apart, then
+/// a twenty-thousandth about the best, and between that grid's points by the parabola
+/// through the best and its neighbours (its half and its double, where tags on its slots
+/// agree as well, are beyond). The first line's slot is where the first stretch's phases
+/// agree at that period. The median step is off the period by the jitter where lines
+/// were lost among the first, or where they jitter (3 % with a third of a period of it
+/// over 100 lines), and a slot clock that starts off its period by more than a few per
+/// cent slips a slot every few lines, reading lines lost and clocks set back; one started
+/// on the first line's tag is off by that line's jitter. The median and the first tag
+/// stand when the phases do not agree (their sum under a fifth of the stretch's lines),
+/// or over a stretch of fewer than eight lines.
+fn first_slots(tags_s: &[f64], median_s: f64) -> (f64, f64) {
+    const STRETCH_STEPS: f64 = 20.0;
+    let mut stretches: Vec<&[f64]> = Vec::new();
+    let mut from = 0;
+    for k in 1..=tags_s.len() {
+        let parted = k == tags_s.len() || {
+            let step_s = tags_s[k] - tags_s[k - 1];
+            !(step_s > 0.0 && step_s <= STRETCH_STEPS * median_s)
+        };
+        if parted {
+            stretches.push(&tags_s[from..k]);
+            from = k;
+        }
+    }
+    let Some(longest) = stretches.iter().copied().max_by_key(|s| s.len()) else {
+        return (median_s, 0.0);
+    };
+    if longest.len() < 8 {
+        return (median_s, 0.0);
+    }
+    // Phases from a stretch's middle line: their error from the period's grows with the
+    // time from it.
+    let sum = |tags_s: &[f64], period_s: f64| {
+        let mid_s = tags_s[tags_s.len() / 2];
+        let (mut cos, mut sin) = (0.0, 0.0);
+        for &t_s in tags_s {
+            let angle = std::f64::consts::TAU * ((t_s - mid_s) / period_s);
+            cos += angle.cos();
+            sin += angle.sin();
+        }
+        (cos.hypot(sin), sin.atan2(cos), mid_s)
+    };
+    let best_of = |candidates: &mut dyn Iterator<Item = f64>| {
+        let mut best = (median_s, f64::NEG_INFINITY);
+        for p in candidates {
+            let (length, ..) = sum(longest, p);
+            if length > best.1 {
+                best = (p, length);
+            }
+        }
+        best
+    };
+    let (coarse_s, _) = best_of(&mut (-250..=250).map(|k| median_s * (1.0 + k as f64 * 1e-3)));
+    const FINE_STEP: f64 = 5e-5;
+    let (fine_s, length) =
+        best_of(&mut (-20..=20).map(|k| coarse_s * (1.0 + k as f64 * FINE_STEP)));
+    // The peak between its grid's neighbours, by the parabola through the three.
+    let step_s = fine_s * FINE_STEP;
+    let (before, after) = (
+        sum(longest, fine_s - step_s).0,
+        sum(longest, fine_s + step_s).0,
+    );
+    let curvature = before - 2.0 * length + after;
+    let period_s = match 0.5 * (before - after) / curvature {
+        shift if curvature < 0.0 && shift.abs() <= 1.0 => fine_s + shift * step_s,
+        _ => fine_s,
+    };
+    let agree = sum(longest, period_s).0 >= 0.2 * longest.len() as f64;
+    if !(agree && period_s.is_finite() && period_s > 0.0) {
+        return (median_s, 0.0);
+    }
+    // The first stretch's slots are at `mid_s + phase + m period`: the first tag's
+    // lateness from the nearest.
+    let (_, angle, mid_s) = sum(stretches[0], period_s);
+    let phase_s = angle / std::f64::consts::TAU * period_s;
+    let from_s = tags_s[0] - mid_s - phase_s;
+    let late_s = from_s - (from_s / period_s).round() * period_s;
+    (period_s, if late_s.is_finite() { late_s } else { 0.0 })
+}
+
+/// The time a line tagged `t_s` takes when it was written off its slot alone: the middle
+/// of its neighbours' times (`prev_s`, as given out, and `next_s`) when it is more than
+/// half a period of `period_s` off its slot (one period after the last line's,
+/// `prev_slot_s` on the slot clock), lies between them and the next line is on the slot
+/// after, to half a period; else `None`, its tag stands. (The middle, not the slot: the
+/// clock lags a tag stream by its jitter's fraction, the neighbours do not.)
 ///
 /// A logger that stamps its lines as they come writes one late now and then (or early,
 /// after a late one). Kept, a line late by more than half a period read as a gap of a
@@ -708,14 +824,14 @@ impl<R: BufRead> KfGinsReader<R> {
 /// times over) and its interval and the next gave their samples' rates over 1.6 and 0.4
 /// periods. A tag going back, or past the next, is the derive's to repair; two lines off
 /// together are left as written. Beside a gap of lines lost the reading is the tags':
-/// a line early after the gap may read as the line before it late across the gap (either
-/// has one line off and the same lines lost).
-fn slot_time(prev_s: f64, t_s: f64, next_s: f64, period_s: f64) -> Option<f64> {
-    let span_s = next_s - prev_s;
-    let middle_s = prev_s + 0.5 * span_s;
-    let a_slot_either_side = span_s > 1.5 * period_s && span_s < 2.5 * period_s;
-    (a_slot_either_side && prev_s < t_s && t_s < next_s && (t_s - middle_s).abs() > 0.5 * period_s)
-        .then_some(middle_s)
+/// a line early after the gap may read as one late with a line fewer lost. A line off by
+/// its jitter (within half a period of its slot, however far from its neighbours' middle)
+/// is no line off.
+fn slot_time(prev_slot_s: f64, prev_s: f64, t_s: f64, next_s: f64, period_s: f64) -> Option<f64> {
+    let slot_s = prev_slot_s + period_s;
+    let next_on_slot = (next_s - slot_s - period_s).abs() < 0.5 * period_s;
+    (next_on_slot && prev_s < t_s && t_s < next_s && (t_s - slot_s).abs() > 0.5 * period_s)
+        .then_some(prev_s + 0.5 * (next_s - prev_s))
 }
 
 /// Seconds a text log's clock may be set back at once and be taken as a step: an hour
@@ -730,29 +846,32 @@ pub const MAX_CLOCK_STEP_BACK_S: f64 = 3601.0;
 pub const MAX_CLOCK_SHIFT_S: f64 = 86_400.0;
 
 /// How far a text log's clock was set back at a line tagged `t_s`, s, so that the line
-/// takes the time one period of `period_s` after the line before it (`prev_s`, as given
-/// out): when the line is less than half a period after that one (or before it), while
-/// the line before came a period after its own (`prev_interval_s`) and the next
-/// (`next_s`) goes on from this one at a period, each to half a period (the logger's
-/// clock set back by a time sync, or to standard time, while it logs); else `None`.
-/// Every later tag is moved by as much. A line alone off its slot is [`slot_time`]'s
-/// (tried first); a line whose next does not go on from it (a tag repeated, going back
-/// alone), or after a line that leapt forward alone, is the derive's to repair. A clock
-/// set forward reads as lines lost, as it must without sequence numbers. A separate
-/// odometer file and the manifest's control points are taken on the log's clock at its
-/// start (what the tags are moved to).
+/// takes its slot's time, one period of `period_s` after the last line's slot
+/// (`prev_slot_s`, on the slot clock): when the line is less than half a period after
+/// that slot (or before it), while the last line moved on by one slot (`prev_slots`) and
+/// the next (`next_s`) goes on from this one at a period, to half a period (the logger's
+/// clock set back by a time sync, or to standard time, while it logs), the next more than
+/// a quarter of a period early of its slot on the clock as it was; else `None`. Every
+/// later tag is moved by as much. A line alone off its slot is [`slot_time`]'s (tried
+/// first); a line whose next does not go on from it (a tag repeated, going back alone),
+/// or after a line that leapt forward alone, is the derive's to repair. A clock set
+/// forward reads as lines lost, as it must without sequence numbers. A separate odometer
+/// file and the manifest's control points are taken on the log's clock at its start
+/// (what the tags are moved to). Judged against the slot clock, not the last line's tag,
+/// a line early by its jitter after one late by its jitter (their interval short of half
+/// a period by the two) is no step.
 fn clock_step_back_s(
-    prev_interval_s: Option<f64>,
-    prev_s: f64,
+    prev_slots: u64,
+    prev_slot_s: f64,
     t_s: f64,
     next_s: f64,
     period_s: f64,
 ) -> Option<f64> {
-    let a_period = |interval_s: f64| (interval_s - period_s).abs() < 0.5 * period_s;
-    let step_s = prev_s + period_s - t_s;
-    (t_s - prev_s <= 0.5 * period_s
-        && prev_interval_s.is_some_and(a_period)
-        && a_period(next_s - t_s)
+    let step_s = prev_slot_s + period_s - t_s;
+    (t_s - prev_slot_s <= 0.5 * period_s
+        && prev_slots == 1
+        && (next_s - t_s - period_s).abs() < 0.5 * period_s
+        && next_s - (prev_slot_s + 2.0 * period_s) < -0.25 * period_s
         && step_s <= MAX_CLOCK_STEP_BACK_S)
         .then_some(step_s)
 }
@@ -1529,6 +1648,77 @@ mod tests {
         assert_eq!((rep.lines_off_slot, rep.t_non_increasing), (0, 2));
     }
 
+    /// A logger whose lines jitter at random by up to a tenth of a period, with pairs
+    /// here and there of a line 0.35 of a period late and the next 0.35 early (their
+    /// interval 0.3 of a period), or the other way (1.7 periods): no pair is a clock set
+    /// back or a line lost, every line is one slot on and keeps its tag. Before, judged
+    /// against the last line's tag, the first read as the clock set back by 0.7 of a
+    /// period and the second as a line lost.
+    #[test]
+    fn a_line_off_by_its_jitter_after_one_off_the_other_way_is_a_slot_on() {
+        let random = |k: usize| ((k as f64 * 12.9898 + 7.0).sin() * 43_758.545).rem_euclid(1.0);
+        let mut jitter: Vec<f64> = (0..600).map(|k| 0.2 * random(k + 1000) - 0.1).collect();
+        let mut pairs = 0;
+        let mut k = 2;
+        while k + 3 < jitter.len() {
+            if random(k) < 0.15 {
+                let sign = if random(k + 5000) < 0.5 { 1.0 } else { -1.0 };
+                (jitter[k], jitter[k + 1]) = (0.35 * sign, -0.35 * sign);
+                pairs += 1;
+                k += 3;
+            } else {
+                k += 1;
+            }
+        }
+        assert!(pairs > 50, "{pairs}");
+        let tags: Vec<f64> = (jitter.iter().enumerate())
+            .map(|(k, j)| (k as f64 + j) * 0.01)
+            .collect();
+        let (v, rep, _) = read_all(&log_at(&tags));
+        let slots: Vec<u64> = v.iter().map(|s| s.slot).collect();
+        assert_eq!(slots, (0..600).collect::<Vec<u64>>());
+        assert!(
+            v.iter().zip(&tags).all(|(s, t)| (s.t_s - t).abs() < 1e-6),
+            "a tag moved"
+        );
+        assert_eq!(
+            (
+                rep.text_clock_steps_back,
+                rep.lines_off_slot,
+                rep.seq_gaps,
+                rep.lost_samples,
+                rep.t_non_increasing
+            ),
+            (0, 0, 0, 0, 0)
+        );
+    }
+
+    /// The slots of a log's first lines, from a median step 3 % off (lines lost among
+    /// them, a jitter of up to 0.3 of a period): the period to 0.1 % and the first line's
+    /// lateness to 0.05 of a period; fewer than eight lines leave the median and the
+    /// first tag.
+    #[test]
+    fn the_first_lines_give_the_slots_period_and_phase() {
+        let period = 0.01;
+        // A jitter drawn at random (a jitter of one frequency would have its sidebands
+        // agree better than its period).
+        let jitter =
+            |k: usize| ((k as f64 * 12.9898 + 1.0).sin() * 43_758.545).rem_euclid(1.0) * 0.6 - 0.3;
+        let tags: Vec<f64> = (0..101)
+            .map(|k| k + k / 7)
+            .enumerate()
+            .map(|(k, slot)| 5.0 + (slot as f64 + 0.2 + jitter(k)) * period)
+            .collect();
+        let (p, first_late) = first_slots(&tags, 0.97 * period);
+        assert!((p / period - 1.0).abs() < 1e-3, "{p}");
+        let late = tags[0] - (5.0 + 0.2 * period);
+        assert!(
+            (first_late - late).abs() < 0.05 * period,
+            "{first_late} for {late}"
+        );
+        assert_eq!(first_slots(&tags[..7], period), (period, 0.0));
+    }
+
     /// An error reading the line after a sample (the one read ahead to tell whether the
     /// sample is off its slot) comes after that sample, as before the look-ahead.
     #[test]
@@ -1686,6 +1876,38 @@ mod tests {
             }
         }
 
+        /// Lines jittering by up to a quarter of a period about their slots, lost in
+        /// stretches of up to three before a quarter of them: every line's slot is its
+        /// own ([`TextSample::slot`]), every line lost is counted and no line is read as
+        /// off its slot or as the clock set back; the tags stand as written.
+        #[test]
+        fn jittering_lines_keep_their_slots(
+            lines in proptest::collection::vec((0u64..12, -0.25f64..0.25), 110..1500),
+        ) {
+            let period = 0.01;
+            let mut slots = Vec::new();
+            let mut slot = 0u64;
+            for &(lost, _) in &lines {
+                slot += 1 + lost.saturating_sub(8);
+                slots.push(slot);
+            }
+            let tags: Vec<f64> = (slots.iter().zip(&lines))
+                .map(|(&s, &(_, jitter))| (s as f64 + jitter) * period)
+                .collect();
+            let (v, rep, _) = read_all(&log_at(&tags));
+            proptest::prop_assert_eq!(v.len(), tags.len());
+            for (s, &slot) in v.iter().zip(&slots) {
+                proptest::prop_assert_eq!(s.slot, slot - slots[0], "line {}", s.line);
+                proptest::prop_assert!((s.t_s - tags[s.line as usize - 1]).abs() < 1e-6);
+            }
+            let lost: u64 = slots.windows(2).map(|w| w[1] - w[0] - 1).sum();
+            proptest::prop_assert_eq!(rep.lost_samples, lost);
+            proptest::prop_assert_eq!(
+                (rep.lines_off_slot, rep.text_clock_steps_back, rep.t_non_increasing),
+                (0, 0, 0)
+            );
+        }
+
         /// Any tags (steps of any size and sign, repeats, leaps): every line is accepted
         /// or rejected without a panic, the account adds up, every time given out is
         /// finite and within a day of the range, and the clock's shift within a day.
@@ -1768,7 +1990,11 @@ mod tests {
         assert_eq!(rep.lost_samples, u64::MAX);
         // The lost samples × the period (0.5 ns, to the rounding of the tags' steps).
         let expected_s = u64::MAX as f64 * 5e-10;
-        assert!((rep.lost_duration_s / expected_s - 1.0).abs() < 1e-6);
+        assert!(
+            (rep.lost_duration_s / expected_s - 1.0).abs() < 1e-6,
+            "{} for {expected_s}",
+            rep.lost_duration_s
+        );
         assert!(rep.is_consistent(), "{rep:?}");
     }
 

@@ -30,6 +30,7 @@ pub mod report;
 pub mod resent;
 pub mod ros2_msgs;
 pub mod schema;
+pub mod slot_clock;
 pub mod speed_floor;
 pub mod speed_spikes;
 pub mod split_doubles;

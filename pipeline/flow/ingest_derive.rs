@@ -102,7 +102,12 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // had its increments scaled. 34: a text log's clock set back while it logged (a
         // line less than half a period after the one before, or before it, its next
         // going on from it at a period) taken out of the time base: the derive failed.
-        version: 34,
+        // 35: a text log's lines told by their slots on a clock that follows the tags
+        // (`unz_formats::slot_clock`): its `seq` is the line's slot (lines lost its
+        // steps), and lines late, early or set back are judged against the clock, not the
+        // last line's tag (a log jittering by a quarter of a period read lines as set
+        // back and lost).
+        version: 35,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
@@ -246,7 +251,10 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // step times the period (the tags' mean step per `seq` step), not its tags'
         // jittering interval, and a tag late within the recorder's jitter (past half a
         // period) is no gap filled.
-        version: 23,
+        // 24: a text log's samples told by their `seq`, the ingest's slots, as a binary
+        // log's: a jittering logger's samples each over the period; a first or last
+        // sample apart closes no gap whatever `seq` says.
+        version: 24,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,

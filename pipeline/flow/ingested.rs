@@ -370,18 +370,25 @@ impl IngestedSeries {
 /// apart: each within [`MAX_TOLERANCE_PERIODS`] of its `seq`'s time.
 const ONE_STEP_PERIODS_KEPT: f64 = (1 + 2 * MAX_TOLERANCE_PERIODS) as f64;
 
-/// The rule a log of `format` tells its lost samples by: a binary log's `seq` (its
-/// steps over one from `seq_steps`, asked only then), a text log's intervals.
+/// The longest interval, in periods, between two lines of a text log a slot apart
+/// (`unz_formats::slot_clock`): under two, each within half a period of its slot on a
+/// clock that follows them; beyond, only a line the derive moves (a first or last line
+/// apart, a tag going back) or a clock taken afresh, which its interval tells.
+const ONE_SLOT_PERIODS_KEPT: f64 = 2.0;
+
+/// The rule a log of `format` tells its lost samples by: its `seq` (its steps over one
+/// from `seq_steps`): a binary log's recorder's, a text log's slots.
 fn lost_samples(
     format: LogFormat,
     seq_steps: impl FnOnce() -> anyhow::Result<SeqSteps>,
 ) -> anyhow::Result<LostSamples> {
-    Ok(match format {
-        LogFormat::UnzBinary => LostSamples::BySeq {
-            steps: seq_steps()?.finish(),
-            longest_one_step_periods: ONE_STEP_PERIODS_KEPT,
-        },
-        LogFormat::KfGins => LostSamples::ByInterval,
+    let longest_one_step_periods = match format {
+        LogFormat::UnzBinary => ONE_STEP_PERIODS_KEPT,
+        LogFormat::KfGins => ONE_SLOT_PERIODS_KEPT,
+    };
+    Ok(LostSamples::BySeq {
+        steps: seq_steps()?.finish(),
+        longest_one_step_periods,
     })
 }
 

@@ -808,6 +808,7 @@ pub fn derive_owned(
     let mut tags = imu_t_ns.into_owned();
     tags.truncate(n);
     let mut prev_t = -nominal;
+    let mut last_moved = false;
     for k in 0..n {
         let mut t = seconds_since(t0, tags[k]);
         let next_t = || tags.get(k + 1).map(|&s| seconds_since(t0, s));
@@ -818,6 +819,7 @@ pub fn derive_owned(
         } else if (k == 0 && first_apart) || last_apart() {
             // Beside the sample next to it: a glitch in its tag, or a lone sample a
             // logger wrote at its start or end, carries no time of its own.
+            last_moved = k + 1 == n;
             t = prev_t + nominal;
             out.repaired_times += 1;
         }
@@ -845,10 +847,19 @@ pub fn derive_owned(
     let mut dt_s = Vec::with_capacity(n);
     let mut scales = lost.scales();
     for (k, &t) in t_s.iter().enumerate() {
+        let mut closed = scales.of(k, t - prev_t, nominal);
+        // A first or last sample apart, placed beside its neighbour, closes no gap
+        // whatever `seq` says (a text log's slots count the time apart).
+        if (k == 1 && first_apart) || (k + 1 == n && last_moved) {
+            closed = Closed {
+                samples: 1.0,
+                dt_s: nominal,
+            };
+        }
         let Closed {
             samples: scale,
             dt_s: dt,
-        } = scales.of(k, t - prev_t, nominal);
+        } = closed;
         if scale != 1.0 {
             out.filled_gaps += 1;
         }
