@@ -1261,6 +1261,31 @@ fn kingston_a_logger_jittering_by_a_third_of_its_period_keeps_its_slots() {
     );
 }
 
+/// Kingston as a logger writes it that stamps its lines as it receives them, five at a
+/// time: each burst's lines 1 ms apart at the end of its half second. The tags' median
+/// step (1 ms) is taken as the period and each half-second gap reads as 495 samples lost,
+/// the first sample after it scaled by them. The derive now fails naming what it read
+/// (the samples lost against those kept, the span per sample against the tags' step) and
+/// the bursts; before, it failed as "8760 of 8760 IMU samples exceed the IMU's range …
+/// (degrees?)".
+#[test]
+fn kingston_tags_in_bursts_fail_the_derive_naming_the_bursts() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = kingston_imu_tags_edited(&tmp.path().join("bursts"), |k, t| {
+        let burst_end = t + 0.1 * (4 - k % 5) as f64;
+        burst_end + 0.001 * (k % 5) as f64
+    });
+    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("o"));
+    assert!(err.contains("stage derive failed"), "{err}");
+    assert!(
+        err.contains("read as lost against 8760 kept")
+            && err.contains("100.0 ms a sample, while its tags step by 1.000 ms")
+            && err.contains("Tags that come in bursts"),
+        "{err}"
+    );
+    assert!(!err.contains("degrees?"), "{err}");
+}
+
 /// Kingston's logger's clock set back three times while it logs, its speed file and
 /// control points on the clock it started on: 1.5 s back at line 3001, 70 ms (0.7 of a
 /// period) at line 5001, 0.5 s at line 6001. Before, every tag after the first step went

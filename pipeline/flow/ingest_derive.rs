@@ -199,6 +199,34 @@ fn with_log_clock_set_back(
     )
 }
 
+/// Fails when the IMU's samples cover under a quarter of the log's time: more samples
+/// read as lost (`report`'s) than three times those kept (`d`'s). A log that lost most of
+/// its samples has no dead reckoning to correct (each stretch lost is the rate held
+/// across it). Most often, though, it is a logger that stamped its lines as it received
+/// them, several at once: its tags come in bursts, their median step is the lines'
+/// spacing within a burst, the gap between bursts reads as samples lost, and the first
+/// sample after it has its increments scaled by them (out of the IMU's range, or a heading
+/// turned at random). Before, such a log failed as increments out of range ("degrees?"),
+/// or, with small enough scales, went on.
+fn check_samples_cover_the_log(d: &Derived, report: &IngestReport) -> anyhow::Result<()> {
+    let (kept, lost) = (d.t_s.len() as u64, report.lost_samples);
+    if lost <= kept.saturating_mul(3) {
+        return Ok(());
+    }
+    let span_s = d.t_s.last().unwrap_or(0.0) - d.t_s.first().unwrap_or(0.0);
+    let per_sample_s = span_s / kept.saturating_sub(1).max(1) as f64;
+    bail!(
+        "{lost} IMU samples read as lost against {kept} kept: the log's samples span \
+         {span_s:.1} s, {:.1} ms a sample, while its tags step by {:.3} ms (the period \
+         taken from them). Tags that come in bursts (a logger stamping its lines as it \
+         received them, several at once) place no sample in its period: write the IMU's \
+         own time, or the lines' time spread over each burst; a log that lost most of its \
+         samples has no dead reckoning to correct",
+        per_sample_s * 1e3,
+        d.nominal_dt_s * 1e3
+    )
+}
+
 /// The ingest's account (`ingest.json`) in `ingest_dir`.
 pub fn read_ingest_report(ingest_dir: &Path) -> anyhow::Result<IngestReport> {
     let path = ingest_dir.join(files::INGEST_REPORT);
@@ -254,7 +282,9 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // 24: a text log's samples told by their `seq`, the ingest's slots, as a binary
         // log's: a jittering logger's samples each over the period; a first or last
         // sample apart closes no gap whatever `seq` says.
-        version: 24,
+        // 25: more samples lost than three times those kept fails (tags in bursts): a run
+        // that went "ok" so is re-derived, and fails.
+        version: 25,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
@@ -321,6 +351,10 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                 }
             );
         }
+        // Samples that cover too little of the log (tags in bursts, most samples lost):
+        // a time base too, before the odometer is judged against the IMU's rates and the
+        // scaled increments read as out of range.
+        check_samples_cover_the_log(&d, &report)?;
         let odometer_file = (report.odometer_file.as_ref()).and(m.odometer.file.as_deref());
         let offset_s = params.derive.odo_time_offset_s;
         check_overlap(&overlap, offset_s, &report, m, odometer_file)?;
