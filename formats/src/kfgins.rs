@@ -378,11 +378,10 @@ pub struct KfGinsReader<R: BufRead> {
     given_slots: u64,
     /// That sample's slot.
     slot: u64,
-    /// The slots of the samples given out, following their tags.
-    clock: SlotClock,
-    /// The period the slot clock starts from: the one the first lines' tags agree on
-    /// best ([`first_slots`]).
-    slot_period_s: Option<f64>,
+    /// The slots of the samples given out, following their tags, once the period is
+    /// known: started from the period and phase the first lines' tags agree on best
+    /// ([`first_slots`]).
+    clock: Option<SlotClock>,
     eof: bool,
     /// The time tags over GPS-week and day rollovers.
     tags: TagUnwrap,
@@ -417,8 +416,7 @@ impl<R: BufRead> KfGinsReader<R> {
             given_t_s: None,
             given_slots: 0,
             slot: 0,
-            clock: SlotClock::default(),
-            slot_period_s: None,
+            clock: None,
             eof: false,
             tags: TagUnwrap::default(),
             first_t_s: None,
@@ -579,8 +577,7 @@ impl<R: BufRead> KfGinsReader<R> {
         if let Some(median_s) = self.period_s {
             let tags_s: Vec<f64> = self.ahead.iter().map(|s| s.t_s).collect();
             let (period_s, first_late_s) = first_slots(&tags_s, median_s);
-            self.slot_period_s = Some(period_s);
-            self.clock = SlotClock::with_late_s(first_late_s);
+            self.clock = Some(SlotClock::new(period_s, first_late_s));
         }
         Ok(())
     }
@@ -621,13 +618,13 @@ impl<R: BufRead> KfGinsReader<R> {
     /// ([`clock_step_back_s`]), telling by the line after it ([`Self::held`]) and by
     /// where the slot clock puts the last line's slot.
     fn retime(&mut self, s: &mut TextSample, prev_t_s: f64) {
-        let (Some(next), Some(p)) = (self.held, self.slot_period_s) else {
+        let (Some(next), Some(clock)) = (self.held, self.clock) else {
             return;
         };
-        let p = self.clock.period_s(p);
+        let p = clock.period_s();
         let shift_s = self.report.text_clock_shift_s;
         let next_t_s = next.t_s + shift_s;
-        let prev_slot_s = self.clock.slot_of(prev_t_s);
+        let prev_slot_s = clock.slot_of(prev_t_s);
         if let Some(t_s) = slot_time(prev_slot_s, prev_t_s, s.t_s, next_t_s, p) {
             s.t_s = t_s;
             self.report.lines_off_slot += 1;
@@ -655,11 +652,11 @@ impl<R: BufRead> KfGinsReader<R> {
         if dt <= 0.0 {
             self.report.t_non_increasing += 1;
         }
-        let slots = (self.slot_period_s).map_or(1, |p| self.clock.step(dt, p));
+        let slots = self.clock.as_mut().map_or(1, |c| c.step(dt));
         // (A tag of 1e300, a damaged line, is a gap of more samples than a u64 counts.)
-        let lost = (self.slot_period_s)
+        let lost = (self.clock)
             .filter(|_| slots >= 2)
-            .map(|p| (slots - 1, self.clock.period_s(p)));
+            .map(|c| (slots - 1, c.period_s()));
         self.gaps.interval(&mut self.report, dt, lost);
         self.given_slots = slots;
         self.slot = self.slot.saturating_add(slots);

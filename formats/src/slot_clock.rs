@@ -36,8 +36,10 @@ const MAX_FOLLOWED_SLOTS: f64 = (1u64 << 20) as f64;
 
 /// Where the last line's slot is, as its tag's lateness from it, and the slots' period as
 /// the tags keep it, as a correction to the one given.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SlotClock {
+    /// The period given, s.
+    given_period_s: f64,
     /// The last tag's time less its slot's, s.
     late_s: f64,
     /// The slots' period less the one given, s.
@@ -45,9 +47,11 @@ pub struct SlotClock {
 }
 
 impl SlotClock {
-    /// A clock whose first line's tag is `late_s` after its slot.
-    pub fn with_late_s(late_s: f64) -> Self {
+    /// A clock of slots `period_s` apart whose first line's tag is `late_s` after its
+    /// slot.
+    pub fn new(period_s: f64, late_s: f64) -> Self {
         Self {
+            given_period_s: period_s,
             late_s,
             period_change_s: 0.0,
         }
@@ -58,18 +62,17 @@ impl SlotClock {
         t_s - self.late_s
     }
 
-    /// The slots' period, the one given being `period_s`.
-    pub fn period_s(&self, period_s: f64) -> f64 {
-        period_s + self.period_change_s
+    /// The slots' period as the tags keep it, s.
+    pub fn period_s(&self) -> f64 {
+        self.given_period_s + self.period_change_s
     }
 
-    /// The slots a line tagged `interval_s` after the last one moved on, the period given
-    /// being `period_s`: at least one (a line stands for itself). A line that did not move
+    /// The slots a line tagged `interval_s` after the last one moved on: at least one (a line stands for itself). A line that did not move
     /// on by half a period from the last slot (its tag going back, repeated, or the clock
     /// set back beyond what the reader takes out) is one slot on, and the clock takes its
     /// phase afresh from it; so it does from a line more than 2^20 slots on.
-    pub fn step(&mut self, interval_s: f64, period_s: f64) -> u64 {
-        let p = self.period_s(period_s);
+    pub fn step(&mut self, interval_s: f64) -> u64 {
+        let p = self.period_s();
         let from_slot_s = interval_s + self.late_s;
         let slots = (from_slot_s / p).round();
         if slots > MAX_FOLLOWED_SLOTS {
@@ -78,7 +81,7 @@ impl SlotClock {
             slots as u64
         } else if slots >= 1.0 {
             let off_s = from_slot_s - slots * p;
-            let limit_s = MAX_PERIOD_CHANGE * period_s.abs();
+            let limit_s = MAX_PERIOD_CHANGE * self.given_period_s.abs();
             self.period_change_s =
                 (self.period_change_s + SLOT_PERIOD_GAIN * off_s / slots).clamp(-limit_s, limit_s);
             self.late_s = off_s * (1.0 - SLOT_PHASE_GAIN);
@@ -101,24 +104,24 @@ mod tests {
     fn jittering_lines_are_a_slot_each_and_lost_ones_counted() {
         let period = 0.01;
         let jitter = [0.0, 0.45, -0.45, 0.4, -0.3, 0.45, -0.45, -0.45, 0.45, 0.0];
-        let mut clock = SlotClock::default();
+        let mut clock = SlotClock::new(period, 0.0);
         let mut prev = 0.0;
         let mut slots = Vec::new();
         for (k, j) in jitter.iter().enumerate().skip(1) {
             let t = (k as f64 + j) * period;
-            slots.push(clock.step(t - prev, period));
+            slots.push(clock.step(t - prev));
             prev = t;
         }
         assert_eq!(slots, [1; 9]);
         // Three lines lost: the next line four slots on, a little late.
         let t = prev + 4.3 * period;
-        assert_eq!(clock.step(t - prev, period), 4);
+        assert_eq!(clock.step(t - prev), 4);
         assert!((clock.slot_of(t) - (13.0 * period)).abs() < 0.1 * period);
         // A tag going back: one slot, the clock from it.
-        assert_eq!(clock.step(-0.05, period), 1);
+        assert_eq!(clock.step(-0.05), 1);
         assert_eq!(clock.slot_of(1.0), 1.0);
         // A tag leapt beyond counting.
-        assert_eq!(clock.step(1e300, period), u64::MAX);
+        assert_eq!(clock.step(1e300), u64::MAX);
     }
 
     /// 50 000 lines jittering uniformly by up to 0.3 of a period about their slots, one
@@ -130,7 +133,7 @@ mod tests {
         use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(81);
         let period = 0.01;
-        let mut clock = SlotClock::default();
+        let mut clock = SlotClock::new(1.02 * period, 0.0);
         let (mut slot, mut prev_t) = (0u64, 0.0);
         for k in 1..50_000 {
             let lost = if rng.random_bool(0.05) {
@@ -140,7 +143,7 @@ mod tests {
             };
             slot += 1 + lost;
             let t = (slot as f64 + rng.random_range(-0.3..0.3)) * period;
-            assert_eq!(clock.step(t - prev_t, 1.02 * period), 1 + lost, "line {k}");
+            assert_eq!(clock.step(t - prev_t), 1 + lost, "line {k}");
             if k > 300 {
                 let off = (clock.slot_of(t) - slot as f64 * period) / period;
                 assert!(off.abs() < 0.2, "line {k}: the clock {off} of a period off");
