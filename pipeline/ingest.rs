@@ -36,7 +36,7 @@ use unz_formats::schema::DistanceSource;
 use unz_formats::speed_floor::{SpeedFloor, SpeedFloorReport};
 use unz_formats::speed_spikes::{SpeedSpikes, Verdict};
 use unz_formats::tables::{ImuTable, MarksTable, OdometerTable};
-use unz_formats::{IngestEvents, IngestReport, schema};
+use unz_formats::{IngestEvents, IngestReport, TextClockStep, schema};
 use unz_stages::imu_axes::ImuAxes;
 use unz_stages::imu_mounting;
 use unz_stages::lost_samples::SeqSteps;
@@ -397,7 +397,16 @@ pub fn ingest(
         series,
     } = match manifest.format {
         LogFormat::UnzBinary => ingest_binary(manifest, dir, options)?,
-        LogFormat::KfGins => ingest_text(manifest, dir, options)?,
+        LogFormat::KfGins => {
+            let streamed = ingest_text(manifest, dir, options, &[])?;
+            match steps_to_follow(manifest, &streamed.report) {
+                // Read again, its odometer file's gaps and stands found on the log's clock
+                // at its start too: the file's account and the bridges' IMU samples on
+                // one clock.
+                Some(steps) => ingest_text(manifest, dir, options, &steps)?,
+                None => streamed,
+            }
+        }
     };
     // The account of the first faults is written even for a log that fails below: its
     // messages point to it.
@@ -729,10 +738,25 @@ fn ingest_binary(
     })
 }
 
+/// A text log's clock steps (`report`'s, its first reading's) for its separate odometer
+/// file to follow where its tags show them ([`OdometerFileReader::on_log_clock`]): `None`
+/// without a file, without a step, or with more steps than the account lists (none is
+/// followed then; the file's account counts them as not shown).
+fn steps_to_follow(manifest: &RunManifest, report: &IngestReport) -> Option<Vec<TextClockStep>> {
+    let steps = report.text_clock_steps_back + report.text_clock_steps_forward;
+    let listed = steps == report.text_clock_steps.len() as u64;
+    let file = manifest.odometer.file.is_some() && manifest.odometer.kind.is_some();
+    (file && steps > 0 && listed).then(|| report.text_clock_steps.clone())
+}
+
+/// Ingests a text log and its separate odometer file, if any, that file's tags moved by
+/// the log's clock steps `followed` where they show them (none: as written; the account
+/// then counts the log's steps as not shown).
 fn ingest_text(
     manifest: &RunManifest,
     dir: &Path,
     options: IngestOptions,
+    followed: &[TextClockStep],
 ) -> anyhow::Result<Streamed> {
     let path = &manifest.raw;
     let mut reader = KfGinsReader::new(BufReader::with_capacity(1 << 16, open(manifest, path)?))
@@ -771,7 +795,8 @@ fn ingest_text(
                 .with_value_column(manifest.odometer.value_column)
                 .with_value_header(manifest.odometer.value_header.as_deref())
                 .with_speed_floor(floor_mps)
-                .beside_log_from(log_first_s),
+                .beside_log_from(log_first_s)
+                .on_log_clock(followed),
         )
     };
     if floor_mps.is_some() && !column && odometer_file.is_none() {
@@ -867,7 +892,13 @@ fn ingest_text(
             }
             sinks.flush(false)?;
         }
-        file_report = Some((odo.report().clone(), odo.faults().0.to_vec()));
+        let mut r = odo.report().clone();
+        let log = reader.report();
+        if followed.is_empty() {
+            // None followed (the log read once, or more steps than are listed).
+            r.clock_steps_not_shown = log.text_clock_steps_back + log.text_clock_steps_forward;
+        }
+        file_report = Some((r, odo.faults().0.to_vec()));
         file_spikes = odo.spikes();
         speed_floor = odo.speed_floor();
     }

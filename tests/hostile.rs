@@ -1389,8 +1389,7 @@ fn odometer_steps_no_land_vehicle_makes_are_replaced_and_counted() {
             lines_read: lines.len() as u64,
             lines_accepted: lines.len() as u64 - 1,
             lines_rejected: 1,
-            week_rollovers: 0,
-            day_rollovers: 0,
+            ..Default::default()
         })
     );
     assert!(report.is_consistent(), "{report:?}");

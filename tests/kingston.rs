@@ -1327,34 +1327,147 @@ fn kingston_a_clock_set_back_while_logging_is_the_run_on_its_start_clock() {
         "{summary}"
     );
 
-    // Its speed file written on the same clock (one logger, both files): the derive
-    // fails as on another clock, and names the steps to move the file's tags by, not
-    // the one shift for the whole file its clock check finds.
-    let imu_tags: Vec<f64> = (std::fs::read_to_string(shipped.join("imu.txt"))
+    // Its speed file written on the same clock (one logger, both files): its tags show
+    // the steps, and are moved by them too. The file's times are then the shipped file's
+    // (to the nanosecond), its distances within 1e-9 m (each trapezoid's interval from
+    // the moved tags), and the methods' azimuths within 1e-6°. Before, the derive failed
+    // as an odometer on another clock.
+    assert_speeds_on_the_stepped_clock_follow(
+        tmp.path(),
+        &run,
+        &[(3000, -1.5), (5000, -0.07), (6000, -0.5)],
+    );
+}
+
+/// Kingston's IMU log with its clock set forward while it logged (0.437 s at line 3001,
+/// 1.262 s at line 6001: a time sync's steps, whole periods and a phase), with its speed
+/// file on that clock and on a clock of its own. The steps are taken out (not read as
+/// lines lost) and the run is the shipped one: its `imu.parquet` and `disupt.json` byte
+/// for byte, or, with the speed file moved back by the steps, within 1e-6°. Before, the
+/// first step read as 4 lines lost and the second as 12, each sample after them had its
+/// increments scaled over them (Kryt1 before DISUPT 4.8 rad for 0.90, OWPI 81° off with
+/// such a step near the run's end), and a speed file on the stepped clock went on late
+/// of the IMU by the steps. A step of whole periods still reads as lines lost (nothing
+/// tells them apart without sequence numbers).
+#[test]
+fn kingston_a_clock_set_forward_while_logging_is_the_run_on_its_start_clock() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shipped = kingston_with(&tmp.path().join("shipped"), "");
+    disupt_with_ingest_report(&shipped, &tmp.path().join("so"));
+    let forward_s = |after: &dyn Fn(usize) -> bool| -> f64 {
+        [(3000, 0.437), (6000, 1.262)]
+            .iter()
+            .filter(|(from, _)| after(*from))
+            .map(|(_, s)| s)
+            .sum()
+    };
+    let run = kingston_imu_tags_edited(&tmp.path().join("stepped"), |k, t| {
+        t + forward_s(&|from| k >= from)
+    });
+    let report = disupt_with_ingest_report(&run, &tmp.path().join("o"));
+    assert_eq!(
+        (
+            report.text_clock_steps_forward,
+            report.text_clock_steps_back,
+            report.lost_samples
+        ),
+        (2, 0, 0)
+    );
+    assert!(
+        (report.text_clock_shift_s + 1.699).abs() < 1e-6,
+        "{report:?}"
+    );
+    let file = report.odometer_file.unwrap();
+    assert_eq!(
+        (file.clock_steps_followed, file.clock_steps_not_shown),
+        (0, 2)
+    );
+    assert_imu_and_disupt_as_shipped(tmp.path());
+    let summary = std::fs::read_to_string(tmp.path().join("o/campaign.md")).unwrap();
+    assert!(
+        summary.contains(
+            "the log's clock was set forward twice while it logged (line 3001 -0.437 s, \
+             line 6001 -1.262 s;"
+        ) && summary.contains("the odometer file's tags showed 0 of the steps"),
+        "{summary}"
+    );
+
+    // The speed file on the stepped clock too.
+    assert_speeds_on_the_stepped_clock_follow(tmp.path(), &run, &[(3000, 0.437), (6000, 1.262)]);
+
+    // A step of whole periods (0.5 s) reads as lines lost, as before.
+    let whole = kingston_imu_tags_edited(&tmp.path().join("whole"), |k, t| {
+        t + if k >= 3000 { 0.5 } else { 0.0 }
+    });
+    let report = disupt_with_ingest_report(&whole, &tmp.path().join("whole-o"));
+    assert_eq!(
+        (report.text_clock_steps_forward, report.lost_samples),
+        (0, 5)
+    );
+}
+
+/// `run` (in `dir`, beside the shipped run's output `dir/so`) with its speed file as
+/// shipped written on the log's stepped clock, each tag at or after the shipped tag of IMU
+/// line `from` (0-based) moved by `step_s` for each `(from, step_s)` of `steps` (what the
+/// step adds to the clock's reading), to 1 ms: the file follows every step, and the run
+/// is the shipped one to 1e-6° ([`assert_disupt_near`]; output folder `dir/both-o`).
+fn assert_speeds_on_the_stepped_clock_follow(
+    dir: &std::path::Path,
+    run: &std::path::Path,
+    steps: &[(usize, f64)],
+) {
+    let data = crate::util::test_data("kingston2008-seg1");
+    let imu_tags: Vec<f64> = (std::fs::read_to_string(data.join("imu.txt"))
         .unwrap()
         .lines())
     .map(|l| l.split_once(' ').unwrap().0.parse().unwrap())
     .collect();
-    let speeds: String = (std::fs::read_to_string(run.join("odometer.txt"))
+    let speeds: String = (std::fs::read_to_string(data.join("odometer.txt"))
         .unwrap()
         .lines())
     .map(|line| {
         let (t, rest) = line.split_once(' ').unwrap();
         let t: f64 = t.parse().unwrap();
-        format!("{:.3} {rest}\n", t - set_back_s(|from| t >= imu_tags[from]))
+        let moved: f64 = (steps.iter())
+            .filter(|(from, _)| t >= imu_tags[*from])
+            .map(|(_, step_s)| step_s)
+            .sum();
+        format!("{:.3} {rest}\n", t + moved)
     })
     .collect();
     std::fs::write(run.join("odometer.txt"), speeds).unwrap();
-    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("both-o"));
-    assert!(
-        err.contains("time tags run")
-            && err.contains(
-                "But the log's clock was set back while it logged (line 3001 +1.500 s, line \
-                 5001 +0.070 s, line 6001 +0.500 s; every step in ingest.json): if"
-            )
-            && err.contains("was written on that clock, move its tags after each step by the step"),
-        "{err}"
+    let report = disupt_with_ingest_report(run, &dir.join("both-o"));
+    let file = report.odometer_file.unwrap();
+    assert_eq!(
+        (file.clock_steps_followed, file.clock_steps_not_shown),
+        (steps.len() as u64, 0)
     );
+    assert_disupt_near(dir, "both-o", 1e-6);
+}
+
+/// The edited run's methods (output folder `dir/o_name`) are the shipped run's (`dir/so`)
+/// to `tolerance_deg` in azimuth and a millimetre at the control points.
+fn assert_disupt_near(dir: &std::path::Path, o_name: &str, tolerance_deg: f64) {
+    use unz::disupt_stage::DisuptOut;
+    let disupt = |o: &str| -> DisuptOut {
+        read_json(&dir.join(o).join("kingston2008-segment1/disupt/disupt.json"))
+    };
+    let (got, want) = (disupt(o_name), disupt("so"));
+    for method in ["joint", "oepi", "owpi"] {
+        let (a, b) = (&got.methods[method].outcome, &want.methods[method].outcome);
+        assert!(
+            (a.x.azimuth_deg - b.x.azimuth_deg).abs() < tolerance_deg
+                && (a.dx_m - b.dx_m).abs() < 1e-3
+                && (a.dy_m - b.dy_m).abs() < 1e-3,
+            "{method}: azimuth {} for {}, ΔX {} for {}, ΔY {} for {}",
+            a.x.azimuth_deg,
+            b.x.azimuth_deg,
+            a.dx_m,
+            b.dx_m,
+            a.dy_m,
+            b.dy_m
+        );
+    }
 }
 
 /// Kingston's clock steps back (at its IMU lines 3001, 5001 and 6001, 0-based 3000,

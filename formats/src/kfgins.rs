@@ -9,6 +9,7 @@
 use std::io::BufRead;
 
 use crate::error::FormatError;
+use crate::followed_steps::FollowedSteps;
 use crate::lines_apart::GapAccount;
 use crate::manifest::OdometerKind;
 use crate::report::{IngestReport, OdometerFileReport, TextClockStep};
@@ -372,10 +373,16 @@ pub struct KfGinsReader<R: BufRead> {
     held: Option<TextSample>,
     /// An error met reading [`Self::held`], returned after the sample before it.
     failed: Option<FormatError>,
+    /// An error met reading lines ahead ([`Self::tags_ahead_s`]), returned once the lines
+    /// read before it are.
+    read_failed: Option<FormatError>,
     /// The time of the last sample given out, s (its slot's, when it was off it).
     given_t_s: Option<f64>,
     /// The slots that sample moved on from the one before it (0 for the first).
     given_slots: u64,
+    /// The times of the last [`STEP_PHASE_LINES`] samples given out, s: the slots they
+    /// agree on, against the lines' after a gap ([`clock_step_forward_s`]).
+    given_tags_s: std::collections::VecDeque<f64>,
     /// That sample's slot.
     slot: u64,
     /// The slots of the samples given out, following their tags, once the period is
@@ -413,8 +420,10 @@ impl<R: BufRead> KfGinsReader<R> {
             prev: None,
             held: None,
             failed: None,
+            read_failed: None,
             given_t_s: None,
             given_slots: 0,
+            given_tags_s: std::collections::VecDeque::with_capacity(STEP_PHASE_LINES),
             slot: 0,
             clock: None,
             eof: false,
@@ -470,6 +479,9 @@ impl<R: BufRead> KfGinsReader<R> {
 
     /// Parses lines until one record is found.
     fn next_raw(&mut self) -> Result<Option<TextSample>, FormatError> {
+        if let Some(e) = self.read_failed.take() {
+            return Err(e);
+        }
         while let Some(line) = self.lines.next_line()? {
             let text = match line.record() {
                 None => continue,
@@ -609,6 +621,10 @@ impl<R: BufRead> KfGinsReader<R> {
             s.slot = self.slot;
         }
         self.given_t_s = Some(s.t_s);
+        if self.given_tags_s.len() == STEP_PHASE_LINES {
+            self.given_tags_s.pop_front();
+        }
+        self.given_tags_s.push_back(s.t_s);
         Ok(Some(s))
     }
 
@@ -632,17 +648,62 @@ impl<R: BufRead> KfGinsReader<R> {
             clock_step_back_s(self.given_slots, prev_slot_s, s.t_s, next_t_s, p)
                 .filter(|step_s| shift_s + step_s <= MAX_CLOCK_SHIFT_S)
         {
-            s.t_s += step_s;
-            let r = &mut self.report;
-            r.text_clock_steps_back += 1;
-            r.text_clock_shift_s += step_s;
-            if r.text_clock_steps.len() < TextClockStep::KEPT {
-                r.text_clock_steps.push(TextClockStep {
-                    line: s.line,
-                    step_s,
-                });
+            self.take_clock_step(s, prev_t_s, step_s);
+            self.report.text_clock_steps_back += 1;
+        } else if s.t_s - prev_slot_s > 1.5 * p && s.t_s - prev_t_s <= self.gaps.max_gap_s() {
+            // A gap the run bridges: lines lost, or the clock set forward (its slots'
+            // phase moved).
+            let mut after_s = vec![s.t_s];
+            after_s.extend(
+                self.tags_ahead_s(STEP_PHASE_LINES - 1)
+                    .map(|t_s| t_s + shift_s),
+            );
+            let before_s = self.given_tags_s.make_contiguous();
+            if let Some(step_s) = clock_step_forward_s(prev_slot_s, before_s, &after_s, p)
+                .map(|forward_s| -forward_s)
+                .filter(|step_s| shift_s + step_s >= -MAX_CLOCK_SHIFT_S)
+            {
+                self.take_clock_step(s, prev_t_s, step_s);
+                self.report.text_clock_steps_forward += 1;
             }
         }
+    }
+
+    /// Takes a step of the log's clock out at `s` (the line given out before it at
+    /// `prev_t_s`, both on the clock at its start so far): `step_s` added to its tag and
+    /// every later one ([`IngestReport::text_clock_steps`]).
+    fn take_clock_step(&mut self, s: &mut TextSample, prev_t_s: f64, step_s: f64) {
+        let r = &mut self.report;
+        if r.text_clock_steps.len() < TextClockStep::KEPT {
+            r.text_clock_steps.push(TextClockStep {
+                line: s.line,
+                step_s,
+                tag_s: s.t_s - r.text_clock_shift_s,
+                tag_before_s: prev_t_s - r.text_clock_shift_s,
+            });
+        }
+        r.text_clock_shift_s += step_s;
+        s.t_s += step_s;
+    }
+
+    /// The tags of the next accepted sample ([`Self::held`]) and of up to `n − 1` lines
+    /// read after it, as written (a line the reader will reject among them: a repeated
+    /// one has its original's tag). Reads ahead as [`Self::prime`] does; an error reading
+    /// is kept for when the lines before it are given out.
+    fn tags_ahead_s(&mut self, n: usize) -> impl Iterator<Item = f64> + '_ {
+        while self.held.is_some()
+            && self.ahead.len() + 1 < n
+            && !self.eof
+            && self.read_failed.is_none()
+        {
+            match self.next_raw() {
+                Ok(Some(s)) => self.ahead.push_back(s),
+                Ok(None) => break,
+                Err(e) => self.read_failed = Some(e),
+            }
+        }
+        let ahead = self.ahead.iter().take(n.saturating_sub(1));
+        self.held.iter().chain(ahead).map(|s| s.t_s)
     }
 
     /// Counts the interval `dt` (s) from the sample given out before: going back, or
@@ -873,6 +934,141 @@ fn clock_step_back_s(
         .then_some(step_s)
 }
 
+/// Lines whose tags tell the phase of a text log's slots either side of a gap: the line
+/// after the gap and the next 79, and the 80 before it ([`clock_step_forward_s`]).
+const STEP_PHASE_LINES: usize = 80;
+
+/// How far a text log's clock was set forward at a line tagged `after_s[0]` (the lines
+/// after it `after_s[1..]`, the lines given out before it `before_s`, the last of them
+/// on the slot clock's slot at `prev_slot_s`, all as written on the clock so far), s:
+/// when the line moved on more than one and a half periods of `period_s` from the slot
+/// clock's last slot, and the slots the lines after it agree on are more than a quarter
+/// of a period off those the lines before agree on (the logger's clock set forward by a
+/// time sync while it logs): the whole periods and the phase the slots moved by, no line
+/// lost; else `None`, lines lost. Each side needs [`STEP_PHASE_LINES`] lines, their
+/// phases agreeing (their mean vector at least 0.35 of their count).
+///
+/// A text log has no sequence numbers, and lines lost move the tags on by whole periods:
+/// the IMU integrates over its own clock's, which runs on through them, so that the lines
+/// after are on the slots before. A clock set forward moves them by its step, whole
+/// periods and a phase. So does an IMU restarted after a pause, but it is down for
+/// seconds; the rule is asked only across a gap the run bridges (the derive's
+/// `max_gap_s`). A step of whole periods, to a quarter of a period, is lines lost, as
+/// before (read as a gap, each sample's rates held across it).
+///
+/// The phases are fitted to both sides' lines at once, each side's offset and one drift
+/// (the period's error, which turns the phases by its ratio to the period every period:
+/// 0.2 % turns the two sides' mean phases 0.1 of a period apart over their 50 periods).
+/// The lines' jitter then moves the two offsets' difference by √(8 / n) of its σ for n
+/// lines a side: 0.045 of a period with a uniform jitter of up to a quarter of one (the
+/// quarter 5.5 σ off). A jitter that moves with the gap (a logger's latency changed as it
+/// lost lines) cannot be told from a step.
+fn clock_step_forward_s(
+    prev_slot_s: f64,
+    before_s: &[f64],
+    after_s: &[f64],
+    period_s: f64,
+) -> Option<f64> {
+    // The line after it moved on from it by a gap too: the step, if any, is judged
+    // there (a line alone on the slots before is no run to tell apart).
+    if before_s.len() < STEP_PHASE_LINES
+        || after_s.len() < STEP_PHASE_LINES
+        || after_s[1] - after_s[0] > 1.5 * period_s
+    {
+        return None;
+    }
+    // Positions in periods from the last slot, each side's phases unwrapped about their
+    // mean's (`None`: they do not agree).
+    let at = |t_s: f64| (t_s - prev_slot_s) / period_s;
+    let unwrapped = |tags_s: &[f64]| {
+        let (mut cos, mut sin) = (0.0, 0.0);
+        for &t_s in tags_s {
+            let angle = std::f64::consts::TAU * at(t_s);
+            cos += angle.cos();
+            sin += angle.sin();
+        }
+        if cos.hypot(sin) < 0.35 * tags_s.len() as f64 {
+            return None;
+        }
+        let mean = sin.atan2(cos) / std::f64::consts::TAU;
+        let points: Vec<(f64, f64)> = (tags_s.iter())
+            .map(|&t_s| {
+                let x = at(t_s);
+                let off = x - mean;
+                (x, mean + off - off.round())
+            })
+            .collect();
+        Some(points)
+    };
+    let (before, after) = (unwrapped(before_s)?, unwrapped(after_s)?);
+    let means = |points: &[(f64, f64)]| {
+        let n = points.len() as f64;
+        let (sx, sy) = (points.iter()).fold((0.0, 0.0), |(sx, sy), (x, y)| (sx + x, sy + y));
+        (sx / n, sy / n)
+    };
+    let (mb, ma) = (means(&before), means(&after));
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (points, (mx, my)) in [(&before, mb), (&after, ma)] {
+        for (x, y) in points {
+            sxy += (x - mx) * (y - my);
+            sxx += (x - mx) * (x - mx);
+        }
+    }
+    let drift = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    // Each side's phase at position 0, and how far the slots moved.
+    let (phase_before, phase_after) = (mb.1 - drift * mb.0, ma.1 - drift * ma.0);
+    let moved = phase_after - phase_before - (phase_after - phase_before).round();
+    // The first line's lateness from the slot after the last line's, as the lines before
+    // put their slots.
+    let late_s = after_s[0] - (prev_slot_s + (phase_before + 1.0) * period_s);
+    if !(late_s > 0.5 * period_s && moved.abs() > 0.25) {
+        return None;
+    }
+    // Only then, for what it costs: neither side's lines part into two runs on slots
+    // apart (a step under half a period, which the slot clock follows as a jitter,
+    // before the gap; a step among the lines after it): at no line do the phases of a
+    // side's lines before it and from it on (their mean vectors' angles, about the
+    // fitted slots) differ by more than four of their σ (from the lines' scatter about
+    // the slots, at least a hundredth of a period).
+    let offs = |points: &[(f64, f64)], phase: f64| -> Vec<f64> {
+        (points.iter())
+            .map(|(x, y)| {
+                let off = y - (phase + drift * x);
+                off - off.round()
+            })
+            .collect()
+    };
+    let (offs_before, offs_after) = (offs(&before, phase_before), offs(&after, phase_after));
+    let squares: f64 = offs_before.iter().chain(&offs_after).map(|o| o * o).sum();
+    let sigma = (squares / (offs_before.len() + offs_after.len() - 3) as f64)
+        .sqrt()
+        .max(0.01);
+    let parted = |offs: &[f64]| {
+        let phasor = |o: &f64| {
+            let angle = std::f64::consts::TAU * o;
+            (angle.cos(), angle.sin())
+        };
+        let add = |(c, s): (f64, f64), (dc, ds): (f64, f64)| (c + dc, s + ds);
+        let total = offs.iter().map(phasor).fold((0.0, 0.0), add);
+        let mut head = (0.0, 0.0);
+        let n = offs.len();
+        (1..n).any(|k| {
+            head = add(head, phasor(&offs[k - 1]));
+            let tail = (total.0 - head.0, total.1 - head.1);
+            let turn = (head.1.atan2(head.0) - tail.1.atan2(tail.0)) / std::f64::consts::TAU;
+            let apart = (turn - turn.round()).abs();
+            let (a, b) = (k as f64, (n - k) as f64);
+            apart > 4.0 * sigma * (1.0 / a + 1.0 / b).sqrt()
+        })
+    };
+    if parted(&offs_before) || parted(&offs_after) {
+        return None;
+    }
+    let whole = (late_s / period_s - moved).round();
+    let step_s = (whole + moved) * period_s;
+    (step_s.is_finite() && step_s > 0.0).then_some(step_s)
+}
+
 /// What makes a text line the same as another: its time and values, bit for bit.
 fn resent_key(s: &TextSample) -> [u64; 7] {
     let [a, b, c] = s.dtheta_rad.map(f64::to_bits);
@@ -1067,6 +1263,9 @@ pub struct OdometerFileReader<R: BufRead> {
     /// The value's column's name on the file's header line, its first line of text, until
     /// that line is read (`value_column` then holds its number).
     value_header: Option<String>,
+    /// The log's clock steps, followed where the file's tags show them
+    /// ([`Self::on_log_clock`]).
+    log_clock: Option<FollowedSteps>,
 }
 
 /// Highest column `[odometer] value_column` may name: an OBD-II logger's CSV has tens.
@@ -1090,7 +1289,18 @@ impl<R: BufRead> OdometerFileReader<R> {
             floor: None,
             value_column: None,
             value_header: None,
+            log_clock: None,
         }
+    }
+
+    /// A file written on the log's clock, set back or forward while it logged by `steps`
+    /// (the log's, in order; [`IngestReport::text_clock_steps`]): its tags are moved by
+    /// each step they show, onto the log's clock at its start ([`FollowedSteps`]; counted
+    /// in [`OdometerFileReport::clock_steps_followed`] and `clock_steps_not_shown`).
+    /// Without it, or with no step, every tag as written.
+    pub fn on_log_clock(mut self, steps: &[TextClockStep]) -> Self {
+        self.log_clock = (!steps.is_empty()).then(|| FollowedSteps::new(steps));
+        self
     }
 
     /// The value read from `column` (1-based, 2 to [`MAX_VALUE_COLUMN`]; the time is the
@@ -1363,6 +1573,15 @@ impl<R: BufRead> OdometerFileReader<R> {
                 self.reject_read(reason);
                 continue;
             }
+            let t = match &mut self.log_clock {
+                Some(clock) => {
+                    let t = clock.time_s(t);
+                    r.clock_steps_followed = clock.followed();
+                    r.clock_steps_not_shown = clock.not_shown();
+                    t
+                }
+                None => t,
+            };
             // m/s or m from here on.
             let v = self.kind.si(given);
             if self.kind.is_speed() && v.abs() > LAND_SPEED_RANGE_MPS {
@@ -1800,7 +2019,9 @@ mod tests {
             text_clock_steps: vec![
                 TextClockStep {
                     line: 9,
-                    step_s: 0.5
+                    step_s: 0.5,
+                    tag_s: 1.0,
+                    tag_before_s: 1.5,
                 };
                 TextClockStep::KEPT
             ],
@@ -1820,6 +2041,109 @@ mod tests {
         assert_eq!(v[120].t_s, tags[119]);
         assert_eq!(v[171].t_s, tags[171]);
         assert_eq!((rep.text_clock_steps_back, rep.t_non_increasing), (0, 3));
+    }
+
+    /// A log at 100 Hz jittering by up to 0.04 of a period, with 2 lines lost at line 101
+    /// and 3 at line 301, and its clock set forward by 3.37 periods at line 201: the step
+    /// is taken out (the tags from line 201 on moved back by it, its slot the one after
+    /// line 200's) and the lines lost stay counted. A step of whole periods reads as lines
+    /// lost, as it must; so does a step with fewer than [`STEP_PHASE_LINES`] lines before
+    /// it.
+    #[test]
+    fn a_clock_set_forward_is_taken_out_not_read_as_lines_lost() {
+        let period = 0.01;
+        let log = |step_at: usize, step: f64| -> (Vec<u64>, Vec<f64>) {
+            let mut slot = 0u64;
+            let mut slots = Vec::new();
+            let mut tags = Vec::new();
+            for k in 0..400 {
+                slot += match k {
+                    100 => 3,
+                    300 => 4,
+                    _ => 1,
+                };
+                let jitter = 0.04 * (k as f64 * 1.7).sin();
+                let stepped = if k >= step_at { step } else { 0.0 };
+                slots.push(slot);
+                tags.push((slot as f64 + jitter + stepped) * period);
+            }
+            (slots, tags)
+        };
+        let (slots, tags) = log(200, 3.37);
+        let (v, rep, _) = read_all(&log_at(&tags));
+        assert_eq!((rep.text_clock_steps_forward, rep.lost_samples), (1, 5));
+        let step = rep.text_clock_steps[0];
+        assert_eq!(step.line, 201);
+        assert!(
+            (step.step_s + 3.37 * period).abs() < 0.01 * period,
+            "{step:?}"
+        );
+        assert!((v[200].slot - v[199].slot, v[300].slot - v[299].slot) == (1, 4));
+        for (k, s) in v.iter().enumerate() {
+            let moved = if k >= 200 { step.step_s } else { 0.0 };
+            assert!((s.t_s - (tags[k] + moved)).abs() < 1e-6, "line {}", k + 1);
+            assert_eq!(s.slot + slots[0], slots[k]);
+        }
+        assert!(rep.text_clock_said().unwrap().starts_with(
+            "the log's clock was set forward once while it logged (line 201 -0.034 s"
+        ));
+        // Whole periods: 3 lines lost more.
+        let (_, tags) = log(200, 3.0);
+        let (_, rep, _) = read_all(&log_at(&tags));
+        assert_eq!((rep.text_clock_steps_forward, rep.lost_samples), (0, 8));
+        // Too near the log's start to tell.
+        let (_, tags) = log(50, 3.37);
+        let (_, rep, _) = read_all(&log_at(&tags));
+        assert_eq!((rep.text_clock_steps_forward, rep.lost_samples), (0, 8));
+    }
+
+    /// Simulated logs, a line lost in four (in stretches of one to three) and jittering at
+    /// random by up to a quarter of a period: no line is read as the clock set forward
+    /// (200 logs, about 50 000 gaps). Logs losing one line in fifty, jittering by up to a
+    /// tenth of a period, set forward once in their middle by 2 to 20 periods and a phase of
+    /// 0.3 to 0.5 of one either way (the line after the step not lost): every step is taken
+    /// out at its line, to 0.08 of a period (200 logs; the phase's σ with 80 lines a side
+    /// is 0.018).
+    #[test]
+    fn clock_steps_forward_are_told_from_lines_lost_in_simulated_logs() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(82);
+        let period = 0.01;
+        for stepped in [false, true] {
+            for _ in 0..200 {
+                let n = rng.random_range(400..1500);
+                let (amp, lost_in) = if stepped { (0.1, 50) } else { (0.25, 4) };
+                let at = n / 2;
+                let step = rng.random_range(2..=20) as f64
+                    + rng.random_range(0.3..0.5) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                let mut slot = 0u64;
+                let mut tags = Vec::new();
+                for k in 0..n {
+                    if k != at && k != at + 1 && rng.random_range(0..lost_in) == 0 {
+                        slot += rng.random_range(1..=3);
+                    }
+                    slot += 1;
+                    let moved = if stepped && k >= at { step } else { 0.0 };
+                    tags.push((slot as f64 + rng.random_range(-amp..amp) + moved) * period);
+                }
+                let (_, rep, _) = read_all(&log_at(&tags));
+                if !stepped {
+                    assert_eq!(
+                        rep.text_clock_steps_forward, 0,
+                        "{:?}",
+                        rep.text_clock_steps
+                    );
+                    continue;
+                }
+                assert_eq!(rep.text_clock_steps_forward, 1, "step {step}");
+                let got = rep.text_clock_steps[0];
+                assert_eq!(got.line, at as u64 + 1);
+                assert!(
+                    (got.step_s + step * period).abs() < 0.08 * period,
+                    "{got:?} for {step}"
+                );
+            }
+        }
     }
 
     proptest::proptest! {
@@ -2316,7 +2640,8 @@ mod tests {
                 lines_accepted: 4,
                 lines_rejected: 1,
                 week_rollovers: 0,
-                day_rollovers: 0
+                day_rollovers: 0,
+                ..Default::default()
             }
         );
     }
@@ -2360,7 +2685,8 @@ mod tests {
                 lines_accepted: 5,
                 lines_rejected: 5,
                 week_rollovers: 0,
-                day_rollovers: 0
+                day_rollovers: 0,
+                ..Default::default()
             }
         );
     }

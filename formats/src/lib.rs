@@ -15,6 +15,7 @@
 
 pub mod atomic;
 pub mod error;
+pub mod followed_steps;
 pub mod hashing_writer;
 pub mod kfgins;
 mod lines_apart;

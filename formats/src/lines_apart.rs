@@ -50,6 +50,11 @@ impl GapAccount {
         }
     }
 
+    /// The longest gap a run bridges, s.
+    pub(crate) fn max_gap_s(&self) -> f64 {
+        self.max_gap_s
+    }
+
     /// Takes the interval of `length_s` from the sample before, a gap of `lost` samples
     /// (their count and the period they were counted in; `None`: no gap).
     pub(crate) fn interval(

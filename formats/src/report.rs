@@ -77,10 +77,17 @@ pub struct IngestReport {
     /// later tag moved by as much.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub text_clock_steps_back: u64,
-    /// Text logs: what the steps back add to the tags after the last one, s.
+    /// Text logs: times the logger's clock was set forward while it logged (a gap the run
+    /// bridges after which the lines' slots are more than a quarter of a period off the
+    /// ones before): the line taken its whole periods and phase back, no line lost, and
+    /// every later tag moved by as much.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub text_clock_steps_forward: u64,
+    /// Text logs: what the steps back and forward add to the tags after the last one, s.
     #[serde(default, skip_serializing_if = "is_zero_f64")]
     pub text_clock_shift_s: f64,
-    /// Text logs: the first [`TextClockStep::KEPT`] steps back, each at its line.
+    /// Text logs: the first [`TextClockStep::KEPT`] steps, back or forward, each at its
+    /// line.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub text_clock_steps: Vec<TextClockStep>,
     /// Text logs: lines written late or early alone, off their slot by more than half a
@@ -128,13 +135,19 @@ pub struct IngestReport {
     pub speed_column_unread: bool,
 }
 
-/// A text log's clock set back while it logged ([`IngestReport::text_clock_steps`]).
+/// A text log's clock set back or forward while it logged
+/// ([`IngestReport::text_clock_steps`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TextClockStep {
     /// The 1-based line of the first tag after the step.
     pub line: u64,
-    /// What the step adds to the tags from that line on, s.
+    /// What the step adds to the tags from that line on, s (negative: the clock was set
+    /// forward).
     pub step_s: f64,
+    /// The line's tag as written, s (its rollovers added).
+    pub tag_s: f64,
+    /// The tag of the line given out before it, as written, s.
+    pub tag_before_s: f64,
 }
 
 impl TextClockStep {
@@ -212,35 +225,54 @@ impl IngestReport {
     }
 
     /// What the run's log and its row of the campaign summary say of a text log's clock
-    /// set back while it logged (`None`: it was not).
+    /// set back or forward while it logged (`None`: it was not).
     pub fn text_clock_said(&self) -> Option<String> {
-        (self.text_clock_steps_back > 0).then(|| {
-            format!(
-                "the log's clock was set back {} while it logged ({}), taken out of the time \
-                 base (the tags after the last moved by {:+.6} s); a separate odometer file \
-                 and the manifest's t_s are taken on the log's clock at its start (an \
-                 odometer file written on the stepped clock needs its tags after each step \
-                 moved by as much)",
-                times(self.text_clock_steps_back),
-                self.text_clock_steps_listed(),
-                self.text_clock_shift_s
-            )
-        })
+        let (back, forward) = (self.text_clock_steps_back, self.text_clock_steps_forward);
+        let how = match (back, forward) {
+            (0, 0) => return None,
+            (back, 0) => format!("set back {}", times(back)),
+            (0, forward) => format!("set forward {}", times(forward)),
+            (back, forward) => format!("set back {} and forward {}", times(back), times(forward)),
+        };
+        let file = self.odometer_file.as_ref();
+        let odometer = match file.map(|f| (f.clock_steps_followed, f.clock_steps_not_shown)) {
+            Some((followed, not_shown)) => format!(
+                "the odometer file's tags showed {followed} of the steps and were moved by \
+                 them{}; the manifest's t_s are taken on the log's clock at its start",
+                if not_shown > 0 {
+                    format!(
+                        ", {not_shown} not (left as written: a clock of its own, a step \
+                         longer than {} s, or more steps than are listed)",
+                        crate::followed_steps::MAX_FOLLOWED_STEP_S
+                    )
+                } else {
+                    String::new()
+                }
+            ),
+            None => "the manifest's t_s are taken on the log's clock at its start".to_owned(),
+        };
+        Some(format!(
+            "the log's clock was {how} while it logged ({}), taken out of the time base (the \
+             tags after the last moved by {:+.6} s); {odometer}",
+            self.text_clock_steps_listed(),
+            self.text_clock_shift_s
+        ))
     }
 
-    /// A text log's first five clock steps back, each at its line, and where the rest
-    /// are listed: "line 3001 +1.500 s, …; every step in ingest.json" (or the first
+    /// A text log's first five clock steps, each at its line, and where the rest are
+    /// listed: "line 3001 +1.500 s, …; every step in ingest.json" (or the first
     /// [`TextClockStep::KEPT`], when there were more).
     pub fn text_clock_steps_listed(&self) -> String {
+        let steps = self.text_clock_steps_back + self.text_clock_steps_forward;
         let listed: Vec<String> = (self.text_clock_steps.iter().take(5))
             .map(|s| format!("line {} {:+.3} s", s.line, s.step_s))
             .collect();
-        let more = if self.text_clock_steps_back > listed.len() as u64 {
+        let more = if steps > listed.len() as u64 {
             ", …"
         } else {
             ""
         };
-        let kept = if self.text_clock_steps_back > TextClockStep::KEPT as u64 {
+        let kept = if steps > TextClockStep::KEPT as u64 {
             format!("the first {}", TextClockStep::KEPT)
         } else {
             "every step".to_owned()
@@ -350,6 +382,16 @@ pub struct OdometerFileReport {
     /// [`crate::kfgins::DAY_S`]), the day added to the tags after.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub day_rollovers: u64,
+    /// Steps of the log's clock (a text log's, set back or forward while it logged) that
+    /// the file's tags showed too (one logger stamping both files): its tags after each
+    /// moved by it ([`crate::followed_steps`]).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub clock_steps_followed: u64,
+    /// Steps of the log's clock the file's tags did not show (a clock of its own), or
+    /// that were longer than [`crate::followed_steps::MAX_FOLLOWED_STEP_S`]: its tags left
+    /// as written across them.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub clock_steps_not_shown: u64,
 }
 
 /// The first faults of one raw log, located (`ingest_events.json`): the counts are in

@@ -106,8 +106,11 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // (`unz_formats::slot_clock`): its `seq` is the line's slot (lines lost its
         // steps), and lines late, early or set back are judged against the clock, not the
         // last line's tag (a log jittering by a quarter of a period read lines as set
-        // back and lost).
-        version: 35,
+        // back and lost). 36: a text log's clock set forward (a gap the run bridges
+        // after which the slots' phase moved by more than a quarter of a period) taken
+        // out of the time base, not read as lines lost; a separate odometer file follows
+        // the log's steps where its tags show them.
+        version: 36,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
@@ -179,23 +182,28 @@ fn not_readings_s(
         .collect())
 }
 
-/// An odometer file's clock failure `e`, told the log's clock was set back while it
-/// logged (`report`'s steps): a file written on that clock (the same logger's) needs its
-/// tags after each step moved by the step, which one shift for the whole file does not do.
-fn with_log_clock_set_back(
+/// An odometer file's clock failure `e`, told the log's clock was set back or forward
+/// while it logged (`report`'s steps) and the file was left as written across some of
+/// them (its tags did not show them, or they were longer than the file follows): a file
+/// written on that clock needs its tags after each step moved by the step, which one shift
+/// for the whole file does not do.
+fn with_log_clock_stepped(
     e: anyhow::Error,
     report: &IngestReport,
     odometer_file: Option<&Path>,
 ) -> anyhow::Error {
-    let Some(file) = odometer_file.filter(|_| report.text_clock_steps_back > 0) else {
+    let not_shown = (report.odometer_file.as_ref()).map_or(0, |f| f.clock_steps_not_shown);
+    let Some(file) = odometer_file.filter(|_| not_shown > 0) else {
         return e;
     };
     anyhow::anyhow!(
-        "{e}. But the log's clock was set back while it logged ({}): if {} was written on \
-         that clock, move its tags after each step by the step instead of one shift for the \
-         file",
+        "{e}. But the log's clock was stepped while it logged ({}), and {} was left as \
+         written across {not_shown} of the steps (its tags did not show them, or they were \
+         longer than {} s): if it was written on that clock, move its tags after each such \
+         step by the step instead of one shift for the file",
         report.text_clock_steps_listed(),
-        file.display()
+        file.display(),
+        unz_formats::followed_steps::MAX_FOLLOWED_STEP_S
     )
 }
 
@@ -363,7 +371,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         check_travel(&d, m, odometer_file)?;
         let not_readings_s = not_readings_s(&ingest_dir, &report, &d, offset_s)?;
         d.odometer_clock = check_clock(&d, &params.derive, m, odometer_file, &not_readings_s)
-            .map_err(|e| with_log_clock_set_back(e, &report, odometer_file))?;
+            .map_err(|e| with_log_clock_stepped(e, &report, odometer_file))?;
         let stuck = report.odometer_failures.map_or(0, |f| f.stuck_samples) as usize;
         if (d.odometer_failure_samples + stuck) * 10 > d.t_s.len() {
             let (flagged, n) = (d.odometer_failure_samples, d.t_s.len());
