@@ -780,6 +780,10 @@ impl<R: BufRead> KfGinsReader<R> {
     }
 }
 
+/// The periodogram's peaks [`first_slots`] runs a slot clock on, the strongest: the
+/// period and, of a jitter repeating every few lines, the sidebands either side.
+const CANDIDATE_PEAKS: usize = 5;
+
 /// The slots of a log's first lines (`tags_s`, their median positive step `median_s`):
 /// their period, and the first line's tag less its slot's time, s.
 ///
@@ -791,13 +795,22 @@ impl<R: BufRead> KfGinsReader<R> {
 /// searched within a quarter of the median step on a grid a thousandth of it apart, then
 /// a twenty-thousandth about the best, and between that grid's points by the parabola
 /// through the best and its neighbours (its half and its double, where tags on its slots
-/// agree as well, are beyond). The first line's slot is where the first stretch's phases
-/// agree at that period. The median step is off the period by the jitter where lines
+/// agree as well, are beyond). Of the grid's [`CANDIDATE_PEAKS`] strongest peaks, the
+/// strongest is taken unless a slot clock started on another's slots misreads (reads as
+/// lost, or early by half a period) at most half as many of the stretch's lines, and four
+/// fewer. A jitter that repeats every few lines (a logger's polling beating with the
+/// IMU's rate) gives the phasors side peaks a repetition's frequency either side of the
+/// period's, stronger than it (0.3 of a period every 7 lines: at 0.875 and 1.17 of the
+/// period, J₁ = 0.58 of the lines' count against J₀ = 0.31), where the clock misreads a
+/// line a repetition; taken, Kingston so jittered read a line lost every 13 lines, or a
+/// clock set back at every other line, and went "ok" hundreds of metres off. The first
+/// line's slot is where the first stretch's phases agree at that period. The median step is off the period by the jitter where lines
 /// were lost among the first, or where they jitter (3 % with a third of a period of it
 /// over 100 lines), and a slot clock that starts off its period by more than a few per
 /// cent slips a slot every few lines, reading lines lost and clocks set back; one started
 /// on the first line's tag is off by that line's jitter. The median and the first tag
-/// stand when the phases do not agree (their sum under a fifth of the stretch's lines),
+/// stand when the phases do not agree (their sum under a fifth of the stretch's lines,
+/// and the clock misreading more than one line in fifty),
 /// or over a stretch of fewer than eight lines.
 fn first_slots(tags_s: &[f64], median_s: f64) -> (f64, f64) {
     const STRETCH_STEPS: f64 = 20.0;
@@ -841,7 +854,47 @@ fn first_slots(tags_s: &[f64], median_s: f64) -> (f64, f64) {
         }
         best
     };
-    let (coarse_s, _) = best_of(&mut (-250..=250).map(|k| median_s * (1.0 + k as f64 * 1e-3)));
+    // The coarse grid's peaks, the strongest first: of the strongest few, the one on
+    // whose slots a slot clock reads the fewest of the stretch's lines as lost or early,
+    // where the strongest's reads at least twice as many and four more.
+    let grid: Vec<(f64, f64)> = (-250..=250)
+        .map(|k| {
+            let p = median_s * (1.0 + k as f64 * 1e-3);
+            (p, sum(longest, p).0)
+        })
+        .collect();
+    let mut peaks: Vec<(f64, f64)> = (1..grid.len() - 1)
+        .filter(|&i| grid[i].1 >= grid[i - 1].1 && grid[i].1 > grid[i + 1].1)
+        .map(|i| grid[i])
+        .collect();
+    peaks.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let misread = |p: f64| {
+        let (_, angle, mid_s) = sum(longest, p);
+        let from_s = longest[0] - mid_s - angle / std::f64::consts::TAU * p;
+        let mut clock = SlotClock::new(p, from_s - (from_s / p).round() * p);
+        let mut misread = 0usize;
+        for w in longest.windows(2) {
+            let from_slot = (w[1] - w[0] + (w[0] - clock.slot_of(w[0]))) / clock.period_s();
+            misread += usize::from(!(0.5..1.5).contains(&from_slot));
+            clock.step(w[1] - w[0]);
+        }
+        misread
+    };
+    let Some(&(strongest_s, _)) = peaks.first() else {
+        return (median_s, 0.0);
+    };
+    let strongest_misread = misread(strongest_s);
+    let (fewest_s, fewest) = (peaks.iter().take(CANDIDATE_PEAKS))
+        .map(|&(p, _)| (p, misread(p)))
+        .min_by_key(|&(_, n)| n)
+        .unwrap_or((strongest_s, strongest_misread));
+    // Another peak only where the strongest's slots misread many more lines: lines lost
+    // or written off their slot are misread at the period too.
+    let coarse_s = if 2 * fewest <= strongest_misread && fewest + 4 <= strongest_misread {
+        fewest_s
+    } else {
+        strongest_s
+    };
     const FINE_STEP: f64 = 5e-5;
     let (fine_s, length) =
         best_of(&mut (-20..=20).map(|k| coarse_s * (1.0 + k as f64 * FINE_STEP)));
@@ -856,7 +909,11 @@ fn first_slots(tags_s: &[f64], median_s: f64) -> (f64, f64) {
         shift if curvature < 0.0 && shift.abs() <= 1.0 => fine_s + shift * step_s,
         _ => fine_s,
     };
-    let agree = sum(longest, period_s).0 >= 0.2 * longest.len() as f64;
+    // (A peak on whose slots the clock misreads no line in fifty agrees however weak:
+    // a jitter repeating every 5 or 7 lines by 0.35 of a period leaves the period's an
+    // eighth of the lines' count, and the median step is 12 % off.)
+    let agree = sum(longest, period_s).0 >= 0.2 * longest.len() as f64
+        || 50 * misread(period_s) <= longest.len();
     if !(agree && period_s.is_finite() && period_s > 0.0) {
         return (median_s, 0.0);
     }
@@ -1933,6 +1990,53 @@ mod tests {
             "{first_late} for {late}"
         );
         assert_eq!(first_slots(&tags[..7], period), (period, 0.0));
+    }
+
+    /// A jitter that repeats every few lines (a logger's polling beating with the IMU's
+    /// rate; 0.3 or 0.35 of a period every 4.3 to 25 lines): the first lines' period to
+    /// 0.5 %, and over 3000 lines every line in its slot, none read as lost, off its slot
+    /// or stepped. The phases agree best at a side peak there (0.875 or 1.17 of the period
+    /// every 7 lines), where a slot clock misreads a line in seven: taken, Kingston so
+    /// jittered read a line lost every 13 lines, or a clock set back at every other line,
+    /// and went "ok" hundreds of metres off.
+    #[test]
+    fn a_jitter_that_repeats_every_few_lines_keeps_the_period() {
+        let period = 0.01;
+        for (amp, lines) in [
+            (0.3, 7.0),
+            (0.3, 13.0),
+            (0.3, 25.0),
+            (0.35, 7.0),
+            (0.35, 5.0),
+            (0.3, 4.3),
+        ] {
+            let tags: Vec<f64> = (0..3000)
+                .map(|k| {
+                    let jitter = amp * (std::f64::consts::TAU * k as f64 / lines).sin();
+                    100.0 + (k as f64 + jitter) * period
+                })
+                .collect();
+            let mut steps: Vec<f64> = tags.windows(2).take(100).map(|w| w[1] - w[0]).collect();
+            steps.sort_by(f64::total_cmp);
+            let (p, _) = first_slots(&tags[..101], steps[50]);
+            assert!((p / period - 1.0).abs() < 5e-3, "{amp} every {lines}: {p}");
+            let (v, rep, _) = read_all(&log_at(&tags));
+            let slots: Vec<u64> = v.iter().map(|s| s.slot).collect();
+            assert_eq!(
+                slots,
+                (0..3000).collect::<Vec<u64>>(),
+                "{amp} every {lines}"
+            );
+            assert_eq!(
+                (
+                    rep.lost_samples,
+                    rep.lines_off_slot,
+                    rep.text_clock_steps_back
+                ),
+                (0, 0, 0),
+                "{amp} every {lines}"
+            );
+        }
     }
 
     /// An error reading the line after a sample (the one read ahead to tell whether the
