@@ -804,14 +804,14 @@ const CANDIDATE_PEAKS: usize = 5;
 /// period, J₁ = 0.58 of the lines' count against J₀ = 0.31), where the clock misreads a
 /// line a repetition; taken, Kingston so jittered read a line lost every 13 lines, or a
 /// clock set back at every other line, and went "ok" hundreds of metres off. The first
-/// line's slot is where the first stretch's phases agree at that period. The median step is off the period by the jitter where lines
-/// were lost among the first, or where they jitter (3 % with a third of a period of it
-/// over 100 lines), and a slot clock that starts off its period by more than a few per
-/// cent slips a slot every few lines, reading lines lost and clocks set back; one started
-/// on the first line's tag is off by that line's jitter. The median and the first tag
-/// stand when the phases do not agree (their sum under a fifth of the stretch's lines,
-/// and the clock misreading more than one line in fifty),
-/// or over a stretch of fewer than eight lines.
+/// line's slot is where the first stretch's phases agree at that period. The median
+/// step is off the period by the jitter where lines were lost among the first, or where
+/// they jitter (3 % with a third of a period of it over 100 lines), and a slot clock that
+/// starts off its period by more than a few per cent slips a slot every few lines,
+/// reading lines lost and clocks set back; one started on the first line's tag is off by
+/// that line's jitter. The median and the first tag stand when the phases do not agree
+/// (their sum under a fifth of the stretch's lines, and the clock misreading more than
+/// one line in fifty), or over a stretch of fewer than eight lines.
 fn first_slots(tags_s: &[f64], median_s: f64) -> (f64, f64) {
     const STRETCH_STEPS: f64 = 20.0;
     let mut stretches: Vec<&[f64]> = Vec::new();
