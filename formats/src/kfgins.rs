@@ -836,13 +836,15 @@ fn first_slots(tags_s: &[f64], median_s: f64) -> (f64, f64) {
     // time from it.
     let sum = |tags_s: &[f64], period_s: f64| {
         let mid_s = tags_s[tags_s.len() / 2];
-        let (mut cos, mut sin) = (0.0, 0.0);
-        for &t_s in tags_s {
-            let angle = std::f64::consts::TAU * ((t_s - mid_s) / period_s);
-            cos += angle.cos();
-            sin += angle.sin();
-        }
-        (cos.hypot(sin), sin.atan2(cos), mid_s)
+        let (length, phase) = phasor_sum(tags_s.iter().map(|&t_s| (t_s - mid_s) / period_s));
+        (length, phase, mid_s)
+    };
+    // A stretch's first tag less its slot's time, its slots `period_s` apart where its
+    // phases agree: `mid_s + phase + m period`.
+    let first_late_s = |stretch: &[f64], period_s: f64| {
+        let (_, phase, mid_s) = sum(stretch, period_s);
+        let from_s = stretch[0] - mid_s - phase * period_s;
+        from_s - (from_s / period_s).round() * period_s
     };
     let best_of = |candidates: &mut dyn Iterator<Item = f64>| {
         let mut best = (median_s, f64::NEG_INFINITY);
@@ -869,9 +871,7 @@ fn first_slots(tags_s: &[f64], median_s: f64) -> (f64, f64) {
         .collect();
     peaks.sort_by(|a, b| b.1.total_cmp(&a.1));
     let misread = |p: f64| {
-        let (_, angle, mid_s) = sum(longest, p);
-        let from_s = longest[0] - mid_s - angle / std::f64::consts::TAU * p;
-        let mut clock = SlotClock::new(p, from_s - (from_s / p).round() * p);
+        let mut clock = SlotClock::new(p, first_late_s(longest, p));
         let mut misread = 0usize;
         for w in longest.windows(2) {
             let from_slot = (w[1] - w[0] + (w[0] - clock.slot_of(w[0]))) / clock.period_s();
@@ -917,12 +917,7 @@ fn first_slots(tags_s: &[f64], median_s: f64) -> (f64, f64) {
     if !(agree && period_s.is_finite() && period_s > 0.0) {
         return (median_s, 0.0);
     }
-    // The first stretch's slots are at `mid_s + phase + m period`: the first tag's
-    // lateness from the nearest.
-    let (_, angle, mid_s) = sum(stretches[0], period_s);
-    let phase_s = angle / std::f64::consts::TAU * period_s;
-    let from_s = tags_s[0] - mid_s - phase_s;
-    let late_s = from_s - (from_s / period_s).round() * period_s;
+    let late_s = first_late_s(stretches[0], period_s);
     (period_s, if late_s.is_finite() { late_s } else { 0.0 })
 }
 
@@ -995,6 +990,19 @@ fn clock_step_back_s(
 /// after the gap and the next 79, and the 80 before it ([`clock_step_forward_s`]).
 const STEP_PHASE_LINES: usize = 80;
 
+/// The phasors `exp(2πi x)` of positions `x` in periods, summed: the sum's length and
+/// its angle in periods (within half of one). Lines on slots a period apart agree at the
+/// same angle; a random jitter only shortens the sum.
+fn phasor_sum(positions: impl IntoIterator<Item = f64>) -> (f64, f64) {
+    let (mut cos, mut sin) = (0.0, 0.0);
+    for x in positions {
+        let angle = std::f64::consts::TAU * x;
+        cos += angle.cos();
+        sin += angle.sin();
+    }
+    (cos.hypot(sin), sin.atan2(cos) / std::f64::consts::TAU)
+}
+
 /// How far a text log's clock was set forward at a line tagged `after_s[0]` (the lines
 /// after it `after_s[1..]`, the lines given out before it `before_s`, the last of them
 /// on the slot clock's slot at `prev_slot_s`, all as written on the clock so far), s:
@@ -1038,16 +1046,10 @@ fn clock_step_forward_s(
     // mean's (`None`: they do not agree).
     let at = |t_s: f64| (t_s - prev_slot_s) / period_s;
     let unwrapped = |tags_s: &[f64]| {
-        let (mut cos, mut sin) = (0.0, 0.0);
-        for &t_s in tags_s {
-            let angle = std::f64::consts::TAU * at(t_s);
-            cos += angle.cos();
-            sin += angle.sin();
-        }
-        if cos.hypot(sin) < 0.35 * tags_s.len() as f64 {
+        let (length, mean) = phasor_sum(tags_s.iter().map(|&t_s| at(t_s)));
+        if length < 0.35 * tags_s.len() as f64 {
             return None;
         }
-        let mean = sin.atan2(cos) / std::f64::consts::TAU;
         let points: Vec<(f64, f64)> = (tags_s.iter())
             .map(|&t_s| {
                 let x = at(t_s);
