@@ -17,6 +17,7 @@ use crate::resent::RecentRecords;
 use crate::slot_clock::SlotClock;
 use crate::speed_floor::{SpeedFloor, SpeedFloorReport};
 use crate::speed_spikes::{MAX_ACCEL_MPS2, MAX_BRAKING_MPS2, SpeedSpikes, Verdict};
+use crate::text_bursts::{BURST_WINDOW, BurstSpread, burst_period_s, mostly_close};
 
 /// Longest line accepted; longer lines are malformed (and never buffered whole).
 pub const MAX_LINE_BYTES: usize = 4096;
@@ -390,6 +391,9 @@ pub struct KfGinsReader<R: BufRead> {
     /// ([`first_slots`]).
     clock: Option<SlotClock>,
     eof: bool,
+    /// A log whose lines come in bursts: its lines' times spread over each burst, once its
+    /// first lines show it ([`burst_period_s`]).
+    bursts: Option<BurstSpread>,
     /// The time tags over GPS-week and day rollovers.
     tags: TagUnwrap,
     /// The first sample's time, s: a sample's place is its intervals from it.
@@ -427,6 +431,7 @@ impl<R: BufRead> KfGinsReader<R> {
             slot: 0,
             clock: None,
             eof: false,
+            bursts: None,
             tags: TagUnwrap::default(),
             first_t_s: None,
             recent: RecentRecords::default(),
@@ -477,11 +482,29 @@ impl<R: BufRead> KfGinsReader<R> {
         self.faults.push(self.lines.line_no, reason);
     }
 
-    /// Parses lines until one record is found.
+    /// The next record, or `None` at the end: its time spread over its burst when the log
+    /// comes in bursts ([`Self::bursts`]).
     fn next_raw(&mut self) -> Result<Option<TextSample>, FormatError> {
         if let Some(e) = self.read_failed.take() {
             return Err(e);
         }
+        let next = match self.bursts.take() {
+            Some(mut bursts) => {
+                let next = bursts.next(|| self.next_parsed());
+                self.report.text_bursts = bursts.account();
+                self.bursts = Some(bursts);
+                next
+            }
+            None => self.next_parsed(),
+        };
+        if let Ok(None) = next {
+            self.eof = true;
+        }
+        next
+    }
+
+    /// Parses lines until one record is found.
+    fn next_parsed(&mut self) -> Result<Option<TextSample>, FormatError> {
         while let Some(line) = self.lines.next_line()? {
             let text = match line.record() {
                 None => continue,
@@ -562,7 +585,6 @@ impl<R: BufRead> KfGinsReader<R> {
                 slot: 0,
             }));
         }
-        self.eof = true;
         Ok(None)
     }
 
@@ -571,25 +593,49 @@ impl<R: BufRead> KfGinsReader<R> {
         if self.period_s.is_some() || self.eof {
             return Ok(());
         }
-        while self.ahead.len() < PERIOD_WINDOW {
-            match self.next_raw()? {
-                Some(s) => self.ahead.push_back(s),
-                None => break,
+        self.read_window(PERIOD_WINDOW)?;
+        if mostly_close(self.ahead.make_contiguous()) {
+            self.read_window(BURST_WINDOW)?;
+            if let Some(period_s) = burst_period_s(self.ahead.make_contiguous()) {
+                self.spread_bursts(period_s, true)?;
             }
         }
-        let mut dts: Vec<f64> = self
-            .ahead
-            .iter()
-            .zip(self.ahead.iter().skip(1))
+        let window = || self.ahead.iter().take(PERIOD_WINDOW);
+        let mut dts: Vec<f64> = window()
+            .zip(window().skip(1))
             .map(|(a, b)| b.t_s - a.t_s)
             .filter(|dt| *dt > 0.0)
             .collect();
         dts.sort_by(f64::total_cmp);
         self.period_s = dts.get(dts.len() / 2).copied();
         if let Some(median_s) = self.period_s {
-            let tags_s: Vec<f64> = self.ahead.iter().map(|s| s.t_s).collect();
+            let tags_s: Vec<f64> = window().map(|s| s.t_s).collect();
             let (period_s, first_late_s) = first_slots(&tags_s, median_s);
             self.clock = Some(SlotClock::new(period_s, first_late_s));
+            if self.bursts.is_none() {
+                self.spread_bursts(period_s, false)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Spreads the lines of each burst over the periods before it from here on, the
+    /// lines read ahead included, at `period_s` ([`BurstSpread`]): every burst when the
+    /// log is `whole_log` in bursts, else a stall's of three lines or more.
+    fn spread_bursts(&mut self, period_s: f64, whole_log: bool) -> Result<(), FormatError> {
+        let read = std::mem::take(&mut self.ahead);
+        self.bursts = Some(BurstSpread::new(period_s, whole_log, read));
+        self.eof = false;
+        self.read_window(PERIOD_WINDOW)
+    }
+
+    /// Reads ahead until `lines` records are (fewer in a shorter log).
+    fn read_window(&mut self, lines: usize) -> Result<(), FormatError> {
+        while self.ahead.len() < lines {
+            match self.next_raw()? {
+                Some(s) => self.ahead.push_back(s),
+                None => break,
+            }
         }
         Ok(())
     }

@@ -37,6 +37,7 @@ pub mod speed_spikes;
 pub mod split_doubles;
 mod split_pages;
 pub mod tables;
+pub mod text_bursts;
 
 pub use error::{FileError, FormatError};
 pub use report::{IngestEvents, IngestReport, OdometerFailures, OdometerFileReport, TextClockStep};

@@ -95,6 +95,12 @@ pub struct IngestReport {
     /// (read as written, a late one closed a gap of a sample lost).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub lines_off_slot: u64,
+    /// Text logs whose lines came in bursts (a logger stamping them as it received
+    /// them, several at once): the period their bursts agree on and what was spread over
+    /// them, each burst's lines ending at its first tag a period apart
+    /// ([`crate::text_bursts`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub text_bursts: Option<crate::text_bursts::TextBursts>,
     /// Text logs: the first line stands apart from the others, across an interval longer
     /// than the longest gap a run bridges (the derive's `max_gap_s`) while the next is
     /// not: a line a logger wrote before it began. The interval, s, is not counted in
@@ -212,11 +218,13 @@ impl IngestReport {
     }
 
     /// What the run's log and its row of the campaign summary say of the log's time base:
-    /// a binary log's clock leaping ([`Self::clock_said`]), a text log's lines off their
-    /// slot ([`Self::lines_off_slot_said`]) and clock set back ([`Self::text_clock_said`]).
+    /// a binary log's clock leaping ([`Self::clock_said`]), a text log's lines in bursts
+    /// ([`Self::text_bursts_said`]), off their slot ([`Self::lines_off_slot_said`]) and
+    /// clock set back ([`Self::text_clock_said`]).
     pub fn time_base_said(&self) -> impl Iterator<Item = String> {
         [
             self.clock_said(),
+            self.text_bursts_said(),
             self.lines_off_slot_said(),
             self.text_clock_said(),
         ]
@@ -278,6 +286,35 @@ impl IngestReport {
             "every step".to_owned()
         };
         format!("{}{more}; {kept} in ingest.json", listed.join(", "))
+    }
+
+    /// What the run's log and its row of the campaign summary say of a text log's lines
+    /// that came in bursts (`None`: none did).
+    pub fn text_bursts_said(&self) -> Option<String> {
+        let b = self.text_bursts?;
+        let how = if b.whole_log {
+            format!(
+                "the log's lines came in bursts (a logger stamping them as it received them, \
+                 several at once: {} bursts of up to {} lines)",
+                b.bursts, b.longest_lines
+            )
+        } else {
+            format!(
+                "{} line{} came in {} burst{} of {} lines or more (a logger stalled, then \
+                 stamping its lines as it received them; up to {} in one)",
+                b.lines,
+                if b.lines == 1 { "" } else { "s" },
+                b.bursts,
+                if b.bursts == 1 { "" } else { "s" },
+                crate::text_bursts::MIN_STALL_LINES,
+                b.longest_lines
+            )
+        };
+        Some(format!(
+            "{how}: each burst's lines taken {:.3} ms apart, the last at the burst's first \
+             tag, not read as the clock set back and lines lost",
+            b.period_s * 1e3
+        ))
     }
 
     /// What the run's log and its row of the campaign summary say of a text log's lines

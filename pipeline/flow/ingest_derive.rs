@@ -109,8 +109,11 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // back and lost). 36: a text log's clock set forward (a gap the run bridges
         // after which the slots' phase moved by more than a quarter of a period) taken
         // out of the time base, not read as lines lost; a separate odometer file follows
-        // the log's steps where its tags show them.
-        version: 36,
+        // the log's steps where its tags show them. 37: a text log's lines that come in
+        // bursts (a logger stamping them as it received them, several at once) spread
+        // over the periods before each burst's first tag: a log wholly in bursts, or a
+        // stall's three lines or more in any other.
+        version: 37,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
@@ -210,12 +213,13 @@ fn with_log_clock_stepped(
 /// Fails when the IMU's samples cover under a quarter of the log's time: more samples
 /// read as lost (`report`'s) than three times those kept (`d`'s). A log that lost most of
 /// its samples has no dead reckoning to correct (each stretch lost is the rate held
-/// across it). Most often, though, it is a logger that stamped its lines as it received
-/// them, several at once: its tags come in bursts, their median step is the lines'
-/// spacing within a burst, the gap between bursts reads as samples lost, and the first
-/// sample after it has its increments scaled by them (out of the IMU's range, or a heading
-/// turned at random). Before, such a log failed as increments out of range ("degrees?"),
-/// or, with small enough scales, went on.
+/// across it). It may also be a logger that stamped its lines as it received them,
+/// several at once, in bursts the reader did not find (it spreads each burst over the
+/// periods before it when the log's first lines come so, and any three lines or more
+/// close together: `unz_formats::text_bursts`): the gap between bursts then reads as
+/// samples lost, and the first sample after it has its increments scaled by them (out of
+/// the IMU's range, or a heading turned at random). Before, such a log failed as
+/// increments out of range ("degrees?"), or, with small enough scales, went on.
 fn check_samples_cover_the_log(d: &Derived, report: &IngestReport) -> anyhow::Result<()> {
     let (kept, lost) = (d.t_s.len() as u64, report.lost_samples);
     if lost <= kept.saturating_mul(3) {
@@ -226,10 +230,11 @@ fn check_samples_cover_the_log(d: &Derived, report: &IngestReport) -> anyhow::Re
     bail!(
         "{lost} IMU samples read as lost against {kept} kept: the log's samples span \
          {span_s:.1} s, {:.1} ms a sample, while its tags step by {:.3} ms (the period \
-         taken from them). Tags that come in bursts (a logger stamping its lines as it \
-         received them, several at once) place no sample in its period: write the IMU's \
-         own time, or the lines' time spread over each burst; a log that lost most of its \
-         samples has no dead reckoning to correct",
+         taken from them): a log that lost most of its samples has no dead reckoning to \
+         correct. If its lines came in bursts the reader did not find (a logger stamping \
+         them as it received them; the reader spreads each burst when the log's first \
+         lines come so, and any three lines or more close together), write the IMU's own \
+         time, or the lines' time spread over each burst",
         per_sample_s * 1e3,
         d.nominal_dt_s * 1e3
     )
