@@ -1065,7 +1065,7 @@ fn phasor_sum(positions: impl IntoIterator<Item = f64>) -> (f64, f64) {
 /// periods and a phase. So does an IMU restarted after a pause, but it is down for
 /// seconds; the rule is asked only across a gap the run bridges (the derive's
 /// `max_gap_s`). A step of whole periods, to a quarter of a period, is lines lost, as
-/// before (read as a gap, each sample's rates held across it).
+/// before (read as a gap, each filled from the rates either side).
 ///
 /// The phases are fitted to both sides' lines at once, each side's offset and one drift
 /// (the period's error, which turns the phases by its ratio to the period every period:

@@ -212,8 +212,8 @@ fn with_log_clock_stepped(
 
 /// Fails when the IMU's samples cover under a quarter of the log's time: more samples
 /// read as lost (`report`'s) than three times those kept (`d`'s). A log that lost most of
-/// its samples has no dead reckoning to correct (each stretch lost is the rate held
-/// across it). It may also be a logger that stamped its lines as it received them,
+/// its samples has no dead reckoning to correct (each stretch lost is a guess from the
+/// rates either side). It may also be a logger that stamped its lines as it received them,
 /// several at once, in bursts the reader did not find (it spreads each burst over the
 /// periods before it when the log's first lines come so, and any three lines or more
 /// close together: `unz_formats::text_bursts`): the gap between bursts then reads as
@@ -296,8 +296,10 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
         // log's: a jittering logger's samples each over the period; a first or last
         // sample apart closes no gap whatever `seq` says.
         // 25: more samples lost than three times those kept fails (tags in bursts): a run
-        // that went "ok" so is re-derived, and fails.
-        version: 25,
+        // that went "ok" so is re-derived, and fails. 26: a stretch of lost samples is
+        // filled with the mean of the rates either side (the sample before's and the
+        // closing sample's own), not the closing sample's rate held.
+        version: 26,
         // The review's sensor blocks are taken here, at the recording's series rate.
         params_hash: params_hash(&(&params.derive, unz_viz::recording::SERIES_RATE_HZ))?,
         inputs,
@@ -422,7 +424,7 @@ pub fn ensure_derive(ctx: &RunCtx, params: &Params) -> anyhow::Result<PathBuf> {
                 ))
             );
         }
-        // A gap is bridged by holding the rate across it: beyond a few seconds, the turns
+        // A gap is bridged from the rates either side of it: beyond a few seconds, the turns
         // and the gyros' noise in it would be a step in the heading no setting explains.
         let max_gap_s = params.derive.max_gap_s;
         if d.nominal_dt_s > max_gap_s {

@@ -1,5 +1,6 @@
 //! How the derive tells the IMU samples that close a stretch of lost ones, how many
-//! samples each then stands for (its increments scaled to hold the rate over them), and
+//! samples each then stands for (its increments filled over them from the rates either
+//! side), and
 //! the interval its increments were integrated over.
 //!
 //! A text log has no sequence numbers: its tags' intervals are the samples' intervals,
@@ -96,8 +97,8 @@ pub struct Scales<'a> {
 /// What a sample closes, as [`Scales::of`] tells it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Closed {
-    /// The samples it stands for (the lost ones before it and itself): what its
-    /// increments are scaled by, 1 for a sample that closes no gap.
+    /// The samples it stands for (the lost ones before it and itself), 1 for a sample
+    /// that closes no gap.
     pub samples: f64,
     /// The interval its increments were integrated over, s.
     pub dt_s: f64,
@@ -144,9 +145,9 @@ fn beyond_kept(interval: f64, steps: f64, longest_one_step: f64) -> bool {
     interval.abs() > longest_one_step * steps
 }
 
-/// What a sample's increments are scaled by when only its interval tells: a sample that
-/// closes a gap (an interval `dt_s` over 1.5 nominal ones) holds the rate over it; any
-/// other, 1.
+/// The samples a sample stands for when only its interval tells: a sample that closes a
+/// gap (an interval `dt_s` over 1.5 nominal ones) stands for `dt_s / nominal_dt_s`, the
+/// stretch filled from the rates either side; any other, 1.
 pub fn by_interval(dt_s: f64, nominal_dt_s: f64) -> f64 {
     if dt_s > 1.5 * nominal_dt_s {
         dt_s / nominal_dt_s
