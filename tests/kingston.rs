@@ -1361,13 +1361,7 @@ fn kingston_a_line_lost_in_a_pitching_turn_is_filled_by_the_rates_either_side() 
     use unz_formats::parquet_io::read_batches;
     use unz_formats::tables::{f32_column, i64_column};
     let tmp = tempfile::tempdir().unwrap();
-    let run = kingston_with(&tmp.path().join("lost"), "");
-    let imu = std::fs::read_to_string(run.join("imu.txt")).unwrap();
-    let kept: String = (imu.lines().enumerate())
-        .filter(|(k, _)| *k != 6000)
-        .map(|(_, line)| format!("{line}\n"))
-        .collect();
-    std::fs::write(run.join("imu.txt"), kept).unwrap();
+    let run = kingston_imu_lines_kept(&tmp.path().join("lost"), |k| k != 6000);
     let shipped = kingston_with(&tmp.path().join("shipped"), "");
     let nav = |run: &std::path::Path, out: &str| {
         let out = tmp.path().join(out);
@@ -1415,13 +1409,7 @@ fn kingston_a_line_lost_in_a_pitching_turn_is_filled_by_the_rates_either_side() 
 #[test]
 fn kingston_a_log_that_lost_most_of_its_lines_fails_the_derive_naming_the_counts() {
     let tmp = tempfile::tempdir().unwrap();
-    let run = kingston_with(&tmp.path().join("lost"), "");
-    let imu = std::fs::read_to_string(run.join("imu.txt")).unwrap();
-    let kept: String = (imu.lines().enumerate())
-        .filter(|(k, _)| *k < 200 || k % 5 == 0)
-        .map(|(_, line)| format!("{line}\n"))
-        .collect();
-    std::fs::write(run.join("imu.txt"), kept).unwrap();
+    let run = kingston_imu_lines_kept(&tmp.path().join("lost"), |k| k < 200 || k % 5 == 0);
     let err = crate::util::stage_fails("derive", &run, &tmp.path().join("o"));
     assert!(err.contains("stage derive failed"), "{err}");
     assert!(
@@ -1680,6 +1668,22 @@ fn set_back_s(after: impl Fn(usize) -> bool) -> f64 {
         .filter(|(from, _)| after(*from))
         .map(|(_, s)| s)
         .sum()
+}
+
+/// Kingston in `run` (created) with only the IMU lines `keep` takes (by their 0-based
+/// index), as a log that lost the others.
+fn kingston_imu_lines_kept(
+    run: &std::path::Path,
+    keep: impl Fn(usize) -> bool,
+) -> std::path::PathBuf {
+    let run = kingston_with(run, "");
+    let imu = std::fs::read_to_string(run.join("imu.txt")).unwrap();
+    let kept: String = (imu.lines().enumerate())
+        .filter(|(k, _)| keep(*k))
+        .map(|(_, line)| format!("{line}\n"))
+        .collect();
+    std::fs::write(run.join("imu.txt"), kept).unwrap();
+    run
 }
 
 /// Kingston in `run` (created) with its IMU line `k`'s time tag `t` written `edit(k, t)`,
