@@ -391,8 +391,9 @@ pub struct KfGinsReader<R: BufRead> {
     /// ([`first_slots`]).
     clock: Option<SlotClock>,
     eof: bool,
-    /// A log whose lines come in bursts: its lines' times spread over each burst, once its
-    /// first lines show it ([`burst_period_s`]).
+    /// The burst layer every line passes through once the period is known
+    /// ([`BurstSpread`]): it spreads every burst of a log wholly in bursts (its first
+    /// lines show it: [`burst_period_s`]), and a stall's burst in any other.
     bursts: Option<BurstSpread>,
     /// The time tags over GPS-week and day rollovers.
     tags: TagUnwrap,

@@ -217,9 +217,9 @@ fn with_log_clock_stepped(
 /// several at once, in bursts the reader did not find (it spreads each burst over the
 /// periods before it when the log's first lines come so, and any three lines or more
 /// close together: `unz_formats::text_bursts`): the gap between bursts then reads as
-/// samples lost, and the first sample after it has its increments scaled by them (out of
-/// the IMU's range, or a heading turned at random). Before, such a log failed as
-/// increments out of range ("degrees?"), or, with small enough scales, went on.
+/// samples lost, and the first sample after it stands for them (its increments over the
+/// gap out of the IMU's range, or a heading turned at random). Before, such a log failed
+/// as increments out of range ("degrees?"), or, with small enough scales, went on.
 fn check_samples_cover_the_log(d: &Derived, report: &IngestReport) -> anyhow::Result<()> {
     let (kept, lost) = (d.t_s.len() as u64, report.lost_samples);
     if lost <= kept.saturating_mul(3) {

@@ -3,8 +3,7 @@
 //! Input: the IMU (time, angle and velocity increments) and the odometer's cumulative
 //! distance at its own rate. Output, per IMU sample: the repaired interval `dt`, the
 //! increments (a lost stretch filled with the mean of the rates either side), the
-//! odometer distance over
-//! the interval, and from these (computed where read, not stored:
+//! odometer distance over the interval, and from these (computed where read, not stored:
 //! [`Derived::odometer_speeds`], [`Derived::r_rad_s`]) `u` (eq 9), `u̇` (eq 10), yaw rate
 //! `r`, `ru` (eq 11); per block of F
 //! ([`crate::filter`]): the filtered `a_x`, `a_y`, `u̇`, `ru`; per epoch (ΔTg = 1 s):
@@ -139,8 +138,7 @@ pub struct Derived {
     /// the IMU's, whatever a recorder's jittering tags say: [`LostSamples`]).
     pub dt_s: Arc<Vec<f64>>,
     /// Per sample: angle increments, rad (lost stretches filled from the rates either
-    /// side), in
-    /// f32 when every value is one exactly ([`AngleIncrements`]).
+    /// side), in f32 when every value is one exactly ([`AngleIncrements`]).
     pub dtheta_rad: Arc<AngleIncrements>,
     /// Per sample: velocity increments, m/s (likewise).
     pub dvel_mps: Arc<Vec<[f64; 3]>>,
@@ -842,9 +840,8 @@ pub fn derive_owned(
     });
 
     // Lost stretches filled from the rates either side ([`filled`]) and each sample's
-    // interval (told by
-    // `lost`); increments beyond the instrument's range replaced by the previous sample's
-    // rates.
+    // interval (told by `lost`); increments beyond the instrument's range replaced by the
+    // previous sample's rates.
     let mut prev_t = -nominal;
     let mut prev_rates = ([0.0; 3], [0.0; 3]);
     let mut dt_s = Vec::with_capacity(n);
