@@ -42,7 +42,9 @@ pub(crate) const BURST_WINDOW: usize = 2000;
 /// agree on the period.
 const MIN_BURSTS: usize = 4;
 /// Longest burst held, lines: a longer run of lines close together (a logger's clock
-/// standing) is spread in parts of this many, each from its own first tag.
+/// standing) is held in parts of this many, each spread from its own first tag in a log
+/// wholly in bursts (in any other a clock standing is read as written: spread back, its
+/// lines would lie on the lines before).
 pub const MAX_BURST_LINES: usize = 1024;
 
 /// Whether `b` repeats `a`'s values (its time aside): a line sent twice, not a sample
@@ -166,7 +168,8 @@ pub(crate) struct BurstSpread {
     /// The fewest lines close together that are spread: 2 in a log wholly in bursts,
     /// [`MIN_STALL_LINES`] else.
     min_lines: usize,
-    /// Lines read before the log was found in bursts, to be spread first.
+    /// Lines read ahead before the layer began (the log's first lines), given out
+    /// through it first.
     unread: VecDeque<TextSample>,
     /// The spread lines of the last burst, not yet given out.
     spread: VecDeque<TextSample>,
