@@ -1710,7 +1710,7 @@ impl<R: BufRead> OdometerFileReader<R> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A log in GPS seconds of week running over the rollover: its tags go on a week
@@ -1887,7 +1887,7 @@ mod tests {
         assert_eq!(tags(after, 70_000.0), (vec![10.0, 11.0], 0, 0));
     }
 
-    fn read_all(text: &str) -> (Vec<TextSample>, IngestReport, Vec<LineFault>) {
+    pub(crate) fn read_all(text: &str) -> (Vec<TextSample>, IngestReport, Vec<LineFault>) {
         let mut r = KfGinsReader::new(text.as_bytes());
         let mut v = Vec::new();
         while let Some(s) = r.next_sample().unwrap() {

@@ -277,7 +277,7 @@ impl BurstSpread {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kfgins::KfGinsReader;
+    use crate::kfgins::tests::read_all;
     use crate::report::IngestReport;
 
     /// A number in [0, 1) drawn from `k` (splitmix64): the tests' draws, the same on
@@ -296,13 +296,11 @@ mod tests {
             .collect()
     }
 
+    /// The samples `text` gives and the reader's account ([`read_all`]'s, its faults
+    /// aside).
     fn read(text: &str) -> (Vec<TextSample>, IngestReport) {
-        let mut r = KfGinsReader::new(text.as_bytes());
-        let mut v = Vec::new();
-        while let Some(s) = r.next_sample().unwrap() {
-            v.push(s);
-        }
-        (v, r.report().clone())
+        let (v, report, _) = read_all(text);
+        (v, report)
     }
 
     /// Each sample's time less its true time (sample `k` made at `k × period_s`), s.

@@ -861,16 +861,19 @@ pub fn derive_owned(
             dt_s: dt,
         } = closed;
         let (own_dth, own_dv) = (dtheta.get(k), dvel_mps[k]);
-        // The sample's own interval, s: one period when it closes a gap.
-        let own_dt = if scale != 1.0 { nominal } else { dt };
-        let (mut dth, mut dv) = (own_dth, own_dv);
-        if scale != 1.0 {
+        // The sample's own interval, s (one period when it closes a gap), and its
+        // increments with the stretch it closes filled.
+        let (own_dt, mut dth, mut dv) = if scale != 1.0 {
             out.filled_gaps += 1;
-            (dth, dv) = (
-                filled(own_dth, prev_rates.0, own_dt, dt),
-                filled(own_dv, prev_rates.1, own_dt, dt),
-            );
-        }
+            let fill = |own, rate| filled(own, rate, nominal, dt);
+            (
+                nominal,
+                fill(own_dth, prev_rates.0),
+                fill(own_dv, prev_rates.1),
+            )
+        } else {
+            (dt, own_dth, own_dv)
+        };
         let replaced = if !increments_in_range(dth, dv, dt) {
             out.out_of_range_samples += 1;
             out.first_out_of_range.get_or_insert(k);
