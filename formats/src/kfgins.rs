@@ -18,6 +18,7 @@ use crate::slot_clock::SlotClock;
 use crate::speed_floor::{SpeedFloor, SpeedFloorReport};
 use crate::speed_spikes::{MAX_ACCEL_MPS2, MAX_BRAKING_MPS2, SpeedSpikes, Verdict};
 use crate::text_bursts::{BURST_WINDOW, BurstSpread, burst_period_s, mostly_close};
+use crate::text_ticks::{TickRetime, coarse_tick, shares_tags};
 
 /// Longest line accepted; longer lines are malformed (and never buffered whole).
 pub const MAX_LINE_BYTES: usize = 4096;
@@ -395,6 +396,10 @@ pub struct KfGinsReader<R: BufRead> {
     /// ([`BurstSpread`]): it spreads every burst of a log wholly in bursts (its first
     /// lines show it: [`burst_period_s`]), and a stall's burst in any other.
     bursts: Option<BurstSpread>,
+    /// The layer every line passes through when the log's first lines were stamped by a
+    /// clock coarser than their period ([`coarse_tick`]): each line given its slot's
+    /// time ([`TickRetime`]). A log in bursts has none; one with it, no stall's bursts.
+    ticks: Option<TickRetime>,
     /// The time tags over GPS-week and day rollovers.
     tags: TagUnwrap,
     /// The first sample's time, s: a sample's place is its intervals from it.
@@ -433,6 +438,7 @@ impl<R: BufRead> KfGinsReader<R> {
             clock: None,
             eof: false,
             bursts: None,
+            ticks: None,
             tags: TagUnwrap::default(),
             first_t_s: None,
             recent: RecentRecords::default(),
@@ -484,19 +490,24 @@ impl<R: BufRead> KfGinsReader<R> {
     }
 
     /// The next record, or `None` at the end: its time spread over its burst when the log
-    /// comes in bursts ([`Self::bursts`]).
+    /// comes in bursts ([`Self::bursts`]), or its slot's when a coarse clock stamped it
+    /// ([`Self::ticks`]).
     fn next_raw(&mut self) -> Result<Option<TextSample>, FormatError> {
         if let Some(e) = self.read_failed.take() {
             return Err(e);
         }
-        let next = match self.bursts.take() {
-            Some(mut bursts) => {
-                let next = bursts.next(|| self.next_parsed());
-                self.report.text_bursts = bursts.account();
-                self.bursts = Some(bursts);
-                next
-            }
-            None => self.next_parsed(),
+        let next = if let Some(mut ticks) = self.ticks.take() {
+            let next = ticks.next(|| self.next_parsed());
+            self.report.text_ticks = Some(ticks.account());
+            self.ticks = Some(ticks);
+            next
+        } else if let Some(mut bursts) = self.bursts.take() {
+            let next = bursts.next(|| self.next_parsed());
+            self.report.text_bursts = bursts.account();
+            self.bursts = Some(bursts);
+            next
+        } else {
+            self.next_parsed()
         };
         if let Ok(None) = next {
             self.eof = true;
@@ -601,6 +612,15 @@ impl<R: BufRead> KfGinsReader<R> {
                 self.spread_bursts(period_s, true)?;
             }
         }
+        if self.bursts.is_none() && shares_tags(self.ahead.make_contiguous()) {
+            self.read_window(BURST_WINDOW)?;
+            if let Some(fit) = coarse_tick(self.ahead.make_contiguous()) {
+                let read = std::mem::take(&mut self.ahead);
+                self.ticks = Some(TickRetime::new(fit, read));
+                self.eof = false;
+                self.read_window(PERIOD_WINDOW)?;
+            }
+        }
         let window = || self.ahead.iter().take(PERIOD_WINDOW);
         let mut dts: Vec<f64> = window()
             .zip(window().skip(1))
@@ -613,7 +633,7 @@ impl<R: BufRead> KfGinsReader<R> {
             let tags_s: Vec<f64> = window().map(|s| s.t_s).collect();
             let (period_s, first_late_s) = first_slots(&tags_s, median_s);
             self.clock = Some(SlotClock::new(period_s, first_late_s));
-            if self.bursts.is_none() {
+            if self.bursts.is_none() && self.ticks.is_none() {
                 self.spread_bursts(period_s, false)?;
             }
         }

@@ -38,6 +38,7 @@ pub mod split_doubles;
 mod split_pages;
 pub mod tables;
 pub mod text_bursts;
+pub mod text_ticks;
 
 pub use error::{FileError, FormatError};
 pub use report::{IngestEvents, IngestReport, OdometerFailures, OdometerFileReport, TextClockStep};

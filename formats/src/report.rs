@@ -101,6 +101,11 @@ pub struct IngestReport {
     /// ([`crate::text_bursts`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub text_bursts: Option<crate::text_bursts::TextBursts>,
+    /// Text logs stamped by a clock coarser than their period (several lines to a tag):
+    /// its tick, the period its first lines gave, and the lines given their slot's time
+    /// on a clock following the tags ([`crate::text_ticks`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub text_ticks: Option<crate::text_ticks::TextTicks>,
     /// Text logs: the first line stands apart from the others, across an interval longer
     /// than the longest gap a run bridges (the derive's `max_gap_s`) while the next is
     /// not: a line a logger wrote before it began. The interval, s, is not counted in
@@ -225,6 +230,7 @@ impl IngestReport {
         [
             self.clock_said(),
             self.text_bursts_said(),
+            self.text_ticks_said(),
             self.lines_off_slot_said(),
             self.text_clock_said(),
         ]
@@ -286,6 +292,39 @@ impl IngestReport {
             "every step".to_owned()
         };
         format!("{}{more}; {kept} in ingest.json", listed.join(", "))
+    }
+
+    /// What the run's log and its row of the campaign summary say of a text log stamped
+    /// by a coarse clock (`None`: it was not).
+    pub fn text_ticks_said(&self) -> Option<String> {
+        let t = self.text_ticks?;
+        let mut odd = Vec::new();
+        if t.early > 0 {
+            odd.push(format!(
+                "{} tagged before their slot could be",
+                lines_count(t.early)
+            ));
+        }
+        if t.restarts > 0 {
+            odd.push(format!(
+                "the clock taken afresh at {} (a long gap, or the clock set back)",
+                lines_count(t.restarts)
+            ));
+        }
+        let odd = if odd.is_empty() {
+            String::new()
+        } else {
+            format!("; {}", odd.join(", "))
+        };
+        Some(format!(
+            "the log's time tags are a clock's of {:.3}-ms ticks, {:.2} periods of {:.3} ms \
+             (several lines to a tag): each of its {} lines given its slot's time on a clock \
+             following the ticks' middles, not read as the clock set back and lines lost{odd}",
+            t.tick_s * 1e3,
+            t.tick_s / t.period_s,
+            t.period_s * 1e3,
+            t.lines
+        ))
     }
 
     /// What the run's log and its row of the campaign summary say of a text log's lines
@@ -489,4 +528,9 @@ impl IngestReport {
                 .as_ref()
                 .is_none_or(|o| o.lines_read == o.lines_accepted + o.lines_rejected)
     }
+}
+
+/// "1 line", "n lines".
+fn lines_count(n: u64) -> String {
+    format!("{n} line{}", if n == 1 { "" } else { "s" })
 }

@@ -49,7 +49,7 @@ pub const MAX_BURST_LINES: usize = 1024;
 
 /// Whether `b` repeats `a`'s values (its time aside): a line sent twice, not a sample
 /// of its own, and so no slot of its burst.
-fn repeats(a: &TextSample, b: &TextSample) -> bool {
+pub(crate) fn repeats(a: &TextSample, b: &TextSample) -> bool {
     a.dtheta_rad == b.dtheta_rad && a.dvel_mps == b.dvel_mps && a.speed_mps == b.speed_mps
 }
 
@@ -275,14 +275,14 @@ impl BurstSpread {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::kfgins::tests::read_all;
     use crate::report::IngestReport;
 
     /// A number in [0, 1) drawn from `k` (splitmix64): the tests' draws, the same on
     /// every machine.
-    fn unit(k: u64) -> f64 {
+    pub(crate) fn unit(k: u64) -> f64 {
         let mut z = k.wrapping_add(0x9e37_79b9_7f4a_7c15);
         z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);

@@ -112,8 +112,11 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // the log's steps where its tags show them. 37: a text log's lines that come in
         // bursts (a logger stamping them as it received them, several at once) spread
         // over the periods before each burst's first tag: a log wholly in bursts, or a
-        // stall's three lines or more in any other.
-        version: 37,
+        // stall's three lines or more in any other. 38: a text log stamped by a clock
+        // coarser than its period (several lines to a tag) has each line on its slot of
+        // a clock following the ticks (`unz_formats::text_ticks`), not read as the clock
+        // set back and lines lost.
+        version: 38,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
