@@ -392,14 +392,11 @@ pub struct KfGinsReader<R: BufRead> {
     /// ([`first_slots`]).
     clock: Option<SlotClock>,
     eof: bool,
-    /// The burst layer every line passes through once the period is known
-    /// ([`BurstSpread`]): it spreads every burst of a log wholly in bursts (its first
-    /// lines show it: [`burst_period_s`]), and a stall's burst in any other.
-    bursts: Option<BurstSpread>,
-    /// The layer every line passes through when the log's first lines were stamped by a
-    /// clock coarser than their period ([`coarse_tick`]): each line given its slot's
-    /// time ([`TickRetime`]). A log in bursts has none; one with it, no stall's bursts.
-    ticks: Option<TickRetime>,
+    /// The layer every line passes through once the log's first lines are judged
+    /// ([`TimingLayer`]): none, or one. Boxed: it is taken out and put back at each line
+    /// (the reader is borrowed to read the lines it takes), and held inline each line
+    /// moved its hundreds of bytes twice.
+    layer: Option<Box<TimingLayer>>,
     /// The time tags over GPS-week and day rollovers.
     tags: TagUnwrap,
     /// The first sample's time, s: a sample's place is its intervals from it.
@@ -409,6 +406,33 @@ pub struct KfGinsReader<R: BufRead> {
     recent: RecentRecords<[u64; 7], u64>,
     /// The gaps of lost samples, a first or last line apart left out.
     gaps: GapAccount,
+}
+
+/// The layer a text log's lines pass through between their parsing and the reader's
+/// slots, once its first lines are judged.
+#[derive(Debug)]
+enum TimingLayer {
+    /// Bursts spread over the periods before them ([`BurstSpread`]): every burst of a log
+    /// wholly in bursts (its first lines show it: [`burst_period_s`]), or a stall's in any
+    /// other.
+    Bursts(BurstSpread),
+    /// Each line given its slot's time on a clock following a coarse clock's ticks
+    /// ([`TickRetime`]), when the log's first lines were stamped by one
+    /// ([`coarse_tick`]).
+    Ticks(TickRetime),
+}
+
+impl TimingLayer {
+    /// The next line through the layer; `read` gives the lines as written.
+    fn next(
+        &mut self,
+        read: impl FnMut() -> Result<Option<TextSample>, FormatError>,
+    ) -> Result<Option<TextSample>, FormatError> {
+        match self {
+            Self::Bursts(b) => b.next(read),
+            Self::Ticks(t) => t.next(read),
+        }
+    }
 }
 
 impl<R: BufRead> KfGinsReader<R> {
@@ -437,8 +461,7 @@ impl<R: BufRead> KfGinsReader<R> {
             slot: 0,
             clock: None,
             eof: false,
-            bursts: None,
-            ticks: None,
+            layer: None,
             tags: TagUnwrap::default(),
             first_t_s: None,
             recent: RecentRecords::default(),
@@ -490,24 +513,22 @@ impl<R: BufRead> KfGinsReader<R> {
     }
 
     /// The next record, or `None` at the end: its time spread over its burst when the log
-    /// comes in bursts ([`Self::bursts`]), or its slot's when a coarse clock stamped it
-    /// ([`Self::ticks`]).
+    /// comes in bursts, or its slot's when a coarse clock stamped it ([`Self::layer`]).
     fn next_raw(&mut self) -> Result<Option<TextSample>, FormatError> {
         if let Some(e) = self.read_failed.take() {
             return Err(e);
         }
-        let next = if let Some(mut ticks) = self.ticks.take() {
-            let next = ticks.next(|| self.next_parsed());
-            self.report.text_ticks = Some(ticks.account());
-            self.ticks = Some(ticks);
-            next
-        } else if let Some(mut bursts) = self.bursts.take() {
-            let next = bursts.next(|| self.next_parsed());
-            self.report.text_bursts = bursts.account();
-            self.bursts = Some(bursts);
-            next
-        } else {
-            self.next_parsed()
+        let next = match self.layer.take() {
+            Some(mut layer) => {
+                let next = layer.next(|| self.next_parsed());
+                match &*layer {
+                    TimingLayer::Bursts(b) => self.report.text_bursts = b.account(),
+                    TimingLayer::Ticks(t) => self.report.text_ticks = Some(t.account()),
+                }
+                self.layer = Some(layer);
+                next
+            }
+            None => self.next_parsed(),
         };
         if let Ok(None) = next {
             self.eof = true;
@@ -516,6 +537,7 @@ impl<R: BufRead> KfGinsReader<R> {
     }
 
     /// Parses lines until one record is found.
+    #[inline(never)]
     fn next_parsed(&mut self) -> Result<Option<TextSample>, FormatError> {
         while let Some(line) = self.lines.next_line()? {
             let text = match line.record() {
@@ -612,11 +634,11 @@ impl<R: BufRead> KfGinsReader<R> {
                 self.spread_bursts(period_s, true)?;
             }
         }
-        if self.bursts.is_none() && shares_tags(self.ahead.make_contiguous()) {
+        if self.layer.is_none() && shares_tags(self.ahead.make_contiguous()) {
             self.read_window(BURST_WINDOW)?;
             if let Some(fit) = coarse_tick(self.ahead.make_contiguous()) {
                 let read = std::mem::take(&mut self.ahead);
-                self.ticks = Some(TickRetime::new(fit, read));
+                self.layer = Some(Box::new(TimingLayer::Ticks(TickRetime::new(fit, read))));
                 self.eof = false;
                 self.read_window(PERIOD_WINDOW)?;
             }
@@ -633,7 +655,7 @@ impl<R: BufRead> KfGinsReader<R> {
             let tags_s: Vec<f64> = window().map(|s| s.t_s).collect();
             let (period_s, first_late_s) = first_slots(&tags_s, median_s);
             self.clock = Some(SlotClock::new(period_s, first_late_s));
-            if self.bursts.is_none() && self.ticks.is_none() {
+            if self.layer.is_none() {
                 self.spread_bursts(period_s, false)?;
             }
         }
@@ -645,7 +667,8 @@ impl<R: BufRead> KfGinsReader<R> {
     /// log is `whole_log` in bursts, else a stall's of three lines or more.
     fn spread_bursts(&mut self, period_s: f64, whole_log: bool) -> Result<(), FormatError> {
         let read = std::mem::take(&mut self.ahead);
-        self.bursts = Some(BurstSpread::new(period_s, whole_log, read));
+        let spread = BurstSpread::new(period_s, whole_log, read);
+        self.layer = Some(Box::new(TimingLayer::Bursts(spread)));
         self.eof = false;
         self.read_window(PERIOD_WINDOW)
     }
