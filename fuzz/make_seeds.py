@@ -4,6 +4,7 @@ Kingston segment (text logs) and from operations of the UNZ-50 run generator
 (fuzz_targets/common/unz50_run.rs). Python 3 standard library only; run from fuzz/."""
 
 import bisect
+import math
 import pathlib
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -16,14 +17,29 @@ def records(name):
 
 
 def text_seeds(out):
-    """Stretches of Kingston's drive, its start and a stop (fuzz_targets/common/kfgins_run.rs)."""
+    """Stretches of Kingston's drive, its start and a stop (fuzz_targets/common/kfgins_run.rs),
+    and the drive stamped by clocks coarser than its period (formats/src/text_ticks.rs)."""
     stretches(out, {"drive": (152700, 152725), "start": (152143, 152160), "stop": (152820, 152835)}, [0])
+    on_ticks(out, "drive", (152700, 152725))
+
+
+def on_ticks(out, name, span):
+    """The stretch `span` of Kingston with its IMU's tags floored to a clock's tick of 1.25,
+    1.5625 and 2.5 periods, and its speed file."""
+    imu, odo = records("imu.txt"), records("odometer.txt")
+    t = lambda line: float(line.split()[0])
+    t0, t1 = span
+    speeds = "".join(l for l in odo if t0 - 1 <= t(l) <= t1 + 1).encode()
+    for tick in (0.125, 0.15625, 0.25):
+        floored = ("%.3f %s" % (math.floor(t(l) / tick) * tick, l.split(None, 1)[1]) for l in imu if t0 <= t(l) <= t1)
+        (out / f"{name}-ticks-{tick}").write_bytes(bytes([1]) + "".join(floored).encode() + b"\x00" + speeds)
 
 
 def text_chain_seeds(out):
     """The drive into Kingston's first stop, where its first control point is, with the
     alignment over a static start (the first byte's value / 3 even) and without one (odd)."""
     stretches(out, {"to-point": (152790, 152840)}, [0, 3])
+    on_ticks(out, "to-point", (152790, 152840))
 
 
 def stretches(out, spans, starts):
