@@ -1344,8 +1344,10 @@ fn kingston_a_logger_stalling_now_and_then_keeps_its_lines_on_their_slots() {
 /// 100-ms periods, as a PC's 15.625-ms timer under a 100-Hz IMU): each tag its line's
 /// time down to the tick, two lines to a tag now and then. Session 83's reader took the
 /// tick for the period and each shared tag for the clock set back (3153 steps, +492 s),
-/// and the derive failed on accelerometers "not in m/s". Now each line takes its slot on
-/// a clock following the ticks: no line lost or stepped, the shipped azimuths (within
+/// and the derive failed on accelerometers "not in m/s"; on a 78.125-ms clock (0.78 of a
+/// period: no tag shared, steps of one tick and two) it read every other step as a line
+/// lost, and failed likewise. Now each line takes its slot on a clock following the
+/// ticks: no line lost or stepped, the shipped azimuths (within
 /// [`azimuths_near_shipped`]'s tolerances). With one line in a hundred lost, each is
 /// counted and every line keeps its time to a tenth of a period but beside a gap whose
 /// place among a tick's lines the ticks cannot tell (at most half the gaps: 34 of 90
@@ -1360,24 +1362,31 @@ fn kingston_stamped_by_a_coarse_clock_keeps_its_lines_on_their_slots() {
     let tmp = tempfile::tempdir().unwrap();
     let shipped = kingston_with(&tmp.path().join("shipped"), "");
     disupt_with_ingest_report(&shipped, &tmp.path().join("so"));
+    // The ticks of a PC's timer under a 100-Hz IMU, and under a 128-Hz one (0.78 of a
+    // period: steps of one tick and of two).
+    for (tick_s, said) in [
+        (0.15625, "156.250-ms ticks, 1.56 periods of"),
+        (0.078125, "78.125-ms ticks, 0.78 periods of"),
+    ] {
+        let on_ticks = |_: usize, t: f64| (t / tick_s).floor() * tick_s;
+        let run = kingston_imu_tags_edited(&tmp.path().join(format!("ticks-{tick_s}")), on_ticks);
+        let _ = std::fs::remove_dir_all(tmp.path().join("o"));
+        let report = disupt_with_ingest_report(&run, &tmp.path().join("o"));
+        let ticks = report.text_ticks.expect("a coarse clock");
+        let (tick_off_s, period_off_s) = (ticks.tick_s - tick_s, ticks.period_s - 0.1);
+        assert!(
+            tick_off_s.abs() < 1e-5 && period_off_s.abs() < 1e-5,
+            "{ticks:?}"
+        );
+        assert_eq!((ticks.lines, ticks.early, ticks.restarts), (8760, 0, 0));
+        assert_no_line_lost_stepped_or_off(&report);
+        azimuths_near_shipped(tmp.path());
+        let summary = std::fs::read_to_string(tmp.path().join("o/campaign.md")).unwrap();
+        let said = format!("the log's time tags are a clock's of {said}");
+        assert!(summary.contains(&said), "{summary}");
+    }
     let tick_s = 0.15625;
     let on_ticks = |_: usize, t: f64| (t / tick_s).floor() * tick_s;
-    let run = kingston_imu_tags_edited(&tmp.path().join("ticks"), on_ticks);
-    let report = disupt_with_ingest_report(&run, &tmp.path().join("o"));
-    let ticks = report.text_ticks.expect("a coarse clock");
-    let (tick_off_s, period_off_s) = (ticks.tick_s - tick_s, ticks.period_s - 0.1);
-    assert!(
-        tick_off_s.abs() < 1e-6 && period_off_s.abs() < 1e-5,
-        "{ticks:?}"
-    );
-    assert_eq!((ticks.lines, ticks.early, ticks.restarts), (8760, 0, 0));
-    assert_no_line_lost_stepped_or_off(&report);
-    azimuths_near_shipped(tmp.path());
-    let summary = std::fs::read_to_string(tmp.path().join("o/campaign.md")).unwrap();
-    assert!(
-        summary.contains("the log's time tags are a clock's of 156.250-ms ticks, 1.56 periods of"),
-        "{summary}"
-    );
 
     let lost = |k: usize| k > 50 && k % 97 == 13;
     let dropped = (0..8760).filter(|&k| lost(k)).count() as u64;

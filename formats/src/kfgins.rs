@@ -18,7 +18,7 @@ use crate::slot_clock::SlotClock;
 use crate::speed_floor::{SpeedFloor, SpeedFloorReport};
 use crate::speed_spikes::{MAX_ACCEL_MPS2, MAX_BRAKING_MPS2, SpeedSpikes, Verdict};
 use crate::text_bursts::{BURST_WINDOW, BurstSpread, burst_period_s, mostly_close};
-use crate::text_ticks::{TickRetime, coarse_tick, shares_tags};
+use crate::text_ticks::{TickRetime, coarse_tick, may_be_ticked};
 
 /// Longest line accepted; longer lines are malformed (and never buffered whole).
 pub const MAX_LINE_BYTES: usize = 4096;
@@ -634,7 +634,7 @@ impl<R: BufRead> KfGinsReader<R> {
                 self.spread_bursts(period_s, true)?;
             }
         }
-        if self.layer.is_none() && shares_tags(self.ahead.make_contiguous()) {
+        if self.layer.is_none() && may_be_ticked(self.ahead.make_contiguous()) {
             self.read_window(BURST_WINDOW)?;
             if let Some(fit) = coarse_tick(self.ahead.make_contiguous()) {
                 let read = std::mem::take(&mut self.ahead);

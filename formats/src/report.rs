@@ -316,10 +316,18 @@ impl IngestReport {
         } else {
             format!("; {}", odd.join(", "))
         };
+        let (how, misread) = if t.tick_s > t.period_s {
+            (
+                "several lines to a tag",
+                "the clock set back and lines lost",
+            )
+        } else {
+            ("steps of one tick and of two", "lines lost")
+        };
         Some(format!(
             "the log's time tags are a clock's of {:.3}-ms ticks, {:.2} periods of {:.3} ms \
-             (several lines to a tag): each of its {} lines given its slot's time on a clock \
-             following the ticks' middles, not read as the clock set back and lines lost{odd}",
+             ({how}): each of its {} lines given its slot's time on a clock following the \
+             ticks' middles, not read as {misread}{odd}",
             t.tick_s * 1e3,
             t.tick_s / t.period_s,
             t.period_s * 1e3,

@@ -19,17 +19,23 @@
 //! the lines before it the sample was lost their ticks may not tell (two lines to a
 //! tick), and the gap is put halfway along the lines it could follow.
 //!
-//! A coarse clock is told from the log's first lines (`coarse_tick`): tags shared by
-//! lines of different values, every step a whole number of ticks, a stretch with no line
+//! A coarse clock is told from the log's first lines (`coarse_tick`): every step a whole
+//! number of ticks, tags shared by lines of different values, a stretch with no line
 //! lost whose ticks' middles lie within a tick of one straight line through the lines'
 //! count, and from it every first line's slot, 99 in 100 of their middles within a tick
 //! of the line through the slots, at a period shorter than the tick. A clock standing
 //! or a stall's burst parts lines from any such line; a regular log's lines do not share
 //! tags, nor does a log whose tags glitch or whose lines are lost fit a period shorter
-//! than its step. A tick shorter than the period leaves no tag shared: its steps of one
-//! tick and of two are the same tags as lines lost from a regular log's, and are read
-//! so; a tick of whole periods is the burst layer's (`crate::text_bursts`) when its
-//! first lines come in bursts.
+//! than its step. A tick of whole periods is the burst layer's (`crate::text_bursts`)
+//! when its first lines come in bursts.
+//!
+//! A tick shorter than the period (a 15.625-ms timer under a 50-Hz IMU) shares no tag:
+//! its steps of one tick and of two are the tags a regular log losing lines writes, but
+//! in a regular proportion. Such a log is judged over 1000 first lines or more
+//! and from a stretch of 256 lines at least, at a period longer than the tick by 2 % to
+//! twice it: lines lost at random wander from any straight line by their count's own
+//! wandering. A log losing lines as regularly as such a tick's steps go (every tenth
+//! line, say) would be read as one, its lines spread over the gaps.
 
 use std::collections::VecDeque;
 
@@ -41,6 +47,10 @@ use crate::text_bursts::repeats;
 const FIT_LINES: usize = 512;
 /// Fewest lines a stretch the clock is fitted on holds.
 const MIN_FIT_LINES: usize = 64;
+/// Fewest first lines judged for a tick shorter than the period: a regular log's lines
+/// lost at random, read through such a tick, wander from its line by their count's own
+/// wandering, about 1.5 periods over 1000 lines at one lost in 200.
+const FINER_LINES: usize = 1000;
 /// Fewest tags shared by lines of different values among the first lines for the log to
 /// be judged on a coarse clock.
 pub(crate) const MIN_SHARED_TAGS: usize = 2;
@@ -70,18 +80,74 @@ const MAX_PERIOD_CHANGE: f64 = 1.0 / 64.0;
 /// line's tick middle afresh.
 const MAX_FOLLOWED_SLOTS: f64 = (1u64 << 20) as f64;
 
-/// Whether `lines` share tags as a coarse clock's do: [`MIN_SHARED_TAGS`] or more steps
-/// of nothing between lines of different values (a line sent twice aside). What makes
-/// the reader read further to judge them ([`coarse_tick`]).
-pub(crate) fn shares_tags(lines: &[TextSample]) -> bool {
-    shared_tags(lines) >= MIN_SHARED_TAGS
+/// Whether `lines` step as a clock's ticks of about their period do: their steps whole
+/// ticks ([`tick_grid`]), [`MIN_SHARED_TAGS`] or more of them of none (lines sharing a
+/// tag) or of two ticks or more. What makes the reader read further to judge them
+/// ([`coarse_tick`]).
+pub(crate) fn may_be_ticked(lines: &[TextSample]) -> bool {
+    tick_grid(&written_tags_s(lines))
+        .is_some_and(|g| g.shared >= MIN_SHARED_TAGS || g.skipping >= MIN_SHARED_TAGS)
 }
 
-/// Steps of nothing between lines of different values.
-fn shared_tags(lines: &[TextSample]) -> usize {
-    (lines.windows(2))
-        .filter(|w| w[1].t_s == w[0].t_s && !repeats(&w[0], &w[1]))
-        .count()
+/// The tags of `lines`, a line repeating the one before (its tag and values) left out.
+fn written_tags_s(lines: &[TextSample]) -> Vec<f64> {
+    (lines.iter().enumerate())
+        .filter(|&(i, s)| i == 0 || !(s.t_s == lines[i - 1].t_s && repeats(&lines[i - 1], s)))
+        .map(|(_, s)| s.t_s)
+        .collect()
+}
+
+/// The steps of tags on a clock's ticks.
+#[derive(Debug, Clone, Copy)]
+struct TickGrid {
+    tick_s: f64,
+    /// Steps of none (lines sharing a tag), and of two ticks or more.
+    shared: usize,
+    skipping: usize,
+    steps: usize,
+}
+
+/// The ticks `tags_s` step by, when every step in fifty but one is a whole number of
+/// ticks to [`TICK_TOLERANCE`] of one: roughly the mean of the steps within that
+/// tolerance of the tenth shortest step in ten, then the steps on the grid over the
+/// ticks they make.
+fn tick_grid(tags_s: &[f64]) -> Option<TickGrid> {
+    let steps: Vec<f64> = tags_s.windows(2).map(|w| w[1] - w[0]).collect();
+    let mut positive: Vec<f64> = steps.iter().copied().filter(|&d| d > 0.0).collect();
+    if positive.is_empty() {
+        return None;
+    }
+    positive.sort_by(f64::total_cmp);
+    let shortest_s = positive[positive.len() / 10];
+    let near: Vec<f64> = (positive.iter().copied())
+        .filter(|d| (d - shortest_s).abs() <= TICK_TOLERANCE * shortest_s)
+        .collect();
+    let rough_s = near.iter().sum::<f64>() / near.len() as f64;
+    let (mut on_grid, mut shared, mut skipping) = (0, 0, 0);
+    let (mut span_s, mut ticks_in_span) = (0.0, 0.0);
+    for &d in &steps {
+        let ticks = d / rough_s;
+        if ticks > -TICK_TOLERANCE && (ticks - ticks.round()).abs() <= TICK_TOLERANCE {
+            on_grid += 1;
+            shared += usize::from(d == 0.0);
+            skipping += usize::from(ticks.round() >= 2.0);
+            span_s += d;
+            ticks_in_span += ticks.round();
+        }
+    }
+    // The steps on the grid over the ticks they make: a tick printed to a coarser unit
+    // (78.125 ms in whole milliseconds, steps of 78 and 79 and of 156 and 157) to a
+    // thousandth of that unit over 1000 lines, where the steps of one tick alone gave
+    // 78.111 ms.
+    let tick_s = span_s / ticks_in_span;
+    (tick_s.is_finite() && tick_s > 0.0 && 50 * (steps.len() - on_grid) <= steps.len()).then_some(
+        TickGrid {
+            tick_s,
+            shared,
+            skipping,
+            steps: steps.len(),
+        },
+    )
 }
 
 /// A coarse clock's tick and the slots of the lines it stamped, as its stretch of lines
@@ -132,32 +198,22 @@ struct FittedLine {
 /// following part the rest from it). The period must be shorter than the tick by
 /// [`MIN_TICK_PERIODS`].
 pub(crate) fn coarse_tick(lines: &[TextSample]) -> Option<TickFit> {
-    let tags_s: Vec<f64> = (lines.iter().enumerate())
-        .filter(|&(i, s)| i == 0 || !(s.t_s == lines[i - 1].t_s && repeats(&lines[i - 1], s)))
-        .map(|(_, s)| s.t_s)
-        .collect();
-    let steps: Vec<f64> = tags_s.windows(2).map(|w| w[1] - w[0]).collect();
-    let shared = steps.iter().filter(|&&d| d == 0.0).count();
-    let mut positive: Vec<f64> = steps.iter().copied().filter(|&d| d > 0.0).collect();
-    if shared < MIN_SHARED_TAGS || positive.len() < MIN_FIT_LINES / 2 {
+    let tags_s = written_tags_s(lines);
+    let grid = tick_grid(&tags_s)?;
+    let tick_s = grid.tick_s;
+    // Lines sharing tags: a tick longer than the period. Else steps of one tick and of
+    // two, in the proportion a tick shorter than the period gives, not a few lines lost.
+    let finer = if grid.shared >= MIN_SHARED_TAGS {
+        false
+    } else if grid.skipping >= MIN_SHARED_TAGS && 50 * grid.skipping >= grid.steps {
+        true
+    } else {
+        return None;
+    };
+    if tags_s.len() < if finer { FINER_LINES } else { MIN_FIT_LINES } {
         return None;
     }
-    positive.sort_by(f64::total_cmp);
-    let shortest_s = positive[positive.len() / 10];
-    let near: Vec<f64> = (positive.iter().copied())
-        .filter(|d| (d - shortest_s).abs() <= TICK_TOLERANCE * shortest_s)
-        .collect();
-    let tick_s = near.iter().sum::<f64>() / near.len() as f64;
-    let on_grid = (steps.iter())
-        .filter(|&&d| {
-            let ticks = d / tick_s;
-            ticks > -TICK_TOLERANCE && (ticks - ticks.round()).abs() <= TICK_TOLERANCE
-        })
-        .count();
-    if !(tick_s.is_finite() && tick_s > 0.0) || 50 * (steps.len() - on_grid) > steps.len() {
-        return None;
-    }
-    let (from, seeded) = seed(&tags_s, tick_s)?;
+    let (from, seeded) = seed(&tags_s, tick_s, finer)?;
     let (period_s, slot_s) = (seeded.period_s, seeded.first_slot_s);
     let walk_tolerance = tolerance(seeded.spread_s, tick_s, period_s);
     // Each line's slot from the seed's first line's: forward as the tags go, backward on
@@ -175,7 +231,7 @@ pub(crate) fn coarse_tick(lines: &[TextSample]) -> Option<TickFit> {
         n -= clock.step(-tags_s[i] - tick_s).slots?;
         slots[i] = n;
     }
-    let line = fitted_line(&tags_s, &slots, tick_s, 0.99)?;
+    let line = fitted_line(&tags_s, &slots, tick_s, 0.99, finer)?;
     Some(TickFit {
         tick_s,
         period_s: line.period_s,
@@ -188,16 +244,21 @@ pub(crate) fn coarse_tick(lines: &[TextSample]) -> Option<TickFit> {
 /// `tick_s`: its first line, the period and that line's slot time, s. Stretches of
 /// [`FIT_LINES`] are tried first, then of half as many, down to [`MIN_FIT_LINES`], each
 /// length's half a stretch apart: a log that loses a line in a hundred has few of 512
-/// lines without one.
-fn seed(tags_s: &[f64], tick_s: f64) -> Option<(usize, FittedLine)> {
+/// lines without one. A tick `finer` than the period takes a stretch of half as many at
+/// least (its steps of two ticks are a regular log's lines lost but for their
+/// regularity, which long stretches show: lost at random, the lines' middles wander from
+/// any line by the lost lines' count's own wandering, and the walk over
+/// [`FINER_LINES`] or more parts them).
+fn seed(tags_s: &[f64], tick_s: f64, finer: bool) -> Option<(usize, FittedLine)> {
     let mut len = FIT_LINES;
-    while len >= MIN_FIT_LINES {
+    let shortest = if finer { FIT_LINES / 2 } else { MIN_FIT_LINES };
+    while len >= shortest {
         let len_here = len.min(tags_s.len());
         let mut from = 0;
         while from + len_here <= tags_s.len() {
             let stretch = &tags_s[from..from + len_here];
             let count: Vec<f64> = (0..len_here).map(|i| i as f64).collect();
-            if let Some(line) = fitted_line(stretch, &count, tick_s, 1.0) {
+            if let Some(line) = fitted_line(stretch, &count, tick_s, 1.0, finer) {
                 return Some((from, line));
             }
             from += len_here / 2;
@@ -209,9 +270,16 @@ fn seed(tags_s: &[f64], tick_s: f64) -> Option<(usize, FittedLine)> {
 
 /// The least-squares line through the ticks' middles of lines tagged `tags_s` against
 /// their `slots`: the period and the first line's slot time, s, when the share `within`
-/// of the middles lie within a tick and a quarter period of the line's others and the
-/// period is shorter than the tick by [`MIN_TICK_PERIODS`].
-fn fitted_line(tags_s: &[f64], slots: &[f64], tick_s: f64, within: f64) -> Option<FittedLine> {
+/// of the middles lie within a tick and half a period of the line's others, and the
+/// period is shorter than the tick by [`MIN_TICK_PERIODS`] (or, a tick `finer` than the
+/// period, longer by as much and shorter than two ticks).
+fn fitted_line(
+    tags_s: &[f64],
+    slots: &[f64],
+    tick_s: f64,
+    within: f64,
+    finer: bool,
+) -> Option<FittedLine> {
     let n = tags_s.len() as f64;
     let t0_s = tags_s[0];
     let at = |i: usize| tags_s[i] - t0_s + tick_s / 2.0;
@@ -233,7 +301,11 @@ fn fitted_line(tags_s: &[f64], slots: &[f64], tick_s: f64, within: f64) -> Optio
     let first_slot_s = t0_s + mean_t + (slots[0] - mean_x) * period_s;
     (period_s.is_finite()
         && period_s > 0.0
-        && period_s * MIN_TICK_PERIODS < tick_s
+        && if finer {
+            tick_s * MIN_TICK_PERIODS < period_s && period_s < 2.0 * tick_s
+        } else {
+            period_s * MIN_TICK_PERIODS < tick_s
+        }
         && fits
         && first_slot_s.is_finite())
     .then_some(FittedLine {
@@ -498,6 +570,17 @@ mod tests {
             .collect()
     }
 
+    /// Samples `0..n` made `period_s` apart from `start_s`, each from the tenth lost at
+    /// `rate` (draws `unit(k + salt)`), and how many were lost.
+    fn losing(n: u64, start_s: f64, period_s: f64, rate: f64, salt: u64) -> (Vec<(u64, f64)>, u64) {
+        let kept: Vec<(u64, f64)> = (0..n)
+            .filter(|&k| k < 10 || unit(k + salt) >= rate)
+            .map(|k| (k, start_s + k as f64 * period_s))
+            .collect();
+        let lost = n - kept.len() as u64;
+        (kept, lost)
+    }
+
     /// The samples `text` gives, each with its sample's number, and the account.
     fn read(text: &str) -> (Vec<(u64, TextSample)>, IngestReport) {
         let (v, report, _) = read_all(text);
@@ -585,6 +668,36 @@ mod tests {
         assert!(worst < 0.2 * period_s, "{worst}");
     }
 
+    /// A 50-Hz log a PC stamped with its 15.625-ms timer (0.78 of a period: steps of one
+    /// tick and of two, no tag shared), one line in a hundred lost. Read as written, the
+    /// tick was the period and every second step a sample lost (Kingston on a 78-ms clock
+    /// failed the derive; on a 90-ms one, 974 samples "lost" were filled in and OEPI went
+    /// 3.7° off). Now every line lost is counted, and every line is its sample's slot,
+    /// its time within 0.06 of a period of its sample's, but a line beside a gap the
+    /// ticks (to the slots' tolerance) cannot place, a slot off (11 of 29 700 lines; the
+    /// test allows one in a thousand).
+    #[test]
+    fn a_50_hz_log_on_a_pc_timer_takes_its_slots() {
+        let (period_s, tick_s) = (0.02, 0.015625);
+        let (lines, lost) = losing(30_000, 3000.0, period_s, 0.01, 5);
+        let text = log_of(&lines, |t| format!("{:.3}", (t / tick_s).floor() * tick_s));
+        let (v, rep) = read(&text);
+        let ticks = rep.text_ticks.expect("a clock's ticks");
+        assert!((ticks.tick_s - tick_s).abs() < 1e-4, "{ticks:?}");
+        assert!((ticks.period_s - period_s).abs() < 1e-6, "{ticks:?}");
+        assert_eq!(rep.lost_samples, lost, "{rep:?}");
+        let off_slot = v.iter().filter(|(k, s)| s.slot != *k).count();
+        assert!(v.iter().all(|(k, s)| s.slot.abs_diff(*k) <= 1));
+        assert!(
+            off_slot * 1000 <= v.len(),
+            "{off_slot} lines off their slot"
+        );
+        let e = time_errors_s(&v, period_s);
+        let near = e.iter().filter(|e| e.abs() < 0.06 * period_s).count();
+        assert!(e.iter().all(|e| e.abs() < 1.06 * period_s));
+        assert_eq!(near + off_slot, v.len());
+    }
+
     /// A 125-Hz log stamped to the hundredth of a second (rounded: 1.25 periods), the
     /// logger's clock 80 ppm fast, 2 % of its lines lost. Every line lost is counted; a
     /// line's slot is its sample's or, beside a gap its ticks cannot place, one off (the
@@ -596,11 +709,7 @@ mod tests {
     #[test]
     fn lines_lost_under_a_coarse_clock_are_counted_and_put_halfway() {
         let (period_s, tick_s) = (0.008, 0.01);
-        let lines: Vec<(u64, f64)> = (0..40_000)
-            .filter(|&k| k < 10 || unit(k) >= 0.02)
-            .map(|k| (k, 500.0 + k as f64 * period_s * (1.0 + 80e-6)))
-            .collect();
-        let lost = 40_000 - lines.len() as u64;
+        let (lines, lost) = losing(40_000, 500.0, period_s * (1.0 + 80e-6), 0.02, 0);
         let text = log_of(&lines, |t| format!("{:.2}", (t / tick_s).round() * tick_s));
         let (v, rep) = read(&text);
         let ticks = rep.text_ticks.expect("a coarse clock");
@@ -652,7 +761,9 @@ mod tests {
     /// Logs whose lines share tags but that no coarse clock stamped are read as before:
     /// a regular log whose tags glitched (a line's repeating the one before's), one
     /// whose clock stood for five lines now and then, one jittering by 0.3 of a period
-    /// with tags repeated, and one losing lines with tags repeated.
+    /// with tags repeated, one losing lines with tags repeated, and two losing one line
+    /// in ten or in four at random (their steps of one period and two, as a tick shorter
+    /// than the period gives, not in its regular proportion over 512 lines).
     #[test]
     fn lines_sharing_tags_with_no_coarse_clock_are_read_as_before() {
         let period_s = 0.01;
@@ -687,11 +798,22 @@ mod tests {
             _ if k > 0 && unit(k as u64) < 1.0 / 30.0 => before[k - 1] + 2.0 * period_s,
             _ => t.max(before.last().map_or(t, |b| b + period_s)),
         });
+        // Lines lost at random, one in ten and one in four (steps of one period and of
+        // two or more, as a tick shorter than the period gives, but not regularly).
+        let losing = |rate: f64| {
+            tags(&|k, t, before| match before.last() {
+                Some(b) if unit(k as u64 + 99) < rate => b + 2.0 * period_s,
+                Some(b) => b + period_s,
+                None => t,
+            })
+        };
         for (what, text) in [
             ("glitched", glitched),
             ("standing", standing),
             ("jittered", jittered),
             ("lossy", lossy),
+            ("losing one in ten", losing(0.1)),
+            ("losing one in four", losing(0.25)),
         ] {
             let (_, rep) = read(&text);
             assert_eq!(rep.text_ticks, None, "{what}");
