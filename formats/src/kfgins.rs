@@ -514,13 +514,12 @@ impl<R: BufRead> KfGinsReader<R> {
 
     /// The next record, or `None` at the end: its time spread over its burst when the log
     /// comes in bursts, or its slot's when a coarse clock stamped it ([`Self::layer`]).
+    /// An error kept from reading ahead ([`Self::read_failed`]) comes where the lines
+    /// would: after those a layer holds.
     fn next_raw(&mut self) -> Result<Option<TextSample>, FormatError> {
-        if let Some(e) = self.read_failed.take() {
-            return Err(e);
-        }
         let next = match self.layer.take() {
             Some(mut layer) => {
-                let next = layer.next(|| self.next_parsed());
+                let next = layer.next(|| self.next_read());
                 match &*layer {
                     TimingLayer::Bursts(b) => self.report.text_bursts = b.account(),
                     TimingLayer::Ticks(t) => self.report.text_ticks = Some(t.account()),
@@ -528,7 +527,7 @@ impl<R: BufRead> KfGinsReader<R> {
                 self.layer = Some(layer);
                 next
             }
-            None => self.next_parsed(),
+            None => self.next_read(),
         };
         if let Ok(None) = next {
             self.eof = true;
@@ -536,8 +535,15 @@ impl<R: BufRead> KfGinsReader<R> {
         next
     }
 
+    /// The error kept from reading ahead, if any, else the next record parsed.
+    fn next_read(&mut self) -> Result<Option<TextSample>, FormatError> {
+        match self.read_failed.take() {
+            Some(e) => Err(e),
+            None => self.next_parsed(),
+        }
+    }
+
     /// Parses lines until one record is found.
-    #[inline(never)]
     fn next_parsed(&mut self) -> Result<Option<TextSample>, FormatError> {
         while let Some(line) = self.lines.next_line()? {
             let text = match line.record() {
@@ -627,20 +633,20 @@ impl<R: BufRead> KfGinsReader<R> {
         if self.period_s.is_some() || self.eof {
             return Ok(());
         }
-        self.read_window(PERIOD_WINDOW)?;
+        self.read_window(PERIOD_WINDOW);
         if mostly_close(self.ahead.make_contiguous()) {
-            self.read_window(BURST_WINDOW)?;
+            self.read_window(BURST_WINDOW);
             if let Some(period_s) = burst_period_s(self.ahead.make_contiguous()) {
-                self.spread_bursts(period_s, true)?;
+                self.spread_bursts(period_s, true);
             }
         }
         if self.layer.is_none() && may_be_ticked(self.ahead.make_contiguous()) {
-            self.read_window(BURST_WINDOW)?;
+            self.read_window(BURST_WINDOW);
             if let Some(fit) = coarse_tick(self.ahead.make_contiguous()) {
                 let read = std::mem::take(&mut self.ahead);
                 self.layer = Some(Box::new(TimingLayer::Ticks(TickRetime::new(fit, read))));
                 self.eof = false;
-                self.read_window(PERIOD_WINDOW)?;
+                self.read_window(PERIOD_WINDOW);
             }
         }
         let window = || self.ahead.iter().take(PERIOD_WINDOW);
@@ -656,7 +662,7 @@ impl<R: BufRead> KfGinsReader<R> {
             let (period_s, first_late_s) = first_slots(&tags_s, median_s);
             self.clock = Some(SlotClock::new(period_s, first_late_s));
             if self.layer.is_none() {
-                self.spread_bursts(period_s, false)?;
+                self.spread_bursts(period_s, false);
             }
         }
         Ok(())
@@ -665,23 +671,30 @@ impl<R: BufRead> KfGinsReader<R> {
     /// Spreads the lines of each burst over the periods before it from here on, the
     /// lines read ahead included, at `period_s` ([`BurstSpread`]): every burst when the
     /// log is `whole_log` in bursts, else a stall's of three lines or more.
-    fn spread_bursts(&mut self, period_s: f64, whole_log: bool) -> Result<(), FormatError> {
+    fn spread_bursts(&mut self, period_s: f64, whole_log: bool) {
         let read = std::mem::take(&mut self.ahead);
         let spread = BurstSpread::new(period_s, whole_log, read);
         self.layer = Some(Box::new(TimingLayer::Bursts(spread)));
         self.eof = false;
-        self.read_window(PERIOD_WINDOW)
+        self.read_window(PERIOD_WINDOW);
     }
 
-    /// Reads ahead until `lines` records are (fewer in a shorter log).
-    fn read_window(&mut self, lines: usize) -> Result<(), FormatError> {
+    /// Reads ahead until `lines` records are (fewer in a shorter log). An error reading
+    /// is kept ([`Self::read_failed`]) for when the lines before it are given out: a
+    /// layer begun on the lines read gives them out first ([`Self::next_raw`]). Before,
+    /// a log of fewer lines than its first window whose reading failed at its end lost
+    /// them all to the error.
+    fn read_window(&mut self, lines: usize) {
         while self.ahead.len() < lines {
-            match self.next_raw()? {
-                Some(s) => self.ahead.push_back(s),
-                None => break,
+            match self.next_raw() {
+                Ok(Some(s)) => self.ahead.push_back(s),
+                Ok(None) => break,
+                Err(e) => {
+                    self.read_failed = Some(e);
+                    break;
+                }
             }
         }
-        Ok(())
     }
 
     /// Returns the next accepted sample, or `None` at the end, with its slot
@@ -2131,19 +2144,22 @@ pub(crate) mod tests {
         }
     }
 
+    /// A source whose reading fails at its end ("the disk failed").
+    pub(crate) struct FailsAtEnd(pub(crate) std::io::Cursor<Vec<u8>>);
+
+    impl std::io::Read for FailsAtEnd {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            match self.0.read(buf)? {
+                0 => Err(std::io::Error::other("the disk failed")),
+                n => Ok(n),
+            }
+        }
+    }
+
     /// An error reading the line after a sample (the one read ahead to tell whether the
     /// sample is off its slot) comes after that sample, as before the look-ahead.
     #[test]
     fn an_error_reading_ahead_comes_after_the_sample_before_it() {
-        struct FailsAtEnd(std::io::Cursor<Vec<u8>>);
-        impl std::io::Read for FailsAtEnd {
-            fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-                match self.0.read(buf)? {
-                    0 => Err(std::io::Error::other("the disk failed")),
-                    n => Ok(n),
-                }
-            }
-        }
         let tags: Vec<f64> = (0..150).map(|k| k as f64 * 0.01).collect();
         let src = FailsAtEnd(std::io::Cursor::new(log_at(&tags).into_bytes()));
         let mut r = KfGinsReader::new(std::io::BufReader::new(src));

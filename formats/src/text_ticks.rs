@@ -358,6 +358,8 @@ pub(crate) struct TickRetime {
     last: Option<TextSample>,
     /// No more lines to read.
     ended: bool,
+    /// An error met reading, returned once the lines held before it are given out.
+    failed: Option<FormatError>,
 }
 
 /// Lines [`TickRetime`] holds before giving them out: the lines a gap could be put
@@ -392,6 +394,7 @@ impl TickRetime {
             held: VecDeque::with_capacity(HELD_LINES + 1),
             last: None,
             ended: false,
+            failed: None,
         }
     }
 
@@ -406,17 +409,25 @@ impl TickRetime {
         &mut self,
         mut read: impl FnMut() -> Result<Option<TextSample>, FormatError>,
     ) -> Result<Option<TextSample>, FormatError> {
-        while !self.ended && self.held.len() <= HELD_LINES {
+        while !self.ended && self.failed.is_none() && self.held.len() <= HELD_LINES {
             let s = match self.unread.pop_front() {
-                Some(s) => Some(s),
-                None => read()?,
+                Some(s) => Ok(Some(s)),
+                None => read(),
             };
             match s {
-                Some(s) => self.take(s),
-                None => self.ended = true,
+                Ok(Some(s)) => self.take(s),
+                Ok(None) => self.ended = true,
+                Err(e) => self.failed = Some(e),
             }
         }
-        Ok(self.held.pop_front().map(|h| h.sample))
+        match (self.held.pop_front(), self.failed.take()) {
+            (Some(h), failed) => {
+                self.failed = failed;
+                Ok(Some(h.sample))
+            }
+            (None, Some(e)) => Err(e),
+            (None, None) => Ok(None),
+        }
     }
 
     /// Gives line `s` its slot's time and holds it.
@@ -696,6 +707,31 @@ mod tests {
         let near = e.iter().filter(|e| e.abs() < 0.06 * period_s).count();
         assert!(e.iter().all(|e| e.abs() < 1.06 * period_s));
         assert_eq!(near + off_slot, v.len());
+    }
+
+    /// A log on a PC timer whose reading fails at its end (the disk): every line read
+    /// before the error is given out before it, retimed, the error after them.
+    #[test]
+    fn an_error_reading_a_ticked_log_comes_after_its_lines() {
+        use crate::kfgins::tests::FailsAtEnd;
+        let (period_s, tick_s) = (0.01, 0.015625);
+        for n in [1500, 3000] {
+            let lines: Vec<(u64, f64)> = (0..n).map(|k| (k, 20.0 + k as f64 * period_s)).collect();
+            let text = log_of(&lines, |t| format!("{:.3}", (t / tick_s).floor() * tick_s));
+            let src = FailsAtEnd(std::io::Cursor::new(text.into_bytes()));
+            let mut r = crate::kfgins::KfGinsReader::new(std::io::BufReader::new(src));
+            let mut slots = Vec::new();
+            let err = loop {
+                match r.next_sample() {
+                    Ok(Some(s)) => slots.push(s.slot),
+                    Ok(None) => panic!("the error was lost"),
+                    Err(e) => break e,
+                }
+            };
+            assert!(err.to_string().contains("the disk failed"), "{err}");
+            assert!(r.report().text_ticks.is_some(), "{n} lines");
+            assert_eq!(slots, (0..n).collect::<Vec<u64>>(), "{n} lines");
+        }
     }
 
     /// A 125-Hz log stamped to the hundredth of a second (rounded: 1.25 periods), the
