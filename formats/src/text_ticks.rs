@@ -49,10 +49,11 @@ const FIT_LINES: usize = 512;
 const MIN_FIT_LINES: usize = 64;
 /// Fewest first lines judged for a tick shorter than the period: a regular log's lines
 /// lost at random, read through such a tick, wander from its line by their count's own
-/// wandering, about 1.5 periods over 1000 lines at one lost in 200.
+/// wandering, about two periods over 1000 lines at one lost in 50 (the fewest that read
+/// a period 2 % past the tick, [`MIN_TICK_PERIODS`]).
 const FINER_LINES: usize = 1000;
-/// Fewest tags shared by lines of different values among the first lines for the log to
-/// be judged on a coarse clock.
+/// Fewest tags shared by lines of different values (or steps of two ticks or more) among
+/// the first lines for the log to be judged on a coarse clock.
 pub(crate) const MIN_SHARED_TAGS: usize = 2;
 /// How far a step may be off a whole number of ticks, of a tick (a tick printed to a
 /// coarser unit: 15.625 ms in whole milliseconds, steps of 15 and 16).
@@ -797,9 +798,9 @@ mod tests {
     /// Logs whose lines share tags but that no coarse clock stamped are read as before:
     /// a regular log whose tags glitched (a line's repeating the one before's), one
     /// whose clock stood for five lines now and then, one jittering by 0.3 of a period
-    /// with tags repeated, one losing lines with tags repeated, and two losing one line
-    /// in ten or in four at random (their steps of one period and two, as a tick shorter
-    /// than the period gives, not in its regular proportion over 512 lines).
+    /// with tags repeated, one losing lines with tags repeated, and three losing one line
+    /// in fifty, ten or four at random (their steps of one period and two, as a tick
+    /// shorter than the period gives, not in its regular proportion).
     #[test]
     fn lines_sharing_tags_with_no_coarse_clock_are_read_as_before() {
         let period_s = 0.01;
@@ -848,6 +849,7 @@ mod tests {
             ("standing", standing),
             ("jittered", jittered),
             ("lossy", lossy),
+            ("losing one in fifty", losing(0.02)),
             ("losing one in ten", losing(0.1)),
             ("losing one in four", losing(0.25)),
         ] {
