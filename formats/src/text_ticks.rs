@@ -357,6 +357,8 @@ pub(crate) struct TickRetime {
     held: VecDeque<Held>,
     /// The last line as written.
     last: Option<TextSample>,
+    /// The time of the last line given out, s.
+    given_s: Option<f64>,
     /// No more lines to read.
     ended: bool,
     /// An error met reading, returned once the lines held before it are given out.
@@ -394,6 +396,7 @@ impl TickRetime {
             ),
             held: VecDeque::with_capacity(HELD_LINES + 1),
             last: None,
+            given_s: None,
             ended: false,
             failed: None,
         }
@@ -424,6 +427,7 @@ impl TickRetime {
         match (self.held.pop_front(), self.failed.take()) {
             (Some(h), failed) => {
                 self.failed = failed;
+                self.given_s = Some(h.sample.t_s);
                 Ok(Some(h.sample))
             }
             (None, Some(e)) => Err(e),
@@ -439,7 +443,11 @@ impl TickRetime {
             .is_some_and(|last| last.t_s == tag_s && repeats(&last, &s));
         self.last = Some(s);
         if repeat {
-            s.t_s = self.held.back().map_or(s.t_s, |h| h.sample.t_s);
+            // The line before's time: held, or given out (the held lines given out before
+            // an error).
+            s.t_s = (self.held.back().map(|h| h.sample.t_s))
+                .or(self.given_s)
+                .unwrap_or(s.t_s);
             self.held.push_back(Held {
                 sample: s,
                 tag_s,
