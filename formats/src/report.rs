@@ -101,9 +101,10 @@ pub struct IngestReport {
     /// ([`crate::text_bursts`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub text_bursts: Option<crate::text_bursts::TextBursts>,
-    /// Text logs stamped by a clock coarser than their period (several lines to a tag):
-    /// its tick, the period its first lines gave, and the lines given their slot's time
-    /// on a clock following the tags ([`crate::text_ticks`]).
+    /// Text logs stamped by a clock whose tick is about their period, coarser (several
+    /// lines to a tag) or finer (steps of one tick and two, no tag shared): its tick, the
+    /// period its first lines gave, and the lines given their slot's time on a clock
+    /// following the tags ([`crate::text_ticks`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub text_ticks: Option<crate::text_ticks::TextTicks>,
     /// Text logs: the first line stands apart from the others, across an interval longer
