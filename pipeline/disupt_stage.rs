@@ -196,7 +196,8 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 20: a static start given past the odometer's first sign of motion is cut there.
         // 21: two control points far beyond their hold-out spread are said to disagree.
         // 22: a drift given beyond its bound, which the fit takes back, is blamed.
-        version: 22,
+        // 23: the joint fit takes lost and replaced samples' fills' tilt as unknowns.
+        version: 23,
         params_hash: params_hash(&(params.before_export(), method, dparams))?,
         inputs,
         outputs: &[
@@ -742,6 +743,13 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         let (dx, dy) = before_cps
             .last()
             .map_or((f64::NAN, f64::NAN), |k| (k.dx_m, k.dy_m));
+        let joint_gap_tilts = methods
+            .contains_key("joint")
+            .then(|| joint_problem.gap_tilts.as_ref().map(|g| g.summary()))
+            .flatten();
+        if let Some(g) = &joint_gap_tilts {
+            ctx.say("disupt", &report::gap_tilts_note(g));
+        }
         let out = DisuptOut {
             distance_m,
             before: Outcome {
@@ -758,6 +766,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             coarse_azimuth_deg: coarse.taken_deg(),
             coarse_azimuth_refused: coarse.refused(),
             joint_odo_yaw_check: joint_run.and_then(|r| r.odo_yaw.clone()),
+            joint_gap_tilts,
             shared_passes: problem.base_passes(),
             mark_lever_arm_m: params.vehicle.mark_arm(),
             joint_mark_arm_check: joint_run.and_then(|r| r.mark_arm.clone()),

@@ -147,6 +147,10 @@ pub struct DisuptOut {
     /// fit held it at zero (`joint_odo_yaw` off) and ran.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub joint_odo_yaw_check: Option<OdoYawCheck>,
+    /// The tilt steps the joint fit gave the run's lost and replaced samples
+    /// ([`disupt::GapTilts`]), when it ran and a gap left one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_gap_tilts: Option<disupt::GapTiltSteps>,
     /// Passes of the first linearisation, shared by the methods (not in their own
     /// `evaluations`).
     pub shared_passes: usize,
@@ -606,6 +610,9 @@ pub(super) fn markdown(run: &str, out: &DisuptOut, bounds: &disupt::DisuptParams
     if let Some(note) = out.joint_odo_yaw_check.as_ref().and_then(odo_yaw_note) {
         md += &format!("Note: {note}.\n\n");
     }
+    if let Some(g) = &out.joint_gap_tilts {
+        md += &format!("Note: {}.\n\n", gap_tilts_note(g));
+    }
     if let Some(note) = joint_mark_arm_note(out) {
         md += &format!("Note: {note}.\n\n");
     }
@@ -624,5 +631,15 @@ pub(super) fn markdown(run: &str, out: &DisuptOut, bounds: &disupt::DisuptParams
     md + &format!(
         "Before DISUPT: ΔX = {dx:.1} m, ΔY = {dy:.1} m at the last control point, after {:.0} m.\n",
         out.distance_m
+    )
+}
+
+/// What the joint fit did with a run's gaps, in words.
+pub fn gap_tilts_note(g: &disupt::GapTiltSteps) -> String {
+    format!(
+        "the joint fit took the tilt of {} lost or replaced samples' fills as unknowns \
+         ({} steps, σ up to {:.2} mrad each, {:.2} mrad together by the run's end), so \
+         that it is not read as drift",
+        g.gaps, g.steps, g.largest_sigma_mrad, g.end_sigma_mrad
     )
 }

@@ -27,6 +27,8 @@
 //! OWPI), `joint`, `holdout`, `odo_pitch` (the corrected route's pitch boresight from the
 //! control points' heights) and `results` (the tables' rows and each method's result).
 
+mod gap_tilts;
+mod gap_turns;
 mod holdout;
 mod joint;
 mod odo_pitch;
@@ -37,6 +39,8 @@ mod stepwise;
 
 use argmin::core::Error as ArgminError;
 
+pub use gap_tilts::{GapTiltSteps, GapTilts, MAX_STEPS as MAX_GAP_TILT_STEPS, MIN_STEP_SIGMA_RAD};
+pub use gap_turns::MAX_TURN_STEPS as MAX_GAP_TURN_STEPS;
 pub use holdout::{
     HOLDOUT_INCONSISTENT_SIGMA, HOLDOUT_MIN_POINTS, Holdout, holdout, holdout_median_max_m,
     inconsistent_points_note, median_max,

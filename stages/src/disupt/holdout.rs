@@ -6,7 +6,9 @@ use nalgebra::{DMatrix, Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
 
 use super::DisuptError;
-use super::joint::{JointFit, JointModel, JointOptions, attitude_rows, covariance_of, joint_fit};
+use super::joint::{
+    JointFit, JointModel, JointOptions, attitude_rows, covariance_of, cp_weights, joint_fit,
+};
 use super::problem::Problem;
 use super::settings::{DisuptParams, X, x_of};
 use crate::criteria::ControlPointFix;
@@ -222,7 +224,8 @@ pub fn holdout(
     for i in 0..fixes.len() {
         if !problem.cp_used(i) {
             // The fit leaves the point out: its own covariance predicts the error there.
-            let spread = predicted_spread(fit, fit.covariance.as_ref(), &fit.free, i, p);
+            let spread =
+                predicted_spread(problem, fit, fit.covariance.as_ref(), &fit.free, i, None, p);
             out[i] = Some(Holdout {
                 excluded: true,
                 ..Holdout::new(&fixes[i], fit.y.cp_m[i], spread, n)
@@ -249,7 +252,7 @@ pub fn holdout(
         let c = covariance_of(&model, n_att, fit.inflation, s2);
         let spreads: Vec<_> = visits
             .iter()
-            .map(|&j| predicted_spread(fit, c.as_ref(), &free, j, p))
+            .map(|&j| predicted_spread(problem, fit, c.as_ref(), &free, j, Some(i), p))
             .collect();
         refits.push((visits, pi, spreads));
     }
@@ -300,12 +303,16 @@ fn mark_two_apart(h: &mut [Holdout], static_start: bool) {
 /// `J C Jᵀ + σ² I`, with `C` the covariance of the `free` settings of the fit without the
 /// point (its rows weighed out; the full fit's variance factor and attitude inflation),
 /// `J` the point's position per free setting (the fit's linearisation) and `σ` the
-/// control points' own (`position_sigma_m`). `None` without `C` (singular).
+/// control points' own (`position_sigma_m`), plus what the turns of lost samples' fills
+/// before it leave (the fit's points but those `skip` holds out weighed). `None` without
+/// `C` (singular).
 fn predicted_spread(
+    problem: &Problem<'_>,
     fit: &JointFit,
     c: Option<&DMatrix<f64>>,
     free: &[Setting],
     i: usize,
+    skip: Option<usize>,
     p: &DisuptParams,
 ) -> Option<Matrix2<f64>> {
     let c = c?;
@@ -318,11 +325,16 @@ fn predicted_spread(
     }
     let jcj = &j * c * j.transpose();
     let var_m2 = p.position_sigma_m * p.position_sigma_m;
+    // The turns lost samples' fills may have made before the point, as the points the
+    // fit weighed leave them ([`super::gap_turns`]).
+    let turns = (problem.gap_tilts.as_ref())
+        .and_then(|g| g.turn_spread_at(i, &cp_weights(problem, skip, &fit.weights)))
+        .unwrap_or_else(Matrix2::zeros);
     Some(Matrix2::new(
-        jcj[(0, 0)] + var_m2,
-        jcj[(0, 1)],
-        jcj[(1, 0)],
-        jcj[(1, 1)] + var_m2,
+        jcj[(0, 0)] + var_m2 + turns[(0, 0)],
+        jcj[(0, 1)] + turns[(0, 1)],
+        jcj[(1, 0)] + turns[(1, 0)],
+        jcj[(1, 1)] + var_m2 + turns[(1, 1)],
     ))
 }
 

@@ -21,7 +21,8 @@ pub(super) struct JointModel {
 
 /// Weighted residuals of an observation at parameters `p`: every valid epoch's ΔΘ, ΔΦ
 /// (plus the levelling corrections), every control point's ΔX, ΔY, and the static
-/// driftz prior.
+/// driftz prior; with the gaps' tilt steps profiled out of the epochs' rows and their
+/// priors' rows last ([`GapTilts::profile`](super::gap_tilts::GapTilts::profile)).
 fn joint_residuals(
     problem: &Problem<'_>,
     y: &Observation,
@@ -52,12 +53,8 @@ fn joint_residuals(
     }
     // A control point held out or excluded keeps its rows, at zero, so that row indices
     // stay put.
-    for (i, c) in y.cp_m.iter().enumerate() {
-        let w = if problem.held_out(skip_cp, i) || !problem.cp_used(i) {
-            0.0
-        } else {
-            1.0 / params.position_sigma_m
-        };
+    let weights = cp_weights(problem, skip_cp, params);
+    for (c, w) in y.cp_m.iter().zip(&weights) {
         r.push(c[0] * w);
         r.push(c[1] * w);
     }
@@ -65,7 +62,35 @@ fn joint_residuals(
     if let Some((dz, sd)) = problem.drift_z_prior_deg_h {
         r.push((p[Setting::DriftZ.index()] - dz) / sd);
     }
+    // The gaps' tilt steps, profiled out of the attitude rows, their priors' rows last.
+    if let Some(g) = &problem.gap_tilts {
+        g.profile(&mut r, s, &weights);
+    }
     r
+}
+
+/// Each control point's weight in [`joint_residuals`], 1/m: 0 for a point held out
+/// (`skip_cp`) or left out of the fit.
+pub(super) fn cp_weights(
+    problem: &Problem<'_>,
+    skip_cp: Option<usize>,
+    params: &DisuptParams,
+) -> Vec<f64> {
+    (0..problem.fixes.len())
+        .map(|i| {
+            if problem.held_out(skip_cp, i) || !problem.cp_used(i) {
+                0.0
+            } else {
+                1.0 / params.position_sigma_m
+            }
+        })
+        .collect()
+}
+
+/// Rows at the tail of [`joint_residuals`] that the gaps' tilt steps' priors hold: as
+/// many as the steps' parameters, so neither counts in the degrees of freedom.
+pub(super) fn nuisance_rows(problem: &Problem<'_>) -> usize {
+    problem.gap_tilts.as_ref().map_or(0, |g| g.prior_rows())
 }
 
 /// Rows of the attitude residuals at the head of [`joint_residuals`]: ΔΘ and ΔΦ of every
@@ -464,7 +489,7 @@ pub fn joint_fit(
     let rows = model
         .r0
         .len()
-        .saturating_sub(2 * (problem.fixes.len() - used_cps));
+        .saturating_sub(2 * (problem.fixes.len() - used_cps) + nuisance_rows(problem));
     let dof = (rows as f64 - free.len() as f64).max(1.0);
     let r = joint_residuals(problem, &y, &pr, &w, skip);
     let n_att = attitude_rows(problem);
@@ -568,7 +593,7 @@ impl JointFit {
         let model = JointModel::new(problem, &lin, &free, &self.weights, None);
         let delta = model.solve()?;
         let r = &model.r0 + &model.a * &delta;
-        let dof = (r.len() as f64 - free.len() as f64).max(1.0);
+        let dof = (r.len() as f64 - (free.len() + nuisance_rows(problem)) as f64).max(1.0);
         let n_att = attitude_rows(problem);
         let covariance = covariance_of(&model, n_att, self.inflation, ssr(r.as_slice()) / dof);
         Ok(covariance.map(|covariance| SolvedWith {

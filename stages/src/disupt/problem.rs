@@ -7,6 +7,7 @@ use std::sync::{Arc, Mutex};
 use either::Either;
 use rayon::prelude::*;
 
+use super::gap_tilts::GapTilts;
 use super::settings::{BASE_SETTINGS, X, params_of, x_of};
 use crate::criteria::{self, ControlPointFix, FilteredBlocks, KalmanParams, Kryt1Gains, Kryt2};
 use crate::derive::{Epochs, MovedOdometer, OdoIncrements};
@@ -44,6 +45,9 @@ pub struct Problem<'a> {
     pub excluded_cps: &'a [usize],
     /// Prior on the vertical drift from the static start: (value, 1σ), °/h.
     pub drift_z_prior_deg_h: Option<(f64, f64)>,
+    /// The tilt steps the joint fit gives the derive's gaps ([`GapTilts`]); `None` without
+    /// a gap that leaves one.
+    pub gap_tilts: Option<Arc<GapTilts>>,
     /// The odometer increments, when they are read as a pass goes instead of from
     /// `inputs` (a derive at another odometer timing: [`ProblemSpec::on_moved`]).
     moved_odometer: Option<MovedOdometer<'a>>,
@@ -97,6 +101,15 @@ impl<'a> ProblemSpec<'a> {
         p.drift_z_prior_deg_h = self.drift_z_prior_deg_h;
         p.excluded_cps = self.excluded_cps;
         p.segments = d.segments.clone();
+        let cp_samples: Vec<usize> = self.fixes.iter().map(|f| f.sample).collect();
+        p.gap_tilts = GapTilts::of(
+            d,
+            self.settings.lat0_rad,
+            self.settings.drift_rad_s[2],
+            self.settings.initial.heading_rad,
+            &cp_samples,
+        )
+        .map(Arc::new);
         p
     }
 
@@ -233,6 +246,7 @@ impl<'a> Problem<'a> {
             fixes,
             excluded_cps: &[],
             drift_z_prior_deg_h: None,
+            gap_tilts: None,
             moved_odometer: None,
             segments: SegmentMemo::default(),
             moved_segments: Arc::default(),
@@ -266,6 +280,7 @@ impl<'a> Problem<'a> {
             fixes: self.fixes,
             excluded_cps: excluded,
             drift_z_prior_deg_h: self.drift_z_prior_deg_h,
+            gap_tilts: self.gap_tilts.clone(),
             moved_odometer: self.moved_odometer.clone(),
             segments: self.segments.clone(),
             moved_segments: Arc::clone(&self.moved_segments),
