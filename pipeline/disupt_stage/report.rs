@@ -636,10 +636,19 @@ pub(super) fn markdown(run: &str, out: &DisuptOut, bounds: &disupt::DisuptParams
 
 /// What the joint fit did with a run's gaps, in words.
 pub fn gap_tilts_note(g: &disupt::GapTiltSteps) -> String {
+    let turns = if g.turn_steps > 0 {
+        format!(
+            "; {} turns of the route, {:.2} mrad of heading together by the last control \
+             point",
+            g.turn_steps, g.turn_end_sigma_mrad
+        )
+    } else {
+        String::new()
+    };
     format!(
-        "the joint fit took the tilt of {} lost or replaced samples' fills as unknowns \
-         ({} steps, σ up to {:.2} mrad each, {:.2} mrad together by the run's end), so \
-         that it is not read as drift",
+        "the joint fit took what the fills of {} gaps (samples lost or replaced) may have \
+         turned as unknowns ({} steps of tilt, σ up to {:.2} mrad each, {:.2} mrad together \
+         by the run's end{turns}), so that it is not read as drift or azimuth",
         g.gaps, g.steps, g.largest_sigma_mrad, g.end_sigma_mrad
     )
 }
