@@ -625,6 +625,20 @@ mod tests {
     }
 
     #[test]
+    fn residuals_not_of_these_epochs_keep_their_count_of_rows() {
+        let g = GapTilts::of(&drive(), 0.0, 0.0, 0.0, &[]).expect("a step");
+        // Too few rows, no weight, a weight not a number: no step taken, the priors' rows
+        // appended at zero, so that every call of a fit has as many rows.
+        for (len, sigma) in [(10, 1e-3), (400, 0.0), (400, f64::NAN)] {
+            let mut r = vec![0.5; len];
+            g.profile(&mut r, sigma, &[]);
+            assert_eq!(r.len(), len + g.prior_rows());
+            assert!(r[len..].iter().all(|v| *v == 0.0));
+            assert!(r[..len].iter().all(|v| *v == 0.5));
+        }
+    }
+
+    #[test]
     fn no_gap_or_a_calm_one_takes_no_step() {
         let mut d = drive();
         d.replaced_increments.clear();
