@@ -29,7 +29,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
+use nalgebra::{Cholesky, DMatrix, DVector, Dyn, Matrix2};
 
 use super::gap_turns::{TurnGap, TurnSteps};
 use crate::derive::Derived;
@@ -52,11 +52,44 @@ const WINDOW_SAMPLES: usize = 16;
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct TiltStep {
     first: usize,
-    cov: [[f64; 2]; 2],
+    cov: Matrix2<f64>,
 }
 
-/// Factors of the normal matrix, each with the attitude σ it was made at.
-type Factors = Vec<(f64, Arc<Cholesky<f64, Dyn>>)>;
+/// A normal matrix's Cholesky factors, each with the weights it was made at (the few a
+/// fit's calls use, the latest kept).
+#[derive(Debug)]
+pub(super) struct FactorCache<K>(Mutex<Vec<(K, Factor)>>);
+
+/// A normal matrix's Cholesky factor, shared by the fits that weigh alike.
+type Factor = Arc<Cholesky<f64, Dyn>>;
+
+impl<K> FactorCache<K> {
+    /// Factors kept at most.
+    const KEPT: usize = 4;
+
+    pub(super) fn new() -> Self {
+        Self(Mutex::new(Vec::new()))
+    }
+
+    /// The factor at `key`, made by `normal` when not kept; `None` where floating point
+    /// finds the matrix not positive definite.
+    pub(super) fn get<Q>(&self, key: &Q, normal: impl FnOnce() -> DMatrix<f64>) -> Option<Factor>
+    where
+        K: std::borrow::Borrow<Q>,
+        Q: ToOwned<Owned = K> + PartialEq + ?Sized,
+    {
+        let mut kept = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, f)) = kept.iter().find(|(k, _)| k.borrow() == key) {
+            return Some(Arc::clone(f));
+        }
+        let f = Arc::new(normal().cholesky()?);
+        if kept.len() >= Self::KEPT {
+            kept.remove(0);
+        }
+        kept.push((key.to_owned(), Arc::clone(&f)));
+        Some(f)
+    }
+}
 
 /// What the joint fit took of a run's gaps (`disupt.json`'s `joint_gap_tilts`).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -95,7 +128,7 @@ pub struct GapTilts {
     /// The gaps' turns over the control points.
     turns: Option<TurnSteps>,
     /// The normal matrix's factor at the last few attitude σ the fits weighed with.
-    factors: Mutex<Factors>,
+    factors: FactorCache<f64>,
 }
 
 impl GapTilts {
@@ -199,13 +232,12 @@ impl GapTilts {
             let floor = 1e-3 * sx.max(sy);
             let (vx, vy) = (sx.max(floor).powi(2), sy.max(floor).powi(2));
             // (a, b) = R(h) e, R = [[c, −s], [s, c]]: cov = R diag(vx, vy) Rᵀ.
-            let cov = [
-                [c * c * vx + s * s * vy, c * s * (vx - vy)],
-                [c * s * (vx - vy), s * s * vx + c * c * vy],
-            ];
+            let rot = Matrix2::new(c, -s, s, c);
+            let cov =
+                rot * Matrix2::from_diagonal(&nalgebra::Vector2::new(vx, vy)) * rot.transpose();
             gaps += 1;
             match steps.last_mut() {
-                Some(last) if last.first == first => add_cov(&mut last.cov, &cov),
+                Some(last) if last.first == first => last.cov += cov,
                 _ => steps.push(TiltStep { first, cov }),
             }
         }
@@ -215,27 +247,28 @@ impl GapTilts {
         }
         Some(Self {
             cos_sin,
-            steps: gathered(steps, MAX_STEPS),
+            steps: gathered(steps, MAX_STEPS, |into, s| into.cov += s.cov),
             gaps,
             turns,
-            factors: Mutex::new(Vec::new()),
+            factors: FactorCache::new(),
         })
     }
 
     /// What the fit takes: gaps, steps and their priors' σ.
     pub fn summary(&self) -> GapTiltSteps {
-        let mut end = [[0.0; 2]; 2];
+        let larger_eigenvalue = |m: Matrix2<f64>| m.symmetric_eigenvalues().max();
+        let mut end = Matrix2::zeros();
         let mut largest: f64 = 0.0;
         for st in &self.steps {
-            largest = largest.max(larger_eigenvalue(&st.cov));
-            add_cov(&mut end, &st.cov);
+            largest = largest.max(larger_eigenvalue(st.cov));
+            end += st.cov;
         }
         let turn_var: f64 = self.turns.iter().flat_map(|t| t.variances()).sum();
         GapTiltSteps {
             gaps: self.gaps,
             steps: self.steps.len(),
             largest_sigma_mrad: largest.sqrt() * 1e3,
-            end_sigma_mrad: larger_eigenvalue(&end).sqrt() * 1e3,
+            end_sigma_mrad: larger_eigenvalue(end).sqrt() * 1e3,
             turn_steps: self.turns.as_ref().map_or(0, |t| t.len()),
             turn_end_sigma_mrad: turn_var.sqrt() * 1e3,
         }
@@ -322,55 +355,39 @@ impl GapTilts {
             r[2 * k + 1] += (c * at[0] + s * at[1]) / sigma_rad;
         }
         for (j, st) in self.steps.iter().enumerate() {
-            let (d0, d1) = (delta[2 * j], delta[2 * j + 1]);
-            // P = L Lᵀ with L = [[l00, 0], [l10, l11]]; L⁻¹ δ by substitution.
-            let l00 = st.cov[0][0].sqrt();
-            let l10 = st.cov[1][0] / l00;
-            let l11 = (st.cov[1][1] - l10 * l10).max(0.0).sqrt();
-            let w0 = d0 / l00;
-            tail.push(w0);
-            tail.push(if l11 > 0.0 {
-                (d1 - l10 * w0) / l11
-            } else {
-                0.0
-            });
+            // P = L Lᵀ: the prior's row L⁻¹ δ.
+            let d = nalgebra::Vector2::new(delta[2 * j], delta[2 * j + 1]);
+            let w = (st.cov.cholesky())
+                .and_then(|c| c.l().solve_lower_triangular(&d))
+                .unwrap_or_else(nalgebra::Vector2::zeros);
+            tail.extend([w[0], w[1]]);
         }
     }
 
     /// The Cholesky factor of `BᵀB / σ² + P⁻¹` at `sigma_rad`, kept for the next calls;
     /// `None` where floating point finds it not positive definite.
     fn factor(&self, sigma_rad: f64) -> Option<Arc<Cholesky<f64, Dyn>>> {
-        let mut cache = self.factors.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, f)) = cache.iter().find(|(s, _)| *s == sigma_rad) {
-            return Some(Arc::clone(f));
-        }
-        let m = self.steps.len();
-        let n_epochs = self.cos_sin.len();
-        let w = 1.0 / (sigma_rad * sigma_rad);
-        // u and v are orthonormal at each epoch: (BᵀB) between steps i and j is the count
-        // of epochs both move, times the identity.
-        let mut normal = DMatrix::from_fn(2 * m, 2 * m, |a, b| {
-            if a % 2 != b % 2 {
-                return 0.0;
-            }
-            let later = self.steps[a / 2].first.max(self.steps[b / 2].first);
-            w * (n_epochs - later) as f64
-        });
-        for (j, st) in self.steps.iter().enumerate() {
-            let inv = inverse_2x2(&st.cov);
-            for a in 0..2 {
-                for b in 0..2 {
-                    normal[(2 * j + a, 2 * j + b)] += inv[a][b];
+        self.factors.get(&sigma_rad, || {
+            let m = self.steps.len();
+            let n_epochs = self.cos_sin.len();
+            let w = 1.0 / (sigma_rad * sigma_rad);
+            // u and v are orthonormal at each epoch: (BᵀB) between steps i and j is the
+            // count of epochs both move, times the identity.
+            let mut normal = DMatrix::from_fn(2 * m, 2 * m, |a, b| {
+                if a % 2 != b % 2 {
+                    return 0.0;
                 }
+                let later = self.steps[a / 2].first.max(self.steps[b / 2].first);
+                w * (n_epochs - later) as f64
+            });
+            // Positive definite in exact arithmetic: the priors alone are.
+            for (j, st) in self.steps.iter().enumerate() {
+                let inv = st.cov.try_inverse().unwrap_or_else(Matrix2::zeros);
+                let mut block = normal.fixed_view_mut::<2, 2>(2 * j, 2 * j);
+                block += inv;
             }
-        }
-        // Positive definite in exact arithmetic: the priors alone are.
-        let f = Arc::new(normal.cholesky()?);
-        if cache.len() >= 4 {
-            cache.remove(0);
-        }
-        cache.push((sigma_rad, Arc::clone(&f)));
-        Some(f)
+            normal
+        })
     }
 }
 
@@ -452,44 +469,21 @@ fn miss_sigma(
     sum.map(|s| (s / count as f64).sqrt())
 }
 
-fn add_cov(into: &mut [[f64; 2]; 2], cov: &[[f64; 2]; 2]) {
-    for a in 0..2 {
-        for b in 0..2 {
-            into[a][b] += cov[a][b];
-        }
+/// `items` gathered into at most `max` groups of consecutive items (as equal in count as
+/// they divide), each its first item with the rest merged into it by `merge`.
+pub(super) fn gathered<T: Copy>(items: Vec<T>, max: usize, merge: impl Fn(&mut T, &T)) -> Vec<T> {
+    if items.len() <= max {
+        return items;
     }
-}
-
-/// The larger eigenvalue of a symmetric 2 × 2 matrix.
-fn larger_eigenvalue(m: &[[f64; 2]; 2]) -> f64 {
-    let half_trace = (m[0][0] + m[1][1]) / 2.0;
-    let half_diff = (m[0][0] - m[1][1]) / 2.0;
-    half_trace + (half_diff * half_diff + m[0][1] * m[1][0]).max(0.0).sqrt()
-}
-
-fn inverse_2x2(m: &[[f64; 2]; 2]) -> [[f64; 2]; 2] {
-    let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
-    [
-        [m[1][1] / det, -m[0][1] / det],
-        [-m[1][0] / det, m[0][0] / det],
-    ]
-}
-
-/// `steps` gathered into at most `max` groups of consecutive steps (as equal in count as
-/// they divide), each at its first step's epoch with their covariances summed.
-fn gathered(steps: Vec<TiltStep>, max: usize) -> Vec<TiltStep> {
-    if steps.len() <= max {
-        return steps;
-    }
-    let n = steps.len();
+    let n = items.len();
     (0..max)
         .map(|g| {
             let (lo, hi) = (g * n / max, (g + 1) * n / max);
-            let mut step = steps[lo];
-            for s in &steps[lo + 1..hi] {
-                add_cov(&mut step.cov, &s.cov);
+            let mut first = items[lo];
+            for item in &items[lo + 1..hi] {
+                merge(&mut first, item);
             }
-            step
+            first
         })
         .collect()
 }
@@ -682,12 +676,12 @@ mod tests {
         let steps: Vec<TiltStep> = (0..300)
             .map(|k| TiltStep {
                 first: k,
-                cov: [[1.0, 0.0], [0.0, 2.0]],
+                cov: Matrix2::new(1.0, 0.0, 0.0, 2.0),
             })
             .collect();
-        let g = gathered(steps, MAX_STEPS);
+        let g = gathered(steps, MAX_STEPS, |into, s| into.cov += s.cov);
         assert_eq!(g.len(), MAX_STEPS);
-        let total: f64 = g.iter().map(|s| s.cov[0][0]).sum();
+        let total: f64 = g.iter().map(|s| s.cov[(0, 0)]).sum();
         assert_eq!(total, 300.0);
         assert!(g.windows(2).all(|w| w[0].first < w[1].first));
     }

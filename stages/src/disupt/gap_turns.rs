@@ -10,9 +10,11 @@
 //! points come from a dead reckoning of the derive's odometer on its z gyro (a model of
 //! the route, good to the degree: the turns' columns need no more).
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use nalgebra::{Cholesky, DMatrix, DVector, Dyn, Matrix2};
+
+use super::gap_tilts::{FactorCache, gathered};
 
 /// At most this many turn steps: gaps beyond it are gathered, in order, into as many
 /// groups, each turning about its first gap's point with the group's variances summed.
@@ -27,9 +29,6 @@ pub(super) struct TurnGap {
     pub(super) var_rad2: f64,
 }
 
-/// Factors of the normal matrix, each with the control points' weights it was made at.
-type Factors = Vec<(Vec<f64>, Arc<Cholesky<f64, Dyn>>)>;
-
 /// The gaps' turns over a problem's control points.
 #[derive(Debug)]
 pub(super) struct TurnSteps {
@@ -37,7 +36,8 @@ pub(super) struct TurnSteps {
     /// Per control point, unweighted: how each step moves its (north, east), m per rad
     /// (rows 2i and 2i + 1, a column a step).
     columns: DMatrix<f64>,
-    factors: Mutex<Factors>,
+    /// The normal matrix's factor at the last few control points' weights.
+    factors: FactorCache<Vec<f64>>,
 }
 
 impl TurnSteps {
@@ -53,7 +53,7 @@ impl TurnSteps {
         if gaps.is_empty() {
             return None;
         }
-        let steps = gathered(gaps, MAX_TURN_STEPS);
+        let steps = gathered(gaps, MAX_TURN_STEPS, |into, g| into.var_rad2 += g.var_rad2);
         let columns = DMatrix::from_fn(2 * cp_samples.len(), steps.len(), |row, j| {
             let (i, axis) = (row / 2, row % 2);
             let g = &steps[j];
@@ -71,7 +71,7 @@ impl TurnSteps {
         Some(Self {
             steps,
             columns,
-            factors: Mutex::new(Vec::new()),
+            factors: FactorCache::new(),
         })
     }
 
@@ -127,46 +127,22 @@ impl TurnSteps {
         if weights.len() * 2 != self.columns.nrows() {
             return None;
         }
-        let mut cache = self.factors.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, f)) = cache.iter().find(|(w, _)| w.as_slice() == weights) {
-            return Some(Arc::clone(f));
-        }
-        let m = self.steps.len();
-        let mut normal = DMatrix::from_fn(m, m, |a, b| {
-            (0..self.columns.nrows())
-                .map(|row| {
-                    let w2 = weights[row / 2] * weights[row / 2];
-                    self.columns[(row, a)] * self.columns[(row, b)] * w2
-                })
-                .sum::<f64>()
-        });
-        for (j, s) in self.steps.iter().enumerate() {
-            normal[(j, j)] += 1.0 / s.var_rad2;
-        }
-        let f = Arc::new(normal.cholesky()?);
-        if cache.len() >= 4 {
-            cache.remove(0);
-        }
-        cache.push((weights.to_vec(), Arc::clone(&f)));
-        Some(f)
-    }
-}
-
-/// `gaps` gathered into at most `max` groups of consecutive gaps, each at its first gap
-/// with their variances summed.
-fn gathered(gaps: Vec<TurnGap>, max: usize) -> Vec<TurnGap> {
-    if gaps.len() <= max {
-        return gaps;
-    }
-    let n = gaps.len();
-    (0..max)
-        .map(|g| {
-            let (lo, hi) = (g * n / max, (g + 1) * n / max);
-            let mut step = gaps[lo];
-            step.var_rad2 = gaps[lo..hi].iter().map(|s| s.var_rad2).sum();
-            step
+        self.factors.get(weights, || {
+            let m = self.steps.len();
+            let mut normal = DMatrix::from_fn(m, m, |a, b| {
+                (0..self.columns.nrows())
+                    .map(|row| {
+                        let w2 = weights[row / 2] * weights[row / 2];
+                        self.columns[(row, a)] * self.columns[(row, b)] * w2
+                    })
+                    .sum::<f64>()
+            });
+            for (j, s) in self.steps.iter().enumerate() {
+                normal[(j, j)] += 1.0 / s.var_rad2;
+            }
+            normal
         })
-        .collect()
+    }
 }
 
 #[cfg(test)]
