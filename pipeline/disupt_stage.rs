@@ -197,7 +197,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 21: two control points far beyond their hold-out spread are said to disagree.
         // 22: a drift given beyond its bound, which the fit takes back, is blamed.
         // 23: the joint fit takes lost and replaced samples' fills' tilt as unknowns.
-        version: 23,
+        // 24: a fill's miss told by consecutive pairs where too few samples about it
+        // have both neighbours kept (a log losing lines regularly).
+        version: 24,
         params_hash: params_hash(&(params.before_export(), method, dparams))?,
         inputs,
         outputs: &[

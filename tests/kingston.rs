@@ -1572,6 +1572,82 @@ fn kingston_lost_lines_tilt_is_not_read_as_drift() {
     assert!(rms < 1.0, "the drifts' offsets' RMS {rms:.2} σ");
 }
 
+/// Kingston losing every k-th IMU line (k = 3, 5, 10, 50): steps of one period and of
+/// two, as regular as a clock ticking every 100 ms stamps samples 100 k / (k − 1) ms
+/// apart. The ingest read them as that clock (one line in ten lost: 111.111-ms samples,
+/// the joint fit out of its bounds; one in fifty: "ok" with both control points' hold-out
+/// errors 14σ; one in three or five: the derive failed on accelerometers "not in m/s").
+/// The lines' velocity increments span 100 ms (99.98 by gravity), so each log is now
+/// read as losing one line in k: every line lost counted, the fills taken as unknowns by
+/// the joint fit, its azimuth within 3σ of the shipped run's (measured 0.9, 2.4, 1.3 and
+/// 2.9σ: one in five and one in fifty cross the odometer yaw boresight's 3σ check,
+/// which the shipped run shows at 2.6σ, and are refitted with it free), and neither
+/// control point's hold-out error beyond what the fit without it predicts.
+#[test]
+fn kingston_lines_lost_regularly_are_not_read_as_a_finer_clock() {
+    let tmp = tempfile::tempdir().unwrap();
+    let shipped = kingston_with(&tmp.path().join("shipped"), "");
+    let out = tmp.path().join("so");
+    crate::util::run_until(&shipped, &out, "disupt");
+    let base: unz::disupt_stage::DisuptOut =
+        read_json(&out.join("kingston2008-segment1/disupt/disupt.json"));
+    let base_azimuth_deg = base.methods["joint"].outcome.x.azimuth_deg;
+    for k in [3, 5, 10, 50] {
+        let lost = |i: usize| i > 0 && i < 8759 && i.is_multiple_of(k);
+        let dropped = (0..8760).filter(|&i| lost(i)).count() as u64;
+        let run = kingston_imu_lines_kept(&tmp.path().join(format!("every-{k}")), |i| !lost(i));
+        let out = tmp.path().join(format!("o-{k}"));
+        crate::util::run_until(&run, &out, "disupt");
+        let dir = out.join("kingston2008-segment1");
+        let ingest: unz_formats::IngestReport = read_json(&dir.join("ingest/ingest.json"));
+        let loss = ingest
+            .text_regular_loss
+            .expect("read as lines lost regularly");
+        assert!(ingest.text_ticks.is_none(), "{ingest:?}");
+        assert_eq!(ingest.lost_samples, dropped, "one line in {k}");
+        assert!((loss.one_in() - k as f64).abs() < 0.05, "{loss:?}");
+        assert!((loss.period_s - 0.1).abs() < 1e-6, "{loss:?}");
+        let d: unz::disupt_stage::DisuptOut = read_json(&dir.join("disupt/disupt.json"));
+        let gaps = d.joint_gap_tilts.as_ref().expect("the gaps taken");
+        // A fill whose miss is under a step's least σ (at rest) takes no step.
+        let taken = gaps.gaps as u64;
+        assert!(10 * taken >= 9 * dropped && taken <= dropped, "{gaps:?}");
+        let joint = &d.methods["joint"].outcome;
+        let sigma_deg = joint.x.sigma.as_ref().expect("the joint's σ").azimuth_deg;
+        let off = (joint.x.azimuth_deg - base_azimuth_deg) / sigma_deg;
+        eprintln!(
+            "one in {k}: joint azimuth {:.3}° ({off:+.2}σ, σ {sigma_deg:.3}°); {gaps:?}",
+            joint.x.azimuth_deg
+        );
+        assert!(off.abs() < 3.0, "one in {k}: {off:+.2}σ");
+        let holdout = d.methods["joint"].holdout.as_ref().expect("the hold-out");
+        assert_eq!(holdout.len(), 2);
+        assert!(
+            holdout
+                .iter()
+                .all(|h| !h.inconsistent && h.error_sigma.is_some_and(|e| e < 3.0)),
+            "one in {k}: {holdout:?}"
+        );
+    }
+}
+
+/// Kingston keeping every other IMU line: its tags step evenly by 200 ms, a 5-Hz log to
+/// the reader, while each line's increments span 100 ms, so the accelerometers read
+/// half of gravity. The derive fails as before, and says the log keeps one sample in
+/// two (it said only that the increments were not in m/s).
+#[test]
+fn kingston_keeping_every_other_line_fails_naming_one_sample_in_two() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = kingston_imu_lines_kept(&tmp.path().join("halved"), |i| i % 2 == 1);
+    let err = crate::util::stage_fails("derive", &run, &tmp.path().join("o"));
+    assert!(err.contains("4.90 m/s² in size"), "{err}");
+    assert!(
+        err.contains("each line's increments span 1/2 of the step between its tags")
+            && err.contains("the log keeps one sample in 2"),
+        "{err}"
+    );
+}
+
 /// Kingston with four lines in five lost after its first 200 (its tags as shipped): the
 /// samples kept cover under a quarter of the log, and the derive fails naming the counts
 /// and the span per sample against the period; a log that lost most of its samples has

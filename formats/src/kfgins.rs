@@ -18,7 +18,7 @@ use crate::slot_clock::SlotClock;
 use crate::speed_floor::{SpeedFloor, SpeedFloorReport};
 use crate::speed_spikes::{MAX_ACCEL_MPS2, MAX_BRAKING_MPS2, SpeedSpikes, Verdict};
 use crate::text_bursts::{BURST_WINDOW, BurstSpread, burst_period_s, mostly_close};
-use crate::text_ticks::{TickRetime, coarse_tick, may_be_ticked};
+use crate::text_ticks::{TickReading, TickRetime, coarse_tick, may_be_ticked};
 
 /// Longest line accepted; longer lines are malformed (and never buffered whole).
 pub const MAX_LINE_BYTES: usize = 4096;
@@ -640,13 +640,23 @@ impl<R: BufRead> KfGinsReader<R> {
                 self.spread_bursts(period_s, true);
             }
         }
+        // A log losing lines regularly: its period the step of one, which need not be
+        // the median step (one line in three lost steps by one and two alike).
+        let mut lost_at_s = None;
         if self.layer.is_none() && may_be_ticked(self.ahead.make_contiguous()) {
             self.read_window(BURST_WINDOW);
-            if let Some(fit) = coarse_tick(self.ahead.make_contiguous()) {
-                let read = std::mem::take(&mut self.ahead);
-                self.layer = Some(Box::new(TimingLayer::Ticks(TickRetime::new(fit, read))));
-                self.eof = false;
-                self.read_window(PERIOD_WINDOW);
+            match coarse_tick(self.ahead.make_contiguous()) {
+                Some(TickReading::Clock(fit)) => {
+                    let read = std::mem::take(&mut self.ahead);
+                    self.layer = Some(Box::new(TimingLayer::Ticks(TickRetime::new(fit, read))));
+                    self.eof = false;
+                    self.read_window(PERIOD_WINDOW);
+                }
+                Some(TickReading::LinesLost(loss)) => {
+                    lost_at_s = Some(loss.period_s);
+                    self.report.text_regular_loss = Some(loss);
+                }
+                None => {}
             }
         }
         let window = || self.ahead.iter().take(PERIOD_WINDOW);
@@ -656,10 +666,10 @@ impl<R: BufRead> KfGinsReader<R> {
             .filter(|dt| *dt > 0.0)
             .collect();
         dts.sort_by(f64::total_cmp);
-        self.period_s = dts.get(dts.len() / 2).copied();
+        self.period_s = lost_at_s.or_else(|| dts.get(dts.len() / 2).copied());
         if let Some(median_s) = self.period_s {
             let tags_s: Vec<f64> = window().map(|s| s.t_s).collect();
-            let (period_s, first_late_s) = first_slots(&tags_s, median_s);
+            let (period_s, first_late_s) = first_slots(&tags_s, median_s, lost_at_s.is_some());
             self.clock = Some(SlotClock::new(period_s, first_late_s));
             if self.layer.is_none() {
                 self.spread_bursts(period_s, false);
@@ -914,8 +924,9 @@ const CANDIDATE_PEAKS: usize = 5;
 /// reading lines lost and clocks set back; one started on the first line's tag is off by
 /// that line's jitter. The median and the first tag stand when the phases do not agree
 /// (their sum under a fifth of the stretch's lines, and the clock misreading more than
-/// one line in fifty), or over a stretch of fewer than eight lines.
-fn first_slots(tags_s: &[f64], median_s: f64) -> (f64, f64) {
+/// one line in fifty), or over a stretch of fewer than eight lines. A log `lost_regularly`
+/// ([`crate::text_ticks::TickReading::LinesLost`]) takes the strongest peak.
+fn first_slots(tags_s: &[f64], median_s: f64, lost_regularly: bool) -> (f64, f64) {
     const STRETCH_STEPS: f64 = 20.0;
     let mut stretches: Vec<&[f64]> = Vec::new();
     let mut from = 0;
@@ -986,17 +997,24 @@ fn first_slots(tags_s: &[f64], median_s: f64) -> (f64, f64) {
     let Some(&(strongest_s, _)) = peaks.first() else {
         return (median_s, 0.0);
     };
-    let strongest_misread = misread(strongest_s);
-    let (fewest_s, fewest) = (peaks.iter().take(CANDIDATE_PEAKS))
-        .map(|&(p, _)| (p, misread(p)))
-        .min_by_key(|&(_, n)| n)
-        .unwrap_or((strongest_s, strongest_misread));
     // Another peak only where the strongest's slots misread many more lines: lines lost
-    // or written off their slot are misread at the period too.
-    let coarse_s = if 2 * fewest <= strongest_misread && fewest + 4 <= strongest_misread {
-        fewest_s
-    } else {
+    // or written off their slot are misread at the period too. Not for a log read as
+    // losing lines regularly: its lost lines are a regular jitter's sidebands to the
+    // phasors, and one line lost in five read at a period of five fourths of its step
+    // (each line a slot, none lost) fewest.
+    let coarse_s = if lost_regularly {
         strongest_s
+    } else {
+        let strongest_misread = misread(strongest_s);
+        let (fewest_s, fewest) = (peaks.iter().take(CANDIDATE_PEAKS))
+            .map(|&(p, _)| (p, misread(p)))
+            .min_by_key(|&(_, n)| n)
+            .unwrap_or((strongest_s, strongest_misread));
+        if 2 * fewest <= strongest_misread && fewest + 4 <= strongest_misread {
+            fewest_s
+        } else {
+            strongest_s
+        }
     };
     const FINE_STEP: f64 = 5e-5;
     let (fine_s, length) =
@@ -2087,14 +2105,14 @@ pub(crate) mod tests {
             .enumerate()
             .map(|(k, slot)| 5.0 + (slot as f64 + 0.2 + jitter(k)) * period)
             .collect();
-        let (p, first_late) = first_slots(&tags, 0.97 * period);
+        let (p, first_late) = first_slots(&tags, 0.97 * period, false);
         assert!((p / period - 1.0).abs() < 1e-3, "{p}");
         let late = tags[0] - (5.0 + 0.2 * period);
         assert!(
             (first_late - late).abs() < 0.05 * period,
             "{first_late} for {late}"
         );
-        assert_eq!(first_slots(&tags[..7], period), (period, 0.0));
+        assert_eq!(first_slots(&tags[..7], period, false), (period, 0.0));
     }
 
     /// A jitter that repeats every few lines (a logger's polling beating with the IMU's
@@ -2123,7 +2141,7 @@ pub(crate) mod tests {
                 .collect();
             let mut steps: Vec<f64> = tags.windows(2).take(100).map(|w| w[1] - w[0]).collect();
             steps.sort_by(f64::total_cmp);
-            let (p, _) = first_slots(&tags[..101], steps[50]);
+            let (p, _) = first_slots(&tags[..101], steps[50], false);
             assert!((p / period - 1.0).abs() < 5e-3, "{amp} every {lines}: {p}");
             let (v, rep, _) = read_all(&log_at(&tags));
             let slots: Vec<u64> = v.iter().map(|s| s.slot).collect();

@@ -107,6 +107,12 @@ pub struct IngestReport {
     /// following the tags ([`crate::text_ticks`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub text_ticks: Option<crate::text_ticks::TextTicks>,
+    /// Text logs whose steps of one period and of two came as regularly as a clock's
+    /// ticking finer than the period would, read as losing lines (one in so many)
+    /// because the lines' velocity increments span one step ([`crate::text_ticks`]).
+    /// The lines lost are counted in `lost_samples`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub text_regular_loss: Option<crate::text_ticks::TextRegularLoss>,
     /// Text logs: the first line stands apart from the others, across an interval longer
     /// than the longest gap a run bridges (the derive's `max_gap_s`) while the next is
     /// not: a line a logger wrote before it began. The interval, s, is not counted in
@@ -225,13 +231,15 @@ impl IngestReport {
 
     /// What the run's log and its row of the campaign summary say of the log's time base:
     /// a binary log's clock leaping ([`Self::clock_said`]), a text log's lines in bursts
-    /// ([`Self::text_bursts_said`]), off their slot ([`Self::lines_off_slot_said`]) and
-    /// clock set back ([`Self::text_clock_said`]).
+    /// ([`Self::text_bursts_said`]), on a coarse clock ([`Self::text_ticks_said`]), lost
+    /// regularly ([`Self::text_regular_loss_said`]), off their slot
+    /// ([`Self::lines_off_slot_said`]) and clock set back ([`Self::text_clock_said`]).
     pub fn time_base_said(&self) -> impl Iterator<Item = String> {
         [
             self.clock_said(),
             self.text_bursts_said(),
             self.text_ticks_said(),
+            self.text_regular_loss_said(),
             self.lines_off_slot_said(),
             self.text_clock_said(),
         ]
@@ -333,6 +341,24 @@ impl IngestReport {
             t.tick_s / t.period_s,
             t.period_s * 1e3,
             t.lines
+        ))
+    }
+
+    /// What the run's log and its row of the campaign summary say of a text log read as
+    /// losing lines regularly (`None`: it was not).
+    pub fn text_regular_loss_said(&self) -> Option<String> {
+        let l = self.text_regular_loss?;
+        Some(format!(
+            "the log's time tags step by one period of {:.3} ms and by two as regularly as \
+             a clock ticking every {:.3} ms would stamp samples {:.3} ms apart, but its \
+             lines' velocity increments span {:.3} ms each (by gravity, over its first {} \
+             lines): read as losing one line in {:.1} regularly, not as such a clock",
+            l.period_s * 1e3,
+            l.period_s * 1e3,
+            l.clock_period_s * 1e3,
+            l.increments_span_s * 1e3,
+            l.lines,
+            l.one_in()
         ))
     }
 

@@ -34,8 +34,13 @@
 //! in a regular proportion. Such a log is judged over 1000 first lines or more
 //! and from a stretch of 256 lines at least, at a period longer than the tick by 2 % to
 //! twice it: lines lost at random wander from any straight line by their count's own
-//! wandering. A log losing lines as regularly as such a tick's steps go (every tenth
-//! line, say) would be read as one, its lines spread over the gaps.
+//! wandering. A log losing lines as regularly (one line in ten, say) writes the same
+//! tags, a tick of `T` at a period of `T k / (k − 1)`: the tags cannot tell the two
+//! apart, but the lines' velocity increments can. Each spans its sample's interval, so
+//! their sum over the lines judged, over their count and gravity, is the interval
+//! (within a percent or two of it when the vehicle drives, its accelerations and turns
+//! added): where it is the tick's to a quarter of the way to the period, the log is
+//! read as losing lines at a period of the tick ([`TextRegularLoss`]).
 
 use std::collections::VecDeque;
 
@@ -58,6 +63,15 @@ pub(crate) const MIN_SHARED_TAGS: usize = 2;
 /// How far a step may be off a whole number of ticks, of a tick (a tick printed to a
 /// coarser unit: 15.625 ms in whole milliseconds, steps of 15 and 16).
 const TICK_TOLERANCE: f64 = 0.1;
+/// How near the tick the span of the lines' velocity increments must lie, of the way
+/// from it to the period fitted, for a log whose steps read as a tick finer than its
+/// period to be read as losing lines regularly at a period of the tick: a quarter,
+/// where an IMU's scale error and a drive's accelerations move the span by a percent
+/// or two, and the nearest such tick (one line lost in fifty) is 2 % off the period.
+const REGULAR_LOSS_SHARE: f64 = 0.25;
+/// Standard gravity, m/s²: the size of the lines' velocity increments' sum over their
+/// count and this is the span of each line's increments, s.
+const GRAVITY_MPS2: f64 = 9.806_65;
 /// The shortest tick, in periods, read as a coarse clock's: a regular log whose tags
 /// glitched, a line's tag repeating the one before, fits the line through its lines'
 /// count at a period within a few thousandths of its step.
@@ -197,8 +211,9 @@ struct FittedLine {
 /// the ticks' middles against the slots, which 99 lines in 100 must lie within a tick and
 /// a quarter period of (a stall, a clock standing, lines lost beyond the clock's
 /// following part the rest from it). The period must be shorter than the tick by
-/// [`MIN_TICK_PERIODS`].
-pub(crate) fn coarse_tick(lines: &[TextSample]) -> Option<TickFit> {
+/// [`MIN_TICK_PERIODS`]. A tick finer than the period is read as lines lost regularly
+/// instead when the lines' velocity increments span the tick ([`regular_loss`]).
+pub(crate) fn coarse_tick(lines: &[TextSample]) -> Option<TickReading> {
     let tags_s = written_tags_s(lines);
     let grid = tick_grid(&tags_s)?;
     let tick_s = grid.tick_s;
@@ -233,12 +248,75 @@ pub(crate) fn coarse_tick(lines: &[TextSample]) -> Option<TickFit> {
         slots[i] = n;
     }
     let line = fitted_line(&tags_s, &slots, tick_s, 0.99, finer)?;
-    Some(TickFit {
+    if finer && let Some(loss) = regular_loss(lines, tick_s, line.period_s) {
+        return Some(TickReading::LinesLost(loss));
+    }
+    Some(TickReading::Clock(TickFit {
         tick_s,
         period_s: line.period_s,
         first_slot_s: line.first_slot_s,
         tolerance: walk_tolerance.max(tolerance(line.spread_s, tick_s, line.period_s)),
-    })
+    }))
+}
+
+/// What a log's first lines' tags read as ([`coarse_tick`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum TickReading {
+    /// A coarse clock's ticks over regular slots.
+    Clock(TickFit),
+    /// Lines lost regularly at a period of the tick, as their velocity increments tell.
+    LinesLost(TextRegularLoss),
+}
+
+/// A log whose steps of one period and of two came as regularly as a finer clock's
+/// ticks, read as losing lines because its velocity increments span one step
+/// (`ingest.json`'s `text_regular_loss`; [`crate::text_ticks`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TextRegularLoss {
+    /// The samples' period: the step of one, s.
+    pub period_s: f64,
+    /// The period a clock ticking at the step would have had, the lines' slots fitted
+    /// through the tags, s.
+    pub clock_period_s: f64,
+    /// What each line's velocity increments span, by gravity, s.
+    pub increments_span_s: f64,
+    /// Lines judged.
+    pub lines: u64,
+}
+
+impl TextRegularLoss {
+    /// One line lost in this many (the clock's period over what it is past the step's).
+    pub fn one_in(&self) -> f64 {
+        self.clock_period_s / (self.clock_period_s - self.period_s)
+    }
+}
+
+/// The lines' regular loss when their velocity increments span the tick `tick_s`, not the
+/// period `period_s` a clock ticking finer than it would give: the span (the size of
+/// their sum over their count and gravity, a line repeating the one before left out)
+/// within [`REGULAR_LOSS_SHARE`] of the way from the tick to the period.
+fn regular_loss(lines: &[TextSample], tick_s: f64, period_s: f64) -> Option<TextRegularLoss> {
+    let mut sum = [0.0f64; 3];
+    let mut count = 0u64;
+    for (i, s) in lines.iter().enumerate() {
+        if i > 0 && s.t_s == lines[i - 1].t_s && repeats(&lines[i - 1], s) {
+            continue;
+        }
+        for (a, v) in sum.iter_mut().zip(s.dvel_mps) {
+            *a += v;
+        }
+        count += 1;
+    }
+    let span_s = (sum[0].hypot(sum[1]).hypot(sum[2])) / (count as f64 * GRAVITY_MPS2);
+    ((span_s - tick_s).abs() <= REGULAR_LOSS_SHARE * (period_s - tick_s)).then_some(
+        TextRegularLoss {
+            period_s: tick_s,
+            clock_period_s: period_s,
+            increments_span_s: span_s,
+            lines: count,
+        },
+    )
 }
 
 /// The first stretch of `tags_s` with no line lost that fits a coarse clock of tick
@@ -686,6 +764,59 @@ mod tests {
             .iter()
             .fold(0f64, |m, e| m.max(e.abs()));
         assert!(worst < 0.2 * period_s, "{worst}");
+    }
+
+    /// A log `(sample, tag)` of 100 Hz tags in 10-ms steps with a step of 20 ms after
+    /// every ninth line, each line's velocity increments `span_s` of gravity.
+    fn ninths_skipping(span_s: f64) -> String {
+        (0..6000u64)
+            .map(|j| {
+                let slot = j + j / 9;
+                let tag_s = 2000.0 + slot as f64 * 0.01;
+                format!(
+                    "{tag_s:.3} {j} 0 0 0.0002 -0.0003 {:.9}\n",
+                    -GRAVITY_MPS2 * span_s
+                )
+            })
+            .collect()
+    }
+
+    /// Tags in steps of one tick and of two, one of two after every ninth line, are what
+    /// a logger losing every tenth line of a 100-Hz IMU writes, and what a 10-ms clock
+    /// stamping a 90-Hz IMU writes (its samples 11.1 ms apart): the tags cannot tell the
+    /// two apart, the velocity increments can. Spanning 10 ms each (by gravity), the
+    /// lines are read as losing one in ten, each on its slot (666 lost, none off); read
+    /// as the finer clock before, they were given times 11.1 ms apart and the derive
+    /// took them for a 90-Hz IMU (Kingston losing every tenth line: the joint fit left
+    /// its bounds). Spanning 11.1 ms, they are that clock's.
+    #[test]
+    fn lines_lost_regularly_are_told_from_a_finer_clock_by_their_increments() {
+        let (v, rep) = read(&ninths_skipping(0.01));
+        let loss = rep.text_regular_loss.unwrap_or_else(|| panic!("{rep:?}"));
+        assert!(rep.text_ticks.is_none(), "{rep:?}");
+        assert!((loss.period_s - 0.01).abs() < 1e-6, "{loss:?}");
+        assert!((loss.one_in() - 10.0).abs() < 0.05, "{loss:?}");
+        assert!((loss.increments_span_s - 0.01).abs() < 1e-6, "{loss:?}");
+        assert_eq!(rep.lost_samples, 666, "{rep:?}");
+        assert_eq!(v.len(), 6000);
+        assert!(
+            v.iter().all(|(j, s)| s.slot == j + j / 9),
+            "a line off its slot"
+        );
+        assert!(
+            v.iter()
+                .all(|(j, s)| (s.t_s - (2000.0 + (j + j / 9) as f64 * 0.01)).abs() < 1e-6),
+            "a line off its sample's time"
+        );
+        let said = rep.text_regular_loss_said().unwrap();
+        assert!(said.contains("losing one line in 10.0"), "{said}");
+
+        let (v, rep) = read(&ninths_skipping(0.01 / 0.9));
+        assert!(rep.text_regular_loss.is_none(), "{rep:?}");
+        let ticks = rep.text_ticks.expect("the finer clock's");
+        assert!((ticks.period_s - 0.01 / 0.9).abs() < 1e-5, "{ticks:?}");
+        assert_eq!(rep.lost_samples, 0, "{rep:?}");
+        assert!(v.iter().all(|(j, s)| s.slot == *j));
     }
 
     /// A 50-Hz log a PC stamped with its 15.625-ms timer (0.78 of a period: steps of one

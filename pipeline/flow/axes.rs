@@ -176,9 +176,18 @@ pub fn check_axes(
         AxesVerdict::NotGravity => bail!(
             "the accelerometers' mean over the log is [{mean}] m/s²{as_named}, {:.2} m/s² in \
              size where gravity is {g_mps2:.2} m/s² (±{:.0} %): the log's velocity \
-             increments are not in m/s (g·s, or rates instead of increments?)",
+             increments are not in m/s (g·s, or rates instead of increments?){}",
             check.mean_specific_force_size_mps2(),
-            GRAVITY_TOLERANCE * 100.0
+            GRAVITY_TOLERANCE * 100.0,
+            kept_one_in(check.mean_specific_force_size_mps2() / g_mps2).map_or_else(
+                String::new,
+                |m| format!(
+                    ", or each line's increments span 1/{m} of the step between its tags: \
+                     the log keeps one sample in {m} (lines lost regularly, or a logger \
+                     writing one sample in {m} without summing the increments of those it \
+                     leaves out)"
+                )
+            )
         ),
         AxesVerdict::Tilted => {
             let fix = match (settings, check.mounting_deg) {
@@ -372,6 +381,14 @@ fn down_words(axes: ImuAxes) -> String {
             _ => None,
         })
         .unwrap_or_default()
+}
+
+/// The `m` of a log that keeps one IMU sample in `m` (2 to 10), from its accelerometers'
+/// mean over gravity, `ratio`: each line's increments span its own sample's interval
+/// while its tags step by `m` of them, so the mean reads `1/m` of gravity (to 3 %).
+/// Such a log's tags step evenly, so neither the reader nor the derive sees a line lost.
+fn kept_one_in(ratio: f64) -> Option<u32> {
+    (2..=10).find(|&m| (ratio * f64::from(m) - 1.0).abs() < 0.03)
 }
 
 #[cfg(test)]

@@ -115,8 +115,10 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // stall's three lines or more in any other. 38: a text log stamped by a clock
         // coarser than its period (several lines to a tag) has each line on its slot of
         // a clock following the ticks (`unz_formats::text_ticks`), not read as the clock
-        // set back and lines lost.
-        version: 38,
+        // set back and lines lost. 39: a text log whose steps of one period and of two
+        // come as regularly as a clock ticking finer than its period would stamp them is
+        // read as losing lines regularly when its velocity increments span one step.
+        version: 39,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,

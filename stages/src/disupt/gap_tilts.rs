@@ -47,6 +47,10 @@ pub const MIN_STEP_SIGMA_RAD: f64 = 1e-5;
 /// Samples each side of a gap whose rates tell how far the fill misses there.
 const WINDOW_SAMPLES: usize = 16;
 
+/// Fewest samples with both neighbours kept (triples) that tell the fill's miss
+/// ([`miss_sigma`]); with fewer, consecutive pairs tell it.
+const MIN_TRIPLES: usize = 4;
+
 /// One step of tilt: its first epoch (row among the valid epochs) and its prior
 /// covariance in the navigation frame's pair of directions, rad².
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -438,6 +442,16 @@ impl Turning {
 /// neighbours were not lost either, of the rate less the mean of its neighbours' (the
 /// fill of a gap `k` closes: `closes`), or less the rate before it (a sample replaced by
 /// the rates before it).
+///
+/// A log losing lines regularly (one in three, say) has no sample with both neighbours
+/// kept: with fewer than [`MIN_TRIPLES`] such, the miss is told by consecutive pairs
+/// kept, their rates' steps `d`: a sample replaced by the one before misses by `d`; a
+/// fill by the mean of its neighbours misses by `(d₁ − d₂) / 2`, at most `√0.75` times
+/// the steps' RMS (rates of white noise about a smooth motion; `√0.5` for a random
+/// walk's). Where every other sample closes a gap (one line in three lost, each gap's
+/// fill in the sample after it) no pair is kept either, and the steps of every pair
+/// tell it, a closing sample's rate the mean of its fill's and its own. Without a pair
+/// (a run of three samples or fewer), no miss is told (0).
 fn miss_sigma(
     k: usize,
     n: usize,
@@ -446,27 +460,54 @@ fn miss_sigma(
     is_replaced: &impl Fn(usize) -> bool,
     nominal_s: f64,
 ) -> [f64; 3] {
-    let lo = k.saturating_sub(WINDOW_SAMPLES).max(1);
-    let hi = (k + WINDOW_SAMPLES).min(n - 2);
-    let (mut sum, mut count) = ([0.0; 3], 0_usize);
-    for j in lo..=hi {
-        if j == k || is_replaced(j - 1) || is_replaced(j) || is_replaced(j + 1) {
-            continue;
-        }
-        let (a, b, c) = (rate(j - 1), rate(j), rate(j + 1));
-        for i in 0..3 {
-            let guess = if closes { (a[i] + c[i]) / 2.0 } else { a[i] };
-            let miss = (b[i] - guess) * nominal_s;
-            if miss.is_finite() {
-                sum[i] += miss * miss;
+    let rms = |sum: [f64; 3], count: usize| sum.map(|s| (s / count as f64).sqrt());
+    let add = |sum: &mut [f64; 3], miss: [f64; 3]| {
+        for (s, m) in sum.iter_mut().zip(miss) {
+            let m = m * nominal_s;
+            if m.is_finite() {
+                *s += m * m;
             }
         }
-        count += 1;
+    };
+    let lo = k.saturating_sub(WINDOW_SAMPLES).max(1);
+    let hi = (k + WINDOW_SAMPLES).min(n - 2);
+    let (mut triples, mut triple_count) = ([0.0; 3], 0_usize);
+    let (mut pairs, mut pair_count) = ([0.0; 3], 0_usize);
+    let (mut any_pairs, mut any_pair_count) = ([0.0; 3], 0_usize);
+    for j in lo..=hi {
+        if j == k {
+            continue;
+        }
+        let (a, b) = (rate(j - 1), rate(j));
+        let step: [f64; 3] = std::array::from_fn(|i| b[i] - a[i]);
+        add(&mut any_pairs, step);
+        any_pair_count += 1;
+        if is_replaced(j - 1) || is_replaced(j) {
+            continue;
+        }
+        add(&mut pairs, step);
+        pair_count += 1;
+        if is_replaced(j + 1) {
+            continue;
+        }
+        let c = rate(j + 1);
+        add(
+            &mut triples,
+            std::array::from_fn(|i| b[i] - if closes { (a[i] + c[i]) / 2.0 } else { a[i] }),
+        );
+        triple_count += 1;
     }
-    if count == 0 {
-        return [0.0; 3];
+    if triple_count >= MIN_TRIPLES {
+        return rms(triples, triple_count);
     }
-    sum.map(|s| (s / count as f64).sqrt())
+    let scale = if closes { 0.75_f64.sqrt() } else { 1.0 };
+    if pair_count > 0 {
+        return rms(pairs, pair_count).map(|v| v * scale);
+    }
+    if any_pair_count > 0 {
+        return rms(any_pairs, any_pair_count).map(|v| v * scale);
+    }
+    [0.0; 3]
 }
 
 /// `items` gathered into at most `max` groups of consecutive items (as equal in count as
@@ -538,6 +579,39 @@ mod tests {
                 valid: vec![true; epochs],
             },
             ..Derived::default()
+        }
+    }
+
+    /// A log losing one line in three closes a gap at every other sample: no sample has
+    /// both neighbours kept, and the fill's miss was told as none (0: no step, the tilts
+    /// read as drift, Kingston's joint azimuth 4σ off). The steps of consecutive pairs
+    /// tell it instead, within a fifth of what the rule misses with every sample kept
+    /// (rates of white noise: √1.5 of their σ either way).
+    #[test]
+    fn a_fill_among_gaps_at_every_other_sample_is_told_by_the_pairs() {
+        let d = drive();
+        let n = d.dt_s.len();
+        let rate = |j: usize| d.dtheta_rad.get(j).map(|v| v / d.dt_s[j]);
+        let none = |_: usize| false;
+        let every_other = |j: usize| j % 2 == 1;
+        let kept = miss_sigma(501, n, true, &rate, &none, d.nominal_dt_s);
+        let lossy = miss_sigma(501, n, true, &rate, &every_other, d.nominal_dt_s);
+        for axis in 0..2 {
+            assert!(kept[axis] > 1e-4, "{kept:?}");
+            assert!(
+                (lossy[axis] / kept[axis] - 1.0).abs() < 0.2,
+                "axis {axis}: {lossy:?} against {kept:?}"
+            );
+        }
+        // A sample replaced by the one before misses by the step from it: the pairs tell
+        // that rule's miss as the triples do.
+        let kept = miss_sigma(501, n, false, &rate, &none, d.nominal_dt_s);
+        let lossy = miss_sigma(501, n, false, &rate, &every_other, d.nominal_dt_s);
+        for axis in 0..2 {
+            assert!(
+                (lossy[axis] / kept[axis] - 1.0).abs() < 0.2,
+                "axis {axis}: {lossy:?} against {kept:?}"
+            );
         }
     }
 
