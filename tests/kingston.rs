@@ -18,6 +18,8 @@ struct Reference {
     pitch: Vec<f64>,
     azimuth: Vec<f64>,
     speed: Vec<f64>,
+    /// Direction of travel, degrees from north.
+    track: Vec<f64>,
 }
 
 fn reference() -> Reference {
@@ -29,12 +31,14 @@ fn reference() -> Reference {
         pitch: vec![],
         azimuth: vec![],
         speed: vec![],
+        track: vec![],
     };
     for line in text.lines().skip(1) {
         let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
         r.t_s.push(v[0]);
         r.position.push([v[1], v[2], v[3]]);
         r.speed.push(v[4].hypot(v[5]));
+        r.track.push(v[5].atan2(v[4]).to_degrees());
         r.roll.push(v[7]);
         r.pitch.push(v[8]);
         r.azimuth.push(v[9]);
@@ -1570,6 +1574,47 @@ fn kingston_lost_lines_tilt_is_not_read_as_drift() {
     let rms = (offs.iter().map(|o| o * o).sum::<f64>() / offs.len() as f64).sqrt();
     eprintln!("RMS of the drifts' offsets: {rms:.2} σ");
     assert!(rms < 1.0, "the drifts' offsets' RMS {rms:.2} σ");
+}
+
+/// Kingston's reference (the SPAN's INS/GPS, the same HG1700) heads 0.28° left of its
+/// own direction of travel while the car drives (the median over 205 epochs above 5 m/s;
+/// their spread 0.44°, a car's slip in turns): the IMU sits yawed 0.28° on the car, the
+/// odometer's direction 0.28° clockwise of its x. The joint fit's residuals show that
+/// boresight from the pitch and roll alone (the control points see it only with the
+/// azimuth): +0.58° ± 0.22°, the same sign and within 2σ (with the sign flipped, 3.9σ
+/// off). At 2.6σ it is under the 3σ that refits with it free, so the shipped run's
+/// azimuth takes it whole: its heading runs 0.24–0.50° from the reference's while
+/// driving, at σ 0.054° (with `joint_odo_yaw = true`: −0.09 to −0.35° at σ 0.23°).
+#[test]
+fn kingston_odometer_yaw_boresight_seen_agrees_with_the_references_heading_and_track() {
+    let r = reference();
+    let mut off: Vec<f64> = (0..r.t_s.len())
+        .filter(|&i| r.speed[i] > 5.0)
+        .map(|i| wrap_pi((r.azimuth[i] - r.track[i]).to_radians()).to_degrees())
+        .collect();
+    assert!(off.len() > 150, "{} epochs driving", off.len());
+    off.sort_by(f64::total_cmp);
+    // The IMU's heading is the vehicle's less the boresight.
+    let reference_yaw_deg = -off[off.len() / 2];
+    assert!(
+        (reference_yaw_deg - 0.28).abs() < 0.02,
+        "{reference_yaw_deg}"
+    );
+    let tmp = tempfile::tempdir().unwrap();
+    let run = kingston_with(&tmp.path().join("k"), "");
+    let out = tmp.path().join("o");
+    crate::util::run_until(&run, &out, "disupt");
+    let d: unz::disupt_stage::DisuptOut =
+        read_json(&out.join("kingston2008-segment1/disupt/disupt.json"));
+    let check = d.joint_odo_yaw_check.expect("the boresight checked");
+    let seen = check.seen;
+    let z = (seen.odo_yaw_deg - reference_yaw_deg) / seen.sigma_deg;
+    eprintln!(
+        "reference {reference_yaw_deg:+.3}°, seen {:+.3}° ± {:.3}° ({z:+.2}σ from it)",
+        seen.odo_yaw_deg, seen.sigma_deg
+    );
+    assert!(z.abs() < 2.0, "{z:+.2}σ");
+    assert!(!check.refit, "{check:?}");
 }
 
 /// Kingston losing every k-th IMU line (k = 3, 5, 10, 50): steps of one period and of
