@@ -104,12 +104,16 @@ pub(crate) fn may_be_ticked(lines: &[TextSample]) -> bool {
         .is_some_and(|g| g.shared >= MIN_SHARED_TAGS || g.skipping >= MIN_SHARED_TAGS)
 }
 
-/// The tags of `lines`, a line repeating the one before (its tag and values) left out.
-fn written_tags_s(lines: &[TextSample]) -> Vec<f64> {
+/// `lines`, a line repeating the one before (its tag and values) left out.
+fn written(lines: &[TextSample]) -> impl Iterator<Item = &TextSample> {
     (lines.iter().enumerate())
         .filter(|&(i, s)| i == 0 || !(s.t_s == lines[i - 1].t_s && repeats(&lines[i - 1], s)))
-        .map(|(_, s)| s.t_s)
-        .collect()
+        .map(|(_, s)| s)
+}
+
+/// The tags of `lines`, a line repeating the one before left out ([`written`]).
+fn written_tags_s(lines: &[TextSample]) -> Vec<f64> {
+    written(lines).map(|s| s.t_s).collect()
 }
 
 /// The steps of tags on a clock's ticks.
@@ -299,10 +303,7 @@ impl TextRegularLoss {
 fn regular_loss(lines: &[TextSample], tick_s: f64, period_s: f64) -> Option<TextRegularLoss> {
     let mut sum = [0.0f64; 3];
     let mut count = 0u64;
-    for (i, s) in lines.iter().enumerate() {
-        if i > 0 && s.t_s == lines[i - 1].t_s && repeats(&lines[i - 1], s) {
-            continue;
-        }
+    for s in written(lines) {
         for (a, v) in sum.iter_mut().zip(s.dvel_mps) {
             *a += v;
         }
