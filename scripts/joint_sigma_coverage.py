@@ -33,9 +33,10 @@ import pyarrow.parquet as pq
 T0_S = 100000.0
 
 
-def as_text_run(run: Path, ingest: Path, dst: Path, speed_period_s: float) -> None:
+def as_text_run(run: Path, ingest: Path, dst: Path, speed_period_s: float, instant: bool) -> None:
     """`run` (a simulated binary run, `ingest` its ingest stage's folder) as a text run in
-    `dst`."""
+    `dst`: its speeds the odometer's mean over each interval, or (`instant`) the vehicle's
+    speed at each tag as the odometer reads it (the truth's, over its scale error)."""
     name = run.name
     shutil.rmtree(dst, ignore_errors=True)
     dst.mkdir(parents=True)
@@ -48,9 +49,18 @@ def as_text_run(run: Path, ingest: Path, dst: Path, speed_period_s: float) -> No
     t_s = np.array(odo["t_ns"]) * 1e-9
     dist_m = np.array(odo["distance_m"])
     step = max(1, round(speed_period_s / float(np.median(np.diff(t_s)))))
+    truth = pq.read_table(run / "truth.parquet", columns=["t_ns", "vel_ned_mps"]).to_pydict()
+    meta = json.loads(pq.read_table(run / "truth.parquet").schema.metadata[b"unz.true_settings"])
+    reads = meta["nominal_odo_m_per_pulse"] / meta["odo_scale_m_per_pulse"]
+    truth_t_s = np.array(truth["t_ns"]) * 1e-9
+    truth_speed = np.array([math.hypot(v[0], v[1]) for v in truth["vel_ned_mps"]])
     with open(dst / "odometer.txt", "w") as f:
         for j in range(step, len(t_s), step):
-            f.write("%.3f %.4f\n" % (T0_S + t_s[j], (dist_m[j] - dist_m[j - step]) / (t_s[j] - t_s[j - step])))
+            if instant:
+                speed = reads * float(np.interp(t_s[j], truth_t_s, truth_speed))
+            else:
+                speed = (dist_m[j] - dist_m[j - step]) / (t_s[j] - t_s[j - step])
+            f.write("%.3f %.4f\n" % (T0_S + t_s[j], speed))
     manifest = (run / "run.toml").read_text()
     binary = f'raw = "{name}.unz"\nformat = "unz-binary"'
     if binary not in manifest:
@@ -85,6 +95,8 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=51)
     p.add_argument("--runs", type=int, default=5)
     p.add_argument("--speed-period-s", type=float, default=1.0)
+    p.add_argument("--instant", action="store_true",
+                   help="speeds at each tag (the truth's as the odometer reads it), not means over the interval")
     a = p.parse_args()
     unz = str(Path(a.unz).resolve())
     work = Path(a.work or tempfile.mkdtemp(prefix="joint-sigma-coverage-")).resolve()
@@ -95,7 +107,7 @@ def main() -> None:
                        capture_output=True, check=True)
     subprocess.run([unz, "run", str(sims), "--out", str(work / "out-binary")], capture_output=True, check=True)
     for run in sorted(p for p in sims.iterdir() if (p / "truth.parquet").exists()):
-        as_text_run(run, work / "out-binary" / run.name / "ingest", texts / run.name, a.speed_period_s)
+        as_text_run(run, work / "out-binary" / run.name / "ingest", texts / run.name, a.speed_period_s, a.instant)
     subprocess.run([unz, "run", str(texts), "--out", str(work / "out-text")], capture_output=True, check=True)
     for form, runs in [("binary", sims), ("text", texts)]:
         rows = z_scores(runs, work / f"out-{form}")
