@@ -84,6 +84,7 @@ pub fn spec_of<'a>(case: &'a NavCase, settings: NavSettings, params: &Params) ->
         fixes: &case.fixes,
         excluded_cps: &[],
         drift_z_prior_deg_h: prior,
+        gyro_walk: Some(&case.gyro_walk),
     }
 }
 
@@ -199,7 +200,7 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 23: the joint fit takes lost and replaced samples' fills' tilt as unknowns.
         // 24: a fill's miss told by consecutive pairs where too few samples about it
         // have both neighbours kept (a log losing lines regularly).
-        version: 24,
+        version: 25,
         params_hash: params_hash(&(params.before_export(), method, dparams))?,
         inputs,
         outputs: &[

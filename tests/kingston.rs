@@ -2062,8 +2062,10 @@ fn kingston_retimed(run: &std::path::Path, retimed: impl Fn(f64) -> f64) -> std:
 /// the run went on "ok" with the alignment's 2.3 s: the heading 2.2 km off at the points
 /// before DISUPT, the joint fit's azimuth σ 0.67° (0.06° as shipped), its hold-out errors
 /// 36 and 47 m. Now a move is 10 cm over a second: the static start is as given, the
-/// heading gyrocompassed as shipped, the joint fit's azimuth σ under 0.1°, and the
-/// 10 m the odometer counted over the stand are said (nothing as shipped).
+/// heading gyrocompassed as shipped, the joint fit's azimuth σ under 0.2° (0.11°, with
+/// the gyros' walk in it since session 87; 0.07° as shipped, a third of the cut start's
+/// 0.67°), and the 10 m the odometer counted over the stand are said (nothing as
+/// shipped).
 #[test]
 fn kingston_a_speed_sensors_noise_at_rest_keeps_the_static_start_and_is_said() {
     let tmp = tempfile::tempdir().unwrap();
@@ -2091,7 +2093,7 @@ fn kingston_a_speed_sensors_noise_at_rest_keeps_the_static_start_and_is_said() {
         .as_ref()
         .unwrap()
         .azimuth_deg;
-    assert!(sigma < 0.1, "joint azimuth σ {sigma}°");
+    assert!(sigma < 0.2, "joint azimuth σ {sigma}°");
     let travel = nav.initial.stand_travel.expect("the stand's travel said");
     assert!(
         (travel.travel_m - 10.5).abs() < 1.5 && (travel.stood_s - 527.0).abs() < 1.5,

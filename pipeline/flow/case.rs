@@ -15,7 +15,7 @@ use unz_formats::schema::META_ODO_M_PER_PULSE;
 use unz_formats::tables::MarksTable;
 use unz_stages::criteria::ControlPointFix;
 use unz_stages::derive::Derived;
-use unz_stages::disupt::ProblemSpec;
+use unz_stages::disupt::{GyroWalk, ProblemSpec};
 use unz_stages::earth::Geodetic;
 use unz_stages::imu_axes::ImuAxes;
 use unz_stages::in_motion_level::{Free, IN_MOTION_LEVEL_WINDOW_S, level_in_motion};
@@ -52,6 +52,9 @@ pub struct NavCase {
     pub settings: NavSettings,
     /// How they were found.
     pub initial: InitialReport,
+    /// The gyros' angle random walk the joint fit's covariance takes (`[align]
+    /// arw_rad_sqrt_s`).
+    pub gyro_walk: GyroWalk,
 }
 
 impl NavCase {
@@ -489,6 +492,7 @@ pub fn load_case(ctx: &RunCtx, params: &Params, overrides: &Overrides) -> anyhow
         unknown_marks,
         settings,
         initial,
+        gyro_walk: GyroWalk::new(params.align.arw_rad_sqrt_s),
     })
 }
 
@@ -553,6 +557,7 @@ fn level_in_motion_over_window(
         fixes: &[],
         excluded_cps: &[],
         drift_z_prior_deg_h: None,
+        gyro_walk: None,
     };
     let Some(fit) = level_in_motion(&spec.on(derived), free) else {
         return;

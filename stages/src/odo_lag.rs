@@ -490,6 +490,9 @@ struct Profile<'r> {
     /// The fit without a lag: its linearisation is every trial's model.
     fit0: &'r JointFit,
     trials: RefCell<Vec<[f64; 2]>>,
+    /// The weighted residuals of the last round's trials at the fit's linearisation point
+    /// (the lag's slope in the residuals comes from the final round's).
+    residuals: RefCell<Vec<(f64, Vec<f64>)>>,
     /// Navigation passes of the trials.
     passes: std::cell::Cell<usize>,
 }
@@ -547,6 +550,9 @@ impl Profile<'_> {
         let refs: Vec<&Problem<'_>> = problems.iter().collect();
         let tally = std::sync::atomic::AtomicUsize::new(0);
         let ys = observe_each(&refs, &x, &tally);
+        self.residuals
+            .borrow_mut()
+            .retain(|(lag, _)| lags.contains(lag));
         for ((lag, problem), y) in new.iter().zip(&problems).zip(ys) {
             let lin = Linearization {
                 p_ref: warm.p_ref,
@@ -555,6 +561,8 @@ impl Profile<'_> {
             };
             let cost = self.fit0.linearised_cp_cost(problem, &lin)?;
             self.trials.borrow_mut().push([*lag, cost]);
+            let r = self.fit0.linearised_residuals(problem, &lin);
+            self.residuals.borrow_mut().push((*lag, r));
         }
         self.passes.set(self.passes.get() + new.len());
         Ok(lags.map(|lag| known(lag).unwrap_or(f64::NAN)))
@@ -578,6 +586,7 @@ pub fn joint_with_lag(
         spec,
         fit0: &fit0,
         trials: RefCell::new(Vec::new()),
+        residuals: RefCell::new(Vec::new()),
         passes: std::cell::Cell::new(fit0.result.evaluations),
     };
     let bound = params.odo_lag_bound_s;
@@ -598,8 +607,10 @@ pub fn joint_with_lag(
     let mut lag_s = 0.0;
     let mut curvature = f64::NAN;
     let mut c0 = f64::NAN;
+    let mut tried = points;
     for round in 0..MAX_ROUNDS {
         let costs = profile.costs(points)?;
+        tried = points;
         let previous = lag_s;
         match parabola(points, costs) {
             Some((vertex, second)) => {
@@ -653,9 +664,42 @@ pub fn joint_with_lag(
             + 1,
     );
     let s2 = (c0 / cp_dof.max(1) as f64).max(1.0);
-    let sigma_s = (curvature > 0.0)
+    let mut sigma_s = (curvature > 0.0)
         .then(|| (2.0 * s2 / curvature).sqrt())
         .filter(|s| s.is_finite());
+    // The settings' σ and the lag's with each other's uncertainty and the gyros' walk in
+    // them, from the lag's slope in the residuals over the last parabola.
+    if sigma_s.is_some() {
+        let residuals = profile.residuals.borrow();
+        let at = |lag: f64| {
+            residuals
+                .iter()
+                .find(|(l, _)| *l == lag)
+                .map(|(_, r)| r.clone())
+                .or_else(|| {
+                    (lag == 0.0 && rederive.rebridges().is_none())
+                        .then(|| fit0.linearised_residuals(base, fit0.linearization()))
+                })
+        };
+        let (lo, hi) = (tried[0], tried[2]);
+        if let (Some(r_lo), Some(r_hi)) = (at(lo), at(hi))
+            && r_lo.len() == r_hi.len()
+            && hi > lo
+        {
+            let slope: Vec<f64> = (r_lo.iter().zip(&r_hi))
+                .map(|(a, b)| (b - a) / (hi - lo))
+                .collect();
+            // The same settings free at every lag (so the covariance in the same order
+            // as the final fit's): the σ, the mark's and the holdouts' figures alike.
+            if fit.free == fit0.free
+                && let Some(m) = fit0.lag_marginal(base, &slope, s2, fit.result.x.azimuth_deg)
+            {
+                fit.result.sigma = Some(m.sigma);
+                fit.covariance = Some(m.covariance);
+                sigma_s = Some(m.lag_sigma_s);
+            }
+        }
+    }
     // The method's passes: the search's as well as the final fit's.
     fit.result.evaluations += profile.passes.get();
     if let Some(step) = fit.result.steps.first_mut() {

@@ -51,6 +51,7 @@ fn spec_of<'a>(c: &'a common::Case, params: &DeriveParams) -> ProblemSpec<'a> {
         fixes: &c.fixes,
         excluded_cps: &[],
         drift_z_prior_deg_h: None,
+        gyro_walk: None,
     }
 }
 

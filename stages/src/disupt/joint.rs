@@ -7,6 +7,7 @@ use std::time::Instant;
 use nalgebra::{DMatrix, DVector};
 
 use super::DisuptError;
+use super::gyro_walk::{WalkFit, walk_covariance, walk_covariance_of};
 use super::problem::Problem;
 use super::results::{Component, Criterion, MethodResult, Step, last_cp};
 use super::settings::{DisuptParams, X, x_of};
@@ -261,6 +262,114 @@ impl JointFit {
     }
 }
 
+/// The covariance of a joint fit's settings and of an odometer lag found by the control
+/// points' misfit of fits at trial lags ([`JointFit::lag_marginal`]).
+#[derive(Debug, Clone)]
+pub struct LagMarginal {
+    /// 1σ of each estimated setting with the lag's uncertainty in it (0 for the others).
+    pub sigma: X,
+    /// 1σ of the lag, s.
+    pub lag_sigma_s: f64,
+    /// The estimated settings' covariance with the lag's uncertainty in it, in the order
+    /// of the fit's free settings ([`JointFit::covariance`]'s).
+    pub covariance: DMatrix<f64>,
+}
+
+impl JointFit {
+    /// The weighted residuals of this fit's model on `lin` at its point (no solve): what
+    /// a lag trial's linearisation starts from.
+    pub fn linearised_residuals(&self, problem: &Problem<'_>, lin: &Linearization) -> Vec<f64> {
+        joint_residuals(problem, &lin.y_ref, &lin.p_ref, &self.weights, None)
+    }
+
+    /// The settings' and the lag's covariance where the lag is the minimum of the control
+    /// points' misfit of this fit's model redone at each lag (the odometer-lag search's
+    /// estimator, [`crate::odo_lag`]), in the linear world of this fit's model on
+    /// `problem` (the lag-free derive) with the lag's column `lag_slope` (the residuals'
+    /// change per second of lag, from the trials beside the optimum). With
+    /// `r = r0 + A x + b L`, each lag's fit is `x(L) = −G (r0 + b L)` (`G = (AᵀA)⁻¹Aᵀ`), the lag
+    /// `L = −cᵀ r0` with `c = M b̃ / |b̃|²` (`M = I − A G`, `b̃` the control points' rows of
+    /// `M b`), so `x = −G (I − b cᵀ) r0`: both linear in the residuals, whose covariance is
+    /// the fit's scatter (its inflation on the epochs, `cp_s2` on the control points: their
+    /// misfit per degree of freedom when worse than their σ) plus the gyros' walk
+    /// ([`super::GyroWalk`]). The settings' σ so take the lag's uncertainty in, where the
+    /// fit's own are conditional on its lag. `None` where the slope has other rows than
+    /// the model, the control points do not see the lag, or the model is singular.
+    pub fn lag_marginal(
+        &self,
+        problem: &Problem<'_>,
+        lag_slope: &[f64],
+        cp_s2: f64,
+        azimuth_deg: f64,
+    ) -> Option<LagMarginal> {
+        let model = JointModel::new(problem, &self.lin, &self.free, &self.weights, None);
+        let a = &model.a;
+        let (m, p) = a.shape();
+        if lag_slope.len() != m || lag_slope.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let g = (a.transpose() * a).try_inverse()? * a.transpose();
+        let b = DVector::from_column_slice(lag_slope);
+        let annihilate = |v: &DVector<f64>| v - a * (&g * v);
+        let n_att = attitude_rows(problem);
+        let cp_rows = n_att..(n_att + 2 * problem.fixes.len()).min(m);
+        let mb = annihilate(&b);
+        let mut b_cp = DVector::zeros(m);
+        for i in cp_rows.clone() {
+            b_cp[i] = mb[i];
+        }
+        let den = b_cp.norm_squared();
+        if den <= 0.0 || !den.is_finite() {
+            return None;
+        }
+        let c = annihilate(&b_cp) / den;
+        // F: the settings' rows −G (I − b cᵀ), then the lag's −cᵀ.
+        let gb = &g * &b;
+        let mut f = DMatrix::zeros(p + 1, m);
+        for i in 0..p {
+            for j in 0..m {
+                f[(i, j)] = -g[(i, j)] + gb[i] * c[j];
+            }
+        }
+        for j in 0..m {
+            f[(p, j)] = -c[j];
+        }
+        let s2 = self.cost / self.dof;
+        let mut cov = DMatrix::zeros(p + 1, p + 1);
+        for j in 0..m {
+            let var = if j < n_att {
+                s2 * self.inflation[j % 2]
+            } else if cp_rows.contains(&j) {
+                cp_s2.max(s2)
+            } else {
+                s2
+            };
+            let col = f.column(j);
+            cov.ger(var, &col, &col, 1.0);
+        }
+        if let Some(walk) = problem.gyro_walk {
+            let fit = WalkFit {
+                a,
+                lin: &self.lin,
+                attitude_sigma_rad: self.weights.attitude_sigma_rad,
+                cp_weights: &cp_weights(problem, None, &self.weights),
+                azimuth_deg,
+            };
+            cov += walk_covariance_of(walk, problem, &fit, &f);
+        }
+        let mut sigma = X::default();
+        for (k, &s) in self.free.iter().enumerate() {
+            sigma.set(s, cov[(k, k)].max(0.0).sqrt());
+        }
+        let lag_sigma_s = cov[(p, p)].max(0.0).sqrt();
+        lag_sigma_s.is_finite().then(|| LagMarginal {
+            sigma,
+            lag_sigma_s,
+            covariance: cov.view((0, 0), (p, p)).into_owned(),
+        })
+    }
+}
+
 /// Gauss–Newton iterations of the joint fit before it stops.
 const MAX_GAUSS_NEWTON: usize = 10;
 
@@ -280,6 +389,30 @@ pub(super) fn covariance_of(
         a.row_mut(i).unscale_mut(inflation[i % 2].sqrt());
     }
     (a.transpose() * &a).try_inverse().map(|c| c * s2)
+}
+
+/// The gyros' angle random walk's share of the covariance of `model`'s free settings
+/// ([`super::gyro_walk`]), zero where the problem has no walk or the model no inverse.
+fn walk_share(
+    problem: &Problem<'_>,
+    model: &JointModel,
+    lin: &Linearization,
+    w: &DisuptParams,
+    skip_cp: Option<usize>,
+    azimuth_deg: f64,
+) -> DMatrix<f64> {
+    let n = model.a.ncols();
+    let Some(walk) = problem.gyro_walk else {
+        return DMatrix::zeros(n, n);
+    };
+    let fit = WalkFit {
+        a: &model.a,
+        lin,
+        attitude_sigma_rad: w.attitude_sigma_rad,
+        cp_weights: &cp_weights(problem, skip_cp, w),
+        azimuth_deg,
+    };
+    walk_covariance(walk, problem, &fit).unwrap_or_else(|| DMatrix::zeros(n, n))
 }
 
 /// How [`joint_fit`] weighs and what it leaves out.
@@ -494,7 +627,8 @@ pub fn joint_fit(
     let r = joint_residuals(problem, &y, &pr, &w, skip);
     let n_att = attitude_rows(problem);
     let inflation = attitude_inflation(&r[..n_att.min(r.len())]);
-    let covariance = covariance_of(&model, n_att, inflation, cost / dof);
+    let covariance = covariance_of(&model, n_att, inflation, cost / dof)
+        .map(|c| c + walk_share(problem, &model, lin, &w, skip, x.azimuth_deg));
     // 1σ of each estimated setting (0 for the others).
     let sigma = covariance.as_ref().map(|c| {
         let mut sd = X::default();
@@ -595,7 +729,13 @@ impl JointFit {
         let r = &model.r0 + &model.a * &delta;
         let dof = (r.len() as f64 - (free.len() + nuisance_rows(problem)) as f64).max(1.0);
         let n_att = attitude_rows(problem);
-        let covariance = covariance_of(&model, n_att, self.inflation, ssr(r.as_slice()) / dof);
+        let covariance =
+            covariance_of(&model, n_att, self.inflation, ssr(r.as_slice()) / dof).map(|c| {
+                let step = free.iter().position(|s| *s == Setting::Azimuth);
+                let azimuth_deg =
+                    lin.p_ref[Setting::Azimuth.index()] + step.map_or(0.0, |k| delta[k]);
+                c + walk_share(problem, &model, &lin, &self.weights, None, azimuth_deg)
+            });
         Ok(covariance.map(|covariance| SolvedWith {
             k: self.free.len(),
             at: extra.iter().map(|s| lin.p_ref[s.index()]).collect(),

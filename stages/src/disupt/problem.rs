@@ -8,6 +8,7 @@ use either::Either;
 use rayon::prelude::*;
 
 use super::gap_tilts::GapTilts;
+use super::gyro_walk::GyroWalk;
 use super::settings::{BASE_SETTINGS, X, params_of, x_of};
 use crate::criteria::{self, ControlPointFix, FilteredBlocks, KalmanParams, Kryt1Gains, Kryt2};
 use crate::derive::{Epochs, MovedOdometer, OdoIncrements};
@@ -48,6 +49,9 @@ pub struct Problem<'a> {
     /// The tilt steps the joint fit gives the derive's gaps ([`GapTilts`]); `None` without
     /// a gap that leaves one.
     pub gap_tilts: Option<Arc<GapTilts>>,
+    /// The gyros' angle random walk the joint fit's covariance takes ([`GyroWalk`]);
+    /// `None`: the residuals' scatter alone.
+    pub gyro_walk: Option<&'a GyroWalk>,
     /// The odometer increments, when they are read as a pass goes instead of from
     /// `inputs` (a derive at another odometer timing: [`ProblemSpec::on_moved`]).
     moved_odometer: Option<MovedOdometer<'a>>,
@@ -77,6 +81,8 @@ pub struct ProblemSpec<'a> {
     pub excluded_cps: &'a [usize],
     /// Prior on the vertical drift from the static start: (value, 1σ), °/h.
     pub drift_z_prior_deg_h: Option<(f64, f64)>,
+    /// The gyros' angle random walk ([`Problem::gyro_walk`]).
+    pub gyro_walk: Option<&'a GyroWalk>,
 }
 
 impl<'a> ProblemSpec<'a> {
@@ -100,6 +106,7 @@ impl<'a> ProblemSpec<'a> {
         );
         p.drift_z_prior_deg_h = self.drift_z_prior_deg_h;
         p.excluded_cps = self.excluded_cps;
+        p.gyro_walk = self.gyro_walk;
         p.segments = d.segments.clone();
         let cp_samples: Vec<usize> = self.fixes.iter().map(|f| f.sample).collect();
         p.gap_tilts = GapTilts::of(
@@ -247,6 +254,7 @@ impl<'a> Problem<'a> {
             excluded_cps: &[],
             drift_z_prior_deg_h: None,
             gap_tilts: None,
+            gyro_walk: None,
             moved_odometer: None,
             segments: SegmentMemo::default(),
             moved_segments: Arc::default(),
@@ -281,6 +289,7 @@ impl<'a> Problem<'a> {
             excluded_cps: excluded,
             drift_z_prior_deg_h: self.drift_z_prior_deg_h,
             gap_tilts: self.gap_tilts.clone(),
+            gyro_walk: self.gyro_walk,
             moved_odometer: self.moved_odometer.clone(),
             segments: self.segments.clone(),
             moved_segments: Arc::clone(&self.moved_segments),
@@ -864,6 +873,7 @@ mod tests {
             fixes: &[],
             excluded_cps: &[],
             drift_z_prior_deg_h: None,
+            gyro_walk: None,
         }
     }
 

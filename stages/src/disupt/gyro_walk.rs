@@ -1,0 +1,353 @@
+//! The gyros' angle random walk in the joint fit's covariance.
+//!
+//! The joint fit's residuals are not independent: the gyros' white noise (angle random
+//! walk, density `N` rad/√s) turns the dead reckoning by a random walk that every later
+//! epoch and control point carries. The fit absorbs much of it into the drifts and the
+//! azimuth (a walk's best straight line over a run of `T` has a slope of σ `N √(6/5T)`,
+//! 0.09 °/h for an LN-200 over 40 minutes), so its residuals show only what is left:
+//! their scatter and the Newey–West inflation ([`super::joint`]) miss it. Measured on five
+//! simulated 40-minute runs, the drifts were 0.1–0.3 °/h off where their σ said 0.03–0.25,
+//! and the azimuth 0.15–0.36° off at σ 0.02–0.07°: the heading's walk moves the control
+//! points metres (0.06° over 14 km is 15 m) where the fit weighs them to 1 m.
+//!
+//! The walk's share of the estimate's covariance is `G Σ Gᵀ`, `G = (AᵀA)⁻¹Aᵀ` the fit's
+//! least-squares map from its weighted residuals to the settings and `Σ` the walk's
+//! covariance of those residuals, in two independent parts (to first order a level
+//! vehicle's tilt does not move its route, nor its heading its tilt):
+//! - **Tilt.** A kick `ε` of the nav frame's level at epoch `j` shows in the gyro pitch and
+//!   roll there as an isotropic pair and later as `M_k M_j⁻¹` of it, `M_k` the epoch's
+//!   response to the start's pitch and roll (the fit's levelling slopes, turns and the
+//!   Earth's rate in them). With `S_j = Σ_{k≥j} G_k M_k M_j⁻¹` (`G_k` the two columns of
+//!   epoch `k`'s rows), the share is `N² Σ_j Δt_j S_j S_jᵀ`.
+//! - **Heading.** A kick `δ` at epoch `j` turns every later displacement: a control point
+//!   `c` after it moves by `δ J (p_c − p_j)` (`J` a quarter turn), `p` the positions of a
+//!   pass at the fit's start turned by the azimuth the fit moved. With
+//!   `v_j = Σ_{c after j} G_c w_c J (p_c − p_j)` the share is `N² Σ_j Δt_j v_j v_jᵀ`.
+//!
+//! Both are suffix sums over the epochs: linear in the run's length.
+
+use std::sync::OnceLock;
+
+use nalgebra::{DMatrix, DVector, Matrix2};
+
+use super::problem::Problem;
+use crate::linearized::{Linearization, Setting};
+use crate::strapdown::{self, NavInputs, PassSink};
+
+/// The gyros' angle random walk a problem's joint fits take into their covariance, and
+/// the route it turns (computed on first use, shared by the problems of one run: the lag
+/// search's re-derives move the route by less than the walk's σ notices).
+#[derive(Debug)]
+pub struct GyroWalk {
+    arw_rad_sqrt_s: f64,
+    route: OnceLock<Option<WalkRoute>>,
+}
+
+/// The positions the heading's walk turns: a pass at a problem's start.
+#[derive(Debug, Clone)]
+struct WalkRoute {
+    /// The heading the pass started with, rad.
+    heading0_rad: f64,
+    /// Time from the first sample of each epoch's middle sample, s, and its north and
+    /// east from the start, m (every epoch).
+    epochs: Vec<(f64, [f64; 2])>,
+    /// Likewise of each control point's sample.
+    fixes: Vec<(f64, [f64; 2])>,
+}
+
+impl GyroWalk {
+    /// The walk of gyros whose angle random walk is `arw_rad_sqrt_s`.
+    pub fn new(arw_rad_sqrt_s: f64) -> Self {
+        Self {
+            arw_rad_sqrt_s,
+            route: OnceLock::new(),
+        }
+    }
+
+    /// The angle random walk, rad/√s.
+    pub fn arw_rad_sqrt_s(&self) -> f64 {
+        self.arw_rad_sqrt_s
+    }
+
+    /// The route of `problem`'s start (one pass the first time; `None` where the problem
+    /// has no stored odometer to run it on).
+    fn route(&self, problem: &Problem<'_>) -> Option<&WalkRoute> {
+        self.route.get_or_init(|| WalkRoute::of(problem)).as_ref()
+    }
+}
+
+/// Samples summed into one step of the route's pass: 0.1 s at 100 Hz. The walk's share
+/// reads the route's positions as lever arms, where metres do not matter; summed, the
+/// pass costs a tenth (0.85 ms over a 40-minute run, against 7.3 ms sample by sample;
+/// the z of seeds 51–55's settings the same to 0.01).
+const ROUTE_STEP_SAMPLES: usize = 10;
+
+impl WalkRoute {
+    fn of(problem: &Problem<'_>) -> Option<Self> {
+        let inputs = &problem.inputs;
+        let n = inputs.pass_samples();
+        if n == 0 || n < inputs.len() {
+            return None;
+        }
+        // The route's pass on increments summed over steps of ROUTE_STEP_SAMPLES (the
+        // attitude's non-commutativity over 0.1 s, and the distance put at the step's end
+        // attitude, move a land vehicle's route by centimetres a turn).
+        let steps = n.div_ceil(ROUTE_STEP_SAMPLES);
+        let (mut dt_s, mut dtheta_rad, mut odo_m) = (
+            Vec::with_capacity(steps),
+            Vec::with_capacity(steps),
+            Vec::with_capacity(steps),
+        );
+        for first in (0..n).step_by(ROUTE_STEP_SAMPLES) {
+            let (mut dt, mut th, mut d) = (0.0, [0.0; 3], 0.0);
+            for k in first..(first + ROUTE_STEP_SAMPLES).min(n) {
+                dt += inputs.dt_s[k];
+                let a = inputs.dtheta_rad.get(k);
+                (0..3).for_each(|i| th[i] += a[i]);
+                d += inputs.odo_dist_m[k];
+            }
+            dt_s.push(dt);
+            dtheta_rad.push(th);
+            odo_m.push(d);
+        }
+        let summed = NavInputs {
+            dt_s: &dt_s,
+            dtheta_rad: (&dtheta_rad).into(),
+            odo_dist_m: &odo_m,
+        };
+        let block = problem.lp.block.max(1);
+        // Each wanted sample as the step it ends in.
+        let step_of = |k: usize| k.min(n - 1) / ROUTE_STEP_SAMPLES;
+        let mut wanted: Vec<(usize, usize)> = (problem.epochs.block.iter())
+            .enumerate()
+            .map(|(k, &b)| (step_of(b * block + block / 2), k))
+            .collect();
+        let n_epochs = wanted.len();
+        wanted.extend(
+            (problem.fixes.iter())
+                .enumerate()
+                .map(|(c, f)| (step_of(f.sample), n_epochs + c)),
+        );
+        wanted.sort_unstable();
+        let settings = problem.settings(&problem.x0());
+        let mut sink = AtSamples {
+            frame: settings.start().local_frame(),
+            dt_s: &dt_s,
+            t_s: 0.0,
+            wanted: &wanted,
+            next: 0,
+            out: vec![(0.0, [0.0; 2]); wanted.len()],
+        };
+        strapdown::run(&summed, &settings, &mut sink);
+        let mut epochs = sink.out;
+        let fixes = epochs.split_off(n_epochs);
+        Some(Self {
+            heading0_rad: settings.initial.heading_rad,
+            epochs,
+            fixes,
+        })
+    }
+}
+
+/// A pass's time and north, east at chosen samples.
+struct AtSamples<'a> {
+    frame: crate::earth::LocalFrame,
+    dt_s: &'a [f64],
+    t_s: f64,
+    /// (sample, slot in `out`), by sample.
+    wanted: &'a [(usize, usize)],
+    next: usize,
+    out: Vec<(f64, [f64; 2])>,
+}
+
+impl PassSink for AtSamples<'_> {
+    fn sample(&mut self, k: usize, lat: f64, lon: f64, _h: f64, _q: &[f64; 4], _d: f64) {
+        self.t_s += self.dt_s.get(k).copied().unwrap_or(0.0);
+        while let Some(&(s, slot)) = self.wanted.get(self.next) {
+            if s != k {
+                break;
+            }
+            let (n, e) = self.frame.offset_m(lat, lon);
+            self.out[slot] = (self.t_s, [n, e]);
+            self.next += 1;
+        }
+    }
+}
+
+/// What the walk's share of a joint fit's covariance reads of the fit.
+pub(super) struct WalkFit<'a> {
+    /// The fit's model's slopes of its weighted residuals (rows: [`super::joint`]'s
+    /// residuals; columns: `free`).
+    pub a: &'a DMatrix<f64>,
+    /// The linearisation the model was built on (its levelling slopes).
+    pub lin: &'a Linearization,
+    /// σ the epochs were weighed with, rad.
+    pub attitude_sigma_rad: f64,
+    /// Each control point's weight, 1/m (0 for one left out).
+    pub cp_weights: &'a [f64],
+    /// The fit's azimuth, degrees.
+    pub azimuth_deg: f64,
+}
+
+/// The angle random walk's share of the covariance of the free settings of `fit` (in the
+/// optimisers' units; see the module documentation), or `None` without a walk, or where
+/// the model's normal matrix is singular.
+pub(super) fn walk_covariance(
+    walk: &GyroWalk,
+    problem: &Problem<'_>,
+    fit: &WalkFit<'_>,
+) -> Option<DMatrix<f64>> {
+    let q = walk.arw_rad_sqrt_s * walk.arw_rad_sqrt_s;
+    let a = fit.a;
+    let p = a.ncols();
+    if q.is_nan() || q <= 0.0 || p == 0 || a.nrows() == 0 {
+        return None;
+    }
+    let normal_inv = (a.transpose() * a).try_inverse()?;
+    // G = (AᵀA)⁻¹Aᵀ: one column per residual row.
+    let g = &normal_inv * a.transpose();
+    Some(walk_covariance_of(walk, problem, fit, &g))
+}
+
+/// The angle random walk's covariance of the estimates `F r` that the rows of `f` make of
+/// the fit's weighted residuals `r` (`F Σ Fᵀ`, `Σ` the walk's covariance of `r`; see the
+/// module documentation): [`walk_covariance`]'s with `F = G`, and the odometer-lag
+/// search's, whose lag and settings are other functions of the same residuals.
+pub(super) fn walk_covariance_of(
+    walk: &GyroWalk,
+    problem: &Problem<'_>,
+    fit: &WalkFit<'_>,
+    f: &DMatrix<f64>,
+) -> DMatrix<f64> {
+    let q = walk.arw_rad_sqrt_s * walk.arw_rad_sqrt_s;
+    let k = f.nrows();
+    let mut cov = DMatrix::zeros(k, k);
+    if q.is_nan() || q <= 0.0 {
+        return cov;
+    }
+    tilt_share(problem, fit, f, q, &mut cov);
+    if let Some(route) = walk.route(problem) {
+        heading_share(problem, fit, route, f, q, &mut cov);
+    }
+    cov
+}
+
+/// The tilt's walk (see the module documentation), added to `cov`.
+fn tilt_share(
+    problem: &Problem<'_>,
+    fit: &WalkFit<'_>,
+    g: &DMatrix<f64>,
+    q: f64,
+    cov: &mut DMatrix<f64>,
+) {
+    let (Some(pitch), Some(roll)) = (
+        &fit.lin.slopes[Setting::TiltPitch.index()],
+        &fit.lin.slopes[Setting::TiltRoll.index()],
+    ) else {
+        return;
+    };
+    let e = problem.epochs;
+    let p = g.nrows();
+    let response = |k: usize| {
+        Matrix2::new(
+            pitch.theta_rad[k],
+            roll.theta_rad[k],
+            pitch.phi_rad[k],
+            roll.phi_rad[k],
+        )
+    };
+    // The valid epochs' rows, in time order (row 2v, 2v + 1 for the v-th valid epoch).
+    let valid: Vec<usize> = (0..e.block.len()).filter(|&k| e.valid[k]).collect();
+    if valid
+        .iter()
+        .any(|&k| k >= pitch.theta_rad.len() || k >= roll.theta_rad.len())
+    {
+        return;
+    }
+    let scale = q / (fit.attitude_sigma_rad * fit.attitude_sigma_rad);
+    // Σ_{k≥j} G_k M_k, built from the last epoch back.
+    let mut suffix = DMatrix::<f64>::zeros(p, 2);
+    let mut s_j = DMatrix::<f64>::zeros(p, 2);
+    for (v, &k) in valid.iter().enumerate().rev() {
+        let m = response(k);
+        let (col_theta, col_phi) = (g.column(2 * v), g.column(2 * v + 1));
+        for i in 0..p {
+            suffix[(i, 0)] += col_theta[i] * m[(0, 0)] + col_phi[i] * m[(1, 0)];
+            suffix[(i, 1)] += col_theta[i] * m[(0, 1)] + col_phi[i] * m[(1, 1)];
+        }
+        let Some(m_inv) = m.try_inverse() else {
+            continue;
+        };
+        let before = if v > 0 { e.t_s[valid[v - 1]] } else { 0.0 };
+        let dt = (e.t_s[k] - before).max(0.0);
+        for i in 0..p {
+            for c in 0..2 {
+                s_j[(i, c)] = suffix[(i, 0)] * m_inv[(0, c)] + suffix[(i, 1)] * m_inv[(1, c)];
+            }
+        }
+        cov.gemm(scale * dt, &s_j, &s_j.transpose(), 1.0);
+    }
+}
+
+/// The heading's walk (see the module documentation), added to `cov`.
+fn heading_share(
+    problem: &Problem<'_>,
+    fit: &WalkFit<'_>,
+    route: &WalkRoute,
+    g: &DMatrix<f64>,
+    q: f64,
+    cov: &mut DMatrix<f64>,
+) {
+    let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
+    let p = g.nrows();
+    let turn = (fit.azimuth_deg.to_radians() - route.heading0_rad).sin_cos();
+    let turned = |ne: [f64; 2]| {
+        [
+            ne[0] * turn.1 - ne[1] * turn.0,
+            ne[0] * turn.0 + ne[1] * turn.1,
+        ]
+    };
+    // The control points weighed, latest first.
+    let mut cps: Vec<usize> = (0..route.fixes.len())
+        .filter(|&c| {
+            fit.cp_weights.get(c).is_some_and(|w| *w > 0.0) && n_att + 2 * c + 1 < g.ncols()
+        })
+        .collect();
+    if cps.is_empty() {
+        return;
+    }
+    cps.sort_by(|&a, &b| route.fixes[b].0.total_cmp(&route.fixes[a].0));
+    // Σ G_c w_c J p_c and Σ G_c w_c J over the points after the epoch.
+    let mut sum_p = DVector::<f64>::zeros(p);
+    let mut sum_j = DMatrix::<f64>::zeros(p, 2);
+    let mut next = 0;
+    let mut v = DVector::<f64>::zeros(p);
+    for j in (0..route.epochs.len()).rev() {
+        let (t_j, ne_j) = route.epochs[j];
+        while let Some(&c) = cps.get(next) {
+            if route.fixes[c].0 < t_j {
+                break;
+            }
+            let w = fit.cp_weights[c];
+            let pc = turned(route.fixes[c].1);
+            let (g_n, g_e) = (g.column(n_att + 2 * c), g.column(n_att + 2 * c + 1));
+            // J (n, e) = (−e, n): the north row takes −e, the east row n.
+            for i in 0..p {
+                sum_p[i] += w * (-g_n[i] * pc[1] + g_e[i] * pc[0]);
+                sum_j[(i, 0)] += w * g_e[i];
+                sum_j[(i, 1)] -= w * g_n[i];
+            }
+            next += 1;
+        }
+        if next == 0 {
+            continue;
+        }
+        let before = if j > 0 { route.epochs[j - 1].0 } else { 0.0 };
+        let dt = (t_j - before).max(0.0);
+        let pj = turned(ne_j);
+        for i in 0..p {
+            v[i] = sum_p[i] - sum_j[(i, 0)] * pj[0] - sum_j[(i, 1)] * pj[1];
+        }
+        cov.ger(q * dt, &v, &v, 1.0);
+    }
+}
