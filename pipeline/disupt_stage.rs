@@ -200,7 +200,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // 23: the joint fit takes lost and replaced samples' fills' tilt as unknowns.
         // 24: a fill's miss told by consecutive pairs where too few samples about it
         // have both neighbours kept (a log losing lines regularly).
-        version: 25,
+        // 25: the joint's σ take the gyros' angle random walk and the lag's uncertainty.
+        // 26: the hold-outs' predicted spread takes the gyros' walk.
+        version: 26,
         params_hash: params_hash(&(params.before_export(), method, dparams))?,
         inputs,
         outputs: &[

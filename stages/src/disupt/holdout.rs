@@ -6,6 +6,7 @@ use nalgebra::{DMatrix, Matrix2, Vector2};
 use serde::{Deserialize, Serialize};
 
 use super::DisuptError;
+use super::gyro_walk::{WalkFit, walk_covariance_of};
 use super::joint::{
     JointFit, JointModel, JointOptions, attitude_rows, covariance_of, cp_weights, joint_fit,
 };
@@ -56,8 +57,10 @@ pub struct Holdout {
     /// ΔY east there, m.
     pub dy_m: f64,
     /// Predicted 1σ of ΔX, m: the fit without the point, its covariance carried to the
-    /// point's position by the point's sensitivities, and the point's own σ
-    /// (`position_sigma_m`). Absent when that fit has no covariance.
+    /// point's position by the point's sensitivities, the point's own σ
+    /// (`position_sigma_m`) and the gyros' angle random walk's turn of the route to it
+    /// (net of what the fit's settings take of it). Absent when that fit has no
+    /// covariance.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sigma_north_m: Option<f64>,
     /// Predicted 1σ of ΔY, m (as `sigma_north_m`).
@@ -223,9 +226,12 @@ pub fn holdout(
     }
     for i in 0..fixes.len() {
         if !problem.cp_used(i) {
-            // The fit leaves the point out: its own covariance predicts the error there.
-            let spread =
-                predicted_spread(problem, fit, fit.covariance.as_ref(), &fit.free, i, None, p);
+            // The fit leaves the point out: its own model predicts the error there (its
+            // covariance from the residuals' scatter, the gyros' walk apart).
+            let model = JointModel::new(problem, &fit.lin, &fit.free, &fit.weights, None);
+            let c = covariance_of(&model, n_att, fit.inflation, s2);
+            let spread = predicted_spread(problem, fit, c.as_ref(), &fit.free, i, None, p)
+                .map(|s| s + walk_spread(problem, fit, &model, &fit.free, i, None));
             out[i] = Some(Holdout {
                 excluded: true,
                 ..Holdout::new(&fixes[i], fit.y.cp_m[i], spread, n)
@@ -252,7 +258,10 @@ pub fn holdout(
         let c = covariance_of(&model, n_att, fit.inflation, s2);
         let spreads: Vec<_> = visits
             .iter()
-            .map(|&j| predicted_spread(problem, fit, c.as_ref(), &free, j, Some(i), p))
+            .map(|&j| {
+                predicted_spread(problem, fit, c.as_ref(), &free, j, Some(i), p)
+                    .map(|s| s + walk_spread(problem, fit, &model, &free, j, Some(i)))
+            })
             .collect();
         refits.push((visits, pi, spreads));
     }
@@ -297,6 +306,58 @@ fn mark_two_apart(h: &mut [Holdout], static_start: bool) {
             p.apart = true;
         }
     }
+}
+
+/// The gyros' angle random walk's share of the covariance (north, east; m²) of control
+/// point visit `j`'s error after a fit of `model` (whose rows for the point are weighed
+/// out): the walk turns the route to the point itself, and the fit's settings, which
+/// absorb part of the same walk through the other points and the epochs, carry part of
+/// that turn there too. The error is `e = r_j − J_j δ` with `δ = G r` the fit's step
+/// (`G = (AᵀA)⁻¹Aᵀ`) and `r_j` the point's own rows (in metres), so `F = E_j − J_j G`
+/// and the share `F Σ Fᵀ` ([`super::gyro_walk`]); zero without a walk or an inverse.
+fn walk_spread(
+    problem: &Problem<'_>,
+    fit: &JointFit,
+    model: &JointModel,
+    free: &[Setting],
+    j: usize,
+    skip: Option<usize>,
+) -> Matrix2<f64> {
+    let Some(walk) = problem.gyro_walk else {
+        return Matrix2::zeros();
+    };
+    let a = &model.a;
+    let n_att = attitude_rows(problem);
+    let row = n_att + 2 * j;
+    let Some(normal_inv) = a.tr_mul(a).try_inverse() else {
+        return Matrix2::zeros();
+    };
+    if row + 1 >= a.nrows() {
+        return Matrix2::zeros();
+    }
+    let mut jac = DMatrix::zeros(2, free.len());
+    for (k, s) in free.iter().enumerate() {
+        if let Some(slope) = &fit.lin.slopes[s.index()] {
+            jac[(0, k)] = slope.cp_m[j][0];
+            jac[(1, k)] = slope.cp_m[j][1];
+        }
+    }
+    // F = E_j − (J_j (AᵀA)⁻¹) Aᵀ = E_j − (A (J_j (AᵀA)⁻¹)ᵀ)ᵀ, without forming G or Aᵀ.
+    let mut f = -(a * (jac * normal_inv).transpose()).transpose();
+    f[(0, row)] += 1.0;
+    f[(1, row + 1)] += 1.0;
+    // The point's rows as the walk moves them: in metres (weight 1).
+    let mut weights = cp_weights(problem, skip, &fit.weights);
+    weights[j] = 1.0;
+    let walk_fit = WalkFit {
+        a,
+        lin: &fit.lin,
+        attitude_sigma_rad: fit.weights.attitude_sigma_rad,
+        cp_weights: &weights,
+        azimuth_deg: fit.result.x.azimuth_deg,
+    };
+    let c = walk_covariance_of(walk, problem, &walk_fit, &f);
+    Matrix2::new(c[(0, 0)], c[(0, 1)], c[(1, 0)], c[(1, 1)])
 }
 
 /// The predicted covariance (north, east; m²) of control point `i`'s hold-out error:
