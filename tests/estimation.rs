@@ -14,10 +14,19 @@ use crate::util::{read_json, run_until, run_until_with, simulated_run, unz_ok, u
 
 /// A column of a Parquet file, all batches.
 fn column(path: &Path, name: &str) -> Vec<f64> {
+    column_by(path, name, f64_column)
+}
+
+/// A column of a Parquet file, all batches, each read by `read` (a `tables` reader).
+fn column_by<T, E: std::fmt::Debug>(
+    path: &Path,
+    name: &str,
+    read: impl Fn(&arrow::record_batch::RecordBatch, &str) -> Result<Vec<T>, E>,
+) -> Vec<T> {
     let (_, batches) = read_batches(path).unwrap();
     batches
         .iter()
-        .flat_map(|b| f64_column(b, name).unwrap())
+        .flat_map(|b| read(b, name).unwrap())
         .collect()
 }
 
@@ -1507,7 +1516,7 @@ fn as_text_run(run: &Path, ingest: &Path, dst: &Path) {
     }
     std::fs::write(dst.join("imu.txt"), text).unwrap();
     let odo = ingest.join("odometer.parquet");
-    let t_s: Vec<f64> = column_i64(&odo, "t_ns")
+    let t_s: Vec<f64> = column_by(&odo, "t_ns", i64_column)
         .iter()
         .map(|&t| t as f64 * 1e-9)
         .collect();
@@ -1541,15 +1550,6 @@ fn as_text_run(run: &Path, ingest: &Path, dst: &Path) {
     }
     std::fs::write(dst.join("run.toml"), manifest).unwrap();
     std::fs::copy(run.join("truth.json"), dst.join("truth.json")).unwrap();
-}
-
-/// An `Int64` column of a Parquet file, all batches.
-fn column_i64(path: &Path, name: &str) -> Vec<i64> {
-    let (_, batches) = read_batches(path).unwrap();
-    batches
-        .iter()
-        .flat_map(|b| i64_column(b, name).unwrap())
-        .collect()
 }
 
 /// The joint fit's azimuth and drifts less the truth's, in units of its σ, for each run

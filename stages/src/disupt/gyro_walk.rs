@@ -64,11 +64,6 @@ impl GyroWalk {
         }
     }
 
-    /// The angle random walk, rad/√s.
-    pub fn arw_rad_sqrt_s(&self) -> f64 {
-        self.arw_rad_sqrt_s
-    }
-
     /// The route of `problem`'s start (one pass the first time; `None` where the problem
     /// has no stored odometer to run it on).
     fn route(&self, problem: &Problem<'_>) -> Option<&WalkRoute> {
@@ -203,10 +198,18 @@ pub(super) fn walk_covariance(
     if q.is_nan() || q <= 0.0 || p == 0 || a.nrows() == 0 {
         return None;
     }
-    let normal_inv = (a.transpose() * a).try_inverse()?;
-    // G = (AᵀA)⁻¹Aᵀ: one column per residual row.
-    let g = &normal_inv * a.transpose();
-    Some(walk_covariance_of(walk, problem, fit, &g))
+    Some(walk_covariance_of(
+        walk,
+        problem,
+        fit,
+        &least_squares_map(a)?,
+    ))
+}
+
+/// `G = (AᵀA)⁻¹Aᵀ`, the least-squares map from the residuals of a model of slopes `a`
+/// to its step (one column per residual row); `None` where `AᵀA` is singular.
+pub(super) fn least_squares_map(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    Some(a.tr_mul(a).try_inverse()? * a.transpose())
 }
 
 /// The angle random walk's covariance of the estimates `F r` that the rows of `f` make of

@@ -7,7 +7,7 @@ use std::time::Instant;
 use nalgebra::{DMatrix, DVector};
 
 use super::DisuptError;
-use super::gyro_walk::{WalkFit, walk_covariance, walk_covariance_of};
+use super::gyro_walk::{WalkFit, least_squares_map, walk_covariance, walk_covariance_of};
 use super::problem::Problem;
 use super::results::{Component, Criterion, MethodResult, Step, last_cp};
 use super::settings::{DisuptParams, X, x_of};
@@ -308,7 +308,7 @@ impl JointFit {
         if lag_slope.len() != m || lag_slope.iter().any(|v| !v.is_finite()) {
             return None;
         }
-        let g = (a.transpose() * a).try_inverse()? * a.transpose();
+        let g = least_squares_map(a)?;
         let b = DVector::from_column_slice(lag_slope);
         let annihilate = |v: &DVector<f64>| v - a * (&g * v);
         let n_att = attitude_rows(problem);
