@@ -202,7 +202,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         // have both neighbours kept (a log losing lines regularly).
         // 25: the joint's σ take the gyros' angle random walk and the lag's uncertainty.
         // 26: the hold-outs' predicted spread takes the gyros' walk.
-        version: 26,
+        // 27: the corrected route's σ weighs the heading walk's turn against the fit's
+        // uptake of it.
+        version: 27,
         params_hash: params_hash(&(params.before_export(), method, dparams))?,
         inputs,
         outputs: &[

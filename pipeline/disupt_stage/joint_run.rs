@@ -153,8 +153,24 @@ pub(super) fn joint_route_sigma(
         }
         c = c.resize(m + 1, m + 1, 0.0);
         c[(m, m)] = run.lag.sigma_s * run.lag.sigma_s;
+        // The lag's covariance with the settings, where its search gave it.
+        if let Some(lc) = &fit.lag_covariance {
+            for (a, &i) in kept.iter().enumerate() {
+                c[(a, m)] = lc[i];
+                c[(m, a)] = lc[i];
+            }
+        }
     }
-    Some(route_sigma(base, &moved, &ran, &c))
+    // How the kept settings (and the lag, where the uptake has its row and the σ its
+    // pass) took up the heading's walk.
+    let uptake = (fit.walk_uptake.as_ref()).map(|u| {
+        let mut rows = kept.clone();
+        if lag.is_some() && u.settings == fit.free.len() + 1 {
+            rows.push(fit.free.len());
+        }
+        u.select(&rows)
+    });
+    Some(route_sigma(base, &moved, &ran, &c, uptake.as_ref()))
 }
 
 /// Samples between the route σ's values: 0.1 s.

@@ -42,7 +42,7 @@ use argmin::core::Error as ArgminError;
 
 pub use gap_tilts::{GapTiltSteps, GapTilts, MAX_STEPS as MAX_GAP_TILT_STEPS, MIN_STEP_SIGMA_RAD};
 pub use gap_turns::MAX_TURN_STEPS as MAX_GAP_TURN_STEPS;
-pub use gyro_walk::GyroWalk;
+pub use gyro_walk::{GyroWalk, WalkUptake};
 pub use holdout::{
     HOLDOUT_INCONSISTENT_SIGMA, HOLDOUT_MIN_POINTS, Holdout, holdout, holdout_median_max_m,
     inconsistent_points_note, median_max,

@@ -696,6 +696,8 @@ pub fn joint_with_lag(
             {
                 fit.result.sigma = Some(m.sigma);
                 fit.covariance = Some(m.covariance);
+                fit.walk_uptake = m.walk_uptake;
+                fit.lag_covariance = Some(m.lag_covariance);
                 sigma_s = Some(m.lag_sigma_s);
             }
         }

@@ -1,24 +1,29 @@
 //! The joint fit's uncertainty carried along the corrected route.
 //!
-//! Two parts, independent, added as variances:
+//! Two parts, added as variances:
 //! - **The settings.** Their covariance `C` (in the optimisers' units, over the estimated
 //!   parameters) is propagated to each epoch's north and east position and heading
 //!   through their sensitivities `g_k = ∂(north, east, heading)_k / ∂p`, one exact tracked
 //!   pass per parameter moved by its finite-difference step: `σ_k² = g_kᵀ C g_k`. The
-//!   odometer lag, estimated by its own search, adds `(∂/∂L)² σ_L²` from a pass over the
-//!   derive at the moved lag (its covariance with the others is not known and is taken as
-//!   zero).
-//! - **What the settings do not model:** the gyros' angle random walk. A heading that
-//!   walks with density `N` (rad/√s) from the start turns every later displacement, so
-//!   that at `T` the position error is `Σ_i w_i J (p_T − p_i)` (`J` a quarter turn,
-//!   `w_i` the walk's increment over sample `i`): variance `N² Σ_i dt_i (e_T − e_i)²`
-//!   north and `N² Σ_i dt_i (n_T − n_i)²` east, and `N² T` in heading. Taken from the
-//!   start and not conditioned on the control points, this part is an upper bound where
-//!   the fit has pinned the route.
+//!   odometer lag, estimated by its own search, is one more parameter from a pass over
+//!   the derive at the moved lag (its covariance with the settings the search's).
+//! - **The gyros' heading walk,** which the settings do not model. A heading that walks
+//!   with density `N` (rad/√s) turns every later displacement, so that at `T` the position
+//!   is off by `Σ_i w_i J (p_T − p_i)` (`J` a quarter turn, `w_i` the walk's increment
+//!   over sample `i`): variance `N² Σ_i dt_i (e_T − e_i)²` north and
+//!   `N² Σ_i dt_i (n_T − n_i)²` east, and `N² T` in heading, from the start. The fit
+//!   answers much of that turn through the control points the walk moved too, and `C`
+//!   holds that answer's own spread: with the fit's [`WalkUptake`], the walk's share is
+//!   `Σ_i q dt_i (b_Ti + g_T u_i)²` (the turn and the answer together, `WalkCross`), in
+//!   place of the turn and `C`'s heading share apart (which ignored their covariance and
+//!   so overstated the σ where control points pin the route: metres where the errors are
+//!   centimetres). Without an uptake (no walk, no control point weighed) the turn from the
+//!   start is added alone.
 
 use rayon::prelude::*;
 
 use crate::attitude::wrap_pi;
+use crate::disupt::WalkUptake;
 use crate::earth::LocalFrame;
 use crate::strapdown::{
     LaneBatch, MAX_LANES, NavInputs, NavSettings, PassSink, StateAt, in_lanes, run_states_at,
@@ -171,6 +176,7 @@ struct SigmaInOneBatch<'m, 'a> {
     ran: &'m [Ran<'a>],
     base: &'m RouteBase<'a>,
     covariance: &'m nalgebra::DMatrix<f64>,
+    cross: &'m mut Option<WalkCross<'a>>,
     out: &'m mut RouteSigma,
 }
 
@@ -184,6 +190,7 @@ impl LaneBatch for SigmaInOneBatch<'_, '_> {
         let (moved, ran, base, covariance) = (self.moved, self.ran, self.base, self.covariance);
         let samples = &base.samples[..base.y0.len()];
         let out = &mut *self.out;
+        let cross = &mut *self.cross;
         let m = moved.len();
         // Lane `a` runs moved pass `a` (the lanes past the last repeat it: not read); the
         // passes already run follow. Each sensitivity is taken once per sample.
@@ -198,7 +205,10 @@ impl LaneBatch for SigmaInOneBatch<'_, '_> {
                 g.clear();
                 g.extend((0..m).map(|a| sensitivity(&moved[points[a]], &frames[a], y0, states[a])));
                 g.extend(ran.iter().map(|r| r.sensitivity(i, y0)));
-                out.push(&base.walk[i], covariance, &g);
+                let walk = cross
+                    .as_mut()
+                    .map_or(base.walk[i], |x| x.next(base.t_s[i], y0, &g));
+                out.push(walk, covariance, &g);
             },
         );
         [(); N]
@@ -277,6 +287,8 @@ pub struct RouteBase<'a> {
     next: usize,
     /// Running sums over the samples so far: Σdt, Σdt·n, Σdt·n², Σdt·e, Σdt·e².
     sums: [f64; 5],
+    /// Time of each of the samples reached, s from the first (its interval included).
+    t_s: Vec<f64>,
     y0: Vec<[f64; 3]>,
     walk: Vec<[f64; 3]>,
 }
@@ -295,6 +307,7 @@ impl<'a> RouteBase<'a> {
             start: settings.start().local_frame(),
             dt_s,
             arw_q: arw_rad_sqrt_s * arw_rad_sqrt_s,
+            t_s: Vec::with_capacity(samples.len()),
             y0: Vec::with_capacity(samples.len()),
             walk: Vec::with_capacity(samples.len()),
             samples,
@@ -323,6 +336,7 @@ impl PassSink for RouteBase<'_> {
             let q2 = self.arw_q;
             self.walk
                 .push([q2 * north.max(0.0), q2 * east.max(0.0), q2 * sums[0]]);
+            self.t_s.push(sums[0]);
             self.y0.push(state(&self.start, lat, lon, q));
         }
     }
@@ -330,8 +344,9 @@ impl PassSink for RouteBase<'_> {
 
 impl RouteSigma {
     /// Appends the σ at one sample: `g[a]` is moved pass `a`'s sensitivity there, `walk`
-    /// the random walk's variances.
-    fn push(&mut self, walk: &[f64; 3], covariance: &nalgebra::DMatrix<f64>, g: &[[f64; 3]]) {
+    /// what the random walk adds to the variances (north m², east m², heading rad²) beyond
+    /// the covariance's share: its turn from the start, or [`WalkCross`]'s.
+    fn push(&mut self, walk: [f64; 3], covariance: &nalgebra::DMatrix<f64>, g: &[[f64; 3]]) {
         // gᵀ C g of the three quantities, each summed over (a, b) in the same order, the
         // three side by side (three chains of additions where one at a time waited on each).
         let n = g.len();
@@ -349,22 +364,128 @@ impl RouteSigma {
             }
         }
         let [n, e, h] = v.map(|v: f64| v.max(0.0));
-        self.north_m.push((n + walk[0]).sqrt());
-        self.east_m.push((e + walk[1]).sqrt());
-        self.heading_rad.push((h + walk[2]).sqrt());
+        self.north_m.push((n + walk[0]).max(0.0).sqrt());
+        self.east_m.push((e + walk[1]).max(0.0).sqrt());
+        self.heading_rad.push((h + walk[2]).max(0.0).sqrt());
+    }
+}
+
+/// The heading's walk along the route, weighed against the fit's uptake of it
+/// ([`WalkUptake`]), each route sample's interval a kick at its position (one grid and
+/// one set of positions for every term, so that they cancel where they should). A kick
+/// `δ_j` moves the route at a later sample `k` by `δ_j b_kj`, `b_kj = (J (p_k − p_j), 1)`
+/// (north, east, heading), and the settings by `δ_j u_j`, so the walk's share of the
+/// route's variance is `Σ_j q Δt_j (b_kj + S_k u_j)²` (`b_kj` zero for the kicks after
+/// `k`, `S_k` the route's sensitivities): a sum of squares, which the fit's covariance held
+/// only in part (`S_k W S_kᵀ`, its heading share `W`, on its own epochs; that part is
+/// taken out of it here). Expanded, `Σ_{j≤k} q Δt_j b_kj² + 2 S_k X_k + S_k W_r S_kᵀ`, with
+/// `X_k = Σ_{j≤k} q Δt_j b_kj u_jᵀ` from the running sums `U0 = Σ q Δt u_j` and
+/// `U1 = Σ q Δt (J p_j) u_jᵀ` (position rows `J p_k U0ᵀ − U1`, heading row `U0ᵀ`) and
+/// `W_r = Σ_j q Δt_j u_j u_jᵀ` over the whole route, summed before: linear in the run.
+struct WalkCross<'u> {
+    uptake: &'u WalkUptake,
+    /// `W_r`, row by row.
+    route_share: Vec<f64>,
+    /// `U0`, then `U1`'s north and east rows: three rows of the uptake's settings.
+    sums: Vec<f64>,
+    /// Σ q Δt, Σ q Δt n, Σ q Δt n², Σ q Δt e, Σ q Δt e² over the kicks so far.
+    turns: [f64; 5],
+    /// `u_j` of the latest kick.
+    u: Vec<f64>,
+    /// Time of the latest sample, s.
+    t_s: f64,
+}
+
+impl<'u> WalkCross<'u> {
+    /// For the route's samples at times `t_s` and states `y` (north, east, heading).
+    fn new(uptake: &'u WalkUptake, t_s: &[f64], y: &[[f64; 3]]) -> Self {
+        let p = uptake.settings;
+        let mut u = vec![0.0; p];
+        let mut route_share = vec![0.0; p * p];
+        let mut before = 0.0;
+        for (&t, y) in t_s.iter().zip(y) {
+            let q_dt = uptake.q_rad2_s * (t - before).max(0.0);
+            before = t;
+            uptake.step_per_kick(t, y[0], y[1], &mut u);
+            for a in 0..p {
+                for b in 0..p {
+                    route_share[a * p + b] += q_dt * u[a] * u[b];
+                }
+            }
+        }
+        Self {
+            uptake,
+            route_share,
+            sums: vec![0.0; 3 * p],
+            turns: [0.0; 5],
+            u,
+            t_s: 0.0,
+        }
+    }
+
+    /// The kick over the interval to the route's sample at `t_s`, `y` (north, east,
+    /// heading); then the walk's share of the variances there (north m², east m², heading
+    /// rad²) less the fit's heading share's, with `g[a]` the sensitivity to parameter `a`
+    /// (the uptake's settings first).
+    fn next(&mut self, t_s: f64, y: &[f64; 3], g: &[[f64; 3]]) -> [f64; 3] {
+        let p = self.uptake.settings;
+        let (n, e) = (y[0], y[1]);
+        let q_dt = self.uptake.q_rad2_s * (t_s - self.t_s).max(0.0);
+        self.t_s = t_s;
+        self.uptake.step_per_kick(t_s, n, e, &mut self.u);
+        let (u0, u1) = self.sums.split_at_mut(p);
+        let (u1_n, u1_e) = u1.split_at_mut(p);
+        // J p = (−e, n).
+        for a in 0..p {
+            let w = q_dt * self.u[a];
+            u0[a] += w;
+            u1_n[a] -= e * w;
+            u1_e[a] += n * w;
+        }
+        let t = &mut self.turns;
+        t[0] += q_dt;
+        t[1] += q_dt * n;
+        t[2] += q_dt * n * n;
+        t[3] += q_dt * e;
+        t[4] += q_dt * e * e;
+        // Σ_{j≤k} q Δt b_kj²: the north moves by −(e_k − e_j), the east by n_k − n_j.
+        let mut own = [
+            e * e * t[0] - 2.0 * e * t[3] + t[4],
+            n * n * t[0] - 2.0 * n * t[1] + t[2],
+            t[0],
+        ];
+        let (route, fit) = (&self.route_share, &self.uptake.heading_share);
+        let mut fit_share = [0.0; 3];
+        for (a, ga) in g.iter().enumerate().take(p) {
+            let x = [-e * u0[a] - u1_n[a], n * u0[a] - u1_e[a], u0[a]];
+            for (b, gb) in g.iter().enumerate().take(p) {
+                for q in 0..3 {
+                    own[q] += ga[q] * route[a * p + b] * gb[q];
+                    fit_share[q] += ga[q] * fit[a * p + b] * gb[q];
+                }
+            }
+            for q in 0..3 {
+                own[q] += 2.0 * x[q] * ga[q];
+            }
+        }
+        std::array::from_fn(|q| own[q].max(0.0) - fit_share[q])
     }
 }
 
 /// σ along the route of the corrected pass `base` took. `moved[j]` is parameter j moved
 /// by its step, and `ran[j]` parameter `moved.len() + j`, its pass already run;
-/// `covariance` is over the same parameters, in their step units. When the moved passes
-/// fit in one batch of lanes (the same IMU series, at most eight), their sensitivities are
+/// `covariance` is over the same parameters, in their step units. `uptake`, over the first
+/// of those parameters, is how the fit took up the heading's walk: with it, the walk's
+/// share is the route's turn less what the fit answered it with (see the module
+/// documentation); without it, the turn from the start alone. When the moved passes fit
+/// in one batch of lanes (the same IMU series, at most eight), their sensitivities are
 /// combined at each sample as they run; else each pass's are kept.
 pub fn route_sigma(
     base: &RouteBase<'_>,
     moved: &[Moved<'_>],
     ran: &[Ran<'_>],
     covariance: &nalgebra::DMatrix<f64>,
+    uptake: Option<&WalkUptake>,
 ) -> RouteSigma {
     // The samples the pass reached (all of them, once it has run).
     let samples = &base.samples[..base.y0.len()];
@@ -375,6 +496,9 @@ pub fn route_sigma(
     {
         return RouteSigma::default();
     }
+    let mut cross = uptake
+        .filter(|u| u.settings <= m + ran.len() && u.q_rad2_s > 0.0)
+        .map(|u| WalkCross::new(u, &base.t_s, &base.y0));
     let mut out = RouteSigma {
         sample: samples.to_vec(),
         north_m: Vec::with_capacity(samples.len()),
@@ -393,6 +517,7 @@ pub fn route_sigma(
                 ran,
                 base,
                 covariance,
+                cross: &mut cross,
                 out: &mut out,
             },
         );
@@ -405,6 +530,7 @@ pub fn route_sigma(
             g.clear();
             g.extend(by_pass.iter().map(|p| p[i]));
             g.extend(ran.iter().map(|r| r.sensitivity(i, y0)));
+            let walk = (cross.as_mut()).map_or(*walk, |x| x.next(base.t_s[i], y0, &g));
             out.push(walk, covariance, &g);
         }
     }
@@ -546,9 +672,9 @@ mod tests {
                     states: &states,
                     step: moved[m - 1].step,
                 }];
-                route_sigma(&base, &moved[..m - 1], &ran, &c)
+                route_sigma(&base, &moved[..m - 1], &ran, &c, None)
             } else {
-                route_sigma(&base, &moved, &[], &c)
+                route_sigma(&base, &moved, &[], &c, None)
             };
             assert_eq!(sigma.sample, samples);
             let want = sigma_by_hand((&inputs, &corrected), &moved, &c, &samples);
@@ -609,5 +735,82 @@ mod tests {
             assert_eq!(n.to_bits(), want.to_bits(), "sample {k}");
         }
         assert_eq!(all[0][..4], [1.0; 4]);
+    }
+
+    /// The walk's share along the route by its running sums is its definition's sum of
+    /// squares (`Σ_j q Δt_j (b_kj + S_k u_j)²`, each kick's own turn of the route and the
+    /// settings' answer to it), less the fit's heading share, at every sample: three
+    /// stretches, settings sensitivities that vary along the route.
+    #[test]
+    fn the_walks_share_by_running_sums_is_its_sum_of_squares() {
+        let p = 3;
+        let stretches: Vec<f64> = (0..3 * p * 3)
+            .map(|i| ((i * 37 % 17) as f64 - 8.0) * 0.013)
+            .collect();
+        let heading_share: Vec<f64> = (0..p * p)
+            .map(|i| 1e-4 * (1.0 + (i % (p + 1) == 0) as u8 as f64))
+            .collect();
+        let uptake = WalkUptake {
+            q_rad2_s: 4e-10,
+            settings: p,
+            bounds_s: vec![3.0, 7.5],
+            stretches,
+            heading_share,
+        };
+        let n = 120;
+        let t_s: Vec<f64> = (1..=n).map(|k| 0.1 * k as f64).collect();
+        let y: Vec<[f64; 3]> = (0..n)
+            .map(|k| {
+                let t = 0.1 * k as f64;
+                [
+                    100.0 * t.sin() + 20.0 * t,
+                    80.0 * (0.7 * t).cos() - 5.0 * t,
+                    0.3 * t,
+                ]
+            })
+            .collect();
+        let sens = |k: usize| -> Vec<[f64; 3]> {
+            (0..p + 1)
+                .map(|a| {
+                    let f = (a + 1) as f64 * (1.0 + 0.01 * k as f64);
+                    [3.0 * f, -2.0 * f + 0.5, 0.01 * f]
+                })
+                .collect()
+        };
+        let mut cross = WalkCross::new(&uptake, &t_s, &y);
+        let u_at = |j: usize| {
+            let mut u = vec![0.0; p];
+            uptake.step_per_kick(t_s[j], y[j][0], y[j][1], &mut u);
+            u
+        };
+        for k in 0..n {
+            let g = sens(k);
+            let got = cross.next(t_s[k], &y[k], &g);
+            for q in 0..3 {
+                let mut want = 0.0;
+                for j in 0..n {
+                    let dt = t_s[j] - if j > 0 { t_s[j - 1] } else { 0.0 };
+                    let u = u_at(j);
+                    let su: f64 = (0..p).map(|a| g[a][q] * u[a]).sum();
+                    let b = if j <= k {
+                        [-(y[k][1] - y[j][1]), y[k][0] - y[j][0], 1.0][q]
+                    } else {
+                        0.0
+                    };
+                    want += uptake.q_rad2_s * dt * (b + su) * (b + su);
+                }
+                let fit: f64 = (0..p)
+                    .flat_map(|a| (0..p).map(move |b| (a, b)))
+                    .map(|(a, b)| g[a][q] * uptake.heading_share[a * p + b] * g[b][q])
+                    .sum();
+                want -= fit;
+                let scale = want.abs().max(fit.abs()).max(1e-12);
+                assert!(
+                    (got[q] - want).abs() <= 1e-9 * scale,
+                    "sample {k}, quantity {q}: {} against {want}",
+                    got[q]
+                );
+            }
+        }
     }
 }

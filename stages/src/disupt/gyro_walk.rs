@@ -25,6 +25,11 @@
 //!   `v_j = Σ_{c after j} G_c w_c J (p_c − p_j)` the share is `N² Σ_j Δt_j v_j v_jᵀ`.
 //!
 //! Both are suffix sums over the epochs: linear in the run's length.
+//!
+//! The same heading walk turns the corrected route, and the fit takes part of it up
+//! through the control points: [`WalkUptake`] carries, for a kick at any moment, the
+//! settings' step it causes, so that the route's σ ([`crate::route_sigma`]) can weigh
+//! the walk's turn of the route against the fit's answer to it.
 
 use std::sync::OnceLock;
 
@@ -62,6 +67,12 @@ impl GyroWalk {
             arw_rad_sqrt_s,
             route: OnceLock::new(),
         }
+    }
+
+    /// Whether the walk has a variance to add (a positive, finite density).
+    pub(super) fn walks(&self) -> bool {
+        let q = self.arw_rad_sqrt_s * self.arw_rad_sqrt_s;
+        q > 0.0 && q.is_finite()
     }
 
     /// The route of `problem`'s start (one pass the first time; `None` where the problem
@@ -169,11 +180,153 @@ impl PassSink for AtSamples<'_> {
     }
 }
 
+/// How a joint fit's settings take up the heading's walk: a kick `δ` of the heading at
+/// time `t` moves each control point after it by `δ J (p_c − p)` (`J` a quarter turn, `p`
+/// the route's position at `t`), and the fit's step by `δ u(t, p)` with
+/// `u = Σ_{c: t_c ≥ t} F_c w_c J (p_c − p) = a_s − B_s J p`: `F_c` the two columns of the
+/// fit's map from its weighted residuals to its step (`−G`, or the odometer-lag search's
+/// map) at point `c`'s rows, `w_c` its weight, `p_c` its position on the walk's route.
+/// `a_s` and `B_s` are constant between control points: one pair per stretch `s`.
+///
+/// The corrected route at time `T` is then off by `δ (J (p_T − p), 1)` (north, east,
+/// heading) from the kick itself, plus `S_T δ u` through the settings (`S_T` its
+/// sensitivities): the two nearly cancel where control points pin the route, and the
+/// route's σ holds their covariance ([`crate::route_sigma::RouteSigma`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WalkUptake {
+    /// The walk's variance per second, rad²/s.
+    pub q_rad2_s: f64,
+    /// The settings' count: each stretch's `a_s` has this many rows, `B_s` as many.
+    pub settings: usize,
+    /// Time of each weighed control point, s from the first sample, increasing: a kick at
+    /// `t` is in stretch `s`, the first whose bound is at or after `t` (`bounds_s.len()`
+    /// past the last).
+    pub bounds_s: Vec<f64>,
+    /// Each stretch's `a_s` (the settings' units per radian of kick), then `B_s`'s north
+    /// and east columns (per radian and metre): `3 × settings` values a stretch,
+    /// `bounds_s.len() + 1` stretches.
+    pub stretches: Vec<f64>,
+    /// The heading walk's share of the settings' covariance as the fit took it
+    /// (`q Σ_j Δt_j u_j u_jᵀ` over its epochs, on its walk's route), row by row: the part
+    /// of the fit's covariance that the route's σ takes again with the route's own turn.
+    pub heading_share: Vec<f64>,
+}
+
+impl WalkUptake {
+    /// The stretch a kick at `t_s` is in.
+    pub fn stretch_at(&self, t_s: f64) -> usize {
+        self.bounds_s.partition_point(|&b| b < t_s)
+    }
+
+    /// The step per radian of a kick at `t_s` where the route is at `north_m`, `east_m`,
+    /// into `u` (`settings` values).
+    pub fn step_per_kick(&self, t_s: f64, north_m: f64, east_m: f64, u: &mut [f64]) {
+        let p = self.settings;
+        let s = self.stretch_at(t_s);
+        let at = &self.stretches[3 * p * s..3 * p * (s + 1)];
+        // J p = (−e, n).
+        for (i, u) in u.iter_mut().enumerate().take(p) {
+            *u = at[i] - at[p + i] * (-east_m) - at[2 * p + i] * north_m;
+        }
+    }
+
+    /// The same uptake of the settings `rows` only (indices into this one's), in order.
+    pub fn select(&self, rows: &[usize]) -> Self {
+        let p = self.settings;
+        let stretches = self
+            .stretches
+            .chunks_exact(3 * p)
+            .flat_map(|at| (0..3).flat_map(move |part| rows.iter().map(move |&r| at[part * p + r])))
+            .collect();
+        let heading_share = rows
+            .iter()
+            .flat_map(|&r| rows.iter().map(move |&c| self.heading_share[r * p + c]))
+            .collect();
+        Self {
+            q_rad2_s: self.q_rad2_s,
+            settings: rows.len(),
+            bounds_s: self.bounds_s.clone(),
+            stretches,
+            heading_share,
+        }
+    }
+}
+
+/// The heading walk's [`WalkUptake`] by a fit whose step is `f_step` times its weighted
+/// residuals (rows: the settings; columns: [`super::joint`]'s residuals), or `None`
+/// without a walk or its route.
+pub(super) fn walk_uptake(
+    walk: &GyroWalk,
+    problem: &Problem<'_>,
+    fit: &WalkFit<'_>,
+    f_step: &DMatrix<f64>,
+) -> Option<WalkUptake> {
+    if !walk.walks() {
+        return None;
+    }
+    let q = walk.arw_rad_sqrt_s * walk.arw_rad_sqrt_s;
+    let route = walk.route(problem)?;
+    let (n_att, cps) = weighed_points(problem, fit, route, f_step.ncols());
+    let p = f_step.nrows();
+    let turned = turned_by(fit.azimuth_deg, route);
+    // From the last stretch (no point after it) back to the first (every point).
+    let mut stretches = vec![0.0; 3 * p * (cps.len() + 1)];
+    let mut sum = vec![0.0; 3 * p];
+    for (s, &c) in cps.iter().enumerate().rev() {
+        let w = fit.cp_weights[c];
+        let pc = turned(route.fixes[c].1);
+        let (f_n, f_e) = (
+            f_step.column(n_att + 2 * c),
+            f_step.column(n_att + 2 * c + 1),
+        );
+        for i in 0..p {
+            // F_c w J p_c, J p_c = (−e, n); B's north column F_n w, east F_e w.
+            sum[i] += w * (-f_n[i] * pc[1] + f_e[i] * pc[0]);
+            sum[p + i] += w * f_n[i];
+            sum[2 * p + i] += w * f_e[i];
+        }
+        stretches[3 * p * s..3 * p * (s + 1)].copy_from_slice(&sum);
+    }
+    let mut share = DMatrix::zeros(p, p);
+    heading_share(problem, fit, route, f_step, q, &mut share);
+    Some(WalkUptake {
+        q_rad2_s: q,
+        settings: p,
+        bounds_s: cps.iter().map(|&c| route.fixes[c].0).collect(),
+        stretches,
+        heading_share: share.transpose().as_slice().to_vec(),
+    })
+}
+
+/// The attitude rows' count of `problem`, and the control points `fit` weighs whose rows
+/// are among a map's `cols` columns, earliest first (ties in their order).
+fn weighed_points(
+    problem: &Problem<'_>,
+    fit: &WalkFit<'_>,
+    route: &WalkRoute,
+    cols: usize,
+) -> (usize, Vec<usize>) {
+    let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
+    let mut cps: Vec<usize> = (0..route.fixes.len())
+        .filter(|&c| fit.cp_weights.get(c).is_some_and(|w| *w > 0.0) && n_att + 2 * c + 1 < cols)
+        .collect();
+    cps.sort_by(|&a, &b| route.fixes[a].0.total_cmp(&route.fixes[b].0));
+    (n_att, cps)
+}
+
+/// The walk route's (north, east) turned by the fit's azimuth from the route's start.
+fn turned_by(azimuth_deg: f64, route: &WalkRoute) -> impl Fn([f64; 2]) -> [f64; 2] {
+    let turn = (azimuth_deg.to_radians() - route.heading0_rad).sin_cos();
+    move |ne: [f64; 2]| {
+        [
+            ne[0] * turn.1 - ne[1] * turn.0,
+            ne[0] * turn.0 + ne[1] * turn.1,
+        ]
+    }
+}
+
 /// What the walk's share of a joint fit's covariance reads of the fit.
 pub(super) struct WalkFit<'a> {
-    /// The fit's model's slopes of its weighted residuals (rows: [`super::joint`]'s
-    /// residuals; columns: `free`).
-    pub a: &'a DMatrix<f64>,
     /// The linearisation the model was built on (its levelling slopes).
     pub lin: &'a Linearization,
     /// σ the epochs were weighed with, rad.
@@ -184,28 +337,6 @@ pub(super) struct WalkFit<'a> {
     pub azimuth_deg: f64,
 }
 
-/// The angle random walk's share of the covariance of the free settings of `fit` (in the
-/// optimisers' units; see the module documentation), or `None` without a walk, or where
-/// the model's normal matrix is singular.
-pub(super) fn walk_covariance(
-    walk: &GyroWalk,
-    problem: &Problem<'_>,
-    fit: &WalkFit<'_>,
-) -> Option<DMatrix<f64>> {
-    let q = walk.arw_rad_sqrt_s * walk.arw_rad_sqrt_s;
-    let a = fit.a;
-    let p = a.ncols();
-    if q.is_nan() || q <= 0.0 || p == 0 || a.nrows() == 0 {
-        return None;
-    }
-    Some(walk_covariance_of(
-        walk,
-        problem,
-        fit,
-        &least_squares_map(a)?,
-    ))
-}
-
 /// `G = (AᵀA)⁻¹Aᵀ`, the least-squares map from the residuals of a model of slopes `a`
 /// to its step (one column per residual row); `None` where `AᵀA` is singular.
 pub(super) fn least_squares_map(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
@@ -214,7 +345,7 @@ pub(super) fn least_squares_map(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
 
 /// The angle random walk's covariance of the estimates `F r` that the rows of `f` make of
 /// the fit's weighted residuals `r` (`F Σ Fᵀ`, `Σ` the walk's covariance of `r`; see the
-/// module documentation): [`walk_covariance`]'s with `F = G`, and the odometer-lag
+/// module documentation): the fit's own with `F = G`, and the odometer-lag
 /// search's, whose lag and settings are other functions of the same residuals.
 pub(super) fn walk_covariance_of(
     walk: &GyroWalk,
@@ -301,25 +432,14 @@ fn heading_share(
     q: f64,
     cov: &mut DMatrix<f64>,
 ) {
-    let n_att = 2 * problem.epochs.valid.iter().filter(|v| **v).count();
     let p = g.nrows();
-    let turn = (fit.azimuth_deg.to_radians() - route.heading0_rad).sin_cos();
-    let turned = |ne: [f64; 2]| {
-        [
-            ne[0] * turn.1 - ne[1] * turn.0,
-            ne[0] * turn.0 + ne[1] * turn.1,
-        ]
-    };
+    let turned = turned_by(fit.azimuth_deg, route);
     // The control points weighed, latest first.
-    let mut cps: Vec<usize> = (0..route.fixes.len())
-        .filter(|&c| {
-            fit.cp_weights.get(c).is_some_and(|w| *w > 0.0) && n_att + 2 * c + 1 < g.ncols()
-        })
-        .collect();
+    let (n_att, mut cps) = weighed_points(problem, fit, route, g.ncols());
     if cps.is_empty() {
         return;
     }
-    cps.sort_by(|&a, &b| route.fixes[b].0.total_cmp(&route.fixes[a].0));
+    cps.reverse();
     // Σ G_c w_c J p_c and Σ G_c w_c J over the points after the epoch.
     let mut sum_p = DVector::<f64>::zeros(p);
     let mut sum_j = DMatrix::<f64>::zeros(p, 2);

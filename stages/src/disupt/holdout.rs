@@ -350,7 +350,6 @@ fn walk_spread(
     let mut weights = cp_weights(problem, skip, &fit.weights);
     weights[j] = 1.0;
     let walk_fit = WalkFit {
-        a,
         lin: &fit.lin,
         attitude_sigma_rad: fit.weights.attitude_sigma_rad,
         cp_weights: &weights,

@@ -7,7 +7,9 @@ use std::time::Instant;
 use nalgebra::{DMatrix, DVector};
 
 use super::DisuptError;
-use super::gyro_walk::{WalkFit, least_squares_map, walk_covariance, walk_covariance_of};
+use super::gyro_walk::{
+    WalkFit, WalkUptake, least_squares_map, walk_covariance_of, walk_uptake as walk_uptake_of,
+};
 use super::problem::Problem;
 use super::results::{Component, Criterion, MethodResult, Step, last_cp};
 use super::settings::{DisuptParams, X, x_of};
@@ -273,6 +275,11 @@ pub struct LagMarginal {
     /// The estimated settings' covariance with the lag's uncertainty in it, in the order
     /// of the fit's free settings ([`JointFit::covariance`]'s).
     pub covariance: DMatrix<f64>,
+    /// Each estimated setting's covariance with the lag (the settings' units times s).
+    pub lag_covariance: DVector<f64>,
+    /// How those settings and then the lag take up the gyros' heading walk, the lag's
+    /// search in their step ([`JointFit::walk_uptake`]'s, one row more).
+    pub walk_uptake: Option<WalkUptake>,
 }
 
 impl JointFit {
@@ -347,15 +354,16 @@ impl JointFit {
             let col = f.column(j);
             cov.ger(var, &col, &col, 1.0);
         }
+        let mut walk_uptake = None;
         if let Some(walk) = problem.gyro_walk {
             let fit = WalkFit {
-                a,
                 lin: &self.lin,
                 attitude_sigma_rad: self.weights.attitude_sigma_rad,
                 cp_weights: &cp_weights(problem, None, &self.weights),
                 azimuth_deg,
             };
             cov += walk_covariance_of(walk, problem, &fit, &f);
+            walk_uptake = walk_uptake_of(walk, problem, &fit, &f);
         }
         let mut sigma = X::default();
         for (k, &s) in self.free.iter().enumerate() {
@@ -366,6 +374,8 @@ impl JointFit {
             sigma,
             lag_sigma_s,
             covariance: cov.view((0, 0), (p, p)).into_owned(),
+            lag_covariance: cov.view((0, p), (p, 1)).column(0).into_owned(),
+            walk_uptake,
         })
     }
 }
@@ -392,27 +402,40 @@ pub(super) fn covariance_of(
 }
 
 /// The gyros' angle random walk's share of the covariance of `model`'s free settings
-/// ([`super::gyro_walk`]), zero where the problem has no walk or the model no inverse.
-fn walk_share(
+/// ([`super::gyro_walk`]), zero where the problem has no walk or the model no inverse;
+/// and when `uptake` is asked the fit's [`WalkUptake`] of the heading's walk (its step
+/// being `−G r`), from the same least-squares map.
+fn walk_share_and_uptake(
     problem: &Problem<'_>,
     model: &JointModel,
     lin: &Linearization,
     w: &DisuptParams,
     skip_cp: Option<usize>,
     azimuth_deg: f64,
-) -> DMatrix<f64> {
+    uptake: bool,
+) -> (DMatrix<f64>, Option<WalkUptake>) {
     let n = model.a.ncols();
+    let zero = || DMatrix::zeros(n, n);
     let Some(walk) = problem.gyro_walk else {
-        return DMatrix::zeros(n, n);
+        return (zero(), None);
     };
     let fit = WalkFit {
-        a: &model.a,
         lin,
         attitude_sigma_rad: w.attitude_sigma_rad,
         cp_weights: &cp_weights(problem, skip_cp, w),
         azimuth_deg,
     };
-    walk_covariance(walk, problem, &fit).unwrap_or_else(|| DMatrix::zeros(n, n))
+    if !walk.walks() || n == 0 || model.a.nrows() == 0 {
+        return (zero(), None);
+    }
+    let Some(g) = least_squares_map(&model.a) else {
+        return (zero(), None);
+    };
+    let share = walk_covariance_of(walk, problem, &fit, &g);
+    let uptake = uptake
+        .then(|| walk_uptake_of(walk, problem, &fit, &(-g)))
+        .flatten();
+    (share, uptake)
 }
 
 /// How [`joint_fit`] weighs and what it leaves out.
@@ -452,6 +475,13 @@ pub struct JointFit {
     pub free: Vec<Setting>,
     /// Their covariance, in the optimisers' units (rows and columns follow `free`).
     pub covariance: Option<DMatrix<f64>>,
+    /// How the settings take up the gyros' heading walk (rows follow `free`, then the
+    /// odometer lag's where [`Self::lag_covariance`] is known), for the corrected route's
+    /// σ; `None` without a walk or a covariance.
+    pub walk_uptake: Option<WalkUptake>,
+    /// Each setting's covariance with the odometer lag, where the lag's search gave it
+    /// ([`JointFit::lag_marginal`]).
+    pub lag_covariance: Option<DVector<f64>>,
     /// The attitude residuals' variance inflation (ΔΘ, ΔΦ) the covariance took.
     pub(super) inflation: [f64; 2],
     pub(super) lin: Linearization,
@@ -627,8 +657,14 @@ pub fn joint_fit(
     let r = joint_residuals(problem, &y, &pr, &w, skip);
     let n_att = attitude_rows(problem);
     let inflation = attitude_inflation(&r[..n_att.min(r.len())]);
-    let covariance = covariance_of(&model, n_att, inflation, cost / dof)
-        .map(|c| c + walk_share(problem, &model, lin, &w, skip, x.azimuth_deg));
+    let (covariance, walk_uptake) = match covariance_of(&model, n_att, inflation, cost / dof) {
+        Some(c) => {
+            let (share, uptake) =
+                walk_share_and_uptake(problem, &model, lin, &w, skip, x.azimuth_deg, true);
+            (Some(c + share), uptake)
+        }
+        None => (None, None),
+    };
     // 1σ of each estimated setting (0 for the others).
     let sigma = covariance.as_ref().map(|c| {
         let mut sd = X::default();
@@ -670,6 +706,8 @@ pub fn joint_fit(
         attitude_sigma_rad: w.attitude_sigma_rad,
         free: free.to_vec(),
         covariance,
+        walk_uptake,
+        lag_covariance: None,
         inflation,
         lin: lin.clone(),
         weights: w,
@@ -734,7 +772,16 @@ impl JointFit {
                 let step = free.iter().position(|s| *s == Setting::Azimuth);
                 let azimuth_deg =
                     lin.p_ref[Setting::Azimuth.index()] + step.map_or(0.0, |k| delta[k]);
-                c + walk_share(problem, &model, &lin, &self.weights, None, azimuth_deg)
+                let share = walk_share_and_uptake(
+                    problem,
+                    &model,
+                    &lin,
+                    &self.weights,
+                    None,
+                    azimuth_deg,
+                    false,
+                );
+                c + share.0
             });
         Ok(covariance.map(|covariance| SolvedWith {
             k: self.free.len(),
