@@ -69,10 +69,11 @@ impl GyroWalk {
         }
     }
 
-    /// Whether the walk has a variance to add (a positive, finite density).
-    pub(super) fn walks(&self) -> bool {
+    /// The walk's variance per second, rad²/s, where it has one to add (a positive,
+    /// finite density).
+    pub(super) fn q_rad2_s(&self) -> Option<f64> {
         let q = self.arw_rad_sqrt_s * self.arw_rad_sqrt_s;
-        q > 0.0 && q.is_finite()
+        (q > 0.0 && q.is_finite()).then_some(q)
     }
 
     /// The route of `problem`'s start (one pass the first time; `None` where the problem
@@ -224,9 +225,9 @@ impl WalkUptake {
         let p = self.settings;
         let s = self.stretch_at(t_s);
         let at = &self.stretches[3 * p * s..3 * p * (s + 1)];
-        // J p = (−e, n).
+        // J p = (−e, n): `a − B_n (−e) − B_e n`.
         for (i, u) in u.iter_mut().enumerate().take(p) {
-            *u = at[i] - at[p + i] * (-east_m) - at[2 * p + i] * north_m;
+            *u = at[i] - at[2 * p + i] * north_m + at[p + i] * east_m;
         }
     }
 
@@ -253,19 +254,17 @@ impl WalkUptake {
 }
 
 /// The heading walk's [`WalkUptake`] by a fit whose step is `f_step` times its weighted
-/// residuals (rows: the settings; columns: [`super::joint`]'s residuals), or `None`
-/// without a walk or its route.
-pub(super) fn walk_uptake(
-    walk: &GyroWalk,
+/// residuals (rows: the settings; columns: [`super::joint`]'s residuals), on the walk's
+/// `route`, with `q` its variance per second. Its heading share is also added to `cov`
+/// (the heading's walk, see the module documentation).
+fn uptake_of(
     problem: &Problem<'_>,
     fit: &WalkFit<'_>,
+    route: &WalkRoute,
     f_step: &DMatrix<f64>,
-) -> Option<WalkUptake> {
-    if !walk.walks() {
-        return None;
-    }
-    let q = walk.arw_rad_sqrt_s * walk.arw_rad_sqrt_s;
-    let route = walk.route(problem)?;
+    q: f64,
+    cov: &mut DMatrix<f64>,
+) -> WalkUptake {
     let (n_att, cps) = weighed_points(problem, fit, route, f_step.ncols());
     let p = f_step.nrows();
     let turned = turned_by(fit.azimuth_deg, route);
@@ -287,15 +286,31 @@ pub(super) fn walk_uptake(
         }
         stretches[3 * p * s..3 * p * (s + 1)].copy_from_slice(&sum);
     }
-    let mut share = DMatrix::zeros(p, p);
-    heading_share(problem, fit, route, f_step, q, &mut share);
-    Some(WalkUptake {
+    let mut uptake = WalkUptake {
         q_rad2_s: q,
         settings: p,
         bounds_s: cps.iter().map(|&c| route.fixes[c].0).collect(),
         stretches,
-        heading_share: share.transpose().as_slice().to_vec(),
-    })
+        heading_share: Vec::new(),
+    };
+    // `q Σ_j Δt_j u_j u_jᵀ` over the epochs a point follows (the last stretch's `u` is 0).
+    let mut share = DMatrix::zeros(p, p);
+    let mut u = DVector::<f64>::zeros(p);
+    let last = uptake.bounds_s.last().copied().unwrap_or(f64::NEG_INFINITY);
+    for j in (0..route.epochs.len()).rev() {
+        let (t_j, ne_j) = route.epochs[j];
+        if t_j > last {
+            continue;
+        }
+        let before = if j > 0 { route.epochs[j - 1].0 } else { 0.0 };
+        let dt = (t_j - before).max(0.0);
+        let pj = turned(ne_j);
+        uptake.step_per_kick(t_j, pj[0], pj[1], u.as_mut_slice());
+        share.ger(q * dt, &u, &u, 1.0);
+        cov.ger(q * dt, &u, &u, 1.0);
+    }
+    uptake.heading_share = share.transpose().as_slice().to_vec();
+    uptake
 }
 
 /// The attitude rows' count of `problem`, and the control points `fit` weighs whose rows
@@ -345,7 +360,7 @@ pub(super) fn least_squares_map(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
 
 /// The angle random walk's covariance of the estimates `F r` that the rows of `f` make of
 /// the fit's weighted residuals `r` (`F Σ Fᵀ`, `Σ` the walk's covariance of `r`; see the
-/// module documentation): the fit's own with `F = G`, and the odometer-lag
+/// module documentation): the fit's own with `F` its step's map, and the odometer-lag
 /// search's, whose lag and settings are other functions of the same residuals.
 pub(super) fn walk_covariance_of(
     walk: &GyroWalk,
@@ -353,17 +368,25 @@ pub(super) fn walk_covariance_of(
     fit: &WalkFit<'_>,
     f: &DMatrix<f64>,
 ) -> DMatrix<f64> {
-    let q = walk.arw_rad_sqrt_s * walk.arw_rad_sqrt_s;
+    walk_covariance_and_uptake(walk, problem, fit, f).0
+}
+
+/// [`walk_covariance_of`], and the heading walk's [`WalkUptake`] by the estimates when
+/// `f` is the fit's step's map (`None` without a walk or its route).
+pub(super) fn walk_covariance_and_uptake(
+    walk: &GyroWalk,
+    problem: &Problem<'_>,
+    fit: &WalkFit<'_>,
+    f: &DMatrix<f64>,
+) -> (DMatrix<f64>, Option<WalkUptake>) {
     let k = f.nrows();
     let mut cov = DMatrix::zeros(k, k);
-    if q.is_nan() || q <= 0.0 {
-        return cov;
-    }
+    let Some(q) = walk.q_rad2_s() else {
+        return (cov, None);
+    };
     tilt_share(problem, fit, f, q, &mut cov);
-    if let Some(route) = walk.route(problem) {
-        heading_share(problem, fit, route, f, q, &mut cov);
-    }
-    cov
+    let uptake = (walk.route(problem)).map(|route| uptake_of(problem, fit, route, f, q, &mut cov));
+    (cov, uptake)
 }
 
 /// The tilt's walk (see the module documentation), added to `cov`.
@@ -420,57 +443,5 @@ fn tilt_share(
             }
         }
         cov.gemm(scale * dt, &s_j, &s_j.transpose(), 1.0);
-    }
-}
-
-/// The heading's walk (see the module documentation), added to `cov`.
-fn heading_share(
-    problem: &Problem<'_>,
-    fit: &WalkFit<'_>,
-    route: &WalkRoute,
-    g: &DMatrix<f64>,
-    q: f64,
-    cov: &mut DMatrix<f64>,
-) {
-    let p = g.nrows();
-    let turned = turned_by(fit.azimuth_deg, route);
-    // The control points weighed, latest first.
-    let (n_att, mut cps) = weighed_points(problem, fit, route, g.ncols());
-    if cps.is_empty() {
-        return;
-    }
-    cps.reverse();
-    // Σ G_c w_c J p_c and Σ G_c w_c J over the points after the epoch.
-    let mut sum_p = DVector::<f64>::zeros(p);
-    let mut sum_j = DMatrix::<f64>::zeros(p, 2);
-    let mut next = 0;
-    let mut v = DVector::<f64>::zeros(p);
-    for j in (0..route.epochs.len()).rev() {
-        let (t_j, ne_j) = route.epochs[j];
-        while let Some(&c) = cps.get(next) {
-            if route.fixes[c].0 < t_j {
-                break;
-            }
-            let w = fit.cp_weights[c];
-            let pc = turned(route.fixes[c].1);
-            let (g_n, g_e) = (g.column(n_att + 2 * c), g.column(n_att + 2 * c + 1));
-            // J (n, e) = (−e, n): the north row takes −e, the east row n.
-            for i in 0..p {
-                sum_p[i] += w * (-g_n[i] * pc[1] + g_e[i] * pc[0]);
-                sum_j[(i, 0)] += w * g_e[i];
-                sum_j[(i, 1)] -= w * g_n[i];
-            }
-            next += 1;
-        }
-        if next == 0 {
-            continue;
-        }
-        let before = if j > 0 { route.epochs[j - 1].0 } else { 0.0 };
-        let dt = (t_j - before).max(0.0);
-        let pj = turned(ne_j);
-        for i in 0..p {
-            v[i] = sum_p[i] - sum_j[(i, 0)] * pj[0] - sum_j[(i, 1)] * pj[1];
-        }
-        cov.ger(q * dt, &v, &v, 1.0);
     }
 }

@@ -7,9 +7,7 @@ use std::time::Instant;
 use nalgebra::{DMatrix, DVector};
 
 use super::DisuptError;
-use super::gyro_walk::{
-    WalkFit, WalkUptake, least_squares_map, walk_covariance_of, walk_uptake as walk_uptake_of,
-};
+use super::gyro_walk::{WalkFit, WalkUptake, least_squares_map, walk_covariance_and_uptake};
 use super::problem::Problem;
 use super::results::{Component, Criterion, MethodResult, Step, last_cp};
 use super::settings::{DisuptParams, X, x_of};
@@ -362,8 +360,9 @@ impl JointFit {
                 cp_weights: &cp_weights(problem, None, &self.weights),
                 azimuth_deg,
             };
-            cov += walk_covariance_of(walk, problem, &fit, &f);
-            walk_uptake = walk_uptake_of(walk, problem, &fit, &f);
+            let (share, uptake) = walk_covariance_and_uptake(walk, problem, &fit, &f);
+            cov += share;
+            walk_uptake = uptake;
         }
         let mut sigma = X::default();
         for (k, &s) in self.free.iter().enumerate() {
@@ -402,22 +401,23 @@ pub(super) fn covariance_of(
 }
 
 /// The gyros' angle random walk's share of the covariance of `model`'s free settings
-/// ([`super::gyro_walk`]), zero where the problem has no walk or the model no inverse;
-/// and when `uptake` is asked the fit's [`WalkUptake`] of the heading's walk (its step
-/// being `−G r`), from the same least-squares map.
-fn walk_share_and_uptake(
+/// ([`super::gyro_walk`]), zero where the problem has no walk or the model no inverse,
+/// and the fit's [`WalkUptake`] of the heading's walk (its step being `−G r`).
+fn walk_share(
     problem: &Problem<'_>,
     model: &JointModel,
     lin: &Linearization,
     w: &DisuptParams,
     skip_cp: Option<usize>,
     azimuth_deg: f64,
-    uptake: bool,
 ) -> (DMatrix<f64>, Option<WalkUptake>) {
     let n = model.a.ncols();
-    let zero = || DMatrix::zeros(n, n);
-    let Some(walk) = problem.gyro_walk else {
-        return (zero(), None);
+    let walk = problem.gyro_walk.filter(|walk| walk.q_rad2_s().is_some());
+    let step = walk
+        .filter(|_| n > 0 && model.a.nrows() > 0)
+        .and_then(|_| least_squares_map(&model.a));
+    let (Some(walk), Some(g)) = (walk, step) else {
+        return (DMatrix::zeros(n, n), None);
     };
     let fit = WalkFit {
         lin,
@@ -425,17 +425,7 @@ fn walk_share_and_uptake(
         cp_weights: &cp_weights(problem, skip_cp, w),
         azimuth_deg,
     };
-    if !walk.walks() || n == 0 || model.a.nrows() == 0 {
-        return (zero(), None);
-    }
-    let Some(g) = least_squares_map(&model.a) else {
-        return (zero(), None);
-    };
-    let share = walk_covariance_of(walk, problem, &fit, &g);
-    let uptake = uptake
-        .then(|| walk_uptake_of(walk, problem, &fit, &(-g)))
-        .flatten();
-    (share, uptake)
+    walk_covariance_and_uptake(walk, problem, &fit, &(-g))
 }
 
 /// How [`joint_fit`] weighs and what it leaves out.
@@ -659,8 +649,7 @@ pub fn joint_fit(
     let inflation = attitude_inflation(&r[..n_att.min(r.len())]);
     let (covariance, walk_uptake) = match covariance_of(&model, n_att, inflation, cost / dof) {
         Some(c) => {
-            let (share, uptake) =
-                walk_share_and_uptake(problem, &model, lin, &w, skip, x.azimuth_deg, true);
+            let (share, uptake) = walk_share(problem, &model, lin, &w, skip, x.azimuth_deg);
             (Some(c + share), uptake)
         }
         None => (None, None),
@@ -772,16 +761,7 @@ impl JointFit {
                 let step = free.iter().position(|s| *s == Setting::Azimuth);
                 let azimuth_deg =
                     lin.p_ref[Setting::Azimuth.index()] + step.map_or(0.0, |k| delta[k]);
-                let share = walk_share_and_uptake(
-                    problem,
-                    &model,
-                    &lin,
-                    &self.weights,
-                    None,
-                    azimuth_deg,
-                    false,
-                );
-                c + share.0
+                c + walk_share(problem, &model, &lin, &self.weights, None, azimuth_deg).0
             });
         Ok(covariance.map(|covariance| SolvedWith {
             k: self.free.len(),
