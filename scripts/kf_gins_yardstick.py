@@ -101,6 +101,12 @@ def main() -> None:
     p.add_argument("--rounds", type=int, default=6, help="KF-GINS passes, each followed by --per-round disupt processes")
     p.add_argument("--per-round", type=int, default=5)
     p.add_argument("--campaigns", type=int, default=0, help="cold `unz bench campaign`s, each between two KF-GINS passes")
+    p.add_argument(
+        "--after-pause",
+        type=float,
+        default=0.0,
+        help="also time, each round, one disupt process started this many seconds after the machine went idle",
+    )
     a = p.parse_args()
     unz = str(Path(a.unz).resolve())
     work = Path(a.work or tempfile.mkdtemp(prefix="kf-gins-yardstick-")).resolve()
@@ -112,7 +118,7 @@ def main() -> None:
     kf_dir.mkdir(exist_ok=True)
     config = write_kf_gins_inputs(run, out / "sim-0041" / "ingest", kf_dir)
 
-    passes, back_to_back, firsts, campaigns = [], [], [], []
+    passes, back_to_back, firsts, paused, campaigns = [], [], [], [], []
     for _ in range(a.rounds):
         passes.append(timed([a.kf_gins, str(config)]))
         for i in range(a.per_round):
@@ -120,6 +126,13 @@ def main() -> None:
             # The first after a KF-GINS pass starts, as a user's would, seconds after the
             # process before it; the others back to back.
             (firsts if i == 0 else back_to_back).append(timed([unz, "disupt", str(run), "--out", str(out)]))
+        if a.after_pause > 0:
+            # As a user's first command after a pause: a shared VM's host may take back
+            # the guest's free memory meanwhile, and the process's pages cost it more.
+            shutil.rmtree(out / "sim-0041" / "disupt", ignore_errors=True)
+            os.sync()
+            time.sleep(a.after_pause)
+            paused.append(timed([unz, "disupt", str(run), "--out", str(out)]))
     for _ in range(a.campaigns):
         passes.append(timed([a.kf_gins, str(config)]))
         os.sync()
@@ -130,7 +143,11 @@ def main() -> None:
 
     k = statistics.median(passes)
     print(f"KF-GINS pass: median {k:.3f} s of {len(passes)} ({' '.join(f'{x:.2f}' for x in passes)})")
-    for what, ds in [("back to back", back_to_back), ("each first after a KF-GINS pass", firsts)]:
+    for what, ds in [
+        ("back to back", back_to_back),
+        ("each first after a KF-GINS pass", firsts),
+        (f"each after {a.after_pause:g} s idle", paused),
+    ]:
         if not ds:
             continue
         d, q = statistics.median(ds), sorted(ds)
