@@ -6,7 +6,9 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use arrow::array::{Array, Float32Array, Float64Array, Int64Array, RecordBatch, StringArray};
+use arrow::array::{
+    Array, Float32Array, Float64Array, Int64Array, RecordBatch, StringArray, StringBuilder,
+};
 use arrow::datatypes::{Float32Type, Float64Type, Int64Type, SchemaRef};
 use unz_formats::FormatError;
 use unz_formats::parquet_io::{ParquetSink, for_each_batch_of, write_batch};
@@ -185,11 +187,17 @@ pub fn method_kryt1(method: &str, d: &Derived, s: &Kryt1Series) -> MethodKryt1 {
     }
 }
 
+/// The `method` column: each name repeated over its rows (built in place, without a
+/// reference to the name per row first).
 fn method_column<'a>(names: impl Iterator<Item = (&'a str, usize)>) -> Arc<StringArray> {
-    let values: Vec<&str> = names
-        .flat_map(|(n, len)| std::iter::repeat_n(n, len))
-        .collect();
-    Arc::new(StringArray::from(values))
+    let names: Vec<(&str, usize)> = names.collect();
+    let rows = names.iter().map(|&(_, len)| len).sum();
+    let bytes = names.iter().map(|&(n, len)| n.len() * len).sum();
+    let mut column = StringBuilder::with_capacity(rows, bytes);
+    for (n, len) in names {
+        (0..len).for_each(|_| column.append_value(n));
+    }
+    Arc::new(column.finish())
 }
 
 fn cat<T: Copy>(parts: impl Iterator<Item = Vec<T>>) -> Vec<T> {
@@ -253,18 +261,18 @@ impl<'t> TracksWriter<'t> {
                 (n as f32, e as f32)
             })
             .unzip();
-        let degrees = |v: &[f64]| {
-            Arc::new(Float64Array::from_iter_values(
-                v.iter().map(|x| x.to_degrees()),
-            ))
+        // The track's radians become the file's degrees in place.
+        let degrees = |mut v: Vec<f64>| {
+            v.iter_mut().for_each(|x| *x = x.to_degrees());
+            Arc::new(Float64Array::from(v))
         };
         let batch = RecordBatch::try_new(
             self.schema.clone(),
             vec![
                 method_column(std::iter::once((t.method.as_str(), rows))),
                 Arc::new(Int64Array::from(t_ns[..rows].to_vec())),
-                degrees(&t.lat_rad),
-                degrees(&t.lon_rad),
+                degrees(t.lat_rad),
+                degrees(t.lon_rad),
                 Arc::new(Float32Array::from(t.h_m)),
                 Arc::new(Float32Array::from(north_m)),
                 Arc::new(Float32Array::from(east_m)),

@@ -242,7 +242,7 @@ impl TrailingColumns {
 }
 
 /// Bytes a table's file is written in at a time (the last write may be shorter).
-const FILE_BUFFER_BYTES: usize = 1 << 20;
+const FILE_BUFFER_BYTES: usize = 1 << 18;
 
 /// Rows of a batch below which its columns are encoded one after the other: spreading
 /// them over threads costs more than it saves.
@@ -309,8 +309,11 @@ impl ParquetSink {
         let file = AtomicFile::create(dest)?;
         let props = writer_properties(&schema, rows).map_err(|e| parquet_err(dest, e))?;
         // The Parquet writer writes through an 8-KiB buffer, and copies the column chunks
-        // it appends in 8-KiB pieces: this buffer makes them writes of a MiB (4.8 MB went
-        // into the page cache in 3.4 ms in 8-KiB writes, in 0.8 ms in 1-MiB ones).
+        // it appends in 8-KiB pieces: this buffer makes them writes of 256 KiB (4.8 MB
+        // went into the page cache in 3.4 ms in 8-KiB writes, in 0.8 ms in 1-MiB ones;
+        // 256-KiB ones took as long as 1-MiB ones, and a buffer of a MiB is memory the
+        // process touches for each file it writes at once: 370 of the 40-minute disupt
+        // process's page faults).
         // The file is written front to back, and hashed as it is
         // ([`crate::hashing_writer`]).
         let handle = file.hashed_writer(FILE_BUFFER_BYTES)?;

@@ -1,9 +1,9 @@
 //! The corrected route's heights at the control points, and the odometer pitch boresight
 //! they show ([`disupt::fit_odo_pitch`]).
 
-use unz_stages::criteria::ControlPointFix;
+use unz_stages::criteria::{ControlPointFix, FixPose};
 use unz_stages::disupt::{self, HeightError, OdoPitchFit};
-use unz_stages::strapdown::{self, CriteriaSink, NavInputs, NavSettings};
+use unz_stages::strapdown::{self, NavInputs, NavSettings, PassSink};
 
 use crate::method_tables::KeptTrack;
 
@@ -15,8 +15,6 @@ pub(super) struct CorrectedPass<'a> {
     /// The vehicle's configured pitch boresight, deg (`settings` have it).
     pub(super) odo_pitch_deg: f64,
     pub(super) fixes: &'a [ControlPointFix],
-    /// The criteria's block (the probe keeps what the criteria read).
-    pub(super) block: usize,
     /// The samples `tracks.parquet` keeps.
     pub(super) kept_samples: &'a [usize],
 }
@@ -41,22 +39,17 @@ pub(super) fn odo_pitch_of(
     if !fit.applied {
         return Some(fit);
     }
-    let mut probe = [CriteriaSink::default()];
     let tan_step = fit.applied_rad().tan() - tan_base;
-    let fix_samples = pass.fixes.iter().map(|f| f.sample);
-    strapdown::run_criteria(
+    let mut probe = Probe::new(pass.fixes, pass.kept_samples);
+    strapdown::run(
         &pass.inputs,
-        &[NavSettings {
+        &NavSettings {
             odo_pitch_rad: fit.applied_rad(),
             ..pass.settings
-        }],
-        pass.block,
-        &fix_samples
-            .chain(pass.kept_samples.iter().copied())
-            .collect::<Vec<_>>(),
+        },
         &mut probe,
     );
-    let probed = disupt::height_errors_at(pass.fixes, |k| probe[0].position_at(k));
+    let probed = disupt::height_errors_at(pass.fixes, |k| probe.pose_at(k));
     let fit = disupt::fit_odo_pitch(
         &disupt::with_slopes(&heights, &probed, tan_step),
         pass.odo_pitch_deg,
@@ -64,11 +57,68 @@ pub(super) fn odo_pitch_of(
     .unwrap_or(fit);
     // The track's rows are its kept samples the pass reached, in order.
     let ratio = (fit.applied_rad().tan() - tan_base) / tan_step;
-    for (h, &k) in track.h_m.iter_mut().zip(pass.kept_samples) {
-        if let Some(p) = probe[0].position_at(k) {
-            let without = f64::from(*h);
-            *h = (without + (p.h_m - without) * ratio) as f32;
-        }
+    for (h, &probed_m) in track.h_m.iter_mut().zip(&probe.kept_h_m) {
+        let without = f64::from(*h);
+        *h = (without + (probed_m - without) * ratio) as f32;
     }
     Some(fit)
+}
+
+/// What the boresight's probe pass keeps: its poses at the control points' samples and
+/// its heights at the track's kept samples; not the criteria's blocks, which the probe
+/// does not read, nor a pose at each kept sample (1.7 MB at 40 minutes, 10 Hz).
+struct Probe<'a> {
+    /// The control points' samples not reached yet, in decreasing order (popped).
+    fixes_left: Vec<usize>,
+    /// The poses at the control points' samples, in sample order.
+    poses: Vec<(usize, FixPose)>,
+    /// The track's kept samples (in increasing order) and the next one not reached.
+    kept: &'a [usize],
+    next_kept: usize,
+    /// The heights at the kept samples reached, m.
+    kept_h_m: Vec<f64>,
+}
+
+impl<'a> Probe<'a> {
+    fn new(fixes: &[ControlPointFix], kept: &'a [usize]) -> Self {
+        let mut fixes_left: Vec<usize> = fixes.iter().map(|f| f.sample).collect();
+        fixes_left.sort_unstable_by(|a, b| b.cmp(a));
+        fixes_left.dedup();
+        Self {
+            poses: Vec::with_capacity(fixes_left.len()),
+            fixes_left,
+            kept,
+            next_kept: 0,
+            kept_h_m: Vec::with_capacity(kept.len()),
+        }
+    }
+
+    /// The pose at the control point's sample `k`, if the pass reached it.
+    fn pose_at(&self, k: usize) -> Option<FixPose> {
+        self.poses
+            .binary_search_by_key(&k, |p| p.0)
+            .ok()
+            .map(|i| self.poses[i].1)
+    }
+}
+
+impl PassSink for Probe<'_> {
+    #[inline(always)]
+    fn sample(&mut self, k: usize, lat: f64, lon: f64, h: f64, q: &[f64; 4], distance_m: f64) {
+        if self.fixes_left.last() == Some(&k) {
+            self.fixes_left.pop();
+            let pose = FixPose {
+                lat_rad: lat,
+                lon_rad: lon,
+                h_m: h,
+                distance_m,
+                q_b_to_n: *q,
+            };
+            self.poses.push((k, pose));
+        }
+        while self.kept.get(self.next_kept) == Some(&k) {
+            self.kept_h_m.push(h);
+            self.next_kept += 1;
+        }
+    }
 }
