@@ -24,8 +24,9 @@ use unz_stages::strapdown::{NavTrack, PassSink};
 /// Rows per batch: the columns of one batch are built at a time, whatever the run's
 /// length. The file is the same for any batch size; a smaller batch is less memory the
 /// process touches for the first time (the batch's columns, its angles and offsets): at
-/// 65 536 rows a 40-minute disupt process took 10 500 page faults, at 16 384 9 500.
-pub const ROWS: usize = 1 << 14;
+/// 65 536 rows a 40-minute disupt process took 10 500 page faults, at 16 384 9 500
+/// (session 77), and with session 91's other savings 7 740 at 16 384, 7 590 at 8 192.
+pub const ROWS: usize = 1 << 13;
 
 /// A navigation table being written by the pass that feeds it (a [`PassSink`]); it
 /// appears under its name on [`NavWriter::finish`], when every sample was finite.
@@ -74,7 +75,7 @@ struct Rows {
 
 /// Batches a pass hands to the thread that helps it ([`NavWriter::run_helped`]) and
 /// that thread has not yet encoded, at most: a pass that gets this far ahead waits, so
-/// that what is held stays a few batches' rows (about 1.2 MB each) at any run length.
+/// that what is held stays a few batches' rows (about 0.6 MB each) at any run length.
 const HANDED_MAX: usize = 2;
 
 /// What a pass and the thread that helps it share ([`NavWriter::run_helped`]).
