@@ -308,17 +308,26 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
             .as_ref()
             .filter(|_| reviews_early)
             .map(|keep| track_times(&case.derived, keep));
+        // With the joint fit asked for, each track goes to the file without a copy: the
+        // joint's route, when the fit is made, is the corrected one and the file stands;
+        // when it is not (or the file fails), the tracks are reviewed again at the end (a
+        // lane is its pass alone, bit for bit). Without it, each track is cloned: a
+        // corrected route among them takes its boresight and the file is written again.
+        let joint_wanted = matches!(method, Method::Joint | Method::All);
         let early_reviews = |classic: &[ClassicResult]| {
             early_kept.as_ref().filter(|_| reviews_early).map(|keep| {
                 let lanes = classic_reviewed(x_before, &case.derived, classic);
-                let outcomes = untracked_reviews(&problem, &lanes, &case.fixes, keep);
-                // Each track cloned: a corrected route among them takes its boresight and
-                // is written again. A file that fails here is written at the end, which
-                // says why.
+                let mut outcomes = untracked_reviews(&problem, &lanes, &case.fixes, keep);
+                // A file that fails here is written at the end, which says why.
                 let tracks = early_times.as_deref().and_then(|t_ns| {
                     let mut file = TracksWriter::create(&tracks_path, t_ns, start).ok()?;
-                    for o in &outcomes {
-                        file.push(o.track.clone()).ok()?;
+                    for o in &mut outcomes {
+                        let track = if joint_wanted {
+                            std::mem::take(&mut o.track)
+                        } else {
+                            o.track.clone()
+                        };
+                        file.push(track).ok()?;
                     }
                     Some(file)
                 });
@@ -345,19 +354,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                 crate::memory::rss_suffix()
             ),
         );
-        let (mut early_outcomes, early_tracks) =
+        let (early_outcomes, early_tracks) =
             early.map_or((None, None), |(outcomes, tracks)| (Some(outcomes), tracks));
-        // With the joint fit made, its route is the corrected one and the tracks written
-        // while it ended stand (below): their copies go now, before the hold-out and the
-        // joint's review take their memory (2.3 MB at 40 minutes).
-        if early_tracks.is_some()
-            && matches!(joint_result, Some(Ok(_)))
-            && let Some(outcomes) = early_outcomes.as_mut()
-        {
-            outcomes
-                .iter_mut()
-                .for_each(|o| o.track = KeptTrack::default());
-        }
+        let early_lanes = early_outcomes.as_ref().map_or(0, Vec::len);
         // The joint fit without the control points it left out, and its hold-out when the
         // search for them computed it.
         let mut found = exclusions::Exclusions::default();
@@ -559,16 +558,28 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         }
         let corrected_by = (corrected_lane > 0).then(|| reviewed[corrected_lane].name.to_owned());
         // The tracks written while the joint fit ended stand unless the corrected route
-        // (whose heights its boresight moves) is among them. When they stand, their copies
-        // are let go here, before the tail's writers take their memory (3 MB at 40
-        // minutes that the process need not touch afresh).
+        // (whose heights its boresight moves) is among them. When they stand, copies of
+        // them are let go here, before the tail's writers take memory; when they do not,
+        // those given to the file without a copy are reviewed again.
         let early_tracks =
             early_tracks.filter(|file| corrected_lane == 0 || corrected_lane >= file.methods());
-        if let Some(file) = &early_tracks {
-            tracks
+        match &early_tracks {
+            Some(file) => tracks
                 .iter_mut()
                 .take(file.methods())
-                .for_each(|t| *t = KeptTrack::default());
+                .for_each(|t| *t = KeptTrack::default()),
+            None if joint_wanted && early_lanes > 0 => {
+                let again = untracked_reviews(
+                    &problem,
+                    &reviewed[..early_lanes],
+                    &case.fixes,
+                    &kept_samples,
+                );
+                for (t, o) in tracks.iter_mut().zip(again) {
+                    *t = o.track;
+                }
+            }
+            None => {}
         }
         for (name, r) in &classic_ok {
             let cps = cps_of.remove(name).unwrap_or_default();

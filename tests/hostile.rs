@@ -1225,6 +1225,45 @@ fn control_points_the_log_cannot_reach_are_refused() {
     );
 }
 
+/// A run whose joint fit is refused (a control point 1 km off) is corrected by OEPI, a
+/// route whose track was written while the joint fit ran: run alone (its reviews beside
+/// the joint fit, their tracks handed to the file without a copy, then reviewed again
+/// for the file written anew) it writes the same files, byte for byte, as in a campaign
+/// that shares the cores (its reviews all after the fit).
+#[test]
+fn a_refused_joint_fit_writes_the_same_tables_alone_as_in_a_campaign() {
+    let tmp = tempfile::tempdir().unwrap();
+    let camp = campaign(tmp.path());
+    move_control_point(&camp.join("sim-0080/run.toml"), 0.0, 1000.0);
+    let (shared, alone) = (tmp.path().join("shared"), tmp.path().join("alone"));
+    let (code, text) = run(&camp, &shared, "disupt");
+    assert_eq!(code, Some(0), "{text}");
+    let (code, text) = run(&camp.join("sim-0080"), &alone, "disupt");
+    assert_eq!(code, Some(0), "{text}");
+    let d: unz::disupt_stage::DisuptOut = read_json(&alone.join("sim-0080/disupt/disupt.json"));
+    assert!(d.skipped.contains_key("joint"), "{:?}", d.skipped);
+    assert_eq!(d.corrected_by.as_deref(), Some("oepi"));
+    for file in [
+        "tracks.parquet",
+        "corrected_nav.parquet",
+        "kryt1_series.parquet",
+        "disupt.json",
+    ] {
+        let bytes = |out: &Path| std::fs::read(out.join("sim-0080/disupt").join(file)).unwrap();
+        let (a, b) = (bytes(&shared), bytes(&alone));
+        assert!(
+            a == b,
+            "{file}: {} bytes shared, {} alone",
+            a.len(),
+            b.len()
+        );
+    }
+    // The three methods' tracks (the initial settings', OWPI's, OEPI's), each of the
+    // run's kept samples at 10 Hz: none left empty.
+    let rows = parquet_rows(&alone.join("sim-0080/disupt/tracks.parquet"));
+    assert!(rows >= 3 * 1_900 && rows % 3 == 0, "{rows}");
+}
+
 /// A 30-s hole in a moving run's IMU log (its records lost) fails the run at derive with
 /// where the gap is, where holding the rate across it turned the heading by whatever the
 /// vehicle was turning at times 3 000; a run that raises `derive.max_gap_s` past it (a
