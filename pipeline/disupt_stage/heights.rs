@@ -122,3 +122,61 @@ impl PassSink for Probe<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fix(sample: usize) -> ControlPointFix {
+        ControlPointFix {
+            id: sample as u32,
+            sample,
+            t_s: sample as f64 * 0.01,
+            lat_rad: 0.0,
+            lon_rad: 0.0,
+            h_m: 0.0,
+            mark_lever_arm_m: [0.0; 3],
+        }
+    }
+
+    /// A pass over samples `0..reached` whose state at sample `k` is told by `k`.
+    fn pass(probe: &mut Probe<'_>, reached: usize) {
+        for k in 0..reached {
+            let x = k as f64;
+            probe.sample(k, x, -x, 100.0 + x, &[x, 0.0, 0.0, 1.0], 2.0 * x);
+        }
+    }
+
+    #[test]
+    fn the_probe_keeps_the_poses_at_the_points_and_the_heights_at_the_kept_samples() {
+        // Points out of order and one twice; a kept sample twice.
+        let fixes = [fix(40), fix(7), fix(40), fix(0)];
+        let kept = [0, 10, 20, 20, 30, 50];
+        let mut probe = Probe::new(&fixes, &kept);
+        pass(&mut probe, 60);
+        assert_eq!(probe.kept_h_m, [100.0, 110.0, 120.0, 120.0, 130.0, 150.0]);
+        for k in [0, 7, 40] {
+            let x = k as f64;
+            let want = FixPose {
+                lat_rad: x,
+                lon_rad: -x,
+                h_m: 100.0 + x,
+                distance_m: 2.0 * x,
+                q_b_to_n: [x, 0.0, 0.0, 1.0],
+            };
+            assert_eq!(probe.pose_at(k), Some(want), "{k}");
+        }
+        assert_eq!(probe.pose_at(10), None, "not a point");
+    }
+
+    #[test]
+    fn a_probe_pass_that_ends_early_keeps_what_it_reached() {
+        let fixes = [fix(5), fix(45)];
+        let kept = [0, 10, 20, 30, 40, 50];
+        let mut probe = Probe::new(&fixes, &kept);
+        pass(&mut probe, 25);
+        assert_eq!(probe.kept_h_m, [100.0, 110.0, 120.0]);
+        assert!(probe.pose_at(5).is_some());
+        assert_eq!(probe.pose_at(45), None);
+    }
+}
