@@ -741,6 +741,9 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
                         }
                         _ => None,
                     };
+                    // Once encoded, the σ goes (0.8 MB at 40 minutes, for the tail's
+                    // writers); it is kept only for a file written again without them.
+                    let sigma = sigma.filter(|_| apart.is_none());
                     meeting.bring_b((sigma, apart)).map(finish)
                 },
             );
