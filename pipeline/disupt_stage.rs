@@ -558,28 +558,20 @@ pub fn ensure_disupt(ctx: &RunCtx, params: &Params, method: Method) -> anyhow::R
         }
         let corrected_by = (corrected_lane > 0).then(|| reviewed[corrected_lane].name.to_owned());
         // The tracks written while the joint fit ended stand unless the corrected route
-        // (whose heights its boresight moves) is among them. When they stand, copies of
-        // them are let go here, before the tail's writers take memory; when they do not,
-        // those given to the file without a copy are reviewed again.
+        // (whose heights its boresight moves) is among them; when they do not, those given
+        // to the file without a copy are reviewed again.
         let early_tracks =
             early_tracks.filter(|file| corrected_lane == 0 || corrected_lane >= file.methods());
-        match &early_tracks {
-            Some(file) => tracks
-                .iter_mut()
-                .take(file.methods())
-                .for_each(|t| *t = KeptTrack::default()),
-            None if joint_wanted && early_lanes > 0 => {
-                let again = untracked_reviews(
-                    &problem,
-                    &reviewed[..early_lanes],
-                    &case.fixes,
-                    &kept_samples,
-                );
-                for (t, o) in tracks.iter_mut().zip(again) {
-                    *t = o.track;
-                }
+        if early_tracks.is_none() && joint_wanted && early_lanes > 0 {
+            let again = untracked_reviews(
+                &problem,
+                &reviewed[..early_lanes],
+                &case.fixes,
+                &kept_samples,
+            );
+            for (t, o) in tracks.iter_mut().zip(again) {
+                *t = o.track;
             }
-            None => {}
         }
         for (name, r) in &classic_ok {
             let cps = cps_of.remove(name).unwrap_or_default();
