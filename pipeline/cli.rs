@@ -293,7 +293,7 @@ pub struct BenchArgs {
 }
 
 /// Benchmarks.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum BenchTarget {
     /// Raw UNZ log → Parquet (and the full ingest with MCAP).
     Ingest,

@@ -34,6 +34,13 @@ fn is_stage(command: &Command) -> bool {
     )
 }
 
+/// Whether `command` benchmarks one run's stages (every bench but the campaign's, which
+/// runs many at once): it measures them with the allocator's settings their commands
+/// take ([`crate::memory::one_run_at_a_time`]).
+fn benches_one_run(command: &Command) -> bool {
+    matches!(command, Command::Bench(a) if a.what != crate::cli::BenchTarget::Campaign)
+}
+
 /// Runs a parsed command line; the exit code says whether everything succeeded. A
 /// command that writes into an output folder holds its lock while it runs.
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -50,8 +57,9 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     };
     let _lock = out.as_deref().map(crate::lock::lock_output).transpose()?;
     // A stage command works on one run: its threads share one malloc arena, which keeps
-    // what is freed (`unz run` decides once it knows how many runs it has).
-    if is_stage(&cli.command) {
+    // what is freed (`unz run` decides once it knows how many runs it has); a bench of
+    // one run's stages measures them so.
+    if is_stage(&cli.command) || benches_one_run(&cli.command) {
         crate::memory::one_run_at_a_time();
     }
     if let Some(out) = &out {
