@@ -97,11 +97,10 @@ impl Ros2Mcap {
                 log_time_ns,
                 |buf| -> Result<(), FileError> {
                     buf.extend_from_slice(&CDR_LE);
-                    // CDR aligns from the end of the encapsulation header: the serializer
-                    // counts from the buffer's length when it starts.
-                    let mut ser = re_cdr::CdrSerializer::<re_cdr::LittleEndian>::new(buf);
+                    // CDR aligns from the end of the encapsulation header: the body is
+                    // aligned from the buffer's length when it starts.
                     message
-                        .serialize(&mut ser)
+                        .write_cdr(buf)
                         .map_err(|e| FormatError::from(e).in_file(dest))
                 },
             )

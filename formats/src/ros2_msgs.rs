@@ -16,6 +16,13 @@ pub trait Ros2Message: Serialize {
     const NAME: &'static str;
     /// The `.msg` text with its dependencies.
     const DEFINITION: &'static str;
+
+    /// Appends the message's little-endian CDR body to `buf`, aligned from `buf`'s length
+    /// (the end of the encapsulation header), by serde's serializer.
+    fn write_cdr(&self, buf: &mut Vec<u8>) -> Result<(), re_cdr::Error> {
+        let mut ser = re_cdr::CdrSerializer::<re_cdr::LittleEndian>::new(buf);
+        self.serialize(&mut ser)
+    }
 }
 
 macro_rules! msg_with_deps {
@@ -78,7 +85,25 @@ uint16 status
 float32[3] rate_rad_s
 float32[3] accel_mps2
 ";
+
+    /// The bytes serde's serializer writes (`seq` at 0, `status` at 8, two bytes of
+    /// padding, the six floats from 12), written at once: one message per IMU sample in
+    /// `raw.mcap`, where the serializer's field-by-field path took a tenth of its thread.
+    fn write_cdr(&self, buf: &mut Vec<u8>) -> Result<(), re_cdr::Error> {
+        let mut body = [0u8; IMU_SAMPLE_CDR_BYTES];
+        body[..8].copy_from_slice(&self.seq.to_le_bytes());
+        body[8..10].copy_from_slice(&self.status.to_le_bytes());
+        let floats = self.rate_rad_s.iter().chain(&self.accel_mps2);
+        for (k, v) in floats.enumerate() {
+            body[12 + 4 * k..16 + 4 * k].copy_from_slice(&v.to_le_bytes());
+        }
+        buf.extend_from_slice(&body);
+        Ok(())
+    }
 }
+
+/// Bytes of an [`ImuSample`]'s CDR body: 8 + 2, padding to 12, six 4-byte floats.
+const IMU_SAMPLE_CDR_BYTES: usize = 36;
 
 /// One odometer sample of `raw.mcap`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -295,6 +320,43 @@ mod tests {
 
     const SEPARATOR: &str =
         "================================================================================\n";
+
+    /// An IMU sample's CDR body written at once is serde's serializer's, byte for byte,
+    /// behind headers of any length (alignment counts from the body's start).
+    #[test]
+    fn imu_samples_are_written_as_the_serializer_writes_them() {
+        let samples = [
+            ImuSample {
+                seq: 0,
+                status: 0,
+                rate_rad_s: [0.0; 3],
+                accel_mps2: [-0.0; 3],
+            },
+            ImuSample {
+                seq: u64::MAX,
+                status: 0xA55A,
+                rate_rad_s: [1.5e-3, -2.25e-7, f32::MAX],
+                accel_mps2: [9.80665, f32::NAN, -f32::INFINITY],
+            },
+            ImuSample {
+                seq: 0x0102_0304_0506_0708,
+                status: 1,
+                rate_rad_s: [f32::MIN_POSITIVE, 3.0, -4.0],
+                accel_mps2: [1e-40, 0.1, -0.2],
+            },
+        ];
+        for sample in &samples {
+            for prefix in [0, 4, 5] {
+                let mut ours = vec![0xEE; prefix];
+                sample.write_cdr(&mut ours).unwrap();
+                let mut serde = vec![0xEE; prefix];
+                let mut ser = re_cdr::CdrSerializer::<re_cdr::LittleEndian>::new(&mut serde);
+                sample.serialize(&mut ser).unwrap();
+                assert_eq!(ours, serde, "{sample:?} behind {prefix} bytes");
+                assert_eq!(ours.len(), prefix + IMU_SAMPLE_CDR_BYTES);
+            }
+        }
+    }
 
     #[test]
     fn dependency_sections_are_separated_as_ros2_bags_write_them() {
