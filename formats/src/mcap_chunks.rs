@@ -39,6 +39,9 @@ const LZ4_PIECE_BYTES: usize = 16 << 10;
 /// Bytes of a message record's header (channel, sequence, log and publish times).
 const MESSAGE_HEADER_BYTES: u64 = 2 + 4 + 8 + 8;
 
+/// Bytes of a message record before its data: opcode, record length, header.
+const MESSAGE_RECORD_HEAD_BYTES: usize = 1 + 8 + MESSAGE_HEADER_BYTES as usize;
+
 /// A schema's content (what the crate tells schemas apart by).
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct SchemaContent {
@@ -143,6 +146,30 @@ where
     Cursor::new(&mut *buf)
         .write_le(value)
         .map_err(io::Error::other)
+}
+
+/// A MessageIndex record's body for `entries` of `channel_id`, into `buf` (emptied first),
+/// as binrw serializes `records::MessageIndex`: the channel, the entries' length in bytes,
+/// each entry's log time and offset (a chunk's index is thousands of entries, which binrw
+/// writes a field at a time through a cursor).
+fn message_index_body(
+    buf: &mut Vec<u8>,
+    channel_id: u16,
+    entries: &[records::MessageIndexEntry],
+) -> io::Result<()> {
+    const ENTRY_BYTES: usize = 8 + 8;
+    let entry_bytes = u32::try_from(ENTRY_BYTES * entries.len()).map_err(io::Error::other)?;
+    buf.clear();
+    buf.reserve(2 + 4 + ENTRY_BYTES * entries.len());
+    buf.extend_from_slice(&channel_id.to_le_bytes());
+    buf.extend_from_slice(&entry_bytes.to_le_bytes());
+    for entry in entries {
+        let mut bytes = [0u8; ENTRY_BYTES];
+        bytes[..8].copy_from_slice(&entry.log_time.to_le_bytes());
+        bytes[8..].copy_from_slice(&entry.offset.to_le_bytes());
+        buf.extend_from_slice(&bytes);
+    }
+    Ok(())
 }
 
 /// Why a message was not written.
@@ -350,12 +377,15 @@ impl<W: Write> ChunkedMcap<W> {
             self.finish_chunk().map_err(MessageError::Io)?;
         }
         let start = self.chunk.len();
-        self.chunk.push(op::MESSAGE);
-        self.chunk.extend_from_slice(&[0; 8]);
-        self.chunk.extend_from_slice(&channel_id.to_le_bytes());
-        self.chunk.extend_from_slice(&sequence.to_le_bytes());
-        self.chunk.extend_from_slice(&log_time.to_le_bytes());
-        self.chunk.extend_from_slice(&publish_time.to_le_bytes());
+        // The record's opcode, its length (set below, once the data is in) and header,
+        // appended at once.
+        let mut head = [0u8; MESSAGE_RECORD_HEAD_BYTES];
+        head[0] = op::MESSAGE;
+        head[9..11].copy_from_slice(&channel_id.to_le_bytes());
+        head[11..15].copy_from_slice(&sequence.to_le_bytes());
+        head[15..23].copy_from_slice(&log_time.to_le_bytes());
+        head[23..31].copy_from_slice(&publish_time.to_le_bytes());
+        self.chunk.extend_from_slice(&head);
         let data_start = self.chunk.len();
         if let Err(e) = data(&mut self.chunk) {
             self.chunk.truncate(start);
@@ -419,14 +449,9 @@ impl<W: Write> ChunkedMcap<W> {
             }
             let channel_id = id_of(slot);
             message_index_offsets.insert(channel_id, self.out.position);
-            let index = records::MessageIndex {
-                channel_id,
-                records: std::mem::take(entries),
-            };
-            serialize(&mut self.scratch, &index)?;
+            message_index_body(&mut self.scratch, channel_id, entries)?;
             self.out.record(op::MESSAGE_INDEX, &self.scratch)?;
             // The entries' room kept for the next chunk.
-            *entries = index.records;
             entries.clear();
         }
         self.chunk_indexes.push(records::ChunkIndex {
@@ -683,6 +708,29 @@ mod tests {
                     theirs.len()
                 );
             }
+        }
+    }
+
+    /// A message index's body written at once is binrw's serialization of the crate's
+    /// record, for no entry, one and many.
+    #[test]
+    fn message_indexes_are_the_crates_records() {
+        for n in [0u64, 1, 5000] {
+            let entries: Vec<records::MessageIndexEntry> = (0..n)
+                .map(|k| records::MessageIndexEntry {
+                    log_time: k * 10_000_000 + (k % 7),
+                    offset: u64::MAX - 31 * k,
+                })
+                .collect();
+            let mut ours = vec![9; 3];
+            message_index_body(&mut ours, 0x0203, &entries).unwrap();
+            let mut theirs = Vec::new();
+            let index = records::MessageIndex {
+                channel_id: 0x0203,
+                records: entries,
+            };
+            serialize(&mut theirs, &index).unwrap();
+            assert_eq!(ours, theirs, "{n} entries");
         }
     }
 
