@@ -12,7 +12,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use arrow::array::{BooleanArray, Float64Array, RecordBatch, StringArray, UInt64Array};
 use rayon::prelude::*;
-use unz_formats::atomic::write_atomic;
+use unz_formats::atomic::{remove_stale_temps_of, write_atomic};
 use unz_formats::manifest::RunManifest;
 use unz_formats::parquet_io::write_batch;
 use unz_formats::report::{IngestReport, OdometerFailures};
@@ -755,20 +755,20 @@ impl SummaryValues {
     }
 }
 
+/// The summaries [`write_summary`] writes into the output folder.
+const SUMMARY_FILES: [&str; 4] = [
+    "campaign.parquet",
+    "campaign.md",
+    "campaign.html",
+    crate::campaign_settings::FILE,
+];
+
 /// Removes the temporary files of the summaries (`.campaign.<ext>.<random>.tmp`, and
 /// `.campaign-settings.toml.<random>.tmp`) that a run killed while writing them left in
 /// `out` (the output folder is this process's alone: see [`crate::lock`]).
 fn remove_stale_summary_temps(out: &Path) {
-    let Ok(entries) = std::fs::read_dir(out) else {
-        return;
-    };
-    for e in entries.flatten() {
-        let name = e.file_name().to_string_lossy().into_owned();
-        if (name.starts_with(".campaign.") || name.starts_with(".campaign-settings.toml."))
-            && name.ends_with(".tmp")
-        {
-            let _ = std::fs::remove_file(e.path());
-        }
+    for name in SUMMARY_FILES {
+        remove_stale_temps_of(&out.join(name));
     }
 }
 

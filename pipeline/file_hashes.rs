@@ -29,7 +29,7 @@ use std::time::{Duration, SystemTime};
 
 use anyhow::Context;
 use serde::{Deserialize, Serialize};
-use unz_formats::atomic::write_atomic;
+use unz_formats::atomic::{remove_stale_temps_of, write_atomic};
 
 /// The saved hashes' file name in an output folder (a reserved run name).
 pub const MEMO_FILE: &str = "unz.hashes";
@@ -330,6 +330,8 @@ pub fn save(out: &Path) -> anyhow::Result<usize> {
     }
     bytes.extend_from_slice(b"\n]}\n");
     let dest = out.join(MEMO_FILE);
+    // What a process killed while saving left (the folder is this one's: see `crate::lock`).
+    remove_stale_temps_of(&dest);
     write_atomic(&dest, &bytes)?;
     Ok(n)
 }

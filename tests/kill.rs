@@ -55,9 +55,10 @@ fn kill_9_then_rerun_gives_the_same_outputs() {
         child.kill().unwrap(); // SIGKILL
         child.wait().unwrap();
     }
-    // What a kill while the campaign summary is being written leaves (the delays above
-    // catch that moment only sometimes).
+    // What a kill while the campaign summary or the saved hashes are being written leaves
+    // (the delays above catch those moments only sometimes).
     std::fs::write(out.join(".campaign.md.Kd9x2Q.tmp"), b"| run |").unwrap();
+    std::fs::write(out.join(".unz.hashes.eKdhjq.tmp"), b"{\"version\":1").unwrap();
     unz_ok(
         &run_args(&out)
             .iter()

@@ -119,6 +119,31 @@ fn readable_by_all() -> std::fs::Permissions {
     }
 }
 
+/// Removes the temporary files (`.<name>.<random>.tmp`) that writers of `dest` killed
+/// before their commit left beside it. Only for a folder this process alone writes (an
+/// output folder under its lock): another writer's open temporary file would go too.
+pub fn remove_stale_temps_of(dest: &Path) {
+    let (Some(dir), Some(name)) = (dest.parent(), dest.file_name()) else {
+        return;
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let prefix = format!(".{}.", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let file_name = e.file_name();
+        let n = file_name.to_string_lossy();
+        if n.len() > prefix.len() + ".tmp".len() && n.starts_with(&prefix) && n.ends_with(".tmp") {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
 /// Writes `bytes` to `dest` atomically.
 pub fn write_atomic(dest: &Path, bytes: &[u8]) -> Result<(), FileError> {
     let mut f = AtomicFile::create(dest)?;
@@ -226,5 +251,36 @@ mod tests {
         assert!(e.contains("out"), "{e}");
         assert_eq!(std::fs::read(dest.join("inside")).unwrap(), b"kept");
         assert_eq!(names(dir.path()), ["out"]);
+    }
+
+    #[test]
+    fn stale_temporary_files_of_one_destination_are_removed_and_nothing_else() {
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("unz.hashes");
+        for name in [
+            ".unz.hashes.eKdhjq.tmp",
+            ".unz.hashes.x.tmp",
+            ".unz.hashes.tmp",
+            ".unz.hashes2.ab.tmp",
+            ".other.ab.tmp",
+            "unz.hashes.ab.tmp",
+            ".unz.hashes.ab.tmp.keep",
+        ] {
+            std::fs::write(dir.path().join(name), b"x").unwrap();
+        }
+        write_atomic(&dest, b"memo").unwrap();
+        remove_stale_temps_of(&dest);
+        assert_eq!(
+            names(dir.path()),
+            [
+                ".other.ab.tmp",
+                ".unz.hashes.ab.tmp.keep",
+                ".unz.hashes.tmp",
+                ".unz.hashes2.ab.tmp",
+                "unz.hashes",
+                "unz.hashes.ab.tmp",
+            ]
+        );
+        assert_eq!(std::fs::read(&dest).unwrap(), b"memo");
     }
 }
