@@ -567,20 +567,20 @@ impl ListLevels {
         match self.encoded.iter().position(|(m, _)| *m == n) {
             Some(i) => self.encoded[..=i].rotate_right(1),
             None => {
-                let repetition: Vec<u8> = (0..n).map(|k| u8::from(k % self.per_row != 0)).collect();
+                // A row's first value 0, the others 1 (stored strided, not a division a
+                // value: 60 000 values a page, two dozen pages a 40-minute IMU table).
+                let mut repetition = vec![1u8; n];
+                for first in repetition.iter_mut().step_by(self.per_row.max(1)) {
+                    *first = 0;
+                }
                 let mut bytes = rle_hybrid(&repetition, 1);
-                bytes.extend(rle_hybrid(&vec![self.max_def; n], bits_for(self.max_def)));
+                bytes.extend(rle_constant(n, self.max_def));
                 self.encoded.truncate(LEVELS_KEPT - 1);
                 self.encoded.insert(0, (n, bytes));
             }
         }
         &self.encoded[0].1
     }
-}
-
-/// Bits of the widest level up to `max_level`.
-fn bits_for(max_level: u8) -> u8 {
-    (u8::BITS - max_level.leading_zeros()) as u8
 }
 
 /// `levels` (each below 2^`width`, `width` ≤ 8) in Parquet's RLE / bit-packed hybrid
@@ -606,6 +606,26 @@ fn rle_hybrid(levels: &[u8], width: u8) -> Vec<u8> {
     let len = u32::try_from(e.out.len() - 4).unwrap_or(u32::MAX);
     e.out[..4].copy_from_slice(&len.to_le_bytes());
     e.out
+}
+
+/// [`rle_hybrid`] of `n` values all `level`, without going through them: one RLE run of
+/// them (of none, nothing), as its port of parquet-rs's `RleEncoder` writes it. Their
+/// first eight (or all, when fewer) are buffered as equal, then the rest counted
+/// without being buffered; the end flushes the run.
+fn rle_constant(n: usize, level: u8) -> Vec<u8> {
+    let mut out = vec![0; 4];
+    if n > 0 {
+        let mut header = n << 1;
+        while header >= 0x80 {
+            out.push((header & 0x7F) as u8 | 0x80);
+            header >>= 7;
+        }
+        out.push(header as u8);
+        out.push(level);
+    }
+    let len = u32::try_from(out.len() - 4).unwrap_or(u32::MAX);
+    out[..4].copy_from_slice(&len.to_le_bytes());
+    out
 }
 
 /// The state of [`rle_hybrid`]: parquet-rs's `RleEncoder`'s, field for field.
@@ -751,6 +771,44 @@ mod tests {
         }
         let repeated: Vec<usize> = kept.encoded.iter().map(|(n, _)| *n).collect();
         assert_eq!(repeated, [60_150, 3, 0, 60_534]);
+    }
+
+    /// Bits of the widest level up to `max_level`.
+    fn bits_for(max_level: u8) -> u8 {
+        (u8::BITS - max_level.leading_zeros()) as u8
+    }
+
+    /// Constant levels' encoding, as the port of parquet-rs's encoder writes them, for
+    /// every count around its groups of eight and its headers' bytes, every width.
+    #[test]
+    fn constant_levels_are_one_run_as_the_encoder_writes_them() {
+        let counts = (0..=1100).chain([8191, 8192, 16_383, 16_384, 60_000, 2_097_151, 2_097_152]);
+        for n in counts {
+            for level in [0u8, 1, 2, 3, 7, 200, 255] {
+                let width = bits_for(level).max(1);
+                assert_eq!(
+                    rle_constant(n, level),
+                    rle_hybrid(&vec![level; n], width),
+                    "{n} values of {level}"
+                );
+            }
+        }
+    }
+
+    /// Repetition levels of lists of every length to past a group of eight, encoded as
+    /// their plain definition says.
+    #[test]
+    fn list_levels_are_those_of_their_rows() {
+        for per_row in 1..=12usize {
+            for rows in [0usize, 1, 2, 3, 7, 8, 9, 168, 169, 20_000] {
+                let n = rows * per_row;
+                let repetition: Vec<u8> = (0..n).map(|k| u8::from(k % per_row != 0)).collect();
+                let mut expected = rle_hybrid(&repetition, 1);
+                expected.extend(rle_hybrid(&vec![2; n], bits_for(2)));
+                let mut levels = ListLevels::new(per_row, 2).unwrap();
+                assert_eq!(levels.encoded(n), expected, "{rows} rows of {per_row}");
+            }
+        }
     }
 
     /// Pages encoded on more threads at once than the machine has cores each take a
