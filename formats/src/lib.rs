@@ -14,6 +14,7 @@
 //! ```
 
 pub mod atomic;
+mod delta_pages;
 pub mod error;
 pub mod followed_steps;
 pub mod hashing_writer;

@@ -27,6 +27,7 @@ use parquet::file::reader::{ChunkReader, Length};
 use parquet::file::writer::{SerializedPageWriter, SerializedRowGroupWriter, TrackedWrite};
 use parquet::schema::types::ColumnDescPtr;
 
+use crate::delta_pages::DeltaColumn;
 use crate::split_pages::SplitColumn;
 
 /// How a column's values lie when it is written directly (see the module's notes).
@@ -205,6 +206,7 @@ impl Read for PagesReader {
 pub(crate) enum DirectColumn {
     SplitF64(SplitColumn<f64>),
     SplitF32(SplitColumn<f32>),
+    Delta(DeltaColumn),
     Typed(Box<TypedColumn>),
 }
 
@@ -222,13 +224,22 @@ impl DirectColumn {
         if let Some(c) = SplitColumn::new(descr.clone(), props.clone(), shape) {
             return Some(Self::SplitF32(c));
         }
+        if let Some(c) = DeltaColumn::new(descr.clone(), props.clone(), shape) {
+            return Some(Self::Delta(c));
+        }
         TypedColumn::new(descr, props, shape).map(|c| Self::Typed(Box::new(c)))
     }
 
     /// Whether the column is written as split float pages.
     #[cfg(test)]
     pub(crate) fn is_split(&self) -> bool {
-        !matches!(self, Self::Typed(_))
+        matches!(self, Self::SplitF64(_) | Self::SplitF32(_))
+    }
+
+    /// Whether the column is written as delta-encoded pages of its own.
+    #[cfg(test)]
+    pub(crate) fn is_delta(&self) -> bool {
+        matches!(self, Self::Delta(_))
     }
 
     /// Encodes `column`'s rows.
@@ -236,6 +247,7 @@ impl DirectColumn {
         match self {
             Self::SplitF64(w) => w.write_array(column),
             Self::SplitF32(w) => w.write_array(column),
+            Self::Delta(w) => w.write_array(column),
             Self::Typed(w) => w.write(column),
         }
     }
@@ -245,6 +257,7 @@ impl DirectColumn {
         let (pages, close) = match self {
             Self::SplitF64(w) => w.close()?,
             Self::SplitF32(w) => w.close()?,
+            Self::Delta(w) => w.close()?,
             Self::Typed(w) => w.close()?,
         };
         Ok(LeafChunk::Direct { pages, close })

@@ -467,6 +467,17 @@ impl ParquetSink {
             .count()
     }
 
+    /// Leaf columns of the row group being filled that are written as delta-encoded pages
+    /// of their own.
+    #[cfg(test)]
+    fn delta_leaves(&self) -> usize {
+        self.groups
+            .writers
+            .iter()
+            .filter(|c| matches!(c, LeafWriter::Direct(d) if d.is_delta()))
+            .count()
+    }
+
     /// Leaf columns of the row group being filled that are written as split float pages.
     #[cfg(test)]
     fn split_leaves(&self) -> usize {
@@ -1259,6 +1270,102 @@ mod tests {
                 assert_eq!(s.min_opt(), Some(&-4.0));
             }
             other => panic!("zero's statistics: {other:?}"),
+        }
+    }
+
+    /// 64-bit integer columns written as delta-encoded pages of their own make
+    /// `ArrowWriter`'s file byte for byte whatever their values and however they come:
+    /// regular times, a constant, counts stepping back and forth, values spread over all
+    /// 64 bits (every miniblock width), the extremes wrapping their deltas around, u64s
+    /// past i64's range (bounds in unsigned order), signed ones below zero; batches of
+    /// one value, of a block and one either side, of a write batch and one either side,
+    /// none, and long ones, so blocks, miniblocks and pages end within a batch, across
+    /// batches and at a row group's end.
+    #[test]
+    fn delta_integer_pages_are_arrow_writers_whatever_the_values_and_batches() {
+        use arrow::array::{Int64Array, UInt64Array};
+        // Sequence numbers crossing i64's greatest value in the first row group.
+        const SEQ_BASE: u64 = (1 << 63) - 20_000;
+        let schema = Arc::new(Schema::new(vec![
+            Field::new("t_ns", DataType::Int64, false),
+            Field::new("seq", DataType::UInt64, false),
+            Field::new("constant", DataType::Int64, false),
+            Field::new("back_and_forth", DataType::Int64, false),
+            Field::new("spread", DataType::Int64, false),
+            Field::new("spread_u", DataType::UInt64, false),
+            Field::new("extremes", DataType::Int64, false),
+            Field::new("nullable", DataType::Int64, true),
+        ]));
+        // A reproducible spread of 64-bit values, of every width in turn.
+        let spread = |k: u64| {
+            let x = k
+                .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                .rotate_left((k % 61) as u32);
+            x >> (k % 64)
+        };
+        let extremes = |k: u64| match k % 7 {
+            0 => i64::MIN,
+            1 => i64::MAX,
+            2 => 0,
+            3 => -1,
+            _ => spread(k) as i64,
+        };
+        let batch = |lo: u64, n: u64| {
+            let rows = lo..lo + n;
+            let columns: Vec<ArrayRef> = vec![
+                Arc::new(Int64Array::from_iter_values(rows.clone().map(|k| {
+                    1_700_000_000_000_000_000 + 10_000_000 * k as i64 + (k % 3) as i64
+                }))),
+                Arc::new(UInt64Array::from_iter_values(
+                    rows.clone().map(|k| SEQ_BASE + k),
+                )),
+                Arc::new(Int64Array::from_iter_values(rows.clone().map(|_| -42))),
+                Arc::new(Int64Array::from_iter_values(
+                    rows.clone()
+                        .map(|k| (k as i64 % 11) * -3 + (k / 500) as i64),
+                )),
+                Arc::new(Int64Array::from_iter_values(
+                    rows.clone().map(|k| spread(k) as i64),
+                )),
+                Arc::new(UInt64Array::from_iter_values(rows.clone().map(spread))),
+                Arc::new(Int64Array::from_iter_values(rows.clone().map(extremes))),
+                Arc::new(Int64Array::from_iter(
+                    rows.map(|k| (k % 5 != 0).then_some(k as i64)),
+                )),
+            ];
+            RecordBatch::try_new(schema.clone(), columns).expect("batch")
+        };
+        let mut batches = Vec::new();
+        let mut lo = 0;
+        for n in [
+            1, 255, 256, 257, 1023, 1024, 1025, 0, 7, 20_000, 30_000, 2, 41_000, 5, 20_480, 333,
+        ] {
+            batches.push(batch(lo, n));
+            lo += n;
+        }
+        let group_rows = 50_000;
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("delta.parquet");
+        let mut sink =
+            ParquetSink::create_in_row_groups(&path, schema.clone(), group_rows).expect("sink");
+        for b in &batches {
+            sink.write(b).expect("written");
+        }
+        assert_eq!(sink.delta_leaves(), 7, "the nullable column is the crate's");
+        sink.finish().expect("finished");
+        let plain = arrow_writer_bytes(&schema, group_rows, &batches);
+        assert!(std::fs::read(&path).expect("read") == plain, "differs");
+        // The unsigned column's bounds are in unsigned order, past i64's range.
+        let meta = ParquetRecordBatchReaderBuilder::try_new(std::fs::File::open(&path).unwrap())
+            .expect("reader")
+            .metadata()
+            .clone();
+        match meta.row_group(0).column(1).statistics() {
+            Some(parquet::file::statistics::Statistics::Int64(s)) => {
+                assert_eq!(s.min_opt().map(|&m| m as u64), Some(SEQ_BASE));
+                assert_eq!(s.max_opt().map(|&m| m as u64), Some(SEQ_BASE + 49_999));
+            }
+            other => panic!("seq's statistics: {other:?}"),
         }
     }
 

@@ -10,7 +10,9 @@
 //! a page lies within it (else from the values kept since the last page), sixteen at a
 //! time by SSE2's byte unpacking (the inverse of [`crate::split_doubles`]' join); the
 //! bounds are kept in eight lanes; a list's levels, which depend on a page's count of
-//! values only, are encoded once per count (by a port of the crate's RLE encoder); the
+//! values only, are encoded once per count (by a port of the crate's RLE encoder, or
+//! for the tables' lists, rows of up to eight values, by what that port writes for them,
+//! without going through the values: tested against it); the
 //! pages are split and compressed in buffers and by a zstd context the thread keeps (the
 //! same library and level: the same bytes).
 //!
@@ -250,6 +252,20 @@ fn with_scratch<R>(f: impl FnOnce(&mut PageScratch) -> R) -> R {
     r
 }
 
+/// The page whose bytes `fill` writes (into an empty buffer) at zstd `level`, as
+/// parquet-rs's codec compresses a page: its compressed bytes and its size before
+/// compression (see [`PageScratch::page`]).
+pub(crate) fn compressed_page(
+    level: i32,
+    fill: impl FnOnce(&mut Vec<u8>),
+) -> Result<(Bytes, usize), ParquetError> {
+    with_scratch(|scratch| {
+        scratch.uncompressed.clear();
+        fill(&mut scratch.uncompressed);
+        scratch.compress(level)
+    })
+}
+
 impl PageScratch {
     /// The page of `values` (the bytes `levels` before them, if any) at zstd `level`, as
     /// parquet-rs's codec compresses a page (one frame by the bulk API): its compressed
@@ -265,6 +281,14 @@ impl PageScratch {
         u.extend_from_slice(levels);
         u.resize(levels.len() + values.len() * T::SIZE, 0);
         T::split(values, &mut u[levels.len()..]);
+        self.compress(level)
+    }
+
+    /// The uncompressed buffer's bytes at zstd `level`, as parquet-rs's codec compresses a
+    /// page (one frame by the bulk API): its compressed bytes and its size before
+    /// compression.
+    fn compress(&mut self, level: i32) -> Result<(Bytes, usize), ParquetError> {
+        let u = &mut self.uncompressed;
         let c = &mut self.compressed;
         c.clear();
         c.reserve(zstd::zstd_safe::compress_bound(u.len()));
@@ -567,13 +591,7 @@ impl ListLevels {
         match self.encoded.iter().position(|(m, _)| *m == n) {
             Some(i) => self.encoded[..=i].rotate_right(1),
             None => {
-                // A row's first value 0, the others 1 (stored strided, not a division a
-                // value: 60 000 values a page, two dozen pages a 40-minute IMU table).
-                let mut repetition = vec![1u8; n];
-                for first in repetition.iter_mut().step_by(self.per_row.max(1)) {
-                    *first = 0;
-                }
-                let mut bytes = rle_hybrid(&repetition, 1);
+                let mut bytes = rle_repetition(n, self.per_row);
                 bytes.extend(rle_constant(n, self.max_def));
                 self.encoded.truncate(LEVELS_KEPT - 1);
                 self.encoded.insert(0, (n, bytes));
@@ -622,6 +640,60 @@ fn rle_constant(n: usize, level: u8) -> Vec<u8> {
         }
         out.push(header as u8);
         out.push(level);
+    }
+    let len = u32::try_from(out.len() - 4).unwrap_or(u32::MAX);
+    out[..4].copy_from_slice(&len.to_le_bytes());
+    out
+}
+
+/// [`rle_hybrid`] of the repetition levels of `n` values in rows of `per_row` (each row's
+/// first value 0, the others 1), at a width of 1: for rows of 2 to 8 values, without going
+/// through the values. No eight of those levels in a row are equal, so the port writes
+/// each whole group of eight bit-packed (one byte), in runs of at most 63 groups; the
+/// last values, fewer than eight, go padded into the last run when one is open, else as
+/// a run of their own: RLE when they are all equal, else one bit-packed group. The
+/// groups' bytes repeat with the rows.
+fn rle_repetition(n: usize, per_row: usize) -> Vec<u8> {
+    let level = |k: usize| u8::from(!k.is_multiple_of(per_row.max(1)));
+    if per_row <= 1 {
+        return rle_constant(n, 0);
+    }
+    if per_row > 8 {
+        let levels: Vec<u8> = (0..n).map(level).collect();
+        return rle_hybrid(&levels, 1);
+    }
+    // Group `g`'s byte is the `g % per_row`th (8 g mod per_row repeats with that period).
+    let group_byte = |g: usize| (0..8).fold(0u8, |b, j| b | (level(8 * g + j) << j));
+    let bytes: Vec<u8> = (0..per_row).map(group_byte).collect();
+    let groups = n / 8;
+    let rest = n % 8;
+    let mut out = vec![0; 4];
+    out.reserve(groups + groups / 63 + 4);
+    let mut g = 0;
+    let run = |out: &mut Vec<u8>, from: usize, len: usize, extra: usize| {
+        out.push((((len + extra) << 1) | 1) as u8);
+        out.extend((from..from + len).map(|g| bytes[g % per_row]));
+    };
+    while groups - g >= 63 {
+        run(&mut out, g, 63, 0);
+        g += 63;
+    }
+    let open = groups - g;
+    // The last values' group, padded with zeros.
+    let last = (0..rest).fold(0u8, |b, j| b | (level(8 * groups + j) << j));
+    if rest == 0 {
+        if open > 0 {
+            run(&mut out, g, open, 0);
+        }
+    } else if open > 0 {
+        run(&mut out, g, open, 1);
+        out.push(last);
+    } else if (1..rest).all(|j| level(8 * groups + j) == level(8 * groups)) {
+        out.push((rest << 1) as u8);
+        out.push(level(8 * groups));
+    } else {
+        out.push(3);
+        out.push(last);
     }
     let len = u32::try_from(out.len() - 4).unwrap_or(u32::MAX);
     out[..4].copy_from_slice(&len.to_le_bytes());
@@ -790,6 +862,22 @@ mod tests {
                     rle_constant(n, level),
                     rle_hybrid(&vec![level; n], width),
                     "{n} values of {level}"
+                );
+            }
+        }
+    }
+
+    /// Repetition levels of rows of every length, as the port of parquet-rs's encoder
+    /// writes them, for every count around its groups of eight and its runs of 63.
+    #[test]
+    fn repetition_levels_are_encoded_as_the_encoder_writes_them() {
+        for per_row in 1..=12usize {
+            for n in (0..=2100).chain([8 * 63 * 40, 8 * 63 * 40 + 3, 60_000, 60_003]) {
+                let levels: Vec<u8> = (0..n).map(|k| u8::from(k % per_row != 0)).collect();
+                assert_eq!(
+                    rle_repetition(n, per_row),
+                    rle_hybrid(&levels, 1),
+                    "{n} values in rows of {per_row}"
                 );
             }
         }
