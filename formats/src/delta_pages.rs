@@ -38,7 +38,7 @@ use parquet::file::statistics::{Statistics, ValueStatistics};
 use parquet::schema::types::ColumnDescPtr;
 
 use crate::parquet_columns::{ChunkPages, DirectShape, plain_values};
-use crate::split_pages::compressed_page;
+use crate::split_pages::{compressed_page, put_uleb128};
 
 /// Values a miniblock (the crate's for 64-bit integers).
 const MINIBLOCK: usize = 64;
@@ -75,18 +75,9 @@ struct PageEncoder {
     blocks: Vec<u8>,
 }
 
-/// `v` as ULEB128 (the crate's `put_vlq_int`).
-fn put_vlq(out: &mut Vec<u8>, mut v: u64) {
-    while v >= 0x80 {
-        out.push((v as u8 & 0x7F) | 0x80);
-        v >>= 7;
-    }
-    out.push(v as u8);
-}
-
-/// `v` zigzagged, as ULEB128 (the crate's `put_zigzag_vlq_int`).
+/// `v` zigzagged, as ULEB128 (parquet-rs's `put_zigzag_vlq_int`).
 fn put_zigzag_vlq(out: &mut Vec<u8>, v: i64) {
-    put_vlq(out, ((v << 1) ^ (v >> 63)) as u64);
+    put_uleb128(out, ((v << 1) ^ (v >> 63)) as u64);
 }
 
 /// Bits of `x`'s highest set bit (0 for 0: the crate's `num_required_bits`).
@@ -177,9 +168,9 @@ impl PageEncoder {
     /// is left empty.
     fn finish_into(&mut self, out: &mut Vec<u8>) {
         self.flush_block();
-        put_vlq(out, BLOCK as u64);
-        put_vlq(out, MINIBLOCKS as u64);
-        put_vlq(out, self.total as u64);
+        put_uleb128(out, BLOCK as u64);
+        put_uleb128(out, MINIBLOCKS as u64);
+        put_uleb128(out, self.total as u64);
         put_zigzag_vlq(out, self.first);
         out.extend_from_slice(&self.blocks);
         self.blocks.clear();

@@ -626,6 +626,16 @@ fn rle_hybrid(levels: &[u8], width: u8) -> Vec<u8> {
     e.out
 }
 
+/// `v` as ULEB128, as Parquet's encodings write their headers (parquet-rs's
+/// `put_vlq_int`).
+pub(crate) fn put_uleb128(out: &mut Vec<u8>, mut v: u64) {
+    while v >= 0x80 {
+        out.push((v as u8 & 0x7F) | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
 /// [`rle_hybrid`] of `n` values all `level`, without going through them: one RLE run of
 /// them (of none, nothing), as its port of parquet-rs's `RleEncoder` writes it. Their
 /// first eight (or all, when fewer) are buffered as equal, then the rest counted
@@ -633,12 +643,7 @@ fn rle_hybrid(levels: &[u8], width: u8) -> Vec<u8> {
 fn rle_constant(n: usize, level: u8) -> Vec<u8> {
     let mut out = vec![0; 4];
     if n > 0 {
-        let mut header = n << 1;
-        while header >= 0x80 {
-            out.push((header & 0x7F) as u8 | 0x80);
-            header >>= 7;
-        }
-        out.push(header as u8);
+        put_uleb128(&mut out, (n << 1) as u64);
         out.push(level);
     }
     let len = u32::try_from(out.len() - 4).unwrap_or(u32::MAX);
@@ -754,12 +759,7 @@ impl Rle {
     }
 
     fn flush_rle_run(&mut self) {
-        let mut header = self.repeat << 1;
-        while header >= 0x80 {
-            self.out.push((header & 0x7F) as u8 | 0x80);
-            header >>= 7;
-        }
-        self.out.push(header as u8);
+        put_uleb128(&mut self.out, (self.repeat << 1) as u64);
         // The value in whole bytes: one, as `width` ≤ 8.
         self.out.push(self.current);
         self.n_buffered = 0;
