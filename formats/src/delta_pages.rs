@@ -26,17 +26,14 @@
 
 use arrow::array::{ArrayRef, AsArray};
 use arrow::datatypes::{DataType, Int64Type, UInt64Type};
-use parquet::basic::{
-    Compression, Encoding, EncodingMask, PageType, Type as PhysicalType, ZstdLevel,
-};
-use parquet::column::page::{CompressedPage, Page};
+use parquet::basic::{Compression, Encoding, Type as PhysicalType};
 use parquet::column::writer::ColumnCloseResult;
 use parquet::errors::ParquetError;
-use parquet::file::metadata::{ColumnChunkMetaData, OffsetIndexBuilder, PageEncodingStats};
 use parquet::file::properties::{EnabledStatistics, WriterPropertiesPtr, WriterVersion};
-use parquet::file::statistics::{Statistics, ValueStatistics};
+use parquet::file::statistics::ValueStatistics;
 use parquet::schema::types::ColumnDescPtr;
 
+use crate::chunk_ledger::ChunkLedger;
 use crate::parquet_columns::{ChunkPages, DirectShape, plain_values};
 use crate::split_pages::{compressed_page, put_uleb128};
 
@@ -56,8 +53,6 @@ struct Settings {
     page_rows: usize,
     /// … or its blocks encoded so far this many bytes.
     page_bytes: usize,
-    /// The pages' zstd level.
-    zstd: ZstdLevel,
 }
 
 /// A page's encoder: the crate's `DeltaBitPackEncoder` for 64-bit values, state for state.
@@ -214,14 +209,8 @@ pub(crate) struct DeltaColumn {
     /// Rows (values) in the page being filled.
     page_values: usize,
     bounds: Bounds,
-    pages: ChunkPages,
-    offset_index: Option<OffsetIndexBuilder>,
-    page_count: i32,
-    values: u64,
-    uncompressed_bytes: u64,
-    compressed_bytes: u64,
-    bytes_written: u64,
-    first_page_offset: Option<u64>,
+    /// The chunk's pages so far.
+    chunk: ChunkLedger,
 }
 
 impl DeltaColumn {
@@ -254,10 +243,10 @@ impl DeltaColumn {
             batch: props.write_batch_size(),
             page_rows: props.data_page_row_count_limit(),
             page_bytes: props.column_data_page_size_limit(path),
-            zstd: level,
         };
         let unsigned = !descr.sort_order().is_signed();
         Some(Self {
+            chunk: ChunkLedger::new(descr.clone(), &props, Encoding::DELTA_BINARY_PACKED, level),
             descr,
             settings,
             encoder: PageEncoder {
@@ -269,14 +258,6 @@ impl DeltaColumn {
                 unsigned,
                 min_max: None,
             },
-            pages: ChunkPages::default(),
-            offset_index: (!props.offset_index_disabled()).then(OffsetIndexBuilder::new),
-            page_count: 0,
-            values: 0,
-            uncompressed_bytes: 0,
-            compressed_bytes: 0,
-            bytes_written: 0,
-            first_page_offset: None,
         })
     }
 
@@ -319,34 +300,10 @@ impl DeltaColumn {
     /// Writes the page of the values taken since the last.
     fn page(&mut self) -> Result<(), ParquetError> {
         let n = std::mem::take(&mut self.page_values);
-        let level = self.settings.zstd.compression_level();
+        let level = self.chunk.zstd().compression_level();
         let encoder = &mut self.encoder;
         let (buf, uncompressed) = compressed_page(level, |out| encoder.finish_into(out))?;
-        let num_values =
-            u32::try_from(n).map_err(|_| ParquetError::General(format!("a page of {n} values")))?;
-        let page = Page::DataPage {
-            buf,
-            num_values,
-            encoding: Encoding::DELTA_BINARY_PACKED,
-            def_level_encoding: Encoding::RLE,
-            rep_level_encoding: Encoding::RLE,
-            statistics: None,
-        };
-        let spec = self.pages.push(CompressedPage::new(page, uncompressed))?;
-        if let Some(index) = &mut self.offset_index {
-            index.append_row_count(n as i64);
-            index.append_unencoded_byte_array_data_bytes(None);
-            let size = i32::try_from(spec.compressed_size)
-                .map_err(|_| ParquetError::General("a page of more than 2 GiB".into()))?;
-            index.append_offset_and_size(spec.offset as i64, size);
-        }
-        self.page_count += 1;
-        self.values += n as u64;
-        self.uncompressed_bytes += spec.uncompressed_size as u64;
-        self.compressed_bytes += spec.compressed_size as u64;
-        self.bytes_written += spec.bytes_written;
-        self.first_page_offset.get_or_insert(spec.offset);
-        Ok(())
+        self.chunk.push(buf, uncompressed, n, n)
     }
 
     /// Writes the last page and returns the chunk's pages and what the row group records
@@ -355,43 +312,11 @@ impl DeltaColumn {
         if self.page_values > 0 {
             self.page()?;
         }
-        // The levels' encoding is always listed; DELTA_BINARY_PACKED once a page has it.
-        let mut encodings = vec![Encoding::RLE];
-        let mut page_stats = Vec::new();
-        if self.page_count > 0 {
-            encodings.push(Encoding::DELTA_BINARY_PACKED);
-            page_stats.push(PageEncodingStats {
-                page_type: PageType::DATA_PAGE,
-                encoding: Encoding::DELTA_BINARY_PACKED,
-                count: self.page_count,
-            });
-        }
-        let as_i64 =
-            |v: u64| i64::try_from(v).map_err(|_| ParquetError::General("a chunk past i64".into()));
         let (min, max) = self.bounds.min_max.unzip();
-        let statistics: Statistics = ValueStatistics::new(min, max, None, Some(0), false)
-            .with_backwards_compatible_min_max(self.descr.sort_order().is_signed())
-            .into();
-        let metadata = ColumnChunkMetaData::builder(self.descr.clone())
-            .set_compression(Compression::ZSTD(self.settings.zstd))
-            .set_encodings_mask(EncodingMask::new_from_encodings(encodings.iter()))
-            .set_page_encoding_stats(page_stats)
-            .set_total_compressed_size(as_i64(self.compressed_bytes)?)
-            .set_total_uncompressed_size(as_i64(self.uncompressed_bytes)?)
-            .set_num_values(as_i64(self.values)?)
-            .set_data_page_offset(as_i64(self.first_page_offset.unwrap_or(0))?)
-            .set_dictionary_page_offset(None)
-            .set_statistics(statistics)
-            .set_unencoded_byte_array_data_bytes(None)
-            .build()?;
-        let close = ColumnCloseResult {
-            bytes_written: self.bytes_written,
-            rows_written: self.values,
-            metadata,
-            bloom_filter: None,
-            column_index: None,
-            offset_index: self.offset_index.map(OffsetIndexBuilder::build),
-        };
-        Ok((self.pages, close))
+        self.chunk.close(
+            ValueStatistics::new(min, max, None, Some(0), false)
+                .with_backwards_compatible_min_max(self.descr.sort_order().is_signed())
+                .into(),
+        )
     }
 }

@@ -14,6 +14,7 @@
 //! ```
 
 pub mod atomic;
+mod chunk_ledger;
 mod delta_pages;
 pub mod error;
 pub mod followed_steps;

@@ -789,6 +789,15 @@ mod tests {
         assert!(err.to_string().contains("none.parquet"), "{err}");
     }
 
+    /// The footer's metadata of the Parquet file at `path`.
+    fn file_metadata(path: &Path) -> Arc<parquet::file::metadata::ParquetMetaData> {
+        let file = std::fs::File::open(path).expect("file");
+        ParquetRecordBatchReaderBuilder::try_new(file)
+            .expect("reader")
+            .metadata()
+            .clone()
+    }
+
     /// The file `ArrowWriter` writes of `batches` with the sink's settings, in row groups
     /// of at most `rows` rows.
     fn arrow_writer_bytes(schema: &SchemaRef, rows: usize, batches: &[RecordBatch]) -> Vec<u8> {
@@ -916,10 +925,7 @@ mod tests {
             assert_eq!(ours.len(), plain.len());
             assert!(ours == plain, "{} differs", p.display());
         }
-        let meta = ParquetRecordBatchReaderBuilder::try_new(std::fs::File::open(&path).unwrap())
-            .expect("reader")
-            .metadata()
-            .clone();
+        let meta = file_metadata(&path);
         let groups: Vec<i64> = meta.row_groups().iter().map(|g| g.num_rows()).collect();
         assert_eq!(groups, [10_000, 10_000, 10_000, 10_000, 99]);
         // A batch of another shape is refused, naming the file; so is a table without
@@ -1004,10 +1010,7 @@ mod tests {
         sink.write(&batch).expect("written");
         sink.finish().expect("finished");
         let plain = arrow_writer_bytes(&schema, 1 << 20, std::slice::from_ref(&batch));
-        let meta = ParquetRecordBatchReaderBuilder::try_new(std::fs::File::open(&path).unwrap())
-            .expect("reader")
-            .metadata()
-            .clone();
+        let meta = file_metadata(&path);
         let x_chunk = meta.row_group(0).column(1);
         assert!(
             x_chunk.compressed_size() > 1 << 20,
@@ -1246,10 +1249,7 @@ mod tests {
         assert!(std::fs::read(&path).expect("read") == plain, "differs");
         // What the file states: x's bounds leave its NaNs out, the NaN column has none,
         // and the zeros' column's maximum is +0.
-        let meta = ParquetRecordBatchReaderBuilder::try_new(std::fs::File::open(&path).unwrap())
-            .expect("reader")
-            .metadata()
-            .clone();
+        let meta = file_metadata(&path);
         let stats = |c: usize| meta.row_group(0).column(c).statistics().cloned();
         match stats(0) {
             Some(parquet::file::statistics::Statistics::Double(s)) => {
@@ -1356,10 +1356,7 @@ mod tests {
         let plain = arrow_writer_bytes(&schema, group_rows, &batches);
         assert!(std::fs::read(&path).expect("read") == plain, "differs");
         // The unsigned column's bounds are in unsigned order, past i64's range.
-        let meta = ParquetRecordBatchReaderBuilder::try_new(std::fs::File::open(&path).unwrap())
-            .expect("reader")
-            .metadata()
-            .clone();
+        let meta = file_metadata(&path);
         match meta.row_group(0).column(1).statistics() {
             Some(parquet::file::statistics::Statistics::Int64(s)) => {
                 assert_eq!(s.min_opt().map(|&m| m as u64), Some(SEQ_BASE));

@@ -29,17 +29,14 @@ use std::sync::{Mutex, OnceLock};
 use arrow::array::{ArrayRef, AsArray};
 use arrow::datatypes::{ArrowNativeType, ArrowPrimitiveType, Float32Type, Float64Type};
 use bytes::Bytes;
-use parquet::basic::{Compression, Encoding, EncodingMask, PageType, ZstdLevel};
-use parquet::column::page::{CompressedPage, Page};
+use parquet::basic::{Compression, Encoding};
 use parquet::column::writer::ColumnCloseResult;
 use parquet::errors::ParquetError;
-use parquet::file::metadata::{
-    ColumnChunkMetaData, LevelHistogram, OffsetIndexBuilder, PageEncodingStats,
-};
 use parquet::file::properties::{EnabledStatistics, WriterPropertiesPtr, WriterVersion};
 use parquet::file::statistics::{Statistics, ValueStatistics};
 use parquet::schema::types::ColumnDescPtr;
 
+use crate::chunk_ledger::ChunkLedger;
 use crate::parquet_columns::{ChunkPages, DirectShape, plain_values};
 use crate::split_doubles::SplitFloat;
 
@@ -316,8 +313,6 @@ struct Settings {
     page_rows: usize,
     /// … or this many bytes of values.
     page_bytes: usize,
-    /// The pages' zstd level.
-    zstd: ZstdLevel,
 }
 
 /// A float column without nulls, flat or in lists of a fixed length, written as
@@ -332,15 +327,8 @@ pub(crate) struct SplitColumn<T> {
     /// all of that page's).
     kept: Vec<T>,
     bounds: Bounds<T>,
-    pages: ChunkPages,
-    offset_index: Option<OffsetIndexBuilder>,
-    page_count: i32,
-    rows: u64,
-    values: u64,
-    uncompressed_bytes: u64,
-    compressed_bytes: u64,
-    bytes_written: u64,
-    first_page_offset: Option<u64>,
+    /// The chunk's pages so far.
+    chunk: ChunkLedger,
 }
 
 impl<T: PageFloat> SplitColumn<T> {
@@ -378,24 +366,15 @@ impl<T: PageFloat> SplitColumn<T> {
             batch: props.write_batch_size(),
             page_rows: props.data_page_row_count_limit(),
             page_bytes: props.column_data_page_size_limit(path),
-            zstd: level,
         };
         Some(Self {
+            chunk: ChunkLedger::new(descr.clone(), &props, Encoding::BYTE_STREAM_SPLIT, level),
             descr,
             shape,
             levels,
             settings,
             kept: Vec::new(),
             bounds: Bounds::new(),
-            pages: ChunkPages::default(),
-            offset_index: (!props.offset_index_disabled()).then(OffsetIndexBuilder::new),
-            page_count: 0,
-            rows: 0,
-            values: 0,
-            uncompressed_bytes: 0,
-            compressed_bytes: 0,
-            bytes_written: 0,
-            first_page_offset: None,
         })
     }
 
@@ -465,34 +444,9 @@ impl<T: PageFloat> SplitColumn<T> {
         let rows = n / self.per_row();
         // Version 1 pages: the repetition levels, the definition levels, the values.
         let levels = self.levels.as_mut().map_or(&[][..], |l| l.encoded(n));
-        let level = self.settings.zstd.compression_level();
+        let level = self.chunk.zstd().compression_level();
         let (buf, uncompressed) = with_scratch(|scratch| scratch.page(levels, values, level))?;
-        let num_values =
-            u32::try_from(n).map_err(|_| ParquetError::General(format!("a page of {n} values")))?;
-        let page = Page::DataPage {
-            buf,
-            num_values,
-            encoding: Encoding::BYTE_STREAM_SPLIT,
-            def_level_encoding: Encoding::RLE,
-            rep_level_encoding: Encoding::RLE,
-            statistics: None,
-        };
-        let spec = self.pages.push(CompressedPage::new(page, uncompressed))?;
-        if let Some(index) = &mut self.offset_index {
-            index.append_row_count(rows as i64);
-            index.append_unencoded_byte_array_data_bytes(None);
-            let size = i32::try_from(spec.compressed_size)
-                .map_err(|_| ParquetError::General("a page of more than 2 GiB".into()))?;
-            index.append_offset_and_size(spec.offset as i64, size);
-        }
-        self.page_count += 1;
-        self.rows += rows as u64;
-        self.values += n as u64;
-        self.uncompressed_bytes += spec.uncompressed_size as u64;
-        self.compressed_bytes += spec.compressed_size as u64;
-        self.bytes_written += spec.bytes_written;
-        self.first_page_offset.get_or_insert(spec.offset);
-        Ok(())
+        self.chunk.push(buf, uncompressed, rows, n)
     }
 
     /// Writes the last page and returns the chunk's pages and what the row group records
@@ -502,59 +456,13 @@ impl<T: PageFloat> SplitColumn<T> {
             let kept = std::mem::take(&mut self.kept);
             self.page(&kept)?;
         }
-        // The levels' encoding is always listed; BYTE_STREAM_SPLIT once a page has it.
-        let mut encodings = vec![Encoding::RLE];
-        let mut page_stats = Vec::new();
-        if self.page_count > 0 {
-            encodings.push(Encoding::BYTE_STREAM_SPLIT);
-            page_stats.push(PageEncodingStats {
-                page_type: PageType::DATA_PAGE,
-                encoding: Encoding::BYTE_STREAM_SPLIT,
-                count: self.page_count,
-            });
-        }
-        let as_i64 =
-            |v: u64| i64::try_from(v).map_err(|_| ParquetError::General("a chunk past i64".into()));
-        // The levels' histograms (none for a flat column): each row's first value at
-        // repetition level 0, the others at 1; every value defined.
-        let mut repetition = LevelHistogram::try_new(self.descr.max_rep_level());
-        if let Some(h) = &mut repetition {
-            h.increment_by(0, as_i64(self.rows)?);
-            h.increment_by(1, as_i64(self.values - self.rows)?);
-        }
-        let mut definition = LevelHistogram::try_new(self.descr.max_def_level());
-        if let Some(h) = &mut definition {
-            h.increment_by(self.descr.max_def_level(), as_i64(self.values)?);
-        }
         let bounds = self.bounds.get();
         let backwards_compatible = self.descr.sort_order().is_signed();
-        let metadata = ColumnChunkMetaData::builder(self.descr.clone())
-            .set_compression(Compression::ZSTD(self.settings.zstd))
-            .set_encodings_mask(EncodingMask::new_from_encodings(encodings.iter()))
-            .set_page_encoding_stats(page_stats)
-            .set_total_compressed_size(as_i64(self.compressed_bytes)?)
-            .set_total_uncompressed_size(as_i64(self.uncompressed_bytes)?)
-            .set_num_values(as_i64(self.values)?)
-            .set_data_page_offset(as_i64(self.first_page_offset.unwrap_or(0))?)
-            .set_dictionary_page_offset(None)
-            .set_statistics(T::statistics(
-                bounds.map(|b| b.0),
-                bounds.map(|b| b.1),
-                backwards_compatible,
-            ))
-            .set_unencoded_byte_array_data_bytes(None)
-            .set_repetition_level_histogram(repetition)
-            .set_definition_level_histogram(definition)
-            .build()?;
-        let close = ColumnCloseResult {
-            bytes_written: self.bytes_written,
-            rows_written: self.rows,
-            metadata,
-            bloom_filter: None,
-            column_index: None,
-            offset_index: self.offset_index.map(OffsetIndexBuilder::build),
-        };
-        Ok((self.pages, close))
+        self.chunk.close(T::statistics(
+            bounds.map(|b| b.0),
+            bounds.map(|b| b.1),
+            backwards_compatible,
+        ))
     }
 }
 
