@@ -11,6 +11,8 @@
 
 use crc::{CRC_16_IBM_3740, Crc, Table};
 
+use super::record::IMU_PAYLOAD_LEN;
+
 /// CRC-16/IBM-3740 is the catalogue name of CRC-16/CCITT-FALSE.
 const CCITT_FALSE: Crc<u16, Table<16>> = Crc::<u16, Table<16>>::new(&CRC_16_IBM_3740);
 
@@ -51,9 +53,23 @@ const fn lead_states() -> [u16; 16] {
     states
 }
 
+/// Bytes an IMU record's CRC covers: its type, length and payload.
+const IMU_CRC_LEN: usize = 2 + IMU_PAYLOAD_LEN;
+
 /// CRC over `type`, `len` and `payload` of one record.
 pub fn record_crc(type_and_len_and_payload: &[u8]) -> u16 {
     let data = type_and_len_and_payload;
+    // Nearly every record is an IMU record: its bytes copied at their fixed length are
+    // moves the compiler writes in place, where a length known only at run time is a
+    // call to `memcpy` (2.7 % of the ingest's profile).
+    if let Ok(imu) = <&[u8; IMU_CRC_LEN]>::try_from(data) {
+        const LEAD: usize = IMU_CRC_LEN.wrapping_neg() % 16;
+        let mut led = [0u8; LEAD + IMU_CRC_LEN];
+        led[LEAD..].copy_from_slice(imu);
+        let mut digest = CCITT_FALSE.digest_with_initial(LEAD_STATES[LEAD]);
+        digest.update(&led);
+        return digest.finalize();
+    }
     let lead = data.len().wrapping_neg() % 16;
     if lead + data.len() > LED_MAX {
         return CCITT_FALSE.checksum(data);
