@@ -16,8 +16,9 @@ use parquet::schema::types::ColumnDescPtr;
 
 use crate::parquet_columns::ChunkPages;
 
-/// The pages of one column chunk of required values (each defined; in lists, each row's
-/// first value at repetition level 0), all in one encoding, zstd-compressed.
+/// The pages of one column chunk, all in one encoding, zstd-compressed: of required values
+/// (each defined; in lists, each row's first value at repetition level 0), or of a flat
+/// nullable column's (its nulls at definition level 0).
 pub(crate) struct ChunkLedger {
     descr: ColumnDescPtr,
     encoding: Encoding,
@@ -27,6 +28,8 @@ pub(crate) struct ChunkLedger {
     page_count: i32,
     rows: u64,
     values: u64,
+    /// Values that are null (definition level 0), of `values`.
+    nulls: u64,
     uncompressed_bytes: u64,
     compressed_bytes: u64,
     bytes_written: u64,
@@ -51,6 +54,7 @@ impl ChunkLedger {
             page_count: 0,
             rows: 0,
             values: 0,
+            nulls: 0,
             uncompressed_bytes: 0,
             compressed_bytes: 0,
             bytes_written: 0,
@@ -63,14 +67,16 @@ impl ChunkLedger {
         self.zstd
     }
 
-    /// Appends a version 1 data page of `values` values in `rows` rows, its bytes (levels,
-    /// then values) compressed in `buf`, `uncompressed` bytes before.
+    /// Appends a version 1 data page of `values` values (`nulls` of them null) in `rows`
+    /// rows, its bytes (levels, then values) compressed in `buf`, `uncompressed` bytes
+    /// before.
     pub(crate) fn push(
         &mut self,
         buf: Bytes,
         uncompressed: usize,
         rows: usize,
         values: usize,
+        nulls: usize,
     ) -> Result<(), ParquetError> {
         let num_values = u32::try_from(values)
             .map_err(|_| ParquetError::General(format!("a page of {values} values")))?;
@@ -93,6 +99,7 @@ impl ChunkLedger {
         self.page_count += 1;
         self.rows += rows as u64;
         self.values += values as u64;
+        self.nulls += nulls as u64;
         self.uncompressed_bytes += spec.uncompressed_size as u64;
         self.compressed_bytes += spec.compressed_size as u64;
         self.bytes_written += spec.bytes_written;
@@ -119,8 +126,8 @@ impl ChunkLedger {
         }
         let as_i64 =
             |v: u64| i64::try_from(v).map_err(|_| ParquetError::General("a chunk past i64".into()));
-        // The levels' histograms (none for a flat column): each row's first value at
-        // repetition level 0, the others at 1; every value defined.
+        // The levels' histograms (none for a flat required column): each row's first value
+        // at repetition level 0, the others at 1; every value defined but the nulls.
         let mut repetition = LevelHistogram::try_new(self.descr.max_rep_level());
         if let Some(h) = &mut repetition {
             h.increment_by(0, as_i64(self.rows)?);
@@ -128,7 +135,11 @@ impl ChunkLedger {
         }
         let mut definition = LevelHistogram::try_new(self.descr.max_def_level());
         if let Some(h) = &mut definition {
-            h.increment_by(self.descr.max_def_level(), as_i64(self.values)?);
+            h.increment_by(0, as_i64(self.nulls)?);
+            h.increment_by(
+                self.descr.max_def_level(),
+                as_i64(self.values - self.nulls)?,
+            );
         }
         let metadata = ColumnChunkMetaData::builder(self.descr.clone())
             .set_compression(Compression::ZSTD(self.zstd))

@@ -8,7 +8,8 @@
 //! Its values go to the same typed column writer as they lie in the array, with the levels
 //! such a column always has (none when flat; in a list, every value defined and each
 //! list's first value starting a record). Float columns go to [`SplitColumn`] instead,
-//! which encodes their pages itself (`split_pages`). The pages, the column chunk and its
+//! which encodes their pages itself (`split_pages`), and 64-bit integer ones, nullable
+//! ones too, to [`DeltaColumn`] (`delta_pages`). The pages, the column chunk and its
 //! metadata are the Arrow writer's, byte for byte (`parquet_io`'s tests compare whole
 //! files).
 
@@ -35,6 +36,9 @@ use crate::split_pages::SplitColumn;
 pub(crate) enum DirectShape {
     /// One value a row.
     Flat,
+    /// One value a row, or a null: a flat nullable 64-bit integer column (only
+    /// `delta_pages` takes it).
+    Nullable,
     /// `len` values a row, in a required fixed-size list.
     List { len: usize },
 }
@@ -48,7 +52,8 @@ pub(crate) fn direct_shape(field: &Field) -> Option<DirectShape> {
         )
     };
     if field.is_nullable() {
-        return None;
+        let wide_integer = matches!(field.data_type(), DataType::Int64 | DataType::UInt64);
+        return wide_integer.then_some(DirectShape::Nullable);
     }
     match field.data_type() {
         t if plain(t) => Some(DirectShape::Flat),
@@ -271,7 +276,7 @@ pub(crate) fn plain_values(
     shape: DirectShape,
 ) -> Result<&dyn Array, ParquetError> {
     let values: &dyn Array = match shape {
-        DirectShape::Flat => column.as_ref(),
+        DirectShape::Flat | DirectShape::Nullable => column.as_ref(),
         DirectShape::List { len } => {
             let list = column.as_fixed_size_list_opt().ok_or_else(|| {
                 ParquetError::General(format!("a {} for a list column", column.data_type()))
@@ -311,6 +316,7 @@ impl TypedColumn {
         let levels_fit = match shape {
             DirectShape::Flat => descr.max_def_level() == 0 && descr.max_rep_level() == 0,
             DirectShape::List { .. } => descr.max_rep_level() == 1,
+            DirectShape::Nullable => false,
         };
         if !levels_fit {
             return None;
@@ -333,7 +339,7 @@ impl TypedColumn {
         let values = plain_values(column, self.shape)?;
         let n = values.len();
         let (def, rep) = match self.shape {
-            DirectShape::Flat => (None, None),
+            DirectShape::Flat | DirectShape::Nullable => (None, None),
             DirectShape::List { len } => {
                 if self.def_levels.len() < n {
                     self.def_levels = vec![self.max_def_level; n];

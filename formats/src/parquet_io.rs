@@ -355,7 +355,12 @@ impl ParquetSink {
     /// be of the kinds written directly (required numbers, or fixed-size lists of them).
     pub fn deferring_from(mut self, field: usize) -> Result<(Self, TrailingColumns), FileError> {
         let fields = self.schema.fields().len();
-        let direct = |f: usize| self.leaves.direct[f].is_some() && self.leaves.per_field[f] == 1;
+        // A nullable integer's direct writer takes the tables' settings only (any other
+        // column has the crate's typed writer to fall back on).
+        let direct = |f: usize| {
+            self.leaves.direct[f].is_some_and(|s| s != DirectShape::Nullable)
+                && self.leaves.per_field[f] == 1
+        };
         if field == 0 || field >= fields || !(field..fields).all(direct) {
             return Err(self.invalid(format!(
                 "fields {field}.. of {fields} cannot be written after the others"
@@ -906,8 +911,9 @@ mod tests {
                 sink.write(b).expect("written");
                 if i == 0 {
                     // The plain columns without nulls are written directly: t_ns, x, v, h,
-                    // count, pair; the floats x, v, h and pair as split pages.
-                    assert_eq!(sink.direct_leaves(), 6);
+                    // count, pair; the floats x, v, h and pair as split pages; and the
+                    // nullable integer maybe as delta-encoded pages.
+                    assert_eq!(sink.direct_leaves(), 7);
                     assert_eq!(sink.split_leaves(), 4);
                 }
             }
@@ -1280,10 +1286,14 @@ mod tests {
     /// past i64's range (bounds in unsigned order), signed ones below zero; batches of
     /// one value, of a block and one either side, of a write batch and one either side,
     /// none, and long ones, so blocks, miniblocks and pages end within a batch, across
-    /// batches and at a row group's end.
+    /// batches and at a row group's end. Nullable columns too: a null every fifth row,
+    /// none (with and without a validity buffer), runs of nulls longer than a write
+    /// batch and than a page (all-null batches, pages and row groups' stretches), u64s
+    /// with nulls.
     #[test]
     fn delta_integer_pages_are_arrow_writers_whatever_the_values_and_batches() {
         use arrow::array::{Int64Array, UInt64Array};
+        use arrow::buffer::{BooleanBuffer, NullBuffer};
         // Sequence numbers crossing i64's greatest value in the first row group.
         const SEQ_BASE: u64 = (1 << 63) - 20_000;
         let schema = Arc::new(Schema::new(vec![
@@ -1295,6 +1305,10 @@ mod tests {
             Field::new("spread_u", DataType::UInt64, false),
             Field::new("extremes", DataType::Int64, false),
             Field::new("nullable", DataType::Int64, true),
+            Field::new("never_null", DataType::Int64, true),
+            Field::new("valid_buffer", DataType::Int64, true),
+            Field::new("null_runs", DataType::Int64, true),
+            Field::new("nullable_u", DataType::UInt64, true),
         ]));
         // A reproducible spread of 64-bit values, of every width in turn.
         let spread = |k: u64| {
@@ -1330,7 +1344,21 @@ mod tests {
                 Arc::new(UInt64Array::from_iter_values(rows.clone().map(spread))),
                 Arc::new(Int64Array::from_iter_values(rows.clone().map(extremes))),
                 Arc::new(Int64Array::from_iter(
-                    rows.map(|k| (k % 5 != 0).then_some(k as i64)),
+                    rows.clone().map(|k| (k % 5 != 0).then_some(k as i64)),
+                )),
+                Arc::new(Int64Array::from_iter_values(
+                    rows.clone().map(|k| 7 * k as i64 - 3),
+                )),
+                Arc::new(Int64Array::new(
+                    rows.clone().map(|k| spread(k) as i64).collect(),
+                    Some(NullBuffer::new(BooleanBuffer::new_set(n as usize))),
+                )),
+                Arc::new(Int64Array::from_iter(
+                    rows.clone()
+                        .map(|k| ((k / 3_000) % 3 != 1).then_some(spread(k) as i64)),
+                )),
+                Arc::new(UInt64Array::from_iter(
+                    rows.map(|k| (k % 7 != 3).then_some(SEQ_BASE + k)),
                 )),
             ];
             RecordBatch::try_new(schema.clone(), columns).expect("batch")
@@ -1351,7 +1379,11 @@ mod tests {
         for b in &batches {
             sink.write(b).expect("written");
         }
-        assert_eq!(sink.delta_leaves(), 7, "the nullable column is the crate's");
+        assert_eq!(
+            sink.delta_leaves(),
+            12,
+            "every column is delta-encoded here"
+        );
         sink.finish().expect("finished");
         let plain = arrow_writer_bytes(&schema, group_rows, &batches);
         assert!(std::fs::read(&path).expect("read") == plain, "differs");

@@ -383,7 +383,7 @@ impl<T: PageFloat> SplitColumn<T> {
     /// Values a row: 1, or the lists' length.
     fn per_row(&self) -> usize {
         match self.shape {
-            DirectShape::Flat => 1,
+            DirectShape::Flat | DirectShape::Nullable => 1,
             DirectShape::List { len } => len,
         }
     }
@@ -448,7 +448,7 @@ impl<T: PageFloat> SplitColumn<T> {
         let levels = self.levels.as_mut().map_or(&[][..], |l| l.encoded(n));
         let level = self.chunk.zstd().compression_level();
         let (buf, uncompressed) = with_scratch(|scratch| scratch.page(levels, values, level))?;
-        self.chunk.push(buf, uncompressed, rows, n)
+        self.chunk.push(buf, uncompressed, rows, n, 0)
     }
 
     /// Writes the last page and returns the chunk's pages and what the row group records
@@ -516,7 +516,7 @@ impl ListLevels {
 /// parquet-rs's `RleEncoder` writes (a port of its choices: values taken eight at a
 /// time, a run of eight equal ones or more encoded as a run, up to 63 groups of eight a
 /// bit-packed run, the last group padded with zeros).
-fn rle_hybrid(levels: &[u8], width: u8) -> Vec<u8> {
+pub(crate) fn rle_hybrid(levels: &[u8], width: u8) -> Vec<u8> {
     let mut e = Rle {
         out: vec![0; 4],
         width,
@@ -550,7 +550,7 @@ pub(crate) fn put_uleb128(out: &mut Vec<u8>, mut v: u64) {
 /// them (of none, nothing), as its port of parquet-rs's `RleEncoder` writes it. Their
 /// first eight (or all, when fewer) are buffered as equal, then the rest counted
 /// without being buffered; the end flushes the run.
-fn rle_constant(n: usize, level: u8) -> Vec<u8> {
+pub(crate) fn rle_constant(n: usize, level: u8) -> Vec<u8> {
     let mut out = vec![0; 4];
     if n > 0 {
         put_uleb128(&mut out, (n << 1) as u64);
