@@ -3,18 +3,65 @@
 //! offset index and row group record of them, as parquet-rs's column writer keeps them.
 
 use bytes::Bytes;
-use parquet::basic::{Compression, Encoding, EncodingMask, PageType, ZstdLevel};
+use parquet::basic::{
+    Compression, Encoding, EncodingMask, PageType, Type as PhysicalType, ZstdLevel,
+};
 use parquet::column::page::{CompressedPage, Page};
 use parquet::column::writer::ColumnCloseResult;
 use parquet::errors::ParquetError;
 use parquet::file::metadata::{
     ColumnChunkMetaData, LevelHistogram, OffsetIndexBuilder, PageEncodingStats,
 };
-use parquet::file::properties::WriterPropertiesPtr;
+use parquet::file::properties::{EnabledStatistics, WriterPropertiesPtr, WriterVersion};
 use parquet::file::statistics::Statistics;
 use parquet::schema::types::ColumnDescPtr;
 
 use crate::parquet_columns::ChunkPages;
+
+/// The writer settings a column whose pages are encoded here takes from the file's.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PageSettings {
+    /// Values encoded between checks of the page's size (in a list, then up to a row's
+    /// end).
+    pub(crate) batch: usize,
+    /// A page is cut once it holds this many rows…
+    pub(crate) page_rows: usize,
+    /// … or its values' encoded size is this many bytes.
+    pub(crate) page_bytes: usize,
+    /// The pages' compression.
+    pub(crate) zstd: ZstdLevel,
+}
+
+impl PageSettings {
+    /// The settings of the leaf `descr` in the file's `props`, or `None` unless the leaf
+    /// is of `physical` type and they are the tables': version 1 pages, no dictionary,
+    /// `encoding` (a column without one of its own is written PLAIN), chunk statistics, no
+    /// bloom filter, zstd.
+    pub(crate) fn of(
+        descr: &ColumnDescPtr,
+        props: &WriterPropertiesPtr,
+        physical: PhysicalType,
+        encoding: Encoding,
+    ) -> Option<Self> {
+        let path = descr.path();
+        let Compression::ZSTD(zstd) = props.compression(path) else {
+            return None;
+        };
+        let taken = descr.physical_type() == physical
+            && props.statistics_enabled(path) == EnabledStatistics::Chunk
+            && props.writer_version() == WriterVersion::PARQUET_1_0
+            && !props.dictionary_enabled(path)
+            && props.encoding(path).unwrap_or(Encoding::PLAIN) == encoding
+            && props.bloom_filter_properties(path).is_none()
+            && props.write_batch_size() > 0;
+        taken.then(|| Self {
+            batch: props.write_batch_size(),
+            page_rows: props.data_page_row_count_limit(),
+            page_bytes: props.column_data_page_size_limit(path),
+            zstd,
+        })
+    }
+}
 
 /// The pages of one column chunk, all in one encoding, zstd-compressed: of required values
 /// (each defined; in lists, each row's first value at repetition level 0), or of a flat

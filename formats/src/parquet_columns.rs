@@ -3,15 +3,15 @@
 //! The Arrow writer's own column writer (`ArrowColumnWriter`) first computes each leaf's
 //! levels and the indices of its non-null values (8 bytes a value), then gathers the
 //! values by those indices into a copy, and only then encodes them. A column that cannot
-//! hold a null has nothing to gather: a required `Int64`, `UInt64`, `Float32` or
-//! `Float64` column, or a required fixed-size list of such required values (a 3-vector).
-//! Its values go to the same typed column writer as they lie in the array, with the levels
-//! such a column always has (none when flat; in a list, every value defined and each
-//! list's first value starting a record). Float columns go to [`SplitColumn`] instead,
-//! which encodes their pages itself (`split_pages`), and 64-bit integer ones, nullable
-//! ones too, to [`DeltaColumn`] (`delta_pages`). The pages, the column chunk and its
-//! metadata are the Arrow writer's, byte for byte (`parquet_io`'s tests compare whole
-//! files).
+//! hold a null has nothing to gather: a required integer or float column, or a required
+//! fixed-size list of required 64-bit integers or floats (a 3-vector). Its values go to
+//! the same typed column writer as they lie in the array (narrow integers widened), with
+//! the levels such a column always has (none when flat; in a list, every value defined
+//! and each list's first value starting a record). Float columns go to [`SplitColumn`]
+//! instead, which encodes their pages itself (`split_pages`), and flat integer ones,
+//! nullable ones too, to [`IntColumn`] (`int_pages`: 64-bit ones delta-encoded, 32-bit
+//! and narrower ones plain). The pages, the column chunk and its metadata are the Arrow
+//! writer's, byte for byte (`parquet_io`'s tests compare whole files).
 
 use std::io::Read;
 use std::sync::{Arc, Mutex};
@@ -28,7 +28,10 @@ use parquet::file::reader::{ChunkReader, Length};
 use parquet::file::writer::{SerializedPageWriter, SerializedRowGroupWriter, TrackedWrite};
 use parquet::schema::types::ColumnDescPtr;
 
-use crate::delta_pages::DeltaColumn;
+use crate::delta_pages::DeltaEncoder;
+use crate::int_pages::IntColumn;
+use crate::int_pages::IntEncoder;
+use crate::plain_pages::PlainEncoder;
 use crate::split_pages::SplitColumn;
 
 /// How a column's values lie when it is written directly (see the module's notes).
@@ -36,8 +39,8 @@ use crate::split_pages::SplitColumn;
 pub(crate) enum DirectShape {
     /// One value a row.
     Flat,
-    /// One value a row, or a null: a flat nullable 64-bit integer column (only
-    /// `delta_pages` takes it).
+    /// One value a row, or a null: a flat nullable integer column (only `int_pages`
+    /// takes it).
     Nullable,
     /// `len` values a row, in a required fixed-size list.
     List { len: usize },
@@ -51,12 +54,25 @@ pub(crate) fn direct_shape(field: &Field) -> Option<DirectShape> {
             DataType::Int64 | DataType::UInt64 | DataType::Float32 | DataType::Float64
         )
     };
+    // Stored as INT32 (flat ones only).
+    let narrow = |t: &DataType| {
+        matches!(
+            t,
+            DataType::Int8
+                | DataType::Int16
+                | DataType::Int32
+                | DataType::UInt8
+                | DataType::UInt16
+                | DataType::UInt32
+        )
+    };
     if field.is_nullable() {
-        let wide_integer = matches!(field.data_type(), DataType::Int64 | DataType::UInt64);
-        return wide_integer.then_some(DirectShape::Nullable);
+        let t = field.data_type();
+        let integer = matches!(t, DataType::Int64 | DataType::UInt64) || narrow(t);
+        return integer.then_some(DirectShape::Nullable);
     }
     match field.data_type() {
-        t if plain(t) => Some(DirectShape::Flat),
+        t if plain(t) || narrow(t) => Some(DirectShape::Flat),
         DataType::FixedSizeList(item, len)
             if !item.is_nullable() && plain(item.data_type()) && *len > 0 =>
         {
@@ -211,7 +227,8 @@ impl Read for PagesReader {
 pub(crate) enum DirectColumn {
     SplitF64(SplitColumn<f64>),
     SplitF32(SplitColumn<f32>),
-    Delta(DeltaColumn),
+    Delta(IntColumn<DeltaEncoder>),
+    Plain(IntColumn<PlainEncoder>),
     Typed(Box<TypedColumn>),
 }
 
@@ -229,8 +246,11 @@ impl DirectColumn {
         if let Some(c) = SplitColumn::new(descr.clone(), props.clone(), shape) {
             return Some(Self::SplitF32(c));
         }
-        if let Some(c) = DeltaColumn::new(descr.clone(), props.clone(), shape) {
+        if let Some(c) = IntColumn::new(descr.clone(), props.clone(), shape) {
             return Some(Self::Delta(c));
+        }
+        if let Some(c) = IntColumn::new(descr.clone(), props.clone(), shape) {
+            return Some(Self::Plain(c));
         }
         TypedColumn::new(descr, props, shape).map(|c| Self::Typed(Box::new(c)))
     }
@@ -247,12 +267,19 @@ impl DirectColumn {
         matches!(self, Self::Delta(_))
     }
 
+    /// Whether the column is written as plain integer pages of its own.
+    #[cfg(test)]
+    pub(crate) fn is_plain(&self) -> bool {
+        matches!(self, Self::Plain(_))
+    }
+
     /// Encodes `column`'s rows.
     pub(crate) fn write(&mut self, column: &ArrayRef) -> Result<(), ParquetError> {
         match self {
             Self::SplitF64(w) => w.write_array(column),
             Self::SplitF32(w) => w.write_array(column),
             Self::Delta(w) => w.write_array(column),
+            Self::Plain(w) => w.write_array(column),
             Self::Typed(w) => w.write(column),
         }
     }
@@ -263,6 +290,7 @@ impl DirectColumn {
             Self::SplitF64(w) => w.close()?,
             Self::SplitF32(w) => w.close()?,
             Self::Delta(w) => w.close()?,
+            Self::Plain(w) => w.close()?,
             Self::Typed(w) => w.close()?,
         };
         Ok(LeafChunk::Direct { pages, close })
@@ -367,6 +395,11 @@ impl TypedColumn {
             }
             (ColumnWriter::DoubleColumnWriter(w), DataType::Float64) => {
                 w.write_batch(values.as_primitive::<Float64Type>().values(), def, rep)
+            }
+            // Narrow integers widened, a u32's bits as an i32's, as the Arrow writer
+            // stores them.
+            (ColumnWriter::Int32ColumnWriter(w), _) => {
+                w.write_batch(&PlainEncoder::values(values)?, def, rep)
             }
             (_, t) => Err(ParquetError::General(format!(
                 "a {t} column for another physical type"

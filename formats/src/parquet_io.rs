@@ -483,6 +483,17 @@ impl ParquetSink {
             .count()
     }
 
+    /// Leaf columns of the row group being filled that are written as plain integer pages
+    /// of their own.
+    #[cfg(test)]
+    fn plain_leaves(&self) -> usize {
+        self.groups
+            .writers
+            .iter()
+            .filter(|c| matches!(c, LeafWriter::Direct(d) if d.is_plain()))
+            .count()
+    }
+
     /// Leaf columns of the row group being filled that are written as split float pages.
     #[cfg(test)]
     fn split_leaves(&self) -> usize {
@@ -801,6 +812,44 @@ mod tests {
             .expect("reader")
             .metadata()
             .clone()
+    }
+
+    /// Batches of `batch(first row, rows)` of one row, of a block and one either side, of
+    /// a write batch and one either side, none, and long ones: blocks, miniblocks and pages
+    /// end within a batch, across batches and at a row group's end (in groups of 50 000).
+    fn awkward_batches(batch: impl Fn(u64, u64) -> RecordBatch) -> Vec<RecordBatch> {
+        let mut batches = Vec::new();
+        let mut lo = 0;
+        for n in [
+            1, 255, 256, 257, 1023, 1024, 1025, 0, 7, 20_000, 30_000, 2, 41_000, 5, 20_480, 333,
+        ] {
+            batches.push(batch(lo, n));
+            lo += n;
+        }
+        batches
+    }
+
+    /// Writes `batches` through a sink in row groups of 50 000 rows, checks that
+    /// `leaves.0(sink)`, the columns written directly of the kind asked, are `leaves.1`, and
+    /// that the file is `ArrowWriter`'s byte for byte; returns its metadata.
+    fn sink_writes_arrow_writers_file(
+        schema: &SchemaRef,
+        batches: &[RecordBatch],
+        leaves: (fn(&ParquetSink) -> usize, usize),
+    ) -> Arc<parquet::file::metadata::ParquetMetaData> {
+        let group_rows = 50_000;
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("table.parquet");
+        let mut sink =
+            ParquetSink::create_in_row_groups(&path, schema.clone(), group_rows).expect("sink");
+        for b in batches {
+            sink.write(b).expect("written");
+        }
+        assert_eq!(leaves.0(&sink), leaves.1, "columns written directly");
+        sink.finish().expect("finished");
+        let plain = arrow_writer_bytes(schema, group_rows, batches);
+        assert!(std::fs::read(&path).expect("read") == plain, "differs");
+        file_metadata(&path)
     }
 
     /// The file `ArrowWriter` writes of `batches` with the sink's settings, in row groups
@@ -1363,38 +1412,81 @@ mod tests {
             ];
             RecordBatch::try_new(schema.clone(), columns).expect("batch")
         };
-        let mut batches = Vec::new();
-        let mut lo = 0;
-        for n in [
-            1, 255, 256, 257, 1023, 1024, 1025, 0, 7, 20_000, 30_000, 2, 41_000, 5, 20_480, 333,
-        ] {
-            batches.push(batch(lo, n));
-            lo += n;
-        }
-        let group_rows = 50_000;
-        let dir = tempfile::tempdir().expect("temp dir");
-        let path = dir.path().join("delta.parquet");
-        let mut sink =
-            ParquetSink::create_in_row_groups(&path, schema.clone(), group_rows).expect("sink");
-        for b in &batches {
-            sink.write(b).expect("written");
-        }
-        assert_eq!(
-            sink.delta_leaves(),
-            12,
-            "every column is delta-encoded here"
-        );
-        sink.finish().expect("finished");
-        let plain = arrow_writer_bytes(&schema, group_rows, &batches);
-        assert!(std::fs::read(&path).expect("read") == plain, "differs");
+        let batches = awkward_batches(batch);
+        let leaves = (ParquetSink::delta_leaves as fn(&ParquetSink) -> usize, 12);
+        let meta = sink_writes_arrow_writers_file(&schema, &batches, leaves);
         // The unsigned column's bounds are in unsigned order, past i64's range.
-        let meta = file_metadata(&path);
         match meta.row_group(0).column(1).statistics() {
             Some(parquet::file::statistics::Statistics::Int64(s)) => {
                 assert_eq!(s.min_opt().map(|&m| m as u64), Some(SEQ_BASE));
                 assert_eq!(s.max_opt().map(|&m| m as u64), Some(SEQ_BASE + 49_999));
             }
             other => panic!("seq's statistics: {other:?}"),
+        }
+    }
+
+    /// Integer columns stored as INT32 written as plain pages of their own make
+    /// `ArrowWriter`'s file byte for byte: u8, u16 and i8, i16 widened, i32s below zero,
+    /// u32s past i32's range (bounds in unsigned order); nullable ones with a null every
+    /// fifth row, runs of nulls longer than a page, none; in the delta test's batches.
+    #[test]
+    fn plain_integer_pages_are_arrow_writers_whatever_the_values_and_batches() {
+        use arrow::array::{
+            Int8Array, Int16Array, Int32Array, UInt8Array, UInt16Array, UInt32Array,
+        };
+        let schema = Arc::new(Schema::new(vec![
+            Field::new("status", DataType::UInt16, false),
+            Field::new("code", DataType::UInt8, false),
+            Field::new("id", DataType::UInt32, false),
+            Field::new("signed", DataType::Int32, false),
+            Field::new("tiny", DataType::Int8, false),
+            Field::new("short", DataType::Int16, false),
+            Field::new("maybe_code", DataType::UInt8, true),
+            Field::new("maybe_id", DataType::UInt32, true),
+            Field::new("never_null", DataType::UInt16, true),
+        ]));
+        let batch = |lo: u64, n: u64| {
+            let rows = lo..lo + n;
+            let columns: Vec<ArrayRef> = vec![
+                Arc::new(UInt16Array::from_iter_values(
+                    rows.clone()
+                        .map(|k| if k % 7 == 0 { 0x8002 } else { (k % 3) as u16 }),
+                )),
+                Arc::new(UInt8Array::from_iter_values(
+                    rows.clone().map(|k| (k % 4) as u8),
+                )),
+                Arc::new(UInt32Array::from_iter_values(
+                    rows.clone().map(|k| 0x7FFF_FFF0_u32.wrapping_add(k as u32)),
+                )),
+                Arc::new(Int32Array::from_iter_values(
+                    rows.clone().map(|k| (k % 1000) as i32 - 500),
+                )),
+                Arc::new(Int8Array::from_iter_values(rows.clone().map(|k| k as i8))),
+                Arc::new(Int16Array::from_iter_values(
+                    rows.clone().map(|k| (k * 37) as i16),
+                )),
+                Arc::new(UInt8Array::from_iter(
+                    rows.clone()
+                        .map(|k| (k % 5 != 0).then_some((k % 200) as u8)),
+                )),
+                Arc::new(UInt32Array::from_iter(
+                    rows.clone()
+                        .map(|k| ((k / 25_000) % 3 != 1).then_some(u32::MAX - k as u32)),
+                )),
+                Arc::new(UInt16Array::from_iter_values(rows.map(|k| k as u16))),
+            ];
+            RecordBatch::try_new(schema.clone(), columns).expect("batch")
+        };
+        let batches = awkward_batches(batch);
+        let leaves = (ParquetSink::plain_leaves as fn(&ParquetSink) -> usize, 9);
+        let meta = sink_writes_arrow_writers_file(&schema, &batches, leaves);
+        // The unsigned column's bounds are in unsigned order, past i32's range.
+        match meta.row_group(0).column(2).statistics() {
+            Some(parquet::file::statistics::Statistics::Int32(s)) => {
+                assert_eq!(s.min_opt().map(|&m| m as u32), Some(0x7FFF_FFF0));
+                assert_eq!(s.max_opt().map(|&m| m as u32), Some(0x7FFF_FFF0 + 49_999));
+            }
+            other => panic!("id's statistics: {other:?}"),
         }
     }
 

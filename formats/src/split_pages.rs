@@ -29,14 +29,14 @@ use std::sync::{Mutex, OnceLock};
 use arrow::array::{ArrayRef, AsArray};
 use arrow::datatypes::{ArrowNativeType, ArrowPrimitiveType, Float32Type, Float64Type};
 use bytes::Bytes;
-use parquet::basic::{Compression, Encoding};
+use parquet::basic::Encoding;
 use parquet::column::writer::ColumnCloseResult;
 use parquet::errors::ParquetError;
-use parquet::file::properties::{EnabledStatistics, WriterPropertiesPtr, WriterVersion};
+use parquet::file::properties::WriterPropertiesPtr;
 use parquet::file::statistics::{Statistics, ValueStatistics};
 use parquet::schema::types::ColumnDescPtr;
 
-use crate::chunk_ledger::ChunkLedger;
+use crate::chunk_ledger::{ChunkLedger, PageSettings};
 use crate::parquet_columns::{ChunkPages, DirectShape, plain_values};
 use crate::split_doubles::SplitFloat;
 
@@ -306,17 +306,6 @@ impl PageScratch {
     }
 }
 
-/// The writer settings a [`SplitColumn`] takes from the file's.
-#[derive(Debug, Clone, Copy)]
-struct Settings {
-    /// Values encoded between checks of the page's size (then up to a row's end).
-    batch: usize,
-    /// A page is cut once it holds this many rows…
-    page_rows: usize,
-    /// … or this many bytes of values.
-    page_bytes: usize,
-}
-
 /// A float column without nulls, flat or in lists of a fixed length, written as
 /// BYTE_STREAM_SPLIT pages (see the module's notes).
 pub(crate) struct SplitColumn<T> {
@@ -324,7 +313,7 @@ pub(crate) struct SplitColumn<T> {
     shape: DirectShape,
     /// A list's levels, encoded for a page of the last count of values asked.
     levels: Option<ListLevels>,
-    settings: Settings,
+    settings: PageSettings,
     /// Values of the page being filled that came in an earlier batch (between batches:
     /// all of that page's).
     kept: Vec<T>,
@@ -343,10 +332,6 @@ impl<T: PageFloat> SplitColumn<T> {
         props: WriterPropertiesPtr,
         shape: DirectShape,
     ) -> Option<Self> {
-        let path = descr.path();
-        let Compression::ZSTD(level) = props.compression(path) else {
-            return None;
-        };
         let levels = match shape {
             DirectShape::Flat if descr.max_def_level() == 0 && descr.max_rep_level() == 0 => None,
             DirectShape::List { len } if len > 0 && descr.max_rep_level() == 1 => {
@@ -354,23 +339,19 @@ impl<T: PageFloat> SplitColumn<T> {
             }
             _ => return None,
         };
-        let taken = descr.physical_type() == <T as SplitFloat>::PHYSICAL
-            && props.statistics_enabled(path) == EnabledStatistics::Chunk
-            && props.writer_version() == WriterVersion::PARQUET_1_0
-            && !props.dictionary_enabled(path)
-            && props.encoding(path) == Some(Encoding::BYTE_STREAM_SPLIT)
-            && props.bloom_filter_properties(path).is_none()
-            && props.write_batch_size() > 0;
-        if !taken {
-            return None;
-        }
-        let settings = Settings {
-            batch: props.write_batch_size(),
-            page_rows: props.data_page_row_count_limit(),
-            page_bytes: props.column_data_page_size_limit(path),
-        };
+        let settings = PageSettings::of(
+            &descr,
+            &props,
+            <T as SplitFloat>::PHYSICAL,
+            Encoding::BYTE_STREAM_SPLIT,
+        )?;
         Some(Self {
-            chunk: ChunkLedger::new(descr.clone(), &props, Encoding::BYTE_STREAM_SPLIT, level),
+            chunk: ChunkLedger::new(
+                descr.clone(),
+                &props,
+                Encoding::BYTE_STREAM_SPLIT,
+                settings.zstd,
+            ),
             descr,
             shape,
             levels,
