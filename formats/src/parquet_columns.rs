@@ -5,13 +5,13 @@
 //! values by those indices into a copy, and only then encodes them. A column that cannot
 //! hold a null has nothing to gather: a required integer or float column, or a required
 //! fixed-size list of required 64-bit integers or floats (a 3-vector). Its values go to
-//! the same typed column writer as they lie in the array (narrow integers widened), with
-//! the levels such a column always has (none when flat; in a list, every value defined
-//! and each list's first value starting a record). Float columns go to [`SplitColumn`]
-//! instead, which encodes their pages itself (`split_pages`), and flat integer ones,
-//! nullable ones too, to [`IntColumn`] (`int_pages`: 64-bit ones delta-encoded, 32-bit
-//! and narrower ones plain). The pages, the column chunk and its metadata are the Arrow
-//! writer's, byte for byte (`parquet_io`'s tests compare whole files).
+//! the same typed column writer as they lie in the array, with the levels such a column
+//! always has (none when flat; in a list, every value defined and each list's first value
+//! starting a record). Float columns go to [`SplitColumn`] instead, which encodes their
+//! pages itself (`split_pages`), and flat integer ones, nullable ones too, to
+//! [`IntColumn`] (`int_pages`: 64-bit ones delta-encoded, 32-bit and narrower ones
+//! plain). The pages, the column chunk and its metadata are the Arrow writer's, byte for
+//! byte (`parquet_io`'s tests compare whole files).
 
 use std::io::Read;
 use std::sync::{Arc, Mutex};
@@ -20,6 +20,7 @@ use arrow::array::{Array, ArrayRef, AsArray};
 use arrow::datatypes::{DataType, Field, Float32Type, Float64Type, Int64Type, UInt64Type};
 use bytes::Bytes;
 use parquet::arrow::arrow_writer::{ArrowColumnChunk, ArrowColumnWriter};
+use parquet::basic::Type as PhysicalType;
 use parquet::column::page::{CompressedPage, PageWriteSpec, PageWriter};
 use parquet::column::writer::{ColumnCloseResult, ColumnWriter, get_column_writer};
 use parquet::errors::ParquetError;
@@ -30,7 +31,6 @@ use parquet::schema::types::ColumnDescPtr;
 
 use crate::delta_pages::DeltaEncoder;
 use crate::int_pages::IntColumn;
-use crate::int_pages::IntEncoder;
 use crate::plain_pages::PlainEncoder;
 use crate::split_pages::SplitColumn;
 
@@ -346,7 +346,13 @@ impl TypedColumn {
             DirectShape::List { .. } => descr.max_rep_level() == 1,
             DirectShape::Nullable => false,
         };
-        if !levels_fit {
+        // The physical types of the columns it writes (a narrow integer's INT32 column is
+        // `int_pages`' alone, or the Arrow writer's).
+        let writes = matches!(
+            descr.physical_type(),
+            PhysicalType::INT64 | PhysicalType::FLOAT | PhysicalType::DOUBLE
+        );
+        if !levels_fit || !writes {
             return None;
         }
         let max_def_level = descr.max_def_level();
@@ -395,11 +401,6 @@ impl TypedColumn {
             }
             (ColumnWriter::DoubleColumnWriter(w), DataType::Float64) => {
                 w.write_batch(values.as_primitive::<Float64Type>().values(), def, rep)
-            }
-            // Narrow integers widened, a u32's bits as an i32's, as the Arrow writer
-            // stores them.
-            (ColumnWriter::Int32ColumnWriter(w), _) => {
-                w.write_batch(&PlainEncoder::values(values)?, def, rep)
             }
             (_, t) => Err(ParquetError::General(format!(
                 "a {t} column for another physical type"
