@@ -1,4 +1,4 @@
-//! A column chunk whose pages are encoded here (`split_pages`' floats, `delta_pages`'
+//! A column chunk whose pages are encoded here (`split_pages`' floats, `int_pages`'
 //! integers): its pages as the file's page writer writes them, and what its metadata,
 //! offset index and row group record of them, as parquet-rs's column writer keeps them.
 

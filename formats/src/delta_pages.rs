@@ -77,35 +77,6 @@ fn pack(out: &mut Vec<u8>, values: &[u64; MINIBLOCK], width: u32) {
 }
 
 impl DeltaEncoder {
-    /// Takes `values` into the page (the crate's `put`).
-    fn put_values(&mut self, values: &[i64]) {
-        let Some((&head, _)) = values.split_first() else {
-            return;
-        };
-        let mut rest = if self.total == 0 {
-            self.first = head;
-            self.current = head;
-            &values[1..]
-        } else {
-            values
-        };
-        self.total += values.len();
-        while !rest.is_empty() {
-            // The block's next deltas: each value less the one before it (the first less
-            // the last value taken), in one pass the compiler vectorizes.
-            let take = rest.len().min(BLOCK - self.deltas.len());
-            let (now, later) = rest.split_at(take);
-            self.deltas.push(now[0].wrapping_sub(self.current));
-            self.deltas
-                .extend(now[1..].iter().zip(now).map(|(b, a)| b.wrapping_sub(*a)));
-            self.current = now[take - 1];
-            if self.deltas.len() == BLOCK {
-                self.flush_block();
-            }
-            rest = later;
-        }
-    }
-
     /// Encodes the block's deltas (up to [`BLOCK`]) into the page's blocks (the crate's
     /// `flush_block_values`): the least delta, each miniblock's width, the miniblocks
     /// above the least packed at their widths, the last one padded with zeros; a
@@ -131,22 +102,6 @@ impl DeltaEncoder {
             pack(&mut self.blocks, &above, width);
         }
         self.deltas.clear();
-    }
-
-    /// The page's encoded values (the crate's `flush_buffer`): the last block, then the
-    /// header (block size, miniblocks, values, first value) before the blocks; the encoder
-    /// is left empty.
-    fn finish_page(&mut self, out: &mut Vec<u8>) {
-        self.flush_block();
-        put_uleb128(out, BLOCK as u64);
-        put_uleb128(out, MINIBLOCKS as u64);
-        put_uleb128(out, self.total as u64);
-        put_zigzag_vlq(out, self.first);
-        out.extend_from_slice(&self.blocks);
-        self.blocks.clear();
-        self.total = 0;
-        self.first = 0;
-        self.current = 0;
     }
 }
 
@@ -185,8 +140,33 @@ impl IntEncoder for DeltaEncoder {
         }
     }
 
+    /// Takes `values` into the page (the crate's `put`).
     fn put(&mut self, values: &[i64]) {
-        self.put_values(values);
+        let Some((&head, _)) = values.split_first() else {
+            return;
+        };
+        let mut rest = if self.total == 0 {
+            self.first = head;
+            self.current = head;
+            &values[1..]
+        } else {
+            values
+        };
+        self.total += values.len();
+        while !rest.is_empty() {
+            // The block's next deltas: each value less the one before it (the first less
+            // the last value taken), in one pass the compiler vectorizes.
+            let take = rest.len().min(BLOCK - self.deltas.len());
+            let (now, later) = rest.split_at(take);
+            self.deltas.push(now[0].wrapping_sub(self.current));
+            self.deltas
+                .extend(now[1..].iter().zip(now).map(|(b, a)| b.wrapping_sub(*a)));
+            self.current = now[take - 1];
+            if self.deltas.len() == BLOCK {
+                self.flush_block();
+            }
+            rest = later;
+        }
     }
 
     /// The blocks encoded so far (the crate's estimate leaves the block being filled out).
@@ -194,7 +174,19 @@ impl IntEncoder for DeltaEncoder {
         self.blocks.len()
     }
 
+    /// The page's encoded values (the crate's `flush_buffer`): the last block, then the
+    /// header (block size, miniblocks, values, first value) before the blocks; the encoder
+    /// is left empty.
     fn finish_into(&mut self, out: &mut Vec<u8>) {
-        self.finish_page(out);
+        self.flush_block();
+        put_uleb128(out, BLOCK as u64);
+        put_uleb128(out, MINIBLOCKS as u64);
+        put_uleb128(out, self.total as u64);
+        put_zigzag_vlq(out, self.first);
+        out.extend_from_slice(&self.blocks);
+        self.blocks.clear();
+        self.total = 0;
+        self.first = 0;
+        self.current = 0;
     }
 }

@@ -123,7 +123,8 @@ pub(crate) struct IntColumn<E: IntEncoder> {
     /// Rows (values, nulls among them) in the page being filled.
     page_values: usize,
     /// A nullable column's definition levels of the page being filled (`None` for a
-    /// required column), and how many of them are nulls.
+    /// required column), and how many of them are nulls. Kept only once the page has a
+    /// null: the rows before it, and any after it not yet listed, are valid.
     page_levels: Option<Vec<u8>>,
     page_nulls: usize,
     /// The chunk's nulls so far.
@@ -191,9 +192,6 @@ impl<E: IntEncoder> IntColumn<E> {
         self.bounds.push(values);
         for batch in values.chunks(self.settings.batch) {
             self.encoder.put(batch);
-            if let Some(levels) = &mut self.page_levels {
-                levels.resize(levels.len() + batch.len(), 1);
-            }
             self.end_batch(batch.len())?;
         }
         Ok(())
@@ -214,6 +212,7 @@ impl<E: IntEncoder> IntColumn<E> {
             let end = values.len().min(start + batch);
             gathered.clear();
             let levels = self.page_levels.get_or_insert_with(Vec::new);
+            levels.resize(self.page_values, 1);
             for (k, &v) in values.iter().enumerate().take(end).skip(start) {
                 let valid = nulls.is_valid(k);
                 levels.push(u8::from(valid));
@@ -254,6 +253,7 @@ impl<E: IntEncoder> IntColumn<E> {
                 rle_constant(n, 1)
             }
             Some(levels) => {
+                levels.resize(n, 1);
                 let encoded = rle_hybrid(levels, 1);
                 levels.clear();
                 encoded

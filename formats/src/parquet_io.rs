@@ -462,45 +462,14 @@ impl ParquetSink {
         Ok(())
     }
 
-    /// Leaf columns of the row group being filled that are written directly.
+    /// Leaf columns of the row group being filled that are written directly by a writer
+    /// of the `kind` asked (all direct ones: `|_| true`).
     #[cfg(test)]
-    fn direct_leaves(&self) -> usize {
+    fn direct_leaves(&self, kind: fn(&DirectColumn) -> bool) -> usize {
         self.groups
             .writers
             .iter()
-            .filter(|c| matches!(c, LeafWriter::Direct(_)))
-            .count()
-    }
-
-    /// Leaf columns of the row group being filled that are written as delta-encoded pages
-    /// of their own.
-    #[cfg(test)]
-    fn delta_leaves(&self) -> usize {
-        self.groups
-            .writers
-            .iter()
-            .filter(|c| matches!(c, LeafWriter::Direct(d) if d.is_delta()))
-            .count()
-    }
-
-    /// Leaf columns of the row group being filled that are written as plain integer pages
-    /// of their own.
-    #[cfg(test)]
-    fn plain_leaves(&self) -> usize {
-        self.groups
-            .writers
-            .iter()
-            .filter(|c| matches!(c, LeafWriter::Direct(d) if d.is_plain()))
-            .count()
-    }
-
-    /// Leaf columns of the row group being filled that are written as split float pages.
-    #[cfg(test)]
-    fn split_leaves(&self) -> usize {
-        self.groups
-            .writers
-            .iter()
-            .filter(|c| matches!(c, LeafWriter::Direct(d) if d.is_split()))
+            .filter(|c| matches!(c, LeafWriter::Direct(d) if kind(d)))
             .count()
     }
 
@@ -829,13 +798,14 @@ mod tests {
         batches
     }
 
-    /// Writes `batches` through a sink in row groups of 50 000 rows, checks that
-    /// `leaves.0(sink)`, the columns written directly of the kind asked, are `leaves.1`, and
-    /// that the file is `ArrowWriter`'s byte for byte; returns its metadata.
+    /// Writes `batches` through a sink in row groups of 50 000 rows, checks that `leaves`
+    /// of its columns are written directly by a writer of the `kind` asked, and that the
+    /// file is `ArrowWriter`'s byte for byte; returns its metadata.
     fn sink_writes_arrow_writers_file(
         schema: &SchemaRef,
         batches: &[RecordBatch],
-        leaves: (fn(&ParquetSink) -> usize, usize),
+        kind: fn(&DirectColumn) -> bool,
+        leaves: usize,
     ) -> Arc<parquet::file::metadata::ParquetMetaData> {
         let group_rows = 50_000;
         let dir = tempfile::tempdir().expect("temp dir");
@@ -845,7 +815,7 @@ mod tests {
         for b in batches {
             sink.write(b).expect("written");
         }
-        assert_eq!(leaves.0(&sink), leaves.1, "columns written directly");
+        assert_eq!(sink.direct_leaves(kind), leaves, "columns written directly");
         sink.finish().expect("finished");
         let plain = arrow_writer_bytes(schema, group_rows, batches);
         assert!(std::fs::read(&path).expect("read") == plain, "differs");
@@ -962,8 +932,8 @@ mod tests {
                     // The plain columns without nulls are written directly: t_ns, x, v, h,
                     // count, pair; the floats x, v, h and pair as split pages; and the
                     // nullable integer maybe as delta-encoded pages.
-                    assert_eq!(sink.direct_leaves(), 7);
-                    assert_eq!(sink.split_leaves(), 4);
+                    assert_eq!(sink.direct_leaves(|_| true), 7);
+                    assert_eq!(sink.direct_leaves(DirectColumn::is_split), 4);
                 }
             }
             assert_eq!(sink.rows(), lo);
@@ -1298,7 +1268,7 @@ mod tests {
         for b in &batches {
             sink.write(b).expect("written");
         }
-        assert_eq!(sink.split_leaves(), 7);
+        assert_eq!(sink.direct_leaves(DirectColumn::is_split), 7);
         sink.finish().expect("finished");
         let plain = arrow_writer_bytes(&schema, group_rows, &batches);
         assert!(std::fs::read(&path).expect("read") == plain, "differs");
@@ -1413,8 +1383,7 @@ mod tests {
             RecordBatch::try_new(schema.clone(), columns).expect("batch")
         };
         let batches = awkward_batches(batch);
-        let leaves = (ParquetSink::delta_leaves as fn(&ParquetSink) -> usize, 12);
-        let meta = sink_writes_arrow_writers_file(&schema, &batches, leaves);
+        let meta = sink_writes_arrow_writers_file(&schema, &batches, DirectColumn::is_delta, 12);
         // The unsigned column's bounds are in unsigned order, past i64's range.
         match meta.row_group(0).column(1).statistics() {
             Some(parquet::file::statistics::Statistics::Int64(s)) => {
@@ -1478,8 +1447,7 @@ mod tests {
             RecordBatch::try_new(schema.clone(), columns).expect("batch")
         };
         let batches = awkward_batches(batch);
-        let leaves = (ParquetSink::plain_leaves as fn(&ParquetSink) -> usize, 9);
-        let meta = sink_writes_arrow_writers_file(&schema, &batches, leaves);
+        let meta = sink_writes_arrow_writers_file(&schema, &batches, DirectColumn::is_plain, 9);
         // The unsigned column's bounds are in unsigned order, past i32's range.
         match meta.row_group(0).column(2).statistics() {
             Some(parquet::file::statistics::Statistics::Int32(s)) => {
