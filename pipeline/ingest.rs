@@ -47,15 +47,8 @@ use unz_stages::lost_samples::SeqSteps;
 /// a row took the ingest to 310 MB, and more would take any memory.
 const MAX_MARKS: u64 = 100_000;
 
-/// Rows per Parquet batch handed to a table's encoding thread. The tables' threads wait
-/// for their first batch and encode the last one after the reading is done, on a core
-/// that has nothing else left: at 65 536 rows the IMU table's first quarter of a 40-minute
-/// log was read before its thread started and its last 43 000 rows were encoded alone
-/// for 6–8 ms after. At 8 192 both waits are an eighth as long (the ingest's best pass
-/// 53 → 50 ms, the same CPU); at 4 096 a batch's hand-over costs more than it saves. A
-/// page is cut after a write batch of the writer's (1 024 values, to a row's end)
-/// counted from a batch's first row, so the pages' ends follow this.
-const BATCH_ROWS: usize = 1 << 13;
+/// Rows per Parquet batch.
+const BATCH_ROWS: usize = 1 << 16;
 
 /// The most samples the ingest makes room for before reading a raw log (8.4 M: 23 hours
 /// at 100 Hz); a longer log's columns grow as they fill. A file's size is no promise of

@@ -118,9 +118,7 @@ fn ingest_keeping(ctx: &RunCtx, params: &Params, for_derive: bool) -> anyhow::Re
         // set back and lines lost. 39: a text log whose steps of one period and of two
         // come as regularly as a clock ticking finer than its period would stamp them is
         // read as losing lines regularly when its velocity increments span one step.
-        // 40: the tables handed to their threads in batches of 8 192 rows, not 65 536
-        // (their pages end elsewhere; every value the same).
-        version: 40,
+        version: 39,
         params_hash: params_hash(&(
             m.odometer.scale_m_per_pulse,
             params.ingest,
