@@ -308,7 +308,8 @@ impl Sinks {
         }
     }
 
-    /// [`Self::flush`]'s batches written.
+    /// Writes the batches [`Self::flush`] found due: each table's rows once they fill a
+    /// batch, or whatever they hold when `force`.
     #[inline(never)]
     fn write_batches(&mut self, force: bool) -> anyhow::Result<()> {
         let due = |rows: usize| rows > 0 && (force || rows >= BATCH_ROWS);
