@@ -5,8 +5,10 @@
 //! The Arrow writer widens a narrow column into a new array, then its column writer finds
 //! each batch's bounds and copies each value through its encoder, dispatched on the
 //! column's type: 11.7 M instructions for the IMU table's status word and as many for the
-//! odometer's source code in a 40-minute ingest (session 94). Here a batch's values are
-//! widened as they are copied, four bytes each, little-endian.
+//! odometer's source code in a 40-minute ingest (session 94). Here a narrow column's
+//! values are widened into one i32 copy (an `Int32` or `UInt32` column's are taken as
+//! they lie), its bounds found in one pass over it ([`crate::int_pages`]), and its
+//! values copied into the page as little-endian bytes, four each.
 
 use std::borrow::Cow;
 
