@@ -17,7 +17,7 @@ use unz_formats::ros2_msgs::{ControlPointMark, ImuSample, OdometerSample};
 /// twice as many as the one before, up to [`BATCH_MAX`]. The small first batch starts the
 /// thread early. Large batches after it cost less CPU where the host is slow: at 8 192
 /// messages throughout (460 KB a batch, about 30 for a 40-minute log) the full ingest
-/// took 157–224 MB/s and a median of 0.1025 s of CPU a pass, growing to 65 536 190–217
+/// took 157–224 MB/s and a median of 0.1025 s of CPU a pass; growing to 65 536, 190–217
 /// MB/s and 0.093 s (16 benches alternately, session 96; 2–3 % slower in the host's quick
 /// spells, up to a fifth quicker in its slow ones). The slack was not the cause: 32
 /// batches of 8 192 in flight measured as 4. The same bytes are written either way.
@@ -26,8 +26,8 @@ const BATCH_FIRST: usize = 8192;
 const BATCH_MAX: usize = 65_536;
 /// Batches in flight (bounds the memory the thread can fall behind by: with the batch
 /// being filled, the one being written and those given back, at most six batches, about
-/// 22 MB: a batch is made only when none is given back). Two in flight made the reading wait for the thread (a slower ingest than
-/// 8 192-message batches).
+/// 22 MB, as a batch is made only when none is given back). Two in flight made the
+/// reading wait for the thread (a slower ingest than 8 192-message batches).
 const IN_FLIGHT: usize = 4;
 /// Shortest interval between two `/odometer` messages, ns.
 const ODOMETER_VIEW_PERIOD_NS: i64 = 100_000_000;
@@ -287,7 +287,6 @@ mod tests {
             [8192, 16_384, 32_768, 65_536, 65_536, 65_536],
             "batch lengths handed over"
         );
-        crate::file_hashes::remember_what_formats_write();
         w.finish().unwrap();
         let bytes = std::fs::read(&path).unwrap();
         let seqs: Vec<u64> = mcap::MessageStream::new(&bytes)
