@@ -206,6 +206,11 @@ impl RawMcapWriter {
             _ => Vec::with_capacity(self.batch_len),
         };
         let items = std::mem::replace(&mut self.batch, next);
+        self.hand_over(items);
+    }
+
+    /// Queues `items` for the thread.
+    fn hand_over(&mut self, items: Vec<Item>) {
         // A closed channel means the thread stopped on an error: `finish` reports it.
         if let Some(orders) = &self.orders
             && orders.send(Order::Write(items)).is_err()
@@ -217,7 +222,9 @@ impl RawMcapWriter {
     /// Writes what is queued, the summary, and renames the file into place; the thread's
     /// first error if it had one.
     pub fn finish(mut self) -> anyhow::Result<()> {
-        self.send();
+        // The last batch, with no next one to fill.
+        let items = std::mem::take(&mut self.batch);
+        self.hand_over(items);
         if let Some(orders) = self.orders.take() {
             // An error here means the thread already stopped: its result says why.
             let _ = orders.send(Order::Commit);
